@@ -1,0 +1,62 @@
+//! `handclasp`: base-frame calibration of two cooperating robots, for engineers.
+//!
+//! Thin glue: `main → run → ExitCode`. Each subcommand lives in its own module with a clap `Args`
+//! struct and a `run` function; the libraries do the work.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod calibrate;
+mod diagnose;
+mod fk;
+mod ik;
+mod paper;
+mod paper_diagnose;
+
+/// Calibrate the base frames of two cooperating robots from handclasp points.
+///
+/// Files and flags speak millimetres and degrees, like robot controllers. Every command takes
+/// `--json` for scripts; the default output is a readable table.
+#[derive(Parser, Debug)]
+#[command(name = "handclasp", version, about, long_about = None, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Forward kinematics: joint angles (deg) to the tip pose (mm, ZYZ deg), as the pendant shows it.
+    Fk(fk::Args),
+    /// Inverse kinematics: a tip position (mm) to joint angles (deg), or "unreachable".
+    Ik(ik::Args),
+    /// Fit b1_from_b2 from a CSV of handclasp points.
+    Calibrate(calibrate::Args),
+    /// The paper's published results: Table 1 recomputed, and its discrepancy diagnosis.
+    #[command(subcommand)]
+    Paper(paper::Command),
+    /// Find what the nominal models get wrong in a measured session, name the cause, and measure the gain.
+    Diagnose(diagnose::Args),
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Fk(args) => fk::run(args),
+        Command::Ik(args) => ik::run(args),
+        Command::Calibrate(args) => calibrate::run(args),
+        Command::Paper(cmd) => paper::run(cmd),
+        Command::Diagnose(args) => diagnose::run(args),
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

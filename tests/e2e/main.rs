@@ -1,0 +1,8 @@
+//! End-to-end tests: the `handclasp` and `sim-cell` binaries run as a new user would run them.
+//! One test binary (owned by the `handclasp` package), one module per command.
+
+mod calibrate;
+mod diagnose;
+mod fk_ik;
+mod paper;
+mod sim;
