@@ -1,1 +1,30 @@
-//! placeholder
+#![doc = include_str!("../README.md")]
+
+mod error;
+pub mod fast;
+pub mod identify;
+mod metrics;
+pub mod paper;
+mod points;
+mod registration;
+mod robust;
+mod soft;
+
+pub use error::CalibError;
+pub use kinematics::{rotation_from_zyz, wrap_angle, zyz_from_rotation, zyz_nearest};
+pub use fast::{
+    constrained_fast, generic_fast, paper_fast, rigid_fit_fast, rotation_maximizing_trace,
+};
+pub use metrics::{e_rot, e_rot_raw, e_rot_zyz, e_tran, geodesic_angle};
+pub use points::{
+    parse_points_csv, read_points_csv, PointPairs, DUPLICATE_DISTANCE_M, METRES_LIMIT_MM,
+    SPREAD_RATIO_LIMIT,
+};
+pub use registration::{
+    constrained_lsq, fit, generic_4point, nearest_rotation, nearest_rotation_horn,
+    paper_constrained, project_rotation_family, rigid_lsq, spread_singular_values,
+    wall_family_angles, wall_rotation, ConstrainedOptions, Fit, Method, Mount, MountPair,
+    Uncertainty, COLLINEAR_REL, COPLANAR_REL,
+};
+pub use robust::{leave_one_out, OutlierReport, OUTLIER_FACTOR, OUTLIER_MIN_M};
+pub use soft::{constrained_soft, SoftFit};

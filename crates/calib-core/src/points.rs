@@ -1,0 +1,343 @@
+//! Handclasp point pairs and their CSV input.
+//!
+//! CSV format (as a controller exports it, or as `sim-cell` writes a session): a header with at least
+//! `r1_x_mm,r1_y_mm,r1_z_mm,r2_x_mm,r2_y_mm,r2_z_mm` in any order; other columns (`point`,
+//! `r1_q1_deg`, …) are ignored. Robot 1's point is in base 1, robot 2's in base 2, millimetres.
+//! The reader converts to metres and rejects, naming the line and the fix: missing columns, empty or
+//! non-numeric or non-finite cells, duplicate points, coordinates that look like metres, and a large
+//! spread mismatch between the two robots.
+
+use crate::error::CalibError;
+use nalgebra::Point3;
+use std::path::Path;
+
+/// Paired handclasp points: `p_b1[i]` (base 1, m) and `p_b2[i]` (base 2, m) are the same physical point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointPairs {
+    /// Robot 1's tip points in base 1, m.
+    pub p_b1: Vec<Point3<f64>>,
+    /// Robot 2's tip points in base 2, m.
+    pub p_b2: Vec<Point3<f64>>,
+    /// 1-based source rows for messages (for a CSV: the line number, header = line 1).
+    pub rows: Vec<usize>,
+}
+
+/// Two points of one robot closer than this (m) are duplicates.
+pub const DUPLICATE_DISTANCE_M: f64 = 1e-4;
+/// If every |coordinate| of a robot is below this (mm), the file was written in metres.
+pub const METRES_LIMIT_MM: f64 = 5.0;
+/// A ratio of the two robots' RMS spreads above this is rejected as a unit mismatch.
+pub const SPREAD_RATIO_LIMIT: f64 = 20.0;
+
+impl PointPairs {
+    /// Pairs with rows numbered 1..=n. Errors if the lengths differ.
+    pub fn new(p_b1: Vec<Point3<f64>>, p_b2: Vec<Point3<f64>>) -> Result<Self, CalibError> {
+        if p_b1.len() != p_b2.len() {
+            return Err(CalibError::LengthMismatch {
+                what: "p_b1 and p_b2".into(),
+                a: p_b1.len(),
+                b: p_b2.len(),
+            });
+        }
+        let rows = (1..=p_b1.len()).collect();
+        Ok(PointPairs { p_b1, p_b2, rows })
+    }
+
+    /// Number of point pairs.
+    pub fn len(&self) -> usize {
+        self.p_b1.len()
+    }
+
+    /// True when there are no points.
+    pub fn is_empty(&self) -> bool {
+        self.p_b1.is_empty()
+    }
+
+    /// The source row of point `i` (falls back to `i + 1` when `rows` is short).
+    pub fn row(&self, i: usize) -> usize {
+        self.rows.get(i).copied().unwrap_or(i + 1)
+    }
+
+    /// The pairs without point `i` (for leave-one-out).
+    pub fn without(&self, i: usize) -> PointPairs {
+        let keep = |v: &Vec<Point3<f64>>| {
+            v.iter()
+                .enumerate()
+                .filter(|(k, _)| *k != i)
+                .map(|(_, p)| *p)
+                .collect::<Vec<_>>()
+        };
+        PointPairs {
+            p_b1: keep(&self.p_b1),
+            p_b2: keep(&self.p_b2),
+            rows: (0..self.len())
+                .filter(|k| *k != i)
+                .map(|k| self.row(k))
+                .collect(),
+        }
+    }
+
+    /// Checks for duplicate points (closer than [`DUPLICATE_DISTANCE_M`] in either robot) and for a
+    /// spread mismatch beyond [`SPREAD_RATIO_LIMIT`]. `source_name` names the data in messages.
+    pub fn check_consistency(&self, source_name: &str) -> Result<(), CalibError> {
+        let n = self.len();
+        for i in 0..n {
+            for j in (i + 1)..n {
+                for (robot, pts) in [(1u8, &self.p_b1), (2u8, &self.p_b2)] {
+                    let d = (pts[i] - pts[j]).norm();
+                    if d < DUPLICATE_DISTANCE_M {
+                        return Err(CalibError::Duplicate {
+                            row_a: self.row(i),
+                            row_b: self.row(j),
+                            robot,
+                            distance_mm: d * 1e3,
+                        });
+                    }
+                }
+            }
+        }
+        if n >= 2 {
+            let s1 = rms_spread(&self.p_b1);
+            let s2 = rms_spread(&self.p_b2);
+            let ratio = s1.max(s2) / s1.min(s2).max(f64::MIN_POSITIVE);
+            if ratio > SPREAD_RATIO_LIMIT {
+                return Err(CalibError::SpreadMismatch {
+                    source_name: source_name.into(),
+                    spread1_mm: s1 * 1e3,
+                    spread2_mm: s2 * 1e3,
+                    ratio,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+fn rms_spread(points: &[Point3<f64>]) -> f64 {
+    let n = points.len() as f64;
+    let c = points
+        .iter()
+        .fold(nalgebra::Vector3::zeros(), |a, p| a + p.coords)
+        / n;
+    (points
+        .iter()
+        .map(|p| (p.coords - c).norm_squared())
+        .sum::<f64>()
+        / n)
+        .sqrt()
+}
+
+const COLUMNS: [&str; 6] = [
+    "r1_x_mm", "r1_y_mm", "r1_z_mm", "r2_x_mm", "r2_y_mm", "r2_z_mm",
+];
+
+/// Reads handclasp points from a CSV in millimetres (see the module doc) and returns them in metres.
+///
+/// Errors (each naming the file, line/column and the fix): unreadable file, malformed CSV, missing
+/// column, empty / non-numeric / non-finite cell, no data rows, duplicate points, coordinates that look
+/// like metres (all |value| < 5 for a robot), a robot spread ≥ 20× the other's.
+pub fn read_points_csv(path: &Path) -> Result<PointPairs, CalibError> {
+    let text = std::fs::read_to_string(path).map_err(|e| CalibError::Io {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    parse_points_csv(&text, path)
+}
+
+/// Parses CSV text as [`read_points_csv`] does; `path` is used in messages only.
+pub fn parse_points_csv(text: &str, path: &Path) -> Result<PointPairs, CalibError> {
+    let mut reader = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .flexible(false)
+        .from_reader(text.as_bytes());
+    let headers = reader
+        .headers()
+        .map_err(|e| CalibError::Csv {
+            path: path.to_path_buf(),
+            line: 1,
+            message: e.to_string(),
+        })?
+        .clone();
+    let mut idx = [0usize; 6];
+    for (k, col) in COLUMNS.iter().enumerate() {
+        idx[k] =
+            headers
+                .iter()
+                .position(|h| h == *col)
+                .ok_or_else(|| CalibError::MissingColumn {
+                    path: path.to_path_buf(),
+                    column: col.to_string(),
+                    found: headers.iter().collect::<Vec<_>>().join(","),
+                })?;
+    }
+    let mut pairs = PointPairs {
+        p_b1: Vec::new(),
+        p_b2: Vec::new(),
+        rows: Vec::new(),
+    };
+    for record in reader.records() {
+        let record = record.map_err(|e| CalibError::Csv {
+            path: path.to_path_buf(),
+            line: e.position().map(|p| p.line() as usize).unwrap_or(0),
+            message: e.to_string(),
+        })?;
+        let line = record.position().map(|p| p.line() as usize).unwrap_or(0);
+        if record.iter().all(|c| c.is_empty()) {
+            continue; // blank line
+        }
+        let mut v = [0.0f64; 6];
+        for k in 0..6 {
+            let cell = record.get(idx[k]).unwrap_or("");
+            let bad = |problem: &'static str, fix: &'static str| CalibError::BadCell {
+                path: path.to_path_buf(),
+                line,
+                column: COLUMNS[k].into(),
+                value: cell.into(),
+                problem,
+                fix,
+            };
+            if cell.is_empty() {
+                return Err(bad(
+                    "empty cell",
+                    "fill in the coordinate in millimetres, or delete the row",
+                ));
+            }
+            let x: f64 = cell.parse().map_err(|_| {
+                bad(
+                    "not a number",
+                    "write a plain decimal number in millimetres (e.g. 1234.5)",
+                )
+            })?;
+            if !x.is_finite() {
+                return Err(bad(
+                    "not finite",
+                    "re-record the point; NaN/inf cannot be calibrated",
+                ));
+            }
+            v[k] = x;
+        }
+        pairs.p_b1.push(Point3::new(v[0], v[1], v[2]) * 1e-3);
+        pairs.p_b2.push(Point3::new(v[3], v[4], v[5]) * 1e-3);
+        pairs.rows.push(line);
+    }
+    if pairs.is_empty() {
+        return Err(CalibError::TooFewPoints {
+            method: format!("any (file {} has no data rows)", path.display()),
+            needed: 3,
+            got: 0,
+        });
+    }
+    for (robot, pts) in [(1u8, &pairs.p_b1), (2u8, &pairs.p_b2)] {
+        if pts
+            .iter()
+            .all(|p| p.iter().all(|c| c.abs() * 1e3 < METRES_LIMIT_MM))
+        {
+            return Err(CalibError::LooksLikeMetres {
+                path: path.to_path_buf(),
+                robot,
+                limit_mm: METRES_LIMIT_MM,
+            });
+        }
+    }
+    pairs.check_consistency(&path.display().to_string())?;
+    Ok(pairs)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<PointPairs, CalibError> {
+        parse_points_csv(text, Path::new("points.csv"))
+    }
+
+    const GOOD: &str = "point,r1_q1_deg,r1_x_mm,r1_y_mm,r1_z_mm,r2_x_mm,r2_y_mm,r2_z_mm\n\
+        1,0.0,1000,0,500,10,20,30\n\
+        2,0.0,0,1000,500,-990,1020,30\n\
+        3,0.0,500,500,1200,-490,520,730\n";
+
+    #[test]
+    fn reads_and_converts_mm_to_m() {
+        let p = parse(GOOD).unwrap();
+        assert_eq!(p.len(), 3);
+        assert_eq!(p.rows, vec![2, 3, 4]);
+        assert!((p.p_b1[0].x - 1.0).abs() < 1e-12);
+        assert!((p.p_b2[2].z - 0.73).abs() < 1e-12);
+    }
+
+    #[test]
+    fn column_order_free() {
+        let t = "r2_z_mm,r2_y_mm,r2_x_mm,r1_z_mm,r1_y_mm,r1_x_mm\n30,20,10,500,0,1000\n40,900,10,500,880,1000\n";
+        let p = parse(t).unwrap();
+        assert!((p.p_b2[0].x - 0.010).abs() < 1e-12);
+        assert!((p.p_b1[1].y - 0.88).abs() < 1e-12);
+    }
+
+    #[test]
+    fn missing_column_named() {
+        let e = parse("r1_x_mm,r1_y_mm,r1_z_mm,r2_x_mm,r2_y_mm\n1,2,3,4,5\n").unwrap_err();
+        let msg = e.to_string();
+        assert!(
+            msg.contains("r2_z_mm") && msg.contains("points.csv"),
+            "{msg}"
+        );
+    }
+
+    #[test]
+    fn empty_and_nan_cells_name_line_and_column() {
+        let t = GOOD.replace("-990", "");
+        let msg = parse(&t).unwrap_err().to_string();
+        assert!(
+            msg.contains("line 3") && msg.contains("r2_x_mm") && msg.contains("empty"),
+            "{msg}"
+        );
+        let t = GOOD.replace("-990", "NaN");
+        let msg = parse(&t).unwrap_err().to_string();
+        assert!(
+            msg.contains("line 3") && msg.contains("not finite"),
+            "{msg}"
+        );
+        let t = GOOD.replace("-990", "abc");
+        let msg = parse(&t).unwrap_err().to_string();
+        assert!(msg.contains("not a number"), "{msg}");
+    }
+
+    #[test]
+    fn ragged_row_is_an_error() {
+        let t = format!("{GOOD}4,0.0,1,2\n");
+        let e = parse(&t).unwrap_err();
+        assert!(matches!(e, CalibError::Csv { line: 5, .. }), "{e}");
+    }
+
+    #[test]
+    fn metres_detected() {
+        let t = "r1_x_mm,r1_y_mm,r1_z_mm,r2_x_mm,r2_y_mm,r2_z_mm\n1.0,0,0.5,0.01,0.02,0.03\n0,1.0,0.5,-0.99,1.02,0.03\n";
+        let msg = parse(t).unwrap_err().to_string();
+        assert!(msg.contains("metres") && msg.contains("multiply"), "{msg}");
+    }
+
+    #[test]
+    fn spread_mismatch_detected() {
+        // Robot 2 in metres-times-something: spreads 1000× apart, but not all below 5.
+        let t = "r1_x_mm,r1_y_mm,r1_z_mm,r2_x_mm,r2_y_mm,r2_z_mm\n\
+                 1000,0,500,10,20,30\n0,1000,500,9,21,30\n500,500,1200,9.5,20.5,30.7\n";
+        let e = parse(t).unwrap_err();
+        assert!(matches!(e, CalibError::SpreadMismatch { .. }), "{e}");
+    }
+
+    #[test]
+    fn duplicates_detected() {
+        let t = format!("{GOOD}4,0.0,1000,0,500,10,20,30\n");
+        let e = parse(&t).unwrap_err();
+        match e {
+            CalibError::Duplicate { row_a, row_b, .. } => assert_eq!((row_a, row_b), (2, 5)),
+            other => panic!("expected duplicate, got {other}"),
+        }
+    }
+
+    #[test]
+    fn no_rows() {
+        let e = parse("r1_x_mm,r1_y_mm,r1_z_mm,r2_x_mm,r2_y_mm,r2_z_mm\n").unwrap_err();
+        assert!(matches!(e, CalibError::TooFewPoints { got: 0, .. }));
+    }
+}

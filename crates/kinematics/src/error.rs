@@ -1,0 +1,159 @@
+//! Typed errors of the kinematics crate: loading a model ([`ModelError`]) and evaluating it
+//! ([`KinematicsError`]). Every message says what is wrong and how to fix it.
+
+use std::path::PathBuf;
+
+/// Failure to build a [`crate::RobotModel`] from a URDF.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelError {
+    /// The URDF file could not be read.
+    #[error("cannot read URDF file {path}: {source}; check the path (relative paths are from the current directory)")]
+    Io {
+        /// The file that was opened.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The text is not a URDF the parser understands.
+    #[error("{source_name}: not a valid URDF: {message}; fix the XML (every <joint> needs <parent>, <child> and, for revolute joints, <limit>)")]
+    Parse {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The parser's message.
+        message: String,
+    },
+    /// The requested tool link (or a link a joint refers to) does not exist.
+    #[error("{source_name}: link `{link}` not found; known links: {known}. Pass an existing link (e.g. --tool-link tool0)")]
+    MissingLink {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The missing link.
+        link: String,
+        /// Comma-separated list of the links that exist.
+        known: String,
+    },
+    /// A link has more than one child joint: only serial chains are supported.
+    #[error("{source_name}: link `{link}` has {children} child joints ({names}); only serial chains are supported: remove the extra branches")]
+    Branching {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The branching link.
+        link: String,
+        /// Number of child joints.
+        children: usize,
+        /// Their names, comma separated.
+        names: String,
+    },
+    /// A link is the child of more than one joint, or the chain loops.
+    #[error("{source_name}: link `{link}` is the child of several joints or lies on a loop; a URDF must be a tree")]
+    NotATree {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The offending link.
+        link: String,
+    },
+    /// A joint type other than revolute, continuous or fixed lies on the chain.
+    #[error("{source_name}: joint `{joint}` is of type {kind}, which is unsupported; only revolute, continuous and fixed joints are")]
+    UnsupportedJoint {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The joint.
+        joint: String,
+        /// Its URDF type.
+        kind: String,
+    },
+    /// An actuated joint has a zero or non-finite axis.
+    #[error("{source_name}: joint `{joint}` has axis {axis:?}, which is zero or not finite; give a non-zero <axis xyz=\"...\"/>")]
+    ZeroAxis {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The joint.
+        joint: String,
+        /// The axis as written.
+        axis: [f64; 3],
+    },
+    /// Joint limits are not finite or lower > upper.
+    #[error("{source_name}: joint `{joint}` has limits lower={lower} rad, upper={upper} rad; need finite lower <= upper in radians")]
+    BadLimits {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The joint.
+        joint: String,
+        /// Lower limit, rad.
+        lower: f64,
+        /// Upper limit, rad.
+        upper: f64,
+    },
+    /// A non-finite number in an origin.
+    #[error("{source_name}: joint `{joint}` has a non-finite <origin>; fix its xyz/rpy")]
+    BadOrigin {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The joint.
+        joint: String,
+    },
+    /// The chain from the root to the tool link has no actuated joint.
+    #[error("{source_name}: no revolute or continuous joint between the root and `{tool_link}`; choose a tool link at the end of the arm")]
+    NoActuatedJoints {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The requested tool link.
+        tool_link: String,
+    },
+}
+
+/// Failure to evaluate a model at given inputs (bad joint vector, bad target, ...).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum KinematicsError {
+    /// Joint vector of the wrong length.
+    #[error("joint vector has {got} values but {robot} has {expected} joints; give one angle per joint, in chain order")]
+    WrongLength {
+        /// Robot name.
+        robot: String,
+        /// Number of actuated joints.
+        expected: usize,
+        /// Number of values given.
+        got: usize,
+    },
+    /// A joint value is NaN or infinite.
+    #[error("joint {index} ({joint}) is {value}, not a finite number; give finite angles")]
+    NotFinite {
+        /// 1-based joint number.
+        index: usize,
+        /// Joint name.
+        joint: String,
+        /// The value.
+        value: f64,
+    },
+    /// A joint value is plainly in degrees where radians are expected.
+    #[error("joint {index} ({joint}) is {value} rad, which looks like degrees ({value} deg is inside the limits {lower_deg:.1}..{upper_deg:.1} deg); convert degrees to radians (x·π/180)")]
+    LooksLikeDegrees {
+        /// 1-based joint number.
+        index: usize,
+        /// Joint name.
+        joint: String,
+        /// The value given, rad.
+        value: f64,
+        /// Lower limit, deg.
+        lower_deg: f64,
+        /// Upper limit, deg.
+        upper_deg: f64,
+    },
+    /// A joint value is outside the joint limits.
+    #[error("joint {index} ({joint}) is {value_deg:.3} deg, outside its limits {lower_deg:.3}..{upper_deg:.3} deg; move it inside the range")]
+    OutOfLimits {
+        /// 1-based joint number.
+        index: usize,
+        /// Joint name.
+        joint: String,
+        /// The value, deg.
+        value_deg: f64,
+        /// Lower limit, deg.
+        lower_deg: f64,
+        /// Upper limit, deg.
+        upper_deg: f64,
+    },
+    /// Another input (target, tip offset, option) is invalid.
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
+}

@@ -1,0 +1,404 @@
+//! Serial-chain robot model loaded from a URDF.
+//!
+//! Frames: `base` is the URDF root link; the flange is the requested tool link (`tool0`).
+//! `base_from_flange(q) = Π_k [fixed_prefix_k · Origin(xyz_k, rpy_k) · Rot(axis_k, q_k)] · last_from_flange`,
+//! with `Origin` rotation `Rz(yaw)·Ry(pitch)·Rx(roll)` (URDF). Lengths in metres, angles in radians.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use nalgebra::{Isometry3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
+
+use crate::error::{KinematicsError, ModelError};
+
+/// URDF rpy to a rotation: `R = Rz(yaw)·Ry(pitch)·Rx(roll)` with `rpy = (roll, pitch, yaw)`, rad.
+pub fn rotation_from_rpy(rpy: &Vector3<f64>) -> Rotation3<f64> {
+    Rotation3::from_axis_angle(&Vector3::z_axis(), rpy.z)
+        * Rotation3::from_axis_angle(&Vector3::y_axis(), rpy.y)
+        * Rotation3::from_axis_angle(&Vector3::x_axis(), rpy.x)
+}
+
+/// URDF `<origin xyz rpy>` (m, rad) as the isometry `parent_from_joint`.
+pub fn origin_isometry(xyz: &Vector3<f64>, rpy: &Vector3<f64>) -> Isometry3<f64> {
+    Isometry3::from_parts(
+        Translation3::from(*xyz),
+        UnitQuaternion::from_rotation_matrix(&rotation_from_rpy(rpy)),
+    )
+}
+
+/// One actuated (revolute or continuous) joint of the chain.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Joint {
+    /// URDF joint name.
+    pub name: String,
+    /// URDF parent link.
+    pub parent_link: String,
+    /// URDF child link.
+    pub child_link: String,
+    /// Fixed joints between the previous actuated joint's frame and this joint's URDF parent link
+    /// (identity if none; also holds any fixed joints before the first actuated joint).
+    pub fixed_prefix: Isometry3<f64>,
+    /// URDF `<origin xyz>`, m, in the parent link frame.
+    pub origin_xyz: Vector3<f64>,
+    /// URDF `<origin rpy>`, rad (`Rz(yaw)·Ry(pitch)·Rx(roll)`).
+    pub origin_rpy: Vector3<f64>,
+    /// Rotation axis, unit, in the joint frame.
+    pub axis: Unit<Vector3<f64>>,
+    /// Lower limit, rad (`-inf` for continuous joints).
+    pub lower: f64,
+    /// Upper limit, rad (`+inf` for continuous joints).
+    pub upper: f64,
+    /// Velocity limit, rad/s.
+    pub velocity: f64,
+    /// Effort limit, N·m.
+    pub effort: f64,
+}
+
+/// Mass and centre of mass of everything rigidly carried by one actuated joint.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LumpedInertial {
+    /// Mass, kg.
+    pub mass: f64,
+    /// Centre of mass, m, in the joint's frame after its rotation (zero if `mass == 0`).
+    pub com: Vector3<f64>,
+}
+
+/// Precomputed per-joint data for the hot path.
+#[derive(Debug, Clone)]
+pub(crate) struct Step {
+    /// `fixed_prefix · Origin(xyz, rpy)`.
+    pub(crate) prev_from_joint: Isometry3<f64>,
+    /// Axis in the joint frame.
+    pub(crate) axis: Unit<Vector3<f64>>,
+    /// 0, 1, 2 if the axis is ±x, ±y, ±z exactly; 3 otherwise.
+    pub(crate) axis_kind: u8,
+    /// Sign of the axis when `axis_kind < 3`.
+    pub(crate) axis_sign: f64,
+}
+
+/// A serial robot arm from a URDF: the actuated joints from the root link to a tool link.
+/// Immutable once built.
+#[derive(Debug, Clone)]
+pub struct RobotModel {
+    name: String,
+    root_link: String,
+    tool_link: String,
+    joints: Vec<Joint>,
+    last_from_flange: Isometry3<f64>,
+    inertials: Vec<LumpedInertial>,
+    pub(crate) steps: Vec<Step>,
+}
+
+fn vec3(v: &urdf_rs::Vec3) -> Vector3<f64> {
+    Vector3::new(v[0], v[1], v[2])
+}
+
+fn type_name(t: &urdf_rs::JointType) -> &'static str {
+    match t {
+        urdf_rs::JointType::Revolute => "revolute",
+        urdf_rs::JointType::Continuous => "continuous",
+        urdf_rs::JointType::Prismatic => "prismatic",
+        urdf_rs::JointType::Fixed => "fixed",
+        urdf_rs::JointType::Floating => "floating",
+        urdf_rs::JointType::Planar => "planar",
+        urdf_rs::JointType::Spherical => "spherical",
+    }
+}
+
+impl RobotModel {
+    /// Loads a URDF file; `tool_link` is the flange link (usually `tool0`).
+    ///
+    /// Errors: unreadable file, invalid URDF, missing link, branching tree, unsupported joint type,
+    /// zero axis, bad limits ([`ModelError`]); messages name the file.
+    pub fn from_urdf_file(path: &Path, tool_link: &str) -> Result<RobotModel, ModelError> {
+        let xml = std::fs::read_to_string(path).map_err(|source| ModelError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::build(&xml, tool_link, &path.display().to_string())
+    }
+
+    /// Loads a URDF from its XML text; see [`RobotModel::from_urdf_file`].
+    pub fn from_urdf_str(xml: &str, tool_link: &str) -> Result<RobotModel, ModelError> {
+        Self::build(xml, tool_link, "<string>")
+    }
+
+    fn build(xml: &str, tool_link: &str, src: &str) -> Result<RobotModel, ModelError> {
+        let robot = urdf_rs::read_from_string(xml).map_err(|e| ModelError::Parse {
+            source_name: src.to_string(),
+            message: e.to_string(),
+        })?;
+        let s = || src.to_string();
+        let links: HashMap<&str, &urdf_rs::Link> =
+            robot.links.iter().map(|l| (l.name.as_str(), l)).collect();
+        let known = || {
+            let mut v: Vec<&str> = robot.links.iter().map(|l| l.name.as_str()).collect();
+            v.sort_unstable();
+            v.join(", ")
+        };
+        // Parent joint of each link, children of each link.
+        let mut parent_of: HashMap<&str, &urdf_rs::Joint> = HashMap::new();
+        let mut children: HashMap<&str, Vec<&urdf_rs::Joint>> = HashMap::new();
+        for j in &robot.joints {
+            for l in [&j.parent.link, &j.child.link] {
+                if !links.contains_key(l.as_str()) {
+                    return Err(ModelError::MissingLink {
+                        source_name: s(),
+                        link: l.clone(),
+                        known: known(),
+                    });
+                }
+            }
+            if parent_of.insert(j.child.link.as_str(), j).is_some() {
+                return Err(ModelError::NotATree {
+                    source_name: s(),
+                    link: j.child.link.clone(),
+                });
+            }
+            children.entry(j.parent.link.as_str()).or_default().push(j);
+        }
+        for l in &robot.links {
+            if let Some(c) = children.get(l.name.as_str()) {
+                if c.len() > 1 {
+                    return Err(ModelError::Branching {
+                        source_name: s(),
+                        link: l.name.clone(),
+                        children: c.len(),
+                        names: c.iter().map(|j| j.name.as_str()).collect::<Vec<_>>().join(", "),
+                    });
+                }
+            }
+        }
+        if !links.contains_key(tool_link) {
+            return Err(ModelError::MissingLink {
+                source_name: s(),
+                link: tool_link.to_string(),
+                known: known(),
+            });
+        }
+        // Walk from the tool link up to the root.
+        let mut path: Vec<&urdf_rs::Joint> = Vec::new();
+        let mut cur = tool_link;
+        while let Some(j) = parent_of.get(cur) {
+            if path.len() > robot.joints.len() {
+                return Err(ModelError::NotATree {
+                    source_name: s(),
+                    link: cur.to_string(),
+                });
+            }
+            path.push(j);
+            cur = j.parent.link.as_str();
+        }
+        let root_link = cur.to_string();
+        path.reverse();
+
+        let mut joints = Vec::new();
+        let mut steps = Vec::new();
+        // For the inertials: the links carried by each actuated joint, with joint_from_link.
+        let mut carried: Vec<Vec<(Isometry3<f64>, &urdf_rs::Link)>> = Vec::new();
+        let mut pending = Isometry3::identity();
+        for j in &path {
+            let xyz = vec3(&j.origin.xyz);
+            let rpy = vec3(&j.origin.rpy);
+            if !(xyz.iter().chain(rpy.iter()).all(|v| v.is_finite())) {
+                return Err(ModelError::BadOrigin {
+                    source_name: s(),
+                    joint: j.name.clone(),
+                });
+            }
+            let origin = origin_isometry(&xyz, &rpy);
+            let child = links[j.child.link.as_str()];
+            match j.joint_type {
+                urdf_rs::JointType::Fixed => {
+                    pending *= origin;
+                    if let Some(c) = carried.last_mut() {
+                        c.push((pending, child));
+                    }
+                }
+                urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => {
+                    let a = vec3(&j.axis.xyz);
+                    let n = a.norm();
+                    if !n.is_finite() || n < 1e-12 {
+                        return Err(ModelError::ZeroAxis {
+                            source_name: s(),
+                            joint: j.name.clone(),
+                            axis: [a.x, a.y, a.z],
+                        });
+                    }
+                    let axis = Unit::new_normalize(a);
+                    let (lower, upper) = if matches!(j.joint_type, urdf_rs::JointType::Continuous) {
+                        (f64::NEG_INFINITY, f64::INFINITY)
+                    } else {
+                        (j.limit.lower, j.limit.upper)
+                    };
+                    if lower.is_nan()
+                        || upper.is_nan()
+                        || lower > upper
+                        || (matches!(j.joint_type, urdf_rs::JointType::Revolute)
+                            && !(lower.is_finite() && upper.is_finite()))
+                    {
+                        return Err(ModelError::BadLimits {
+                            source_name: s(),
+                            joint: j.name.clone(),
+                            lower,
+                            upper,
+                        });
+                    }
+                    let (axis_kind, axis_sign) = classify_axis(&axis);
+                    steps.push(Step {
+                        prev_from_joint: pending * origin,
+                        axis,
+                        axis_kind,
+                        axis_sign,
+                    });
+                    joints.push(Joint {
+                        name: j.name.clone(),
+                        parent_link: j.parent.link.clone(),
+                        child_link: j.child.link.clone(),
+                        fixed_prefix: pending,
+                        origin_xyz: xyz,
+                        origin_rpy: rpy,
+                        axis,
+                        lower,
+                        upper,
+                        velocity: j.limit.velocity,
+                        effort: j.limit.effort,
+                    });
+                    pending = Isometry3::identity();
+                    carried.push(vec![(pending, child)]);
+                }
+                ref other => {
+                    return Err(ModelError::UnsupportedJoint {
+                        source_name: s(),
+                        joint: j.name.clone(),
+                        kind: type_name(other).to_string(),
+                    })
+                }
+            }
+        }
+        if joints.is_empty() {
+            return Err(ModelError::NoActuatedJoints {
+                source_name: s(),
+                tool_link: tool_link.to_string(),
+            });
+        }
+        let inertials = carried
+            .iter()
+            .map(|c| {
+                let mut mass = 0.0;
+                let mut moment = Vector3::zeros();
+                for (joint_from_link, link) in c {
+                    let m = link.inertial.mass.value;
+                    if m > 0.0 && m.is_finite() {
+                        let com_link = vec3(&link.inertial.origin.xyz);
+                        mass += m;
+                        moment += m * (joint_from_link * nalgebra::Point3::from(com_link)).coords;
+                    }
+                }
+                LumpedInertial {
+                    mass,
+                    com: if mass > 0.0 { moment / mass } else { Vector3::zeros() },
+                }
+            })
+            .collect();
+        Ok(RobotModel {
+            name: robot.name.clone(),
+            root_link,
+            tool_link: tool_link.to_string(),
+            joints,
+            last_from_flange: pending,
+            inertials,
+            steps,
+        })
+    }
+
+    /// The URDF robot name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// The root link (the base frame).
+    pub fn root_link(&self) -> &str {
+        &self.root_link
+    }
+
+    /// The tool (flange) link the model ends at.
+    pub fn tool_link(&self) -> &str {
+        &self.tool_link
+    }
+
+    /// Number of actuated joints.
+    pub fn dof(&self) -> usize {
+        self.joints.len()
+    }
+
+    /// Actuated joints in chain order.
+    pub fn joints(&self) -> &[Joint] {
+        &self.joints
+    }
+
+    /// Fixed joints after the last actuated joint's frame up to the tool link: `last_from_flange`.
+    pub fn last_from_flange(&self) -> &Isometry3<f64> {
+        &self.last_from_flange
+    }
+
+    /// One lumped inertial per actuated joint k: mass (kg) and COM (m, in joint k's frame after its
+    /// rotation) of the links rigidly carried by joint k up to joint k+1; the last one includes
+    /// everything up to the tool link.
+    pub fn inertials(&self) -> &[LumpedInertial] {
+        &self.inertials
+    }
+
+    /// Checks a joint vector (rad): length, finiteness, plainly-degrees values, joint limits.
+    /// A value within 1e-9 rad outside a limit is accepted (round-off).
+    pub fn check_q(&self, q: &[f64]) -> Result<(), KinematicsError> {
+        if q.len() != self.joints.len() {
+            return Err(KinematicsError::WrongLength {
+                robot: self.name.clone(),
+                expected: self.joints.len(),
+                got: q.len(),
+            });
+        }
+        for (i, (j, &v)) in self.joints.iter().zip(q).enumerate() {
+            if !v.is_finite() {
+                return Err(KinematicsError::NotFinite {
+                    index: i + 1,
+                    joint: j.name.clone(),
+                    value: v,
+                });
+            }
+            const SLACK: f64 = 1e-9;
+            if v < j.lower - SLACK || v > j.upper + SLACK {
+                let lower_deg = j.lower.to_degrees();
+                let upper_deg = j.upper.to_degrees();
+                if v.abs() > std::f64::consts::TAU && v >= lower_deg && v <= upper_deg {
+                    return Err(KinematicsError::LooksLikeDegrees {
+                        index: i + 1,
+                        joint: j.name.clone(),
+                        value: v,
+                        lower_deg,
+                        upper_deg,
+                    });
+                }
+                return Err(KinematicsError::OutOfLimits {
+                    index: i + 1,
+                    joint: j.name.clone(),
+                    value_deg: v.to_degrees(),
+                    lower_deg,
+                    upper_deg,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+fn classify_axis(axis: &Unit<Vector3<f64>>) -> (u8, f64) {
+    for k in 0..3 {
+        let others_zero = (0..3).filter(|&i| i != k).all(|i| axis[i] == 0.0);
+        if others_zero && axis[k].abs() == 1.0 {
+            return (k as u8, axis[k].signum());
+        }
+    }
+    (3, 1.0)
+}

@@ -1,0 +1,247 @@
+//! Integration tests of the kinematics crate on the shipped URDFs.
+
+use std::f64::consts::FRAC_PI_2;
+use std::path::Path;
+
+use kinematics::*;
+use nalgebra::{Point3, Rotation3, Unit, Vector3};
+use proptest::prelude::*;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// Exact-arithmetic comparisons (a few ulps of metre-scale sums).
+const EXACT_TOL: f64 = 1e-12;
+/// IK round trip: FK(IK(p)) within 1e-9 m of p.
+const ROUND_TRIP_TOL_M: f64 = 1e-9;
+
+fn robot(name: &str) -> RobotModel {
+    let p = format!("{}/../../robots/{name}.urdf", env!("CARGO_MANIFEST_DIR"));
+    RobotModel::from_urdf_file(Path::new(&p), "tool0").unwrap()
+}
+
+fn random_q(model: &RobotModel, rng: &mut ChaCha8Rng, margin: f64) -> Vec<f64> {
+    model
+        .joints()
+        .iter()
+        .map(|j| {
+            let (lo, hi) = (j.lower.max(-3.0), j.upper.min(3.0));
+            let span = hi - lo;
+            rng.random_range(lo + margin * span..hi - margin * span)
+        })
+        .collect()
+}
+
+#[test]
+fn rpy_order_is_rz_ry_rx() {
+    // Golden: roll 0.1, pitch 0.2, yaw 0.3 must equal Rz(0.3)·Ry(0.2)·Rx(0.1).
+    let r = rotation_from_rpy(&Vector3::new(0.1, 0.2, 0.3));
+    let expected = Rotation3::from_axis_angle(&Vector3::z_axis(), 0.3)
+        * Rotation3::from_axis_angle(&Vector3::y_axis(), 0.2)
+        * Rotation3::from_axis_angle(&Vector3::x_axis(), 0.1);
+    assert!((r.matrix() - expected.matrix()).norm() < EXACT_TOL);
+    // And not the other order.
+    let other = Rotation3::from_axis_angle(&Vector3::x_axis(), 0.1)
+        * Rotation3::from_axis_angle(&Vector3::y_axis(), 0.2)
+        * Rotation3::from_axis_angle(&Vector3::z_axis(), 0.3);
+    assert!((r.matrix() - other.matrix()).norm() > 1e-3);
+}
+
+#[test]
+fn loads_both_robots() {
+    let hp = robot("hp20");
+    assert_eq!((hp.name(), hp.dof()), ("hp20", 6));
+    let va = robot("va1400");
+    assert_eq!((va.name(), va.dof()), ("va1400", 7));
+    let total: f64 = hp.inertials().iter().map(|i| i.mass).sum();
+    // base_link (60 kg) is not carried by any joint.
+    assert!((total - 208.0).abs() < EXACT_TOL, "{total}");
+    let total: f64 = va.inertials().iter().map(|i| i.mass).sum();
+    assert!((total - 100.0).abs() < EXACT_TOL, "{total}");
+}
+
+#[test]
+fn fk_zero_pose_hp20() {
+    let m = robot("hp20");
+    let t = base_from_flange(&m, &[0.0; 6]).unwrap();
+    // 0.150 + 0.795 + 0.105 out, 0.505 + 0.760 + 0.140 up; flange z along base x.
+    assert!((t.translation.vector - Vector3::new(1.050, 0.0, 1.405)).norm() < EXACT_TOL);
+    assert!((t.rotation * Vector3::z() - Vector3::x()).norm() < EXACT_TOL);
+    let tip = base_from_tip(&m, &[0.0; 6], &Vector3::new(0.0, 0.0, 0.1)).unwrap();
+    assert!((tip.translation.vector - Vector3::new(1.150, 0.0, 1.405)).norm() < EXACT_TOL);
+}
+
+#[test]
+fn fk_zero_pose_va1400() {
+    let m = robot("va1400");
+    let t = base_from_flange(&m, &[0.0; 7]).unwrap();
+    // 0.150 + 0.640 + 0.100 out, 0.450 + 0.300 + 0.314 + 0.200 up.
+    assert!((t.translation.vector - Vector3::new(0.890, 0.0, 1.264)).norm() < EXACT_TOL);
+}
+
+#[test]
+fn fk_hand_computed_poses() {
+    let m = robot("hp20");
+    // S = 90°: the zero-pose flange rotates to +y.
+    let t = base_from_flange(&m, &[FRAC_PI_2, 0.0, 0.0, 0.0, 0.0, 0.0]).unwrap();
+    assert!((t.translation.vector - Vector3::new(0.0, 1.050, 1.405)).norm() < EXACT_TOL);
+    // L = 90° (axis +y): upper arm lies along +x; U offset 0.140 then along +x, forearm points down.
+    let t = base_from_flange(&m, &[0.0, FRAC_PI_2, 0.0, 0.0, 0.0, 0.0]).unwrap();
+    let expected = Vector3::new(0.150 + 0.760 + 0.140, 0.0, 0.505 - 0.795 - 0.105);
+    assert!((t.translation.vector - expected).norm() < EXACT_TOL, "{}", t.translation.vector);
+    // U = 90° (axis −y): the forearm points up and the 0.140 U offset now points to −x.
+    let t = base_from_flange(&m, &[0.0, 0.0, FRAC_PI_2, 0.0, 0.0, 0.0]).unwrap();
+    let expected = Vector3::new(0.150 - 0.140, 0.0, 0.505 + 0.760 + 0.795 + 0.105);
+    assert!((t.translation.vector - expected).norm() < EXACT_TOL, "{}", t.translation.vector);
+    // VA1400 E = 90° with the arm upright moves the forearm to +y.
+    let v = robot("va1400");
+    let t = base_from_flange(&v, &[0.0, 0.0, FRAC_PI_2, 0.0, 0.0, 0.0, 0.0]).unwrap();
+    assert!((t.translation.vector - Vector3::new(0.150, 0.740, 1.264)).norm() < EXACT_TOL);
+}
+
+/// Central-difference step, rad, and tolerance: truncation ~h²·|p'''| ≈ 1e-12 m, round-off
+/// ~eps/h ≈ 1e-10: 1e-7 covers both.
+const FD_STEP: f64 = 1e-5;
+const FD_TOL: f64 = 1e-7;
+
+fn fd_check(name: &str, seed: u64) {
+    let m = robot(name);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let q = random_q(&m, &mut rng, 0.01);
+    let tip = Vector3::new(0.01, -0.02, 0.15);
+    let jb = geometric_jacobian(&m, &q, &tip, JacobianFrame::Base).unwrap();
+    let jt = geometric_jacobian(&m, &q, &tip, JacobianFrame::Tip).unwrap();
+    let jp = tip_position_jacobian(&m, &q, &tip).unwrap();
+    let t0 = base_from_tip(&m, &q, &tip).unwrap();
+    for k in 0..m.dof() {
+        let (mut qp, mut qm) = (q.clone(), q.clone());
+        qp[k] += FD_STEP;
+        qm[k] -= FD_STEP;
+        let tp = base_from_tip_unchecked(&m, &qp, &tip);
+        let tm = base_from_tip_unchecked(&m, &qm, &tip);
+        let v = (tp.translation.vector - tm.translation.vector) / (2.0 * FD_STEP);
+        // ω from the rotation difference: R(q+h)·R(q−h)ᵀ ≈ exp(2h[ω]×)
+        let w = (tp.rotation * tm.rotation.inverse()).scaled_axis() / (2.0 * FD_STEP);
+        let col = jb.column(k);
+        assert!((col.fixed_rows::<3>(0) - v).norm() < FD_TOL, "v col {k}");
+        assert!((col.fixed_rows::<3>(3) - w).norm() < FD_TOL, "w col {k}");
+        assert!((jp.column(k) - v).norm() < FD_TOL);
+        let r_inv = t0.rotation.inverse();
+        assert!((jt.column(k).fixed_rows::<3>(0) - r_inv * v).norm() < FD_TOL);
+        assert!((jt.column(k).fixed_rows::<3>(3) - r_inv * w).norm() < FD_TOL);
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+    #[test]
+    fn jacobians_match_central_differences(seed in any::<u64>()) {
+        fd_check("hp20", seed);
+        fd_check("va1400", seed);
+    }
+}
+
+fn round_trip(name: &str, n: usize, with_axis: bool) {
+    let m = robot(name);
+    let tip = Vector3::new(0.0, 0.0, 0.15);
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let mut solved = 0;
+    for _ in 0..n {
+        let q = random_q(&m, &mut rng, 0.05);
+        let t = base_from_tip(&m, &q, &tip).unwrap();
+        let target = Point3::from(t.translation.vector);
+        let opts = IkOptions {
+            tool_axis_base: with_axis.then(|| Unit::new_normalize(t.rotation * Vector3::z())),
+            preferred_q: (m.dof() == 7).then(|| vec![0.0; 7]),
+            ..IkOptions::default()
+        };
+        let sol = ik_tip_position(&m, &target, &tip, &opts).unwrap();
+        assert!(sol.reachable(), "{name} target {target} from q {q:?} not solved: {sol:?}");
+        m.check_q(&sol.q).unwrap();
+        let p = base_from_tip(&m, &sol.q, &tip).unwrap().translation.vector;
+        assert!((p - target.coords).norm() < ROUND_TRIP_TOL_M);
+        if with_axis {
+            let z = base_from_tip(&m, &sol.q, &tip).unwrap().rotation * Vector3::z();
+            assert!((z - t.rotation * Vector3::z()).norm() < 1e-9);
+        }
+        solved += 1;
+    }
+    assert_eq!(solved, n);
+}
+
+#[test]
+fn ik_round_trip_position_hp20() {
+    round_trip("hp20", 200, false);
+}
+
+#[test]
+fn ik_round_trip_position_va1400() {
+    round_trip("va1400", 200, false);
+}
+
+#[test]
+fn ik_round_trip_with_axis() {
+    round_trip("hp20", 50, true);
+    round_trip("va1400", 50, true);
+}
+
+#[test]
+fn ik_unreachable_is_a_status() {
+    let m = robot("hp20");
+    let sol = ik_tip_position(&m, &Point3::new(5.0, 0.0, 1.0), &Vector3::zeros(), &IkOptions::default()).unwrap();
+    assert_eq!(sol.status, IkStatus::Unreachable);
+    assert!(sol.position_error_m > 1.0);
+    m.check_q(&sol.q).unwrap();
+}
+
+#[test]
+fn bad_inputs_are_typed_errors() {
+    let m = robot("hp20");
+    let e = base_from_flange(&m, &[0.0; 5]).unwrap_err();
+    assert!(matches!(e, KinematicsError::WrongLength { expected: 6, got: 5, .. }));
+    assert!(e.to_string().contains("5 values but hp20 has 6 joints"));
+    let e = base_from_flange(&m, &[0.0, f64::NAN, 0.0, 0.0, 0.0, 0.0]).unwrap_err();
+    assert!(matches!(e, KinematicsError::NotFinite { index: 2, .. }));
+    let e = base_from_flange(&m, &[0.0, 0.0, 0.0, 0.0, 2.6, 0.0]).unwrap_err();
+    assert!(matches!(e, KinematicsError::OutOfLimits { index: 5, .. }), "{e}");
+    assert!(e.to_string().contains("joint_5_b"));
+    let e = base_from_flange(&m, &[0.0, 30.0, 0.0, 0.0, 0.0, 0.0]).unwrap_err();
+    assert!(matches!(e, KinematicsError::LooksLikeDegrees { index: 2, .. }), "{e}");
+    assert!(e.to_string().contains("degrees"));
+    let bad = RobotModel::from_urdf_str("<robot name=\"x\"><link", "tool0").unwrap_err();
+    assert!(matches!(bad, ModelError::Parse { .. }));
+    let xml = std::fs::read_to_string(format!("{}/../../robots/hp20.urdf", env!("CARGO_MANIFEST_DIR"))).unwrap();
+    let e = RobotModel::from_urdf_str(&xml, "flange").unwrap_err();
+    assert!(matches!(e, ModelError::MissingLink { .. }));
+    assert!(e.to_string().contains("tool0"));
+    let e = RobotModel::from_urdf_str(&xml.replace("type=\"revolute\"", "type=\"prismatic\""), "tool0").unwrap_err();
+    assert!(matches!(e, ModelError::UnsupportedJoint { .. }), "{e}");
+    let e = RobotModel::from_urdf_str(&xml.replace("<axis xyz=\"0 0 1\"/>", "<axis xyz=\"0 0 0\"/>"), "tool0").unwrap_err();
+    assert!(matches!(e, ModelError::ZeroAxis { .. }), "{e}");
+    let branch = xml.replace(
+        "</robot>",
+        "<link name=\"extra\"/><joint name=\"j_extra\" type=\"fixed\"><parent link=\"link_2_l\"/><child link=\"extra\"/></joint></robot>",
+    );
+    let e = RobotModel::from_urdf_str(&branch, "tool0").unwrap_err();
+    assert!(matches!(e, ModelError::Branching { .. }), "{e}");
+    let e = RobotModel::from_urdf_file(Path::new("/nonexistent/x.urdf"), "tool0").unwrap_err();
+    assert!(e.to_string().contains("/nonexistent/x.urdf"));
+    assert!(ik_tip_position(&m, &Point3::new(f64::NAN, 0.0, 0.0), &Vector3::zeros(), &IkOptions::default()).is_err());
+}
+
+#[test]
+fn unchecked_matches_checked() {
+    let m = robot("va1400");
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let q = random_q(&m, &mut rng, 0.0);
+    let a = base_from_flange(&m, &q).unwrap();
+    let b = base_from_flange_unchecked(&m, &q);
+    assert!((a.to_homogeneous() - b.to_homogeneous()).norm() < EXACT_TOL);
+    // And against the plain product of URDF origins (no precomputation).
+    let mut t = nalgebra::Isometry3::identity();
+    for (j, &qi) in m.joints().iter().zip(&q) {
+        t = t * j.fixed_prefix * origin_isometry(&j.origin_xyz, &j.origin_rpy)
+            * nalgebra::UnitQuaternion::from_axis_angle(&j.axis, qi);
+    }
+    t *= m.last_from_flange();
+    assert!((a.to_homogeneous() - t.to_homogeneous()).norm() < EXACT_TOL);
+}
