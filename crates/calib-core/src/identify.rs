@@ -640,7 +640,8 @@ pub struct Identifiability {
 /// Rank and conditioning of a family of candidates after projecting out the base frame.
 #[derive(Debug, Clone)]
 pub struct FamilyIdent {
-    /// Numerical rank of the family's unit-normalised projected columns (zero columns excluded).
+    /// Numerical rank of the family's projected columns, each scaled by its raw norm (members
+    /// without effect excluded): the number of independent directions the data can estimate.
     pub rank: usize,
     /// Number of candidates in the family.
     pub size: usize,
@@ -656,7 +657,9 @@ impl Identifiability {
     pub fn family(&self, members: &[usize]) -> FamilyIdent {
         let cols: Vec<DVector<f64>> = members
             .iter()
-            .filter(|&&m| self.params[m].column_norm > 0.0)
+            .filter(|&&m| {
+                self.params[m].column_norm > 0.0 && self.params[m].status != IdentStatus::NoEffect
+            })
             .map(|&m| {
                 let c = self.gauge_projected.column(m).into_owned();
                 c / self.params[m].column_norm
@@ -673,11 +676,11 @@ impl Identifiability {
         let a = DMatrix::from_columns(&cols);
         let mut s: Vec<f64> = a.singular_values().iter().cloned().collect();
         s.sort_by(|x, y| y.total_cmp(x));
+        // The columns are scaled by their RAW norms, so a singular value is the fraction of a
+        // unit effect that survives the projection: compare it with RANK_TOL absolutely (a
+        // family whose members are all confounded with the base has rank 0).
         let smax = s[0];
-        let rank = s
-            .iter()
-            .filter(|&&v| v > RANK_TOL * smax.max(1e-300))
-            .count();
+        let rank = s.iter().filter(|&&v| v > RANK_TOL).count();
         let condition = if rank == s.len() && rank > 0 {
             smax / s[s.len() - 1]
         } else {
@@ -1075,12 +1078,15 @@ fn rescreen(
             .cloned()
             .unwrap_or_else(|| vec![p])
     };
-    // Try the 4 best-scoring replacements by a full refit (the score is a one-step linear
-    // prediction and can rank near-equivalent candidates wrongly).
+    // Refit the best-scoring replacements (the score is a one-step linear prediction and can
+    // rank near-equivalent candidates wrongly): swap when one lowers the RSS, and collect the
+    // likelihood-ratio confidence set for "which one": every refitted candidate whose RSS is
+    // within χ²₁(0.95)·σ̂² of the best.
     let mut ranked = scores.clone();
     ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let mut tried: Vec<(usize, f64)> = vec![(old, current.rss)];
     let mut winner: Option<(usize, IdentFit)> = None;
-    for &(cand, _) in ranked.iter().take(4) {
+    for &(cand, _) in ranked.iter().take(RESCREEN_REFITS) {
         if cand == old || parallel_of(cand).contains(&old) {
             continue;
         }
@@ -1095,6 +1101,7 @@ fn rescreen(
             Some(current.b1_from_b2),
             &options.fit,
         )?;
+        tried.push((cand, trial.rss));
         let bar = winner
             .as_ref()
             .map_or(current.rss * (1.0 - 1e-9), |w| w.1.rss);
@@ -1102,18 +1109,39 @@ fn rescreen(
             winner = Some((cand, trial));
         }
     }
-    match winner {
-        Some((cand, trial)) => {
-            let alt = alternatives(cand, &scores, &parallel_of(cand), &trial);
-            Ok((cand, alt, Some(trial)))
-        }
-        None => {
-            let _ = best;
-            let alt = alternatives(old, &scores, &parallel_of(old), current);
-            Ok((old, alt, None))
+    let (chosen, chosen_fit) = match &winner {
+        Some((cand, trial)) => (*cand, trial),
+        None => (old, current),
+    };
+    let sigma2 = chosen_fit.rss / chosen_fit.dof.max(1) as f64;
+    let mut alt = vec![chosen];
+    for p in parallel_of(chosen) {
+        if !alt.contains(&p) {
+            alt.push(p);
         }
     }
+    let mut near: Vec<(usize, f64)> = tried
+        .iter()
+        .copied()
+        .filter(|&(p, rss)| p != chosen && rss - chosen_fit.rss <= CHI2_1_95 * sigma2)
+        .collect();
+    near.sort_by(|a, b| a.1.total_cmp(&b.1));
+    for (p, _) in near {
+        for q in parallel_of(p) {
+            if !alt.contains(&q) {
+                alt.push(q);
+            }
+        }
+    }
+    let _ = best;
+    match winner {
+        Some((cand, trial)) => Ok((cand, alt, Some(trial))),
+        None => Ok((old, alt, None)),
+    }
 }
+
+/// Candidates refitted per selected parameter when re-screening (swap and "which one" set).
+pub const RESCREEN_REFITS: usize = 10;
 
 /// Backward elimination: drops, one at a time, the selected parameter with the largest F-test
 /// p-value while that p-value is ≥ `level`. Returns whether anything was dropped.
@@ -1323,6 +1351,75 @@ pub fn forward_select(
         heldout_rms_before,
         heldout_rms_after: current_cv,
     })
+}
+
+/// Rotation of the fitted `b1_from_b2` against a reference placement (e.g. the cell's stated
+/// `b1_from_b2`), expressed as a rotation of robot 2's base: `R_fit = R_ref · exp([a]ₓ)`, `a` in
+/// b2 axes (rad). If the reference is the true placement of the nominal bases, a turn of robot
+/// 2's true base by `a` (the kinematic-error model's `MountRpy`) gives exactly this `a`; a turn of
+/// robot 1's base by `a1` gives `a = −R_refᵀ·a1` (the two are indistinguishable from handclasp
+/// data).
+#[derive(Debug, Clone)]
+pub struct PlacementRotation {
+    /// `a`, b2 axes, rad.
+    pub a_b2: Vector3<f64>,
+    /// Standard errors of `a`'s components, rad (fit covariance plus `reference_sd_rad²`).
+    pub std_error: Vector3<f64>,
+    /// Two-sided t-test p-values of each component (dof of the fit).
+    pub p_value: Vector3<f64>,
+    /// The same rotation as a turn of robot 1's base, b1 axes, rad: `a1 = −R_ref·a`.
+    pub a1_b1: Vector3<f64>,
+    /// Translation of the fit minus the reference, b1 axes, m.
+    pub dt_b1: Vector3<f64>,
+    /// Standard errors of `dt_b1`, m.
+    pub dt_std_error: Vector3<f64>,
+    /// Residual degrees of freedom of the fit (for t quantiles).
+    pub dof: usize,
+}
+
+/// Compares `fit.b1_from_b2` with `reference` (see [`PlacementRotation`]). `reference_sd_rad` is
+/// the uncertainty of the reference's angles (e.g. the rounding of a file's degrees), added in
+/// quadrature to each component's standard error.
+pub fn placement_rotation(
+    fit: &IdentFit,
+    reference: &Isometry3<f64>,
+    reference_sd_rad: f64,
+) -> PlacementRotation {
+    let r_fit = fit.b1_from_b2.rotation.to_rotation_matrix();
+    let r_ref = reference.rotation.to_rotation_matrix();
+    let a_b2 = (r_ref.inverse() * r_fit).scaled_axis();
+    // Left perturbation of the fit, R_fit ← exp(φ)·R_fit: δa ≈ R_fitᵀ·δφ (a small).
+    let rt = r_fit.matrix().transpose();
+    let sigma_phi = fit.covariance.fixed_view::<3, 3>(3, 3).into_owned();
+    let cov_a = rt * sigma_phi * rt.transpose();
+    let std_error = Vector3::from_fn(|i, _| {
+        (cov_a[(i, i)].max(0.0) + reference_sd_rad * reference_sd_rad).sqrt()
+    });
+    let p_value = Vector3::from_fn(|i, _| {
+        if std_error[i] > 0.0 {
+            t_two_sided_p(a_b2[i] / std_error[i], fit.dof)
+        } else {
+            1.0
+        }
+    });
+    // Translation: X ← (ρ, exp φ)·X moves the translation by ρ + φ×t: δt = ρ − [t]ₓφ.
+    let t = fit.b1_from_b2.translation.vector;
+    let mut jt = nalgebra::Matrix3x6::zeros();
+    jt.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&Matrix3::identity());
+    jt.fixed_view_mut::<3, 3>(0, 3)
+        .copy_from(&(-t.cross_matrix()));
+    let sigma_x = fit.covariance.fixed_view::<6, 6>(0, 0).into_owned();
+    let cov_t = jt * sigma_x * jt.transpose();
+    PlacementRotation {
+        a_b2,
+        std_error,
+        p_value,
+        a1_b1: -(r_ref * a_b2),
+        dt_b1: t - reference.translation.vector,
+        dt_std_error: Vector3::from_fn(|i, _| cov_t[(i, i)].max(0.0).sqrt()),
+        dof: fit.dof,
+    }
 }
 
 #[cfg(test)]
@@ -1629,6 +1726,37 @@ mod tests {
         let rate = alarms as f64 / trials as f64;
         println!("false-alarm rate {rate:.4} ({alarms}/{trials})");
         assert!(rate <= 0.05, "false-alarm rate {rate}");
+    }
+
+    #[test]
+    fn placement_rotation_recovers_a_turned_reference() {
+        // The reference is the true placement turned by −a0 about b2 axes: the fit (noise 0.1 mm)
+        // must show a ≈ a0 within 4 standard errors, and the translation within 4 s.e.
+        let toy = session(30, [0.0; 10], 1e-4, 21);
+        let f = fit(&toy, &[], None, None, &FitOptions::default()).unwrap();
+        let a0 = Vector3::new(0.004, -0.003, 0.002);
+        let reference = toy.b1_from_b2
+            * Isometry3::from_parts(
+                Translation3::identity(),
+                UnitQuaternion::from_scaled_axis(-a0),
+            );
+        let pr = placement_rotation(&f, &reference, 0.0);
+        for i in 0..3 {
+            assert!(
+                (pr.a_b2[i] - a0[i]).abs() < 4.0 * pr.std_error[i],
+                "component {i}: {} vs {} (se {})",
+                pr.a_b2[i],
+                a0[i],
+                pr.std_error[i]
+            );
+            assert!(pr.p_value[i] < 1e-6, "component {i} not significant");
+            assert!(pr.dt_b1[i].abs() < 4.0 * pr.dt_std_error[i] + 1e-12);
+        }
+        // Robot-1 equivalent: turning base 1 by a1 = −R_ref·a gives the same relative rotation.
+        let r_ref = reference.rotation.to_rotation_matrix();
+        let via1 = Rotation3::from_scaled_axis(-pr.a1_b1) * r_ref;
+        let direct = r_ref * Rotation3::from_scaled_axis(pr.a_b2);
+        assert!(via1.angle_to(&direct) < 1e-6);
     }
 
     #[test]

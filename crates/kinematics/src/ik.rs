@@ -1,35 +1,48 @@
 //! Inverse kinematics to a tip position (m, base frame), optionally with the flange z axis along a
 //! given direction, by damped least squares (Levenberg–Marquardt) within the joint limits.
 //!
-//! Joint limits are enforced by clamping every step (projection). For redundant problems the
-//! left-over freedom moves toward `preferred_q` by a null-space term while the error is above
-//! 1e-6 (m or rad); the final steps are pure Gauss–Newton so the solve reaches `tolerance_m`.
-//! Restarts come from a fixed, deterministic set of seeds; a target that no seed reaches is
-//! reported as [`IkStatus::Unreachable`] with the best joint vector found.
+//! Task: the tip position error `e_p = p_target − p_tip` (3 rows, m) and, with a tool axis `a`,
+//! the rotation that brings the flange z axis `z` onto `a`, `θ·n̂` with `θ = ∠(z, a)` and
+//! `n̂ = z×a/|z×a|`, written in two directions `u, v ⟂ z` (2 rows, rad, weight 1 m/rad). Its
+//! Jacobian rows are `u·ω_k, v·ω_k` (ω_k: joint k's angular-velocity column), so the axis task has
+//! a single zero at `z = a` (the anti-parallel direction is not a spurious solution).
+//!
+//! Step: `dq = Jᵀ(JJᵀ + λI)⁻¹ e`, accepted when the cost `|e|²` decreases; λ follows Nielsen's
+//! gain-ratio rule, and a seed is abandoned when λ exceeds 1e4 (a local minimum, typically on a
+//! joint limit).
+//! Joint limits are an active set: a joint whose step would leave its range is moved onto the
+//! limit, its column is removed, and the others are re-solved for what is left of the error.
+//! For redundant problems the left-over freedom moves toward `preferred_q` by a null-space term
+//! `(I − J⁺J)·0.5·(q_pref − q)` while the error is above 1e-6 (m or rad); the final steps are pure
+//! Gauss–Newton so the solve reaches `tolerance_m` (default 1e-10 m).
+//! Restarts come from a fixed, deterministic set of seeds (a Halton sequence over the joint
+//! ranges; every other seed first turns joint 1 toward the target's azimuth); a target that no seed reaches is reported as [`IkStatus::Unreachable`] with the best
+//! joint vector found. All work buffers are allocated once per call.
 
-use nalgebra::{DMatrix, DVector, Isometry3, Matrix6xX, Point3, Unit, Vector3};
+use nalgebra::{Matrix3, Point3, Unit, Vector3};
 
 use crate::error::KinematicsError;
-use crate::fk::check_tip;
-use crate::jacobian::jacobian_base_into;
+use crate::fk::{check_tip, joint_frames};
 use crate::model::RobotModel;
 
-/// Options of [`ik_tip_position`].
+/// Options of [`ik_tip_position`]. Every default is documented on its field.
 #[derive(Debug, Clone, PartialEq)]
 pub struct IkOptions {
-    /// Desired direction of the flange z axis in the base frame (None: position only).
+    /// Desired direction of the flange z axis in the base frame (default None: position only).
+    /// In a handclasp the two tips meet head-on, so each robot's flange z points at the other.
     pub tool_axis_base: Option<Unit<Vector3<f64>>>,
-    /// Joint vector (rad) the redundant freedom is pulled toward (None: none).
+    /// Joint vector (rad) the redundant freedom is pulled toward (default None).
     pub preferred_q: Option<Vec<f64>>,
-    /// First seed (rad); None: `preferred_q`, else the middle of the joint ranges.
+    /// First seed (rad); default None: `preferred_q`, else 0 clamped into each joint's range.
     pub initial_q: Option<Vec<f64>>,
     /// Position tolerance, m. Default 1e-10.
     pub tolerance_m: f64,
     /// Axis tolerance, rad (used with `tool_axis_base`). Default 1e-10.
     pub axis_tolerance_rad: f64,
-    /// Iterations per seed. Default 100.
+    /// Iterations per seed. Default 300 (most solves need fewer than 20; near-singular
+    /// targets converge only linearly).
     pub max_iterations: usize,
-    /// Number of extra deterministic seeds tried after the first. Default 16.
+    /// Number of extra deterministic seeds tried after the first. Default 32.
     pub restarts: usize,
 }
 
@@ -41,8 +54,8 @@ impl Default for IkOptions {
             initial_q: None,
             tolerance_m: 1e-10,
             axis_tolerance_rad: 1e-10,
-            max_iterations: 100,
-            restarts: 16,
+            max_iterations: 300,
+            restarts: 32,
         }
     }
 }
@@ -78,102 +91,298 @@ impl IkSolution {
     }
 }
 
-struct Work {
-    frames: Vec<Isometry3<f64>>,
-    jac: Matrix6xX<f64>,
+/// Largest task: 3 position rows + 2 axis rows.
+const MAX_ROWS: usize = 5;
+/// Null-space gain toward `preferred_q` per iteration (fraction of the remaining difference).
+const NULL_GAIN: f64 = 0.5;
+/// The null-space pull stops below this task error (m or rad), so the last steps are pure
+/// Gauss–Newton and converge quadratically.
+const NULL_STOP: f64 = 1e-6;
+/// Damping bounds, in m² (rows are m and rad at 1 m/rad).
+const LAMBDA_INIT: f64 = 1e-3;
+const LAMBDA_MIN: f64 = 1e-16;
+const LAMBDA_GIVE_UP: f64 = 1e4;
+
+type Col = [f64; MAX_ROWS];
+
+/// The task at one q: residual, Jacobian columns, errors.
+struct Lin {
+    e: Col,
+    cols: Vec<Col>,
+    pos_err: f64,
+    axis_err: f64,
+    cost: f64,
 }
 
-/// Residual (target − current) and task Jacobian rows at q; returns (position error, axis error).
-fn residual(
+impl Lin {
+    fn new(n: usize) -> Self {
+        Lin {
+            e: [0.0; MAX_ROWS],
+            cols: vec![[0.0; MAX_ROWS]; n],
+            pos_err: f64::INFINITY,
+            axis_err: f64::INFINITY,
+            cost: f64::INFINITY,
+        }
+    }
+}
+
+struct Problem<'a> {
+    model: &'a RobotModel,
+    target: Point3<f64>,
+    tip: Vector3<f64>,
+    axis: Option<Vector3<f64>>,
+    rows: usize,
+}
+
+impl Problem<'_> {
+    /// Evaluates the task at `q` into `lin`; `frames` is scratch.
+    fn linearize(&self, q: &[f64], frames: &mut Vec<(Matrix3<f64>, Vector3<f64>)>, lin: &mut Lin) {
+        let (r_flange, t_flange) = joint_frames(self.model, q, frames);
+        let p_tip = t_flange + r_flange * self.tip;
+        let ep = self.target.coords - p_tip;
+        lin.e[..3].copy_from_slice(ep.as_slice());
+        lin.pos_err = ep.norm();
+        let mut basis = None;
+        lin.axis_err = 0.0;
+        if let Some(a) = &self.axis {
+            let z: Vector3<f64> = r_flange.column(2).into_owned();
+            let c = z.cross(a);
+            let s = c.norm();
+            let theta = s.atan2(z.dot(a));
+            // u, v ⟂ z.
+            let helper = if z.x.abs() < 0.9 {
+                Vector3::x()
+            } else {
+                Vector3::y()
+            };
+            let u = z.cross(&helper).normalize();
+            let v = z.cross(&u);
+            let n_hat = if s > 1e-300 { c / s } else { u };
+            let ea = theta * n_hat;
+            lin.e[3] = u.dot(&ea);
+            lin.e[4] = v.dot(&ea);
+            lin.axis_err = theta;
+            basis = Some((u, v));
+        }
+        for (((r, t), step), col) in frames
+            .iter()
+            .zip(self.model.steps.iter())
+            .zip(&mut lin.cols)
+        {
+            let w = r * step.axis.into_inner();
+            let vel = w.cross(&(p_tip - t));
+            col[..3].copy_from_slice(vel.as_slice());
+            if let Some((u, v)) = &basis {
+                col[3] = u.dot(&w);
+                col[4] = v.dot(&w);
+            }
+        }
+        lin.cost = lin.e[..self.rows].iter().map(|x| x * x).sum();
+    }
+}
+
+impl Problem<'_> {
+    /// Seed improvement: turns the first joint so that the tip has the target's azimuth about
+    /// that joint's axis (one cyclic-coordinate-descent step, clamped to the limits). For the
+    /// usual arm with a vertical first axis this points the arm at the target, which removes most
+    /// joint-limit local minima of the least-squares cost.
+    fn aim_first_joint(&self, q: &mut [f64], frames: &mut Vec<(Matrix3<f64>, Vector3<f64>)>) {
+        let (r_flange, t_flange) = joint_frames(self.model, q, frames);
+        let (Some((r1, t1)), Some(step), Some(jt)) = (
+            frames.first(),
+            self.model.steps.first(),
+            self.model.joints().first(),
+        ) else {
+            return;
+        };
+        let w = r1 * step.axis.into_inner();
+        let flat = |p: Vector3<f64>| p - w * w.dot(&p);
+        let from = flat(t_flange + r_flange * self.tip - t1);
+        let to = flat(self.target.coords - t1);
+        if from.norm() < 1e-6 || to.norm() < 1e-6 {
+            return;
+        }
+        let angle = from.cross(&to).dot(&w).atan2(from.dot(&to));
+        q[0] = (q[0] + angle).clamp(jt.lower, jt.upper);
+    }
+}
+
+/// Solves `a·x = b` for a symmetric positive definite `n×n` block of `a` (in place, Cholesky).
+/// Returns false if `a` is not positive definite.
+fn solve_spd(a: &mut [[f64; MAX_ROWS]; MAX_ROWS], b: &mut Col, n: usize) -> bool {
+    for j in 0..n {
+        let mut d = a[j][j];
+        for k in 0..j {
+            d -= a[j][k] * a[j][k];
+        }
+        if d <= 0.0 || !d.is_finite() {
+            return false;
+        }
+        let d = d.sqrt();
+        a[j][j] = d;
+        for i in j + 1..n {
+            let mut s = a[i][j];
+            for k in 0..j {
+                s -= a[i][k] * a[j][k];
+            }
+            a[i][j] = s / d;
+        }
+    }
+    for i in 0..n {
+        let mut s = b[i];
+        for k in 0..i {
+            s -= a[i][k] * b[k];
+        }
+        b[i] = s / a[i][i];
+    }
+    for i in (0..n).rev() {
+        let mut s = b[i];
+        for k in i + 1..n {
+            s -= a[k][i] * b[k];
+        }
+        b[i] = s / a[i][i];
+    }
+    true
+}
+
+fn dot(a: &Col, b: &Col, n: usize) -> f64 {
+    a[..n].iter().zip(&b[..n]).map(|(x, y)| x * y).sum()
+}
+
+/// Scratch for [`lm_step`].
+struct StepWork {
+    free: Vec<bool>,
+    dq: Vec<f64>,
+}
+
+/// One damped step with the joint limits as an active set; writes the new q into `q_new`.
+/// Returns false if the damped normal matrix is not positive definite.
+#[allow(clippy::too_many_arguments)]
+fn lm_step(
     model: &RobotModel,
     q: &[f64],
-    target: &Point3<f64>,
-    tip: &Vector3<f64>,
-    axis: Option<&(Vector3<f64>, Vector3<f64>, Vector3<f64>)>,
-    w: &mut Work,
-    e: &mut DVector<f64>,
-    j: &mut DMatrix<f64>,
-) -> (f64, f64) {
-    let t = jacobian_base_into(model, q, tip, &mut w.frames, &mut w.jac);
-    let ep = target.coords - t.translation.vector;
-    for r in 0..3 {
-        e[r] = ep[r];
-        for c in 0..q.len() {
-            j[(r, c)] = w.jac[(r, c)];
-        }
-    }
-    let mut axis_err = 0.0;
-    if let Some((a, u, v)) = axis {
-        let z = t.rotation * Vector3::z();
-        axis_err = z.cross(a).norm().atan2(z.dot(a));
-        e[3] = -u.dot(&z);
-        e[4] = -v.dot(&z);
-        for c in 0..q.len() {
-            let om = Vector3::new(w.jac[(3, c)], w.jac[(4, c)], w.jac[(5, c)]);
-            let dz = om.cross(&z);
-            j[(3, c)] = u.dot(&dz);
-            j[(4, c)] = v.dot(&dz);
-        }
-    }
-    (ep.norm(), axis_err)
-}
-
-fn clamp_q(model: &RobotModel, q: &mut [f64]) {
-    for (qi, jt) in q.iter_mut().zip(model.joints()) {
-        *qi = qi.clamp(jt.lower, jt.upper);
-    }
-}
-
-/// The deterministic seeds: middle of the ranges, then a fixed low-discrepancy pattern.
-fn seeds(model: &RobotModel, first: Option<Vec<f64>>, restarts: usize) -> Vec<Vec<f64>> {
-    let mid: Vec<f64> = model
-        .joints()
-        .iter()
-        .map(|j| {
-            if j.lower.is_finite() && j.upper.is_finite() {
-                0.0f64.clamp(j.lower, j.upper)
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    let mut out = vec![first.unwrap_or_else(|| mid.clone())];
-    // Halton-like fractions in (-0.5, 0.5) of each joint's span (capped at 2π).
-    const PRIMES: [f64; 8] = [2.0, 3.0, 5.0, 7.0, 11.0, 13.0, 17.0, 19.0];
-    for s in 1..=restarts {
-        let q = model
-            .joints()
-            .iter()
-            .enumerate()
-            .map(|(i, j)| {
-                let b = PRIMES[i % PRIMES.len()];
-                let (mut f, mut k, mut inv) = (0.0, s, 1.0 / b);
-                while k > 0 {
-                    f += (k as f64 % b) * inv;
-                    k = (k as f64 / b) as usize;
-                    inv /= b;
+    lin: &Lin,
+    rows: usize,
+    lambda: f64,
+    pull: Option<&[f64]>,
+    sw: &mut StepWork,
+    q_new: &mut [f64],
+) -> bool {
+    let n = q.len();
+    sw.free.iter_mut().for_each(|f| *f = true);
+    sw.dq.iter_mut().for_each(|d| *d = 0.0);
+    // At most n passes: each pass fixes at least one more joint or ends.
+    for _ in 0..=n {
+        // Normal matrix over the free columns and the error left after the fixed joints' moves.
+        let mut a = [[0.0; MAX_ROWS]; MAX_ROWS];
+        let mut rhs = lin.e;
+        for k in 0..n {
+            let c = &lin.cols[k];
+            if sw.free[k] {
+                for r in 0..rows {
+                    for s in 0..=r {
+                        a[r][s] += c[r] * c[s];
+                    }
                 }
-                let (lo, hi) = if j.lower.is_finite() && j.upper.is_finite() {
-                    (j.lower, j.upper)
-                } else {
-                    (-std::f64::consts::PI, std::f64::consts::PI)
-                };
-                let span = (hi - lo).min(std::f64::consts::TAU);
-                let c = 0.5 * (lo + hi);
-                (c + (f - 0.5) * span * 0.9).clamp(lo, hi)
-            })
-            .collect();
-        out.push(q);
+            } else {
+                for r in 0..rows {
+                    rhs[r] -= c[r] * sw.dq[k];
+                }
+            }
+        }
+        for r in 0..rows {
+            a[r][r] += lambda;
+            for s in 0..r {
+                a[s][r] = a[r][s];
+            }
+        }
+        let a_copy = a;
+        if !solve_spd(&mut a, &mut rhs, rows) {
+            return false;
+        }
+        // Null-space pull: d − Jᵀ(JJᵀ+λI)⁻¹J d over the free joints.
+        let mut jd = [0.0; MAX_ROWS];
+        if let Some(pref) = pull {
+            for k in 0..n {
+                if sw.free[k] {
+                    let d = NULL_GAIN * (pref[k] - q[k]);
+                    for r in 0..rows {
+                        jd[r] += lin.cols[k][r] * d;
+                    }
+                }
+            }
+            let mut a2 = a_copy;
+            if !solve_spd(&mut a2, &mut jd, rows) {
+                return false;
+            }
+        }
+        let mut violated = false;
+        for k in 0..n {
+            if !sw.free[k] {
+                continue;
+            }
+            let c = &lin.cols[k];
+            let mut d = dot(c, &rhs, rows);
+            if let Some(pref) = pull {
+                d += NULL_GAIN * (pref[k] - q[k]) - dot(c, &jd, rows);
+            }
+            sw.dq[k] = d;
+        }
+        for (k, jt) in model.joints().iter().enumerate() {
+            if !sw.free[k] {
+                continue;
+            }
+            let target = q[k] + sw.dq[k];
+            if target < jt.lower || target > jt.upper {
+                sw.dq[k] = target.clamp(jt.lower, jt.upper) - q[k];
+                sw.free[k] = false;
+                violated = true;
+            }
+        }
+        if !violated {
+            break;
+        }
     }
-    out
+    for (k, jt) in model.joints().iter().enumerate() {
+        q_new[k] = (q[k] + sw.dq[k]).clamp(jt.lower, jt.upper);
+    }
+    true
+}
+
+/// The deterministic seeds after the first: a Halton sequence over the joint ranges (capped at
+/// 2π, 90 % of the span around its middle).
+fn halton_seed(model: &RobotModel, s: usize, out: &mut [f64]) {
+    const PRIMES: [usize; 10] = [2, 3, 5, 7, 11, 13, 17, 19, 23, 29];
+    for (i, (j, o)) in model.joints().iter().zip(out.iter_mut()).enumerate() {
+        let b = PRIMES[i % PRIMES.len()];
+        let (mut f, mut k, mut inv) = (0.0, s, 1.0 / b as f64);
+        while k > 0 {
+            f += (k % b) as f64 * inv;
+            k /= b;
+            inv /= b as f64;
+        }
+        let (lo, hi) = finite_range(j.lower, j.upper);
+        let span = (hi - lo).min(std::f64::consts::TAU);
+        let c = 0.5 * (lo + hi);
+        *o = (c + (f - 0.5) * span * 0.9).clamp(lo, hi);
+    }
+}
+
+fn finite_range(lower: f64, upper: f64) -> (f64, f64) {
+    if lower.is_finite() && upper.is_finite() {
+        (lower, upper)
+    } else {
+        (-std::f64::consts::PI, std::f64::consts::PI)
+    }
 }
 
 fn check_vec(model: &RobotModel, v: &Option<Vec<f64>>, what: &str) -> Result<(), KinematicsError> {
     if let Some(v) = v {
         if v.len() != model.dof() || v.iter().any(|x| !x.is_finite()) {
             return Err(KinematicsError::InvalidInput(format!(
-                "IkOptions::{what} must hold {} finite angles in rad, got {:?}",
+                "IkOptions::{what} must hold {} finite angles in rad (one per joint of {}), got {:?}",
                 model.dof(),
+                model.name(),
                 v
             )));
         }
@@ -182,10 +391,26 @@ fn check_vec(model: &RobotModel, v: &Option<Vec<f64>>, what: &str) -> Result<(),
 }
 
 /// Joint angles (rad) that put the tip at `p_base_tip` (m, base frame), with the tip at
-/// `flange_from_tip` (m, flange frame), within the joint limits.
+/// `flange_from_tip` (m, flange frame), within the joint limits; with
+/// `options.tool_axis_base`, the flange z axis also points along that direction (base frame).
 ///
-/// Non-convergence is [`IkStatus::Unreachable`], not an error. Errors: non-finite target or tip,
-/// option vectors of the wrong length or non-finite, non-positive tolerances.
+/// Non-convergence is [`IkStatus::Unreachable`], not an error. Errors: non-finite target, tip or
+/// tool axis, option vectors of the wrong length or non-finite, non-positive tolerances, zero
+/// `max_iterations`.
+///
+/// # Examples
+/// ```
+/// use kinematics::{base_from_tip, ik_tip_position, IkOptions, RobotModel};
+/// use nalgebra::{Point3, Vector3};
+/// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../robots/hp20.urdf");
+/// let model = RobotModel::from_urdf_file(std::path::Path::new(path), "tool0").unwrap();
+/// let tip = Vector3::new(0.0, 0.0, 0.15);
+/// let target = Point3::new(1.0, 0.3, 0.8);
+/// let sol = ik_tip_position(&model, &target, &tip, &IkOptions::default()).unwrap();
+/// assert!(sol.reachable());
+/// let p = base_from_tip(&model, &sol.q, &tip).unwrap().translation.vector;
+/// assert!((p - target.coords).norm() < 1e-9);
+/// ```
 pub fn ik_tip_position(
     model: &RobotModel,
     p_base_tip: &Point3<f64>,
@@ -195,115 +420,200 @@ pub fn ik_tip_position(
     check_tip(flange_from_tip)?;
     if p_base_tip.iter().any(|v| !v.is_finite()) {
         return Err(KinematicsError::InvalidInput(format!(
-            "IK target {:?} m is not finite",
+            "IK target {:?} m is not finite; give a finite tip position",
             p_base_tip.coords.as_slice()
         )));
     }
     if !(options.tolerance_m > 0.0 && options.axis_tolerance_rad > 0.0) {
+        return Err(KinematicsError::InvalidInput(format!(
+            "IK tolerances must be positive, got tolerance_m = {} and axis_tolerance_rad = {}",
+            options.tolerance_m, options.axis_tolerance_rad
+        )));
+    }
+    if options.max_iterations == 0 {
         return Err(KinematicsError::InvalidInput(
-            "IK tolerances must be positive (tolerance_m, axis_tolerance_rad)".into(),
+            "IkOptions::max_iterations is 0; give at least 1 (default 100)".into(),
         ));
     }
     check_vec(model, &options.preferred_q, "preferred_q")?;
     check_vec(model, &options.initial_q, "initial_q")?;
     let axis = match options.tool_axis_base {
-        Some(a) if a.iter().all(|x| x.is_finite()) => {
-            let a = a.into_inner();
-            let helper = if a.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
-            let u = a.cross(&helper).normalize();
-            let v = a.cross(&u);
-            Some((a, u, v))
-        }
-        Some(_) => {
-            return Err(KinematicsError::InvalidInput(
-                "tool axis is not finite".into(),
-            ))
+        Some(a) if a.iter().all(|x| x.is_finite()) => Some(a.into_inner()),
+        Some(a) => {
+            return Err(KinematicsError::InvalidInput(format!(
+                "tool axis {:?} is not finite; give a finite direction",
+                a.as_slice()
+            )))
         }
         None => None,
     };
     let n = model.dof();
-    let rows = if axis.is_some() { 5 } else { 3 };
-    let mut w = Work {
-        frames: Vec::with_capacity(n),
-        jac: Matrix6xX::zeros(n),
+    let problem = Problem {
+        model,
+        target: *p_base_tip,
+        tip: *flange_from_tip,
+        axis,
+        rows: if axis.is_some() { 5 } else { 3 },
     };
-    let mut e = DVector::zeros(rows);
-    let mut j = DMatrix::zeros(rows, n);
-    let mut e_try = DVector::zeros(rows);
-    let mut j_try = DMatrix::zeros(rows, n);
-    let first = options.initial_q.clone().or_else(|| options.preferred_q.clone());
-    let mut best: Option<IkSolution> = None;
+    let rows = problem.rows;
+    let tol_ok = |l: &Lin| {
+        l.pos_err <= options.tolerance_m
+            && (axis.is_none() || l.axis_err <= options.axis_tolerance_rad)
+    };
+    let redundant = n > rows;
+    let pull = options.preferred_q.as_deref().filter(|_| redundant);
+
+    let mut frames = Vec::with_capacity(n);
+    let mut lin = Lin::new(n);
+    let mut lin_try = Lin::new(n);
+    let mut sw = StepWork {
+        free: vec![true; n],
+        dq: vec![0.0; n],
+    };
+    let mut q = vec![0.0; n];
+    let mut q_try = vec![0.0; n];
+    let mut best_q = vec![0.0; n];
+    let (mut best_pe, mut best_ae, mut best_score) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
     let mut total_iters = 0;
-    let tol_ok = |pe: f64, ae: f64| pe <= options.tolerance_m && (axis.is_none() || ae <= options.axis_tolerance_rad);
-    for seed in seeds(model, first, options.restarts) {
-        let mut q = seed;
-        clamp_q(model, &mut q);
-        let (mut pe, mut ae) = residual(model, &q, p_base_tip, flange_from_tip, axis.as_ref(), &mut w, &mut e, &mut j);
-        let mut cost = e.norm_squared();
-        let mut lambda2 = 1e-4;
-        let mut q_try = q.clone();
-        let mut converged = tol_ok(pe, ae);
+
+    for s in 0..=options.restarts {
+        if s == 0 {
+            match options.initial_q.as_ref().or(options.preferred_q.as_ref()) {
+                Some(first) => q.copy_from_slice(first),
+                None => q.iter_mut().for_each(|x| *x = 0.0),
+            }
+        } else {
+            halton_seed(model, s, &mut q);
+        }
+        for (qi, jt) in q.iter_mut().zip(model.joints()) {
+            *qi = qi.clamp(jt.lower, jt.upper);
+        }
+        // Aim every other seed: aiming misleads when the target lies near joint 1's axis.
+        if s % 2 == 0 {
+            problem.aim_first_joint(&mut q, &mut frames);
+        }
+        problem.linearize(&q, &mut frames, &mut lin);
+        let mut lambda = LAMBDA_INIT;
+        let mut nu = 2.0;
+        let mut converged = tol_ok(&lin);
         let mut it = 0;
         while !converged && it < options.max_iterations {
             it += 1;
-            // dq = Jᵀ (J Jᵀ + λ² I)⁻¹ e
-            let mut a = &j * j.transpose();
-            for d in 0..rows {
-                a[(d, d)] += lambda2;
-            }
-            let Some(chol) = a.clone().cholesky() else {
-                lambda2 *= 10.0;
-                continue;
-            };
-            let mut dq = j.transpose() * chol.solve(&e);
-            if let Some(pref) = &options.preferred_q {
-                if n > rows && cost.sqrt() > 1e-6 {
-                    let diff = DVector::from_iterator(n, pref.iter().zip(&q).map(|(p, c)| 0.2 * (p - c)));
-                    let proj = j.transpose() * chol.solve(&(&j * &diff));
-                    dq += diff - proj;
+            let use_pull = pull.filter(|_| lin.cost.sqrt() > NULL_STOP);
+            let mut gain_ratio = None;
+            for p in [use_pull, None] {
+                if !lm_step(model, &q, &lin, rows, lambda, p, &mut sw, &mut q_try) {
+                    break;
+                }
+                problem.linearize(&q_try, &mut frames, &mut lin_try);
+                if tol_ok(&lin_try) {
+                    gain_ratio = Some(1.0);
+                    break;
+                }
+                if lin_try.cost < lin.cost {
+                    // Gain ratio: actual over predicted decrease, the prediction being
+                    // |e − J·dq|² of the linear model.
+                    let mut predicted = 0.0;
+                    for r in 0..rows {
+                        let mut x = lin.e[r];
+                        for (k, c) in lin.cols.iter().enumerate() {
+                            x -= c[r] * (q_try[k] - q[k]);
+                        }
+                        predicted += x * x;
+                    }
+                    let drop = lin.cost - predicted;
+                    let rho = if drop > 0.0 {
+                        (lin.cost - lin_try.cost) / drop
+                    } else {
+                        1.0
+                    };
+                    gain_ratio = Some(rho);
+                    break;
+                }
+                if p.is_none() {
+                    break;
                 }
             }
-            for k in 0..n {
-                q_try[k] = q[k] + dq[k];
-            }
-            clamp_q(model, &mut q_try);
-            let (pe2, ae2) = residual(model, &q_try, p_base_tip, flange_from_tip, axis.as_ref(), &mut w, &mut e_try, &mut j_try);
-            let cost2 = e_try.norm_squared();
-            if cost2 < cost || tol_ok(pe2, ae2) {
+            if let Some(rho) = gain_ratio {
                 std::mem::swap(&mut q, &mut q_try);
-                std::mem::swap(&mut e, &mut e_try);
-                std::mem::swap(&mut j, &mut j_try);
-                cost = cost2;
-                pe = pe2;
-                ae = ae2;
-                lambda2 = (lambda2 * 0.1).max(1e-18);
-                converged = tol_ok(pe, ae);
+                std::mem::swap(&mut lin, &mut lin_try);
+                // Nielsen's update (Madsen, Nielsen & Tingleff, "Methods for non-linear least
+                // squares problems", 2004, eq. 2.21).
+                let t = 2.0 * rho.min(1.0) - 1.0;
+                lambda = (lambda * (1.0 / 3.0f64).max(1.0 - t * t * t)).max(LAMBDA_MIN);
+                nu = 2.0;
+                converged = tol_ok(&lin);
             } else {
-                lambda2 *= 10.0;
-                if lambda2 > 1e6 {
+                lambda *= nu;
+                nu *= 2.0;
+                if lambda > LAMBDA_GIVE_UP {
                     break;
                 }
             }
         }
         total_iters += it;
-        let sol = IkSolution {
-            q,
-            status: if converged { IkStatus::Converged } else { IkStatus::Unreachable },
-            position_error_m: pe,
-            axis_error_rad: ae,
-            iterations: total_iters,
-        };
         if converged {
-            return Ok(sol);
+            return Ok(IkSolution {
+                q,
+                status: IkStatus::Converged,
+                position_error_m: lin.pos_err,
+                axis_error_rad: lin.axis_err,
+                iterations: total_iters,
+            });
         }
-        let better = best
-            .as_ref()
-            .is_none_or(|b| sol.position_error_m + sol.axis_error_rad < b.position_error_m + b.axis_error_rad);
-        if better {
-            best = Some(sol);
+        let score = lin.pos_err + lin.axis_err;
+        if score < best_score {
+            best_score = score;
+            best_pe = lin.pos_err;
+            best_ae = lin.axis_err;
+            best_q.copy_from_slice(&q);
         }
     }
-    let mut b = best.expect("at least one seed");
-    b.iterations = total_iters;
-    Ok(b)
+    Ok(IkSolution {
+        q: best_q,
+        status: IkStatus::Unreachable,
+        position_error_m: best_pe,
+        axis_error_rad: best_ae,
+        iterations: total_iters,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn solve_spd_matches_direct_solution() {
+        // A = [[4, 2], [2, 3]], b = [2, 1] → x = [0.5, 0].
+        let mut a = [[0.0; MAX_ROWS]; MAX_ROWS];
+        a[0][0] = 4.0;
+        a[1][0] = 2.0;
+        a[0][1] = 2.0;
+        a[1][1] = 3.0;
+        let mut b = [2.0, 1.0, 0.0, 0.0, 0.0];
+        assert!(solve_spd(&mut a, &mut b, 2));
+        assert!((b[0] - 0.5).abs() < 1e-15 && b[1].abs() < 1e-15);
+        let mut not_pd = [[0.0; MAX_ROWS]; MAX_ROWS];
+        not_pd[0][0] = -1.0;
+        assert!(!solve_spd(&mut not_pd, &mut b, 1));
+    }
+
+    #[test]
+    fn halton_seeds_stay_in_limits_and_differ() {
+        let xml = r#"<robot name="r"><link name="a"/><link name="b"/><link name="tool0"/>
+            <joint name="j1" type="revolute"><parent link="a"/><child link="b"/>
+              <axis xyz="0 0 1"/><limit lower="-1" upper="2" effort="1" velocity="1"/></joint>
+            <joint name="j2" type="continuous"><parent link="b"/><child link="tool0"/>
+              <origin xyz="1 0 0"/><axis xyz="0 1 0"/></joint></robot>"#;
+        let m = RobotModel::from_urdf_str(xml, "tool0").unwrap();
+        let mut prev = vec![f64::NAN; 2];
+        for s in 1..20 {
+            let mut q = vec![0.0; 2];
+            halton_seed(&m, s, &mut q);
+            assert!((-1.0..=2.0).contains(&q[0]));
+            assert!(q[1].abs() <= std::f64::consts::PI);
+            assert_ne!(q, prev);
+            prev = q;
+        }
+    }
 }

@@ -1,6 +1,6 @@
 //! Geometric and tip-position Jacobians, analytic. Lengths in metres, angles in radians.
 
-use nalgebra::{Isometry3, Matrix3xX, Matrix6xX, Point3, Vector3};
+use nalgebra::{Matrix3, Matrix3xX, Matrix6xX, Vector3};
 
 use crate::error::KinematicsError;
 use crate::fk::{check_tip, joint_frames};
@@ -15,27 +15,24 @@ pub enum JacobianFrame {
     Tip,
 }
 
-/// Fills `jac` (6×dof, rows [v; ω], base axes, reference point at the tip) and returns `base_from_tip`.
-/// No checks. `frames` is scratch space.
+/// Fills `jac` (6×dof, rows [v; ω], base axes, reference point at the tip) and returns the
+/// flange rotation (base axes) and the tip position (m, base). No checks. `frames` is scratch.
 pub(crate) fn jacobian_base_into(
     model: &RobotModel,
     q: &[f64],
     flange_from_tip: &Vector3<f64>,
-    frames: &mut Vec<Isometry3<f64>>,
+    frames: &mut Vec<(Matrix3<f64>, Vector3<f64>)>,
     jac: &mut Matrix6xX<f64>,
-) -> Isometry3<f64> {
-    let flange = joint_frames(model, q, frames);
-    let p_tip = flange * Point3::from(*flange_from_tip);
-    for (k, (frame, step)) in frames.iter().zip(&model.steps).enumerate() {
-        let z = frame.rotation * step.axis.into_inner();
-        let r = p_tip - Point3::from(frame.translation.vector);
-        let v = z.cross(&r);
+) -> (Matrix3<f64>, Vector3<f64>) {
+    let (r_flange, t_flange) = joint_frames(model, q, frames);
+    let p_tip = t_flange + r_flange * flange_from_tip;
+    for (k, ((r, t), step)) in frames.iter().zip(&model.steps).enumerate() {
+        let w = r * step.axis.into_inner();
+        let v = w.cross(&(p_tip - t));
         jac.fixed_view_mut::<3, 1>(0, k).copy_from(&v);
-        jac.fixed_view_mut::<3, 1>(3, k).copy_from(&z);
+        jac.fixed_view_mut::<3, 1>(3, k).copy_from(&w);
     }
-    let mut t = flange;
-    t.translation.vector = p_tip.coords;
-    t
+    (r_flange, p_tip)
 }
 
 /// Geometric Jacobian of the tip, 6×dof, rows `[v; ω]` (m/rad and rad/rad), in `frame` axes with the
@@ -52,10 +49,9 @@ pub fn geometric_jacobian(
     check_tip(flange_from_tip)?;
     let mut frames = Vec::with_capacity(model.dof());
     let mut jac = Matrix6xX::zeros(model.dof());
-    let base_from_tip = jacobian_base_into(model, q, flange_from_tip, &mut frames, &mut jac);
+    let (r_base_tip, _) = jacobian_base_into(model, q, flange_from_tip, &mut frames, &mut jac);
     if frame == JacobianFrame::Tip {
-        let tip_from_base = base_from_tip.rotation.inverse().to_rotation_matrix();
-        let m = tip_from_base.matrix();
+        let m = r_base_tip.transpose();
         for mut col in jac.column_iter_mut() {
             let v = m * col.fixed_rows::<3>(0);
             let w = m * col.fixed_rows::<3>(3);

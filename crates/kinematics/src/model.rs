@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 use std::path::Path;
 
-use nalgebra::{Isometry3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
 
 use crate::error::{KinematicsError, ModelError};
 
@@ -74,6 +74,12 @@ pub(crate) struct Step {
     pub(crate) axis_kind: u8,
     /// Sign of the axis when `axis_kind < 3`.
     pub(crate) axis_sign: f64,
+    /// Rotation of `prev_from_joint` as a matrix (FK hot path).
+    pub(crate) origin_r: Matrix3<f64>,
+    /// Translation of `prev_from_joint`, m.
+    pub(crate) origin_t: Vector3<f64>,
+    /// True when `origin_r` is exactly the identity (rpy = 0 and no rotating fixed prefix).
+    pub(crate) origin_r_is_identity: bool,
 }
 
 /// A serial robot arm from a URDF: the actuated joints from the root link to a tool link.
@@ -85,6 +91,9 @@ pub struct RobotModel {
     tool_link: String,
     joints: Vec<Joint>,
     last_from_flange: Isometry3<f64>,
+    /// `last_from_flange` as (rotation matrix, translation) for the FK hot path.
+    pub(crate) flange_r: Matrix3<f64>,
+    pub(crate) flange_t: Vector3<f64>,
     inertials: Vec<LumpedInertial>,
     pub(crate) steps: Vec<Step>,
 }
@@ -164,7 +173,11 @@ impl RobotModel {
                         source_name: s(),
                         link: l.name.clone(),
                         children: c.len(),
-                        names: c.iter().map(|j| j.name.as_str()).collect::<Vec<_>>().join(", "),
+                        names: c
+                            .iter()
+                            .map(|j| j.name.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", "),
                     });
                 }
             }
@@ -245,11 +258,20 @@ impl RobotModel {
                         });
                     }
                     let (axis_kind, axis_sign) = classify_axis(&axis);
+                    let prev_from_joint = pending * origin;
+                    let origin_r = if rpy == Vector3::zeros() && pending.rotation.w == 1.0 {
+                        Matrix3::identity()
+                    } else {
+                        *prev_from_joint.rotation.to_rotation_matrix().matrix()
+                    };
                     steps.push(Step {
-                        prev_from_joint: pending * origin,
+                        prev_from_joint,
                         axis,
                         axis_kind,
                         axis_sign,
+                        origin_r,
+                        origin_t: prev_from_joint.translation.vector,
+                        origin_r_is_identity: origin_r == Matrix3::identity(),
                     });
                     joints.push(Joint {
                         name: j.name.clone(),
@@ -297,7 +319,11 @@ impl RobotModel {
                 }
                 LumpedInertial {
                     mass,
-                    com: if mass > 0.0 { moment / mass } else { Vector3::zeros() },
+                    com: if mass > 0.0 {
+                        moment / mass
+                    } else {
+                        Vector3::zeros()
+                    },
                 }
             })
             .collect();
@@ -307,6 +333,8 @@ impl RobotModel {
             tool_link: tool_link.to_string(),
             joints,
             last_from_flange: pending,
+            flange_r: *pending.rotation.to_rotation_matrix().matrix(),
+            flange_t: pending.translation.vector,
             inertials,
             steps,
         })

@@ -87,11 +87,19 @@ fn fk_hand_computed_poses() {
     // L = 90° (axis +y): upper arm lies along +x; U offset 0.140 then along +x, forearm points down.
     let t = base_from_flange(&m, &[0.0, FRAC_PI_2, 0.0, 0.0, 0.0, 0.0]).unwrap();
     let expected = Vector3::new(0.150 + 0.760 + 0.140, 0.0, 0.505 - 0.795 - 0.105);
-    assert!((t.translation.vector - expected).norm() < EXACT_TOL, "{}", t.translation.vector);
+    assert!(
+        (t.translation.vector - expected).norm() < EXACT_TOL,
+        "{}",
+        t.translation.vector
+    );
     // U = 90° (axis −y): the forearm points up and the 0.140 U offset now points to −x.
     let t = base_from_flange(&m, &[0.0, 0.0, FRAC_PI_2, 0.0, 0.0, 0.0]).unwrap();
     let expected = Vector3::new(0.150 - 0.140, 0.0, 0.505 + 0.760 + 0.795 + 0.105);
-    assert!((t.translation.vector - expected).norm() < EXACT_TOL, "{}", t.translation.vector);
+    assert!(
+        (t.translation.vector - expected).norm() < EXACT_TOL,
+        "{}",
+        t.translation.vector
+    );
     // VA1400 E = 90° with the arm upright moves the forearm to +y.
     let v = robot("va1400");
     let t = base_from_flange(&v, &[0.0, 0.0, FRAC_PI_2, 0.0, 0.0, 0.0, 0.0]).unwrap();
@@ -155,7 +163,10 @@ fn round_trip(name: &str, n: usize, with_axis: bool) {
             ..IkOptions::default()
         };
         let sol = ik_tip_position(&m, &target, &tip, &opts).unwrap();
-        assert!(sol.reachable(), "{name} target {target} from q {q:?} not solved: {sol:?}");
+        assert!(
+            sol.reachable(),
+            "{name} target {target} from q {q:?} not solved: {sol:?}"
+        );
         m.check_q(&sol.q).unwrap();
         let p = base_from_tip(&m, &sol.q, &tip).unwrap().translation.vector;
         assert!((p - target.coords).norm() < ROUND_TRIP_TOL_M);
@@ -187,7 +198,13 @@ fn ik_round_trip_with_axis() {
 #[test]
 fn ik_unreachable_is_a_status() {
     let m = robot("hp20");
-    let sol = ik_tip_position(&m, &Point3::new(5.0, 0.0, 1.0), &Vector3::zeros(), &IkOptions::default()).unwrap();
+    let sol = ik_tip_position(
+        &m,
+        &Point3::new(5.0, 0.0, 1.0),
+        &Vector3::zeros(),
+        &IkOptions::default(),
+    )
+    .unwrap();
     assert_eq!(sol.status, IkStatus::Unreachable);
     assert!(sol.position_error_m > 1.0);
     m.check_q(&sol.q).unwrap();
@@ -197,25 +214,50 @@ fn ik_unreachable_is_a_status() {
 fn bad_inputs_are_typed_errors() {
     let m = robot("hp20");
     let e = base_from_flange(&m, &[0.0; 5]).unwrap_err();
-    assert!(matches!(e, KinematicsError::WrongLength { expected: 6, got: 5, .. }));
+    assert!(matches!(
+        e,
+        KinematicsError::WrongLength {
+            expected: 6,
+            got: 5,
+            ..
+        }
+    ));
     assert!(e.to_string().contains("5 values but hp20 has 6 joints"));
     let e = base_from_flange(&m, &[0.0, f64::NAN, 0.0, 0.0, 0.0, 0.0]).unwrap_err();
     assert!(matches!(e, KinematicsError::NotFinite { index: 2, .. }));
     let e = base_from_flange(&m, &[0.0, 0.0, 0.0, 0.0, 2.6, 0.0]).unwrap_err();
-    assert!(matches!(e, KinematicsError::OutOfLimits { index: 5, .. }), "{e}");
+    assert!(
+        matches!(e, KinematicsError::OutOfLimits { index: 5, .. }),
+        "{e}"
+    );
     assert!(e.to_string().contains("joint_5_b"));
     let e = base_from_flange(&m, &[0.0, 30.0, 0.0, 0.0, 0.0, 0.0]).unwrap_err();
-    assert!(matches!(e, KinematicsError::LooksLikeDegrees { index: 2, .. }), "{e}");
+    assert!(
+        matches!(e, KinematicsError::LooksLikeDegrees { index: 2, .. }),
+        "{e}"
+    );
     assert!(e.to_string().contains("degrees"));
     let bad = RobotModel::from_urdf_str("<robot name=\"x\"><link", "tool0").unwrap_err();
     assert!(matches!(bad, ModelError::Parse { .. }));
-    let xml = std::fs::read_to_string(format!("{}/../../robots/hp20.urdf", env!("CARGO_MANIFEST_DIR"))).unwrap();
+    let xml = std::fs::read_to_string(format!(
+        "{}/../../robots/hp20.urdf",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
     let e = RobotModel::from_urdf_str(&xml, "flange").unwrap_err();
     assert!(matches!(e, ModelError::MissingLink { .. }));
     assert!(e.to_string().contains("tool0"));
-    let e = RobotModel::from_urdf_str(&xml.replace("type=\"revolute\"", "type=\"prismatic\""), "tool0").unwrap_err();
+    let e = RobotModel::from_urdf_str(
+        &xml.replace("type=\"revolute\"", "type=\"prismatic\""),
+        "tool0",
+    )
+    .unwrap_err();
     assert!(matches!(e, ModelError::UnsupportedJoint { .. }), "{e}");
-    let e = RobotModel::from_urdf_str(&xml.replace("<axis xyz=\"0 0 1\"/>", "<axis xyz=\"0 0 0\"/>"), "tool0").unwrap_err();
+    let e = RobotModel::from_urdf_str(
+        &xml.replace("<axis xyz=\"0 0 1\"/>", "<axis xyz=\"0 0 0\"/>"),
+        "tool0",
+    )
+    .unwrap_err();
     assert!(matches!(e, ModelError::ZeroAxis { .. }), "{e}");
     let branch = xml.replace(
         "</robot>",
@@ -225,7 +267,13 @@ fn bad_inputs_are_typed_errors() {
     assert!(matches!(e, ModelError::Branching { .. }), "{e}");
     let e = RobotModel::from_urdf_file(Path::new("/nonexistent/x.urdf"), "tool0").unwrap_err();
     assert!(e.to_string().contains("/nonexistent/x.urdf"));
-    assert!(ik_tip_position(&m, &Point3::new(f64::NAN, 0.0, 0.0), &Vector3::zeros(), &IkOptions::default()).is_err());
+    assert!(ik_tip_position(
+        &m,
+        &Point3::new(f64::NAN, 0.0, 0.0),
+        &Vector3::zeros(),
+        &IkOptions::default()
+    )
+    .is_err());
 }
 
 #[test]
@@ -239,7 +287,9 @@ fn unchecked_matches_checked() {
     // And against the plain product of URDF origins (no precomputation).
     let mut t = nalgebra::Isometry3::identity();
     for (j, &qi) in m.joints().iter().zip(&q) {
-        t = t * j.fixed_prefix * origin_isometry(&j.origin_xyz, &j.origin_rpy)
+        t = t
+            * j.fixed_prefix
+            * origin_isometry(&j.origin_xyz, &j.origin_rpy)
             * nalgebra::UnitQuaternion::from_axis_angle(&j.axis, qi);
     }
     t *= m.last_from_flange();

@@ -1,26 +1,39 @@
 //! The `handclasp diagnose` engine: what the nominal models get wrong in a measured session.
 //!
 //! Steps (issue #5): (1) baseline fit of `b1_from_b2` with the nominal models, the residual RMS the
-//! cell's stated noise predicts at these very joint configurations (seeded Monte Carlo), a χ² test
-//! and the residual structure (correlations with joints, position and reach); (2) the catalogue
-//! of candidate error parameters with identifiability per family; (3) forward selection
-//! (`calib_core::identify::forward_select`); (4) the gain; (5) export of corrected URDFs and cell.
+//! cell's stated noise (alignment, repeatability, encoder resolution) predicts at these very joint
+//! configurations (seeded Monte Carlo), a χ² test and the residual structure (correlations with
+//! joints, position and reach); (2) the catalogue of candidate error parameters with
+//! identifiability per family; (3) forward selection (`calib_core::identify::forward_select`);
+//! (4) the gain; (5) export of corrected URDFs and of a cell with the calibrated `b1_from_b2`.
 //!
 //! The maths lives in `calib_core::identify`; this module wires it to the kinematic error model
-//! (`kinematics::true_base_from_tip`, `kinematics::tip_error_jacobian`) and to files. Inside, SI
-//! units; the report speaks mm and degrees (field names carry the unit).
+//! (`kinematics::true_base_from_tip`, `kinematics::tip_error_jacobian`), to the cell
+//! ([`crate::cell::Cell`]) and to sessions. Inside, SI units; the report speaks mm and degrees
+//! (field names carry the unit).
+//!
+//! Mount tilts are confounded with the rotation of `b1_from_b2` in handclasp residuals (a turned
+//! base only turns the fit), so they are never selected from the residuals. The report instead
+//! compares the calibrated `b1_from_b2` with the cell's stated one ([`PlacementReport`]): if the
+//! cell states the true placement of the nominal bases (as in a simulation), a significant
+//! difference about base 2's x/y axes is a mount tilt of robot 2 (or, equivalently, of robot 1).
 
 use std::path::{Path, PathBuf};
 
 use calib_core::identify::{
     self, IdentStatus, IdentifyError, Robot, SelectionOptions, TipEval, TipModel,
 };
-use kinematics::{Axis, ErrorParam, KinematicErrors, RobotModel};
-use nalgebra::{Isometry3, Matrix3xX, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
+use kinematics::{Axis, ErrorParam, KinematicErrors};
+use nalgebra::{Isometry3, Matrix3, Matrix3xX, Point3, Vector3};
+use rand::Rng;
+use rand_distr::{Distribution, StandardNormal};
 use serde::Serialize;
+
+use crate::cell::{Cell, CellRobot};
+use crate::session::Session;
+use crate::SimError;
+
+pub use kinematics::{rotation_from_zyz, zyz_from_rotation};
 
 /// Errors of the diagnosis: bad files or inputs. Each names the file/row/field and the fix.
 #[derive(Debug, thiserror::Error)]
@@ -33,358 +46,103 @@ pub enum DiagnoseError {
         /// What went wrong.
         message: String,
     },
-    /// The cell file is invalid.
-    #[error("cell file {path}: {message}")]
-    Cell {
-        /// The file.
-        path: PathBuf,
-        /// What is wrong and the fix.
-        message: String,
-    },
-    /// The session file is invalid.
-    #[error("session file {path}: {message}")]
+    /// The session does not fit the cell (joint counts, units, tips vs FK, too few points).
+    #[error("session {path}: {message}")]
     Session {
-        /// The file.
+        /// The session file (or `<memory>`).
         path: PathBuf,
         /// What is wrong and the fix.
         message: String,
     },
-    /// A simulated session could not be generated.
-    #[error("simulation: {0}")]
-    Simulation(String),
+    /// The cell or session could not be read.
+    #[error(transparent)]
+    Sim(#[from] SimError),
     /// The identification failed on the input.
     #[error("identification: {0}")]
     Identify(#[from] IdentifyError),
 }
 
-/// One robot of the cell, as the diagnosis needs it.
-#[derive(Debug, Clone)]
-pub struct RobotSetup {
-    /// The nominal model.
-    pub model: RobotModel,
-    /// URDF file it was read from.
-    pub urdf_path: PathBuf,
-    /// Nominal tip offset in the tool0 frame, m.
-    pub flange_from_tip: Vector3<f64>,
-    /// Gravity in the robot's base frame, m/s² (floor: (0, 0, −9.81)).
-    pub g_base: Vector3<f64>,
-}
+/// Largest distance (m) between a session's reported tip and FK of its joint columns with the
+/// cell's tip offset: 0.2 mm covers the rounding of a file and the encoder resolution.
+pub const FK_TOLERANCE_M: f64 = 2e-4;
 
-/// The cell as the diagnosis reads it (a lenient reader of the sim-cell TOML: unknown keys are
-/// ignored here, since sim-cell's own reader validates them).
-#[derive(Debug, Clone)]
-pub struct DiagnoseCell {
-    /// The cell file.
-    pub path: PathBuf,
-    /// Robot 1.
-    pub robot1: RobotSetup,
-    /// Robot 2.
-    pub robot2: RobotSetup,
-    /// Nominal `b1_from_b2` from the file (m, rad).
-    pub b1_from_b2: Isometry3<f64>,
-    /// σ of the tips' alignment error per axis, m (`[noise] alignment_mm`).
-    pub sigma_alignment_m: f64,
-}
-
-const G: f64 = 9.81;
-
-fn cell_err(path: &Path, message: impl Into<String>) -> DiagnoseError {
-    DiagnoseError::Cell {
-        path: path.to_path_buf(),
-        message: message.into(),
-    }
-}
-
-fn vec3(path: &Path, v: Option<&toml::Value>, key: &str) -> Result<Vector3<f64>, DiagnoseError> {
-    let arr = v.and_then(|v| v.as_array()).ok_or_else(|| {
-        cell_err(
-            path,
-            format!("`{key}` is missing or not an array of 3 numbers"),
-        )
-    })?;
-    let nums: Vec<f64> = arr
-        .iter()
-        .filter_map(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
-        .collect();
-    if nums.len() != 3 || arr.len() != 3 {
-        return Err(cell_err(
-            path,
-            format!("`{key}` must be an array of 3 numbers"),
-        ));
-    }
-    Ok(Vector3::new(nums[0], nums[1], nums[2]))
-}
-
-pub use kinematics::{rotation_from_zyz, zyz_from_rotation};
-
-fn gravity_for_mount(
-    path: &Path,
-    key: &str,
-    mount: Option<&toml::Value>,
-) -> Result<Vector3<f64>, DiagnoseError> {
-    let down = Vector3::new(0.0, 0.0, -G);
-    match mount {
-        None => Ok(down),
-        Some(toml::Value::String(s)) => match s.as_str() {
-            "floor" => Ok(down),
-            "ceiling" => Ok(-down),
-            // Wall: base z horizontal; the roll is not given, take base x pointing down (the
-            // usual wall mount). Compliance about horizontal axes depends on it.
-            "wall" => Ok(Vector3::new(-G, 0.0, 0.0)),
-            other => Err(cell_err(
-                path,
-                format!("`{key}.mount` = \"{other}\" is unknown: use floor, ceiling, wall or {{ tilt_deg = [rx, ry] }}"),
-            )),
-        },
-        Some(toml::Value::Table(t)) => {
-            let tilt = t.get("tilt_deg").and_then(|v| v.as_array()).ok_or_else(|| {
-                cell_err(path, format!("`{key}.mount` table needs tilt_deg = [rx, ry] (degrees)"))
-            })?;
-            let a: Vec<f64> = tilt
-                .iter()
-                .filter_map(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
-                .collect();
-            if a.len() != 2 {
-                return Err(cell_err(path, format!("`{key}.mount.tilt_deg` must be [rx, ry] in degrees")));
-            }
-            let level_from_base = Rotation3::from_axis_angle(&Vector3::x_axis(), a[0].to_radians())
-                * Rotation3::from_axis_angle(&Vector3::y_axis(), a[1].to_radians());
-            Ok(level_from_base.inverse() * down)
-        }
-        Some(_) => Err(cell_err(path, format!("`{key}.mount` must be a string or a tilt table"))),
-    }
-}
-
-/// Reads the cell TOML (lengths mm, angles degrees, paths relative to the file).
-pub fn load_cell(path: &Path) -> Result<DiagnoseCell, DiagnoseError> {
-    let text = std::fs::read_to_string(path).map_err(|e| DiagnoseError::Io {
-        path: path.to_path_buf(),
-        message: format!("cannot read the cell file: {e}"),
-    })?;
-    let value: toml::Value = text
-        .parse()
-        .map_err(|e| cell_err(path, format!("not valid TOML: {e}")))?;
-    let dir = path.parent().unwrap_or(Path::new("."));
-    let robot = |key: &str| -> Result<RobotSetup, DiagnoseError> {
-        let t = value
-            .get(key)
-            .ok_or_else(|| cell_err(path, format!("missing table [{key}]")))?;
-        let urdf = t.get("urdf").and_then(|v| v.as_str()).ok_or_else(|| {
-            cell_err(
-                path,
-                format!("`{key}.urdf` is missing (path of the URDF, relative to the cell file)"),
-            )
-        })?;
-        let urdf_path = dir.join(urdf);
-        let model = RobotModel::from_urdf_file(&urdf_path, "tool0")
-            .map_err(|e| cell_err(path, format!("`{key}.urdf` = {}: {e}", urdf_path.display())))?;
-        let tip_mm = vec3(path, t.get("tip_mm"), &format!("{key}.tip_mm"))?;
-        Ok(RobotSetup {
-            model,
-            urdf_path,
-            flange_from_tip: tip_mm / 1000.0,
-            g_base: gravity_for_mount(path, key, t.get("mount"))?,
-        })
-    };
-    let robot1 = robot("robot1")?;
-    let robot2 = robot("robot2")?;
-    let b = value.get("b1_from_b2");
-    let xyz = vec3(path, b.and_then(|b| b.get("xyz_mm")), "b1_from_b2.xyz_mm")? / 1000.0;
-    let zyz = vec3(path, b.and_then(|b| b.get("zyz_deg")), "b1_from_b2.zyz_deg")?;
-    let rot = rotation_from_zyz([
-        zyz[0].to_radians(),
-        zyz[1].to_radians(),
-        zyz[2].to_radians(),
-    ]);
-    // σ per axis; an anisotropic [σx, σy, σz] is summarised by its RMS. Missing: 0.3 mm (the
-    // sim-cell default), stated in the report.
-    let sigma_value = value.get("noise").and_then(|n| n.get("alignment_mm"));
-    let num = |v: &toml::Value| v.as_float().or_else(|| v.as_integer().map(|i| i as f64));
-    let sigma_mm = match sigma_value {
-        None => 0.3,
-        Some(toml::Value::Array(a)) => {
-            let v: Vec<f64> = a.iter().filter_map(num).collect();
-            if v.is_empty() || v.len() != a.len() {
-                return Err(cell_err(
-                    path,
-                    "`noise.alignment_mm` must be a number or an array of numbers (mm)",
-                ));
-            }
-            (v.iter().map(|x| x * x).sum::<f64>() / v.len() as f64).sqrt()
-        }
-        Some(v) => {
-            num(v).ok_or_else(|| cell_err(path, "`noise.alignment_mm` must be a number (mm)"))?
-        }
-    };
-    if !(sigma_mm > 0.0 && sigma_mm.is_finite()) {
-        return Err(cell_err(
-            path,
-            format!("`noise.alignment_mm` = {sigma_mm}: must be a positive σ in mm"),
-        ));
-    }
-    Ok(DiagnoseCell {
-        path: path.to_path_buf(),
-        robot1,
-        robot2,
-        b1_from_b2: Isometry3::from_parts(
-            Translation3::from(xyz),
-            UnitQuaternion::from_rotation_matrix(&rot),
-        ),
-        sigma_alignment_m: sigma_mm / 1000.0,
-    })
-}
-
-/// A handclasp session (joint angles rad, nominal tips m).
-#[derive(Debug, Clone)]
-pub struct HandclaspSession {
-    /// Robot 1's reported joints per point, rad.
-    pub q1: Vec<Vec<f64>>,
-    /// Robot 2's reported joints per point, rad.
-    pub q2: Vec<Vec<f64>>,
-    /// Robot 1's reported tips in b1, m.
-    pub p1_b1: Vec<Point3<f64>>,
-    /// Robot 2's reported tips in b2, m.
-    pub p2_b2: Vec<Point3<f64>>,
-    /// 1-based data rows (for messages).
-    pub rows: Vec<usize>,
-}
-
-/// Reads a session CSV (`r1_q1_deg…, r2_q1_deg…, r1_x_mm…r2_z_mm`) and checks it against the
-/// cell: joint counts, units (radians written as degrees, metres as millimetres) and the nominal
-/// tip columns against FK of the joint columns with the cell's tip offsets.
-pub fn load_session(path: &Path, cell: &DiagnoseCell) -> Result<HandclaspSession, DiagnoseError> {
+/// Checks a session against the cell: joint counts, units (radians under `*_deg`, metres under
+/// `*_mm`), joint limits, the reported tips against FK of the joint columns with the cell's tip
+/// offsets, and that there are enough points to identify anything. `path` is named in messages.
+pub fn check_session(cell: &Cell, s: &Session, path: &Path) -> Result<(), DiagnoseError> {
     let serr = |message: String| DiagnoseError::Session {
         path: path.to_path_buf(),
         message,
     };
-    let mut rdr = csv::ReaderBuilder::new()
-        .trim(csv::Trim::All)
-        .from_path(path)
-        .map_err(|e| DiagnoseError::Io {
-            path: path.to_path_buf(),
-            message: format!("cannot read the session: {e}"),
-        })?;
-    let headers = rdr
-        .headers()
-        .map_err(|e| serr(format!("bad header: {e}")))?
-        .clone();
-    let col = |name: &str| headers.iter().position(|h| h == name);
-    let count = |r: u8| {
-        (1..=20)
-            .take_while(|k| col(&format!("r{r}_q{k}_deg")).is_some())
-            .count()
-    };
-    let (n1, n2) = (count(1), count(2));
     let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
-    if n1 != d1 || n2 != d2 {
-        return Err(serr(format!(
-            "the session has {n1} joint column(s) for robot 1 and {n2} for robot 2 (r1_q1_deg…, r2_q1_deg…), \
-             but the cell's URDFs have {d1} and {d2} joints: use the session recorded with this cell, or the cell of this session"
-        )));
+    for p in &s.points {
+        if p.q1.len() != d1 || p.q2.len() != d2 {
+            return Err(serr(format!(
+                "point {}: {} joint value(s) for robot 1 and {} for robot 2, but the cell's URDFs have {d1} ({}) and {d2} ({}): \
+                 use the session recorded with this cell, or the cell of this session",
+                p.point,
+                p.q1.len(),
+                p.q2.len(),
+                cell.robot1.model.name(),
+                cell.robot2.model.name()
+            )));
+        }
     }
-    let tip_cols: Vec<usize> = [
-        "r1_x_mm", "r1_y_mm", "r1_z_mm", "r2_x_mm", "r2_y_mm", "r2_z_mm",
-    ]
-    .iter()
-    .map(|c| col(c).ok_or_else(|| serr(format!("missing column `{c}` (tip positions in mm)"))))
-    .collect::<Result<_, _>>()?;
-    let mut s = HandclaspSession {
-        q1: vec![],
-        q2: vec![],
-        p1_b1: vec![],
-        p2_b2: vec![],
-        rows: vec![],
-    };
-    for (i, rec) in rdr.records().enumerate() {
-        let row = i + 1;
-        let rec = rec.map_err(|e| serr(format!("data row {row}: {e}")))?;
-        let num = |c: usize, name: &str| -> Result<f64, DiagnoseError> {
-            let v: f64 = rec.get(c).unwrap_or("").parse().map_err(|_| {
-                serr(format!(
-                    "data row {row}, column `{name}`: `{}` is not a number",
-                    rec.get(c).unwrap_or("")
-                ))
-            })?;
-            if !v.is_finite() {
-                return Err(serr(format!("data row {row}, column `{name}`: not finite")));
-            }
-            Ok(v)
-        };
-        let q = |r: u8, d: usize| -> Result<Vec<f64>, DiagnoseError> {
-            (1..=d)
-                .map(|k| {
-                    let name = format!("r{r}_q{k}_deg");
-                    num(col(&name).unwrap_or(0), &name).map(f64::to_radians)
-                })
-                .collect()
-        };
-        s.q1.push(q(1, d1)?);
-        s.q2.push(q(2, d2)?);
-        let t: Vec<f64> = tip_cols
-            .iter()
-            .map(|&c| num(c, &headers[c]).map(|v| v / 1000.0))
-            .collect::<Result<_, _>>()?;
-        s.p1_b1.push(Point3::new(t[0], t[1], t[2]));
-        s.p2_b2.push(Point3::new(t[3], t[4], t[5]));
-        s.rows.push(row);
-    }
-    let n = s.rows.len();
+    let n = s.points.len();
     let needed = identify::min_points(1);
     if n < needed {
         return Err(serr(format!(
-            "{n} handclasp point(s): too few to identify anything; fitting b1_from_b2 and one error \
-             parameter with a meaningful test needs at least {needed} points (40 recommended)"
+            "{n} handclasp point(s): too few to identify anything; fitting b1_from_b2 (6 unknowns) and one error \
+             parameter with a meaningful test needs at least {needed} points, and the full catalogue 20–60 \
+             (40 recommended)"
         )));
     }
-    // Units: joint columns that are all within ±π "degrees" are almost surely radians.
-    let max_q =
-        s.q1.iter()
-            .chain(&s.q2)
-            .flatten()
-            .fold(0.0f64, |a, v| a.max(v.abs()));
+    let max_q = s
+        .points
+        .iter()
+        .flat_map(|p| p.q1.iter().chain(&p.q2))
+        .fold(0.0f64, |a, v| a.max(v.abs()));
     if max_q.to_degrees() <= std::f64::consts::PI + 1e-9 {
         return Err(serr(format!(
-            "every joint angle is within ±{:.3} — these look like radians, but the columns are *_deg: convert them to degrees",
+            "every joint angle is within ±{:.3} degrees — these look like radians written as degrees: convert them to degrees",
             max_q.to_degrees()
         )));
     }
     let max_p = s
-        .p1_b1
+        .points
         .iter()
-        .chain(&s.p2_b2)
+        .flat_map(|p| [p.p_b1, p.p_b2])
         .fold(0.0f64, |a, p| a.max(p.coords.amax()));
     if max_p < 0.01 {
         return Err(serr(format!(
-            "every tip coordinate is below {:.4} mm — these look like metres, but the columns are *_mm: convert them to millimetres",
+            "every tip coordinate is below {:.4} mm — these look like metres written as millimetres: convert them to millimetres",
             max_p * 1000.0
         )));
     }
-    // Cross-check the reported nominal tips with FK (0.2 mm allows for the rounding of the file).
-    const FK_TOL_M: f64 = 2e-4;
-    for (r, setup, qs, ps) in [
-        (1, &cell.robot1, &s.q1, &s.p1_b1),
-        (2, &cell.robot2, &s.q2, &s.p2_b2),
-    ] {
-        for (k, (q, p)) in qs.iter().zip(ps.iter()).enumerate() {
+    for p in &s.points {
+        for (r, setup, q, tip) in [
+            (1, &cell.robot1, &p.q1, &p.p_b1),
+            (2, &cell.robot2, &p.q2, &p.p_b2),
+        ] {
+            let row = p.point;
             setup
                 .model
                 .check_q(q)
-                .map_err(|e| serr(format!("data row {}, robot {r}: {e}", s.rows[k])))?;
+                .map_err(|e| serr(format!("point {row}, robot {r}: {e}")))?;
             let fk = kinematics::base_from_tip(&setup.model, q, &setup.flange_from_tip)
-                .map_err(|e| serr(format!("data row {}, robot {r}: {e}", s.rows[k])))?;
-            let d = (fk.translation.vector - p.coords).norm();
-            if d > FK_TOL_M {
+                .map_err(|e| serr(format!("point {row}, robot {r}: {e}")))?;
+            let d = (fk.translation.vector - tip.coords).norm();
+            if d > FK_TOLERANCE_M {
                 return Err(serr(format!(
-                    "data row {}: robot {r}'s tip columns differ by {:.3} mm from FK of its joint columns with \
+                    "point {row}: robot {r}'s tip columns differ by {:.3} mm from FK of its joint columns with \
                      the cell's tip offset ({} mm): wrong cell, wrong tip_mm, or tips not in mm / not in the robot's base frame",
-                    s.rows[k],
                     d * 1000.0,
                     fmt3(&(setup.flange_from_tip * 1000.0))
                 )));
             }
         }
     }
-    Ok(s)
+    Ok(())
 }
 
 fn fmt3(v: &Vector3<f64>) -> String {
@@ -544,7 +302,7 @@ pub fn catalogue(dof1: usize, dof2: usize) -> Vec<Candidate> {
 
 /// The identification problem of a session: tips from the kinematic-error model.
 pub struct SessionModel<'a> {
-    cell: &'a DiagnoseCell,
+    cell: &'a Cell,
     q1: &'a [Vec<f64>],
     q2: &'a [Vec<f64>],
     candidates: &'a [Candidate],
@@ -553,7 +311,7 @@ pub struct SessionModel<'a> {
 impl<'a> SessionModel<'a> {
     /// Wraps a cell, joint vectors (rad) and a catalogue.
     pub fn new(
-        cell: &'a DiagnoseCell,
+        cell: &'a Cell,
         q1: &'a [Vec<f64>],
         q2: &'a [Vec<f64>],
         candidates: &'a [Candidate],
@@ -681,6 +439,9 @@ pub struct DiagnoseOptions {
     pub selection: SelectionOptions,
     /// Truth of `b1_from_b2` (e.g. from a CMM), for e_tran/e_rot before and after.
     pub truth: Option<Isometry3<f64>>,
+    /// Uncertainty of the cell's stated `b1_from_b2` angles, degrees, in the placement check
+    /// (default 0.001°: the rounding of a cell file written with 3 decimals, conservatively).
+    pub placement_sd_deg: f64,
 }
 
 impl Default for DiagnoseOptions {
@@ -690,6 +451,7 @@ impl Default for DiagnoseOptions {
             trials: 400,
             selection: SelectionOptions::default(),
             truth: None,
+            placement_sd_deg: 0.001,
         }
     }
 }
@@ -704,7 +466,7 @@ pub struct PoseReport {
 }
 
 impl PoseReport {
-    /// From an isometry; the ZYZ branch nearest `reference` (rad), e.g. the cell's nominal angles.
+    /// From an isometry; the ZYZ branch nearest `reference` (rad), e.g. the cell's angles.
     pub fn from_isometry(x: &Isometry3<f64>, reference: [f64; 3]) -> Self {
         let t = x.translation.vector * 1000.0;
         let z = kinematics::zyz_nearest(&x.rotation.to_rotation_matrix(), reference);
@@ -713,6 +475,33 @@ impl PoseReport {
             zyz_deg: [z[0].to_degrees(), z[1].to_degrees(), z[2].to_degrees()],
         }
     }
+}
+
+/// The calibrated `b1_from_b2` against the cell's stated one. Handclasp residuals cannot see a
+/// mount tilt (it only turns the fit), but if the cell states the TRUE placement of the nominal
+/// bases (as a simulation's cell does), the fitted rotation shows it: `R_fit = R_cell·exp([a]ₓ)`,
+/// `a` in base-2 axes, which is a tilt of robot 2's base by `a` (or of robot 1's by
+/// `−R_cell·a`; the data cannot tell which).
+#[derive(Debug, Clone, Serialize)]
+pub struct PlacementReport {
+    /// `a` about base 2's x and y axes (a mount tilt of robot 2), degrees.
+    pub tilt_b2_deg: [f64; 2],
+    /// 95% intervals of the two tilt components, degrees.
+    pub tilt_b2_ci95_deg: [[f64; 2]; 2],
+    /// Two-sided p-values of the two tilt components.
+    pub tilt_b2_p_value: [f64; 2],
+    /// Whether a tilt component is significant at 5% (Bonferroni over the two).
+    pub tilt_significant: bool,
+    /// The same rotation as a tilt of robot 1's base about its x, y, z axes, degrees.
+    pub robot1_equivalent_deg: [f64; 3],
+    /// `a` about base 2's z axis (a yaw of robot 2's base), degrees, and its 95% interval.
+    pub yaw_b2_deg: f64,
+    /// 95% interval of the yaw, degrees.
+    pub yaw_b2_ci95_deg: [f64; 2],
+    /// Fitted minus stated translation, b1 axes, mm.
+    pub dxyz_mm: [f64; 3],
+    /// Standard errors of `dxyz_mm`, mm.
+    pub dxyz_se_mm: [f64; 3],
 }
 
 /// One named effect.
@@ -802,7 +591,8 @@ pub struct DiagnoseReport {
     pub b1_from_b2_before: PoseReport,
     /// Points.
     pub n_points: usize,
-    /// The cell's alignment σ, mm.
+    /// The cell's noise as an effective σ per axis at these configurations (alignment,
+    /// repeatability of both robots and encoder resolution, RMS over points), mm.
     pub sigma_cell_mm: f64,
     /// σ estimated from the nominal fit, mm.
     pub sigma_hat_before_mm: f64,
@@ -838,44 +628,112 @@ pub struct DiagnoseReport {
     pub resimulated_rms_before_mm: f64,
     /// Percentile of the measured nominal RMS in the re-simulated distribution.
     pub resimulated_percentile: f64,
+    /// 5–95% band of the re-simulated nominal-fit RMS, mm.
+    pub resimulated_rms_band_mm: [f64; 2],
+    /// Percentile of the extended model's residual RMS among noise-only simulations of a
+    /// correct model (near 50% when the extended model explains the data).
+    pub rms_after_percentile: f64,
+    /// The calibrated `b1_from_b2` against the cell's stated one (mount tilts).
+    pub placement: PlacementReport,
     /// Selection steps in words.
     pub steps: Vec<String>,
     /// Whether the final LM fit converged.
     pub converged: bool,
 }
 
-/// Seeded generator of Monte Carlo trial `index` (independent of thread count).
-pub fn trial_rng(seed: u64, index: u64) -> ChaCha8Rng {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    rng.set_stream(index);
-    rng
+
+/// The cell's noise at the session's configurations: per point, the Cholesky-free pieces needed
+/// to draw the residual noise `r = δ1 + J1·u1 − ε − R·(δ2 + J2·u2)` (alignment `ε` per b1 axis,
+/// repeatability `δ` isotropic per robot, encoder quantisation `u` uniform in ±resolution/2),
+/// and its effective per-axis variance.
+struct NoiseModel {
+    alignment: Vector3<f64>,
+    repeatability: f64,
+    resolution: f64,
+    /// Robot 1's tip position Jacobians, b1 axes.
+    j1: Vec<Matrix3xX<f64>>,
+    /// Robot 2's tip position Jacobians rotated into b1 axes.
+    j2_b1: Vec<Matrix3xX<f64>>,
+    /// Mean over points of trace(Σ_i)/3, m².
+    sigma2_eff: f64,
 }
 
-/// MC distribution of the rigid-fit residual RMS (m) for data `p1 = x·p2 + d + ε`, `ε ~ N(0, σ²I)`.
+impl NoiseModel {
+    fn new(
+        cell: &Cell,
+        q1: &[Vec<f64>],
+        q2: &[Vec<f64>],
+        r_x: &Matrix3<f64>,
+    ) -> Result<Self, DiagnoseError> {
+        let noise = &cell.noise;
+        let jac = |robot: &CellRobot, q: &[f64]| {
+            kinematics::tip_position_jacobian(&robot.model, q, &robot.flange_from_tip).map_err(
+                |e| DiagnoseError::Session {
+                    path: PathBuf::from("<session>"),
+                    message: e.to_string(),
+                },
+            )
+        };
+        let mut j1 = Vec::with_capacity(q1.len());
+        let mut j2_b1 = Vec::with_capacity(q1.len());
+        let q_var = noise.encoder_resolution_rad.powi(2) / 12.0;
+        let mut sum = 0.0;
+        for (a, b) in q1.iter().zip(q2) {
+            let ja = jac(&cell.robot1, a)?;
+            let jb = r_x * jac(&cell.robot2, b)?;
+            sum += noise.alignment_m.norm_squared()
+                + 6.0 * noise.repeatability_m.powi(2)
+                + q_var * (ja.norm_squared() + jb.norm_squared());
+            j1.push(ja);
+            j2_b1.push(jb);
+        }
+        Ok(Self {
+            alignment: noise.alignment_m,
+            repeatability: noise.repeatability_m,
+            resolution: noise.encoder_resolution_rad,
+            sigma2_eff: sum / (3.0 * q1.len().max(1) as f64),
+            j1,
+            j2_b1,
+        })
+    }
+
+    fn draw(&self, i: usize, rng: &mut impl Rng) -> Vector3<f64> {
+        let g = |rng: &mut dyn rand::RngCore| -> f64 { StandardNormal.sample(rng) };
+        let mut r = -self.alignment.component_mul(&Vector3::new(g(rng), g(rng), g(rng)));
+        if self.repeatability > 0.0 {
+            r += self.repeatability * Vector3::new(g(rng), g(rng), g(rng));
+            r -= self.repeatability * Vector3::new(g(rng), g(rng), g(rng));
+        }
+        if self.resolution > 0.0 {
+            let h = self.resolution / 2.0;
+            for (j, sign) in [(&self.j1[i], 1.0), (&self.j2_b1[i], -1.0)] {
+                for c in 0..j.ncols() {
+                    r += sign * rng.random_range(-h..=h) * j.column(c);
+                }
+            }
+        }
+        r
+    }
+}
+
+/// MC distribution (ascending) of the rigid-fit residual RMS (m, 3-D per point) for data
+/// `p1 = x·p2 + d + noise`. Trial `t` draws from `trial_rng(seed, t)`.
 fn simulate_rms(
     p2: &[Point3<f64>],
     x: &Isometry3<f64>,
     d: &[Vector3<f64>],
-    sigma: f64,
+    noise: &NoiseModel,
     seed: u64,
     trials: usize,
 ) -> Vec<f64> {
-    let normal = Normal::new(0.0, sigma).expect("sigma checked positive");
     let mut out: Vec<f64> = (0..trials)
         .map(|t| {
-            let mut rng = trial_rng(seed, t as u64);
+            let mut rng = crate::trial_rng(seed, t as u64);
             let p1: Vec<Point3<f64>> = p2
                 .iter()
                 .zip(d)
-                .map(|(p, di)| {
-                    x * p
-                        + di
-                        + Vector3::new(
-                            normal.sample(&mut rng),
-                            normal.sample(&mut rng),
-                            normal.sample(&mut rng),
-                        )
-                })
+                .enumerate()
+                .map(|(i, (p, di))| x * p + di + noise.draw(i, &mut rng))
                 .collect();
             let fit = identify::kabsch(&p1, p2).unwrap_or(*x);
             let rss: f64 = p1
@@ -891,10 +749,7 @@ fn simulate_rms(
 }
 
 fn quantile(sorted: &[f64], q: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    sorted[((sorted.len() - 1) as f64 * q).round() as usize]
+    crate::stats::quantile(sorted, q)
 }
 
 fn percentile(sorted: &[f64], v: f64) -> f64 {
@@ -910,37 +765,43 @@ fn pearson(a: &[f64], b: &[f64]) -> f64 {
         saa += (x - ma).powi(2);
         sbb += (y - mb).powi(2);
     }
-    if saa <= 0.0 || sbb <= 0.0 {
+    if saa <= 1e-300 || sbb <= 1e-300 {
         0.0
     } else {
         sab / (saa * sbb).sqrt()
     }
 }
 
-fn correlations(session: &HandclaspSession, residuals: &[Vector3<f64>]) -> Vec<CorrelationReport> {
+/// Pearson correlations of the residual components (b1 axes) and norms with each joint angle,
+/// the tip position (b1) and each robot's reach (tip distance from its base origin); those
+/// significant at 5% after a Bonferroni correction over all pairs tested.
+fn correlations(session: &Session, residuals: &[Vector3<f64>]) -> Vec<CorrelationReport> {
     let n = residuals.len();
+    let pts = &session.points;
     let mut targets: Vec<(String, Vec<f64>)> = Vec::new();
-    for (r, qs) in [(1, &session.q1), (2, &session.q2)] {
-        for k in 0..qs.first().map_or(0, |q| q.len()) {
+    for r in [1u8, 2] {
+        let dof = pts
+            .first()
+            .map_or(0, |p| if r == 1 { p.q1.len() } else { p.q2.len() });
+        for k in 0..dof {
             targets.push((
                 format!("r{r}_q{}", k + 1),
-                qs.iter().map(|q| q[k]).collect(),
+                pts.iter()
+                    .map(|p| if r == 1 { p.q1[k] } else { p.q2[k] })
+                    .collect(),
             ));
         }
     }
     for (a, name) in ["x", "y", "z"].iter().enumerate() {
-        targets.push((
-            name.to_string(),
-            session.p1_b1.iter().map(|p| p[a]).collect(),
-        ));
+        targets.push((name.to_string(), pts.iter().map(|p| p.p_b1[a]).collect()));
     }
     targets.push((
         "reach1".into(),
-        session.p1_b1.iter().map(|p| p.coords.norm()).collect(),
+        pts.iter().map(|p| p.p_b1.coords.norm()).collect(),
     ));
     targets.push((
         "reach2".into(),
-        session.p2_b2.iter().map(|p| p.coords.norm()).collect(),
+        pts.iter().map(|p| p.p_b2.coords.norm()).collect(),
     ));
     let comps: Vec<(String, Vec<f64>)> = vec![
         ("x".into(), residuals.iter().map(|r| r.x).collect()),
@@ -969,51 +830,103 @@ fn correlations(session: &HandclaspSession, residuals: &[Vector3<f64>]) -> Vec<C
     out
 }
 
-/// Runs the full diagnosis of a session.
+/// Joint vectors of a session (rad): `(q1s, q2s)`.
+fn joints(session: &Session) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    (
+        session.points.iter().map(|p| p.q1.clone()).collect(),
+        session.points.iter().map(|p| p.q2.clone()).collect(),
+    )
+}
+
+fn placement_report(
+    fit: &identify::IdentFit,
+    cell: &Cell,
+    sd_deg: f64,
+) -> PlacementReport {
+    let pr = identify::placement_rotation(fit, &cell.b1_from_b2, sd_deg.to_radians());
+    let t = identify::t_quantile(0.975, fit.dof);
+    let ci = |i: usize| {
+        [
+            (pr.a_b2[i] - t * pr.std_error[i]).to_degrees(),
+            (pr.a_b2[i] + t * pr.std_error[i]).to_degrees(),
+        ]
+    };
+    PlacementReport {
+        tilt_b2_deg: [pr.a_b2.x.to_degrees(), pr.a_b2.y.to_degrees()],
+        tilt_b2_ci95_deg: [ci(0), ci(1)],
+        tilt_b2_p_value: [pr.p_value.x, pr.p_value.y],
+        tilt_significant: pr.p_value.x.min(pr.p_value.y) < 0.05 / 2.0,
+        robot1_equivalent_deg: [
+            pr.a1_b1.x.to_degrees(),
+            pr.a1_b1.y.to_degrees(),
+            pr.a1_b1.z.to_degrees(),
+        ],
+        yaw_b2_deg: pr.a_b2.z.to_degrees(),
+        yaw_b2_ci95_deg: ci(2),
+        dxyz_mm: [pr.dt_b1.x * 1e3, pr.dt_b1.y * 1e3, pr.dt_b1.z * 1e3],
+        dxyz_se_mm: [
+            pr.dt_std_error.x * 1e3,
+            pr.dt_std_error.y * 1e3,
+            pr.dt_std_error.z * 1e3,
+        ],
+    }
+}
+
+/// Runs the full diagnosis of a session on its cell (the cell's stated `[robotN.errors]`, if
+/// any, are NOT used: the nominal models are the URDFs). Errors: a session that does not fit the
+/// cell ([`check_session`]) or a model failure.
 pub fn diagnose(
-    cell: &DiagnoseCell,
-    session: &HandclaspSession,
+    cell: &Cell,
+    session: &Session,
     options: &DiagnoseOptions,
 ) -> Result<DiagnoseReport, DiagnoseError> {
+    check_session(cell, session, Path::new("<session>"))?;
     let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
-    let model = SessionModel::new(cell, &session.q1, &session.q2, &cands);
+    let (q1, q2) = joints(session);
+    let model = SessionModel::new(cell, &q1, &q2, &cands);
     let all: Vec<usize> = (0..cands.len()).collect();
     let sel = identify::forward_select(&model, &all, &options.selection)?;
     let base = &sel.baseline;
     let fit = &sel.fit;
-    let n = session.rows.len();
-    let sigma = cell.sigma_alignment_m;
+    let n = session.points.len();
     let reference = zyz_from_rotation(&cell.b1_from_b2.rotation.to_rotation_matrix());
-    // 1. Baseline against the cell's noise.
-    let p2_nom: Vec<Point3<f64>> = (0..n)
-        .map(|i| model.eval(i, &[], &[], &[]).map(|e| e.p2_b2))
-        .collect::<Result<_, _>>()?;
+    // 1. Baseline against the cell's noise, simulated at these configurations.
+    let r_x = base.b1_from_b2.rotation.to_rotation_matrix().into_inner();
+    let noise = NoiseModel::new(cell, &q1, &q2, &r_x)?;
+    let mut p2_nom = Vec::with_capacity(n);
+    let mut d = Vec::with_capacity(n);
+    for i in 0..n {
+        let nom = model.eval(i, &[], &[], &[])?;
+        let ext = model.eval(i, &fit.params, &fit.values, &[])?;
+        p2_nom.push(nom.p2_b2);
+        // The deterministic discrepancy the nominal fit sees if the extended model is true.
+        d.push((nom.p1_b1 - ext.p1_b1) - fit.b1_from_b2.rotation * (nom.p2_b2 - ext.p2_b2));
+    }
     let zeros = vec![Vector3::zeros(); n];
     let mc = simulate_rms(
         &p2_nom,
         &base.b1_from_b2,
         &zeros,
-        sigma,
+        &noise,
         options.seed,
         options.trials,
     );
-    let chi2_p = identify::chi2_sf(base.rss / (sigma * sigma), base.dof);
-    // 4. Re-simulation with the extended model: the deterministic discrepancy the nominal fit sees.
-    let mut d = Vec::with_capacity(n);
-    for i in 0..n {
-        let nom = model.eval(i, &[], &[], &[])?;
-        let ext = model.eval(i, &fit.params, &fit.values, &[])?;
-        d.push((nom.p1_b1 - ext.p1_b1) - fit.b1_from_b2.rotation * (nom.p2_b2 - ext.p2_b2));
-    }
+    let chi2_p = if noise.sigma2_eff > 0.0 {
+        identify::chi2_sf(base.rss / noise.sigma2_eff, base.dof)
+    } else if base.rss > 0.0 {
+        0.0
+    } else {
+        1.0
+    };
+    // 4. Re-simulation with the extended model.
     let remc = simulate_rms(
         &p2_nom,
         &fit.b1_from_b2,
         &d,
-        sigma,
-        options.seed ^ 0x5eed,
+        &noise,
+        options.seed.wrapping_add(0x5eed),
         options.trials,
     );
-    // Effects.
     let step_of = |p: usize| sel.steps.iter().find(|s| s.param == p && s.accepted);
     let effects = fit
         .params
@@ -1040,7 +953,7 @@ pub fn diagnose(
             }
         })
         .collect();
-    // Families.
+    // 2. Families.
     let id = &sel.identifiability;
     let mut families = Vec::new();
     for robot in [1u8, 2] {
@@ -1077,9 +990,8 @@ pub fn diagnose(
     }
     let (truth_e_tran_mm, truth_e_rot_deg) = match &options.truth {
         Some(t) => {
-            let et =
-                |x: &Isometry3<f64>| (x.translation.vector - t.translation.vector).norm() * 1000.0;
-            let er = |x: &Isometry3<f64>| x.rotation.angle_to(&t.rotation).to_degrees();
+            let et = |x: &Isometry3<f64>| calib_core::e_tran(t, x) * 1000.0;
+            let er = |x: &Isometry3<f64>| calib_core::geodesic_angle(t, x).to_degrees();
             (
                 Some([et(&base.b1_from_b2), et(&fit.b1_from_b2)]),
                 Some([er(&base.b1_from_b2), er(&fit.b1_from_b2)]),
@@ -1100,6 +1012,7 @@ pub fn diagnose(
             )
         })
         .collect();
+    let sigma = noise.sigma2_eff.sqrt();
     Ok(DiagnoseReport {
         effects,
         rms_before_mm: base.rms() * 1000.0,
@@ -1145,9 +1058,56 @@ pub fn diagnose(
         truth_e_rot_deg,
         resimulated_rms_before_mm: quantile(&remc, 0.5) * 1000.0,
         resimulated_percentile: percentile(&remc, base.rms()),
+        resimulated_rms_band_mm: [
+            quantile(&remc, 0.05) * 1000.0,
+            quantile(&remc, 0.95) * 1000.0,
+        ],
+        rms_after_percentile: percentile(&mc, fit.rms()),
+        placement: placement_report(fit, cell, options.placement_sd_deg),
         steps,
         converged: fit.converged,
     })
+}
+
+/// Reads a session CSV for `cell` with sim-cell's reader, after a unit pre-check that names the
+/// likely mistake (radians under `*_deg`, metres under `*_mm`), then [`check_session`].
+pub fn load_session(path: &Path, cell: &Cell) -> Result<Session, DiagnoseError> {
+    let text = std::fs::read_to_string(path).map_err(|e| io_err(path, e))?;
+    let serr = |message: String| DiagnoseError::Session {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut lines = text.lines().filter(|l| !l.trim().is_empty());
+    if let Some(header) = lines.next() {
+        let names: Vec<&str> = header.split(',').map(str::trim).collect();
+        let (mut max_deg, mut max_mm, mut rows) = (0.0f64, 0.0f64, 0usize);
+        for line in lines {
+            rows += 1;
+            for (name, v) in names.iter().zip(line.split(',')) {
+                let Ok(v) = v.trim().parse::<f64>() else {
+                    continue;
+                };
+                if name.ends_with("_deg") {
+                    max_deg = max_deg.max(v.abs());
+                } else if name.ends_with("_mm") {
+                    max_mm = max_mm.max(v.abs());
+                }
+            }
+        }
+        if rows > 0 && max_deg > 0.0 && max_deg <= std::f64::consts::PI + 1e-9 {
+            return Err(serr(format!(
+                "every joint angle is within ±{max_deg:.3} — these look like radians, but the columns are *_deg: convert them to degrees"
+            )));
+        }
+        if rows > 0 && max_mm > 0.0 && max_mm < 10.0 {
+            return Err(serr(format!(
+                "every tip coordinate is within ±{max_mm:.4} — these look like metres, but the columns are *_mm: convert them to millimetres"
+            )));
+        }
+    }
+    let session = Session::parse_csv(&text, path, cell)?;
+    check_session(cell, &session, path)?;
+    Ok(session)
 }
 
 fn io_err(path: &Path, e: impl std::fmt::Display) -> DiagnoseError {
@@ -1157,139 +1117,211 @@ fn io_err(path: &Path, e: impl std::fmt::Display) -> DiagnoseError {
     }
 }
 
-/// Applies the report's `link_length` and `joint_offset` effects of `robot` to a URDF's text:
-/// adds the value to the joint's `<origin xyz>` component and writes the offset as
-/// `<calibration rising="rad"/>` (true angle = reported angle + rising). Other elements are kept
-/// byte for byte.
+/// Finds joint `name`'s element in URDF text: `(start of "<joint", index of "</joint>")`.
+fn joint_span(xml: &str, name: &str) -> Result<(usize, usize), String> {
+    let mut from = 0;
+    while let Some(i) = xml[from..].find("<joint") {
+        let open = from + i;
+        let end_tag = xml[open..]
+            .find('>')
+            .map(|e| open + e)
+            .ok_or_else(|| format!("unterminated <joint> near byte {open}"))?;
+        let tag = &xml[open..end_tag];
+        if tag.contains(&format!("name=\"{name}\"")) || tag.contains(&format!("name='{name}'")) {
+            let close = xml[open..]
+                .find("</joint>")
+                .map(|c| open + c)
+                .ok_or_else(|| format!("joint `{name}` has no </joint>"))?;
+            return Ok((open, close));
+        }
+        from = end_tag;
+    }
+    Err(format!("joint `{name}` not found in the URDF text"))
+}
+
+/// Reads (and returns the byte range of) attribute `attr` of the `<origin>` element of the
+/// joint at `span`; `None` when the joint has no `<origin>` or the origin lacks the attribute.
+fn origin_attr(
+    xml: &str,
+    span: (usize, usize),
+    attr: &str,
+) -> Result<(Option<(usize, usize)>, Option<usize>), String> {
+    let block = &xml[span.0..span.1];
+    let Some(o) = block.find("<origin") else {
+        return Ok((None, None));
+    };
+    let o_abs = span.0 + o;
+    let o_end = xml[o_abs..]
+        .find('>')
+        .map(|e| o_abs + e)
+        .ok_or("unterminated <origin>")?;
+    let pat = format!("{attr}=\"");
+    match xml[o_abs..o_end].find(&pat) {
+        Some(a) => {
+            let start = o_abs + a + pat.len();
+            let end = start + xml[start..].find('"').ok_or("unterminated attribute")?;
+            Ok((Some((start, end)), Some(o_abs)))
+        }
+        None => Ok((None, Some(o_abs))),
+    }
+}
+
+fn parse3(text: &str, what: &str) -> Result<Vector3<f64>, String> {
+    let v: Vec<f64> = text
+        .split_whitespace()
+        .map(|t| t.parse::<f64>().map_err(|_| format!("{what}: bad number `{t}`")))
+        .collect::<Result<_, _>>()?;
+    if v.len() != 3 {
+        return Err(format!("{what}: needs 3 numbers, found {}", v.len()));
+    }
+    Ok(Vector3::new(v[0], v[1], v[2]))
+}
+
+/// Sets the `<origin>` attribute `attr` (`xyz` or `rpy`) of the joint at `span` to `v`
+/// (inserting the attribute, or an `<origin>` element, when missing).
+fn set_origin_attr(
+    xml: &mut String,
+    span: (usize, usize),
+    attr: &str,
+    v: &Vector3<f64>,
+) -> Result<(), String> {
+    let text = format!("{:.9} {:.9} {:.9}", v.x, v.y, v.z);
+    match origin_attr(xml, span, attr)? {
+        (Some((s, e)), _) => xml.replace_range(s..e, &text),
+        (None, Some(o)) => xml.insert_str(o + "<origin".len(), &format!(" {attr}=\"{text}\"")),
+        (None, None) => {
+            let at = span.0 + xml[span.0..].find('>').ok_or("unterminated <joint>")? + 1;
+            xml.insert_str(at, &format!("\n    <origin {attr}=\"{text}\"/>"));
+        }
+    }
+    Ok(())
+}
+
+/// Applies the identified errors of one robot to its URDF text, keeping everything else byte for
+/// byte: a `link_length` error is added to the joint's `<origin xyz>`; a `joint_offset` δ is
+/// folded into the joint's `<origin rpy>` (`R(rpy') = R(rpy)·Rot(axis, δ)`, exact for any URDF
+/// consumer) and recorded as `<calibration rising="δ"/>` (rad; informational, as in ROS, where
+/// calibration does not move the kinematics). `errors` are in SI units.
 pub fn correct_urdf_text(
     xml: &str,
-    model: &RobotModel,
-    robot: u8,
-    effects: &[EffectReport],
+    model: &kinematics::RobotModel,
+    errors: &KinematicErrors,
 ) -> Result<String, String> {
     let mut out = xml.to_string();
-    for e in effects.iter().filter(|e| e.robot == robot) {
-        let Some(joint) = e.joint else { continue };
-        let name = &model
-            .joints()
-            .get(joint - 1)
-            .ok_or_else(|| format!("joint {joint} is not in the model"))?
-            .name;
-        let open = out
-            .find(&format!("name=\"{name}\""))
-            .and_then(|i| out[..i].rfind("<joint").map(|s| (s, i)))
-            .ok_or_else(|| format!("joint `{name}` not found in the URDF text"))?
-            .0;
-        let close = out[open..]
-            .find("</joint>")
-            .map(|i| open + i)
-            .ok_or_else(|| format!("joint `{name}` has no </joint>"))?;
-        match e.kind {
-            EffectKind::LinkLength => {
-                let block = &out[open..close];
-                let origin = block
-                    .find("<origin")
-                    .ok_or_else(|| format!("joint `{name}` has no <origin>"))?;
-                let xyz_at = block[origin..]
-                    .find("xyz=\"")
-                    .map(|i| open + origin + i + 5);
-                let add = e.value / 1000.0;
-                let a = match e.axis {
-                    Some("x") => 0,
-                    Some("y") => 1,
-                    _ => 2,
-                };
-                match xyz_at {
-                    Some(start) => {
-                        let end = start + out[start..].find('"').ok_or("unterminated xyz")?;
-                        let mut v: Vec<f64> = out[start..end]
-                            .split_whitespace()
-                            .map(|t| {
-                                t.parse::<f64>()
-                                    .map_err(|_| format!("joint `{name}`: bad xyz `{t}`"))
-                            })
-                            .collect::<Result<_, _>>()?;
-                        if v.len() != 3 {
-                            return Err(format!("joint `{name}`: xyz needs 3 numbers"));
-                        }
-                        v[a] += add;
-                        out.replace_range(start..end, &format!("{} {} {}", v[0], v[1], v[2]));
-                    }
-                    None => {
-                        let mut v = [0.0; 3];
-                        v[a] = add;
-                        let at = open + origin + "<origin".len();
-                        out.insert_str(at, &format!(" xyz=\"{} {} {}\"", v[0], v[1], v[2]));
-                    }
-                }
-            }
-            EffectKind::JointOffset => {
-                let rad = e.value.to_radians();
-                out.insert_str(close, &format!("  <calibration rising=\"{rad}\"/>\n  "));
-            }
-            _ => {}
+    for (k, joint) in model.joints().iter().enumerate() {
+        let dxyz = errors.origin_xyz.get(k).copied().unwrap_or_else(Vector3::zeros);
+        let offset = errors.joint_offset.get(k).copied().unwrap_or(0.0);
+        if dxyz == Vector3::zeros() && offset == 0.0 {
+            continue;
+        }
+        let name = &joint.name;
+        if dxyz != Vector3::zeros() {
+            let span = joint_span(&out, name)?;
+            let xyz = match origin_attr(&out, span, "xyz")?.0 {
+                Some((s, e)) => parse3(&out[s..e], &format!("joint `{name}` origin xyz"))?,
+                None => Vector3::zeros(),
+            };
+            set_origin_attr(&mut out, span, "xyz", &(xyz + dxyz))?;
+        }
+        if offset != 0.0 {
+            let span = joint_span(&out, name)?;
+            let rpy = match origin_attr(&out, span, "rpy")?.0 {
+                Some((s, e)) => parse3(&out[s..e], &format!("joint `{name}` origin rpy"))?,
+                None => Vector3::zeros(),
+            };
+            let r = kinematics::rotation_from_rpy(&rpy)
+                * nalgebra::Rotation3::from_axis_angle(&joint.axis, offset);
+            let (roll, pitch, yaw) = r.euler_angles();
+            set_origin_attr(&mut out, span, "rpy", &Vector3::new(roll, pitch, yaw))?;
+            let span = joint_span(&out, name)?;
+            out.insert_str(
+                span.1,
+                &format!(
+                    "  <!-- handclasp diagnose: joint offset {offset:.9} rad folded into origin rpy -->\n    <calibration rising=\"{offset:.9}\"/>\n  "
+                ),
+            );
         }
     }
     Ok(out)
 }
 
+/// The identified errors of both robots (SI) from a report's effects.
+pub fn effects_to_errors(
+    cell: &Cell,
+    effects: &[EffectReport],
+) -> (KinematicErrors, KinematicErrors) {
+    let mut e = [
+        KinematicErrors::zero(cell.robot1.model.dof()),
+        KinematicErrors::zero(cell.robot2.model.dof()),
+    ];
+    let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
+    for eff in effects {
+        let hit = cands.iter().find(|c| {
+            c.kind == eff.kind
+                && c.robot == eff.robot
+                && c.joint.map(|j| j + 1) == eff.joint
+                && c.axis.map(axis_name) == eff.axis
+        });
+        if let Some(c) = hit {
+            e[(c.robot - 1) as usize].set(c.param, eff.value / c.kind.to_output());
+        }
+    }
+    let [e1, e2] = e;
+    (e1, e2)
+}
+
 /// Writes the extended model to `dir`: `robot1_corrected.urdf`, `robot2_corrected.urdf` (joint
-/// origins and `<calibration rising>` offsets), `cell_corrected.toml` (calibrated `b1_from_b2`,
-/// corrected tip offsets, URDF paths to the corrected files) and `effects.json` (every effect,
-/// including compliance and joint scale, which URDF cannot express). Returns the files written.
+/// origins and offsets, see [`correct_urdf_text`]), `cell_corrected.toml` (the calibrated
+/// `b1_from_b2`, corrected tip offsets, URDF paths to the corrected files, and the joint-scale and
+/// compliance errors, which URDF cannot express, as `[robotN.errors]`) and `effects.json`.
+/// Returns the files written.
 pub fn export_corrected(
-    cell: &DiagnoseCell,
+    cell: &Cell,
     report: &DiagnoseReport,
+    b1_from_b2: &Isometry3<f64>,
     dir: &Path,
 ) -> Result<Vec<PathBuf>, DiagnoseError> {
     std::fs::create_dir_all(dir)
         .map_err(|e| io_err(dir, format!("cannot create the export folder: {e}")))?;
+    let (e1, e2) = effects_to_errors(cell, &report.effects);
     let mut written = Vec::new();
-    let text = std::fs::read_to_string(&cell.path).map_err(|e| io_err(&cell.path, e))?;
-    let mut value: toml::Value = text
-        .parse()
-        .map_err(|e| cell_err(&cell.path, format!("not valid TOML: {e}")))?;
-    for (robot, setup, key) in [(1u8, &cell.robot1, "robot1"), (2u8, &cell.robot2, "robot2")] {
+    let mut out = cell.clone();
+    out.base_dir = dir.to_path_buf();
+    out.b1_from_b2 = *b1_from_b2;
+    for (robot, errors) in [(1u8, &e1), (2u8, &e2)] {
+        let setup = cell.robot(robot);
         let xml =
             std::fs::read_to_string(&setup.urdf_path).map_err(|e| io_err(&setup.urdf_path, e))?;
-        let corrected = correct_urdf_text(&xml, &setup.model, robot, &report.effects)
+        let corrected = correct_urdf_text(&xml, &setup.model, errors)
             .map_err(|m| io_err(&setup.urdf_path, m))?;
         let file = format!("robot{robot}_corrected.urdf");
         let path = dir.join(&file);
-        std::fs::write(&path, corrected).map_err(|e| io_err(&path, e))?;
-        written.push(path);
-        let mut tip = setup.flange_from_tip * 1000.0;
-        for e in report
-            .effects
-            .iter()
-            .filter(|e| e.robot == robot && e.kind == EffectKind::TipOffset)
-        {
-            let a = match e.axis {
-                Some("x") => 0,
-                Some("y") => 1,
-                _ => 2,
-            };
-            tip[a] += e.value;
-        }
-        if let Some(t) = value.get_mut(key).and_then(|t| t.as_table_mut()) {
-            t.insert("urdf".into(), toml::Value::String(file));
-            t.insert(
-                "tip_mm".into(),
-                toml::Value::Array(tip.iter().map(|v| toml::Value::Float(*v)).collect()),
-            );
-        }
+        std::fs::write(&path, &corrected).map_err(|e| io_err(&path, e))?;
+        let model = kinematics::RobotModel::from_urdf_str(&corrected, &setup.tool_link)
+            .map_err(|e| io_err(&path, format!("the corrected URDF does not load: {e}")))?;
+        written.push(path.clone());
+        let r = if robot == 1 {
+            &mut out.robot1
+        } else {
+            &mut out.robot2
+        };
+        r.model = model;
+        r.urdf = file;
+        r.urdf_path = path;
+        r.flange_from_tip = setup.flange_from_tip + errors.tip;
+        let mut rest = KinematicErrors::zero(setup.model.dof());
+        rest.joint_scale = errors.joint_scale.clone();
+        rest.compliance = errors.compliance.clone();
+        r.errors = rest;
     }
-    if let Some(root) = value.as_table_mut() {
-        let mut b = toml::map::Map::new();
-        let arr =
-            |v: [f64; 3]| toml::Value::Array(v.iter().map(|x| toml::Value::Float(*x)).collect());
-        b.insert("xyz_mm".into(), arr(report.b1_from_b2.xyz_mm));
-        b.insert("zyz_deg".into(), arr(report.b1_from_b2.zyz_deg));
-        root.insert("b1_from_b2".into(), toml::Value::Table(b));
-    }
+    // Robot 2's gravity follows the calibrated placement.
+    out.robot2.g_base = out.b1_from_b2.rotation.inverse() * out.robot1.g_base;
     let cell_path = dir.join("cell_corrected.toml");
-    let cell_text = toml::to_string(&value).map_err(|e| io_err(&cell_path, e))?;
-    std::fs::write(&cell_path, cell_text).map_err(|e| io_err(&cell_path, e))?;
+    let text = format!(
+        "# Written by `handclasp diagnose --export`: the extended model (corrected URDFs, tip offsets,\n# calibrated b1_from_b2; joint scale and compliance as [robotN.errors]).\n{}",
+        out.to_toml_string()
+    );
+    std::fs::write(&cell_path, text).map_err(|e| io_err(&cell_path, e))?;
     written.push(cell_path);
     let eff_path = dir.join("effects.json");
     let eff = serde_json::to_string_pretty(&report.effects).map_err(|e| io_err(&eff_path, e))?;
@@ -1297,7 +1329,6 @@ pub fn export_corrected(
     written.push(eff_path);
     Ok(written)
 }
-
 /// Readable text of a report.
 pub fn render_text(r: &DiagnoseReport) -> String {
     use std::fmt::Write;
@@ -1424,135 +1455,3 @@ pub fn render_text(r: &DiagnoseReport) -> String {
     s
 }
 
-/// Solves the reported joints that put the TRUE robot's tip (nominal base frame) at `p_base`:
-/// nominal IK, then Newton steps on the true model with the nominal position Jacobian.
-fn solve_true(
-    setup: &RobotSetup,
-    errors: &KinematicErrors,
-    p_base: &Point3<f64>,
-) -> Option<Vec<f64>> {
-    let opts = kinematics::IkOptions::default();
-    let sol =
-        kinematics::ik_tip_position(&setup.model, p_base, &setup.flange_from_tip, &opts).ok()?;
-    if !sol.reachable() {
-        return None;
-    }
-    let mut q = sol.q;
-    for _ in 0..30 {
-        let tip = kinematics::true_base_from_tip(
-            &setup.model,
-            errors,
-            &q,
-            &setup.flange_from_tip,
-            &setup.g_base,
-        )
-        .ok()?;
-        let e = p_base.coords - tip.translation.vector;
-        if e.norm() < 1e-11 {
-            return setup.model.check_q(&q).ok().map(|_| q);
-        }
-        let j = kinematics::tip_position_jacobian(&setup.model, &q, &setup.flange_from_tip).ok()?;
-        let dq = j.svd(true, true).solve(&e, 1e-12).ok()?;
-        for (qi, d) in q.iter_mut().zip(dq.iter()) {
-            *qi += d;
-        }
-    }
-    None
-}
-
-/// Simulates a session at `n` random teach points around the midpoint of the two bases (a box
-/// of ±`half_size_m`), with hidden kinematic errors `errors1`, `errors2`, the cell's `b1_from_b2`
-/// as the truth and the cell's alignment noise: robot 1's true tip is put on the point, robot 2's
-/// true tip on the point plus noise; the controllers report the joints and the nominal tips.
-/// Seeded (point attempt `k` draws from `trial_rng(seed, k)`). For tests and benches.
-pub fn simulate_session(
-    cell: &DiagnoseCell,
-    errors1: &KinematicErrors,
-    errors2: &KinematicErrors,
-    n: usize,
-    half_size_m: f64,
-    seed: u64,
-) -> Result<HandclaspSession, DiagnoseError> {
-    use rand::Rng;
-    let normal = Normal::new(0.0, cell.sigma_alignment_m)
-        .map_err(|e| DiagnoseError::Simulation(e.to_string()))?;
-    let centre = cell.b1_from_b2.translation.vector / 2.0;
-    let b2_from_b1 = cell.b1_from_b2.inverse();
-    let mut s = HandclaspSession {
-        q1: vec![],
-        q2: vec![],
-        p1_b1: vec![],
-        p2_b2: vec![],
-        rows: vec![],
-    };
-    let mut attempt = 0u64;
-    while s.rows.len() < n {
-        if attempt > 100 * n as u64 + 100 {
-            return Err(DiagnoseError::Simulation(format!(
-                "only {} of {n} teach points reachable by both robots around {} mm; check the cell's b1_from_b2",
-                s.rows.len(),
-                fmt3(&(centre * 1000.0))
-            )));
-        }
-        let mut rng = trial_rng(seed, attempt);
-        attempt += 1;
-        let p = Point3::from(
-            centre
-                + Vector3::new(
-                    rng.random_range(-half_size_m..half_size_m),
-                    rng.random_range(-half_size_m..half_size_m),
-                    rng.random_range(-half_size_m..half_size_m),
-                ),
-        );
-        let Some(q1) = solve_true(&cell.robot1, errors1, &p) else {
-            continue;
-        };
-        let eps = Vector3::new(
-            normal.sample(&mut rng),
-            normal.sample(&mut rng),
-            normal.sample(&mut rng),
-        );
-        let p2 = b2_from_b1 * (p + eps);
-        let Some(q2) = solve_true(&cell.robot2, errors2, &p2) else {
-            continue;
-        };
-        let t1 = kinematics::base_from_tip(&cell.robot1.model, &q1, &cell.robot1.flange_from_tip)
-            .map_err(|e| DiagnoseError::Simulation(e.to_string()))?;
-        let t2 = kinematics::base_from_tip(&cell.robot2.model, &q2, &cell.robot2.flange_from_tip)
-            .map_err(|e| DiagnoseError::Simulation(e.to_string()))?;
-        s.q1.push(q1);
-        s.q2.push(q2);
-        s.p1_b1.push(Point3::from(t1.translation.vector));
-        s.p2_b2.push(Point3::from(t2.translation.vector));
-        s.rows.push(s.rows.len() + 1);
-    }
-    Ok(s)
-}
-
-/// Writes a session CSV in the sim-cell format (`point, r1_q*_deg, r2_q*_deg, r1_x_mm … r2_z_mm`,
-/// degrees and mm with 6 decimals).
-pub fn write_session_csv(path: &Path, session: &HandclaspSession) -> Result<(), DiagnoseError> {
-    use std::fmt::Write;
-    let d1 = session.q1.first().map_or(0, |q| q.len());
-    let d2 = session.q2.first().map_or(0, |q| q.len());
-    let mut s = String::from("point");
-    for (r, d) in [(1, d1), (2, d2)] {
-        for k in 1..=d {
-            let _ = write!(s, ",r{r}_q{k}_deg");
-        }
-    }
-    s += ",r1_x_mm,r1_y_mm,r1_z_mm,r2_x_mm,r2_y_mm,r2_z_mm\n";
-    for i in 0..session.q1.len() {
-        let _ = write!(s, "{}", i + 1);
-        for q in session.q1[i].iter().chain(&session.q2[i]) {
-            let _ = write!(s, ",{:.6}", q.to_degrees());
-        }
-        for p in [&session.p1_b1[i], &session.p2_b2[i]] {
-            for a in 0..3 {
-                let _ = write!(s, ",{:.6}", p[a] * 1000.0);
-            }
-        }
-        s += "\n";
-    }
-    std::fs::write(path, s).map_err(|e| io_err(path, e))
-}

@@ -1,1 +1,29 @@
-//! placeholder
+#![doc = include_str!("../README.md")]
+
+pub mod cell;
+pub mod diagnose;
+mod error;
+pub mod layout;
+pub mod paper;
+pub mod placement;
+pub mod plot;
+pub mod session;
+pub mod stats;
+pub mod sweep;
+
+pub use cell::{Cell, CellRobot, Noise};
+pub use error::SimError;
+pub use layout::{teach_points, Layout};
+pub use session::{generate_session, Session, SessionPoint, SessionSpec};
+pub use sweep::{geometry_trial, GeometrySpec, TrialErrors};
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+/// The generator of Monte Carlo trial `index` under master `seed`: ChaCha8 seeded with `seed`,
+/// stream `index`. Any trial can be replayed alone, and results never depend on thread count.
+pub fn trial_rng(seed: u64, index: u64) -> ChaCha8Rng {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(index);
+    rng
+}

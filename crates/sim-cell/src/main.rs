@@ -1,1 +1,290 @@
-fn main() {}
+//! `sim-cell`: simulated handclasp sessions and Monte Carlo sweeps.
+//!
+//! `sim-cell session` writes a simulated session CSV for a cell; `sim-cell sweep` runs a Monte Carlo
+//! study (geometry-only or robot mode) and writes trials.csv, summary.csv and SVG plots.
+
+use anyhow::{bail, Context, Result};
+use calib_core::{Method, MountPair};
+use clap::{Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use sim_cell::layout::Layout;
+use sim_cell::sweep::{self, Mode, SweepConfig};
+use sim_cell::{generate_session, trial_rng, Cell, SessionSpec};
+use std::io::{BufWriter, IsTerminal, Write};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+#[derive(Parser)]
+#[command(name = "sim-cell", version, about = "Simulated dual-robot handclasp cell: sessions and Monte Carlo sweeps", long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Simulate one handclasp session on a cell and write it as CSV (valid `handclasp calibrate` input).
+    Session(SessionArgs),
+    /// Monte Carlo study over noise × spread × points × mounts × methods.
+    Sweep(SweepArgs),
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum LayoutArg {
+    /// Paper's advice: regular tetrahedron (edge = spread), extra points inside.
+    Tetrahedron,
+    /// Uniform in a cube of side = spread.
+    Random,
+    /// Near-planar: horizontal square of side = spread, ±1 % thick.
+    Planar,
+    /// Two small clusters spread apart.
+    Clustered,
+}
+
+impl From<LayoutArg> for Layout {
+    fn from(l: LayoutArg) -> Layout {
+        match l {
+            LayoutArg::Tetrahedron => Layout::Tetrahedron,
+            LayoutArg::Random => Layout::Random,
+            LayoutArg::Planar => Layout::Planar,
+            LayoutArg::Clustered => Layout::Clustered,
+        }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum ModeArg {
+    /// Points and noise only (fast).
+    Geometry,
+    /// Full sessions: IK, reach limits, encoder quantisation, repeatability.
+    Robot,
+}
+
+#[derive(clap::Args)]
+struct SessionArgs {
+    /// Cell TOML (default: the paper's floor-wall cell, built in).
+    #[arg(long)]
+    cell: Option<PathBuf>,
+    /// Number of teach points.
+    #[arg(long, default_value_t = 6)]
+    n: usize,
+    /// Teach-point layout.
+    #[arg(long, value_enum, default_value = "tetrahedron")]
+    layout: LayoutArg,
+    /// Layout size, mm (tetrahedron edge, cube/square side, cluster distance).
+    #[arg(long, default_value_t = 1000.0)]
+    spread_mm: f64,
+    /// Centre of the layout in base 1, mm, as X,Y,Z (default: the cell's teach centre).
+    #[arg(long, value_delimiter = ',', num_args = 3)]
+    centre_mm: Option<Vec<f64>>,
+    /// Override the cell's alignment σ, mm per axis.
+    #[arg(long)]
+    noise_mm: Option<f64>,
+    /// Seed of the session's random generator.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Output CSV (default: standard output).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+struct SweepArgs {
+    /// geometry (points + noise, fast) or robot (full sessions on the paper cells).
+    #[arg(long, value_enum, default_value = "geometry")]
+    mode: ModeArg,
+    /// Mount pairs: floor-floor, floor-wall, floor-ceiling (comma-separated).
+    #[arg(long, value_delimiter = ',', default_value = "floor-floor,floor-wall,floor-ceiling")]
+    mounts: Vec<String>,
+    /// Alignment σ per axis, mm (comma-separated grid).
+    #[arg(long, value_delimiter = ',', default_value = "0.5,1,2,3")]
+    noise_mm: Vec<f64>,
+    /// Layout spreads, mm (comma-separated grid).
+    #[arg(long, value_delimiter = ',', default_value = "250,500,1000,1500")]
+    spread_mm: Vec<f64>,
+    /// Numbers of teach points (comma-separated grid).
+    #[arg(long, value_delimiter = ',', default_value = "4,6,8,12")]
+    points: Vec<usize>,
+    /// Methods: generic, generic-affine, paper, lsq, constrained (comma-separated).
+    #[arg(long, value_delimiter = ',', default_value = "generic,generic-affine,paper,lsq,constrained")]
+    methods: Vec<String>,
+    /// Teach-point layout.
+    #[arg(long, value_enum, default_value = "tetrahedron")]
+    layout: LayoutArg,
+    /// Trials per grid cell (default: 200 in geometry mode, 5 in robot mode).
+    #[arg(long)]
+    trials: Option<usize>,
+    /// Master seed; trial k uses trial_rng(seed, k).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Output directory for trials.csv, summary.csv and the SVG plots.
+    #[arg(long, default_value = "out/sweep")]
+    out: PathBuf,
+    /// Robot mode: use these cell files instead of the built-in paper cells (one per mount pair, same order).
+    #[arg(long, value_delimiter = ',')]
+    cell: Vec<PathBuf>,
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Session(a) => session(a),
+        Command::Sweep(a) => sweep_cmd(a),
+    }
+}
+
+fn session(a: SessionArgs) -> Result<()> {
+    let mut cell = match &a.cell {
+        Some(p) => Cell::from_toml_file(p)?,
+        None => Cell::default_floor_wall(),
+    };
+    if let Some(s) = a.noise_mm {
+        if !(s.is_finite() && s >= 0.0) {
+            bail!("--noise-mm {s} must be a finite σ ≥ 0 in mm");
+        }
+        cell.noise.alignment_m = nalgebra::Vector3::repeat(s * 1e-3);
+    }
+    let mut spec = SessionSpec::new(a.n, a.layout.into(), a.spread_mm * 1e-3);
+    if let Some(c) = &a.centre_mm {
+        spec.centre_b1 = Some(nalgebra::Point3::new(c[0], c[1], c[2]) * 1e-3);
+    }
+    let session = generate_session(&cell, &spec, &mut trial_rng(a.seed, 0))?;
+    match &a.out {
+        Some(p) => {
+            session.write_csv(p, &cell)?;
+            eprintln!("wrote {} points to {}", session.points.len(), p.display());
+        }
+        None => print!(
+            "{}",
+            session.to_csv_string(cell.robot1.model.dof(), cell.robot2.model.dof())
+        ),
+    }
+    Ok(())
+}
+
+fn sweep_cmd(a: SweepArgs) -> Result<()> {
+    let mode = match a.mode {
+        ModeArg::Geometry => Mode::Geometry,
+        ModeArg::Robot => Mode::Robot,
+    };
+    let mounts = a
+        .mounts
+        .iter()
+        .map(|m| MountPair::parse_paper(m))
+        .collect::<Result<Vec<_>, _>>()?;
+    let methods = a
+        .methods
+        .iter()
+        .map(|m| {
+            Method::from_name(m).with_context(|| {
+                format!("--methods: unknown method `{m}`; use generic, generic-affine, paper, lsq or constrained")
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let config = SweepConfig {
+        mode,
+        mounts,
+        noise_mm: a.noise_mm.clone(),
+        spread_m: a.spread_mm.iter().map(|s| s * 1e-3).collect(),
+        n_points: a.points.clone(),
+        methods,
+        layout: a.layout.into(),
+        trials: a.trials.unwrap_or(match mode {
+            Mode::Geometry => 200,
+            Mode::Robot => 5,
+        }),
+        seed: a.seed,
+    };
+    config.validate()?;
+    let cells: Vec<Cell> = if mode == Mode::Robot {
+        if a.cell.is_empty() {
+            config
+                .mounts
+                .iter()
+                .map(|m| {
+                    sim_cell::placement::paper_placement(m)
+                        .and_then(|p| Cell::paper(&p))
+                        .context("robot mode without --cell knows the paper's three cells only")
+                })
+                .collect::<Result<_>>()?
+        } else {
+            if a.cell.len() != config.mounts.len() {
+                bail!(
+                    "--cell: give one cell file per mount pair ({} for --mounts {})",
+                    config.mounts.len(),
+                    a.mounts.join(",")
+                );
+            }
+            a.cell
+                .iter()
+                .map(|p| Cell::from_toml_file(p).map_err(anyhow::Error::from))
+                .collect::<Result<_>>()?
+        }
+    } else {
+        vec![]
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads.unwrap_or(0))
+        .build()
+        .context("cannot start the worker threads")?;
+    let total = config.total_trials() as u64;
+    let pb = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
+    if !std::io::stderr().is_terminal() {
+        pb.set_draw_target(ProgressDrawTarget::hidden());
+    }
+    pb.set_style(
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} trials ({per_sec}, eta {eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    eprintln!(
+        "sweep: {} mode, {} grid cells × {} trials × {} methods, {} threads, seed {}",
+        mode.name(),
+        config.grid().len(),
+        config.trials,
+        config.methods.len(),
+        pool.current_num_threads(),
+        config.seed
+    );
+    let t0 = Instant::now();
+    let result = pool.install(|| sweep::run_sweep(&config, &cells, &pb))?;
+    pb.finish_and_clear();
+    let secs = t0.elapsed().as_secs_f64();
+    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+    let trials_path = a.out.join("trials.csv");
+    let f = std::fs::File::create(&trials_path).with_context(|| format!("cannot write {}", trials_path.display()))?;
+    let mut w = BufWriter::new(f);
+    sweep::write_trials_csv(&result, &mut w)?;
+    w.flush()?;
+    let summary_path = a.out.join("summary.csv");
+    let mut w = BufWriter::new(std::fs::File::create(&summary_path).with_context(|| format!("cannot write {}", summary_path.display()))?);
+    sweep::write_summary_csv(&sweep::summarize_cells(&result), &mut w)?;
+    w.flush()?;
+    let plots = sim_cell::plot::write_sweep_plots(&result, &a.out)?;
+    let pooled = sweep::summarize_pooled(&result);
+    println!(
+        "{} trials in {:.2} s ({:.0} trials/s). Pooled over noise, spread and points; median and p95 with 95 % CI:",
+        total,
+        secs,
+        total as f64 / secs.max(1e-9)
+    );
+    print!("{}", sweep::render_table(&pooled));
+    println!("wrote {}", trials_path.display());
+    println!("wrote {} (per grid cell)", summary_path.display());
+    for p in plots {
+        println!("wrote {}", p.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,746 @@
+//! A simulated cell: two robots, their mounts, tip offsets, true kinematic errors, the placement
+//! `b1_from_b2` and the noise of a handclasp session. Read from TOML (mm, degrees, paths relative
+//! to the file); every key is documented in the crate README.
+
+use crate::error::SimError;
+use crate::placement::{isometry_from_mm_deg, Placement};
+use calib_core::{zyz_from_rotation, Mount, MountPair};
+use kinematics::{KinematicErrors, RobotModel};
+use nalgebra::{Isometry3, Point3, Rotation3, Vector3};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// Standard gravity, m/s².
+pub const G: f64 = 9.81;
+/// Largest angle (deg) between robot 2's declared mount and the gravity direction implied by
+/// `b1_from_b2` before the cell is rejected as an impossible mount.
+pub const MOUNT_TOLERANCE_DEG: f64 = 2.0;
+/// Default `[noise] alignment_mm` when the key is absent, mm.
+pub const DEFAULT_ALIGNMENT_MM: f64 = 0.3;
+
+/// The default cell (floor–wall), as shipped in `cells/floor-wall.toml`.
+pub const FLOOR_WALL_TOML: &str = include_str!("../../../cells/floor-wall.toml");
+/// The floor–floor cell, as shipped in `cells/floor-floor.toml`.
+pub const FLOOR_FLOOR_TOML: &str = include_str!("../../../cells/floor-floor.toml");
+/// The floor–ceiling cell, as shipped in `cells/floor-ceiling.toml`.
+pub const FLOOR_CEILING_TOML: &str = include_str!("../../../cells/floor-ceiling.toml");
+/// The embedded URDFs (path as written in the shipped cells, text).
+const EMBEDDED_URDFS: [(&str, &str); 2] = [
+    (
+        "../robots/va1400.urdf",
+        include_str!("../../../robots/va1400.urdf"),
+    ),
+    ("../robots/hp20.urdf", include_str!("../../../robots/hp20.urdf")),
+];
+
+/// One robot of a cell.
+#[derive(Debug, Clone)]
+pub struct CellRobot {
+    /// The nominal model (what the controller believes).
+    pub model: RobotModel,
+    /// The `urdf` value as written in the cell file (relative to the file's directory).
+    pub urdf: String,
+    /// The resolved URDF path.
+    pub urdf_path: PathBuf,
+    /// The URDF link of the flange (`tool_link`, default `tool0`).
+    pub tool_link: String,
+    /// Nominal tip offset, m, flange (`tool0`) frame.
+    pub flange_from_tip: Vector3<f64>,
+    /// The mount.
+    pub mount: Mount,
+    /// Gravity in this robot's nominal base frame, m/s² (robot 1: from its mount; robot 2:
+    /// `R(b1_from_b2)ᵀ·g_b1`).
+    pub g_base: Vector3<f64>,
+    /// The robot's true kinematic errors (zero = the nominal robot).
+    pub errors: KinematicErrors,
+}
+
+/// The noise of a simulated session.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Noise {
+    /// σ of the operator's tip-alignment error per b1 axis, m.
+    pub alignment_m: Vector3<f64>,
+    /// σ of each robot's repeatability per axis, m (unseen by the encoders).
+    pub repeatability_m: f64,
+    /// Encoder resolution, rad (reported joints are multiples of it; 0 = exact).
+    pub encoder_resolution_rad: f64,
+}
+
+/// A cell (see the module docs). Build with [`Cell::from_toml_file`], [`Cell::from_toml_str`] or
+/// the paper's cells [`Cell::default_floor_wall`], [`Cell::default_floor_floor`],
+/// [`Cell::default_floor_ceiling`].
+#[derive(Debug, Clone)]
+pub struct Cell {
+    /// Directory the relative paths are resolved against.
+    pub base_dir: PathBuf,
+    /// Robot 1 (defines the b1 frame).
+    pub robot1: CellRobot,
+    /// Robot 2.
+    pub robot2: CellRobot,
+    /// Placement of base 2 in base 1 (the truth of a simulation), m, rad.
+    pub b1_from_b2: Isometry3<f64>,
+    /// Session noise.
+    pub noise: Noise,
+    /// Centre of the teach points, m, b1 frame (`[teach] centre_mm`; default: the midpoint of the
+    /// two shoulders, i.e. of joint 2's origins at q = 0).
+    pub centre_b1: Point3<f64>,
+}
+
+// ---- file format -------------------------------------------------------------------------
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CellFile {
+    robot1: RobotFile,
+    robot2: RobotFile,
+    b1_from_b2: PlacementFile,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    noise: Option<NoiseFile>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    teach: Option<TeachFile>,
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RobotFile {
+    urdf: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    tool_link: Option<String>,
+    mount: toml::Value,
+    tip_mm: [f64; 3],
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    errors: Option<ErrorsFile>,
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PlacementFile {
+    xyz_mm: [f64; 3],
+    zyz_deg: [f64; 3],
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NoiseFile {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    alignment_mm: Option<toml::Value>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    repeatability_mm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    encoder_resolution_deg: Option<f64>,
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TeachFile {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    centre_mm: Option<[f64; 3]>,
+}
+
+#[derive(Debug, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ErrorsFile {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    joint_offset_deg: Option<Vec<f64>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    joint_scale: Option<Vec<f64>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    origin_xyz_mm: Option<Vec<[f64; 3]>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    origin_rpy_deg: Option<Vec<[f64; 3]>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    tip_mm: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    mount_xyz_mm: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    mount_rpy_deg: Option<[f64; 3]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    compliance_deg_per_knm: Option<Vec<f64>>,
+}
+
+// ---- parsing -----------------------------------------------------------------------------
+
+struct Ctx<'a> {
+    path: &'a Path,
+}
+
+impl Ctx<'_> {
+    fn err(&self, message: impl Into<String>) -> SimError {
+        SimError::Cell {
+            path: self.path.to_path_buf(),
+            message: message.into(),
+        }
+    }
+}
+
+fn finite3(ctx: &Ctx, key: &str, v: [f64; 3]) -> Result<Vector3<f64>, SimError> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(Vector3::from(v))
+    } else {
+        Err(ctx.err(format!("`{key}` = {v:?} must hold 3 finite numbers")))
+    }
+}
+
+fn parse_mount(ctx: &Ctx, key: &str, v: &toml::Value) -> Result<Mount, SimError> {
+    let what = "use \"floor\", \"ceiling\", \"wall\" or { tilt_deg = [rx, ry] } (degrees)";
+    match v {
+        toml::Value::String(s) => match s.trim().to_ascii_lowercase().as_str() {
+            "floor" => Ok(Mount::Floor),
+            "ceiling" => Ok(Mount::Ceiling),
+            "wall" => Ok(Mount::Wall),
+            other => Err(ctx.err(format!("`{key}` = \"{other}\" is not a mount: {what}"))),
+        },
+        toml::Value::Table(t) => {
+            if let Some(k) = t.keys().find(|k| k.as_str() != "tilt_deg") {
+                return Err(ctx.err(format!(
+                    "`{key}.{k}` is not a key of a tilt mount: only tilt_deg = [rx, ry] (degrees)"
+                )));
+            }
+            let a = t
+                .get("tilt_deg")
+                .and_then(|v| v.as_array())
+                .ok_or_else(|| ctx.err(format!("`{key}` table needs tilt_deg = [rx, ry] (degrees)")))?;
+            let nums: Vec<f64> = a
+                .iter()
+                .filter_map(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
+                .collect();
+            if nums.len() != 2 || a.len() != 2 || nums.iter().any(|x| !x.is_finite() || x.abs() > 360.0) {
+                return Err(ctx.err(format!(
+                    "`{key}.tilt_deg` must be [rx, ry]: two finite angles in degrees within ±360"
+                )));
+            }
+            Ok(Mount::Tilt {
+                rx: nums[0].to_radians(),
+                ry: nums[1].to_radians(),
+            })
+        }
+        _ => Err(ctx.err(format!("`{key}` has the wrong type: {what}"))),
+    }
+}
+
+fn mount_value(m: &Mount) -> toml::Value {
+    match m {
+        Mount::Tilt { rx, ry } => {
+            let mut t = toml::map::Map::new();
+            t.insert(
+                "tilt_deg".into(),
+                toml::Value::Array(vec![
+                    toml::Value::Float(rx.to_degrees()),
+                    toml::Value::Float(ry.to_degrees()),
+                ]),
+            );
+            toml::Value::Table(t)
+        }
+        other => toml::Value::String(other.to_string()),
+    }
+}
+
+/// The mount whose gravity direction matches `up_base` (unit "up" in the base frame), as text.
+fn mount_suggestion(up_base: &Vector3<f64>) -> String {
+    let tol = MOUNT_TOLERANCE_DEG.to_radians();
+    if up_base.z > tol.cos() {
+        "\"floor\"".into()
+    } else if up_base.z < -tol.cos() {
+        "\"ceiling\"".into()
+    } else if up_base.z.abs() < tol.sin() {
+        "\"wall\"".into()
+    } else {
+        // level_from_base = Rx(rx)·Ry(ry) ⇒ up_base = (−cos rx·sin ry, sin rx, cos rx·cos ry).
+        let rx = up_base.y.clamp(-1.0, 1.0).asin();
+        let ry = (-up_base.x).atan2(up_base.z);
+        format!(
+            "{{ tilt_deg = [{:.3}, {:.3}] }}",
+            rx.to_degrees(),
+            ry.to_degrees()
+        )
+    }
+}
+
+fn build_errors(
+    ctx: &Ctx,
+    key: &str,
+    model: &RobotModel,
+    e: &ErrorsFile,
+) -> Result<KinematicErrors, SimError> {
+    let dof = model.dof();
+    let mut out = KinematicErrors::zero(dof);
+    let len_err = |field: &str, len: usize| {
+        ctx.err(format!(
+            "`{key}.errors.{field}` has {len} entries but {} has {dof} joints: give one per joint, in URDF chain order",
+            model.name()
+        ))
+    };
+    let per_joint = |field: &str, v: &Option<Vec<f64>>, scale: f64| -> Result<Option<Vec<f64>>, SimError> {
+        match v {
+            None => Ok(None),
+            Some(v) if v.len() != dof => Err(len_err(field, v.len())),
+            Some(v) if v.iter().any(|x| !x.is_finite()) => {
+                Err(ctx.err(format!("`{key}.errors.{field}` must hold finite numbers")))
+            }
+            Some(v) => Ok(Some(v.iter().map(|x| x * scale).collect())),
+        }
+    };
+    let per_joint3 = |field: &str, v: &Option<Vec<[f64; 3]>>, scale: f64| -> Result<Option<Vec<Vector3<f64>>>, SimError> {
+        match v {
+            None => Ok(None),
+            Some(v) if v.len() != dof => Err(len_err(field, v.len())),
+            Some(v) => v
+                .iter()
+                .map(|a| finite3(ctx, &format!("{key}.errors.{field}"), *a).map(|x| x * scale))
+                .collect::<Result<Vec<_>, _>>()
+                .map(Some),
+        }
+    };
+    let d2r = 1f64.to_radians();
+    if let Some(v) = per_joint("joint_offset_deg", &e.joint_offset_deg, d2r)? {
+        out.joint_offset = v;
+    }
+    if let Some(v) = per_joint("joint_scale", &e.joint_scale, 1.0)? {
+        out.joint_scale = v;
+    }
+    // deg/(kN·m) → rad/(N·m)
+    if let Some(v) = per_joint("compliance_deg_per_knm", &e.compliance_deg_per_knm, d2r / 1000.0)? {
+        out.compliance = v;
+    }
+    if let Some(v) = per_joint3("origin_xyz_mm", &e.origin_xyz_mm, 1e-3)? {
+        out.origin_xyz = v;
+    }
+    if let Some(v) = per_joint3("origin_rpy_deg", &e.origin_rpy_deg, d2r)? {
+        out.origin_rpy = v;
+    }
+    if let Some(v) = e.tip_mm {
+        out.tip = finite3(ctx, &format!("{key}.errors.tip_mm"), v)? * 1e-3;
+    }
+    if let Some(v) = e.mount_xyz_mm {
+        out.mount_xyz = finite3(ctx, &format!("{key}.errors.mount_xyz_mm"), v)? * 1e-3;
+    }
+    if let Some(v) = e.mount_rpy_deg {
+        out.mount_rpy = finite3(ctx, &format!("{key}.errors.mount_rpy_deg"), v)? * d2r;
+    }
+    Ok(out)
+}
+
+fn errors_file(e: &KinematicErrors) -> Option<ErrorsFile> {
+    if e.is_zero() {
+        return None;
+    }
+    let nz = |v: &[f64]| v.iter().any(|x| *x != 0.0);
+    let nz3 = |v: &[Vector3<f64>]| v.iter().any(|x| x.iter().any(|c| *c != 0.0));
+    let a3 = |v: &Vector3<f64>, s: f64| [v.x * s, v.y * s, v.z * s];
+    let r2d = 1f64.to_degrees();
+    Some(ErrorsFile {
+        joint_offset_deg: nz(&e.joint_offset).then(|| e.joint_offset.iter().map(|x| x * r2d).collect()),
+        joint_scale: nz(&e.joint_scale).then(|| e.joint_scale.clone()),
+        origin_xyz_mm: nz3(&e.origin_xyz).then(|| e.origin_xyz.iter().map(|v| a3(v, 1e3)).collect()),
+        origin_rpy_deg: nz3(&e.origin_rpy).then(|| e.origin_rpy.iter().map(|v| a3(v, r2d)).collect()),
+        tip_mm: nz(e.tip.as_slice()).then(|| a3(&e.tip, 1e3)),
+        mount_xyz_mm: nz(e.mount_xyz.as_slice()).then(|| a3(&e.mount_xyz, 1e3)),
+        mount_rpy_deg: nz(e.mount_rpy.as_slice()).then(|| a3(&e.mount_rpy, r2d)),
+        compliance_deg_per_knm: nz(&e.compliance)
+            .then(|| e.compliance.iter().map(|x| x * r2d * 1000.0).collect()),
+    })
+}
+
+/// Shoulder (joint 2's origin at q = 0, else joint 1's) of a model, m, its base frame.
+fn shoulder(model: &RobotModel) -> Point3<f64> {
+    let q = vec![0.0; model.dof()];
+    let mut t = Isometry3::identity();
+    for (k, j) in model.joints().iter().enumerate().take(2) {
+        t = t * j.fixed_prefix * kinematics::origin_isometry(&j.origin_xyz, &j.origin_rpy);
+        if k == 0 {
+            t = t * nalgebra::UnitQuaternion::from_axis_angle(&j.axis, q[0]);
+        }
+    }
+    Point3::from(t.translation.vector)
+}
+
+impl Cell {
+    /// Reads a cell TOML file (paths in it relative to the file's directory).
+    pub fn from_toml_file(path: &Path) -> Result<Cell, SimError> {
+        let text = std::fs::read_to_string(path).map_err(|e| SimError::Cell {
+            path: path.to_path_buf(),
+            message: format!("cannot read the cell file: {e}"),
+        })?;
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        parse(&text, &dir, path, false)
+    }
+
+    /// Parses cell TOML text; relative URDF paths are resolved against `base_dir`.
+    pub fn from_toml_str(text: &str, base_dir: &Path) -> Result<Cell, SimError> {
+        parse(text, base_dir, Path::new("<string>"), false)
+    }
+
+    /// The paper's floor–wall cell (the default; `cells/floor-wall.toml`, URDFs embedded).
+    pub fn default_floor_wall() -> Cell {
+        embedded(FLOOR_WALL_TOML)
+    }
+
+    /// The paper's floor–floor cell (`cells/floor-floor.toml`, URDFs embedded).
+    pub fn default_floor_floor() -> Cell {
+        embedded(FLOOR_FLOOR_TOML)
+    }
+
+    /// The paper's floor–ceiling cell (`cells/floor-ceiling.toml`, URDFs embedded).
+    pub fn default_floor_ceiling() -> Cell {
+        embedded(FLOOR_CEILING_TOML)
+    }
+
+    /// The shipped cell for a paper placement, or `None` for other mounts.
+    pub fn paper(placement: &Placement) -> Option<Cell> {
+        let m = placement.mounts;
+        if m == MountPair::floor_floor() {
+            Some(Cell::default_floor_floor())
+        } else if m == MountPair::floor_wall() {
+            Some(Cell::default_floor_wall())
+        } else if m == MountPair::floor_ceiling() {
+            Some(Cell::default_floor_ceiling())
+        } else {
+            None
+        }
+    }
+
+    /// The mounts of both robots.
+    pub fn mounts(&self) -> MountPair {
+        MountPair {
+            robot1: self.robot1.mount,
+            robot2: self.robot2.mount,
+        }
+    }
+
+    /// The cell as TOML (mm, degrees); URDF paths as written (relative to [`Cell::base_dir`]).
+    /// Zero errors are omitted. [`Cell::from_toml_str`] of it with the same `base_dir` gives this
+    /// cell back (to round-off).
+    pub fn to_toml_string(&self) -> String {
+        let robot = |r: &CellRobot| RobotFile {
+            urdf: r.urdf.clone(),
+            tool_link: (r.tool_link != "tool0").then(|| r.tool_link.clone()),
+            mount: mount_value(&r.mount),
+            tip_mm: [
+                r.flange_from_tip.x * 1e3,
+                r.flange_from_tip.y * 1e3,
+                r.flange_from_tip.z * 1e3,
+            ],
+            errors: errors_file(&r.errors),
+        };
+        let zyz = zyz_from_rotation(&self.b1_from_b2.rotation.to_rotation_matrix());
+        let t = self.b1_from_b2.translation.vector * 1e3;
+        let a = self.noise.alignment_m * 1e3;
+        let file = CellFile {
+            robot1: robot(&self.robot1),
+            robot2: robot(&self.robot2),
+            b1_from_b2: PlacementFile {
+                xyz_mm: [t.x, t.y, t.z],
+                zyz_deg: zyz.map(f64::to_degrees),
+            },
+            noise: Some(NoiseFile {
+                alignment_mm: Some(if a.x == a.y && a.y == a.z {
+                    toml::Value::Float(a.x)
+                } else {
+                    toml::Value::Array(vec![a.x.into(), a.y.into(), a.z.into()])
+                }),
+                repeatability_mm: Some(self.noise.repeatability_m * 1e3),
+                encoder_resolution_deg: Some(self.noise.encoder_resolution_rad.to_degrees()),
+            }),
+            teach: Some(TeachFile {
+                centre_mm: Some([
+                    self.centre_b1.x * 1e3,
+                    self.centre_b1.y * 1e3,
+                    self.centre_b1.z * 1e3,
+                ]),
+            }),
+        };
+        toml::to_string(&file).unwrap_or_else(|e| format!("# cannot serialise the cell: {e}\n"))
+    }
+
+    /// The robot (1 or 2).
+    pub fn robot(&self, which: u8) -> &CellRobot {
+        if which == 1 {
+            &self.robot1
+        } else {
+            &self.robot2
+        }
+    }
+}
+
+fn embedded(text: &str) -> Cell {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+    // The shipped cells are tested to parse; an error here is a build defect, reported loudly.
+    parse(text, &dir, Path::new("<embedded cell>"), true)
+        .unwrap_or_else(|e| panic!("embedded cell does not parse: {e}"))
+}
+
+fn load_model(
+    ctx: &Ctx,
+    key: &str,
+    urdf: &str,
+    path: &Path,
+    tool_link: &str,
+    embedded: bool,
+) -> Result<RobotModel, SimError> {
+    if embedded {
+        if let Some((_, xml)) = EMBEDDED_URDFS.iter().find(|(p, _)| *p == urdf) {
+            return RobotModel::from_urdf_str(xml, tool_link)
+                .map_err(|e| ctx.err(format!("`{key}.urdf` (embedded {urdf}): {e}")));
+        }
+    }
+    if !path.is_file() {
+        return Err(ctx.err(format!(
+            "`{key}.urdf` = \"{urdf}\": no such file {} (paths are relative to the cell file's directory; e.g. \"../robots/va1400.urdf\" from cells/)",
+            path.display()
+        )));
+    }
+    RobotModel::from_urdf_file(path, tool_link)
+        .map_err(|e| ctx.err(format!("`{key}.urdf` = \"{urdf}\": {e}")))
+}
+
+fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cell, SimError> {
+    let ctx = Ctx { path };
+    let file: CellFile = toml::from_str(text).map_err(|e| {
+        ctx.err(format!(
+            "{} (keys: [robot1], [robot2] with urdf, mount, tip_mm, tool_link, [robotN.errors]; [b1_from_b2] xyz_mm, zyz_deg; [noise] alignment_mm, repeatability_mm, encoder_resolution_deg; [teach] centre_mm)",
+            e.message().trim_end()
+        ))
+    })?;
+    let robot = |key: &str, r: &RobotFile| -> Result<CellRobot, SimError> {
+        let tool_link = r.tool_link.clone().unwrap_or_else(|| "tool0".into());
+        let urdf_path = base_dir.join(&r.urdf);
+        let model = load_model(&ctx, key, &r.urdf, &urdf_path, &tool_link, embedded)?;
+        let errors = match &r.errors {
+            Some(e) => build_errors(&ctx, key, &model, e)?,
+            None => KinematicErrors::zero(model.dof()),
+        };
+        Ok(CellRobot {
+            mount: parse_mount(&ctx, &format!("{key}.mount"), &r.mount)?,
+            flange_from_tip: finite3(&ctx, &format!("{key}.tip_mm"), r.tip_mm)? * 1e-3,
+            model,
+            urdf: r.urdf.clone(),
+            urdf_path,
+            tool_link,
+            g_base: Vector3::zeros(),
+            errors,
+        })
+    };
+    let mut robot1 = robot("robot1", &file.robot1)?;
+    let mut robot2 = robot("robot2", &file.robot2)?;
+    finite3(&ctx, "b1_from_b2.xyz_mm", file.b1_from_b2.xyz_mm)?;
+    finite3(&ctx, "b1_from_b2.zyz_deg", file.b1_from_b2.zyz_deg)?;
+    let b1_from_b2 = isometry_from_mm_deg(file.b1_from_b2.xyz_mm, file.b1_from_b2.zyz_deg);
+
+    // Gravity: robot 1's mount fixes the level frame; robot 2's follows from the placement.
+    let level_from_b1 = robot1.mount.level_from_base().ok_or_else(|| {
+        ctx.err(
+            "`robot1.mount` = \"wall\": robot 1 defines the level frame, so its roll must be known; \
+             use \"floor\", \"ceiling\" or { tilt_deg = [rx, ry] } (a wall with known roll is tilt_deg = [±90, ry])",
+        )
+    })?;
+    let g_level = Vector3::new(0.0, 0.0, -G);
+    robot1.g_base = level_from_b1.inverse() * g_level;
+    robot2.g_base = b1_from_b2.rotation.inverse() * robot1.g_base;
+    let up_b2 = -robot2.g_base / G;
+    let tol = MOUNT_TOLERANCE_DEG.to_radians();
+    let consistent = match robot2.mount.level_from_base() {
+        None => up_b2.z.abs() <= tol.sin(),
+        Some(level_from_b2) => {
+            let expected: Vector3<f64> = level_from_b2.inverse() * Vector3::z();
+            expected.angle(&up_b2) <= tol
+        }
+    };
+    if !consistent {
+        return Err(ctx.err(format!(
+            "`robot2.mount` = {} is impossible with [b1_from_b2] zyz_deg = {:?}: that placement puts robot 2's \
+             up direction at ({:.3}, {:.3}, {:.3}) in its base frame; use mount = {} or change zyz_deg",
+            mount_value(&robot2.mount),
+            file.b1_from_b2.zyz_deg,
+            up_b2.x,
+            up_b2.y,
+            up_b2.z,
+            mount_suggestion(&up_b2)
+        )));
+    }
+
+    let noise = match &file.noise {
+        None => Noise {
+            alignment_m: Vector3::repeat(DEFAULT_ALIGNMENT_MM * 1e-3),
+            repeatability_m: 0.0,
+            encoder_resolution_rad: 0.0,
+        },
+        Some(n) => {
+            let nonneg = |key: &str, v: f64| {
+                if v.is_finite() && v >= 0.0 {
+                    Ok(v)
+                } else {
+                    Err(ctx.err(format!("`noise.{key}` = {v} must be a finite σ ≥ 0")))
+                }
+            };
+            let num = |v: &toml::Value| v.as_float().or_else(|| v.as_integer().map(|i| i as f64));
+            let alignment_mm = match &n.alignment_mm {
+                None => Vector3::repeat(DEFAULT_ALIGNMENT_MM),
+                Some(toml::Value::Array(a)) => {
+                    let v: Vec<f64> = a.iter().filter_map(num).collect();
+                    if v.len() != 3 || a.len() != 3 {
+                        return Err(ctx.err(
+                            "`noise.alignment_mm` must be one σ (mm, isotropic) or [σx, σy, σz] (mm, b1 axes)",
+                        ));
+                    }
+                    Vector3::new(
+                        nonneg("alignment_mm", v[0])?,
+                        nonneg("alignment_mm", v[1])?,
+                        nonneg("alignment_mm", v[2])?,
+                    )
+                }
+                Some(v) => Vector3::repeat(nonneg(
+                    "alignment_mm",
+                    num(v).ok_or_else(|| {
+                        ctx.err("`noise.alignment_mm` must be one σ (mm) or [σx, σy, σz] (mm)")
+                    })?,
+                )?),
+            };
+            Noise {
+                alignment_m: alignment_mm * 1e-3,
+                repeatability_m: nonneg("repeatability_mm", n.repeatability_mm.unwrap_or(0.0))? * 1e-3,
+                encoder_resolution_rad: nonneg(
+                    "encoder_resolution_deg",
+                    n.encoder_resolution_deg.unwrap_or(0.0),
+                )?
+                .to_radians(),
+            }
+        }
+    };
+    let centre_b1 = match file.teach.as_ref().and_then(|t| t.centre_mm) {
+        Some(c) => Point3::from(finite3(&ctx, "teach.centre_mm", c)? * 1e-3),
+        None => {
+            let s1 = shoulder(&robot1.model);
+            let s2 = b1_from_b2 * shoulder(&robot2.model);
+            Point3::from((s1.coords + s2.coords) / 2.0)
+        }
+    };
+    Ok(Cell {
+        base_dir: base_dir.to_path_buf(),
+        robot1,
+        robot2,
+        b1_from_b2,
+        noise,
+        centre_b1,
+    })
+}
+
+/// Rotation of the level frame relative to base 1 (for callers that need it): `level_from_b1`.
+pub fn level_from_b1(cell: &Cell) -> Option<Rotation3<f64>> {
+    cell.robot1.mount.level_from_base()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Round-off of mm/degree text conversions, m and rad.
+    const ROUND_TRIP_TOL: f64 = 1e-12;
+
+    fn assert_cells_equal(a: &Cell, b: &Cell) {
+        assert!((a.b1_from_b2.translation.vector - b.b1_from_b2.translation.vector).amax() < ROUND_TRIP_TOL);
+        assert!(a.b1_from_b2.rotation.angle_to(&b.b1_from_b2.rotation) < 1e-9);
+        for (r, s) in [(&a.robot1, &b.robot1), (&a.robot2, &b.robot2)] {
+            assert_eq!(r.urdf, s.urdf);
+            assert_eq!(r.mount, s.mount);
+            assert!((r.flange_from_tip - s.flange_from_tip).amax() < ROUND_TRIP_TOL);
+            assert!((r.g_base - s.g_base).amax() < 1e-9);
+            let (e, f) = (&r.errors, &s.errors);
+            for (x, y) in e.joint_offset.iter().zip(&f.joint_offset) {
+                assert!((x - y).abs() < ROUND_TRIP_TOL);
+            }
+            for (x, y) in e.compliance.iter().zip(&f.compliance) {
+                assert!((x - y).abs() < ROUND_TRIP_TOL);
+            }
+            for (x, y) in e.origin_xyz.iter().zip(&f.origin_xyz) {
+                assert!((x - y).amax() < ROUND_TRIP_TOL);
+            }
+            assert!((e.mount_rpy - f.mount_rpy).amax() < ROUND_TRIP_TOL);
+            assert_eq!(e.joint_scale, f.joint_scale);
+        }
+        assert!((a.noise.alignment_m - b.noise.alignment_m).amax() < ROUND_TRIP_TOL);
+        assert!((a.noise.repeatability_m - b.noise.repeatability_m).abs() < ROUND_TRIP_TOL);
+        assert!((a.noise.encoder_resolution_rad - b.noise.encoder_resolution_rad).abs() < ROUND_TRIP_TOL);
+        assert!((a.centre_b1 - b.centre_b1).amax() < ROUND_TRIP_TOL);
+    }
+
+    #[test]
+    fn shipped_cells_parse_and_round_trip() {
+        for cell in [
+            Cell::default_floor_floor(),
+            Cell::default_floor_wall(),
+            Cell::default_floor_ceiling(),
+        ] {
+            let text = cell.to_toml_string();
+            let back = Cell::from_toml_str(&text, &cell.base_dir).unwrap();
+            assert_cells_equal(&cell, &back);
+        }
+    }
+
+    #[test]
+    fn errors_and_anisotropic_noise_round_trip() {
+        let text = FLOOR_WALL_TOML.to_string()
+            + r#"
+[robot2.errors]
+joint_offset_deg = [0.01, -0.02, 0.0, 0.0, 0.03, 0.0]
+joint_scale = [0.0, 1e-4, 0.0, 0.0, 0.0, 0.0]
+origin_xyz_mm = [[0.1, 0, 0], [0, 0, 0], [0, -0.2, 0], [0, 0, 0], [0, 0, 0], [0, 0, 0]]
+mount_rpy_deg = [0.01, 0.0, 0.02]
+compliance_deg_per_knm = [0.0, 0.05, 0.05, 0.0, 0.0, 0.0]
+"#;
+        let text = text.replace("alignment_mm = 0.3", "alignment_mm = [0.3, 0.5, 0.2]");
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+        let cell = Cell::from_toml_str(&text, &dir).unwrap();
+        assert!((cell.robot2.errors.joint_offset[1] - (-0.02f64).to_radians()).abs() < 1e-15);
+        assert!((cell.robot2.errors.compliance[1] - 0.05f64.to_radians() / 1000.0).abs() < 1e-18);
+        assert!((cell.noise.alignment_m.y - 0.5e-3).abs() < 1e-15);
+        let back = Cell::from_toml_str(&cell.to_toml_string(), &dir).unwrap();
+        assert_cells_equal(&cell, &back);
+    }
+
+    #[test]
+    fn gravity_of_robot2_follows_the_placement() {
+        let ff = Cell::default_floor_floor();
+        assert!((ff.robot1.g_base - Vector3::new(0.0, 0.0, -G)).norm() < 1e-12);
+        assert!(ff.robot2.g_base.z < -0.9999 * G);
+        let fc = Cell::default_floor_ceiling();
+        assert!(fc.robot2.g_base.z > 0.9999 * G);
+        let fw = Cell::default_floor_wall();
+        assert!(fw.robot2.g_base.z.abs() < 0.01 * G);
+        assert!((fw.robot2.g_base.norm() - G).abs() < 1e-9);
+    }
+
+    fn err_text(text: &str) -> String {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+        Cell::from_toml_str(text, &dir).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn unknown_key_is_named() {
+        let e = err_text(&FLOOR_WALL_TOML.replace("tip_mm", "tip_mmm"));
+        assert!(e.contains("tip_mmm") && e.contains("tip_mm"), "{e}");
+        let e = err_text(&(FLOOR_WALL_TOML.to_string() + "\n[robot2.errors]\njoint_ofset_deg = [0,0,0,0,0,0]\n"));
+        assert!(e.contains("joint_ofset_deg") && e.contains("joint_offset_deg"), "{e}");
+    }
+
+    #[test]
+    fn missing_urdf_is_named() {
+        let e = err_text(&FLOOR_WALL_TOML.replace("../robots/hp20.urdf", "../robots/nope.urdf"));
+        assert!(e.contains("robot2.urdf") && e.contains("nope.urdf"), "{e}");
+    }
+
+    #[test]
+    fn impossible_mount_is_named_with_the_fix() {
+        let e = err_text(&FLOOR_WALL_TOML.replace("mount = \"wall\"", "mount = \"ceiling\""));
+        assert!(e.contains("robot2.mount") && e.contains("\"wall\""), "{e}");
+        let e = err_text(&FLOOR_WALL_TOML.replace("mount = \"floor\"", "mount = \"wall\""));
+        assert!(e.contains("robot1.mount"), "{e}");
+        let e = err_text(&FLOOR_WALL_TOML.replace("mount = \"wall\"", "mount = \"roof\""));
+        assert!(e.contains("robot2.mount") && e.contains("ceiling"), "{e}");
+    }
+
+    #[test]
+    fn wrong_error_length_is_named() {
+        let e = err_text(&(FLOOR_WALL_TOML.to_string() + "\n[robot1.errors]\njoint_offset_deg = [0.0, 0.1]\n"));
+        assert!(e.contains("robot1.errors.joint_offset_deg") && e.contains("7 joints"), "{e}");
+    }
+}

@@ -1,0 +1,55 @@
+//! The crate's error type.
+
+use std::path::PathBuf;
+
+/// Errors of sim-cell: each names the file, key, row or teach point at fault and says what would work.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    /// A cell file (TOML) is invalid; `message` names the key and the fix.
+    #[error("cell {path}: {message}")]
+    Cell {
+        /// The cell file (or `<string>` for text without a file).
+        path: PathBuf,
+        /// What is wrong, naming the key, and what would work.
+        message: String,
+    },
+    /// A session CSV is invalid; `message` names the row/column and the fix.
+    #[error("session {path}: {message}")]
+    Session {
+        /// The session file.
+        path: PathBuf,
+        /// What is wrong, naming the row or column, and what would work.
+        message: String,
+    },
+    /// A file could not be read or written.
+    #[error("{path}: {message}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's message.
+        message: String,
+    },
+    /// A teach point that one of the robots cannot reach.
+    #[error("teach point {point} at ({:.1}, {:.1}, {:.1}) mm in b1 is outside the common workspace: {message}", p_b1_mm[0], p_b1_mm[1], p_b1_mm[2])]
+    Unreachable {
+        /// 1-based teach point number.
+        point: usize,
+        /// The point, mm, robot 1's base frame.
+        p_b1_mm: [f64; 3],
+        /// Which robot failed and what would work.
+        message: String,
+    },
+    /// An invalid argument (spec, grid axis, option): the message names it and what would work.
+    #[error("{0}")]
+    InvalidInput(String),
+}
+
+impl SimError {
+    /// Shorthand for [`SimError::Io`].
+    pub(crate) fn io(path: &std::path::Path, e: impl std::fmt::Display) -> Self {
+        SimError::Io {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        }
+    }
+}

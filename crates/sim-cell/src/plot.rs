@@ -1,0 +1,220 @@
+//! SVG plots of sweep results (plotters): median error against spread and against noise, one line
+//! per method, one file per mount pair and axis, e_tran (mm) and e_rot (deg) side by side, log y.
+
+use crate::error::SimError;
+use crate::placement::mounts_label;
+use crate::stats::{quantile, sorted_finite};
+use crate::sweep::SweepResult;
+use plotters::prelude::*;
+use std::path::{Path, PathBuf};
+
+/// A named polyline `(x, y)`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Series {
+    /// Legend text.
+    pub name: String,
+    /// Points, ascending x; non-positive or non-finite y are skipped (log axis).
+    pub points: Vec<(f64, f64)>,
+}
+
+const COLOURS: [RGBColor; 8] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+];
+
+/// A panel: title, x label, y label, series.
+pub struct Panel<'a> {
+    /// Panel caption.
+    pub title: &'a str,
+    /// x axis label (with unit).
+    pub x_label: &'a str,
+    /// y axis label (with unit).
+    pub y_label: &'a str,
+    /// The lines.
+    pub series: &'a [Series],
+}
+
+fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, plotters::coord::Shift>, p: &Panel) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let pts: Vec<(f64, f64)> = p
+        .series
+        .iter()
+        .flat_map(|s| s.points.iter().copied())
+        .filter(|(x, y)| x.is_finite() && y.is_finite() && *y > 0.0)
+        .collect();
+    let (mut x0, mut x1) = pts.iter().fold((f64::MAX, f64::MIN), |(a, b), (x, _)| (a.min(*x), b.max(*x)));
+    let (mut y0, mut y1) = pts.iter().fold((f64::MAX, f64::MIN), |(a, b), (_, y)| (a.min(*y), b.max(*y)));
+    if pts.is_empty() {
+        (x0, x1, y0, y1) = (0.0, 1.0, 1e-3, 1.0);
+    }
+    if x1 <= x0 {
+        x1 = x0 + 1.0;
+    }
+    if y1 <= y0 {
+        y1 = y0 * 10.0;
+    }
+    let pad = (x1 - x0) * 0.05;
+    let mut chart = ChartBuilder::on(area)
+        .caption(p.title, ("sans-serif", 16))
+        .margin(10)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d((x0 - pad)..(x1 + pad), (y0 / 1.5..y1 * 1.5).log_scale())
+        .map_err(|e| e.to_string())?;
+    chart
+        .configure_mesh()
+        .x_desc(p.x_label)
+        .y_desc(p.y_label)
+        .draw()
+        .map_err(|e| e.to_string())?;
+    for (i, s) in p.series.iter().enumerate() {
+        let c = COLOURS[i % COLOURS.len()];
+        let data: Vec<(f64, f64)> = s
+            .points
+            .iter()
+            .copied()
+            .filter(|(x, y)| x.is_finite() && y.is_finite() && *y > 0.0)
+            .collect();
+        chart
+            .draw_series(LineSeries::new(data.clone(), c.stroke_width(2)))
+            .map_err(|e| e.to_string())?
+            .label(s.name.clone())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+        chart
+            .draw_series(data.into_iter().map(|(x, y)| Circle::new((x, y), 3, c.filled())))
+            .map_err(|e| e.to_string())?;
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+/// Writes an SVG with the panels side by side.
+pub fn write_panels_svg(path: &Path, title: &str, panels: &[Panel]) -> Result<(), SimError> {
+    let w = 520 * panels.len().max(1) as u32;
+    let root = SVGBackend::new(path, (w, 420)).into_drawing_area();
+    let run = || -> Result<(), String> {
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let root = root.titled(title, ("sans-serif", 18)).map_err(|e| e.to_string())?;
+        let areas = root.split_evenly((1, panels.len().max(1)));
+        for (a, p) in areas.iter().zip(panels) {
+            draw_panel(a, p)?;
+        }
+        root.present().map_err(|e| e.to_string())
+    };
+    run().map_err(|e| SimError::io(path, format!("cannot draw the plot: {e}")))
+}
+
+/// Index of the value nearest `target`.
+fn nearest(values: &[f64], target: f64) -> usize {
+    values
+        .iter()
+        .enumerate()
+        .min_by(|a, b| (a.1 - target).abs().total_cmp(&(b.1 - target).abs()))
+        .map_or(0, |(i, _)| i)
+}
+
+/// Median e_tran (mm) and e_rot (deg) per method along one axis, the others fixed.
+fn medians(
+    result: &SweepResult,
+    mounts: usize,
+    pick: impl Fn(&crate::sweep::GridCell) -> Option<f64>,
+) -> (Vec<Series>, Vec<Series>) {
+    let c = &result.config;
+    let mut tran = Vec::new();
+    let mut rot = Vec::new();
+    for (m, method) in c.methods.iter().enumerate() {
+        let mut pt = Vec::new();
+        let mut pr = Vec::new();
+        for (ci, g) in result.grid.iter().enumerate() {
+            if g.mounts != mounts {
+                continue;
+            }
+            let Some(x) = pick(g) else { continue };
+            let trials = ci * c.trials..(ci + 1) * c.trials;
+            let et = sorted_finite(trials.clone().filter_map(|t| result.outcome(t, m).as_ref().ok().map(|e| e.e_tran * 1e3)));
+            let er = sorted_finite(trials.filter_map(|t| result.outcome(t, m).as_ref().ok().map(|e| e.e_rot.to_degrees())));
+            pt.push((x, quantile(&et, 0.5)));
+            pr.push((x, quantile(&er, 0.5)));
+        }
+        pt.sort_by(|a, b| a.0.total_cmp(&b.0));
+        pr.sort_by(|a, b| a.0.total_cmp(&b.0));
+        tran.push(Series { name: method.name().into(), points: pt });
+        rot.push(Series { name: method.name().into(), points: pr });
+    }
+    (tran, rot)
+}
+
+/// Writes `spread_<mounts>.svg` and `noise_<mounts>.svg` into `dir` for every mount pair of the
+/// sweep (medians per method; other axes at reference values: noise nearest 1 mm, the smallest
+/// point count, the largest spread). Returns the files written.
+pub fn write_sweep_plots(result: &SweepResult, dir: &Path) -> Result<Vec<PathBuf>, SimError> {
+    let c = &result.config;
+    let noise_ref = nearest(&c.noise_mm, 1.0);
+    let n_ref = c
+        .n_points
+        .iter()
+        .enumerate()
+        .min_by_key(|(_, n)| **n)
+        .map_or(0, |(i, _)| i);
+    let spread_ref = nearest(&c.spread_m, f64::MAX);
+    let mut files = Vec::new();
+    for (mi, mounts) in c.mounts.iter().enumerate() {
+        let label = mounts_label(mounts);
+        let (t, r) = medians(result, mi, |g| {
+            (g.noise == noise_ref && g.n == n_ref).then(|| c.spread_m[g.spread] * 1e3)
+        });
+        let path = dir.join(format!("spread_{label}.svg"));
+        let title = format!(
+            "{label} ({} mode, {} layout): median error vs spread; σ = {} mm, n = {}, {} trials",
+            c.mode.name(),
+            c.layout,
+            c.noise_mm[noise_ref],
+            c.n_points[n_ref],
+            c.trials
+        );
+        write_panels_svg(
+            &path,
+            &title,
+            &[
+                Panel { title: "e_tran (eq 34)", x_label: "spread, mm", y_label: "median e_tran, mm", series: &t },
+                Panel { title: "e_rot (eq 33)", x_label: "spread, mm", y_label: "median e_rot, deg", series: &r },
+            ],
+        )?;
+        files.push(path);
+        let (t, r) = medians(result, mi, |g| {
+            (g.spread == spread_ref && g.n == n_ref).then(|| c.noise_mm[g.noise])
+        });
+        let path = dir.join(format!("noise_{label}.svg"));
+        let title = format!(
+            "{label} ({} mode, {} layout): median error vs noise; spread = {} mm, n = {}, {} trials",
+            c.mode.name(),
+            c.layout,
+            c.spread_m[spread_ref] * 1e3,
+            c.n_points[n_ref],
+            c.trials
+        );
+        write_panels_svg(
+            &path,
+            &title,
+            &[
+                Panel { title: "e_tran (eq 34)", x_label: "alignment σ, mm", y_label: "median e_tran, mm", series: &t },
+                Panel { title: "e_rot (eq 33)", x_label: "alignment σ, mm", y_label: "median e_rot, deg", series: &r },
+            ],
+        )?;
+        files.push(path);
+    }
+    Ok(files)
+}

@@ -1,0 +1,839 @@
+//! Monte Carlo sweeps over noise × spread × number of points × mounts × methods.
+//!
+//! Two modes:
+//! - **geometry**: teach points from a [`Layout`] around the cell's centre, robot 2's reading
+//!   perturbed by the operator's alignment error, fitted by calib-core's allocation-free kernels
+//!   ([`calib_core::generic_fast`], [`calib_core::paper_fast`], [`calib_core::rigid_fit_fast`],
+//!   [`calib_core::constrained_fast`]); no robots, millions of trials per second.
+//! - **robot**: each trial simulates a full session on a [`Cell`] ([`crate::session::generate_session`]:
+//!   IK of both true robots, reach limits, encoder quantisation, repeatability, nominal-model tips).
+//!
+//! Trial `k` (global index over grid cells × trials) draws only from [`trial_rng`]`(seed, k)` and every
+//! method is fitted on that trial's points (common random numbers), so results are identical for
+//! any thread count. Grid cells are ordered mounts, noise, spread, n (n fastest).
+
+use crate::cell::Cell;
+use crate::error::SimError;
+use crate::layout::{teach_points_into, Layout};
+use crate::placement::{mounts_label, paper_placement};
+use crate::session::{generate_session, SessionSpec};
+use crate::stats::{quantile_ci, sorted_finite, QuantileCi};
+use crate::trial_rng;
+use calib_core::{
+    constrained_fast, e_rot, e_tran, generic_fast, geodesic_angle, paper_fast,
+    project_rotation_family, rigid_fit_fast, rotation_maximizing_trace, Method, MountPair,
+};
+use indicatif::ProgressBar;
+use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
+use rand::Rng;
+use rand_distr::StandardNormal;
+use rayon::prelude::*;
+use std::io::Write;
+
+/// Largest point count of a geometry-mode trial.
+pub const MAX_GEOMETRY_POINTS: usize = 256;
+/// Trials per parallel work item (also the progress-bar step).
+const CHUNK: usize = 2048;
+
+/// Errors of one estimate against the truth.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrialErrors {
+    /// eq (34): largest per-axis translation error, m.
+    pub e_tran: f64,
+    /// eq (33): largest ZYZ angle error (branch-matched, wrapped), rad.
+    pub e_rot: f64,
+    /// Geodesic angle between the true and estimated rotations, rad.
+    pub geodesic: f64,
+    /// Signed translation error `T_est − T_true`, m, b1 axes.
+    pub translation_error: Vector3<f64>,
+    /// Rotation error as a rotation vector of `R_est·R_trueᵀ`, rad, b1 axes.
+    pub rotation_error: Vector3<f64>,
+}
+
+impl TrialErrors {
+    /// Errors of `est` against `truth` (both `b1_from_b2`).
+    pub fn between(truth: &Isometry3<f64>, est: &Isometry3<f64>) -> Self {
+        TrialErrors {
+            e_tran: e_tran(truth, est),
+            e_rot: e_rot(truth, est),
+            geodesic: geodesic_angle(truth, est),
+            translation_error: est.translation.vector - truth.translation.vector,
+            rotation_error: (est.rotation * truth.rotation.inverse()).scaled_axis(),
+        }
+    }
+}
+
+/// One geometry-mode trial's setting.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GeometrySpec {
+    /// The mounts (used by the `paper` and `constrained` methods).
+    pub mounts: MountPair,
+    /// The true `b1_from_b2` (m, rad).
+    pub b1_from_b2: Isometry3<f64>,
+    /// Teach-point layout.
+    pub layout: Layout,
+    /// Number of teach points (1..=[`MAX_GEOMETRY_POINTS`]).
+    pub n: usize,
+    /// Layout size, m (see [`crate::layout`]).
+    pub spread_m: f64,
+    /// Centre of the teach points, m, b1 frame.
+    pub centre_b1: Point3<f64>,
+    /// σ of the operator's alignment error per b1 axis, m (≥ 0).
+    pub sigma_m: Vector3<f64>,
+}
+
+impl GeometrySpec {
+    /// The spec for one of the paper's cells (true placement and centre from
+    /// [`crate::placement`]), isotropic noise `sigma_m`. `None` for mounts the paper did not use.
+    pub fn paper(
+        mounts: &MountPair,
+        layout: Layout,
+        n: usize,
+        spread_m: f64,
+        sigma_m: f64,
+    ) -> Option<Self> {
+        let p = paper_placement(mounts)?;
+        Some(GeometrySpec {
+            mounts: *mounts,
+            b1_from_b2: p.b1_from_b2(),
+            layout,
+            n,
+            spread_m,
+            centre_b1: p.centre_b1(),
+            sigma_m: Vector3::repeat(sigma_m),
+        })
+    }
+
+    /// Checks the spec: point count, finite non-negative spread and σ.
+    pub fn validate(&self) -> Result<(), SimError> {
+        if self.n == 0 || self.n > MAX_GEOMETRY_POINTS {
+            return Err(SimError::InvalidInput(format!(
+                "number of points {} is out of range: use 1..={MAX_GEOMETRY_POINTS} (4 or more for every method)",
+                self.n
+            )));
+        }
+        if !(self.spread_m.is_finite() && self.spread_m > 0.0) {
+            return Err(SimError::InvalidInput(format!(
+                "spread {} m must be a positive length (e.g. 1.0 m)",
+                self.spread_m
+            )));
+        }
+        if !self.sigma_m.iter().all(|s| s.is_finite() && *s >= 0.0) {
+            return Err(SimError::InvalidInput(format!(
+                "alignment σ {:?} m must be finite and ≥ 0",
+                self.sigma_m.as_slice()
+            )));
+        }
+        if !self.centre_b1.iter().all(|c| c.is_finite()) {
+            return Err(SimError::InvalidInput("centre must be finite".into()));
+        }
+        Ok(())
+    }
+}
+
+/// Draws one trial's points: `p_b1` the teach points (the true position of robot 1's tip) and
+/// `p_b2 = b2_from_b1·(p_b1 + ε)` with `ε ~ N(0, diag(σ²))` the alignment error (b1 axes).
+/// The slices' length is the point count (must be equal). Allocation-free.
+pub fn draw_geometry(
+    spec: &GeometrySpec,
+    rng: &mut impl Rng,
+    p_b1: &mut [Point3<f64>],
+    p_b2: &mut [Point3<f64>],
+) {
+    teach_points_into(spec.layout, spec.spread_m, &spec.centre_b1, rng, p_b1);
+    let b2_from_b1 = spec.b1_from_b2.inverse();
+    for (a, b) in p_b1.iter().zip(p_b2.iter_mut()) {
+        let eps = Vector3::new(
+            spec.sigma_m.x * rng.sample::<f64, _>(StandardNormal),
+            spec.sigma_m.y * rng.sample::<f64, _>(StandardNormal),
+            spec.sigma_m.z * rng.sample::<f64, _>(StandardNormal),
+        );
+        *b = b2_from_b1 * (a + eps);
+    }
+}
+
+/// Centred affine least squares `p1 ≈ M·p2 + t` (n ≥ 4, allocation-free): `(M, t)`.
+fn affine_lsq_fast(p_b1: &[Point3<f64>], p_b2: &[Point3<f64>]) -> Option<(Matrix3<f64>, Vector3<f64>)> {
+    let n = p_b1.len() as f64;
+    let c1 = p_b1.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / n;
+    let c2 = p_b2.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / n;
+    let mut s12 = Matrix3::zeros();
+    let mut s22 = Matrix3::zeros();
+    for (a, b) in p_b1.iter().zip(p_b2) {
+        let d1 = a.coords - c1;
+        let d2 = b.coords - c2;
+        s12 += d1 * d2.transpose();
+        s22 += d2 * d2.transpose();
+    }
+    let m = s12 * s22.try_inverse()?;
+    m.iter().all(|v| v.is_finite()).then(|| (m, c1 - m * c2))
+}
+
+/// eq (12) translation for rotation `q`.
+fn eq12(p_b1: &[Point3<f64>], p_b2: &[Point3<f64>], q: &UnitQuaternion<f64>) -> Vector3<f64> {
+    p_b1.iter()
+        .zip(p_b2)
+        .fold(Vector3::zeros(), |acc, (a, b)| acc + (a.coords - q * b.coords))
+        / p_b1.len() as f64
+}
+
+/// Fits `b1_from_b2` by `method` without allocation: calib-core's fast kernels for 4 points (and for
+/// `lsq`/`constrained` at any n); for the 4-point methods with n > 4, the affine least-squares `H`
+/// (as [`calib_core::generic_4point`] does) then the same rotation step. `None` when the method
+/// needs more points, the points are degenerate for it, or the mounts are unsupported.
+pub fn fit_fast(
+    method: Method,
+    mounts: &MountPair,
+    p_b1: &[Point3<f64>],
+    p_b2: &[Point3<f64>],
+) -> Option<Isometry3<f64>> {
+    let n = p_b1.len();
+    if n != p_b2.len() || n < method.min_points() {
+        return None;
+    }
+    match method {
+        Method::Lsq => rigid_fit_fast(p_b1, p_b2),
+        Method::Constrained => constrained_fast(p_b1, p_b2, mounts),
+        Method::Generic | Method::GenericAffine | Method::Paper if n == 4 => {
+            let a: &[Point3<f64>; 4] = p_b1.try_into().ok()?;
+            let b: &[Point3<f64>; 4] = p_b2.try_into().ok()?;
+            match method {
+                Method::Paper => paper_fast(a, b, mounts),
+                m => generic_fast(a, b, m == Method::GenericAffine),
+            }
+        }
+        Method::Generic | Method::GenericAffine | Method::Paper => {
+            let (m, t_h) = affine_lsq_fast(p_b1, p_b2)?;
+            let q = if method == Method::Paper {
+                UnitQuaternion::from_rotation_matrix(&project_rotation_family(&m, mounts).ok()?)
+            } else {
+                rotation_maximizing_trace(&m)?
+            };
+            let t = if method == Method::GenericAffine {
+                t_h
+            } else {
+                eq12(p_b1, p_b2, &q)
+            };
+            Some(Isometry3::from_parts(Translation3::from(t), q))
+        }
+    }
+}
+
+/// One geometry-mode trial of one method: draws the points ([`draw_geometry`]) and fits them.
+/// `Ok(None)` when the fit fails (degenerate points for the method); errors for an invalid spec.
+///
+/// # Examples
+/// ```
+/// use sim_cell::{layout::Layout, sweep::{geometry_trial, GeometrySpec}, trial_rng};
+/// use calib_core::{Method, MountPair};
+/// let spec = GeometrySpec::paper(&MountPair::floor_floor(), Layout::Tetrahedron, 4, 1.0, 0.5e-3).unwrap();
+/// let e = geometry_trial(&spec, Method::Paper, &mut trial_rng(7, 0)).unwrap().unwrap();
+/// assert!(e.e_tran < 5e-3); // m
+/// ```
+pub fn geometry_trial(
+    spec: &GeometrySpec,
+    method: Method,
+    rng: &mut impl Rng,
+) -> Result<Option<TrialErrors>, SimError> {
+    spec.validate()?;
+    const SMALL: usize = 16;
+    if spec.n <= SMALL {
+        let mut buf1 = [Point3::origin(); SMALL];
+        let mut buf2 = [Point3::origin(); SMALL];
+        Ok(geometry_trial_into(spec, method, rng, &mut buf1[..spec.n], &mut buf2[..spec.n]))
+    } else {
+        let mut buf1 = vec![Point3::origin(); spec.n];
+        let mut buf2 = vec![Point3::origin(); spec.n];
+        Ok(geometry_trial_into(spec, method, rng, &mut buf1, &mut buf2))
+    }
+}
+
+/// [`geometry_trial`] without validation, drawing into caller buffers (their length is the
+/// point count; the spec's `n` is not used): allocation-free, for hot loops of a validated spec.
+/// `None` when the fit fails.
+pub fn geometry_trial_into(
+    spec: &GeometrySpec,
+    method: Method,
+    rng: &mut impl Rng,
+    p_b1: &mut [Point3<f64>],
+    p_b2: &mut [Point3<f64>],
+) -> Option<TrialErrors> {
+    draw_geometry(spec, rng, p_b1, p_b2);
+    fit_fast(method, &spec.mounts, p_b1, p_b2).map(|est| TrialErrors::between(&spec.b1_from_b2, &est))
+}
+
+/// Why a trial gave no estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Failure {
+    /// The method could not fit these points (degenerate geometry, too few points).
+    FitFailed,
+    /// Robot mode: no layout draw was reachable by both robots.
+    Unreachable,
+}
+
+impl Failure {
+    /// Name in the CSV `status` column.
+    pub fn name(self) -> &'static str {
+        match self {
+            Failure::FitFailed => "fit-failed",
+            Failure::Unreachable => "unreachable",
+        }
+    }
+}
+
+/// A trial's result for one method.
+pub type Outcome = Result<TrialErrors, Failure>;
+
+/// Simulation mode of a sweep.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    /// Points and noise only (fast).
+    Geometry,
+    /// Full sessions on robot cells (IK, reach, joint-level noise).
+    Robot,
+}
+
+impl Mode {
+    /// `geometry` or `robot`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Geometry => "geometry",
+            Mode::Robot => "robot",
+        }
+    }
+}
+
+/// A sweep's grid and settings. Noise is the operator's isotropic alignment σ per axis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepConfig {
+    /// Simulation mode.
+    pub mode: Mode,
+    /// Mount pairs (geometry mode: the paper's cells only, see [`crate::placement`]).
+    pub mounts: Vec<MountPair>,
+    /// Alignment σ per axis, mm.
+    pub noise_mm: Vec<f64>,
+    /// Layout spreads, m.
+    pub spread_m: Vec<f64>,
+    /// Point counts.
+    pub n_points: Vec<usize>,
+    /// Methods fitted on every trial.
+    pub methods: Vec<Method>,
+    /// Teach-point layout.
+    pub layout: Layout,
+    /// Trials per grid cell.
+    pub trials: usize,
+    /// Master seed.
+    pub seed: u64,
+}
+
+impl Default for SweepConfig {
+    /// The default study: the paper's three cells, noise 0.5/1/2/3 mm, spread 0.25/0.5/1/1.5 m,
+    /// 4/6/8/12 points, every method, tetrahedron layout, 200 trials per cell, seed 1, geometry mode.
+    fn default() -> Self {
+        SweepConfig {
+            mode: Mode::Geometry,
+            mounts: vec![
+                MountPair::floor_floor(),
+                MountPair::floor_wall(),
+                MountPair::floor_ceiling(),
+            ],
+            noise_mm: vec![0.5, 1.0, 2.0, 3.0],
+            spread_m: vec![0.25, 0.5, 1.0, 1.5],
+            n_points: vec![4, 6, 8, 12],
+            methods: Method::ALL.to_vec(),
+            layout: Layout::Tetrahedron,
+            trials: 200,
+            seed: 1,
+        }
+    }
+}
+
+/// One grid cell: indices into the config's axes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GridCell {
+    /// Index into `mounts`.
+    pub mounts: usize,
+    /// Index into `noise_mm`.
+    pub noise: usize,
+    /// Index into `spread_m`.
+    pub spread: usize,
+    /// Index into `n_points`.
+    pub n: usize,
+}
+
+impl SweepConfig {
+    /// Checks every axis: non-empty, finite, in range; names the axis and what would work.
+    pub fn validate(&self) -> Result<(), SimError> {
+        let empty = |name: &str| {
+            SimError::InvalidInput(format!("the {name} axis is empty: give at least one value"))
+        };
+        if self.mounts.is_empty() {
+            return Err(empty("mounts"));
+        }
+        if self.noise_mm.is_empty() {
+            return Err(empty("noise"));
+        }
+        if self.spread_m.is_empty() {
+            return Err(empty("spread"));
+        }
+        if self.n_points.is_empty() {
+            return Err(empty("points"));
+        }
+        if self.methods.is_empty() {
+            return Err(empty("methods"));
+        }
+        if self.trials == 0 {
+            return Err(SimError::InvalidInput("--trials must be at least 1".into()));
+        }
+        if let Some(v) = self.noise_mm.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+            return Err(SimError::InvalidInput(format!(
+                "noise {v} mm must be finite and ≥ 0 (e.g. 0.5,1,2,3)"
+            )));
+        }
+        if let Some(v) = self.spread_m.iter().find(|v| !(v.is_finite() && **v > 0.0)) {
+            return Err(SimError::InvalidInput(format!(
+                "spread {} mm must be a positive length (e.g. 250,500,1000,1500)",
+                v * 1000.0
+            )));
+        }
+        if let Some(n) = self
+            .n_points
+            .iter()
+            .find(|n| **n < 3 || **n > MAX_GEOMETRY_POINTS)
+        {
+            return Err(SimError::InvalidInput(format!(
+                "{n} points is out of range: use 3..={MAX_GEOMETRY_POINTS} (the 4-point methods need ≥ 4)"
+            )));
+        }
+        if self.mode == Mode::Geometry {
+            if let Some(m) = self.mounts.iter().find(|m| paper_placement(m).is_none()) {
+                return Err(SimError::InvalidInput(format!(
+                    "geometry mode knows the paper's cells only (floor-floor, floor-wall, floor-ceiling), not {}",
+                    mounts_label(m)
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The grid cells in sweep order (mounts, noise, spread, n; n fastest).
+    pub fn grid(&self) -> Vec<GridCell> {
+        let mut out = Vec::new();
+        for mounts in 0..self.mounts.len() {
+            for noise in 0..self.noise_mm.len() {
+                for spread in 0..self.spread_m.len() {
+                    for n in 0..self.n_points.len() {
+                        out.push(GridCell {
+                            mounts,
+                            noise,
+                            spread,
+                            n,
+                        });
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// Total number of trials (grid cells × trials per cell).
+    pub fn total_trials(&self) -> usize {
+        self.mounts.len()
+            * self.noise_mm.len()
+            * self.spread_m.len()
+            * self.n_points.len()
+            * self.trials
+    }
+}
+
+/// A finished sweep: outcome `[trial · methods.len() + method]` for every global trial index.
+#[derive(Debug, Clone)]
+pub struct SweepResult {
+    /// The configuration it ran.
+    pub config: SweepConfig,
+    /// The grid cells (index = cell number).
+    pub grid: Vec<GridCell>,
+    /// Outcomes, trial-major, methods in `config.methods` order.
+    pub outcomes: Vec<Outcome>,
+}
+
+impl SweepResult {
+    /// Outcome of global trial `trial` for method index `m`.
+    pub fn outcome(&self, trial: usize, m: usize) -> &Outcome {
+        &self.outcomes[trial * self.config.methods.len() + m]
+    }
+}
+
+/// Runs the sweep in parallel on the current rayon pool. Robot mode needs one [`Cell`] per mount
+/// pair of the config (same order; their alignment σ is replaced by the noise axis);
+/// geometry mode ignores `cells`. `progress` is advanced by trials.
+pub fn run_sweep(
+    config: &SweepConfig,
+    cells: &[Cell],
+    progress: &ProgressBar,
+) -> Result<SweepResult, SimError> {
+    config.validate()?;
+    if config.mode == Mode::Robot && cells.len() != config.mounts.len() {
+        return Err(SimError::InvalidInput(format!(
+            "robot mode needs one cell per mount pair: {} cells for {} mount pairs",
+            cells.len(),
+            config.mounts.len()
+        )));
+    }
+    let grid = config.grid();
+    let total = config.total_trials();
+    let n_methods = config.methods.len();
+    let n_chunks = total.div_ceil(CHUNK);
+    let chunk_outcomes: Vec<Vec<Outcome>> = (0..n_chunks)
+        .into_par_iter()
+        .map(|c| {
+            let start = c * CHUNK;
+            let end = (start + CHUNK).min(total);
+            let mut out = Vec::with_capacity((end - start) * n_methods);
+            let mut buf1 = vec![Point3::origin(); MAX_GEOMETRY_POINTS];
+            let mut buf2 = vec![Point3::origin(); MAX_GEOMETRY_POINTS];
+            for trial in start..end {
+                let cell = grid[trial / config.trials];
+                let mut rng = trial_rng(config.seed, trial as u64);
+                match config.mode {
+                    Mode::Geometry => {
+                        let spec = geometry_spec(config, &cell);
+                        let (p1, p2) = (&mut buf1[..spec.n], &mut buf2[..spec.n]);
+                        draw_geometry(&spec, &mut rng, p1, p2);
+                        for &method in &config.methods {
+                            out.push(
+                                fit_fast(method, &spec.mounts, p1, p2)
+                                    .map(|est| TrialErrors::between(&spec.b1_from_b2, &est))
+                                    .ok_or(Failure::FitFailed),
+                            );
+                        }
+                    }
+                    Mode::Robot => robot_trial(config, &cell, &cells[cell.mounts], &mut rng, &mut out),
+                }
+            }
+            progress.inc((end - start) as u64);
+            out
+        })
+        .collect();
+    let mut outcomes = Vec::with_capacity(total * n_methods);
+    for c in chunk_outcomes {
+        outcomes.extend(c);
+    }
+    Ok(SweepResult {
+        config: config.clone(),
+        grid,
+        outcomes,
+    })
+}
+
+/// The geometry spec of a grid cell.
+fn geometry_spec(config: &SweepConfig, cell: &GridCell) -> GeometrySpec {
+    let mounts = &config.mounts[cell.mounts];
+    let p = paper_placement(mounts).unwrap_or(crate::placement::FLOOR_FLOOR);
+    GeometrySpec {
+        mounts: *mounts,
+        b1_from_b2: p.b1_from_b2(),
+        layout: config.layout,
+        n: config.n_points[cell.n],
+        spread_m: config.spread_m[cell.spread],
+        centre_b1: p.centre_b1(),
+        sigma_m: Vector3::repeat(config.noise_mm[cell.noise] / 1000.0),
+    }
+}
+
+/// One robot-mode trial: a simulated session on `cell` (σ from the grid), every method fitted on
+/// the controllers' nominal tips, errors against the cell's true `b1_from_b2`.
+fn robot_trial(
+    config: &SweepConfig,
+    grid_cell: &GridCell,
+    cell: &Cell,
+    rng: &mut rand_chacha::ChaCha8Rng,
+    out: &mut Vec<Outcome>,
+) {
+    let mut cell = cell.clone();
+    cell.noise.alignment_m = Vector3::repeat(config.noise_mm[grid_cell.noise] / 1000.0);
+    let spec = SessionSpec {
+        n: config.n_points[grid_cell.n],
+        layout: config.layout,
+        spread_m: config.spread_m[grid_cell.spread],
+        centre_b1: None,
+        points_b1: None,
+    };
+    match generate_session(&cell, &spec, rng) {
+        Ok(session) => {
+            let (p1, p2) = session.tips();
+            for &method in &config.methods {
+                out.push(
+                    fit_fast(method, &config.mounts[grid_cell.mounts], &p1, &p2)
+                        .map(|est| TrialErrors::between(&cell.b1_from_b2, &est))
+                        .ok_or(Failure::FitFailed),
+                );
+            }
+        }
+        Err(_) => out.extend(config.methods.iter().map(|_| Err(Failure::Unreachable))),
+    }
+}
+
+/// Writes every trial × method as CSV: `seed,trial,cell,trial_in_cell,mode,mounts,layout,method,
+/// noise_mm,spread_mm,n,status,e_tran_mm,e_rot_deg,geodesic_deg,dx_mm,dy_mm,dz_mm` (errors empty
+/// when the status is not `ok`; `trial` is the index given to [`trial_rng`]). Deterministic text.
+pub fn write_trials_csv(result: &SweepResult, w: &mut impl Write) -> std::io::Result<()> {
+    let c = &result.config;
+    writeln!(
+        w,
+        "seed,trial,cell,trial_in_cell,mode,mounts,layout,method,noise_mm,spread_mm,n,status,e_tran_mm,e_rot_deg,geodesic_deg,dx_mm,dy_mm,dz_mm"
+    )?;
+    let labels: Vec<String> = c.mounts.iter().map(mounts_label).collect();
+    for trial in 0..c.total_trials() {
+        let cell_idx = trial / c.trials;
+        let cell = result.grid[cell_idx];
+        for (m, method) in c.methods.iter().enumerate() {
+            write!(
+                w,
+                "{},{},{},{},{},{},{},{},{},{},{},",
+                c.seed,
+                trial,
+                cell_idx,
+                trial % c.trials,
+                c.mode.name(),
+                labels[cell.mounts],
+                c.layout.name(),
+                method.name(),
+                c.noise_mm[cell.noise],
+                c.spread_m[cell.spread] * 1000.0,
+                c.n_points[cell.n],
+            )?;
+            match result.outcome(trial, m) {
+                Ok(e) => writeln!(
+                    w,
+                    "ok,{:.6},{:.7},{:.7},{:.6},{:.6},{:.6}",
+                    e.e_tran * 1e3,
+                    e.e_rot.to_degrees(),
+                    e.geodesic.to_degrees(),
+                    e.translation_error.x * 1e3,
+                    e.translation_error.y * 1e3,
+                    e.translation_error.z * 1e3
+                )?,
+                Err(f) => writeln!(w, "{},,,,,,", f.name())?,
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Statistics of one method over a group of trials.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SummaryRow {
+    /// Mount pair label.
+    pub mounts: String,
+    /// Method.
+    pub method: Method,
+    /// Noise σ, mm (None when pooled over the noise axis).
+    pub noise_mm: Option<f64>,
+    /// Spread, m (None when pooled).
+    pub spread_m: Option<f64>,
+    /// Point count (None when pooled).
+    pub n: Option<usize>,
+    /// Trials in the group.
+    pub trials: usize,
+    /// Trials without an estimate.
+    pub failed: usize,
+    /// Median e_tran, mm, with 95 % CI.
+    pub e_tran_mm_median: QuantileCi,
+    /// 95th percentile e_tran, mm, with 95 % CI.
+    pub e_tran_mm_p95: QuantileCi,
+    /// Median e_rot, degrees, with 95 % CI.
+    pub e_rot_deg_median: QuantileCi,
+    /// 95th percentile e_rot, degrees, with 95 % CI.
+    pub e_rot_deg_p95: QuantileCi,
+    /// Median geodesic error, degrees, with 95 % CI.
+    pub geodesic_deg_median: QuantileCi,
+}
+
+fn summary_row(
+    result: &SweepResult,
+    mounts: usize,
+    m: usize,
+    key: (Option<f64>, Option<f64>, Option<usize>),
+    trials: impl Iterator<Item = usize>,
+) -> SummaryRow {
+    let mut count = 0;
+    let mut failed = 0;
+    let (mut et, mut er, mut eg) = (Vec::new(), Vec::new(), Vec::new());
+    for t in trials {
+        count += 1;
+        match result.outcome(t, m) {
+            Ok(e) => {
+                et.push(e.e_tran * 1e3);
+                er.push(e.e_rot.to_degrees());
+                eg.push(e.geodesic.to_degrees());
+            }
+            Err(_) => failed += 1,
+        }
+    }
+    let (et, er, eg) = (sorted_finite(et), sorted_finite(er), sorted_finite(eg));
+    SummaryRow {
+        mounts: mounts_label(&result.config.mounts[mounts]),
+        method: result.config.methods[m],
+        noise_mm: key.0,
+        spread_m: key.1,
+        n: key.2,
+        trials: count,
+        failed,
+        e_tran_mm_median: quantile_ci(&et, 0.5),
+        e_tran_mm_p95: quantile_ci(&et, 0.95),
+        e_rot_deg_median: quantile_ci(&er, 0.5),
+        e_rot_deg_p95: quantile_ci(&er, 0.95),
+        geodesic_deg_median: quantile_ci(&eg, 0.5),
+    }
+}
+
+/// One row per grid cell × method.
+pub fn summarize_cells(result: &SweepResult) -> Vec<SummaryRow> {
+    let c = &result.config;
+    let mut rows = Vec::new();
+    for (ci, cell) in result.grid.iter().enumerate() {
+        for m in 0..c.methods.len() {
+            let key = (
+                Some(c.noise_mm[cell.noise]),
+                Some(c.spread_m[cell.spread]),
+                Some(c.n_points[cell.n]),
+            );
+            rows.push(summary_row(
+                result,
+                cell.mounts,
+                m,
+                key,
+                ci * c.trials..(ci + 1) * c.trials,
+            ));
+        }
+    }
+    rows
+}
+
+/// One row per mount pair × method, pooled over the noise, spread and point-count axes.
+pub fn summarize_pooled(result: &SweepResult) -> Vec<SummaryRow> {
+    let c = &result.config;
+    let mut rows = Vec::new();
+    for mi in 0..c.mounts.len() {
+        for m in 0..c.methods.len() {
+            let trials = result
+                .grid
+                .iter()
+                .enumerate()
+                .filter(|(_, g)| g.mounts == mi)
+                .flat_map(|(ci, _)| ci * c.trials..(ci + 1) * c.trials);
+            rows.push(summary_row(result, mi, m, (None, None, None), trials));
+        }
+    }
+    rows
+}
+
+fn ci_text(q: &QuantileCi, decimals: usize) -> String {
+    format!(
+        "{:.d$} [{:.d$}, {:.d$}]",
+        q.value,
+        q.lower,
+        q.upper,
+        d = decimals
+    )
+}
+
+/// The terminal table: mounts, method, trials, failures, then median and p95 of e_tran (mm) and
+/// e_rot (deg), each `value [95 % CI]`.
+pub fn render_table(rows: &[SummaryRow]) -> String {
+    let header = [
+        "mounts".to_string(),
+        "method".into(),
+        "trials".into(),
+        "failed".into(),
+        "e_tran median mm".into(),
+        "e_tran p95 mm".into(),
+        "e_rot median deg".into(),
+        "e_rot p95 deg".into(),
+    ];
+    let body: Vec<[String; 8]> = rows
+        .iter()
+        .map(|r| {
+            [
+                r.mounts.clone(),
+                r.method.name().into(),
+                r.trials.to_string(),
+                r.failed.to_string(),
+                ci_text(&r.e_tran_mm_median, 3),
+                ci_text(&r.e_tran_mm_p95, 3),
+                ci_text(&r.e_rot_deg_median, 4),
+                ci_text(&r.e_rot_deg_p95, 4),
+            ]
+        })
+        .collect();
+    let mut widths = header.clone().map(|h| h.chars().count());
+    for r in &body {
+        for (w, c) in widths.iter_mut().zip(r) {
+            *w = (*w).max(c.chars().count());
+        }
+    }
+    let line = |cells: &[String; 8]| {
+        let mut s = String::new();
+        for (i, (c, w)) in cells.iter().zip(&widths).enumerate() {
+            if i > 0 {
+                s.push_str("  ");
+            }
+            if i < 2 {
+                s.push_str(&format!("{c:<w$}"));
+            } else {
+                s.push_str(&format!("{c:>w$}"));
+            }
+        }
+        s.trim_end().to_string() + "\n"
+    };
+    let mut s = line(&header);
+    s.push_str(&"-".repeat(widths.iter().sum::<usize>() + 2 * (widths.len() - 1)));
+    s.push('\n');
+    for r in &body {
+        s.push_str(&line(r));
+    }
+    s
+}
+
+/// Writes summary rows as CSV (`mounts,method,noise_mm,spread_mm,n,trials,failed`, then for each
+/// statistic `_value,_lo,_hi`; pooled axes are empty).
+pub fn write_summary_csv(rows: &[SummaryRow], w: &mut impl Write) -> std::io::Result<()> {
+    let stats = [
+        "e_tran_mm_median",
+        "e_tran_mm_p95",
+        "e_rot_deg_median",
+        "e_rot_deg_p95",
+        "geodesic_deg_median",
+    ];
+    write!(w, "mounts,method,noise_mm,spread_mm,n,trials,failed")?;
+    for s in stats {
+        write!(w, ",{s},{s}_lo,{s}_hi")?;
+    }
+    writeln!(w)?;
+    let opt = |v: Option<String>| v.unwrap_or_default();
+    for r in rows {
+        write!(
+            w,
+            "{},{},{},{},{},{},{}",
+            r.mounts,
+            r.method.name(),
+            opt(r.noise_mm.map(|v| v.to_string())),
+            opt(r.spread_m.map(|v| (v * 1000.0).to_string())),
+            opt(r.n.map(|v| v.to_string())),
+            r.trials,
+            r.failed
+        )?;
+        for q in [
+            &r.e_tran_mm_median,
+            &r.e_tran_mm_p95,
+            &r.e_rot_deg_median,
+            &r.e_rot_deg_p95,
+            &r.geodesic_deg_median,
+        ] {
+            write!(w, ",{:.7},{:.7},{:.7}", q.value, q.lower, q.upper)?;
+        }
+        writeln!(w)?;
+    }
+    Ok(())
+}
