@@ -32,8 +32,11 @@
 //!   better one when a refit lowers the RSS (greedy steps can pick a proxy of a true effect), and
 //!   a backward elimination drops any parameter whose F test no longer passes at `α/m₀`.
 //! - **Which one** ([`Selection::groups`]): for each selected parameter, the candidates the data
-//!   cannot tell apart from it: its parallel group plus those whose score is within `χ²₁(0.95)·σ̂²`
-//!   of its own (a likelihood-ratio confidence set).
+//!   cannot tell apart from it: its parallel group plus the best-scoring replacements
+//!   ([`RESCREEN_REFITS`] refits with the others kept) whose RSS is within `χ²₁(0.95)·σ̂²` of its
+//!   own (a likelihood-ratio confidence set for "which one").
+//! - **Search**: each forward step refits the [`FORWARD_REFITS`] best-scoring candidates and keeps
+//!   the one with the smallest RSS (the score is only a one-step linear prediction).
 //! - **Detectability** ([`min_detectable`]): the smallest |value| of each candidate the design
 //!   detects with 80 % power, `(z_{1−α/2m} + z_{0.8})·σ/‖p_j‖`.
 //! - **Intervals**: `θ̂ ± t_{0.975, dof}·se`, `se` from the covariance.
@@ -1067,10 +1070,6 @@ fn rescreen(
             )
         })
         .collect();
-    let best = scores
-        .iter()
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-        .map_or(old, |s| s.0);
     let parallel_of = |p: usize| -> Vec<usize> {
         id.groups
             .iter()
@@ -1133,12 +1132,14 @@ fn rescreen(
             }
         }
     }
-    let _ = best;
     match winner {
         Some((cand, trial)) => Ok((cand, alt, Some(trial))),
         None => Ok((old, alt, None)),
     }
 }
+
+/// Best-scoring candidates refitted at each forward step.
+pub const FORWARD_REFITS: usize = 5;
 
 /// Candidates refitted per selected parameter when re-screening (swap and "which one" set).
 pub const RESCREEN_REFITS: usize = 10;
@@ -1249,7 +1250,29 @@ pub fn forward_select(
             ));
         }
         let screened = scores.len();
-        let Some(&(param, score)) = scores.iter().max_by(|a, b| a.1.total_cmp(&b.1)) else {
+        // Refit the best-scoring candidates (the score is a one-step linear prediction) and
+        // keep the one with the smallest RSS. Bonferroni over all `screened` candidates still
+        // bounds the false-alarm chance of this step, whichever candidate is kept.
+        let mut ranked = scores.clone();
+        ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let mut best: Option<(usize, f64, IdentFit)> = None;
+        for &(cand, sc) in ranked.iter().take(FORWARD_REFITS) {
+            let mut params = current.params.clone();
+            params.push(cand);
+            let mut init = current.values.clone();
+            init.push(0.0);
+            let trial = fit(
+                model,
+                &params,
+                Some(&init),
+                Some(current.b1_from_b2),
+                &options.fit,
+            )?;
+            if best.as_ref().is_none_or(|b| trial.rss < b.2.rss) {
+                best = Some((cand, sc, trial));
+            }
+        }
+        let Some((param, score, new_fit)) = best else {
             break;
         };
         let parallel: Vec<usize> = id
@@ -1258,17 +1281,7 @@ pub fn forward_select(
             .find(|g| g.contains(&param))
             .cloned()
             .unwrap_or_else(|| vec![param]);
-        let mut params = current.params.clone();
-        params.push(param);
-        let mut init = current.values.clone();
-        init.push(0.0);
-        let new_fit = fit(
-            model,
-            &params,
-            Some(&init),
-            Some(current.b1_from_b2),
-            &options.fit,
-        )?;
+        let params = new_fit.params.clone();
         let group = alternatives(param, &scores, &parallel, &new_fit);
         let f_stat = (current.rss - new_fit.rss) / (new_fit.rss / new_fit.dof.max(1) as f64);
         let p_value = f_test_p_value(f_stat, new_fit.dof);

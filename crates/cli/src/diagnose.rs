@@ -1,10 +1,98 @@
-//! `handclasp diagnose` (under construction).
+//! `handclasp diagnose`: what the nominal models get wrong in a measured session (issue #5).
+//!
+//! Thin glue over `sim_cell::diagnose`: reads the cell and the session, runs the diagnosis,
+//! prints text or JSON, optionally exports corrected URDFs and a calibrated cell.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use sim_cell::diagnose::{self, DiagnoseOptions};
+use sim_cell::Cell;
 
 /// Arguments of `handclasp diagnose`.
 #[derive(clap::Args, Debug)]
-pub struct Args {}
+pub struct Args {
+    /// The cell TOML (robots' URDFs, tip offsets in mm, mounts, b1_from_b2, noise σ in mm).
+    #[arg(long)]
+    pub cell: PathBuf,
+    /// The session CSV (point, r1_q*_deg, r2_q*_deg, r1_x_mm … r2_z_mm).
+    #[arg(long)]
+    pub session: PathBuf,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Write corrected URDFs, a calibrated cell TOML and effects.json into this folder.
+    #[arg(long)]
+    pub export: Option<PathBuf>,
+    /// Truth of the b1_from_b2 translation (e.g. from a CMM), mm: x,y,z. Needs --truth-zyz-deg.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub truth_xyz_mm: Option<Vec<f64>>,
+    /// Truth of the b1_from_b2 rotation, ZYZ degrees (R = Rz·Ry·Rz). Needs --truth-xyz-mm.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub truth_zyz_deg: Option<Vec<f64>>,
+    /// Seed of the Monte Carlo simulations.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Monte Carlo trials for the predicted residual distributions (at least 20).
+    #[arg(long, default_value_t = 400)]
+    pub trials: usize,
+}
 
 /// Runs `handclasp diagnose`.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("handclasp diagnose is under construction")
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let truth = match (&args.truth_xyz_mm, &args.truth_zyz_deg) {
+        (Some(t), Some(z)) if t.len() == 3 && z.len() == 3 => {
+            if !t.iter().chain(z).all(|v| v.is_finite()) {
+                anyhow::bail!("--truth-xyz-mm and --truth-zyz-deg must be finite numbers");
+            }
+            let rot = diagnose::rotation_from_zyz([
+                z[0].to_radians(),
+                z[1].to_radians(),
+                z[2].to_radians(),
+            ]);
+            Some(Isometry3::from_parts(
+                Translation3::from(Vector3::new(t[0], t[1], t[2]) / 1000.0),
+                UnitQuaternion::from_rotation_matrix(&rot),
+            ))
+        }
+        (None, None) => None,
+        _ => anyhow::bail!(
+            "give both --truth-xyz-mm x,y,z (mm) and --truth-zyz-deg a,b,c (degrees), 3 numbers each, or neither"
+        ),
+    };
+    if args.trials < 20 {
+        anyhow::bail!(
+            "--trials {} is too few for a residual distribution: use at least 20 (default 400)",
+            args.trials
+        );
+    }
+    let cell = Cell::from_toml_file(&args.cell)?;
+    let session = diagnose::load_session(&args.session, &cell)?;
+    let options = DiagnoseOptions {
+        seed: args.seed,
+        trials: args.trials,
+        truth,
+        ..DiagnoseOptions::default()
+    };
+    let report = diagnose::diagnose(&cell, &session, &options)
+        .with_context(|| format!("diagnosing {}", args.session.display()))?;
+    if let Some(dir) = &args.export {
+        let calibrated = sim_cell::placement::isometry_from_mm_deg(
+            report.b1_from_b2.xyz_mm,
+            report.b1_from_b2.zyz_deg,
+        );
+        let files = diagnose::export_corrected(&cell, &report, &calibrated, dir)?;
+        if !args.json {
+            for f in &files {
+                println!("wrote {}", f.display());
+            }
+        }
+    }
+    if args.json {
+        println!("{}", serde_json::to_string(&report)?);
+    } else {
+        print!("{}", diagnose::render_text(&report));
+    }
+    Ok(())
 }

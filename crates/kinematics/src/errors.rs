@@ -21,7 +21,7 @@ use nalgebra::{Isometry3, Matrix3, Matrix3xX, Rotation3, Translation3, UnitQuate
 use serde::{Deserialize, Serialize};
 
 use crate::error::KinematicsError;
-use crate::fk::{apply_step, base_from_tip_unchecked, check_tip};
+use crate::fk::{apply_step, base_from_tip_unchecked, check_tip, sin_cos};
 use crate::gravity::{
     check_gravity, gravity_entries, gravity_jacobian_from_entries, gravity_torques_into,
     GravityEntry, STACK_DOF,
@@ -553,9 +553,9 @@ fn true_chain(
 /// `Rz(yaw)·Ry(pitch)·Rx(roll)` as a matrix, written out (no products of rotations). Agrees with
 /// [`rotation_from_rpy`](crate::rotation_from_rpy) to round-off (tested).
 fn matrix_from_rpy(rpy: &Vector3<f64>) -> Matrix3<f64> {
-    let (sr, cr) = rpy.x.sin_cos();
-    let (sp, cp) = rpy.y.sin_cos();
-    let (sy, cy) = rpy.z.sin_cos();
+    let (sr, cr) = sin_cos(rpy.x);
+    let (sp, cp) = sin_cos(rpy.y);
+    let (sy, cy) = sin_cos(rpy.z);
     Matrix3::new(
         cy * cp,
         cy * sp * sr - sy * cr,
@@ -714,8 +714,8 @@ pub fn true_base_from_tip(
 /// `a_roll = R_parent·Rz·Ry·e_x = R_parent·(cy·cp, sy·cp, −sp)`,
 /// `a_pitch = R_parent·Rz·e_y = R_parent·(−sy, cy, 0)`, `a_yaw = R_parent·e_z`.
 fn rpy_derivative_axes(parent_rotation: &Matrix3<f64>, rpy: &Vector3<f64>) -> [Vector3<f64>; 3] {
-    let (sp, cp) = rpy.y.sin_cos();
-    let (sy, cy) = rpy.z.sin_cos();
+    let (sp, cp) = sin_cos(rpy.y);
+    let (sy, cy) = sin_cos(rpy.z);
     [
         parent_rotation * Vector3::new(cy * cp, sy * cp, -sp),
         parent_rotation * Vector3::new(-sy, cy, 0.0),

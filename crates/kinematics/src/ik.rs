@@ -16,7 +16,8 @@
 //! `(I − J⁺J)·0.5·(q_pref − q)` while the error is above 1e-6 (m or rad); the final steps are pure
 //! Gauss–Newton so the solve reaches `tolerance_m` (default 1e-10 m).
 //! Restarts come from a fixed, deterministic set of seeds (a Halton sequence over the joint
-//! ranges; every other seed first turns joint 1 toward the target's azimuth); a target that no seed reaches is reported as [`IkStatus::Unreachable`] with the best
+//! ranges; every other seed, except an `initial_q` the caller gave, first turns joint 1 toward the target's
+//! azimuth); a target that no seed reaches is reported as [`IkStatus::Unreachable`] with the best
 //! joint vector found. All work buffers are allocated once per call.
 
 use nalgebra::{Matrix3, Point3, Unit, Vector3};
@@ -209,6 +210,8 @@ impl Problem<'_> {
 
 /// Solves `a·x = b` for a symmetric positive definite `n×n` block of `a` (in place, Cholesky).
 /// Returns false if `a` is not positive definite.
+// Index loops read as the textbook algorithm.
+#[allow(clippy::needless_range_loop)]
 fn solve_spd(a: &mut [[f64; MAX_ROWS]; MAX_ROWS], b: &mut Col, n: usize) -> bool {
     for j in 0..n {
         let mut d = a[j][j];
@@ -257,7 +260,7 @@ struct StepWork {
 
 /// One damped step with the joint limits as an active set; writes the new q into `q_new`.
 /// Returns false if the damped normal matrix is not positive definite.
-#[allow(clippy::too_many_arguments)]
+#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
 fn lm_step(
     model: &RobotModel,
     q: &[f64],
@@ -476,9 +479,10 @@ pub fn ik_tip_position(
     let (mut best_pe, mut best_ae, mut best_score) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
     let mut total_iters = 0;
 
+    let user_seed = options.initial_q.as_ref().or(options.preferred_q.as_ref());
     for s in 0..=options.restarts {
         if s == 0 {
-            match options.initial_q.as_ref().or(options.preferred_q.as_ref()) {
+            match user_seed {
                 Some(first) => q.copy_from_slice(first),
                 None => q.iter_mut().for_each(|x| *x = 0.0),
             }
@@ -488,8 +492,9 @@ pub fn ik_tip_position(
         for (qi, jt) in q.iter_mut().zip(model.joints()) {
             *qi = qi.clamp(jt.lower, jt.upper);
         }
-        // Aim every other seed: aiming misleads when the target lies near joint 1's axis.
-        if s % 2 == 0 {
+        // Aim every other seed (not an `initial_q` the caller gave): aiming misleads when the target lies
+        // near joint 1's axis.
+        if s % 2 == 0 && !(s == 0 && options.initial_q.is_some()) {
             problem.aim_first_joint(&mut q, &mut frames);
         }
         problem.linearize(&q, &mut frames, &mut lin);

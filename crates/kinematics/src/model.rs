@@ -66,15 +66,13 @@ pub struct LumpedInertial {
 /// Precomputed per-joint data for the hot path.
 #[derive(Debug, Clone)]
 pub(crate) struct Step {
-    /// `fixed_prefix · Origin(xyz, rpy)`.
-    pub(crate) prev_from_joint: Isometry3<f64>,
     /// Axis in the joint frame.
     pub(crate) axis: Unit<Vector3<f64>>,
     /// 0, 1, 2 if the axis is ±x, ±y, ±z exactly; 3 otherwise.
     pub(crate) axis_kind: u8,
     /// Sign of the axis when `axis_kind < 3`.
     pub(crate) axis_sign: f64,
-    /// Rotation of `prev_from_joint` as a matrix (FK hot path).
+    /// Rotation of `prev_from_joint = fixed_prefix · Origin(xyz, rpy)` as a matrix (FK hot path).
     pub(crate) origin_r: Matrix3<f64>,
     /// Translation of `prev_from_joint`, m.
     pub(crate) origin_t: Vector3<f64>,
@@ -265,7 +263,6 @@ impl RobotModel {
                         *prev_from_joint.rotation.to_rotation_matrix().matrix()
                     };
                     steps.push(Step {
-                        prev_from_joint,
                         axis,
                         axis_kind,
                         axis_sign,

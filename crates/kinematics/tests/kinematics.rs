@@ -181,18 +181,18 @@ fn round_trip(name: &str, n: usize, with_axis: bool) {
 
 #[test]
 fn ik_round_trip_position_hp20() {
-    round_trip("hp20", 200, false);
+    round_trip("hp20", 500, false);
 }
 
 #[test]
 fn ik_round_trip_position_va1400() {
-    round_trip("va1400", 200, false);
+    round_trip("va1400", 500, false);
 }
 
 #[test]
 fn ik_round_trip_with_axis() {
-    round_trip("hp20", 50, true);
-    round_trip("va1400", 50, true);
+    round_trip("hp20", 300, true);
+    round_trip("va1400", 300, true);
 }
 
 #[test]
@@ -294,4 +294,177 @@ fn unchecked_matches_checked() {
     }
     t *= m.last_from_flange();
     assert!((a.to_homogeneous() - t.to_homogeneous()).norm() < EXACT_TOL);
+}
+
+#[test]
+fn fk_hand_computed_poses_va1400() {
+    let m = robot("va1400");
+    // L = 90° (axis +y): the upper arm (0.300 + 0.314) lies along +x, the U offset 0.200 too,
+    // and the forearm + flange (0.640 + 0.100) point down.
+    let t = base_from_flange(&m, &[0.0, FRAC_PI_2, 0.0, 0.0, 0.0, 0.0, 0.0]).unwrap();
+    let expected = Vector3::new(0.150 + 0.614 + 0.200, 0.0, 0.450 - 0.740);
+    assert!(
+        (t.translation.vector - expected).norm() < EXACT_TOL,
+        "{}",
+        t.translation.vector
+    );
+    assert!((t.rotation * Vector3::z() - Vector3::new(0.0, 0.0, -1.0)).norm() < EXACT_TOL);
+    // B = −90° (axis −y, so +90° about +y): the flange z turns from +x to −z; the flange stays
+    // 0.100 from the B axis.
+    let t = base_from_flange(&m, &[0.0, 0.0, 0.0, 0.0, 0.0, -FRAC_PI_2, 0.0]).unwrap();
+    let expected = Vector3::new(0.150 + 0.640, 0.0, 0.450 + 0.614 + 0.200 - 0.100);
+    assert!(
+        (t.translation.vector - expected).norm() < EXACT_TOL,
+        "{}",
+        t.translation.vector
+    );
+    assert!((t.rotation * Vector3::z() - Vector3::new(0.0, 0.0, -1.0)).norm() < EXACT_TOL);
+    // Exactly 180° about S on the hp20 (S range ±180°): x changes sign.
+    let h = robot("hp20");
+    let t = base_from_flange(&h, &[std::f64::consts::PI, 0.0, 0.0, 0.0, 0.0, 0.0]).unwrap();
+    assert!((t.translation.vector - Vector3::new(-1.050, 0.0, 1.405)).norm() < EXACT_TOL);
+    assert!((t.rotation * Vector3::z() + Vector3::x()).norm() < EXACT_TOL);
+    // Tiny angles: 1e-9 rad about L moves the flange by 1e-9 × (lever arm) to first order.
+    let t0 = base_from_flange(&h, &[0.0; 6]).unwrap();
+    let t1 = base_from_flange(&h, &[0.0, 1e-9, 0.0, 0.0, 0.0, 0.0]).unwrap();
+    let lever = Vector3::new(1.050 - 0.150, 0.0, 1.405 - 0.505);
+    let expected = Vector3::y().cross(&lever) * 1e-9;
+    assert!(((t1.translation.vector - t0.translation.vector) - expected).norm() < 1e-15);
+}
+
+#[test]
+fn ik_resolves_redundancy_toward_preferred_q() {
+    let m = robot("va1400");
+    let tip = Vector3::new(0.0, 0.0, 0.15);
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    for _ in 0..50 {
+        let q_star = random_q(&m, &mut rng, 0.15);
+        let target = Point3::from(base_from_tip(&m, &q_star, &tip).unwrap().translation.vector);
+        // A preferred posture 0.1 rad per joint away from a posture that reaches the target.
+        let preferred: Vec<f64> = q_star
+            .iter()
+            .map(|q| q + rng.random_range(-0.1..0.1))
+            .collect();
+        let dist = |a: &[f64], b: &[f64]| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        let opts = IkOptions {
+            preferred_q: Some(preferred.clone()),
+            ..IkOptions::default()
+        };
+        let sol = ik_tip_position(&m, &target, &tip, &opts).unwrap();
+        assert!(sol.reachable());
+        // The solution is at least as close to the preferred posture as q_star is (q_star is one
+        // point of the solution set; the solver finds a nearer one by the null-space pull).
+        assert!(
+            dist(&sol.q, &preferred) <= dist(&q_star, &preferred) + 1e-6,
+            "{} > {}",
+            dist(&sol.q, &preferred),
+            dist(&q_star, &preferred)
+        );
+    }
+}
+
+#[test]
+fn ik_turns_the_tool_axis_all_the_way_round() {
+    // Regression: an axis residual with zeros at z = ±a let the solver stop with the flange
+    // pointing exactly away from the requested axis. Start with z = +x and ask for −x.
+    let m = robot("hp20");
+    let tip = Vector3::new(0.0, 0.0, 0.1);
+    let opts = IkOptions {
+        tool_axis_base: Some(-Vector3::x_axis()),
+        initial_q: Some(vec![0.0; 6]),
+        ..IkOptions::default()
+    };
+    let target = Point3::new(0.6, 0.2, 1.0);
+    let sol = ik_tip_position(&m, &target, &tip, &opts).unwrap();
+    assert!(sol.reachable(), "{sol:?}");
+    let t = base_from_tip(&m, &sol.q, &tip).unwrap();
+    assert!((t.rotation * Vector3::z() + Vector3::x()).norm() < 1e-9);
+    assert!((t.translation.vector - target.coords).norm() < ROUND_TRIP_TOL_M);
+}
+
+#[test]
+fn ik_is_deterministic_and_honours_the_initial_guess() {
+    let m = robot("va1400");
+    let tip = Vector3::new(0.0, 0.0, 0.15);
+    let target = Point3::new(0.7, -0.4, 0.6);
+    let opts = IkOptions::default();
+    let a = ik_tip_position(&m, &target, &tip, &opts).unwrap();
+    let b = ik_tip_position(&m, &target, &tip, &opts).unwrap();
+    assert_eq!(a, b);
+    // Starting at a solution returns it unchanged, with no iteration.
+    let again = IkOptions {
+        initial_q: Some(a.q.clone()),
+        ..IkOptions::default()
+    };
+    let c = ik_tip_position(&m, &target, &tip, &again).unwrap();
+    assert_eq!((c.q.clone(), c.iterations), (a.q.clone(), 0));
+}
+
+#[test]
+fn ik_unreachable_with_axis_and_bad_options_are_reported() {
+    let m = robot("va1400");
+    let tip = Vector3::new(0.0, 0.0, 0.15);
+    // Inside the reach sphere but pointing the flange at the base column from below the floor.
+    let opts = IkOptions {
+        tool_axis_base: Some(Vector3::z_axis()),
+        ..IkOptions::default()
+    };
+    let sol = ik_tip_position(&m, &Point3::new(0.0, 0.0, -0.5), &tip, &opts).unwrap();
+    assert_eq!(sol.status, IkStatus::Unreachable);
+    m.check_q(&sol.q).unwrap();
+    for bad in [
+        IkOptions {
+            preferred_q: Some(vec![0.0; 6]),
+            ..IkOptions::default()
+        },
+        IkOptions {
+            initial_q: Some(vec![f64::NAN; 7]),
+            ..IkOptions::default()
+        },
+        IkOptions {
+            tolerance_m: 0.0,
+            ..IkOptions::default()
+        },
+        IkOptions {
+            max_iterations: 0,
+            ..IkOptions::default()
+        },
+    ] {
+        let e = ik_tip_position(&m, &Point3::new(0.5, 0.0, 0.5), &tip, &bad).unwrap_err();
+        assert!(matches!(e, KinematicsError::InvalidInput(_)), "{e}");
+    }
+    let e = ik_tip_position(
+        &m,
+        &Point3::new(0.5, 0.0, 0.5),
+        &Vector3::new(f64::INFINITY, 0.0, 0.0),
+        &opts,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("tip offset"), "{e}");
+}
+
+#[test]
+fn jacobian_inputs_are_checked() {
+    let m = robot("hp20");
+    let e = geometric_jacobian(&m, &[0.0; 7], &Vector3::zeros(), JacobianFrame::Base).unwrap_err();
+    assert!(matches!(
+        e,
+        KinematicsError::WrongLength {
+            expected: 6,
+            got: 7,
+            ..
+        }
+    ));
+    let e = tip_position_jacobian(&m, &[0.0, 0.0, 0.0, 0.0, 0.0, 100.0], &Vector3::zeros())
+        .unwrap_err();
+    assert!(
+        matches!(e, KinematicsError::LooksLikeDegrees { index: 6, .. }),
+        "{e}"
+    );
 }

@@ -744,3 +744,23 @@ compliance_deg_per_knm = [0.0, 0.05, 0.05, 0.0, 0.0, 0.0]
         assert!(e.contains("robot1.errors.joint_offset_deg") && e.contains("7 joints"), "{e}");
     }
 }
+
+#[cfg(test)]
+mod placement_tests {
+    use super::*;
+    use crate::placement::PAPER;
+
+    /// The geometry-mode placements are the shipped cells' (same truth, same teach centre), to 0.1 mm.
+    const SAME_CELL_TOL_M: f64 = 1e-4;
+
+    #[test]
+    fn placements_match_the_shipped_cells() {
+        for p in PAPER {
+            let cell = Cell::paper(&p).unwrap();
+            assert!((cell.b1_from_b2.translation.vector - p.b1_from_b2().translation.vector).amax() < SAME_CELL_TOL_M);
+            assert!(cell.b1_from_b2.rotation.angle_to(&p.b1_from_b2().rotation) < 1e-9);
+            assert!((cell.centre_b1 - p.centre_b1()).amax() < SAME_CELL_TOL_M, "{}", p.label());
+            assert_eq!(cell.mounts(), p.mounts);
+        }
+    }
+}

@@ -17,7 +17,8 @@ pub struct Placement {
     pub xyz_mm: [f64; 3],
     /// Orientation of base 2 in base 1, ZYZ degrees, `R = Rz(φ)·Ry(θ)·Rz(ψ)` (Table 1).
     pub zyz_deg: [f64; 3],
-    /// Centre of the teach points, mm, base 1 frame.
+    /// Centre of the teach points, mm, base 1 frame (about the midpoint of the two shoulders;
+    /// the shipped cells' `[teach] centre_mm`).
     pub centre_mm: [f64; 3],
 }
 
@@ -69,7 +70,7 @@ pub const FLOOR_FLOOR: Placement = Placement {
     },
     xyz_mm: [37.9, 1476.5, 54.5],
     zyz_deg: [-0.001, 0.001, -44.5],
-    centre_mm: [250.0, 740.0, 700.0],
+    centre_mm: [150.0, 690.0, 500.0],
 };
 
 /// Floor–wall (Table 1): base 2 on a wall 1.39 m up, its z axis horizontal.
@@ -80,7 +81,7 @@ pub const FLOOR_WALL: Placement = Placement {
     },
     xyz_mm: [1303.3, -102.3, 1386.3],
     zyz_deg: [180.0, 89.874, -179.997],
-    centre_mm: [900.0, -50.0, 600.0],
+    centre_mm: [475.0, -50.0, 995.0],
 };
 
 /// Floor–ceiling (Table 1): base 2 hanging 1.5 m up, 1.58 m away horizontally.
@@ -91,7 +92,7 @@ pub const FLOOR_CEILING: Placement = Placement {
     },
     xyz_mm: [1500.1, 500.0, 1499.9],
     zyz_deg: [0.0, 180.001, 0.001],
-    centre_mm: [800.0, 250.0, 650.0],
+    centre_mm: [750.0, 250.0, 720.0],
 };
 
 /// The three paper cells, in the order floor-floor, floor-wall, floor-ceiling.
