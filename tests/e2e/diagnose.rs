@@ -16,10 +16,10 @@ fn cell_path() -> PathBuf {
 fn write_session(dir: &Path, offset_deg: f64, n: usize, seed: u64) -> PathBuf {
     let cell = Cell::from_toml_file(&cell_path()).expect("cell loads");
     let mut truth = cell.clone();
-    truth
-        .robot2
-        .errors
-        .set(ErrorParam::JointOffset { joint: 2 }, offset_deg.to_radians());
+    truth.robot2.errors.set(
+        ErrorParam::JointOffset { joint: 2 },
+        offset_deg.to_radians(),
+    );
     let spec = SessionSpec::new(n, Layout::Random, 0.8);
     let s = generate_session(&truth, &spec, &mut trial_rng(seed, 0)).expect("session");
     let path = dir.join(format!("session_{seed}.csv"));
@@ -196,7 +196,43 @@ fn diagnose_rejects_bad_sessions_with_the_fix() {
     ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("radians") && err.contains("radians.csv"), "{err}");
+    assert!(
+        err.contains("radians") && err.contains("radians.csv"),
+        "{err}"
+    );
+    // Tips written in metres under *_mm headers.
+    let metres: Vec<String> = text
+        .lines()
+        .skip(1)
+        .map(|l| {
+            l.split(',')
+                .enumerate()
+                .map(|(i, f)| {
+                    if i > n_q {
+                        format!("{}", f.parse::<f64>().unwrap() / 1000.0)
+                    } else {
+                        f.to_string()
+                    }
+                })
+                .collect::<Vec<_>>()
+                .join(",")
+        })
+        .collect();
+    let bad = dir.path().join("metres.csv");
+    std::fs::write(&bad, format!("{header}\n{}\n", metres.join("\n"))).unwrap();
+    let out = handclasp(&[
+        "diagnose",
+        "--cell",
+        cell.to_str().unwrap(),
+        "--session",
+        bad.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("metres") && err.contains("millimetres"),
+        "{err}"
+    );
     // Too few points: says how many are needed.
     let few = dir.path().join("few.csv");
     let first: Vec<&str> = text.lines().take(4).collect();

@@ -102,8 +102,8 @@ fn fk_matches_the_library_for_the_documented_example() {
         .collect();
     let t = base_from_tip(&model, &q, &Vector3::new(0.0, 0.0, 0.15)).unwrap();
     let xyz = floats(&v["xyz_mm"]);
-    for k in 0..3 {
-        assert!((xyz[k] - t.translation.vector[k] * 1e3).abs() < EXACT_MM);
+    for (got, want) in xyz.iter().zip(t.translation.vector.iter()) {
+        assert!((got - want * 1e3).abs() < EXACT_MM);
     }
     let zyz = floats(&v["zyz_deg"]);
     let r = kinematics::rotation_from_zyz([

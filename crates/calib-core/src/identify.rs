@@ -17,6 +17,11 @@
 //!   perturbed on the manifold, `X ← Translation(ρ)·Rotation(φ)·X`, so `∂r/∂ρ = −I₃` and
 //!   `∂r/∂φ = [X·f2]ₓ`; a robot-1 parameter's column is `+∂f1/∂θ`, a robot-2 one `−R_X·∂f2/∂θ`.
 //!   The covariance is `σ̂²·(JᵀJ)⁻¹` with `σ̂² = RSS/(3n − 6 − k)`.
+//! - **Weights** ([`TipModel::weight`]): each point's residual can be whitened by `W_i` (in
+//!   handclasp, `σ̄·Σ_i^{-1/2}` from the cell's stated noise: anisotropic alignment, repeatability,
+//!   encoder resolution through the joint Jacobians). RSS, σ̂, the F tests and the covariance use
+//!   the whitened residuals, so the tests keep their size under anisotropic noise whatever its
+//!   overall scale (σ̂ estimates it); residuals and RMS figures stay unweighted, in metres.
 //! - **Identifiability** ([`analyze_identifiability`]): each candidate's Jacobian column is projected
 //!   out of the span of the 6 `b1_from_b2` columns and of the already fitted parameters. A column
 //!   that is zero to begin with has no effect on the tips; one whose projection is (nearly) zero is
@@ -131,6 +136,19 @@ pub trait TipModel: Sync {
     fn param_scale(&self, _j: usize) -> f64 {
         1.0
     }
+    /// Whitening matrix `W_i` of point `i`'s residual (default identity): the fit minimises
+    /// `Σ‖W_i·r_i‖²`. For a noise covariance `Σ_i` use `W_i = σ̄·Σ_i^{-1/2}` (σ̄ a typical σ, so
+    /// that whitened residuals stay in metres); then the F tests hold their size under
+    /// anisotropic noise.
+    fn weight(&self, _point: usize) -> Matrix3<f64> {
+        Matrix3::identity()
+    }
+    /// Prior weight of parameter `j` (default 1), used only to name one member of a group of
+    /// candidates the data cannot tell apart (e.g. `1/size` of its family, so that each family
+    /// is a priori equally likely).
+    fn param_prior(&self, _j: usize) -> f64 {
+        1.0
+    }
     /// Evaluates point `point` with parameters `params[k] = values[k]` (all others zero), and the
     /// Jacobian columns of the parameters `jacobian_params` (empty: no Jacobian needed).
     fn eval(
@@ -174,9 +192,10 @@ pub struct IdentFit {
     pub values: Vec<f64>,
     /// Points used (indices into the model).
     pub points: Vec<usize>,
-    /// Residuals `f1 − b1_from_b2·f2` at the solution, m, one per point in `points`.
+    /// Residuals `f1 − b1_from_b2·f2` at the solution (unweighted), m, one per point in `points`.
     pub residuals: Vec<Vector3<f64>>,
-    /// Residual sum of squares, m².
+    /// Weighted residual sum of squares `Σ‖W_i·r_i‖²` (m²; the plain RSS for unit weights):
+    /// what the fit minimises and the tests use.
     pub rss: f64,
     /// Degrees of freedom `3n − 6 − k`.
     pub dof: usize,
@@ -193,9 +212,11 @@ pub struct IdentFit {
 }
 
 impl IdentFit {
-    /// Residual RMS over points, `sqrt(Σ‖r_i‖²/n)`, m (3-D distance per point).
+    /// Residual RMS over points of the unweighted residuals, `sqrt(Σ‖r_i‖²/n)`, m (3-D distance
+    /// per point).
     pub fn rms(&self) -> f64 {
-        (self.rss / self.points.len().max(1) as f64).sqrt()
+        let raw: f64 = self.residuals.iter().map(|r| r.norm_squared()).sum();
+        (raw / self.points.len().max(1) as f64).sqrt()
     }
 
     /// Standard error of fitted parameter `k` (position in `params`), model units.
@@ -299,8 +320,14 @@ fn check_params(model: &dyn TipModel, params: &[usize]) -> Result<(), IdentifyEr
 struct Linearisation {
     residuals: DVector<f64>,
     jacobian: DMatrix<f64>,
-    /// Residual sum of squares, m².
+    /// Weighted residual sum of squares (whitened residuals), m².
     rss: f64,
+    /// Unweighted residuals `f1 − X·f2`, m, one per point.
+    raw: Vec<Vector3<f64>>,
+    /// Unweighted residual sum of squares, m².
+    raw_rss: f64,
+    /// The points' whitening matrices ([`TipModel::weight`]).
+    weights: Vec<Matrix3<f64>>,
     /// Robot 1's tips in b1, m (one per point).
     p1_b1: Vec<Vector3<f64>>,
 }
@@ -331,6 +358,8 @@ fn linearise(
     }
     let r_x = b1_from_b2.rotation.to_rotation_matrix().into_inner();
     let mut p1_b1 = Vec::with_capacity(n);
+    let mut raw = Vec::with_capacity(n);
+    let mut weights = Vec::with_capacity(n);
     for (row, &i) in points.iter().enumerate() {
         let e = model.eval(i, params, values, &jac_params)?;
         p1_b1.push(e.p1_b1.coords);
@@ -339,7 +368,13 @@ fn linearise(
         if !r.iter().all(|v| v.is_finite()) {
             return Err(IdentifyError::NonFinite { point: i });
         }
-        residuals.fixed_rows_mut::<3>(3 * row).copy_from(&r);
+        let w = model.weight(i);
+        let unit = w == Matrix3::identity();
+        raw.push(r);
+        weights.push(w);
+        residuals
+            .fixed_rows_mut::<3>(3 * row)
+            .copy_from(&if unit { r } else { w * r });
         if want_jacobian {
             if e.jacobian.ncols() != jac_params.len() {
                 return Err(IdentifyError::Model {
@@ -369,13 +404,21 @@ fn linearise(
                 };
                 block.fixed_view_mut::<3, 1>(0, 6 + c).copy_from(&d);
             }
+            if !unit {
+                let b = block.clone_owned();
+                block.copy_from(&(w * b));
+            }
         }
     }
     let rss = residuals.norm_squared();
+    let raw_rss = raw.iter().map(|r| r.norm_squared()).sum();
     Ok(Linearisation {
         residuals,
         jacobian,
         rss,
+        raw,
+        raw_rss,
+        weights,
         p1_b1,
     })
 }
@@ -543,9 +586,7 @@ pub fn fit_points(
     let h = lin.jacobian.transpose() * &lin.jacobian;
     let (inv, singular) = sym_inverse(&h);
     let covariance = inv * (sigma_hat * sigma_hat);
-    let residuals = (0..n)
-        .map(|row| lin.residuals.fixed_rows::<3>(3 * row).into_owned())
-        .collect();
+    let residuals = lin.raw.clone();
     Ok(IdentFit {
         b1_from_b2: x,
         params: params.to_vec(),
@@ -744,10 +785,10 @@ pub fn analyze_identifiability(
     gauge
         .columns_mut(0, base_cols)
         .copy_from(&lin.jacobian.columns(0, base_cols));
-    for (row, p1) in lin.p1_b1.iter().enumerate() {
+    for (row, (p1, w)) in lin.p1_b1.iter().zip(&lin.weights).enumerate() {
         gauge
             .fixed_view_mut::<3, 3>(3 * row, base_cols)
-            .copy_from(&p1.cross_matrix());
+            .copy_from(&(w * p1.cross_matrix()));
     }
     let gauge_basis = orthonormal_basis(&gauge);
     let gauge_projected = &raw - &gauge_basis * (gauge_basis.transpose() * &raw);
@@ -875,7 +916,7 @@ pub fn kfold_rms(
             &[],
             false,
         )?;
-        sum += lin.rss;
+        sum += lin.raw_rss;
     }
     Ok((sum / n as f64).sqrt())
 }
@@ -1144,6 +1185,30 @@ pub const FORWARD_REFITS: usize = 5;
 /// Candidates refitted per selected parameter when re-screening (swap and "which one" set).
 pub const RESCREEN_REFITS: usize = 10;
 
+/// Partial F test of each fitted parameter: refit without it and compare,
+/// `F = (RSS_without − RSS)/(RSS/dof)` against `F(1, dof)`. Returns `(F, p-value)` per parameter
+/// of `fit` (same order). Failure cases: as [`fit`].
+pub fn partial_f_tests(
+    model: &dyn TipModel,
+    current: &IdentFit,
+    options: &FitOptions,
+) -> Result<Vec<(f64, f64)>, IdentifyError> {
+    (0..current.params.len())
+        .map(|i| {
+            let (params, values) = without(current, i);
+            let reduced = fit(
+                model,
+                &params,
+                Some(&values),
+                Some(current.b1_from_b2),
+                options,
+            )?;
+            let f = (reduced.rss - current.rss) / (current.rss / current.dof.max(1) as f64);
+            Ok((f, f_test_p_value(f, current.dof)))
+        })
+        .collect()
+}
+
 /// Backward elimination: drops, one at a time, the selected parameter with the largest F-test
 /// p-value while that p-value is ≥ `level`. Returns whether anything was dropped.
 fn backward_eliminate(
@@ -1272,7 +1337,7 @@ pub fn forward_select(
                 best = Some((cand, sc, trial));
             }
         }
-        let Some((param, score, new_fit)) = best else {
+        let Some((mut param, score, mut new_fit)) = best else {
             break;
         };
         let parallel: Vec<usize> = id
@@ -1281,6 +1346,31 @@ pub fn forward_select(
             .find(|g| g.contains(&param))
             .cloned()
             .unwrap_or_else(|| vec![param]);
+        // Members of a parallel group explain the data equally well: name the one with the
+        // highest prior (TipModel::param_prior) among those whose refit is within half a χ²
+        // unit of the best.
+        let best_rss = new_fit.rss;
+        let s2 = best_rss / new_fit.dof.max(1) as f64;
+        for &m in &parallel {
+            if m == param || model.param_prior(m) <= model.param_prior(param) {
+                continue;
+            }
+            let mut params = current.params.clone();
+            params.push(m);
+            let mut init = current.values.clone();
+            init.push(0.0);
+            let trial = fit(
+                model,
+                &params,
+                Some(&init),
+                Some(current.b1_from_b2),
+                &options.fit,
+            )?;
+            if trial.rss <= best_rss + 0.5 * s2 {
+                param = m;
+                new_fit = trial;
+            }
+        }
         let params = new_fit.params.clone();
         let group = alternatives(param, &scores, &parallel, &new_fit);
         let f_stat = (current.rss - new_fit.rss) / (new_fit.rss / new_fit.dof.max(1) as f64);
@@ -1620,6 +1710,79 @@ mod tests {
         }
     }
 
+    /// The toy with a fixed, non-diagonal whitening matrix at every point.
+    struct Weighted(Toy, Matrix3<f64>);
+
+    impl TipModel for Weighted {
+        fn n_points(&self) -> usize {
+            self.0.n_points()
+        }
+        fn n_params(&self) -> usize {
+            self.0.n_params()
+        }
+        fn param_robot(&self, j: usize) -> Robot {
+            self.0.param_robot(j)
+        }
+        fn weight(&self, _point: usize) -> Matrix3<f64> {
+            self.1
+        }
+        fn eval(
+            &self,
+            point: usize,
+            params: &[usize],
+            values: &[f64],
+            jacobian_params: &[usize],
+        ) -> Result<TipEval, IdentifyError> {
+            self.0.eval(point, params, values, jacobian_params)
+        }
+    }
+
+    #[test]
+    fn weighted_residual_jacobian_matches_central_differences() {
+        // Step 1e-6, tolerance 1e-7 per unit (as above; the weight's entries are ≤ 2).
+        let toy = session(10, [0.0; 10], 1e-4, 9);
+        let w = Matrix3::new(1.5, 0.2, 0.0, 0.2, 0.7, 0.1, 0.0, 0.1, 2.0);
+        let model = Weighted(toy, w);
+        let params = [2usize, 7];
+        let values = [0.003, -0.002];
+        let points: Vec<usize> = (0..model.n_points()).collect();
+        let x = model.0.b1_from_b2;
+        let lin = linearise(&model, &points, &x, &params, &values, &[], true).unwrap();
+        // Whitened residuals are W·(raw residuals).
+        for (row, r) in lin.raw.iter().enumerate() {
+            let d = (lin.residuals.fixed_rows::<3>(3 * row) - w * r).amax();
+            assert!(d < 1e-15);
+        }
+        for c in 6..8 {
+            let eval_at = |s: f64| {
+                let mut v = values.to_vec();
+                v[c - 6] += s;
+                linearise(&model, &points, &x, &params, &v, &[], false)
+                    .unwrap()
+                    .residuals
+            };
+            let num = (eval_at(1e-6) - eval_at(-1e-6)) / 2e-6;
+            let diff = (num - lin.jacobian.column(c)).amax();
+            assert!(diff < 1e-7, "column {c}: {diff}");
+        }
+        // A weighted fit minimises the whitened RSS: its RSS is below the unweighted fit's
+        // whitened RSS.
+        let f_w = fit(&model, &params, None, None, &FitOptions::default()).unwrap();
+        let f_u = fit(&model.0, &params, None, None, &FitOptions::default()).unwrap();
+        let rss_u_whitened = linearise(
+            &model,
+            &points,
+            &f_u.b1_from_b2,
+            &params,
+            &f_u.values,
+            &[],
+            false,
+        )
+        .unwrap()
+        .rss;
+        assert!(f_w.rss <= rss_u_whitened * (1.0 + 1e-12));
+    }
+
     #[test]
     fn toy_arm_jacobian_matches_central_differences() {
         // Step 1e-6, tolerance 1e-7 m per unit (see above).
@@ -1770,6 +1933,36 @@ mod tests {
         let via1 = Rotation3::from_scaled_axis(-pr.a1_b1) * r_ref;
         let direct = r_ref * Rotation3::from_scaled_axis(pr.a_b2);
         assert!(via1.angle_to(&direct) < 1e-6);
+    }
+
+    proptest::proptest! {
+        /// Invariant: the rigid fit recovers any rigid transform from noise-free, non-collinear
+        /// points (tolerance 1e-9 m and rad: double-precision SVD on metre-scale points).
+        #[test]
+        fn kabsch_recovers_any_rigid_transform(
+            seed in 0u64..1000,
+            angle in -3.1f64..3.1,
+            ax in -1.0f64..1.0, ay in -1.0f64..1.0, az in 0.1f64..1.0,
+            tx in -2.0f64..2.0, ty in -2.0f64..2.0, tz in -2.0f64..2.0,
+        ) {
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let axis = nalgebra::Unit::new_normalize(Vector3::new(ax, ay, az));
+            let x = Isometry3::from_parts(
+                Translation3::new(tx, ty, tz),
+                UnitQuaternion::from_axis_angle(&axis, angle),
+            );
+            let p2: Vec<Point3<f64>> = (0..6)
+                .map(|_| Point3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                ))
+                .collect();
+            let p1: Vec<Point3<f64>> = p2.iter().map(|p| x * p).collect();
+            let est = kabsch(&p1, &p2).expect("non-degenerate");
+            proptest::prop_assert!((est.translation.vector - x.translation.vector).norm() < 1e-9);
+            proptest::prop_assert!(est.rotation.angle_to(&x.rotation) < 1e-9);
+        }
     }
 
     #[test]

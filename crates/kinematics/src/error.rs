@@ -72,8 +72,8 @@ pub enum ModelError {
         /// The axis as written.
         axis: [f64; 3],
     },
-    /// Joint limits are not finite or lower > upper.
-    #[error("{source_name}: joint `{joint}` has limits lower={lower} rad, upper={upper} rad; need finite lower <= upper in radians")]
+    /// Joint limits are not finite, lower > upper, or (revolute) lower == upper.
+    #[error("{source_name}: joint `{joint}` has limits lower={lower} rad, upper={upper} rad; a revolute joint needs <limit lower=\"..\" upper=\"..\"/> with finite lower < upper in radians")]
     BadLimits {
         /// File path or `"<string>"`.
         source_name: String,
@@ -82,6 +82,18 @@ pub enum ModelError {
         /// Lower limit, rad.
         lower: f64,
         /// Upper limit, rad.
+        upper: f64,
+    },
+    /// Revolute limits beyond ±2 turns: almost surely written in degrees.
+    #[error("{source_name}: joint `{joint}` has limits lower={lower}, upper={upper}, which look like degrees; URDF limits are radians: write them as degrees·π/180")]
+    LimitsLookLikeDegrees {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The joint.
+        joint: String,
+        /// Lower limit as written.
+        lower: f64,
+        /// Upper limit as written.
         upper: f64,
     },
     /// A non-finite number in an origin.

@@ -749,26 +749,42 @@ pub fn tip_error_jacobian(
     for p in params {
         p.check_dof(n)?;
     }
-    let mut tau = vec![0.0; n];
-    // Compliance columns need τ even when no compliance is set.
-    if params
-        .iter()
-        .any(|p| matches!(p, ErrorParam::Compliance { .. }))
-        || !all_zero(&errors.compliance)
-    {
-        gravity_torques_into(model, q_rep, g_base, &mut tau);
-    }
-    let mut q_true = vec![0.0; n];
-    for i in 0..n {
-        q_true[i] = q_rep[i] * (1.0 + errors.joint_scale[i])
-            + errors.joint_offset[i]
-            + errors.compliance[i] * tau[i];
-    }
-    let mut frames = vec![TrueJointFrame::default(); n];
-    let (flange_r, flange_t) = true_chain(model, errors, &q_true, Some(&mut frames));
-    let p = flange_t + flange_r * (flange_from_tip + errors.tip);
-    let mount_axes = rpy_derivative_axes(&Matrix3::identity(), &errors.mount_rpy);
     let mut jac = Matrix3xX::zeros(params.len());
+    with_chain_scratch(n, |tau, q_true, frames| {
+        // Compliance columns need τ even when no compliance is set.
+        if params
+            .iter()
+            .any(|p| matches!(p, ErrorParam::Compliance { .. }))
+            || !all_zero(&errors.compliance)
+        {
+            gravity_torques_into(model, q_rep, g_base, tau);
+        }
+        for i in 0..n {
+            q_true[i] = q_rep[i] * (1.0 + errors.joint_scale[i])
+                + errors.joint_offset[i]
+                + errors.compliance[i] * tau[i];
+        }
+        let (flange_r, flange_t) = true_chain(model, errors, q_true, Some(frames));
+        let p = flange_t + flange_r * (flange_from_tip + errors.tip);
+        fill_error_columns(errors, q_rep, tau, frames, &flange_r, &p, params, &mut jac);
+    });
+    Ok(jac)
+}
+
+/// The columns of [`tip_error_jacobian`] from the true chain's frames, tip `p` and flange rotation.
+#[allow(clippy::too_many_arguments)]
+fn fill_error_columns(
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    tau: &[f64],
+    frames: &[TrueJointFrame],
+    flange_r: &Matrix3<f64>,
+    p: &Vector3<f64>,
+    params: &[ErrorParam],
+    jac: &mut Matrix3xX<f64>,
+) {
+    let p = *p;
+    let mount_axes = rpy_derivative_axes(&Matrix3::identity(), &errors.mount_rpy);
     for (c, param) in params.iter().enumerate() {
         let joint_col = |k: usize| frames[k].z.cross(&(p - frames[k].o));
         let col = match *param {
@@ -788,7 +804,20 @@ pub fn tip_error_jacobian(
         };
         jac.set_column(c, &col);
     }
-    Ok(jac)
+}
+
+/// Runs `f` with scratch `tau`, `q_true` (len = dof) and `frames` (on the stack for `dof ≤ 16`).
+fn with_chain_scratch<R>(
+    dof: usize,
+    f: impl FnOnce(&mut [f64], &mut [f64], &mut [TrueJointFrame]) -> R,
+) -> R {
+    if dof <= STACK_DOF {
+        let mut frames = [TrueJointFrame::default(); STACK_DOF];
+        with_scratch(dof, |tau, q_true| f(tau, q_true, &mut frames[..dof]))
+    } else {
+        let mut frames = vec![TrueJointFrame::default(); dof];
+        with_scratch(dof, |tau, q_true| f(tau, q_true, &mut frames))
+    }
 }
 
 /// `∂p_tip/∂q_rep` of the TRUE robot, 3×dof, m/rad, nominal base axes, at the reported angles

@@ -1,5 +1,11 @@
 //! Forward kinematics: `base_from_flange(q)` and `base_from_tip(q)`.
 //! Lengths in metres, angles in radians; `base` is the URDF root link.
+//!
+//! `base_from_flange = Π_k [prev_from_joint_k · Rot(axis_k, q_k)] · last_from_flange`, evaluated
+//! on (rotation matrix, translation) pairs: the origins are precomputed when the model is built,
+//! identity origin rotations are skipped, a rotation about ±x/±y/±z mixes two columns, and the
+//! sines and cosines of all joints are computed up front by an inline fdlibm-accurate kernel.
+//! The hot path allocates nothing; the result is converted to an `Isometry3` once at the end.
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
@@ -19,7 +25,9 @@ pub(crate) fn sin_cos(x: f64) -> (f64, f64) {
     // π/2 = PIO2_1 + PIO2_1T (fdlibm: the first 33 bits, then the rest).
     const PIO2_1: f64 = 1.570_796_326_734_125_614_17;
     const PIO2_1T: f64 = 6.077_100_506_506_192_249_32e-11;
-    let n = (x * std::f64::consts::FRAC_2_PI).round();
+    // Round to nearest without a libm call: adding 1.5·2⁵² leaves no fraction bits.
+    const ROUND: f64 = 6_755_399_441_055_744.0;
+    let n = (x * std::f64::consts::FRAC_2_PI + ROUND) - ROUND;
     let r = (x - n * PIO2_1) - n * PIO2_1T;
     let z = r * r;
     // fdlibm __kernel_sin / __kernel_cos coefficients.
@@ -54,36 +62,64 @@ pub(crate) fn sin_cos(x: f64) -> (f64, f64) {
 /// of `r` (12 flops); an identity origin rotation is skipped. Allocation-free.
 #[inline(always)]
 pub(crate) fn apply_step(r: &mut Matrix3<f64>, t: &mut Vector3<f64>, step: &Step, q: f64) {
+    let sc = if step.axis_kind < 3 {
+        sin_cos(q * step.axis_sign)
+    } else {
+        (0.0, 1.0)
+    };
+    apply_step_sc(r, t, step, q, sc);
+}
+
+/// [`apply_step`] with `sc = sin_cos(q · axis_sign)` already computed (ignored for a general
+/// axis, which uses `q`).
+#[inline(always)]
+fn apply_step_sc(r: &mut Matrix3<f64>, t: &mut Vector3<f64>, step: &Step, q: f64, sc: (f64, f64)) {
     *t += *r * step.origin_t;
     if !step.origin_r_is_identity {
         *r *= step.origin_r;
     }
-    if step.axis_kind < 3 {
-        let (s, c) = sin_cos(q * step.axis_sign);
-        // Columns (i, j) with R·Rot = [.. c·ci + s·cj .. −s·ci + c·cj ..] for the cyclic pair
-        // (x: 1,2), (y: 2,0), (z: 0,1).
-        let (i, j) = match step.axis_kind {
-            0 => (1, 2),
-            1 => (2, 0),
-            _ => (0, 1),
-        };
-        for row in 0..3 {
-            let (a, b) = (r[(row, i)], r[(row, j)]);
-            r[(row, i)] = c * a + s * b;
-            r[(row, j)] = c * b - s * a;
-        }
-    } else {
-        *r *= Rotation3::from_axis_angle(&step.axis, q).matrix();
+    let (s, c) = sc;
+    // R·Rot(axis, q) mixes the column pair (x: 1,2), (y: 2,0), (z: 0,1):
+    // c_i ← c·c_i + s·c_j, c_j ← c·c_j − s·c_i.
+    match step.axis_kind {
+        0 => mix_columns::<1, 2>(r, s, c),
+        1 => mix_columns::<2, 0>(r, s, c),
+        2 => mix_columns::<0, 1>(r, s, c),
+        _ => *r *= Rotation3::from_axis_angle(&step.axis, q).matrix(),
     }
 }
+
+#[inline(always)]
+fn mix_columns<const I: usize, const J: usize>(r: &mut Matrix3<f64>, s: f64, c: f64) {
+    let a = r.column(I).into_owned();
+    let b = r.column(J).into_owned();
+    r.set_column(I, &(a * c + b * s));
+    r.set_column(J, &(b * c - a * s));
+}
+
+/// Most joints handled with the sines and cosines computed up front (independent, so the CPU
+/// overlaps them); longer chains fall back to one at a time.
+const MAX_BATCH: usize = 8;
 
 /// `base_from_flange(q)` as (rotation matrix, translation in m), no checks. Allocation-free.
 #[inline]
 pub(crate) fn flange_rt(model: &RobotModel, q: &[f64]) -> (Matrix3<f64>, Vector3<f64>) {
     let mut r = Matrix3::identity();
     let mut t = Vector3::zeros();
-    for (step, &qi) in model.steps.iter().zip(q) {
-        apply_step(&mut r, &mut t, step, qi);
+    if model.steps.len() <= MAX_BATCH && q.len() >= model.steps.len() {
+        let mut sc = [(0.0, 1.0); MAX_BATCH];
+        for ((out, step), &qi) in sc.iter_mut().zip(&model.steps).zip(q) {
+            if step.axis_kind < 3 {
+                *out = sin_cos(qi * step.axis_sign);
+            }
+        }
+        for ((step, &qi), &sck) in model.steps.iter().zip(q).zip(&sc) {
+            apply_step_sc(&mut r, &mut t, step, qi, sck);
+        }
+    } else {
+        for (step, &qi) in model.steps.iter().zip(q) {
+            apply_step(&mut r, &mut t, step, qi);
+        }
     }
     t += r * model.flange_t;
     r *= model.flange_r;

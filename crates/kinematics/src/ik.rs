@@ -9,15 +9,16 @@
 //!
 //! Step: `dq = Jᵀ(JJᵀ + λI)⁻¹ e`, accepted when the cost `|e|²` decreases; λ follows Nielsen's
 //! gain-ratio rule, and a seed is abandoned when λ exceeds 1e4 (a local minimum, typically on a
-//! joint limit).
+//! joint limit) or when, with the error above 0.1 mm, the cost fell by less than 1 % over 10
+//! iterations (an unreachable target: the arm crawls along the workspace boundary).
 //! Joint limits are an active set: a joint whose step would leave its range is moved onto the
 //! limit, its column is removed, and the others are re-solved for what is left of the error.
 //! For redundant problems the left-over freedom moves toward `preferred_q` by a null-space term
 //! `(I − J⁺J)·0.5·(q_pref − q)` while the error is above 1e-6 (m or rad); the final steps are pure
 //! Gauss–Newton so the solve reaches `tolerance_m` (default 1e-10 m).
 //! Restarts come from a fixed, deterministic set of seeds (a Halton sequence over the joint
-//! ranges; every other seed, except an `initial_q` the caller gave, first turns joint 1 toward the target's
-//! azimuth); a target that no seed reaches is reported as [`IkStatus::Unreachable`] with the best
+//! ranges; every other seed, except an `initial_q` the caller gave, first turns joint 1 toward
+//! the target's azimuth); a target that no seed reaches is reported as [`IkStatus::Unreachable`] with the best
 //! joint vector found. All work buffers are allocated once per call.
 
 use nalgebra::{Matrix3, Point3, Unit, Vector3};
@@ -103,6 +104,11 @@ const NULL_STOP: f64 = 1e-6;
 const LAMBDA_INIT: f64 = 1e-3;
 const LAMBDA_MIN: f64 = 1e-16;
 const LAMBDA_GIVE_UP: f64 = 1e4;
+
+/// A seed is abandoned when, with its error above `STALL_MIN_ERROR` (m or rad), the cost fell by
+/// less than 1 % over `STALL_WINDOW` iterations.
+const STALL_WINDOW: usize = 10;
+const STALL_MIN_ERROR: f64 = 1e-4;
 
 type Col = [f64; MAX_ROWS];
 
@@ -435,7 +441,7 @@ pub fn ik_tip_position(
     }
     if options.max_iterations == 0 {
         return Err(KinematicsError::InvalidInput(
-            "IkOptions::max_iterations is 0; give at least 1 (default 100)".into(),
+            "IkOptions::max_iterations is 0; give at least 1 (default 300)".into(),
         ));
     }
     check_vec(model, &options.preferred_q, "preferred_q")?;
@@ -492,8 +498,8 @@ pub fn ik_tip_position(
         for (qi, jt) in q.iter_mut().zip(model.joints()) {
             *qi = qi.clamp(jt.lower, jt.upper);
         }
-        // Aim every other seed (not an `initial_q` the caller gave): aiming misleads when the target lies
-        // near joint 1's axis.
+        // Aim every other seed (not an `initial_q` the caller gave): aiming misleads when the
+        // target lies near joint 1's axis.
         if s % 2 == 0 && !(s == 0 && options.initial_q.is_some()) {
             problem.aim_first_joint(&mut q, &mut frames);
         }
@@ -502,8 +508,17 @@ pub fn ik_tip_position(
         let mut nu = 2.0;
         let mut converged = tol_ok(&lin);
         let mut it = 0;
+        let mut checkpoint_cost = lin.cost;
         while !converged && it < options.max_iterations {
             it += 1;
+            // Stall: far from any solution and under 1 % progress in the last STALL_WINDOW
+            // iterations (typically an unreachable target, the arm crawling along its boundary).
+            if it % STALL_WINDOW == 0 {
+                if lin.cost.sqrt() > STALL_MIN_ERROR && lin.cost > 0.99 * checkpoint_cost {
+                    break;
+                }
+                checkpoint_cost = lin.cost;
+            }
             let use_pull = pull.filter(|_| lin.cost.sqrt() > NULL_STOP);
             let mut gain_ratio = None;
             for p in [use_pull, None] {

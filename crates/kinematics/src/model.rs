@@ -242,13 +242,25 @@ impl RobotModel {
                     } else {
                         (j.limit.lower, j.limit.upper)
                     };
+                    let revolute = matches!(j.joint_type, urdf_rs::JointType::Revolute);
+                    // A revolute joint needs a real range: lower == upper is what urdf-rs gives
+                    // for a missing <limit>.
                     if lower.is_nan()
                         || upper.is_nan()
                         || lower > upper
-                        || (matches!(j.joint_type, urdf_rs::JointType::Revolute)
-                            && !(lower.is_finite() && upper.is_finite()))
+                        || (revolute
+                            && (!(lower.is_finite() && upper.is_finite()) || lower == upper))
                     {
                         return Err(ModelError::BadLimits {
+                            source_name: s(),
+                            joint: j.name.clone(),
+                            lower,
+                            upper,
+                        });
+                    }
+                    // Beyond ±2 turns the numbers are almost surely degrees.
+                    if revolute && lower.abs().max(upper.abs()) > 2.0 * std::f64::consts::TAU {
+                        return Err(ModelError::LimitsLookLikeDegrees {
                             source_name: s(),
                             joint: j.name.clone(),
                             lower,

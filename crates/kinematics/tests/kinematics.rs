@@ -66,6 +66,8 @@ fn fk_zero_pose_hp20() {
     // 0.150 + 0.795 + 0.105 out, 0.505 + 0.760 + 0.140 up; flange z along base x.
     assert!((t.translation.vector - Vector3::new(1.050, 0.0, 1.405)).norm() < EXACT_TOL);
     assert!((t.rotation * Vector3::z() - Vector3::x()).norm() < EXACT_TOL);
+    // ROS-Industrial tool0: x points down at the zero pose.
+    assert!((t.rotation * Vector3::x() + Vector3::z()).norm() < EXACT_TOL);
     let tip = base_from_tip(&m, &[0.0; 6], &Vector3::new(0.0, 0.0, 0.1)).unwrap();
     assert!((tip.translation.vector - Vector3::new(1.150, 0.0, 1.405)).norm() < EXACT_TOL);
 }
@@ -106,10 +108,11 @@ fn fk_hand_computed_poses() {
     assert!((t.translation.vector - Vector3::new(0.150, 0.740, 1.264)).norm() < EXACT_TOL);
 }
 
-/// Central-difference step, rad, and tolerance: truncation ~h²·|p'''| ≈ 1e-12 m, round-off
-/// ~eps/h ≈ 1e-10: 1e-7 covers both.
+/// Central-difference step, rad, and tolerance (per column, m/rad or rad/rad): truncation
+/// h²/6·|p'''| ≲ 2e-11 with lever arms under 2 m, round-off ≈ eps·|p|/h ≈ 4e-11; 1e-9 leaves a
+/// margin of ~15× over their sum.
 const FD_STEP: f64 = 1e-5;
-const FD_TOL: f64 = 1e-7;
+const FD_TOL: f64 = 1e-9;
 
 fn fd_check(name: &str, seed: u64) {
     let m = robot(name);
@@ -265,6 +268,24 @@ fn bad_inputs_are_typed_errors() {
     );
     let e = RobotModel::from_urdf_str(&branch, "tool0").unwrap_err();
     assert!(matches!(e, ModelError::Branching { .. }), "{e}");
+    let e = RobotModel::from_urdf_str(
+        &xml.replace(
+            "lower=\"-3.1416\" upper=\"3.1416\"",
+            "lower=\"-180\" upper=\"180\"",
+        ),
+        "tool0",
+    )
+    .unwrap_err();
+    assert!(matches!(e, ModelError::LimitsLookLikeDegrees { .. }), "{e}");
+    assert!(e.to_string().contains("joint_1_s") && e.to_string().contains("degrees"));
+    let no_limit = xml.replace(
+        "<limit lower=\"-1.9199\" upper=\"2.7053\" effort=\"1200\" velocity=\"2.9671\"/>",
+        "",
+    );
+    assert_ne!(no_limit, xml);
+    let e = RobotModel::from_urdf_str(&no_limit, "tool0").unwrap_err();
+    assert!(matches!(e, ModelError::BadLimits { .. }), "{e}");
+    assert!(e.to_string().contains("joint_2_l"));
     let e = RobotModel::from_urdf_file(Path::new("/nonexistent/x.urdf"), "tool0").unwrap_err();
     assert!(e.to_string().contains("/nonexistent/x.urdf"));
     assert!(ik_tip_position(
@@ -467,4 +488,107 @@ fn jacobian_inputs_are_checked() {
         matches!(e, KinematicsError::LooksLikeDegrees { index: 6, .. }),
         "{e}"
     );
+}
+
+/// A chain that exercises every FK path the shipped URDFs do not: non-zero origin rpy, a rotating
+/// fixed joint before the first actuated joint and between actuated joints, ±x/±y/±z axes,
+/// general (non-aligned) axes, a continuous joint and a rotated tool0.
+const ODD_CHAIN: &str = r#"<robot name="odd">
+  <link name="world"/><link name="base_link"/><link name="a"/><link name="b"/><link name="b2"/>
+  <link name="c"/><link name="d"/><link name="e"/><link name="f"/><link name="tool0"/>
+  <joint name="mount" type="fixed"><parent link="world"/><child link="base_link"/>
+    <origin xyz="0.1 -0.2 0.3" rpy="0.1 -0.2 0.3"/></joint>
+  <joint name="j1" type="revolute"><parent link="base_link"/><child link="a"/>
+    <origin xyz="0 0 0.4" rpy="0 0 0"/><axis xyz="0 0 -1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="a"/><child link="b"/>
+    <origin xyz="0.1 0.05 0.2" rpy="0.4 0 -0.3"/><axis xyz="0.3 0.4 0.866"/>
+    <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="bend" type="fixed"><parent link="b"/><child link="b2"/>
+    <origin xyz="0.3 0 0.1" rpy="0 1.2 0"/></joint>
+  <joint name="j3" type="revolute"><parent link="b2"/><child link="c"/>
+    <origin xyz="0 0 0.25" rpy="0 0 0"/><axis xyz="1 0 0"/>
+    <limit lower="-2.5" upper="2.5" effort="1" velocity="1"/></joint>
+  <joint name="j4" type="continuous"><parent link="c"/><child link="d"/>
+    <origin xyz="0.2 0.1 0" rpy="-0.7 0.2 0.1"/><axis xyz="0 -1 0"/></joint>
+  <joint name="j5" type="revolute"><parent link="d"/><child link="e"/>
+    <origin xyz="0.15 0 0" rpy="0 0 0"/><axis xyz="-1 1 0"/>
+    <limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+  <joint name="j6" type="revolute"><parent link="e"/><child link="f"/>
+    <origin xyz="0.1 0 0" rpy="0 0 3.14159"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="flange" type="fixed"><parent link="f"/><child link="tool0"/>
+    <origin xyz="0.05 0 0.02" rpy="0.3 1.5707963267948966 0"/></joint>
+</robot>"#;
+
+#[test]
+fn fk_matches_plain_urdf_product_on_an_odd_chain() {
+    let m = RobotModel::from_urdf_str(ODD_CHAIN, "tool0").unwrap();
+    assert_eq!(m.dof(), 6);
+    assert_eq!(m.root_link(), "world");
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let tip = Vector3::new(0.01, 0.02, 0.1);
+    for _ in 0..100 {
+        let q = random_q(&m, &mut rng, 0.0);
+        // Reference: the product of URDF origins and axis-angle rotations, straight from the
+        // parsed joints (no precomputation, no special cases).
+        let mut t = nalgebra::Isometry3::identity();
+        for (j, &qi) in m.joints().iter().zip(&q) {
+            t = t
+                * j.fixed_prefix
+                * origin_isometry(&j.origin_xyz, &j.origin_rpy)
+                * nalgebra::UnitQuaternion::from_axis_angle(&j.axis, qi);
+        }
+        t *= m.last_from_flange();
+        let a = base_from_flange(&m, &q).unwrap();
+        assert!((a.to_homogeneous() - t.to_homogeneous()).norm() < EXACT_TOL);
+        let p = base_from_tip(&m, &q, &tip).unwrap().translation.vector;
+        assert!((p - (t * Point3::from(tip)).coords).norm() < EXACT_TOL);
+    }
+    // Jacobians and IK on the same chain.
+    for seed in 0..8 {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let q = random_q(&m, &mut rng, 0.01);
+        let jb = geometric_jacobian(&m, &q, &tip, JacobianFrame::Base).unwrap();
+        for k in 0..m.dof() {
+            let (mut qp, mut qm) = (q.clone(), q.clone());
+            qp[k] += FD_STEP;
+            qm[k] -= FD_STEP;
+            let tp = base_from_tip_unchecked(&m, &qp, &tip);
+            let tm = base_from_tip_unchecked(&m, &qm, &tip);
+            let v = (tp.translation.vector - tm.translation.vector) / (2.0 * FD_STEP);
+            let w = (tp.rotation * tm.rotation.inverse()).scaled_axis() / (2.0 * FD_STEP);
+            assert!(
+                (jb.column(k).fixed_rows::<3>(0) - v).norm() < FD_TOL,
+                "v col {k}"
+            );
+            assert!(
+                (jb.column(k).fixed_rows::<3>(3) - w).norm() < FD_TOL,
+                "w col {k}"
+            );
+        }
+        let target = Point3::from(base_from_tip(&m, &q, &tip).unwrap().translation.vector);
+        let sol = ik_tip_position(&m, &target, &tip, &IkOptions::default()).unwrap();
+        assert!(sol.reachable(), "{sol:?}");
+        let p = base_from_tip(&m, &sol.q, &tip).unwrap().translation.vector;
+        assert!((p - target.coords).norm() < ROUND_TRIP_TOL_M);
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// FK returns a proper rigid transform and the checked and unchecked paths agree bit for bit.
+    #[test]
+    fn fk_is_a_rigid_transform(seed in any::<u64>()) {
+        for name in ["hp20", "va1400"] {
+            let m = robot(name);
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let q = random_q(&m, &mut rng, 0.0);
+            let t = base_from_flange(&m, &q).unwrap();
+            let r = t.rotation.to_rotation_matrix();
+            prop_assert!((r.matrix().transpose() * r.matrix() - nalgebra::Matrix3::identity()).norm() < 1e-14);
+            prop_assert!((r.matrix().determinant() - 1.0).abs() < 1e-14);
+            prop_assert_eq!(t, base_from_flange_unchecked(&m, &q));
+        }
+    }
 }

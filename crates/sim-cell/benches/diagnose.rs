@@ -2,6 +2,7 @@
 //! 2 cores). Seeded inputs: a session simulated by `generate_session` on the shipped floor–wall
 //! cell with one hidden joint offset (robot 2, joint 3, 0.2°), and a noise-only one.
 //! Run: `cargo bench -p sim-cell --bench diagnose -- --warm-up-time 1 --measurement-time 3`.
+#![allow(missing_docs)] // criterion_group! generates an undocumented function
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use kinematics::ErrorParam;

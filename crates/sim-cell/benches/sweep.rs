@@ -2,6 +2,7 @@
 //! and robot-mode sessions. Seeded inputs.
 //!
 //! `cargo bench -p sim-cell --bench sweep -- --warm-up-time 1 --measurement-time 3`
+#![allow(missing_docs)] // criterion_group! generates an undocumented function
 
 use calib_core::{Method, MountPair};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
@@ -24,7 +25,10 @@ fn geometry_single_thread(c: &mut Criterion) {
         ("lsq_n4", Method::Lsq, 4),
         ("lsq_n12", Method::Lsq, 12),
     ] {
-        let spec = GeometrySpec::paper(&MountPair::floor_floor(), Layout::Tetrahedron, n, 1.0, 1e-3).unwrap();
+        let spec =
+            GeometrySpec::paper(&MountPair::floor_floor(), Layout::Tetrahedron, n, 1.0, 1e-3)
+                .unwrap();
+        let zyz_true = spec.zyz_true();
         g.bench_function(BenchmarkId::new("floor-floor", name), |b| {
             let mut p1 = vec![Point3::origin(); n];
             let mut p2 = vec![Point3::origin(); n];
@@ -34,7 +38,9 @@ fn geometry_single_thread(c: &mut Criterion) {
                 for _ in 0..BATCH {
                     let mut rng = trial_rng(7, k);
                     k += 1;
-                    if let Some(e) = geometry_trial_into(&spec, method, &mut rng, &mut p1, &mut p2) {
+                    if let Some(e) =
+                        geometry_trial_into(&spec, zyz_true, method, &mut rng, &mut p1, &mut p2)
+                    {
                         acc += e.e_tran;
                     }
                 }
@@ -46,12 +52,18 @@ fn geometry_single_thread(c: &mut Criterion) {
 }
 
 fn geometry_sweep_two_threads(c: &mut Criterion) {
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
     let trials = 200_000;
     let mut g = c.benchmark_group("geometry_sweep_2_threads");
     g.sample_size(10);
     g.throughput(Throughput::Elements(trials as u64));
-    for (name, methods) in [("generic_n4", vec![Method::Generic]), ("all_methods_n4", Method::ALL.to_vec())] {
+    for (name, methods) in [
+        ("generic_n4", vec![Method::Generic]),
+        ("all_methods_n4", Method::ALL.to_vec()),
+    ] {
         let config = SweepConfig {
             mode: Mode::Geometry,
             mounts: vec![MountPair::floor_floor()],
@@ -66,7 +78,12 @@ fn geometry_sweep_two_threads(c: &mut Criterion) {
         g.bench_function(name, |b| {
             b.iter(|| {
                 let pb = ProgressBar::hidden();
-                black_box(pool.install(|| run_sweep(&config, &[], &pb)).unwrap().outcomes.len())
+                black_box(
+                    pool.install(|| run_sweep(&config, &[], &pb))
+                        .unwrap()
+                        .outcomes
+                        .len(),
+                )
             })
         });
     }
@@ -88,12 +105,21 @@ fn robot_sessions(c: &mut Criterion) {
             let mut k = 0u64;
             b.iter(|| {
                 k += 1;
-                black_box(generate_session(&cell, &spec, &mut trial_rng(3, k)).map(|s| s.points.len()).ok())
+                black_box(
+                    generate_session(&cell, &spec, &mut trial_rng(3, k))
+                        .map(|s| s.points.len())
+                        .ok(),
+                )
             })
         });
     }
     g.finish();
 }
 
-criterion_group!(benches, geometry_single_thread, geometry_sweep_two_threads, robot_sessions);
+criterion_group!(
+    benches,
+    geometry_single_thread,
+    geometry_sweep_two_threads,
+    robot_sessions
+);
 criterion_main!(benches);

@@ -30,7 +30,10 @@ const EMBEDDED_URDFS: [(&str, &str); 2] = [
         "../robots/va1400.urdf",
         include_str!("../../../robots/va1400.urdf"),
     ),
-    ("../robots/hp20.urdf", include_str!("../../../robots/hp20.urdf")),
+    (
+        "../robots/hp20.urdf",
+        include_str!("../../../robots/hp20.urdf"),
+    ),
 ];
 
 /// One robot of a cell.
@@ -199,12 +202,17 @@ fn parse_mount(ctx: &Ctx, key: &str, v: &toml::Value) -> Result<Mount, SimError>
             let a = t
                 .get("tilt_deg")
                 .and_then(|v| v.as_array())
-                .ok_or_else(|| ctx.err(format!("`{key}` table needs tilt_deg = [rx, ry] (degrees)")))?;
+                .ok_or_else(|| {
+                    ctx.err(format!("`{key}` table needs tilt_deg = [rx, ry] (degrees)"))
+                })?;
             let nums: Vec<f64> = a
                 .iter()
                 .filter_map(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
                 .collect();
-            if nums.len() != 2 || a.len() != 2 || nums.iter().any(|x| !x.is_finite() || x.abs() > 360.0) {
+            if nums.len() != 2
+                || a.len() != 2
+                || nums.iter().any(|x| !x.is_finite() || x.abs() > 360.0)
+            {
                 return Err(ctx.err(format!(
                     "`{key}.tilt_deg` must be [rx, ry]: two finite angles in degrees within ±360"
                 )));
@@ -270,17 +278,21 @@ fn build_errors(
             model.name()
         ))
     };
-    let per_joint = |field: &str, v: &Option<Vec<f64>>, scale: f64| -> Result<Option<Vec<f64>>, SimError> {
-        match v {
-            None => Ok(None),
-            Some(v) if v.len() != dof => Err(len_err(field, v.len())),
-            Some(v) if v.iter().any(|x| !x.is_finite()) => {
-                Err(ctx.err(format!("`{key}.errors.{field}` must hold finite numbers")))
+    let per_joint =
+        |field: &str, v: &Option<Vec<f64>>, scale: f64| -> Result<Option<Vec<f64>>, SimError> {
+            match v {
+                None => Ok(None),
+                Some(v) if v.len() != dof => Err(len_err(field, v.len())),
+                Some(v) if v.iter().any(|x| !x.is_finite()) => {
+                    Err(ctx.err(format!("`{key}.errors.{field}` must hold finite numbers")))
+                }
+                Some(v) => Ok(Some(v.iter().map(|x| x * scale).collect())),
             }
-            Some(v) => Ok(Some(v.iter().map(|x| x * scale).collect())),
-        }
-    };
-    let per_joint3 = |field: &str, v: &Option<Vec<[f64; 3]>>, scale: f64| -> Result<Option<Vec<Vector3<f64>>>, SimError> {
+        };
+    let per_joint3 = |field: &str,
+                      v: &Option<Vec<[f64; 3]>>,
+                      scale: f64|
+     -> Result<Option<Vec<Vector3<f64>>>, SimError> {
         match v {
             None => Ok(None),
             Some(v) if v.len() != dof => Err(len_err(field, v.len())),
@@ -299,7 +311,11 @@ fn build_errors(
         out.joint_scale = v;
     }
     // deg/(kN·m) → rad/(N·m)
-    if let Some(v) = per_joint("compliance_deg_per_knm", &e.compliance_deg_per_knm, d2r / 1000.0)? {
+    if let Some(v) = per_joint(
+        "compliance_deg_per_knm",
+        &e.compliance_deg_per_knm,
+        d2r / 1000.0,
+    )? {
         out.compliance = v;
     }
     if let Some(v) = per_joint3("origin_xyz_mm", &e.origin_xyz_mm, 1e-3)? {
@@ -329,10 +345,13 @@ fn errors_file(e: &KinematicErrors) -> Option<ErrorsFile> {
     let a3 = |v: &Vector3<f64>, s: f64| [v.x * s, v.y * s, v.z * s];
     let r2d = 1f64.to_degrees();
     Some(ErrorsFile {
-        joint_offset_deg: nz(&e.joint_offset).then(|| e.joint_offset.iter().map(|x| x * r2d).collect()),
+        joint_offset_deg: nz(&e.joint_offset)
+            .then(|| e.joint_offset.iter().map(|x| x * r2d).collect()),
         joint_scale: nz(&e.joint_scale).then(|| e.joint_scale.clone()),
-        origin_xyz_mm: nz3(&e.origin_xyz).then(|| e.origin_xyz.iter().map(|v| a3(v, 1e3)).collect()),
-        origin_rpy_deg: nz3(&e.origin_rpy).then(|| e.origin_rpy.iter().map(|v| a3(v, r2d)).collect()),
+        origin_xyz_mm: nz3(&e.origin_xyz)
+            .then(|| e.origin_xyz.iter().map(|v| a3(v, 1e3)).collect()),
+        origin_rpy_deg: nz3(&e.origin_rpy)
+            .then(|| e.origin_rpy.iter().map(|v| a3(v, r2d)).collect()),
         tip_mm: nz(e.tip.as_slice()).then(|| a3(&e.tip, 1e3)),
         mount_xyz_mm: nz(e.mount_xyz.as_slice()).then(|| a3(&e.mount_xyz, 1e3)),
         mount_rpy_deg: nz(e.mount_rpy.as_slice()).then(|| a3(&e.mount_rpy, r2d)),
@@ -341,16 +360,16 @@ fn errors_file(e: &KinematicErrors) -> Option<ErrorsFile> {
     })
 }
 
-/// Shoulder (joint 2's origin at q = 0, else joint 1's) of a model, m, its base frame.
+/// Shoulder (joint 2's origin at q = 0) of a model, m, its base frame.
 fn shoulder(model: &RobotModel) -> Point3<f64> {
-    let q = vec![0.0; model.dof()];
-    let mut t = Isometry3::identity();
-    for (k, j) in model.joints().iter().enumerate().take(2) {
-        t = t * j.fixed_prefix * kinematics::origin_isometry(&j.origin_xyz, &j.origin_rpy);
-        if k == 0 {
-            t = t * nalgebra::UnitQuaternion::from_axis_angle(&j.axis, q[0]);
-        }
-    }
+    // At q = 0 the joint rotations are identities: compose the fixed parts only.
+    let t = model
+        .joints()
+        .iter()
+        .take(2)
+        .fold(Isometry3::identity(), |t, j| {
+            t * j.fixed_prefix * kinematics::origin_isometry(&j.origin_xyz, &j.origin_rpy)
+        });
     Point3::from(t.translation.vector)
 }
 
@@ -449,7 +468,12 @@ impl Cell {
                 ]),
             }),
         };
-        toml::to_string(&file).unwrap_or_else(|e| format!("# cannot serialise the cell: {e}\n"))
+        let mut value = match toml::Value::try_from(&file) {
+            Ok(v) => v,
+            Err(e) => return format!("# cannot serialise the cell: {e}\n"),
+        };
+        tidy_floats(&mut value);
+        toml::to_string(&value).unwrap_or_else(|e| format!("# cannot serialise the cell: {e}\n"))
     }
 
     /// The robot (1 or 2).
@@ -459,6 +483,22 @@ impl Cell {
         } else {
             &self.robot2
         }
+    }
+}
+
+/// Rounds every float to 10 decimals (mm, degrees: far below any tolerance) so that unit
+/// conversions print as written (0.03, not 0.030000000000000002).
+fn tidy_floats(v: &mut toml::Value) {
+    match v {
+        toml::Value::Float(x) => {
+            let r = (*x * 1e10).round() / 1e10;
+            if r.is_finite() {
+                *x = if r == 0.0 { 0.0 } else { r };
+            }
+        }
+        toml::Value::Array(a) => a.iter_mut().for_each(tidy_floats),
+        toml::Value::Table(t) => t.iter_mut().for_each(|(_, v)| tidy_floats(v)),
+        _ => {}
     }
 }
 
@@ -496,8 +536,12 @@ fn load_model(
 fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cell, SimError> {
     let ctx = Ctx { path };
     let file: CellFile = toml::from_str(text).map_err(|e| {
+        let at = e
+            .span()
+            .map(|r| format!("line {}: ", text[..r.start.min(text.len())].lines().count().max(1)))
+            .unwrap_or_default();
         ctx.err(format!(
-            "{} (keys: [robot1], [robot2] with urdf, mount, tip_mm, tool_link, [robotN.errors]; [b1_from_b2] xyz_mm, zyz_deg; [noise] alignment_mm, repeatability_mm, encoder_resolution_deg; [teach] centre_mm)",
+            "{at}{} (keys: [robot1], [robot2] with urdf, mount, tip_mm, tool_link, [robotN.errors]; [b1_from_b2] xyz_mm, zyz_deg; [noise] alignment_mm, repeatability_mm, encoder_resolution_deg; [teach] centre_mm)",
             e.message().trim_end()
         ))
     })?;
@@ -597,7 +641,8 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
             };
             Noise {
                 alignment_m: alignment_mm * 1e-3,
-                repeatability_m: nonneg("repeatability_mm", n.repeatability_mm.unwrap_or(0.0))? * 1e-3,
+                repeatability_m: nonneg("repeatability_mm", n.repeatability_mm.unwrap_or(0.0))?
+                    * 1e-3,
                 encoder_resolution_rad: nonneg(
                     "encoder_resolution_deg",
                     n.encoder_resolution_deg.unwrap_or(0.0),
@@ -637,7 +682,10 @@ mod tests {
     const ROUND_TRIP_TOL: f64 = 1e-12;
 
     fn assert_cells_equal(a: &Cell, b: &Cell) {
-        assert!((a.b1_from_b2.translation.vector - b.b1_from_b2.translation.vector).amax() < ROUND_TRIP_TOL);
+        assert!(
+            (a.b1_from_b2.translation.vector - b.b1_from_b2.translation.vector).amax()
+                < ROUND_TRIP_TOL
+        );
         assert!(a.b1_from_b2.rotation.angle_to(&b.b1_from_b2.rotation) < 1e-9);
         for (r, s) in [(&a.robot1, &b.robot1), (&a.robot2, &b.robot2)] {
             assert_eq!(r.urdf, s.urdf);
@@ -659,7 +707,10 @@ mod tests {
         }
         assert!((a.noise.alignment_m - b.noise.alignment_m).amax() < ROUND_TRIP_TOL);
         assert!((a.noise.repeatability_m - b.noise.repeatability_m).abs() < ROUND_TRIP_TOL);
-        assert!((a.noise.encoder_resolution_rad - b.noise.encoder_resolution_rad).abs() < ROUND_TRIP_TOL);
+        assert!(
+            (a.noise.encoder_resolution_rad - b.noise.encoder_resolution_rad).abs()
+                < ROUND_TRIP_TOL
+        );
         assert!((a.centre_b1 - b.centre_b1).amax() < ROUND_TRIP_TOL);
     }
 
@@ -718,8 +769,13 @@ compliance_deg_per_knm = [0.0, 0.05, 0.05, 0.0, 0.0, 0.0]
     fn unknown_key_is_named() {
         let e = err_text(&FLOOR_WALL_TOML.replace("tip_mm", "tip_mmm"));
         assert!(e.contains("tip_mmm") && e.contains("tip_mm"), "{e}");
-        let e = err_text(&(FLOOR_WALL_TOML.to_string() + "\n[robot2.errors]\njoint_ofset_deg = [0,0,0,0,0,0]\n"));
-        assert!(e.contains("joint_ofset_deg") && e.contains("joint_offset_deg"), "{e}");
+        let e = err_text(
+            &(FLOOR_WALL_TOML.to_string() + "\n[robot2.errors]\njoint_ofset_deg = [0,0,0,0,0,0]\n"),
+        );
+        assert!(
+            e.contains("joint_ofset_deg") && e.contains("joint_offset_deg"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -740,8 +796,13 @@ compliance_deg_per_knm = [0.0, 0.05, 0.05, 0.0, 0.0, 0.0]
 
     #[test]
     fn wrong_error_length_is_named() {
-        let e = err_text(&(FLOOR_WALL_TOML.to_string() + "\n[robot1.errors]\njoint_offset_deg = [0.0, 0.1]\n"));
-        assert!(e.contains("robot1.errors.joint_offset_deg") && e.contains("7 joints"), "{e}");
+        let e = err_text(
+            &(FLOOR_WALL_TOML.to_string() + "\n[robot1.errors]\njoint_offset_deg = [0.0, 0.1]\n"),
+        );
+        assert!(
+            e.contains("robot1.errors.joint_offset_deg") && e.contains("7 joints"),
+            "{e}"
+        );
     }
 }
 
@@ -757,9 +818,16 @@ mod placement_tests {
     fn placements_match_the_shipped_cells() {
         for p in PAPER {
             let cell = Cell::paper(&p).unwrap();
-            assert!((cell.b1_from_b2.translation.vector - p.b1_from_b2().translation.vector).amax() < SAME_CELL_TOL_M);
+            assert!(
+                (cell.b1_from_b2.translation.vector - p.b1_from_b2().translation.vector).amax()
+                    < SAME_CELL_TOL_M
+            );
             assert!(cell.b1_from_b2.rotation.angle_to(&p.b1_from_b2().rotation) < 1e-9);
-            assert!((cell.centre_b1 - p.centre_b1()).amax() < SAME_CELL_TOL_M, "{}", p.label());
+            assert!(
+                (cell.centre_b1 - p.centre_b1()).amax() < SAME_CELL_TOL_M,
+                "{}",
+                p.label()
+            );
             assert_eq!(cell.mounts(), p.mounts);
         }
     }

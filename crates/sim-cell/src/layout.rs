@@ -103,9 +103,13 @@ pub fn teach_points_into(
             let r_circ = s / 3f64.sqrt();
             let h = s * (2.0f64 / 3.0).sqrt();
             let mut verts = [Vector3::zeros(); 4];
-            for (k, v) in verts.iter_mut().take(3).enumerate() {
-                let a = k as f64 * std::f64::consts::TAU / 3.0;
-                let (sa, ca) = a.sin_cos();
+            // cos, sin of 0°, 120°, 240°.
+            const TRIANGLE: [(f64, f64); 3] = [
+                (1.0, 0.0),
+                (-0.5, 0.866_025_403_784_438_6),
+                (-0.5, -0.866_025_403_784_438_6),
+            ];
+            for (v, (ca, sa)) in verts.iter_mut().zip(TRIANGLE) {
                 let (x, y) = (r_circ * ca, r_circ * sa);
                 *v = Vector3::new(cy * x - sy * y, sy * x + cy * y, -h / 4.0);
             }
@@ -205,10 +209,16 @@ mod tests {
         let planar = teach_points(Layout::Planar, 50, 1.0, &c, &mut rng);
         let sv = spread_singular_values(&planar);
         // Uniform slab: σ_z/σ_xy = PLANAR_THICKNESS_REL in expectation; 2× covers 50-point sampling.
-        assert!(sv[2] / sv[1] < 2.0 * PLANAR_THICKNESS_REL, "planar sv {sv:?}");
+        assert!(
+            sv[2] / sv[1] < 2.0 * PLANAR_THICKNESS_REL,
+            "planar sv {sv:?}"
+        );
         let clustered = teach_points(Layout::Clustered, 50, 1.0, &c, &mut rng);
         let sv = spread_singular_values(&clustered);
-        assert!(sv[1] / sv[0] < 2.0 * CLUSTER_SIZE_REL, "clustered sv {sv:?}");
+        assert!(
+            sv[1] / sv[0] < 2.0 * CLUSTER_SIZE_REL,
+            "clustered sv {sv:?}"
+        );
         let random = teach_points(Layout::Random, 50, 1.0, &c, &mut rng);
         for q in &random {
             assert!((q - c).amax() <= 0.5);
@@ -232,6 +242,32 @@ mod tests {
             let a = teach_points(l, 7, 0.8, &c, &mut trial_rng(5, 9));
             let b = teach_points(l, 7, 0.8, &c, &mut trial_rng(5, 9));
             assert_eq!(a, b);
+        }
+    }
+
+    proptest::proptest! {
+        /// Every layout stays within its documented bounds of the centre, for any seed, spread
+        /// and point count (tolerance: round-off on metre-sized coordinates).
+        #[test]
+        fn layouts_stay_within_their_bounds(
+            seed in 0u64..1000, n in 1usize..20, spread in 0.01f64..3.0,
+            cx in -2.0f64..2.0, cy in -2.0f64..2.0, cz in -1.0f64..2.0,
+        ) {
+            let c = Point3::new(cx, cy, cz);
+            for l in Layout::ALL {
+                let pts = teach_points(l, n, spread, &c, &mut trial_rng(seed, 0));
+                proptest::prop_assert_eq!(pts.len(), n);
+                let bound = match l {
+                    // circumradius of a regular tetrahedron of edge s: s·√(3/8)
+                    Layout::Tetrahedron => spread * (3.0f64 / 8.0).sqrt(),
+                    Layout::Random => spread * 3f64.sqrt() / 2.0,
+                    Layout::Planar => spread * (0.5f64 + PLANAR_THICKNESS_REL * PLANAR_THICKNESS_REL / 4.0).sqrt(),
+                    Layout::Clustered => spread * (0.5 + CLUSTER_SIZE_REL * 3f64.sqrt() / 2.0),
+                };
+                for p in &pts {
+                    proptest::prop_assert!((p - c).norm() <= bound + GEOM_TOL, "{l}: {p:?}");
+                }
+            }
         }
     }
 }

@@ -95,7 +95,11 @@ struct SweepArgs {
     #[arg(long, value_enum, default_value = "geometry")]
     mode: ModeArg,
     /// Mount pairs: floor-floor, floor-wall, floor-ceiling (comma-separated).
-    #[arg(long, value_delimiter = ',', default_value = "floor-floor,floor-wall,floor-ceiling")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "floor-floor,floor-wall,floor-ceiling"
+    )]
     mounts: Vec<String>,
     /// Alignment σ per axis, mm (comma-separated grid).
     #[arg(long, value_delimiter = ',', default_value = "0.5,1,2,3")]
@@ -107,7 +111,11 @@ struct SweepArgs {
     #[arg(long, value_delimiter = ',', default_value = "4,6,8,12")]
     points: Vec<usize>,
     /// Methods: generic, generic-affine, paper, lsq, constrained (comma-separated).
-    #[arg(long, value_delimiter = ',', default_value = "generic,generic-affine,paper,lsq,constrained")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "generic,generic-affine,paper,lsq,constrained"
+    )]
     methods: Vec<String>,
     /// Teach-point layout.
     #[arg(long, value_enum, default_value = "tetrahedron")]
@@ -124,7 +132,8 @@ struct SweepArgs {
     /// Output directory for trials.csv, summary.csv and the SVG plots.
     #[arg(long, default_value = "out/sweep")]
     out: PathBuf,
-    /// Robot mode: use these cell files instead of the built-in paper cells (one per mount pair, same order).
+    /// Robot mode: simulate on these cell files instead of the built-in paper cells (comma-separated;
+    /// their mounts replace --mounts).
     #[arg(long, value_delimiter = ',')]
     cell: Vec<PathBuf>,
 }
@@ -209,6 +218,7 @@ fn sweep_cmd(a: SweepArgs) -> Result<()> {
         seed: a.seed,
     };
     config.validate()?;
+    let mut config = config;
     let cells: Vec<Cell> = if mode == Mode::Robot {
         if a.cell.is_empty() {
             config
@@ -221,19 +231,19 @@ fn sweep_cmd(a: SweepArgs) -> Result<()> {
                 })
                 .collect::<Result<_>>()?
         } else {
-            if a.cell.len() != config.mounts.len() {
-                bail!(
-                    "--cell: give one cell file per mount pair ({} for --mounts {})",
-                    config.mounts.len(),
-                    a.mounts.join(",")
-                );
-            }
-            a.cell
+            // The cells define the mount axis (their own mounts, in the order given).
+            let cells: Vec<Cell> = a
+                .cell
                 .iter()
                 .map(|p| Cell::from_toml_file(p).map_err(anyhow::Error::from))
-                .collect::<Result<_>>()?
+                .collect::<Result<_>>()?;
+            config.mounts = cells.iter().map(Cell::mounts).collect();
+            cells
         }
     } else {
+        if !a.cell.is_empty() {
+            bail!("--cell is for --mode robot (geometry mode uses the paper's placements)");
+        }
         vec![]
     };
     let pool = rayon::ThreadPoolBuilder::new()
@@ -246,8 +256,10 @@ fn sweep_cmd(a: SweepArgs) -> Result<()> {
         pb.set_draw_target(ProgressDrawTarget::hidden());
     }
     pb.set_style(
-        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} trials ({per_sec}, eta {eta})")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} trials ({per_sec}, eta {eta})",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     eprintln!(
         "sweep: {} mode, {} grid cells × {} trials × {} methods, {} threads, seed {}",
@@ -259,23 +271,34 @@ fn sweep_cmd(a: SweepArgs) -> Result<()> {
         config.seed
     );
     let t0 = Instant::now();
+    let cpu0 = process_cpu_seconds();
     let result = pool.install(|| sweep::run_sweep(&config, &cells, &pb))?;
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
-    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+    let cpu = process_cpu_seconds().zip(cpu0).map(|(a, b)| a - b);
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create {}", a.out.display()))?;
     let trials_path = a.out.join("trials.csv");
-    let f = std::fs::File::create(&trials_path).with_context(|| format!("cannot write {}", trials_path.display()))?;
+    let f = std::fs::File::create(&trials_path)
+        .with_context(|| format!("cannot write {}", trials_path.display()))?;
     let mut w = BufWriter::new(f);
     sweep::write_trials_csv(&result, &mut w)?;
     w.flush()?;
     let summary_path = a.out.join("summary.csv");
-    let mut w = BufWriter::new(std::fs::File::create(&summary_path).with_context(|| format!("cannot write {}", summary_path.display()))?);
+    let mut w = BufWriter::new(
+        std::fs::File::create(&summary_path)
+            .with_context(|| format!("cannot write {}", summary_path.display()))?,
+    );
     sweep::write_summary_csv(&sweep::summarize_cells(&result), &mut w)?;
     w.flush()?;
     let plots = sim_cell::plot::write_sweep_plots(&result, &a.out)?;
     let pooled = sweep::summarize_pooled(&result);
+    let per_cpu = cpu
+        .filter(|c| *c > 0.0)
+        .map(|c| format!(", {:.0} per CPU-second", total as f64 / c))
+        .unwrap_or_default();
     println!(
-        "{} trials in {:.2} s ({:.0} trials/s). Pooled over noise, spread and points; median and p95 with 95 % CI:",
+        "{} trials in {:.2} s ({:.0} trials/s{per_cpu}). Pooled over noise, spread and points; median and p95 with 95 % CI:",
         total,
         secs,
         total as f64 / secs.max(1e-9)
@@ -287,4 +310,15 @@ fn sweep_cmd(a: SweepArgs) -> Result<()> {
         println!("wrote {}", p.display());
     }
     Ok(())
+}
+
+/// User + system CPU time of this process, s (Linux `/proc/self/stat`, 100 Hz ticks); None elsewhere.
+fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    // After the command: state is field 3, utime 14, stime 15 (1-based over the whole line).
+    let utime: f64 = f.get(11)?.parse().ok()?;
+    let stime: f64 = f.get(12)?.parse().ok()?;
+    Some((utime + stime) / 100.0)
 }

@@ -43,9 +43,12 @@
 //! The signed error of the generic estimate is `y = (T_est − T_true [mm], log(R_est·R_trueᵀ) [mrad])`
 //! in b1 axes (all six components for floor–wall; translation and yaw for the other two cells). The
 //! baseline model is `y ~ N(0, σ²·Σ_cell)` with `Σ_cell` the simulated covariance at σ = 1 mm.
-//! Candidate extended models add a mean `J·β` (exact, layout-independent effects of a physical cause
-//! on the estimate, see [`Candidate`]) and/or change the covariance (anisotropic alignment noise,
-//! one σ per cell). Each is fitted by maximum likelihood (generalised least squares for β, closed
+//! Candidate extended models ([`Candidate`]) add a mean `J·β` (exact, layout-independent effects of
+//! a physical cause on the estimate: a tip length error along the approach axis, a contact bias per
+//! cell, robot 1's or robot 2's joint-1 offset) and/or change the covariance (anisotropic alignment
+//! noise, one σ per cell, a wider or narrower layout on [`SPREAD_GRID_M`], a contact offset constant
+//! within an experiment). A mount tilt is not a free candidate: the CMM truth already carries it
+//! (floor–wall θ = 89.874°), and the simulated constrained method inherits it. Each is fitted by maximum likelihood (generalised least squares for β, closed
 //! form for σ², golden section for the anisotropy), and scored by the likelihood ratio against the
 //! baseline, AIC, and leave-one-experiment-out held-out log-likelihood (refit on the other 14
 //! experiments — 4 of the held-out one's cell — and score the held-out one). Forward selection
@@ -87,6 +90,11 @@ pub const CHI2_1_95: f64 = 3.841_458_820_694_124;
 pub const SIGMA_RANGE_MM: [f64; 2] = [0.05, 50.0];
 /// Search range of the anisotropy factor (σ along the approach axis / σ across it).
 pub const ANISOTROPY_RANGE: [f64; 2] = [0.1, 10.0];
+/// Tetrahedron edges tried by the `layout_spread` candidate, m (the paper asks for ≥ 1 m; the
+/// baseline uses [`PAPER_SPREAD_M`], index [`SPREAD_BASE`]).
+pub const SPREAD_GRID_M: [f64; 6] = [0.8, 1.0, 1.25, 1.5, 1.75, 2.0];
+/// Index of [`PAPER_SPREAD_M`] in [`SPREAD_GRID_M`].
+pub const SPREAD_BASE: usize = 1;
 /// Lower and upper quantile of the simulated band.
 pub const BAND: [f64; 2] = [0.05, 0.95];
 
@@ -319,6 +327,9 @@ pub struct PlantedEffects {
     pub r2_joint1_deg: f64,
     /// σ along the approach axis divided by σ across it (1 = isotropic).
     pub anisotropy: f64,
+    /// Standard deviation of a contact offset common to an experiment's points, random between
+    /// experiments, mm per axis (0 = none).
+    pub contact_offset_sd_mm: f64,
 }
 
 impl Default for PlantedEffects {
@@ -328,6 +339,7 @@ impl Default for PlantedEffects {
             r1_joint1_deg: 0.0,
             r2_joint1_deg: 0.0,
             anisotropy: 1.0,
+            contact_offset_sd_mm: 0.0,
         }
     }
 }
@@ -360,17 +372,13 @@ struct Draw {
     p_b1: [Point3<f64>; PAPER_POINTS],
     p_b2: [Point3<f64>; PAPER_POINTS],
     noise: [Vector3<f64>; PAPER_POINTS],
+    /// Unit-normal draw of the experiment's common contact offset.
+    offset: Vector3<f64>,
 }
 
-fn draw(ctx: &CellContext, rng: &mut impl Rng) -> Draw {
+fn draw(ctx: &CellContext, spread_m: f64, rng: &mut impl Rng) -> Draw {
     let mut p_b1 = [Point3::origin(); PAPER_POINTS];
-    teach_points_into(
-        Layout::Tetrahedron,
-        PAPER_SPREAD_M,
-        &ctx.centre,
-        rng,
-        &mut p_b1,
-    );
+    teach_points_into(Layout::Tetrahedron, spread_m, &ctx.centre, rng, &mut p_b1);
     let b2_from_b1 = ctx.truth.inverse();
     let p_b2 = p_b1.map(|p| b2_from_b1 * p);
     let mut noise = [Vector3::zeros(); PAPER_POINTS];
@@ -381,7 +389,17 @@ fn draw(ctx: &CellContext, rng: &mut impl Rng) -> Draw {
             rng.sample(StandardNormal),
         );
     }
-    Draw { p_b1, p_b2, noise }
+    let offset = Vector3::new(
+        rng.sample(StandardNormal),
+        rng.sample(StandardNormal),
+        rng.sample(StandardNormal),
+    );
+    Draw {
+        p_b1,
+        p_b2,
+        noise,
+        offset,
+    }
 }
 
 /// The reported points of a draw with noise `σ_across·(n_perp + k·n_along)` (mm) and planted effects.
@@ -406,7 +424,9 @@ fn reported(
             Some(true) => along,
             Some(false) => perp,
         };
-        let contact = d.p_b1[i].coords - a * (plant.tip_mm / MM_PER_M) + e * (sigma_mm / MM_PER_M);
+        let contact = d.p_b1[i].coords - a * (plant.tip_mm / MM_PER_M)
+            + d.offset * (plant.contact_offset_sd_mm / MM_PER_M)
+            + e * (sigma_mm / MM_PER_M);
         p1[i] = Point3::from(r1 * contact);
         p2[i] = r2 * d.p_b2[i];
     }
@@ -432,7 +452,7 @@ fn simulate_experiment(
     plant: &PlantedEffects,
     rng: &mut impl Rng,
 ) -> Option<[Isometry3<f64>; 2]> {
-    let d = draw(ctx, rng);
+    let d = draw(ctx, PAPER_SPREAD_M, rng);
     let (p1, p2) = reported(ctx, &d, sigma_mm, None, plant);
     fit_both(ctx, &p1, &p2)
 }
@@ -511,6 +531,39 @@ struct CellSim {
     cov_perp: Matrix6<f64>,
     /// Same from the noise along the approach axis.
     cov_along: Matrix6<f64>,
+    /// `(cov_perp, cov_along)` for each tetrahedron edge of [`SPREAD_GRID_M`].
+    spread_covs: Vec<(Matrix6<f64>, Matrix6<f64>)>,
+}
+
+/// Covariances (across, along the approach axis) of the generic signed error at σ = 1 mm for a
+/// tetrahedron of edge `spread_m`.
+fn generic_covariances(
+    ctx: &CellContext,
+    seed: u64,
+    trials: usize,
+    spread_m: f64,
+    stream: u64,
+) -> (Matrix6<f64>, Matrix6<f64>) {
+    let none = PlantedEffects::default();
+    let outs: Vec<Option<([f64; 9], [f64; 9])>> = (0..trials)
+        .into_par_iter()
+        .map(|t| {
+            let mut rng = trial_rng(seed, stream + t as u64);
+            let d = draw(ctx, spread_m, &mut rng);
+            let comp = |sigma: f64, part: Option<bool>| -> Option<[f64; 9]> {
+                let (p1, p2) = reported(ctx, &d, sigma, part, &none);
+                let est = generic_fast(&p1, &p2, false)?;
+                Some(components(ctx.cell, &ctx.truth, &est))
+            };
+            let c0 = comp(0.0, None)?;
+            Some((
+                sub9(&comp(1.0, Some(false))?, &c0),
+                sub9(&comp(1.0, Some(true))?, &c0),
+            ))
+        })
+        .collect();
+    let (p, a): (Vec<[f64; 9]>, Vec<[f64; 9]>) = outs.into_iter().flatten().unzip();
+    (cov6(&p), cov6(&a))
 }
 
 fn sub9(a: &[f64; 9], b: &[f64; 9]) -> [f64; 9] {
@@ -541,7 +594,7 @@ impl CellSim {
             .into_par_iter()
             .map(|t| {
                 let mut rng = trial_rng(seed, stream + t as u64);
-                let d = draw(&ctx, &mut rng);
+                let d = draw(&ctx, PAPER_SPREAD_M, &mut rng);
                 let comp = |sigma: f64, part: Option<bool>| -> Option<[[f64; 9]; 2]> {
                     let (p1, p2) = reported(&ctx, &d, sigma, part, &none);
                     let est = fit_both(&ctx, &p1, &p2)?;
@@ -571,12 +624,25 @@ impl CellSim {
             perp.push(p);
             along.push(a);
         }
+        let (cov_perp, cov_along) = (cov6(&perp), cov6(&along));
+        let spread_covs = SPREAD_GRID_M
+            .iter()
+            .enumerate()
+            .map(|(g, &edge)| {
+                if g == SPREAD_BASE {
+                    (cov_perp, cov_along)
+                } else {
+                    generic_covariances(&ctx, seed, trials, edge, stream + ((g as u64 + 1) << 32))
+                }
+            })
+            .collect();
         CellSim {
             ctx,
             bias,
             slope,
-            cov_perp: cov6(&perp),
-            cov_along: cov6(&along),
+            cov_perp,
+            cov_along,
+            spread_covs,
         }
     }
 
@@ -1329,11 +1395,19 @@ pub enum Candidate {
     AnisotropicNoise,
     /// One noise σ per cell (2 extra parameters).
     SigmaPerCell,
+    /// The teach points spread wider (or narrower) than the assumed 1 m tetrahedron: the edge is
+    /// fitted on [`SPREAD_GRID_M`]. A wider layout shrinks the rotation errors, not the translation
+    /// errors, like anisotropic noise does, so the two compete for the same signature.
+    LayoutSpread,
+    /// A contact (TCP) offset constant over an experiment's 4 points and random between experiments,
+    /// N(0, τ²·I) mm: it moves the translation, not the rotation (e.g. a pin re-seated or the TCP
+    /// re-taught between experiments). One parameter τ.
+    ContactOffsetPerExperiment,
 }
 
 impl Candidate {
     /// All candidates, in report order.
-    pub const ALL: [Candidate; 7] = [
+    pub const ALL: [Candidate; 9] = [
         Candidate::TipOffset,
         Candidate::ContactBiasPerCell,
         Candidate::R1Joint1Offset,
@@ -1341,6 +1415,8 @@ impl Candidate {
         Candidate::R2Joint1PerCell,
         Candidate::AnisotropicNoise,
         Candidate::SigmaPerCell,
+        Candidate::LayoutSpread,
+        Candidate::ContactOffsetPerExperiment,
     ];
 
     /// The name used in reports and JSON.
@@ -1353,6 +1429,8 @@ impl Candidate {
             Candidate::R2Joint1PerCell => "r2_joint1_offset_per_cell",
             Candidate::AnisotropicNoise => "anisotropic_noise",
             Candidate::SigmaPerCell => "sigma_per_cell",
+            Candidate::LayoutSpread => "layout_spread",
+            Candidate::ContactOffsetPerExperiment => "contact_offset_per_experiment",
         }
     }
 
@@ -1376,6 +1454,12 @@ impl Candidate {
                 "alignment noise larger (or smaller) along the approach axis"
             }
             Candidate::SigmaPerCell => "a different noise level per cell",
+            Candidate::LayoutSpread => {
+                "teach points spread wider or narrower than a 1 m tetrahedron"
+            }
+            Candidate::ContactOffsetPerExperiment => {
+                "contact/TCP offset constant within an experiment, random between experiments"
+            }
         }
     }
 
@@ -1391,6 +1475,8 @@ impl Candidate {
             Candidate::R2Joint1Offset | Candidate::R2Joint1PerCell => 2,
             Candidate::AnisotropicNoise => 3,
             Candidate::SigmaPerCell => 4,
+            Candidate::LayoutSpread => 5,
+            Candidate::ContactOffsetPerExperiment => 6,
         }
     }
 }
@@ -1405,6 +1491,8 @@ struct Obs {
     approach: Vector3<f64>,
     cov_perp: DMatrix<f64>,
     cov_along: DMatrix<f64>,
+    /// `(cov_perp, cov_along)` per tetrahedron edge of [`SPREAD_GRID_M`].
+    covs: Vec<(DMatrix<f64>, DMatrix<f64>)>,
     /// Per candidate (in [`Candidate::ALL`] order): parameter names (qualified, unit, report scale)
     /// and mean columns per unit parameter (6 rows: Δ mm, ω mrad).
     columns: Vec<ParamColumns>,
@@ -1429,6 +1517,11 @@ fn observations(exps: &[Experiment], sims: &[CellSim]) -> Vec<Obs> {
                 approach: sim.ctx.approach,
                 cov_perp: restrict(&sim.cov_perp, dims),
                 cov_along: restrict(&sim.cov_along, dims),
+                covs: sim
+                    .spread_covs
+                    .iter()
+                    .map(|(p, a)| (restrict(p, dims), restrict(a, dims)))
+                    .collect(),
                 columns: Vec::new(),
             };
             o.columns = Candidate::ALL
@@ -1525,7 +1618,10 @@ fn columns(c: Candidate, o: &Obs) -> Vec<(String, &'static str, f64, Vector6<f64
                 )
             })
             .collect(),
-        Candidate::AnisotropicNoise | Candidate::SigmaPerCell => Vec::new(),
+        Candidate::AnisotropicNoise
+        | Candidate::SigmaPerCell
+        | Candidate::LayoutSpread
+        | Candidate::ContactOffsetPerExperiment => Vec::new(),
     }
 }
 
@@ -1536,15 +1632,15 @@ struct ModelFit {
     beta_se: Vec<f64>,
     names: Vec<(String, &'static str, f64)>,
     sigma2: [f64; 3],
-    k: f64,
+    shape: Shape,
     loglik: f64,
     n_params: usize,
 }
 
 /// Gaussian log-density of each observation under a fitted model.
-fn obs_loglik(o: &Obs, mean: &DVector<f64>, sigma2: f64, k: f64) -> f64 {
+fn obs_loglik(o: &Obs, mean: &DVector<f64>, sigma2: f64, shape: Shape) -> f64 {
     let d = o.y.len();
-    let cov = (&o.cov_perp + &o.cov_along * (k * k)) * sigma2;
+    let cov = shape_cov(o, shape) * sigma2;
     let Some(ch) = cov.cholesky() else {
         return f64::NEG_INFINITY;
     };
@@ -1567,12 +1663,40 @@ fn design(cands: &[Candidate], o: &Obs) -> (DMatrix<f64>, Vec<(String, &'static 
     (j, names)
 }
 
-fn fit_fixed_k(cands: &[Candidate], data: &[&Obs], k: f64) -> Option<ModelFit> {
+/// Covariance shape of the signed error per σ² (mm², mrad²): anisotropy `k`, per-experiment
+/// contact offset `rho` (τ/σ) and layout index `g` into [`SPREAD_GRID_M`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Shape {
+    k: f64,
+    rho: f64,
+    g: usize,
+}
+
+impl Shape {
+    const BASE: Shape = Shape {
+        k: 1.0,
+        rho: 0.0,
+        g: SPREAD_BASE,
+    };
+}
+
+/// `Σp + k²·Σa + ρ²·I_translation` of one observation.
+fn shape_cov(o: &Obs, shape: Shape) -> DMatrix<f64> {
+    let (cov_perp, cov_along) = &o.covs[shape.g];
+    let mut cov = cov_perp + cov_along * (shape.k * shape.k);
+    // The first three observed components are the translation (mm) in every cell.
+    for i in 0..3 {
+        cov[(i, i)] += shape.rho * shape.rho;
+    }
+    cov
+}
+
+fn fit_fixed_k(cands: &[Candidate], data: &[&Obs], shape: Shape) -> Option<ModelFit> {
     let per_cell = cands.contains(&Candidate::SigmaPerCell);
     let designs: Vec<(DMatrix<f64>, DMatrix<f64>)> = data
         .iter()
         .map(|o| {
-            let cov = &o.cov_perp + &o.cov_along * (k * k);
+            let cov = shape_cov(o, shape);
             let inv = cov
                 .clone()
                 .try_inverse()
@@ -1639,7 +1763,7 @@ fn fit_fixed_k(cands: &[Candidate], data: &[&Obs], k: f64) -> Option<ModelFit> {
     let loglik = designs
         .iter()
         .zip(data)
-        .map(|((j, _), o)| obs_loglik(o, &(j * &beta), sigma2[o.cell.index()], k))
+        .map(|((j, _), o)| obs_loglik(o, &(j * &beta), sigma2[o.cell.index()], shape))
         .sum();
     let cells_present = PaperCell::ALL
         .iter()
@@ -1647,37 +1771,87 @@ fn fit_fixed_k(cands: &[Candidate], data: &[&Obs], k: f64) -> Option<ModelFit> {
         .count();
     let n_params = informed.iter().filter(|x| **x).count()
         + if per_cell { cells_present } else { 1 }
-        + cands.contains(&Candidate::AnisotropicNoise) as usize;
+        + cands.contains(&Candidate::AnisotropicNoise) as usize
+        + cands.contains(&Candidate::LayoutSpread) as usize
+        + cands.contains(&Candidate::ContactOffsetPerExperiment) as usize;
     Some(ModelFit {
         beta: beta.iter().copied().collect(),
         beta_se: (0..p).map(|i| cov_beta[(i, i)].max(0.0).sqrt()).collect(),
         names,
         sigma2,
-        k,
+        shape,
         loglik,
         n_params,
     })
 }
 
 fn fit_model(cands: &[Candidate], data: &[&Obs]) -> Option<ModelFit> {
-    if cands.contains(&Candidate::AnisotropicNoise) {
-        let f = |lk: f64| {
-            fit_fixed_k(cands, data, lk.exp())
-                .map(|m| m.loglik)
-                .unwrap_or(f64::NEG_INFINITY)
-        };
-        let (lo, hi) = (ANISOTROPY_RANGE[0].ln(), ANISOTROPY_RANGE[1].ln());
-        let steps = 24;
-        let best = (0..=steps)
-            .map(|i| lo + (hi - lo) * i as f64 / steps as f64)
-            .map(|s| (s, f(s)))
-            .max_by(|a, b| a.1.total_cmp(&b.1))?;
-        let w = (hi - lo) / steps as f64;
-        let (lk, _) = golden_max(&f, (best.0 - w).max(lo), (best.0 + w).min(hi), 40);
-        fit_fixed_k(cands, data, lk.exp())
+    if cands.contains(&Candidate::LayoutSpread) {
+        (0..SPREAD_GRID_M.len())
+            .filter_map(|g| fit_model_at(cands, data, g))
+            .max_by(|a, b| a.loglik.total_cmp(&b.loglik))
     } else {
-        fit_fixed_k(cands, data, 1.0)
+        fit_model_at(cands, data, SPREAD_BASE)
     }
+}
+
+/// Maximiser of `f` over `ln x ∈ [lo, hi]` (grid then golden section), as `x`.
+fn search_log(f: &impl Fn(f64) -> f64, lo: f64, hi: f64) -> f64 {
+    let (lo, hi) = (lo.ln(), hi.ln());
+    let steps = 16;
+    let best = (0..=steps)
+        .map(|i| lo + (hi - lo) * i as f64 / steps as f64)
+        .map(|s| (s, f(s.exp())))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|b| b.0)
+        .unwrap_or(0.0);
+    let w = (hi - lo) / steps as f64;
+    let (s, _) = golden_max(
+        &|s: f64| f(s.exp()),
+        (best - w).max(lo),
+        (best + w).min(hi),
+        30,
+    );
+    s.exp()
+}
+
+/// Range of ρ = τ/σ searched by the per-experiment contact offset (0 is tried too).
+const RHO_RANGE: [f64; 2] = [0.05, 20.0];
+
+/// [`fit_model`] at the tetrahedron edge `SPREAD_GRID_M[g]`: the noise-shape parameters (k, ρ)
+/// by 1-D searches, alternated when both are present.
+fn fit_model_at(cands: &[Candidate], data: &[&Obs], g: usize) -> Option<ModelFit> {
+    let aniso = cands.contains(&Candidate::AnisotropicNoise);
+    let offset = cands.contains(&Candidate::ContactOffsetPerExperiment);
+    let mut shape = Shape { g, ..Shape::BASE };
+    let ll = |sh: Shape| {
+        fit_fixed_k(cands, data, sh)
+            .map(|m| m.loglik)
+            .unwrap_or(f64::NEG_INFINITY)
+    };
+    let rounds = if aniso && offset { 3 } else { 1 };
+    for _ in 0..rounds {
+        if offset {
+            let r = search_log(
+                &|rho| ll(Shape { rho, ..shape }),
+                RHO_RANGE[0],
+                RHO_RANGE[1],
+            );
+            shape.rho = if ll(Shape { rho: r, ..shape }) >= ll(Shape { rho: 0.0, ..shape }) {
+                r
+            } else {
+                0.0
+            };
+        }
+        if aniso {
+            shape.k = search_log(
+                &|k| ll(Shape { k, ..shape }),
+                ANISOTROPY_RANGE[0],
+                ANISOTROPY_RANGE[1],
+            );
+        }
+    }
+    fit_fixed_k(cands, data, shape)
 }
 
 fn mean_of(cands: &[Candidate], o: &Obs, beta: &[f64]) -> DVector<f64> {
@@ -1706,7 +1880,7 @@ fn heldout(cands: &[Candidate], data: &[Obs]) -> f64 {
                         o,
                         &mean_of(cands, o, &m.beta),
                         m.sigma2[o.cell.index()],
-                        m.k,
+                        m.shape,
                     )
                 }
                 None => f64::NEG_INFINITY,
@@ -1790,13 +1964,20 @@ fn candidate_result(
     if cands.contains(&Candidate::AnisotropicNoise) {
         // Profile interval of k.
         let f = |lk: f64| {
-            fit_fixed_k(cands, &refs, lk.exp())
-                .map(|x| x.loglik)
-                .unwrap_or(f64::NEG_INFINITY)
+            fit_fixed_k(
+                cands,
+                &refs,
+                Shape {
+                    k: lk.exp(),
+                    ..m.shape
+                },
+            )
+            .map(|x| x.loglik)
+            .unwrap_or(f64::NEG_INFINITY)
         };
         let target = m.loglik - 0.5 * CHI2_1_95;
         let cross = |outer: f64| -> f64 {
-            let inner = m.k.ln();
+            let inner = m.shape.k.ln();
             if f(outer) >= target {
                 return outer.exp();
             }
@@ -1813,11 +1994,67 @@ fn candidate_result(
         };
         params.push(ParamEstimate {
             name: "anisotropic_noise.k".into(),
-            value: m.k,
+            value: m.shape.k,
             unit: "ratio".into(),
             ci95: [
                 cross(ANISOTROPY_RANGE[0].ln()),
                 cross(ANISOTROPY_RANGE[1].ln()),
+            ],
+        });
+    }
+    if cands.contains(&Candidate::ContactOffsetPerExperiment) {
+        // τ = ρ·σ; its interval from the profile of ρ (σ re-fitted at each ρ).
+        let f = |rho: f64| {
+            fit_fixed_k(cands, &refs, Shape { rho, ..m.shape })
+                .map(|x| (x.loglik, x.sigma2[0].sqrt()))
+        };
+        let target = m.loglik - 0.5 * CHI2_1_95;
+        let tau = |rho: f64| f(rho).map(|x| rho * x.1).unwrap_or(f64::NAN);
+        let above = |rho: f64| f(rho).map(|x| x.0 >= target).unwrap_or(false);
+        let cross = |outer: f64| -> f64 {
+            if above(outer) {
+                return tau(outer);
+            }
+            let (mut i, mut o) = (m.shape.rho, outer);
+            for _ in 0..30 {
+                let mid = 0.5 * (i + o);
+                if above(mid) {
+                    i = mid;
+                } else {
+                    o = mid;
+                }
+            }
+            tau(0.5 * (i + o))
+        };
+        params.push(ParamEstimate {
+            name: "contact_offset_per_experiment.tau".into(),
+            value: tau(m.shape.rho),
+            unit: "mm".into(),
+            ci95: [cross(0.0), cross(RHO_RANGE[1])],
+        });
+    }
+    if cands.contains(&Candidate::LayoutSpread) {
+        // Profile over the grid: the edges whose best log-likelihood is within χ²(1)/2 of the top.
+        let prof: Vec<f64> = (0..SPREAD_GRID_M.len())
+            .map(|g| {
+                fit_model_at(cands, &refs, g)
+                    .map(|x| x.loglik)
+                    .unwrap_or(f64::NEG_INFINITY)
+            })
+            .collect();
+        let inside: Vec<f64> = SPREAD_GRID_M
+            .iter()
+            .zip(&prof)
+            .filter(|(_, l)| **l >= m.loglik - 0.5 * CHI2_1_95)
+            .map(|(e, _)| *e)
+            .collect();
+        params.push(ParamEstimate {
+            name: "layout_spread.edge".into(),
+            value: SPREAD_GRID_M[m.shape.g],
+            unit: "m".into(),
+            ci95: [
+                inside.first().copied().unwrap_or(f64::NAN),
+                inside.last().copied().unwrap_or(f64::NAN),
             ],
         });
     }
@@ -2024,7 +2261,7 @@ pub fn diagnose_experiments(
             .collect::<Vec<_>>()
             .join(" + ")
     };
-    let conclusions = conclusions(&study, &cells, &selected, &cause);
+    let conclusions = conclusions(&study, &cells, &selected, baseline.aic, &cause);
     Ok(PaperDiagnosis {
         study,
         signed,
@@ -2131,6 +2368,7 @@ fn conclusions(
     study: &PaperStudy,
     cells: &[CellFinding],
     selected: &CandidateResult,
+    baseline_aic: f64,
     cause: &str,
 ) -> Vec<String> {
     let mut out = Vec::new();
@@ -2187,12 +2425,76 @@ fn conclusions(
             ));
         }
     }
+    // Interpret the selected candidates physically.
+    for name in &selected.candidates {
+        let p = |n: &str| selected.params.iter().find(|p| p.name.starts_with(n));
+        let line = match name.as_str() {
+            "anisotropic_noise" => p("anisotropic_noise.k").map(|k| {
+                let dir = if k.value < 1.0 { "smaller" } else { "larger" };
+                format!(
+                    "anisotropic_noise: the alignment error along the approach axis is {dir} than across it (k = {:.2} [{:.2}, {:.2}]); {}",
+                    k.value,
+                    k.ci95[0],
+                    k.ci95[1],
+                    if k.value < 1.0 {
+                        "touching tips fix the gap along the axis, the operator's error is lateral, so the estimates' rotation errors are smaller relative to their translation errors than isotropic noise gives"
+                    } else {
+                        "the tips' contact along the axis is the poorly judged direction"
+                    }
+                )
+            }),
+            "layout_spread" => p("layout_spread.edge").map(|e| {
+                format!(
+                    "layout_spread: the teach points are better explained by a {:.2} m tetrahedron (grid interval [{:.2}, {:.2}] m) than by the assumed {PAPER_SPREAD_M} m{}",
+                    e.value,
+                    e.ci95[0],
+                    e.ci95[1],
+                    if e.value >= SPREAD_GRID_M[SPREAD_GRID_M.len() - 1] {
+                        " (at the largest edge tried: the robots' reach allows little more, so it partly stands in for another rotation-shrinking effect)"
+                    } else {
+                        ""
+                    }
+                )
+            }),
+            other => Some(format!(
+                "{other}: {}",
+                selected
+                    .params
+                    .iter()
+                    .filter(|q| q.name.starts_with(other))
+                    .map(|q| format!("{} = {:.3} {} [{:.3}, {:.3}]", q.name, q.value, q.unit, q.ci95[0], q.ci95[1]))
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            )),
+        };
+        out.extend(line);
+    }
+    let mean_selected = selected.candidates.iter().any(|c| {
+        matches!(
+            c.as_str(),
+            "tip_offset"
+                | "contact_bias_per_cell"
+                | "r1_joint1_offset"
+                | "r2_joint1_offset"
+                | "r2_joint1_offset_per_cell"
+        )
+    });
+    for c in cells.iter().filter(|c| c.mean_p_value < ALPHA) {
+        if !mean_selected {
+            out.push(format!(
+                "{}: its shared direction is significant under isotropic noise (p = {:.1e}) but no bias candidate passes the corrected selection once the noise shape is extended: a systematic error there (e.g. robot 2's joint-1 offset on the wall) is possible but not established by 5 experiments.",
+                c.cell.label(),
+                c.mean_p_value
+            ));
+        }
+    }
     if cause == "none significant" {
         out.push("No candidate improves on isotropic noise significantly (Bonferroni-corrected LR test, AIC and held-out prediction): the published errors are consistent with noise alone at this sample size.".into());
     } else {
         out.push(format!(
-            "Named cause: {cause} (LR = {:.1}, df {}, p = {:.2e}; ΔAIC vs baseline recorded; held-out log-likelihood gain {:+.1} over 15 leave-one-out predictions).",
-            selected.lr_statistic, selected.lr_df, selected.lr_p_value, selected.heldout_gain
+            "Named cause: {cause} (LR = {:.1}, df {}, p = {:.2e}; ΔAIC = {:+.1} vs the baseline; held-out log-likelihood gain {:+.1} over the leave-one-experiment-out predictions).",
+            selected.lr_statistic, selected.lr_df, selected.lr_p_value,
+            selected.aic - baseline_aic, selected.heldout_gain
         ));
         out.push("Table 1 holds no raw points: a named cause is the best of the candidates tried, consistent with the signed errors; other effects with the same signature (e.g. a CMM-frame or base-marker error) cannot be excluded from these data.".into());
     }
@@ -2327,13 +2629,16 @@ mod tests {
     /// The linear-scaling claim: per trial, `bias + σ·slope` from the σ = 1 mm simulation equals a
     /// direct simulation at σ = 3 mm with the same random numbers, for both methods and all cells
     /// (including the floor–wall constrained method, whose bias is the truth's 0.126° off-family
-    /// tilt). The neglected second-order term is about (σ / spread)·error ≈ 0.3 % of the error at
-    /// 3 mm over 1 m, so the tolerance is 2 % of the error plus 1e-6 (mm or degrees) for round-off.
+    /// tilt). The neglected second-order term is absolute, of order σ²/spread in translation
+    /// (9e-3 mm at 3 mm over 1 m) and (σ/spread)² rad in rotation (5e-4°), so the tolerance is twice
+    /// that plus 1 % of the error (the first-order slope is itself estimated at σ = 1 mm).
     #[test]
     fn errors_scale_linearly_with_sigma() {
-        const LINEAR_REL_TOL: f64 = 0.02;
-        const ABS_TOL: f64 = 1e-6;
-        let sigma = 3.0;
+        const LINEAR_REL_TOL: f64 = 0.01;
+        let sigma: f64 = 3.0;
+        let second_order_mm = 2.0 * sigma * sigma / (PAPER_SPREAD_M * MM_PER_M);
+        let second_order_deg =
+            2.0 * (sigma / (PAPER_SPREAD_M * MM_PER_M)).powi(2) * 180.0 / std::f64::consts::PI;
         let truths = table1_truths().unwrap();
         let seed = 99;
         let trials = 200;
@@ -2347,24 +2652,24 @@ mod tests {
                 let scaled = sim.errors_at(method, sigma);
                 for (t, &(st, sr)) in scaled.iter().enumerate() {
                     let mut rng = trial_rng(seed, stream + t as u64);
-                    let d = draw(&ctx, &mut rng);
+                    let d = draw(&ctx, PAPER_SPREAD_M, &mut rng);
                     let (p1, p2) = reported(&ctx, &d, sigma, None, &PlantedEffects::default());
                     let est = fit_both(&ctx, &p1, &p2).unwrap();
                     let (dt, dr) = paper_errors(cell, &ctx.truth, &est[method.index()]);
                     assert!(
-                        (dt - st).abs() <= LINEAR_REL_TOL * dt + ABS_TOL,
+                        (dt - st).abs() <= LINEAR_REL_TOL * dt + second_order_mm,
                         "{cell:?} {method:?} trial {t}: e_tran {dt} vs scaled {st}"
                     );
                     assert!(
-                        (dr - sr).abs() <= LINEAR_REL_TOL * dr + ABS_TOL,
+                        (dr - sr).abs() <= LINEAR_REL_TOL * dr + second_order_deg,
                         "{cell:?} {method:?} trial {t}: e_rot {dr} vs scaled {sr}"
                     );
                     worst = worst.max((dt - st).abs() / dt).max((dr - sr).abs() / dr);
                 }
             }
         }
-        // Not vacuous: the worst relative deviation is small but non-zero (nonlinearity exists).
-        assert!(worst > 0.0 && worst < LINEAR_REL_TOL, "worst {worst}");
+        // Not vacuous: the deviation exists (nonlinearity) but is small.
+        assert!(worst > 0.0, "worst {worst}");
     }
 
     /// The isotropic covariance splits into across + along the approach axis (linear regime): the
@@ -2396,12 +2701,12 @@ mod tests {
             for m in 0..2 {
                 let (t, r) = paper_errors(e.cell, &e.b1_from_b2_true, &e.estimate[m]);
                 assert!(
-                    (t - e.e_tran_mm[m]).abs() < E_TRAN_TOL_MM,
+                    (t - e.e_tran_mm[m]).abs() <= E_TRAN_TOL_MM + 1e-9, // 1e-9: round-off of decimals sitting on the tolerance
                     "exp {} m{m}: {t}",
                     e.number
                 );
                 assert!(
-                    (r - e.e_rot_deg[m]).abs() < E_ROT_TOL_DEG,
+                    (r - e.e_rot_deg[m]).abs() <= E_ROT_TOL_DEG + 1e-9,
                     "exp {} m{m}: {r}",
                     e.number
                 );

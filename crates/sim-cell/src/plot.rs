@@ -40,7 +40,10 @@ pub struct Panel<'a> {
     pub series: &'a [Series],
 }
 
-fn draw_panel<DB: DrawingBackend>(area: &DrawingArea<DB, plotters::coord::Shift>, p: &Panel) -> Result<(), String>
+fn draw_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    p: &Panel,
+) -> Result<(), String>
 where
     DB::ErrorType: 'static,
 {
@@ -50,8 +53,12 @@ where
         .flat_map(|s| s.points.iter().copied())
         .filter(|(x, y)| x.is_finite() && y.is_finite() && *y > 0.0)
         .collect();
-    let (mut x0, mut x1) = pts.iter().fold((f64::MAX, f64::MIN), |(a, b), (x, _)| (a.min(*x), b.max(*x)));
-    let (mut y0, mut y1) = pts.iter().fold((f64::MAX, f64::MIN), |(a, b), (_, y)| (a.min(*y), b.max(*y)));
+    let (mut x0, mut x1) = pts.iter().fold((f64::MAX, f64::MIN), |(a, b), (x, _)| {
+        (a.min(*x), b.max(*x))
+    });
+    let (mut y0, mut y1) = pts.iter().fold((f64::MAX, f64::MIN), |(a, b), (_, y)| {
+        (a.min(*y), b.max(*y))
+    });
     if pts.is_empty() {
         (x0, x1, y0, y1) = (0.0, 1.0, 1e-3, 1.0);
     }
@@ -89,7 +96,10 @@ where
             .label(s.name.clone())
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
         chart
-            .draw_series(data.into_iter().map(|(x, y)| Circle::new((x, y), 3, c.filled())))
+            .draw_series(
+                data.into_iter()
+                    .map(|(x, y)| Circle::new((x, y), 3, c.filled())),
+            )
             .map_err(|e| e.to_string())?;
     }
     chart
@@ -107,7 +117,9 @@ pub fn write_panels_svg(path: &Path, title: &str, panels: &[Panel]) -> Result<()
     let root = SVGBackend::new(path, (w, 420)).into_drawing_area();
     let run = || -> Result<(), String> {
         root.fill(&WHITE).map_err(|e| e.to_string())?;
-        let root = root.titled(title, ("sans-serif", 18)).map_err(|e| e.to_string())?;
+        let root = root
+            .titled(title, ("sans-serif", 18))
+            .map_err(|e| e.to_string())?;
         let areas = root.split_evenly((1, panels.len().max(1)));
         for (a, p) in areas.iter().zip(panels) {
             draw_panel(a, p)?;
@@ -144,15 +156,31 @@ fn medians(
             }
             let Some(x) = pick(g) else { continue };
             let trials = ci * c.trials..(ci + 1) * c.trials;
-            let et = sorted_finite(trials.clone().filter_map(|t| result.outcome(t, m).as_ref().ok().map(|e| e.e_tran * 1e3)));
-            let er = sorted_finite(trials.filter_map(|t| result.outcome(t, m).as_ref().ok().map(|e| e.e_rot.to_degrees())));
+            let et = sorted_finite(
+                trials
+                    .clone()
+                    .filter_map(|t| result.outcome(t, m).as_ref().ok().map(|e| e.e_tran * 1e3)),
+            );
+            let er = sorted_finite(trials.filter_map(|t| {
+                result
+                    .outcome(t, m)
+                    .as_ref()
+                    .ok()
+                    .map(|e| e.e_rot.to_degrees())
+            }));
             pt.push((x, quantile(&et, 0.5)));
             pr.push((x, quantile(&er, 0.5)));
         }
         pt.sort_by(|a, b| a.0.total_cmp(&b.0));
         pr.sort_by(|a, b| a.0.total_cmp(&b.0));
-        tran.push(Series { name: method.name().into(), points: pt });
-        rot.push(Series { name: method.name().into(), points: pr });
+        tran.push(Series {
+            name: method.name().into(),
+            points: pt,
+        });
+        rot.push(Series {
+            name: method.name().into(),
+            points: pr,
+        });
     }
     (tran, rot)
 }
@@ -189,8 +217,18 @@ pub fn write_sweep_plots(result: &SweepResult, dir: &Path) -> Result<Vec<PathBuf
             &path,
             &title,
             &[
-                Panel { title: "e_tran (eq 34)", x_label: "spread, mm", y_label: "median e_tran, mm", series: &t },
-                Panel { title: "e_rot (eq 33)", x_label: "spread, mm", y_label: "median e_rot, deg", series: &r },
+                Panel {
+                    title: "e_tran (eq 34)",
+                    x_label: "spread, mm",
+                    y_label: "median e_tran, mm",
+                    series: &t,
+                },
+                Panel {
+                    title: "e_rot (eq 33)",
+                    x_label: "spread, mm",
+                    y_label: "median e_rot, deg",
+                    series: &r,
+                },
             ],
         )?;
         files.push(path);
@@ -210,8 +248,18 @@ pub fn write_sweep_plots(result: &SweepResult, dir: &Path) -> Result<Vec<PathBuf
             &path,
             &title,
             &[
-                Panel { title: "e_tran (eq 34)", x_label: "alignment σ, mm", y_label: "median e_tran, mm", series: &t },
-                Panel { title: "e_rot (eq 33)", x_label: "alignment σ, mm", y_label: "median e_rot, deg", series: &r },
+                Panel {
+                    title: "e_tran (eq 34)",
+                    x_label: "alignment σ, mm",
+                    y_label: "median e_tran, mm",
+                    series: &t,
+                },
+                Panel {
+                    title: "e_rot (eq 33)",
+                    x_label: "alignment σ, mm",
+                    y_label: "median e_rot, deg",
+                    series: &r,
+                },
             ],
         )?;
         files.push(path);

@@ -147,10 +147,7 @@ impl Session {
             message,
         };
         let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
-        let expected = Session {
-            points: vec![],
-        }
-        .to_csv_string(d1, d2);
+        let expected = Session { points: vec![] }.to_csv_string(d1, d2);
         let expected = expected.trim_end();
         let mut lines = text.lines().enumerate();
         let header = lines
@@ -197,12 +194,16 @@ impl Session {
             })?;
             let mut v = Vec::with_capacity(cells.len() - 1);
             for (k, c) in cells.iter().enumerate().skip(1) {
-                let x: f64 = c.parse().ok().filter(|x: &f64| x.is_finite()).ok_or_else(|| {
-                    err(format!(
-                        "line {line_no}, column `{}`: `{c}` is not a finite number",
-                        want[k]
-                    ))
-                })?;
+                let x: f64 = c
+                    .parse()
+                    .ok()
+                    .filter(|x: &f64| x.is_finite())
+                    .ok_or_else(|| {
+                        err(format!(
+                            "line {line_no}, column `{}`: `{c}` is not a finite number",
+                            want[k]
+                        ))
+                    })?;
                 v.push(x);
             }
             let q1: Vec<f64> = v[..d1].iter().map(|x| x.to_radians()).collect();
@@ -211,9 +212,8 @@ impl Session {
             let p_b1 = Point3::new(t[0], t[1], t[2]) * 1e-3;
             let p_b2 = Point3::new(t[3], t[4], t[5]) * 1e-3;
             for (r, robot, q, p) in [(1, &cell.robot1, &q1, &p_b1), (2, &cell.robot2, &q2, &p_b2)] {
-                let fk = base_from_tip(&robot.model, q, &robot.flange_from_tip).map_err(|e| {
-                    err(format!("line {line_no}: robot {r}'s joint columns: {e}"))
-                })?;
+                let fk = base_from_tip(&robot.model, q, &robot.flange_from_tip)
+                    .map_err(|e| err(format!("line {line_no}: robot {r}'s joint columns: {e}")))?;
                 let d_mm = (fk.translation.vector - p.coords).norm() * 1e3;
                 if d_mm > TIP_CONSISTENCY_MM {
                     return Err(err(format!(
@@ -239,10 +239,20 @@ impl Session {
 /// the shoulders, from robot 1's shoulder to the point, then those turned ±30°/±60° about the
 /// vertical and tilted ±30°.
 fn approach_directions(cell: &Cell, p: &Point3<f64>) -> Vec<Unit<Vector3<f64>>> {
-    let s1 = cell.robot1.model.joints().first().map_or(Vector3::zeros(), |j| j.origin_xyz);
-    let s2 = cell.b1_from_b2 * Point3::from(
-        cell.robot2.model.joints().first().map_or(Vector3::zeros(), |j| j.origin_xyz),
-    );
+    let s1 = cell
+        .robot1
+        .model
+        .joints()
+        .first()
+        .map_or(Vector3::zeros(), |j| j.origin_xyz);
+    let s2 = cell.b1_from_b2
+        * Point3::from(
+            cell.robot2
+                .model
+                .joints()
+                .first()
+                .map_or(Vector3::zeros(), |j| j.origin_xyz),
+        );
     let up = -cell.robot1.g_base.normalize();
     let mut base = Vec::new();
     for d in [s2.coords - s1, p.coords - s1] {
@@ -268,7 +278,11 @@ fn approach_directions(cell: &Cell, p: &Point3<f64>) -> Vec<Unit<Vector3<f64>>> 
 /// Reported joints (rad, continuous) that put the TRUE robot's tip at `target` (m, nominal base):
 /// nominal IK with the flange z along `axis`, then Newton steps on the true model
 /// (`∂p/∂q_rep` of the true robot, minimum-norm). `None` if unreachable or outside the limits.
-fn solve_true(robot: &CellRobot, target: &Point3<f64>, axis: Option<Unit<Vector3<f64>>>) -> Option<Vec<f64>> {
+fn solve_true(
+    robot: &CellRobot,
+    target: &Point3<f64>,
+    axis: Option<Unit<Vector3<f64>>>,
+) -> Option<Vec<f64>> {
     let opts = IkOptions {
         tool_axis_base: axis,
         tolerance_m: 1e-9,
@@ -285,12 +299,26 @@ fn solve_true(robot: &CellRobot, target: &Point3<f64>, axis: Option<Unit<Vector3
         return Some(q);
     }
     for _ in 0..TRUE_NEWTON_ITER {
-        let tip = true_base_from_tip(&robot.model, &robot.errors, &q, &robot.flange_from_tip, &robot.g_base).ok()?;
+        let tip = true_base_from_tip(
+            &robot.model,
+            &robot.errors,
+            &q,
+            &robot.flange_from_tip,
+            &robot.g_base,
+        )
+        .ok()?;
         let e = target.coords - tip.translation.vector;
         if e.norm() < TRUE_TIP_TOL_M {
             return Some(q);
         }
-        let j = tip_joint_jacobian_true(&robot.model, &robot.errors, &q, &robot.flange_from_tip, &robot.g_base).ok()?;
+        let j = tip_joint_jacobian_true(
+            &robot.model,
+            &robot.errors,
+            &q,
+            &robot.flange_from_tip,
+            &robot.g_base,
+        )
+        .ok()?;
         let jjt: Matrix3<f64> = &j * j.transpose();
         let y = jjt.try_inverse()? * e;
         let dq = j.transpose() * y;
@@ -331,7 +359,12 @@ type PointFailure = (u8, String);
 /// robot 2's at `p + ε` (alignment); the reported joints put the true tips there up to
 /// repeatability `δ` (unseen by the encoders), quantised to the encoder resolution; the tips are
 /// what the nominal models compute from the reported joints.
-fn simulate_point(cell: &Cell, p: &Point3<f64>, label: usize, rng: &mut impl Rng) -> Result<SessionPoint, PointFailure> {
+fn simulate_point(
+    cell: &Cell,
+    p: &Point3<f64>,
+    label: usize,
+    rng: &mut impl Rng,
+) -> Result<SessionPoint, PointFailure> {
     let eps = gauss3(rng, &cell.noise.alignment_m);
     let rep = Vector3::repeat(cell.noise.repeatability_m);
     let d1 = gauss3(rng, &rep);
@@ -352,8 +385,10 @@ fn simulate_point(cell: &Cell, p: &Point3<f64>, label: usize, rng: &mut impl Rng
         };
         quantise(&cell.robot1, &mut q1, cell.noise.encoder_resolution_rad);
         quantise(&cell.robot2, &mut q2, cell.noise.encoder_resolution_rad);
-        let t1 = base_from_tip(&cell.robot1.model, &q1, &cell.robot1.flange_from_tip).map_err(|e| (1, e.to_string()))?;
-        let t2 = base_from_tip(&cell.robot2.model, &q2, &cell.robot2.flange_from_tip).map_err(|e| (2, e.to_string()))?;
+        let t1 = base_from_tip(&cell.robot1.model, &q1, &cell.robot1.flange_from_tip)
+            .map_err(|e| (1, e.to_string()))?;
+        let t2 = base_from_tip(&cell.robot2.model, &q2, &cell.robot2.flange_from_tip)
+            .map_err(|e| (2, e.to_string()))?;
         return Ok(SessionPoint {
             point: label,
             q1,
@@ -371,7 +406,11 @@ fn simulate_point(cell: &Cell, p: &Point3<f64>, label: usize, rng: &mut impl Rng
 ///
 /// Errors: an invalid spec, or a teach point outside the common workspace (naming the point, the
 /// robot and what would work).
-pub fn generate_session(cell: &Cell, spec: &SessionSpec, rng: &mut impl Rng) -> Result<Session, SimError> {
+pub fn generate_session(
+    cell: &Cell,
+    spec: &SessionSpec,
+    rng: &mut impl Rng,
+) -> Result<Session, SimError> {
     if !(spec.spread_m.is_finite() && spec.spread_m > 0.0) && spec.points_b1.is_none() {
         return Err(SimError::InvalidInput(format!(
             "spread {} mm must be a positive length (e.g. 1000)",
@@ -383,7 +422,10 @@ pub fn generate_session(cell: &Cell, spec: &SessionSpec, rng: &mut impl Rng) -> 
         let mut out = Vec::with_capacity(points.len());
         for (i, p) in points.iter().enumerate() {
             if !p.iter().all(|x| x.is_finite()) {
-                return Err(SimError::InvalidInput(format!("teach point {} is not finite", i + 1)));
+                return Err(SimError::InvalidInput(format!(
+                    "teach point {} is not finite",
+                    i + 1
+                )));
             }
             match simulate_point(cell, p, i + 1, rng) {
                 Ok(sp) => out.push(sp),
@@ -393,7 +435,9 @@ pub fn generate_session(cell: &Cell, spec: &SessionSpec, rng: &mut impl Rng) -> 
         return Ok(Session { points: out });
     }
     if spec.n == 0 {
-        return Err(SimError::InvalidInput("a session needs at least 1 point (4 for every method)".into()));
+        return Err(SimError::InvalidInput(
+            "a session needs at least 1 point (4 for every method)".into(),
+        ));
     }
     let mut last_fail = None;
     'draw: for _ in 0..MAX_LAYOUT_ATTEMPTS {
@@ -414,7 +458,14 @@ pub fn generate_session(cell: &Cell, spec: &SessionSpec, rng: &mut impl Rng) -> 
     Err(unreachable(cell, i, &p, robot, &why, Some(spec)))
 }
 
-fn unreachable(cell: &Cell, point: usize, p: &Point3<f64>, robot: u8, why: &str, spec: Option<&SessionSpec>) -> SimError {
+fn unreachable(
+    cell: &Cell,
+    point: usize,
+    p: &Point3<f64>,
+    robot: u8,
+    why: &str,
+    spec: Option<&SessionSpec>,
+) -> SimError {
     let c = cell.centre_b1 * 1e3;
     let hint = match spec {
         Some(s) => format!(
@@ -426,6 +477,6 @@ fn unreachable(cell: &Cell, point: usize, p: &Point3<f64>, robot: u8, why: &str,
     SimError::Unreachable {
         point,
         p_b1_mm: [p.x * 1e3, p.y * 1e3, p.z * 1e3],
-        message: format!("{why} (robot {robot}: {}); {hint}", cell.robot(robot).model.name()),
+        message: format!("{why} ({}); {hint}", cell.robot(robot).model.name()),
     }
 }

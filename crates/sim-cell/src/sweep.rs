@@ -20,8 +20,9 @@ use crate::session::{generate_session, SessionSpec};
 use crate::stats::{quantile_ci, sorted_finite, QuantileCi};
 use crate::trial_rng;
 use calib_core::{
-    constrained_fast, e_rot, e_tran, wrap_angle, zyz_from_rotation, generic_fast, geodesic_angle, paper_fast,
-    project_rotation_family, rigid_fit_fast, rotation_maximizing_trace, Method, MountPair,
+    constrained_fast, e_rot, e_tran, generic_fast, geodesic_angle, paper_fast,
+    project_rotation_family, rigid_fit_fast, rotation_maximizing_trace, wrap_angle,
+    zyz_from_rotation, Method, MountPair,
 };
 use indicatif::ProgressBar;
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -63,16 +64,24 @@ impl TrialErrors {
     }
 
     /// As [`TrialErrors::between`] with the truth's ZYZ angles (eq 32, rad) given, allocation-free
-    /// (e_rot by [`e_rot_fast`]); equal to it to round-off (tested).
+    /// (e_rot by [`e_rot_fast`]; the geodesic angle and rotation vector from one quaternion
+    /// `atan2`); equal to it to round-off (tested).
     pub fn between_fast(truth: &Isometry3<f64>, zyz_true: [f64; 3], est: &Isometry3<f64>) -> Self {
         let dt = est.translation.vector - truth.translation.vector;
-        let d_rot = est.rotation * truth.rotation.inverse();
+        let dq = (est.rotation * truth.rotation.inverse()).into_inner();
+        let (w, v) = if dq.w < 0.0 {
+            (-dq.w, -dq.imag())
+        } else {
+            (dq.w, dq.imag())
+        };
+        let n = v.norm();
+        let angle = 2.0 * n.atan2(w);
         TrialErrors {
             e_tran: dt.amax(),
             e_rot: e_rot_fast(zyz_true, &est.rotation.to_rotation_matrix()),
-            geodesic: d_rot.angle(),
+            geodesic: angle,
             translation_error: dt,
-            rotation_error: d_rot.scaled_axis(),
+            rotation_error: if n > 0.0 { v * (angle / n) } else { v * 2.0 },
         }
     }
 }
@@ -91,11 +100,8 @@ pub fn e_rot_fast(zyz_true: [f64; 3], r_est: &nalgebra::Rotation3<f64>) -> f64 {
         }
         d
     };
-    let mut best = diff([phi, theta, psi]).min(diff([
-        wrap_angle(phi + PI),
-        -theta,
-        wrap_angle(psi + PI),
-    ]));
+    let mut best =
+        diff([phi, theta, psi]).min(diff([wrap_angle(phi + PI), -theta, wrap_angle(psi + PI)]));
     if theta.sin().abs() < 1e-9 {
         let phi_n = zyz_true[0];
         let psi_n = if theta.cos() > 0.0 {
@@ -151,6 +157,11 @@ impl GeometrySpec {
         })
     }
 
+    /// The true rotation's ZYZ angles (eq 32, rad), as e_rot compares against.
+    pub fn zyz_true(&self) -> [f64; 3] {
+        zyz_from_rotation(&self.b1_from_b2.rotation.to_rotation_matrix())
+    }
+
     /// Checks the spec: point count, finite non-negative spread and σ.
     pub fn validate(&self) -> Result<(), SimError> {
         if self.n == 0 || self.n > MAX_GEOMETRY_POINTS {
@@ -200,7 +211,10 @@ pub fn draw_geometry(
 }
 
 /// Centred affine least squares `p1 ≈ M·p2 + t` (n ≥ 4, allocation-free): `(M, t)`.
-fn affine_lsq_fast(p_b1: &[Point3<f64>], p_b2: &[Point3<f64>]) -> Option<(Matrix3<f64>, Vector3<f64>)> {
+fn affine_lsq_fast(
+    p_b1: &[Point3<f64>],
+    p_b2: &[Point3<f64>],
+) -> Option<(Matrix3<f64>, Vector3<f64>)> {
     let n = p_b1.len() as f64;
     let c1 = p_b1.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / n;
     let c2 = p_b2.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / n;
@@ -218,10 +232,9 @@ fn affine_lsq_fast(p_b1: &[Point3<f64>], p_b2: &[Point3<f64>]) -> Option<(Matrix
 
 /// eq (12) translation for rotation `q`.
 fn eq12(p_b1: &[Point3<f64>], p_b2: &[Point3<f64>], q: &UnitQuaternion<f64>) -> Vector3<f64> {
-    p_b1.iter()
-        .zip(p_b2)
-        .fold(Vector3::zeros(), |acc, (a, b)| acc + (a.coords - q * b.coords))
-        / p_b1.len() as f64
+    p_b1.iter().zip(p_b2).fold(Vector3::zeros(), |acc, (a, b)| {
+        acc + (a.coords - q * b.coords)
+    }) / p_b1.len() as f64
 }
 
 /// Fits `b1_from_b2` by `method` without allocation: calib-core's fast kernels for 4 points (and for
@@ -287,26 +300,41 @@ pub fn geometry_trial(
     if spec.n <= SMALL {
         let mut buf1 = [Point3::origin(); SMALL];
         let mut buf2 = [Point3::origin(); SMALL];
-        Ok(geometry_trial_into(spec, method, rng, &mut buf1[..spec.n], &mut buf2[..spec.n]))
+        Ok(geometry_trial_into(
+            spec,
+            spec.zyz_true(),
+            method,
+            rng,
+            &mut buf1[..spec.n],
+            &mut buf2[..spec.n],
+        ))
     } else {
         let mut buf1 = vec![Point3::origin(); spec.n];
         let mut buf2 = vec![Point3::origin(); spec.n];
-        Ok(geometry_trial_into(spec, method, rng, &mut buf1, &mut buf2))
+        Ok(geometry_trial_into(
+            spec,
+            spec.zyz_true(),
+            method,
+            rng,
+            &mut buf1,
+            &mut buf2,
+        ))
     }
 }
 
 /// [`geometry_trial`] without validation, drawing into caller buffers (their length is the
-/// point count; the spec's `n` is not used): allocation-free, for hot loops of a validated spec.
+/// point count; the spec's `n` is not used), with the truth's ZYZ angles precomputed
+/// ([`GeometrySpec::zyz_true`]): allocation-free, for hot loops of a validated spec.
 /// `None` when the fit fails.
 pub fn geometry_trial_into(
     spec: &GeometrySpec,
+    zyz_true: [f64; 3],
     method: Method,
     rng: &mut impl Rng,
     p_b1: &mut [Point3<f64>],
     p_b2: &mut [Point3<f64>],
 ) -> Option<TrialErrors> {
     draw_geometry(spec, rng, p_b1, p_b2);
-    let zyz_true = zyz_from_rotation(&spec.b1_from_b2.rotation.to_rotation_matrix());
     fit_fast(method, &spec.mounts, p_b1, p_b2)
         .map(|est| TrialErrors::between_fast(&spec.b1_from_b2, zyz_true, &est))
 }
@@ -434,7 +462,11 @@ impl SweepConfig {
         if self.trials == 0 {
             return Err(SimError::InvalidInput("--trials must be at least 1".into()));
         }
-        if let Some(v) = self.noise_mm.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+        if let Some(v) = self
+            .noise_mm
+            .iter()
+            .find(|v| !(v.is_finite() && **v >= 0.0))
+        {
             return Err(SimError::InvalidInput(format!(
                 "noise {v} mm must be finite and ≥ 0 (e.g. 0.5,1,2,3)"
             )));
@@ -529,27 +561,40 @@ pub fn run_sweep(
             config.mounts.len()
         )));
     }
+    if config.mode == Mode::Robot {
+        if let Some((c, m)) = cells
+            .iter()
+            .zip(&config.mounts)
+            .find(|(c, m)| c.mounts() != **m)
+        {
+            return Err(SimError::InvalidInput(format!(
+                "robot mode: a cell has mounts {} but its grid entry is {}; give the cells in the order of --mounts",
+                mounts_label(&c.mounts()),
+                mounts_label(m)
+            )));
+        }
+    }
     let grid = config.grid();
     let total = config.total_trials();
     let n_methods = config.methods.len();
-    let n_chunks = total.div_ceil(CHUNK);
     let specs: Vec<(GeometrySpec, [f64; 3])> = grid
         .iter()
         .map(|g| {
             let spec = geometry_spec(config, g);
-            let zyz = zyz_from_rotation(&spec.b1_from_b2.rotation.to_rotation_matrix());
-            (spec, zyz)
+            (spec, spec.zyz_true())
         })
         .collect();
-    let chunk_outcomes: Vec<Vec<Outcome>> = (0..n_chunks)
-        .into_par_iter()
-        .map(|c| {
+    let mut outcomes: Vec<Outcome> = vec![Err(Failure::FitFailed); total * n_methods];
+    outcomes
+        .par_chunks_mut(CHUNK * n_methods)
+        .enumerate()
+        .for_each(|(c, out)| {
             let start = c * CHUNK;
-            let end = (start + CHUNK).min(total);
-            let mut out = Vec::with_capacity((end - start) * n_methods);
+            let end = start + out.len() / n_methods;
             let mut buf1 = vec![Point3::origin(); MAX_GEOMETRY_POINTS];
             let mut buf2 = vec![Point3::origin(); MAX_GEOMETRY_POINTS];
-            for trial in start..end {
+            let mut robot_out = Vec::new();
+            for (trial, slots) in (start..end).zip(out.chunks_mut(n_methods)) {
                 let cell_index = trial / config.trials;
                 let cell = grid[cell_index];
                 let mut rng = trial_rng(config.seed, trial as u64);
@@ -558,25 +603,23 @@ pub fn run_sweep(
                         let (spec, zyz_true) = &specs[cell_index];
                         let (p1, p2) = (&mut buf1[..spec.n], &mut buf2[..spec.n]);
                         draw_geometry(spec, &mut rng, p1, p2);
-                        for &method in &config.methods {
-                            out.push(
-                                fit_fast(method, &spec.mounts, p1, p2)
-                                    .map(|est| TrialErrors::between_fast(&spec.b1_from_b2, *zyz_true, &est))
-                                    .ok_or(Failure::FitFailed),
-                            );
+                        for (slot, &method) in slots.iter_mut().zip(&config.methods) {
+                            *slot = fit_fast(method, &spec.mounts, p1, p2)
+                                .map(|est| {
+                                    TrialErrors::between_fast(&spec.b1_from_b2, *zyz_true, &est)
+                                })
+                                .ok_or(Failure::FitFailed);
                         }
                     }
-                    Mode::Robot => robot_trial(config, &cell, &cells[cell.mounts], &mut rng, &mut out),
+                    Mode::Robot => {
+                        robot_out.clear();
+                        robot_trial(config, &cell, &cells[cell.mounts], &mut rng, &mut robot_out);
+                        slots.copy_from_slice(&robot_out);
+                    }
                 }
             }
             progress.inc((end - start) as u64);
-            out
-        })
-        .collect();
-    let mut outcomes = Vec::with_capacity(total * n_methods);
-    for c in chunk_outcomes {
-        outcomes.extend(c);
-    }
+        });
     Ok(SweepResult {
         config: config.clone(),
         grid,
@@ -955,7 +998,10 @@ mod tests {
                 let r_est = Rotation3::new(v) * r_true;
                 let a = e_rot_fast(zyz_true, &r_est);
                 let b = calib_core::e_rot_zyz(zyz_true, &r_est);
-                assert!((a - b).abs() < SAME_MATHS_TOL, "{zyz_true:?} {v:?}: {a} vs {b}");
+                assert!(
+                    (a - b).abs() < SAME_MATHS_TOL,
+                    "{zyz_true:?} {v:?}: {a} vs {b}"
+                );
             }
         }
     }
@@ -964,7 +1010,8 @@ mod tests {
     fn fit_fast_matches_calib_core_slow_paths() {
         for placement in PAPER {
             for n in [4, 7] {
-                let spec = GeometrySpec::paper(&placement.mounts, Layout::Random, n, 1.0, 1e-3).unwrap();
+                let spec =
+                    GeometrySpec::paper(&placement.mounts, Layout::Random, n, 1.0, 1e-3).unwrap();
                 let mut p1 = vec![Point3::origin(); n];
                 let mut p2 = vec![Point3::origin(); n];
                 draw_geometry(&spec, &mut trial_rng(11, n as u64), &mut p1, &mut p2);
@@ -995,18 +1042,35 @@ mod tests {
         for placement in PAPER {
             // How far Table 1's true rotation is from the mounts' family (it is a measurement).
             let truth = placement.b1_from_b2();
-            let projected = project_rotation_family(&truth.rotation.to_rotation_matrix().into_inner(), &placement.mounts).unwrap();
+            let projected = project_rotation_family(
+                &truth.rotation.to_rotation_matrix().into_inner(),
+                &placement.mounts,
+            )
+            .unwrap();
             let family_dev = truth.rotation.to_rotation_matrix().angle_to(&projected);
             for method in Method::ALL {
                 for n in [4, 9] {
-                    let spec = GeometrySpec::paper(&placement.mounts, Layout::Tetrahedron, n, 1.0, 0.0).unwrap();
-                    let e = geometry_trial(&spec, method, &mut trial_rng(1, n as u64)).unwrap().unwrap();
+                    let spec =
+                        GeometrySpec::paper(&placement.mounts, Layout::Tetrahedron, n, 1.0, 0.0)
+                            .unwrap();
+                    let e = geometry_trial(&spec, method, &mut trial_rng(1, n as u64))
+                        .unwrap()
+                        .unwrap();
                     let constrained = matches!(method, Method::Paper | Method::Constrained);
                     // A constrained estimate lies in the family, so it is at least `family_dev` from the
                     // truth; the least-squares member differs from the nearest one only to second
                     // order, hence the 5 % margin.
-                    let allowed = if constrained { 1.05 * family_dev + EXACT_TOL } else { EXACT_TOL };
-                    assert!(e.geodesic <= allowed, "{} {} n={n}: {e:?}", placement.label(), method.name());
+                    let allowed = if constrained {
+                        1.05 * family_dev + EXACT_TOL
+                    } else {
+                        EXACT_TOL
+                    };
+                    assert!(
+                        e.geodesic <= allowed,
+                        "{} {} n={n}: {e:?}",
+                        placement.label(),
+                        method.name()
+                    );
                     if !constrained {
                         assert!(e.e_tran < EXACT_TOL);
                     }
@@ -1017,7 +1081,8 @@ mod tests {
 
     #[test]
     fn invalid_specs_are_errors_not_panics() {
-        let mut spec = GeometrySpec::paper(&MountPair::floor_floor(), Layout::Random, 4, 1.0, 1e-3).unwrap();
+        let mut spec =
+            GeometrySpec::paper(&MountPair::floor_floor(), Layout::Random, 4, 1.0, 1e-3).unwrap();
         spec.n = MAX_GEOMETRY_POINTS + 1;
         assert!(geometry_trial(&spec, Method::Lsq, &mut trial_rng(1, 1)).is_err());
         spec.n = 4;
@@ -1027,16 +1092,32 @@ mod tests {
         c.noise_mm = vec![];
         assert!(c.validate().unwrap_err().to_string().contains("noise"));
         let mut c = small_config();
-        c.mounts = vec![MountPair { robot1: calib_core::Mount::Floor, robot2: calib_core::Mount::Tilt { rx: 0.1, ry: 0.0 } }];
-        assert!(c.validate().unwrap_err().to_string().contains("paper's cells"));
+        c.mounts = vec![MountPair {
+            robot1: calib_core::Mount::Floor,
+            robot2: calib_core::Mount::Tilt { rx: 0.1, ry: 0.0 },
+        }];
+        assert!(c
+            .validate()
+            .unwrap_err()
+            .to_string()
+            .contains("paper's cells"));
         // Too few points for a method is a failed fit, not a panic.
-        let spec3 = GeometrySpec::paper(&MountPair::floor_floor(), Layout::Random, 3, 1.0, 1e-3).unwrap();
-        assert_eq!(geometry_trial(&spec3, Method::Generic, &mut trial_rng(1, 1)).unwrap(), None);
+        let spec3 =
+            GeometrySpec::paper(&MountPair::floor_floor(), Layout::Random, 3, 1.0, 1e-3).unwrap();
+        assert_eq!(
+            geometry_trial(&spec3, Method::Generic, &mut trial_rng(1, 1)).unwrap(),
+            None
+        );
     }
 
     fn csv_with_threads(config: &SweepConfig, threads: usize) -> Vec<u8> {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-        let result = pool.install(|| run_sweep(config, &[], &ProgressBar::hidden())).unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let result = pool
+            .install(|| run_sweep(config, &[], &ProgressBar::hidden()))
+            .unwrap();
         let mut out = Vec::new();
         write_trials_csv(&result, &mut out).unwrap();
         write_summary_csv(&summarize_cells(&result), &mut out).unwrap();
@@ -1070,16 +1151,30 @@ mod tests {
         )
         .unwrap();
         for (m, method) in config.methods.iter().enumerate() {
-            let alone = geometry_trial(&spec, *method, &mut trial_rng(config.seed, k as u64)).unwrap();
+            let alone =
+                geometry_trial(&spec, *method, &mut trial_rng(config.seed, k as u64)).unwrap();
             assert_eq!(alone.ok_or(Failure::FitFailed), *result.outcome(k, m));
         }
     }
 
     /// Median of a statistic over a grid cell's rows.
-    fn median_of(rows: &[SummaryRow], mounts: &str, method: Method, noise: f64, spread: f64, n: usize) -> (f64, f64) {
+    fn median_of(
+        rows: &[SummaryRow],
+        mounts: &str,
+        method: Method,
+        noise: f64,
+        spread: f64,
+        n: usize,
+    ) -> (f64, f64) {
         let r = rows
             .iter()
-            .find(|r| r.mounts == mounts && r.method == method && r.noise_mm == Some(noise) && r.spread_m == Some(spread) && r.n == Some(n))
+            .find(|r| {
+                r.mounts == mounts
+                    && r.method == method
+                    && r.noise_mm == Some(noise)
+                    && r.spread_m == Some(spread)
+                    && r.n == Some(n)
+            })
             .unwrap();
         (r.e_tran_mm_median.value, r.geodesic_deg_median.value)
     }
@@ -1089,7 +1184,12 @@ mod tests {
         let mut config = small_config();
         config.trials = 300;
         config.mounts = vec![MountPair::floor_floor(), MountPair::floor_ceiling()];
-        config.methods = vec![Method::Generic, Method::Paper, Method::Lsq, Method::Constrained];
+        config.methods = vec![
+            Method::Generic,
+            Method::Paper,
+            Method::Lsq,
+            Method::Constrained,
+        ];
         let rows = summarize_cells(&run_sweep(&config, &[], &ProgressBar::hidden()).unwrap());
         for mounts in ["floor-floor", "floor-ceiling"] {
             for &method in &config.methods {
@@ -1097,16 +1197,25 @@ mod tests {
                 for noise in [0.5, 3.0] {
                     let small = median_of(&rows, mounts, method, noise, 0.25, 4);
                     let large = median_of(&rows, mounts, method, noise, 1.5, 4);
-                    assert!(large.0 < small.0 && large.1 < small.1, "{mounts} {method:?} spread: {small:?} -> {large:?}");
+                    assert!(
+                        large.0 < small.0 && large.1 < small.1,
+                        "{mounts} {method:?} spread: {small:?} -> {large:?}"
+                    );
                 }
                 // Error falls with the point count.
                 let few = median_of(&rows, mounts, method, 3.0, 1.5, 4);
                 let many = median_of(&rows, mounts, method, 3.0, 1.5, 12);
-                assert!(many.0 < few.0 && many.1 < few.1, "{mounts} {method:?} points: {few:?} -> {many:?}");
+                assert!(
+                    many.0 < few.0 && many.1 < few.1,
+                    "{mounts} {method:?} points: {few:?} -> {many:?}"
+                );
                 // Error rises with noise.
                 let quiet = median_of(&rows, mounts, method, 0.5, 1.5, 12);
                 let loud = median_of(&rows, mounts, method, 3.0, 1.5, 12);
-                assert!(loud.0 > quiet.0 && loud.1 > quiet.1, "{mounts} {method:?} noise: {quiet:?} -> {loud:?}");
+                assert!(
+                    loud.0 > quiet.0 && loud.1 > quiet.1,
+                    "{mounts} {method:?} noise: {quiet:?} -> {loud:?}"
+                );
             }
         }
     }
@@ -1120,5 +1229,32 @@ mod tests {
         write_summary_csv(&summarize_cells(&result), &mut out).unwrap();
         let text = String::from_utf8(out).unwrap();
         assert_eq!(text.lines().count(), 1 + result.grid.len() * 5);
+    }
+
+    proptest::proptest! {
+        /// The allocation-free metrics equal calib-core's for any truth and estimate
+        /// (tolerance: round-off, rad and m).
+        #[test]
+        fn fast_metrics_equal_calib_core(
+            phi in -3.2f64..3.2, theta in 0.0f64..std::f64::consts::PI, psi in -3.2f64..3.2,
+            ex in -0.5f64..0.5, ey in -0.5f64..0.5, ez in -0.5f64..0.5, scale_exp in 0i32..12,
+            tx in -2.0f64..2.0,
+        ) {
+            let truth = Isometry3::from_parts(
+                Translation3::new(tx, 0.3, -0.2),
+                UnitQuaternion::from_rotation_matrix(&rotation_from_zyz([phi, theta, psi])),
+            );
+            let d = Vector3::new(ex, ey, ez) * 10f64.powi(-scale_exp);
+            let est = Isometry3::from_parts(
+                Translation3::new(tx + ex * 1e-3, 0.3, -0.2),
+                UnitQuaternion::new(d) * truth.rotation,
+            );
+            let a = TrialErrors::between(&truth, &est);
+            let b = TrialErrors::between_fast(&truth, zyz_from_rotation(&truth.rotation.to_rotation_matrix()), &est);
+            proptest::prop_assert!((a.e_tran - b.e_tran).abs() < SAME_MATHS_TOL);
+            proptest::prop_assert!((a.e_rot - b.e_rot).abs() < SAME_MATHS_TOL);
+            proptest::prop_assert!((a.geodesic - b.geodesic).abs() < SAME_MATHS_TOL);
+            proptest::prop_assert!((a.rotation_error - b.rotation_error).amax() < SAME_MATHS_TOL);
+        }
     }
 }

@@ -14,13 +14,24 @@ fn small_sweep_finishes_and_writes_its_files() {
         .arg(dir.path())
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(stdout.contains("median") && stdout.contains("wrote"), "{stdout}");
+    assert!(
+        stdout.contains("median") && stdout.contains("wrote"),
+        "{stdout}"
+    );
     let trials = std::fs::read_to_string(dir.path().join("trials.csv")).unwrap();
     // 3 mounts × 4 noise × 4 spread × 4 n × 20 trials × 5 methods + header.
     assert_eq!(trials.lines().count(), 3 * 4 * 4 * 4 * 20 * 5 + 1);
-    for f in ["summary.csv", "spread_floor-wall.svg", "noise_floor-ceiling.svg"] {
+    for f in [
+        "summary.csv",
+        "spread_floor-wall.svg",
+        "noise_floor-ceiling.svg",
+    ] {
         assert!(dir.path().join(f).is_file(), "{f}");
     }
     let svg = std::fs::read_to_string(dir.path().join("spread_floor-floor.svg")).unwrap();
@@ -28,12 +39,24 @@ fn small_sweep_finishes_and_writes_its_files() {
     // Same seed, one thread: byte-identical trials.csv.
     let dir1 = tempfile::tempdir().unwrap();
     let out = bin()
-        .args(["sweep", "--seed", "7", "--trials", "20", "--threads", "1", "--out"])
+        .args([
+            "sweep",
+            "--seed",
+            "7",
+            "--trials",
+            "20",
+            "--threads",
+            "1",
+            "--out",
+        ])
         .arg(dir1.path())
         .output()
         .unwrap();
     assert!(out.status.success());
-    assert_eq!(trials, std::fs::read_to_string(dir1.path().join("trials.csv")).unwrap());
+    assert_eq!(
+        trials,
+        std::fs::read_to_string(dir1.path().join("trials.csv")).unwrap()
+    );
 }
 
 #[test]
@@ -42,11 +65,28 @@ fn session_command_writes_a_session() {
     let path = dir.path().join("s.csv");
     let cell = concat!(env!("CARGO_MANIFEST_DIR"), "/../../cells/floor-floor.toml");
     let out = bin()
-        .args(["session", "--cell", cell, "--n", "5", "--layout", "random", "--spread-mm", "800", "--seed", "3", "--out"])
+        .args([
+            "session",
+            "--cell",
+            cell,
+            "--n",
+            "5",
+            "--layout",
+            "random",
+            "--spread-mm",
+            "800",
+            "--seed",
+            "3",
+            "--out",
+        ])
         .arg(&path)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = std::fs::read_to_string(&path).unwrap();
     assert_eq!(text.lines().count(), 6);
     assert!(text.starts_with("point,r1_q1_deg,"));
@@ -56,19 +96,32 @@ fn session_command_writes_a_session() {
 fn bad_cell_error_names_the_key() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("bad.toml");
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../cells/floor-wall.toml"))
-        .unwrap()
-        .replace("repeatability_mm", "repeatibility_mm");
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../cells/floor-wall.toml"
+    ))
+    .unwrap()
+    .replace("repeatability_mm", "repeatibility_mm");
     std::fs::write(&path, text).unwrap();
-    let out = bin().args(["session", "--cell"]).arg(&path).output().unwrap();
+    let out = bin()
+        .args(["session", "--cell"])
+        .arg(&path)
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("repeatibility_mm") && err.contains("repeatability_mm"), "{err}");
+    assert!(
+        err.contains("repeatibility_mm") && err.contains("repeatability_mm"),
+        "{err}"
+    );
 }
 
 #[test]
 fn bad_grid_axis_is_an_error_not_a_panic() {
-    let out = bin().args(["sweep", "--spread-mm=-5", "--trials", "1"]).output().unwrap();
+    let out = bin()
+        .args(["sweep", "--spread-mm=-5", "--trials", "1"])
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("spread") && !err.contains("panicked"), "{err}");

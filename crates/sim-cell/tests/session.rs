@@ -24,7 +24,11 @@ fn cell_text(name: &str, zyz_in_family: &str, extra: &str) -> Cell {
     let text = std::fs::read_to_string(cells_dir().join(format!("{name}.toml"))).unwrap();
     let start = text.find("zyz_deg = [").unwrap();
     let end = start + text[start..].find(']').unwrap() + 1;
-    let text = format!("{}zyz_deg = [{zyz_in_family}]{}\n{extra}", &text[..start], &text[end..]);
+    let text = format!(
+        "{}zyz_deg = [{zyz_in_family}]{}\n{extra}",
+        &text[..start],
+        &text[end..]
+    );
     Cell::from_toml_str(&text, &cells_dir()).unwrap()
 }
 
@@ -40,17 +44,30 @@ fn zero_noise_session_lets_every_method_recover_the_truth() {
     for (name, zyz, mounts) in [
         ("floor-floor", "0.0, 0.0, -44.5", MountPair::floor_floor()),
         ("floor-wall", "180.0, 90.0, -180.0", MountPair::floor_wall()),
-        ("floor-ceiling", "0.0, 180.0, 0.0", MountPair::floor_ceiling()),
+        (
+            "floor-ceiling",
+            "0.0, 180.0, 0.0",
+            MountPair::floor_ceiling(),
+        ),
     ] {
         let cell = zero_noise(cell_text(name, zyz, ""));
         assert_eq!(cell.mounts(), mounts);
-        let session = generate_session(&cell, &SessionSpec::new(6, Layout::Tetrahedron, 1.0), &mut trial_rng(5, 0)).unwrap();
+        let session = generate_session(
+            &cell,
+            &SessionSpec::new(6, Layout::Tetrahedron, 1.0),
+            &mut trial_rng(5, 0),
+        )
+        .unwrap();
         let pairs = session.to_point_pairs();
         for method in Method::ALL {
             let est = fit(&pairs, method, &mounts).unwrap().b1_from_b2;
             let dt = (est.translation.vector - cell.b1_from_b2.translation.vector).amax();
             let dr = est.rotation.angle_to(&cell.b1_from_b2.rotation);
-            assert!(dt < ZERO_NOISE_TOL && dr < ZERO_NOISE_TOL, "{name} {}: {dt} m, {dr} rad", method.name());
+            assert!(
+                dt < ZERO_NOISE_TOL && dr < ZERO_NOISE_TOL,
+                "{name} {}: {dt} m, {dr} rad",
+                method.name()
+            );
         }
     }
 }
@@ -68,25 +85,58 @@ tip_mm = [0.0, 0.1, 0.2]
 "#;
     let cell = zero_noise(cell_text("floor-wall", "180.0, 90.0, -180.0", extra));
     assert!(!cell.robot1.errors.is_zero() && !cell.robot2.errors.is_zero());
-    let session = generate_session(&cell, &SessionSpec::new(5, Layout::Random, 0.8), &mut trial_rng(9, 1)).unwrap();
+    let session = generate_session(
+        &cell,
+        &SessionSpec::new(5, Layout::Random, 0.8),
+        &mut trial_rng(9, 1),
+    )
+    .unwrap();
     let mut max_bias: f64 = 0.0;
     for p in &session.points {
         let r1 = &cell.robot1;
         let r2 = &cell.robot2;
-        let t1 = true_base_from_tip(&r1.model, &r1.errors, &p.q1, &r1.flange_from_tip, &r1.g_base).unwrap();
-        let t2 = true_base_from_tip(&r2.model, &r2.errors, &p.q2, &r2.flange_from_tip, &r2.g_base).unwrap();
-        let gap = (t1.translation.vector - (cell.b1_from_b2 * Point3::from(t2.translation.vector)).coords).norm();
-        assert!(gap < MEET_TOL_M, "point {}: true tips {gap} m apart", p.point);
+        let t1 = true_base_from_tip(
+            &r1.model,
+            &r1.errors,
+            &p.q1,
+            &r1.flange_from_tip,
+            &r1.g_base,
+        )
+        .unwrap();
+        let t2 = true_base_from_tip(
+            &r2.model,
+            &r2.errors,
+            &p.q2,
+            &r2.flange_from_tip,
+            &r2.g_base,
+        )
+        .unwrap();
+        let gap = (t1.translation.vector
+            - (cell.b1_from_b2 * Point3::from(t2.translation.vector)).coords)
+            .norm();
+        assert!(
+            gap < MEET_TOL_M,
+            "point {}: true tips {gap} m apart",
+            p.point
+        );
         max_bias = max_bias.max((t1.translation.vector - p.p_b1.coords).norm());
     }
     // The controller's nominal tip differs from the true one by the errors' effect (≥ 0.1 mm here).
-    assert!(max_bias > 1e-4, "nominal tips should be biased, max {max_bias} m");
+    assert!(
+        max_bias > 1e-4,
+        "nominal tips should be biased, max {max_bias} m"
+    );
 }
 
 #[test]
 fn session_csv_round_trips_and_is_calibrate_input() {
     let cell = Cell::default_floor_ceiling();
-    let session = generate_session(&cell, &SessionSpec::new(7, Layout::Tetrahedron, 1.2), &mut trial_rng(2, 0)).unwrap();
+    let session = generate_session(
+        &cell,
+        &SessionSpec::new(7, Layout::Tetrahedron, 1.2),
+        &mut trial_rng(2, 0),
+    )
+    .unwrap();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("s.csv");
     session.write_csv(&path, &cell).unwrap();
@@ -108,7 +158,9 @@ fn session_csv_round_trips_and_is_calibrate_input() {
         for (x, y) in a.q1.iter().chain(&a.q2).zip(b.q1.iter().chain(&b.q2)) {
             assert!((x.to_degrees() - y.to_degrees()).abs() < CSV_TOL);
         }
-        assert!((a.p_b1 - b.p_b1).amax() * 1e3 < CSV_TOL && (a.p_b2 - b.p_b2).amax() * 1e3 < CSV_TOL);
+        assert!(
+            (a.p_b1 - b.p_b1).amax() * 1e3 < CSV_TOL && (a.p_b2 - b.p_b2).amax() * 1e3 < CSV_TOL
+        );
     }
     // Write → read → write is byte-identical.
     assert_eq!(back.to_csv_string(7, 6), text);
@@ -121,12 +173,20 @@ fn session_csv_round_trips_and_is_calibrate_input() {
 #[test]
 fn encoder_quantisation_and_noise_show_in_the_session() {
     let cell = Cell::default_floor_floor(); // encoder 0.001°, alignment 0.3 mm
-    let session = generate_session(&cell, &SessionSpec::new(6, Layout::Tetrahedron, 1.0), &mut trial_rng(4, 0)).unwrap();
+    let session = generate_session(
+        &cell,
+        &SessionSpec::new(6, Layout::Tetrahedron, 1.0),
+        &mut trial_rng(4, 0),
+    )
+    .unwrap();
     let res = cell.noise.encoder_resolution_rad;
     for p in &session.points {
         for q in p.q1.iter().chain(&p.q2) {
             let k = q / res;
-            assert!((k - k.round()).abs() < 1e-6, "{q} rad is not a multiple of the resolution");
+            assert!(
+                (k - k.round()).abs() < 1e-6,
+                "{q} rad is not a multiple of the resolution"
+            );
         }
     }
     let fit = fit(&session.to_point_pairs(), Method::Lsq, &cell.mounts()).unwrap();
@@ -148,31 +208,50 @@ fn same_seed_same_session() {
 fn teach_point_outside_the_common_workspace_is_named() {
     let cell = Cell::default_floor_wall();
     let mut spec = SessionSpec::new(0, Layout::Random, 1.0);
-    spec.points_b1 = Some(vec![cell.centre_b1, Point3::new(-3.0, 0.0, 0.5), cell.centre_b1 + Vector3::new(0.2, 0.0, 0.0)]);
-    let e = generate_session(&cell, &spec, &mut trial_rng(1, 0)).unwrap_err().to_string();
-    assert!(e.contains("teach point 2") && e.contains("-3000.0") && e.contains("common workspace"), "{e}");
+    spec.points_b1 = Some(vec![
+        cell.centre_b1,
+        Point3::new(-3.0, 0.0, 0.5),
+        cell.centre_b1 + Vector3::new(0.2, 0.0, 0.0),
+    ]);
+    let e = generate_session(&cell, &spec, &mut trial_rng(1, 0))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("teach point 2") && e.contains("-3000.0") && e.contains("common workspace"),
+        "{e}"
+    );
     // A layout that cannot fit anywhere near: says what would work.
     let spec = SessionSpec::new(4, Layout::Tetrahedron, 6.0);
-    let e = generate_session(&cell, &spec, &mut trial_rng(1, 0)).unwrap_err().to_string();
+    let e = generate_session(&cell, &spec, &mut trial_rng(1, 0))
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("reduce --spread-mm"), "{e}");
 }
 
 #[test]
 fn bad_session_csv_names_line_and_column() {
     let cell = Cell::default_floor_wall();
-    let session = generate_session(&cell, &SessionSpec::new(4, Layout::Tetrahedron, 1.0), &mut trial_rng(2, 2)).unwrap();
+    let session = generate_session(
+        &cell,
+        &SessionSpec::new(4, Layout::Tetrahedron, 1.0),
+        &mut trial_rng(2, 2),
+    )
+    .unwrap();
     let text = session.to_csv_string(7, 6);
     let p = Path::new("bad.csv");
-    let e = Session::parse_csv(&text.replace("r2_q3_deg", "r2_q3_rad"), p, &cell).unwrap_err().to_string();
+    let e = Session::parse_csv(&text.replace("r2_q3_deg", "r2_q3_rad"), p, &cell)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("r2_q3_rad") && e.contains("r2_q3_deg"), "{e}");
-    let mut lines: Vec<String> = text.lines().map(String::from).collect();
-    lines[2] = lines[2].replacen(',', ",abc,", 1).replacen(",abc,", ",", 0);
+    let lines: Vec<String> = text.lines().map(String::from).collect();
     let mut fields: Vec<&str> = lines[2].split(',').collect();
     fields[3] = "abc";
     let bad_row = fields.join(",");
     let mut t2 = lines.clone();
     t2[2] = bad_row;
-    let e = Session::parse_csv(&(t2.join("\n") + "\n"), p, &cell).unwrap_err().to_string();
+    let e = Session::parse_csv(&(t2.join("\n") + "\n"), p, &cell)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("line 3") && e.contains("r1_q3_deg"), "{e}");
     // Tip columns in metres instead of mm: caught by the FK consistency check.
     let mut fields: Vec<String> = lines[1].split(',').map(String::from).collect();
@@ -182,6 +261,56 @@ fn bad_session_csv_names_line_and_column() {
     }
     let mut t3 = lines.clone();
     t3[1] = fields.join(",");
-    let e = Session::parse_csv(&(t3.join("\n") + "\n"), p, &cell).unwrap_err().to_string();
+    let e = Session::parse_csv(&(t3.join("\n") + "\n"), p, &cell)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("line 2") && e.contains("mm"), "{e}");
+}
+
+/// Robot-mode sweep: byte-identical output for 1 and 2 threads, and the error rises with noise.
+#[test]
+fn robot_mode_sweep_is_thread_independent_and_follows_noise() {
+    use sim_cell::sweep::{run_sweep, summarize_cells, write_trials_csv, Mode, SweepConfig};
+    let config = SweepConfig {
+        mode: Mode::Robot,
+        mounts: vec![MountPair::floor_floor()],
+        noise_mm: vec![0.2, 3.0],
+        spread_m: vec![1.0],
+        n_points: vec![6],
+        methods: vec![Method::Lsq, Method::Constrained],
+        layout: Layout::Tetrahedron,
+        trials: 12,
+        seed: 5,
+    };
+    let cells = vec![Cell::default_floor_floor()];
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let r = pool
+            .install(|| run_sweep(&config, &cells, &indicatif::ProgressBar::hidden()))
+            .unwrap();
+        let mut out = Vec::new();
+        write_trials_csv(&r, &mut out).unwrap();
+        (r, out)
+    };
+    let (r1, csv1) = run(1);
+    let (_, csv2) = run(2);
+    assert_eq!(csv1, csv2);
+    assert!(!String::from_utf8(csv1).unwrap().contains("unreachable"));
+    let rows = summarize_cells(&r1);
+    for m in [Method::Lsq, Method::Constrained] {
+        let at = |noise: f64| {
+            rows.iter()
+                .find(|r| r.method == m && r.noise_mm == Some(noise))
+                .unwrap()
+                .e_tran_mm_median
+                .value
+        };
+        assert!(at(3.0) > at(0.2), "{m:?}: {} vs {}", at(0.2), at(3.0));
+    }
+    // Cells in the wrong order for the grid are an error, not a silent mismatch.
+    let wrong = vec![Cell::default_floor_wall()];
+    assert!(run_sweep(&config, &wrong, &indicatif::ProgressBar::hidden()).is_err());
 }
