@@ -7,8 +7,8 @@
 //! geodesic angle between the true and estimated rotations.
 
 use crate::error::CalibError;
-use kinematics::euler::rotation_from_zyz;
 use crate::metrics::{e_rot_raw, e_rot_zyz, geodesic_angle};
+use kinematics::euler::rotation_from_zyz;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 
 /// The published table, as shipped (CSV text).

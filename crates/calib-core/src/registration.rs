@@ -955,9 +955,9 @@ pub fn nearest_rotation_horn(m: &Matrix3<f64>) -> Option<Rotation3<f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use kinematics::euler::rotation_from_zyz;
     use crate::fast::{generic_fast, paper_fast, rigid_fit_fast};
     use crate::metrics::{e_tran, geodesic_angle};
+    use kinematics::euler::rotation_from_zyz;
     use proptest::prelude::*;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
