@@ -28,6 +28,12 @@ const COLOURS: [RGBColor; 8] = [
     RGBColor(127, 127, 127),
 ];
 
+/// Methods often coincide (lsq with generic at 4 points, paper with constrained): every other
+/// series is dashed and each has its own marker, so a line lying on another stays visible.
+fn dashed(i: usize) -> bool {
+    i % 2 == 1
+}
+
 /// A panel: title, x label, y label, series.
 pub struct Panel<'a> {
     /// Panel caption.
@@ -38,6 +44,38 @@ pub struct Panel<'a> {
     pub y_label: &'a str,
     /// The lines.
     pub series: &'a [Series],
+    /// Where the legend goes: away from the data (errors fall with spread, rise with noise).
+    pub legend: SeriesLabelPosition,
+}
+
+/// A tick label with two significant digits and no trailing zeros: 0.05, 0.3, 2, 15, 120.
+fn tick_label(v: f64) -> String {
+    if !(v.is_finite() && v > 0.0) {
+        return format!("{v}");
+    }
+    let decimals = (1 - v.log10().floor() as i32).max(0) as usize;
+    let s = format!("{v:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
+/// The 1-2-5 values inside `[lo, hi]` (log-axis ticks; `lo > 0`).
+fn ticks_125(lo: f64, hi: f64) -> Vec<f64> {
+    let mut ticks = Vec::new();
+    let mut decade = 10f64.powf(lo.log10().floor());
+    while decade <= hi {
+        for m in [1.0, 2.0, 5.0] {
+            let v = m * decade;
+            if v >= lo && v <= hi {
+                ticks.push(v);
+            }
+        }
+        decade *= 10.0;
+    }
+    ticks
 }
 
 fn draw_panel<DB: DrawingBackend>(
@@ -74,12 +112,21 @@ where
         .margin(10)
         .x_label_area_size(40)
         .y_label_area_size(60)
-        .build_cartesian_2d((x0 - pad)..(x1 + pad), (y0 / 1.5..y1 * 1.5).log_scale())
+        .build_cartesian_2d(
+            (x0 - pad)..(x1 + pad),
+            (y0 / 1.5..y1 * 1.5)
+                .log_scale()
+                .with_key_points(ticks_125(y0 / 1.5, y1 * 1.5)),
+        )
         .map_err(|e| e.to_string())?;
     chart
         .configure_mesh()
         .x_desc(p.x_label)
         .y_desc(p.y_label)
+        .x_labels(8)
+        .x_label_formatter(&|x| tick_label(*x))
+        .y_label_formatter(&|y| tick_label(*y))
+        .light_line_style(RGBColor(242, 242, 242))
         .draw()
         .map_err(|e| e.to_string())?;
     for (i, s) in p.series.iter().enumerate() {
@@ -90,25 +137,54 @@ where
             .copied()
             .filter(|(x, y)| x.is_finite() && y.is_finite() && *y > 0.0)
             .collect();
-        chart
-            .draw_series(LineSeries::new(data.clone(), c.stroke_width(2)))
-            .map_err(|e| e.to_string())?
-            .label(s.name.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
-        chart
-            .draw_series(
-                data.into_iter()
-                    .map(|(x, y)| Circle::new((x, y), 3, c.filled())),
-            )
-            .map_err(|e| e.to_string())?;
+        let dash = dashed(i);
+        if dash {
+            chart.draw_series(DashedLineSeries::new(data.clone(), 8, 5, c.stroke_width(2)))
+        } else {
+            chart.draw_series(LineSeries::new(data.clone(), c.stroke_width(2)))
+        }
+        .map_err(|e| e.to_string())?
+        .label(s.name.clone())
+        .legend(move |(x, y)| {
+            let end = if dash { x + 8 } else { x + 20 };
+            PathElement::new(vec![(x, y), (end, y)], c.stroke_width(2))
+        });
+        draw_markers(&mut chart, i, c, data)?;
     }
     chart
         .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
+        .position(p.legend.clone())
+        .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .draw()
         .map_err(|e| e.to_string())?;
     Ok(())
+}
+
+/// Series `i`'s markers: filled circle, triangle, cross, hollow circle, in turn.
+fn draw_markers<DB: DrawingBackend>(
+    chart: &mut ChartContext<
+        DB,
+        Cartesian2d<
+            plotters::coord::types::RangedCoordf64,
+            plotters::coord::combinators::WithKeyPoints<LogCoord<f64>>,
+        >,
+    >,
+    i: usize,
+    c: RGBColor,
+    data: Vec<(f64, f64)>,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let points = data.into_iter();
+    let r = match i % 4 {
+        0 => chart.draw_series(points.map(|p| Circle::new(p, 4, c.filled()))),
+        1 => chart.draw_series(points.map(|p| TriangleMarker::new(p, 6, c.filled()))),
+        2 => chart.draw_series(points.map(|p| Cross::new(p, 5, c.stroke_width(2)))),
+        _ => chart.draw_series(points.map(|p| Circle::new(p, 6, c.stroke_width(2)))),
+    };
+    r.map(|_| ()).map_err(|e| e.to_string())
 }
 
 /// Writes an SVG with the panels side by side.
@@ -187,7 +263,8 @@ fn medians(
 
 /// Writes `spread_<mounts>.svg` and `noise_<mounts>.svg` into `dir` for every mount pair of the
 /// sweep (medians per method; other axes at reference values: noise nearest 1 mm, the smallest
-/// point count, the largest spread). Returns the files written.
+/// point count (the paper's 4 where present), spread nearest 1 m (the paper's advice)). Returns the
+/// files written.
 pub fn write_sweep_plots(result: &SweepResult, dir: &Path) -> Result<Vec<PathBuf>, SimError> {
     let c = &result.config;
     let noise_ref = nearest(&c.noise_mm, 1.0);
@@ -197,7 +274,7 @@ pub fn write_sweep_plots(result: &SweepResult, dir: &Path) -> Result<Vec<PathBuf
         .enumerate()
         .min_by_key(|(_, n)| **n)
         .map_or(0, |(i, _)| i);
-    let spread_ref = nearest(&c.spread_m, f64::MAX);
+    let spread_ref = nearest(&c.spread_m, 1.0);
     let mut files = Vec::new();
     for (mi, mounts) in c.mounts.iter().enumerate() {
         let label = mounts_label(mounts);
@@ -222,12 +299,14 @@ pub fn write_sweep_plots(result: &SweepResult, dir: &Path) -> Result<Vec<PathBuf
                     x_label: "spread, mm",
                     y_label: "median e_tran, mm",
                     series: &t,
+                    legend: SeriesLabelPosition::UpperRight,
                 },
                 Panel {
                     title: "e_rot (eq 33)",
                     x_label: "spread, mm",
                     y_label: "median e_rot, deg",
                     series: &r,
+                    legend: SeriesLabelPosition::UpperRight,
                 },
             ],
         )?;
@@ -253,16 +332,54 @@ pub fn write_sweep_plots(result: &SweepResult, dir: &Path) -> Result<Vec<PathBuf
                     x_label: "alignment σ, mm",
                     y_label: "median e_tran, mm",
                     series: &t,
+                    legend: SeriesLabelPosition::UpperLeft,
                 },
                 Panel {
                     title: "e_rot (eq 33)",
                     x_label: "alignment σ, mm",
                     y_label: "median e_rot, deg",
                     series: &r,
+                    legend: SeriesLabelPosition::UpperLeft,
                 },
             ],
         )?;
         files.push(path);
     }
     Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tick_labels_are_short() {
+        // Regression: the log axis printed `0.30000000000000004`.
+        assert_eq!(tick_label(0.30000000000000004), "0.3");
+        assert_eq!(tick_label(0.05), "0.05");
+        assert_eq!(tick_label(2.0), "2");
+        assert_eq!(tick_label(2.5), "2.5");
+        assert_eq!(tick_label(15.0), "15");
+        assert_eq!(tick_label(1000.0), "1000");
+    }
+
+    #[test]
+    fn log_ticks_are_1_2_5() {
+        let t = ticks_125(0.04, 12.0);
+        let want = [0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0];
+        assert_eq!(t.len(), want.len(), "{t:?}");
+        for (a, b) in t.iter().zip(want) {
+            assert!((a - b).abs() < 1e-12 * b, "{t:?}");
+        }
+    }
+
+    #[test]
+    fn reference_values_are_the_nearest_grid_entries() {
+        // Regression: the reference spread was `nearest(spreads, f64::MAX)`, which is the first
+        // entry (|a − MAX| rounds to MAX for every a), so the noise plots showed 250 mm.
+        let spreads = [0.25, 0.5, 1.0, 1.5];
+        assert_eq!(nearest(&spreads, 1.0), 2);
+        assert_eq!(nearest(&[0.5, 1.0, 2.0, 3.0], 1.0), 1);
+        assert_eq!(nearest(&[0.25], 1.0), 0);
+    }
 }
