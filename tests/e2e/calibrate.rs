@@ -315,3 +315,46 @@ fn calibrate_soft_mount_estimates_tilt() {
     assert!(hard["residual_rms_mm"].as_f64().unwrap() > 1.0);
     assert!(v["residual_rms_mm"].as_f64().unwrap() < 1e-3);
 }
+
+#[test]
+fn calibrate_warns_when_the_points_contradict_the_mounts() {
+    // A floor–floor cell's points declared floor–wall with a known roll (robot 2's base z along
+    // its level x): imposing it is 90° off. Found by hand: this used to print a 90°-wrong transform
+    // with no warning at all.
+    let f = floor_floor_csv(None);
+    let path = f.path().to_str().unwrap();
+    let v = run_json(&[
+        "calibrate",
+        path,
+        "--mount1",
+        "floor",
+        "--mount2",
+        "tilt:0,-90",
+        "--method",
+        "constrained",
+        "--json",
+    ]);
+    let c = &v["mount_check"];
+    assert_eq!(c["consistent"], false, "{c}");
+    // The least-squares member of the family is not the geodesically nearest one: about 94° here.
+    assert!(c["rotation_gap_deg"].as_f64().unwrap() > 60.0, "{c}");
+    let out = bin()
+        .args([
+            "calibrate",
+            path,
+            "--mount1",
+            "floor",
+            "--mount2",
+            "tilt:0,-90",
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("WARNING: the points disagree with the mounts") && text.contains("--mount2"),
+        "{text}"
+    );
+    // The right mounts: consistent, and the text says so.
+    let v = run_json(&["calibrate", path, "--mounts", "floor-floor", "--json"]);
+    assert_eq!(v["mount_check"]["consistent"], true, "{v}");
+}

@@ -4,6 +4,7 @@ mod error;
 pub mod fast;
 pub mod identify;
 mod metrics;
+mod mount_check;
 pub mod paper;
 mod points;
 mod registration;
@@ -16,6 +17,7 @@ pub use fast::{
 };
 pub use kinematics::{rotation_from_zyz, wrap_angle, zyz_from_rotation, zyz_nearest};
 pub use metrics::{e_rot, e_rot_raw, e_rot_zyz, e_tran, geodesic_angle};
+pub use mount_check::{mount_check, MountCheck, MOUNT_CHECK_ALPHA};
 pub use points::{
     parse_points_csv, read_points_csv, PointPairs, DUPLICATE_DISTANCE_M, METRES_LIMIT_MM,
     SPREAD_RATIO_LIMIT,

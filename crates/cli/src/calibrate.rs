@@ -9,8 +9,8 @@
 
 use anyhow::{bail, Context};
 use calib_core::{
-    constrained_soft, fit, leave_one_out, read_points_csv, zyz_from_rotation, Fit, Method, Mount,
-    MountPair, PointPairs,
+    constrained_soft, fit, leave_one_out, mount_check, read_points_csv, zyz_from_rotation, Fit,
+    Method, Mount, MountPair, PointPairs, MOUNT_CHECK_ALPHA,
 };
 use serde_json::{json, Value};
 use std::path::PathBuf;
@@ -168,13 +168,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// Fits one method (the soft-mount variant for `constrained` when asked) and builds its report.
+/// The methods that impose the mounts also get the mounts' F-test against the points.
 fn fit_report(
     pairs: &PointPairs,
     method: Method,
     mounts: &MountPair,
     cfg: &Config,
 ) -> Result<Value, calib_core::CalibError> {
-    if let (Method::Constrained, Some((tilt_sigma, point_sigma))) = (method, cfg.soft) {
+    let mut v = if let (Method::Constrained, Some((tilt_sigma, point_sigma))) = (method, cfg.soft) {
         let soft = constrained_soft(pairs, mounts, tilt_sigma, point_sigma)?;
         let mut v = report(pairs, &soft.fit, cfg.mounts.as_ref());
         v["soft_mount"] = json!({
@@ -183,10 +184,48 @@ fn fit_report(
             "tilt_estimate_deg": soft.tilt_angle_rad.to_degrees(),
             "tilt_vector_deg_b1": [soft.tilt_rad.x.to_degrees(), soft.tilt_rad.y.to_degrees(), soft.tilt_rad.z.to_degrees()],
         });
-        return Ok(v);
+        v
+    } else {
+        report(pairs, &fit(pairs, method, mounts)?, cfg.mounts.as_ref())
+    };
+    if matches!(method, Method::Paper | Method::Constrained) && cfg.mounts.is_some() {
+        // Fewer than 3 usable points already failed the fit above; anything else is reported.
+        if let Ok(c) = mount_check(pairs, mounts) {
+            v["mount_check"] = json!({
+                "consistent": c.consistent(),
+                "alpha": MOUNT_CHECK_ALPHA,
+                "f_statistic": c.f_statistic,
+                "p_value": c.p_value,
+                "constraints": c.constraints,
+                "dof": c.dof_free,
+                "rotation_gap_deg": c.rotation_gap_rad.to_degrees(),
+                "rms_constrained_mm": mm((c.rss_constrained_m2 / pairs.len() as f64).sqrt()),
+                "rms_free_mm": mm((c.rss_free_m2 / pairs.len() as f64).sqrt()),
+            });
+        }
     }
-    let f = fit(pairs, method, mounts)?;
-    Ok(report(pairs, &f, cfg.mounts.as_ref()))
+    Ok(v)
+}
+
+/// The text of a failed mount check: what the points say and what to do about it.
+fn mount_warning(c: &Value) -> Option<String> {
+    if c["consistent"].as_bool() != Some(false) {
+        return None;
+    }
+    let gap = c["rotation_gap_deg"].as_f64().unwrap_or(f64::NAN);
+    let advice = if gap > 2.0 {
+        "the mounts look wrong: check --mounts, or the sign and axis of --mount1/--mount2 tilt:RX,RY"
+    } else {
+        "the mount is nominal only: use --tilt-sigma-deg to estimate the actual tilt, or method lsq"
+    };
+    Some(format!(
+        "WARNING: the points disagree with the mounts (F = {:.1}, p = {:.1e} < {}): the free rigid fit is {gap:.3}° from the nearest rotation they allow, and imposing them raises the residual RMS from {:.3} to {:.3} mm; {advice}",
+        c["f_statistic"].as_f64().unwrap_or(f64::NAN),
+        c["p_value"].as_f64().unwrap_or(f64::NAN),
+        c["alpha"].as_f64().unwrap_or(f64::NAN),
+        c["rms_free_mm"].as_f64().unwrap_or(f64::NAN),
+        c["rms_constrained_mm"].as_f64().unwrap_or(f64::NAN),
+    ))
 }
 
 fn mm(v: f64) -> f64 {
@@ -345,6 +384,14 @@ fn print_text(v: &Value) {
             v["soft_mount"]["tilt_sigma_deg"]
                 .as_f64()
                 .unwrap_or(f64::NAN)
+        );
+    }
+    if let Some(w) = mount_warning(&v["mount_check"]) {
+        println!("{w}");
+    } else if !v["mount_check"].is_null() {
+        println!(
+            "mount check: the points agree with the mounts (F-test p = {:.3})",
+            v["mount_check"]["p_value"].as_f64().unwrap_or(f64::NAN)
         );
     }
     if v["outliers"].is_null() {
