@@ -16,7 +16,7 @@ pub use fast::{
     constrained_fast, generic_fast, paper_fast, rigid_fit_fast, rotation_maximizing_trace,
 };
 pub use kinematics::{rotation_from_zyz, wrap_angle, zyz_from_rotation, zyz_nearest};
-pub use metrics::{e_rot, e_rot_raw, e_rot_zyz, e_tran, geodesic_angle};
+pub use metrics::{e_rot, e_rot_raw, e_rot_zyz, e_tran, geodesic_angle, ZYZ_SINGULAR_BAND_RAD};
 pub use mount_check::{mount_check, MountCheck, MOUNT_CHECK_ALPHA};
 pub use points::{
     parse_points_csv, read_points_csv, PointPairs, DUPLICATE_DISTANCE_M, METRES_LIMIT_MM,

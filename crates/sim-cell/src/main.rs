@@ -297,8 +297,10 @@ fn sweep_cmd(a: SweepArgs) -> Result<()> {
         .filter(|c| *c > 0.0)
         .map(|c| format!(", {:.0} per CPU-second", total as f64 / c))
         .unwrap_or_default();
+    // Timed: run_sweep only (draw, fit and metrics of every trial × method, into memory);
+    // writing the CSV files and plots below is not.
     println!(
-        "{} trials in {:.2} s ({:.0} trials/s{per_cpu}). Pooled over noise, spread and points; median and p95 with 95 % CI:",
+        "{} trials in {:.2} s ({:.0} trials/s{per_cpu}; simulation only, files not timed). Pooled over noise, spread and points; median and p95 with 95 % CI:",
         total,
         secs,
         total as f64 / secs.max(1e-9)

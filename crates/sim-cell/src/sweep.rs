@@ -19,14 +19,16 @@ use crate::placement::{mounts_label, paper_placement};
 use crate::session::{generate_session, SessionSpec};
 use crate::stats::{quantile_ci, sorted_finite, QuantileCi};
 use crate::trial_rng;
+use calib_core::ZYZ_SINGULAR_BAND_RAD;
 use calib_core::{
     constrained_fast, e_rot, e_tran, generic_fast, geodesic_angle, paper_fast,
     project_rotation_family, rigid_fit_fast, rotation_maximizing_trace, wrap_angle,
     zyz_from_rotation, Method, MountPair,
 };
 use indicatif::ProgressBar;
-use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use rand::Rng;
+use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use rayon::prelude::*;
 use std::io::Write;
@@ -41,7 +43,8 @@ const CHUNK: usize = 2048;
 pub struct TrialErrors {
     /// eq (34): largest per-axis translation error, m.
     pub e_tran: f64,
-    /// eq (33): largest ZYZ angle error (branch-matched, wrapped), rad.
+    /// eq (33): largest ZYZ angle error (branch-matched, wrapped; at the floor–floor /
+    /// floor–ceiling singularity max(tilt, |yaw error|), see [`calib_core::e_rot_zyz`]), rad.
     pub e_rot: f64,
     /// Geodesic angle between the true and estimated rotations, rad.
     pub geodesic: f64,
@@ -63,10 +66,15 @@ impl TrialErrors {
         }
     }
 
-    /// As [`TrialErrors::between`] with the truth's ZYZ angles (eq 32, rad) given, allocation-free
-    /// (e_rot by [`e_rot_fast`]; the geodesic angle and rotation vector from one quaternion
-    /// `atan2`); equal to it to round-off (tested).
-    pub fn between_fast(truth: &Isometry3<f64>, zyz_true: [f64; 3], est: &Isometry3<f64>) -> Self {
+    /// As [`TrialErrors::between`] with the truth's eq 33 reading precomputed
+    /// ([`ErotTruth::new`] of its eq 32 angles), allocation-free (e_rot by [`ErotTruth::e_rot`];
+    /// the geodesic angle and rotation vector from one quaternion `atan2`); equal to it to
+    /// round-off (tested).
+    pub fn between_fast(
+        truth: &Isometry3<f64>,
+        erot_truth: &ErotTruth,
+        est: &Isometry3<f64>,
+    ) -> Self {
         let dt = est.translation.vector - truth.translation.vector;
         let dq = (est.rotation * truth.rotation.inverse()).into_inner();
         let (w, v) = if dq.w < 0.0 {
@@ -78,7 +86,7 @@ impl TrialErrors {
         let angle = 2.0 * n.atan2(w);
         TrialErrors {
             e_tran: dt.amax(),
-            e_rot: e_rot_fast(zyz_true, &est.rotation.to_rotation_matrix()),
+            e_rot: erot_truth.e_rot(&est.rotation.to_rotation_matrix()),
             geodesic: angle,
             translation_error: dt,
             rotation_error: if n > 0.0 { v * (angle / n) } else { v * 2.0 },
@@ -86,23 +94,130 @@ impl TrialErrors {
     }
 }
 
-/// eq (33) against true ZYZ angles `zyz_true` (rad), allocation-free: the smallest, over the ZYZ
-/// readings of `r_est` that [`calib_core::zyz_nearest`] chooses among (both regular branches and,
-/// at `|sin θ| < 1e-9`, the reference-anchored singular readings), of the largest wrapped angle
-/// difference. Same value as [`calib_core::e_rot_zyz`] (tested), rad.
-pub fn e_rot_fast(zyz_true: [f64; 3], r_est: &nalgebra::Rotation3<f64>) -> f64 {
+/// The true rotation as [`e_rot_fast`] reads estimates against it (eq 33), precomputed once per
+/// grid cell: the true ZYZ angles and, when they lie within [`ZYZ_SINGULAR_BAND_RAD`] of θ = 0 or
+/// 180°, the true z axis and yaw (see [`calib_core::e_rot_zyz`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ErotTruth {
+    /// True ZYZ angles `[φ, θ, ψ]`, rad, as given.
+    zyz: [f64; 3],
+    /// The same wrapped to (−π, π], for the regular reading.
+    zyz_wrapped: [f64; 3],
+    /// At the singularity: the reading's constants.
+    singular: Option<SingularTruth>,
+}
+
+/// A true rotation at the ZYZ singularity, as eq 33 reads estimates against it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct SingularTruth {
+    /// θ near 0 (yaw `φ + ψ`) rather than near π (yaw `φ − ψ`).
+    near_zero: bool,
+    /// The true z axis (third column), b1.
+    a: Vector3<f64>,
+    /// `(cos, sin)` of the true yaw.
+    yaw: (f64, f64),
+}
+
+impl ErotTruth {
+    /// From the true ZYZ angles (rad, eq 32 or published).
+    pub fn new(zyz_true: [f64; 3]) -> Self {
+        let [phi, theta, psi] = zyz_true;
+        let (st, ct) = theta.sin_cos();
+        let singular = (st.abs() < ZYZ_SINGULAR_BAND_RAD.sin()).then(|| {
+            let near_zero = ct > 0.0;
+            let (sp, cp) = phi.sin_cos();
+            let yaw = if near_zero { phi + psi } else { phi - psi };
+            let (sy, cy) = yaw.sin_cos();
+            SingularTruth {
+                near_zero,
+                a: Vector3::new(cp * st, sp * st, ct),
+                yaw: (cy, sy),
+            }
+        });
+        ErotTruth {
+            zyz: zyz_true,
+            zyz_wrapped: zyz_true.map(wrap_angle),
+            singular,
+        }
+    }
+
+    /// The true ZYZ angles, rad.
+    pub fn zyz(&self) -> [f64; 3] {
+        self.zyz
+    }
+
+    /// eq (33) of `r_est` against this truth, rad: [`e_rot_fast`].
+    pub fn e_rot(&self, r_est: &Rotation3<f64>) -> f64 {
+        let Some(t) = &self.singular else {
+            return e_rot_regular(self.zyz_wrapped, r_est);
+        };
+        let m = r_est.matrix();
+        // tilt = ∠(a_true, a_est) = atan2(|a_true × a_est|, a_true·a_est), accurate at any angle.
+        let a = m.column(2);
+        let (tilt_x, tilt_y) = (t.a.dot(&a), t.a.cross(&a).norm());
+        // The estimate's yaw as a (cos, sin) pair scaled by 1 ± cos θ_est ≥ 0 (zero only for an
+        // estimate flipped upside down, whose tilt is then 180° anyway):
+        // R₀₀ + R₁₁ = (1 + cos θ)·cos(φ + ψ), R₁₀ − R₀₁ = (1 + cos θ)·sin(φ + ψ);
+        // R₁₁ − R₀₀ = (1 − cos θ)·cos(φ − ψ), −(R₁₀ + R₀₁) = (1 − cos θ)·sin(φ − ψ).
+        let (c, s) = if t.near_zero {
+            (m[(0, 0)] + m[(1, 1)], m[(1, 0)] - m[(0, 1)])
+        } else {
+            (m[(1, 1)] - m[(0, 0)], -(m[(1, 0)] + m[(0, 1)]))
+        };
+        // An estimate exactly upside down has no yaw: read it as 0 like calib-core's atan2(0, 0).
+        let (c, s) = if c == 0.0 && s == 0.0 {
+            (1.0, 0.0)
+        } else {
+            (c, s)
+        };
+        // |wrap(yaw_est − yaw_true)| = atan2(yaw_y, yaw_x), the angle between the yaw directions.
+        let (ct, st) = t.yaw;
+        let (yaw_x, yaw_y) = (c * ct + s * st, (s * ct - c * st).abs());
+        // Both angles are atan2(y, x) with y ≥ 0, in [0, π]: the larger one's vector lies
+        // counter-clockwise of the other's (positive cross product), so only it is evaluated. On a
+        // tie (parallel or opposite vectors, or NaN) both are, and the larger is returned.
+        let ccw = yaw_x * tilt_y - yaw_y * tilt_x;
+        if ccw > 0.0 {
+            tilt_y.atan2(tilt_x)
+        } else if ccw < 0.0 {
+            yaw_y.atan2(yaw_x)
+        } else {
+            tilt_y.atan2(tilt_x).max(yaw_y.atan2(yaw_x))
+        }
+    }
+}
+
+/// eq (33) against true ZYZ angles `zyz_true` (rad), allocation-free; the same value as
+/// [`calib_core::e_rot_zyz`] (tested), rad. At a true θ within [`ZYZ_SINGULAR_BAND_RAD`] of 0 or
+/// 180°: `max(tilt of the z axis, |yaw error|)`; elsewhere the smallest, over the exact ZYZ
+/// readings of `r_est` that [`calib_core::zyz_nearest`] chooses among, of the largest wrapped angle
+/// difference. For many estimates against one truth, build the [`ErotTruth`] once.
+pub fn e_rot_fast(zyz_true: [f64; 3], r_est: &Rotation3<f64>) -> f64 {
+    ErotTruth::new(zyz_true).e_rot(r_est)
+}
+
+/// eq (33) on the nearest exact branch (both regular branches and, at `|sin θ_est| < 1e-9`, the
+/// reference-anchored singular readings of [`calib_core::zyz_nearest`]), rad. `zyz_true` must be
+/// wrapped to (−π, π] ([`ErotTruth::new`] does it), so that every difference below lies in
+/// (−2π, 2π) and [`wrap_difference`] applies.
+fn e_rot_regular(zyz_true: [f64; 3], r_est: &Rotation3<f64>) -> f64 {
     use std::f64::consts::PI;
     let [phi, theta, psi] = zyz_from_rotation(r_est);
     let diff = |a: [f64; 3]| -> f64 {
         let mut d: f64 = 0.0;
         for i in 0..3 {
-            d = d.max(wrap_angle(a[i] - zyz_true[i]).abs());
+            d = d.max(wrap_difference(a[i] - zyz_true[i]).abs());
         }
         d
     };
-    let mut best =
-        diff([phi, theta, psi]).min(diff([wrap_angle(phi + PI), -theta, wrap_angle(psi + PI)]));
-    if theta.sin().abs() < 1e-9 {
+    // φ, ψ ∈ (−π, π] and θ ∈ [0, π] (eq 32), so φ + π, ψ + π ∈ (0, 2π].
+    let mut best = diff([phi, theta, psi]).min(diff([
+        wrap_difference(phi + PI),
+        -theta,
+        wrap_difference(psi + PI),
+    ]));
+    // |sin θ| < 1e-9 needs θ within 1e-6 of 0 or π: test that first and skip the sine otherwise.
+    if !(1e-6..=PI - 1e-6).contains(&theta) && theta.sin().abs() < 1e-9 {
         let phi_n = zyz_true[0];
         let psi_n = if theta.cos() > 0.0 {
             phi + psi - phi_n
@@ -110,10 +225,34 @@ pub fn e_rot_fast(zyz_true: [f64; 3], r_est: &nalgebra::Rotation3<f64>) -> f64 {
             phi_n - (phi - psi)
         };
         for th in [theta, -theta] {
-            best = best.min(diff([wrap_angle(phi_n), th, wrap_angle(psi_n)]));
+            best = best.min(diff([phi_n, th, wrap_difference(psi_n)]));
         }
     }
     best
+}
+
+/// [`wrap_angle`] for `x ∈ (−3π, 3π)` (sums and differences of angles in (−π, π]): one exact
+/// add or subtract of 2π (exact by Sterbenz's lemma for `π ≤ |x| ≤ 4π`), no `fmod`. Equal to
+/// [`wrap_angle`] up to its own round-off (it keeps tiny negative angles that `wrap_angle` rounds
+/// to 0). Outside that range, or NaN, it defers to [`wrap_angle`].
+#[inline]
+fn wrap_difference(x: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    if x > PI {
+        if x < 3.0 * PI {
+            x - TAU
+        } else {
+            wrap_angle(x)
+        }
+    } else if x <= -PI {
+        if x > -3.0 * PI {
+            x + TAU
+        } else {
+            wrap_angle(x)
+        }
+    } else {
+        x // (−π, π], and NaN
+    }
 }
 
 /// One geometry-mode trial's setting.
@@ -160,6 +299,11 @@ impl GeometrySpec {
     /// The true rotation's ZYZ angles (eq 32, rad), as e_rot compares against.
     pub fn zyz_true(&self) -> [f64; 3] {
         zyz_from_rotation(&self.b1_from_b2.rotation.to_rotation_matrix())
+    }
+
+    /// The truth's eq 33 reading ([`ErotTruth::new`] of [`GeometrySpec::zyz_true`]).
+    pub fn erot_truth(&self) -> ErotTruth {
+        ErotTruth::new(self.zyz_true())
     }
 
     /// Checks the spec: point count, finite non-negative spread and σ.
@@ -302,7 +446,7 @@ pub fn geometry_trial(
         let mut buf2 = [Point3::origin(); SMALL];
         Ok(geometry_trial_into(
             spec,
-            spec.zyz_true(),
+            &spec.erot_truth(),
             method,
             rng,
             &mut buf1[..spec.n],
@@ -313,7 +457,7 @@ pub fn geometry_trial(
         let mut buf2 = vec![Point3::origin(); spec.n];
         Ok(geometry_trial_into(
             spec,
-            spec.zyz_true(),
+            &spec.erot_truth(),
             method,
             rng,
             &mut buf1,
@@ -323,12 +467,12 @@ pub fn geometry_trial(
 }
 
 /// [`geometry_trial`] without validation, drawing into caller buffers (their length is the
-/// point count; the spec's `n` is not used), with the truth's ZYZ angles precomputed
-/// ([`GeometrySpec::zyz_true`]): allocation-free, for hot loops of a validated spec.
+/// point count; the spec's `n` is not used), with the truth's eq 33 reading precomputed
+/// ([`GeometrySpec::erot_truth`]): allocation-free, for hot loops of a validated spec.
 /// `None` when the fit fails.
 pub fn geometry_trial_into(
     spec: &GeometrySpec,
-    zyz_true: [f64; 3],
+    erot_truth: &ErotTruth,
     method: Method,
     rng: &mut impl Rng,
     p_b1: &mut [Point3<f64>],
@@ -336,7 +480,32 @@ pub fn geometry_trial_into(
 ) -> Option<TrialErrors> {
     draw_geometry(spec, rng, p_b1, p_b2);
     fit_fast(method, &spec.mounts, p_b1, p_b2)
-        .map(|est| TrialErrors::between_fast(&spec.b1_from_b2, zyz_true, &est))
+        .map(|est| TrialErrors::between_fast(&spec.b1_from_b2, erot_truth, &est))
+}
+
+/// [`trial_rng`] for many trials of one seed: the seed is expanded into the ChaCha key once, and
+/// each trial's generator is a copy of the fresh keyed generator with its stream set, the same
+/// state as `trial_rng(seed, index)` (tested).
+#[derive(Debug, Clone)]
+pub struct TrialRngs {
+    base: ChaCha8Rng,
+}
+
+impl TrialRngs {
+    /// The generators of master `seed`.
+    pub fn new(seed: u64) -> Self {
+        TrialRngs {
+            base: trial_rng(seed, 0),
+        }
+    }
+
+    /// The generator of trial `index`, equal to `trial_rng(seed, index)`.
+    #[inline]
+    pub fn get(&self, index: u64) -> ChaCha8Rng {
+        let mut rng = self.base.clone();
+        rng.set_stream(index);
+        rng
+    }
 }
 
 /// Why a trial gave no estimate.
@@ -577,54 +746,110 @@ pub fn run_sweep(
     let grid = config.grid();
     let total = config.total_trials();
     let n_methods = config.methods.len();
-    let specs: Vec<(GeometrySpec, [f64; 3])> = grid
+    let specs: Vec<(GeometrySpec, ErotTruth)> = grid
         .iter()
         .map(|g| {
             let spec = geometry_spec(config, g);
-            (spec, spec.zyz_true())
+            (spec, spec.erot_truth())
         })
         .collect();
-    let mut outcomes: Vec<Outcome> = vec![Err(Failure::FitFailed); total * n_methods];
-    outcomes
-        .par_chunks_mut(CHUNK * n_methods)
-        .enumerate()
-        .for_each(|(c, out)| {
-            let start = c * CHUNK;
-            let end = start + out.len() / n_methods;
-            let mut buf1 = vec![Point3::origin(); MAX_GEOMETRY_POINTS];
-            let mut buf2 = vec![Point3::origin(); MAX_GEOMETRY_POINTS];
-            let mut robot_out = Vec::new();
-            for (trial, slots) in (start..end).zip(out.chunks_mut(n_methods)) {
-                let cell_index = trial / config.trials;
-                let cell = grid[cell_index];
-                let mut rng = trial_rng(config.seed, trial as u64);
-                match config.mode {
-                    Mode::Geometry => {
-                        let (spec, zyz_true) = &specs[cell_index];
-                        let (p1, p2) = (&mut buf1[..spec.n], &mut buf2[..spec.n]);
-                        draw_geometry(spec, &mut rng, p1, p2);
-                        for (slot, &method) in slots.iter_mut().zip(&config.methods) {
-                            *slot = fit_fast(method, &spec.mounts, p1, p2)
-                                .map(|est| {
-                                    TrialErrors::between_fast(&spec.b1_from_b2, *zyz_true, &est)
-                                })
-                                .ok_or(Failure::FitFailed);
+    let rngs = TrialRngs::new(config.seed);
+    // One item per trial × method, written in place into `outcomes` by rayon (no serial
+    // pre-fill of the output); a worker runs a trial's methods when it meets the trial's first
+    // item it is given (a trial split between two workers is run by both, identically).
+    let mut outcomes: Vec<Outcome> = Vec::new();
+    (0..total * n_methods)
+        .into_par_iter()
+        .with_min_len(CHUNK * n_methods)
+        .map_init(
+            || Worker::new(progress),
+            |w, item| {
+                let trial = item / n_methods;
+                if w.trial != Some(trial) {
+                    w.trial = Some(trial);
+                    w.outcomes.clear();
+                    let cell_index = trial / config.trials;
+                    let mut rng = rngs.get(trial as u64);
+                    match config.mode {
+                        Mode::Geometry => {
+                            let (spec, erot_truth) = &specs[cell_index];
+                            let (p1, p2) = (&mut w.buf1[..spec.n], &mut w.buf2[..spec.n]);
+                            draw_geometry(spec, &mut rng, p1, p2);
+                            w.outcomes.extend(config.methods.iter().map(|&method| {
+                                fit_fast(method, &spec.mounts, p1, p2)
+                                    .map(|est| {
+                                        TrialErrors::between_fast(
+                                            &spec.b1_from_b2,
+                                            erot_truth,
+                                            &est,
+                                        )
+                                    })
+                                    .ok_or(Failure::FitFailed)
+                            }));
+                        }
+                        Mode::Robot => {
+                            let cell = &grid[cell_index];
+                            robot_trial(
+                                config,
+                                cell,
+                                &cells[cell.mounts],
+                                &mut rng,
+                                &mut w.outcomes,
+                            );
                         }
                     }
-                    Mode::Robot => {
-                        robot_out.clear();
-                        robot_trial(config, &cell, &cells[cell.mounts], &mut rng, &mut robot_out);
-                        slots.copy_from_slice(&robot_out);
-                    }
                 }
-            }
-            progress.inc((end - start) as u64);
-        });
+                let m = item % n_methods;
+                if m == 0 {
+                    w.count_trial();
+                }
+                w.outcomes[m]
+            },
+        )
+        .collect_into_vec(&mut outcomes);
     Ok(SweepResult {
         config: config.clone(),
         grid,
         outcomes,
     })
+}
+
+/// Per-worker state of [`run_sweep`]: point buffers, the trial in hand and its outcomes (one per
+/// method), and progress not yet reported (reported every [`CHUNK`] trials and when dropped).
+struct Worker<'a> {
+    buf1: Vec<Point3<f64>>,
+    buf2: Vec<Point3<f64>>,
+    trial: Option<usize>,
+    outcomes: Vec<Outcome>,
+    progress: &'a ProgressBar,
+    pending: u64,
+}
+
+impl<'a> Worker<'a> {
+    fn new(progress: &'a ProgressBar) -> Self {
+        Worker {
+            buf1: vec![Point3::origin(); MAX_GEOMETRY_POINTS],
+            buf2: vec![Point3::origin(); MAX_GEOMETRY_POINTS],
+            trial: None,
+            outcomes: Vec::new(),
+            progress,
+            pending: 0,
+        }
+    }
+
+    fn count_trial(&mut self) {
+        self.pending += 1;
+        if self.pending == CHUNK as u64 {
+            self.progress.inc(self.pending);
+            self.pending = 0;
+        }
+    }
+}
+
+impl Drop for Worker<'_> {
+    fn drop(&mut self) {
+        self.progress.inc(self.pending);
+    }
 }
 
 /// The geometry spec of a grid cell.
@@ -844,9 +1069,8 @@ fn ci_text(q: &QuantileCi, decimals: usize) -> String {
 }
 
 /// The terminal table: mounts, method, trials, failures, then median and p95 of e_tran (mm),
-/// e_rot (deg, eq 33) and the geodesic angle (deg), each `value [95 % CI]`. (At θ ≈ 0° or 180°,
-/// floor–floor and floor–ceiling, eq 33's φ/ψ split is ill-conditioned for estimates off the
-/// mount family, so e_rot is large for the unconstrained methods; the geodesic angle is not.)
+/// e_rot (deg, eq 33, read the paper's way at the floor–floor / floor–ceiling singularity, see
+/// [`calib_core::e_rot_zyz`]) and the geodesic angle (deg), each `value [95 % CI]`.
 pub fn render_table(rows: &[SummaryRow]) -> String {
     let header = [
         "mounts".to_string(),
@@ -983,13 +1207,31 @@ mod tests {
             .iter()
             .map(|p| zyz_from_rotation(&p.b1_from_b2().rotation.to_rotation_matrix()))
             .collect();
-        truths.push([0.3, 0.0, -0.7]);
-        truths.push([0.3, std::f64::consts::PI, -0.7]);
+        use std::f64::consts::PI;
+        // Exactly at θ = 0 and 180°, tiny angles either side, the band's edges (1°) and a regular
+        // truth next to them.
+        let band = ZYZ_SINGULAR_BAND_RAD;
+        truths.extend([
+            [0.0, 0.0, 0.0],
+            [0.3, 0.0, -0.7],
+            [0.3, 1e-12, -0.7],
+            [0.3, -1e-9, 2.9],
+            [0.0, PI, 0.0],
+            [0.3, PI, -0.7],
+            [-3.0, PI - 1e-12, 3.1],
+            [1.0, -PI + 1e-9, 0.2],
+            [0.2, 0.999 * band, -1.0],
+            [0.2, PI - 0.999 * band, -1.0],
+            [0.2, 1.001 * band, -1.0],
+            [0.2, PI - 1.001 * band, -1.0],
+        ]);
         for zyz_true in truths {
             let r_true = rotation_from_zyz(zyz_true);
+            let truth = ErotTruth::new(zyz_true);
+            assert_eq!(truth.zyz(), zyz_true);
             for k in 0..300 {
-                // Perturbations from 1e-12 rad (singular branch) to 1 rad.
-                let scale = 10f64.powi(-(k % 13));
+                // Perturbations from 1e-12 rad (singular branch) to 1 rad, and exactly 0.
+                let scale = if k == 299 { 0.0 } else { 10f64.powi(-(k % 13)) };
                 let v = Vector3::new(
                     rng.random::<f64>() - 0.5,
                     rng.random::<f64>() - 0.5,
@@ -1001,6 +1243,19 @@ mod tests {
                 assert!(
                     (a - b).abs() < SAME_MATHS_TOL,
                     "{zyz_true:?} {v:?}: {a} vs {b}"
+                );
+                assert_eq!(a, truth.e_rot(&r_est));
+            }
+            // A half turn about z (yaw error exactly 180°) and about x (estimate upside down).
+            for axis in [Vector3::z_axis(), Vector3::x_axis()] {
+                let r_est = Rotation3::from_axis_angle(&axis, PI) * r_true;
+                let (a, b) = (
+                    e_rot_fast(zyz_true, &r_est),
+                    calib_core::e_rot_zyz(zyz_true, &r_est),
+                );
+                assert!(
+                    (a - b).abs() < SAME_MATHS_TOL,
+                    "{zyz_true:?} {axis:?}: {a} vs {b}"
                 );
             }
         }
@@ -1028,7 +1283,8 @@ mod tests {
                     );
                     let e = TrialErrors::between(&spec.b1_from_b2, &fast);
                     let zyz = zyz_from_rotation(&spec.b1_from_b2.rotation.to_rotation_matrix());
-                    let f = TrialErrors::between_fast(&spec.b1_from_b2, zyz, &fast);
+                    let f =
+                        TrialErrors::between_fast(&spec.b1_from_b2, &ErotTruth::new(zyz), &fast);
                     assert!((e.e_tran - f.e_tran).abs() < SAME_MATHS_TOL);
                     assert!((e.e_rot - f.e_rot).abs() < SAME_MATHS_TOL);
                     assert!((e.geodesic - f.geodesic).abs() < SAME_MATHS_TOL);
@@ -1115,9 +1371,10 @@ mod tests {
             .num_threads(threads)
             .build()
             .unwrap();
-        let result = pool
-            .install(|| run_sweep(config, &[], &ProgressBar::hidden()))
-            .unwrap();
+        let progress = ProgressBar::hidden();
+        let result = pool.install(|| run_sweep(config, &[], &progress)).unwrap();
+        // Every trial is counted once, even when a trial is split between two workers.
+        assert_eq!(progress.position(), config.total_trials() as u64);
         let mut out = Vec::new();
         write_trials_csv(&result, &mut out).unwrap();
         write_summary_csv(&summarize_cells(&result), &mut out).unwrap();
@@ -1134,6 +1391,39 @@ mod tests {
         assert_eq!(a, b);
         config.seed = 8;
         assert_ne!(a, csv_with_threads(&config, 2));
+    }
+
+    #[test]
+    fn wrap_difference_equals_wrap_angle() {
+        use std::f64::consts::{PI, TAU};
+        assert_eq!(wrap_difference(PI), PI);
+        assert_eq!(wrap_difference(-PI), PI);
+        assert_eq!(wrap_difference(TAU), 0.0);
+        assert_eq!(wrap_difference(-1e-300), -1e-300); // wrap_angle rounds this to 0
+        assert!(wrap_difference(f64::NAN).is_nan());
+        let mut x: f64 = -12.0;
+        while x < 12.0 {
+            for y in [x, x + 4e-15, x - 4e-15] {
+                let (a, b) = (wrap_difference(y), wrap_angle(y));
+                assert!(a > -PI && a <= PI, "{y} -> {a}");
+                // wrap_angle's own round-off: one ulp of 2π.
+                assert!((a - b).abs() <= 1e-15, "{y}: {a} vs {b}");
+            }
+            x += PI / 64.0;
+        }
+    }
+
+    #[test]
+    fn trial_rngs_equal_trial_rng() {
+        for seed in [0, 1, 7, u64::MAX] {
+            let rngs = TrialRngs::new(seed);
+            for index in [0, 1, 2, 63, 64, 1 << 20, u64::MAX] {
+                let (mut a, mut b) = (rngs.get(index), trial_rng(seed, index));
+                for _ in 0..100 {
+                    assert_eq!(a.random::<u64>(), b.random::<u64>());
+                }
+            }
+        }
     }
 
     #[test]
@@ -1250,7 +1540,7 @@ mod tests {
                 UnitQuaternion::new(d) * truth.rotation,
             );
             let a = TrialErrors::between(&truth, &est);
-            let b = TrialErrors::between_fast(&truth, zyz_from_rotation(&truth.rotation.to_rotation_matrix()), &est);
+            let b = TrialErrors::between_fast(&truth, &ErotTruth::new(zyz_from_rotation(&truth.rotation.to_rotation_matrix())), &est);
             proptest::prop_assert!((a.e_tran - b.e_tran).abs() < SAME_MATHS_TOL);
             proptest::prop_assert!((a.e_rot - b.e_rot).abs() < SAME_MATHS_TOL);
             proptest::prop_assert!((a.geodesic - b.geodesic).abs() < SAME_MATHS_TOL);
