@@ -745,9 +745,14 @@ impl Identifiability {
 /// millionth of its effect (it could never be estimated from handclasp data anyway).
 pub const RANK_TOL: f64 = 1e-6;
 
-/// RMS tip displacement (m) of a parameter at its typical magnitude below which it counts as
-/// having no effect (1 nm: far below any measurement).
-pub const NO_EFFECT_M: f64 = 1e-9;
+/// RMS tip displacement (m) of a parameter at its typical magnitude ([`TipModel::param_scale`])
+/// below which it counts as having no effect: 0.1 µm, a thousandth of the smallest handclasp
+/// noise (0.1 mm); even at 20× its typical magnitude such a parameter moves the tips by 2 µm RMS,
+/// which no handclasp session can see (noncentrality < 0.1 with 60 points at σ = 0.1 mm).
+/// (It was 1 nm: then robot 2's joint-1 compliance on a floor–floor cell, whose only torque comes
+/// from the 0.001° tilt of Table 1's placement, counted as "identifiable" with a minimum
+/// detectable value of ~4000 deg/(kN·m).)
+pub const NO_EFFECT_M: f64 = 1e-7;
 
 /// Projects candidate columns out of the base frame and the fit's parameters at `fit`'s solution.
 /// `group_cos` (e.g. 0.999) is the |cos| above which two projected columns count as parallel.
@@ -1377,11 +1382,9 @@ pub fn forward_select(
         let p_value = f_test_p_value(f_stat, new_fit.dof);
         let threshold = options.alpha / screened.max(1) as f64;
         let significant = p_value < threshold;
-        let new_cv = if significant {
-            kfold_rms(model, &params, options.folds, Some(&new_fit), &options.fit)?
-        } else {
-            f64::NAN
-        };
+        // Computed for rejected candidates too: the step reports it (a NaN here once printed
+        // "held-out RMS 0.5650 → NaN mm" for every rejected step).
+        let new_cv = kfold_rms(model, &params, options.folds, Some(&new_fit), &options.fit)?;
         let accepted = significant && new_cv < current_cv && new_fit.bic() < current.bic();
         steps.push(SelectionStep {
             param,

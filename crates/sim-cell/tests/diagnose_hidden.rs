@@ -170,6 +170,49 @@ fn noise_only_sessions_come_back_clean() {
     );
 }
 
+/// Regression: a rejected selection step printed "held-out RMS 0.5650 → NaN mm" (the held-out
+/// RMS was computed only for significant candidates), so every report's text and JSON `steps`
+/// carried a NaN. Found by the independent-generator study (`tools/independent/run_study.py`),
+/// which flags NaN/inf in any output.
+#[test]
+fn rejected_step_heldout_rms_is_not_nan() {
+    let report = run(&cell_for(0), &[], 1000);
+    assert!(
+        report.steps.iter().any(|s| s.contains("rejected")),
+        "{:?}",
+        report.steps
+    );
+    let text = diagnose::render_text(&report);
+    assert!(!text.contains("NaN"), "{text}");
+}
+
+/// Regression: robot 2's joint 1 is vertical on a floor–floor cell, so gravity exerts (almost) no
+/// torque about it and its compliance cannot be seen; but the 0.001° tilt of Table 1's placement
+/// leaves a 1.7e-4 m/s² horizontal gravity component in b2, which moved the tips by ~50 nm at a
+/// typical compliance, above the old 1 nm "no effect" threshold, so the candidate was reported
+/// identifiable (minimum detectable value ~4000 deg/(kN·m)). Found by the independent-generator
+/// study (`tools/independent/run_study.py`), whose physics has no torque about a vertical axis.
+#[test]
+fn vertical_joint_compliance_is_reported_without_effect() {
+    let report = run(&Cell::default_floor_floor(), &[], 1001);
+    for (robot, label) in [
+        (1, "robot 1 compliance joint 1"),
+        (2, "robot 2 compliance joint 1"),
+    ] {
+        let fam = report
+            .families
+            .iter()
+            .find(|f| f.robot == robot && f.kind == EffectKind::Compliance)
+            .expect("family");
+        assert!(
+            fam.no_effect.iter().any(|l| l == label),
+            "{label}: {:?}",
+            fam.no_effect
+        );
+        assert!(report.min_detectable.iter().all(|d| d.label != label));
+    }
+}
+
 #[test]
 fn anisotropic_noise_only_sessions_come_back_clean() {
     // Alignment σ = [0.1, 0.1, 0.8] mm (b1 axes): the residuals are whitened by the cell's noise,
