@@ -4,10 +4,7 @@
 //! `sim_cell::paper`; this module only parses flags and prints.
 
 use anyhow::Context;
-use sim_cell::paper::{
-    render_diagnosis_text, run_paper_diagnosis, StudyOptions, DEFAULT_BOOTSTRAP, DEFAULT_SEED,
-    DEFAULT_TRIALS,
-};
+use sim_cell::paper::{render_diagnosis_text, run_paper_diagnosis, StudyOptions};
 
 /// Arguments of `handclasp paper diagnose`.
 #[derive(clap::Args, Debug)]
@@ -15,25 +12,14 @@ pub struct Args {
     /// Print one JSON object instead of the text report.
     #[arg(long)]
     pub json: bool,
-    /// Seed of the Monte Carlo simulation (same seed, same report).
-    #[arg(long, default_value_t = DEFAULT_SEED)]
-    pub seed: u64,
-    /// Simulated experiments per cell (at least 200).
-    #[arg(long, default_value_t = DEFAULT_TRIALS)]
-    pub trials: usize,
-    /// Parametric-bootstrap replicates of the "both methods share σ" test (0 skips it).
-    #[arg(long, default_value_t = DEFAULT_BOOTSTRAP)]
-    pub bootstrap: usize,
+    /// The study's seed, size and bootstrap.
+    #[command(flatten)]
+    pub study: StudyOptions,
 }
 
 /// Runs `handclasp paper diagnose`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let opts = StudyOptions {
-        seed: args.seed,
-        trials: args.trials,
-        bootstrap: args.bootstrap,
-    };
-    let diagnosis = run_paper_diagnosis(&opts).context("handclasp paper diagnose")?;
+    let diagnosis = run_paper_diagnosis(&args.study).context("handclasp paper diagnose")?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&diagnosis)?);
     } else {

@@ -1,7 +1,8 @@
 //! `sim-cell`: simulated handclasp sessions and Monte Carlo sweeps.
 //!
 //! `sim-cell session` writes a simulated session CSV for a cell; `sim-cell sweep` runs a Monte Carlo
-//! study (geometry-only or robot mode) and writes trials.csv, summary.csv and SVG plots.
+//! study (geometry-only or robot mode) and writes trials.csv, summary.csv and SVG plots;
+//! `sim-cell paper` sets the simulation beside the paper's Table 1.
 
 use anyhow::{bail, Context, Result};
 use calib_core::{Method, MountPair};
@@ -28,6 +29,19 @@ enum Command {
     Session(SessionArgs),
     /// Monte Carlo study over noise × spread × points × mounts × methods.
     Sweep(SweepArgs),
+    /// The simulation beside the paper's Table 1: the noise level that best explains the published
+    /// errors per method and mount, where simulation and measurements agree and where they do not
+    /// (the same study as `handclasp paper diagnose`).
+    Paper(PaperArgs),
+}
+
+#[derive(clap::Args)]
+struct PaperArgs {
+    /// Print one JSON object instead of the text report.
+    #[arg(long)]
+    json: bool,
+    #[command(flatten)]
+    study: sim_cell::paper::StudyOptions,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -152,7 +166,18 @@ fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Session(a) => session(a),
         Command::Sweep(a) => sweep_cmd(a),
+        Command::Paper(a) => paper_cmd(a),
     }
+}
+
+fn paper_cmd(a: PaperArgs) -> Result<()> {
+    let d = sim_cell::paper::run_paper_diagnosis(&a.study).context("sim-cell paper")?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&d)?);
+    } else {
+        print!("{}", sim_cell::paper::render_diagnosis_text(&d));
+    }
+    Ok(())
 }
 
 fn session(a: SessionArgs) -> Result<()> {

@@ -969,15 +969,19 @@ impl Band {
 // The study (item 1)
 // ---------------------------------------------------------------------------------------------
 
-/// Options of the paper study and diagnosis.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+/// Options of the paper study and diagnosis (also the command-line flags of
+/// `handclasp paper diagnose` and `sim-cell paper`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, clap::Args)]
 pub struct StudyOptions {
-    /// Seed of every Monte Carlo draw (trial `k` of a cell uses `trial_rng(seed, …)`).
+    /// Seed of every Monte Carlo draw (same seed, same report; trial `k` of a cell uses
+    /// `trial_rng(seed, …)`).
+    #[arg(long, default_value_t = DEFAULT_SEED)]
     pub seed: u64,
-    /// Simulated experiments per cell (≥ [`MIN_TRIALS`]); default [`DEFAULT_TRIALS`].
+    /// Simulated experiments per cell (at least 200, `MIN_TRIALS`).
+    #[arg(long, default_value_t = DEFAULT_TRIALS)]
     pub trials: usize,
-    /// Parametric-bootstrap replicates for the methods-share-σ test (0 skips it); default
-    /// [`DEFAULT_BOOTSTRAP`].
+    /// Parametric-bootstrap replicates for the "both methods share σ" test (0 skips it).
+    #[arg(long, default_value_t = DEFAULT_BOOTSTRAP)]
     pub bootstrap: usize,
 }
 

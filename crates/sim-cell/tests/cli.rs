@@ -126,3 +126,29 @@ fn bad_grid_axis_is_an_error_not_a_panic() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("spread") && !err.contains("panicked"), "{err}");
 }
+
+#[test]
+fn paper_command_sets_the_simulation_beside_table1() {
+    // Small and seeded: the σ fit and the side-by-side table must be there, and the same seed
+    // must give the same JSON.
+    let run = || {
+        let out = bin()
+            .args(["paper", "--trials", "300", "--bootstrap", "0", "--json"])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        out.stdout
+    };
+    let a = run();
+    assert_eq!(a, run(), "same seed, different report");
+    let v: serde_json::Value = serde_json::from_slice(&a).unwrap();
+    let text = v.to_string();
+    assert!(
+        text.contains("sigma") && text.contains("floor-wall"),
+        "{text:.400}"
+    );
+}
