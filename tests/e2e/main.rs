@@ -5,4 +5,5 @@ mod calibrate;
 mod diagnose;
 mod fk_ik;
 mod paper;
+mod paper_diagnose;
 mod sim;
