@@ -17,11 +17,14 @@
 
 use std::fmt;
 
-use nalgebra::{Isometry3, Matrix3, Matrix3xX, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Matrix3xX, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::KinematicsError;
-use crate::fk::{apply_step, base_from_tip_unchecked, check_tip, sin_cos};
+use crate::fk::{
+    apply_step, base_from_tip_unchecked, check_tip, isometry, sin_cos, tip_isometry,
+    to_flange_nalgebra,
+};
 use crate::gravity::{
     check_gravity, gravity_entries, gravity_jacobian_from_entries, gravity_torques_into,
     GravityEntry, STACK_DOF,
@@ -523,16 +526,15 @@ fn true_chain(
             let fp = &joint.fixed_prefix;
             let fp_r = prefix_r();
             let origin_r = if all_zero(drpy.as_slice()) {
-                step.origin_r
+                step.origin.r
             } else {
                 fp_r * matrix_from_rpy(&(joint.origin_rpy + drpy))
             };
-            let perturbed = Step {
+            let perturbed = Step::new(
+                step.axis,
                 origin_r,
-                origin_t: fp.translation.vector + fp_r * (joint.origin_xyz + dxyz),
-                origin_r_is_identity: false,
-                ..step.clone()
-            };
+                fp.translation.vector + fp_r * (joint.origin_xyz + dxyz),
+            );
             apply_step(&mut r, &mut t, &perturbed, qk);
         }
         if let (Some(f), Some(parent_rotation)) = (frames.as_deref_mut(), parent_rotation) {
@@ -544,9 +546,7 @@ fn true_chain(
             };
         }
     }
-    let last = model.last_from_flange();
-    t += r * last.translation.vector;
-    r *= last.rotation.to_rotation_matrix().matrix();
+    to_flange_nalgebra(model, &mut r, &mut t);
     (r, t)
 }
 
@@ -566,14 +566,6 @@ fn matrix_from_rpy(rpy: &Vector3<f64>) -> Matrix3<f64> {
         -sp,
         cp * sr,
         cp * cr,
-    )
-}
-
-/// (rotation matrix, translation) to an isometry.
-fn isometry(r: &Matrix3<f64>, t: &Vector3<f64>) -> Isometry3<f64> {
-    Isometry3::from_parts(
-        Translation3::from(*t),
-        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*r)),
     )
 }
 
@@ -659,7 +651,7 @@ fn true_tip_general(
     g_base: &Vector3<f64>,
 ) -> Isometry3<f64> {
     let (r, t) = true_flange_rt(model, errors, q_rep, g_base);
-    isometry(&r, &(t + r * (flange_from_tip + errors.tip)))
+    tip_isometry(&r, &t, &(flange_from_tip + errors.tip))
 }
 
 /// Tip pose of the TRUE robot in the NOMINAL base frame at the reported joint angles `q_rep` (rad):
@@ -869,6 +861,7 @@ pub fn tip_joint_jacobian_true(
 mod tests {
     use super::*;
     use crate::fk::base_from_tip;
+    use nalgebra::{Rotation3, Translation3, UnitQuaternion};
     use proptest::prelude::*;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;

@@ -63,6 +63,64 @@ pub struct LumpedInertial {
     pub com: Vector3<f64>,
 }
 
+/// A fixed transform `(r, t)` of the chain, classified once for the FK hot path.
+#[derive(Debug, Clone)]
+pub(crate) struct FixedTransform {
+    /// Rotation.
+    pub(crate) r: Matrix3<f64>,
+    /// Translation, m.
+    pub(crate) t: Vector3<f64>,
+    /// 0, 1, 2: `r` is exactly a rotation about x, y, z, i.e. the identity with the column pair
+    /// (1,2), (2,0), (0,1) mixed by `r_sc = (sin, cos)`, so that `R·r` is that column mix of `R`
+    /// (the same numbers as the full product); 3: `r` is exactly the identity; 4: general.
+    pub(crate) r_kind: u8,
+    /// `(sin, cos)` of the rotation when `r_kind < 3`.
+    pub(crate) r_sc: (f64, f64),
+    /// 0, 1, 2 if `t` is zero but for that component; 3 if it is all zero; 4 otherwise.
+    pub(crate) t_kind: u8,
+}
+
+impl FixedTransform {
+    /// Classifies `(r, t)`; see the fields.
+    pub(crate) fn new(r: Matrix3<f64>, t: Vector3<f64>) -> FixedTransform {
+        let (r_kind, r_sc) = classify_rotation(&r);
+        let nonzero: Vec<usize> = (0..3).filter(|&i| t[i] != 0.0).collect();
+        let t_kind = match nonzero[..] {
+            [] => 3,
+            [k] => k as u8,
+            _ => 4,
+        };
+        FixedTransform {
+            r,
+            t,
+            r_kind,
+            r_sc,
+            t_kind,
+        }
+    }
+}
+
+/// See [`FixedTransform::r_kind`].
+fn classify_rotation(r: &Matrix3<f64>) -> (u8, (f64, f64)) {
+    if *r == Matrix3::identity() {
+        return (3, (0.0, 1.0));
+    }
+    for (kind, (i, j)) in [(1, 2), (2, 0), (0, 1)].into_iter().enumerate() {
+        let k = 3 - i - j;
+        let (c, s) = (r[(i, i)], r[(j, i)]);
+        let mut expected = Matrix3::zeros();
+        expected[(k, k)] = 1.0;
+        expected[(i, i)] = c;
+        expected[(j, i)] = s;
+        expected[(i, j)] = -s;
+        expected[(j, j)] = c;
+        if *r == expected {
+            return (kind as u8, (s, c));
+        }
+    }
+    (4, (0.0, 1.0))
+}
+
 /// Precomputed per-joint data for the hot path.
 #[derive(Debug, Clone)]
 pub(crate) struct Step {
@@ -72,12 +130,36 @@ pub(crate) struct Step {
     pub(crate) axis_kind: u8,
     /// Sign of the axis when `axis_kind < 3`.
     pub(crate) axis_sign: f64,
-    /// Rotation of `prev_from_joint = fixed_prefix · Origin(xyz, rpy)` as a matrix (FK hot path).
-    pub(crate) origin_r: Matrix3<f64>,
-    /// Translation of `prev_from_joint`, m.
-    pub(crate) origin_t: Vector3<f64>,
-    /// True when `origin_r` is exactly the identity (rpy = 0 and no rotating fixed prefix).
-    pub(crate) origin_r_is_identity: bool,
+    /// `prev_from_joint = fixed_prefix · Origin(xyz, rpy)`.
+    pub(crate) origin: FixedTransform,
+    /// `3·t_kind + axis_kind` (0–8) when the origin has no rotation, its translation a single
+    /// non-zero component and the axis is a coordinate axis: the FK loop's one-dispatch case;
+    /// 9 otherwise.
+    pub(crate) fast_kind: u8,
+}
+
+impl Step {
+    /// The step for a joint with axis `axis` and `prev_from_joint = (origin_r, origin_t)`.
+    pub(crate) fn new(
+        axis: Unit<Vector3<f64>>,
+        origin_r: Matrix3<f64>,
+        origin_t: Vector3<f64>,
+    ) -> Step {
+        let (axis_kind, axis_sign) = classify_axis(&axis);
+        let origin = FixedTransform::new(origin_r, origin_t);
+        let fast_kind = if origin.r_kind == 3 && origin.t_kind < 3 && axis_kind < 3 {
+            3 * origin.t_kind + axis_kind
+        } else {
+            9
+        };
+        Step {
+            axis,
+            axis_kind,
+            axis_sign,
+            origin,
+            fast_kind,
+        }
+    }
 }
 
 /// A serial robot arm from a URDF: the actuated joints from the root link to a tool link.
@@ -89,12 +171,16 @@ pub struct RobotModel {
     tool_link: String,
     joints: Vec<Joint>,
     last_from_flange: Isometry3<f64>,
-    /// `last_from_flange` as (rotation matrix, translation) for the FK hot path.
-    pub(crate) flange_r: Matrix3<f64>,
-    pub(crate) flange_t: Vector3<f64>,
+    /// `last_from_flange` for the FK hot path.
+    pub(crate) flange: FixedTransform,
     inertials: Vec<LumpedInertial>,
     pub(crate) steps: Vec<Step>,
+    /// `(lower − CHECK_SLACK, upper + CHECK_SLACK)` per joint, rad: the fast path of `check_q`.
+    limits: Vec<(f64, f64)>,
 }
+
+/// A joint value within this many radians outside a limit is accepted (round-off).
+const CHECK_SLACK: f64 = 1e-9;
 
 fn vec3(v: &urdf_rs::Vec3) -> Vector3<f64> {
     Vector3::new(v[0], v[1], v[2])
@@ -267,21 +353,17 @@ impl RobotModel {
                             upper,
                         });
                     }
-                    let (axis_kind, axis_sign) = classify_axis(&axis);
                     let prev_from_joint = pending * origin;
                     let origin_r = if rpy == Vector3::zeros() && pending.rotation.w == 1.0 {
                         Matrix3::identity()
                     } else {
                         *prev_from_joint.rotation.to_rotation_matrix().matrix()
                     };
-                    steps.push(Step {
+                    steps.push(Step::new(
                         axis,
-                        axis_kind,
-                        axis_sign,
                         origin_r,
-                        origin_t: prev_from_joint.translation.vector,
-                        origin_r_is_identity: origin_r == Matrix3::identity(),
-                    });
+                        prev_from_joint.translation.vector,
+                    ));
                     joints.push(Joint {
                         name: j.name.clone(),
                         parent_link: j.parent.link.clone(),
@@ -340,12 +422,18 @@ impl RobotModel {
             name: robot.name.clone(),
             root_link,
             tool_link: tool_link.to_string(),
-            joints,
             last_from_flange: pending,
-            flange_r: *pending.rotation.to_rotation_matrix().matrix(),
-            flange_t: pending.translation.vector,
+            flange: FixedTransform::new(
+                *pending.rotation.to_rotation_matrix().matrix(),
+                pending.translation.vector,
+            ),
             inertials,
             steps,
+            limits: joints
+                .iter()
+                .map(|j| (j.lower - CHECK_SLACK, j.upper + CHECK_SLACK))
+                .collect(),
+            joints,
         })
     }
 
@@ -389,6 +477,22 @@ impl RobotModel {
     /// Checks a joint vector (rad): length, finiteness, plainly-degrees values, joint limits.
     /// A value within 1e-9 rad outside a limit is accepted (round-off).
     pub fn check_q(&self, q: &[f64]) -> Result<(), KinematicsError> {
+        // One branch-free pass for the common case; the error is worked out only on failure.
+        let ok = q.len() == self.limits.len()
+            && q.iter()
+                .zip(&self.limits)
+                .fold(true, |ok, (&v, &(lo, hi))| {
+                    ok & v.is_finite() & (v >= lo) & (v <= hi)
+                });
+        if ok {
+            return Ok(());
+        }
+        self.check_q_error(q)
+    }
+
+    /// The error for a joint vector that failed the fast check (`Ok` if there is none).
+    #[cold]
+    pub(crate) fn check_q_error(&self, q: &[f64]) -> Result<(), KinematicsError> {
         if q.len() != self.joints.len() {
             return Err(KinematicsError::WrongLength {
                 robot: self.name.clone(),
@@ -404,8 +508,7 @@ impl RobotModel {
                     value: v,
                 });
             }
-            const SLACK: f64 = 1e-9;
-            if v < j.lower - SLACK || v > j.upper + SLACK {
+            if v < j.lower - CHECK_SLACK || v > j.upper + CHECK_SLACK {
                 let lower_deg = j.lower.to_degrees();
                 let upper_deg = j.upper.to_degrees();
                 if v.abs() > std::f64::consts::TAU && v >= lower_deg && v <= upper_deg {
