@@ -82,6 +82,59 @@ fn diagnose_names_a_hidden_joint_offset_in_json() {
     assert_eq!(v["b1_from_b2"]["zyz_deg"].as_array().unwrap().len(), 3);
 }
 
+/// A hidden tilt of robot 1's base (−0.12° about its y axis) is named in the JSON `effects` from
+/// the placement check: kind `mount_tilt`, robot 1, axis "y", unit deg, interval covering it.
+#[test]
+fn diagnose_names_a_hidden_mount_tilt_in_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let cell_file = cell_path();
+    let cell = Cell::from_toml_file(&cell_file).expect("cell loads");
+    let mut truth = cell.clone();
+    let tilt_deg = -0.12f64;
+    truth.robot1.errors.set(
+        ErrorParam::MountRpy {
+            axis: kinematics::Axis::Y,
+        },
+        tilt_deg.to_radians(),
+    );
+    let spec = SessionSpec::new(40, Layout::Random, 0.8);
+    let s = generate_session(&truth, &spec, &mut trial_rng(21, 0)).expect("session");
+    let session = dir.path().join("session_tilt.csv");
+    s.write_csv(&session, &cell).expect("write session");
+    let out = handclasp(&[
+        "diagnose",
+        "--cell",
+        cell_file.to_str().unwrap(),
+        "--session",
+        session.to_str().unwrap(),
+        "--json",
+        "--trials",
+        "100",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let effects = v["effects"].as_array().expect("effects");
+    let hit = effects
+        .iter()
+        .find(|e| e["kind"] == "mount_tilt" && e["robot"] == 1 && e["axis"] == "y")
+        .unwrap_or_else(|| panic!("robot 1's y tilt not named: {v}"));
+    assert_eq!(hit["unit"], "deg");
+    assert!(hit["joint"].is_null());
+    let (lo, hi) = (
+        hit["ci95"][0].as_f64().unwrap(),
+        hit["ci95"][1].as_f64().unwrap(),
+    );
+    assert!(
+        lo <= tilt_deg && tilt_deg <= hi,
+        "{tilt_deg}° not in [{lo}, {hi}]"
+    );
+    assert_eq!(effects.len(), 1, "{v}");
+}
+
 #[test]
 fn diagnose_noise_only_session_is_clean_in_text() {
     let dir = tempfile::tempdir().unwrap();

@@ -14,9 +14,14 @@
 //!
 //! Mount tilts are confounded with the rotation of `b1_from_b2` in handclasp residuals (a turned
 //! base only turns the fit), so they are never selected from the residuals. The report instead
-//! compares the calibrated `b1_from_b2` with the cell's stated one ([`PlacementReport`]): if the
-//! cell states the true placement of the nominal bases (as in a simulation), a significant
-//! difference about base 2's x/y axes is a mount tilt of robot 2 (or, equivalently, of robot 1).
+//! compares the calibrated `b1_from_b2` with the cell's stated one ([`PlacementReport`],
+//! [`mount_tilt_test`]): if the cell states the true placement of the nominal bases (as a
+//! simulation's cell does), robot 2's tilt turns the fit's rotation only, while robot 1's turns
+//! it AND moves its translation by `−a1 × t`, which tells the robots apart. A significant tilt
+//! (no-tilt hypothesis rejected at [`ALPHA_TILT`], component at `ALPHA_TILT/2`) is named in
+//! `effects` as `mount_tilt` with robot, axis, value and 95% interval. If the cell's placement is
+//! not the truth (e.g. a nominal drawing), such an effect reads as "the placement differs from
+//! the cell's as this tilt would make it".
 
 use std::path::{Path, PathBuf};
 
@@ -507,7 +512,8 @@ impl PoseReport {
 /// mount tilt (it only turns the fit), but if the cell states the TRUE placement of the nominal
 /// bases (as a simulation's cell does), the fitted rotation shows it: `R_fit = R_cell·exp([a]ₓ)`,
 /// `a` in base-2 axes, which is a tilt of robot 2's base by `a` (or of robot 1's by
-/// `−R_cell·a`; the data cannot tell which).
+/// `−R_cell·a`, which also moves the translation: [`mount_tilt_test`] uses both to tell the
+/// robots apart; the `tilt_*` fields here are the rotation-only check).
 #[derive(Debug, Clone, Serialize)]
 pub struct PlacementReport {
     /// `a` about base 2's x and y axes (a mount tilt of robot 2), degrees.
@@ -528,6 +534,9 @@ pub struct PlacementReport {
     pub dxyz_mm: [f64; 3],
     /// Standard errors of `dxyz_mm`, mm.
     pub dxyz_se_mm: [f64; 3],
+    /// The mount-tilt test (rotation AND translation against the cell's placement): which
+    /// robot's base is tilted; its significant components are named in `effects`.
+    pub mount_tilt: MountTiltTest,
 }
 
 /// One named effect.
@@ -550,7 +559,8 @@ pub struct EffectReport {
     /// Candidates the data cannot tell apart from this one (labels), including itself.
     pub confounded_with: Vec<String>,
     /// Partial F-test p-value in the final model (refit without it), unadjusted; it was
-    /// selected at the Bonferroni level `α/m`.
+    /// selected at the Bonferroni level `α/m`. For a `mount_tilt` (named from the placement,
+    /// [`mount_tilt_test`]): the component's two-sided p, named below `ALPHA_TILT / 2`.
     pub p_value: f64,
 }
 
@@ -929,7 +939,273 @@ fn placement_report(fit: &identify::IdentFit, cell: &Cell, sd_deg: f64) -> Place
             pr.dt_std_error.y * 1e3,
             pr.dt_std_error.z * 1e3,
         ],
+        mount_tilt: mount_tilt_test(fit, cell, sd_deg.to_radians()),
     }
+}
+
+/// Level of the mount-tilt test against the cell's placement ([`mount_tilt_test`]): the
+/// no-tilt hypothesis is rejected when its χ² upper-tail p is below this, and a tilt component
+/// is named when its two-sided p is below `ALPHA_TILT / 2` (Bonferroni over x and y). 1% so that it
+/// adds at most ~1% to the residual selection's false alarms on noise-only sessions (5%
+/// family-wise, in practice 2.5–5%; BENCHMARKS.md, "diagnose").
+pub const ALPHA_TILT: f64 = 0.01;
+
+/// Standard deviation (m, per axis) of the cell's stated `b1_from_b2` translation in the
+/// mount-tilt test: the paper's Table 1 prints xyz to 0.1 mm (rounding sd 0.029 mm), taken
+/// conservatively as 0.05 mm.
+pub const PLACEMENT_SD_XYZ_M: f64 = 5e-5;
+
+/// The mount-tilt test: which robot's base is tilted, if any, when the cell states the TRUE
+/// placement of the nominal bases (see [`mount_tilt_test`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct MountTiltTest {
+    /// χ² of the hypotheses no tilt (both base yaws free) / robot 1's base turned (tilt and
+    /// yaw) / robot 2's, GLS on the placement difference.
+    pub chi2: [f64; 3],
+    /// Their degrees of freedom (6 − rank).
+    pub dof: [usize; 3],
+    /// Upper-tail p of the no-tilt hypothesis.
+    pub p_no_tilt: f64,
+    /// The robot whose tilt explains the difference best (smaller χ²), when no tilt is rejected
+    /// at [`ALPHA_TILT`].
+    pub robot: Option<u8>,
+    /// Upper-tail p of the chosen hypothesis (a goodness-of-fit check: below [`ALPHA_TILT`],
+    /// no mount tilt explains the difference and none is named).
+    pub p_fit: f64,
+    /// The chosen robot's tilt about its base x and y axes, degrees (`mount_rpy` x, y).
+    pub tilt_deg: [f64; 2],
+    /// Their 95% intervals, degrees.
+    pub tilt_ci95_deg: [[f64; 2]; 2],
+    /// Their two-sided p-values.
+    pub tilt_p_value: [f64; 2],
+    /// The other robot, when its tilt explains the difference as well (both hypotheses pass
+    /// their χ² test): a tilt about the line joining the two bases turns both alike, so the data
+    /// cannot tell which base it is; the choice then goes to the fewer tilt components.
+    pub alternative: Option<u8>,
+    /// The alternative robot's significant tilt axes.
+    pub alternative_axes: Vec<&'static str>,
+}
+
+/// The placement difference `d = (φ, δt)` predicted by tilts/yaws `θ = [a1x, a1y, ψ1, a2x, a2y,
+/// ψ2]` (rad): the true base `i` is the nominal one turned by `Rot(rpy = (aix, aiy, 0))·Rz(ψi)`
+/// (ψ: the base yaw, equivalent to a joint-1 offset), so the fit sees
+/// `X̂ = M1⁻¹·X·M2`; `φ = log(R̂·Rᵀ)` (b1 axes), `δt = t̂ − t`.
+fn tilt_prediction(x: &Isometry3<f64>, th: &[f64; 6]) -> [f64; 6] {
+    let m = |a: f64, b: f64, psi: f64| {
+        let r = kinematics::rotation_from_rpy(&Vector3::new(a, b, 0.0))
+            * nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), psi);
+        Isometry3::from_parts(nalgebra::Translation3::identity(), r.into())
+    };
+    let xh = m(th[0], th[1], th[2]).inverse() * x * m(th[3], th[4], th[5]);
+    let phi = (xh.rotation * x.rotation.inverse()).scaled_axis();
+    let dt = xh.translation.vector - x.translation.vector;
+    [phi.x, phi.y, phi.z, dt.x, dt.y, dt.z]
+}
+
+/// Tests for a mount tilt by comparing the fitted `b1_from_b2` (`X̂`) with the cell's (`X`),
+/// assuming the cell states the TRUE placement of the nominal bases (as a simulation's cell
+/// does). A tilt of robot 2's base by `a2` (b2 axes) gives `X̂ = X·exp([a2]ₓ)`: the rotation
+/// turns by `R·a2`, the translation does not move. A tilt of robot 1's base by `a1` (b1 axes)
+/// gives `X̂ = exp(−[a1]ₓ)·X` (the points measured in the nominal b1 are the true ones turned
+/// back): the rotation turns by `−a1` AND the translation moves by `−a1 × t` (≈ 1.5 mm for
+/// 0.05° at |t| ≈ 1.7 m, against an s.e. of ~0.1–0.2 mm), which is what tells the robots apart.
+///
+/// `d = (φ, δt)` with covariance from the fit (left perturbation: `φ`, `δt = ρ − [t̂]ₓφ`) plus
+/// the cell's stated-angle sd `sd_rad` and [`PLACEMENT_SD_XYZ_M`]. Hypotheses (a base yaw is
+/// confounded with that robot's joint-1 offset: a nuisance, never a mount tilt): H0 no tilt
+/// (both yaws free), H1 robot 1's base turned (tilt about x, y and its yaw), H2 robot 2's;
+/// generalised least squares (Gauss–Newton on the exact [`tilt_prediction`]). H0 rejected at
+/// [`ALPHA_TILT`] → the hypothesis that passes its own χ² test at [`ALPHA_TILT`]; if both pass (a
+/// turn about the line joining the two bases looks the same for both robots), the one with fewer
+/// significant tilt components, then the smaller χ² (the other is recorded as `alternative`).
+/// If neither passes, the difference is no mount tilt (e.g. a base-frame translation) and
+/// nothing is named. Components are named at `ALPHA_TILT / 2` each (Bonferroni over x and y), not
+/// both on the joint test: a zero component named would be a false cause.
+pub fn mount_tilt_test(fit: &identify::IdentFit, cell: &Cell, sd_rad: f64) -> MountTiltTest {
+    use nalgebra::{DMatrix, DVector, Matrix6};
+    let x = cell.b1_from_b2;
+    let r = x.rotation.to_rotation_matrix().into_inner();
+    let t = x.translation.vector;
+    let xh = fit.b1_from_b2;
+    let phi = (xh.rotation * x.rotation.inverse()).scaled_axis();
+    let dt = xh.translation.vector - t;
+    let d = DVector::from_row_slice(&[phi.x, phi.y, phi.z, dt.x, dt.y, dt.z]);
+    // Covariance of d from the fit's (ρ, φ) covariance.
+    let mut j = Matrix6::<f64>::zeros();
+    j.fixed_view_mut::<3, 3>(0, 3)
+        .copy_from(&Matrix3::identity());
+    j.fixed_view_mut::<3, 3>(3, 0)
+        .copy_from(&Matrix3::identity());
+    j.fixed_view_mut::<3, 3>(3, 3)
+        .copy_from(&(-xh.translation.vector.cross_matrix()));
+    let sx: Matrix6<f64> = fit.covariance.fixed_view::<6, 6>(0, 0).into_owned();
+    let mut c = j * sx * j.transpose();
+    for i in 0..3 {
+        c[(i, i)] += sd_rad * sd_rad;
+        c[(3 + i, 3 + i)] += PLACEMENT_SD_XYZ_M * PLACEMENT_SD_XYZ_M;
+    }
+    let empty = MountTiltTest {
+        chi2: [f64::NAN; 3],
+        dof: [0; 3],
+        p_no_tilt: 1.0,
+        robot: None,
+        p_fit: 1.0,
+        tilt_deg: [0.0; 2],
+        tilt_ci95_deg: [[0.0; 2]; 2],
+        tilt_p_value: [1.0; 2],
+        alternative: None,
+        alternative_axes: Vec::new(),
+    };
+    let Some(chol) = nalgebra::Cholesky::new(DMatrix::from_iterator(6, 6, c.iter().copied()))
+    else {
+        return empty;
+    };
+    let l = chol.l();
+    let whiten = |v: &DVector<f64>| {
+        l.solve_lower_triangular(v)
+            .unwrap_or_else(|| DVector::zeros(6))
+    };
+    // Linear columns at θ = 0 (rad → d): [a1x, a1y, ψ1, a2x, a2y, ψ2].
+    let mut a_full = DMatrix::<f64>::zeros(6, 6);
+    for (k, e) in [Vector3::x(), Vector3::y(), Vector3::z()]
+        .iter()
+        .enumerate()
+    {
+        let rot1 = -e;
+        let tr1 = -e.cross(&t);
+        let rot2 = r * e;
+        for i in 0..3 {
+            a_full[(i, k)] = rot1[i];
+            a_full[(3 + i, k)] = tr1[i];
+            a_full[(i, 3 + k)] = rot2[i];
+        }
+    }
+    // GLS fit of a hypothesis (columns `cols` of θ): (θ, χ², dof, cov θ).
+    let gls = |cols: &[usize]| {
+        let a = a_full.select_columns(cols);
+        let aw = DMatrix::from_columns(
+            &(0..cols.len())
+                .map(|k| whiten(&a.column(k).into_owned()))
+                .collect::<Vec<_>>(),
+        );
+        let svd = aw.clone().svd(true, true);
+        let smax = svd.singular_values.max();
+        let tol = smax * 1e-9;
+        let rank = svd.singular_values.iter().filter(|&&s| s > tol).count();
+        let pinv = svd
+            .clone()
+            .pseudo_inverse(tol)
+            .unwrap_or_else(|_| DMatrix::zeros(cols.len(), 6));
+        let mut th = [0.0; 6];
+        let mut chi2 = f64::NAN;
+        for _ in 0..4 {
+            let pred = DVector::from_row_slice(&tilt_prediction(&x, &th));
+            let rw = whiten(&(&d - pred));
+            chi2 = rw.norm_squared();
+            let step = &pinv * rw;
+            for (k, &col) in cols.iter().enumerate() {
+                th[col] += step[k];
+            }
+        }
+        let pred = DVector::from_row_slice(&tilt_prediction(&x, &th));
+        chi2 = whiten(&(&d - pred)).norm_squared().min(chi2);
+        let cov = &pinv * pinv.transpose();
+        (th, chi2, 6 - rank, cov)
+    };
+    let h0 = gls(&[2, 5]);
+    let hyp = [gls(&[0, 1, 2]), gls(&[3, 4, 5])];
+    let p0 = identify::chi2_sf(h0.1, h0.2);
+    let mut out = MountTiltTest {
+        chi2: [h0.1, hyp[0].1, hyp[1].1],
+        dof: [h0.2, hyp[0].2, hyp[1].2],
+        p_no_tilt: p0,
+        ..empty
+    };
+    if p0.is_nan() || p0 >= ALPHA_TILT {
+        return out;
+    }
+    // Per hypothesis: p of its χ², the tilt components (rad), their s.e., their p-values.
+    let tq = identify::t_quantile(0.975, fit.dof);
+    let stats = |h: &(_, f64, usize, DMatrix<f64>), off: usize| {
+        let th: &[f64; 6] = &h.0;
+        let comp = [0, 1].map(|k| {
+            let v = th[off + k];
+            let se = h.3[(k, k)].max(0.0).sqrt();
+            let p = if se > 0.0 {
+                identify::t_two_sided_p(v / se, fit.dof)
+            } else {
+                1.0
+            };
+            (v, se, p)
+        });
+        let n_sig = comp.iter().filter(|c| c.2 < ALPHA_TILT / 2.0).count();
+        (identify::chi2_sf(h.1, h.2), comp, n_sig)
+    };
+    let st = [stats(&hyp[0], 0), stats(&hyp[1], 3)];
+    let acceptable = |i: usize| st[i].0 >= ALPHA_TILT && st[i].2 > 0;
+    // Among the hypotheses that explain the difference, the one needing fewer tilt components
+    // (a tilt about the line joining the bases is the same for both robots), then the smaller χ².
+    let i = match (acceptable(0), acceptable(1)) {
+        (true, true) => {
+            if st[0].2 != st[1].2 {
+                usize::from(st[1].2 < st[0].2)
+            } else {
+                usize::from(hyp[1].1 < hyp[0].1)
+            }
+        }
+        (true, false) => 0,
+        (false, true) => 1,
+        (false, false) => usize::from(hyp[1].1 < hyp[0].1),
+    };
+    out.robot = Some(i as u8 + 1);
+    out.alternative = (acceptable(0) && acceptable(1)).then_some(2 - i as u8);
+    out.p_fit = st[i].0;
+    for (k, &(v, se, p)) in st[i].1.iter().enumerate() {
+        out.tilt_deg[k] = v.to_degrees();
+        out.tilt_ci95_deg[k] = [(v - tq * se).to_degrees(), (v + tq * se).to_degrees()];
+        out.tilt_p_value[k] = p;
+    }
+    if let Some(j) = out.alternative {
+        let (_, comp, _) = &st[j as usize - 1];
+        out.alternative_axes = (0..2)
+            .filter(|&k| comp[k].2 < ALPHA_TILT / 2.0)
+            .map(|k| if k == 0 { "x" } else { "y" })
+            .collect();
+    }
+    out
+}
+
+/// The mount tilts [`mount_tilt_test`] names: the chosen robot's significant components.
+fn mount_tilt_effects(test: &MountTiltTest) -> Vec<EffectReport> {
+    let Some(robot) = test.robot else {
+        return Vec::new();
+    };
+    if test.p_fit.is_nan() || test.p_fit < ALPHA_TILT {
+        return Vec::new();
+    }
+    (0..2)
+        .filter(|&k| test.tilt_p_value[k] < ALPHA_TILT / 2.0)
+        .map(|k| {
+            let axis = if k == 0 { "x" } else { "y" };
+            EffectReport {
+                kind: EffectKind::MountTilt,
+                robot,
+                joint: None,
+                axis: Some(axis),
+                value: test.tilt_deg[k],
+                unit: EffectKind::MountTilt.unit(),
+                ci95: test.tilt_ci95_deg[k],
+                confounded_with: std::iter::once(format!("robot {robot} mount_tilt {axis}"))
+                    .chain(test.alternative.iter().flat_map(|r| {
+                        test.alternative_axes
+                            .iter()
+                            .map(move |a| format!("robot {r} mount_tilt {a}"))
+                    }))
+                    .collect(),
+                p_value: test.tilt_p_value[k],
+            }
+        })
+        .collect()
 }
 
 /// The base-frame motion a confounded candidate is equivalent to: its residual column regressed
@@ -1070,7 +1346,7 @@ pub fn diagnose(
         options.trials,
     );
     let partial = identify::partial_f_tests(&model, fit, &options.selection.fit)?;
-    let effects = fit
+    let mut effects: Vec<EffectReport> = fit
         .params
         .iter()
         .enumerate()
@@ -1095,6 +1371,9 @@ pub fn diagnose(
             }
         })
         .collect();
+    // Mount tilts: not from the residuals (they only turn the fit) but from the placement.
+    let placement = placement_report(fit, cell, options.placement_sd_deg);
+    effects.extend(mount_tilt_effects(&placement.mount_tilt));
     // 2. Families.
     let id = &sel.identifiability;
     let mut families = Vec::new();
@@ -1215,7 +1494,7 @@ pub fn diagnose(
             quantile(&remc, 0.95) * 1000.0,
         ],
         rms_after_percentile: percentile(&mc, fit.rms()),
-        placement: placement_report(fit, cell, options.placement_sd_deg),
+        placement,
         steps,
         converged: fit.converged,
     })
@@ -1657,7 +1936,16 @@ pub fn render_text(r: &DiagnoseReport) -> String {
             e.unit,
             e.ci95[0],
             e.ci95[1],
-            if e.confounded_with.len() > 1 {
+            if e.kind == EffectKind::MountTilt {
+                format!(
+                    " [from the placement check, section 5{}]",
+                    if e.confounded_with.len() > 1 {
+                        format!("; or any of: {}", e.confounded_with.join(", "))
+                    } else {
+                        String::new()
+                    }
+                )
+            } else if e.confounded_with.len() > 1 {
                 format!(" [or any of: {}]", e.confounded_with.join(", "))
             } else {
                 String::new()
@@ -1730,12 +2018,50 @@ pub fn render_text(r: &DiagnoseReport) -> String {
     if p.tilt_significant {
         let _ = writeln!(
             s,
-            "   significant tilt (Bonferroni 5%): if the cell states the true placement, robot 2's mount is tilted as above \
-             (or robot 1's by {:+.4?} deg about its x, y, z; handclasp data cannot tell which)",
+            "   significant turn (Bonferroni 5%): as a turn of robot 2's base as above, or of robot 1's by {:+.4?} deg \
+             about its x, y, z (which would also move the translation by −a1 × t)",
             p.robot1_equivalent_deg
         );
     } else {
-        let _ = writeln!(s, "   no significant tilt against the cell's placement");
+        let _ = writeln!(s, "   no significant turn against the cell's placement");
+    }
+    let m = &p.mount_tilt;
+    let _ = writeln!(
+        s,
+        "   mount-tilt test (rotation and translation; base yaws are nuisances): χ² no tilt {:.2} ({} dof, p = {:.2e}), \
+         robot 1 tilted {:.2} ({} dof), robot 2 tilted {:.2} ({} dof)",
+        m.chi2[0], m.dof[0], m.p_no_tilt, m.chi2[1], m.dof[1], m.chi2[2], m.dof[2]
+    );
+    match m.robot {
+        None => {
+            let _ = writeln!(
+                s,
+                "   no mount tilt (level {ALPHA_TILT}): the cell's placement explains the fit up to base yaws"
+            );
+        }
+        Some(r) if m.p_fit < ALPHA_TILT => {
+            let _ = writeln!(
+                s,
+                "   the placement differs from the cell's (p = {:.2e}) but no mount tilt explains it (best: robot {r}, \
+                 χ² p = {:.2e}): a wrong cell placement or a base-frame translation; nothing named",
+                m.p_no_tilt, m.p_fit
+            );
+        }
+        Some(r) => {
+            let _ = writeln!(
+                s,
+                "   robot {r}'s mount is tilted: x {:+.4} deg (95%: {:+.4} … {:+.4}, p = {:.2e}), y {:+.4} deg (95%: {:+.4} … {:+.4}, p = {:.2e}); \
+                 significant components (p < {}) are named in 3.{}",
+                m.tilt_deg[0], m.tilt_ci95_deg[0][0], m.tilt_ci95_deg[0][1], m.tilt_p_value[0],
+                m.tilt_deg[1], m.tilt_ci95_deg[1][0], m.tilt_ci95_deg[1][1], m.tilt_p_value[1],
+                ALPHA_TILT / 2.0,
+                m.alternative.map_or(String::new(), |a| format!(
+                    " (robot {a}'s tilt about {} explains it as well — a turn about the line joining the bases; \
+                     the fewer components chosen)",
+                    m.alternative_axes.join(", ")
+                ))
+            );
+        }
     }
     s
 }
