@@ -466,7 +466,7 @@ pub struct DiagnoseOptions {
     pub seed: u64,
     /// Monte Carlo trials for the predicted residual distributions (default 400).
     pub trials: usize,
-    /// Selection settings (α = 0.05 family-wise per step, 10 folds).
+    /// Selection settings (α = 0.04 family-wise per step, 10 folds).
     pub selection: SelectionOptions,
     /// Truth of `b1_from_b2` (e.g. from a CMM), for e_tran/e_rot before and after.
     pub truth: Option<Isometry3<f64>>,
