@@ -1329,19 +1329,23 @@ pub fn forward_select(
         // bounds the false-alarm chance of this step, whichever candidate is kept.
         let mut ranked = scores.clone();
         ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
-        let mut best: Option<(usize, f64, IdentFit)> = None;
-        for &(cand, sc) in ranked.iter().take(FORWARD_REFITS) {
+        // The current model with one candidate added, started from the current estimates.
+        let refit_with = |cand: usize| {
             let mut params = current.params.clone();
             params.push(cand);
             let mut init = current.values.clone();
             init.push(0.0);
-            let trial = fit(
+            fit(
                 model,
                 &params,
                 Some(&init),
                 Some(current.b1_from_b2),
                 &options.fit,
-            )?;
+            )
+        };
+        let mut best: Option<(usize, f64, IdentFit)> = None;
+        for &(cand, sc) in ranked.iter().take(FORWARD_REFITS) {
+            let trial = refit_with(cand)?;
             if best.as_ref().is_none_or(|b| trial.rss < b.2.rss) {
                 best = Some((cand, sc, trial));
             }
@@ -1364,17 +1368,7 @@ pub fn forward_select(
             if m == param || model.param_prior(m) <= model.param_prior(param) {
                 continue;
             }
-            let mut params = current.params.clone();
-            params.push(m);
-            let mut init = current.values.clone();
-            init.push(0.0);
-            let trial = fit(
-                model,
-                &params,
-                Some(&init),
-                Some(current.b1_from_b2),
-                &options.fit,
-            )?;
+            let trial = refit_with(m)?;
             if trial.rss <= best_rss + 0.5 * s2 {
                 param = m;
                 new_fit = trial;
