@@ -157,16 +157,18 @@ fn hidden_trial(seed: u64, t: &mut Tally) {
 
 #[test]
 fn noise_only_sessions_come_back_clean() {
-    // 10 seeded sessions at a 5% family-wise level: ≥ 3 false alarms has probability ≈ 1%.
-    let alarms = (0..10u64)
+    // 60 seeded sessions at a 5% family-wise level: ≥ 8 false alarms has probability 1.0%
+    // (binomial), and a true rate of 15% would pass only 30% of the time.
+    let alarms = (0..60u64)
         .filter(|&s| {
             let r = run(&cell_for(s), &[], 1000 + s);
             !r.effects.is_empty()
         })
         .count();
+    eprintln!("noise-only: {alarms} false alarms in 60");
     assert!(
-        alarms <= 2,
-        "{alarms} false alarms in 10 noise-only sessions"
+        alarms <= 7,
+        "{alarms} false alarms in 60 noise-only sessions"
     );
 }
 
@@ -216,8 +218,8 @@ fn vertical_joint_compliance_is_reported_without_effect() {
 #[test]
 fn anisotropic_noise_only_sessions_come_back_clean() {
     // Alignment σ = [0.1, 0.1, 0.8] mm (b1 axes): the residuals are whitened by the cell's noise,
-    // so the tests keep their size. ≥ 3 false alarms in 10 at a 5% level has probability ≈ 1%.
-    let alarms = (0..10u64)
+    // so the tests keep their size. ≥ 8 false alarms in 60 at a 5% level has probability 1.0%.
+    let alarms = (0..60u64)
         .filter(|&s| {
             let mut cell = cell_for(s);
             cell.noise.alignment_m = nalgebra::Vector3::new(1e-4, 1e-4, 8e-4);
@@ -225,21 +227,26 @@ fn anisotropic_noise_only_sessions_come_back_clean() {
             !r.effects.is_empty()
         })
         .count();
+    eprintln!("anisotropic noise-only: {alarms} false alarms in 60");
     assert!(
-        alarms <= 2,
-        "{alarms} false alarms in 10 anisotropic noise-only sessions"
+        alarms <= 7,
+        "{alarms} false alarms in 60 anisotropic noise-only sessions"
     );
 }
 
 #[test]
 fn a_hidden_effect_is_named_and_covered() {
     let mut t = Tally::default();
-    for seed in 0..15 {
+    for seed in 0..40 {
         hidden_trial(2000 + seed, &mut t);
     }
     // Small effects on short levers may honestly be below detection: require ≥ 80% of the
     // detectable ones named and ≥ 80% of the named ones covered (95% intervals).
-    assert!(t.detectable >= 5, "only {} detectable draws", t.detectable);
+    eprintln!(
+        "hidden: {} detectable, {} named, {} covered",
+        t.detectable, t.named, t.covered
+    );
+    assert!(t.detectable >= 15, "only {} detectable draws", t.detectable);
     assert!(
         t.named * 5 >= t.detectable * 4,
         "named {} of {}",
