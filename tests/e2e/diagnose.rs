@@ -12,14 +12,24 @@ fn cell_path() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../cells/floor-floor.toml")
 }
 
-/// A session of `n` points with robot 2's joint-3 offset = `offset_deg` hidden.
-fn write_session(dir: &Path, offset_deg: f64, n: usize, seed: u64) -> PathBuf {
+/// A session of `n` points on the shipped floor–floor cell with `param` of robot `robot` set to
+/// `value` (SI units) in the true robot; the CSV reports what the nominal model believes.
+fn write_hidden(
+    dir: &Path,
+    robot: u8,
+    param: ErrorParam,
+    value: f64,
+    n: usize,
+    seed: u64,
+) -> PathBuf {
     let cell = Cell::from_toml_file(&cell_path()).expect("cell loads");
     let mut truth = cell.clone();
-    truth.robot2.errors.set(
-        ErrorParam::JointOffset { joint: 2 },
-        offset_deg.to_radians(),
-    );
+    let errors = if robot == 1 {
+        &mut truth.robot1.errors
+    } else {
+        &mut truth.robot2.errors
+    };
+    errors.set(param, value);
     let spec = SessionSpec::new(n, Layout::Random, 0.8);
     let s = generate_session(&truth, &spec, &mut trial_rng(seed, 0)).expect("session");
     let path = dir.join(format!("session_{seed}.csv"));
@@ -27,18 +37,16 @@ fn write_session(dir: &Path, offset_deg: f64, n: usize, seed: u64) -> PathBuf {
     path
 }
 
-fn handclasp(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_handclasp"))
-        .args(args)
-        .output()
-        .expect("runs handclasp")
+/// A session of `n` points with robot 2's joint-3 offset = `offset_deg` hidden.
+fn write_session(dir: &Path, offset_deg: f64, n: usize, seed: u64) -> PathBuf {
+    let param = ErrorParam::JointOffset { joint: 2 };
+    write_hidden(dir, 2, param, offset_deg.to_radians(), n, seed)
 }
 
-#[test]
-fn diagnose_names_a_hidden_joint_offset_in_json() {
-    let dir = tempfile::tempdir().unwrap();
+/// `handclasp diagnose --json` on the floor–floor cell and `session` (100 Monte Carlo trials); it
+/// must succeed and print one JSON object.
+fn diagnose_json(session: &Path) -> serde_json::Value {
     let cell = cell_path();
-    let session = write_session(dir.path(), 0.2, 40, 11);
     let out = handclasp(&[
         "diagnose",
         "--cell",
@@ -54,7 +62,20 @@ fn diagnose_names_a_hidden_joint_offset_in_json() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    serde_json::from_slice(&out.stdout).expect("one JSON object")
+}
+
+fn handclasp(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_handclasp"))
+        .args(args)
+        .output()
+        .expect("runs handclasp")
+}
+
+#[test]
+fn diagnose_names_a_hidden_joint_offset_in_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let v = diagnose_json(&write_session(dir.path(), 0.2, 40, 11));
     let effects = v["effects"].as_array().expect("effects");
     let hit = effects
         .iter()
@@ -87,36 +108,18 @@ fn diagnose_names_a_hidden_joint_offset_in_json() {
 #[test]
 fn diagnose_names_a_hidden_mount_tilt_in_json() {
     let dir = tempfile::tempdir().unwrap();
-    let cell_file = cell_path();
-    let cell = Cell::from_toml_file(&cell_file).expect("cell loads");
-    let mut truth = cell.clone();
     let tilt_deg = -0.12f64;
-    truth.robot1.errors.set(
-        ErrorParam::MountRpy {
-            axis: kinematics::Axis::Y,
-        },
+    let param = ErrorParam::MountRpy {
+        axis: kinematics::Axis::Y,
+    };
+    let v = diagnose_json(&write_hidden(
+        dir.path(),
+        1,
+        param,
         tilt_deg.to_radians(),
-    );
-    let spec = SessionSpec::new(40, Layout::Random, 0.8);
-    let s = generate_session(&truth, &spec, &mut trial_rng(21, 0)).expect("session");
-    let session = dir.path().join("session_tilt.csv");
-    s.write_csv(&session, &cell).expect("write session");
-    let out = handclasp(&[
-        "diagnose",
-        "--cell",
-        cell_file.to_str().unwrap(),
-        "--session",
-        session.to_str().unwrap(),
-        "--json",
-        "--trials",
-        "100",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+        40,
+        21,
+    ));
     let effects = v["effects"].as_array().expect("effects");
     let hit = effects
         .iter()
