@@ -46,11 +46,11 @@
 //!   detects with 80 % power, `(z_{1−α/2m} + z_{0.8})·σ/‖p_j‖`.
 //! - **Intervals**: `θ̂ ± t_{0.975, dof}·se`, `se` from the covariance.
 
+use crate::stats::{f_test_p_value, normal_quantile, t_quantile, t_two_sided_p};
 use nalgebra::{
     DMatrix, DVector, Isometry3, Matrix3, Matrix3xX, Point3, Rotation3, Translation3,
     UnitQuaternion, Vector3,
 };
-use statrs::distribution::{ContinuousCDF, FisherSnedecor, StudentsT};
 
 /// Which robot a parameter belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -255,46 +255,6 @@ impl IdentFit {
         let p = (6 + self.params.len()) as f64;
         n_obs * (self.rss.max(1e-300) / n_obs).ln() + p * n_obs.ln()
     }
-}
-
-/// Quantile of Student's t with `dof` degrees of freedom (NaN for dof = 0).
-pub fn t_quantile(p: f64, dof: usize) -> f64 {
-    if dof == 0 {
-        return f64::NAN;
-    }
-    StudentsT::new(0.0, 1.0, dof as f64)
-        .map(|d| d.inverse_cdf(p))
-        .unwrap_or(f64::NAN)
-}
-
-/// Upper tail probability of `χ²(dof)` at `x` (NaN for dof = 0).
-pub fn chi2_sf(x: f64, dof: usize) -> f64 {
-    if dof == 0 {
-        return f64::NAN;
-    }
-    statrs::distribution::ChiSquared::new(dof as f64)
-        .map(|d| d.sf(x))
-        .unwrap_or(f64::NAN)
-}
-
-/// Two-sided p-value of a Student-t statistic with `dof` degrees of freedom (1 for dof = 0).
-pub fn t_two_sided_p(t: f64, dof: usize) -> f64 {
-    if dof == 0 || t.is_nan() {
-        return 1.0;
-    }
-    StudentsT::new(0.0, 1.0, dof as f64)
-        .map(|d| (2.0 * d.sf(t.abs())).min(1.0))
-        .unwrap_or(1.0)
-}
-
-/// Upper tail probability of `F(1, dof)` at `f` (1 for dof = 0 or f ≤ 0).
-pub fn f_test_p_value(f: f64, dof: usize) -> f64 {
-    if dof == 0 || f.is_nan() || f <= 0.0 {
-        return 1.0;
-    }
-    FisherSnedecor::new(1.0, dof as f64)
-        .map(|d| d.sf(f))
-        .unwrap_or(1.0)
 }
 
 /// Smallest number of points for fitting `b1_from_b2` plus `params` parameters with at least 10
@@ -1015,15 +975,13 @@ pub struct Selection {
 /// with `p_j` the column projected out of the base frame, in the parameter's unit; infinite for
 /// candidates that are not identifiable. `sigma` is the per-axis noise σ, m.
 pub fn min_detectable(ident: &Identifiability, alpha: f64, sigma: f64) -> Vec<f64> {
-    use statrs::distribution::Normal as StdNormal;
     let m = ident
         .params
         .iter()
         .filter(|p| p.status == IdentStatus::Identifiable)
         .count()
         .max(1);
-    let z = StdNormal::new(0.0, 1.0).expect("standard normal");
-    let k = z.inverse_cdf(1.0 - alpha / (2.0 * m as f64)) + z.inverse_cdf(0.8);
+    let k = normal_quantile(1.0 - alpha / (2.0 * m as f64)) + normal_quantile(0.8);
     ident
         .params
         .iter()

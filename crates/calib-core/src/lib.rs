@@ -10,6 +10,7 @@ mod points;
 mod registration;
 mod robust;
 mod soft;
+pub mod stats;
 
 pub use error::CalibError;
 pub use fast::{

@@ -14,7 +14,6 @@
 use crate::error::CalibError;
 use crate::points::PointPairs;
 use crate::registration::{constrained_lsq, rigid_lsq, ConstrainedOptions, MountPair};
-use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
 /// Below this p-value the mounts are reported as disagreeing with the points. Small on purpose: a
 /// warning that fires on one calibration in a thousand of a correctly mounted cell.
@@ -96,9 +95,7 @@ pub fn mount_check(pairs: &PointPairs, mounts: &MountPair) -> Result<MountCheck,
         let num = (rss_c - rss_f).max(0.0) / constraints as f64;
         let den = rss_f.max(floor) / dof_free as f64;
         let f = num / den;
-        let p = FisherSnedecor::new(constraints as f64, dof_free as f64)
-            .map(|d| d.sf(f))
-            .unwrap_or(1.0);
+        let p = crate::stats::f_sf(f, constraints, dof_free);
         (f, p)
     };
     Ok(MountCheck {

@@ -28,6 +28,7 @@ use std::path::{Path, PathBuf};
 use calib_core::identify::{
     self, IdentStatus, IdentifyError, Robot, SelectionOptions, TipEval, TipModel,
 };
+use calib_core::stats::{chi2_sf, fraction_below, pearson, quantile, t_quantile, t_two_sided_p};
 use kinematics::{Axis, ErrorParam, KinematicErrors};
 use nalgebra::{Isometry3, Matrix3, Matrix3xX, Point3, Vector3};
 use rand::Rng;
@@ -822,30 +823,6 @@ fn simulate_rms(
     out
 }
 
-fn quantile(sorted: &[f64], q: f64) -> f64 {
-    crate::stats::quantile(sorted, q)
-}
-
-fn percentile(sorted: &[f64], v: f64) -> f64 {
-    sorted.iter().filter(|&&s| s < v).count() as f64 / sorted.len().max(1) as f64
-}
-
-fn pearson(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len() as f64;
-    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
-    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
-    for (x, y) in a.iter().zip(b) {
-        sab += (x - ma) * (y - mb);
-        saa += (x - ma).powi(2);
-        sbb += (y - mb).powi(2);
-    }
-    if saa <= 1e-300 || sbb <= 1e-300 {
-        0.0
-    } else {
-        sab / (saa * sbb).sqrt()
-    }
-}
-
 /// Pearson correlations of the residual components (b1 axes) and norms with each joint angle,
 /// the tip position (b1) and each robot's reach (tip distance from its base origin); those
 /// significant at 5% after a Bonferroni correction over all pairs tested.
@@ -889,7 +866,7 @@ fn correlations(session: &Session, residuals: &[Vector3<f64>]) -> Vec<Correlatio
         for (tn, tv) in &targets {
             let r = pearson(cv, tv);
             let stat = r * ((n as f64 - 2.0) / (1.0 - r * r).max(1e-300)).sqrt();
-            let p = identify::t_two_sided_p(stat, n.saturating_sub(2));
+            let p = t_two_sided_p(stat, n.saturating_sub(2));
             let p_adj = (p * tests).min(1.0);
             if p_adj < 0.05 {
                 out.push(CorrelationReport {
@@ -914,7 +891,7 @@ fn joints(session: &Session) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
 
 fn placement_report(fit: &identify::IdentFit, cell: &Cell, sd_deg: f64) -> PlacementReport {
     let pr = identify::placement_rotation(fit, &cell.b1_from_b2, sd_deg.to_radians());
-    let t = identify::t_quantile(0.975, fit.dof);
+    let t = t_quantile(0.975, fit.dof);
     let ci = |i: usize| {
         [
             (pr.a_b2[i] - t * pr.std_error[i]).to_degrees(),
@@ -1114,7 +1091,7 @@ pub fn mount_tilt_test(fit: &identify::IdentFit, cell: &Cell, sd_rad: f64) -> Mo
     };
     let h0 = gls(&[2, 5]);
     let hyp = [gls(&[0, 1, 2]), gls(&[3, 4, 5])];
-    let p0 = identify::chi2_sf(h0.1, h0.2);
+    let p0 = chi2_sf(h0.1, h0.2);
     let mut out = MountTiltTest {
         chi2: [h0.1, hyp[0].1, hyp[1].1],
         dof: [h0.2, hyp[0].2, hyp[1].2],
@@ -1125,21 +1102,21 @@ pub fn mount_tilt_test(fit: &identify::IdentFit, cell: &Cell, sd_rad: f64) -> Mo
         return out;
     }
     // Per hypothesis: p of its χ², the tilt components (rad), their s.e., their p-values.
-    let tq = identify::t_quantile(0.975, fit.dof);
+    let tq = t_quantile(0.975, fit.dof);
     let stats = |h: &(_, f64, usize, DMatrix<f64>), off: usize| {
         let th: &[f64; 6] = &h.0;
         let comp = [0, 1].map(|k| {
             let v = th[off + k];
             let se = h.3[(k, k)].max(0.0).sqrt();
             let p = if se > 0.0 {
-                identify::t_two_sided_p(v / se, fit.dof)
+                t_two_sided_p(v / se, fit.dof)
             } else {
                 1.0
             };
             (v, se, p)
         });
         let n_sig = comp.iter().filter(|c| c.2 < ALPHA_TILT / 2.0).count();
-        (identify::chi2_sf(h.1, h.2), comp, n_sig)
+        (chi2_sf(h.1, h.2), comp, n_sig)
     };
     let st = [stats(&hyp[0], 0), stats(&hyp[1], 3)];
     let acceptable = |i: usize| st[i].0 >= ALPHA_TILT && st[i].2 > 0;
@@ -1327,7 +1304,7 @@ pub fn diagnose(
     );
     let chi2 = |f: &identify::IdentFit| {
         if noise.sigma2_eff > 0.0 {
-            identify::chi2_sf(f.rss / noise.sigma2_eff, f.dof)
+            chi2_sf(f.rss / noise.sigma2_eff, f.dof)
         } else if f.rss > 0.0 {
             0.0
         } else {
@@ -1455,7 +1432,7 @@ pub fn diagnose(
         sigma_hat_after_mm: fit.sigma_hat * 1000.0,
         predicted_rms_mm: quantile(&mc, 0.5) * 1000.0,
         predicted_rms_band_mm: [quantile(&mc, 0.05) * 1000.0, quantile(&mc, 0.95) * 1000.0],
-        measured_rms_percentile: percentile(&mc, base.rms()),
+        measured_rms_percentile: fraction_below(&mc, base.rms()),
         chi2_p_value: chi2_p,
         correlations: correlations(session, &base.residuals),
         correlations_after: correlations(session, &fit.residuals),
@@ -1488,12 +1465,12 @@ pub fn diagnose(
         truth_e_rot_deg,
         truth_geodesic_deg,
         resimulated_rms_before_mm: quantile(&remc, 0.5) * 1000.0,
-        resimulated_percentile: percentile(&remc, base.rms()),
+        resimulated_percentile: fraction_below(&remc, base.rms()),
         resimulated_rms_band_mm: [
             quantile(&remc, 0.05) * 1000.0,
             quantile(&remc, 0.95) * 1000.0,
         ],
-        rms_after_percentile: percentile(&mc, fit.rms()),
+        rms_after_percentile: fraction_below(&mc, fit.rms()),
         placement,
         steps,
         converged: fit.converged,

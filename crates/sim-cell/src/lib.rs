@@ -8,7 +8,6 @@ pub mod paper;
 pub mod placement;
 pub mod plot;
 pub mod session;
-pub mod stats;
 pub mod sweep;
 
 pub use cell::{Cell, CellRobot, Noise};

@@ -60,6 +60,7 @@ use crate::layout::{teach_points_into, Layout};
 use crate::placement::{Placement, FLOOR_CEILING, FLOOR_FLOOR, FLOOR_WALL};
 use crate::trial_rng;
 use calib_core::paper::{table1, Table1Row};
+use calib_core::stats::{chi2_sf, maximize_log_1d, quantile, Maximize1dOptions, CHI2_1_95};
 use calib_core::{
     generic_fast, paper_fast, wrap_angle, zyz_from_rotation, zyz_nearest, CalibError, MountPair,
 };
@@ -84,8 +85,6 @@ pub const DEFAULT_SEED: u64 = 2014;
 pub const MIN_TRIALS: usize = 200;
 /// Significance level of the tests and of the selection (before Bonferroni).
 pub const ALPHA: f64 = 0.05;
-/// χ²(1) 95 % quantile: the profile-likelihood interval threshold on `2·Δℓ`.
-pub const CHI2_1_95: f64 = 3.841_458_820_694_124;
 /// Search range of σ, mm (the fit reports when an interval end reaches it).
 pub const SIGMA_RANGE_MM: [f64; 2] = [0.05, 50.0];
 /// Search range of the anisotropy factor (σ along the approach axis / σ across it).
@@ -746,83 +745,6 @@ pub struct SigmaFit {
     pub n: usize,
 }
 
-fn golden_max(f: &impl Fn(f64) -> f64, mut a: f64, mut b: f64, iters: usize) -> (f64, f64) {
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    let mut c = b - g * (b - a);
-    let mut d = a + g * (b - a);
-    let (mut fc, mut fd) = (f(c), f(d));
-    for _ in 0..iters {
-        if fc >= fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - g * (b - a);
-            fc = f(c);
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + g * (b - a);
-            fd = f(d);
-        }
-    }
-    if fc >= fd {
-        (c, fc)
-    } else {
-        (d, fd)
-    }
-}
-
-/// Maximises a smooth 1-D log-likelihood of `ln x` over `[lo, hi]` (grid then golden section) and
-/// returns the maximiser, the maximum and the profile 95 % interval (bisection on `2Δℓ = 3.84`).
-fn fit_log_scale(f: &impl Fn(f64) -> f64, lo: f64, hi: f64, with_ci: bool) -> (f64, f64, [f64; 2]) {
-    let (l0, l1) = (lo.ln(), hi.ln());
-    // A fine grid when the interval is wanted; a coarse one is enough to bracket the maximum.
-    let steps = if with_ci { 60 } else { 20 };
-    let grid: Vec<(f64, f64)> = (0..=steps)
-        .map(|i| {
-            let s = l0 + (l1 - l0) * i as f64 / steps as f64;
-            (s, f(s.exp()))
-        })
-        .collect();
-    let best = grid
-        .iter()
-        .enumerate()
-        .max_by(|a, b| a.1 .1.total_cmp(&b.1 .1))
-        .map(|(i, _)| i)
-        .unwrap_or(0);
-    let a = grid[best.saturating_sub(1)].0;
-    let b = grid[(best + 1).min(steps)].0;
-    let (s_hat, l_hat) = golden_max(&|s: f64| f(s.exp()), a, b, if with_ci { 40 } else { 25 });
-    let (s_hat, l_hat) = if grid[best].1 > l_hat {
-        grid[best]
-    } else {
-        (s_hat, l_hat)
-    };
-    let target = l_hat - 0.5 * CHI2_1_95;
-    let crossing = |inner: f64, outer: f64| -> f64 {
-        if f(outer.exp()) >= target {
-            return outer;
-        }
-        let (mut i, mut o) = (inner, outer);
-        for _ in 0..40 {
-            let m = 0.5 * (i + o);
-            if f(m.exp()) >= target {
-                i = m;
-            } else {
-                o = m;
-            }
-        }
-        0.5 * (i + o)
-    };
-    if !with_ci {
-        return (s_hat.exp(), l_hat, [f64::NAN; 2]);
-    }
-    let lower = crossing(s_hat, l0);
-    let upper = crossing(s_hat, l1);
-    (s_hat.exp(), l_hat, [lower.exp(), upper.exp()])
-}
-
 fn fit_sigma(groups: &[Group<'_>]) -> SigmaFit {
     fit_sigma_opt(groups, true)
 }
@@ -830,8 +752,19 @@ fn fit_sigma(groups: &[Group<'_>]) -> SigmaFit {
 /// As [`fit_sigma`]; without the interval (NaN) when `with_ci` is false (bootstrap replicates).
 fn fit_sigma_opt(groups: &[Group<'_>], with_ci: bool) -> SigmaFit {
     let f = |s: f64| group_loglik(groups, s);
-    let (sigma_mm, loglik, ci95_mm) =
-        fit_log_scale(&f, SIGMA_RANGE_MM[0], SIGMA_RANGE_MM[1], with_ci);
+    // A fine grid when the interval is wanted; a coarse one is enough to bracket the maximum.
+    let options = if with_ci {
+        Maximize1dOptions::default()
+    } else {
+        Maximize1dOptions {
+            grid_steps: 20,
+            golden_iterations: 25,
+            profile_interval: false,
+            ..Maximize1dOptions::default()
+        }
+    };
+    let m = maximize_log_1d(&f, SIGMA_RANGE_MM[0], SIGMA_RANGE_MM[1], &options);
+    let (sigma_mm, loglik, ci95_mm) = (m.argmax, m.max, m.ci95);
     SigmaFit {
         sigma_mm,
         ci95_mm,
@@ -843,99 +776,6 @@ fn fit_sigma_opt(groups: &[Group<'_>], with_ci: bool) -> SigmaFit {
 // ---------------------------------------------------------------------------------------------
 // Statistics helpers
 // ---------------------------------------------------------------------------------------------
-
-fn ln_gamma(x: f64) -> f64 {
-    // Lanczos (g = 7, n = 9), relative error < 1e-13 for x > 0.
-    const C: [f64; 9] = [
-        0.999_999_999_999_809_9,
-        676.520_368_121_885_1,
-        -1_259.139_216_722_402_8,
-        771.323_428_777_653_1,
-        -176.615_029_162_140_6,
-        12.507_343_278_686_905,
-        -0.138_571_095_265_720_12,
-        9.984_369_578_019_572e-6,
-        1.505_632_735_149_311_6e-7,
-    ];
-    if x < 0.5 {
-        let pi = std::f64::consts::PI;
-        return (pi / (pi * x).sin()).ln() - ln_gamma(1.0 - x);
-    }
-    let x = x - 1.0;
-    let mut a = C[0];
-    let t = x + 7.5;
-    for (i, c) in C.iter().enumerate().skip(1) {
-        a += c / (x + i as f64);
-    }
-    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
-}
-
-/// Regularised upper incomplete gamma `Q(a, x)` (series / continued fraction).
-fn gamma_q(a: f64, x: f64) -> f64 {
-    if x <= 0.0 {
-        return 1.0;
-    }
-    let gln = ln_gamma(a);
-    if x < a + 1.0 {
-        let mut ap = a;
-        let mut sum = 1.0 / a;
-        let mut del = sum;
-        for _ in 0..1000 {
-            ap += 1.0;
-            del *= x / ap;
-            sum += del;
-            if del.abs() < sum.abs() * 1e-15 {
-                break;
-            }
-        }
-        1.0 - sum * (-x + a * x.ln() - gln).exp()
-    } else {
-        let tiny = 1e-300;
-        let mut b = x + 1.0 - a;
-        let mut c = 1.0 / tiny;
-        let mut d = 1.0 / b;
-        let mut h = d;
-        for i in 1..1000 {
-            let an = -(i as f64) * (i as f64 - a);
-            b += 2.0;
-            d = an * d + b;
-            if d.abs() < tiny {
-                d = tiny;
-            }
-            c = b + an / c;
-            if c.abs() < tiny {
-                c = tiny;
-            }
-            d = 1.0 / d;
-            let del = d * c;
-            h *= del;
-            if (del - 1.0).abs() < 1e-15 {
-                break;
-            }
-        }
-        (-x + a * x.ln() - gln).exp() * h
-    }
-}
-
-/// Survival function of χ² with `df` degrees of freedom at `x` (the p-value of a statistic `x`).
-pub fn chi2_sf(x: f64, df: usize) -> f64 {
-    if df == 0 {
-        return if x > 0.0 { 0.0 } else { 1.0 };
-    }
-    if !x.is_finite() {
-        return if x > 0.0 { 0.0 } else { 1.0 };
-    }
-    gamma_q(0.5 * df as f64, 0.5 * x.max(0.0)).clamp(0.0, 1.0)
-}
-
-fn quantile(sorted: &[f64], q: f64) -> f64 {
-    if sorted.is_empty() {
-        return f64::NAN;
-    }
-    let h = q.clamp(0.0, 1.0) * (sorted.len() - 1) as f64;
-    let (lo, hi) = (h.floor() as usize, h.ceil() as usize);
-    sorted[lo] + (h - lo as f64) * (sorted[hi] - sorted[lo])
-}
 
 /// A simulated distribution summarised: 5 %, 50 % and 95 % quantiles.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -1799,25 +1639,14 @@ fn fit_model(cands: &[Candidate], data: &[&Obs]) -> Option<ModelFit> {
     }
 }
 
-/// Maximiser of `f` over `ln x ∈ [lo, hi]` (grid then golden section), as `x`.
-fn search_log(f: &impl Fn(f64) -> f64, lo: f64, hi: f64) -> f64 {
-    let (lo, hi) = (lo.ln(), hi.ln());
-    let steps = 16;
-    let best = (0..=steps)
-        .map(|i| lo + (hi - lo) * i as f64 / steps as f64)
-        .map(|s| (s, f(s.exp())))
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-        .map(|b| b.0)
-        .unwrap_or(0.0);
-    let w = (hi - lo) / steps as f64;
-    let (s, _) = golden_max(
-        &|s: f64| f(s.exp()),
-        (best - w).max(lo),
-        (best + w).min(hi),
-        30,
-    );
-    s.exp()
-}
+/// The 1-D searches of the noise-shape parameters: a 16-interval grid in `ln x`, then 30
+/// golden-section steps; no interval.
+const SHAPE_SEARCH: Maximize1dOptions = Maximize1dOptions {
+    grid_steps: 16,
+    golden_iterations: 30,
+    profile_interval: false,
+    bisection_iterations: 0,
+};
 
 /// Range of ρ = τ/σ searched by the per-experiment contact offset (0 is tried too).
 const RHO_RANGE: [f64; 2] = [0.05, 20.0];
@@ -1836,11 +1665,13 @@ fn fit_model_at(cands: &[Candidate], data: &[&Obs], g: usize) -> Option<ModelFit
     let rounds = if aniso && offset { 3 } else { 1 };
     for _ in 0..rounds {
         if offset {
-            let r = search_log(
+            let r = maximize_log_1d(
                 &|rho| ll(Shape { rho, ..shape }),
                 RHO_RANGE[0],
                 RHO_RANGE[1],
-            );
+                &SHAPE_SEARCH,
+            )
+            .argmax;
             shape.rho = if ll(Shape { rho: r, ..shape }) >= ll(Shape { rho: 0.0, ..shape }) {
                 r
             } else {
@@ -1848,11 +1679,13 @@ fn fit_model_at(cands: &[Candidate], data: &[&Obs], g: usize) -> Option<ModelFit
             };
         }
         if aniso {
-            shape.k = search_log(
+            shape.k = maximize_log_1d(
                 &|k| ll(Shape { k, ..shape }),
                 ANISOTROPY_RANGE[0],
                 ANISOTROPY_RANGE[1],
-            );
+                &SHAPE_SEARCH,
+            )
+            .argmax;
         }
     }
     fit_fixed_k(cands, data, shape)
@@ -1949,7 +1782,12 @@ fn candidate_result(
         Some((b, bh)) => {
             let lr = (2.0 * (m.loglik - b.loglik)).max(0.0);
             let df = m.n_params.saturating_sub(b.n_params);
-            (lr, df, chi2_sf(lr, df), held - bh)
+            (
+                lr,
+                df,
+                if df == 0 { 1.0 } else { chi2_sf(lr, df) },
+                held - bh,
+            )
         }
         None => (0.0, 0, 1.0, 0.0),
     };
@@ -2620,15 +2458,6 @@ pub fn render_diagnosis_text(d: &PaperDiagnosis) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// χ² survival against tabulated 95 % quantiles (df 1, 2, 5) to 1e-9.
-    #[test]
-    fn chi2_sf_matches_tables() {
-        assert!((chi2_sf(3.841_458_820_694_124, 1) - 0.05).abs() < 1e-9);
-        assert!((chi2_sf(5.991_464_547_107_979, 2) - 0.05).abs() < 1e-9);
-        assert!((chi2_sf(11.070_497_693_516_35, 5) - 0.05).abs() < 1e-9);
-        assert_eq!(chi2_sf(0.0, 3), 1.0);
-    }
 
     /// The linear-scaling claim: per trial, `bias + σ·slope` from the σ = 1 mm simulation equals a
     /// direct simulation at σ = 3 mm with the same random numbers, for both methods and all cells

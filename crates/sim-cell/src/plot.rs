@@ -3,8 +3,8 @@
 
 use crate::error::SimError;
 use crate::placement::mounts_label;
-use crate::stats::{quantile, sorted_finite};
 use crate::sweep::SweepResult;
+use calib_core::stats::{quantile, sorted_finite};
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
 

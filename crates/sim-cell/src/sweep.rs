@@ -17,8 +17,8 @@ use crate::error::SimError;
 use crate::layout::{teach_points_into, Layout};
 use crate::placement::{mounts_label, paper_placement};
 use crate::session::{generate_session, SessionSpec};
-use crate::stats::{quantile_ci, sorted_finite, QuantileCi};
 use crate::trial_rng;
+use calib_core::stats::{quantile_ci, sorted_finite, QuantileCi};
 use calib_core::ZYZ_SINGULAR_BAND_RAD;
 use calib_core::{
     constrained_fast, e_rot, e_tran, generic_fast, geodesic_angle, paper_fast,
