@@ -1,7 +1,6 @@
 #![doc = include_str!("../README.md")]
 
 mod error;
-pub mod fast;
 pub mod identify;
 mod metrics;
 mod mount_check;
@@ -13,9 +12,6 @@ mod soft;
 pub mod stats;
 
 pub use error::CalibError;
-pub use fast::{
-    constrained_fast, generic_fast, paper_fast, rigid_fit_fast, rotation_maximizing_trace,
-};
 pub use kinematics::{rotation_from_zyz, wrap_angle, zyz_from_rotation, zyz_nearest};
 pub use metrics::{e_rot, e_rot_raw, e_rot_zyz, e_tran, geodesic_angle, ZYZ_SINGULAR_BAND_RAD};
 pub use mount_check::{mount_check, MountCheck, MOUNT_CHECK_ALPHA};
@@ -24,10 +20,10 @@ pub use points::{
     SPREAD_RATIO_LIMIT,
 };
 pub use registration::{
-    constrained_lsq, fit, generic_4point, nearest_rotation, nearest_rotation_horn,
-    paper_constrained, project_rotation_family, rigid_lsq, spread_singular_values,
-    wall_family_angles, wall_rotation, ConstrainedOptions, Fit, Method, Mount, MountPair,
-    Uncertainty, COLLINEAR_REL, COPLANAR_REL,
+    constrained_fast, constrained_lsq, fit, generic_4point, generic_fast, nearest_rotation,
+    paper_constrained, paper_fast, project_rotation_family, rigid_fit_fast, rigid_lsq,
+    rotation_maximizing_trace, spread_singular_values, wall_family_angles, wall_rotation,
+    ConstrainedOptions, Fit, Method, Mount, MountPair, Uncertainty, COLLINEAR_REL, COPLANAR_REL,
 };
 pub use robust::{leave_one_out, OutlierReport, OUTLIER_FACTOR, OUTLIER_MIN_M};
 pub use soft::{constrained_soft, SoftFit};

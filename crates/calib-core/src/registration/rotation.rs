@@ -1,20 +1,35 @@
-//! Allocation-free registration kernels for Monte Carlo (no diagnostics, no uncertainty).
-//!
-//! The core is [`rotation_maximizing_trace`]: the rotation `R` maximising `tr(Rᵀ·M)` for a 3×3
-//! matrix `M`. That is both the Frobenius-nearest rotation of `M` (`‖R − M‖²_F = const − 2·tr(RᵀM)`)
-//! and the rigid least-squares rotation when `M` is the cross-covariance `Σ (p1 − c1)(p2 − c2)ᵀ`.
-//! It is solved by Horn's quaternion method: the maximising unit quaternion is the eigenvector of the
-//! largest eigenvalue of a symmetric traceless 4×4 matrix `N(M)`. The eigenvalue is found by Newton's
-//! method on the characteristic quartic `λ⁴ − 2‖M‖²_F·λ² − 8·det(M)·λ + det(N)` (Theobald's QCP),
-//! started at `√3·‖M‖_F`, an upper bound of the largest root that is tight when `M` is near a scaled
-//! rotation (the usual case: 1–3 iterations), and the eigenvector as the largest column of the
-//! adjugate of `N − λI`. The result matches the SVD polar factor ([`crate::nearest_rotation`]) to
-//! round-off (tested).
+//! The rotation maximising `tr(Rᵀ·M)` for a 3×3 matrix `M`: the Frobenius-nearest rotation of `M`
+//! (`‖R − M‖²_F = const − 2·tr(RᵀM)`, eqs 1–3) and the rigid least-squares rotation when `M` is the
+//! cross-covariance `Σ (p1 − c1)(p2 − c2)ᵀ`. Two solvers:
+//! - [`nearest_rotation`]: SVD `M = U·Σ·Vᵀ`, `R = U·diag(1, 1, det(U·Vᵀ))·Vᵀ`;
+//! - [`rotation_maximizing_trace`]: Horn's quaternion method, allocation-free. The maximising unit
+//!   quaternion is the eigenvector of the largest eigenvalue of a symmetric traceless 4×4 matrix
+//!   `N(M)`. The eigenvalue is found by Newton's method on the characteristic quartic
+//!   `λ⁴ − 2‖M‖²_F·λ² − 8·det(M)·λ + det(N)` (Theobald's QCP), started at `√3·‖M‖_F`, an upper bound
+//!   of the largest root that is tight when `M` is near a scaled rotation (1–3 iterations), and the
+//!   eigenvector as the largest column of the adjugate of `N − λI`. Both agree to round-off (tested).
 
-use crate::registration::{project_rotation_family_fast, MountPair};
-use nalgebra::{
-    Isometry3, Matrix3, Matrix4, Point3, Quaternion, Translation3, UnitQuaternion, Vector3,
-};
+use nalgebra::{Matrix3, Matrix4, Quaternion, Rotation3, UnitQuaternion};
+
+/// The rotation nearest `m` in the Frobenius norm: `argmin ‖R − M‖_F` over `RᵀR = I, det R = +1`
+/// (eqs 1–3). SVD `M = U·Σ·Vᵀ`, `R = U·diag(1, 1, det(U·Vᵀ))·Vᵀ` (the determinant guard avoids a
+/// reflection). For rank(M) ≤ 1 the minimiser is not unique and one of them is returned; non-finite
+/// input returns the identity.
+pub fn nearest_rotation(m: &Matrix3<f64>) -> Rotation3<f64> {
+    if !m.iter().all(|v| v.is_finite()) {
+        return Rotation3::identity();
+    }
+    let svd = m.svd(true, true);
+    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+        return Rotation3::identity();
+    };
+    let d = (u * v_t).determinant();
+    let mut s = Matrix3::identity();
+    if d < 0.0 {
+        s[(2, 2)] = -1.0;
+    }
+    Rotation3::from_matrix_unchecked(u * s * v_t)
+}
 
 /// Relative convergence of the Newton iteration on the largest eigenvalue.
 const NEWTON_REL_TOL: f64 = 1e-13;
@@ -160,136 +175,10 @@ fn adjugate4(a: &Matrix4<f64>) -> Matrix4<f64> {
     )
 }
 
-/// Centroids and cross-covariance `M = Σ (p1 − c1)(p2 − c2)ᵀ` of paired points (m, m, m²).
-fn centroids_and_cross(
-    p_b1: &[Point3<f64>],
-    p_b2: &[Point3<f64>],
-) -> (Vector3<f64>, Vector3<f64>, Matrix3<f64>) {
-    let n = p_b1.len() as f64;
-    let mut c1 = Vector3::zeros();
-    let mut c2 = Vector3::zeros();
-    for (a, b) in p_b1.iter().zip(p_b2) {
-        c1 += a.coords;
-        c2 += b.coords;
-    }
-    c1 /= n;
-    c2 /= n;
-    let mut m = Matrix3::zeros();
-    for (a, b) in p_b1.iter().zip(p_b2) {
-        m += (a.coords - c1) * (b.coords - c2).transpose();
-    }
-    (c1, c2, m)
-}
-
-/// Rigid least-squares `b1_from_b2` (no scale): minimises `Σ ‖p_b1_i − (R·p_b2_i + T)‖²`, n ≥ 3.
-///
-/// Same maths as [`crate::rigid_lsq`] without weights, diagnostics or allocation. `None` when the
-/// lengths differ, n < 3, a value is not finite, or the points are collinear (rotation not unique).
-/// Points in metres.
-pub fn rigid_fit_fast(p_b1: &[Point3<f64>], p_b2: &[Point3<f64>]) -> Option<Isometry3<f64>> {
-    if p_b1.len() != p_b2.len() || p_b1.len() < 3 {
-        return None;
-    }
-    let (c1, c2, m) = centroids_and_cross(p_b1, p_b2);
-    let q = rotation_maximizing_trace(&m)?;
-    let t = c1 - q * c2;
-    Some(Isometry3::from_parts(Translation3::from(t), q))
-}
-
-/// The affine `H = A·B⁻¹` of the 4-point generic method (A, B: homogeneous point columns).
-/// Returns `(M, t_H)`: H's 3×3 block and its translation column. `None` if B is singular
-/// (coplanar points) or H is not finite.
-///
-/// Computed without the 4×4 inverse: H maps each `p2_k` to `p1_k`, so with the edge matrices
-/// `D1 = [p1_2 − p1_1, p1_3 − p1_1, p1_4 − p1_1]` and `D2` likewise, `M·D2 = D1`, hence
-/// `M = D1·D2⁻¹` and `t_H = p1_1 − M·p2_1` (`|det B| = |det D2|`, so B is singular exactly when
-/// D2 is). Same solution as the 4×4 solve, to round-off (tested).
-pub fn affine_4point(
-    p_b1: &[Point3<f64>; 4],
-    p_b2: &[Point3<f64>; 4],
-) -> Option<(Matrix3<f64>, Vector3<f64>)> {
-    let edges =
-        |p: &[Point3<f64>; 4]| Matrix3::from_columns(&[p[1] - p[0], p[2] - p[0], p[3] - p[0]]);
-    let d2_inv = edges(p_b2).try_inverse()?;
-    let m = edges(p_b1) * d2_inv;
-    let t = p_b1[0].coords - m * p_b2[0].coords;
-    (m.iter().chain(t.iter()).all(|v| v.is_finite())).then_some((m, t))
-}
-
-/// eq (12): `T = (1/n)·Σ (p1_i − R·p2_i)`, evaluated as `c1 − R·c2` (c the centroids; the same
-/// sum regrouped, one rotation instead of n).
-fn translation_eq12(
-    p_b1: &[Point3<f64>],
-    p_b2: &[Point3<f64>],
-    q: &UnitQuaternion<f64>,
-) -> Vector3<f64> {
-    let n = p_b1.len() as f64;
-    let mut c1 = Vector3::zeros();
-    let mut c2 = Vector3::zeros();
-    for (a, b) in p_b1.iter().zip(p_b2) {
-        c1 += a.coords;
-        c2 += b.coords;
-    }
-    c1 / n - q * (c2 / n)
-}
-
-/// The paper's generic 4-point method, allocation-free: `H = A·B⁻¹`, the nearest rotation of its
-/// 3×3 block, then eq (12) (`affine_translation = false`) or H's own translation column
-/// (`affine_translation = true`). `None` if the points are coplanar (B singular) or degenerate.
-pub fn generic_fast(
-    p_b1: &[Point3<f64>; 4],
-    p_b2: &[Point3<f64>; 4],
-    affine_translation: bool,
-) -> Option<Isometry3<f64>> {
-    let (m, t_h) = affine_4point(p_b1, p_b2)?;
-    let q = rotation_maximizing_trace(&m)?;
-    let t = if affine_translation {
-        t_h
-    } else {
-        translation_eq12(p_b1, p_b2, &q)
-    };
-    Some(Isometry3::from_parts(Translation3::from(t), q))
-}
-
-/// The paper's constrained 4-point method, allocation-free: `H = A·B⁻¹`, projection of its 3×3 block
-/// onto the rotations the mounts allow (eq 11 floor–floor, eq 30 floor–ceiling, eqs 16–21
-/// floor–wall, and the same projection generalised to tilted mounts), then eq (12).
-/// `None` if the points are coplanar or the mount pair is unsupported (both `Wall`).
-pub fn paper_fast(
-    p_b1: &[Point3<f64>; 4],
-    p_b2: &[Point3<f64>; 4],
-    mounts: &MountPair,
-) -> Option<Isometry3<f64>> {
-    let (m, _) = affine_4point(p_b1, p_b2)?;
-    let r = project_rotation_family_fast(&m, mounts)?;
-    let q = UnitQuaternion::from_rotation_matrix(&r);
-    let t = translation_eq12(p_b1, p_b2, &q);
-    Some(Isometry3::from_parts(Translation3::from(t), q))
-}
-
-/// Installation-constrained least squares, allocation-free (see [`crate::constrained_lsq`]):
-/// the rotation is restricted to the mounts' family inside the least-squares cost. `None` on
-/// length mismatch, n < 2, or unsupported mounts.
-pub fn constrained_fast(
-    p_b1: &[Point3<f64>],
-    p_b2: &[Point3<f64>],
-    mounts: &MountPair,
-) -> Option<Isometry3<f64>> {
-    if p_b1.len() != p_b2.len() || p_b1.len() < 2 {
-        return None;
-    }
-    let (c1, c2, m) = centroids_and_cross(p_b1, p_b2);
-    let r = project_rotation_family_fast(&m, mounts)?;
-    let q = UnitQuaternion::from_rotation_matrix(&r);
-    let t = c1 - q * c2;
-    Some(Isometry3::from_parts(Translation3::from(t), q))
-}
-
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
-    use crate::registration::nearest_rotation;
-    use nalgebra::Rotation3;
+    use nalgebra::Vector3;
 
     /// Horn/QCP vs SVD polar factor: both are exact methods, agreement to round-off.
     const HORN_VS_SVD_TOL: f64 = 1e-9;
@@ -323,7 +212,7 @@ mod tests {
     }
 
     /// Deterministic uniform numbers in [−1, 1) for the tests.
-    fn lcg(seed: u64) -> impl FnMut() -> f64 {
+    pub(in crate::registration) fn lcg(seed: u64) -> impl FnMut() -> f64 {
         let mut state = seed;
         move || {
             state = state
@@ -357,42 +246,6 @@ mod tests {
                 ((qv.transpose() * n * qv)[0] - (r.matrix().transpose() * m).trace()).abs() < 1e-12
             );
         }
-    }
-
-    /// The 4-point affine solve by edge matrices equals `H = A·B⁻¹` with the 4×4 inverse (relative
-    /// round-off on metre-scale points), and coplanar points give `None`.
-    #[test]
-    fn affine_4point_equals_the_4x4_solve() {
-        let mut next = lcg(4242);
-        for _ in 0..200 {
-            let p1: [Point3<f64>; 4] = std::array::from_fn(|_| Point3::new(next(), next(), next()));
-            let p2: [Point3<f64>; 4] = std::array::from_fn(|_| {
-                Point3::new(next(), next(), next()) + Vector3::new(1.5, 0.5, 1.5)
-            });
-            let (m, t) = affine_4point(&p1, &p2).unwrap();
-            let mut a = Matrix4::zeros();
-            let mut b = Matrix4::zeros();
-            for k in 0..4 {
-                for r in 0..3 {
-                    a[(r, k)] = p1[k][r];
-                    b[(r, k)] = p2[k][r];
-                }
-                a[(3, k)] = 1.0;
-                b[(3, k)] = 1.0;
-            }
-            let h = a * b.try_inverse().unwrap();
-            // Random point sets can be ill-conditioned; scale the tolerance by the condition.
-            let tol = 1e-12 * h.amax().max(1.0) * b.try_inverse().unwrap().amax().max(1.0);
-            assert!((h.fixed_view::<3, 3>(0, 0) - m).amax() < tol, "{h} {m}");
-            assert!((h.fixed_view::<3, 1>(0, 3) - t).amax() < tol);
-        }
-        let flat: [Point3<f64>; 4] = [
-            Point3::new(0.0, 0.0, 0.0),
-            Point3::new(1.0, 0.0, 0.0),
-            Point3::new(0.0, 1.0, 0.0),
-            Point3::new(1.0, 1.0, 0.0),
-        ];
-        assert!(affine_4point(&flat, &flat).is_none());
     }
 
     #[test]
