@@ -810,7 +810,7 @@ fn simulate_rms(
                 .enumerate()
                 .map(|(i, (p, di))| x * p + di + noise.draw(i, &mut rng))
                 .collect();
-            let fit = identify::kabsch(&p1, p2).unwrap_or(*x);
+            let fit = calib_core::rigid_fit_fast(&p1, p2).unwrap_or(*x);
             let rss: f64 = p1
                 .iter()
                 .zip(p2)

@@ -1,0 +1,416 @@
+//! The joint Levenberg–Marquardt fit of `b1_from_b2` and error parameters, and its covariance
+//! (see the measurement model in [`crate::identify`]).
+
+use super::model::*;
+use crate::stats::t_quantile;
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
+
+/// Levenberg–Marquardt settings.
+#[derive(Debug, Clone)]
+pub struct FitOptions {
+    /// Maximum LM iterations (default 50).
+    pub max_iterations: usize,
+    /// Stop when the relative RSS decrease of an accepted step is below this (default 1e-12).
+    pub rss_tolerance: f64,
+    /// Initial damping relative to diag(JᵀJ) (default 1e-3).
+    pub initial_damping: f64,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        Self {
+            max_iterations: 50,
+            rss_tolerance: 1e-12,
+            initial_damping: 1e-3,
+        }
+    }
+}
+
+/// Result of a joint fit of `b1_from_b2` and error parameters.
+#[derive(Debug, Clone)]
+pub struct IdentFit {
+    /// Estimated `b1_from_b2`.
+    pub b1_from_b2: Isometry3<f64>,
+    /// Parameters fitted (catalogue indices).
+    pub params: Vec<usize>,
+    /// Their estimates, in the model's parameter units.
+    pub values: Vec<f64>,
+    /// Points used (indices into the model).
+    pub points: Vec<usize>,
+    /// Residuals `f1 − b1_from_b2·f2` at the solution (unweighted), m, one per point in `points`.
+    pub residuals: Vec<Vector3<f64>>,
+    /// Weighted residual sum of squares `Σ‖W_i·r_i‖²` (m²; the plain RSS for unit weights):
+    /// what the fit minimises and the tests use.
+    pub rss: f64,
+    /// Degrees of freedom `3n − 6 − k`.
+    pub dof: usize,
+    /// `σ̂ = sqrt(RSS/dof)`, m (NaN when dof = 0).
+    pub sigma_hat: f64,
+    /// Covariance of `[ρ (m); φ (rad); θ]` (`σ̂²·(JᵀJ)⁻¹`, pseudo-inverse if singular).
+    pub covariance: DMatrix<f64>,
+    /// Whether `JᵀJ` was numerically singular (some direction not determined by the data).
+    pub singular: bool,
+    /// LM iterations used.
+    pub iterations: usize,
+    /// Whether LM met its tolerance (false: stopped at `max_iterations`).
+    pub converged: bool,
+}
+
+impl IdentFit {
+    /// Residual RMS over points of the unweighted residuals, `sqrt(Σ‖r_i‖²/n)`, m (3-D distance
+    /// per point).
+    pub fn rms(&self) -> f64 {
+        let raw: f64 = self.residuals.iter().map(|r| r.norm_squared()).sum();
+        (raw / self.points.len().max(1) as f64).sqrt()
+    }
+
+    /// Standard error of fitted parameter `k` (position in `params`), model units.
+    pub fn std_error(&self, k: usize) -> f64 {
+        self.covariance[(6 + k, 6 + k)].max(0.0).sqrt()
+    }
+
+    /// Two-sided `level` (e.g. 0.95) confidence interval of fitted parameter `k`, t quantile with
+    /// `dof` degrees of freedom. Returns `(NaN, NaN)` when dof = 0.
+    pub fn interval(&self, k: usize, level: f64) -> (f64, f64) {
+        let t = t_quantile(0.5 + level / 2.0, self.dof);
+        let half = t * self.std_error(k);
+        (self.values[k] - half, self.values[k] + half)
+    }
+
+    /// Predicted 1-σ translation error of `b1_from_b2`, m: `sqrt(trace Σ_ρ)` (covariance based,
+    /// about the left-perturbed origin).
+    pub fn predicted_translation_error(&self) -> f64 {
+        (0..3)
+            .map(|i| self.covariance[(i, i)].max(0.0))
+            .sum::<f64>()
+            .sqrt()
+    }
+
+    /// Predicted 1-σ rotation error of `b1_from_b2`, rad: `sqrt(trace Σ_φ)`.
+    pub fn predicted_rotation_error(&self) -> f64 {
+        (3..6)
+            .map(|i| self.covariance[(i, i)].max(0.0))
+            .sum::<f64>()
+            .sqrt()
+    }
+
+    /// Bayesian information criterion `N·ln(RSS/N) + p·ln(N)`, `N = 3n` residuals, `p = 6 + k`.
+    pub fn bic(&self) -> f64 {
+        let n_obs = 3.0 * self.points.len() as f64;
+        let p = (6 + self.params.len()) as f64;
+        n_obs * (self.rss.max(1e-300) / n_obs).ln() + p * n_obs.ln()
+    }
+}
+
+/// Smallest number of points for fitting `b1_from_b2` plus `params` parameters with at least 10
+/// residual degrees of freedom (and never fewer than 4 points).
+pub fn min_points(params: usize) -> usize {
+    (6 + params + 10).div_ceil(3).max(4)
+}
+
+pub(super) fn check_params(model: &dyn TipModel, params: &[usize]) -> Result<(), IdentifyError> {
+    for &p in params {
+        if p >= model.n_params() {
+            return Err(IdentifyError::BadParam {
+                index: p,
+                len: model.n_params(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Residuals and (optionally) the stacked Jacobian `[∂r/∂ρ, ∂r/∂φ, ∂r/∂θ_params, ∂r/∂θ_extra]` at a
+/// state. `extra` are extra parameter columns evaluated at the state (for screening).
+pub(super) struct Linearisation {
+    pub(super) residuals: DVector<f64>,
+    pub(super) jacobian: DMatrix<f64>,
+    /// Weighted residual sum of squares (whitened residuals), m².
+    pub(super) rss: f64,
+    /// Unweighted residuals `f1 − X·f2`, m, one per point.
+    pub(super) raw: Vec<Vector3<f64>>,
+    /// Unweighted residual sum of squares, m².
+    pub(super) raw_rss: f64,
+    /// The points' whitening matrices ([`TipModel::weight`]).
+    pub(super) weights: Vec<Matrix3<f64>>,
+    /// Robot 1's tips in b1, m (one per point).
+    pub(super) p1_b1: Vec<Vector3<f64>>,
+}
+
+#[allow(clippy::too_many_arguments)]
+pub(super) fn linearise(
+    model: &dyn TipModel,
+    points: &[usize],
+    b1_from_b2: &Isometry3<f64>,
+    params: &[usize],
+    values: &[f64],
+    extra: &[usize],
+    want_jacobian: bool,
+) -> Result<Linearisation, IdentifyError> {
+    let n = points.len();
+    let k = params.len();
+    let cols = if want_jacobian {
+        6 + k + extra.len()
+    } else {
+        0
+    };
+    let mut residuals = DVector::zeros(3 * n);
+    let mut jacobian = DMatrix::zeros(if want_jacobian { 3 * n } else { 0 }, cols);
+    let mut jac_params: Vec<usize> = Vec::new();
+    if want_jacobian {
+        jac_params.extend_from_slice(params);
+        jac_params.extend_from_slice(extra);
+    }
+    let r_x = b1_from_b2.rotation.to_rotation_matrix().into_inner();
+    let mut p1_b1 = Vec::with_capacity(n);
+    let mut raw = Vec::with_capacity(n);
+    let mut weights = Vec::with_capacity(n);
+    for (row, &i) in points.iter().enumerate() {
+        let e = model.eval(i, params, values, &jac_params)?;
+        p1_b1.push(e.p1_b1.coords);
+        let y = b1_from_b2 * e.p2_b2;
+        let r = e.p1_b1 - y;
+        if !r.iter().all(|v| v.is_finite()) {
+            return Err(IdentifyError::NonFinite { point: i });
+        }
+        let w = model.weight(i);
+        let unit = w == Matrix3::identity();
+        raw.push(r);
+        weights.push(w);
+        residuals
+            .fixed_rows_mut::<3>(3 * row)
+            .copy_from(&if unit { r } else { w * r });
+        if want_jacobian {
+            if e.jacobian.ncols() != jac_params.len() {
+                return Err(IdentifyError::Model {
+                    point: i,
+                    message: format!(
+                        "Jacobian has {} columns, {} requested",
+                        e.jacobian.ncols(),
+                        jac_params.len()
+                    ),
+                });
+            }
+            let mut block = jacobian.view_mut((3 * row, 0), (3, cols));
+            block
+                .fixed_view_mut::<3, 3>(0, 0)
+                .copy_from(&(-Matrix3::identity()));
+            block
+                .fixed_view_mut::<3, 3>(0, 3)
+                .copy_from(&y.coords.cross_matrix());
+            for (c, &p) in jac_params.iter().enumerate() {
+                let col: Vector3<f64> = e.jacobian.column(c).into_owned();
+                if !col.iter().all(|v| v.is_finite()) {
+                    return Err(IdentifyError::NonFinite { point: i });
+                }
+                let d = match model.param_robot(p) {
+                    Robot::One => col,
+                    Robot::Two => -(r_x * col),
+                };
+                block.fixed_view_mut::<3, 1>(0, 6 + c).copy_from(&d);
+            }
+            if !unit {
+                let b = block.clone_owned();
+                block.copy_from(&(w * b));
+            }
+        }
+    }
+    let rss = residuals.norm_squared();
+    let raw_rss = raw.iter().map(|r| r.norm_squared()).sum();
+    Ok(Linearisation {
+        residuals,
+        jacobian,
+        rss,
+        raw,
+        raw_rss,
+        weights,
+        p1_b1,
+    })
+}
+
+/// Fits `b1_from_b2` and the parameters `params` (starting from `initial_values`, or zeros) on
+/// all points by Levenberg–Marquardt. `b1_from_b2` starts from the rigid fit of the tips at the
+/// initial parameters unless `initial_b1_from_b2` is given.
+///
+/// Failure cases: too few points ([`min_points`] with zero redundancy check: `3n ≥ 6 + k + 1`),
+/// bad parameter indices, model failures, non-finite values.
+pub fn fit(
+    model: &dyn TipModel,
+    params: &[usize],
+    initial_values: Option<&[f64]>,
+    initial_b1_from_b2: Option<Isometry3<f64>>,
+    options: &FitOptions,
+) -> Result<IdentFit, IdentifyError> {
+    let points: Vec<usize> = (0..model.n_points()).collect();
+    fit_points(
+        model,
+        &points,
+        params,
+        initial_values,
+        initial_b1_from_b2,
+        options,
+    )
+}
+
+/// [`fit`] on a subset of the points (used for cross-validation).
+pub fn fit_points(
+    model: &dyn TipModel,
+    points: &[usize],
+    params: &[usize],
+    initial_values: Option<&[f64]>,
+    initial_b1_from_b2: Option<Isometry3<f64>>,
+    options: &FitOptions,
+) -> Result<IdentFit, IdentifyError> {
+    check_params(model, params)?;
+    if options.max_iterations == 0 {
+        return Err(IdentifyError::BadOption {
+            field: "max_iterations",
+            message: "must be at least 1".into(),
+        });
+    }
+    let k = params.len();
+    let n = points.len();
+    if 3 * n < 6 + k + 1 || n < 3 {
+        return Err(IdentifyError::TooFewPoints {
+            n,
+            params: k,
+            needed: min_points(k),
+        });
+    }
+    let mut values: Vec<f64> = match initial_values {
+        Some(v) if v.len() == k => v.to_vec(),
+        _ => vec![0.0; k],
+    };
+    let mut x = match initial_b1_from_b2 {
+        Some(x) => x,
+        None => {
+            let mut p1 = Vec::with_capacity(n);
+            let mut p2 = Vec::with_capacity(n);
+            for &i in points {
+                let e = model.eval(i, params, &values, &[])?;
+                p1.push(e.p1_b1);
+                p2.push(e.p2_b2);
+            }
+            crate::rigid_fit_fast(&p1, &p2).unwrap_or_else(Isometry3::identity)
+        }
+    };
+    let mut lin = linearise(model, points, &x, params, &values, &[], true)?;
+    let mut lambda = options.initial_damping;
+    let mut converged = false;
+    let mut iterations = 0;
+    while iterations < options.max_iterations {
+        iterations += 1;
+        let jt = lin.jacobian.transpose();
+        let h = &jt * &lin.jacobian;
+        let g = &jt * &lin.residuals;
+        let dmax = (0..h.nrows()).map(|i| h[(i, i)]).fold(0.0, f64::max);
+        let mut accepted = false;
+        for _ in 0..30 {
+            let mut a = h.clone();
+            for i in 0..a.nrows() {
+                a[(i, i)] += lambda * h[(i, i)].max(1e-12 * dmax).max(1e-300);
+            }
+            let step = match a.clone().cholesky() {
+                Some(c) => -c.solve(&g),
+                None => match a.svd(true, true).solve(&(-&g), 1e-14) {
+                    Ok(s) => s,
+                    Err(_) => break,
+                },
+            };
+            let rho = Vector3::new(step[0], step[1], step[2]);
+            let phi = Vector3::new(step[3], step[4], step[5]);
+            let x_new = Isometry3::from_parts(Translation3::from(rho), UnitQuaternion::identity())
+                * Isometry3::from_parts(
+                    Translation3::identity(),
+                    UnitQuaternion::from_scaled_axis(phi),
+                )
+                * x;
+            let v_new: Vec<f64> = values
+                .iter()
+                .enumerate()
+                .map(|(c, v)| v + step[6 + c])
+                .collect();
+            let trial = linearise(model, points, &x_new, params, &v_new, &[], false)?;
+            if trial.rss <= lin.rss {
+                let rel = (lin.rss - trial.rss) / lin.rss.max(1e-300);
+                x = x_new;
+                values = v_new;
+                lin = linearise(model, points, &x, params, &values, &[], true)?;
+                lambda = (lambda / 10.0).max(1e-12);
+                accepted = true;
+                if rel < options.rss_tolerance || step.norm() < 1e-15 {
+                    converged = true;
+                }
+                break;
+            }
+            lambda *= 10.0;
+            if lambda > 1e12 {
+                break;
+            }
+        }
+        if !accepted {
+            // No step decreases the cost: a (numerical) minimum.
+            converged = true;
+        }
+        if converged {
+            break;
+        }
+    }
+    let dof = (3 * n).saturating_sub(6 + k);
+    let sigma_hat = if dof > 0 {
+        (lin.rss / dof as f64).sqrt()
+    } else {
+        f64::NAN
+    };
+    let h = lin.jacobian.transpose() * &lin.jacobian;
+    let (inv, singular) = sym_inverse(&h);
+    let covariance = inv * (sigma_hat * sigma_hat);
+    let residuals = lin.raw.clone();
+    Ok(IdentFit {
+        b1_from_b2: x,
+        params: params.to_vec(),
+        values,
+        points: points.to_vec(),
+        residuals,
+        rss: lin.rss,
+        dof,
+        sigma_hat,
+        covariance,
+        singular,
+        iterations,
+        converged,
+    })
+}
+
+/// Inverse of a symmetric positive semi-definite matrix by scaled eigen-decomposition; pseudo-inverse
+/// (and `true`) when its scaled condition exceeds 1e12.
+pub(super) fn sym_inverse(h: &DMatrix<f64>) -> (DMatrix<f64>, bool) {
+    let m = h.nrows();
+    let d: Vec<f64> = (0..m)
+        .map(|i| {
+            let v = h[(i, i)];
+            if v > 0.0 {
+                1.0 / v.sqrt()
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let dm = DMatrix::from_diagonal(&DVector::from_vec(d));
+    let scaled = &dm * h * &dm;
+    let eig = scaled.symmetric_eigen();
+    let emax = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
+    let mut singular = false;
+    let mut inv_diag = DVector::zeros(m);
+    for i in 0..m {
+        let e = eig.eigenvalues[i];
+        if e > 1e-12 * emax && e > 0.0 {
+            inv_diag[i] = 1.0 / e;
+        } else {
+            singular = true;
+        }
+    }
+    let inv_scaled =
+        &eig.eigenvectors * DMatrix::from_diagonal(&inv_diag) * eig.eigenvectors.transpose();
+    (&dm * inv_scaled * &dm, singular)
+}

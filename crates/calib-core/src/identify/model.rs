@@ -1,0 +1,112 @@
+//! The identification's data model: which robot a parameter belongs to, the tip model that
+//! evaluates both tips and their parameter Jacobians, and the errors.
+
+use nalgebra::{Matrix3, Matrix3xX, Point3};
+
+/// Which robot a parameter belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Robot {
+    /// Robot 1 (its base frame is `b1`, the frame the fit maps into).
+    One,
+    /// Robot 2 (its base frame is `b2`).
+    Two,
+}
+
+/// Errors of the identification. Non-convergence is not an error (see [`IdentFit::converged`]).
+#[derive(Debug, thiserror::Error)]
+pub enum IdentifyError {
+    /// Too few handclasp points for the number of unknowns.
+    #[error(
+        "too few handclasp points: {n} given, but fitting b1_from_b2 (6 unknowns) plus {params} \
+         error parameter(s) with enough redundancy to test anything needs at least {needed} points \
+         (3 residuals per point); record more handclasp points"
+    )]
+    TooFewPoints {
+        /// Points given.
+        n: usize,
+        /// Error parameters asked for.
+        params: usize,
+        /// Points needed.
+        needed: usize,
+    },
+    /// The tip model failed at a point.
+    #[error("tip model failed at handclasp point {point} (0-based): {message}")]
+    Model {
+        /// 0-based point index.
+        point: usize,
+        /// What went wrong.
+        message: String,
+    },
+    /// A parameter index outside the model's catalogue.
+    #[error("parameter index {index} is out of range: the model has {len} parameters")]
+    BadParam {
+        /// The index given.
+        index: usize,
+        /// Catalogue size.
+        len: usize,
+    },
+    /// Non-finite values (NaN/inf) from the model.
+    #[error("non-finite tip position or Jacobian at handclasp point {point} (0-based): check the input for NaN or huge values")]
+    NonFinite {
+        /// 0-based point index.
+        point: usize,
+    },
+    /// Invalid options.
+    #[error("invalid identification option `{field}`: {message}")]
+    BadOption {
+        /// The field.
+        field: &'static str,
+        /// What is wrong and the valid range.
+        message: String,
+    },
+}
+
+/// Tip positions of both robots at one handclasp, and their Jacobian with respect to parameters.
+#[derive(Debug, Clone)]
+pub struct TipEval {
+    /// Robot 1's true tip in its nominal base frame `b1`, m.
+    pub p1_b1: Point3<f64>,
+    /// Robot 2's true tip in its nominal base frame `b2`, m.
+    pub p2_b2: Point3<f64>,
+    /// One column per requested Jacobian parameter: `∂p_r/∂θ_j` for the robot `r` that parameter `j`
+    /// belongs to, in that robot's base axes (m per parameter unit).
+    pub jacobian: Matrix3xX<f64>,
+}
+
+/// A handclasp data set with a catalogue of candidate error parameters, indexed `0..n_params()`.
+pub trait TipModel: Sync {
+    /// Number of handclasp points.
+    fn n_points(&self) -> usize;
+    /// Number of parameters in the catalogue.
+    fn n_params(&self) -> usize;
+    /// The robot parameter `j` belongs to.
+    fn param_robot(&self, j: usize) -> Robot;
+    /// Typical magnitude of parameter `j` in its own unit (e.g. 1e-3 rad, 1e-3 m): a parameter
+    /// whose typical magnitude moves the tips by less than a nanometre (RMS) counts as having no
+    /// effect. Default 1.
+    fn param_scale(&self, _j: usize) -> f64 {
+        1.0
+    }
+    /// Whitening matrix `W_i` of point `i`'s residual (default identity): the fit minimises
+    /// `Σ‖W_i·r_i‖²`. For a noise covariance `Σ_i` use `W_i = σ̄·Σ_i^{-1/2}` (σ̄ a typical σ, so
+    /// that whitened residuals stay in metres); then the F tests hold their size under
+    /// anisotropic noise.
+    fn weight(&self, _point: usize) -> Matrix3<f64> {
+        Matrix3::identity()
+    }
+    /// Prior weight of parameter `j` (default 1), used only to name one member of a group of
+    /// candidates the data cannot tell apart (e.g. `1/size` of its family, so that each family
+    /// is a priori equally likely).
+    fn param_prior(&self, _j: usize) -> f64 {
+        1.0
+    }
+    /// Evaluates point `point` with parameters `params[k] = values[k]` (all others zero), and the
+    /// Jacobian columns of the parameters `jacobian_params` (empty: no Jacobian needed).
+    fn eval(
+        &self,
+        point: usize,
+        params: &[usize],
+        values: &[f64],
+        jacobian_params: &[usize],
+    ) -> Result<TipEval, IdentifyError>;
+}
