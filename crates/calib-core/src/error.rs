@@ -5,14 +5,16 @@ use std::path::PathBuf;
 /// Everything that can be wrong with the input of a calibration. Each message names the place
 /// (file, line, column or point rows), what is wrong, and how to fix it.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum CalibError {
-    /// The file could not be opened or read.
-    #[error("{path}: cannot read the file: {message}")]
+    /// The file could not be opened or read (the operating system's error is the source).
+    #[error("{path}: cannot read the file")]
     Io {
         /// The file.
         path: PathBuf,
-        /// The operating system's message.
-        message: String,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
     },
     /// The CSV is malformed at a line (wrong number of fields, bad quoting, …).
     #[error("{path}, line {line}: malformed CSV: {message}. Fix: every line needs the same columns as the header")]

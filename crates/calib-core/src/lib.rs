@@ -6,12 +6,15 @@ mod metrics;
 mod mount_check;
 pub mod paper;
 mod points;
+mod pose;
 mod registration;
 mod robust;
 mod soft;
 pub mod stats;
+mod stop;
 
 pub use error::CalibError;
+pub use identify::Robot;
 pub use kinematics::{rotation_from_zyz, wrap_angle, zyz_from_rotation, zyz_nearest};
 pub use metrics::{e_rot, e_rot_raw, e_rot_zyz, e_tran, geodesic_angle, ZYZ_SINGULAR_BAND_RAD};
 pub use mount_check::{mount_check, MountCheck, MOUNT_CHECK_ALPHA};
@@ -19,6 +22,7 @@ pub use points::{
     parse_points_csv, read_points_csv, PointPairs, DUPLICATE_DISTANCE_M, METRES_LIMIT_MM,
     SPREAD_RATIO_LIMIT,
 };
+pub use pose::PoseMmDeg;
 pub use registration::{
     constrained_fast, constrained_lsq, fit, generic_4point, generic_fast, nearest_rotation,
     paper_constrained, paper_fast, project_rotation_family, rigid_fit_fast, rigid_lsq,
@@ -27,3 +31,4 @@ pub use registration::{
 };
 pub use robust::{leave_one_out, OutlierReport, OUTLIER_FACTOR, OUTLIER_MIN_M};
 pub use soft::{constrained_soft, SoftFit};
+pub use stop::StopReason;

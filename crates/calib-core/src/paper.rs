@@ -8,8 +8,8 @@
 
 use crate::error::CalibError;
 use crate::metrics::{e_rot_raw, e_rot_zyz, geodesic_angle};
+use crate::pose::PoseMmDeg;
 use kinematics::euler::rotation_from_zyz;
-use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 
 /// The published table, as shipped (CSV text).
 pub const TABLE1_CSV: &str = include_str!("../data/gan2014_table1.csv");
@@ -26,31 +26,7 @@ pub const E_TRAN_ROUNDING_MM: f64 = 0.15;
 pub const E_ROT_ROUNDING_DEG: f64 = 0.0015;
 
 /// A transform as the paper prints it: x, y, z in mm and ZYZ φ, θ, ψ in degrees.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PublishedPose {
-    /// x, y, z, mm.
-    pub xyz_mm: [f64; 3],
-    /// φ, θ, ψ (ZYZ, `R = Rz(φ)·Ry(θ)·Rz(ψ)`), degrees.
-    pub zyz_deg: [f64; 3],
-}
-
-impl PublishedPose {
-    /// The pose as an isometry (m, rad).
-    pub fn isometry(&self) -> Isometry3<f64> {
-        Isometry3::from_parts(
-            Translation3::new(
-                self.xyz_mm[0] * 1e-3,
-                self.xyz_mm[1] * 1e-3,
-                self.xyz_mm[2] * 1e-3,
-            ),
-            UnitQuaternion::from_rotation_matrix(&rotation_from_zyz(self.zyz_rad())),
-        )
-    }
-    /// The ZYZ angles in radians.
-    pub fn zyz_rad(&self) -> [f64; 3] {
-        self.zyz_deg.map(f64::to_radians)
-    }
-}
+pub type PublishedPose = PoseMmDeg;
 
 /// One experiment of Table 1 as published.
 #[derive(Debug, Clone, PartialEq)]

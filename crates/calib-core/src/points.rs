@@ -137,9 +137,9 @@ const COLUMNS: [&str; 6] = [
 /// column, empty / non-numeric / non-finite cell, no data rows, duplicate points, coordinates that look
 /// like metres (all |value| < 5 for a robot), a robot spread ≥ 20× the other's.
 pub fn read_points_csv(path: &Path) -> Result<PointPairs, CalibError> {
-    let text = std::fs::read_to_string(path).map_err(|e| CalibError::Io {
+    let text = std::fs::read_to_string(path).map_err(|source| CalibError::Io {
         path: path.to_path_buf(),
-        message: e.to_string(),
+        source,
     })?;
     parse_points_csv(&text, path)
 }

@@ -16,6 +16,7 @@ use crate::registration::{
     build_uncertainty, constrained_lsq, family_axes, fill_fit_jacobian, residuals,
     ConstrainedOptions, Fit, Method, MountPair,
 };
+use crate::stop::StopReason;
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Matrix6, Vector3};
 
 /// Gauss–Newton iterations cap (the problem is nearly linear; 3–5 suffice).
@@ -34,6 +35,10 @@ pub struct SoftFit {
     pub tilt_angle_rad: f64,
     /// Gauss–Newton iterations used.
     pub iterations: usize,
+    /// Why Gauss–Newton stopped: [`StopReason::StepTooSmall`] (update below 1e-13 rad or m),
+    /// [`StopReason::Singular`] (information matrix not positive definite) or
+    /// [`StopReason::IterationCap`] (20 iterations).
+    pub stopped: StopReason,
 }
 
 /// Soft-mount constrained least squares (see the module doc). `tilt_sigma_rad` is the prior σ of the
@@ -44,6 +49,17 @@ pub fn constrained_soft(
     mounts: &MountPair,
     tilt_sigma_rad: f64,
     point_sigma_m: f64,
+) -> Result<SoftFit, CalibError> {
+    soft_with_cap(pairs, mounts, tilt_sigma_rad, point_sigma_m, SOFT_MAX_ITER)
+}
+
+/// [`constrained_soft`] with an iteration cap `max_iter` (≥ 1).
+fn soft_with_cap(
+    pairs: &PointPairs,
+    mounts: &MountPair,
+    tilt_sigma_rad: f64,
+    point_sigma_m: f64,
+    max_iter: usize,
 ) -> Result<SoftFit, CalibError> {
     for (name, v) in [
         ("tilt_sigma_rad", tilt_sigma_rad),
@@ -79,8 +95,9 @@ pub fn constrained_soft(
     let mut x = x0;
     let mut omega = Vector3::zeros();
     let mut iterations = 0;
+    let mut stopped = StopReason::IterationCap;
     let mut info = DMatrix::zeros(6, 6);
-    for it in 0..SOFT_MAX_ITER {
+    for it in 0..max_iter {
         iterations = it + 1;
         let mut j = DMatrix::zeros(3 * n, 6);
         fill_fit_jacobian(pairs, &w, &x, &all_axes, &mut j);
@@ -99,6 +116,7 @@ pub fn constrained_soft(
             g[a] += prior_grad[a];
         }
         let Some(delta) = info.clone().cholesky().map(|c| c.solve(&(-g))) else {
+            stopped = StopReason::Singular;
             break;
         };
         let d_omega = Vector3::new(delta[0], delta[1], delta[2]);
@@ -106,6 +124,7 @@ pub fn constrained_soft(
         x = Isometry3::translation(d_t.x, d_t.y, d_t.z) * Isometry3::rotation(d_omega) * x;
         omega += d_omega;
         if delta.amax() < SOFT_STEP_TOL {
+            stopped = StopReason::StepTooSmall;
             break;
         }
     }
@@ -127,6 +146,7 @@ pub fn constrained_soft(
         tilt_angle_rad: tilt_rad.norm(),
         tilt_rad,
         iterations,
+        stopped,
     })
 }
 
@@ -177,5 +197,22 @@ mod tests {
         // Invalid options are errors.
         assert!(constrained_soft(&pairs, &mounts, 0.0, 0.5e-3).is_err());
         assert!(constrained_soft(&pairs, &mounts, 0.01, f64::NAN).is_err());
+        assert_eq!(soft.stopped, StopReason::StepTooSmall);
+    }
+
+    /// One Gauss–Newton step from the hard solution of a tilted cell cannot meet the 1e-13 step
+    /// tolerance (the first update is the whole 0.5° tilt): the run reports its cap.
+    #[test]
+    fn capped_soft_fit_reports_iteration_cap() {
+        let truth = Isometry3::new(
+            Vector3::new(0.04, 1.48, 0.05),
+            Vector3::new(0.0, 0.0, -0.78),
+        ) * Isometry3::rotation(Vector3::new(0.5f64.to_radians(), 0.0, 0.0));
+        let p_b2 = cloud();
+        let pairs = PointPairs::new(p_b2.iter().map(|p| truth * p).collect(), p_b2).unwrap();
+        let mounts = MountPair::floor_floor();
+        let capped = soft_with_cap(&pairs, &mounts, 5f64.to_radians(), 0.5e-3, 1).unwrap();
+        assert_eq!(capped.iterations, 1);
+        assert_eq!(capped.stopped, StopReason::IterationCap);
     }
 }

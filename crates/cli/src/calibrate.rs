@@ -57,7 +57,9 @@ struct Config {
 
 fn config(args: Args) -> anyhow::Result<Config> {
     let mounts = match (&args.mounts, &args.mount1, &args.mount2) {
-        (Some(m), _, _) => Some(MountPair::parse_paper(m)?),
+        (Some(m), _, _) => {
+            Some(MountPair::parse_paper(m).context("--mounts (or give --mount1 and --mount2)")?)
+        }
         (None, Some(a), Some(b)) => Some(MountPair {
             robot1: Mount::parse(a).context("--mount1")?,
             robot2: Mount::parse(b).context("--mount2")?,

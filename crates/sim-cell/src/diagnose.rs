@@ -403,7 +403,7 @@ impl TipModel for SessionModel<'_> {
         let (e1, e2) = self.errors(params, values);
         let merr = |e: kinematics::KinematicsError| IdentifyError::Model {
             point,
-            message: e.to_string(),
+            source: Box::new(e),
         };
         let (r1, r2) = (&self.cell.robot1, &self.cell.robot2);
         let p1 = kinematics::true_base_from_tip(
@@ -1473,7 +1473,7 @@ pub fn diagnose(
         rms_after_percentile: fraction_below(&mc, fit.rms()),
         placement,
         steps,
-        converged: fit.converged,
+        converged: fit.converged(),
     })
 }
 

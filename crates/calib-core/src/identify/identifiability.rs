@@ -8,6 +8,7 @@ use nalgebra::{DMatrix, DVector};
 
 /// Identifiability verdict of one candidate parameter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum IdentStatus {
     /// Its column is not in the span of the base frame and fitted parameters.
     Identifiable,

@@ -3,6 +3,7 @@
 
 use super::model::*;
 use crate::stats::t_quantile;
+use crate::stop::StopReason;
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 
 /// Levenberg–Marquardt settings.
@@ -52,11 +53,20 @@ pub struct IdentFit {
     pub singular: bool,
     /// LM iterations used.
     pub iterations: usize,
-    /// Whether LM met its tolerance (false: stopped at `max_iterations`).
-    pub converged: bool,
+    /// Why LM stopped: [`StopReason::Converged`] (relative RSS decrease below
+    /// [`FitOptions::rss_tolerance`]), [`StopReason::StepTooSmall`] (step norm below 1e-15),
+    /// [`StopReason::NoDescent`] (no damped step lowers the RSS) or [`StopReason::IterationCap`]
+    /// ([`FitOptions::max_iterations`] reached).
+    pub stopped: StopReason,
 }
 
 impl IdentFit {
+    /// Whether LM stopped at a (numerical) minimum rather than at its iteration cap
+    /// ([`StopReason::converged`]).
+    pub fn converged(&self) -> bool {
+        self.stopped.converged()
+    }
+
     /// Residual RMS over points of the unweighted residuals, `sqrt(Σ‖r_i‖²/n)`, m (3-D distance
     /// per point).
     pub fn rms(&self) -> f64 {
@@ -182,13 +192,10 @@ pub(super) fn linearise(
             .copy_from(&if unit { r } else { w * r });
         if want_jacobian {
             if e.jacobian.ncols() != jac_params.len() {
-                return Err(IdentifyError::Model {
+                return Err(IdentifyError::JacobianShape {
                     point: i,
-                    message: format!(
-                        "Jacobian has {} columns, {} requested",
-                        e.jacobian.ncols(),
-                        jac_params.len()
-                    ),
+                    columns: e.jacobian.ncols(),
+                    requested: jac_params.len(),
                 });
             }
             let mut block = jacobian.view_mut((3 * row, 0), (3, cols));
@@ -296,7 +303,7 @@ pub fn fit_points(
     };
     let mut lin = linearise(model, points, &x, params, &values, &[], true)?;
     let mut lambda = options.initial_damping;
-    let mut converged = false;
+    let mut stopped = StopReason::IterationCap;
     let mut iterations = 0;
     while iterations < options.max_iterations {
         iterations += 1;
@@ -338,8 +345,10 @@ pub fn fit_points(
                 lin = linearise(model, points, &x, params, &values, &[], true)?;
                 lambda = (lambda / 10.0).max(1e-12);
                 accepted = true;
-                if rel < options.rss_tolerance || step.norm() < 1e-15 {
-                    converged = true;
+                if rel < options.rss_tolerance {
+                    stopped = StopReason::Converged;
+                } else if step.norm() < 1e-15 {
+                    stopped = StopReason::StepTooSmall;
                 }
                 break;
             }
@@ -350,9 +359,9 @@ pub fn fit_points(
         }
         if !accepted {
             // No step decreases the cost: a (numerical) minimum.
-            converged = true;
+            stopped = StopReason::NoDescent;
         }
-        if converged {
+        if stopped != StopReason::IterationCap {
             break;
         }
     }
@@ -378,7 +387,7 @@ pub fn fit_points(
         covariance,
         singular,
         iterations,
-        converged,
+        stopped,
     })
 }
 

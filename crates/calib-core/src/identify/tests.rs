@@ -282,7 +282,7 @@ fn noise_free_fit_recovers_parameters() {
     truth[9] = 0.002;
     let toy = session(20, truth, 0.0, 5);
     let f = fit(&toy, &[1, 9], None, None, &FitOptions::default()).unwrap();
-    assert!(f.converged);
+    assert!(f.converged());
     // Noise-free: recovered to solver precision (1e-9 rad / m).
     assert!((f.values[0] - 0.004).abs() < 1e-9, "{:?}", f.values);
     assert!((f.values[1] - 0.002).abs() < 1e-9, "{:?}", f.values);
@@ -292,6 +292,26 @@ fn noise_free_fit_recovers_parameters() {
         .vector
         .norm();
     assert!(x_err < 1e-9);
+}
+
+/// A run capped at one iteration, started far from the optimum, reports the cap (the first step
+/// lowers the RSS by orders of magnitude, so no tolerance test can pass).
+#[test]
+fn capped_fit_reports_iteration_cap() {
+    let mut truth = [0.0; 10];
+    truth[1] = 0.004;
+    truth[9] = 0.002;
+    let toy = session(20, truth, 1e-5, 5);
+    let capped = FitOptions {
+        max_iterations: 1,
+        ..FitOptions::default()
+    };
+    let f = fit(&toy, &[1, 9], None, None, &capped).unwrap();
+    assert_eq!(f.iterations, 1);
+    assert_eq!(f.stopped, crate::StopReason::IterationCap);
+    assert!(!f.converged());
+    let full = fit(&toy, &[1, 9], None, None, &FitOptions::default()).unwrap();
+    assert!(full.converged(), "{:?}", full.stopped);
 }
 
 #[test]

@@ -33,7 +33,7 @@ pub(super) fn family(mounts: &MountPair) -> Result<Family, CalibError> {
         }),
         (None, None) => Err(CalibError::UnsupportedMounts {
             mounts: mounts.to_string(),
-            message: "both robots on the wall family leaves the rotation almost free; give one robot's tilt (--mount1/--mount2 tilt:RX,RY) or use method lsq".into(),
+            message: "both robots on the wall family leaves the rotation almost free; give one robot's mount as a known tilt (Mount::Tilt, `tilt:RX,RY` in degrees) or use method lsq".into(),
         }),
     }
 }

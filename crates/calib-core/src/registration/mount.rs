@@ -132,7 +132,7 @@ impl MountPair {
                 name: "mounts".into(),
                 value: text.into(),
                 message:
-                    "expected floor-floor, floor-wall or floor-ceiling (or give --mount1/--mount2)"
+                    "expected floor-floor, floor-wall or floor-ceiling (or give each robot's mount)"
                         .into(),
             }),
         }

@@ -1,0 +1,108 @@
+//! A pose as files and robot controllers write it: x, y, z in mm and ZYZ angles in degrees,
+//! `R = Rz(φ)·Ry(θ)·Rz(ψ)`. Code works in m and rad ([`Isometry3`]); this is the file edge.
+
+use kinematics::euler::{rotation_from_zyz, zyz_nearest};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use serde::{Deserialize, Serialize};
+
+/// A pose `a_from_b` in file units: translation x, y, z (mm) and ZYZ φ, θ, ψ (degrees,
+/// `R = Rz(φ)·Ry(θ)·Rz(ψ)`). Which frames it relates is named by the field that holds it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PoseMmDeg {
+    /// x, y, z, mm.
+    pub xyz_mm: [f64; 3],
+    /// φ, θ, ψ (ZYZ, `R = Rz(φ)·Ry(θ)·Rz(ψ)`), degrees.
+    pub zyz_deg: [f64; 3],
+}
+
+impl PoseMmDeg {
+    /// The pose as an isometry (m, rad).
+    pub fn to_isometry(&self) -> Isometry3<f64> {
+        Isometry3::from_parts(
+            Translation3::new(
+                self.xyz_mm[0] * 1e-3,
+                self.xyz_mm[1] * 1e-3,
+                self.xyz_mm[2] * 1e-3,
+            ),
+            UnitQuaternion::from_rotation_matrix(&rotation_from_zyz(self.zyz_rad())),
+        )
+    }
+
+    /// Same as [`PoseMmDeg::to_isometry`] (the name `calib_core::paper::PublishedPose` callers use).
+    pub fn isometry(&self) -> Isometry3<f64> {
+        self.to_isometry()
+    }
+
+    /// The pose of an isometry (m, rad) in mm and degrees, its ZYZ angles read on the branch nearest
+    /// `reference_zyz_deg` (degrees; see [`kinematics::euler::zyz_nearest`], which also fixes the
+    /// angles at the θ = 0° and 180° singularities). Each angle is wrapped to (−180°, 180°].
+    pub fn from_isometry(pose: &Isometry3<f64>, reference_zyz_deg: [f64; 3]) -> Self {
+        let t = pose.translation.vector * 1e3;
+        let zyz_rad = zyz_nearest(
+            &pose.rotation.to_rotation_matrix(),
+            reference_zyz_deg.map(f64::to_radians),
+        );
+        PoseMmDeg {
+            xyz_mm: [t.x, t.y, t.z],
+            zyz_deg: zyz_rad.map(f64::to_degrees),
+        }
+    }
+
+    /// The ZYZ angles in radians.
+    pub fn zyz_rad(&self) -> [f64; 3] {
+        self.zyz_deg.map(f64::to_radians)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Round trip mm/deg → isometry → mm/deg: round-off of degree↔radian and ZYZ extraction on
+    /// O(1000) mm and O(180)° values.
+    const ROUND_TRIP_TOL: f64 = 1e-9;
+
+    #[test]
+    fn round_trip_on_the_reference_branch_including_singular_theta() {
+        for zyz_deg in [
+            [30.0, 45.0, -60.0],
+            [179.5, 90.0, -179.5],
+            [-150.0, -120.0, 10.0],
+            [180.0, 180.0, 0.0],
+            [40.0, 0.0, 0.0],
+            [1e-7, 1e-7, 1e-7],
+        ] {
+            let pose = PoseMmDeg {
+                xyz_mm: [1500.0, -20.5, 300.25],
+                zyz_deg,
+            };
+            let back = PoseMmDeg::from_isometry(&pose.to_isometry(), zyz_deg);
+            for i in 0..3 {
+                assert!((back.xyz_mm[i] - pose.xyz_mm[i]).abs() < ROUND_TRIP_TOL);
+            }
+            // Same rotation, and on the reference's branch: angles agree modulo 360°.
+            let r = back
+                .to_isometry()
+                .rotation
+                .angle_to(&pose.to_isometry().rotation);
+            assert!(r < ROUND_TRIP_TOL, "{zyz_deg:?} → {:?}", back.zyz_deg);
+            if zyz_deg[1].abs() > 1e-3 && (zyz_deg[1].abs() - 180.0).abs() > 1e-3 {
+                for i in 0..3 {
+                    let d = (back.zyz_deg[i] - zyz_deg[i]).rem_euclid(360.0);
+                    assert!(d.min(360.0 - d) < 1e-7, "{zyz_deg:?} → {:?}", back.zyz_deg);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn serialises_with_named_unit_fields() {
+        let pose = PoseMmDeg {
+            xyz_mm: [1.0, 2.0, 3.0],
+            zyz_deg: [4.0, 5.0, 6.0],
+        };
+        let json = serde_json::to_string(&pose).unwrap();
+        assert_eq!(json, r#"{"xyz_mm":[1.0,2.0,3.0],"zyz_deg":[4.0,5.0,6.0]}"#);
+        assert_eq!(serde_json::from_str::<PoseMmDeg>(&json).unwrap(), pose);
+    }
+}
