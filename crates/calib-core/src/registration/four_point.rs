@@ -88,7 +88,7 @@ fn coplanar_error(pairs: &PointPairs) -> CalibError {
     }
 }
 
-/// The paper's generic method ([8]): `H = A·B⁻¹` from 4 non-coplanar points (homogeneous columns),
+/// The paper's generic method (\[8\]): `H = A·B⁻¹` from 4 non-coplanar points (homogeneous columns),
 /// the Frobenius-nearest rotation of H's 3×3 block, then the translation: eq (12)
 /// `T = (1/n)Σ(p1ᵢ − R·p2ᵢ)` when `affine_translation` is false, H's own column when true.
 /// With n > 4 points H is the affine least-squares solution. Errors: fewer than 4 points,

@@ -221,7 +221,7 @@ pub struct ConstrainedOptions {
 
 /// Installation-constrained least squares: minimises `Σ wᵢ‖p1ᵢ − R·p2ᵢ − T‖²` with R restricted to
 /// the mounts' family inside the fit (not a projection of an unconstrained estimate): with both
-/// gravity directions known only the yaw about gravity is free (closed form), with a [`Mount::Wall`]
+/// gravity directions known only the yaw about gravity is free (closed form), with a [`Mount::Wall`](super::Mount::Wall)
 /// the paper's two angles (1-D global search, see the module doc). The optimum over the family is
 /// the member maximising `tr(Rᵀ·M)` with M the weighted cross-covariance, and `T = c1 − R·c2`.
 /// Needs n ≥ 3 non-collinear points (the constraint would allow 2, but then nothing checks it).
