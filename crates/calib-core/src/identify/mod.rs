@@ -46,6 +46,8 @@
 //!   detects with 80 % power, `(z_{1−α/2m} + z_{0.8})·σ/‖p_j‖`.
 //! - **Intervals**: `θ̂ ± t_{0.975, dof}·se`, `se` from the covariance.
 
+// File order (each file uses only files before it): model, lm, identifiability, selection;
+// placement uses lm.
 mod identifiability;
 mod lm;
 mod model;

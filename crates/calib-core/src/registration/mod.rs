@@ -24,6 +24,8 @@
 //! - wall family: for a fixed β the best α is closed form, which leaves a 1-D maximisation of
 //!   `f(β) = ‖Kᵀu(β) + b‖ + aᵀu(β)`, solved globally by sampling then Newton.
 
+// File order (each file uses only files before it): mount, method, rotation, family, checks,
+// four_point, lsq, fast.
 mod checks;
 mod family;
 mod fast;
