@@ -242,3 +242,56 @@ fn unit_hint(text: &str, cell: &Cell) -> Option<String> {
         None
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The unit pre-check reads the text as CSV: trimmed and quoted fields, blank lines and
+    /// non-numeric fields are handled, and only `*_deg` / `*_mm` columns count.
+    #[test]
+    fn unit_ranges_read_csv_fields() {
+        let text = "point, r1_q1_deg ,r1_x_mm,note\n1, -2.5 ,\"1200.0\",a\n\n2,1.0,-7,\"x,y\"\n";
+        let (max_deg, max_mm, rows) = unit_ranges(text);
+        assert_eq!((max_deg, max_mm, rows), (2.5, 1200.0, 2));
+        assert_eq!(unit_ranges(""), (0.0, 0.0, 0));
+    }
+
+    /// Joint angles written in radians under `*_deg` are caught before sim-cell's reader, and
+    /// the message names the file and the fix.
+    #[test]
+    fn radians_under_deg_columns_are_named() {
+        let cell = Cell::default_floor_wall();
+        let spec = sim_cell::SessionSpec::new(12, sim_cell::Layout::Random, 0.8);
+        let session =
+            sim_cell::generate_session(&cell, &spec, &mut sim_cell::trial_rng(5, 0)).unwrap();
+        let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
+        let text = session.to_csv_string(d1, d2);
+        let mut lines = text.lines();
+        let header = lines.next().unwrap();
+        let mut bad = format!("{header}\n");
+        for line in lines {
+            let fields: Vec<String> = line
+                .split(',')
+                .enumerate()
+                .map(|(i, f)| match f.parse::<f64>() {
+                    Ok(v) if (1..=d1 + d2).contains(&i) => format!("{}", v.to_radians()),
+                    _ => f.to_string(),
+                })
+                .collect();
+            bad += &(fields.join(",") + "\n");
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("radians.csv");
+        std::fs::write(&path, bad).unwrap();
+        let err = load_session(&path, &cell).unwrap_err();
+        let text = err.to_string();
+        assert!(matches!(err, DiagnoseError::Session { .. }), "{text}");
+        assert!(
+            text.contains("radians") && text.contains("radians.csv"),
+            "{text}"
+        );
+        std::fs::write(&path, session.to_csv_string(d1, d2)).unwrap();
+        load_session(&path, &cell).expect("the session as written reads back");
+    }
+}

@@ -142,6 +142,29 @@ fn tilt_prediction(x: &Isometry3<f64>, th: &[f64; 6]) -> [f64; 6] {
     [phi.x, phi.y, phi.z, dt.x, dt.y, dt.z]
 }
 
+/// The Jacobian of [`tilt_prediction`] at θ = 0 (rad → d; columns `[a1x, a1y, ψ1, a2x, a2y,
+/// ψ2]`): robot 1's base turned by `e` turns the fit by `−e` and moves its translation by
+/// `−e × t`; robot 2's turns it by `R·e`.
+fn tilt_columns(x: &Isometry3<f64>) -> nalgebra::DMatrix<f64> {
+    let r = x.rotation.to_rotation_matrix().into_inner();
+    let t = x.translation.vector;
+    let mut a_full = nalgebra::DMatrix::<f64>::zeros(6, 6);
+    for (k, e) in [Vector3::x(), Vector3::y(), Vector3::z()]
+        .iter()
+        .enumerate()
+    {
+        let rot1 = -e;
+        let tr1 = -e.cross(&t);
+        let rot2 = r * e;
+        for i in 0..3 {
+            a_full[(i, k)] = rot1[i];
+            a_full[(3 + i, k)] = tr1[i];
+            a_full[(i, 3 + k)] = rot2[i];
+        }
+    }
+    a_full
+}
+
 /// Tests for a mount tilt by comparing the fitted `b1_from_b2` (`X̂`) with the cell's (`X`),
 /// assuming the cell states the TRUE placement of the nominal bases (as a simulation's cell
 /// does). A tilt of robot 2's base by `a2` (b2 axes) gives `X̂ = X·exp([a2]ₓ)`: the rotation
@@ -164,7 +187,6 @@ fn tilt_prediction(x: &Isometry3<f64>, th: &[f64; 6]) -> [f64; 6] {
 pub fn mount_tilt_test(fit: &identify::IdentFit, cell: &Cell, sd_rad: f64) -> MountTiltFit {
     use nalgebra::{DMatrix, DVector, Matrix6};
     let x = cell.b1_from_b2;
-    let r = x.rotation.to_rotation_matrix().into_inner();
     let t = x.translation.vector;
     let xh = fit.b1_from_b2;
     let phi = (xh.rotation * x.rotation.inverse()).scaled_axis();
@@ -206,21 +228,7 @@ pub fn mount_tilt_test(fit: &identify::IdentFit, cell: &Cell, sd_rad: f64) -> Mo
         l.solve_lower_triangular(v)
             .unwrap_or_else(|| DVector::zeros(6))
     };
-    // Linear columns at θ = 0 (rad → d): [a1x, a1y, ψ1, a2x, a2y, ψ2].
-    let mut a_full = DMatrix::<f64>::zeros(6, 6);
-    for (k, e) in [Vector3::x(), Vector3::y(), Vector3::z()]
-        .iter()
-        .enumerate()
-    {
-        let rot1 = -e;
-        let tr1 = -e.cross(&t);
-        let rot2 = r * e;
-        for i in 0..3 {
-            a_full[(i, k)] = rot1[i];
-            a_full[(3 + i, k)] = tr1[i];
-            a_full[(i, 3 + k)] = rot2[i];
-        }
-    }
+    let a_full = tilt_columns(&x);
     // GLS fit of a hypothesis (columns `cols` of θ): (θ, χ², dof, cov θ).
     let gls = |cols: &[usize]| {
         let a = a_full.select_columns(cols);
@@ -325,4 +333,89 @@ pub fn mount_tilt_test(fit: &identify::IdentFit, cell: &Cell, sd_rad: f64) -> Mo
             .collect();
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use calib_core::identify::FitOptions;
+    use kinematics::ErrorParam;
+    use sim_cell::{generate_session, trial_rng, Layout, SessionSpec};
+
+    use crate::catalogue::catalogue;
+    use crate::session_model::SessionModel;
+
+    /// [`tilt_columns`] against central differences of [`tilt_prediction`] at θ = 0. Step 1e-6
+    /// rad: the truncation error is O(h²·|t|) ≈ 1e-12 and the round-off O(ε·|t|/h) ≈ 1e-9 for
+    /// |t| ≈ 2 m, so 1e-8 (m or rad per rad) separates a wrong column from the FD noise.
+    #[test]
+    fn tilt_columns_match_central_differences() {
+        const H: f64 = 1e-6;
+        const FD_TOL: f64 = 1e-8;
+        for cell in [Cell::default_floor_wall(), Cell::default_floor_ceiling()] {
+            let x = cell.b1_from_b2;
+            let a = tilt_columns(&x);
+            for k in 0..6 {
+                let (mut plus, mut minus) = ([0.0; 6], [0.0; 6]);
+                plus[k] = H;
+                minus[k] = -H;
+                let (dp, dm) = (tilt_prediction(&x, &plus), tilt_prediction(&x, &minus));
+                for i in 0..6 {
+                    let fd = (dp[i] - dm[i]) / (2.0 * H);
+                    assert!(
+                        (fd - a[(i, k)]).abs() < FD_TOL,
+                        "row {i}, column {k}: analytic {} vs FD {fd}",
+                        a[(i, k)]
+                    );
+                }
+            }
+        }
+    }
+
+    /// The nominal fit of a 40-point session simulated on `cell` with `robot2_tilt_x` rad of
+    /// robot 2's mount tilt about its x axis, and the test on it.
+    fn test_on(cell: &Cell, robot2_tilt_x: f64, seed: u64) -> MountTiltFit {
+        let mut truth = cell.clone();
+        truth
+            .robot2
+            .errors
+            .set(ErrorParam::MountRpy { axis: Axis::X }, robot2_tilt_x);
+        let spec = SessionSpec::new(40, Layout::Random, 0.8);
+        let session = generate_session(&truth, &spec, &mut trial_rng(seed, 0)).expect("session");
+        let q1: Vec<Vec<f64>> = session.points.iter().map(|p| p.q1.clone()).collect();
+        let q2: Vec<Vec<f64>> = session.points.iter().map(|p| p.q2.clone()).collect();
+        let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
+        let model = SessionModel::new(cell, &q1, &q2, &cands);
+        let fit = identify::fit(&model, &[], None, None, &FitOptions::default()).expect("fit");
+        mount_tilt_test(&fit, cell, 1e-3f64.to_radians())
+    }
+
+    /// A 0.2° tilt of robot 2's mount about x is named for robot 2, axis x, with an interval
+    /// covering it, and the Gauss–Newton fits say why they stopped.
+    #[test]
+    fn a_robot2_tilt_is_named_and_the_fits_say_why_they_stopped() {
+        let cell = Cell::default_floor_wall();
+        let v = 0.2f64.to_radians();
+        let t = test_on(&cell, v, 21);
+        eprintln!("stop reasons (no tilt, robot 1, robot 2): {:?}", t.stop);
+        assert_eq!(t.robot, Some(Robot::Two), "{t:?}");
+        assert!(t.named_components().contains(&0), "{t:?}");
+        let [lo, hi] = t.tilt_ci95_rad[0];
+        assert!(lo <= v && v <= hi, "{v} outside [{lo}, {hi}]");
+        for stop in t.stop {
+            assert!(
+                matches!(stop, TiltStop::Converged | TiltStop::IterationLimit { .. }),
+                "{stop:?}"
+            );
+        }
+        // The chosen hypothesis fits a tilt of a few tenths of a degree: it converges.
+        assert_eq!(t.stop[2], TiltStop::Converged, "{:?}", t.stop);
+    }
+
+    /// Without a tilt, nothing is named.
+    #[test]
+    fn no_tilt_names_nothing() {
+        let t = test_on(&Cell::default_floor_wall(), 0.0, 22);
+        assert!(t.named_components().is_empty(), "{t:?}");
+    }
 }

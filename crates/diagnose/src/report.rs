@@ -681,3 +681,33 @@ pub fn render_text(r: &DiagnoseReport) -> String {
     }
     s
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Robots serialise as 1/2 (or null), as the JSON always did.
+    #[test]
+    fn robots_serialise_as_numbers() {
+        let e = EffectReport {
+            kind: EffectKind::JointOffset,
+            robot: Robot::Two,
+            joint: Some(3),
+            axis: None,
+            value: 0.1,
+            unit: "deg",
+            ci95: [0.0, 0.2],
+            confounded_with: vec![],
+            p_value: 0.5,
+        };
+        let json = serde_json::to_string(&e).unwrap();
+        assert!(
+            json.starts_with(r#"{"kind":"joint_offset","robot":2,"joint":3,"axis":null,"#),
+            "{json}"
+        );
+        #[derive(Serialize)]
+        struct Opt(#[serde(serialize_with = "serialize_opt_robot")] Option<Robot>);
+        assert_eq!(serde_json::to_string(&Opt(Some(Robot::One))).unwrap(), "1");
+        assert_eq!(serde_json::to_string(&Opt(None)).unwrap(), "null");
+    }
+}
