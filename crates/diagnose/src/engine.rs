@@ -1,7 +1,7 @@
 //! The diagnosis of one session ([`diagnose_session`]), in named steps: the selection on the
-//! whitened identification problem, the [`baseline`] against the cell's noise, the
-//! [`families`]' identifiability, and the [`gain`]; [`crate::report`] turns the SI findings into
-//! the report.
+//! whitened identification problem, the baseline against the cell's noise (`baseline`), the
+//! identifiability of each (robot, kind) family (`families`), and the gain (`gain`);
+//! [`crate::report`] turns the SI findings into the report.
 
 use std::path::Path;
 

@@ -5,7 +5,7 @@
 //!    RMS with what the cell's stated noise predicts at these very joint configurations
 //!    ([`noise`], a seeded Monte Carlo), a χ² test, and the residual correlations with joints,
 //!    position and reach ([`residuals`]).
-//! 2. **Catalogue and identifiability** ([`catalogue`], [`session_model`]): every candidate
+//! 2. **Catalogue and identifiability** ([`mod@catalogue`], [`session_model`]): every candidate
 //!    error parameter of both robots, with rank and conditioning per (robot, kind) family.
 //! 3. **Selection**: forward selection by `calib_core::identify::forward_select`; mount tilts
 //!    are named from the placement instead ([`mount_tilt`]), since in handclasp residuals they

@@ -1,5 +1,5 @@
 //! The calibrated `b1_from_b2` against the cell's stated placement: the rotation-only check
-//! ([`PlacementReport`]) and the mount-tilt test ([`mount_tilt_test`]), a generalised
+//! ([`Placement`], reported as [`crate::PlacementReport`]) and the mount-tilt test ([`mount_tilt_test`]), a generalised
 //! least-squares fit of both robots' base tilts and yaws to the rotation AND translation
 //! differences, which tells a tilted robot 1 from a tilted robot 2. Mount tilts cannot be
 //! selected from handclasp residuals (a turned base only turns the fit), so this is where the
@@ -104,11 +104,11 @@ impl MountTiltFit {
 
 /// Largest Gauss–Newton step (rad, ∞-norm over the fitted tilts and yaws) taken as converged:
 /// 1e-12 rad moves a point 1 m away by 1 pm.
-const TILT_STEP_TOL_RAD: f64 = 1e-12;
+pub const TILT_STEP_TOL_RAD: f64 = 1e-12;
 
 /// Gauss–Newton iterations per hypothesis: the prediction is nearly linear in tilts of a few
 /// tenths of a degree, so 4 steps reach [`TILT_STEP_TOL_RAD`] in practice.
-const TILT_ITERATIONS: usize = 4;
+pub const TILT_ITERATIONS: usize = 4;
 
 /// Why the mount-tilt test's Gauss–Newton fit of one hypothesis stopped.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -177,7 +177,7 @@ fn tilt_columns(x: &Isometry3<f64>) -> nalgebra::DMatrix<f64> {
 /// the cell's stated-angle sd `sd_rad` and [`PLACEMENT_SD_XYZ_M`]. Hypotheses (a base yaw is
 /// confounded with that robot's joint-1 offset: a nuisance, never a mount tilt): H0 no tilt
 /// (both yaws free), H1 robot 1's base turned (tilt about x, y and its yaw), H2 robot 2's;
-/// generalised least squares (Gauss–Newton on the exact [`tilt_prediction`]). H0 rejected at
+/// generalised least squares (Gauss–Newton on the exact `tilt_prediction`). H0 rejected at
 /// [`ALPHA_TILT`] → the hypothesis that passes its own χ² test at [`ALPHA_TILT`]; if both pass (a
 /// turn about the line joining the two bases looks the same for both robots), the one with fewer
 /// significant tilt components, then the smaller χ² (the other is recorded as `alternative`).

@@ -54,7 +54,7 @@ impl PoseReport {
 /// mount tilt (it only turns the fit), but if the cell states the TRUE placement of the nominal
 /// bases (as a simulation's cell does), the fitted rotation shows it: `R_fit = R_cell·exp([a]ₓ)`,
 /// `a` in base-2 axes, which is a tilt of robot 2's base by `a` (or of robot 1's by
-/// `−R_cell·a`, which also moves the translation: [`mount_tilt_test`] uses both to tell the
+/// `−R_cell·a`, which also moves the translation: [`crate::mount_tilt_test`] uses both to tell the
 /// robots apart; the `tilt_*` fields here are the rotation-only check).
 #[derive(Debug, Clone, Serialize)]
 pub struct PlacementReport {
@@ -193,7 +193,7 @@ pub struct EffectReport {
     pub confounded_with: Vec<String>,
     /// Partial F-test p-value in the final model (refit without it), unadjusted; it was
     /// selected at the Bonferroni level `α/m`. For a `mount_tilt` (named from the placement,
-    /// [`mount_tilt_test`]): the component's two-sided p, named below `ALPHA_TILT / 2`.
+    /// [`crate::mount_tilt_test`]): the component's two-sided p, named below `ALPHA_TILT / 2`.
     pub p_value: f64,
 }
 
