@@ -1,13 +1,13 @@
-//! `handclasp diagnose`: what the nominal models get wrong in a measured session (issue #5).
+//! `handclasp diagnose`: what the nominal models get wrong in a measured session.
 //!
-//! Thin glue over `sim_cell::diagnose`: reads the cell and the session, runs the diagnosis,
+//! Thin glue over the `diagnose` crate: reads the cell and the session, runs the diagnosis,
 //! prints text or JSON, optionally exports corrected URDFs and a calibrated cell.
 
 use std::path::PathBuf;
 
 use anyhow::Context;
+use diagnose::DiagnoseOptions;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use sim_cell::diagnose::{self, DiagnoseOptions};
 use sim_cell::Cell;
 
 /// Arguments of `handclasp diagnose`.
@@ -46,7 +46,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if !t.iter().chain(z).all(|v| v.is_finite()) {
                 anyhow::bail!("--truth-xyz-mm and --truth-zyz-deg must be finite numbers");
             }
-            let rot = diagnose::rotation_from_zyz([
+            let rot = kinematics::rotation_from_zyz([
                 z[0].to_radians(),
                 z[1].to_radians(),
                 z[2].to_radians(),
@@ -68,21 +68,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let cell = Cell::from_toml_file(&args.cell)?;
-    let session = diagnose::load_session(&args.session, &cell)?;
+    let session = diagnose::load_session(&args.session, &cell).context("--session")?;
     let options = DiagnoseOptions {
         seed: args.seed,
         trials: args.trials,
         truth,
         ..DiagnoseOptions::default()
     };
-    let report = diagnose::diagnose(&cell, &session, &options)
+    let report = diagnose::diagnose_session(&cell, &session, &options)
         .with_context(|| format!("diagnosing {}", args.session.display()))?;
     if let Some(dir) = &args.export {
         let calibrated = sim_cell::placement::isometry_from_mm_deg(
             report.b1_from_b2.xyz_mm,
             report.b1_from_b2.zyz_deg,
         );
-        let files = diagnose::export_corrected(&cell, &report, &calibrated, dir)?;
+        let files =
+            diagnose::export_corrected(&cell, &report, &calibrated, dir).context("--export")?;
         if !args.json {
             for f in &files {
                 println!("wrote {}", f.display());

@@ -1,7 +1,6 @@
 #![doc = include_str!("../README.md")]
 
 pub mod cell;
-pub mod diagnose;
 mod error;
 pub mod layout;
 pub mod paper;

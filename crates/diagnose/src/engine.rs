@@ -1,0 +1,374 @@
+//! The diagnosis of one session ([`diagnose_session`]), in named steps: the selection on the
+//! whitened identification problem, the baseline against the cell's noise (`baseline`), the
+//! identifiability of each (robot, kind) family (`families`), and the gain (`gain`);
+//! [`crate::report`] turns the SI findings into the report.
+
+use std::path::Path;
+
+use calib_core::identify::{
+    self, IdentFit, IdentStatus, Robot, Selection, SelectionOptions, TipModel,
+};
+use calib_core::stats::chi2_sf;
+use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
+use sim_cell::{Cell, Session};
+
+use crate::catalogue::{catalogue, Candidate, EffectKind};
+use crate::input::check_session;
+use crate::mount_tilt::{self, Placement};
+use crate::noise::{simulate_rms, NoiseModel};
+use crate::report::{self, CorrelationReport, DiagnoseReport, FamilyReport};
+use crate::residuals::correlations;
+use crate::session_model::SessionModel;
+use crate::DiagnoseError;
+
+/// Options of the diagnosis.
+#[derive(Debug, Clone)]
+pub struct DiagnoseOptions {
+    /// Seed of the Monte Carlo simulations (default 1).
+    pub seed: u64,
+    /// Monte Carlo trials for the predicted residual distributions (default 400).
+    pub trials: usize,
+    /// Selection settings (α = 0.04 family-wise per step, 10 folds).
+    pub selection: SelectionOptions,
+    /// Truth of `b1_from_b2` (e.g. from a CMM), for e_tran/e_rot before and after.
+    pub truth: Option<Isometry3<f64>>,
+    /// Uncertainty of the cell's stated `b1_from_b2` angles, degrees, in the placement check
+    /// (default 0.001°: the rounding of a cell file written with 3 decimals, conservatively).
+    pub placement_sd_deg: f64,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        Self {
+            seed: 1,
+            trials: 400,
+            selection: SelectionOptions::default(),
+            truth: None,
+            placement_sd_deg: 0.001,
+        }
+    }
+}
+
+/// Runs the full diagnosis of a session on its cell (the cell's stated `[robotN.errors]`, if
+/// any, are NOT used: the nominal models are the URDFs). Errors: a session that does not fit the
+/// cell ([`check_session`]) or a model failure.
+///
+/// # Examples
+/// ```no_run
+/// let cell = sim_cell::Cell::default_floor_wall();
+/// let session = diagnose::load_session(std::path::Path::new("session.csv"), &cell)?;
+/// let report = diagnose::diagnose_session(&cell, &session, &diagnose::DiagnoseOptions::default())?;
+/// print!("{}", diagnose::render_text(&report));
+/// # Ok::<(), diagnose::DiagnoseError>(())
+/// ```
+pub fn diagnose_session(
+    cell: &Cell,
+    session: &Session,
+    options: &DiagnoseOptions,
+) -> Result<DiagnoseReport, DiagnoseError> {
+    check_session(cell, session, Path::new("<session>"))?;
+    let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
+    let (q1, q2) = joints(session);
+    // The cell's noise at these configurations: residuals are whitened by it, so the F tests
+    // hold their size under anisotropic alignment noise.
+    let r_cell = cell.b1_from_b2.rotation.to_rotation_matrix().into_inner();
+    let noise = NoiseModel::new(cell, &q1, &q2, &r_cell)?;
+    let model = SessionModel::new(cell, &q1, &q2, &cands).with_weights(noise.whitening());
+    let all: Vec<usize> = (0..cands.len()).collect();
+    let sel = identify::forward_select(&model, &all, &options.selection)?;
+    let baseline = baseline(&model, &sel, &noise, session, options)?;
+    let partial = identify::partial_f_tests(&model, &sel.fit, &options.selection.fit)?;
+    // Mount tilts: not from the residuals (they only turn the fit) but from the placement.
+    let placement = mount_tilt::placement(&sel.fit, cell, options.placement_sd_deg.to_radians());
+    let families = families(&model, &sel, &cands);
+    let gain = gain(&sel, &baseline, &noise, options);
+    let sigma_m = noise.sigma2_eff.sqrt();
+    Ok(report::assemble(&Findings {
+        cands: &cands,
+        sel: &sel,
+        reference_zyz: kinematics::zyz_from_rotation(
+            &cell.b1_from_b2.rotation.to_rotation_matrix(),
+        ),
+        n_points: session.points.len(),
+        sigma_m,
+        baseline,
+        partial_p: partial.iter().map(|p| p.1).collect(),
+        placement,
+        families,
+        min_detectable: identify::min_detectable(
+            &sel.identifiability,
+            options.selection.alpha,
+            sigma_m,
+        ),
+        gain,
+    }))
+}
+
+/// What [`diagnose_session`] found, SI units; [`report::assemble`] converts it.
+pub(crate) struct Findings<'a> {
+    /// The catalogue.
+    pub cands: &'a [Candidate],
+    /// The selection (baseline and final fits, steps, identifiability).
+    pub sel: &'a Selection,
+    /// The cell's ZYZ angles of `b1_from_b2`, rad (the branch the report's angles follow).
+    pub reference_zyz: [f64; 3],
+    /// Points in the session.
+    pub n_points: usize,
+    /// The cell's effective noise σ per axis, m.
+    pub sigma_m: f64,
+    /// Step 1.
+    pub baseline: Baseline,
+    /// Partial F-test p-values of the selected parameters (order of `sel.fit.params`).
+    pub partial_p: Vec<f64>,
+    /// The placement check and the mount-tilt test.
+    pub placement: Placement,
+    /// Step 2: identifiability per (robot, kind) family.
+    pub families: Vec<FamilyReport>,
+    /// Smallest detectable |value| per candidate, SI (infinite: not identifiable).
+    pub min_detectable: Vec<f64>,
+    /// Step 4.
+    pub gain: Gain,
+}
+
+/// Step 1: the nominal fit against the cell's noise.
+pub(crate) struct Baseline {
+    /// MC distribution (ascending) of the nominal-fit residual RMS under the cell's noise, m.
+    pub mc_rms: Vec<f64>,
+    /// χ² upper-tail p of the nominal fit's RSS/σ².
+    pub chi2_p: f64,
+    /// χ² upper-tail p of the extended fit's RSS/σ².
+    pub chi2_p_after: f64,
+    /// Significant residual correlations of the nominal fit.
+    pub correlations: Vec<CorrelationReport>,
+    /// Significant residual correlations left by the extended fit.
+    pub correlations_after: Vec<CorrelationReport>,
+    /// Robot 2's nominal tips, b2, m (the MC's design).
+    p2_nom: Vec<Point3<f64>>,
+    /// Per point, the deterministic discrepancy the nominal fit sees if the extended model is
+    /// true, b1 axes, m.
+    discrepancy: Vec<Vector3<f64>>,
+}
+
+/// Step 4: what the extended model gains.
+pub(crate) struct Gain {
+    /// MC distribution (ascending) of the nominal-fit RMS re-simulated with the extended model, m.
+    pub resimulated_rms: Vec<f64>,
+    /// Errors of `b1_from_b2` against the truth, before / after, when a truth was given.
+    pub truth: Option<TruthErrors>,
+}
+
+/// Errors of the nominal and extended `b1_from_b2` against a truth, before / after.
+pub(crate) struct TruthErrors {
+    /// e_tran (eq 34), m.
+    pub e_tran_m: [f64; 2],
+    /// e_rot (eq 33), rad.
+    pub e_rot_rad: [f64; 2],
+    /// Geodesic angle, rad.
+    pub geodesic_rad: [f64; 2],
+}
+
+/// Joint vectors of a session (rad): `(q1s, q2s)`.
+fn joints(session: &Session) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    (
+        session.points.iter().map(|p| p.q1.clone()).collect(),
+        session.points.iter().map(|p| p.q2.clone()).collect(),
+    )
+}
+
+/// Step 1: the residual RMS the cell's noise predicts at these configurations (seeded MC), the
+/// χ² tests of both fits, and the residual correlations.
+fn baseline(
+    model: &SessionModel<'_>,
+    sel: &Selection,
+    noise: &NoiseModel,
+    session: &Session,
+    options: &DiagnoseOptions,
+) -> Result<Baseline, DiagnoseError> {
+    let (base, fit) = (&sel.baseline, &sel.fit);
+    let n = session.points.len();
+    let mut p2_nom = Vec::with_capacity(n);
+    let mut discrepancy = Vec::with_capacity(n);
+    for i in 0..n {
+        let nom = model.eval(i, &[], &[], &[])?;
+        let ext = model.eval(i, &fit.params, &fit.values, &[])?;
+        p2_nom.push(nom.p2_b2);
+        discrepancy
+            .push((nom.p1_b1 - ext.p1_b1) - fit.b1_from_b2.rotation * (nom.p2_b2 - ext.p2_b2));
+    }
+    let zeros = vec![Vector3::zeros(); n];
+    let mc_rms = simulate_rms(
+        &p2_nom,
+        &base.b1_from_b2,
+        &zeros,
+        noise,
+        options.seed,
+        options.trials,
+    );
+    let chi2 = |f: &IdentFit| {
+        if noise.sigma2_eff > 0.0 {
+            chi2_sf(f.rss / noise.sigma2_eff, f.dof)
+        } else if f.rss > 0.0 {
+            0.0
+        } else {
+            1.0
+        }
+    };
+    Ok(Baseline {
+        mc_rms,
+        chi2_p: chi2(base),
+        chi2_p_after: chi2(fit),
+        correlations: correlations(session, &base.residuals),
+        correlations_after: correlations(session, &fit.residuals),
+        p2_nom,
+        discrepancy,
+    })
+}
+
+/// Step 2: rank, conditioning and confounding of every (robot, kind) family at the baseline.
+fn families(model: &SessionModel<'_>, sel: &Selection, cands: &[Candidate]) -> Vec<FamilyReport> {
+    let id = &sel.identifiability;
+    let mut families = Vec::new();
+    for robot in [Robot::One, Robot::Two] {
+        for kind in EffectKind::ALL {
+            let members: Vec<usize> = (0..cands.len())
+                .filter(|&m| cands[m].robot() == robot && cands[m].kind() == kind)
+                .collect();
+            let fam = id.family(&members);
+            let with = |st: IdentStatus| {
+                members
+                    .iter()
+                    .filter(|&&m| id.params[m].status == st)
+                    .map(|&m| cands[m].label())
+                    .collect()
+            };
+            families.push(FamilyReport {
+                robot,
+                kind,
+                size: fam.size,
+                rank: fam.rank,
+                condition: fam.condition.is_finite().then_some(fam.condition),
+                singular_values: fam.singular_values,
+                confounded_as: members
+                    .iter()
+                    .filter(|&&m| id.params[m].status == IdentStatus::ConfoundedWithBase)
+                    .map(|&m| describe_confounding(model, &sel.baseline, m, cands[m].robot()))
+                    .collect(),
+                confounded_with_base: with(IdentStatus::ConfoundedWithBase),
+                no_effect: with(IdentStatus::NoEffect),
+            });
+        }
+    }
+    families
+}
+
+/// Step 4: the nominal-fit RMS re-simulated with the extended model, and the errors against the
+/// truth when one is given.
+fn gain(
+    sel: &Selection,
+    baseline: &Baseline,
+    noise: &NoiseModel,
+    options: &DiagnoseOptions,
+) -> Gain {
+    let (base, fit) = (&sel.baseline, &sel.fit);
+    let resimulated_rms = simulate_rms(
+        &baseline.p2_nom,
+        &fit.b1_from_b2,
+        &baseline.discrepancy,
+        noise,
+        options.seed.wrapping_add(0x5eed),
+        options.trials,
+    );
+    let truth = options.truth.map(|t| {
+        let both = |f: &dyn Fn(&Isometry3<f64>) -> f64| [f(&base.b1_from_b2), f(&fit.b1_from_b2)];
+        TruthErrors {
+            e_tran_m: both(&|x| calib_core::e_tran(&t, x)),
+            e_rot_rad: both(&|x| calib_core::e_rot(&t, x)),
+            geodesic_rad: both(&|x| calib_core::geodesic_angle(&t, x)),
+        }
+    });
+    Gain {
+        resimulated_rms,
+        truth,
+    }
+}
+
+/// The base-frame motion a confounded candidate is equivalent to: its residual column regressed
+/// on the 6 columns of `b1_from_b2` at the fit, expressed as a twist of the candidate's robot's
+/// base (robot 2: the right perturbation of `b1_from_b2`, in b2 axes).
+fn describe_confounding(
+    model: &SessionModel<'_>,
+    fit: &identify::IdentFit,
+    cand: usize,
+    robot: Robot,
+) -> String {
+    let number = robot.number();
+    let n = fit.points.len();
+    let x = fit.b1_from_b2;
+    let r_x = x.rotation.to_rotation_matrix().into_inner();
+    let mut a = nalgebra::DMatrix::zeros(3 * n, 6);
+    let mut b = nalgebra::DVector::zeros(3 * n);
+    for (row, &i) in fit.points.iter().enumerate() {
+        let Ok(e) = model.eval(i, &[], &[], &[cand]) else {
+            return "a base-frame motion".into();
+        };
+        let y = x * e.p2_b2;
+        a.fixed_view_mut::<3, 3>(3 * row, 0)
+            .copy_from(&(-Matrix3::identity()));
+        a.fixed_view_mut::<3, 3>(3 * row, 3)
+            .copy_from(&y.coords.cross_matrix());
+        let col: Vector3<f64> = e.jacobian.column(0).into_owned();
+        let col = if robot == Robot::One {
+            col
+        } else {
+            -(r_x * col)
+        };
+        b.fixed_rows_mut::<3>(3 * row).copy_from(&col);
+    }
+    let Ok(c) = a.svd(true, true).solve(&b, 1e-12) else {
+        return "a base-frame motion".into();
+    };
+    let rho = Vector3::new(c[0], c[1], c[2]);
+    let phi = Vector3::new(c[3], c[4], c[5]);
+    // Twist in the robot's own base axes (robot 2: right perturbation X·exp(ξ2)).
+    // Robot 1: a motion ξ1 of its base changes r by +ξ1 while the fit's left perturbation c
+    // changes r by −c, so ξ1 = −c.
+    let (rho_r, phi_r) = if robot == Robot::One {
+        (-rho, -phi)
+    } else {
+        (
+            r_x.transpose() * (rho + phi.cross(&x.translation.vector)),
+            r_x.transpose() * phi,
+        )
+    };
+    // A rotation moves points 1 m away by |φ|·1 m: compare with the translation.
+    if phi_r.norm() * 1.0 > 0.1 * rho_r.norm() && phi_r.norm() > 0.0 {
+        let u = phi_r.normalize();
+        let name = if u.z.abs() > 0.99 {
+            "base yaw"
+        } else if u.z.abs() < 0.1 {
+            "base tilt"
+        } else {
+            "base rotation"
+        };
+        let mut text = format!(
+            "rotation of robot {number}'s base about its ({:.3}, {:.3}, {:.3}) axis ({name})",
+            u.x, u.y, u.z
+        );
+        if rho_r.norm() > 1e-3 * phi_r.norm() {
+            let v = rho_r.normalize();
+            text += &format!(
+                " with a translation along ({:.3}, {:.3}, {:.3})",
+                v.x, v.y, v.z
+            );
+        }
+        text
+    } else if rho_r.norm() > 0.0 {
+        let v = rho_r.normalize();
+        format!(
+            "translation of robot {number}'s base along its ({:.3}, {:.3}, {:.3}) axis",
+            v.x, v.y, v.z
+        )
+    } else {
+        "a base-frame motion".into()
+    }
+}

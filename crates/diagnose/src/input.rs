@@ -1,0 +1,297 @@
+//! Input checks: a session CSV read for a cell, with pre-checks that name the usual unit
+//! mistakes (radians under `*_deg`, metres under `*_mm`), and a session checked against its cell
+//! (joint counts, limits, tips against FK, enough points).
+
+use std::path::Path;
+
+use calib_core::identify;
+use nalgebra::Vector3;
+use sim_cell::{Cell, Session};
+
+use crate::DiagnoseError;
+
+/// Largest distance (m) between a session's reported tip and FK of its joint columns with the
+/// cell's tip offset: 0.2 mm covers the rounding of a file and the encoder resolution.
+pub const FK_TOLERANCE_M: f64 = 2e-4;
+
+/// Checks a session against the cell: joint counts, units (radians under `*_deg`, metres under
+/// `*_mm`), joint limits, the reported tips against FK of the joint columns with the cell's tip
+/// offsets, and that there are enough points to identify anything. `path` is named in messages.
+pub fn check_session(cell: &Cell, s: &Session, path: &Path) -> Result<(), DiagnoseError> {
+    let serr = |message: String| DiagnoseError::Session {
+        path: path.to_path_buf(),
+        message,
+    };
+    let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
+    for p in &s.points {
+        if p.q1.len() != d1 || p.q2.len() != d2 {
+            return Err(serr(format!(
+                "point {}: {} joint value(s) for robot 1 and {} for robot 2, but the cell's URDFs have {d1} ({}) and {d2} ({}): \
+                 use the session recorded with this cell, or the cell of this session",
+                p.point,
+                p.q1.len(),
+                p.q2.len(),
+                cell.robot1.model.name(),
+                cell.robot2.model.name()
+            )));
+        }
+    }
+    let n = s.points.len();
+    let needed = identify::min_points(1);
+    if n < needed {
+        return Err(serr(format!(
+            "{n} handclasp point(s): too few to identify anything; fitting b1_from_b2 (6 unknowns) and one error \
+             parameter with a meaningful test needs at least {needed} points, and the full catalogue 20–60 \
+             (40 recommended)"
+        )));
+    }
+    let max_q = s
+        .points
+        .iter()
+        .flat_map(|p| p.q1.iter().chain(&p.q2))
+        .fold(0.0f64, |a, v| a.max(v.abs()));
+    if max_q.to_degrees() <= std::f64::consts::PI + 1e-9 {
+        return Err(serr(format!(
+            "every joint angle is within ±{:.3} degrees — these look like radians written as degrees: convert them to degrees",
+            max_q.to_degrees()
+        )));
+    }
+    let max_p = s
+        .points
+        .iter()
+        .flat_map(|p| [p.p_b1, p.p_b2])
+        .fold(0.0f64, |a, p| a.max(p.coords.amax()));
+    if max_p < 0.01 {
+        return Err(serr(format!(
+            "every tip coordinate is below {:.4} mm — these look like metres written as millimetres: convert them to millimetres",
+            max_p * 1000.0
+        )));
+    }
+    for p in &s.points {
+        for (r, setup, q, tip) in [
+            (1, &cell.robot1, &p.q1, &p.p_b1),
+            (2, &cell.robot2, &p.q2, &p.p_b2),
+        ] {
+            let row = p.point;
+            setup
+                .model
+                .check_q(q)
+                .map_err(|e| serr(format!("point {row}, robot {r}: {e}")))?;
+            let fk = kinematics::base_from_tip(&setup.model, q, &setup.flange_from_tip)
+                .map_err(|e| serr(format!("point {row}, robot {r}: {e}")))?;
+            let d = (fk.translation.vector - tip.coords).norm();
+            if d > FK_TOLERANCE_M {
+                return Err(serr(format!(
+                    "point {row}: robot {r}'s tip columns differ by {:.3} mm from FK of its joint columns with \
+                     the cell's tip offset ({} mm): wrong cell, wrong tip_mm, or tips not in mm / not in the robot's base frame",
+                    d * 1000.0,
+                    fmt3(&(setup.flange_from_tip * 1000.0))
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `[x, y, z]` with 3 decimals, for messages.
+fn fmt3(v: &Vector3<f64>) -> String {
+    format!("[{:.3}, {:.3}, {:.3}]", v.x, v.y, v.z)
+}
+
+/// A CSV reader over session text: fields trimmed, rows of any length (sim-cell's reader
+/// reports a wrong row length with its line number).
+fn csv_reader(text: &str) -> csv::Reader<&[u8]> {
+    csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .flexible(true)
+        .from_reader(text.as_bytes())
+}
+
+/// Reads a session CSV for `cell` with sim-cell's reader, after a unit pre-check that names the
+/// likely mistake (radians under `*_deg`, metres under `*_mm`), then [`check_session`].
+///
+/// Errors: the file cannot be read ([`DiagnoseError::Io`]); sim-cell rejects it
+/// ([`DiagnoseError::Sim`], or [`DiagnoseError::SessionUnits`] when a unit mistake explains
+/// it); the units or the session do not fit the cell ([`DiagnoseError::Session`]).
+pub fn load_session(path: &Path, cell: &Cell) -> Result<Session, DiagnoseError> {
+    let text = std::fs::read_to_string(path).map_err(|e| DiagnoseError::io(path, e))?;
+    let serr = |message: String| DiagnoseError::Session {
+        path: path.to_path_buf(),
+        message,
+    };
+    let (max_deg, max_mm, rows) = unit_ranges(&text);
+    if rows > 0 && max_deg > 0.0 && max_deg <= std::f64::consts::PI + 1e-9 {
+        return Err(serr(format!(
+            "every joint angle is within ±{max_deg:.3} — these look like radians, but the columns are *_deg: convert them to degrees"
+        )));
+    }
+    if rows > 0 && max_mm > 0.0 && max_mm < 10.0 {
+        return Err(serr(format!(
+            "every tip coordinate is within ±{max_mm:.4} — these look like metres, but the columns are *_mm: convert them to millimetres"
+        )));
+    }
+    let session = match Session::parse_csv(&text, path, cell) {
+        Ok(s) => s,
+        Err(e) => {
+            return Err(match unit_hint(&text, cell) {
+                Some(hint) => DiagnoseError::SessionUnits { hint, source: e },
+                None => e.into(),
+            })
+        }
+    };
+    check_session(cell, &session, path)?;
+    Ok(session)
+}
+
+/// The largest |value| under `*_deg` and under `*_mm` columns (unparsable fields skipped), and
+/// the number of data rows. Text that is no CSV gives zeros (sim-cell's reader says why).
+fn unit_ranges(text: &str) -> (f64, f64, usize) {
+    let mut reader = csv_reader(text);
+    let Ok(names) = reader.headers().cloned() else {
+        return (0.0, 0.0, 0);
+    };
+    let (mut max_deg, mut max_mm, mut rows) = (0.0f64, 0.0f64, 0usize);
+    for record in reader.records() {
+        let Ok(record) = record else {
+            continue;
+        };
+        rows += 1;
+        for (name, v) in names.iter().zip(record.iter()) {
+            let Ok(v) = v.parse::<f64>() else {
+                continue;
+            };
+            if name.ends_with("_deg") {
+                max_deg = max_deg.max(v.abs());
+            } else if name.ends_with("_mm") {
+                max_mm = max_mm.max(v.abs());
+            }
+        }
+    }
+    (max_deg, max_mm, rows)
+}
+
+/// When a session's tips do not match FK of its joints, tries the usual unit mistakes on its
+/// first rows (angles in radians under `*_deg`, tips in metres under `*_mm`) and says which one
+/// makes every tried row consistent (within 1 mm), if any.
+fn unit_hint(text: &str, cell: &Cell) -> Option<String> {
+    let mut reader = csv_reader(text);
+    let names: Vec<String> = reader.headers().ok()?.iter().map(str::to_string).collect();
+    let col = |n: &str| names.iter().position(|h| h == n);
+    let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
+    let q_cols = |r: u8, d: usize| -> Option<Vec<usize>> {
+        (1..=d).map(|k| col(&format!("r{r}_q{k}_deg"))).collect()
+    };
+    let (c1, c2) = (q_cols(1, d1)?, q_cols(2, d2)?);
+    let t_cols: Vec<usize> = [
+        "r1_x_mm", "r1_y_mm", "r1_z_mm", "r2_x_mm", "r2_y_mm", "r2_z_mm",
+    ]
+    .iter()
+    .map(|n| col(n))
+    .collect::<Option<_>>()?;
+    let rows: Vec<Vec<f64>> = reader
+        .records()
+        .take(5)
+        .filter_map(Result::ok)
+        .map(|record| {
+            record
+                .iter()
+                .map(|v| v.parse().unwrap_or(f64::NAN))
+                .collect()
+        })
+        .collect();
+    if rows.is_empty() {
+        return None;
+    }
+    let consistent = |angle_scale: f64, length_scale: f64| {
+        rows.iter().all(|v| {
+            let get = |c: &[usize]| {
+                c.iter()
+                    .map(|&i| v.get(i).copied().unwrap_or(f64::NAN) * angle_scale)
+                    .collect::<Vec<f64>>()
+            };
+            let (q1, q2) = (get(&c1), get(&c2));
+            let t: Vec<f64> = t_cols
+                .iter()
+                .map(|&i| v.get(i).copied().unwrap_or(f64::NAN) * length_scale)
+                .collect();
+            if !q1.iter().chain(&q2).chain(&t).all(|x| x.is_finite()) {
+                return false;
+            }
+            let f1 = kinematics::base_from_tip_unchecked(
+                &cell.robot1.model,
+                &q1,
+                &cell.robot1.flange_from_tip,
+            );
+            let f2 = kinematics::base_from_tip_unchecked(
+                &cell.robot2.model,
+                &q2,
+                &cell.robot2.flange_from_tip,
+            );
+            (f1.translation.vector - Vector3::new(t[0], t[1], t[2])).norm() < 1e-3
+                && (f2.translation.vector - Vector3::new(t[3], t[4], t[5])).norm() < 1e-3
+        })
+    };
+    let deg = std::f64::consts::PI / 180.0;
+    if consistent(1.0, 1e-3) {
+        Some("the joint columns are consistent with the tips if read as RADIANS: the columns are *_deg, so convert the angles to degrees".into())
+    } else if consistent(deg, 1.0) {
+        Some("the tip columns are consistent with the joints if read as METRES: the columns are *_mm, so convert the tips to millimetres".into())
+    } else if consistent(1.0, 1.0) {
+        Some("the session is consistent if its angles are radians and its tips metres: the columns are *_deg and *_mm, so convert both".into())
+    } else {
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The unit pre-check reads the text as CSV: trimmed and quoted fields, blank lines and
+    /// non-numeric fields are handled, and only `*_deg` / `*_mm` columns count.
+    #[test]
+    fn unit_ranges_read_csv_fields() {
+        let text = "point, r1_q1_deg ,r1_x_mm,note\n1, -2.5 ,\"1200.0\",a\n\n2,1.0,-7,\"x,y\"\n";
+        let (max_deg, max_mm, rows) = unit_ranges(text);
+        assert_eq!((max_deg, max_mm, rows), (2.5, 1200.0, 2));
+        assert_eq!(unit_ranges(""), (0.0, 0.0, 0));
+    }
+
+    /// Joint angles written in radians under `*_deg` are caught before sim-cell's reader, and
+    /// the message names the file and the fix.
+    #[test]
+    fn radians_under_deg_columns_are_named() {
+        let cell = Cell::default_floor_wall();
+        let spec = sim_cell::SessionSpec::new(12, sim_cell::Layout::Random, 0.8);
+        let session =
+            sim_cell::generate_session(&cell, &spec, &mut sim_cell::trial_rng(5, 0)).unwrap();
+        let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
+        let text = session.to_csv_string(d1, d2);
+        let mut lines = text.lines();
+        let header = lines.next().unwrap();
+        let mut bad = format!("{header}\n");
+        for line in lines {
+            let fields: Vec<String> = line
+                .split(',')
+                .enumerate()
+                .map(|(i, f)| match f.parse::<f64>() {
+                    Ok(v) if (1..=d1 + d2).contains(&i) => format!("{}", v.to_radians()),
+                    _ => f.to_string(),
+                })
+                .collect();
+            bad += &(fields.join(",") + "\n");
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("radians.csv");
+        std::fs::write(&path, bad).unwrap();
+        let err = load_session(&path, &cell).unwrap_err();
+        let text = err.to_string();
+        assert!(matches!(err, DiagnoseError::Session { .. }), "{text}");
+        assert!(
+            text.contains("radians") && text.contains("radians.csv"),
+            "{text}"
+        );
+        std::fs::write(&path, session.to_csv_string(d1, d2)).unwrap();
+        load_session(&path, &cell).expect("the session as written reads back");
+    }
+}
