@@ -601,6 +601,7 @@ pub fn ik_tip_position(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_fixtures::TWO_JOINT;
 
     #[test]
     fn solve_spd_matches_direct_solution() {
@@ -620,11 +621,7 @@ mod tests {
 
     #[test]
     fn halton_seeds_stay_in_limits_and_differ() {
-        let xml = r#"<robot name="r"><link name="a"/><link name="b"/><link name="tool0"/>
-            <joint name="j1" type="revolute"><parent link="a"/><child link="b"/>
-              <axis xyz="0 0 1"/><limit lower="-1" upper="2" effort="1" velocity="1"/></joint>
-            <joint name="j2" type="continuous"><parent link="b"/><child link="tool0"/>
-              <origin xyz="1 0 0"/><axis xyz="0 1 0"/></joint></robot>"#;
+        let xml = TWO_JOINT;
         let m = RobotModel::from_urdf_str(xml, "tool0").unwrap();
         let mut prev = vec![f64::NAN; 2];
         for s in 1..20 {
