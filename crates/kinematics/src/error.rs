@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 /// Failure to build a [`crate::RobotModel`] from a URDF.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum ModelError {
     /// The URDF file could not be read.
     #[error("cannot read URDF file {path}: {source}; check the path (relative paths are from the current directory)")]
@@ -23,7 +24,7 @@ pub enum ModelError {
         message: String,
     },
     /// The requested tool link (or a link a joint refers to) does not exist.
-    #[error("{source_name}: link `{link}` not found; known links: {known}. Pass an existing link (e.g. --tool-link tool0)")]
+    #[error("{source_name}: link `{link}` not found; known links: {known}; name an existing link")]
     MissingLink {
         /// File path or `"<string>"`.
         source_name: String,
@@ -116,6 +117,7 @@ pub enum ModelError {
 
 /// Failure to evaluate a model at given inputs (bad joint vector, bad target, ...).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum KinematicsError {
     /// Joint vector of the wrong length.
     #[error("joint vector has {got} values but {robot} has {expected} joints; give one angle per joint, in chain order")]

@@ -21,7 +21,7 @@ pub use fk::{
     base_from_flange, base_from_flange_unchecked, base_from_tip, base_from_tip_unchecked,
 };
 pub use gravity::{gravity_torque_jacobian, gravity_torques};
-pub use ik::{ik_tip_position, IkOptions, IkSolution, IkStatus};
+pub use ik::{ik_tip_position, IkOptions, IkSolution, IkStatus, IkStopReason};
 pub use jacobian::{geometric_jacobian, tip_position_jacobian, JacobianFrame};
 pub use model::{origin_isometry, rotation_from_rpy, Joint, LumpedInertial, RobotModel};
 pub use true_fk::{

@@ -592,3 +592,45 @@ proptest! {
         }
     }
 }
+
+/// Each stop reason the solver can report, provoked on hp20 (tip at the flange). The status
+/// stays `Converged | Unreachable` and `reachable()` follows it.
+#[test]
+fn ik_reports_why_it_stopped() {
+    let m = robot("hp20");
+    let solve = |target: Point3<f64>, axis: bool, max_iterations: usize, restarts: usize| {
+        let opts = IkOptions {
+            tool_axis_base: axis.then(Vector3::z_axis),
+            max_iterations,
+            restarts,
+            ..IkOptions::default()
+        };
+        let sol = ik_tip_position(&m, &target, &Vector3::zeros(), &opts).unwrap();
+        m.check_q(&sol.q).unwrap();
+        assert_eq!(sol.reachable(), sol.stop_reason == IkStopReason::Converged);
+        assert_eq!(sol.reachable(), sol.status == IkStatus::Converged);
+        sol
+    };
+    // A reachable target: converged at the first seed.
+    let sol = solve(Point3::new(1.0, 0.3, 0.8), false, 300, 32);
+    assert_eq!(sol.stop_reason, IkStopReason::Converged);
+    assert_eq!(sol.seeds_tried, 1);
+    // The same target with one iteration and no restart: the iteration cap.
+    let sol = solve(Point3::new(1.0, 0.3, 0.8), false, 1, 0);
+    assert_eq!(
+        (sol.status, sol.stop_reason, sol.iterations, sol.seeds_tried),
+        (IkStatus::Unreachable, IkStopReason::IterationCap, 1, 1)
+    );
+    // 5 m away (reach ≈ 1.7 m): every seed crawls along the boundary and stalls.
+    let sol = solve(Point3::new(5.0, 0.0, 1.0), false, 300, 32);
+    assert_eq!(sol.stop_reason, IkStopReason::Stalled);
+    assert_eq!(sol.seeds_tried, 33);
+    assert_eq!(sol.stop_reason.name(), "stalled");
+    // Below the base, flange z up, from the zero seed alone: a local minimum where no damped
+    // step lowers the cost (with restarts another seed reaches it).
+    let sol = solve(Point3::new(0.0, 0.0, -0.5), true, 300, 0);
+    assert_eq!(sol.stop_reason, IkStopReason::DampingLimit);
+    assert!(sol.position_error_m > 0.1, "{}", sol.position_error_m);
+    let sol = solve(Point3::new(0.0, 0.0, -0.5), true, 300, 32);
+    assert_eq!(sol.stop_reason, IkStopReason::Converged);
+}
