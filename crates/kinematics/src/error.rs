@@ -171,3 +171,56 @@ pub enum KinematicsError {
     #[error("invalid input: {0}")]
     InvalidInput(String),
 }
+
+/// Failure to write a corrected URDF ([`crate::patch_urdf_text`], [`crate::verify_patched_urdf`]).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum UrdfPatchError {
+    /// The kinematic errors do not fit the model (wrong length, not finite).
+    #[error("{0}")]
+    Errors(KinematicsError),
+    /// Errors that a URDF cannot express, each with where it belongs instead.
+    #[error("robot `{robot}`: these errors cannot be written into a URDF: {what}")]
+    NotExpressible {
+        /// The robot (URDF) name.
+        robot: String,
+        /// Each non-zero parameter kind, its joints and where it belongs instead.
+        what: String,
+    },
+    /// The text is not well-formed XML, or not a `<robot>`.
+    #[error("the URDF text is not usable XML: {0}; fix the file (it must load as a URDF)")]
+    Xml(String),
+    /// No `<joint>` of the model's joint name is a direct child of `<robot>`.
+    #[error("no <joint name=\"{joint}\"> under <robot> (joints inside <transmission> and comments do not count); patch the text the model was loaded from")]
+    JointNotFound {
+        /// The joint name.
+        joint: String,
+    },
+    /// Two `<joint>` elements of the same name under `<robot>`.
+    #[error("two <joint name=\"{joint}\"> elements under <robot> (lines {} and {}); a URDF's joint names are unique: remove one", lines.0, lines.1)]
+    DuplicateJoint {
+        /// The joint name.
+        joint: String,
+        /// 1-based lines of the first two.
+        lines: (u32, u32),
+    },
+    /// A joint's `<origin>` (or `<calibration>`) cannot be read.
+    #[error("joint `{joint}`, line {line}: {message}")]
+    BadOrigin {
+        /// The joint name.
+        joint: String,
+        /// 1-based line.
+        line: u32,
+        /// What is wrong and how to fix it.
+        message: String,
+    },
+    /// The patched text does not load as a URDF.
+    #[error("the patched URDF does not load: {0}")]
+    Reload(Box<ModelError>),
+    /// The patched URDF does not reproduce the error model.
+    #[error("the patched URDF does not reproduce the kinematic errors: {message}")]
+    Verification {
+        /// Where and by how much it deviates.
+        message: String,
+    },
+}

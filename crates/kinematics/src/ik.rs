@@ -400,7 +400,7 @@ fn lm_step(
 
 /// The deterministic seeds after the first: a Halton sequence over the joint ranges (capped at
 /// 2π, 90 % of the span around its middle).
-fn halton_seed(model: &RobotModel, s: usize, out: &mut [f64]) {
+pub(crate) fn halton_seed(model: &RobotModel, s: usize, out: &mut [f64]) {
     const PRIMES: [usize; 10] = [2, 3, 5, 7, 11, 13, 17, 19, 23, 29];
     for (i, (j, o)) in model.joints().iter().zip(out.iter_mut()).enumerate() {
         let b = PRIMES[i % PRIMES.len()];

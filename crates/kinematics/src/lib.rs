@@ -12,9 +12,10 @@ mod model;
 #[cfg(test)]
 mod test_fixtures;
 mod true_fk;
+mod urdf_patch;
 
 pub use axis::Axis;
-pub use error::{KinematicsError, ModelError};
+pub use error::{KinematicsError, ModelError, UrdfPatchError};
 pub use error_model::{all_params, ErrorParam, KinematicErrors};
 pub use euler::{rotation_from_zyz, wrap_angle, zyz_from_rotation, zyz_nearest};
 pub use fk::{
@@ -27,4 +28,7 @@ pub use model::{origin_isometry, rotation_from_rpy, Joint, LumpedInertial, Robot
 pub use true_fk::{
     tip_error_jacobian, tip_joint_jacobian_true, true_base_from_flange,
     true_base_from_flange_unchecked, true_base_from_tip, true_base_from_tip_unchecked,
+};
+pub use urdf_patch::{
+    patch_urdf_text, split_for_urdf, verify_patched_urdf, PATCH_TOLERANCE_M, VERIFY_CONFIGURATIONS,
 };
