@@ -15,7 +15,7 @@ use crate::gravity::{
     check_gravity, gravity_entries, gravity_jacobian_from_entries, gravity_torques_into,
     GravityEntry, STACK_DOF,
 };
-use crate::model::{RobotModel, Step};
+use crate::model::{rotation_from_rpy, RobotModel, Step};
 
 /// Per-joint frame data of the true chain, nominal base frame.
 #[derive(Debug, Clone, Copy)]
@@ -98,7 +98,10 @@ fn true_chain(
     let (mut r, mut t) = if mount_zero {
         (Matrix3::identity(), Vector3::zeros())
     } else {
-        (matrix_from_rpy(&errors.mount_rpy), errors.mount_xyz)
+        (
+            *rotation_from_rpy(&errors.mount_rpy).matrix(),
+            errors.mount_xyz,
+        )
     };
     for (k, ((step, joint), &qk)) in model
         .steps
@@ -127,7 +130,7 @@ fn true_chain(
             let origin_r = if all_zero(drpy.as_slice()) {
                 step.origin.r
             } else {
-                fp_r * matrix_from_rpy(&(joint.origin_rpy + drpy))
+                fp_r * rotation_from_rpy(&(joint.origin_rpy + drpy)).matrix()
             };
             let perturbed = Step::new(
                 step.axis,
@@ -147,25 +150,6 @@ fn true_chain(
     }
     to_flange_nalgebra(model, &mut r, &mut t);
     (r, t)
-}
-
-/// `Rz(yaw)·Ry(pitch)·Rx(roll)` as a matrix, written out (no products of rotations). Agrees with
-/// [`rotation_from_rpy`](crate::rotation_from_rpy) to round-off (tested).
-fn matrix_from_rpy(rpy: &Vector3<f64>) -> Matrix3<f64> {
-    let (sr, cr) = sin_cos(rpy.x);
-    let (sp, cp) = sin_cos(rpy.y);
-    let (sy, cy) = sin_cos(rpy.z);
-    Matrix3::new(
-        cy * cp,
-        cy * sp * sr - sy * cr,
-        cy * sp * cr + sy * sr,
-        sy * cp,
-        sy * sp * sr + cy * cr,
-        sy * sp * cr - cy * sr,
-        -sp,
-        cp * sr,
-        cp * cr,
-    )
 }
 
 /// Runs `f` with two scratch slices of length `dof` (on the stack for `dof ≤ 16`).
