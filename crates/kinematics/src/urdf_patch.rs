@@ -13,8 +13,10 @@
 //!   as in ROS, where calibration does not move the kinematics) after a comment.
 //!
 //! An `<origin>` (or its `xyz`/`rpy` attribute) that is missing is inserted. Numbers are written
-//! with 9 decimals (1 nm, 1 nrad); when that rounding would move the flange by more than
-//! [`PATCH_TOLERANCE_M`] they are written with all the digits of the `f64` instead. Every result is
+//! with 9 decimals (1 nm, 1 nrad) when a bound on what that rounding moves the flange, at any joint
+//! vector, is at most half of [`PATCH_TOLERANCE_M`]: `Σ_k |δxyz_k| + (|δroll_k| + |δpitch_k| +
+//! |δyaw_k|)·max(L_k, 1 m)`, with `δ` the rounding of joint k's numbers and `L_k` the sum of the
+//! origin lengths from joint k to the flange; otherwise with all the digits of the `f64`. Every result is
 //! re-loaded and checked against the error model ([`verify_patched_urdf`]) before it is returned.
 //!
 //! Joint scale, compliance, tip and mount errors have no URDF element: they are refused
@@ -83,17 +85,16 @@ pub fn patch_urdf_text(
     errors: &KinematicErrors,
 ) -> Result<String, UrdfPatchError> {
     check_expressible(model, errors)?;
-    let short = patch_with(xml, model, errors, Digits::Nine)?;
-    match verify_patched_urdf(&short, model, errors) {
-        Ok(_) => Ok(short),
-        // 9 decimals were not enough for these errors on this arm: write every digit.
-        Err(UrdfPatchError::Verification { .. }) => {
-            let full = patch_with(xml, model, errors, Digits::RoundTrip)?;
-            verify_patched_urdf(&full, model, errors)?;
-            Ok(full)
-        }
-        Err(e) => Err(e),
-    }
+    let (short, rounding_bound_m) = patch_with(xml, model, errors, Digits::Nine)?;
+    // 9 decimals when their rounding provably keeps the flange within half the tolerance at
+    // every joint vector; otherwise every digit.
+    let text = if rounding_bound_m <= 0.5 * PATCH_TOLERANCE_M {
+        short
+    } else {
+        patch_with(xml, model, errors, Digits::RoundTrip)?.0
+    };
+    verify_patched_urdf(&text, model, errors)?;
+    Ok(text)
 }
 
 /// Loads `patched_xml` with the model's tool link and compares its flange pose with
@@ -238,7 +239,7 @@ fn patch_with(
     model: &RobotModel,
     errors: &KinematicErrors,
     digits: Digits,
-) -> Result<String, UrdfPatchError> {
+) -> Result<(String, f64), UrdfPatchError> {
     let options = roxmltree::ParsingOptions {
         allow_dtd: true,
         ..roxmltree::ParsingOptions::default()
@@ -254,6 +255,20 @@ fn patch_with(
     }
     let line = |pos: usize| doc.text_pos_at(pos).row;
     let mut edits: Vec<Edit> = Vec::new();
+    // reach[k]: the origin lengths from joint k's frame to the flange, m (a bound on the lever
+    // of a rotation error at joint k).
+    let n = model.dof();
+    let mut reach = vec![model.last_from_flange().translation.vector.norm(); n];
+    for k in (0..n.saturating_sub(1)).rev() {
+        let next = &model.joints()[k + 1];
+        reach[k] = reach[k + 1]
+            + next.fixed_prefix.translation.vector.norm()
+            + (next.origin_xyz + errors.origin_xyz[k + 1]).norm();
+    }
+    let mut rounding_bound_m = 0.0;
+    // What writing `v` as `text` changes, summed over the components.
+    let rounded_by =
+        |v: &Vector3<f64>, text: &str| parse3(text).map_or(f64::INFINITY, |w| (w - v).abs().sum());
     for (k, joint) in model.joints().iter().enumerate() {
         let dxyz = errors.origin_xyz[k];
         let drpy = errors.origin_rpy[k];
@@ -302,7 +317,9 @@ fn patch_with(
         // New attribute values, in the order written when the element is created.
         let mut new_attrs: Vec<(&str, String)> = Vec::new();
         if dxyz != Vector3::zeros() {
-            new_attrs.push(("xyz", format3(&(xyz + dxyz), digits)));
+            let text = format3(&(xyz + dxyz), digits);
+            rounding_bound_m += rounded_by(&(xyz + dxyz), &text);
+            new_attrs.push(("xyz", text));
         }
         if drpy != Vector3::zeros() || offset != 0.0 {
             let mut rpy_new = rpy + drpy;
@@ -312,7 +329,9 @@ fn patch_with(
                 let (roll, pitch, yaw) = r.euler_angles();
                 rpy_new = Vector3::new(roll, pitch, yaw);
             }
-            new_attrs.push(("rpy", format3(&rpy_new, digits)));
+            let text = format3(&rpy_new, digits);
+            rounding_bound_m += rounded_by(&rpy_new, &text) * reach[k].max(1.0);
+            new_attrs.push(("rpy", text));
         }
         match origin {
             Some(o) => {
@@ -412,7 +431,7 @@ fn patch_with(
     for e in edits {
         out.replace_range(e.range, &e.text);
     }
-    Ok(out)
+    Ok((out, rounding_bound_m))
 }
 
 /// 3 finite numbers separated by whitespace.

@@ -326,9 +326,9 @@ fn sub_nanometre_corrections_are_written_in_full() {
 /// A 4-joint arm with what the shipped URDFs lack: origin rpy, an oblique axis, fixed joints
 /// before, between and after the actuated ones, a continuous joint, a joint without `rpy`.
 const OBLIQUE: &str = r#"<robot name="oblique">
-  <link name="world"/><link name="base"/><link name="l1"/><link name="l2"/><link name="l2b"/>
+  <link name="floor"/><link name="base"/><link name="l1"/><link name="l2"/><link name="l2b"/>
   <link name="l3"/><link name="l4"/><link name="tool0"/>
-  <joint name="world-base" type="fixed"><parent link="world"/><child link="base"/>
+  <joint name="floor-base" type="fixed"><parent link="floor"/><child link="base"/>
     <origin xyz="0.1 -0.05 0.2" rpy="0.05 -0.1 0.3"/></joint>
   <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
     <origin xyz="0 0 0.4"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
