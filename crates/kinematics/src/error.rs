@@ -33,18 +33,6 @@ pub enum ModelError {
         /// Comma-separated list of the links that exist.
         known: String,
     },
-    /// A link has more than one child joint: only serial chains are supported.
-    #[error("{source_name}: link `{link}` has {children} child joints ({names}); only serial chains are supported: remove the extra branches")]
-    Branching {
-        /// File path or `"<string>"`.
-        source_name: String,
-        /// The branching link.
-        link: String,
-        /// Number of child joints.
-        children: usize,
-        /// Their names, comma separated.
-        names: String,
-    },
     /// A link is the child of more than one joint, or the chain loops.
     #[error("{source_name}: link `{link}` is the child of several joints or lies on a loop; a URDF must be a tree")]
     NotATree {
@@ -53,7 +41,43 @@ pub enum ModelError {
         /// The offending link.
         link: String,
     },
-    /// A joint type other than revolute, continuous or fixed lies on the chain.
+    /// A xacro file (by its `.xacro` extension or its `xmlns:xacro` namespace) was given.
+    #[error("{source_name}: this is a xacro file, not a URDF; expand it first: `xacro {source_name} > robot.urdf` (ROS 2: `ros2 run xacro xacro …`, ROS 1: `rosrun xacro xacro …`) and load robot.urdf")]
+    Xacro {
+        /// File path or `"<string>"`.
+        source_name: String,
+    },
+    /// A `<mimic>` joint lies on the chain: its angle follows another joint's.
+    #[error("{source_name}: joint `{joint}` on the chain to the tool link mimics joint `{mimicked}` (<mimic>); coupled joints are not modelled: choose a tool link whose chain has only independent joints, or replace the coupling by independent joints")]
+    MimicJoint {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The mimic joint.
+        joint: String,
+        /// The joint it follows.
+        mimicked: String,
+    },
+    /// A prismatic (linear) joint lies on the chain.
+    #[error("{source_name}: joint `{joint}` is prismatic (a linear axis such as a track); the FK, Jacobians, IK and kinematic-error model handle rotary joints only (a linear axis needs its own joint-offset and scale units, m and ratio of m). Calibrate the arm on its own: make the track joint fixed (type=\"fixed\", its <origin> at the track position used) or load the chain from the carriage link, and treat each track position as a separate placement")]
+    PrismaticJoint {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The joint.
+        joint: String,
+    },
+    /// The joint origins add up to an implausible length: the file is probably in millimetres.
+    #[error("{source_name}: the joint origins of the chain add up to {length:.1} m (joint `{joint}` alone {origin:.1} m); URDF lengths are metres and this file looks like it is written in millimetres: divide every <origin xyz> (and <inertial> origin) by 1000")]
+    LooksLikeMillimetres {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The joint with the longest origin.
+        joint: String,
+        /// Its origin's length as written, "m".
+        origin: f64,
+        /// Sum of the chain's origin lengths as written, "m".
+        length: f64,
+    },
+    /// A joint type other than revolute, continuous, fixed or prismatic lies on the chain.
     #[error("{source_name}: joint `{joint}` is of type {kind}, which is unsupported; only revolute, continuous and fixed joints are")]
     UnsupportedJoint {
         /// File path or `"<string>"`.

@@ -24,7 +24,10 @@ pub use fk::{
 pub use gravity::{gravity_torque_jacobian, gravity_torques};
 pub use ik::{ik_tip_position, IkOptions, IkSolution, IkStatus, IkStopReason};
 pub use jacobian::{geometric_jacobian, tip_position_jacobian, JacobianFrame};
-pub use model::{origin_isometry, rotation_from_rpy, Joint, LumpedInertial, RobotModel};
+pub use model::{
+    origin_isometry, rotation_from_rpy, Joint, LumpedInertial, RobotModel, MAX_CHAIN_LENGTH_M,
+    WORLD_LINK,
+};
 pub use true_fk::{
     tip_error_jacobian, tip_joint_jacobian_true, true_base_from_flange,
     true_base_from_flange_unchecked, true_base_from_tip, true_base_from_tip_unchecked,

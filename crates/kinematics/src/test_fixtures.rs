@@ -39,10 +39,10 @@ pub(crate) fn oblique_urdf(origins: &[(Vector3<f64>, Vector3<f64>); 4]) -> Strin
     let lim = r#"<limit lower="-3" upper="3" effort="100" velocity="1"/>"#;
     format!(
         r#"<robot name="oblique">
-        <link name="world"/>
+        <link name="floor"/>
         {}{}{}{}{}{}
         <link name="tool0"/>
-        <joint name="world-base" type="fixed"><parent link="world"/><child link="base"/>
+        <joint name="world-base" type="fixed"><parent link="floor"/><child link="base"/>
           <origin xyz="0.1 -0.05 0.2" rpy="0.05 -0.1 0.3"/></joint>
         <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>{}<axis xyz="0 0 1"/>{lim}</joint>
         <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>{}<axis xyz="0 1 0"/>{lim}</joint>
