@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use kinematics::{base_from_tip, zyz_from_rotation, RobotModel};
+use kinematics::{base_from_tip, zyz_from_rotation, ModelError, RobotModel};
 use nalgebra::{Isometry3, Vector3};
 use serde_json::{json, Value};
 
@@ -81,7 +81,15 @@ pub(crate) fn parse_tip(text: &str) -> anyhow::Result<Vector3<f64>> {
 
 /// Loads the robot model with a message that says what to fix.
 pub(crate) fn load_robot(path: &Path, tool_link: &str) -> anyhow::Result<RobotModel> {
-    RobotModel::from_urdf_file(path, tool_link).context("--robot: cannot load the robot model")
+    RobotModel::from_urdf_file(path, tool_link)
+        .map_err(|e| match e {
+            // The library names the missing link; the flag that chooses it is the binary's.
+            ModelError::MissingLink { ref link, .. } if link == tool_link => anyhow::anyhow!(
+                "{e} (the flange link is chosen with --tool-link, e.g. --tool-link tool0)"
+            ),
+            e => anyhow::Error::new(e),
+        })
+        .context("--robot: cannot load the robot model")
 }
 
 /// Parses `--q-deg` against the model: count and joint limits (in degrees). Returns

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 
 /// Failure to build a [`crate::RobotModel`] from a URDF.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum ModelError {
     /// The URDF file could not be read.
     #[error("cannot read URDF file {path}: {source}; check the path (relative paths are from the current directory)")]
@@ -23,7 +24,7 @@ pub enum ModelError {
         message: String,
     },
     /// The requested tool link (or a link a joint refers to) does not exist.
-    #[error("{source_name}: link `{link}` not found; known links: {known}. Pass an existing link (e.g. --tool-link tool0)")]
+    #[error("{source_name}: link `{link}` not found; known links: {known}; name an existing link")]
     MissingLink {
         /// File path or `"<string>"`.
         source_name: String,
@@ -31,18 +32,6 @@ pub enum ModelError {
         link: String,
         /// Comma-separated list of the links that exist.
         known: String,
-    },
-    /// A link has more than one child joint: only serial chains are supported.
-    #[error("{source_name}: link `{link}` has {children} child joints ({names}); only serial chains are supported: remove the extra branches")]
-    Branching {
-        /// File path or `"<string>"`.
-        source_name: String,
-        /// The branching link.
-        link: String,
-        /// Number of child joints.
-        children: usize,
-        /// Their names, comma separated.
-        names: String,
     },
     /// A link is the child of more than one joint, or the chain loops.
     #[error("{source_name}: link `{link}` is the child of several joints or lies on a loop; a URDF must be a tree")]
@@ -52,7 +41,43 @@ pub enum ModelError {
         /// The offending link.
         link: String,
     },
-    /// A joint type other than revolute, continuous or fixed lies on the chain.
+    /// A xacro file (by its `.xacro` extension or its `xmlns:xacro` namespace) was given.
+    #[error("{source_name}: this is a xacro file, not a URDF; expand it first: `xacro {source_name} > robot.urdf` (ROS 2: `ros2 run xacro xacro …`, ROS 1: `rosrun xacro xacro …`) and load robot.urdf")]
+    Xacro {
+        /// File path or `"<string>"`.
+        source_name: String,
+    },
+    /// A `<mimic>` joint lies on the chain: its angle follows another joint's.
+    #[error("{source_name}: joint `{joint}` on the chain to the tool link mimics joint `{mimicked}` (<mimic>); coupled joints are not modelled: choose a tool link whose chain has only independent joints, or replace the coupling by independent joints")]
+    MimicJoint {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The mimic joint.
+        joint: String,
+        /// The joint it follows.
+        mimicked: String,
+    },
+    /// A prismatic (linear) joint lies on the chain.
+    #[error("{source_name}: joint `{joint}` is prismatic (a linear axis such as a track); the FK, Jacobians, IK and kinematic-error model handle rotary joints only (a linear axis needs its own joint-offset and scale units, m and ratio of m). Calibrate the arm on its own: make the track joint fixed (type=\"fixed\", its <origin> at the track position used) or load the chain from the carriage link, and treat each track position as a separate placement")]
+    PrismaticJoint {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The joint.
+        joint: String,
+    },
+    /// The joint origins add up to an implausible length: the file is probably in millimetres.
+    #[error("{source_name}: the joint origins of the chain add up to {length:.1} m (joint `{joint}` alone {origin:.1} m); URDF lengths are metres and this file looks like it is written in millimetres: divide every <origin xyz> (and <inertial> origin) by 1000")]
+    LooksLikeMillimetres {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The joint with the longest origin.
+        joint: String,
+        /// Its origin's length as written, "m".
+        origin: f64,
+        /// Sum of the chain's origin lengths as written, "m".
+        length: f64,
+    },
+    /// A joint type other than revolute, continuous, fixed or prismatic lies on the chain.
     #[error("{source_name}: joint `{joint}` is of type {kind}, which is unsupported; only revolute, continuous and fixed joints are")]
     UnsupportedJoint {
         /// File path or `"<string>"`.
@@ -116,6 +141,7 @@ pub enum ModelError {
 
 /// Failure to evaluate a model at given inputs (bad joint vector, bad target, ...).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum KinematicsError {
     /// Joint vector of the wrong length.
     #[error("joint vector has {got} values but {robot} has {expected} joints; give one angle per joint, in chain order")]
@@ -168,4 +194,57 @@ pub enum KinematicsError {
     /// Another input (target, tip offset, option) is invalid.
     #[error("invalid input: {0}")]
     InvalidInput(String),
+}
+
+/// Failure to write a corrected URDF ([`crate::patch_urdf_text`], [`crate::verify_patched_urdf`]).
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum UrdfPatchError {
+    /// The kinematic errors do not fit the model (wrong length, not finite).
+    #[error("{0}")]
+    Errors(KinematicsError),
+    /// Errors that a URDF cannot express, each with where it belongs instead.
+    #[error("robot `{robot}`: these errors cannot be written into a URDF: {what}")]
+    NotExpressible {
+        /// The robot (URDF) name.
+        robot: String,
+        /// Each non-zero parameter kind, its joints and where it belongs instead.
+        what: String,
+    },
+    /// The text is not well-formed XML, or not a `<robot>`.
+    #[error("the URDF text is not usable XML: {0}; fix the file (it must load as a URDF)")]
+    Xml(String),
+    /// No `<joint>` of the model's joint name is a direct child of `<robot>`.
+    #[error("no <joint name=\"{joint}\"> under <robot> (joints inside <transmission> and comments do not count); patch the text the model was loaded from")]
+    JointNotFound {
+        /// The joint name.
+        joint: String,
+    },
+    /// Two `<joint>` elements of the same name under `<robot>`.
+    #[error("two <joint name=\"{joint}\"> elements under <robot> (lines {} and {}); a URDF's joint names are unique: remove one", lines.0, lines.1)]
+    DuplicateJoint {
+        /// The joint name.
+        joint: String,
+        /// 1-based lines of the first two.
+        lines: (u32, u32),
+    },
+    /// A joint's `<origin>` (or `<calibration>`) cannot be read.
+    #[error("joint `{joint}`, line {line}: {message}")]
+    BadOrigin {
+        /// The joint name.
+        joint: String,
+        /// 1-based line.
+        line: u32,
+        /// What is wrong and how to fix it.
+        message: String,
+    },
+    /// The patched text does not load as a URDF.
+    #[error("the patched URDF does not load: {0}")]
+    Reload(Box<ModelError>),
+    /// The patched URDF does not reproduce the error model.
+    #[error("the patched URDF does not reproduce the kinematic errors: {message}")]
+    Verification {
+        /// Where and by how much it deviates.
+        message: String,
+    },
 }

@@ -198,34 +198,8 @@ pub(crate) fn gravity_jacobian_from_entries(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_fixtures::{HP20, PLANAR, VA1400};
     use proptest::prelude::*;
-
-    const VA1400: &str = include_str!(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../robots/va1400.urdf"
-    ));
-    const HP20: &str = include_str!(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../robots/hp20.urdf"
-    ));
-
-    /// Two-link planar arm in the x–z plane, both axes +y, with a fixed joint carrying extra mass
-    /// and a non-trivial origin rotation: small enough to compute τ by hand.
-    const PLANAR: &str = r#"<robot name="planar">
-      <link name="base"/>
-      <link name="l1"><inertial><origin xyz="0.5 0 0"/><mass value="2"/>
-        <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
-      <link name="l2"><inertial><origin xyz="0.25 0 0"/><mass value="1"/>
-        <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
-      <link name="tool0"><inertial><origin xyz="0 0 0"/><mass value="3"/>
-        <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
-      <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
-        <origin xyz="0 0 0.2"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-      <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
-        <origin xyz="1 0 0"/><axis xyz="0 1 0"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
-      <joint name="j2-tool0" type="fixed"><parent link="l2"/><child link="tool0"/>
-        <origin xyz="0.5 0 0" rpy="0 1.5707963267948966 0"/></joint>
-    </robot>"#;
 
     const G_FLOOR: [f64; 3] = [0.0, 0.0, -9.81];
 

@@ -64,11 +64,46 @@ impl Default for IkOptions {
 
 /// Outcome of an IK solve.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum IkStatus {
     /// Tolerances met.
     Converged,
     /// No seed met the tolerances: the target is out of reach (or too close to a limit/singularity).
     Unreachable,
+}
+
+/// Why the solver stopped on the joint vector it returns (for an [`IkStatus::Unreachable`]
+/// result: why the search from the seed that came closest ended; every other seed ended for one
+/// of the same reasons).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum IkStopReason {
+    /// The tolerances were met.
+    Converged,
+    /// The seed used all [`IkOptions::max_iterations`] iterations while still making progress
+    /// (slow, linear convergence: typically a solution at or next to a singularity; more
+    /// iterations may reach it).
+    IterationCap,
+    /// With the task error above 0.1 mm (or 1e-4 rad), the cost fell by less than 1 % over 10
+    /// iterations: the arm crawls along its workspace boundary, typically because the target is
+    /// out of reach.
+    Stalled,
+    /// No damped step lowered the cost even with the damping raised to 1e4 m²: a local minimum
+    /// of the least-squares cost, typically with joints on their limits or at a singular
+    /// configuration whose Jacobian cannot reduce the remaining error.
+    DampingLimit,
+}
+
+impl IkStopReason {
+    /// `"converged"`, `"iteration_cap"`, `"stalled"` or `"damping_limit"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            IkStopReason::Converged => "converged",
+            IkStopReason::IterationCap => "iteration_cap",
+            IkStopReason::Stalled => "stalled",
+            IkStopReason::DampingLimit => "damping_limit",
+        }
+    }
 }
 
 /// Result of [`ik_tip_position`].
@@ -84,6 +119,11 @@ pub struct IkSolution {
     pub axis_error_rad: f64,
     /// Iterations used, over all seeds.
     pub iterations: usize,
+    /// Why the search that produced `q` stopped ([`IkStopReason::Converged`] exactly when
+    /// `status` is [`IkStatus::Converged`]).
+    pub stop_reason: IkStopReason,
+    /// Seeds tried (1 to `1 + restarts`).
+    pub seeds_tried: usize,
 }
 
 impl IkSolution {
@@ -360,7 +400,7 @@ fn lm_step(
 
 /// The deterministic seeds after the first: a Halton sequence over the joint ranges (capped at
 /// 2π, 90 % of the span around its middle).
-fn halton_seed(model: &RobotModel, s: usize, out: &mut [f64]) {
+pub(crate) fn halton_seed(model: &RobotModel, s: usize, out: &mut [f64]) {
     const PRIMES: [usize; 10] = [2, 3, 5, 7, 11, 13, 17, 19, 23, 29];
     for (i, (j, o)) in model.joints().iter().zip(out.iter_mut()).enumerate() {
         let b = PRIMES[i % PRIMES.len()];
@@ -483,6 +523,7 @@ pub fn ik_tip_position(
     let mut q_try = vec![0.0; n];
     let mut best_q = vec![0.0; n];
     let (mut best_pe, mut best_ae, mut best_score) = (f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    let mut best_reason = IkStopReason::IterationCap;
     let mut total_iters = 0;
 
     let user_seed = options.initial_q.as_ref().or(options.preferred_q.as_ref());
@@ -509,12 +550,14 @@ pub fn ik_tip_position(
         let mut converged = tol_ok(&lin);
         let mut it = 0;
         let mut checkpoint_cost = lin.cost;
+        let mut reason = IkStopReason::IterationCap;
         while !converged && it < options.max_iterations {
             it += 1;
             // Stall: far from any solution and under 1 % progress in the last STALL_WINDOW
             // iterations (typically an unreachable target, the arm crawling along its boundary).
             if it % STALL_WINDOW == 0 {
                 if lin.cost.sqrt() > STALL_MIN_ERROR && lin.cost > 0.99 * checkpoint_cost {
+                    reason = IkStopReason::Stalled;
                     break;
                 }
                 checkpoint_cost = lin.cost;
@@ -567,6 +610,7 @@ pub fn ik_tip_position(
                 lambda *= nu;
                 nu *= 2.0;
                 if lambda > LAMBDA_GIVE_UP {
+                    reason = IkStopReason::DampingLimit;
                     break;
                 }
             }
@@ -579,11 +623,14 @@ pub fn ik_tip_position(
                 position_error_m: lin.pos_err,
                 axis_error_rad: lin.axis_err,
                 iterations: total_iters,
+                stop_reason: IkStopReason::Converged,
+                seeds_tried: s + 1,
             });
         }
         let score = lin.pos_err + lin.axis_err;
         if score < best_score {
             best_score = score;
+            best_reason = reason;
             best_pe = lin.pos_err;
             best_ae = lin.axis_err;
             best_q.copy_from_slice(&q);
@@ -595,12 +642,15 @@ pub fn ik_tip_position(
         position_error_m: best_pe,
         axis_error_rad: best_ae,
         iterations: total_iters,
+        stop_reason: best_reason,
+        seeds_tried: options.restarts + 1,
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_fixtures::TWO_JOINT;
 
     #[test]
     fn solve_spd_matches_direct_solution() {
@@ -620,11 +670,7 @@ mod tests {
 
     #[test]
     fn halton_seeds_stay_in_limits_and_differ() {
-        let xml = r#"<robot name="r"><link name="a"/><link name="b"/><link name="tool0"/>
-            <joint name="j1" type="revolute"><parent link="a"/><child link="b"/>
-              <axis xyz="0 0 1"/><limit lower="-1" upper="2" effort="1" velocity="1"/></joint>
-            <joint name="j2" type="continuous"><parent link="b"/><child link="tool0"/>
-              <origin xyz="1 0 0"/><axis xyz="0 1 0"/></joint></robot>"#;
+        let xml = TWO_JOINT;
         let m = RobotModel::from_urdf_str(xml, "tool0").unwrap();
         let mut prev = vec![f64::NAN; 2];
         for s in 1..20 {

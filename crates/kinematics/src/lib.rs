@@ -1,21 +1,37 @@
 #![doc = include_str!("../README.md")]
 
+mod axis;
 mod error;
-mod errors;
+mod error_model;
 pub mod euler;
 mod fk;
 mod gravity;
 mod ik;
 mod jacobian;
 mod model;
+#[cfg(test)]
+mod test_fixtures;
+mod true_fk;
+mod urdf_patch;
 
-pub use error::{KinematicsError, ModelError};
-pub use errors::*;
+pub use axis::Axis;
+pub use error::{KinematicsError, ModelError, UrdfPatchError};
+pub use error_model::{all_params, ErrorParam, KinematicErrors};
 pub use euler::{rotation_from_zyz, wrap_angle, zyz_from_rotation, zyz_nearest};
 pub use fk::{
     base_from_flange, base_from_flange_unchecked, base_from_tip, base_from_tip_unchecked,
 };
-pub use gravity::*;
-pub use ik::{ik_tip_position, IkOptions, IkSolution, IkStatus};
+pub use gravity::{gravity_torque_jacobian, gravity_torques};
+pub use ik::{ik_tip_position, IkOptions, IkSolution, IkStatus, IkStopReason};
 pub use jacobian::{geometric_jacobian, tip_position_jacobian, JacobianFrame};
-pub use model::{origin_isometry, rotation_from_rpy, Joint, LumpedInertial, RobotModel};
+pub use model::{
+    origin_isometry, rotation_from_rpy, Joint, LumpedInertial, RobotModel, MAX_CHAIN_LENGTH_M,
+    WORLD_LINK,
+};
+pub use true_fk::{
+    tip_error_jacobian, tip_joint_jacobian_true, true_base_from_flange,
+    true_base_from_flange_unchecked, true_base_from_tip, true_base_from_tip_unchecked,
+};
+pub use urdf_patch::{
+    patch_urdf_text, split_for_urdf, verify_patched_urdf, PATCH_TOLERANCE_M, VERIFY_CONFIGURATIONS,
+};

@@ -4,7 +4,7 @@
 //! `base_from_flange(q) = Π_k [fixed_prefix_k · Origin(xyz_k, rpy_k) · Rot(axis_k, q_k)] · last_from_flange`,
 //! with `Origin` rotation `Rz(yaw)·Ry(pitch)·Rx(roll)` (URDF). Lengths in metres, angles in radians.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
@@ -168,7 +168,14 @@ impl Step {
 pub struct RobotModel {
     name: String,
     root_link: String,
+    base_link: String,
+    /// The fixed `world` joint's transform when the world rule applied (see `base_link`).
+    root_from_base: Option<Isometry3<f64>>,
     tool_link: String,
+    /// Joints not on the chain from the root to the tool link, in file order.
+    ignored_joints: Vec<String>,
+    /// Links not on that chain, in file order.
+    ignored_links: Vec<String>,
     joints: Vec<Joint>,
     last_from_flange: Isometry3<f64>,
     /// `last_from_flange` for the FK hot path.
@@ -181,6 +188,14 @@ pub struct RobotModel {
 
 /// A joint value within this many radians outside a limit is accepted (round-off).
 const CHECK_SLACK: f64 = 1e-9;
+
+/// A chain whose joint origins add up to more than this many metres is refused as written in
+/// millimetres ([`ModelError::LooksLikeMillimetres`]): the largest industrial arms reach about
+/// 4 m, and a millimetre URDF of any arm sums to hundreds or thousands.
+pub const MAX_CHAIN_LENGTH_M: f64 = 20.0;
+
+/// The root link name that [`RobotModel::base_link`]'s world rule looks for.
+pub const WORLD_LINK: &str = "world";
 
 fn vec3(v: &urdf_rs::Vec3) -> Vector3<f64> {
     Vector3::new(v[0], v[1], v[2])
@@ -204,6 +219,15 @@ impl RobotModel {
     /// Errors: unreadable file, invalid URDF, missing link, branching tree, unsupported joint type,
     /// zero axis, bad limits ([`ModelError`]); messages name the file.
     pub fn from_urdf_file(path: &Path, tool_link: &str) -> Result<RobotModel, ModelError> {
+        let is_xacro = path
+            .file_name()
+            .and_then(|f| f.to_str())
+            .is_some_and(|f| f.to_ascii_lowercase().ends_with(".xacro"));
+        if is_xacro {
+            return Err(ModelError::Xacro {
+                source_name: path.display().to_string(),
+            });
+        }
         let xml = std::fs::read_to_string(path).map_err(|source| ModelError::Io {
             path: path.to_path_buf(),
             source,
@@ -217,6 +241,11 @@ impl RobotModel {
     }
 
     fn build(xml: &str, tool_link: &str, src: &str) -> Result<RobotModel, ModelError> {
+        if xml.contains("xmlns:xacro") {
+            return Err(ModelError::Xacro {
+                source_name: src.to_string(),
+            });
+        }
         let robot = urdf_rs::read_from_string(xml).map_err(|e| ModelError::Parse {
             source_name: src.to_string(),
             message: e.to_string(),
@@ -231,7 +260,6 @@ impl RobotModel {
         };
         // Parent joint of each link, children of each link.
         let mut parent_of: HashMap<&str, &urdf_rs::Joint> = HashMap::new();
-        let mut children: HashMap<&str, Vec<&urdf_rs::Joint>> = HashMap::new();
         for j in &robot.joints {
             for l in [&j.parent.link, &j.child.link] {
                 if !links.contains_key(l.as_str()) {
@@ -247,23 +275,6 @@ impl RobotModel {
                     source_name: s(),
                     link: j.child.link.clone(),
                 });
-            }
-            children.entry(j.parent.link.as_str()).or_default().push(j);
-        }
-        for l in &robot.links {
-            if let Some(c) = children.get(l.name.as_str()) {
-                if c.len() > 1 {
-                    return Err(ModelError::Branching {
-                        source_name: s(),
-                        link: l.name.clone(),
-                        children: c.len(),
-                        names: c
-                            .iter()
-                            .map(|j| j.name.as_str())
-                            .collect::<Vec<_>>()
-                            .join(", "),
-                    });
-                }
             }
         }
         if !links.contains_key(tool_link) {
@@ -288,6 +299,48 @@ impl RobotModel {
         }
         let root_link = cur.to_string();
         path.reverse();
+        // The world rule: a `world` root fixed to the arm is not the arm's base frame.
+        let mut world_joint = None;
+        if root_link == WORLD_LINK
+            && path
+                .first()
+                .is_some_and(|j| matches!(j.joint_type, urdf_rs::JointType::Fixed))
+        {
+            world_joint = Some(path.remove(0));
+        }
+        let base_link = world_joint.map_or_else(|| root_link.clone(), |j| j.child.link.clone());
+        let root_from_base =
+            world_joint.map(|j| origin_isometry(&vec3(&j.origin.xyz), &vec3(&j.origin.rpy)));
+        let on_chain: HashSet<&str> = path
+            .iter()
+            .chain(world_joint.iter())
+            .map(|j| j.name.as_str())
+            .collect();
+        let chain_links: HashSet<&str> = std::iter::once(root_link.as_str())
+            .chain(path.iter().map(|j| j.child.link.as_str()))
+            .chain(std::iter::once(base_link.as_str()))
+            .collect();
+        let ignored_joints: Vec<String> = robot
+            .joints
+            .iter()
+            .filter(|j| !on_chain.contains(j.name.as_str()))
+            .map(|j| j.name.clone())
+            .collect();
+        let ignored_links: Vec<String> = robot
+            .links
+            .iter()
+            .filter(|l| !chain_links.contains(l.name.as_str()))
+            .map(|l| l.name.clone())
+            .collect();
+        for j in &path {
+            if let Some(m) = &j.mimic {
+                return Err(ModelError::MimicJoint {
+                    source_name: s(),
+                    joint: j.name.clone(),
+                    mimicked: m.joint.clone(),
+                });
+            }
+        }
 
         let mut joints = Vec::new();
         let mut steps = Vec::new();
@@ -380,6 +433,12 @@ impl RobotModel {
                     pending = Isometry3::identity();
                     carried.push(vec![(pending, child)]);
                 }
+                urdf_rs::JointType::Prismatic => {
+                    return Err(ModelError::PrismaticJoint {
+                        source_name: s(),
+                        joint: j.name.clone(),
+                    })
+                }
                 ref other => {
                     return Err(ModelError::UnsupportedJoint {
                         source_name: s(),
@@ -393,6 +452,24 @@ impl RobotModel {
             return Err(ModelError::NoActuatedJoints {
                 source_name: s(),
                 tool_link: tool_link.to_string(),
+            });
+        }
+        // Millimetres: the joint origins of any arm in metres sum to a few metres.
+        let length: f64 = path.iter().map(|j| vec3(&j.origin.xyz).norm()).sum();
+        if length > MAX_CHAIN_LENGTH_M {
+            let longest = path
+                .iter()
+                .max_by(|a, b| {
+                    vec3(&a.origin.xyz)
+                        .norm()
+                        .total_cmp(&vec3(&b.origin.xyz).norm())
+                })
+                .expect("a chain longer than 20 m has joints");
+            return Err(ModelError::LooksLikeMillimetres {
+                source_name: s(),
+                joint: longest.name.clone(),
+                origin: vec3(&longest.origin.xyz).norm(),
+                length,
             });
         }
         let inertials = carried
@@ -421,7 +498,11 @@ impl RobotModel {
         Ok(RobotModel {
             name: robot.name.clone(),
             root_link,
+            base_link,
+            root_from_base,
             tool_link: tool_link.to_string(),
+            ignored_joints,
+            ignored_links,
             last_from_flange: pending,
             flange: FixedTransform::new(
                 *pending.rotation.to_rotation_matrix().matrix(),
@@ -442,9 +523,44 @@ impl RobotModel {
         &self.name
     }
 
-    /// The root link (the base frame).
+    /// The URDF's root link (the root of the chain to the tool link). It is the base frame
+    /// unless the world rule applies (see [`RobotModel::base_link`]).
     pub fn root_link(&self) -> &str {
         &self.root_link
+    }
+
+    /// The link whose frame is the robot's base frame: every pose, Jacobian and gravity vector of
+    /// this crate is expressed in it.
+    ///
+    /// The world rule: if the root link is named `world` ([`WORLD_LINK`]) and the first joint
+    /// from it toward the tool link is fixed, that joint places the robot in a world frame, and
+    /// the base frame is its child link (`base_link` in ROS-Industrial URDFs), not `world`: the
+    /// robot's controller reports poses in its own base, and handclasp calibrates where that base
+    /// is. The dropped placement is [`RobotModel::root_from_base`]. Otherwise the base is the
+    /// root link.
+    pub fn base_link(&self) -> &str {
+        &self.base_link
+    }
+
+    /// `world_from_base`, m and rad, when the world rule of [`RobotModel::base_link`] applied:
+    /// the fixed joint's `<origin>` between `world` and the base link. It is reported, not
+    /// applied. `None` when the base is the root link.
+    pub fn root_from_base(&self) -> Option<&Isometry3<f64>> {
+        self.root_from_base.as_ref()
+    }
+
+    /// The URDF joints that are not on the chain from the root to the tool link (other branches:
+    /// a gripper, a camera mount, ROS-Industrial's `base_link-base`, anything after the tool
+    /// link), in file order. They do not enter any computation, and neither do their links'
+    /// masses.
+    pub fn ignored_joints(&self) -> &[String] {
+        &self.ignored_joints
+    }
+
+    /// The URDF links that are not on the chain from the root to the tool link, in file order
+    /// (see [`RobotModel::ignored_joints`]).
+    pub fn ignored_links(&self) -> &[String] {
+        &self.ignored_links
     }
 
     /// The tool (flange) link the model ends at.

@@ -1,0 +1,413 @@
+//! The kinematic-error model: the one source of truth for simulating a "true" robot that differs
+//! from its nominal URDF, and for identifying those differences.
+//!
+//! For a reported (controller) joint vector `q_rep` (rad) the TRUE robot is the nominal chain with:
+//! - joint angles `q_true_i = q_rep_i·(1 + joint_scale_i) + joint_offset_i + compliance_i·τ_i(q_rep)`,
+//!   `τ` the gravity torques of the NOMINAL model at the commanded posture `q_rep`
+//!   ([`gravity_torques`](crate::gravity_torques), N·m);
+//! - joint `k`'s URDF origin `xyz + origin_xyz_k` (m, parent link frame) and `rpy + origin_rpy_k`
+//!   (rad, `Rz(yaw)·Ry(pitch)·Rx(roll)`);
+//! - the tip offset `flange_from_tip + tip` (m, flange = `tool0` axes);
+//! - the true base at `nominal_base_from_base = (mount_xyz, Rz·Ry·Rx(mount_rpy))` in the NOMINAL
+//!   base frame.
+//!
+//! [`true_base_from_tip`](crate::true_base_from_tip) gives the true tip pose in the nominal base frame and
+//! [`tip_error_jacobian`](crate::tip_error_jacobian) its exact analytic derivatives with respect to any [`ErrorParam`], at any
+//! error values (not only at zero).
+//!
+//! This file holds the parameters ([`KinematicErrors`], [`ErrorParam`], [`all_params`]); the true
+//! chain and its Jacobians are in `true_fk.rs`.
+
+use std::fmt;
+
+use nalgebra::{Isometry3, Vector3};
+use serde::{Deserialize, Serialize};
+
+use crate::axis::Axis;
+use crate::error::KinematicsError;
+use crate::model::{origin_isometry, RobotModel};
+
+/// Deviations of a real robot from its nominal URDF model (see the module documentation for how
+/// each one enters the kinematics). Per-joint vectors have one entry per actuated joint, in chain
+/// order (0-based). [`KinematicErrors::zero`] is the nominal robot.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct KinematicErrors {
+    /// Joint zero offsets, rad: added to the scaled reported angle.
+    pub joint_offset: Vec<f64>,
+    /// Joint scale (gear-ratio) errors, ratio: `q_true = q_rep·(1 + scale) + …`.
+    pub joint_scale: Vec<f64>,
+    /// Added to joint k's URDF `<origin xyz>`, m, in the joint's parent link frame.
+    pub origin_xyz: Vec<Vector3<f64>>,
+    /// Added to joint k's URDF `<origin rpy>` (roll, pitch, yaw), rad.
+    pub origin_rpy: Vec<Vector3<f64>>,
+    /// Added to the tip offset `flange_from_tip`, m, flange (`tool0`) axes.
+    pub tip: Vector3<f64>,
+    /// Origin of the true base in the nominal base frame, m.
+    pub mount_xyz: Vector3<f64>,
+    /// Orientation of the true base in the nominal base frame, (roll, pitch, yaw) rad,
+    /// `R = Rz(yaw)·Ry(pitch)·Rx(roll)`.
+    pub mount_rpy: Vector3<f64>,
+    /// Joint compliance, rad/(N·m): the joint deflects by `compliance_i·τ_i` under the gravity
+    /// torque `τ_i` of the nominal model at the reported posture.
+    pub compliance: Vec<f64>,
+}
+
+impl KinematicErrors {
+    /// No errors (the nominal robot) for a chain of `dof` actuated joints.
+    pub fn zero(dof: usize) -> Self {
+        Self {
+            joint_offset: vec![0.0; dof],
+            joint_scale: vec![0.0; dof],
+            origin_xyz: vec![Vector3::zeros(); dof],
+            origin_rpy: vec![Vector3::zeros(); dof],
+            tip: Vector3::zeros(),
+            mount_xyz: Vector3::zeros(),
+            mount_rpy: Vector3::zeros(),
+            compliance: vec![0.0; dof],
+        }
+    }
+
+    /// Number of joints (the length of `joint_offset`).
+    pub fn dof(&self) -> usize {
+        self.joint_offset.len()
+    }
+
+    /// True if every value is exactly zero (the nominal robot).
+    pub fn is_zero(&self) -> bool {
+        let z = |v: &[f64]| v.iter().all(|&x| x == 0.0);
+        let z3 = |v: &[Vector3<f64>]| v.iter().all(|x| x.iter().all(|&c| c == 0.0));
+        z(&self.joint_offset)
+            && z(&self.joint_scale)
+            && z3(&self.origin_xyz)
+            && z3(&self.origin_rpy)
+            && z(self.tip.as_slice())
+            && z(self.mount_xyz.as_slice())
+            && z(self.mount_rpy.as_slice())
+            && z(&self.compliance)
+    }
+
+    /// Checks the errors against a model: every per-joint vector has `model.dof()` entries and all
+    /// values are finite. Errors name the field and the (1-based) joint.
+    pub fn check(&self, model: &RobotModel) -> Result<(), KinematicsError> {
+        let n = model.dof();
+        let lens = [
+            ("joint_offset", self.joint_offset.len()),
+            ("joint_scale", self.joint_scale.len()),
+            ("origin_xyz", self.origin_xyz.len()),
+            ("origin_rpy", self.origin_rpy.len()),
+            ("compliance", self.compliance.len()),
+        ];
+        for (field, len) in lens {
+            if len != n {
+                return Err(KinematicsError::InvalidInput(format!(
+                    "kinematic errors: `{field}` has {len} entries but {} has {n} joints; give one \
+                     value per joint (KinematicErrors::zero({n}) has the right shape)",
+                    model.name()
+                )));
+            }
+        }
+        let bad = |field: &str, joint: Option<usize>, v: f64| {
+            let at = joint.map_or(String::new(), |j| {
+                format!(" of joint {} ({})", j + 1, model.joints()[j].name)
+            });
+            KinematicsError::InvalidInput(format!(
+                "kinematic errors: `{field}`{at} is {v}, not a finite number; give finite values"
+            ))
+        };
+        for j in 0..n {
+            for (field, v) in [
+                ("joint_offset", self.joint_offset[j]),
+                ("joint_scale", self.joint_scale[j]),
+                ("compliance", self.compliance[j]),
+            ] {
+                if !v.is_finite() {
+                    return Err(bad(field, Some(j), v));
+                }
+            }
+            for (field, v) in [
+                ("origin_xyz", &self.origin_xyz[j]),
+                ("origin_rpy", &self.origin_rpy[j]),
+            ] {
+                if let Some(&x) = v.iter().find(|x| !x.is_finite()) {
+                    return Err(bad(field, Some(j), x));
+                }
+            }
+        }
+        for (field, v) in [
+            ("tip", &self.tip),
+            ("mount_xyz", &self.mount_xyz),
+            ("mount_rpy", &self.mount_rpy),
+        ] {
+            if let Some(&x) = v.iter().find(|x| !x.is_finite()) {
+                return Err(bad(field, None, x));
+            }
+        }
+        Ok(())
+    }
+
+    /// The value of one parameter, in its SI unit ([`ErrorParam::unit_si`]).
+    ///
+    /// Panics if the parameter's joint index is `≥ self.dof()` (a programming error, like slice
+    /// indexing); use [`KinematicErrors::try_get`] for indices that come from input.
+    pub fn get(&self, p: ErrorParam) -> f64 {
+        match p {
+            ErrorParam::JointOffset { joint } => self.joint_offset[joint],
+            ErrorParam::JointScale { joint } => self.joint_scale[joint],
+            ErrorParam::OriginXyz { joint, axis } => self.origin_xyz[joint][axis.index()],
+            ErrorParam::OriginRpy { joint, axis } => self.origin_rpy[joint][axis.index()],
+            ErrorParam::Tip { axis } => self.tip[axis.index()],
+            ErrorParam::MountXyz { axis } => self.mount_xyz[axis.index()],
+            ErrorParam::MountRpy { axis } => self.mount_rpy[axis.index()],
+            ErrorParam::Compliance { joint } => self.compliance[joint],
+        }
+    }
+
+    /// Sets one parameter to `v`, in its SI unit ([`ErrorParam::unit_si`]).
+    ///
+    /// Panics if the parameter's joint index is `≥ self.dof()`; see [`KinematicErrors::try_set`].
+    pub fn set(&mut self, p: ErrorParam, v: f64) {
+        *self.slot(p) = v;
+    }
+
+    /// [`KinematicErrors::get`] with the joint index checked: `None` if it is out of range.
+    pub fn try_get(&self, p: ErrorParam) -> Option<f64> {
+        match p.joint() {
+            Some(j) if j >= self.dof() => None,
+            _ => Some(self.get(p)),
+        }
+    }
+
+    /// [`KinematicErrors::set`] with the joint index checked.
+    ///
+    /// Errors: the joint index is `≥ self.dof()`.
+    pub fn try_set(&mut self, p: ErrorParam, v: f64) -> Result<(), KinematicsError> {
+        p.check_dof(self.dof())?;
+        self.set(p, v);
+        Ok(())
+    }
+
+    /// Adds `v` to one parameter (panics like [`KinematicErrors::set`]).
+    pub fn add(&mut self, p: ErrorParam, v: f64) {
+        *self.slot(p) += v;
+    }
+
+    fn slot(&mut self, p: ErrorParam) -> &mut f64 {
+        match p {
+            ErrorParam::JointOffset { joint } => &mut self.joint_offset[joint],
+            ErrorParam::JointScale { joint } => &mut self.joint_scale[joint],
+            ErrorParam::OriginXyz { joint, axis } => &mut self.origin_xyz[joint][axis.index()],
+            ErrorParam::OriginRpy { joint, axis } => &mut self.origin_rpy[joint][axis.index()],
+            ErrorParam::Tip { axis } => &mut self.tip[axis.index()],
+            ErrorParam::MountXyz { axis } => &mut self.mount_xyz[axis.index()],
+            ErrorParam::MountRpy { axis } => &mut self.mount_rpy[axis.index()],
+            ErrorParam::Compliance { joint } => &mut self.compliance[joint],
+        }
+    }
+
+    /// The transform `nominal_base_from_base` of the mount error:
+    /// `(mount_xyz, Rz·Ry·Rx(mount_rpy))`.
+    pub fn nominal_base_from_base(&self) -> Isometry3<f64> {
+        origin_isometry(&self.mount_xyz, &self.mount_rpy)
+    }
+}
+
+/// One scalar parameter of [`KinematicErrors`]. Joint indices are 0-based (displayed 1-based).
+///
+/// Serialized as `{"kind": "origin_xyz", "joint": 1, "axis": "x"}`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum ErrorParam {
+    /// `joint_offset[joint]`, rad.
+    JointOffset {
+        /// 0-based joint index.
+        joint: usize,
+    },
+    /// `joint_scale[joint]`, ratio.
+    JointScale {
+        /// 0-based joint index.
+        joint: usize,
+    },
+    /// `origin_xyz[joint][axis]`, m.
+    OriginXyz {
+        /// 0-based joint index.
+        joint: usize,
+        /// Component (parent link frame).
+        axis: Axis,
+    },
+    /// `origin_rpy[joint][axis]`, rad: `X` = roll, `Y` = pitch, `Z` = yaw.
+    OriginRpy {
+        /// 0-based joint index.
+        joint: usize,
+        /// `X` = roll, `Y` = pitch, `Z` = yaw.
+        axis: Axis,
+    },
+    /// `tip[axis]`, m (flange axes).
+    Tip {
+        /// Component (flange frame).
+        axis: Axis,
+    },
+    /// `mount_xyz[axis]`, m (nominal base axes).
+    MountXyz {
+        /// Component (nominal base frame).
+        axis: Axis,
+    },
+    /// `mount_rpy[axis]`, rad: `X` = roll, `Y` = pitch, `Z` = yaw.
+    MountRpy {
+        /// `X` = roll, `Y` = pitch, `Z` = yaw.
+        axis: Axis,
+    },
+    /// `compliance[joint]`, rad/(N·m).
+    Compliance {
+        /// 0-based joint index.
+        joint: usize,
+    },
+}
+
+impl ErrorParam {
+    /// The field name: `"joint_offset"`, `"joint_scale"`, `"origin_xyz"`, `"origin_rpy"`, `"tip"`,
+    /// `"mount_xyz"`, `"mount_rpy"` or `"compliance"`.
+    pub fn kind_name(self) -> &'static str {
+        match self {
+            ErrorParam::JointOffset { .. } => "joint_offset",
+            ErrorParam::JointScale { .. } => "joint_scale",
+            ErrorParam::OriginXyz { .. } => "origin_xyz",
+            ErrorParam::OriginRpy { .. } => "origin_rpy",
+            ErrorParam::Tip { .. } => "tip",
+            ErrorParam::MountXyz { .. } => "mount_xyz",
+            ErrorParam::MountRpy { .. } => "mount_rpy",
+            ErrorParam::Compliance { .. } => "compliance",
+        }
+    }
+
+    /// The SI unit of the value: `"rad"`, `"ratio"`, `"m"` or `"rad/(N·m)"`.
+    pub fn unit_si(self) -> &'static str {
+        match self {
+            ErrorParam::JointOffset { .. }
+            | ErrorParam::OriginRpy { .. }
+            | ErrorParam::MountRpy { .. } => "rad",
+            ErrorParam::JointScale { .. } => "ratio",
+            ErrorParam::OriginXyz { .. } | ErrorParam::Tip { .. } | ErrorParam::MountXyz { .. } => {
+                "m"
+            }
+            ErrorParam::Compliance { .. } => "rad/(N·m)",
+        }
+    }
+
+    /// The 0-based joint index, for per-joint parameters.
+    pub fn joint(self) -> Option<usize> {
+        match self {
+            ErrorParam::JointOffset { joint }
+            | ErrorParam::JointScale { joint }
+            | ErrorParam::OriginXyz { joint, .. }
+            | ErrorParam::OriginRpy { joint, .. }
+            | ErrorParam::Compliance { joint } => Some(joint),
+            ErrorParam::Tip { .. } | ErrorParam::MountXyz { .. } | ErrorParam::MountRpy { .. } => {
+                None
+            }
+        }
+    }
+
+    /// The axis, for vector parameters.
+    pub fn axis(self) -> Option<Axis> {
+        match self {
+            ErrorParam::OriginXyz { axis, .. }
+            | ErrorParam::OriginRpy { axis, .. }
+            | ErrorParam::Tip { axis }
+            | ErrorParam::MountXyz { axis }
+            | ErrorParam::MountRpy { axis } => Some(axis),
+            _ => None,
+        }
+    }
+
+    /// Checks the joint index against a chain of `dof` joints.
+    ///
+    /// Errors: the joint index is `≥ dof`.
+    pub fn check_dof(self, dof: usize) -> Result<(), KinematicsError> {
+        match self.joint() {
+            Some(j) if j >= dof => Err(KinematicsError::InvalidInput(format!(
+                "error parameter {self} refers to joint {} but the robot has {dof} joints; use a \
+                 joint number from 1 to {dof} (0-based index below {dof} in code)",
+                j + 1
+            ))),
+            _ => Ok(()),
+        }
+    }
+}
+
+impl fmt::Display for ErrorParam {
+    /// `joint_offset joint 3`, `origin_xyz joint 2 x`, `tip z`, … (joints 1-based).
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.kind_name())?;
+        if let Some(j) = self.joint() {
+            write!(f, " joint {}", j + 1)?;
+        }
+        if let Some(a) = self.axis() {
+            write!(f, " {a}")?;
+        }
+        Ok(())
+    }
+}
+
+/// The whole catalogue of parameters for a chain of `dof` joints, in a fixed order: per joint
+/// (offset, scale, origin xyz x/y/z, origin rpy x/y/z, compliance), then tip x/y/z, mount xyz
+/// x/y/z, mount rpy x/y/z. `9·dof + 9` entries.
+pub fn all_params(dof: usize) -> Vec<ErrorParam> {
+    let mut v = Vec::with_capacity(9 * dof + 9);
+    for joint in 0..dof {
+        v.push(ErrorParam::JointOffset { joint });
+        v.push(ErrorParam::JointScale { joint });
+        v.extend(Axis::ALL.map(|axis| ErrorParam::OriginXyz { joint, axis }));
+        v.extend(Axis::ALL.map(|axis| ErrorParam::OriginRpy { joint, axis }));
+        v.push(ErrorParam::Compliance { joint });
+    }
+    v.extend(Axis::ALL.map(|axis| ErrorParam::Tip { axis }));
+    v.extend(Axis::ALL.map(|axis| ErrorParam::MountXyz { axis }));
+    v.extend(Axis::ALL.map(|axis| ErrorParam::MountRpy { axis }));
+    v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn catalogue_get_set_and_display() {
+        let dof = 6;
+        let params = all_params(dof);
+        assert_eq!(params.len(), 9 * dof + 9);
+        let mut sorted = params.clone();
+        sorted.sort();
+        sorted.dedup();
+        assert_eq!(sorted.len(), params.len(), "catalogue has duplicates");
+        // Every parameter addresses its own slot.
+        let mut e = KinematicErrors::zero(dof);
+        for (i, &p) in params.iter().enumerate() {
+            e.set(p, i as f64 + 1.0);
+        }
+        for (i, &p) in params.iter().enumerate() {
+            assert_eq!(e.get(p), i as f64 + 1.0, "{p}");
+        }
+        assert!(!e.is_zero());
+        assert!(KinematicErrors::zero(dof).is_zero());
+        assert_eq!(
+            ErrorParam::OriginXyz {
+                joint: 1,
+                axis: Axis::X
+            }
+            .to_string(),
+            "origin_xyz joint 2 x"
+        );
+        assert_eq!(ErrorParam::Tip { axis: Axis::Z }.to_string(), "tip z");
+        assert_eq!(ErrorParam::Compliance { joint: 0 }.unit_si(), "rad/(N·m)");
+        assert_eq!(ErrorParam::JointScale { joint: 0 }.unit_si(), "ratio");
+        assert_eq!(ErrorParam::MountRpy { axis: Axis::Y }.unit_si(), "rad");
+        assert_eq!(ErrorParam::MountXyz { axis: Axis::Y }.unit_si(), "m");
+        assert_eq!(Axis::Y.unit(), Vector3::y());
+        assert_eq!(Axis::Z.name(), "z");
+        // Out-of-range joints are errors, not panics, on the checked paths.
+        assert!(e.try_get(ErrorParam::JointOffset { joint: dof }).is_none());
+        assert!(e
+            .try_set(ErrorParam::Compliance { joint: dof }, 1.0)
+            .is_err());
+    }
+}

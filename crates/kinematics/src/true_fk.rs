@@ -1,0 +1,444 @@
+//! The TRUE robot of the kinematic-error model (see `error_model.rs` for the parameters and how
+//! each one enters): its flange and tip poses in the NOMINAL base frame ([`true_base_from_flange`],
+//! [`true_base_from_tip`]) and their exact analytic derivatives with respect to the error
+//! parameters ([`tip_error_jacobian`]) and the reported joint angles ([`tip_joint_jacobian_true`]).
+
+use nalgebra::{Isometry3, Matrix3, Matrix3xX, Vector3};
+
+use crate::error::KinematicsError;
+use crate::error_model::{ErrorParam, KinematicErrors};
+use crate::fk::{
+    apply_step, base_from_tip_unchecked, check_tip, isometry, sin_cos, tip_isometry,
+    to_flange_nalgebra,
+};
+use crate::gravity::{
+    check_gravity, gravity_entries, gravity_jacobian_from_entries, gravity_torques_into,
+    GravityEntry, STACK_DOF,
+};
+use crate::model::{rotation_from_rpy, RobotModel, Step};
+
+/// Per-joint frame data of the true chain, nominal base frame.
+#[derive(Debug, Clone, Copy)]
+struct TrueJointFrame {
+    /// Rotation `nominal_base_from_parent` (the joint's URDF parent link frame).
+    parent_rotation: Matrix3<f64>,
+    /// Derivative axes of the origin rotation at the true rpy, indexed by [`Axis::index`] (roll,
+    /// pitch, yaw); see [`rpy_derivative_axes`].
+    rpy_axes: [Vector3<f64>; 3],
+    /// Origin of the joint frame, m.
+    o: Vector3<f64>,
+    /// Joint axis, unit.
+    z: Vector3<f64>,
+}
+
+impl Default for TrueJointFrame {
+    fn default() -> Self {
+        Self {
+            parent_rotation: Matrix3::identity(),
+            rpy_axes: [Vector3::zeros(); 3],
+            o: Vector3::zeros(),
+            z: Vector3::zeros(),
+        }
+    }
+}
+
+fn all_zero(v: &[f64]) -> bool {
+    v.iter().all(|&x| x == 0.0)
+}
+
+/// Checks all the inputs of the public entry points.
+fn check_inputs(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    flange_from_tip: &Vector3<f64>,
+    g_base: &Vector3<f64>,
+) -> Result<(), KinematicsError> {
+    model.check_q(q_rep)?;
+    check_tip(flange_from_tip)?;
+    check_gravity(g_base)?;
+    errors.check(model)
+}
+
+/// The true joint angles into `q_true` (len = dof), with the nominal gravity torques into `tau`
+/// (zeros if no compliance is set). No checks.
+fn true_joint_angles(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    g_base: &Vector3<f64>,
+    tau: &mut [f64],
+    q_true: &mut [f64],
+) {
+    if all_zero(&errors.compliance) {
+        tau.iter_mut().for_each(|t| *t = 0.0);
+    } else {
+        gravity_torques_into(model, q_rep, g_base, tau);
+    }
+    for i in 0..q_rep.len() {
+        q_true[i] = q_rep[i] * (1.0 + errors.joint_scale[i])
+            + errors.joint_offset[i]
+            + errors.compliance[i] * tau[i];
+    }
+}
+
+/// The true chain at the true joint angles: `nominal_base_from_flange` as (rotation matrix,
+/// translation in m), filling `frames` (if given, len = dof). No checks, no allocation.
+///
+/// Joints without origin error go through the nominal FK step ([`apply_step`]) unchanged; a joint
+/// with an origin error goes through the same step with its origin replaced by
+/// `fixed_prefix · Origin(xyz + Δxyz, rpy + Δrpy)`.
+fn true_chain(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_true: &[f64],
+    mut frames: Option<&mut [TrueJointFrame]>,
+) -> (Matrix3<f64>, Vector3<f64>) {
+    let mount_zero = all_zero(errors.mount_xyz.as_slice()) && all_zero(errors.mount_rpy.as_slice());
+    let (mut r, mut t) = if mount_zero {
+        (Matrix3::identity(), Vector3::zeros())
+    } else {
+        (
+            *rotation_from_rpy(&errors.mount_rpy).matrix(),
+            errors.mount_xyz,
+        )
+    };
+    for (k, ((step, joint), &qk)) in model
+        .steps
+        .iter()
+        .zip(model.joints())
+        .zip(q_true)
+        .enumerate()
+    {
+        let dxyz = &errors.origin_xyz[k];
+        let drpy = &errors.origin_rpy[k];
+        let origin_zero = all_zero(dxyz.as_slice()) && all_zero(drpy.as_slice());
+        let prefix_r = || {
+            if joint.fixed_prefix.rotation.w == 1.0 {
+                Matrix3::identity()
+            } else {
+                *joint.fixed_prefix.rotation.to_rotation_matrix().matrix()
+            }
+        };
+        let parent_rotation = frames.as_ref().map(|_| r * prefix_r());
+        if origin_zero {
+            // The nominal step, so that zero errors reproduce the nominal FK.
+            apply_step(&mut r, &mut t, step, qk);
+        } else {
+            let fp = &joint.fixed_prefix;
+            let fp_r = prefix_r();
+            let origin_r = if all_zero(drpy.as_slice()) {
+                step.origin.r
+            } else {
+                fp_r * rotation_from_rpy(&(joint.origin_rpy + drpy)).matrix()
+            };
+            let perturbed = Step::new(
+                step.axis,
+                origin_r,
+                fp.translation.vector + fp_r * (joint.origin_xyz + dxyz),
+            );
+            apply_step(&mut r, &mut t, &perturbed, qk);
+        }
+        if let (Some(f), Some(parent_rotation)) = (frames.as_deref_mut(), parent_rotation) {
+            f[k] = TrueJointFrame {
+                parent_rotation,
+                rpy_axes: rpy_derivative_axes(&parent_rotation, &(joint.origin_rpy + drpy)),
+                o: t,
+                z: r * step.axis.into_inner(),
+            };
+        }
+    }
+    to_flange_nalgebra(model, &mut r, &mut t);
+    (r, t)
+}
+
+/// Runs `f` with two scratch slices of length `dof` (on the stack for `dof ≤ 16`).
+fn with_scratch<R>(dof: usize, f: impl FnOnce(&mut [f64], &mut [f64]) -> R) -> R {
+    if dof <= STACK_DOF {
+        let mut a = [0.0; STACK_DOF];
+        let mut b = [0.0; STACK_DOF];
+        f(&mut a[..dof], &mut b[..dof])
+    } else {
+        let mut a = vec![0.0; dof];
+        let mut b = vec![0.0; dof];
+        f(&mut a, &mut b)
+    }
+}
+
+/// `true_base_from_flange` without checks (allocation-free for `dof ≤ 16`); see
+/// [`true_base_from_flange`]. Panics only if the lengths do not match the model.
+pub fn true_base_from_flange_unchecked(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    g_base: &Vector3<f64>,
+) -> Isometry3<f64> {
+    let (r, t) = true_flange_rt(model, errors, q_rep, g_base);
+    isometry(&r, &t)
+}
+
+/// The true flange as (rotation matrix, translation), no checks, no allocation for `dof ≤ 16`.
+fn true_flange_rt(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    g_base: &Vector3<f64>,
+) -> (Matrix3<f64>, Vector3<f64>) {
+    with_scratch(model.dof(), |tau, q_true| {
+        true_joint_angles(model, errors, q_rep, g_base, tau, q_true);
+        true_chain(model, errors, q_true, None)
+    })
+}
+
+/// Flange pose of the TRUE robot (nominal model + `errors`) in the NOMINAL base frame, at the
+/// reported joint angles `q_rep` (rad); `g_base` is the gravity acceleration in the nominal base
+/// frame, m/s², used for the compliance deflection. The tip error is not applied (see
+/// [`true_base_from_tip`]).
+///
+/// Errors: a bad `q_rep` ([`RobotModel::check_q`]; the true angles are not limit-checked), a
+/// non-finite `g_base`, or `errors` of the wrong shape or non-finite ([`KinematicErrors::check`]).
+pub fn true_base_from_flange(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    g_base: &Vector3<f64>,
+) -> Result<Isometry3<f64>, KinematicsError> {
+    check_inputs(model, errors, q_rep, &Vector3::zeros(), g_base)?;
+    Ok(true_base_from_flange_unchecked(
+        model, errors, q_rep, g_base,
+    ))
+}
+
+/// `true_base_from_tip` without checks (allocation-free for `dof ≤ 16`); see
+/// [`true_base_from_tip`]. Panics only if the lengths do not match the model.
+pub fn true_base_from_tip_unchecked(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    flange_from_tip: &Vector3<f64>,
+    g_base: &Vector3<f64>,
+) -> Isometry3<f64> {
+    if errors.is_zero() {
+        // Exactly the nominal FK (the general path agrees to round-off; tested).
+        return base_from_tip_unchecked(model, q_rep, flange_from_tip);
+    }
+    true_tip_general(model, errors, q_rep, flange_from_tip, g_base)
+}
+
+/// The general path of [`true_base_from_tip_unchecked`] (no zero-error shortcut).
+fn true_tip_general(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    flange_from_tip: &Vector3<f64>,
+    g_base: &Vector3<f64>,
+) -> Isometry3<f64> {
+    let (r, t) = true_flange_rt(model, errors, q_rep, g_base);
+    tip_isometry(&r, &t, &(flange_from_tip + errors.tip))
+}
+
+/// Tip pose of the TRUE robot in the NOMINAL base frame at the reported joint angles `q_rep` (rad):
+/// the nominal chain with `errors` applied as described in the module documentation, tip offset
+/// `flange_from_tip + errors.tip` (m, flange axes), orientation the flange's. `g_base` is the gravity
+/// acceleration in the nominal base frame, m/s² (used only through `errors.compliance`).
+///
+/// With [`KinematicErrors::zero`] it equals [`base_from_tip`](crate::base_from_tip) exactly.
+/// Allocation-free for chains of up to 16 joints.
+///
+/// Errors: a bad `q_rep` ([`RobotModel::check_q`]; the true angles are not limit-checked), a
+/// non-finite tip offset or `g_base`, or `errors` of the wrong shape or non-finite
+/// ([`KinematicErrors::check`]).
+///
+/// # Examples
+/// ```
+/// # use kinematics::{true_base_from_tip, base_from_tip, ErrorParam, KinematicErrors, RobotModel};
+/// # use nalgebra::Vector3;
+/// let urdf = r#"<robot name="arm">
+///   <link name="base"/><link name="tool0"/>
+///   <joint name="j1" type="revolute"><parent link="base"/><child link="tool0"/>
+///     <origin xyz="0 0 0.5"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+/// </robot>"#;
+/// let model = RobotModel::from_urdf_str(urdf, "tool0").unwrap();
+/// let tip = Vector3::new(1.0, 0.0, 0.0);
+/// let g = Vector3::new(0.0, 0.0, -9.81);
+/// let mut errors = KinematicErrors::zero(1);
+/// errors.set(ErrorParam::JointOffset { joint: 0 }, std::f64::consts::FRAC_PI_2);
+/// let true_tip = true_base_from_tip(&model, &errors, &[0.0], &tip, &g).unwrap();
+/// // The true joint sits 90° further: the tip at (1,0,0.5) nominally is really at (0,1,0.5).
+/// assert!((true_tip.translation.vector - Vector3::new(0.0, 1.0, 0.5)).norm() < 1e-12);
+/// ```
+pub fn true_base_from_tip(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    flange_from_tip: &Vector3<f64>,
+    g_base: &Vector3<f64>,
+) -> Result<Isometry3<f64>, KinematicsError> {
+    check_inputs(model, errors, q_rep, flange_from_tip, g_base)?;
+    Ok(true_base_from_tip_unchecked(
+        model,
+        errors,
+        q_rep,
+        flange_from_tip,
+        g_base,
+    ))
+}
+
+/// Axes `a` (in base) of the derivatives of `R_parent·Rz(yaw)·Ry(pitch)·Rx(roll)` with respect to
+/// roll, pitch and yaw, in that order: `∂(R·v)/∂angle = a × (R·v)` exactly, with
+/// `a_roll = R_parent·Rz·Ry·e_x = R_parent·(cy·cp, sy·cp, −sp)`,
+/// `a_pitch = R_parent·Rz·e_y = R_parent·(−sy, cy, 0)`, `a_yaw = R_parent·e_z`.
+fn rpy_derivative_axes(parent_rotation: &Matrix3<f64>, rpy: &Vector3<f64>) -> [Vector3<f64>; 3] {
+    let (sp, cp) = sin_cos(rpy.y);
+    let (sy, cy) = sin_cos(rpy.z);
+    [
+        parent_rotation * Vector3::new(cy * cp, sy * cp, -sp),
+        parent_rotation * Vector3::new(-sy, cy, 0.0),
+        parent_rotation * Vector3::z(),
+    ]
+}
+
+/// `∂p_tip/∂param`, m per parameter unit, 3 × `params.len()`, nominal base axes: the exact analytic
+/// derivative of the position of [`true_base_from_tip`] with respect to each listed parameter, at
+/// the given `errors` (not only at zero).
+///
+/// Columns, with `p` the true tip, `o_k`, `z_k` joint k's true origin and axis, `R_P` the rotation
+/// of its parent link frame (all in the nominal base frame):
+/// - joint offset: `z_k × (p − o_k)`; scale: that × `q_rep_k`; compliance: that × `τ_k(q_rep)`;
+/// - origin xyz: `R_P·e_axis`; origin rpy: `a × (p − o_k)` with `a = R_P·e_z` (yaw),
+///   `R_P·Rz(yaw)·e_y` (pitch), `R_P·Rz(yaw)·Ry(pitch)·e_x` (roll) at the true rpy;
+/// - tip: `R_flange·e_axis`; mount xyz: `e_axis`; mount rpy: `a × (p − mount_xyz)` with the same
+///   axes as the origin rpy, `R_P = I`.
+///
+/// Errors: as [`true_base_from_tip`], plus a parameter whose joint index is `≥ model.dof()`.
+pub fn tip_error_jacobian(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    flange_from_tip: &Vector3<f64>,
+    g_base: &Vector3<f64>,
+    params: &[ErrorParam],
+) -> Result<Matrix3xX<f64>, KinematicsError> {
+    check_inputs(model, errors, q_rep, flange_from_tip, g_base)?;
+    let n = model.dof();
+    for p in params {
+        p.check_dof(n)?;
+    }
+    let mut jac = Matrix3xX::zeros(params.len());
+    with_chain_scratch(n, |tau, q_true, frames| {
+        // Compliance columns need τ even when no compliance is set.
+        if params
+            .iter()
+            .any(|p| matches!(p, ErrorParam::Compliance { .. }))
+            || !all_zero(&errors.compliance)
+        {
+            gravity_torques_into(model, q_rep, g_base, tau);
+        }
+        for i in 0..n {
+            q_true[i] = q_rep[i] * (1.0 + errors.joint_scale[i])
+                + errors.joint_offset[i]
+                + errors.compliance[i] * tau[i];
+        }
+        let (flange_r, flange_t) = true_chain(model, errors, q_true, Some(frames));
+        let p = flange_t + flange_r * (flange_from_tip + errors.tip);
+        fill_error_columns(errors, q_rep, tau, frames, &flange_r, &p, params, &mut jac);
+    });
+    Ok(jac)
+}
+
+/// The columns of [`tip_error_jacobian`] from the true chain's frames, tip `p` and flange rotation.
+#[allow(clippy::too_many_arguments)]
+fn fill_error_columns(
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    tau: &[f64],
+    frames: &[TrueJointFrame],
+    flange_r: &Matrix3<f64>,
+    p: &Vector3<f64>,
+    params: &[ErrorParam],
+    jac: &mut Matrix3xX<f64>,
+) {
+    let p = *p;
+    let mount_axes = rpy_derivative_axes(&Matrix3::identity(), &errors.mount_rpy);
+    for (c, param) in params.iter().enumerate() {
+        let joint_col = |k: usize| frames[k].z.cross(&(p - frames[k].o));
+        let col = match *param {
+            ErrorParam::JointOffset { joint } => joint_col(joint),
+            ErrorParam::JointScale { joint } => joint_col(joint) * q_rep[joint],
+            ErrorParam::Compliance { joint } => joint_col(joint) * tau[joint],
+            ErrorParam::OriginXyz { joint, axis } => frames[joint].parent_rotation * axis.unit(),
+            ErrorParam::OriginRpy { joint, axis } => {
+                let f = &frames[joint];
+                f.rpy_axes[axis.index()].cross(&(p - f.o))
+            }
+            ErrorParam::Tip { axis } => flange_r * axis.unit(),
+            ErrorParam::MountXyz { axis } => axis.unit(),
+            ErrorParam::MountRpy { axis } => {
+                mount_axes[axis.index()].cross(&(p - errors.mount_xyz))
+            }
+        };
+        jac.set_column(c, &col);
+    }
+}
+
+/// Runs `f` with scratch `tau`, `q_true` (len = dof) and `frames` (on the stack for `dof ≤ 16`).
+fn with_chain_scratch<R>(
+    dof: usize,
+    f: impl FnOnce(&mut [f64], &mut [f64], &mut [TrueJointFrame]) -> R,
+) -> R {
+    if dof <= STACK_DOF {
+        let mut frames = [TrueJointFrame::default(); STACK_DOF];
+        with_scratch(dof, |tau, q_true| f(tau, q_true, &mut frames[..dof]))
+    } else {
+        let mut frames = vec![TrueJointFrame::default(); dof];
+        with_scratch(dof, |tau, q_true| f(tau, q_true, &mut frames))
+    }
+}
+
+/// `∂p_tip/∂q_rep` of the TRUE robot, 3×dof, m/rad, nominal base axes, at the reported angles
+/// `q_rep`: column `i` is `(1 + scale_i)·J_i + Σ_k J_k·compliance_k·∂τ_k/∂q_i`, with `J` the tip
+/// position Jacobian of the true chain with respect to the true angles and `∂τ/∂q` the nominal
+/// gravity-torque Jacobian ([`gravity_torque_jacobian`](crate::gravity_torque_jacobian)).
+///
+/// Errors: as [`true_base_from_tip`].
+pub fn tip_joint_jacobian_true(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    flange_from_tip: &Vector3<f64>,
+    g_base: &Vector3<f64>,
+) -> Result<Matrix3xX<f64>, KinematicsError> {
+    check_inputs(model, errors, q_rep, flange_from_tip, g_base)?;
+    let n = model.dof();
+    let mut tau = vec![0.0; n];
+    let mut q_true = vec![0.0; n];
+    true_joint_angles(model, errors, q_rep, g_base, &mut tau, &mut q_true);
+    let mut frames = vec![TrueJointFrame::default(); n];
+    let (flange_r, flange_t) = true_chain(model, errors, &q_true, Some(&mut frames));
+    let p = flange_t + flange_r * (flange_from_tip + errors.tip);
+    // ∂p/∂q_true.
+    let mut j_true = Matrix3xX::zeros(n);
+    for (k, f) in frames.iter().enumerate() {
+        j_true.set_column(k, &f.z.cross(&(p - f.o)));
+    }
+    let mut jac = Matrix3xX::zeros(n);
+    for i in 0..n {
+        jac.set_column(i, &(j_true.column(i) * (1.0 + errors.joint_scale[i])));
+    }
+    if !all_zero(&errors.compliance) {
+        let mut entries = vec![GravityEntry::default(); n];
+        gravity_entries(model, q_rep, &mut entries);
+        let dtau = gravity_jacobian_from_entries(&entries, g_base);
+        for i in 0..n {
+            let mut col = jac.column(i).into_owned();
+            for k in 0..n {
+                col += j_true.column(k) * (errors.compliance[k] * dtau[(k, i)]);
+            }
+            jac.set_column(i, &col);
+        }
+    }
+    Ok(jac)
+}
+
+#[cfg(test)]
+mod tests;

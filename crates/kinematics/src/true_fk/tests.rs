@@ -1,0 +1,293 @@
+//! Tests of the true chain and its Jacobians against central differences and independent
+//! constructions.
+
+use super::*;
+use crate::all_params;
+use crate::fk::base_from_tip;
+use crate::test_fixtures::{
+    model, oblique_origins, oblique_urdf, random_errors, random_q, random_vec, robots, G_FLOOR,
+    HP20, VA1400,
+};
+use nalgebra::{Rotation3, Translation3, UnitQuaternion};
+use proptest::prelude::*;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+fn random_tip(rng: &mut ChaCha8Rng) -> Vector3<f64> {
+    Vector3::new(
+        rng.random_range(-0.05..0.05),
+        rng.random_range(-0.05..0.05),
+        rng.random_range(0.0..0.3),
+    )
+}
+
+fn random_g(rng: &mut ChaCha8Rng) -> Vector3<f64> {
+    // Any direction: floor, wall and ceiling mounts and everything between.
+    let v = random_vec(rng, 1.0);
+    9.81 * v / v.norm().max(1e-3)
+}
+
+/// Central-difference step in the parameter's own unit. A step of 1e-6 moves the tip by
+/// ~1e-6 m for the metre and radian parameters. A compliance is multiplied by torques of up to
+/// ~5e3 N·m (HP20), so its step is 1e-6 / 5e3 ≈ 2e-10 rad/(N·m) for the same tip motion.
+fn fd_step(p: ErrorParam) -> f64 {
+    match p {
+        ErrorParam::Compliance { .. } => 2e-10,
+        _ => 1e-6,
+    }
+}
+
+/// Tolerance of a central difference with a tip motion of ~1e-6 m per step: truncation
+/// ~h²·|p'''| ≲ 1e-12·few m, round-off ~eps·|p|/h ≈ 2.2e-16·3 m/1e-6 ≈ 7e-10 m per unit step.
+/// So |analytic − fd|·h ≤ 1e-14 m + 1e-8 relative: compare the tip motions `column·h`.
+const FD_TOL_M: f64 = 1e-14;
+const FD_TOL_REL: f64 = 1e-7;
+
+fn check_param_jacobian(model: &RobotModel, seed: u64) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let q = random_q(model, &mut rng);
+    let errors = random_errors(model.dof(), &mut rng);
+    let tip = random_tip(&mut rng);
+    let g = random_g(&mut rng);
+    let params = all_params(model.dof());
+    let jac = tip_error_jacobian(model, &errors, &q, &tip, &g, &params).unwrap();
+    for (c, &p) in params.iter().enumerate() {
+        let h = fd_step(p);
+        let mut ep = errors.clone();
+        let mut em = errors.clone();
+        ep.add(p, h);
+        em.add(p, -h);
+        let tp = true_base_from_tip(model, &ep, &q, &tip, &g)
+            .unwrap()
+            .translation
+            .vector;
+        let tm = true_base_from_tip(model, &em, &q, &tip, &g)
+            .unwrap()
+            .translation
+            .vector;
+        // Tip motion over the central step, m.
+        let fd_motion = (tp - tm) / 2.0;
+        let an_motion = jac.column(c) * h;
+        let diff = (fd_motion - an_motion).norm();
+        assert!(
+            diff <= FD_TOL_M + FD_TOL_REL * an_motion.norm().max(1e-9),
+            "{} seed {seed} {p}: analytic {:?} vs fd {:?} (per unit), |Δ|·h = {diff:e} m",
+            model.name(),
+            jac.column(c).as_slice(),
+            (fd_motion / h).as_slice(),
+        );
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    #[test]
+    fn error_jacobian_matches_central_differences(seed in any::<u64>()) {
+        for m in robots() {
+            check_param_jacobian(&m, seed);
+        }
+    }
+
+    #[test]
+    fn zero_errors_reproduce_nominal_fk_exactly(seed in any::<u64>()) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        for m in robots() {
+            let q = random_q(&m, &mut rng);
+            let tip = random_tip(&mut rng);
+            let g = random_g(&mut rng);
+            let nominal = base_from_tip(&m, &q, &tip).unwrap();
+            let zero = KinematicErrors::zero(m.dof());
+            let t = true_base_from_tip(&m, &zero, &q, &tip, &g).unwrap();
+            prop_assert_eq!(t, nominal);
+            // The general path (no zero shortcut) agrees to round-off.
+            let general = true_tip_general(&m, &zero, &q, &tip, &g);
+            prop_assert!((general.translation.vector - nominal.translation.vector).norm() < EXACT_TOL);
+            prop_assert!(general.rotation.angle_to(&nominal.rotation) < EXACT_TOL);
+            // And the flange agrees as well.
+            let flange = true_base_from_flange(&m, &zero, &q, &g).unwrap();
+            let nominal_flange = crate::base_from_flange(&m, &q).unwrap();
+            prop_assert!((flange.translation.vector - nominal_flange.translation.vector).norm() < EXACT_TOL);
+            prop_assert!(flange.rotation.angle_to(&nominal_flange.rotation) < EXACT_TOL);
+        }
+    }
+
+    #[test]
+    fn joint_jacobian_true_matches_central_differences(seed in any::<u64>()) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        for m in robots() {
+            let q = random_q(&m, &mut rng);
+            let errors = random_errors(m.dof(), &mut rng);
+            let tip = random_tip(&mut rng);
+            let g = random_g(&mut rng);
+            let jac = tip_joint_jacobian_true(&m, &errors, &q, &tip, &g).unwrap();
+            // Step 1e-6 rad, tolerance as for the parameter Jacobian (tip motions ~1e-6 m).
+            let h = 1e-6;
+            for i in 0..m.dof() {
+                let mut qp = q.clone();
+                let mut qm = q.clone();
+                qp[i] += h;
+                qm[i] -= h;
+                let tp = true_base_from_tip(&m, &errors, &qp, &tip, &g).unwrap().translation.vector;
+                let tm = true_base_from_tip(&m, &errors, &qm, &tip, &g).unwrap().translation.vector;
+                let fd_motion = (tp - tm) / 2.0;
+                let an_motion = jac.column(i) * h;
+                let diff = (fd_motion - an_motion).norm();
+                prop_assert!(
+                    diff <= FD_TOL_M + FD_TOL_REL * an_motion.norm().max(1e-9),
+                    "{} joint {}: |Δ|·h = {:e} m", m.name(), i + 1, diff
+                );
+            }
+        }
+    }
+}
+
+/// Exact-arithmetic comparisons of metre-scale poses (a few ulps).
+const EXACT_TOL: f64 = 1e-12;
+
+fn assert_pose_eq(a: &Isometry3<f64>, b: &Isometry3<f64>, what: &str) {
+    let dt = (a.translation.vector - b.translation.vector).norm();
+    let dr = a.rotation.angle_to(&b.rotation);
+    assert!(
+        dt < EXACT_TOL && dr < EXACT_TOL,
+        "{what}: Δt = {dt:e} m, Δr = {dr:e} rad"
+    );
+}
+
+/// The semantics of each error kind, against independent constructions: a URDF with the
+/// modified origins, nominal FK at modified angles, the mount composed in front.
+#[test]
+fn each_error_kind_means_what_the_contract_says() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let origins = oblique_origins();
+    let m = model(&oblique_urdf(&origins));
+    let n = m.dof();
+    let q = random_q(&m, &mut rng);
+    let tip = random_tip(&mut rng);
+    let g = random_g(&mut rng);
+    let e = random_errors(n, &mut rng);
+
+    // Origins: a URDF with xyz + origin_xyz, rpy + origin_rpy.
+    let mut only = KinematicErrors::zero(n);
+    only.origin_xyz.clone_from(&e.origin_xyz);
+    only.origin_rpy.clone_from(&e.origin_rpy);
+    let mut modified = origins;
+    for (k, o) in modified.iter_mut().enumerate() {
+        o.0 += e.origin_xyz[k];
+        o.1 += e.origin_rpy[k];
+    }
+    let m_mod = model(&oblique_urdf(&modified));
+    assert_pose_eq(
+        &true_base_from_tip(&m, &only, &q, &tip, &g).unwrap(),
+        &base_from_tip(&m_mod, &q, &tip).unwrap(),
+        "origin errors",
+    );
+
+    // Joint offset, scale and compliance: nominal FK at q_true.
+    let mut only = KinematicErrors::zero(n);
+    only.joint_offset.clone_from(&e.joint_offset);
+    only.joint_scale.clone_from(&e.joint_scale);
+    only.compliance.clone_from(&e.compliance);
+    let tau = crate::gravity_torques(&m, &q, &g).unwrap();
+    let q_true: Vec<f64> = (0..n)
+        .map(|i| q[i] * (1.0 + e.joint_scale[i]) + e.joint_offset[i] + e.compliance[i] * tau[i])
+        .collect();
+    assert!(
+        tau.iter().any(|t| t.abs() > 1.0),
+        "the test arm must feel gravity: {tau:?}"
+    );
+    assert_pose_eq(
+        &true_base_from_tip(&m, &only, &q, &tip, &g).unwrap(),
+        &base_from_tip(&m, &q_true, &tip).unwrap(),
+        "joint errors",
+    );
+
+    // Tip: added to flange_from_tip in flange axes.
+    let mut only = KinematicErrors::zero(n);
+    only.tip = e.tip;
+    assert_pose_eq(
+        &true_base_from_tip(&m, &only, &q, &tip, &g).unwrap(),
+        &base_from_tip(&m, &q, &(tip + e.tip)).unwrap(),
+        "tip error",
+    );
+
+    // Mount: nominal_base_from_base in front, R = Rz·Ry·Rx.
+    let mut only = KinematicErrors::zero(n);
+    only.mount_xyz = e.mount_xyz;
+    only.mount_rpy = e.mount_rpy;
+    let r = Rotation3::from_axis_angle(&Vector3::z_axis(), e.mount_rpy.z)
+        * Rotation3::from_axis_angle(&Vector3::y_axis(), e.mount_rpy.y)
+        * Rotation3::from_axis_angle(&Vector3::x_axis(), e.mount_rpy.x);
+    let nominal_base_from_base = Isometry3::from_parts(
+        Translation3::from(e.mount_xyz),
+        UnitQuaternion::from_rotation_matrix(&r),
+    );
+    assert_pose_eq(
+        &true_base_from_tip(&m, &only, &q, &tip, &g).unwrap(),
+        &(nominal_base_from_base * base_from_tip(&m, &q, &tip).unwrap()),
+        "mount error",
+    );
+
+    // All together, and true_base_from_flange consistent with the tip.
+    let flange = true_base_from_flange(&m, &e, &q, &g).unwrap();
+    let t = true_base_from_tip(&m, &e, &q, &tip, &g).unwrap();
+    assert_pose_eq(
+        &t,
+        &Isometry3::from_parts(
+            Translation3::from((flange * nalgebra::Point3::from(tip + e.tip)).coords),
+            flange.rotation,
+        ),
+        "flange vs tip",
+    );
+}
+
+#[test]
+fn gravity_direction_only_matters_through_compliance() {
+    let m = model(HP20);
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let q = random_q(&m, &mut rng);
+    let tip = random_tip(&mut rng);
+    let mut e = random_errors(m.dof(), &mut rng);
+    e.compliance.iter_mut().for_each(|c| *c = 0.0);
+    let a = true_base_from_tip(&m, &e, &q, &tip, &G_FLOOR).unwrap();
+    let b = true_base_from_tip(&m, &e, &q, &tip, &(-G_FLOOR)).unwrap();
+    assert_eq!(a, b);
+    e.compliance[1] = 1e-5;
+    let c = true_base_from_tip(&m, &e, &q, &tip, &(-G_FLOOR)).unwrap();
+    assert!((a.translation.vector - c.translation.vector).norm() > 1e-4);
+}
+
+#[test]
+fn bad_inputs_are_named_errors() {
+    let m = model(VA1400);
+    let q = vec![0.1; m.dof()];
+    let tip = Vector3::new(0.0, 0.0, 0.1);
+    let short = KinematicErrors::zero(m.dof() - 1);
+    let err = true_base_from_tip(&m, &short, &q, &tip, &G_FLOOR).unwrap_err();
+    assert!(err.to_string().contains("joint_offset"), "{err}");
+    let mut nan = KinematicErrors::zero(m.dof());
+    nan.origin_rpy[2].y = f64::NAN;
+    let err = true_base_from_tip(&m, &nan, &q, &tip, &G_FLOOR).unwrap_err();
+    assert!(
+        err.to_string().contains("origin_rpy") && err.to_string().contains("joint 3"),
+        "{err}"
+    );
+    let zero = KinematicErrors::zero(m.dof());
+    let err = tip_error_jacobian(
+        &m,
+        &zero,
+        &q,
+        &tip,
+        &G_FLOOR,
+        &[ErrorParam::JointOffset { joint: 7 }],
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("joint 8"), "{err}");
+    assert!(true_base_from_tip(&m, &zero, &q[..3], &tip, &G_FLOOR).is_err());
+    assert!(
+        true_base_from_tip(&m, &zero, &q, &Vector3::new(f64::NAN, 0.0, 0.0), &G_FLOOR).is_err()
+    );
+    assert!(
+        true_base_from_tip(&m, &zero, &q, &tip, &Vector3::new(0.0, 0.0, f64::INFINITY)).is_err()
+    );
+}

@@ -1,0 +1,187 @@
+//! URDFs as they come from vendors and ROS packages (issue 10), one regression test per input in
+//! `fixtures/`, named after it.
+
+use std::path::{Path, PathBuf};
+
+use kinematics::{base_from_flange, ModelError, RobotModel, MAX_CHAIN_LENGTH_M, WORLD_LINK};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// Poses built from the same numbers through a different fixed-joint grouping: round-off only.
+const SAME_NUMBERS_TOL: f64 = 1e-12;
+
+fn fixture_path(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures")
+        .join(name)
+}
+
+fn hp20() -> RobotModel {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../robots/hp20.urdf");
+    RobotModel::from_urdf_file(&p, "tool0").unwrap()
+}
+
+/// The flanges of two models agree at random joint vectors within the limits.
+fn assert_same_fk(a: &RobotModel, b: &RobotModel) {
+    assert_eq!(a.dof(), b.dof());
+    let mut rng = ChaCha8Rng::seed_from_u64(10);
+    for _ in 0..100 {
+        let q: Vec<f64> = a
+            .joints()
+            .iter()
+            .map(|j| rng.random_range(j.lower..j.upper))
+            .collect();
+        let fa = base_from_flange(a, &q).unwrap();
+        let fb = base_from_flange(b, &q).unwrap();
+        assert!(
+            (fa.to_homogeneous() - fb.to_homogeneous()).amax() < SAME_NUMBERS_TOL,
+            "{} vs {} at {q:?}",
+            a.name(),
+            b.name()
+        );
+    }
+}
+
+/// fixtures/ros_industrial_branches.urdf: the stock ROS-Industrial layout (`base_link-base`,
+/// `flange` before `tool0`) with a camera on link 3 and a gripper (two prismatic fingers, one a
+/// `<mimic>`) after tool0. Only the chain base_link → tool0 matters; the rest is listed.
+#[test]
+fn ros_industrial_branches() {
+    let m =
+        RobotModel::from_urdf_file(&fixture_path("ros_industrial_branches.urdf"), "tool0").unwrap();
+    assert_eq!(
+        (m.root_link(), m.base_link(), m.dof()),
+        ("base_link", "base_link", 6)
+    );
+    assert_eq!(
+        m.ignored_joints(),
+        [
+            "base_link-base",
+            "camera_mount",
+            "tool0-gripper",
+            "finger_left_joint",
+            "finger_right_joint"
+        ]
+    );
+    assert_eq!(
+        m.ignored_links(),
+        [
+            "base",
+            "camera_link",
+            "gripper_base",
+            "finger_left",
+            "finger_right"
+        ]
+    );
+    assert_same_fk(&m, &hp20());
+    // The shipped hp20 has no branch: nothing is ignored.
+    assert!(hp20().ignored_joints().is_empty() && hp20().ignored_links().is_empty());
+    // A tool link beyond the mimic finger puts the coupled (and prismatic) joint on the chain.
+    let e = RobotModel::from_urdf_file(
+        &fixture_path("ros_industrial_branches.urdf"),
+        "finger_right",
+    )
+    .unwrap_err();
+    assert!(matches!(e, ModelError::MimicJoint { .. }), "{e}");
+}
+
+/// fixtures/world_root.urdf: hp20 fixed to a `world` root 2 m out and turned 90°. The world
+/// rule: the base frame is base_link (FK identical to hp20's), and the placement is reported.
+#[test]
+fn world_root() {
+    let m = RobotModel::from_urdf_file(&fixture_path("world_root.urdf"), "tool0").unwrap();
+    assert_eq!((m.root_link(), m.base_link()), (WORLD_LINK, "base_link"));
+    let expected = Isometry3::from_parts(
+        Translation3::new(2.0, 1.0, 0.0),
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::FRAC_PI_2),
+    );
+    let world_from_base = m.root_from_base().expect("the world rule applied");
+    assert!((world_from_base.to_homogeneous() - expected.to_homogeneous()).amax() < 1e-15);
+    assert!(m.ignored_joints().is_empty());
+    assert_same_fk(&m, &hp20());
+    // A root named otherwise, or a world joined by a moving joint, stays the base.
+    let xml = std::fs::read_to_string(fixture_path("world_root.urdf")).unwrap();
+    let m = RobotModel::from_urdf_str(&xml.replace("\"world\"", "\"cell\""), "tool0").unwrap();
+    assert_eq!((m.root_link(), m.base_link()), ("cell", "cell"));
+    assert!(m.root_from_base().is_none());
+    assert_eq!(
+        m.joints()[0].fixed_prefix.translation.vector,
+        Vector3::new(2.0, 1.0, 0.0)
+    );
+}
+
+/// fixtures/mimic_on_chain.urdf: joint_3 mimics joint_2; refused, naming both.
+#[test]
+fn mimic_on_chain() {
+    let e = RobotModel::from_urdf_file(&fixture_path("mimic_on_chain.urdf"), "tool0").unwrap_err();
+    assert!(matches!(e, ModelError::MimicJoint { .. }), "{e}");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("mimic_on_chain.urdf")
+            && msg.contains("`joint_3`")
+            && msg.contains("`joint_2`"),
+        "{msg}"
+    );
+    // The chain up to link_2 has no coupling and loads.
+    let m = RobotModel::from_urdf_file(&fixture_path("mimic_on_chain.urdf"), "link_2").unwrap();
+    assert_eq!(
+        (m.dof(), m.ignored_joints()),
+        (2, &["joint_3".to_string()][..])
+    );
+}
+
+/// fixtures/linear_track.urdf: a prismatic track from `world` (not fixed, so `world` stays the
+/// base) is refused with the reason and what to do.
+#[test]
+fn linear_track() {
+    let e = RobotModel::from_urdf_file(&fixture_path("linear_track.urdf"), "tool0").unwrap_err();
+    assert!(matches!(e, ModelError::PrismaticJoint { .. }), "{e}");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("`track`") && msg.contains("rotary joints only") && msg.contains("fixed"),
+        "{msg}"
+    );
+    // Loading from the carriage works: the arm alone.
+    let xml = std::fs::read_to_string(fixture_path("linear_track.urdf")).unwrap();
+    let arm_only = xml.replace("type=\"prismatic\"", "type=\"fixed\"");
+    let m = RobotModel::from_urdf_str(&arm_only, "tool0").unwrap();
+    assert_eq!((m.base_link(), m.dof()), ("carriage", 1));
+}
+
+/// fixtures/arm.urdf.xacro: refused by its extension, and by its namespace when given as text,
+/// with the command to expand it.
+#[test]
+fn arm_urdf_xacro() {
+    let path = fixture_path("arm.urdf.xacro");
+    let e = RobotModel::from_urdf_file(&path, "tool0").unwrap_err();
+    assert!(matches!(e, ModelError::Xacro { .. }), "{e}");
+    assert!(e.to_string().contains("xacro") && e.to_string().contains("arm.urdf.xacro"));
+    let xml = std::fs::read_to_string(&path).unwrap();
+    let e = RobotModel::from_urdf_str(&xml, "tool0").unwrap_err();
+    assert!(matches!(e, ModelError::Xacro { .. }), "{e}");
+}
+
+/// fixtures/hp20_millimetres.urdf: hp20 with every origin in millimetres (chain 2455 "m"); refused
+/// naming the unit and the longest joint origin.
+#[test]
+fn hp20_millimetres() {
+    let e =
+        RobotModel::from_urdf_file(&fixture_path("hp20_millimetres.urdf"), "tool0").unwrap_err();
+    match &e {
+        ModelError::LooksLikeMillimetres {
+            joint,
+            origin,
+            length,
+            ..
+        } => {
+            assert_eq!(joint, "joint_5_b");
+            assert!((origin - 795.0).abs() < 1e-9 && (length - 2455.0).abs() < 1e-9);
+        }
+        other => panic!("expected LooksLikeMillimetres, got {other}"),
+    }
+    assert!(e.to_string().contains("millimetres"), "{e}");
+    // The shipped arms in metres are far below the threshold.
+    let chain: f64 = hp20().joints().iter().map(|j| j.origin_xyz.norm()).sum();
+    assert!(chain < MAX_CHAIN_LENGTH_M / 5.0, "{chain}");
+}
