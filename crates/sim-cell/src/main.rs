@@ -175,7 +175,7 @@ fn paper_cmd(a: PaperArgs) -> Result<()> {
     if a.json {
         println!("{}", serde_json::to_string_pretty(&d)?);
     } else {
-        print!("{}", sim_cell::paper::render_diagnosis_text(&d));
+        print!("{}", sim_cell::paper::diagnosis_text(&d));
     }
     Ok(())
 }
