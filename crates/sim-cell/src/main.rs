@@ -297,7 +297,7 @@ fn sweep_cmd(a: SweepArgs) -> Result<()> {
     );
     let t0 = Instant::now();
     let cpu0 = process_cpu_seconds();
-    let result = pool.install(|| sweep::run_sweep(&config, &cells, &pb))?;
+    let result = pool.install(|| sweep::run_sweep(&config, &cells, &|n| pb.inc(n)))?;
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     let cpu = process_cpu_seconds().zip(cpu0).map(|(a, b)| a - b);

@@ -289,7 +289,7 @@ fn robot_mode_sweep_is_thread_independent_and_follows_noise() {
             .build()
             .unwrap();
         let r = pool
-            .install(|| run_sweep(&config, &cells, &indicatif::ProgressBar::hidden()))
+            .install(|| run_sweep(&config, &cells, &|_| {}))
             .unwrap();
         let mut out = Vec::new();
         write_trials_csv(&r, &mut out).unwrap();
@@ -312,5 +312,5 @@ fn robot_mode_sweep_is_thread_independent_and_follows_noise() {
     }
     // Cells in the wrong order for the grid are an error, not a silent mismatch.
     let wrong = vec![Cell::default_floor_wall()];
-    assert!(run_sweep(&config, &wrong, &indicatif::ProgressBar::hidden()).is_err());
+    assert!(run_sweep(&config, &wrong, &|_| {}).is_err());
 }
