@@ -10,50 +10,74 @@ use crate::placement::mounts_label;
 
 /// Writes every trial × method as CSV: `seed,trial,cell,trial_in_cell,mode,mounts,layout,method,
 /// noise_mm,spread_mm,n,status,e_tran_mm,e_rot_deg,geodesic_deg,dx_mm,dy_mm,dz_mm` (errors empty
-/// when the status is not `ok`; `trial` is the index given to [`trial_rng`]). Deterministic text.
+/// when the status is not `ok`; `trial` is the index given to [`crate::trial_rng`]). Fields are
+/// quoted where CSV needs it (a tilted mount's label holds a comma). Deterministic text.
 pub fn write_trials_csv(result: &SweepResult, w: &mut impl Write) -> std::io::Result<()> {
     let c = &result.config;
-    writeln!(
-        w,
-        "seed,trial,cell,trial_in_cell,mode,mounts,layout,method,noise_mm,spread_mm,n,status,e_tran_mm,e_rot_deg,geodesic_deg,dx_mm,dy_mm,dz_mm"
-    )?;
+    let mut out = csv::Writer::from_writer(w);
+    out.write_record(TRIALS_HEADER)?;
     let labels: Vec<String> = c.mounts.iter().map(mounts_label).collect();
+    let mut record: Vec<String> = Vec::with_capacity(TRIALS_HEADER.len());
     for trial in 0..c.total_trials() {
         let cell_idx = trial / c.trials;
         let cell = result.grid[cell_idx];
         for (m, method) in c.methods.iter().enumerate() {
-            write!(
-                w,
-                "{},{},{},{},{},{},{},{},{},{},{},",
-                c.seed,
-                trial,
-                cell_idx,
-                trial % c.trials,
-                c.mode.name(),
-                labels[cell.mounts],
-                c.layout.name(),
-                method.name(),
-                c.noise_mm[cell.noise],
-                c.spread_m[cell.spread] * 1000.0,
-                c.n_points[cell.n],
-            )?;
+            record.clear();
+            record.extend([
+                c.seed.to_string(),
+                trial.to_string(),
+                cell_idx.to_string(),
+                (trial % c.trials).to_string(),
+                c.mode.name().to_string(),
+                labels[cell.mounts].clone(),
+                c.layout.name().to_string(),
+                method.name().to_string(),
+                c.noise_mm[cell.noise].to_string(),
+                (c.spread_m[cell.spread] * 1000.0).to_string(),
+                c.n_points[cell.n].to_string(),
+            ]);
             match result.outcome(trial, m) {
-                Ok(e) => writeln!(
-                    w,
-                    "ok,{:.6},{:.7},{:.7},{:.6},{:.6},{:.6}",
-                    e.e_tran * 1e3,
-                    e.e_rot.to_degrees(),
-                    e.geodesic.to_degrees(),
-                    e.translation_error.x * 1e3,
-                    e.translation_error.y * 1e3,
-                    e.translation_error.z * 1e3
-                )?,
-                Err(f) => writeln!(w, "{},,,,,,", f.name())?,
+                Ok(e) => record.extend([
+                    "ok".to_string(),
+                    format!("{:.6}", e.e_tran * 1e3),
+                    format!("{:.7}", e.e_rot.to_degrees()),
+                    format!("{:.7}", e.geodesic.to_degrees()),
+                    format!("{:.6}", e.translation_error.x * 1e3),
+                    format!("{:.6}", e.translation_error.y * 1e3),
+                    format!("{:.6}", e.translation_error.z * 1e3),
+                ]),
+                Err(f) => {
+                    record.push(f.name().to_string());
+                    record.resize(TRIALS_HEADER.len(), String::new());
+                }
             }
+            out.write_record(&record)?;
         }
     }
-    Ok(())
+    out.flush()
 }
+
+/// The columns of `trials.csv`.
+pub const TRIALS_HEADER: [&str; 18] = [
+    "seed",
+    "trial",
+    "cell",
+    "trial_in_cell",
+    "mode",
+    "mounts",
+    "layout",
+    "method",
+    "noise_mm",
+    "spread_mm",
+    "n",
+    "status",
+    "e_tran_mm",
+    "e_rot_deg",
+    "geodesic_deg",
+    "dx_mm",
+    "dy_mm",
+    "dz_mm",
+];
 
 /// Statistics of one method over a group of trials.
 #[derive(Debug, Clone, PartialEq)]
@@ -241,32 +265,19 @@ pub fn render_table(rows: &[SummaryRow]) -> String {
 /// Writes summary rows as CSV (`mounts,method,noise_mm,spread_mm,n,trials,failed`, then for each
 /// statistic `_value,_lo,_hi`; pooled axes are empty).
 pub fn write_summary_csv(rows: &[SummaryRow], w: &mut impl Write) -> std::io::Result<()> {
-    let stats = [
-        "e_tran_mm_median",
-        "e_tran_mm_p95",
-        "e_rot_deg_median",
-        "e_rot_deg_p95",
-        "geodesic_deg_median",
-        "geodesic_deg_p95",
-    ];
-    write!(w, "mounts,method,noise_mm,spread_mm,n,trials,failed")?;
-    for s in stats {
-        write!(w, ",{s},{s}_lo,{s}_hi")?;
-    }
-    writeln!(w)?;
+    let mut out = csv::Writer::from_writer(w);
+    out.write_record(summary_header())?;
     let opt = |v: Option<String>| v.unwrap_or_default();
     for r in rows {
-        write!(
-            w,
-            "{},{},{},{},{},{},{}",
-            r.mounts,
-            r.method.name(),
+        let mut record = vec![
+            r.mounts.clone(),
+            r.method.name().to_string(),
             opt(r.noise_mm.map(|v| v.to_string())),
             opt(r.spread_m.map(|v| (v * 1000.0).to_string())),
             opt(r.n.map(|v| v.to_string())),
-            r.trials,
-            r.failed
-        )?;
+            r.trials.to_string(),
+            r.failed.to_string(),
+        ];
         for q in [
             &r.e_tran_mm_median,
             &r.e_tran_mm_p95,
@@ -275,9 +286,41 @@ pub fn write_summary_csv(rows: &[SummaryRow], w: &mut impl Write) -> std::io::Re
             &r.geodesic_deg_median,
             &r.geodesic_deg_p95,
         ] {
-            write!(w, ",{:.7},{:.7},{:.7}", q.value, q.lower, q.upper)?;
+            record.extend([
+                format!("{:.7}", q.value),
+                format!("{:.7}", q.lower),
+                format!("{:.7}", q.upper),
+            ]);
         }
-        writeln!(w)?;
+        out.write_record(&record)?;
     }
-    Ok(())
+    out.flush()
+}
+
+/// The columns of `summary.csv`: `mounts,method,noise_mm,spread_mm,n,trials,failed`, then
+/// `<statistic>,<statistic>_lo,<statistic>_hi` for each statistic.
+pub fn summary_header() -> Vec<String> {
+    let stats = [
+        "e_tran_mm_median",
+        "e_tran_mm_p95",
+        "e_rot_deg_median",
+        "e_rot_deg_p95",
+        "geodesic_deg_median",
+        "geodesic_deg_p95",
+    ];
+    let mut header: Vec<String> = [
+        "mounts",
+        "method",
+        "noise_mm",
+        "spread_mm",
+        "n",
+        "trials",
+        "failed",
+    ]
+    .map(String::from)
+    .to_vec();
+    for s in stats {
+        header.extend([s.to_string(), format!("{s}_lo"), format!("{s}_hi")]);
+    }
+    header
 }
