@@ -14,17 +14,18 @@ use super::{PaperError, DEFAULT_BOOTSTRAP, DEFAULT_SEED, DEFAULT_TRIALS, MIN_TRI
 
 /// Options of the paper study and diagnosis (also the command-line flags of
 /// `handclasp paper diagnose` and `sim-cell paper`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, clap::Args)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::Args))]
 pub struct StudyOptions {
     /// Seed of every Monte Carlo draw (same seed, same report; trial `k` of a cell uses
     /// `trial_rng(seed, …)`).
-    #[arg(long, default_value_t = DEFAULT_SEED)]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = DEFAULT_SEED))]
     pub seed: u64,
     /// Simulated experiments per cell (at least 200, `MIN_TRIALS`).
-    #[arg(long, default_value_t = DEFAULT_TRIALS)]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = DEFAULT_TRIALS))]
     pub trials: usize,
     /// Parametric-bootstrap replicates for the "both methods share σ" test (0 skips it).
-    #[arg(long, default_value_t = DEFAULT_BOOTSTRAP)]
+    #[cfg_attr(feature = "cli", arg(long, default_value_t = DEFAULT_BOOTSTRAP))]
     pub bootstrap: usize,
 }
 
