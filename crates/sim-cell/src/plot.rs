@@ -202,7 +202,10 @@ pub fn write_panels_svg(path: &Path, title: &str, panels: &[Panel]) -> Result<()
         }
         root.present().map_err(|e| e.to_string())
     };
-    run().map_err(|e| SimError::io(path, format!("cannot draw the plot: {e}")))
+    run().map_err(|e| SimError::Plot {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
 }
 
 /// Index of the value nearest `target`.

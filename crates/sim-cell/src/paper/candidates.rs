@@ -11,6 +11,7 @@ use super::MRAD_PER_RAD;
 /// A candidate extension of the isotropic-noise model.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "snake_case")]
+#[non_exhaustive]
 pub enum Candidate {
     /// A tip length error (sum of both tips, mm) along the approach axis: a handclasp cannot see it
     /// in either robot, it shifts every estimate by `−d·a` (a: unit vector from base 1 to base 2).

@@ -106,7 +106,10 @@ impl SweepConfig {
             return Err(empty("methods"));
         }
         if self.trials == 0 {
-            return Err(SimError::InvalidInput("--trials must be at least 1".into()));
+            return Err(SimError::InvalidSetting {
+                field: "trials",
+                message: "must be at least 1".into(),
+            });
         }
         if let Some(v) = self
             .noise_mm

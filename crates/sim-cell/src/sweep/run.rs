@@ -40,6 +40,7 @@ impl TrialRngs {
 
 /// Why a trial gave no estimate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
 pub enum Failure {
     /// The method could not fit these points (degenerate geometry, too few points).
     FitFailed,
@@ -101,11 +102,14 @@ pub fn run_sweep(
             .zip(&config.mounts)
             .find(|(c, m)| c.mounts() != **m)
         {
-            return Err(SimError::InvalidInput(format!(
-                "robot mode: a cell has mounts {} but its grid entry is {}; give the cells in the order of --mounts",
-                mounts_label(&c.mounts()),
-                mounts_label(m)
-            )));
+            return Err(SimError::InvalidSetting {
+                field: "mounts",
+                message: format!(
+                    "has {} where its robot-mode cell has {}; give the cells in the order of the mounts",
+                    mounts_label(m),
+                    mounts_label(&c.mounts())
+                ),
+            });
         }
     }
     let grid = config.grid();
