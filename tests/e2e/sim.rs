@@ -1,6 +1,6 @@
 //! End-to-end tests for the simulator: a session simulated by `sim_cell` (robot mode: IK of both
 //! robots, nominal-model tips) is valid input to `handclasp calibrate`, which recovers the cell's
-//! true `b1_from_b2`. (The `sim-cell` binary itself is tested in `crates/sim-cell/tests/cli.rs`.)
+//! true `b1_from_b2`. (The `sim-cell` binary itself is tested in `crates/sim-cell/tests/sim_cell/cli.rs`.)
 
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use serde_json::Value;

@@ -4,7 +4,7 @@
 //! `sim_cell::paper`; this module only parses flags and prints.
 
 use anyhow::Context;
-use sim_cell::paper::{render_diagnosis_text, run_paper_diagnosis, StudyOptions};
+use sim_cell::paper::{diagnosis_text, run_paper_diagnosis, StudyOptions};
 
 /// Arguments of `handclasp paper diagnose`.
 #[derive(clap::Args, Debug)]
@@ -23,7 +23,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.json {
         println!("{}", serde_json::to_string_pretty(&diagnosis)?);
     } else {
-        print!("{}", render_diagnosis_text(&diagnosis));
+        print!("{}", diagnosis_text(&diagnosis));
     }
     Ok(())
 }

@@ -6,7 +6,6 @@
 
 use calib_core::{Method, MountPair};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use indicatif::ProgressBar;
 use nalgebra::Point3;
 use sim_cell::layout::Layout;
 use sim_cell::sweep::{geometry_trial_into, run_sweep, GeometrySpec, Mode, SweepConfig, TrialRngs};
@@ -79,9 +78,8 @@ fn geometry_sweep_two_threads(c: &mut Criterion) {
         };
         g.bench_function(name, |b| {
             b.iter(|| {
-                let pb = ProgressBar::hidden();
                 black_box(
-                    pool.install(|| run_sweep(&config, &[], &pb))
+                    pool.install(|| run_sweep(&config, &[], &|_| {}))
                         .unwrap()
                         .outcomes
                         .len(),

@@ -1,6 +1,11 @@
 //! A simulated cell: two robots, their mounts, tip offsets, true kinematic errors, the placement
 //! `b1_from_b2` and the noise of a handclasp session. Read from TOML (mm, degrees, paths relative
 //! to the file); every key is documented in the crate README.
+//!
+//! One job: turning a cell file into a checked [`Cell`] and back. The TOML schema, the checks that
+//! make a cell physically possible (robot 2's declared mount against the gravity direction implied
+//! by `b1_from_b2`, robot 1 not on a wall) and the writer all serve that job; its tests take the
+//! last ~150 lines.
 
 use crate::error::SimError;
 use crate::placement::{isometry_from_mm_deg, Placement};

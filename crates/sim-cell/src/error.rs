@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 /// Errors of sim-cell: each names the file, key, row or teach point at fault and says what would work.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum SimError {
     /// A cell file (TOML) is invalid; `message` names the key and the fix.
     #[error("cell {path}: {message}")]
@@ -22,11 +23,20 @@ pub enum SimError {
         message: String,
     },
     /// A file could not be read or written.
-    #[error("{path}: {message}")]
+    #[error("{path}: {source}")]
     Io {
         /// The file.
         path: PathBuf,
-        /// The operating system's message.
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A plot could not be drawn into its file.
+    #[error("{path}: cannot draw the plot: {message}")]
+    Plot {
+        /// The SVG file.
+        path: PathBuf,
+        /// The plotting library's message.
         message: String,
     },
     /// A teach point that one of the robots cannot reach.
@@ -42,14 +52,23 @@ pub enum SimError {
     /// An invalid argument (spec, grid axis, option): the message names it and what would work.
     #[error("{0}")]
     InvalidInput(String),
+    /// A setting of a configuration struct is out of range: `field` is its name in the struct
+    /// (e.g. [`crate::sweep::SweepConfig::trials`]), `message` what is wrong and what would work.
+    #[error("{field} {message}")]
+    InvalidSetting {
+        /// The field's name.
+        field: &'static str,
+        /// What is wrong and what would work (follows the field name in the message).
+        message: String,
+    },
 }
 
 impl SimError {
     /// Shorthand for [`SimError::Io`].
-    pub(crate) fn io(path: &std::path::Path, e: impl std::fmt::Display) -> Self {
+    pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
         SimError::Io {
             path: path.to_path_buf(),
-            message: e.to_string(),
+            source,
         }
     }
 }

@@ -10,7 +10,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use sim_cell::layout::Layout;
 use sim_cell::sweep::{self, Mode, SweepConfig};
-use sim_cell::{generate_session, trial_rng, Cell, SessionSpec};
+use sim_cell::{generate_session, trial_rng, Cell, SessionSpec, SimError};
 use std::io::{BufWriter, IsTerminal, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -175,7 +175,7 @@ fn paper_cmd(a: PaperArgs) -> Result<()> {
     if a.json {
         println!("{}", serde_json::to_string_pretty(&d)?);
     } else {
-        print!("{}", sim_cell::paper::render_diagnosis_text(&d));
+        print!("{}", sim_cell::paper::diagnosis_text(&d));
     }
     Ok(())
 }
@@ -207,6 +207,26 @@ fn session(a: SessionArgs) -> Result<()> {
         ),
     }
     Ok(())
+}
+
+/// A library error with a setting's field name replaced by the flag that sets it
+/// (`trials must be at least 1` → `--trials must be at least 1`).
+fn with_flag_names(e: SimError) -> anyhow::Error {
+    match e {
+        SimError::InvalidSetting { field, message } => {
+            let flag = match field {
+                "trials" => "--trials",
+                "mounts" => "--mounts",
+                "noise_mm" => "--noise-mm",
+                "spread_m" => "--spread-mm",
+                "n_points" => "--points",
+                "methods" => "--methods",
+                other => other,
+            };
+            anyhow::anyhow!("{flag} {message}")
+        }
+        other => other.into(),
+    }
 }
 
 fn sweep_cmd(a: SweepArgs) -> Result<()> {
@@ -242,7 +262,7 @@ fn sweep_cmd(a: SweepArgs) -> Result<()> {
         }),
         seed: a.seed,
     };
-    config.validate()?;
+    config.validate().map_err(with_flag_names)?;
     let mut config = config;
     let cells: Vec<Cell> = if mode == Mode::Robot {
         if a.cell.is_empty() {
@@ -297,7 +317,9 @@ fn sweep_cmd(a: SweepArgs) -> Result<()> {
     );
     let t0 = Instant::now();
     let cpu0 = process_cpu_seconds();
-    let result = pool.install(|| sweep::run_sweep(&config, &cells, &pb))?;
+    let result = pool
+        .install(|| sweep::run_sweep(&config, &cells, &|n| pb.inc(n)))
+        .map_err(with_flag_names)?;
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     let cpu = process_cpu_seconds().zip(cpu0).map(|(a, b)| a - b);

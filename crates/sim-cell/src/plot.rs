@@ -202,7 +202,10 @@ pub fn write_panels_svg(path: &Path, title: &str, panels: &[Panel]) -> Result<()
         }
         root.present().map_err(|e| e.to_string())
     };
-    run().map_err(|e| SimError::io(path, format!("cannot draw the plot: {e}")))
+    run().map_err(|e| SimError::Plot {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })
 }
 
 /// Index of the value nearest `target`.
@@ -261,7 +264,17 @@ fn medians(
     (tran, rot)
 }
 
-/// Writes `spread_<mounts>.svg` and `noise_<mounts>.svg` into `dir` for every mount pair of the
+/// A mount label as a file-name part: `(` and `,` become `_`, `)` is dropped
+/// (`floor-tilt(0.5,0)` → `floor-tilt_0.5_0`); the paper's labels are unchanged.
+fn file_stem(label: &str) -> String {
+    label
+        .chars()
+        .filter(|c| *c != ')')
+        .map(|c| if c == '(' || c == ',' { '_' } else { c })
+        .collect()
+}
+
+/// Writes `spread_<mounts>.svg` and `noise_<mounts>.svg` (the label through [`file_stem`]) into `dir` for every mount pair of the
 /// sweep (medians per method; other axes at reference values: noise nearest 1 mm, the smallest
 /// point count (the paper's 4 where present), spread nearest 1 m (the paper's advice)). Returns the
 /// files written.
@@ -281,7 +294,7 @@ pub fn write_sweep_plots(result: &SweepResult, dir: &Path) -> Result<Vec<PathBuf
         let (t, r) = medians(result, mi, |g| {
             (g.noise == noise_ref && g.n == n_ref).then(|| c.spread_m[g.spread] * 1e3)
         });
-        let path = dir.join(format!("spread_{label}.svg"));
+        let path = dir.join(format!("spread_{}.svg", file_stem(&label)));
         let title = format!(
             "{label} ({} mode, {} layout): median error vs spread; σ = {} mm, n = {}, {} trials",
             c.mode.name(),
@@ -314,7 +327,7 @@ pub fn write_sweep_plots(result: &SweepResult, dir: &Path) -> Result<Vec<PathBuf
         let (t, r) = medians(result, mi, |g| {
             (g.spread == spread_ref && g.n == n_ref).then(|| c.noise_mm[g.noise])
         });
-        let path = dir.join(format!("noise_{label}.svg"));
+        let path = dir.join(format!("noise_{}.svg", file_stem(&label)));
         let title = format!(
             "{label} ({} mode, {} layout): median error vs noise; spread = {} mm, n = {}, {} trials",
             c.mode.name(),
@@ -351,6 +364,13 @@ pub fn write_sweep_plots(result: &SweepResult, dir: &Path) -> Result<Vec<PathBuf
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Regression: a tilted mount's label put `(`, `)` and `,` into the SVG file names.
+    #[test]
+    fn file_stems_have_no_parentheses_or_commas() {
+        assert_eq!(file_stem("floor-tilt(0.5,0)"), "floor-tilt_0.5_0");
+        assert_eq!(file_stem("floor-wall"), "floor-wall");
+    }
 
     #[test]
     fn tick_labels_are_short() {

@@ -16,7 +16,6 @@ use kinematics::{
 use nalgebra::{Matrix3, Point3, Rotation3, Unit, Vector3};
 use rand::Rng;
 use rand_distr::StandardNormal;
-use std::fmt::Write as _;
 use std::path::Path;
 
 /// Layout draws tried before a session is declared unreachable.
@@ -98,28 +97,42 @@ impl Session {
         }
     }
 
-    /// The CSV text (see the module docs) for joint counts `dof1`, `dof2`.
-    pub fn to_csv_string(&self, dof1: usize, dof2: usize) -> String {
-        let mut s = String::from("point");
+    /// The CSV columns (see the module docs) for joint counts `dof1`, `dof2`.
+    pub fn csv_header(dof1: usize, dof2: usize) -> Vec<String> {
+        let mut header = vec!["point".to_string()];
         for (r, d) in [(1, dof1), (2, dof2)] {
             for k in 1..=d {
-                let _ = write!(s, ",r{r}_q{k}_deg");
+                header.push(format!("r{r}_q{k}_deg"));
             }
         }
-        s += ",r1_x_mm,r1_y_mm,r1_z_mm,r2_x_mm,r2_y_mm,r2_z_mm\n";
+        header.extend(
+            [
+                "r1_x_mm", "r1_y_mm", "r1_z_mm", "r2_x_mm", "r2_y_mm", "r2_z_mm",
+            ]
+            .map(String::from),
+        );
+        header
+    }
+
+    /// The CSV text (see the module docs) for joint counts `dof1`, `dof2`.
+    pub fn to_csv_string(&self, dof1: usize, dof2: usize) -> String {
+        let mut out = csv::Writer::from_writer(Vec::new());
+        // Writing to memory cannot fail, and every field is plain ASCII.
+        let _ = out.write_record(Session::csv_header(dof1, dof2));
         for p in &self.points {
-            let _ = write!(s, "{}", p.point);
+            let mut record = vec![p.point.to_string()];
             for q in p.q1.iter().chain(&p.q2) {
-                let _ = write!(s, ",{:.6}", q.to_degrees());
+                record.push(format!("{:.6}", q.to_degrees()));
             }
             for v in [&p.p_b1, &p.p_b2] {
                 for a in 0..3 {
-                    let _ = write!(s, ",{:.6}", v[a] * 1e3);
+                    record.push(format!("{:.6}", v[a] * 1e3));
                 }
             }
-            s.push('\n');
+            let _ = out.write_record(&record);
         }
-        s
+        let bytes = out.into_inner().unwrap_or_default();
+        String::from_utf8(bytes).unwrap_or_default()
     }
 
     /// Writes the session CSV for `cell`'s robots.
@@ -137,55 +150,73 @@ impl Session {
         Session::parse_csv(&text, path, cell)
     }
 
-    /// Parses session CSV text: the header must be exactly the one for `cell`'s joint counts; every
-    /// value finite; each row's tip columns must match FK of its joint columns with the cell's
-    /// nominal models and tip offsets within [`TIP_CONSISTENCY_MM`] (catches a wrong cell, tip or
-    /// unit). Errors name the line and column.
+    /// Parses session CSV text with the rules of calib-core's points reader
+    /// ([`calib_core::parse_points_csv`]): a UTF-8 BOM and CRLF line ends are accepted, fields may be
+    /// quoted, columns are found by header name in any order and extra columns are ignored, blank
+    /// lines are skipped. Every column of `cell`'s joint counts must be present and every value
+    /// finite; each row's tip columns must match FK of its joint columns with the cell's nominal
+    /// models and tip offsets within [`TIP_CONSISTENCY_MM`] (catches a wrong cell, tip or unit).
+    /// Errors name the line and column and say what would work.
     pub fn parse_csv(text: &str, path: &Path, cell: &Cell) -> Result<Session, SimError> {
         let err = |message: String| SimError::Session {
             path: path.to_path_buf(),
             message,
         };
         let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
-        let expected = Session { points: vec![] }.to_csv_string(d1, d2);
-        let expected = expected.trim_end();
-        let mut lines = text.lines().enumerate();
-        let header = lines
-            .by_ref()
-            .find(|(_, l)| !l.trim().is_empty())
-            .map(|(_, l)| l.trim())
-            .ok_or_else(|| err("the file is empty; expected a header line".into()))?;
-        let names: Vec<&str> = header.split(',').map(str::trim).collect();
-        let want: Vec<&str> = expected.split(',').collect();
-        if names != want {
-            let first_diff = names
-                .iter()
-                .zip(&want)
-                .position(|(a, b)| a != b)
-                .unwrap_or(names.len().min(want.len()));
-            return Err(err(format!(
-                "line 1: header column {} is `{}` but this cell ({} with {d1} joints, {} with {d2}) needs `{}`; the header must be exactly: {expected}",
-                first_diff + 1,
-                names.get(first_diff).unwrap_or(&"<missing>"),
-                cell.robot1.model.name(),
-                cell.robot2.model.name(),
-                want.get(first_diff).unwrap_or(&"<none>"),
-            )));
+        let want = Session::csv_header(d1, d2);
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        let mut reader = csv::ReaderBuilder::new()
+            .trim(csv::Trim::All)
+            .flexible(true)
+            .from_reader(text.as_bytes());
+        let headers = reader
+            .headers()
+            .map_err(|e| err(format!("line 1: the header is not valid CSV: {e}")))?
+            .clone();
+        if headers.iter().all(str::is_empty) {
+            return Err(err("the file is empty; expected a header line".into()));
+        }
+        let mut idx = Vec::with_capacity(want.len());
+        for name in &want {
+            let k = headers.iter().position(|h| h == name).ok_or_else(|| {
+                let unused: Vec<String> = headers
+                    .iter()
+                    .filter(|h| !want.iter().any(|w| w == h))
+                    .map(|h| format!("`{h}`"))
+                    .collect();
+                let unused = if unused.is_empty() {
+                    String::new()
+                } else {
+                    format!(" (columns not used: {})", unused.join(", "))
+                };
+                err(format!(
+                    "line 1: the header has no column `{name}`{unused}, which this cell ({} with {d1} joints, {} with {d2}) needs; \
+                     the header must hold these columns (any order, extra columns ignored): {}",
+                    cell.robot1.model.name(),
+                    cell.robot2.model.name(),
+                    want.join(","),
+                ))
+            })?;
+            idx.push(k);
         }
         let mut points = Vec::new();
-        for (i, line) in lines {
-            let line_no = i + 1;
-            if line.trim().is_empty() {
+        for record in reader.records() {
+            let record = record.map_err(|e| {
+                let line = e.position().map_or(0, |p| p.line());
+                err(format!("line {line}: not valid CSV: {e}"))
+            })?;
+            let line_no = record.position().map_or(0, |p| p.line());
+            if record.iter().all(str::is_empty) {
                 continue;
             }
-            let cells: Vec<&str> = line.split(',').map(str::trim).collect();
-            if cells.len() != want.len() {
+            if record.len() != headers.len() {
                 return Err(err(format!(
                     "line {line_no}: {} values but the header has {} columns",
-                    cells.len(),
-                    want.len()
+                    record.len(),
+                    headers.len()
                 )));
             }
+            let cells: Vec<&str> = idx.iter().map(|&k| record.get(k).unwrap_or("")).collect();
             let point: usize = cells[0].parse().map_err(|_| {
                 err(format!(
                     "line {line_no}, column `point`: `{}` is not a point number (1, 2, …)",

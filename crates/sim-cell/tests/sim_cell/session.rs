@@ -289,7 +289,7 @@ fn robot_mode_sweep_is_thread_independent_and_follows_noise() {
             .build()
             .unwrap();
         let r = pool
-            .install(|| run_sweep(&config, &cells, &indicatif::ProgressBar::hidden()))
+            .install(|| run_sweep(&config, &cells, &|_| {}))
             .unwrap();
         let mut out = Vec::new();
         write_trials_csv(&r, &mut out).unwrap();
@@ -312,5 +312,117 @@ fn robot_mode_sweep_is_thread_independent_and_follows_noise() {
     }
     // Cells in the wrong order for the grid are an error, not a silent mismatch.
     let wrong = vec![Cell::default_floor_wall()];
-    assert!(run_sweep(&config, &wrong, &indicatif::ProgressBar::hidden()).is_err());
+    assert!(run_sweep(&config, &wrong, &|_| {}).is_err());
+}
+
+/// A tilted mount's label holds a comma (`floor-tilt(0.5,0)`): trials.csv and summary.csv quote
+/// it, so every row read back has the header's field count and the label round-trips.
+#[test]
+fn tilted_mount_sweep_csvs_read_back_with_the_header_field_count() {
+    use sim_cell::placement::mounts_label;
+    use sim_cell::sweep::{
+        run_sweep, summarize_cells, write_summary_csv, write_trials_csv, Mode, SweepConfig,
+    };
+    let cells_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+    let text = std::fs::read_to_string(cells_dir.join("floor-floor.toml")).unwrap();
+    let (head, robot2) = text.split_at(text.find("[robot2]").unwrap());
+    let robot2 = robot2.replacen("mount = \"floor\"", "mount = { tilt_deg = [0.5, 0.0] }", 1);
+    let cell = Cell::from_toml_str(&format!("{head}{robot2}"), &cells_dir).unwrap();
+    let label = mounts_label(&cell.mounts());
+    assert!(label.contains(','), "{label}");
+    let config = SweepConfig {
+        mode: Mode::Robot,
+        mounts: vec![cell.mounts()],
+        noise_mm: vec![1.0],
+        spread_m: vec![0.5],
+        n_points: vec![4],
+        methods: vec![Method::Lsq, Method::Constrained],
+        layout: Layout::Tetrahedron,
+        trials: 1,
+        seed: 7,
+    };
+    let result = run_sweep(&config, &[cell], &|_| {}).unwrap();
+    let mut trials = Vec::new();
+    write_trials_csv(&result, &mut trials).unwrap();
+    let mut summary = Vec::new();
+    write_summary_csv(&summarize_cells(&result), &mut summary).unwrap();
+    for (name, bytes, rows) in [("trials", trials, 2), ("summary", summary, 2)] {
+        let mut reader = csv::ReaderBuilder::new()
+            .flexible(true)
+            .from_reader(bytes.as_slice());
+        let header = reader.headers().unwrap().clone();
+        let mounts = header.iter().position(|h| h == "mounts").unwrap();
+        let records: Vec<csv::StringRecord> = reader.records().map(Result::unwrap).collect();
+        assert_eq!(records.len(), rows, "{name}");
+        for r in &records {
+            assert_eq!(r.len(), header.len(), "{name}: {r:?}");
+            assert_eq!(&r[mounts], label, "{name}");
+        }
+    }
+}
+
+/// The session reader follows calib-core's points reader: columns found by header name in any
+/// order, a UTF-8 BOM, CRLF line ends, quoted fields and extra columns are all read to the same
+/// session as the file as written.
+#[test]
+fn session_csv_reader_accepts_reordered_columns_bom_crlf_and_extra_columns() {
+    let cell = Cell::default_floor_wall();
+    let session = generate_session(
+        &cell,
+        &SessionSpec::new(5, Layout::Tetrahedron, 1.0),
+        &mut trial_rng(4, 0),
+    )
+    .unwrap();
+    let p = Path::new("variant.csv");
+    let text = session.to_csv_string(cell.robot1.model.dof(), cell.robot2.model.dof());
+    let want = Session::parse_csv(&text, p, &cell).unwrap();
+    let rows: Vec<Vec<&str>> = text
+        .lines()
+        .map(|l| l.split(',').collect::<Vec<_>>())
+        .collect();
+    let join = |rows: &[Vec<String>], end: &str| {
+        rows.iter()
+            .map(|r| r.join(","))
+            .collect::<Vec<_>>()
+            .join(end)
+            + end
+    };
+    let owned = |f: &dyn Fn(usize, &Vec<&str>) -> Vec<String>| -> Vec<Vec<String>> {
+        rows.iter().enumerate().map(|(i, r)| f(i, r)).collect()
+    };
+    let reordered = owned(&|_, r| r.iter().rev().map(|s| s.to_string()).collect());
+    let extra = owned(&|i, r| {
+        let mut v: Vec<String> = r.iter().map(|s| s.to_string()).collect();
+        v.insert(
+            3,
+            if i == 0 {
+                "operator".into()
+            } else {
+                format!("\"Lee, J{i}\"")
+            },
+        );
+        v
+    });
+    let quoted = owned(&|_, r| r.iter().map(|s| format!("\"{s}\"")).collect());
+    let plain = owned(&|_, r| r.iter().map(|s| s.to_string()).collect());
+    let variants = [
+        ("reordered", join(&reordered, "\n")),
+        ("bom", format!("\u{feff}{}", join(&plain, "\n"))),
+        ("crlf", join(&plain, "\r\n")),
+        ("extra column", join(&extra, "\n")),
+        ("quoted", join(&quoted, "\n")),
+    ];
+    for (name, variant) in variants {
+        let got = Session::parse_csv(&variant, p, &cell).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(got, want, "{name}");
+    }
+    // A missing column is named, with the columns this cell needs.
+    let missing = owned(&|_, r| r[1..].iter().map(|s| s.to_string()).collect());
+    let e = Session::parse_csv(&join(&missing, "\n"), p, &cell)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("line 1") && e.contains("`point`") && e.contains("any order"),
+        "{e}"
+    );
 }

@@ -1,0 +1,272 @@
+//! Running a sweep: every trial of every grid cell in parallel, each from its own generator.
+
+use nalgebra::{Point3, Vector3};
+use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
+
+use super::config::{GridCell, Mode, SweepConfig};
+use super::geometry::{draw_geometry, fit_fast, ErotTruth, GeometrySpec, TrialErrors};
+use super::{CHUNK, MAX_GEOMETRY_POINTS};
+use crate::cell::Cell;
+use crate::error::SimError;
+use crate::placement::{mounts_label, paper_placement};
+use crate::session::{generate_session, SessionSpec};
+use crate::trial_rng;
+
+/// [`trial_rng`] for many trials of one seed: the seed is expanded into the ChaCha key once, and
+/// each trial's generator is a copy of the fresh keyed generator with its stream set, the same
+/// state as `trial_rng(seed, index)` (tested).
+#[derive(Debug, Clone)]
+pub struct TrialRngs {
+    base: ChaCha8Rng,
+}
+
+impl TrialRngs {
+    /// The generators of master `seed`.
+    pub fn new(seed: u64) -> Self {
+        TrialRngs {
+            base: trial_rng(seed, 0),
+        }
+    }
+
+    /// The generator of trial `index`, equal to `trial_rng(seed, index)`.
+    #[inline]
+    pub fn get(&self, index: u64) -> ChaCha8Rng {
+        let mut rng = self.base.clone();
+        rng.set_stream(index);
+        rng
+    }
+}
+
+/// Why a trial gave no estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Failure {
+    /// The method could not fit these points (degenerate geometry, too few points).
+    FitFailed,
+    /// Robot mode: no layout draw was reachable by both robots.
+    Unreachable,
+}
+
+impl Failure {
+    /// Name in the CSV `status` column.
+    pub fn name(self) -> &'static str {
+        match self {
+            Failure::FitFailed => "fit-failed",
+            Failure::Unreachable => "unreachable",
+        }
+    }
+}
+
+/// A trial's result for one method.
+pub type Outcome = Result<TrialErrors, Failure>;
+
+/// A finished sweep: outcome `[trial · methods.len() + method]` for every global trial index.
+#[derive(Debug, Clone)]
+pub struct SweepResult {
+    /// The configuration it ran.
+    pub config: SweepConfig,
+    /// The grid cells (index = cell number).
+    pub grid: Vec<GridCell>,
+    /// Outcomes, trial-major, methods in `config.methods` order.
+    pub outcomes: Vec<Outcome>,
+}
+
+impl SweepResult {
+    /// Outcome of global trial `trial` for method index `m`.
+    pub fn outcome(&self, trial: usize, m: usize) -> &Outcome {
+        &self.outcomes[trial * self.config.methods.len() + m]
+    }
+}
+
+/// Runs the sweep in parallel on the current rayon pool. Robot mode needs one [`Cell`] per mount
+/// pair of the config (same order; their alignment σ is replaced by the noise axis);
+/// geometry mode ignores `cells`. `progress` is called with the number of trials finished since its
+/// last call (from any worker thread, in steps of up to [`CHUNK`] trials).
+pub fn run_sweep(
+    config: &SweepConfig,
+    cells: &[Cell],
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<SweepResult, SimError> {
+    config.validate()?;
+    if config.mode == Mode::Robot && cells.len() != config.mounts.len() {
+        return Err(SimError::InvalidInput(format!(
+            "robot mode needs one cell per mount pair: {} cells for {} mount pairs",
+            cells.len(),
+            config.mounts.len()
+        )));
+    }
+    if config.mode == Mode::Robot {
+        if let Some((c, m)) = cells
+            .iter()
+            .zip(&config.mounts)
+            .find(|(c, m)| c.mounts() != **m)
+        {
+            return Err(SimError::InvalidSetting {
+                field: "mounts",
+                message: format!(
+                    "has {} where its robot-mode cell has {}; give the cells in the order of the mounts",
+                    mounts_label(m),
+                    mounts_label(&c.mounts())
+                ),
+            });
+        }
+    }
+    let grid = config.grid();
+    let total = config.total_trials();
+    let n_methods = config.methods.len();
+    let specs: Vec<(GeometrySpec, ErotTruth)> = grid
+        .iter()
+        .map(|g| {
+            let spec = geometry_spec(config, g);
+            (spec, spec.erot_truth())
+        })
+        .collect();
+    let rngs = TrialRngs::new(config.seed);
+    // One item per trial × method, written in place into `outcomes` by rayon (no serial
+    // pre-fill of the output); a worker runs a trial's methods when it meets the trial's first
+    // item it is given (a trial split between two workers is run by both, identically).
+    let mut outcomes: Vec<Outcome> = Vec::new();
+    (0..total * n_methods)
+        .into_par_iter()
+        .with_min_len(CHUNK * n_methods)
+        .map_init(
+            || Worker::new(progress),
+            |w, item| {
+                let trial = item / n_methods;
+                if w.trial != Some(trial) {
+                    w.trial = Some(trial);
+                    w.outcomes.clear();
+                    let cell_index = trial / config.trials;
+                    let mut rng = rngs.get(trial as u64);
+                    match config.mode {
+                        Mode::Geometry => {
+                            let (spec, erot_truth) = &specs[cell_index];
+                            let (p1, p2) = (&mut w.buf1[..spec.n], &mut w.buf2[..spec.n]);
+                            draw_geometry(spec, &mut rng, p1, p2);
+                            w.outcomes.extend(config.methods.iter().map(|&method| {
+                                fit_fast(method, &spec.mounts, p1, p2)
+                                    .map(|est| {
+                                        TrialErrors::between_fast(
+                                            &spec.b1_from_b2,
+                                            erot_truth,
+                                            &est,
+                                        )
+                                    })
+                                    .ok_or(Failure::FitFailed)
+                            }));
+                        }
+                        Mode::Robot => {
+                            let cell = &grid[cell_index];
+                            robot_trial(
+                                config,
+                                cell,
+                                &cells[cell.mounts],
+                                &mut rng,
+                                &mut w.outcomes,
+                            );
+                        }
+                    }
+                }
+                let m = item % n_methods;
+                if m == 0 {
+                    w.count_trial();
+                }
+                w.outcomes[m]
+            },
+        )
+        .collect_into_vec(&mut outcomes);
+    Ok(SweepResult {
+        config: config.clone(),
+        grid,
+        outcomes,
+    })
+}
+
+/// Per-worker state of [`run_sweep`]: point buffers, the trial in hand and its outcomes (one per
+/// method), and progress not yet reported (reported every [`CHUNK`] trials and when dropped).
+pub(super) struct Worker<'a> {
+    buf1: Vec<Point3<f64>>,
+    buf2: Vec<Point3<f64>>,
+    trial: Option<usize>,
+    outcomes: Vec<Outcome>,
+    progress: &'a (dyn Fn(u64) + Sync),
+    pending: u64,
+}
+
+impl<'a> Worker<'a> {
+    fn new(progress: &'a (dyn Fn(u64) + Sync)) -> Self {
+        Worker {
+            buf1: vec![Point3::origin(); MAX_GEOMETRY_POINTS],
+            buf2: vec![Point3::origin(); MAX_GEOMETRY_POINTS],
+            trial: None,
+            outcomes: Vec::new(),
+            progress,
+            pending: 0,
+        }
+    }
+
+    fn count_trial(&mut self) {
+        self.pending += 1;
+        if self.pending == CHUNK as u64 {
+            (self.progress)(self.pending);
+            self.pending = 0;
+        }
+    }
+}
+
+impl Drop for Worker<'_> {
+    fn drop(&mut self) {
+        if self.pending > 0 {
+            (self.progress)(self.pending);
+        }
+    }
+}
+
+/// The geometry spec of a grid cell.
+pub(super) fn geometry_spec(config: &SweepConfig, cell: &GridCell) -> GeometrySpec {
+    let mounts = &config.mounts[cell.mounts];
+    let p = paper_placement(mounts).unwrap_or(crate::placement::FLOOR_FLOOR);
+    GeometrySpec {
+        mounts: *mounts,
+        b1_from_b2: p.b1_from_b2(),
+        layout: config.layout,
+        n: config.n_points[cell.n],
+        spread_m: config.spread_m[cell.spread],
+        centre_b1: p.centre_b1(),
+        sigma_m: Vector3::repeat(config.noise_mm[cell.noise] / 1000.0),
+    }
+}
+
+/// One robot-mode trial: a simulated session on `cell` (σ from the grid), every method fitted on
+/// the controllers' nominal tips, errors against the cell's true `b1_from_b2`.
+pub(super) fn robot_trial(
+    config: &SweepConfig,
+    grid_cell: &GridCell,
+    cell: &Cell,
+    rng: &mut rand_chacha::ChaCha8Rng,
+    out: &mut Vec<Outcome>,
+) {
+    let mut cell = cell.clone();
+    cell.noise.alignment_m = Vector3::repeat(config.noise_mm[grid_cell.noise] / 1000.0);
+    let spec = SessionSpec {
+        n: config.n_points[grid_cell.n],
+        layout: config.layout,
+        spread_m: config.spread_m[grid_cell.spread],
+        centre_b1: None,
+        points_b1: None,
+    };
+    match generate_session(&cell, &spec, rng) {
+        Ok(session) => {
+            let (p1, p2) = session.tips();
+            for &method in &config.methods {
+                out.push(
+                    fit_fast(method, &config.mounts[grid_cell.mounts], &p1, &p2)
+                        .map(|est| TrialErrors::between(&cell.b1_from_b2, &est))
+                        .ok_or(Failure::FitFailed),
+                );
+            }
+        }
+        Err(_) => out.extend(config.methods.iter().map(|_| Err(Failure::Unreachable))),
+    }
+}

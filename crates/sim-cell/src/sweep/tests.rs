@@ -1,0 +1,386 @@
+//! Unit tests of the sweep: fast kernels against calib-core's slow paths, determinism whatever
+//! the thread count, replay of one trial, expected trends and the outputs.
+
+use super::geometry::*;
+use super::*;
+use crate::layout::Layout;
+use crate::placement::PAPER;
+use crate::trial_rng;
+use calib_core::{fit, rotation_from_zyz, PointPairs};
+use calib_core::{
+    project_rotation_family, wrap_angle, zyz_from_rotation, Method, MountPair,
+    ZYZ_SINGULAR_BAND_RAD,
+};
+use nalgebra::Rotation3;
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use rand::Rng;
+
+/// Fast and slow paths compute the same maths: agreement to round-off (m, rad).
+const SAME_MATHS_TOL: f64 = 1e-9;
+/// Exact data: recovery to round-off (m, rad).
+const EXACT_TOL: f64 = 1e-9;
+
+fn small_config() -> SweepConfig {
+    SweepConfig {
+        mode: Mode::Geometry,
+        mounts: PAPER.iter().map(|p| p.mounts).collect(),
+        noise_mm: vec![0.5, 3.0],
+        spread_m: vec![0.25, 1.5],
+        n_points: vec![4, 12],
+        methods: Method::ALL.to_vec(),
+        layout: Layout::Tetrahedron,
+        trials: 30,
+        seed: 7,
+    }
+}
+
+#[test]
+fn e_rot_fast_matches_calib_core_including_singular_angles() {
+    let mut rng = trial_rng(3, 0);
+    let mut truths: Vec<[f64; 3]> = PAPER
+        .iter()
+        .map(|p| zyz_from_rotation(&p.b1_from_b2().rotation.to_rotation_matrix()))
+        .collect();
+    use std::f64::consts::PI;
+    // Exactly at θ = 0 and 180°, tiny angles either side, the band's edges (1°) and a regular
+    // truth next to them.
+    let band = ZYZ_SINGULAR_BAND_RAD;
+    truths.extend([
+        [0.0, 0.0, 0.0],
+        [0.3, 0.0, -0.7],
+        [0.3, 1e-12, -0.7],
+        [0.3, -1e-9, 2.9],
+        [0.0, PI, 0.0],
+        [0.3, PI, -0.7],
+        [-3.0, PI - 1e-12, 3.1],
+        [1.0, -PI + 1e-9, 0.2],
+        [0.2, 0.999 * band, -1.0],
+        [0.2, PI - 0.999 * band, -1.0],
+        [0.2, 1.001 * band, -1.0],
+        [0.2, PI - 1.001 * band, -1.0],
+    ]);
+    for zyz_true in truths {
+        let r_true = rotation_from_zyz(zyz_true);
+        let truth = ErotTruth::new(zyz_true);
+        assert_eq!(truth.zyz(), zyz_true);
+        for k in 0..300 {
+            // Perturbations from 1e-12 rad (singular branch) to 1 rad, and exactly 0.
+            let scale = if k == 299 { 0.0 } else { 10f64.powi(-(k % 13)) };
+            let v = Vector3::new(
+                rng.random::<f64>() - 0.5,
+                rng.random::<f64>() - 0.5,
+                rng.random::<f64>() - 0.5,
+            ) * scale;
+            let r_est = Rotation3::new(v) * r_true;
+            let a = e_rot_fast(zyz_true, &r_est);
+            let b = calib_core::e_rot_zyz(zyz_true, &r_est);
+            assert!(
+                (a - b).abs() < SAME_MATHS_TOL,
+                "{zyz_true:?} {v:?}: {a} vs {b}"
+            );
+            assert_eq!(a, truth.e_rot(&r_est));
+        }
+        // A half turn about z (yaw error exactly 180°) and about x (estimate upside down).
+        for axis in [Vector3::z_axis(), Vector3::x_axis()] {
+            let r_est = Rotation3::from_axis_angle(&axis, PI) * r_true;
+            let (a, b) = (
+                e_rot_fast(zyz_true, &r_est),
+                calib_core::e_rot_zyz(zyz_true, &r_est),
+            );
+            assert!(
+                (a - b).abs() < SAME_MATHS_TOL,
+                "{zyz_true:?} {axis:?}: {a} vs {b}"
+            );
+        }
+    }
+}
+
+#[test]
+fn fit_fast_matches_calib_core_slow_paths() {
+    for placement in PAPER {
+        for n in [4, 7] {
+            let spec =
+                GeometrySpec::paper(&placement.mounts, Layout::Random, n, 1.0, 1e-3).unwrap();
+            let mut p1 = vec![Point3::origin(); n];
+            let mut p2 = vec![Point3::origin(); n];
+            draw_geometry(&spec, &mut trial_rng(11, n as u64), &mut p1, &mut p2);
+            let pairs = PointPairs::new(p1.clone(), p2.clone()).unwrap();
+            for method in Method::ALL {
+                let fast = fit_fast(method, &spec.mounts, &p1, &p2).unwrap();
+                let slow = fit(&pairs, method, &spec.mounts).unwrap().b1_from_b2;
+                assert!(
+                    (fast.translation.vector - slow.translation.vector).amax() < SAME_MATHS_TOL
+                        && fast.rotation.angle_to(&slow.rotation) < SAME_MATHS_TOL,
+                    "{} n={n} {}",
+                    placement.label(),
+                    method.name()
+                );
+                let e = TrialErrors::between(&spec.b1_from_b2, &fast);
+                let zyz = zyz_from_rotation(&spec.b1_from_b2.rotation.to_rotation_matrix());
+                let f = TrialErrors::between_fast(&spec.b1_from_b2, &ErotTruth::new(zyz), &fast);
+                assert!((e.e_tran - f.e_tran).abs() < SAME_MATHS_TOL);
+                assert!((e.e_rot - f.e_rot).abs() < SAME_MATHS_TOL);
+                assert!((e.geodesic - f.geodesic).abs() < SAME_MATHS_TOL);
+            }
+        }
+    }
+}
+
+#[test]
+fn zero_noise_recovers_the_truth_up_to_the_mount_family_deviation() {
+    for placement in PAPER {
+        // How far Table 1's true rotation is from the mounts' family (it is a measurement).
+        let truth = placement.b1_from_b2();
+        let projected = project_rotation_family(
+            &truth.rotation.to_rotation_matrix().into_inner(),
+            &placement.mounts,
+        )
+        .unwrap();
+        let family_dev = truth.rotation.to_rotation_matrix().angle_to(&projected);
+        for method in Method::ALL {
+            for n in [4, 9] {
+                let spec = GeometrySpec::paper(&placement.mounts, Layout::Tetrahedron, n, 1.0, 0.0)
+                    .unwrap();
+                let e = geometry_trial(&spec, method, &mut trial_rng(1, n as u64))
+                    .unwrap()
+                    .unwrap();
+                let constrained = matches!(method, Method::Paper | Method::Constrained);
+                // A constrained estimate lies in the family, so it is at least `family_dev` from the
+                // truth; the least-squares member differs from the nearest one only to second
+                // order, hence the 5 % margin.
+                let allowed = if constrained {
+                    1.05 * family_dev + EXACT_TOL
+                } else {
+                    EXACT_TOL
+                };
+                assert!(
+                    e.geodesic <= allowed,
+                    "{} {} n={n}: {e:?}",
+                    placement.label(),
+                    method.name()
+                );
+                if !constrained {
+                    assert!(e.e_tran < EXACT_TOL);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn invalid_specs_are_errors_not_panics() {
+    let mut spec =
+        GeometrySpec::paper(&MountPair::floor_floor(), Layout::Random, 4, 1.0, 1e-3).unwrap();
+    spec.n = MAX_GEOMETRY_POINTS + 1;
+    assert!(geometry_trial(&spec, Method::Lsq, &mut trial_rng(1, 1)).is_err());
+    spec.n = 4;
+    spec.spread_m = f64::NAN;
+    assert!(geometry_trial(&spec, Method::Lsq, &mut trial_rng(1, 1)).is_err());
+    let mut c = small_config();
+    c.noise_mm = vec![];
+    assert!(c.validate().unwrap_err().to_string().contains("noise"));
+    let mut c = small_config();
+    c.mounts = vec![MountPair {
+        robot1: calib_core::Mount::Floor,
+        robot2: calib_core::Mount::Tilt { rx: 0.1, ry: 0.0 },
+    }];
+    assert!(c
+        .validate()
+        .unwrap_err()
+        .to_string()
+        .contains("paper's cells"));
+    // Too few points for a method is a failed fit, not a panic.
+    let spec3 =
+        GeometrySpec::paper(&MountPair::floor_floor(), Layout::Random, 3, 1.0, 1e-3).unwrap();
+    assert_eq!(
+        geometry_trial(&spec3, Method::Generic, &mut trial_rng(1, 1)).unwrap(),
+        None
+    );
+}
+
+fn csv_with_threads(config: &SweepConfig, threads: usize) -> Vec<u8> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    let finished = std::sync::atomic::AtomicU64::new(0);
+    let progress = |n: u64| {
+        finished.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+    };
+    let result = pool.install(|| run_sweep(config, &[], &progress)).unwrap();
+    // Every trial is counted once, even when a trial is split between two workers.
+    assert_eq!(
+        finished.load(std::sync::atomic::Ordering::Relaxed),
+        config.total_trials() as u64
+    );
+    let mut out = Vec::new();
+    write_trials_csv(&result, &mut out).unwrap();
+    write_summary_csv(&summarize_cells(&result), &mut out).unwrap();
+    out
+}
+
+#[test]
+fn same_seed_gives_byte_identical_csv_with_one_and_two_threads() {
+    let mut config = small_config();
+    // More trials than one work chunk so that two threads really split the work.
+    config.trials = 2 * CHUNK / config.grid().len() + 7;
+    let a = csv_with_threads(&config, 1);
+    let b = csv_with_threads(&config, 2);
+    assert_eq!(a, b);
+    config.seed = 8;
+    assert_ne!(a, csv_with_threads(&config, 2));
+}
+
+#[test]
+fn wrap_difference_equals_wrap_angle() {
+    use std::f64::consts::{PI, TAU};
+    assert_eq!(wrap_difference(PI), PI);
+    assert_eq!(wrap_difference(-PI), PI);
+    assert_eq!(wrap_difference(TAU), 0.0);
+    assert_eq!(wrap_difference(-1e-300), -1e-300); // wrap_angle rounds this to 0
+    assert!(wrap_difference(f64::NAN).is_nan());
+    let mut x: f64 = -12.0;
+    while x < 12.0 {
+        for y in [x, x + 4e-15, x - 4e-15] {
+            let (a, b) = (wrap_difference(y), wrap_angle(y));
+            assert!(a > -PI && a <= PI, "{y} -> {a}");
+            // wrap_angle's own round-off: one ulp of 2π.
+            assert!((a - b).abs() <= 1e-15, "{y}: {a} vs {b}");
+        }
+        x += PI / 64.0;
+    }
+}
+
+#[test]
+fn trial_rngs_equal_trial_rng() {
+    for seed in [0, 1, 7, u64::MAX] {
+        let rngs = TrialRngs::new(seed);
+        for index in [0, 1, 2, 63, 64, 1 << 20, u64::MAX] {
+            let (mut a, mut b) = (rngs.get(index), trial_rng(seed, index));
+            for _ in 0..100 {
+                assert_eq!(a.random::<u64>(), b.random::<u64>());
+            }
+        }
+    }
+}
+
+#[test]
+fn trial_k_replays_alone() {
+    let config = small_config();
+    let result = run_sweep(&config, &[], &|_| {}).unwrap();
+    let k = 3 * config.trials + 5; // grid cell 3
+    let g = result.grid[k / config.trials];
+    let spec = GeometrySpec::paper(
+        &config.mounts[g.mounts],
+        config.layout,
+        config.n_points[g.n],
+        config.spread_m[g.spread],
+        config.noise_mm[g.noise] / 1000.0,
+    )
+    .unwrap();
+    for (m, method) in config.methods.iter().enumerate() {
+        let alone = geometry_trial(&spec, *method, &mut trial_rng(config.seed, k as u64)).unwrap();
+        assert_eq!(alone.ok_or(Failure::FitFailed), *result.outcome(k, m));
+    }
+}
+
+/// Median of a statistic over a grid cell's rows.
+fn median_of(
+    rows: &[SummaryRow],
+    mounts: &str,
+    method: Method,
+    noise: f64,
+    spread: f64,
+    n: usize,
+) -> (f64, f64) {
+    let r = rows
+        .iter()
+        .find(|r| {
+            r.mounts == mounts
+                && r.method == method
+                && r.noise_mm == Some(noise)
+                && r.spread_m == Some(spread)
+                && r.n == Some(n)
+        })
+        .unwrap();
+    (r.e_tran_mm_median.value, r.geodesic_deg_median.value)
+}
+
+#[test]
+fn small_sweep_shows_the_expected_trends() {
+    let mut config = small_config();
+    config.trials = 300;
+    config.mounts = vec![MountPair::floor_floor(), MountPair::floor_ceiling()];
+    config.methods = vec![
+        Method::Generic,
+        Method::Paper,
+        Method::Lsq,
+        Method::Constrained,
+    ];
+    let rows = summarize_cells(&run_sweep(&config, &[], &|_| {}).unwrap());
+    for mounts in ["floor-floor", "floor-ceiling"] {
+        for &method in &config.methods {
+            // Error falls with spread (n = 4, σ = 1 mm... here 0.5 and 3 mm).
+            for noise in [0.5, 3.0] {
+                let small = median_of(&rows, mounts, method, noise, 0.25, 4);
+                let large = median_of(&rows, mounts, method, noise, 1.5, 4);
+                assert!(
+                    large.0 < small.0 && large.1 < small.1,
+                    "{mounts} {method:?} spread: {small:?} -> {large:?}"
+                );
+            }
+            // Error falls with the point count.
+            let few = median_of(&rows, mounts, method, 3.0, 1.5, 4);
+            let many = median_of(&rows, mounts, method, 3.0, 1.5, 12);
+            assert!(
+                many.0 < few.0 && many.1 < few.1,
+                "{mounts} {method:?} points: {few:?} -> {many:?}"
+            );
+            // Error rises with noise.
+            let quiet = median_of(&rows, mounts, method, 0.5, 1.5, 12);
+            let loud = median_of(&rows, mounts, method, 3.0, 1.5, 12);
+            assert!(
+                loud.0 > quiet.0 && loud.1 > quiet.1,
+                "{mounts} {method:?} noise: {quiet:?} -> {loud:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn table_and_summary_csv_render() {
+    let result = run_sweep(&small_config(), &[], &|_| {}).unwrap();
+    let t = render_table(&summarize_pooled(&result));
+    assert!(t.contains("floor-wall") && t.contains("generic-affine") && t.contains('['));
+    let mut out = Vec::new();
+    write_summary_csv(&summarize_cells(&result), &mut out).unwrap();
+    let text = String::from_utf8(out).unwrap();
+    assert_eq!(text.lines().count(), 1 + result.grid.len() * 5);
+}
+
+proptest::proptest! {
+    /// The allocation-free metrics equal calib-core's for any truth and estimate
+    /// (tolerance: round-off, rad and m).
+    #[test]
+    fn fast_metrics_equal_calib_core(
+        phi in -3.2f64..3.2, theta in 0.0f64..std::f64::consts::PI, psi in -3.2f64..3.2,
+        ex in -0.5f64..0.5, ey in -0.5f64..0.5, ez in -0.5f64..0.5, scale_exp in 0i32..12,
+        tx in -2.0f64..2.0,
+    ) {
+        let truth = Isometry3::from_parts(
+            Translation3::new(tx, 0.3, -0.2),
+            UnitQuaternion::from_rotation_matrix(&rotation_from_zyz([phi, theta, psi])),
+        );
+        let d = Vector3::new(ex, ey, ez) * 10f64.powi(-scale_exp);
+        let est = Isometry3::from_parts(
+            Translation3::new(tx + ex * 1e-3, 0.3, -0.2),
+            UnitQuaternion::new(d) * truth.rotation,
+        );
+        let a = TrialErrors::between(&truth, &est);
+        let b = TrialErrors::between_fast(&truth, &ErotTruth::new(zyz_from_rotation(&truth.rotation.to_rotation_matrix())), &est);
+        proptest::prop_assert!((a.e_tran - b.e_tran).abs() < SAME_MATHS_TOL);
+        proptest::prop_assert!((a.e_rot - b.e_rot).abs() < SAME_MATHS_TOL);
+        proptest::prop_assert!((a.geodesic - b.geodesic).abs() < SAME_MATHS_TOL);
+        proptest::prop_assert!((a.rotation_error - b.rotation_error).amax() < SAME_MATHS_TOL);
+    }
+}
