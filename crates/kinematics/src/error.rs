@@ -58,7 +58,7 @@ pub enum ModelError {
         mimicked: String,
     },
     /// A prismatic (linear) joint lies on the chain.
-    #[error("{source_name}: joint `{joint}` is prismatic (a linear axis such as a track); the FK, Jacobians, IK and kinematic-error model handle rotary joints only (a linear axis needs its own joint-offset and scale units, m and ratio of m). Calibrate the arm on its own: make the track joint fixed (type=\"fixed\", its <origin> at the track position used) or load the chain from the carriage link, and treat each track position as a separate placement")]
+    #[error("{source_name}: joint `{joint}` is prismatic (a linear axis such as a track), which is not supported: the FK kernel, the Jacobians, the IK (joint limits, seeds and degree checks in radians) and the kinematic-error model (joint offsets in rad) are written for rotary joints only. Calibrate the arm at one track position: make the joint fixed (type=\"fixed\" with its <origin> moved to that position) and treat each track position as a separate robot placement")]
     PrismaticJoint {
         /// File path or `"<string>"`.
         source_name: String,

@@ -13,11 +13,12 @@
 //!   as in ROS, where calibration does not move the kinematics) after a comment.
 //!
 //! An `<origin>` (or its `xyz`/`rpy` attribute) that is missing is inserted. Numbers are written
-//! with 9 decimals (1 nm, 1 nrad) when a bound on what that rounding moves the flange, at any joint
-//! vector, is at most half of [`PATCH_TOLERANCE_M`]: `Σ_k |δxyz_k| + (|δroll_k| + |δpitch_k| +
-//! |δyaw_k|)·max(L_k, 1 m)`, with `δ` the rounding of joint k's numbers and `L_k` the sum of the
-//! origin lengths from joint k to the flange; otherwise with all the digits of the `f64`. Every result is
-//! re-loaded and checked against the error model ([`verify_patched_urdf`]) before it is returned.
+//! with 9 decimals (1 nm, 1 nrad) when a bound on what that rounding moves the flange, at any
+//! joint vector, is at most half of [`PATCH_TOLERANCE_M`]: `Σ_k |δxyz_k| + (|δroll_k| +
+//! |δpitch_k| + |δyaw_k|)·max(L_k, 1 m)`, with `δ` the rounding of joint k's numbers and `L_k`
+//! the sum of the (fixed and actuated) origin lengths from joint k to the flange; otherwise with
+//! all the digits of the `f64`. Every result is re-loaded and checked against the error model
+//! ([`verify_patched_urdf`]) before it is returned.
 //!
 //! Joint scale, compliance, tip and mount errors have no URDF element: they are refused
 //! ([`UrdfPatchError::NotExpressible`]); [`split_for_urdf`] separates them.
