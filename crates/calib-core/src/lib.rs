@@ -11,6 +11,7 @@ mod registration;
 mod robust;
 mod soft;
 pub mod stats;
+pub mod whole_cell;
 
 pub use error::CalibError;
 pub use fast::{
