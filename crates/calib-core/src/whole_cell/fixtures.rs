@@ -221,13 +221,30 @@ impl SimCell {
 
     /// `n` coincident observations (rows 1..n) with isotropic noise σ, seeded.
     pub fn coincident(&self, n: usize, sigma_m: f64, spread_m: f64, seed: u64) -> Vec<Observation> {
+        self.coincident_with_blunders(n, sigma_m, spread_m, seed, &[])
+    }
+
+    /// As [`SimCell::coincident`], with a gross error of the given size (m, random direction)
+    /// added to the alignment of each listed (1-based) row.
+    pub fn coincident_with_blunders(
+        &self,
+        n: usize,
+        sigma_m: f64,
+        spread_m: f64,
+        seed: u64,
+        blunders: &[(usize, f64)],
+    ) -> Vec<Observation> {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let mut out = Vec::with_capacity(n);
         while out.len() < n {
-            let noise = Vector3::from_fn(|_, _| {
+            let mut noise = Vector3::from_fn(|_, _| {
                 let z: f64 = StandardNormal.sample(&mut rng);
                 z * sigma_m
             });
+            if let Some(&(_, size)) = blunders.iter().find(|b| b.0 == out.len() + 1) {
+                let d = Vector3::from_fn(|_, _| StandardNormal.sample(&mut rng));
+                noise += d.normalize() * size;
+            }
             if let Some(p) = self.draw_pair(&mut rng, spread_m, 0, noise) {
                 out.push(Observation {
                     row: out.len() + 1,

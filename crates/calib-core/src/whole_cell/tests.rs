@@ -402,3 +402,102 @@ fn reduction_names_what_the_placement_absorbs_and_what_is_merged() {
     assert_eq!(fit.stopped, StopReason::Converged);
     assert!(!fit.singular, "the reduced problem is fully determined");
 }
+
+/// Issue 11's blunder test: three 5–10 mm blunders in a 40-point floor–wall session whose
+/// robot 2 hides a 0.12° joint-3 offset (the only error; every realistic parameter is fitted,
+/// with robot 2's offset tolerance widened to 0.2° so the prior admits it). The three rows are
+/// named (and only they), each well above the threshold; the screened fit equals the fit of the
+/// clean rows; the hidden offset is found (its 95 % interval, ±1.96 posterior σ, excludes 0 and
+/// it is within 3 σ of the truth); and the cooperative
+/// error stays at the clean level while the unscreened fit's is several times worse.
+#[test]
+fn three_blunders_are_named_and_the_hidden_offset_is_still_found() {
+    let mut sc = sim_cell(Cell::FloorWall, realistic(), false, 31);
+    sc.robot2.tolerance.joint_offset_rad = 0.2f64.to_radians();
+    let x = sc.truth.b1_from_b2;
+    sc.truth = CellEstimate::nominal(&sc.problem(), x);
+    let j3 = ErrorParam::JointOffset { joint: 2 };
+    sc.truth.robot2.errors.add(j3, 0.12f64.to_radians());
+    let blunders = [(7, 5e-3), (19, 7.5e-3), (33, 10e-3)];
+    let mut p = sc.problem();
+    p.observations = sc.coincident_with_blunders(40, 3e-4, 0.7, 32, &blunders);
+    let solve = SolveOptions::default();
+    let s = fit_screened(&p, None, &solve, &ScreenOptions::default()).unwrap();
+    let rows: Vec<usize> = s.rejected.iter().map(|r| r.row).collect();
+    for r in &s.rejected {
+        eprintln!(
+            "rejected row {} ({}): {:.1} σ, {:.2} mm (threshold {:.2} σ)",
+            r.row,
+            r.kind,
+            r.size_sigma,
+            r.residual_m * 1e3,
+            s.threshold_sigma_3
+        );
+    }
+    assert_eq!(rows, vec![7, 19, 33]);
+    assert!(s.rejected.iter().all(|r| r.size_sigma > s.threshold_sigma_3));
+    // The screened fit is the fit of the clean rows.
+    let clean: Vec<usize> = (0..40).filter(|i| ![6, 18, 32].contains(i)).collect();
+    let clean_fit = fit_cell_with(&p, ParamLayout::new(&p, &[]), &clean, None, None, &solve)
+        .unwrap();
+    let dx = (clean_fit.estimate.b1_from_b2.translation.vector
+        - s.fit.estimate.b1_from_b2.translation.vector)
+        .norm();
+    assert!(dx < 1e-9, "screened vs clean placement differ by {dx} m");
+    let col = s
+        .fit
+        .layout
+        .column(&CellParam::Kinematic { robot: 2, param: j3 })
+        .expect("robot 2 joint 3 offset is fitted");
+    let fitted = s.fit.layout.values(&s.fit.estimate)[col];
+    let se = s.fit.std_error(col);
+    let truth = sc.truth.robot2.errors.get(j3);
+    eprintln!(
+        "robot 2 joint 3 offset: fitted {:.4}°, true {:.4}° (posterior σ {:.4}°)",
+        fitted.to_degrees(),
+        truth.to_degrees(),
+        se.to_degrees()
+    );
+    assert!(fitted.abs() > 1.96 * se && (fitted - truth).abs() < 3.0 * se);
+    let pairs = sc.eval_pairs(100, 0.7, 33);
+    let screened = measure_cooperative_error(&p, &s.fit.estimate, &sc.truth, &pairs).unwrap();
+    let plain = fit_cell(&p, &solve).unwrap();
+    let unscreened = measure_cooperative_error(&p, &plain.estimate, &sc.truth, &pairs).unwrap();
+    eprintln!(
+        "cooperative rms: screened {:.3} mm, unscreened {:.3} mm",
+        screened.rms_m * 1e3,
+        unscreened.rms_m * 1e3
+    );
+    assert!(unscreened.rms_m > 2.0 * screened.rms_m);
+}
+
+/// Clean data: nothing is rejected (α = 1 % family-wise, so a false alarm in these seeds would
+/// be a 1-in-100 event each).
+#[test]
+fn clean_sessions_lose_no_rows() {
+    for seed in [41u64, 42, 43] {
+        let sc = sim_cell(Cell::FloorFloor, realistic(), false, seed);
+        let p = coincident_problem(&sc, 30, 3e-4, seed + 7);
+        let s = fit_screened(&p, None, &SolveOptions::default(), &ScreenOptions::default())
+            .unwrap();
+        assert!(s.rejected.is_empty(), "seed {seed}: {:?}", s.rejected);
+    }
+}
+
+/// When the rows left after rejection are too few, the error names the rows to re-record.
+#[test]
+fn too_few_rows_after_rejection_names_the_rows_to_re_record() {
+    let sc = sim_cell(Cell::FloorWall, realistic(), false, 51);
+    let mut p = sc.problem();
+    p.observations = sc.coincident_with_blunders(12, 3e-4, 0.7, 52, &[(3, 8e-3), (9, 6e-3)]);
+    let screen = ScreenOptions {
+        min_redundancy: 30,
+        ..ScreenOptions::default()
+    };
+    match fit_screened(&p, None, &SolveOptions::default(), &screen) {
+        Err(CellFitError::TooFewRows { rejected_rows, .. }) => {
+            assert_eq!(rejected_rows, vec![3, 9]);
+        }
+        other => panic!("expected TooFewRows, got {other:?}"),
+    }
+}
