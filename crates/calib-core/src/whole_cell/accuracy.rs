@@ -77,7 +77,8 @@ pub fn predict_cooperative_accuracy(
             "cooperative accuracy needs at least one configuration pair".into(),
         ));
     }
-    let covs = cooperative_covariances(problem, &fit.layout, &fit.estimate, &fit.covariance, pairs)?;
+    let covs =
+        cooperative_covariances(problem, &fit.layout, &fit.estimate, &fit.covariance, pairs)?;
     Ok(summarise_covariances(&covs, seed))
 }
 

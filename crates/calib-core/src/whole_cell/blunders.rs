@@ -75,7 +75,7 @@ fn block_stats(problem: &CellProblem, fit: &CellFit) -> Result<BlockStats, CellF
         let s = sys.block_start[b];
         let j = sys.j.rows(s, rows);
         let r = sys.r.rows(s, rows);
-        let h = &j * &fit.covariance * j.transpose();
+        let h = j * &fit.covariance * j.transpose();
         let m = DMatrix::identity(rows, rows) - h;
         let t2 = match m.clone().cholesky() {
             Some(c) => r.dot(&c.solve(&r.into_owned())),
@@ -88,7 +88,11 @@ fn block_stats(problem: &CellProblem, fit: &CellFit) -> Result<BlockStats, CellF
 
 /// Deletion statistic of an observation not in the fit, `r̃ᵀ(I + J̃·Σ·J̃ᵀ)⁻¹r̃`, and its residual
 /// norm (m).
-fn deletion_stat(problem: &CellProblem, fit: &CellFit, i: usize) -> Result<(f64, f64), CellFitError> {
+fn deletion_stat(
+    problem: &CellProblem,
+    fit: &CellFit,
+    i: usize,
+) -> Result<(f64, f64), CellFitError> {
     let ev = super::problem::Evaluator::new(problem, &fit.layout);
     let lin = ev.linearise(&problem.observations[i], &fit.estimate, true)?;
     let rw = &lin.whitening * &lin.residual;

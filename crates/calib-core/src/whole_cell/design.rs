@@ -5,7 +5,9 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 
 use super::accuracy::ConfigPair;
-use super::problem::{CellEstimate, CellFitError, CellProblem, Evaluator, Observation, ParamLayout};
+use super::problem::{
+    CellEstimate, CellFitError, CellProblem, Evaluator, Observation, ParamLayout,
+};
 
 /// σ of the weak prior put on the unpenalised unknowns (placement, nuisances) so that the
 /// design's information matrix is invertible before any observation: 10 (m or rad). Its
@@ -53,7 +55,9 @@ fn setup(
     eval_pairs: &[ConfigPair],
 ) -> Result<DesignSetup, CellFitError> {
     if candidates.is_empty() {
-        return Err(CellFitError::InvalidInput("design: no candidate observations".into()));
+        return Err(CellFitError::InvalidInput(
+            "design: no candidate observations".into(),
+        ));
     }
     let ev = Evaluator::new(problem, layout);
     let n = layout.len();
@@ -79,7 +83,12 @@ fn setup(
     Ok(DesignSetup { blocks, info0, m })
 }
 
-fn criterion_value(crit: DesignCriterion, sigma: &DMatrix<f64>, info: &DMatrix<f64>, m: &DMatrix<f64>) -> f64 {
+fn criterion_value(
+    crit: DesignCriterion,
+    sigma: &DMatrix<f64>,
+    info: &DMatrix<f64>,
+    m: &DMatrix<f64>,
+) -> f64 {
     match crit {
         DesignCriterion::CooperativeA => (m * sigma).trace().max(0.0).sqrt(),
         DesignCriterion::D => info
@@ -166,9 +175,10 @@ pub fn greedy_design(
         chosen.push(c);
         history.push(criterion_value(criterion, &sigma, &info, &s.m));
     }
-    let criterion_now = history.last().copied().unwrap_or_else(|| {
-        criterion_value(criterion, &sigma, &info, &s.m)
-    });
+    let criterion_now = history
+        .last()
+        .copied()
+        .unwrap_or_else(|| criterion_value(criterion, &sigma, &info, &s.m));
     Ok(DesignResult {
         chosen,
         criterion: criterion_now,

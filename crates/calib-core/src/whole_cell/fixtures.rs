@@ -20,27 +20,35 @@ const VA1400: &str = include_str!(concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/../../robots/va1400.urdf"
 ));
-const HP20: &str = include_str!(concat!(env!("CARGO_MANIFEST_DIR"), "/../../robots/hp20.urdf"));
+const HP20: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../robots/hp20.urdf"
+));
 
-/// The shipped cells (cells/*.toml): placement and teach centre.
+/// The shipped cells (cells/*.toml), named by robot 2's mount (robot 1 is on the floor):
+/// placement and teach centre.
 #[derive(Debug, Clone, Copy)]
 pub enum Cell {
-    FloorFloor,
-    FloorWall,
-    FloorCeiling,
+    Floor,
+    Wall,
+    Ceiling,
 }
 
 impl Cell {
     /// `(b1_from_b2, teach centre in b1)` from cells/*.toml.
     fn placement(self) -> (Isometry3<f64>, Point3<f64>) {
         let (xyz_mm, zyz_deg, centre_mm) = match self {
-            Cell::FloorFloor => ([37.9, 1476.5, 54.5], [-0.001, 0.001, -44.5], [150.0, 690.0, 500.0]),
-            Cell::FloorWall => (
+            Cell::Floor => (
+                [37.9, 1476.5, 54.5],
+                [-0.001, 0.001, -44.5],
+                [150.0, 690.0, 500.0],
+            ),
+            Cell::Wall => (
                 [1303.3, -102.3, 1386.3],
                 [180.0, 89.874, -179.997],
                 [475.0, -50.0, 995.0],
             ),
-            Cell::FloorCeiling => (
+            Cell::Ceiling => (
                 [1500.1, 500.0, 1499.9],
                 [0.0, 180.001, 0.001],
                 [750.0, 250.0, 720.0],
@@ -143,12 +151,22 @@ impl SimCell {
 
     /// True tip of `robot`'s tool at `q`, its own base frame.
     pub fn true_tip(&self, robot: u8, tool: usize, q: &[f64]) -> Vector3<f64> {
-        let rb = if robot == 1 { &self.robot1 } else { &self.robot2 };
+        let rb = if robot == 1 {
+            &self.robot1
+        } else {
+            &self.robot2
+        };
         let e = self.truth.robot(robot).errors_for_tool(tool);
-        true_base_from_tip(&rb.model, &e, q, &rb.tools[tool].flange_from_tip, &rb.g_base)
-            .expect("valid")
-            .translation
-            .vector
+        true_base_from_tip(
+            &rb.model,
+            &e,
+            q,
+            &rb.tools[tool].flange_from_tip,
+            &rb.g_base,
+        )
+        .expect("valid")
+        .translation
+        .vector
     }
 
     /// Joints putting robot `robot`'s TRUE tool `tool` at `target` (its base frame) with the
@@ -160,7 +178,11 @@ impl SimCell {
         target: &Point3<f64>,
         axis: Unit<Vector3<f64>>,
     ) -> Option<Vec<f64>> {
-        let rb = if robot == 1 { &self.robot1 } else { &self.robot2 };
+        let rb = if robot == 1 {
+            &self.robot1
+        } else {
+            &self.robot2
+        };
         let fft = rb.tools[tool].flange_from_tip;
         let opts = IkOptions {
             tool_axis_base: Some(axis),

@@ -82,9 +82,14 @@
 //! `trace(M·Σ)`, `M = mean_k J_v,kᵀJ_v,k` over evaluation pairs; its decrease is
 //! `trace(S⁻¹·B·Σ·M·Σ·Bᵀ)`. D-optimal: maximise `log det A`; its increase is `log det S`.
 //! Greedy: pick the best candidate, update `Σ` by Woodbury, repeat.
+//!
+//! # One call
+//! [`calibrate_cell`] runs the chain a CLI needs (start, reduce, screened MAP fit) and
+//! [`CellCalibration::report`] gives the serialisable summary.
 
 mod accuracy;
 mod blunders;
+mod calibrate;
 mod design;
 mod problem;
 mod reduce;
@@ -100,12 +105,15 @@ pub use accuracy::{
     summarise_covariances, ConfigPair, CooperativeError, CooperativePrediction, P95_DRAWS_PER_PAIR,
 };
 pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
-pub use design::{design_criterion, greedy_design, DesignCriterion, DesignResult, WEAK_PRIOR_SIGMA};
+pub use calibrate::{calibrate_cell, CalibrationReport, CellCalibration};
+pub use design::{
+    design_criterion, greedy_design, DesignCriterion, DesignResult, WEAK_PRIOR_SIGMA,
+};
 pub use problem::{
-    initial_estimate, tangent_basis, CellEstimate, CellFitError, CellParam, CellProblem,
-    CellRobot, ContactGroup, Evaluator, Noise3, Observation, ObservationKind,
-    ObservationLinearisation, ParamLayout, PlaneEstimate, PlaneGroup, RobotCorrection,
-    RobotIndex, Tolerance, Tool, TrackerGroup,
+    initial_estimate, tangent_basis, CellEstimate, CellFitError, CellParam, CellProblem, CellRobot,
+    ContactGroup, Evaluator, Noise3, Observation, ObservationKind, ObservationLinearisation,
+    ParamLayout, PlaneEstimate, PlaneGroup, RobotCorrection, RobotIndex, Tolerance, Tool,
+    TrackerGroup,
 };
 pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, RANK_TOL};
 pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions, StopReason};

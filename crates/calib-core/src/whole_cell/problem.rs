@@ -445,7 +445,7 @@ impl CellProblem {
                 )))
             }
         };
-        for g in self.trackers.iter().chain([].iter()) {
+        for g in &self.trackers {
             if robot_slot(g.anchor).is_none() {
                 return Err(CellFitError::InvalidInput(format!(
                     "tracker group `{}`: anchor robot {} does not exist; use 1 or 2",
@@ -473,7 +473,10 @@ impl CellProblem {
             let row = o.row;
             match &o.kind {
                 ObservationKind::Coincident {
-                    tool1, tool2, noise, ..
+                    tool1,
+                    tool2,
+                    noise,
+                    ..
                 } => {
                     tool_ok(1, *tool1, row)?;
                     tool_ok(2, *tool2, row)?;
@@ -721,10 +724,16 @@ impl CellParam {
                 problem.robot(*robot).tools[*tool].name
             ),
             CellParam::TrackerTranslation { group, axis } => {
-                format!("tracker `{}` translation {axis}", problem.trackers[*group].name)
+                format!(
+                    "tracker `{}` translation {axis}",
+                    problem.trackers[*group].name
+                )
             }
             CellParam::TrackerRotation { group, axis } => {
-                format!("tracker `{}` rotation {axis}", problem.trackers[*group].name)
+                format!(
+                    "tracker `{}` rotation {axis}",
+                    problem.trackers[*group].name
+                )
             }
             CellParam::PlaneNormal { group, direction } => {
                 format!("plane `{}` normal {direction}", problem.planes[*group].name)
@@ -1025,7 +1034,9 @@ impl<'a> Evaluator<'a> {
         row: usize,
     ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
         let slot = robot_slot(robot).ok_or_else(|| {
-            CellFitError::InvalidInput(format!("observation row {row}: robot {robot} is not 1 or 2"))
+            CellFitError::InvalidInput(format!(
+                "observation row {row}: robot {robot} is not 1 or 2"
+            ))
         })?;
         let rb = self.problem.robot(robot);
         let tool_def = rb.tools.get(tool).ok_or_else(|| {
@@ -1305,8 +1316,12 @@ pub fn initial_estimate(
                     ..
                 } = &o.kind
                 {
-                    a.push(Point3::from(ev.robot_tip(&est, 1, *tool1, q1, false, o.row)?.0));
-                    b.push(Point3::from(ev.robot_tip(&est, 2, *tool2, q2, false, o.row)?.0));
+                    a.push(Point3::from(
+                        ev.robot_tip(&est, 1, *tool1, q1, false, o.row)?.0,
+                    ));
+                    b.push(Point3::from(
+                        ev.robot_tip(&est, 2, *tool2, q2, false, o.row)?.0,
+                    ));
                 }
             }
             kabsch(&a, &b).ok_or_else(|| {
@@ -1337,7 +1352,8 @@ pub fn initial_estimate(
             } = &o.kind
             {
                 if *group == g {
-                    let (p, _) = ev.tip_in_anchor(&est, *robot, *tool, q, grp.anchor, false, o.row)?;
+                    let (p, _) =
+                        ev.tip_in_anchor(&est, *robot, *tool, q, grp.anchor, false, o.row)?;
                     meas.push(*p_tracker);
                     model.push(Point3::from(p));
                 }
@@ -1372,7 +1388,10 @@ pub fn initial_estimate(
             } = &o.kind
             {
                 if *group == g {
-                    pts.push(ev.tip_in_anchor(&est, *robot, *tool, q, grp.anchor, false, o.row)?.0);
+                    pts.push(
+                        ev.tip_in_anchor(&est, *robot, *tool, q, grp.anchor, false, o.row)?
+                            .0,
+                    );
                 }
             }
         }

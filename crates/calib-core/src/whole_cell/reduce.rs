@@ -153,7 +153,9 @@ pub fn reduce(
             if in_place <= RANK_TOL * raw_norm[c] || unpen.len() == 6 {
                 (
                     ReductionReason::ConfoundedWithPlacement,
-                    format!("{name} is confounded with b1_from_b2: held at 0, the placement absorbs it"),
+                    format!(
+                        "{name} is confounded with b1_from_b2: held at 0, the placement absorbs it"
+                    ),
                 )
             } else {
                 (

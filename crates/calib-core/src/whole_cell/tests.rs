@@ -44,7 +44,7 @@ fn every_kind(seed: u64) -> (CellProblem, CellEstimate) {
         compliance_rad_per_nm: Some(1e-6),
         ..Tolerance::default()
     };
-    let sc = sim_cell(Cell::FloorWall, tol, true, seed);
+    let sc = sim_cell(Cell::Wall, tol, true, seed);
     let mut p = sc.problem();
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xfeed);
     p.trackers = vec![
@@ -201,8 +201,12 @@ fn every_jacobian_matches_central_differences() {
             let h = fd_step(param);
             let mut d = DVector::zeros(layout.len());
             d[j] = h;
-            let (vp, _) = ev.cooperative_vector(&layout.apply(&est, &d), &pair, false).unwrap();
-            let (vm, _) = ev.cooperative_vector(&layout.apply(&est, &(-d)), &pair, false).unwrap();
+            let (vp, _) = ev
+                .cooperative_vector(&layout.apply(&est, &d), &pair, false)
+                .unwrap();
+            let (vm, _) = ev
+                .cooperative_vector(&layout.apply(&est, &(-d)), &pair, false)
+                .unwrap();
             let fd = (vp - vm) / 2.0;
             let an = Vector3::from_fn(|a, _| jv[(a, j)] * h);
             assert!((fd - an).norm() <= FD_TOL_M + FD_TOL_REL * an.norm());
@@ -241,7 +245,7 @@ fn coincident_problem(sc: &SimCell, n: usize, sigma: f64, seed: u64) -> CellProb
 /// and predicts the cooperative vectors far better than the placement-only fit.
 #[test]
 fn noise_free_fit_reproduces_the_data_and_stops_converged() {
-    let sc = sim_cell(Cell::FloorFloor, realistic(), false, 11);
+    let sc = sim_cell(Cell::Floor, realistic(), false, 11);
     let p = coincident_problem(&sc, 30, 1e-6, 12);
     let fit = fit_cell(&p, &SolveOptions::default()).unwrap();
     assert_eq!(fit.stopped, StopReason::Converged, "{:?}", fit.stopped);
@@ -252,7 +256,7 @@ fn noise_free_fit_reproduces_the_data_and_stops_converged() {
 
 #[test]
 fn iteration_cap_is_a_stop_reason_not_an_error() {
-    let sc = sim_cell(Cell::FloorWall, realistic(), false, 5);
+    let sc = sim_cell(Cell::Wall, realistic(), false, 5);
     let p = coincident_problem(&sc, 20, 3e-4, 6);
     let opts = SolveOptions {
         max_iterations: 1,
@@ -301,8 +305,15 @@ fn trial(cell: Cell, seed: u64, n: usize, sigma: f64, n_eval: usize) -> Trial {
     let active: Vec<usize> = (0..p.observations.len()).collect();
     let init = initial_estimate(&p, None, &active).unwrap();
     let red = reduce(&p, &init, &active).unwrap();
-    let fit = fit_cell_with(&p, red.layout, &active, None, Some(&init), &SolveOptions::default())
-        .unwrap();
+    let fit = fit_cell_with(
+        &p,
+        red.layout,
+        &active,
+        None,
+        Some(&init),
+        &SolveOptions::default(),
+    )
+    .unwrap();
     let seconds = start.elapsed().as_secs_f64();
     assert_eq!(fit.stopped, StopReason::Converged);
     let pred = predict_cooperative_accuracy(&p, &fit, &pairs, seed).unwrap();
@@ -322,7 +333,9 @@ fn trial(cell: Cell, seed: u64, n: usize, sigma: f64, n_eval: usize) -> Trial {
 /// average, and the predicted rms (root-mean-square over trials) is within ±25 % of the measured.
 #[test]
 fn whole_cell_beats_placement_and_predicts_its_accuracy() {
-    let trials: Vec<Trial> = (0..10).map(|s| trial(Cell::FloorWall, 100 + s, 40, 3e-4, 200)).collect();
+    let trials: Vec<Trial> = (0..10)
+        .map(|s| trial(Cell::Wall, 100 + s, 40, 3e-4, 200))
+        .collect();
     let rms = |f: &dyn Fn(&Trial) -> f64| {
         (trials.iter().map(|t| f(t).powi(2)).sum::<f64>() / trials.len() as f64).sqrt()
     };
@@ -330,7 +343,12 @@ fn whole_cell_beats_placement_and_predicts_its_accuracy() {
     let whole = rms(&|t| t.whole_rms);
     let pred = rms(&|t| t.predicted_rms);
     for t in &trials {
-        assert!(t.whole_rms < t.placement_rms, "{} vs {}", t.whole_rms, t.placement_rms);
+        assert!(
+            t.whole_rms < t.placement_rms,
+            "{} vs {}",
+            t.whole_rms,
+            t.placement_rms
+        );
     }
     eprintln!(
         "floor–wall, 40 pts, σ 0.3 mm, 10 trials: placement-only {:.3} mm, whole-cell {:.3} mm, \
@@ -354,7 +372,7 @@ fn whole_cell_beats_placement_and_predicts_its_accuracy() {
 /// apart (one is merged into the other). The fit on the reduced layout still converges.
 #[test]
 fn reduction_names_what_the_placement_absorbs_and_what_is_merged() {
-    let sc = sim_cell(Cell::FloorFloor, Tolerance::default(), false, 21);
+    let sc = sim_cell(Cell::Floor, Tolerance::default(), false, 21);
     let p = coincident_problem(&sc, 40, 3e-4, 22);
     let active: Vec<usize> = (0..p.observations.len()).collect();
     let init = initial_estimate(&p, None, &active).unwrap();
@@ -387,18 +405,27 @@ fn reduction_names_what_the_placement_absorbs_and_what_is_merged() {
             );
         }
     }
-    assert!(red
-        .dropped
-        .iter()
-        .any(|d| matches!(d.reason, ReductionReason::ConfoundedWithPlacement)
-            && d.message.contains("confounded with b1_from_b2")));
+    assert!(red.dropped.iter().any(|d| matches!(
+        d.reason,
+        ReductionReason::ConfoundedWithPlacement
+    ) && d.message.contains("confounded with b1_from_b2")));
     assert!(red
         .dropped
         .iter()
         .any(|d| matches!(d.reason, ReductionReason::MergedInto { .. })));
-    assert_eq!(red.kept + red.dropped.len(), ParamLayout::new(&p, &[]).len() - 6);
-    let fit = fit_cell_with(&p, red.layout, &active, None, Some(&init), &SolveOptions::default())
-        .unwrap();
+    assert_eq!(
+        red.kept + red.dropped.len(),
+        ParamLayout::new(&p, &[]).len() - 6
+    );
+    let fit = fit_cell_with(
+        &p,
+        red.layout,
+        &active,
+        None,
+        Some(&init),
+        &SolveOptions::default(),
+    )
+    .unwrap();
     assert_eq!(fit.stopped, StopReason::Converged);
     assert!(!fit.singular, "the reduced problem is fully determined");
 }
@@ -412,7 +439,7 @@ fn reduction_names_what_the_placement_absorbs_and_what_is_merged() {
 /// error stays at the clean level while the unscreened fit's is several times worse.
 #[test]
 fn three_blunders_are_named_and_the_hidden_offset_is_still_found() {
-    let mut sc = sim_cell(Cell::FloorWall, realistic(), false, 31);
+    let mut sc = sim_cell(Cell::Wall, realistic(), false, 31);
     sc.robot2.tolerance.joint_offset_rad = 0.2f64.to_radians();
     let x = sc.truth.b1_from_b2;
     sc.truth = CellEstimate::nominal(&sc.problem(), x);
@@ -435,11 +462,14 @@ fn three_blunders_are_named_and_the_hidden_offset_is_still_found() {
         );
     }
     assert_eq!(rows, vec![7, 19, 33]);
-    assert!(s.rejected.iter().all(|r| r.size_sigma > s.threshold_sigma_3));
+    assert!(s
+        .rejected
+        .iter()
+        .all(|r| r.size_sigma > s.threshold_sigma_3));
     // The screened fit is the fit of the clean rows.
     let clean: Vec<usize> = (0..40).filter(|i| ![6, 18, 32].contains(i)).collect();
-    let clean_fit = fit_cell_with(&p, ParamLayout::new(&p, &[]), &clean, None, None, &solve)
-        .unwrap();
+    let clean_fit =
+        fit_cell_with(&p, ParamLayout::new(&p, &[]), &clean, None, None, &solve).unwrap();
     let dx = (clean_fit.estimate.b1_from_b2.translation.vector
         - s.fit.estimate.b1_from_b2.translation.vector)
         .norm();
@@ -447,7 +477,10 @@ fn three_blunders_are_named_and_the_hidden_offset_is_still_found() {
     let col = s
         .fit
         .layout
-        .column(&CellParam::Kinematic { robot: 2, param: j3 })
+        .column(&CellParam::Kinematic {
+            robot: 2,
+            param: j3,
+        })
         .expect("robot 2 joint 3 offset is fitted");
     let fitted = s.fit.layout.values(&s.fit.estimate)[col];
     let se = s.fit.std_error(col);
@@ -476,10 +509,15 @@ fn three_blunders_are_named_and_the_hidden_offset_is_still_found() {
 #[test]
 fn clean_sessions_lose_no_rows() {
     for seed in [41u64, 42, 43] {
-        let sc = sim_cell(Cell::FloorFloor, realistic(), false, seed);
+        let sc = sim_cell(Cell::Floor, realistic(), false, seed);
         let p = coincident_problem(&sc, 30, 3e-4, seed + 7);
-        let s = fit_screened(&p, None, &SolveOptions::default(), &ScreenOptions::default())
-            .unwrap();
+        let s = fit_screened(
+            &p,
+            None,
+            &SolveOptions::default(),
+            &ScreenOptions::default(),
+        )
+        .unwrap();
         assert!(s.rejected.is_empty(), "seed {seed}: {:?}", s.rejected);
     }
 }
@@ -487,7 +525,7 @@ fn clean_sessions_lose_no_rows() {
 /// When the rows left after rejection are too few, the error names the rows to re-record.
 #[test]
 fn too_few_rows_after_rejection_names_the_rows_to_re_record() {
-    let sc = sim_cell(Cell::FloorWall, realistic(), false, 51);
+    let sc = sim_cell(Cell::Wall, realistic(), false, 51);
     let mut p = sc.problem();
     p.observations = sc.coincident_with_blunders(12, 3e-4, 0.7, 52, &[(3, 8e-3), (9, 6e-3)]);
     let screen = ScreenOptions {
@@ -525,7 +563,7 @@ fn candidates(sc: &SimCell, n: usize, sigma: f64, seed: u64) -> Vec<Observation>
 /// the design reports equals the one recomputed from scratch for its chosen set.
 #[test]
 fn greedy_design_beats_random_subsets_on_its_criterion() {
-    let mut sc = sim_cell(Cell::FloorWall, realistic(), false, 61);
+    let mut sc = sim_cell(Cell::Wall, realistic(), false, 61);
     let x = sc.truth.b1_from_b2;
     sc.truth = CellEstimate::nominal(&sc.problem(), x);
     let p = sc.problem();
@@ -550,10 +588,14 @@ fn greedy_design_beats_random_subsets_on_its_criterion() {
                 let j = rng.random_range(i..idx.len());
                 idx.swap(i, j);
             }
-            random.push(design_criterion(&p, &layout, &at, &cands, &idx[..20], &eval, crit).unwrap());
+            random
+                .push(design_criterion(&p, &layout, &at, &cands, &idx[..20], &eval, crit).unwrap());
         }
         let mean = random.iter().sum::<f64>() / random.len() as f64;
-        eprintln!("{crit:?}: greedy {:.6e}, random mean {:.6e}", d.criterion, mean);
+        eprintln!(
+            "{crit:?}: greedy {:.6e}, random mean {:.6e}",
+            d.criterion, mean
+        );
         for r in &random {
             match crit {
                 DesignCriterion::CooperativeA => assert!(d.criterion < *r),
@@ -572,7 +614,7 @@ fn greedy_design_beats_random_subsets_on_its_criterion() {
 #[test]
 fn mixed_session_recovers_groups_and_beats_placement_only() {
     let sigma = 5e-5;
-    let sc = sim_cell(Cell::FloorWall, realistic(), true, 71);
+    let sc = sim_cell(Cell::Wall, realistic(), true, 71);
     let mut p = sc.problem();
     let mut obs: Vec<ObservationKind> = sc
         .coincident(30, sigma, 0.7, 72)
@@ -587,7 +629,8 @@ fn mixed_session_recovers_groups_and_beats_placement_only() {
         })
     };
     // Tracker.
-    let tracker_from_b1 = Isometry3::new(Vector3::new(2.0, -1.0, 0.3), Vector3::new(0.1, -0.2, 2.5));
+    let tracker_from_b1 =
+        Isometry3::new(Vector3::new(2.0, -1.0, 0.3), Vector3::new(0.1, -0.2, 2.5));
     p.trackers = vec![TrackerGroup {
         name: "leica".into(),
         anchor: 1,
@@ -711,8 +754,10 @@ fn mixed_session_recovers_groups_and_beats_placement_only() {
 #[test]
 #[ignore = "a Monte Carlo for the report: run in release with --ignored --nocapture"]
 fn monte_carlo_three_cells() {
-    for cell in [Cell::FloorFloor, Cell::FloorWall, Cell::FloorCeiling] {
-        let trials: Vec<Trial> = (0..40).map(|s| trial(cell, 500 + s, 40, 3e-4, 200)).collect();
+    for cell in [Cell::Floor, Cell::Wall, Cell::Ceiling] {
+        let trials: Vec<Trial> = (0..40)
+            .map(|s| trial(cell, 500 + s, 40, 3e-4, 200))
+            .collect();
         let rms = |f: &dyn Fn(&Trial) -> f64| {
             (trials.iter().map(|t| f(t).powi(2)).sum::<f64>() / trials.len() as f64).sqrt()
         };
@@ -735,23 +780,34 @@ fn monte_carlo_three_cells() {
         );
     }
     for n in [20usize, 40, 80] {
-        let sc = sim_cell(Cell::FloorCeiling, Tolerance::default(), false, 900 + n as u64);
+        let sc = sim_cell(Cell::Ceiling, Tolerance::default(), false, 900 + n as u64);
         let p = coincident_problem(&sc, n, 3e-4, 901);
         let n_params = ParamLayout::new(&p, &[]).len();
         let start = Instant::now();
         let active: Vec<usize> = (0..n).collect();
         let init = initial_estimate(&p, None, &active).unwrap();
         let red = reduce(&p, &init, &active).unwrap();
-        let fit =
-            fit_cell_with(&p, red.layout, &active, None, Some(&init), &SolveOptions::default())
-                .unwrap();
+        let fit = fit_cell_with(
+            &p,
+            red.layout,
+            &active,
+            None,
+            Some(&init),
+            &SolveOptions::default(),
+        )
+        .unwrap();
         let reduced = start.elapsed().as_secs_f64();
         let start = Instant::now();
         let plain = fit_cell(&p, &SolveOptions::default()).unwrap();
         let unreduced = start.elapsed().as_secs_f64();
         let start = Instant::now();
-        let screened =
-            fit_screened(&p, None, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
+        let screened = fit_screened(
+            &p,
+            None,
+            &SolveOptions::default(),
+            &ScreenOptions::default(),
+        )
+        .unwrap();
         let screen_s = start.elapsed().as_secs_f64();
         eprintln!(
             "floor–ceiling, {n} points, {n_params} unknowns (all default tolerances): reduce+fit \
@@ -766,5 +822,29 @@ fn monte_carlo_three_cells() {
             screen_s * 1e3,
             screened.rejected.len()
         );
+    }
+}
+
+/// The one-call calibration on a session with a blunder: the report names the row, lists what
+/// was dropped, and serialises with SI field names.
+#[test]
+fn calibrate_cell_reports_rows_reduction_and_serialises() {
+    let sc = sim_cell(Cell::Ceiling, realistic(), false, 81);
+    let mut p = sc.problem();
+    p.observations = sc.coincident_with_blunders(30, 3e-4, 0.7, 82, &[(11, 6e-3)]);
+    let cal = calibrate_cell(&p, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
+    let report = cal.report(&p);
+    assert_eq!(report.rejected_points.len(), 1);
+    assert_eq!(report.rejected_points[0].row, 11);
+    assert_eq!(report.stopped, StopReason::Converged);
+    assert!(!report.unidentifiable.is_empty());
+    let json = serde_json::to_string(&report).unwrap();
+    for key in [
+        "\"size_sigma\"",
+        "\"prior_sigma\"",
+        "\"posterior_sigma\"",
+        "\"stopped\":\"converged\"",
+    ] {
+        assert!(json.contains(key), "{key} missing in {json}");
     }
 }
