@@ -135,6 +135,8 @@ pub fn measure_cooperative_error(
             "cooperative error needs at least one configuration pair".into(),
         ));
     }
+    fitted.check_robots(problem)?;
+    truth.check_robots(problem)?;
     let layout = ParamLayout::new(problem, &[]);
     let ev = Evaluator::new(problem, &layout);
     let mut per_pair_m = Vec::with_capacity(pairs.len());

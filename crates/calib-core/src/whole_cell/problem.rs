@@ -622,6 +622,70 @@ impl CellEstimate {
         }
     }
 
+    /// Checks that the estimate fits `problem`: one correction per joint and tool of each robot,
+    /// one value per group, all finite. Errors name the field.
+    pub fn check(&self, problem: &CellProblem) -> Result<(), CellFitError> {
+        self.check_robots(problem)?;
+        if self.tracker_from_anchor.len() != problem.trackers.len()
+            || self.planes.len() != problem.planes.len()
+            || self.contact_distance_m.len() != problem.contacts.len()
+        {
+            return Err(CellFitError::InvalidInput(format!(
+                "cell estimate: {} tracker frame(s), {} plane(s), {} contact distance(s) for {}, \
+                 {} and {} group(s); build it with CellEstimate::nominal for this problem",
+                self.tracker_from_anchor.len(),
+                self.planes.len(),
+                self.contact_distance_m.len(),
+                problem.trackers.len(),
+                problem.planes.len(),
+                problem.contacts.len()
+            )));
+        }
+        Ok(())
+    }
+
+    /// The robot part of [`CellEstimate::check`] (what the cooperative vector needs).
+    pub fn check_robots(&self, problem: &CellProblem) -> Result<(), CellFitError> {
+        let bad = |what: String| {
+            Err(CellFitError::InvalidInput(format!(
+                "cell estimate: {what}; build it with CellEstimate::nominal for this problem"
+            )))
+        };
+        for r in [1u8, 2] {
+            let rb = problem.robot(r);
+            let c = self.robot(r);
+            if let Err(e) = c.errors.check(&rb.model) {
+                return bad(format!("robot {r}: {e}"));
+            }
+            if c.tool_tip_m.len() != rb.tools.len() {
+                return bad(format!(
+                    "robot {r} has {} tool tip error(s) for {} tool(s)",
+                    c.tool_tip_m.len(),
+                    rb.tools.len()
+                ));
+            }
+            if !c.tool_tip_m.iter().all(|t| t.iter().all(|v| v.is_finite())) {
+                return bad(format!("robot {r} has a non-finite tool tip error"));
+            }
+        }
+        if !self
+            .b1_from_b2
+            .translation
+            .vector
+            .iter()
+            .all(|v| v.is_finite())
+            || !self
+                .b1_from_b2
+                .rotation
+                .coords
+                .iter()
+                .all(|v| v.is_finite())
+        {
+            return bad("b1_from_b2 is not finite".into());
+        }
+        Ok(())
+    }
+
     /// Robot 1's or 2's corrections.
     pub fn robot(&self, robot: RobotIndex) -> &RobotCorrection {
         if robot == 1 {

@@ -280,7 +280,10 @@ pub fn fit_cell_with(
         }
     }
     let mut est = match start {
-        Some(s) => s.clone(),
+        Some(s) => {
+            s.check(problem)?;
+            s.clone()
+        }
         None => initial_estimate(problem, options.initial_b1_from_b2, active)?,
     };
     let mut sys = assemble(problem, &layout, &est, active, weights, true)?;

@@ -232,6 +232,21 @@ fn bad_input_is_a_named_error() {
     p.robot2.tolerance.tip_m = f64::NAN;
     let e = p.check().unwrap_err().to_string();
     assert!(e.contains("robot 2") && e.contains("tip_m"), "{e}");
+    // A starting estimate of the wrong shape is an error, not a panic.
+    let (p, mut est) = every_kind(4);
+    est.planes.pop();
+    let active: Vec<usize> = (0..p.observations.len()).collect();
+    let e = fit_cell_with(
+        &p,
+        ParamLayout::new(&p, &[]),
+        &active,
+        None,
+        Some(&est),
+        &SolveOptions::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("plane"), "{e}");
 }
 
 /// A cell whose observations are simulated with truth `sc.truth`.
