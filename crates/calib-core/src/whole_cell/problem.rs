@@ -817,7 +817,8 @@ struct RobotLayout {
     /// Fitted kinematic parameters (tips excluded) and their columns.
     kin: Vec<(ErrorParam, usize)>,
     /// Column of tool t's tip x (y, z follow), if that tool's tip is fitted.
-    tip_col: Vec<Option<usize>>,
+    /// Column of each axis of each tool's tip error, if fitted.
+    tip_col: Vec<[Option<usize>; 3]>,
 }
 
 /// The unknowns of a fit and their prior: column `j` of every Jacobian is `params[j]`.
@@ -863,29 +864,23 @@ impl ParamLayout {
             }
             let mut tip_col = Vec::new();
             for tool in 0..rb.tools.len() {
+                let mut cols = [None; 3];
                 if rb.tolerance.tip_m > 0.0 {
-                    let all: Vec<CellParam> = Axis::ALL
-                        .iter()
-                        .map(|&axis| CellParam::ToolTip {
+                    for (a, &axis) in Axis::ALL.iter().enumerate() {
+                        let p = CellParam::ToolTip {
                             robot: r,
                             tool,
                             axis,
-                        })
-                        .collect();
-                    // A tool tip is fixed as a whole or not at all (its 3 columns move together
-                    // through the Jacobian call); a partial fix keeps the other axes fitted.
-                    if all.iter().all(|p| fixed.contains(p)) {
-                        tip_col.push(None);
-                        continue;
-                    }
-                    tip_col.push(Some(params.len()));
-                    for p in all {
+                        };
+                        if fixed.contains(&p) {
+                            continue;
+                        }
+                        cols[a] = Some(params.len());
                         params.push(p);
                         sigmas.push(rb.tolerance.tip_m / 3f64.sqrt());
                     }
-                } else {
-                    tip_col.push(None);
                 }
+                tip_col.push(cols);
             }
             robots.push(RobotLayout { kin, tip_col });
         }
@@ -975,10 +970,10 @@ impl ParamLayout {
             for &(p, c) in &self.robots[slot].kin {
                 v[c] = corr.errors.get(p);
             }
-            for (tool, col) in self.robots[slot].tip_col.iter().enumerate() {
-                if let Some(c) = col {
-                    for a in 0..3 {
-                        v[c + a] = corr.tool_tip_m[tool][a];
+            for (tool, cols) in self.robots[slot].tip_col.iter().enumerate() {
+                for (a, c) in cols.iter().enumerate() {
+                    if let Some(c) = c {
+                        v[*c] = corr.tool_tip_m[tool][a];
                     }
                 }
             }
@@ -1011,10 +1006,10 @@ impl ParamLayout {
             for &(p, c) in &self.robots[slot].kin {
                 corr.errors.add(p, delta[c]);
             }
-            for (tool, col) in self.robots[slot].tip_col.iter().enumerate() {
-                if let Some(c) = col {
-                    for a in 0..3 {
-                        corr.tool_tip_m[tool][a] += delta[c + a];
+            for (tool, cols) in self.robots[slot].tip_col.iter().enumerate() {
+                for (a, c) in cols.iter().enumerate() {
+                    if let Some(c) = c {
+                        corr.tool_tip_m[tool][a] += delta[*c];
                     }
                 }
             }
@@ -1120,30 +1115,25 @@ impl<'a> Evaluator<'a> {
         let mut cols = Cols3::new();
         if want_jac {
             let lay = &self.layout.robots[slot];
-            let params = &self.jac_params[slot];
             let tip_col = lay.tip_col[tool];
-            let wanted = if tip_col.is_some() {
-                params.as_slice()
-            } else {
-                &params[..params.len() - 3]
-            };
-            if !wanted.is_empty() {
+            if !lay.kin.is_empty() || tip_col.iter().any(Option::is_some) {
+                // Always the kinematic columns and all three tip axes; unfitted axes are skipped.
                 let j = tip_error_jacobian(
                     &rb.model,
                     &errors,
                     q,
                     &tool_def.flange_from_tip,
                     &rb.g_base,
-                    wanted,
+                    &self.jac_params[slot],
                 )
                 .map_err(kin_err)?;
                 for (k, &(_, c)) in lay.kin.iter().enumerate() {
                     cols.push((c, j.column(k).into_owned()));
                 }
-                if let Some(c) = tip_col {
-                    let k0 = lay.kin.len();
-                    for a in 0..3 {
-                        cols.push((c + a, j.column(k0 + a).into_owned()));
+                let k0 = lay.kin.len();
+                for (a, c) in tip_col.iter().enumerate() {
+                    if let Some(c) = c {
+                        cols.push((*c, j.column(k0 + a).into_owned()));
                     }
                 }
             }

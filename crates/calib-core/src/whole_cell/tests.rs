@@ -863,3 +863,28 @@ fn calibrate_cell_reports_rows_reduction_and_serialises() {
         assert!(json.contains(key), "{key} missing in {json}");
     }
 }
+
+/// Issue 11's time bound, by iteration count (not wall clock), on the kind of session that made
+/// `diagnose` run for minutes: 20 points on the floor–ceiling cell at σ = 0.3 mm with errors on
+/// every joint of both robots (every default tolerance fitted: ~100 unknowns).
+#[test]
+fn every_joint_session_converges_within_the_iteration_bound() {
+    for seed in [91u64, 92, 93, 94, 920] {
+        let sc = sim_cell(Cell::Ceiling, Tolerance::default(), false, seed);
+        let p = coincident_problem(&sc, 20, 3e-4, 901);
+        let active: Vec<usize> = (0..p.observations.len()).collect();
+        let init = initial_estimate(&p, None, &active).unwrap();
+        let red = reduce(&p, &init, &active).unwrap();
+        let opts = SolveOptions::default();
+        let fit = fit_cell_with(&p, red.layout, &active, None, Some(&init), &opts).unwrap();
+        let full = fit_cell(&p, &opts).unwrap();
+        eprintln!(
+            "seed {seed}: reduced {} iterations {:?}, full {} iterations {:?}",
+            fit.iterations, fit.stopped, full.iterations, full.stopped
+        );
+        for f in [&fit, &full] {
+            assert_eq!(f.stopped, StopReason::Converged);
+            assert!(f.iterations <= 10, "{} iterations", f.iterations);
+        }
+    }
+}
