@@ -12,6 +12,7 @@ mod robust;
 mod soft;
 pub mod stats;
 mod stop;
+pub mod whole_cell;
 
 pub use error::CalibError;
 pub use identify::Robot;

@@ -1,0 +1,289 @@
+//! Blunder screening: a robust start, studentised residuals per observation block with a
+//! Bonferroni threshold, rejection and refit (see the module documentation of
+//! [`crate::whole_cell`]).
+
+use nalgebra::DMatrix;
+use serde::Serialize;
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+use super::problem::{CellFitError, CellProblem, ParamLayout};
+use super::solve::{assemble, fit_cell_with, CellFit, SolveOptions};
+
+/// Screening settings. Every default is documented on its field.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScreenOptions {
+    /// Family-wise false-rejection probability over all blocks (Bonferroni), default 0.01: with
+    /// clean data, a fit rejects anything with probability ≤ 1 %.
+    pub alpha: f64,
+    /// IRLS rounds of the Huber start (default 8).
+    pub irls_rounds: usize,
+    /// Rejection/re-admission rounds after the robust start (default 20).
+    pub max_rounds: usize,
+    /// Residual rows that must remain beyond the unpenalised unknowns (default 6); fewer is
+    /// [`CellFitError::TooFewRows`].
+    pub min_redundancy: usize,
+}
+
+impl Default for ScreenOptions {
+    fn default() -> Self {
+        Self {
+            alpha: 0.01,
+            irls_rounds: 8,
+            max_rounds: 20,
+            min_redundancy: 6,
+        }
+    }
+}
+
+/// One rejected observation.
+#[derive(Debug, Clone, Serialize)]
+pub struct RejectedRow {
+    /// 1-based source row.
+    pub row: usize,
+    /// Observation kind.
+    pub kind: &'static str,
+    /// Its deletion-studentised statistic against the final fit, `sqrt(r̃ᵀ(I + H)⁻¹r̃)`, in σ.
+    pub size_sigma: f64,
+    /// The residual against the final fit, m (norm for 3-row kinds).
+    pub residual_m: f64,
+}
+
+/// A MAP fit after blunder screening.
+#[derive(Debug, Clone)]
+pub struct ScreenedFit {
+    /// The fit without the rejected observations.
+    pub fit: CellFit,
+    /// What was rejected (by row).
+    pub rejected: Vec<RejectedRow>,
+    /// The rejection threshold, in σ (`sqrt` of the χ² quantile for 3-row blocks).
+    pub threshold_sigma_3: f64,
+    /// The threshold for 1-row blocks, in σ.
+    pub threshold_sigma_1: f64,
+}
+
+struct BlockStats {
+    /// Studentised statistic t² per active block (internal: `(I − H)⁻¹`).
+    internal: Vec<f64>,
+}
+
+/// Studentised statistic of each active block at a fit: `r̃ᵀ(I − H_ii)⁻¹r̃`.
+fn block_stats(problem: &CellProblem, fit: &CellFit) -> Result<BlockStats, CellFitError> {
+    let sys = assemble(problem, &fit.layout, &fit.estimate, &fit.active, None, true)?;
+    let mut internal = Vec::with_capacity(fit.active.len());
+    for (b, &i) in fit.active.iter().enumerate() {
+        let rows = problem.observations[i].kind.rows();
+        let s = sys.block_start[b];
+        let j = sys.j.rows(s, rows);
+        let r = sys.r.rows(s, rows);
+        let h = j * &fit.covariance * j.transpose();
+        let m = DMatrix::identity(rows, rows) - h;
+        let t2 = match m.clone().cholesky() {
+            Some(c) => r.dot(&c.solve(&r.into_owned())),
+            None => f64::INFINITY,
+        };
+        internal.push(t2);
+    }
+    Ok(BlockStats { internal })
+}
+
+/// Deletion statistic of an observation not in the fit, `r̃ᵀ(I + J̃·Σ·J̃ᵀ)⁻¹r̃`, and its residual
+/// norm (m).
+fn deletion_stat(
+    problem: &CellProblem,
+    fit: &CellFit,
+    i: usize,
+) -> Result<(f64, f64), CellFitError> {
+    let ev = super::problem::Evaluator::new(problem, &fit.layout);
+    let lin = ev.linearise(&problem.observations[i], &fit.estimate, true)?;
+    let rw = &lin.whitening * &lin.residual;
+    let jw = &lin.whitening * &lin.jacobian;
+    let rows = rw.len();
+    let m = DMatrix::identity(rows, rows) + &jw * &fit.covariance * jw.transpose();
+    let t2 = m
+        .cholesky()
+        .map(|c| rw.dot(&c.solve(&rw)))
+        .unwrap_or(f64::INFINITY);
+    Ok((t2, lin.residual.norm()))
+}
+
+/// MAP fit with blunder screening (see the module documentation): robust Huber start, then
+/// studentised residuals against the Bonferroni threshold `χ²_dim(1 − α/B)`, rejecting the worst
+/// block and re-admitting cleared ones until stable; then the final fit without the rejected
+/// rows. `layout`: the unknowns (e.g. from [`super::reduce`]); `None`: all from the tolerances.
+///
+/// Errors: as [`fit_cell_with`], and [`CellFitError::TooFewRows`] (naming the rejected rows) when
+/// fewer than `unpenalised unknowns + min_redundancy` residual rows remain.
+pub fn fit_screened(
+    problem: &CellProblem,
+    layout: Option<ParamLayout>,
+    solve: &SolveOptions,
+    screen: &ScreenOptions,
+) -> Result<ScreenedFit, CellFitError> {
+    if !(screen.alpha > 0.0 && screen.alpha < 1.0) {
+        return Err(CellFitError::InvalidInput(format!(
+            "screening option `alpha` is {}; give a probability in (0, 1), e.g. 0.01",
+            screen.alpha
+        )));
+    }
+    let layout = layout.unwrap_or_else(|| ParamLayout::new(problem, &[]));
+    let all: Vec<usize> = (0..problem.observations.len()).collect();
+    let blocks = all.len().max(1) as f64;
+    let quant = |dim: usize| -> f64 {
+        ChiSquared::new(dim as f64)
+            .map(|d| d.inverse_cdf(1.0 - screen.alpha / blocks))
+            .unwrap_or(f64::INFINITY)
+    };
+    let thr = [quant(1), quant(3)];
+    let thr_of = |i: usize| {
+        if problem.observations[i].kind.rows() == 3 {
+            thr[1]
+        } else {
+            thr[0]
+        }
+    };
+    let huber_k = |i: usize| {
+        let dim = problem.observations[i].kind.rows() as f64;
+        ChiSquared::new(dim)
+            .map(|d| d.inverse_cdf(0.95).sqrt())
+            .unwrap_or(2.0)
+    };
+    // Robust start: Huber IRLS on the whitened block norms.
+    let mut weights = vec![1.0; all.len()];
+    let mut fit = fit_cell_with(problem, layout.clone(), &all, None, None, solve)?;
+    for _ in 0..screen.irls_rounds {
+        let sys = assemble(problem, &fit.layout, &fit.estimate, &all, None, false)?;
+        let mut changed = 0.0f64;
+        for (b, &i) in all.iter().enumerate() {
+            let rows = problem.observations[i].kind.rows();
+            let s = sys.r.rows(sys.block_start[b], rows).norm();
+            let k = huber_k(i);
+            let w = if s <= k { 1.0 } else { k / s };
+            changed = changed.max((w - weights[b]).abs());
+            weights[b] = w;
+        }
+        fit = fit_cell_with(
+            problem,
+            layout.clone(),
+            &all,
+            Some(&weights),
+            Some(&fit.estimate),
+            solve,
+        )?;
+        if changed < 1e-3 {
+            break;
+        }
+    }
+    // Initial rejection at the robust fit: blocks whose whitened norm² exceeds the threshold
+    // (the robust fit has down-weighted them, so its hat matrix understates their leverage;
+    // the refits below re-test everything properly).
+    let sys = assemble(problem, &fit.layout, &fit.estimate, &all, None, false)?;
+    let mut active: Vec<usize> = Vec::new();
+    let mut rejected: Vec<usize> = Vec::new();
+    for (b, &i) in all.iter().enumerate() {
+        let rows = problem.observations[i].kind.rows();
+        let s2 = sys.r.rows(sys.block_start[b], rows).norm_squared();
+        if s2 > thr_of(i) {
+            rejected.push(i);
+        } else {
+            active.push(i);
+        }
+    }
+    let unpen = (0..layout.len())
+        .filter(|&j| layout.prior_sigma(j) == 0.0)
+        .count();
+    let needed = unpen + screen.min_redundancy;
+    let too_few = |active: &[usize], rejected: &[usize]| {
+        let remaining: usize = active
+            .iter()
+            .map(|&i| problem.observations[i].kind.rows())
+            .sum();
+        if remaining < needed {
+            let mut rows: Vec<usize> = rejected
+                .iter()
+                .map(|&i| problem.observations[i].row)
+                .collect();
+            rows.sort_unstable();
+            Some(CellFitError::TooFewRows {
+                remaining,
+                needed,
+                rejected_rows: rows,
+            })
+        } else {
+            None
+        }
+    };
+    if let Some(e) = too_few(&active, &rejected) {
+        return Err(e);
+    }
+    let mut fit = fit_cell_with(
+        problem,
+        layout.clone(),
+        &active,
+        None,
+        Some(&fit.estimate),
+        solve,
+    )?;
+    for _ in 0..screen.max_rounds {
+        let mut changed = false;
+        // Re-admit rejected blocks that the current fit explains.
+        let mut readmit = Vec::new();
+        for &i in &rejected {
+            let (t2, _) = deletion_stat(problem, &fit, i)?;
+            if t2 <= thr_of(i) {
+                readmit.push(i);
+            }
+        }
+        if !readmit.is_empty() {
+            rejected.retain(|i| !readmit.contains(i));
+            active.extend(readmit);
+            active.sort_unstable();
+            changed = true;
+        } else {
+            // Reject the worst active block above its threshold.
+            let stats = block_stats(problem, &fit)?;
+            let worst = fit
+                .active
+                .iter()
+                .enumerate()
+                .map(|(b, &i)| (i, stats.internal[b] / thr_of(i)))
+                .filter(|&(_, ratio)| ratio > 1.0)
+                .max_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some((i, _)) = worst {
+                active.retain(|&a| a != i);
+                rejected.push(i);
+                changed = true;
+            }
+        }
+        if !changed {
+            break;
+        }
+        if let Some(e) = too_few(&active, &rejected) {
+            return Err(e);
+        }
+        fit = fit_cell_with(
+            problem,
+            layout.clone(),
+            &active,
+            None,
+            Some(&fit.estimate),
+            solve,
+        )?;
+    }
+    rejected.sort_unstable();
+    let mut out = Vec::with_capacity(rejected.len());
+    for &i in &rejected {
+        let (t2, res) = deletion_stat(problem, &fit, i)?;
+        out.push(RejectedRow {
+            row: problem.observations[i].row,
+            kind: problem.observations[i].kind.name(),
+            size_sigma: t2.sqrt(),
+            residual_m: res,
+        });
+    }
+    Ok(ScreenedFit {
+        fit,
+        rejected: out,
+        threshold_sigma_3: thr[1].sqrt(),
+        threshold_sigma_1: thr[0].sqrt(),
+    })
+}

@@ -1,0 +1,119 @@
+//! Whole-cell calibration: a maximum-a-posteriori fit of a two-robot cell — the placement
+//! `b1_from_b2`, the kinematic parameters of both robots and nuisance unknowns — from mixed
+//! observations, with a prior from tolerances, base-parameter reduction, blunder screening,
+//! the cooperative-accuracy prediction and greedy experiment design. No I/O; SI units.
+//!
+//! # Unknowns
+//! - `X = b1_from_b2 ∈ SE(3)`, perturbed on the left: `X ← Translation(ρ)·Rotation(φ)·X`
+//!   (`ρ` m, `φ` rad, b1 axes), as in [`crate::identify`]. Unpenalised.
+//! - Each robot's kinematic parameters `θ_r` ([`kinematics::ErrorParam`]: joint offsets, origin
+//!   xyz/rpy, optional scale and compliance) and a tip offset error per tool (m, flange axes).
+//!   The tip of tool `t` of robot `r` at reported joints `q` is
+//!   `f_r,t(q) = kinematics::true_base_from_tip(model_r, θ_r ⊕ tip_t, q, flange_from_tip_t, g_r)`,
+//!   in robot r's nominal base frame, and its derivatives `∂f/∂θ` are
+//!   [`kinematics::tip_error_jacobian`] (exact, at the current values). Mount parameters are
+//!   never fitted: they are the placement's (or a tracker frame's) job.
+//! - Nuisances per named group, all unpenalised: a tracker frame `T = tracker_from_b{a}`
+//!   (left-perturbed like `X`), a plane `{p_a : n·p_a = d}` (normal perturbed as
+//!   `n ← normalise(n + α·u + β·v)` with `(u, v)` = [`tangent_basis`]`(n)`, `d` additive), a
+//!   contact distance `d` (known, or fitted).
+//!
+//! # Observations and residuals (`g_a` = a tip in anchor base `a`)
+//! `g_a = f` when the tip's robot is `a`; `X·f2` for robot 2 in b1; `X⁻¹·f1` for robot 1 in b2.
+//! With `∂(X·f2)/∂ρ = I`, `∂(X·f2)/∂φ_i = e_i × X·f2`, and `∂(X⁻¹·f1)/∂ρ = −R_Xᵀ`,
+//! `∂(X⁻¹·f1)/∂φ_i = −R_Xᵀ(e_i × f1)`:
+//! - `Coincident`: `r = f1(q1) − X·f2(q2)` (3 rows);
+//! - `Contact`: `r = ‖f1 − X·f2‖ − d` (1 row; `∂r = ûᵀ·∂(f1 − X·f2) − ∂d`, `û` the unit vector);
+//! - `Tracker`: `r = T·g_a − p_tracker` (3 rows; `∂r/∂ρ_T = I`, `∂r/∂φ_T,i = e_i × T·g_a`,
+//!   `∂r/∂g = R_T`);
+//! - `Plane`: `r = n·g_a − d` (1 row; `∂r/∂α = u·g_a`, `∂r/∂β = v·g_a`, `∂r/∂d = −1`).
+//!
+//! Each row block is whitened by `W_i = L_i⁻¹`, `Σ_i = L_i·L_iᵀ` its noise covariance (or `1/σ`).
+//! Every analytic Jacobian is checked against central differences in the tests.
+//!
+//! # Prior and MAP cost
+//! A tolerance is the half-width of a uniform band; the prior is `θ_k ~ N(0, (tol_k/√3)²)`, so a
+//! truth drawn from `U(±tol)` has the prior's variance ([`Tolerance`]; defaults 0.05° for joint
+//! offsets and origin rpy, 0.5 mm for origin xyz and tips; scale and compliance off). The fit
+//! minimises `C = Σ_i ‖W_i·r_i‖² + ‖R_p·θ‖²` (`R_p` the square-root prior information, diagonal
+//! `1/σ_k`, or a full matrix after merging) by Levenberg–Marquardt ([`fit_cell`]): damped normal
+//! equations `(H + λ·diag H)·δ = −g`, `H = JᵀJ`, `g = Jᵀr` over the stacked whitened data and
+//! prior rows; a step is accepted when `C` decreases. It stops ([`StopReason`]) when the relative
+//! decrease or the predicted Gauss–Newton decrease `gᵀH⁻¹g` falls below `cost_tolerance·C`
+//! (converged), at `max_iterations`, when no damping up to `λ = 1e10` lowers `C` (step too
+//! small), or on a non-finite residual. The posterior covariance is `Σ = H⁻¹` at the optimum
+//! (Laplace approximation; the noise is taken as stated, not rescaled).
+//!
+//! # Base-parameter reduction ([`reduce`])
+//! Let `J_n` be the whitened data Jacobian of the unpenalised columns (placement, nuisances) and
+//! `J_k` that of the kinematic columns. Project: `A = (I − Q_n·Q_nᵀ)·J_k·D`, `Q_n` an orthonormal
+//! basis of `range(J_n)`, `D = diag(σ_prior)`. A column-pivoted QR `A·P = Q·R` orders the
+//! columns by how much new information each adds; columns whose `|R_jj| ≤ rank_tol·|R_00|` are
+//! structurally undetermined. Each such column is dropped (held at 0) and reported: "no effect"
+//! if its raw column is zero, "confounded with b1_from_b2 / the nuisance unknowns" if its
+//! projected column is zero, else "merged into" the kept columns `c = R₁₁⁻¹·R₁₂` it is a
+//! combination of. Merging is exact in the linear sense: the kept parameters then stand for
+//! `θ_keep + (D_keep·c_j/σ_j)·θ_j`, so their prior covariance becomes
+//! `D_keep² + Σ_j (D_keep·c_j)(D_keep·c_j)ᵀ` (and `R_p` its inverse Cholesky factor), so the
+//! prediction still carries the dropped parameters' prior uncertainty.
+//!
+//! # Blunders ([`fit_screened`])
+//! A robust start (IRLS with Huber weights `w = min(1, k/s_i)` on each block's whitened norm
+//! `s_i = ‖W_i·r_i‖`, `k = sqrt(χ²_dim(0.95))`), then the studentised statistic of each block
+//! `t_i² = r̃_iᵀ(I − H_ii)⁻¹·r̃_i`, `H_ii = J̃_i·Σ·J̃_iᵀ` (hat matrix of the linearised MAP problem,
+//! `r̃, J̃` whitened), which is `χ²_dim` under the model; a block is rejected when `t_i²` exceeds
+//! the `1 − α/B` quantile of `χ²_dim` (Bonferroni over the `B` blocks, `α = 0.01` by default).
+//! The refit drops the worst rejected block one at a time and re-admits a rejected block whose
+//! deletion statistic `r̃ᵀ(I + H)⁻¹r̃` falls below the threshold. Rejected rows are reported with
+//! `sqrt(t²)` ("size in σ").
+//!
+//! # Cooperative accuracy ([`predict_cooperative_accuracy`])
+//! For a configuration pair `(q1, q2)`, `v = f1(q1) − X·f2(q2)` (m, b1 axes); its error has
+//! covariance `Σ_v = J_v·Σ·J_vᵀ` (`J_v` as the coincident residual's unwhitened Jacobian). The
+//! predicted rms over pairs is `sqrt(mean trace Σ_v)` (exact); the p95 of `‖δv‖` comes from a
+//! seeded draw of [`P95_DRAWS_PER_PAIR`] Gaussian errors per pair. [`measure_cooperative_error`]
+//! gives the actual `‖v_fit − v_true‖` against a known truth.
+//!
+//! # Design ([`greedy_design`])
+//! At nominal, the information is `A₀ = R_pᵀR_p + ε·I` on the unpenalised columns (a weak
+//! prior: σ = [`WEAK_PRIOR_SIGMA`] so that `A₀` is invertible) and each candidate `c` adds its
+//! whitened block `B_c` (`A ← A + B_cᵀB_c`). With `Σ = A⁻¹`, adding `B` gives, by Woodbury,
+//! `Σ' = Σ − Σ·Bᵀ·S⁻¹·B·Σ`, `S = I + B·Σ·Bᵀ`. A-optimal: minimise the mean cooperative variance
+//! `trace(M·Σ)`, `M = mean_k J_v,kᵀJ_v,k` over evaluation pairs; its decrease is
+//! `trace(S⁻¹·B·Σ·M·Σ·Bᵀ)`. D-optimal: maximise `log det A`; its increase is `log det S`.
+//! Greedy: pick the best candidate, update `Σ` by Woodbury, repeat.
+//!
+//! # One call
+//! [`calibrate_cell`] runs the chain a CLI needs (start, reduce, screened MAP fit) and
+//! [`CellCalibration::report`] gives the serialisable summary.
+
+mod accuracy;
+mod blunders;
+mod calibrate;
+mod design;
+mod problem;
+mod reduce;
+mod solve;
+
+#[cfg(test)]
+mod fixtures;
+#[cfg(test)]
+mod tests;
+
+pub use accuracy::{
+    cooperative_covariances, measure_cooperative_error, predict_cooperative_accuracy,
+    summarise_covariances, ConfigPair, CooperativeError, CooperativePrediction, P95_DRAWS_PER_PAIR,
+};
+pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
+pub use calibrate::{calibrate_cell, CalibrationReport, CellCalibration};
+pub use design::{
+    design_criterion, greedy_design, DesignCriterion, DesignResult, WEAK_PRIOR_SIGMA,
+};
+pub use problem::{
+    initial_estimate, tangent_basis, CellEstimate, CellFitError, CellParam, CellProblem, CellRobot,
+    ContactGroup, Evaluator, Noise3, Observation, ObservationKind, ObservationLinearisation,
+    ParamLayout, PlaneEstimate, PlaneGroup, RobotCorrection, RobotIndex, Tolerance, Tool,
+    TrackerGroup,
+};
+pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, RANK_TOL};
+pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions, StopReason};

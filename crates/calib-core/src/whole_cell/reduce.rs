@@ -1,0 +1,251 @@
+//! Base-parameter reduction: which kinematic parameters the observations cannot determine
+//! (see the module documentation of [`crate::whole_cell`]).
+
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+
+use super::problem::{CellEstimate, CellFitError, CellParam, CellProblem, ParamLayout};
+use super::solve::assemble;
+
+/// A kinematic column whose remaining norm, after projecting out the unpenalised unknowns and
+/// the kinematic columns kept before it (pivoted Gram–Schmidt), is at most this fraction of its
+/// raw norm is undetermined by the data.
+///
+/// Why 1 %: a confounding that is exact where the model fits the data (robot 1 turning about its
+/// base axis and `b1_from_b2` turning with it, say) is only approximate at a linearisation point
+/// whose residuals are of relative size ε (kinematic errors of ~1 mm on ~1 m arms: ε ≈ 1e-3, more
+/// with 4 mm noise), so such columns keep a fraction ~ε of their norm. And a column with less
+/// than 1 % of its effect independent carries, in prior-σ units, at most 1e-4 of its raw
+/// information: unless the data are ~10⁴ times more informative than the prior it is decided by
+/// the prior anyway, so holding it (or merging it, which keeps its prior) loses nothing.
+pub const RANK_TOL: f64 = 1e-2;
+
+/// Why a parameter was dropped.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "reason", rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum ReductionReason {
+    /// It moves no observed tip.
+    NoEffect,
+    /// Its effect is a rigid motion the placement `b1_from_b2` absorbs.
+    ConfoundedWithPlacement,
+    /// Its effect is absorbed by the placement together with the nuisance unknowns (tracker
+    /// frames, planes, contact distances).
+    ConfoundedWithNuisance,
+    /// Its effect is a combination of kept parameters (and the unpenalised unknowns): those
+    /// parameters now stand for it (their prior covariance carries its prior).
+    MergedInto {
+        /// The kept parameters (readable names) with their coefficients in prior-σ units
+        /// (`|c| ≥ 1e-6`).
+        into: Vec<(String, f64)>,
+    },
+}
+
+/// One dropped parameter.
+#[derive(Debug, Clone, Serialize)]
+pub struct ReductionEntry {
+    /// The parameter.
+    pub param: CellParam,
+    /// Readable name.
+    pub name: String,
+    /// Why.
+    pub reason: ReductionReason,
+    /// Fraction of its (whitened, prior-scaled) effect left after projecting out the unknowns
+    /// that absorb it (0 … [`RANK_TOL`]).
+    pub independent_fraction: f64,
+    /// A sentence for people, e.g. "robot 2 origin_xyz joint 1 x is confounded with b1_from_b2".
+    pub message: String,
+}
+
+/// Result of [`reduce`].
+#[derive(Debug, Clone)]
+pub struct Reduction {
+    /// The reduced layout: dropped parameters removed, the merged prior in `prior_sqrt_info`.
+    pub layout: ParamLayout,
+    /// What was dropped and why.
+    pub dropped: Vec<ReductionEntry>,
+    /// Kinematic parameters kept.
+    pub kept: usize,
+    /// Directions of the kept kinematic parameters (in prior-σ units, unpenalised unknowns
+    /// projected out) where the data carry at least as much information as the prior
+    /// (singular value ≥ 1).
+    pub data_determined: usize,
+    /// Directions where the prior dominates (singular value < 1): the prior decides them.
+    pub prior_dominated: usize,
+}
+
+/// Finds and removes the structurally undetermined kinematic parameters of `problem`'s
+/// observations `active`, linearised at `estimate` (normally the nominal robots at the starting
+/// placement). See the module documentation for the maths.
+///
+/// Errors: as the linearisation (invalid input, model failures).
+pub fn reduce(
+    problem: &CellProblem,
+    estimate: &CellEstimate,
+    active: &[usize],
+) -> Result<Reduction, CellFitError> {
+    let full = ParamLayout::new(problem, &[]);
+    let sys = assemble(problem, &full, estimate, active, None, true)?;
+    let jd = sys.j.rows(0, sys.data_rows).into_owned();
+    let n = full.len();
+    let sig: Vec<f64> = (0..n).map(|j| full.prior_sigma(j)).collect();
+    let unpen: Vec<usize> = (0..n).filter(|&j| sig[j] == 0.0).collect();
+    let kin: Vec<usize> = (0..n).filter(|&j| sig[j] > 0.0).collect();
+    let placement: Vec<usize> = (0..6).collect();
+    let q_all = orthonormal_basis(&jd.select_columns(&unpen));
+    let q_place = orthonormal_basis(&jd.select_columns(&placement));
+    let project = |q: &DMatrix<f64>, a: &DMatrix<f64>| a - q * (q.transpose() * a);
+    // Kinematic columns in prior-σ units.
+    let mut a_raw = jd.select_columns(&kin);
+    for (c, &j) in kin.iter().enumerate() {
+        a_raw.column_mut(c).scale_mut(sig[j]);
+    }
+    let a = project(&q_all, &a_raw);
+    let raw_norm: Vec<f64> = (0..kin.len()).map(|c| a_raw.column(c).norm()).collect();
+    let max_raw = raw_norm.iter().cloned().fold(0.0, f64::max);
+    // Pivoted modified Gram–Schmidt with a relative (own-norm) rank test.
+    let k = kin.len();
+    let own: Vec<f64> = (0..k).map(|c| a.column(c).norm()).collect();
+    let mut work = a.clone();
+    let mut remaining: Vec<usize> = (0..k).collect();
+    let mut kept_order: Vec<usize> = Vec::new();
+    let mut q_cols: Vec<DVector<f64>> = Vec::new();
+    loop {
+        let best = remaining
+            .iter()
+            .copied()
+            .filter(|&c| raw_norm[c] > 0.0 && work.column(c).norm() > RANK_TOL * raw_norm[c])
+            .max_by(|&x, &y| work.column(x).norm().total_cmp(&work.column(y).norm()));
+        let Some(p) = best else { break };
+        let q = work.column(p).normalize();
+        for &c in &remaining {
+            if c != p {
+                let d = q.dot(&work.column(c));
+                let upd = work.column(c) - &q * d;
+                work.set_column(c, &upd);
+            }
+        }
+        remaining.retain(|&c| c != p);
+        kept_order.push(p);
+        q_cols.push(q);
+    }
+    // Dependency coefficients of each dropped column on the kept ones: least squares in the
+    // projected space, a_j ≈ A_keep·c.
+    let a_keep = a.select_columns(&kept_order);
+    let ls = a_keep.clone().svd(true, true);
+    let mut dropped = Vec::new();
+    let mut fixed = Vec::new();
+    // Merged prior covariance over the kept columns, prior-σ units (starts at I).
+    let kk = kept_order.len();
+    let mut prior_cov = DMatrix::<f64>::identity(kk, kk);
+    let mut dropped_cols = remaining.clone();
+    dropped_cols.sort_unstable();
+    for &c in &dropped_cols {
+        let param = full.params[kin[c]].clone();
+        let name = param.describe(problem);
+        let (reason, message) = if raw_norm[c] <= 1e-12 * max_raw.max(1e-300) {
+            (
+                ReductionReason::NoEffect,
+                format!("{name} moves no observed tip: held at 0"),
+            )
+        } else if own[c] <= RANK_TOL * raw_norm[c] {
+            let in_place = project(&q_place, &a_raw.columns(c, 1).into_owned()).norm();
+            if in_place <= RANK_TOL * raw_norm[c] || unpen.len() == 6 {
+                (
+                    ReductionReason::ConfoundedWithPlacement,
+                    format!(
+                        "{name} is confounded with b1_from_b2: held at 0, the placement absorbs it"
+                    ),
+                )
+            } else {
+                (
+                    ReductionReason::ConfoundedWithNuisance,
+                    format!(
+                        "{name} is confounded with b1_from_b2 and the tracker/plane/contact \
+                         unknowns: held at 0, they absorb it"
+                    ),
+                )
+            }
+        } else {
+            let coeff = ls
+                .solve(&a.column(c).into_owned(), 1e-12)
+                .unwrap_or_else(|_| DVector::zeros(kk));
+            prior_cov += &coeff * coeff.transpose();
+            let into: Vec<(String, f64)> = kept_order
+                .iter()
+                .zip(coeff.iter())
+                .filter(|(_, v)| v.abs() >= 1e-6)
+                .map(|(&kc, &v)| (full.params[kin[kc]].describe(problem), v))
+                .collect();
+            let names: Vec<String> = into.iter().map(|(s, v)| format!("{v:+.3}·{s}")).collect();
+            (
+                ReductionReason::MergedInto { into },
+                format!(
+                    "{name} cannot be separated from {}: merged into them (held at 0)",
+                    names.join(", ")
+                ),
+            )
+        };
+        fixed.push(param.clone());
+        let independent_fraction = if raw_norm[c] > 0.0 {
+            work.column(c).norm() / raw_norm[c]
+        } else {
+            0.0
+        };
+        dropped.push(ReductionEntry {
+            param,
+            independent_fraction,
+            name,
+            reason,
+            message,
+        });
+    }
+    let mut layout = ParamLayout::new(problem, &fixed);
+    // The merged prior: Σ_keep = D·prior_cov·D; R_p = L⁻¹ with Σ_keep = L·Lᵀ.
+    let new_cols: Vec<usize> = kept_order
+        .iter()
+        .map(|&kc| {
+            layout
+                .column(&full.params[kin[kc]])
+                .expect("kept parameters are in the reduced layout")
+        })
+        .collect();
+    let d = DVector::from_iterator(kk, kept_order.iter().map(|&kc| sig[kin[kc]]));
+    let cov = DMatrix::from_fn(kk, kk, |x, y| prior_cov[(x, y)] * d[x] * d[y]);
+    let l_inv = cov
+        .cholesky()
+        .and_then(|c| c.l().try_inverse())
+        .ok_or_else(|| {
+            CellFitError::InvalidInput("merged prior covariance is not positive definite".into())
+        })?;
+    let mut r_p = DMatrix::zeros(kk, layout.len());
+    for (x, &cx) in new_cols.iter().enumerate() {
+        for y in 0..kk {
+            r_p[(y, cx)] = l_inv[(y, x)];
+        }
+    }
+    layout.prior_sqrt_info = r_p;
+    let s = a_keep.singular_values();
+    let data_determined = s.iter().filter(|&&v| v >= 1.0).count();
+    Ok(Reduction {
+        layout,
+        dropped,
+        kept: kk,
+        data_determined,
+        prior_dominated: kk - data_determined,
+    })
+}
+
+/// Orthonormal basis of the column space (SVD, singular values above 1e-10 of the largest).
+fn orthonormal_basis(m: &DMatrix<f64>) -> DMatrix<f64> {
+    if m.ncols() == 0 {
+        return DMatrix::zeros(m.nrows(), 0);
+    }
+    let svd = m.clone().svd(true, false);
+    let u = svd.u.expect("u requested");
+    let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
+    let keep: Vec<usize> = (0..svd.singular_values.len())
+        .filter(|&i| svd.singular_values[i] > 1e-10 * smax && smax > 0.0)
+        .collect();
+    u.select_columns(&keep)
+}
