@@ -553,38 +553,41 @@ def fit_contact(model, sets, sigma_prior, sigma_contact=1e-3):
             r = np.concatenate([r, pr])
         return r
 
-    sol = least_squares(res, x0, method="trf", xtol=1e-12, ftol=1e-12, max_nfev=200)
+    sol = least_squares(res, x0, method="trf", xtol=1e-12, ftol=1e-12, max_nfev=100)
     return sol.x
-
-
-SIGMAS = [1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, math.inf]
 
 
 def section_d(data, quick=False):
     self_files = sorted(n for n in data if n.startswith("no_leica_self"))
     leica_self = sorted(n for n in data if n.startswith("leica_self"))
     out = dict(cv=[], scores=[], params=[])
-    variants = [("offsets", True), ("offsets+lengths", True), ("offsets", False)]
-    for kind, fitd in variants:
+    finite = [1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2]
+    # The prior-free fit of offsets + lengths takes ~1 min and runs away like the offsets-only one;
+    # it is left out of the CV grid.
+    variants = [("offsets", True, finite + [math.inf]), ("offsets+lengths", True, finite[:5]),
+                ("offsets", False, finite + [math.inf])]
+    for kind, fitd, sigmas in variants:
         model = ContactModel(kind, fit_distance=fitd)
         label = f"{kind}, d {'fitted' if fitd else 'fixed 116 mm'}"
-        # Leave-one-file-out CV over the four no-tracker self-contact files.
+        # Leave-one-PATTERN-out CV over the four no-tracker self-contact files: upper1/upper2 (and
+        # lower1/lower2) are two runs of the same 4x4 pattern, so leaving one file out would keep
+        # its twin in training and reward over-fitting. Folds: train upper -> test lower, and back.
         cv = {}
-        for s in SIGMAS:
-            errs, scat = [], []
-            for held in self_files:
-                train = [data[n] for n in self_files if n != held]
-                x = fit_contact(model, train, s)
-                errs.append(model.residual(x, [data[held]]))
+        patterns = [[n for n in self_files if "upper" in n], [n for n in self_files if "lower" in n]]
+        for s in sigmas:
+            errs = []
+            for k in range(2):
+                x = fit_contact(model, [data[n] for n in patterns[k]], s)
+                errs.append(model.residual(x, [data[n] for n in patterns[1 - k]]))
             e = np.concatenate(errs)
             # Check on the 64 tracker self-contact poses (their own mean distance: a different tool set-up).
             x_all = fit_contact(model, [data[n] for n in self_files], s)
             r64 = contact_distance_sets(model, x_all, [data[n] for n in leica_self])
             cv[s] = float(np.sqrt(np.mean(e ** 2)) * 1e3)
-            out["cv"].append(dict(variant=label, sigma=s, lofo_rms_mm=cv[s],
+            out["cv"].append(dict(variant=label, sigma=s, lopo_rms_mm=cv[s],
                                   leica_self_scatter_mm=float(r64.std(ddof=1) * 1e3)))
         s_best = min(cv, key=cv.get)
-        for s in sorted({s_best, math.inf}):
+        for s in sorted({s_best, sigmas[-1]}):
             x = fit_contact(model, [data[n] for n in self_files], s)
             rob = model.robots(x)
             tag = f"self-contact [{label}], sigma={'none' if not math.isfinite(s) else f'{s * 1e3:g} mrad|mm'}" + \
@@ -626,8 +629,9 @@ def contact_identifiability(data):
         top = np.argsort(-np.abs(v))[:4]
         weak.append(dict(sv=float(s[k]), direction=" ".join(f"{v[i]:+.2f}*{names[i]}" for i in top)))
     # Per-parameter "resolution": sigma of each param from contact alone at 1 mm contact noise.
-    cov = np.linalg.pinv(jac.T @ jac) * 1e-6
-    per = {names[i]: float(math.sqrt(max(cov[i, i], 0.0))) for i in range(len(names))}
+    cov = np.linalg.pinv(jac.T @ jac, rcond=1e-12) * 1e-6
+    null = np.linalg.norm(jac, axis=0) < 1e-9  # no effect at all on any contact distance
+    per = {names[i]: (math.nan if null[i] else float(math.sqrt(max(cov[i, i], 0.0)))) for i in range(len(names))}
     return dict(singular_values=s.tolist(), weakest=weak, sd_at_1mm_noise=per)
 
 
@@ -689,8 +693,8 @@ def main():
     if "d" in secs:
         out = section_d(data, quick=args.quick)
         result["d"] = out
-        print("\n## d. self-contact calibration: leave-one-file-out CV of the prior sigma (contact residual rms, mm)")
-        print(fmt_table(out["cv"], ["variant", "sigma", "lofo_rms_mm", "leica_self_scatter_mm"], "{:.4g}"))
+        print("\n## d. self-contact calibration: leave-one-pattern-out CV (upper <-> lower) of the prior sigma (contact residual rms, mm); scatter of the 64 leica_self contact distances")
+        print(fmt_table(out["cv"], ["variant", "sigma", "lopo_rms_mm", "leica_self_scatter_mm"], "{:.4g}"))
         print("\n## d. calibrated models scored on the tracker files (protocol a, mm)")
         print(fmt_table(out["scores"], ["model", "file", "arm", "n", "rms", "median", "p95", "max"]))
         for p in out["params"]:
@@ -705,7 +709,7 @@ def main():
         for w in ident["weakest"]:
             print(f"  sv {w['sv']:.3g}: {w['direction']}")
         sd = ident["sd_at_1mm_noise"]
-        print("  sd of each parameter at 1 mm contact noise (mrad or mm): " +
+        print("  sd of each parameter at 1 mm contact noise, all others free (mrad or mm; nan = no effect): " +
               ", ".join(f"{k} {v * 1e3:.3g}" for k, v in sd.items()))
     if "e" in secs:
         rows = section_e(data)
