@@ -296,7 +296,7 @@ fn print_text(v: &Value) {
         for r in &rejected {
             println!(
                 "  row {:>4}: {:.1} σ (residual {:.3} mm)",
-                r["row"],
+                r["row"].as_u64().unwrap_or(0),
                 num(&r["size_sigma"]),
                 num(&r["residual_mm"])
             );
