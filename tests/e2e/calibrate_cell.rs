@@ -218,6 +218,27 @@ fn kinematic_model_beats_placement_and_exports_verified_urdfs() {
         assert!(cal_k.robot(r).urdf_path.is_file());
     }
 
+    // `handclasp diagnose` takes the exported cell (with a session recorded on it: the old
+    // session's tip columns are the old models' and fail its consistency check by design).
+    let s2 = session(&cal_k, 12, 9);
+    let s2_path = dir.path().join("session_on_calibrated.csv");
+    s2.write_csv(&s2_path, &cal_k).unwrap();
+    let out = handclasp(&[
+        "diagnose",
+        "--cell",
+        out_k.join("cell.toml").to_str().unwrap(),
+        "--session",
+        s2_path.to_str().unwrap(),
+        "--trials",
+        "20",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
     // Cooperative accuracy against the truth, over 400 held-out configuration pairs.
     let rms_k = cooperative_rms_mm(&cal_k, &truth, &held_out);
     let rms_p = cooperative_rms_mm(&cal_p, &truth, &held_out);

@@ -424,7 +424,8 @@ fn export(cell: &Cell, cal: &CellCalibration, dir: &Path) -> anyhow::Result<Vec<
     let text = format!(
         "# Written by `handclasp calibrate --cell --export`: the calibrated cell (fitted b1_from_b2,\n\
          # corrected URDFs robot1.urdf / robot2.urdf and tip offsets; [robotN.errors] holds only what a\n\
-         # URDF cannot express). A session recorded with the old models keeps the old tip columns.\n{}",
+         # URDF cannot express). A session recorded with the old models has their tip columns, which\n\
+         # these models reject (record a new session, or use the old cell for it).\n{}",
         out.to_toml_string()
     );
     write_atomically(&cell_path, &text)?;
