@@ -2,6 +2,7 @@
 //! One test binary (owned by the `handclasp` package), one module per command.
 
 mod calibrate;
+mod calibrate_cell;
 mod diagnose;
 mod fk_ik;
 mod paper;

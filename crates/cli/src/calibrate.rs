@@ -19,7 +19,22 @@ use std::path::PathBuf;
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// CSV of handclasp points (mm): columns r1_x_mm,r1_y_mm,r1_z_mm,r2_x_mm,r2_y_mm,r2_z_mm.
-    pub points: PathBuf,
+    /// Required unless --cell is given.
+    #[arg(required_unless_present = "cell", conflicts_with = "cell")]
+    pub points: Option<PathBuf>,
+    /// Whole-cell calibration: the cell TOML (robots, tips, noise, [robotN.tolerance]).
+    #[arg(long, requires = "session", conflicts_with_all = ["mounts", "mount1", "mount2", "method", "tilt_sigma_deg"])]
+    pub cell: Option<PathBuf>,
+    /// With --cell: the session CSV (point, r1_q*_deg, r2_q*_deg, r1_x_mm … r2_z_mm).
+    #[arg(long, requires = "cell")]
+    pub session: Option<PathBuf>,
+    /// With --cell: kinematic (b1_from_b2 and every identifiable kinematic parameter of both
+    /// robots, MAP with the cell's tolerances) or placement (b1_from_b2 only).
+    #[arg(long, requires = "cell", value_enum, default_value = "kinematic")]
+    pub model: crate::calibrate_cell::ModelArg,
+    /// With --cell: write DIR/cell.toml, DIR/robot1.urdf and DIR/robot2.urdf (the calibrated cell).
+    #[arg(long, requires = "cell")]
+    pub export: Option<PathBuf>,
     /// The paper's cells: floor-floor, floor-wall or floor-ceiling (robot 1 is on the floor).
     #[arg(long, conflicts_with_all = ["mount1", "mount2"])]
     pub mounts: Option<String>,
@@ -121,9 +136,12 @@ fn config(args: Args) -> anyhow::Result<Config> {
             Some((t.to_radians(), args.point_sigma_mm * 1e-3))
         }
     };
+    let points = args
+        .points
+        .context("give the points CSV (or --cell CELL --session SESSION)")?;
     Ok(Config {
         soft,
-        points: args.points,
+        points,
         mounts,
         methods,
         all,
@@ -133,6 +151,9 @@ fn config(args: Args) -> anyhow::Result<Config> {
 
 /// Runs `handclasp calibrate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.cell.is_some() {
+        return crate::calibrate_cell::run(args);
+    }
     let cfg = config(args)?;
     let pairs = read_points_csv(&cfg.points)?;
     let mounts = cfg.mounts.unwrap_or_else(MountPair::floor_floor);

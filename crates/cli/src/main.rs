@@ -8,6 +8,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod calibrate;
+mod calibrate_cell;
 mod diagnose;
 mod fk;
 mod ik;

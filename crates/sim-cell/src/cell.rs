@@ -9,6 +9,7 @@
 
 use crate::error::SimError;
 use crate::placement::{isometry_from_mm_deg, Placement};
+use calib_core::whole_cell::Tolerance;
 use calib_core::{zyz_from_rotation, Mount, MountPair};
 use kinematics::{KinematicErrors, RobotModel};
 use nalgebra::{Isometry3, Point3, Rotation3, Vector3};
@@ -61,6 +62,10 @@ pub struct CellRobot {
     pub g_base: Vector3<f64>,
     /// The robot's true kinematic errors (zero = the nominal robot).
     pub errors: KinematicErrors,
+    /// Manufacturing tolerances, the prior of a whole-cell calibration (`[robotN.tolerance]`;
+    /// default [`Tolerance::default`]: 0.05° joint offsets and origin rpy, 0.5 mm origin xyz and
+    /// tip; half-widths of a uniform band, see [`Tolerance`]).
+    pub tolerance: Tolerance,
 }
 
 /// The noise of a simulated session.
@@ -118,6 +123,23 @@ struct RobotFile {
     tip_mm: [f64; 3],
     #[serde(default, skip_serializing_if = "Option::is_none")]
     errors: Option<ErrorsFile>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    tolerance: Option<ToleranceFile>,
+}
+
+/// `[robotN.tolerance]`: half-widths of uniform bands (mm, degrees); absent keys take
+/// [`Tolerance::default`]; 0 holds that kind of parameter at nominal.
+#[derive(Debug, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ToleranceFile {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    joint_offset_deg: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    origin_mm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    origin_deg: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    tip_mm: Option<f64>,
 }
 
 #[derive(Debug, Serialize, Deserialize)]
@@ -341,6 +363,46 @@ fn build_errors(
     Ok(out)
 }
 
+fn build_tolerance(ctx: &Ctx, key: &str, t: &ToleranceFile) -> Result<Tolerance, SimError> {
+    let d = Tolerance::default();
+    let field = |name: &str, v: Option<f64>, default_si: f64, to_si: f64| {
+        match v {
+        None => Ok(default_si),
+        Some(v) if v.is_finite() && v >= 0.0 => Ok(v * to_si),
+        Some(v) => Err(ctx.err(format!(
+            "`{key}.tolerance.{name}` = {v}: give a finite half-width ≥ 0 (0 holds these parameters at nominal)"
+        ))),
+    }
+    };
+    let d2r = 1f64.to_radians();
+    Ok(Tolerance {
+        joint_offset_rad: field(
+            "joint_offset_deg",
+            t.joint_offset_deg,
+            d.joint_offset_rad,
+            d2r,
+        )?,
+        origin_xyz_m: field("origin_mm", t.origin_mm, d.origin_xyz_m, 1e-3)?,
+        origin_rpy_rad: field("origin_deg", t.origin_deg, d.origin_rpy_rad, d2r)?,
+        tip_m: field("tip_mm", t.tip_mm, d.tip_m, 1e-3)?,
+        ..d
+    })
+}
+
+/// The `[robotN.tolerance]` table of `t`, or `None` when it is the default (so cells without
+/// one round-trip unchanged).
+fn tolerance_file(t: &Tolerance) -> Option<ToleranceFile> {
+    if *t == Tolerance::default() {
+        return None;
+    }
+    Some(ToleranceFile {
+        joint_offset_deg: Some(t.joint_offset_rad.to_degrees()),
+        origin_mm: Some(t.origin_xyz_m * 1e3),
+        origin_deg: Some(t.origin_rpy_rad.to_degrees()),
+        tip_mm: Some(t.tip_m * 1e3),
+    })
+}
+
 fn errors_file(e: &KinematicErrors) -> Option<ErrorsFile> {
     if e.is_zero() {
         return None;
@@ -445,6 +507,7 @@ impl Cell {
                 r.flange_from_tip.z * 1e3,
             ],
             errors: errors_file(&r.errors),
+            tolerance: tolerance_file(&r.tolerance),
         };
         let zyz = zyz_from_rotation(&self.b1_from_b2.rotation.to_rotation_matrix());
         let t = self.b1_from_b2.translation.vector * 1e3;
@@ -546,7 +609,7 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
             .map(|r| format!("line {}: ", text[..r.start.min(text.len())].lines().count().max(1)))
             .unwrap_or_default();
         ctx.err(format!(
-            "{at}{} (keys: [robot1], [robot2] with urdf, mount, tip_mm, tool_link, [robotN.errors]; [b1_from_b2] xyz_mm, zyz_deg; [noise] alignment_mm, repeatability_mm, encoder_resolution_deg; [teach] centre_mm)",
+            "{at}{} (keys: [robot1], [robot2] with urdf, mount, tip_mm, tool_link, [robotN.errors], [robotN.tolerance] joint_offset_deg, origin_mm, origin_deg, tip_mm; [b1_from_b2] xyz_mm, zyz_deg; [noise] alignment_mm, repeatability_mm, encoder_resolution_deg; [teach] centre_mm)",
             e.message().trim_end()
         ))
     })?;
@@ -558,6 +621,10 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
             Some(e) => build_errors(&ctx, key, &model, e)?,
             None => KinematicErrors::zero(model.dof()),
         };
+        let tolerance = match &r.tolerance {
+            Some(t) => build_tolerance(&ctx, key, t)?,
+            None => Tolerance::default(),
+        };
         Ok(CellRobot {
             mount: parse_mount(&ctx, &format!("{key}.mount"), &r.mount)?,
             flange_from_tip: finite3(&ctx, &format!("{key}.tip_mm"), r.tip_mm)? * 1e-3,
@@ -567,6 +634,7 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
             tool_link,
             g_base: Vector3::zeros(),
             errors,
+            tolerance,
         })
     };
     let mut robot1 = robot("robot1", &file.robot1)?;
@@ -835,5 +903,57 @@ mod placement_tests {
             );
             assert_eq!(cell.mounts(), p.mounts);
         }
+    }
+}
+
+#[cfg(test)]
+mod tolerance_tests {
+    use super::*;
+
+    fn err_text(text: &str) -> String {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+        Cell::from_toml_str(text, &dir).unwrap_err().to_string()
+    }
+
+    /// Round-off of the mm/degree → SI → mm/degree round trip of a tolerance (tidy_floats keeps
+    /// 10 decimals of mm/deg: 1e-13 m, 1e-12 rad).
+    const TOLERANCE_TOL: f64 = 1e-12;
+
+    #[test]
+    fn tolerance_table_is_optional_parsed_and_round_trips() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+        let plain = Cell::from_toml_str(FLOOR_FLOOR_TOML, &dir).unwrap();
+        assert_eq!(plain.robot1.tolerance, Tolerance::default());
+        assert_eq!(plain.robot2.tolerance, Tolerance::default());
+        let text = FLOOR_FLOOR_TOML.to_string()
+            + "\n[robot2.tolerance]\njoint_offset_deg = 0.1\norigin_mm = 0.2\ntip_mm = 0\n";
+        let cell = Cell::from_toml_str(&text, &dir).unwrap();
+        let t = cell.robot2.tolerance;
+        assert!((t.joint_offset_rad - 0.1f64.to_radians()).abs() < TOLERANCE_TOL);
+        assert!((t.origin_xyz_m - 0.2e-3).abs() < TOLERANCE_TOL);
+        assert_eq!(t.origin_rpy_rad, Tolerance::default().origin_rpy_rad);
+        assert_eq!(t.tip_m, 0.0);
+        assert_eq!(cell.robot1.tolerance, Tolerance::default());
+        let back = Cell::from_toml_str(&cell.to_toml_string(), &dir).unwrap();
+        let b = back.robot2.tolerance;
+        assert!((b.joint_offset_rad - t.joint_offset_rad).abs() < TOLERANCE_TOL);
+        assert!((b.origin_xyz_m - t.origin_xyz_m).abs() < TOLERANCE_TOL);
+        assert!((b.origin_rpy_rad - t.origin_rpy_rad).abs() < TOLERANCE_TOL);
+        assert_eq!(b.tip_m, 0.0);
+        // The default is not written: a cell without the table round-trips without one.
+        assert!(!plain.to_toml_string().contains("tolerance"));
+    }
+
+    #[test]
+    fn bad_tolerance_key_or_value_is_named() {
+        let bad_key = FLOOR_FLOOR_TOML.to_string() + "\n[robot1.tolerance]\noffset_deg = 0.1\n";
+        let e = err_text(&bad_key);
+        assert!(e.contains("offset_deg"), "{e}");
+        for valid in ["joint_offset_deg", "origin_mm", "origin_deg", "tip_mm"] {
+            assert!(e.contains(valid), "{e}");
+        }
+        let negative = FLOOR_FLOOR_TOML.to_string() + "\n[robot2.tolerance]\norigin_mm = -1.0\n";
+        let e = err_text(&negative);
+        assert!(e.contains("robot2.tolerance.origin_mm"), "{e}");
     }
 }

@@ -8,6 +8,7 @@ pub mod placement;
 pub mod plot;
 pub mod session;
 pub mod sweep;
+pub mod whole_cell;
 
 pub use cell::{Cell, CellRobot, Noise};
 pub use error::SimError;

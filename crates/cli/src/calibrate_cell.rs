@@ -1,0 +1,436 @@
+//! `handclasp calibrate --cell CELL --session SESSION --model kinematic|placement [--export DIR]
+//! [--json]`: the whole-cell calibration (`calib_core::whole_cell`) of a measured session.
+//!
+//! `kinematic` fits `b1_from_b2` jointly with every identifiable kinematic parameter of both
+//! robots (joint offsets, joint origin xyz/rpy, tip offsets), a maximum a posteriori fit with the
+//! prior from the cell's `[robotN.tolerance]`; what the session cannot separate is dropped or
+//! merged and reported. `placement` fits `b1_from_b2` alone (both robots nominal) from the same
+//! session. Both screen the rows for blunders and refit without them.
+//!
+//! Predicted cooperative accuracy: the posterior error of the predicted vector from tip 2 to tip
+//! 1 (b1), over **every pair `(q1_i, q2_j)` of the session's rows** (`n²` pairs, rejected rows
+//! included: their joint vectors are still the session's workspace), rms exact, p95 from a
+//! seeded draw (seed [`P95_SEED`]).
+//!
+//! Output units: mm and degrees (ZYZ, `R = Rz(φ)·Ry(θ)·Rz(ψ)`); parameters in their unit (`deg`,
+//! `mm`, `ratio`, `deg/kNm`).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use calib_core::whole_cell::{
+    predict_cooperative_accuracy, CellCalibration, CellParam, CellProblem, ReductionReason,
+    ScreenOptions, SolveOptions,
+};
+use calib_core::zyz_from_rotation;
+use kinematics::{patch_urdf_text, split_for_urdf, verify_patched_urdf, ErrorParam, RobotModel};
+use serde_json::{json, Value};
+use sim_cell::whole_cell::{calibrate, cell_problem, session_config_pairs, FitModel};
+use sim_cell::{Cell, Session};
+
+use crate::calibrate::Args;
+
+/// Seed of the predicted p95's Monte Carlo draw.
+pub const P95_SEED: u64 = 1;
+
+/// How many of the largest kinematic corrections the text report lists.
+const TEXT_LARGEST: usize = 10;
+
+/// How many partners of a merged parameter the text report names (largest coefficients first).
+const MERGE_PARTNERS_SHOWN: usize = 3;
+
+/// `--model`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ModelArg {
+    /// b1_from_b2 and every identifiable kinematic parameter of both robots (MAP).
+    Kinematic,
+    /// b1_from_b2 only, both robots nominal.
+    Placement,
+}
+
+impl ModelArg {
+    fn fit_model(self) -> FitModel {
+        match self {
+            ModelArg::Kinematic => FitModel::Kinematic,
+            ModelArg::Placement => FitModel::Placement,
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            ModelArg::Kinematic => "kinematic",
+            ModelArg::Placement => "placement",
+        }
+    }
+}
+
+/// Runs the whole-cell calibration (`args.cell` is `Some`).
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let (Some(cell_path), Some(session_path)) = (&args.cell, &args.session) else {
+        bail!("--cell CELL needs --session SESSION (the session CSV of that cell)");
+    };
+    let cell = Cell::from_toml_file(cell_path)?;
+    let session = Session::read_csv(session_path, &cell)?;
+    let problem = cell_problem(&cell, &session, args.model.fit_model());
+    let cal = calibrate(
+        &problem,
+        &SolveOptions::default(),
+        &ScreenOptions::default(),
+    )
+    .with_context(|| {
+        format!(
+            "calibrating {} with cell {}",
+            session_path.display(),
+            cell_path.display()
+        )
+    })?;
+    let pairs = session_config_pairs(&session);
+    let prediction = predict_cooperative_accuracy(&problem, &cal.fit, &pairs, P95_SEED)
+        .context("predicting the cooperative accuracy over the session's configuration pairs")?;
+    let mut out = report(&problem, &cal, args.model, session.points.len());
+    out["cooperative_accuracy_mm"] = json!({
+        "predicted_rms": prediction.predicted_rms_m * 1e3,
+        "predicted_p95": prediction.predicted_p95_m * 1e3,
+        "pairs": pairs.len(),
+        "pair_set": "every (q1_i, q2_j) of the session's rows",
+    });
+    let written = match &args.export {
+        Some(dir) => {
+            export(&cell, &cal, dir).with_context(|| format!("--export {}", dir.display()))?
+        }
+        None => Vec::new(),
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    } else {
+        print_text(&out);
+        for f in &written {
+            println!("wrote {}", f.display());
+        }
+    }
+    Ok(())
+}
+
+/// Unit and SI → unit factor of a kinematic parameter.
+fn unit_of(p: &CellParam) -> (&'static str, f64) {
+    let deg = 1f64.to_degrees();
+    match p {
+        CellParam::ToolTip { .. } => ("mm", 1e3),
+        CellParam::Kinematic { param, .. } => match param {
+            ErrorParam::JointOffset { .. } | ErrorParam::OriginRpy { .. } => ("deg", deg),
+            ErrorParam::MountRpy { .. } => ("deg", deg),
+            ErrorParam::JointScale { .. } => ("ratio", 1.0),
+            ErrorParam::Compliance { .. } => ("deg/kNm", deg * 1e3),
+            _ => ("mm", 1e3),
+        },
+        CellParam::PlacementRotation { .. } | CellParam::TrackerRotation { .. } => ("deg", deg),
+        CellParam::PlaneNormal { .. } => ("deg", deg),
+        _ => ("mm", 1e3),
+    }
+}
+
+/// Robot, kind, 1-based joint and axis of a kinematic parameter (JSON fields).
+fn describe(p: &CellParam) -> Option<Value> {
+    match p {
+        CellParam::Kinematic { robot, param } => Some(json!({
+            "robot": robot,
+            "kind": param.kind_name(),
+            "joint": param.joint().map(|j| j + 1),
+            "axis": param.axis().map(|a| a.to_string()),
+        })),
+        CellParam::ToolTip { robot, axis, .. } => Some(json!({
+            "robot": robot,
+            "kind": "tip",
+            "joint": Value::Null,
+            "axis": axis.to_string(),
+        })),
+        _ => None,
+    }
+}
+
+fn reason_text(r: &ReductionReason) -> (&'static str, Value) {
+    match r {
+        ReductionReason::NoEffect => ("no_effect", Value::Null),
+        ReductionReason::ConfoundedWithPlacement => ("confounded_with_placement", Value::Null),
+        ReductionReason::ConfoundedWithNuisance => ("confounded_with_nuisance", Value::Null),
+        ReductionReason::MergedInto { into } => (
+            "merged",
+            into.iter()
+                .map(|(name, c)| json!({"parameter": name, "coefficient": c}))
+                .collect(),
+        ),
+        _ => ("other", Value::Null),
+    }
+}
+
+/// The JSON report (mm, degrees).
+fn report(problem: &CellProblem, cal: &CellCalibration, model: ModelArg, rows: usize) -> Value {
+    let x = &cal.fit.estimate.b1_from_b2;
+    let r = x.rotation.to_rotation_matrix();
+    let zyz = zyz_from_rotation(&r);
+    let q = x.rotation;
+    let params = cal.fit.parameters(problem);
+    let mut parameters = Vec::new();
+    let mut placement_sigma = Vec::new();
+    for p in &params {
+        let (unit, k) = unit_of(&p.param);
+        match describe(&p.param) {
+            Some(mut v) => {
+                v["name"] = json!(p.name);
+                v["value"] = json!(p.value * k);
+                v["unit"] = json!(unit);
+                v["sigma"] = json!(p.posterior_sigma * k);
+                v["prior_sigma"] = json!(p.prior_sigma * k);
+                parameters.push(v);
+            }
+            None => placement_sigma
+                .push(json!({"name": p.name, "unit": unit, "sigma": p.posterior_sigma * k})),
+        }
+    }
+    let unidentifiable: Vec<Value> = cal
+        .reduction
+        .dropped
+        .iter()
+        .map(|d| {
+            let (reason, into) = reason_text(&d.reason);
+            let mut v = describe(&d.param).unwrap_or_else(|| json!({}));
+            v["name"] = json!(d.name);
+            v["reason"] = json!(reason);
+            v["merged_into"] = into;
+            v["independent_fraction"] = json!(d.independent_fraction);
+            v["why"] = json!(d.message);
+            v
+        })
+        .collect();
+    let rejected: Vec<Value> = cal
+        .rejected
+        .iter()
+        .map(|b| {
+            json!({
+                "row": b.row,
+                "size_sigma": b.size_sigma,
+                "residual_mm": b.residual_m * 1e3,
+            })
+        })
+        .collect();
+    json!({
+        "model": model.name(),
+        "rows": rows,
+        "rows_used": cal.fit.active.len(),
+        "b1_from_b2": {
+            "xyz_mm": [x.translation.x * 1e3, x.translation.y * 1e3, x.translation.z * 1e3],
+            "zyz_deg": [zyz[0].to_degrees(), zyz[1].to_degrees(), zyz[2].to_degrees()],
+            "rotation": (0..3).map(|i| (0..3).map(|j| r[(i, j)]).collect::<Vec<_>>()).collect::<Vec<_>>(),
+            "quaternion_wxyz": [q.w, q.i, q.j, q.k],
+            "sigma": placement_sigma,
+        },
+        "parameters": parameters,
+        "unidentifiable": unidentifiable,
+        "rejected_points": rejected,
+        "stopped": cal.fit.stopped.name(),
+        "iterations": cal.fit.iterations,
+        "data_chi2": cal.fit.data_chi2,
+        "residual_rows": cal.fit.residual_rows,
+        "data_determined_directions": cal.reduction.data_determined,
+        "prior_dominated_directions": cal.reduction.prior_dominated,
+    })
+}
+
+fn num(v: &Value) -> f64 {
+    v.as_f64().unwrap_or(f64::NAN)
+}
+
+fn print_text(v: &Value) {
+    println!(
+        "== whole-cell calibration, model {} ({} of {} rows used)",
+        v["model"].as_str().unwrap_or("?"),
+        v["rows_used"],
+        v["rows"]
+    );
+    let b = &v["b1_from_b2"];
+    let xyz: Vec<f64> = (0..3).map(|i| num(&b["xyz_mm"][i])).collect();
+    let zyz: Vec<f64> = (0..3).map(|i| num(&b["zyz_deg"][i])).collect();
+    println!(
+        "b1_from_b2:  x {:.3} mm  y {:.3} mm  z {:.3} mm   φ {:.4}°  θ {:.4}°  ψ {:.4}°  (ZYZ, R = Rz(φ)·Ry(θ)·Rz(ψ))",
+        xyz[0], xyz[1], xyz[2], zyz[0], zyz[1], zyz[2]
+    );
+    let params = v["parameters"].as_array().cloned().unwrap_or_default();
+    if params.is_empty() {
+        println!("kinematic parameters: none fitted (both robots nominal)");
+    } else {
+        let mut ranked: Vec<&Value> = params.iter().collect();
+        let size = |p: &Value| (num(&p["value"]) / num(&p["prior_sigma"])).abs();
+        ranked.sort_by(|a, b| size(b).total_cmp(&size(a)));
+        println!(
+            "kinematic parameters: {} fitted; the {} largest corrections (in prior σ):",
+            params.len(),
+            TEXT_LARGEST.min(params.len())
+        );
+        for p in ranked.iter().take(TEXT_LARGEST) {
+            let unit = p["unit"].as_str().unwrap_or("");
+            println!(
+                "  {:<40} {:>+10.4} {unit:<4} ± {:.4} {unit:<4} (prior σ {:.4}; {:.1} σ)",
+                p["name"].as_str().unwrap_or("?"),
+                num(&p["value"]),
+                num(&p["sigma"]),
+                num(&p["prior_sigma"]),
+                size(p)
+            );
+        }
+    }
+    let dropped = v["unidentifiable"].as_array().cloned().unwrap_or_default();
+    if !dropped.is_empty() {
+        println!(
+            "not identifiable from this session ({}; held at nominal, their prior kept in the prediction):",
+            dropped.len()
+        );
+        for d in &dropped {
+            println!("  {}", dropped_line(d));
+        }
+    }
+    let rejected = v["rejected_points"].as_array().cloned().unwrap_or_default();
+    if rejected.is_empty() {
+        println!("blunders: none (no row's studentised residual above the Bonferroni limit)");
+    } else {
+        println!("blunders: rejected and refitted without them; re-record these rows:");
+        for r in &rejected {
+            println!(
+                "  row {:>4}: {:.1} σ (residual {:.3} mm)",
+                r["row"].as_u64().unwrap_or(0),
+                num(&r["size_sigma"]),
+                num(&r["residual_mm"])
+            );
+        }
+    }
+    if v["model"].as_str() == Some("placement") {
+        println!(
+            "note: the placement model takes both robots' nominal kinematics as exact; kinematic errors show as \
+             rejected rows and are not in the predicted accuracy (use --model kinematic)"
+        );
+    }
+    let c = &v["cooperative_accuracy_mm"];
+    println!(
+        "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the {} configuration pairs of this session): rms {:.3} mm, p95 {:.3} mm",
+        c["pairs"],
+        num(&c["predicted_rms"]),
+        num(&c["predicted_p95"])
+    );
+    println!(
+        "solver: {} after {} iterations (data χ² {:.1} over {} residual rows)",
+        v["stopped"].as_str().unwrap_or("?"),
+        v["iterations"],
+        num(&v["data_chi2"]),
+        v["residual_rows"]
+    );
+}
+
+/// One readable line per dropped parameter: why, and for a merge its largest partners.
+fn dropped_line(d: &Value) -> String {
+    let name = d["name"].as_str().unwrap_or("?");
+    match d["reason"].as_str() {
+        Some("merged") => {
+            let mut into: Vec<(String, f64)> = d["merged_into"]
+                .as_array()
+                .map(|a| {
+                    a.iter()
+                        .map(|m| {
+                            (
+                                m["parameter"].as_str().unwrap_or("?").to_string(),
+                                num(&m["coefficient"]),
+                            )
+                        })
+                        .collect()
+                })
+                .unwrap_or_default();
+            into.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+            let shown: Vec<String> = into
+                .iter()
+                .take(MERGE_PARTNERS_SHOWN)
+                .map(|(n, c)| format!("{c:+.3}·{n}"))
+                .collect();
+            let more = into.len().saturating_sub(MERGE_PARTNERS_SHOWN);
+            let more = if more > 0 {
+                format!(" and {more} smaller")
+            } else {
+                String::new()
+            };
+            format!(
+                "{name}: merged into {}{more} (coefficients in prior σ)",
+                shown.join(", ")
+            )
+        }
+        Some("confounded_with_placement") => format!("{name}: absorbed by b1_from_b2"),
+        Some("no_effect") => format!("{name}: moves no observed tip"),
+        _ => d["why"].as_str().unwrap_or(name).to_string(),
+    }
+}
+
+/// Writes `path` through a temporary file in the same folder, renamed into place.
+fn write_atomically(path: &Path, text: &str) -> anyhow::Result<()> {
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, text).with_context(|| format!("writing {}", tmp.display()))?;
+    std::fs::rename(&tmp, path)
+        .with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))
+}
+
+/// Writes `DIR/robot1.urdf`, `DIR/robot2.urdf` (the URDF-expressible corrections: joint offsets,
+/// origin xyz/rpy) and `DIR/cell.toml` (fitted `b1_from_b2`, corrected tips, the corrected URDFs;
+/// joint scale and compliance, which a URDF cannot hold, as `[robotN.errors]`). Each URDF is
+/// written to a temporary file, re-loaded, verified against the fitted model
+/// ([`verify_patched_urdf`]) and renamed into place; the cell is re-loaded from its file.
+fn export(cell: &Cell, cal: &CellCalibration, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let est = &cal.fit.estimate;
+    let mut out = cell.clone();
+    out.base_dir = dir.to_path_buf();
+    out.b1_from_b2 = est.b1_from_b2;
+    let mut written = Vec::new();
+    for robot in [1u8, 2] {
+        let setup = cell.robot(robot);
+        let correction = est.robot(robot);
+        let (urdf_part, rest) = split_for_urdf(&correction.errors);
+        let xml = std::fs::read_to_string(&setup.urdf_path)
+            .with_context(|| format!("robot{robot}.urdf: reading {}", setup.urdf_path.display()))?;
+        let patched = patch_urdf_text(&xml, &setup.model, &urdf_part)
+            .with_context(|| format!("robot {robot}: correcting {}", setup.urdf_path.display()))?;
+        let file = format!("robot{robot}.urdf");
+        let path = dir.join(&file);
+        let tmp = path.with_extension("urdf.tmp");
+        std::fs::write(&tmp, &patched).with_context(|| format!("writing {}", tmp.display()))?;
+        let reread = std::fs::read_to_string(&tmp)
+            .with_context(|| format!("re-reading {}", tmp.display()))?;
+        verify_patched_urdf(&reread, &setup.model, &urdf_part)
+            .with_context(|| format!("verifying {}", tmp.display()))?;
+        let model = RobotModel::from_urdf_file(&tmp, &setup.tool_link)
+            .with_context(|| format!("re-loading {}", tmp.display()))?;
+        std::fs::rename(&tmp, &path)
+            .with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))?;
+        written.push(path.clone());
+        let r = if robot == 1 {
+            &mut out.robot1
+        } else {
+            &mut out.robot2
+        };
+        r.model = model;
+        r.urdf = file;
+        r.urdf_path = path;
+        r.flange_from_tip = setup.flange_from_tip + correction.tool_tip_m[0];
+        // What a URDF cannot hold (scale, compliance; tips are in tip_mm, mounts are never fitted).
+        r.errors = rest;
+    }
+    // Robot 2's gravity follows the calibrated placement.
+    out.robot2.g_base = out.b1_from_b2.rotation.inverse() * out.robot1.g_base;
+    let cell_path = dir.join("cell.toml");
+    let text = format!(
+        "# Written by `handclasp calibrate --cell --export`: the calibrated cell (fitted b1_from_b2,\n\
+         # corrected URDFs robot1.urdf / robot2.urdf and tip offsets; [robotN.errors] holds only what a\n\
+         # URDF cannot express). A session recorded with the old models has their tip columns, which\n\
+         # these models reject (record a new session, or use the old cell for it).\n{}",
+        out.to_toml_string()
+    );
+    write_atomically(&cell_path, &text)?;
+    Cell::from_toml_file(&cell_path)
+        .with_context(|| format!("re-loading the exported {}", cell_path.display()))?;
+    written.push(cell_path);
+    Ok(written)
+}
