@@ -5,9 +5,9 @@ use nalgebra::Isometry3;
 use serde::Serialize;
 
 use super::blunders::{fit_screened, RejectedRow, ScreenOptions};
-use super::problem::{initial_estimate, CellFitError, CellProblem};
 use super::reduce::{reduce, Reduction, ReductionEntry};
 use super::solve::{CellFit, FittedParam, SolveOptions, StopReason};
+use super::{initial_estimate, CellFitError, CellProblem};
 
 /// Result of [`calibrate_cell`].
 #[derive(Debug, Clone)]

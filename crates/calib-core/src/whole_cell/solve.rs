@@ -3,7 +3,7 @@
 use nalgebra::{DMatrix, DVector, Isometry3};
 use serde::Serialize;
 
-use super::problem::{
+use super::{
     initial_estimate, CellEstimate, CellFitError, CellParam, CellProblem, Evaluator,
     ObservationLinearisation, ParamLayout,
 };
