@@ -106,8 +106,8 @@ mod residuals;
 mod solve;
 mod start;
 
-#[cfg(test)]
-mod fixtures;
+#[doc(hidden)]
+pub mod fixtures;
 #[cfg(test)]
 mod tests;
 
