@@ -55,6 +55,16 @@ fn bench_whole_cell(c: &mut Criterion) {
             assert_eq!(cal.fit.stopped, StopReason::Converged, "{name} n={n}");
             let plain = fit_cell(&p, &solve).expect("valid problem");
             assert_eq!(plain.stopped, StopReason::Converged, "{name} n={n}");
+            eprintln!(
+                "{name}, {n} points: calibrate_cell {} unknowns ({} dropped or merged), {} \
+                 rejected, {} iterations; fit_cell {} unknowns, {} iterations",
+                cal.fit.layout.len(),
+                cal.reduction.dropped.len(),
+                cal.rejected.len(),
+                cal.fit.iterations,
+                plain.layout.len(),
+                plain.iterations,
+            );
             group.bench_with_input(BenchmarkId::new("calibrate_cell", n), &p, |b, p| {
                 b.iter(|| calibrate_cell(black_box(p), &solve, &screen).expect("valid problem"))
             });
