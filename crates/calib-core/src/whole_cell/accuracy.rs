@@ -7,8 +7,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use serde::Serialize;
 
-use super::problem::{CellEstimate, CellFitError, CellProblem, Evaluator, ParamLayout};
 use super::solve::CellFit;
+use super::{CellEstimate, CellFitError, CellProblem, Evaluator, ParamLayout};
 use crate::stats::quantile;
 
 /// A pair of joint configurations of the two robots (rad, chain order) and the tools whose

@@ -6,8 +6,8 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-use super::problem::{CellFitError, CellProblem, ParamLayout};
 use super::solve::{assemble, fit_cell_with, CellFit, SolveOptions};
+use super::{CellFitError, CellProblem, ParamLayout};
 
 /// Screening settings. Every default is documented on its field.
 #[derive(Debug, Clone, PartialEq)]
@@ -93,7 +93,7 @@ fn deletion_stat(
     fit: &CellFit,
     i: usize,
 ) -> Result<(f64, f64), CellFitError> {
-    let ev = super::problem::Evaluator::new(problem, &fit.layout);
+    let ev = super::Evaluator::new(problem, &fit.layout);
     let lin = ev.linearise(&problem.observations[i], &fit.estimate, true)?;
     let rw = &lin.whitening * &lin.residual;
     let jw = &lin.whitening * &lin.jacobian;

@@ -5,9 +5,7 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 
 use super::accuracy::ConfigPair;
-use super::problem::{
-    CellEstimate, CellFitError, CellProblem, Evaluator, Observation, ParamLayout,
-};
+use super::{CellEstimate, CellFitError, CellProblem, Evaluator, Observation, ParamLayout};
 
 /// σ of the weak prior put on the unpenalised unknowns (placement, nuisances) so that the
 /// design's information matrix is invertible before any observation: 10 (m or rad). Its

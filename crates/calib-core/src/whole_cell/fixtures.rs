@@ -1,6 +1,7 @@
-//! Test fixtures: the shipped robots in the shipped cells' placements, truths drawn from
-//! tolerances, and simulated observations (built from `kinematics` directly: calib-core cannot
-//! depend on sim-cell).
+//! Test and bench fixtures, not part of the API (hidden from the docs): the shipped robots in
+//! the shipped cells' placements, truths drawn from tolerances, and simulated observations
+//! (built from `kinematics` directly: calib-core cannot depend on sim-cell). Used by the
+//! module tests and by `benches/whole_cell.rs`.
 
 use kinematics::{
     ik_tip_position, rotation_from_zyz, tip_joint_jacobian_true, true_base_from_tip, IkOptions,
@@ -29,8 +30,11 @@ const HP20: &str = include_str!(concat!(
 /// placement and teach centre.
 #[derive(Debug, Clone, Copy)]
 pub enum Cell {
+    /// Floor–floor: robot 2 on the floor too.
     Floor,
+    /// Floor–wall: robot 2 on a wall.
     Wall,
+    /// Floor–ceiling: robot 2 hanging from the ceiling.
     Ceiling,
 }
 
@@ -65,14 +69,20 @@ impl Cell {
 
 /// A simulated cell: the problem's robots, the true placement and corrections.
 pub struct SimCell {
+    /// Robot 1 (VA1400, base frame b1) with its nominal model, tools and tolerances.
     pub robot1: CellRobot,
+    /// Robot 2 (HP20) with its nominal model, tools and tolerances.
     pub robot2: CellRobot,
+    /// The true placement and kinematic corrections.
     pub truth: CellEstimate,
+    /// Centre of the teach volume, m, b1 frame.
     pub centre_b1: Point3<f64>,
 }
 
 /// The two robots (VA1400 tip 150 mm, HP20 tip 120 mm; optionally a second tool on robot 1, a
-/// reflector at (40, 0, 60) mm) with tolerances `tol`.
+/// reflector at (40, 0, 60) mm) with tolerances `tol`, and a truth whose every fitted
+/// parameter is drawn from `U(±tolerance)` (seeded). Panics only if a shipped URDF fails to
+/// parse (a build defect, not an input).
 pub fn sim_cell(cell: Cell, tol: Tolerance, second_tool: bool, seed: u64) -> SimCell {
     let (x, centre_b1) = cell.placement();
     let g1 = Vector3::new(0.0, 0.0, -9.81);

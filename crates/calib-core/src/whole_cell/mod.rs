@@ -86,17 +86,28 @@
 //! # One call
 //! [`calibrate_cell`] runs the chain a CLI needs (start, reduce, screened MAP fit) and
 //! [`CellCalibration::report`] gives the serialisable summary.
+//!
+//! # Files, in dependency order (each uses only those before it)
+//! `cell` (error type, robots, tools, tolerances, noise) ← `observations` (observation kinds,
+//! nuisance groups, [`CellProblem`] and its checks) ← `layout` (estimates, columns, prior,
+//! manifold updates) ← `residuals` (residuals and analytic Jacobians, [`Evaluator`]) ← `start`
+//! (starting values) ← `solve` (Levenberg–Marquardt) ← `reduce` ← `blunders` ← `accuracy` ←
+//! `design`, and `calibrate` (the one call). `fixtures` (simulated cells) and `tests` sit on top.
 
 mod accuracy;
 mod blunders;
 mod calibrate;
+mod cell;
 mod design;
-mod problem;
+mod layout;
+mod observations;
 mod reduce;
+mod residuals;
 mod solve;
+mod start;
 
-#[cfg(test)]
-mod fixtures;
+#[doc(hidden)]
+pub mod fixtures;
 #[cfg(test)]
 mod tests;
 
@@ -106,14 +117,17 @@ pub use accuracy::{
 };
 pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
 pub use calibrate::{calibrate_cell, CalibrationReport, CellCalibration};
+pub use cell::{CellFitError, CellRobot, Noise3, RobotIndex, Tolerance, Tool};
 pub use design::{
     design_criterion, greedy_design, DesignCriterion, DesignResult, WEAK_PRIOR_SIGMA,
 };
-pub use problem::{
-    initial_estimate, tangent_basis, CellEstimate, CellFitError, CellParam, CellProblem, CellRobot,
-    ContactGroup, Evaluator, Noise3, Observation, ObservationKind, ObservationLinearisation,
-    ParamLayout, PlaneEstimate, PlaneGroup, RobotCorrection, RobotIndex, Tolerance, Tool,
-    TrackerGroup,
+pub use layout::{
+    tangent_basis, CellEstimate, CellParam, ParamLayout, PlaneEstimate, RobotCorrection,
+};
+pub use observations::{
+    CellProblem, ContactGroup, Observation, ObservationKind, PlaneGroup, TrackerGroup,
 };
 pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, RANK_TOL};
+pub use residuals::{Evaluator, ObservationLinearisation};
 pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions, StopReason};
+pub use start::initial_estimate;

@@ -4,8 +4,8 @@
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-use super::problem::{CellEstimate, CellFitError, CellParam, CellProblem, ParamLayout};
 use super::solve::assemble;
+use super::{CellEstimate, CellFitError, CellParam, CellProblem, ParamLayout};
 
 /// A kinematic column whose remaining norm, after projecting out the unpenalised unknowns and
 /// the kinematic columns kept before it (pivoted Gram–Schmidt), is at most this fraction of its

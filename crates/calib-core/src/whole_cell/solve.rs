@@ -3,7 +3,7 @@
 use nalgebra::{DMatrix, DVector, Isometry3};
 use serde::Serialize;
 
-use super::problem::{
+use super::{
     initial_estimate, CellEstimate, CellFitError, CellParam, CellProblem, Evaluator,
     ObservationLinearisation, ParamLayout,
 };
@@ -248,8 +248,9 @@ pub(crate) fn sym_inverse(h: &DMatrix<f64>) -> (DMatrix<f64>, bool) {
 
 /// Fits the cell by MAP on all observations. See [`fit_cell_with`] for the options.
 ///
-/// # Examples
-/// See the module tests (`whole_cell::tests`) for a full two-robot example.
+/// A complete two-robot example (problem built from an inline URDF, then fitted) is on
+/// [`super::calibrate_cell`]; `fit_cell(&problem, &SolveOptions::default())` fits the same
+/// problem without reduction or screening.
 pub fn fit_cell(problem: &CellProblem, options: &SolveOptions) -> Result<CellFit, CellFitError> {
     let active: Vec<usize> = (0..problem.observations.len()).collect();
     let layout = ParamLayout::new(problem, &[]);

@@ -1,4 +1,6 @@
-//! Tests of the whole-cell calibration on the shipped robots.
+//! Tests of the whole-cell calibration on the shipped robots. One job, kept in one file: the
+//! tests of every part (Jacobians against central differences, the fit, reduction, screening,
+//! prediction, design and the one-call chain), sharing the fixtures and trial helpers here.
 
 use std::time::Instant;
 

@@ -1,0 +1,80 @@
+//! Criterion benches of the whole-cell calibration (seeded inputs, no timing assertions).
+//! Run: `cargo bench -p calib-core --bench whole_cell -- --warm-up-time 1 --measurement-time 3`
+//!
+//! Per shipped cell (floor–ceiling, floor–wall) and 20 / 40 / 80 coincident points at
+//! σ = 0.3 mm: a truth with every joint offset, origin xyz and tip of both robots drawn from
+//! `U(±tolerance)` (0.05°, 0.5 mm; origin rpy not fitted), then
+//! - `calibrate_cell`: starting values, base-parameter reduction and the screened MAP fit;
+//! - `fit_cell`: the plain MAP fit on the full layout (no reduction, no screening).
+//!
+//! The data (inverse kinematics of the true robots) are built once per case, outside the timing.
+
+// criterion_main! generates an undocumented `main`.
+#![allow(missing_docs)]
+
+use calib_core::whole_cell::fixtures::{sim_cell, Cell};
+use calib_core::whole_cell::{
+    calibrate_cell, fit_cell, CellProblem, ScreenOptions, SolveOptions, StopReason, Tolerance,
+};
+use criterion::{black_box, criterion_group, criterion_main, BenchmarkId, Criterion};
+
+/// Coincident-point noise σ, m.
+const SIGMA_M: f64 = 3e-4;
+/// Side of the teach cube around the cell's teach centre, m.
+const SPREAD_M: f64 = 0.7;
+
+/// The tolerances of issue 11's realistic case: every default except origin rpy.
+fn realistic() -> Tolerance {
+    Tolerance {
+        origin_rpy_rad: 0.0,
+        ..Tolerance::default()
+    }
+}
+
+/// A seeded problem of `n` coincident points in `cell`.
+fn problem(cell: Cell, n: usize, seed: u64) -> CellProblem {
+    let sc = sim_cell(cell, realistic(), false, seed);
+    let mut p = sc.problem();
+    p.observations = sc.coincident(n, SIGMA_M, SPREAD_M, seed + 1000);
+    p
+}
+
+fn bench_whole_cell(c: &mut Criterion) {
+    let solve = SolveOptions::default();
+    let screen = ScreenOptions::default();
+    for (name, cell, seed) in [
+        ("floor_ceiling", Cell::Ceiling, 41),
+        ("floor_wall", Cell::Wall, 42),
+    ] {
+        let mut group = c.benchmark_group(format!("whole_cell/{name}"));
+        group.sample_size(20);
+        for n in [20usize, 40, 80] {
+            let p = problem(cell, n, seed);
+            // The timed calls must do the work they claim: both fits converge on these data.
+            let cal = calibrate_cell(&p, &solve, &screen).expect("valid problem");
+            assert_eq!(cal.fit.stopped, StopReason::Converged, "{name} n={n}");
+            let plain = fit_cell(&p, &solve).expect("valid problem");
+            assert_eq!(plain.stopped, StopReason::Converged, "{name} n={n}");
+            eprintln!(
+                "{name}, {n} points: calibrate_cell {} unknowns ({} dropped or merged), {} \
+                 rejected, {} iterations; fit_cell {} unknowns, {} iterations",
+                cal.fit.layout.len(),
+                cal.reduction.dropped.len(),
+                cal.rejected.len(),
+                cal.fit.iterations,
+                plain.layout.len(),
+                plain.iterations,
+            );
+            group.bench_with_input(BenchmarkId::new("calibrate_cell", n), &p, |b, p| {
+                b.iter(|| calibrate_cell(black_box(p), &solve, &screen).expect("valid problem"))
+            });
+            group.bench_with_input(BenchmarkId::new("fit_cell", n), &p, |b, p| {
+                b.iter(|| fit_cell(black_box(p), &solve).expect("valid problem"))
+            });
+        }
+        group.finish();
+    }
+}
+
+criterion_group!(benches, bench_whole_cell);
+criterion_main!(benches);

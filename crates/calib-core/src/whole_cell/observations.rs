@@ -1,0 +1,319 @@
+//! What was observed: the observation kinds, the nuisance groups (tracker frames, planes,
+//! contact distances), the [`CellProblem`] that holds them with both robots, and its checks.
+
+use nalgebra::{Isometry3, Point3, Unit, Vector3};
+
+use super::cell::{robot_slot, CellFitError, CellRobot, Noise3, RobotIndex};
+
+/// What one observation saw. Joint vectors in rad, chain order; tools by index into
+/// [`CellRobot::tools`]; groups by index into the problem's group lists.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum ObservationKind {
+    /// The two tips coincide: 3 residuals `p1_b1 − b1_from_b2·p2_b2`, m.
+    Coincident {
+        /// Robot 1's joints, rad.
+        q1: Vec<f64>,
+        /// Robot 2's joints, rad.
+        q2: Vec<f64>,
+        /// Robot 1's tool.
+        tool1: usize,
+        /// Robot 2's tool.
+        tool2: usize,
+        /// Noise of the 3 residuals (b1 axes).
+        noise: Noise3,
+    },
+    /// The tips are a distance `d` apart (e.g. two spheres touching): 1 residual
+    /// `‖p1_b1 − b1_from_b2·p2_b2‖ − d`, m.
+    Contact {
+        /// Robot 1's joints, rad.
+        q1: Vec<f64>,
+        /// Robot 2's joints, rad.
+        q2: Vec<f64>,
+        /// Robot 1's tool.
+        tool1: usize,
+        /// Robot 2's tool.
+        tool2: usize,
+        /// Contact group (its distance is known or fitted).
+        group: usize,
+        /// σ of the residual, m.
+        sigma_m: f64,
+    },
+    /// One robot's tool measured by an external device in the unknown frame of its group:
+    /// 3 residuals `tracker_from_anchor·p_anchor − p_tracker`, m.
+    Tracker {
+        /// The robot measured (1 or 2).
+        robot: RobotIndex,
+        /// Its joints, rad.
+        q: Vec<f64>,
+        /// Its tool (e.g. the reflector).
+        tool: usize,
+        /// Tracker group.
+        group: usize,
+        /// The measured position in the tracker frame, m.
+        p_tracker: Point3<f64>,
+        /// Noise of the 3 residuals (tracker axes).
+        noise: Noise3,
+    },
+    /// One robot's tool touches a plane of unknown position of its group: 1 residual
+    /// `n·p_anchor − d`, m.
+    Plane {
+        /// The robot touching (1 or 2).
+        robot: RobotIndex,
+        /// Its joints, rad.
+        q: Vec<f64>,
+        /// Its tool.
+        tool: usize,
+        /// Plane group.
+        group: usize,
+        /// σ of the residual, m.
+        sigma_m: f64,
+    },
+}
+
+impl ObservationKind {
+    /// `"coincident"`, `"contact"`, `"tracker"` or `"plane"`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            ObservationKind::Coincident { .. } => "coincident",
+            ObservationKind::Contact { .. } => "contact",
+            ObservationKind::Tracker { .. } => "tracker",
+            ObservationKind::Plane { .. } => "plane",
+        }
+    }
+
+    /// Number of residuals (1 or 3).
+    pub fn rows(&self) -> usize {
+        match self {
+            ObservationKind::Coincident { .. } | ObservationKind::Tracker { .. } => 3,
+            ObservationKind::Contact { .. } | ObservationKind::Plane { .. } => 1,
+        }
+    }
+}
+
+/// One observation with its 1-based source row (used in every message and report).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Observation {
+    /// 1-based source row (e.g. the session CSV's data row).
+    pub row: usize,
+    /// What was observed.
+    pub kind: ObservationKind,
+}
+
+/// A tracker (external measuring device) whose frame is unknown: `tracker_from_b{anchor}` is
+/// fitted (unpenalised).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackerGroup {
+    /// Name, for messages.
+    pub name: String,
+    /// The base frame the tracker frame is expressed against (1 or 2). Use the measured robot's
+    /// base for a tracker that sees one robot only (then `b1_from_b2` does not enter).
+    pub anchor: RobotIndex,
+    /// Starting value of `tracker_from_anchor`; `None`: a rigid fit of the group's measurements
+    /// to the nominal tips (needs ≥ 3 non-collinear points).
+    pub initial_tracker_from_anchor: Option<Isometry3<f64>>,
+}
+
+/// A plane of unknown position, `{p_anchor : n·p_anchor = d}` (fitted, unpenalised).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlaneGroup {
+    /// Name, for messages.
+    pub name: String,
+    /// The base frame the plane is expressed in (1 or 2).
+    pub anchor: RobotIndex,
+    /// Starting `(unit normal, offset m)`; `None`: a least-squares plane through the group's
+    /// nominal tips (needs ≥ 3 non-collinear points).
+    pub initial: Option<(Unit<Vector3<f64>>, f64)>,
+}
+
+/// A contact distance shared by a group of [`ObservationKind::Contact`] rows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactGroup {
+    /// Name, for messages.
+    pub name: String,
+    /// The (starting) distance between the two tools, m.
+    pub distance_m: f64,
+    /// Fit the distance (unpenalised) instead of holding it known.
+    pub fit_distance: bool,
+}
+
+/// The whole-cell calibration problem: two robots, observations, nuisance groups.
+#[derive(Debug, Clone)]
+pub struct CellProblem {
+    /// Robot 1 (base frame `b1`).
+    pub robot1: CellRobot,
+    /// Robot 2 (base frame `b2`).
+    pub robot2: CellRobot,
+    /// The observations.
+    pub observations: Vec<Observation>,
+    /// Tracker groups.
+    pub trackers: Vec<TrackerGroup>,
+    /// Plane groups.
+    pub planes: Vec<PlaneGroup>,
+    /// Contact groups.
+    pub contacts: Vec<ContactGroup>,
+}
+
+impl CellProblem {
+    /// Robot 1 or 2.
+    pub fn robot(&self, robot: RobotIndex) -> &CellRobot {
+        if robot == 1 {
+            &self.robot1
+        } else {
+            &self.robot2
+        }
+    }
+
+    /// Checks the problem: robot indices, tools, groups, joint vector lengths, noise, and
+    /// tolerances. Errors name the observation row and the field.
+    pub fn check(&self) -> Result<(), CellFitError> {
+        for r in [1u8, 2] {
+            let rb = self.robot(r);
+            rb.tolerance.check(r)?;
+            if rb.tools.is_empty() {
+                return Err(CellFitError::InvalidInput(format!(
+                    "robot {r} has no tool; give at least one tool point"
+                )));
+            }
+            if !rb.g_base.iter().all(|v| v.is_finite()) {
+                return Err(CellFitError::InvalidInput(format!(
+                    "robot {r}: gravity {:?} m/s² is not finite",
+                    rb.g_base
+                )));
+            }
+        }
+        let tool_ok = |robot: RobotIndex, tool: usize, row: usize| {
+            if robot_slot(robot).is_none() {
+                return Err(CellFitError::InvalidInput(format!(
+                    "observation row {row}: robot {robot} does not exist; use 1 or 2"
+                )));
+            }
+            let n = self.robot(robot).tools.len();
+            if tool >= n {
+                return Err(CellFitError::InvalidInput(format!(
+                    "observation row {row}: robot {robot} has {n} tool(s), tool index {tool} is out of range"
+                )));
+            }
+            Ok(())
+        };
+        let group_ok = |what: &str, g: usize, n: usize, row: usize| {
+            if g >= n {
+                Err(CellFitError::InvalidInput(format!(
+                    "observation row {row}: {what} group {g} does not exist ({n} defined)"
+                )))
+            } else {
+                Ok(())
+            }
+        };
+        let sigma_ok = |s: f64, row: usize| {
+            if s.is_finite() && s > 0.0 {
+                Ok(())
+            } else {
+                Err(CellFitError::InvalidInput(format!(
+                    "observation row {row}: noise σ {s} m must be finite and > 0"
+                )))
+            }
+        };
+        for g in &self.trackers {
+            if robot_slot(g.anchor).is_none() {
+                return Err(CellFitError::InvalidInput(format!(
+                    "tracker group `{}`: anchor robot {} does not exist; use 1 or 2",
+                    g.name, g.anchor
+                )));
+            }
+        }
+        for g in &self.planes {
+            if robot_slot(g.anchor).is_none() {
+                return Err(CellFitError::InvalidInput(format!(
+                    "plane group `{}`: anchor robot {} does not exist; use 1 or 2",
+                    g.name, g.anchor
+                )));
+            }
+        }
+        for g in &self.contacts {
+            if !(g.distance_m.is_finite() && g.distance_m >= 0.0) {
+                return Err(CellFitError::InvalidInput(format!(
+                    "contact group `{}`: distance {} m must be finite and ≥ 0",
+                    g.name, g.distance_m
+                )));
+            }
+        }
+        for o in &self.observations {
+            let row = o.row;
+            match &o.kind {
+                ObservationKind::Coincident {
+                    tool1,
+                    tool2,
+                    noise,
+                    ..
+                } => {
+                    tool_ok(1, *tool1, row)?;
+                    tool_ok(2, *tool2, row)?;
+                    noise.whitening(row)?;
+                }
+                ObservationKind::Contact {
+                    tool1,
+                    tool2,
+                    group,
+                    sigma_m,
+                    ..
+                } => {
+                    tool_ok(1, *tool1, row)?;
+                    tool_ok(2, *tool2, row)?;
+                    group_ok("contact", *group, self.contacts.len(), row)?;
+                    sigma_ok(*sigma_m, row)?;
+                }
+                ObservationKind::Tracker {
+                    robot,
+                    tool,
+                    group,
+                    p_tracker,
+                    noise,
+                    ..
+                } => {
+                    tool_ok(*robot, *tool, row)?;
+                    group_ok("tracker", *group, self.trackers.len(), row)?;
+                    noise.whitening(row)?;
+                    if !p_tracker.iter().all(|v| v.is_finite()) {
+                        return Err(CellFitError::InvalidInput(format!(
+                            "observation row {row}: tracker position is not finite"
+                        )));
+                    }
+                }
+                ObservationKind::Plane {
+                    robot,
+                    tool,
+                    group,
+                    sigma_m,
+                    ..
+                } => {
+                    tool_ok(*robot, *tool, row)?;
+                    group_ok("plane", *group, self.planes.len(), row)?;
+                    sigma_ok(*sigma_m, row)?;
+                }
+            }
+            for (r, q) in joint_vectors(&o.kind) {
+                self.robot(r)
+                    .model
+                    .check_q(q)
+                    .map_err(|e| CellFitError::Kinematics {
+                        row,
+                        message: format!("robot {r}: {e}"),
+                    })?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The joint vectors an observation uses, with their robots.
+fn joint_vectors(kind: &ObservationKind) -> Vec<(RobotIndex, &[f64])> {
+    match kind {
+        ObservationKind::Coincident { q1, q2, .. } | ObservationKind::Contact { q1, q2, .. } => {
+            vec![(1, q1.as_slice()), (2, q2.as_slice())]
+        }
+        ObservationKind::Tracker { robot, q, .. } | ObservationKind::Plane { robot, q, .. } => {
+            vec![(*robot, q.as_slice())]
+        }
+    }
+}

@@ -1,0 +1,310 @@
+//! Residuals of each observation kind and their analytic Jacobians ([`Evaluator`]); the maths
+//! is in the module documentation of [`crate::whole_cell`].
+
+use kinematics::{tip_error_jacobian, true_base_from_tip, Axis, ErrorParam};
+use nalgebra::{DMatrix, DVector, Point3, Vector3};
+
+use super::cell::{robot_slot, CellFitError, RobotIndex};
+use super::layout::{tangent_basis, CellEstimate, ParamLayout};
+use super::observations::{CellProblem, Observation, ObservationKind};
+
+/// Sparse 3-row Jacobian: (column, ∂/∂column).
+type Cols3 = Vec<(usize, Vector3<f64>)>;
+
+/// A linearised observation: residuals and Jacobian rows (unwhitened and the whitening).
+#[derive(Debug, Clone)]
+pub struct ObservationLinearisation {
+    /// Residuals (1 or 3), m, unwhitened.
+    pub residual: DVector<f64>,
+    /// Jacobian rows (1 or 3) × layout columns, unwhitened.
+    pub jacobian: DMatrix<f64>,
+    /// Whitening matrix (1×1 or 3×3): `W·r` has unit covariance.
+    pub whitening: DMatrix<f64>,
+}
+
+/// Evaluates residuals and analytic Jacobians of observations at an estimate.
+pub struct Evaluator<'a> {
+    problem: &'a CellProblem,
+    layout: &'a ParamLayout,
+    /// Jacobian parameter lists per robot: fitted kin params then tip x, y, z.
+    jac_params: [Vec<ErrorParam>; 2],
+}
+
+impl<'a> Evaluator<'a> {
+    /// An evaluator of `problem` with unknowns `layout`.
+    pub fn new(problem: &'a CellProblem, layout: &'a ParamLayout) -> Self {
+        let jp = |slot: usize| {
+            let mut v: Vec<ErrorParam> = layout.robots[slot].kin.iter().map(|k| k.0).collect();
+            v.extend(Axis::ALL.map(|axis| ErrorParam::Tip { axis }));
+            v
+        };
+        Self {
+            problem,
+            layout,
+            jac_params: [jp(0), jp(1)],
+        }
+    }
+
+    /// Tip of `robot`'s `tool` at `q` in its own base frame, m, and its Jacobian columns.
+    pub(super) fn robot_tip(
+        &self,
+        est: &CellEstimate,
+        robot: RobotIndex,
+        tool: usize,
+        q: &[f64],
+        want_jac: bool,
+        row: usize,
+    ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
+        let slot = robot_slot(robot).ok_or_else(|| {
+            CellFitError::InvalidInput(format!(
+                "observation row {row}: robot {robot} is not 1 or 2"
+            ))
+        })?;
+        let rb = self.problem.robot(robot);
+        let tool_def = rb.tools.get(tool).ok_or_else(|| {
+            CellFitError::InvalidInput(format!(
+                "observation row {row}: robot {robot} has no tool {tool}"
+            ))
+        })?;
+        let errors = est.robot(robot).errors_for_tool(tool);
+        let kin_err = |e: kinematics::KinematicsError| CellFitError::Kinematics {
+            row,
+            message: format!("robot {robot}: {e}"),
+        };
+        let p = true_base_from_tip(&rb.model, &errors, q, &tool_def.flange_from_tip, &rb.g_base)
+            .map_err(kin_err)?
+            .translation
+            .vector;
+        let mut cols = Cols3::new();
+        if want_jac {
+            let lay = &self.layout.robots[slot];
+            let tip_col = lay.tip_col[tool];
+            if !lay.kin.is_empty() || tip_col.iter().any(Option::is_some) {
+                // Always the kinematic columns and all three tip axes; unfitted axes are skipped.
+                let j = tip_error_jacobian(
+                    &rb.model,
+                    &errors,
+                    q,
+                    &tool_def.flange_from_tip,
+                    &rb.g_base,
+                    &self.jac_params[slot],
+                )
+                .map_err(kin_err)?;
+                for (k, &(_, c)) in lay.kin.iter().enumerate() {
+                    cols.push((c, j.column(k).into_owned()));
+                }
+                let k0 = lay.kin.len();
+                for (a, c) in tip_col.iter().enumerate() {
+                    if let Some(c) = c {
+                        cols.push((*c, j.column(k0 + a).into_owned()));
+                    }
+                }
+            }
+        }
+        Ok((p, cols))
+    }
+
+    /// Tip of `robot`'s tool in base `anchor`'s frame and its Jacobian columns (including the
+    /// placement's when the frames differ).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn tip_in_anchor(
+        &self,
+        est: &CellEstimate,
+        robot: RobotIndex,
+        tool: usize,
+        q: &[f64],
+        anchor: RobotIndex,
+        want_jac: bool,
+        row: usize,
+    ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
+        let (f, cols) = self.robot_tip(est, robot, tool, q, want_jac, row)?;
+        if robot == anchor {
+            return Ok((f, cols));
+        }
+        let x = &est.b1_from_b2;
+        let r_x = x.rotation.to_rotation_matrix().into_inner();
+        if robot == 2 {
+            // g = X·f2; ∂g/∂ρ = I, ∂g/∂φ_i = e_i × g, ∂g/∂θ2 = R_X·J2.
+            let g = (x * Point3::from(f)).coords;
+            let mut out: Cols3 = cols.into_iter().map(|(c, v)| (c, r_x * v)).collect();
+            if want_jac {
+                for (i, axis) in Axis::ALL.iter().enumerate() {
+                    out.push((i, axis.unit()));
+                    out.push((3 + i, axis.unit().cross(&g)));
+                }
+            }
+            Ok((g, out))
+        } else {
+            // g = X⁻¹·f1; with X' = exp(ξ)·X, X'⁻¹·f1 = X⁻¹·(f1 − ρ − φ×f1) to first order.
+            let g = (x.inverse() * Point3::from(f)).coords;
+            let r_t = r_x.transpose();
+            let mut out: Cols3 = cols.into_iter().map(|(c, v)| (c, r_t * v)).collect();
+            if want_jac {
+                for (i, axis) in Axis::ALL.iter().enumerate() {
+                    out.push((i, -(r_t * axis.unit())));
+                    out.push((3 + i, -(r_t * axis.unit().cross(&f))));
+                }
+            }
+            Ok((g, out))
+        }
+    }
+
+    /// Residuals, Jacobian rows (layout columns) and whitening of one observation at `est`.
+    pub fn linearise(
+        &self,
+        obs: &Observation,
+        est: &CellEstimate,
+        want_jac: bool,
+    ) -> Result<ObservationLinearisation, CellFitError> {
+        let row = obs.row;
+        let n = self.layout.len();
+        let rows = obs.kind.rows();
+        let mut jac = DMatrix::zeros(if want_jac { rows } else { 0 }, n);
+        let put3 = |jac: &mut DMatrix<f64>, cols: &Cols3, sign: f64| {
+            for (c, v) in cols {
+                for a in 0..3 {
+                    jac[(a, *c)] += sign * v[a];
+                }
+            }
+        };
+        let put1 = |jac: &mut DMatrix<f64>, cols: &Cols3, w: &Vector3<f64>| {
+            for (c, v) in cols {
+                jac[(0, *c)] += w.dot(v);
+            }
+        };
+        let (residual, whitening) = match &obs.kind {
+            ObservationKind::Coincident {
+                q1,
+                q2,
+                tool1,
+                tool2,
+                noise,
+            } => {
+                let (p1, c1) = self.tip_in_anchor(est, 1, *tool1, q1, 1, want_jac, row)?;
+                let (g2, c2) = self.tip_in_anchor(est, 2, *tool2, q2, 1, want_jac, row)?;
+                if want_jac {
+                    put3(&mut jac, &c1, 1.0);
+                    put3(&mut jac, &c2, -1.0);
+                }
+                let w = noise.whitening(row)?;
+                (
+                    DVector::from_column_slice((p1 - g2).as_slice()),
+                    DMatrix::from_column_slice(3, 3, w.as_slice()),
+                )
+            }
+            ObservationKind::Contact {
+                q1,
+                q2,
+                tool1,
+                tool2,
+                group,
+                sigma_m,
+            } => {
+                let (p1, c1) = self.tip_in_anchor(est, 1, *tool1, q1, 1, want_jac, row)?;
+                let (g2, c2) = self.tip_in_anchor(est, 2, *tool2, q2, 1, want_jac, row)?;
+                let e = p1 - g2;
+                let dist = e.norm();
+                let u = if dist > 0.0 { e / dist } else { Vector3::x() };
+                if want_jac {
+                    put1(&mut jac, &c1, &u);
+                    put1(&mut jac, &c2, &(-u));
+                    if let Some(c) = self.layout.contact_col[*group] {
+                        jac[(0, c)] -= 1.0;
+                    }
+                }
+                (
+                    DVector::from_element(1, dist - est.contact_distance_m[*group]),
+                    DMatrix::from_element(1, 1, 1.0 / sigma_m),
+                )
+            }
+            ObservationKind::Tracker {
+                robot,
+                q,
+                tool,
+                group,
+                p_tracker,
+                noise,
+            } => {
+                let anchor = self.problem.trackers[*group].anchor;
+                let (g, cols) = self.tip_in_anchor(est, *robot, *tool, q, anchor, want_jac, row)?;
+                let t = &est.tracker_from_anchor[*group];
+                let m = (t * Point3::from(g)).coords;
+                if want_jac {
+                    let r_t = t.rotation.to_rotation_matrix().into_inner();
+                    let moved: Cols3 = cols.into_iter().map(|(c, v)| (c, r_t * v)).collect();
+                    put3(&mut jac, &moved, 1.0);
+                    let c0 = self.layout.tracker_col[*group];
+                    for (i, axis) in Axis::ALL.iter().enumerate() {
+                        for a in 0..3 {
+                            jac[(a, c0 + i)] += axis.unit()[a];
+                            jac[(a, c0 + 3 + i)] += axis.unit().cross(&m)[a];
+                        }
+                    }
+                }
+                let w = noise.whitening(row)?;
+                (
+                    DVector::from_column_slice((m - p_tracker.coords).as_slice()),
+                    DMatrix::from_column_slice(3, 3, w.as_slice()),
+                )
+            }
+            ObservationKind::Plane {
+                robot,
+                q,
+                tool,
+                group,
+                sigma_m,
+            } => {
+                let anchor = self.problem.planes[*group].anchor;
+                let (g, cols) = self.tip_in_anchor(est, *robot, *tool, q, anchor, want_jac, row)?;
+                let plane = &est.planes[*group];
+                let nrm = plane.normal_anchor.into_inner();
+                if want_jac {
+                    put1(&mut jac, &cols, &nrm);
+                    let (u, v) = tangent_basis(&plane.normal_anchor);
+                    let c0 = self.layout.plane_col[*group];
+                    jac[(0, c0)] += u.dot(&g);
+                    jac[(0, c0 + 1)] += v.dot(&g);
+                    jac[(0, c0 + 2)] -= 1.0;
+                }
+                (
+                    DVector::from_element(1, nrm.dot(&g) - plane.offset_m),
+                    DMatrix::from_element(1, 1, 1.0 / sigma_m),
+                )
+            }
+        };
+        if !residual.iter().chain(jac.iter()).all(|v| v.is_finite()) {
+            return Err(CellFitError::NonFinite { row });
+        }
+        Ok(ObservationLinearisation {
+            residual,
+            jacobian: jac,
+            whitening,
+        })
+    }
+
+    /// The cooperative vector `v = f1(q1) − b1_from_b2·f2(q2)` (m, b1 axes) and its Jacobian
+    /// (3 × layout columns) at `est`.
+    pub fn cooperative_vector(
+        &self,
+        est: &CellEstimate,
+        pair: &super::ConfigPair,
+        want_jac: bool,
+    ) -> Result<(Vector3<f64>, DMatrix<f64>), CellFitError> {
+        let (p1, c1) = self.tip_in_anchor(est, 1, pair.tool1, &pair.q1, 1, want_jac, 0)?;
+        let (g2, c2) = self.tip_in_anchor(est, 2, pair.tool2, &pair.q2, 1, want_jac, 0)?;
+        let mut jac = DMatrix::zeros(3, if want_jac { self.layout.len() } else { 0 });
+        if want_jac {
+            for (c, v) in &c1 {
+                for a in 0..3 {
+                    jac[(a, *c)] += v[a];
+                }
+            }
+            for (c, v) in &c2 {
+                for a in 0..3 {
+                    jac[(a, *c)] -= v[a];
+                }
+            }
+        }
+        Ok((p1 - g2, jac))
+    }
+}
