@@ -19,13 +19,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use calib_core::whole_cell::{
-    predict_cooperative_accuracy, CellCalibration, CellParam, CellProblem, ReductionReason,
-    ScreenOptions, SolveOptions,
+    calibrate_cell, predict_cooperative_accuracy, CellCalibration, CellParam, CellProblem,
+    ReductionReason, ScreenOptions, SolveOptions,
 };
 use calib_core::zyz_from_rotation;
 use kinematics::{patch_urdf_text, split_for_urdf, verify_patched_urdf, ErrorParam, RobotModel};
 use serde_json::{json, Value};
-use sim_cell::whole_cell::{calibrate, cell_problem, session_config_pairs, FitModel};
+use sim_cell::whole_cell::{cell_problem, session_config_pairs, FitModel};
 use sim_cell::{Cell, Session};
 
 use crate::calibrate::Args;
@@ -72,7 +72,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let cell = Cell::from_toml_file(cell_path)?;
     let session = Session::read_csv(session_path, &cell)?;
     let problem = cell_problem(&cell, &session, args.model.fit_model());
-    let cal = calibrate(
+    let cal = calibrate_cell(
         &problem,
         &SolveOptions::default(),
         &ScreenOptions::default(),

@@ -10,9 +10,8 @@
 //! ≈ 0.01 mm at the tip for 0.001° on a 1.5 m arm) is left out.
 
 use calib_core::whole_cell::{
-    calibrate_cell, fit_screened, CellCalibration, CellEstimate, CellFitError, CellProblem,
-    CellRobot as WholeCellRobot, ConfigPair, Noise3, Observation, ObservationKind, ParamLayout,
-    Reduction, RobotCorrection, ScreenOptions, SolveOptions, Tolerance, Tool,
+    CellEstimate, CellProblem, CellRobot as WholeCellRobot, ConfigPair, Noise3, Observation,
+    ObservationKind, RobotCorrection, Tolerance, Tool,
 };
 use nalgebra::{Matrix3, Vector3};
 
@@ -99,36 +98,6 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
     }
 }
 
-/// [`calibrate_cell`] for any [`FitModel`]: with no kinematic unknown (the placement model) there
-/// is nothing to reduce, so the screened fit runs on the full layout and the reduction is empty
-/// (`calibrate_cell`'s reduction needs at least one kinematic column).
-///
-/// Errors: those of [`calibrate_cell`] (invalid input by row, too few rows after rejecting
-/// blunders, naming the rows to re-record).
-pub fn calibrate(
-    problem: &CellProblem,
-    solve: &SolveOptions,
-    screen: &ScreenOptions,
-) -> Result<CellCalibration, CellFitError> {
-    let full = ParamLayout::new(problem, &[]);
-    if full.params.iter().any(|p| p.is_kinematic()) {
-        return calibrate_cell(problem, solve, screen);
-    }
-    problem.check()?;
-    let screened = fit_screened(problem, Some(full.clone()), solve, screen)?;
-    Ok(CellCalibration {
-        fit: screened.fit,
-        reduction: Reduction {
-            layout: full,
-            dropped: Vec::new(),
-            kept: 0,
-            data_determined: 0,
-            prior_dominated: 0,
-        },
-        rejected: screened.rejected,
-    })
-}
-
 /// Every configuration pair `(q1_i, q2_j)` of the session's rows (`n²` pairs, row-major in `i`):
 /// the session's own workspace, over which the calibration's cooperative accuracy is predicted.
 pub fn session_config_pairs(session: &Session) -> Vec<ConfigPair> {
@@ -169,6 +138,7 @@ pub fn truth_estimate(cell: &Cell, problem: &CellProblem) -> CellEstimate {
 mod tests {
     use super::*;
     use crate::{generate_session, trial_rng, Layout, SessionSpec};
+    use calib_core::whole_cell::{calibrate_cell, ScreenOptions, SolveOptions};
 
     /// Recovery tolerance of b1_from_b2 from a noise-free, error-free session: the solver's
     /// convergence (cost tolerance 1e-10 relative) and the 6-decimal joints leave ≪ 1 µm.
@@ -209,7 +179,7 @@ mod tests {
         )
         .unwrap();
         let p = cell_problem(&cell, &session, FitModel::Placement);
-        let cal = calibrate(&p, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
+        let cal = calibrate_cell(&p, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
         let x = cal.fit.estimate.b1_from_b2;
         assert!(
             (x.translation.vector - cell.b1_from_b2.translation.vector).amax() < PLACEMENT_TOL_M

@@ -132,7 +132,9 @@ pub fn reduce(
     // Dependency coefficients of each dropped column on the kept ones: least squares in the
     // projected space, a_j ≈ A_keep·c.
     let a_keep = a.select_columns(&kept_order);
-    let ls = a_keep.clone().svd(true, true);
+    // No kept column (no kinematic unknown, or none the data determine): nothing to merge into,
+    // and nalgebra's SVD of a matrix without columns would panic.
+    let ls = (!kept_order.is_empty()).then(|| a_keep.clone().svd(true, true));
     let mut dropped = Vec::new();
     let mut fixed = Vec::new();
     // Merged prior covariance over the kept columns, prior-σ units (starts at I).
@@ -168,8 +170,9 @@ pub fn reduce(
             }
         } else {
             let coeff = ls
-                .solve(&a.column(c).into_owned(), 1e-12)
-                .unwrap_or_else(|_| DVector::zeros(kk));
+                .as_ref()
+                .and_then(|ls| ls.solve(&a.column(c).into_owned(), 1e-12).ok())
+                .unwrap_or_else(|| DVector::zeros(kk));
             prior_cov += &coeff * coeff.transpose();
             let into: Vec<(String, f64)> = kept_order
                 .iter()
@@ -225,8 +228,10 @@ pub fn reduce(
         }
     }
     layout.prior_sqrt_info = r_p;
-    let s = a_keep.singular_values();
-    let data_determined = s.iter().filter(|&&v| v >= 1.0).count();
+    let data_determined = match &ls {
+        Some(ls) => ls.singular_values.iter().filter(|&&v| v >= 1.0).count(),
+        None => 0,
+    };
     Ok(Reduction {
         layout,
         dropped,

@@ -451,6 +451,28 @@ fn reduction_names_what_the_placement_absorbs_and_what_is_merged() {
     assert!(!fit.singular, "the reduced problem is fully determined");
 }
 
+/// Regression (the placement-only model in `handclasp calibrate --cell --model placement`): with
+/// every tolerance 0 there is no kinematic unknown; the reduction used to panic in nalgebra's SVD
+/// of a matrix without columns. It now keeps nothing and drops nothing.
+#[test]
+fn reduction_without_kinematic_unknowns_is_empty() {
+    let none = Tolerance {
+        joint_offset_rad: 0.0,
+        origin_xyz_m: 0.0,
+        origin_rpy_rad: 0.0,
+        tip_m: 0.0,
+        joint_scale: None,
+        compliance_rad_per_nm: None,
+    };
+    let sc = sim_cell(Cell::Floor, none, false, 31);
+    let p = coincident_problem(&sc, 12, 3e-4, 32);
+    let active: Vec<usize> = (0..p.observations.len()).collect();
+    let init = initial_estimate(&p, None, &active).unwrap();
+    let red = reduce(&p, &init, &active).unwrap();
+    assert_eq!(red.kept, 0);
+    assert!(red.dropped.is_empty());
+}
+
 /// Issue 11's blunder test: three 5–10 mm blunders in a 40-point floor–wall session whose
 /// robot 2 hides a 0.12° joint-3 offset (the only error; every realistic parameter is fitted,
 /// with robot 2's offset tolerance widened to 0.2° so the prior admits it). The three rows are
