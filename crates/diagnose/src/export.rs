@@ -7,6 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
+use calib_core::Robot;
 use kinematics::KinematicErrors;
 use nalgebra::{Isometry3, Vector3};
 use sim_cell::Cell;
@@ -170,7 +171,7 @@ pub fn export_corrected(
     let mut out = cell.clone();
     out.base_dir = dir.to_path_buf();
     out.b1_from_b2 = *b1_from_b2;
-    for (robot, errors) in [(1u8, &e1), (2u8, &e2)] {
+    for (robot, errors) in [(Robot::One, &e1), (Robot::Two, &e2)] {
         let setup = cell.robot(robot);
         let xml = std::fs::read_to_string(&setup.urdf_path)
             .map_err(|e| DiagnoseError::io(&setup.urdf_path, e))?;
@@ -180,7 +181,7 @@ pub fn export_corrected(
                 message,
             }
         })?;
-        let file = format!("robot{robot}_corrected.urdf");
+        let file = format!("robot{}_corrected.urdf", robot.number());
         let path = dir.join(&file);
         std::fs::write(&path, &corrected).map_err(|e| DiagnoseError::io(&path, e))?;
         let model =
@@ -191,10 +192,9 @@ pub fn export_corrected(
                 }
             })?;
         written.push(path.clone());
-        let r = if robot == 1 {
-            &mut out.robot1
-        } else {
-            &mut out.robot2
+        let r = match robot {
+            Robot::One => &mut out.robot1,
+            Robot::Two => &mut out.robot2,
         };
         r.model = model;
         r.urdf = file;

@@ -9,7 +9,7 @@
 
 use crate::error::SimError;
 use crate::placement::{isometry_from_mm_deg, Placement};
-use calib_core::{zyz_from_rotation, Mount, MountPair};
+use calib_core::{zyz_from_rotation, Mount, MountPair, Robot};
 use kinematics::{KinematicErrors, RobotModel};
 use nalgebra::{Isometry3, Point3, Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
@@ -481,12 +481,11 @@ impl Cell {
         toml::to_string(&value).unwrap_or_else(|e| format!("# cannot serialise the cell: {e}\n"))
     }
 
-    /// The robot (1 or 2).
-    pub fn robot(&self, which: u8) -> &CellRobot {
-        if which == 1 {
-            &self.robot1
-        } else {
-            &self.robot2
+    /// The cell's robot `which` (robot 1 or robot 2).
+    pub fn robot(&self, which: Robot) -> &CellRobot {
+        match which {
+            Robot::One => &self.robot1,
+            Robot::Two => &self.robot2,
         }
     }
 }
