@@ -1,5 +1,5 @@
-//! Unit tests of the sweep: calib-core's fast kernels on drawn trials against its slow paths, determinism whatever
-//! the thread count, replay of one trial, expected trends and the outputs.
+//! Unit tests of the sweep: calib-core's fast kernels on drawn trials against its slow paths,
+//! determinism whatever the thread count, replay of one trial, expected trends and the outputs.
 
 use super::geometry::*;
 use super::*;
