@@ -500,7 +500,7 @@ fn unreachable(
     let c = cell.centre_b1 * 1e3;
     let hint = match spec {
         Some(s) => format!(
-            "no draw of {MAX_LAYOUT_ATTEMPTS} {} layouts with spread {:.0} mm fitted; reduce --spread-mm or move the centre toward ({:.0}, {:.0}, {:.0}) mm",
+            "no draw of {MAX_LAYOUT_ATTEMPTS} {} layouts with spread {:.0} mm fitted; reduce the spread or move the centre toward ({:.0}, {:.0}, {:.0}) mm",
             s.layout, s.spread_m * 1e3, c.x, c.y, c.z
         ),
         None => format!("move it toward the common workspace centre ({:.0}, {:.0}, {:.0}) mm", c.x, c.y, c.z),
