@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use calib_core::Robot;
 use kinematics::{base_from_tip, true_base_from_tip, KinematicErrors, PATCH_TOLERANCE_M};
 use nalgebra::{Point3, Vector3};
 use serde_json::Value;
@@ -109,7 +110,7 @@ fn calibrate_json(cell: &Path, session: &Path, model: &str, export: Option<&Path
 }
 
 /// Tip of robot `r` of `cell` at reported joints `q` in its base frame, with the cell's errors.
-fn tip(cell: &Cell, r: u8, q: &[f64]) -> Vector3<f64> {
+fn tip(cell: &Cell, r: Robot, q: &[f64]) -> Vector3<f64> {
     let rb = cell.robot(r);
     true_base_from_tip(&rb.model, &rb.errors, q, &rb.flange_from_tip, &rb.g_base)
         .unwrap()
@@ -119,7 +120,7 @@ fn tip(cell: &Cell, r: u8, q: &[f64]) -> Vector3<f64> {
 
 /// The cooperative vector `v = p1_b1 − b1_from_b2·p2_b2` (m) of `cell` at a configuration pair.
 fn cooperative(cell: &Cell, q1: &[f64], q2: &[f64]) -> Vector3<f64> {
-    tip(cell, 1, q1) - (cell.b1_from_b2 * Point3::from(tip(cell, 2, q2))).coords
+    tip(cell, Robot::One, q1) - (cell.b1_from_b2 * Point3::from(tip(cell, Robot::Two, q2))).coords
 }
 
 /// rms over every pair `(q1_i, q2_j)` of `held_out` of ‖v_calibrated − v_true‖, mm.
@@ -210,10 +211,10 @@ fn kinematic_model_beats_placement_and_exports_verified_urdfs() {
     // The exported cells load (URDF paths resolve inside the folder).
     let cal_k = Cell::from_toml_file(&out_k.join("cell.toml")).unwrap();
     let cal_p = Cell::from_toml_file(&out_p.join("cell.toml")).unwrap();
-    for r in [1u8, 2] {
+    for r in [Robot::One, Robot::Two] {
         assert_eq!(
             cal_k.robot(r).urdf_path,
-            out_k.join(format!("robot{r}.urdf"))
+            out_k.join(format!("robot{}.urdf", r.number()))
         );
         assert!(cal_k.robot(r).urdf_path.is_file());
     }
@@ -254,14 +255,14 @@ fn kinematic_model_beats_placement_and_exports_verified_urdfs() {
     );
 
     // The exported URDFs (+ the exported tips) reproduce the fitted model's tips to 1e-9 m.
-    for (r, dof) in [(1u8, DOF[0]), (2u8, DOF[1])] {
+    for (r, dof) in [(Robot::One, DOF[0]), (Robot::Two, DOF[1])] {
         let nominal = truth.robot(r);
-        let fitted = fitted_errors(&k, r as u64, dof);
+        let fitted = fitted_errors(&k, u64::from(r.number()), dof);
         let exported = cal_k.robot(r);
         assert!(exported.errors.is_zero(), "nothing beside the URDF and tip");
         let mut worst = 0.0f64;
         for pt in s.points.iter().chain(&held_out.points) {
-            let q = if r == 1 { &pt.q1 } else { &pt.q2 };
+            let q = if r == Robot::One { &pt.q1 } else { &pt.q2 };
             let want = true_base_from_tip(
                 &nominal.model,
                 &fitted,
@@ -275,7 +276,7 @@ fn kinematic_model_beats_placement_and_exports_verified_urdfs() {
         }
         assert!(
             worst <= PATCH_TOLERANCE_M,
-            "robot {r}: exported tip off the fitted model by {worst:e} m"
+            "{r}: exported tip off the fitted model by {worst:e} m"
         );
     }
 }

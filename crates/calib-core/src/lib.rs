@@ -17,7 +17,10 @@ pub mod whole_cell;
 pub use error::CalibError;
 pub use identify::Robot;
 pub use kinematics::{rotation_from_zyz, wrap_angle, zyz_from_rotation, zyz_nearest};
-pub use metrics::{e_rot, e_rot_raw, e_rot_zyz, e_tran, geodesic_angle, ZYZ_SINGULAR_BAND_RAD};
+pub use metrics::{
+    e_rot, e_rot_fast, e_rot_raw, e_rot_zyz, e_tran, geodesic_angle, ErotTruth, TrialErrors,
+    ZYZ_SINGULAR_BAND_RAD,
+};
 pub use mount_check::{mount_check, MountCheck, MOUNT_CHECK_ALPHA};
 pub use points::{
     parse_points_csv, read_points_csv, PointPairs, DUPLICATE_DISTANCE_M, METRES_LIMIT_MM,
@@ -25,10 +28,11 @@ pub use points::{
 };
 pub use pose::PoseMmDeg;
 pub use registration::{
-    constrained_fast, constrained_lsq, fit, generic_4point, generic_fast, nearest_rotation,
-    paper_constrained, paper_fast, project_rotation_family, rigid_fit_fast, rigid_lsq,
-    rotation_maximizing_trace, spread_singular_values, wall_family_angles, wall_rotation,
-    ConstrainedOptions, Fit, Method, Mount, MountPair, Uncertainty, COLLINEAR_REL, COPLANAR_REL,
+    affine_lsq_fast, constrained_fast, constrained_lsq, fit, fit_fast, generic_4point,
+    generic_fast, nearest_rotation, paper_constrained, paper_fast, project_rotation_family,
+    rigid_fit_fast, rigid_lsq, rotation_maximizing_trace, spread_singular_values,
+    wall_family_angles, wall_rotation, ConstrainedOptions, Fit, Method, Mount, MountPair,
+    Uncertainty, COLLINEAR_REL, COPLANAR_REL,
 };
 pub use robust::{leave_one_out, OutlierReport, OUTLIER_FACTOR, OUTLIER_MIN_M};
 pub use soft::{constrained_soft, SoftFit};

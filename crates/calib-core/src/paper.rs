@@ -172,7 +172,7 @@ pub fn recompute(
     let r_est = rotation_from_zyz(est.zyz_rad());
     let e_rot_deg = e_rot_zyz(truth.zyz_rad(), &r_est).to_degrees();
     let e_rot_raw_deg = e_rot_raw(truth.zyz_rad(), est.zyz_rad()).to_degrees();
-    let geodesic_deg = geodesic_angle(&truth.isometry(), &est.isometry()).to_degrees();
+    let geodesic_deg = geodesic_angle(&truth.to_isometry(), &est.to_isometry()).to_degrees();
     // The 1e-9 absorbs binary round-off of decimal figures that sit exactly on the tolerance.
     Recomputed {
         e_tran_mm,

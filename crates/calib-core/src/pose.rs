@@ -7,7 +7,9 @@ use serde::{Deserialize, Serialize};
 
 /// A pose `a_from_b` in file units: translation x, y, z (mm) and ZYZ φ, θ, ψ (degrees,
 /// `R = Rz(φ)·Ry(θ)·Rz(ψ)`). Which frames it relates is named by the field that holds it.
+/// Serialised as `{"xyz_mm": [x, y, z], "zyz_deg": [φ, θ, ψ]}` (unknown keys are refused).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct PoseMmDeg {
     /// x, y, z, mm.
     pub xyz_mm: [f64; 3],
@@ -16,32 +18,25 @@ pub struct PoseMmDeg {
 }
 
 impl PoseMmDeg {
-    /// The pose as an isometry (m, rad).
+    /// The pose as an isometry (m, rad): millimetres divided by 1000 (correctly rounded).
     pub fn to_isometry(&self) -> Isometry3<f64> {
         Isometry3::from_parts(
             Translation3::new(
-                self.xyz_mm[0] * 1e-3,
-                self.xyz_mm[1] * 1e-3,
-                self.xyz_mm[2] * 1e-3,
+                self.xyz_mm[0] / 1000.0,
+                self.xyz_mm[1] / 1000.0,
+                self.xyz_mm[2] / 1000.0,
             ),
             UnitQuaternion::from_rotation_matrix(&rotation_from_zyz(self.zyz_rad())),
         )
     }
 
-    /// Same as [`PoseMmDeg::to_isometry`] (the name `calib_core::paper::PublishedPose` callers use).
-    pub fn isometry(&self) -> Isometry3<f64> {
-        self.to_isometry()
-    }
-
     /// The pose of an isometry (m, rad) in mm and degrees, its ZYZ angles read on the branch nearest
-    /// `reference_zyz_deg` (degrees; see [`kinematics::euler::zyz_nearest`], which also fixes the
-    /// angles at the θ = 0° and 180° singularities). Each angle is wrapped to (−180°, 180°].
-    pub fn from_isometry(pose: &Isometry3<f64>, reference_zyz_deg: [f64; 3]) -> Self {
+    /// `reference_zyz_rad` (rad, e.g. a cell's stated angles; see
+    /// [`kinematics::euler::zyz_nearest`], which also fixes the angles at the θ = 0° and 180°
+    /// singularities). Each angle is wrapped to (−180°, 180°].
+    pub fn from_isometry(pose: &Isometry3<f64>, reference_zyz_rad: [f64; 3]) -> Self {
         let t = pose.translation.vector * 1e3;
-        let zyz_rad = zyz_nearest(
-            &pose.rotation.to_rotation_matrix(),
-            reference_zyz_deg.map(f64::to_radians),
-        );
+        let zyz_rad = zyz_nearest(&pose.rotation.to_rotation_matrix(), reference_zyz_rad);
         PoseMmDeg {
             xyz_mm: [t.x, t.y, t.z],
             zyz_deg: zyz_rad.map(f64::to_degrees),
@@ -76,7 +71,7 @@ mod tests {
                 xyz_mm: [1500.0, -20.5, 300.25],
                 zyz_deg,
             };
-            let back = PoseMmDeg::from_isometry(&pose.to_isometry(), zyz_deg);
+            let back = PoseMmDeg::from_isometry(&pose.to_isometry(), pose.zyz_rad());
             for i in 0..3 {
                 assert!((back.xyz_mm[i] - pose.xyz_mm[i]).abs() < ROUND_TRIP_TOL);
             }
@@ -104,5 +99,22 @@ mod tests {
         let json = serde_json::to_string(&pose).unwrap();
         assert_eq!(json, r#"{"xyz_mm":[1.0,2.0,3.0],"zyz_deg":[4.0,5.0,6.0]}"#);
         assert_eq!(serde_json::from_str::<PoseMmDeg>(&json).unwrap(), pose);
+        // A misspelt key is refused, naming it (a cell file's [b1_from_b2] relies on this).
+        let e = serde_json::from_str::<PoseMmDeg>(r#"{"xyz_mm":[0,0,0],"zyz_degs":[0,0,0]}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("zyz_degs"), "{e}");
+    }
+
+    /// Millimetres become metres by a correctly rounded division: 0.3 mm is exactly the f64
+    /// nearest 0.0003 m.
+    #[test]
+    fn to_isometry_divides_millimetres_exactly_rounded() {
+        let pose = PoseMmDeg {
+            xyz_mm: [0.3, 1303.3, -102.3],
+            zyz_deg: [0.0; 3],
+        };
+        let t = pose.to_isometry().translation.vector;
+        assert_eq!([t.x, t.y, t.z], [0.0003, 1.3033, -0.1023]);
     }
 }

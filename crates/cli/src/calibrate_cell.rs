@@ -22,7 +22,7 @@ use calib_core::whole_cell::{
     calibrate_cell, predict_cooperative_accuracy, CellCalibration, CellParam, CellProblem,
     ReductionReason, ScreenOptions, SolveOptions,
 };
-use calib_core::zyz_from_rotation;
+use calib_core::{zyz_from_rotation, Robot};
 use kinematics::{patch_urdf_text, split_for_urdf, verify_patched_urdf, ErrorParam, RobotModel};
 use serde_json::{json, Value};
 use sim_cell::whole_cell::{cell_problem, session_config_pairs, FitModel};
@@ -385,15 +385,15 @@ fn export(cell: &Cell, cal: &CellCalibration, dir: &Path) -> anyhow::Result<Vec<
     out.base_dir = dir.to_path_buf();
     out.b1_from_b2 = est.b1_from_b2;
     let mut written = Vec::new();
-    for robot in [1u8, 2] {
+    for robot in [Robot::One, Robot::Two] {
         let setup = cell.robot(robot);
         let correction = est.robot(robot);
         let (urdf_part, rest) = split_for_urdf(&correction.errors);
         let xml = std::fs::read_to_string(&setup.urdf_path)
-            .with_context(|| format!("robot{robot}.urdf: reading {}", setup.urdf_path.display()))?;
+            .with_context(|| format!("{robot}: reading {}", setup.urdf_path.display()))?;
         let patched = patch_urdf_text(&xml, &setup.model, &urdf_part)
-            .with_context(|| format!("robot {robot}: correcting {}", setup.urdf_path.display()))?;
-        let file = format!("robot{robot}.urdf");
+            .with_context(|| format!("{robot}: correcting {}", setup.urdf_path.display()))?;
+        let file = format!("robot{}.urdf", robot.number());
         let path = dir.join(&file);
         let tmp = path.with_extension("urdf.tmp");
         std::fs::write(&tmp, &patched).with_context(|| format!("writing {}", tmp.display()))?;
@@ -406,7 +406,7 @@ fn export(cell: &Cell, cal: &CellCalibration, dir: &Path) -> anyhow::Result<Vec<
         std::fs::rename(&tmp, &path)
             .with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))?;
         written.push(path.clone());
-        let r = if robot == 1 {
+        let r = if robot == Robot::One {
             &mut out.robot1
         } else {
             &mut out.robot2

@@ -78,10 +78,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let report = diagnose::diagnose_session(&cell, &session, &options)
         .with_context(|| format!("diagnosing {}", args.session.display()))?;
     if let Some(dir) = &args.export {
-        let calibrated = sim_cell::placement::isometry_from_mm_deg(
-            report.b1_from_b2.xyz_mm,
-            report.b1_from_b2.zyz_deg,
-        );
+        let calibrated = report.b1_from_b2.to_isometry();
         let files =
             diagnose::export_corrected(&cell, &report, &calibrated, dir).context("--export")?;
         if !args.json {

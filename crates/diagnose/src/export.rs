@@ -1,157 +1,87 @@
 //! Export of the extended model: corrected URDFs (joint origins and offsets patched into the
-//! URDF text, everything else kept byte for byte), a cell TOML with the calibrated
-//! `b1_from_b2`, and the effects as JSON.
-//!
-//! The URDF patcher works on the text (it finds the joint's element and its `<origin>` by
-//! string search); a parser-based replacement in `kinematics` is planned.
+//! URDF text by [`kinematics::patch_urdf_text`], everything else kept byte for byte), a cell TOML
+//! with the calibrated `b1_from_b2`, and the effects as JSON. Every file is written to a
+//! temporary file in the target folder, read back and checked (a URDF's FK against the corrected
+//! model, the cell and the JSON by loading them), and only then renamed into place.
 
 use std::path::{Path, PathBuf};
 
-use kinematics::KinematicErrors;
-use nalgebra::{Isometry3, Vector3};
-use sim_cell::Cell;
+use calib_core::Robot;
+use kinematics::{KinematicErrors, RobotModel};
+use nalgebra::Isometry3;
+use sim_cell::{Cell, CellRobot};
 
 use crate::catalogue::effects_to_errors;
 use crate::report::DiagnoseReport;
 use crate::DiagnoseError;
 
-/// Finds joint `name`'s element in URDF text: `(start of "<joint", index of "</joint>")`.
-fn joint_span(xml: &str, name: &str) -> Result<(usize, usize), String> {
-    let mut from = 0;
-    while let Some(i) = xml[from..].find("<joint") {
-        let open = from + i;
-        let end_tag = xml[open..]
-            .find('>')
-            .map(|e| open + e)
-            .ok_or_else(|| format!("unterminated <joint> near byte {open}"))?;
-        let tag = &xml[open..end_tag];
-        if tag.contains(&format!("name=\"{name}\"")) || tag.contains(&format!("name='{name}'")) {
-            let close = xml[open..]
-                .find("</joint>")
-                .map(|c| open + c)
-                .ok_or_else(|| format!("joint `{name}` has no </joint>"))?;
-            return Ok((open, close));
+/// Writes `text` to a temporary file beside `path` (in the same folder, so that the rename is
+/// atomic), reads it back, runs `check` on what was read, and only if that passes renames it to
+/// `path`: nothing unchecked is ever written under the final name. On a failed check the
+/// temporary file is removed and the check's error returned.
+fn write_checked<T>(
+    path: &Path,
+    text: &str,
+    check: impl FnOnce(&str, &Path) -> Result<T, DiagnoseError>,
+) -> Result<T, DiagnoseError> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}.partial"));
+    std::fs::write(&tmp, text).map_err(|e| DiagnoseError::io(&tmp, e))?;
+    let checked = std::fs::read_to_string(&tmp)
+        .map_err(|e| DiagnoseError::io(&tmp, e))
+        .and_then(|back| check(&back, &tmp));
+    match checked {
+        Ok(value) => {
+            std::fs::rename(&tmp, path).map_err(|e| DiagnoseError::io(path, e))?;
+            Ok(value)
         }
-        from = end_tag;
-    }
-    Err(format!("joint `{name}` not found in the URDF text"))
-}
-
-/// Byte range of an `<origin>` attribute's value (if present) and byte index of the `<origin`
-/// tag (if present).
-type OriginAttr = (Option<(usize, usize)>, Option<usize>);
-
-/// Reads (and returns the byte range of) attribute `attr` of the `<origin>` element of the
-/// joint at `span`; `None` when the joint has no `<origin>` or the origin lacks the attribute.
-fn origin_attr(xml: &str, span: (usize, usize), attr: &str) -> Result<OriginAttr, String> {
-    let block = &xml[span.0..span.1];
-    let Some(o) = block.find("<origin") else {
-        return Ok((None, None));
-    };
-    let o_abs = span.0 + o;
-    let o_end = xml[o_abs..]
-        .find('>')
-        .map(|e| o_abs + e)
-        .ok_or("unterminated <origin>")?;
-    let pat = format!("{attr}=\"");
-    match xml[o_abs..o_end].find(&pat) {
-        Some(a) => {
-            let start = o_abs + a + pat.len();
-            let end = start + xml[start..].find('"').ok_or("unterminated attribute")?;
-            Ok((Some((start, end)), Some(o_abs)))
-        }
-        None => Ok((None, Some(o_abs))),
-    }
-}
-
-fn parse3(text: &str, what: &str) -> Result<Vector3<f64>, String> {
-    let v: Vec<f64> = text
-        .split_whitespace()
-        .map(|t| {
-            t.parse::<f64>()
-                .map_err(|_| format!("{what}: bad number `{t}`"))
-        })
-        .collect::<Result<_, _>>()?;
-    if v.len() != 3 {
-        return Err(format!("{what}: needs 3 numbers, found {}", v.len()));
-    }
-    Ok(Vector3::new(v[0], v[1], v[2]))
-}
-
-/// Sets the `<origin>` attribute `attr` (`xyz` or `rpy`) of the joint at `span` to `v`
-/// (inserting the attribute, or an `<origin>` element, when missing).
-fn set_origin_attr(
-    xml: &mut String,
-    span: (usize, usize),
-    attr: &str,
-    v: &Vector3<f64>,
-) -> Result<(), String> {
-    let text = format!("{:.9} {:.9} {:.9}", v.x, v.y, v.z);
-    match origin_attr(xml, span, attr)? {
-        (Some((s, e)), _) => xml.replace_range(s..e, &text),
-        (None, Some(o)) => xml.insert_str(o + "<origin".len(), &format!(" {attr}=\"{text}\"")),
-        (None, None) => {
-            let at = span.0 + xml[span.0..].find('>').ok_or("unterminated <joint>")? + 1;
-            xml.insert_str(at, &format!("\n    <origin {attr}=\"{text}\"/>"));
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            Err(e)
         }
     }
-    Ok(())
 }
 
-/// Applies the identified errors of one robot to its URDF text, keeping everything else byte for
-/// byte: a `link_length` error is added to the joint's `<origin xyz>`; a `joint_offset` δ is
-/// folded into the joint's `<origin rpy>` (`R(rpy') = R(rpy)·Rot(axis, δ)`, exact for any URDF
-/// consumer) and recorded as `<calibration rising="δ"/>` (rad; informational, as in ROS, where
-/// calibration does not move the kinematics). `errors` are in SI units.
-pub fn correct_urdf_text(
-    xml: &str,
-    model: &kinematics::RobotModel,
+/// Writes `setup`'s URDF corrected by the URDF-expressible part of `errors` (joint origin xyz and
+/// rpy errors, joint offsets: [`kinematics::split_for_urdf`]; SI units) to `path`, patched into
+/// the source text by [`kinematics::patch_urdf_text`] (everything else kept byte for byte). The
+/// file is read back from a temporary file and verified ([`kinematics::verify_patched_urdf`]: its
+/// FK equals the nominal model with those errors) before it is renamed to `path`. Returns the
+/// corrected model, loaded from the written text.
+///
+/// Errors: the source URDF cannot be read or patched, the written file cannot be read back or
+/// fails the verification, or the file system refuses the write or the rename.
+pub fn write_corrected_urdf(
+    setup: &CellRobot,
     errors: &KinematicErrors,
-) -> Result<String, String> {
-    let mut out = xml.to_string();
-    for (k, joint) in model.joints().iter().enumerate() {
-        let dxyz = errors
-            .origin_xyz
-            .get(k)
-            .copied()
-            .unwrap_or_else(Vector3::zeros);
-        let offset = errors.joint_offset.get(k).copied().unwrap_or(0.0);
-        if dxyz == Vector3::zeros() && offset == 0.0 {
-            continue;
-        }
-        let name = &joint.name;
-        if dxyz != Vector3::zeros() {
-            let span = joint_span(&out, name)?;
-            let xyz = match origin_attr(&out, span, "xyz")?.0 {
-                Some((s, e)) => parse3(&out[s..e], &format!("joint `{name}` origin xyz"))?,
-                None => Vector3::zeros(),
-            };
-            set_origin_attr(&mut out, span, "xyz", &(xyz + dxyz))?;
-        }
-        if offset != 0.0 {
-            let span = joint_span(&out, name)?;
-            let rpy = match origin_attr(&out, span, "rpy")?.0 {
-                Some((s, e)) => parse3(&out[s..e], &format!("joint `{name}` origin rpy"))?,
-                None => Vector3::zeros(),
-            };
-            let r = kinematics::rotation_from_rpy(&rpy)
-                * nalgebra::Rotation3::from_axis_angle(&joint.axis, offset);
-            let (roll, pitch, yaw) = r.euler_angles();
-            set_origin_attr(&mut out, span, "rpy", &Vector3::new(roll, pitch, yaw))?;
-            let span = joint_span(&out, name)?;
-            out.insert_str(
-                span.1,
-                &format!(
-                    "  <!-- handclasp diagnose: joint offset {offset:.9} rad folded into origin rpy -->\n    <calibration rising=\"{offset:.9}\"/>\n  "
-                ),
-            );
-        }
-    }
-    Ok(out)
+    path: &Path,
+) -> Result<RobotModel, DiagnoseError> {
+    let xml = std::fs::read_to_string(&setup.urdf_path)
+        .map_err(|e| DiagnoseError::io(&setup.urdf_path, e))?;
+    let (urdf_errors, _) = kinematics::split_for_urdf(errors);
+    let corrected =
+        kinematics::patch_urdf_text(&xml, &setup.model, &urdf_errors).map_err(|source| {
+            DiagnoseError::UrdfPatch {
+                path: setup.urdf_path.clone(),
+                source,
+            }
+        })?;
+    write_checked(path, &corrected, |back, tmp| {
+        let patch_error = |source| DiagnoseError::UrdfPatch {
+            path: tmp.to_path_buf(),
+            source,
+        };
+        kinematics::verify_patched_urdf(back, &setup.model, &urdf_errors).map_err(patch_error)?;
+        RobotModel::from_urdf_str(back, &setup.tool_link)
+            .map_err(|e| patch_error(kinematics::UrdfPatchError::Reload(Box::new(e))))
+    })
 }
 
 /// Writes the extended model to `dir`: `robot1_corrected.urdf`, `robot2_corrected.urdf` (joint
-/// origins and offsets, see [`correct_urdf_text`]), `cell_corrected.toml` (the calibrated
+/// origins and offsets, see [`write_corrected_urdf`]), `cell_corrected.toml` (the calibrated
 /// `b1_from_b2`, corrected tip offsets, URDF paths to the corrected files, and the joint-scale and
 /// compliance errors, which URDF cannot express, as `[robotN.errors]`) and `effects.json`.
 /// Returns the files written.
@@ -170,31 +100,15 @@ pub fn export_corrected(
     let mut out = cell.clone();
     out.base_dir = dir.to_path_buf();
     out.b1_from_b2 = *b1_from_b2;
-    for (robot, errors) in [(1u8, &e1), (2u8, &e2)] {
+    for (robot, errors) in [(Robot::One, &e1), (Robot::Two, &e2)] {
         let setup = cell.robot(robot);
-        let xml = std::fs::read_to_string(&setup.urdf_path)
-            .map_err(|e| DiagnoseError::io(&setup.urdf_path, e))?;
-        let corrected = correct_urdf_text(&xml, &setup.model, errors).map_err(|message| {
-            DiagnoseError::Export {
-                path: setup.urdf_path.clone(),
-                message,
-            }
-        })?;
-        let file = format!("robot{robot}_corrected.urdf");
+        let file = format!("robot{}_corrected.urdf", robot.number());
         let path = dir.join(&file);
-        std::fs::write(&path, &corrected).map_err(|e| DiagnoseError::io(&path, e))?;
-        let model =
-            kinematics::RobotModel::from_urdf_str(&corrected, &setup.tool_link).map_err(|e| {
-                DiagnoseError::Export {
-                    path: path.clone(),
-                    message: format!("the corrected URDF does not load: {e}"),
-                }
-            })?;
+        let model = write_corrected_urdf(setup, errors, &path)?;
         written.push(path.clone());
-        let r = if robot == 1 {
-            &mut out.robot1
-        } else {
-            &mut out.robot2
+        let r = match robot {
+            Robot::One => &mut out.robot1,
+            Robot::Two => &mut out.robot2,
         };
         r.model = model;
         r.urdf = file;
@@ -212,7 +126,28 @@ pub fn export_corrected(
         "# Written by `handclasp diagnose --export`: the extended model (corrected URDFs, tip offsets,\n# calibrated b1_from_b2; joint scale and compliance as [robotN.errors]).\n{}",
         out.to_toml_string()
     );
-    std::fs::write(&cell_path, text).map_err(|e| DiagnoseError::io(&cell_path, e))?;
+    write_checked(&cell_path, &text, |back, tmp| {
+        let reloaded = Cell::from_toml_str(back, dir).map_err(|e| DiagnoseError::Export {
+            path: tmp.to_path_buf(),
+            message: format!("the written cell does not load: {e}"),
+        })?;
+        // The TOML keeps 10 decimals of mm and degrees: the placement reloads to 1e-9 (m, rad).
+        let moved = (reloaded.b1_from_b2.translation.vector - out.b1_from_b2.translation.vector)
+            .amax()
+            .max(
+                reloaded
+                    .b1_from_b2
+                    .rotation
+                    .angle_to(&out.b1_from_b2.rotation),
+            );
+        if moved > 1e-9 {
+            return Err(DiagnoseError::Export {
+                path: tmp.to_path_buf(),
+                message: format!("the written cell's b1_from_b2 reloads {moved:e} (m or rad) off"),
+            });
+        }
+        Ok(())
+    })?;
     written.push(cell_path);
     let eff_path = dir.join("effects.json");
     let eff =
@@ -220,7 +155,14 @@ pub fn export_corrected(
             path: eff_path.clone(),
             source,
         })?;
-    std::fs::write(&eff_path, eff).map_err(|e| DiagnoseError::io(&eff_path, e))?;
+    write_checked(&eff_path, &eff, |back, tmp| {
+        serde_json::from_str::<serde_json::Value>(back)
+            .map(|_| ())
+            .map_err(|source| DiagnoseError::Json {
+                path: tmp.to_path_buf(),
+                source,
+            })
+    })?;
     written.push(eff_path);
     Ok(written)
 }
@@ -229,14 +171,44 @@ pub fn export_corrected(
 mod tests {
     use super::*;
     use kinematics::{Axis, ErrorParam};
+    use nalgebra::Vector3;
     use rand::Rng;
 
-    /// The corrected URDF (offsets folded into origin rpy, lengths added to origin xyz) gives the
-    /// same tips as the nominal URDF with the error model, at random postures.
+    /// The patched text carries 9 decimals (1 nm, 1 nrad): FK agreement to 1e-8 m.
+    const URDF_DIGITS_TOL_M: f64 = 1e-8;
+
+    /// The FK of `corrected` equals the nominal model with `e` at 20 random postures.
+    fn assert_matches_error_model(robot: &CellRobot, e: &KinematicErrors, corrected: &RobotModel) {
+        let mut rng = sim_cell::trial_rng(3, 0);
+        for _ in 0..20 {
+            let q: Vec<f64> = robot
+                .model
+                .joints()
+                .iter()
+                .map(|j| rng.random_range(j.lower.max(-2.0)..j.upper.min(2.0)))
+                .collect();
+            let want = kinematics::true_base_from_tip(
+                &robot.model,
+                e,
+                &q,
+                &robot.flange_from_tip,
+                &robot.g_base,
+            )
+            .expect("fk");
+            let got = kinematics::base_from_tip(corrected, &q, &robot.flange_from_tip).expect("fk");
+            let d = (want.translation.vector - got.translation.vector).norm();
+            assert!(d < URDF_DIGITS_TOL_M, "{}: {d} m", robot.model.name());
+        }
+    }
+
+    /// The corrected URDF (offsets folded into origin rpy, lengths added to origin xyz), as
+    /// written and re-loaded, gives the same tips as the nominal URDF with the error model, at
+    /// random postures; no temporary file is left behind.
     #[test]
     fn corrected_urdf_matches_the_error_model() {
         let cell = Cell::default_floor_floor();
-        for robot in [&cell.robot1, &cell.robot2] {
+        let dir = tempfile::tempdir().expect("tempdir");
+        for (k_robot, robot) in [&cell.robot1, &cell.robot2].into_iter().enumerate() {
             let dof = robot.model.dof();
             let mut e = KinematicErrors::zero(dof);
             for k in 0..dof {
@@ -259,33 +231,62 @@ mod tests {
                     3e-4,
                 );
             }
-            let xml = std::fs::read_to_string(&robot.urdf_path).expect("URDF");
-            let fixed = correct_urdf_text(&xml, &robot.model, &e).expect("corrected");
-            assert!(fixed.contains("<calibration rising="));
-            let corrected =
-                kinematics::RobotModel::from_urdf_str(&fixed, &robot.tool_link).expect("loads");
-            let mut rng = sim_cell::trial_rng(3, 0);
-            for _ in 0..20 {
-                let q: Vec<f64> = robot
-                    .model
-                    .joints()
-                    .iter()
-                    .map(|j| rng.random_range(j.lower.max(-2.0)..j.upper.min(2.0)))
-                    .collect();
-                let want = kinematics::true_base_from_tip(
-                    &robot.model,
-                    &e,
-                    &q,
-                    &robot.flange_from_tip,
-                    &robot.g_base,
-                )
-                .expect("fk");
-                let got =
-                    kinematics::base_from_tip(&corrected, &q, &robot.flange_from_tip).expect("fk");
-                // The text carries 9 decimals (1 nm, 1 nrad): agreement to 1e-8 m.
-                let d = (want.translation.vector - got.translation.vector).norm();
-                assert!(d < 1e-8, "{}: {d} m", robot.model.name());
-            }
+            let path = dir.path().join(format!("robot{}.urdf", k_robot + 1));
+            let corrected = write_corrected_urdf(robot, &e, &path).expect("corrected");
+            let text = std::fs::read_to_string(&path).expect("written");
+            assert!(text.contains("<calibration rising="));
+            let reloaded = RobotModel::from_urdf_str(&text, &robot.tool_link).expect("loads");
+            assert_matches_error_model(robot, &e, &corrected);
+            assert_matches_error_model(robot, &e, &reloaded);
         }
+        let mut names: Vec<String> = std::fs::read_dir(dir.path())
+            .expect("dir")
+            .map(|f| f.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert_eq!(names, ["robot1.urdf", "robot2.urdf"]);
+    }
+
+    /// Regression: the old text patcher corrected the first `<joint name=…>` it found, which in
+    /// kinematics' fixture transmission_first.urdf is the `<joint>` inside a `<transmission>`
+    /// before the real joint, and left the real joint wrong. The export corrects the chain's
+    /// joint and keeps the transmission byte for byte.
+    #[test]
+    fn export_from_a_urdf_with_a_transmission_first_corrects_the_chain_joint() {
+        let fixture = std::path::PathBuf::from(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../kinematics/tests/fixtures/transmission_first.urdf"
+        ));
+        let xml = std::fs::read_to_string(&fixture).expect("fixture");
+        let cell = Cell::default_floor_wall();
+        let mut robot = cell.robot2.clone();
+        robot.model = RobotModel::from_urdf_str(&xml, &robot.tool_link).expect("fixture loads");
+        robot.urdf_path = fixture;
+        let mut e = KinematicErrors::zero(robot.model.dof());
+        e.origin_xyz[0] = Vector3::new(0.0, 0.0, 0.0115);
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("robot2_corrected.urdf");
+        let corrected = write_corrected_urdf(&robot, &e, &path).expect("exported");
+        let text = std::fs::read_to_string(&path).expect("written");
+        let transmission = |t: &str| {
+            let a = t.find("<transmission").expect("transmission");
+            let b = t.find("</transmission>").expect("end");
+            t[a..b].to_string()
+        };
+        assert_eq!(transmission(&text), transmission(&xml));
+        let changed: Vec<&str> = xml
+            .lines()
+            .zip(text.lines())
+            .filter(|(a, b)| a != b)
+            .map(|(_, b)| b)
+            .collect();
+        assert_eq!(
+            changed,
+            [r#"    <origin xyz="0.000000000 0.000000000 0.516500000" rpy="0 0 0"/>"#]
+        );
+        let joint_1 = text.find(r#"<joint name="joint_1_s""#).expect("joint_1_s");
+        let origin = text.find("0.516500000").expect("corrected origin");
+        assert!(origin > joint_1 && origin > text.find("</transmission>").unwrap());
+        assert_matches_error_model(&robot, &e, &corrected);
     }
 }

@@ -32,7 +32,7 @@ pub mod session_model;
 
 pub use catalogue::{catalogue, effects_to_errors, Candidate, EffectKind};
 pub use engine::{diagnose_session, DiagnoseOptions};
-pub use export::{correct_urdf_text, export_corrected};
+pub use export::{export_corrected, write_corrected_urdf};
 pub use input::{check_session, load_session, FK_TOLERANCE_M};
 pub use mount_tilt::{
     mount_tilt_test, placement, MountTiltFit, Placement, TiltStop, ALPHA_TILT, PLACEMENT_SD_XYZ_M,
@@ -96,7 +96,17 @@ pub enum DiagnoseError {
         #[source]
         source: std::io::Error,
     },
-    /// A corrected URDF could not be written or does not load.
+    /// A robot's URDF could not be corrected: its text cannot be patched, or the patched text
+    /// (as read back from the temporary file) does not reproduce the corrected model.
+    #[error("{path}: cannot write the corrected URDF")]
+    UrdfPatch {
+        /// The source URDF, or the temporary file that failed the verification.
+        path: PathBuf,
+        /// The patcher's or the verification's error.
+        #[source]
+        source: kinematics::UrdfPatchError,
+    },
+    /// An exported file, read back from its temporary file, does not load.
     #[error("{path}: {message}")]
     Export {
         /// The URDF (source or written).

@@ -3,7 +3,7 @@
 
 use calib_core::identify::Robot;
 use calib_core::stats::{fraction_below, quantile};
-use nalgebra::Isometry3;
+use calib_core::PoseMmDeg;
 use serde::Serialize;
 
 use crate::catalogue::EffectKind;
@@ -13,26 +13,10 @@ use crate::mount_tilt::{MountTiltFit, Placement, ALPHA_TILT};
 /// Millimetres per metre: the report's lengths.
 const MM_PER_M: f64 = 1000.0;
 
-/// `b1_from_b2` in file units.
-#[derive(Debug, Clone, Serialize)]
-pub struct PoseReport {
-    /// Translation, mm.
-    pub xyz_mm: [f64; 3],
-    /// ZYZ angles, degrees, `R = Rz(φ)·Ry(θ)·Rz(ψ)`.
-    pub zyz_deg: [f64; 3],
-}
-
-impl PoseReport {
-    /// From an isometry; the ZYZ branch nearest `reference` (rad), e.g. the cell's angles.
-    pub fn from_isometry(x: &Isometry3<f64>, reference: [f64; 3]) -> Self {
-        let t = x.translation.vector * MM_PER_M;
-        let z = kinematics::zyz_nearest(&x.rotation.to_rotation_matrix(), reference);
-        Self {
-            xyz_mm: [t.x, t.y, t.z],
-            zyz_deg: [z[0].to_degrees(), z[1].to_degrees(), z[2].to_degrees()],
-        }
-    }
-}
+/// `b1_from_b2` in file units: the workspace's one pose type at the file edge
+/// ([`calib_core::PoseMmDeg`], JSON `{"xyz_mm": [..], "zyz_deg": [..]}`); built with
+/// [`PoseMmDeg::from_isometry`] on the ZYZ branch nearest the cell's angles.
+pub type PoseReport = PoseMmDeg;
 
 /// The calibrated `b1_from_b2` against the cell's stated one. Handclasp residuals cannot see a
 /// mount tilt (it only turns the fit), but if the cell states the TRUE placement of the nominal

@@ -450,10 +450,7 @@ fn export_reproduces_the_extended_model() {
     let report = diagnose::diagnose_session(&cell, &session, &options).expect("diagnosis");
     assert!(!report.effects.is_empty());
     let dir = tempfile::tempdir().expect("temp dir");
-    let calibrated = sim_cell::placement::isometry_from_mm_deg(
-        report.b1_from_b2.xyz_mm,
-        report.b1_from_b2.zyz_deg,
-    );
+    let calibrated = report.b1_from_b2.to_isometry();
     let files =
         diagnose::export_corrected(&cell, &report, &calibrated, dir.path()).expect("export");
     assert_eq!(files.len(), 4);

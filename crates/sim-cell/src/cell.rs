@@ -8,9 +8,9 @@
 //! last ~150 lines.
 
 use crate::error::SimError;
-use crate::placement::{isometry_from_mm_deg, Placement};
+use crate::placement::Placement;
 use calib_core::whole_cell::Tolerance;
-use calib_core::{zyz_from_rotation, Mount, MountPair};
+use calib_core::{zyz_from_rotation, Mount, MountPair, PoseMmDeg, Robot};
 use kinematics::{KinematicErrors, RobotModel};
 use nalgebra::{Isometry3, Point3, Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
@@ -106,7 +106,7 @@ pub struct Cell {
 struct CellFile {
     robot1: RobotFile,
     robot2: RobotFile,
-    b1_from_b2: PlacementFile,
+    b1_from_b2: PoseMmDeg,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     noise: Option<NoiseFile>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -140,13 +140,6 @@ struct ToleranceFile {
     origin_deg: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     tip_mm: Option<f64>,
-}
-
-#[derive(Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct PlacementFile {
-    xyz_mm: [f64; 3],
-    zyz_deg: [f64; 3],
 }
 
 #[derive(Debug, Serialize, Deserialize)]
@@ -515,7 +508,7 @@ impl Cell {
         let file = CellFile {
             robot1: robot(&self.robot1),
             robot2: robot(&self.robot2),
-            b1_from_b2: PlacementFile {
+            b1_from_b2: PoseMmDeg {
                 xyz_mm: [t.x, t.y, t.z],
                 zyz_deg: zyz.map(f64::to_degrees),
             },
@@ -544,12 +537,11 @@ impl Cell {
         toml::to_string(&value).unwrap_or_else(|e| format!("# cannot serialise the cell: {e}\n"))
     }
 
-    /// The robot (1 or 2).
-    pub fn robot(&self, which: u8) -> &CellRobot {
-        if which == 1 {
-            &self.robot1
-        } else {
-            &self.robot2
+    /// The cell's robot `which` (robot 1 or robot 2).
+    pub fn robot(&self, which: Robot) -> &CellRobot {
+        match which {
+            Robot::One => &self.robot1,
+            Robot::Two => &self.robot2,
         }
     }
 }
@@ -641,7 +633,7 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
     let mut robot2 = robot("robot2", &file.robot2)?;
     finite3(&ctx, "b1_from_b2.xyz_mm", file.b1_from_b2.xyz_mm)?;
     finite3(&ctx, "b1_from_b2.zyz_deg", file.b1_from_b2.zyz_deg)?;
-    let b1_from_b2 = isometry_from_mm_deg(file.b1_from_b2.xyz_mm, file.b1_from_b2.zyz_deg);
+    let b1_from_b2 = file.b1_from_b2.to_isometry();
 
     // Gravity: robot 1's mount fixes the level frame; robot 2's follows from the placement.
     let level_from_b1 = robot1.mount.level_from_base().ok_or_else(|| {

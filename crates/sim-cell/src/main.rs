@@ -195,7 +195,14 @@ fn session(a: SessionArgs) -> Result<()> {
     if let Some(c) = &a.centre_mm {
         spec.centre_b1 = Some(nalgebra::Point3::new(c[0], c[1], c[2]) * 1e-3);
     }
-    let session = generate_session(&cell, &spec, &mut trial_rng(a.seed, 0))?;
+    let session =
+        generate_session(&cell, &spec, &mut trial_rng(a.seed, 0)).map_err(|e| match e {
+            // The library says what to change; the binary names the flags that change it.
+            SimError::Unreachable { .. } if spec.points_b1.is_none() => {
+                anyhow::anyhow!("{e} (the spread is --spread-mm, the centre --centre-mm)")
+            }
+            other => other.into(),
+        })?;
     match &a.out {
         Some(p) => {
             session.write_csv(p, &cell)?;

@@ -5,8 +5,8 @@
 //! Table 1's placements are used as published; the centres were checked against the URDFs in
 //! `robots/` (both robots reach a 1 m tetrahedron around them head-on; see the sim-cell README).
 
-use calib_core::{rotation_from_zyz, Mount, MountPair};
-use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
+use calib_core::{Mount, MountPair, PoseMmDeg};
+use nalgebra::{Isometry3, Point3};
 
 /// One of the paper's cells: mounts, true placement and teach-point centre.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -25,7 +25,11 @@ pub struct Placement {
 impl Placement {
     /// `b1_from_b2` (m, rad).
     pub fn b1_from_b2(&self) -> Isometry3<f64> {
-        isometry_from_mm_deg(self.xyz_mm, self.zyz_deg)
+        PoseMmDeg {
+            xyz_mm: self.xyz_mm,
+            zyz_deg: self.zyz_deg,
+        }
+        .to_isometry()
     }
 
     /// The teach-point centre, m, base 1 frame.
@@ -51,15 +55,6 @@ pub fn mounts_label(m: &MountPair) -> String {
         other => other.to_string(),
     };
     format!("{}-{}", one(&m.robot1), one(&m.robot2))
-}
-
-/// `Isometry3` from a translation in mm and ZYZ angles in degrees.
-pub fn isometry_from_mm_deg(xyz_mm: [f64; 3], zyz_deg: [f64; 3]) -> Isometry3<f64> {
-    let r = rotation_from_zyz(zyz_deg.map(f64::to_radians));
-    Isometry3::from_parts(
-        Translation3::new(xyz_mm[0] / 1000.0, xyz_mm[1] / 1000.0, xyz_mm[2] / 1000.0),
-        UnitQuaternion::from_rotation_matrix(&r),
-    )
 }
 
 /// Floor–floor (Table 1): base 2 1.48 m along y, turned −44.5° about z.

@@ -9,7 +9,7 @@
 use crate::cell::{Cell, CellRobot};
 use crate::error::SimError;
 use crate::layout::{teach_points, Layout};
-use calib_core::PointPairs;
+use calib_core::{PointPairs, Robot};
 use kinematics::{
     base_from_tip, ik_tip_position, tip_joint_jacobian_true, true_base_from_tip, IkOptions,
 };
@@ -383,8 +383,8 @@ fn gauss3(rng: &mut impl Rng, sigma: &Vector3<f64>) -> Vector3<f64> {
     )
 }
 
-/// Why one point failed: (robot number, message).
-type PointFailure = (u8, String);
+/// Why one point failed: (the robot that failed, message).
+type PointFailure = (Robot, String);
 
 /// Simulates one teach point `p` (true meeting point, m, b1). Robot 1's true tip is at `p`,
 /// robot 2's at `p + ε` (alignment); the reported joints put the true tips there up to
@@ -403,23 +403,23 @@ fn simulate_point(
     let b2_from_b1 = cell.b1_from_b2.inverse();
     let target1 = p + d1;
     let target2 = b2_from_b1 * (p + eps) + d2;
-    let mut last = (1u8, String::new());
+    let mut last = (Robot::One, String::new());
     for d in approach_directions(cell, p) {
         let Some(mut q1) = solve_true(&cell.robot1, &target1, Some(d)) else {
-            last = (1, "robot 1 cannot reach it head-on".into());
+            last = (Robot::One, "robot 1 cannot reach it head-on".into());
             continue;
         };
         let axis2 = Unit::new_normalize(b2_from_b1.rotation * -d.into_inner());
         let Some(mut q2) = solve_true(&cell.robot2, &target2, Some(axis2)) else {
-            last = (2, "robot 2 cannot reach it head-on".into());
+            last = (Robot::Two, "robot 2 cannot reach it head-on".into());
             continue;
         };
         quantise(&cell.robot1, &mut q1, cell.noise.encoder_resolution_rad);
         quantise(&cell.robot2, &mut q2, cell.noise.encoder_resolution_rad);
         let t1 = base_from_tip(&cell.robot1.model, &q1, &cell.robot1.flange_from_tip)
-            .map_err(|e| (1, e.to_string()))?;
+            .map_err(|e| (Robot::One, e.to_string()))?;
         let t2 = base_from_tip(&cell.robot2.model, &q2, &cell.robot2.flange_from_tip)
-            .map_err(|e| (2, e.to_string()))?;
+            .map_err(|e| (Robot::Two, e.to_string()))?;
         return Ok(SessionPoint {
             point: label,
             q1,
@@ -485,7 +485,7 @@ pub fn generate_session(
         }
         return Ok(Session { points: out });
     }
-    let (i, p, robot, why) = last_fail.unwrap_or((1, centre, 1, String::new()));
+    let (i, p, robot, why) = last_fail.unwrap_or((1, centre, Robot::One, String::new()));
     Err(unreachable(cell, i, &p, robot, &why, Some(spec)))
 }
 
@@ -493,14 +493,14 @@ fn unreachable(
     cell: &Cell,
     point: usize,
     p: &Point3<f64>,
-    robot: u8,
+    robot: Robot,
     why: &str,
     spec: Option<&SessionSpec>,
 ) -> SimError {
     let c = cell.centre_b1 * 1e3;
     let hint = match spec {
         Some(s) => format!(
-            "no draw of {MAX_LAYOUT_ATTEMPTS} {} layouts with spread {:.0} mm fitted; reduce --spread-mm or move the centre toward ({:.0}, {:.0}, {:.0}) mm",
+            "no draw of {MAX_LAYOUT_ATTEMPTS} {} layouts with spread {:.0} mm fitted; reduce the spread or move the centre toward ({:.0}, {:.0}, {:.0}) mm",
             s.layout, s.spread_m * 1e3, c.x, c.y, c.z
         ),
         None => format!("move it toward the common workspace centre ({:.0}, {:.0}, {:.0}) mm", c.x, c.y, c.z),

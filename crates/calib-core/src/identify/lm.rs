@@ -1,7 +1,7 @@
 //! The joint Levenberg–Marquardt fit of `b1_from_b2` and error parameters, and its covariance
 //! (see the measurement model in [`crate::identify`]).
 
-use super::model::*;
+use super::model::{IdentifyError, Robot, TipModel};
 use crate::stats::t_quantile;
 use crate::stop::StopReason;
 use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};

@@ -9,7 +9,7 @@
 //!
 //! so each point gives the 3 residuals `r_i = f1 − b1_from_b2·f2` (m). The tip functions and their
 //! parameter Jacobians come from a [`TipModel`] (in handclasp, `kinematics::true_base_from_tip` and
-//! `kinematics::tip_error_jacobian`, wrapped by `sim_cell::diagnose`); this module does no file I/O
+//! `kinematics::tip_error_jacobian`, wrapped by the `diagnose` crate's `session_model`); this module does no file I/O
 //! and knows nothing of units beyond "the model's own parameter units".
 //!
 //! # Maths

@@ -1,9 +1,9 @@
 //! Parameter selection: forward selection with score screening and F/K-fold/BIC acceptance,
 //! re-screening of selected parameters, partial F tests, backward elimination, K-fold RMS.
 
-use super::identifiability::*;
-use super::lm::*;
-use super::model::*;
+use super::identifiability::{analyze_identifiability, IdentStatus, Identifiability};
+use super::lm::{check_params, fit, fit_points, linearise, min_points, FitOptions, IdentFit};
+use super::model::{IdentifyError, TipModel};
 use crate::stats::f_test_p_value;
 use crate::stats::CHI2_1_95;
 

@@ -1,9 +1,11 @@
 //! Allocation-free registration kernels for Monte Carlo (no diagnostics, no uncertainty): the same
 //! maths as [`super::rigid_lsq`], [`super::generic_4point`], [`super::paper_constrained`] and
-//! [`super::constrained_lsq`], with the rotation by [`rotation_maximizing_trace`].
+//! [`super::constrained_lsq`], with the rotation by [`rotation_maximizing_trace`], and
+//! [`fit_fast`], the allocation-free twin of [`crate::fit`] that dispatches among them.
 
-use super::family::project_rotation_family_fast;
+use super::family::{project_rotation_family, project_rotation_family_fast};
 use super::four_point::{affine_4point, translation_eq12};
+use super::method::Method;
 use super::mount::MountPair;
 use super::rotation::rotation_maximizing_trace;
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -94,4 +96,70 @@ pub fn constrained_fast(
     let q = UnitQuaternion::from_rotation_matrix(&r);
     let t = c1 - q * c2;
     Some(Isometry3::from_parts(Translation3::from(t), q))
+}
+
+/// Centred affine least squares `p1 ≈ M·p2 + t` (n ≥ 4, allocation-free): `(M, t)` (M unitless,
+/// t in m). `None` when the centred `p_b2` do not span 3-D (their scatter matrix is singular) or
+/// a value is not finite.
+pub fn affine_lsq_fast(
+    p_b1: &[Point3<f64>],
+    p_b2: &[Point3<f64>],
+) -> Option<(Matrix3<f64>, Vector3<f64>)> {
+    let n = p_b1.len() as f64;
+    let c1 = p_b1.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / n;
+    let c2 = p_b2.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / n;
+    let mut s12 = Matrix3::zeros();
+    let mut s22 = Matrix3::zeros();
+    for (a, b) in p_b1.iter().zip(p_b2) {
+        let d1 = a.coords - c1;
+        let d2 = b.coords - c2;
+        s12 += d1 * d2.transpose();
+        s22 += d2 * d2.transpose();
+    }
+    let m = s12 * s22.try_inverse()?;
+    m.iter().all(|v| v.is_finite()).then(|| (m, c1 - m * c2))
+}
+
+/// Fits `b1_from_b2` by `method` without allocation: the allocation-free twin of [`crate::fit`]
+/// (equal to it to round-off, tested). The fast kernels above for 4 points (and for `lsq` /
+/// `constrained` at any n); for the 4-point methods with n > 4, the affine least-squares `H`
+/// ([`affine_lsq_fast`], as [`crate::generic_4point`] does) then the same rotation step and
+/// eq (12). Points in metres. `None` when the lengths differ, the method needs more points, the
+/// points are degenerate for it, or the mounts are unsupported.
+pub fn fit_fast(
+    method: Method,
+    mounts: &MountPair,
+    p_b1: &[Point3<f64>],
+    p_b2: &[Point3<f64>],
+) -> Option<Isometry3<f64>> {
+    let n = p_b1.len();
+    if n != p_b2.len() || n < method.min_points() {
+        return None;
+    }
+    match method {
+        Method::Lsq => rigid_fit_fast(p_b1, p_b2),
+        Method::Constrained => constrained_fast(p_b1, p_b2, mounts),
+        Method::Generic | Method::GenericAffine | Method::Paper if n == 4 => {
+            let a: &[Point3<f64>; 4] = p_b1.try_into().ok()?;
+            let b: &[Point3<f64>; 4] = p_b2.try_into().ok()?;
+            match method {
+                Method::Paper => paper_fast(a, b, mounts),
+                m => generic_fast(a, b, m == Method::GenericAffine),
+            }
+        }
+        Method::Generic | Method::GenericAffine | Method::Paper => {
+            let (m, t_h) = affine_lsq_fast(p_b1, p_b2)?;
+            let q = if method == Method::Paper {
+                UnitQuaternion::from_rotation_matrix(&project_rotation_family(&m, mounts).ok()?)
+            } else {
+                rotation_maximizing_trace(&m)?
+            };
+            let t = if method == Method::GenericAffine {
+                t_h
+            } else {
+                translation_eq12(p_b1, p_b2, &q)
+            };
+            Some(Isometry3::from_parts(Translation3::from(t), q))
+        }
+    }
 }

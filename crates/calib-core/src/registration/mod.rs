@@ -40,7 +40,9 @@ mod tests;
 pub use checks::{spread_singular_values, COLLINEAR_REL, COPLANAR_REL};
 pub(crate) use family::family_axes;
 pub use family::{project_rotation_family, wall_family_angles, wall_rotation};
-pub use fast::{constrained_fast, generic_fast, paper_fast, rigid_fit_fast};
+pub use fast::{
+    affine_lsq_fast, constrained_fast, fit_fast, generic_fast, paper_fast, rigid_fit_fast,
+};
 pub use four_point::{generic_4point, paper_constrained};
 pub(crate) use lsq::{build_uncertainty, fill_fit_jacobian};
 pub use lsq::{constrained_lsq, rigid_lsq, ConstrainedOptions};

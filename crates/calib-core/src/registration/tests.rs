@@ -496,3 +496,42 @@ proptest! {
         }
     }
 }
+
+/// [`fit_fast`] is the allocation-free twin of [`fit`]: every method on 4 points (the closed
+/// forms) and on 7 (the affine least squares then eq 12), noisy data (1 mm), each paper mount
+/// pair; agreement to round-off (m, rad).
+#[test]
+fn fit_fast_matches_fit_for_every_method() {
+    const SAME_MATHS_TOL: f64 = 1e-9;
+    for mounts in [
+        MountPair::floor_floor(),
+        MountPair::floor_wall(),
+        MountPair::floor_ceiling(),
+    ] {
+        let truth = truth_for(&mounts, 0.7, -0.3);
+        for n in [4, 7] {
+            let p_b2 = cloud(n, 11 + n as u64);
+            let mut rng = ChaCha8Rng::seed_from_u64(n as u64);
+            let noise = Normal::new(0.0, 1e-3).unwrap();
+            let p_b1: Vec<Point3<f64>> = p_b2
+                .iter()
+                .map(|p| truth * p + Vector3::from_fn(|_, _| noise.sample(&mut rng)))
+                .collect();
+            let pairs = PointPairs::new(p_b1.clone(), p_b2.clone()).unwrap();
+            for method in Method::ALL {
+                let fast = fit_fast(method, &mounts, &p_b1, &p_b2).unwrap();
+                let slow = fit(&pairs, method, &mounts).unwrap().b1_from_b2;
+                assert!(
+                    (fast.translation.vector - slow.translation.vector).amax() < SAME_MATHS_TOL
+                        && fast.rotation.angle_to(&slow.rotation) < SAME_MATHS_TOL,
+                    "{mounts:?} n={n} {}",
+                    method.name()
+                );
+            }
+        }
+    }
+    // Too few points or mismatched lengths: None, not a panic.
+    let p = cloud(3, 1);
+    assert!(fit_fast(Method::Paper, &MountPair::floor_floor(), &p, &p).is_none());
+    assert!(fit_fast(Method::Lsq, &MountPair::floor_floor(), &p, &p[..2]).is_none());
+}

@@ -1,6 +1,7 @@
 //! The cell's description: the error type, the robots with their tools, gravity and
 //! manufacturing tolerances (the prior), and the noise of 3-row observations.
 
+use crate::Robot;
 use kinematics::{Axis, ErrorParam, RobotModel};
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
@@ -45,15 +46,9 @@ pub enum CellFitError {
     },
 }
 
-/// Which robot: 1 (its base frame `b1` is the frame of the result) or 2.
-pub type RobotIndex = u8;
-
-pub(super) fn robot_slot(robot: RobotIndex) -> Option<usize> {
-    match robot {
-        1 => Some(0),
-        2 => Some(1),
-        _ => None,
-    }
+/// The 0-based slot of `robot` in per-robot arrays.
+pub(super) fn robot_slot(robot: Robot) -> usize {
+    usize::from(robot.number() - 1)
 }
 
 /// Manufacturing tolerances of one robot, the source of the prior. **Convention**: a tolerance
@@ -117,7 +112,7 @@ impl Tolerance {
         tol / 3f64.sqrt()
     }
 
-    pub(super) fn check(&self, robot: RobotIndex) -> Result<(), CellFitError> {
+    pub(super) fn check(&self, robot: Robot) -> Result<(), CellFitError> {
         let fields = [
             ("joint_offset_rad", self.joint_offset_rad),
             ("origin_xyz_m", self.origin_xyz_m),
@@ -132,7 +127,7 @@ impl Tolerance {
         for (field, v) in fields {
             if !(v.is_finite() && v >= 0.0) {
                 return Err(CellFitError::InvalidInput(format!(
-                    "robot {robot} tolerance `{field}` is {v}; give a finite value ≥ 0 (0: not fitted)"
+                    "{robot} tolerance `{field}` is {v}; give a finite value ≥ 0 (0: not fitted)"
                 )));
             }
         }

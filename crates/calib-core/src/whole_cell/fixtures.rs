@@ -3,6 +3,7 @@
 //! (built from `kinematics` directly: calib-core cannot depend on sim-cell). Used by the
 //! module tests and by `benches/whole_cell.rs`.
 
+use crate::Robot;
 use kinematics::{
     ik_tip_position, rotation_from_zyz, tip_joint_jacobian_true, true_base_from_tip, IkOptions,
     RobotModel,
@@ -121,10 +122,10 @@ pub fn sim_cell(cell: Cell, tol: Tolerance, second_tool: bool, seed: u64) -> Sim
     };
     let mut truth = CellEstimate::nominal(&problem, x);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    for r in [1u8, 2] {
+    for r in [Robot::One, Robot::Two] {
         let rb = problem.robot(r);
         let params = rb.fitted_params();
-        let corr = if r == 1 {
+        let corr = if r == Robot::One {
             &mut truth.robot1
         } else {
             &mut truth.robot2
@@ -160,8 +161,8 @@ impl SimCell {
     }
 
     /// True tip of `robot`'s tool at `q`, its own base frame.
-    pub fn true_tip(&self, robot: u8, tool: usize, q: &[f64]) -> Vector3<f64> {
-        let rb = if robot == 1 {
+    pub fn true_tip(&self, robot: Robot, tool: usize, q: &[f64]) -> Vector3<f64> {
+        let rb = if robot == Robot::One {
             &self.robot1
         } else {
             &self.robot2
@@ -183,12 +184,12 @@ impl SimCell {
     /// flange z along `axis`: nominal IK, then Newton on the true model. `None` if unreachable.
     pub fn solve_true(
         &self,
-        robot: u8,
+        robot: Robot,
         tool: usize,
         target: &Point3<f64>,
         axis: Unit<Vector3<f64>>,
     ) -> Option<Vec<f64>> {
-        let rb = if robot == 1 {
+        let rb = if robot == Robot::One {
             &self.robot1
         } else {
             &self.robot2
@@ -238,11 +239,11 @@ impl SimCell {
         let toward2 = (x.translation.vector - p.coords).normalize();
         let tilt = Vector3::from_fn(|_, _| rng.random_range(-0.5..0.5));
         let a1 = Unit::new_normalize(toward2 + tilt);
-        let q1 = self.solve_true(1, tool1, &p, a1)?;
-        let t1 = self.true_tip(1, tool1, &q1);
+        let q1 = self.solve_true(Robot::One, tool1, &p, a1)?;
+        let t1 = self.true_tip(Robot::One, tool1, &q1);
         let target2 = x.inverse() * Point3::from(t1 + noise_b1);
         let a2 = Unit::new_normalize(x.rotation.inverse() * (-a1.into_inner()));
-        let q2 = self.solve_true(2, 0, &target2, a2)?;
+        let q2 = self.solve_true(Robot::Two, 0, &target2, a2)?;
         Some(ConfigPair {
             q1,
             q2,

@@ -5,8 +5,9 @@ use kinematics::{Axis, ErrorParam, KinematicErrors};
 use nalgebra::{DMatrix, DVector, Isometry3, Unit, Vector3};
 use serde::Serialize;
 
-use super::cell::{CellFitError, CellRobot, RobotIndex};
+use super::cell::{CellFitError, CellRobot};
 use super::observations::CellProblem;
+use crate::Robot;
 
 /// The kinematic corrections of one robot.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -110,21 +111,21 @@ impl CellEstimate {
                 "cell estimate: {what}; build it with CellEstimate::nominal for this problem"
             )))
         };
-        for r in [1u8, 2] {
+        for r in [Robot::One, Robot::Two] {
             let rb = problem.robot(r);
             let c = self.robot(r);
             if let Err(e) = c.errors.check(&rb.model) {
-                return bad(format!("robot {r}: {e}"));
+                return bad(format!("{r}: {e}"));
             }
             if c.tool_tip_m.len() != rb.tools.len() {
                 return bad(format!(
-                    "robot {r} has {} tool tip error(s) for {} tool(s)",
+                    "{r} has {} tool tip error(s) for {} tool(s)",
                     c.tool_tip_m.len(),
                     rb.tools.len()
                 ));
             }
             if !c.tool_tip_m.iter().all(|t| t.iter().all(|v| v.is_finite())) {
-                return bad(format!("robot {r} has a non-finite tool tip error"));
+                return bad(format!("{r} has a non-finite tool tip error"));
             }
         }
         if !self
@@ -146,16 +147,16 @@ impl CellEstimate {
     }
 
     /// Robot 1's or 2's corrections.
-    pub fn robot(&self, robot: RobotIndex) -> &RobotCorrection {
-        if robot == 1 {
+    pub fn robot(&self, robot: Robot) -> &RobotCorrection {
+        if robot == Robot::One {
             &self.robot1
         } else {
             &self.robot2
         }
     }
 
-    fn robot_mut(&mut self, robot: RobotIndex) -> &mut RobotCorrection {
-        if robot == 1 {
+    fn robot_mut(&mut self, robot: Robot) -> &mut RobotCorrection {
+        if robot == Robot::One {
             &mut self.robot1
         } else {
             &mut self.robot2
@@ -181,14 +182,14 @@ pub enum CellParam {
     /// A kinematic parameter of a robot (its own unit).
     Kinematic {
         /// 1 or 2.
-        robot: RobotIndex,
+        robot: Robot,
         /// The parameter.
         param: ErrorParam,
     },
     /// A tool's tip offset error, m, flange axes.
     ToolTip {
         /// 1 or 2.
-        robot: RobotIndex,
+        robot: Robot,
         /// Tool index.
         tool: usize,
         /// Axis.
@@ -241,9 +242,9 @@ impl CellParam {
         match self {
             CellParam::PlacementTranslation { axis } => format!("b1_from_b2 translation {axis}"),
             CellParam::PlacementRotation { axis } => format!("b1_from_b2 rotation {axis}"),
-            CellParam::Kinematic { robot, param } => format!("robot {robot} {param}"),
+            CellParam::Kinematic { robot, param } => format!("{robot} {param}"),
             CellParam::ToolTip { robot, tool, axis } => format!(
-                "robot {robot} tool `{}` tip {axis}",
+                "{robot} tool `{}` tip {axis}",
                 problem.robot(*robot).tools[*tool].name
             ),
             CellParam::TrackerTranslation { group, axis } => {
@@ -308,7 +309,7 @@ impl ParamLayout {
         }
         let mut sigmas: Vec<f64> = vec![0.0; 6];
         let mut robots = Vec::new();
-        for r in [1u8, 2] {
+        for r in [Robot::One, Robot::Two] {
             let rb = problem.robot(r);
             let mut kin = Vec::new();
             for p in rb.fitted_params() {
@@ -423,7 +424,7 @@ impl ParamLayout {
     /// placement, trackers and plane normals, which are relative to the current value).
     pub fn values(&self, estimate: &CellEstimate) -> DVector<f64> {
         let mut v = DVector::zeros(self.len());
-        for (slot, r) in [1u8, 2].into_iter().enumerate() {
+        for (slot, r) in [Robot::One, Robot::Two].into_iter().enumerate() {
             let corr = estimate.robot(r);
             for &(p, c) in &self.robots[slot].kin {
                 v[c] = corr.errors.get(p);
@@ -459,7 +460,7 @@ impl ParamLayout {
             Isometry3::new(rho, phi) * x
         };
         e.b1_from_b2 = left(&estimate.b1_from_b2, 0);
-        for (slot, r) in [1u8, 2].into_iter().enumerate() {
+        for (slot, r) in [Robot::One, Robot::Two].into_iter().enumerate() {
             let corr = e.robot_mut(r);
             for &(p, c) in &self.robots[slot].kin {
                 corr.errors.add(p, delta[c]);

@@ -117,7 +117,7 @@ pub use accuracy::{
 };
 pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
 pub use calibrate::{calibrate_cell, CalibrationReport, CellCalibration};
-pub use cell::{CellFitError, CellRobot, Noise3, RobotIndex, Tolerance, Tool};
+pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool};
 pub use design::{
     design_criterion, greedy_design, DesignCriterion, DesignResult, WEAK_PRIOR_SIGMA,
 };

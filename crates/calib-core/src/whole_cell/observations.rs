@@ -3,7 +3,8 @@
 
 use nalgebra::{Isometry3, Point3, Unit, Vector3};
 
-use super::cell::{robot_slot, CellFitError, CellRobot, Noise3, RobotIndex};
+use super::cell::{CellFitError, CellRobot, Noise3};
+use crate::Robot;
 
 /// What one observation saw. Joint vectors in rad, chain order; tools by index into
 /// [`CellRobot::tools`]; groups by index into the problem's group lists.
@@ -43,7 +44,7 @@ pub enum ObservationKind {
     /// 3 residuals `tracker_from_anchor·p_anchor − p_tracker`, m.
     Tracker {
         /// The robot measured (1 or 2).
-        robot: RobotIndex,
+        robot: Robot,
         /// Its joints, rad.
         q: Vec<f64>,
         /// Its tool (e.g. the reflector).
@@ -59,7 +60,7 @@ pub enum ObservationKind {
     /// `n·p_anchor − d`, m.
     Plane {
         /// The robot touching (1 or 2).
-        robot: RobotIndex,
+        robot: Robot,
         /// Its joints, rad.
         q: Vec<f64>,
         /// Its tool.
@@ -108,7 +109,7 @@ pub struct TrackerGroup {
     pub name: String,
     /// The base frame the tracker frame is expressed against (1 or 2). Use the measured robot's
     /// base for a tracker that sees one robot only (then `b1_from_b2` does not enter).
-    pub anchor: RobotIndex,
+    pub anchor: Robot,
     /// Starting value of `tracker_from_anchor`; `None`: a rigid fit of the group's measurements
     /// to the nominal tips (needs ≥ 3 non-collinear points).
     pub initial_tracker_from_anchor: Option<Isometry3<f64>>,
@@ -120,7 +121,7 @@ pub struct PlaneGroup {
     /// Name, for messages.
     pub name: String,
     /// The base frame the plane is expressed in (1 or 2).
-    pub anchor: RobotIndex,
+    pub anchor: Robot,
     /// Starting `(unit normal, offset m)`; `None`: a least-squares plane through the group's
     /// nominal tips (needs ≥ 3 non-collinear points).
     pub initial: Option<(Unit<Vector3<f64>>, f64)>,
@@ -156,8 +157,8 @@ pub struct CellProblem {
 
 impl CellProblem {
     /// Robot 1 or 2.
-    pub fn robot(&self, robot: RobotIndex) -> &CellRobot {
-        if robot == 1 {
+    pub fn robot(&self, robot: Robot) -> &CellRobot {
+        if robot == Robot::One {
             &self.robot1
         } else {
             &self.robot2
@@ -167,31 +168,26 @@ impl CellProblem {
     /// Checks the problem: robot indices, tools, groups, joint vector lengths, noise, and
     /// tolerances. Errors name the observation row and the field.
     pub fn check(&self) -> Result<(), CellFitError> {
-        for r in [1u8, 2] {
+        for r in [Robot::One, Robot::Two] {
             let rb = self.robot(r);
             rb.tolerance.check(r)?;
             if rb.tools.is_empty() {
                 return Err(CellFitError::InvalidInput(format!(
-                    "robot {r} has no tool; give at least one tool point"
+                    "{r} has no tool; give at least one tool point"
                 )));
             }
             if !rb.g_base.iter().all(|v| v.is_finite()) {
                 return Err(CellFitError::InvalidInput(format!(
-                    "robot {r}: gravity {:?} m/s² is not finite",
+                    "{r}: gravity {:?} m/s² is not finite",
                     rb.g_base
                 )));
             }
         }
-        let tool_ok = |robot: RobotIndex, tool: usize, row: usize| {
-            if robot_slot(robot).is_none() {
-                return Err(CellFitError::InvalidInput(format!(
-                    "observation row {row}: robot {robot} does not exist; use 1 or 2"
-                )));
-            }
+        let tool_ok = |robot: Robot, tool: usize, row: usize| {
             let n = self.robot(robot).tools.len();
             if tool >= n {
                 return Err(CellFitError::InvalidInput(format!(
-                    "observation row {row}: robot {robot} has {n} tool(s), tool index {tool} is out of range"
+                    "observation row {row}: {robot} has {n} tool(s), tool index {tool} is out of range"
                 )));
             }
             Ok(())
@@ -214,22 +210,6 @@ impl CellProblem {
                 )))
             }
         };
-        for g in &self.trackers {
-            if robot_slot(g.anchor).is_none() {
-                return Err(CellFitError::InvalidInput(format!(
-                    "tracker group `{}`: anchor robot {} does not exist; use 1 or 2",
-                    g.name, g.anchor
-                )));
-            }
-        }
-        for g in &self.planes {
-            if robot_slot(g.anchor).is_none() {
-                return Err(CellFitError::InvalidInput(format!(
-                    "plane group `{}`: anchor robot {} does not exist; use 1 or 2",
-                    g.name, g.anchor
-                )));
-            }
-        }
         for g in &self.contacts {
             if !(g.distance_m.is_finite() && g.distance_m >= 0.0) {
                 return Err(CellFitError::InvalidInput(format!(
@@ -247,8 +227,8 @@ impl CellProblem {
                     noise,
                     ..
                 } => {
-                    tool_ok(1, *tool1, row)?;
-                    tool_ok(2, *tool2, row)?;
+                    tool_ok(Robot::One, *tool1, row)?;
+                    tool_ok(Robot::Two, *tool2, row)?;
                     noise.whitening(row)?;
                 }
                 ObservationKind::Contact {
@@ -258,8 +238,8 @@ impl CellProblem {
                     sigma_m,
                     ..
                 } => {
-                    tool_ok(1, *tool1, row)?;
-                    tool_ok(2, *tool2, row)?;
+                    tool_ok(Robot::One, *tool1, row)?;
+                    tool_ok(Robot::Two, *tool2, row)?;
                     group_ok("contact", *group, self.contacts.len(), row)?;
                     sigma_ok(*sigma_m, row)?;
                 }
@@ -298,7 +278,7 @@ impl CellProblem {
                     .check_q(q)
                     .map_err(|e| CellFitError::Kinematics {
                         row,
-                        message: format!("robot {r}: {e}"),
+                        message: format!("{r}: {e}"),
                     })?;
             }
         }
@@ -307,10 +287,10 @@ impl CellProblem {
 }
 
 /// The joint vectors an observation uses, with their robots.
-fn joint_vectors(kind: &ObservationKind) -> Vec<(RobotIndex, &[f64])> {
+fn joint_vectors(kind: &ObservationKind) -> Vec<(Robot, &[f64])> {
     match kind {
         ObservationKind::Coincident { q1, q2, .. } | ObservationKind::Contact { q1, q2, .. } => {
-            vec![(1, q1.as_slice()), (2, q2.as_slice())]
+            vec![(Robot::One, q1.as_slice()), (Robot::Two, q2.as_slice())]
         }
         ObservationKind::Tracker { robot, q, .. } | ObservationKind::Plane { robot, q, .. } => {
             vec![(*robot, q.as_slice())]

@@ -4,9 +4,10 @@
 use kinematics::{tip_error_jacobian, true_base_from_tip, Axis, ErrorParam};
 use nalgebra::{DMatrix, DVector, Point3, Vector3};
 
-use super::cell::{robot_slot, CellFitError, RobotIndex};
+use super::cell::{robot_slot, CellFitError};
 use super::layout::{tangent_basis, CellEstimate, ParamLayout};
 use super::observations::{CellProblem, Observation, ObservationKind};
+use crate::Robot;
 
 /// Sparse 3-row Jacobian: (column, ∂/∂column).
 type Cols3 = Vec<(usize, Vector3<f64>)>;
@@ -49,27 +50,21 @@ impl<'a> Evaluator<'a> {
     pub(super) fn robot_tip(
         &self,
         est: &CellEstimate,
-        robot: RobotIndex,
+        robot: Robot,
         tool: usize,
         q: &[f64],
         want_jac: bool,
         row: usize,
     ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
-        let slot = robot_slot(robot).ok_or_else(|| {
-            CellFitError::InvalidInput(format!(
-                "observation row {row}: robot {robot} is not 1 or 2"
-            ))
-        })?;
+        let slot = robot_slot(robot);
         let rb = self.problem.robot(robot);
         let tool_def = rb.tools.get(tool).ok_or_else(|| {
-            CellFitError::InvalidInput(format!(
-                "observation row {row}: robot {robot} has no tool {tool}"
-            ))
+            CellFitError::InvalidInput(format!("observation row {row}: {robot} has no tool {tool}"))
         })?;
         let errors = est.robot(robot).errors_for_tool(tool);
         let kin_err = |e: kinematics::KinematicsError| CellFitError::Kinematics {
             row,
-            message: format!("robot {robot}: {e}"),
+            message: format!("{robot}: {e}"),
         };
         let p = true_base_from_tip(&rb.model, &errors, q, &tool_def.flange_from_tip, &rb.g_base)
             .map_err(kin_err)?
@@ -110,10 +105,10 @@ impl<'a> Evaluator<'a> {
     pub(super) fn tip_in_anchor(
         &self,
         est: &CellEstimate,
-        robot: RobotIndex,
+        robot: Robot,
         tool: usize,
         q: &[f64],
-        anchor: RobotIndex,
+        anchor: Robot,
         want_jac: bool,
         row: usize,
     ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
@@ -123,7 +118,7 @@ impl<'a> Evaluator<'a> {
         }
         let x = &est.b1_from_b2;
         let r_x = x.rotation.to_rotation_matrix().into_inner();
-        if robot == 2 {
+        if robot == Robot::Two {
             // g = X·f2; ∂g/∂ρ = I, ∂g/∂φ_i = e_i × g, ∂g/∂θ2 = R_X·J2.
             let g = (x * Point3::from(f)).coords;
             let mut out: Cols3 = cols.into_iter().map(|(c, v)| (c, r_x * v)).collect();
@@ -180,8 +175,10 @@ impl<'a> Evaluator<'a> {
                 tool2,
                 noise,
             } => {
-                let (p1, c1) = self.tip_in_anchor(est, 1, *tool1, q1, 1, want_jac, row)?;
-                let (g2, c2) = self.tip_in_anchor(est, 2, *tool2, q2, 1, want_jac, row)?;
+                let (p1, c1) =
+                    self.tip_in_anchor(est, Robot::One, *tool1, q1, Robot::One, want_jac, row)?;
+                let (g2, c2) =
+                    self.tip_in_anchor(est, Robot::Two, *tool2, q2, Robot::One, want_jac, row)?;
                 if want_jac {
                     put3(&mut jac, &c1, 1.0);
                     put3(&mut jac, &c2, -1.0);
@@ -200,8 +197,10 @@ impl<'a> Evaluator<'a> {
                 group,
                 sigma_m,
             } => {
-                let (p1, c1) = self.tip_in_anchor(est, 1, *tool1, q1, 1, want_jac, row)?;
-                let (g2, c2) = self.tip_in_anchor(est, 2, *tool2, q2, 1, want_jac, row)?;
+                let (p1, c1) =
+                    self.tip_in_anchor(est, Robot::One, *tool1, q1, Robot::One, want_jac, row)?;
+                let (g2, c2) =
+                    self.tip_in_anchor(est, Robot::Two, *tool2, q2, Robot::One, want_jac, row)?;
                 let e = p1 - g2;
                 let dist = e.norm();
                 let u = if dist > 0.0 { e / dist } else { Vector3::x() };
@@ -290,8 +289,24 @@ impl<'a> Evaluator<'a> {
         pair: &super::ConfigPair,
         want_jac: bool,
     ) -> Result<(Vector3<f64>, DMatrix<f64>), CellFitError> {
-        let (p1, c1) = self.tip_in_anchor(est, 1, pair.tool1, &pair.q1, 1, want_jac, 0)?;
-        let (g2, c2) = self.tip_in_anchor(est, 2, pair.tool2, &pair.q2, 1, want_jac, 0)?;
+        let (p1, c1) = self.tip_in_anchor(
+            est,
+            Robot::One,
+            pair.tool1,
+            &pair.q1,
+            Robot::One,
+            want_jac,
+            0,
+        )?;
+        let (g2, c2) = self.tip_in_anchor(
+            est,
+            Robot::Two,
+            pair.tool2,
+            &pair.q2,
+            Robot::One,
+            want_jac,
+            0,
+        )?;
         let mut jac = DMatrix::zeros(3, if want_jac { self.layout.len() } else { 0 });
         if want_jac {
             for (c, v) in &c1 {

@@ -1,6 +1,7 @@
 //! Starting values of the fit: the placement, tracker frames and planes from the data at
 //! nominal kinematics.
 
+use crate::Robot;
 use nalgebra::{Isometry3, Matrix3, Point3, Unit, Vector3};
 
 use crate::registration::rigid_fit_fast;
@@ -35,10 +36,10 @@ pub fn initial_estimate(
                 } = &o.kind
                 {
                     a.push(Point3::from(
-                        ev.robot_tip(&est, 1, *tool1, q1, false, o.row)?.0,
+                        ev.robot_tip(&est, Robot::One, *tool1, q1, false, o.row)?.0,
                     ));
                     b.push(Point3::from(
-                        ev.robot_tip(&est, 2, *tool2, q2, false, o.row)?.0,
+                        ev.robot_tip(&est, Robot::Two, *tool2, q2, false, o.row)?.0,
                     ));
                 }
             }

@@ -2,6 +2,7 @@
 //! tests of every part (Jacobians against central differences, the fit, reduction, screening,
 //! prediction, design and the one-call chain), sharing the fixtures and trial helpers here.
 
+use crate::Robot;
 use std::time::Instant;
 
 use kinematics::ErrorParam;
@@ -52,24 +53,24 @@ fn every_kind(seed: u64) -> (CellProblem, CellEstimate) {
     p.trackers = vec![
         TrackerGroup {
             name: "t-b1".into(),
-            anchor: 1,
+            anchor: Robot::One,
             initial_tracker_from_anchor: None,
         },
         TrackerGroup {
             name: "t-b2".into(),
-            anchor: 2,
+            anchor: Robot::Two,
             initial_tracker_from_anchor: None,
         },
     ];
     p.planes = vec![
         PlaneGroup {
             name: "p-b1".into(),
-            anchor: 1,
+            anchor: Robot::One,
             initial: None,
         },
         PlaneGroup {
             name: "p-b2".into(),
-            anchor: 2,
+            anchor: Robot::Two,
             initial: None,
         },
     ];
@@ -80,28 +81,33 @@ fn every_kind(seed: u64) -> (CellProblem, CellEstimate) {
     }];
     let cov = Matrix3::new(4.0, 1.0, 0.5, 1.0, 3.0, -0.2, 0.5, -0.2, 2.0) * 1e-8;
     let mut obs = Vec::new();
-    let q = |r: u8, rng: &mut ChaCha8Rng| random_q(&p.robot(r).model, rng);
+    let q = |r: Robot, rng: &mut ChaCha8Rng| random_q(&p.robot(r).model, rng);
     for (tool1, noise) in [
         (0, Noise3::Isotropic { sigma_m: 3e-4 }),
         (1, Noise3::Covariance { cov_m2: cov }),
     ] {
         obs.push(ObservationKind::Coincident {
-            q1: q(1, &mut rng),
-            q2: q(2, &mut rng),
+            q1: q(Robot::One, &mut rng),
+            q2: q(Robot::Two, &mut rng),
             tool1,
             tool2: 0,
             noise,
         });
     }
     obs.push(ObservationKind::Contact {
-        q1: q(1, &mut rng),
-        q2: q(2, &mut rng),
+        q1: q(Robot::One, &mut rng),
+        q2: q(Robot::Two, &mut rng),
         tool1: 1,
         tool2: 0,
         group: 0,
         sigma_m: 2e-4,
     });
-    for (robot, group, tool) in [(1u8, 0usize, 1usize), (2, 0, 0), (1, 1, 0), (2, 1, 0)] {
+    for (robot, group, tool) in [
+        (Robot::One, 0usize, 1usize),
+        (Robot::Two, 0, 0),
+        (Robot::One, 1, 0),
+        (Robot::Two, 1, 0),
+    ] {
         obs.push(ObservationKind::Tracker {
             robot,
             q: q(robot, &mut rng),
@@ -405,7 +411,7 @@ fn reduction_names_what_the_placement_absorbs_and_what_is_merged() {
         "kept {} (data-determined {}, prior-dominated {})",
         red.kept, red.data_determined, red.prior_dominated
     );
-    for r in [1u8, 2] {
+    for r in [Robot::One, Robot::Two] {
         for axis in kinematics::Axis::ALL {
             let p = CellParam::Kinematic {
                 robot: r,
@@ -415,7 +421,7 @@ fn reduction_names_what_the_placement_absorbs_and_what_is_merged() {
                 .dropped
                 .iter()
                 .find(|d| d.param == p)
-                .unwrap_or_else(|| panic!("robot {r} joint 1 origin {axis} not dropped"));
+                .unwrap_or_else(|| panic!("{r} joint 1 origin {axis} not dropped"));
             assert!(
                 matches!(
                     e.reason,
@@ -521,7 +527,7 @@ fn three_blunders_are_named_and_the_hidden_offset_is_still_found() {
         .fit
         .layout
         .column(&CellParam::Kinematic {
-            robot: 2,
+            robot: Robot::Two,
             param: j3,
         })
         .expect("robot 2 joint 3 offset is fitted");
@@ -676,14 +682,14 @@ fn mixed_session_recovers_groups_and_beats_placement_only() {
         Isometry3::new(Vector3::new(2.0, -1.0, 0.3), Vector3::new(0.1, -0.2, 2.5));
     p.trackers = vec![TrackerGroup {
         name: "leica".into(),
-        anchor: 1,
+        anchor: Robot::One,
         initial_tracker_from_anchor: None,
     }];
     for _ in 0..20 {
         let q = random_q(&p.robot1.model, &mut rng);
-        let t = sc.true_tip(1, 1, &q);
+        let t = sc.true_tip(Robot::One, 1, &q);
         obs.push(ObservationKind::Tracker {
-            robot: 1,
+            robot: Robot::One,
             q,
             tool: 1,
             group: 0,
@@ -695,7 +701,7 @@ fn mixed_session_recovers_groups_and_beats_placement_only() {
     let (n_true, d_true) = (Vector3::z_axis(), 0.3);
     p.planes = vec![PlaneGroup {
         name: "table".into(),
-        anchor: 2,
+        anchor: Robot::Two,
         initial: None,
     }];
     let mut touched = 0;
@@ -705,9 +711,9 @@ fn mixed_session_recovers_groups_and_beats_placement_only() {
             rng.random_range(-0.5..0.5),
             d_true + normal(&mut rng).z,
         );
-        if let Some(q) = sc.solve_true(2, 0, &target, -Vector3::z_axis()) {
+        if let Some(q) = sc.solve_true(Robot::Two, 0, &target, -Vector3::z_axis()) {
             obs.push(ObservationKind::Plane {
-                robot: 2,
+                robot: Robot::Two,
                 q,
                 tool: 0,
                 group: 0,

@@ -8,7 +8,7 @@
 //! is simulated. The published `calib1` angles of those two cells therefore lose the tilt's
 //! direction, so the signed analysis uses only their yaw (rotation about b1's z axis).
 
-use calib_core::paper::{table1, Table1Row};
+use calib_core::paper::{table1, PublishedPose, Table1Row};
 use calib_core::{wrap_angle, zyz_from_rotation, zyz_nearest, MountPair};
 use nalgebra::{Isometry3, Vector3, Vector6};
 use serde::Serialize;
@@ -131,14 +131,27 @@ pub struct Experiment {
     pub e_rot_deg: [f64; 2],
 }
 
+/// A published pose as the study has always read it: [`PublishedPose::to_isometry`] with the
+/// millimetres scaled by `1e-3` instead of divided by 1000, which differs by at most one ulp of
+/// the metres. Kept so that the σ fits and the published-table outputs reproduce bit for bit (the
+/// σ fit's optimiser turns a one-ulp input change into a ~1e-7 relative change of σ).
+fn published_isometry(pose: &PublishedPose) -> Isometry3<f64> {
+    let mut x = pose.to_isometry();
+    x.translation.vector = Vector3::from(pose.xyz_mm) * 1e-3;
+    x
+}
+
 impl Experiment {
     /// From a Table 1 row (published e_tran/e_rot kept as printed). `None` for an unknown cell label.
     pub fn from_table_row(row: &Table1Row) -> Option<Experiment> {
         Some(Experiment {
             number: row.experiment,
             cell: PaperCell::from_label(&row.mounts)?,
-            b1_from_b2_true: row.truth.isometry(),
-            estimate: [row.calib1.isometry(), row.calib2.isometry()],
+            b1_from_b2_true: published_isometry(&row.truth),
+            estimate: [
+                published_isometry(&row.calib1),
+                published_isometry(&row.calib2),
+            ],
             e_tran_mm: [row.e_tran1_mm, row.e_tran2_mm],
             e_rot_deg: [row.e_rot1_deg, row.e_rot2_deg],
         })

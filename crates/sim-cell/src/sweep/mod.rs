@@ -19,11 +19,9 @@ mod run;
 #[cfg(test)]
 mod tests;
 
+pub use calib_core::{e_rot_fast, fit_fast, ErotTruth, TrialErrors};
 pub use config::{GridCell, Mode, SweepConfig};
-pub use geometry::{
-    draw_geometry, e_rot_fast, fit_fast, geometry_trial, geometry_trial_into, ErotTruth,
-    GeometrySpec, TrialErrors,
-};
+pub use geometry::{draw_geometry, geometry_trial, geometry_trial_into, GeometrySpec};
 pub use output::{
     render_table, summarize_cells, summarize_pooled, summary_header, write_summary_csv,
     write_trials_csv, SummaryRow, TRIALS_HEADER,

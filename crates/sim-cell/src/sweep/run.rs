@@ -5,13 +5,14 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 use super::config::{GridCell, Mode, SweepConfig};
-use super::geometry::{draw_geometry, fit_fast, ErotTruth, GeometrySpec, TrialErrors};
+use super::geometry::{draw_geometry, GeometrySpec};
 use super::{CHUNK, MAX_GEOMETRY_POINTS};
 use crate::cell::Cell;
 use crate::error::SimError;
 use crate::placement::{mounts_label, paper_placement};
 use crate::session::{generate_session, SessionSpec};
 use crate::trial_rng;
+use calib_core::{fit_fast, ErotTruth, TrialErrors};
 
 /// [`trial_rng`] for many trials of one seed: the seed is expanded into the ChaCha key once, and
 /// each trial's generator is a copy of the fresh keyed generator with its stream set, the same

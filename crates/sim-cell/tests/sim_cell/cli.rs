@@ -116,6 +116,21 @@ fn bad_cell_error_names_the_key() {
     );
 }
 
+/// The library says "reduce the spread"; the binary names the flags that set it.
+#[test]
+fn unreachable_layout_names_the_flags() {
+    let out = bin()
+        .args(["session", "--n", "4", "--spread-mm", "6000", "--seed", "1"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("reduce the spread") && err.contains("--spread-mm"),
+        "{err}"
+    );
+}
+
 #[test]
 fn bad_grid_axis_is_an_error_not_a_panic() {
     let out = bin()

@@ -1,4 +1,9 @@
-//! Error metrics between a true and an estimated `b1_from_b2` (eqs 33/34) and the geodesic angle.
+//! Error metrics between a true and an estimated `b1_from_b2` (eqs 33/34) and the geodesic angle;
+//! their allocation-free twins for Monte Carlo loops in [`fast`] (`ErotTruth`, `TrialErrors`).
+
+mod fast;
+
+pub use fast::{e_rot_fast, ErotTruth, TrialErrors};
 
 use kinematics::euler::{rotation_from_zyz, wrap_angle, zyz_from_rotation, zyz_nearest};
 use nalgebra::{Isometry3, Rotation3};
