@@ -131,6 +131,28 @@ const COLUMNS: [&str; 6] = [
     "r1_x_mm", "r1_y_mm", "r1_z_mm", "r2_x_mm", "r2_y_mm", "r2_z_mm",
 ];
 
+/// Drops a leading UTF-8 byte-order mark (spreadsheet programs write one), so that the first
+/// header name reads as typed.
+pub fn strip_bom(text: &str) -> &str {
+    text.strip_prefix('\u{feff}').unwrap_or(text)
+}
+
+/// The field delimiter of CSV text, read from its header line (its first line): whichever of
+/// comma, semicolon and tab occurs most often there (a spreadsheet set to a European locale writes
+/// `;`, a copy from a table writes tabs); comma when none occurs or on a tie with comma.
+pub fn csv_delimiter(text: &str) -> u8 {
+    let header = strip_bom(text).lines().next().unwrap_or("");
+    let count = |c: char| header.chars().filter(|&h| h == c).count();
+    let (commas, semicolons, tabs) = (count(','), count(';'), count('\t'));
+    if semicolons > commas && semicolons >= tabs {
+        b';'
+    } else if tabs > commas && tabs > semicolons {
+        b'\t'
+    } else {
+        b','
+    }
+}
+
 /// Reads handclasp points from a CSV in millimetres (see the module doc) and returns them in metres.
 ///
 /// Errors (each naming the file, line/column and the fix): unreadable file, malformed CSV, missing
@@ -145,8 +167,14 @@ pub fn read_points_csv(path: &Path) -> Result<PointPairs, CalibError> {
 }
 
 /// Parses CSV text as [`read_points_csv`] does; `path` is used in messages only.
+///
+/// The header may start with a UTF-8 BOM, and fields may be separated by commas, semicolons or
+/// tabs (detected from the header line, see [`csv_delimiter`]).
 pub fn parse_points_csv(text: &str, path: &Path) -> Result<PointPairs, CalibError> {
+    let text = strip_bom(text);
+    let delimiter = csv_delimiter(text);
     let mut reader = csv::ReaderBuilder::new()
+        .delimiter(delimiter)
         .trim(csv::Trim::All)
         .flexible(false)
         .from_reader(text.as_bytes());
@@ -203,10 +231,17 @@ pub fn parse_points_csv(text: &str, path: &Path) -> Result<PointPairs, CalibErro
                 ));
             }
             let x: f64 = cell.parse().map_err(|_| {
-                bad(
-                    "not a number",
-                    "write a plain decimal number in millimetres (e.g. 1234.5)",
-                )
+                if cell.replacen(',', ".", 1).parse::<f64>().is_ok() {
+                    bad(
+                        "not a number (a decimal comma)",
+                        "write the decimal separator as a point (1234.5, not 1234,5); separate the fields by `;` or tabs if you keep commas elsewhere",
+                    )
+                } else {
+                    bad(
+                        "not a number",
+                        "write a plain decimal number in millimetres (e.g. 1234.5)",
+                    )
+                }
             })?;
             if !x.is_finite() {
                 return Err(bad(
@@ -333,6 +368,42 @@ mod tests {
             CalibError::Duplicate { row_a, row_b, .. } => assert_eq!((row_a, row_b), (2, 5)),
             other => panic!("expected duplicate, got {other}"),
         }
+    }
+
+    /// A spreadsheet in a European locale writes `;`; a copy from a table writes tabs; both read
+    /// like the comma file.
+    #[test]
+    fn semicolon_separated_points() {
+        let want = parse(GOOD).unwrap();
+        assert_eq!(parse(&GOOD.replace(',', ";")).unwrap(), want);
+        assert_eq!(parse(&GOOD.replace(',', "\t")).unwrap(), want);
+        assert_eq!(csv_delimiter("a;b;c\n1,5;2;3\n"), b';');
+        assert_eq!(csv_delimiter("a\tb\n"), b'\t');
+        assert_eq!(csv_delimiter("a,b\n"), b',');
+        assert_eq!(csv_delimiter(""), b',');
+    }
+
+    /// Semicolons with decimal commas (`1000,5`): the message names the decimal comma and the fix.
+    #[test]
+    fn decimal_comma_points() {
+        let t = GOOD.replace(',', ";").replace("-990", "-990,5");
+        let msg = parse(&t).unwrap_err().to_string();
+        assert!(
+            msg.contains("decimal comma") && msg.contains("r2_x_mm") && msg.contains("line 3"),
+            "{msg}"
+        );
+    }
+
+    /// A UTF-8 BOM before a header whose first column is a coordinate.
+    #[test]
+    fn bom_points() {
+        let t = "r1_x_mm,r1_y_mm,r1_z_mm,r2_x_mm,r2_y_mm,r2_z_mm\n1000,0,500,10,20,30\n0,1000,500,-990,1020,30\n";
+        let want = parse(t).unwrap();
+        assert_eq!(parse(&format!("\u{feff}{t}")).unwrap(), want);
+        assert_eq!(
+            parse(&format!("\u{feff}{}", t.replace(',', ";"))).unwrap(),
+            want
+        );
     }
 
     #[test]

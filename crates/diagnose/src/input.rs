@@ -98,10 +98,13 @@ fn fmt3(v: &Vector3<f64>) -> String {
     format!("[{:.3}, {:.3}, {:.3}]", v.x, v.y, v.z)
 }
 
-/// A CSV reader over session text: fields trimmed, rows of any length (sim-cell's reader
-/// reports a wrong row length with its line number).
+/// A CSV reader over session text as sim-cell's reader sees it: a UTF-8 BOM dropped, the
+/// delimiter (comma, semicolon or tab) taken from the header line, fields trimmed, rows of any
+/// length (sim-cell's reader reports a wrong row length with its line number).
 fn csv_reader(text: &str) -> csv::Reader<&[u8]> {
+    let text = calib_core::strip_bom(text);
     csv::ReaderBuilder::new()
+        .delimiter(calib_core::csv_delimiter(text))
         .trim(csv::Trim::All)
         .flexible(true)
         .from_reader(text.as_bytes())
@@ -293,5 +296,28 @@ mod tests {
         );
         std::fs::write(&path, session.to_csv_string(d1, d2)).unwrap();
         load_session(&path, &cell).expect("the session as written reads back");
+    }
+
+    /// A session saved with `;` or tabs and a UTF-8 BOM passes the unit pre-checks and reads
+    /// like the comma file (the BOM used to reach the pre-check's header names).
+    #[test]
+    fn semicolon_separated_session_with_bom() {
+        let cell = Cell::default_floor_wall();
+        let spec = sim_cell::SessionSpec::new(12, sim_cell::Layout::Random, 0.8);
+        let session =
+            sim_cell::generate_session(&cell, &spec, &mut sim_cell::trial_rng(5, 0)).unwrap();
+        let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
+        let text = session.to_csv_string(d1, d2);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("s.csv");
+        std::fs::write(&path, &text).unwrap();
+        let want = load_session(&path, &cell).unwrap();
+        for sep in [",", ";", "\t"] {
+            let variant = format!("\u{feff}{}", text.replace(',', sep));
+            std::fs::write(&path, &variant).unwrap();
+            let got = load_session(&path, &cell).unwrap_or_else(|e| panic!("{sep:?}: {e}"));
+            assert_eq!(got, want, "{sep:?}");
+            assert_eq!(unit_ranges(&variant), unit_ranges(&text), "{sep:?}");
+        }
     }
 }

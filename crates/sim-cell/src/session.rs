@@ -152,7 +152,8 @@ impl Session {
 
     /// Parses session CSV text with the rules of calib-core's points reader
     /// ([`calib_core::parse_points_csv`]): a UTF-8 BOM and CRLF line ends are accepted, fields may be
-    /// quoted, columns are found by header name in any order and extra columns are ignored, blank
+    /// quoted and separated by commas, semicolons or tabs (detected from the header line,
+    /// [`calib_core::csv_delimiter`]), columns are found by header name in any order and extra columns are ignored, blank
     /// lines are skipped. Every column of `cell`'s joint counts must be present and every value
     /// finite; each row's tip columns must match FK of its joint columns with the cell's nominal
     /// models and tip offsets within [`TIP_CONSISTENCY_MM`] (catches a wrong cell, tip or unit).
@@ -164,8 +165,9 @@ impl Session {
         };
         let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
         let want = Session::csv_header(d1, d2);
-        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        let text = calib_core::strip_bom(text);
         let mut reader = csv::ReaderBuilder::new()
+            .delimiter(calib_core::csv_delimiter(text))
             .trim(csv::Trim::All)
             .flexible(true)
             .from_reader(text.as_bytes());
@@ -186,6 +188,11 @@ impl Session {
                     .collect();
                 let unused = if unused.is_empty() {
                     String::new()
+                } else if headers.len() == 1 {
+                    format!(
+                        " (the header reads as the single column {}: separate the fields by commas, semicolons or tabs)",
+                        unused.join(", ")
+                    )
                 } else {
                     format!(" (columns not used: {})", unused.join(", "))
                 };
@@ -509,5 +516,47 @@ fn unreachable(
         point,
         p_b1_mm: [p.x * 1e3, p.y * 1e3, p.z * 1e3],
         message: format!("{why} ({}); {hint}", cell.robot(robot).model.name()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A session saved by a spreadsheet in a European locale (`;`) or copied from a table (tabs),
+    /// with or without a BOM, reads like the comma file; the message for an unknown separator
+    /// shows the header it found.
+    #[test]
+    fn semicolon_separated_session() {
+        let cell = Cell::default_floor_wall();
+        let spec = SessionSpec::new(5, Layout::Random, 0.8);
+        let session = generate_session(&cell, &spec, &mut crate::trial_rng(3, 0)).unwrap();
+        let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
+        let text = session.to_csv_string(d1, d2);
+        let p = Path::new("session.csv");
+        let want = Session::parse_csv(&text, p, &cell).unwrap();
+        for sep in [";", "\t"] {
+            let variant = text.replace(',', sep);
+            assert_eq!(
+                Session::parse_csv(&variant, p, &cell).unwrap(),
+                want,
+                "{sep:?}"
+            );
+            let bom = format!("\u{feff}{variant}");
+            assert_eq!(
+                Session::parse_csv(&bom, p, &cell).unwrap(),
+                want,
+                "BOM {sep:?}"
+            );
+        }
+        let e = Session::parse_csv(&text.replace(',', "|"), p, &cell)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("no column `point`")
+                && e.contains("point|r1_q1_deg")
+                && e.contains("semicolons or tabs"),
+            "{e}"
+        );
     }
 }
