@@ -89,9 +89,10 @@ struct SessionArgs {
     /// Layout size, mm (tetrahedron edge, cube/square side, cluster distance).
     #[arg(long, default_value_t = 1000.0)]
     spread_mm: f64,
-    /// Centre of the layout in base 1, mm, as X,Y,Z (default: the cell's teach centre).
-    #[arg(long, value_delimiter = ',', num_args = 3)]
-    centre_mm: Option<Vec<f64>>,
+    /// Centre of the layout in base 1, mm, as X,Y,Z, e.g. `--centre-mm 475,-50,995` (negative
+    /// values allowed; default: the cell's teach centre).
+    #[arg(long, allow_hyphen_values = true, value_parser = parse_xyz_mm, value_name = "X,Y,Z")]
+    centre_mm: Option<[f64; 3]>,
     /// Override the cell's alignment σ, mm per axis.
     #[arg(long)]
     noise_mm: Option<f64>,
@@ -366,6 +367,25 @@ fn sweep_cmd(a: SweepArgs) -> Result<()> {
         println!("wrote {}", p.display());
     }
     Ok(())
+}
+
+/// Parses `X,Y,Z` (mm, any of them negative) for `--centre-mm`; the message says what was given and
+/// the expected form.
+fn parse_xyz_mm(text: &str) -> Result<[f64; 3], String> {
+    let form = "expected three numbers in mm separated by commas, e.g. 475,-50,995";
+    let values: Vec<&str> = text.split(',').map(str::trim).collect();
+    if values.len() != 3 {
+        return Err(format!("`{text}` has {} value(s); {form}", values.len()));
+    }
+    let mut xyz = [0.0; 3];
+    for (v, s) in xyz.iter_mut().zip(&values) {
+        *v = s
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("`{s}` is not a finite number; {form}"))?;
+    }
+    Ok(xyz)
 }
 
 /// User + system CPU time of this process, s (Linux `/proc/self/stat`, 100 Hz ticks); None elsewhere.

@@ -167,3 +167,39 @@ fn paper_command_sets_the_simulation_beside_table1() {
         "{text:.400}"
     );
 }
+
+/// `--centre-mm 475,-50,995`, the documented form, with a negative coordinate (and a negative
+/// first one); a wrong count says what was given and the expected form.
+#[test]
+fn centre_mm_with_negative_values() {
+    for centre in ["475,-50,995", "-300,200,995"] {
+        let out = bin()
+            .args([
+                "session",
+                "--n",
+                "4",
+                "--spread-mm",
+                "300",
+                "--centre-mm",
+                centre,
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{centre}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 5);
+    }
+    let out = bin()
+        .args(["session", "--centre-mm", "475,-50"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("`475,-50` has 2 value(s)") && err.contains("e.g. 475,-50,995"),
+        "{err}"
+    );
+}
