@@ -1,9 +1,9 @@
 //! End-to-end tests for the inputs a new user brings (issue 10): files saved with `;` or tabs or a
-//! BOM. Each test is named after its input.
+//! BOM, output piped into `head`, duplicated session rows. Each test is named after its input.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Stdio};
 
 use sim_cell::{generate_session, trial_rng, Cell, Layout, SessionSpec};
 
@@ -77,6 +77,31 @@ fn semicolon_separated_points_calibrate() {
     ] {
         assert_eq!(json(&write(dir.path(), name, &text)), want, "{name}");
     }
+}
+
+/// `handclasp calibrate … | head`: stdout closed early ends quietly with exit 0, not a
+/// broken-pipe panic (exit 101). The text report lists every row (~1500 lines, far beyond a pipe's
+/// buffer), so the write fails whenever the reader closes.
+#[test]
+fn calibrate_piped_into_head() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = write(dir.path(), "many.csv", &points_text(1500, ","));
+    let mut child = bin()
+        .arg("calibrate")
+        .arg(&path)
+        .args(["--method", "lsq"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdout = child.stdout.take().unwrap();
+    let mut first = [0u8; 64];
+    std::io::Read::read_exact(&mut stdout, &mut first).unwrap();
+    drop(stdout);
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{:?}: {err}", out.status);
+    assert!(!err.contains("panicked"), "{err}");
 }
 
 /// A session of the shipped floor–floor cell written with `sep` and a BOM.

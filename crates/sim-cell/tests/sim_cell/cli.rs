@@ -203,3 +203,32 @@ fn centre_mm_with_negative_values() {
         "{err}"
     );
 }
+
+/// `sim-cell session … | head`: stdout closed early ends quietly with exit 0, not a broken-pipe
+/// panic (exit 101). The output (600 rows, ~130 kB) is far beyond a pipe's buffer, so the write fails
+/// whenever the reader closes.
+#[test]
+fn session_piped_into_head() {
+    let mut child = bin()
+        .args([
+            "session",
+            "--n",
+            "300",
+            "--layout",
+            "random",
+            "--spread-mm",
+            "600",
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdout = child.stdout.take().unwrap();
+    let mut first = [0u8; 64];
+    std::io::Read::read_exact(&mut stdout, &mut first).unwrap();
+    drop(stdout);
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{:?}: {err}", out.status);
+    assert!(!err.contains("panicked"), "{err}");
+}
