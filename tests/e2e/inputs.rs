@@ -143,3 +143,19 @@ fn bom_semicolon_session_diagnose() {
         assert!(!err.contains('\u{feff}'), "{name}: {err}");
     }
 }
+
+/// `ik --xyz-mm 1.2,0,0.9` (metres): refused, not "reachable", with the unit and the ×1000 fix.
+#[test]
+fn ik_xyz_mm_in_metres() {
+    let robot = concat!(env!("CARGO_MANIFEST_DIR"), "/../../robots/hp20.urdf");
+    let out = bin()
+        .args(["ik", "--robot", robot, "--xyz-mm", "1.2,0,0.9"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("look like metres") && err.contains("--xyz-mm 1200,0,900"),
+        "{err}"
+    );
+}

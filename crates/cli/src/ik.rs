@@ -5,6 +5,8 @@
 //! `handclasp ik --robot robots/hp20.urdf --xyz-mm 1000,300,800 --tip-mm 0,0,150 [--axis 1,0,0]
 //! [--json]` prints `{"reachable": bool, "q_deg": […], …}`. An unreachable target is a result
 //! (`"reachable": false`, exit status 0, `q_deg` the closest joint vector found), not an error.
+//! A target whose every coordinate is below calib-core's `METRES_LIMIT_MM` (5 mm) is refused as
+//! metres written as millimetres.
 
 use std::path::PathBuf;
 
@@ -51,6 +53,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &args.xyz_mm,
         Some((3, "a target position has 3 (x,y,z in mm)")),
     )?;
+    if xyz.iter().all(|c| c.abs() < calib_core::METRES_LIMIT_MM) {
+        bail!(
+            "--xyz-mm {} is within {} mm of the base origin, inside the robot's base: these look like metres; \
+             --xyz-mm is in millimetres, so multiply by 1000 (--xyz-mm {},{},{})",
+            args.xyz_mm,
+            calib_core::METRES_LIMIT_MM,
+            xyz[0] * 1000.0,
+            xyz[1] * 1000.0,
+            xyz[2] * 1000.0
+        );
+    }
     let target = Point3::new(xyz[0], xyz[1], xyz[2]) * 1e-3;
     let axis = match &args.axis {
         None => None,

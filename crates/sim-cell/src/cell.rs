@@ -196,6 +196,26 @@ impl Ctx<'_> {
     }
 }
 
+/// A measuring tip shorter than this (mm, from the flange) is almost surely written in metres:
+/// real handclasp tips are tens to hundreds of millimetres long. A zero tip (the flange itself)
+/// is allowed.
+pub const MIN_TIP_MM: f64 = 1.0;
+
+/// `{key}.tip_mm` as finite numbers, refusing a nonzero tip shorter than [`MIN_TIP_MM`] with the
+/// unit named.
+fn tip3(ctx: &Ctx, key: &str, v: [f64; 3]) -> Result<Vector3<f64>, SimError> {
+    let tip = finite3(ctx, key, v)?;
+    let length_mm = tip.norm();
+    if length_mm > 0.0 && length_mm < MIN_TIP_MM {
+        return Err(ctx.err(format!(
+            "`{key}` = {v:?} is a tip {length_mm} mm long: a measuring tip shorter than {MIN_TIP_MM} mm is almost surely \
+             written in metres; tip_mm is in millimetres, so multiply by 1000 ({:?}), or write [0, 0, 0] for the flange itself",
+            v.map(|x| x * 1000.0)
+        )));
+    }
+    Ok(tip)
+}
+
 fn finite3(ctx: &Ctx, key: &str, v: [f64; 3]) -> Result<Vector3<f64>, SimError> {
     if v.iter().all(|x| x.is_finite()) {
         Ok(Vector3::from(v))
@@ -619,7 +639,7 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
         };
         Ok(CellRobot {
             mount: parse_mount(&ctx, &format!("{key}.mount"), &r.mount)?,
-            flange_from_tip: finite3(&ctx, &format!("{key}.tip_mm"), r.tip_mm)? * 1e-3,
+            flange_from_tip: tip3(&ctx, &format!("{key}.tip_mm"), r.tip_mm)? * 1e-3,
             model,
             urdf: r.urdf.clone(),
             urdf_path,
@@ -823,6 +843,28 @@ compliance_deg_per_knm = [0.0, 0.05, 0.05, 0.0, 0.0, 0.0]
         let fw = Cell::default_floor_wall();
         assert!(fw.robot2.g_base.z.abs() < 0.01 * G);
         assert!((fw.robot2.g_base.norm() - G).abs() < 1e-9);
+    }
+
+    /// `tip_mm = [0, 0, 0.15]` (metres written as mm): refused with the unit and the fix named; a
+    /// zero tip (the flange) and a 1 mm tip still load.
+    #[test]
+    fn tip_mm_of_0_15() {
+        let text =
+            FLOOR_WALL_TOML.replacen("tip_mm = [0.0, 0.0, 150.0]", "tip_mm = [0, 0, 0.15]", 1);
+        assert_ne!(text, FLOOR_WALL_TOML);
+        let e = err_text(&text);
+        assert!(
+            e.contains("robot1.tip_mm")
+                && e.contains("0.15 mm long")
+                && e.contains("metres")
+                && e.contains("[0.0, 0.0, 150.0]"),
+            "{e}"
+        );
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+        for ok in ["tip_mm = [0, 0, 0]", "tip_mm = [0, 0, 1.0]"] {
+            let text = FLOOR_WALL_TOML.replacen("tip_mm = [0.0, 0.0, 150.0]", ok, 1);
+            Cell::from_toml_str(&text, &dir).unwrap_or_else(|e| panic!("{ok}: {e}"));
+        }
     }
 
     fn err_text(text: &str) -> String {
