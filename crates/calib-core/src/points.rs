@@ -77,25 +77,37 @@ impl PointPairs {
         }
     }
 
-    /// Checks for duplicate points (closer than [`DUPLICATE_DISTANCE_M`] in either robot) and for a
-    /// spread mismatch beyond [`SPREAD_RATIO_LIMIT`]. `source_name` names the data in messages.
-    pub fn check_consistency(&self, source_name: &str) -> Result<(), CalibError> {
-        let n = self.len();
-        for i in 0..n {
-            for j in (i + 1)..n {
-                for (robot, pts) in [(1u8, &self.p_b1), (2u8, &self.p_b2)] {
-                    let d = (pts[i] - pts[j]).norm();
-                    if d < DUPLICATE_DISTANCE_M {
-                        return Err(CalibError::Duplicate {
-                            row_a: self.row(i),
-                            row_b: self.row(j),
-                            robot,
-                            distance_mm: d * 1e3,
-                        });
-                    }
+    /// Checks for duplicate points: two points closer than [`DUPLICATE_DISTANCE_M`] in either
+    /// robot. The error ([`CalibError::Duplicate`]) names the first such pair in row order (by the
+    /// first row, then the second, then robot 1 before robot 2) with its [`PointPairs::row`]s.
+    ///
+    /// O(n log n) for spread-out points: the points are sorted along a fixed oblique direction and
+    /// only neighbours within the distance along it are compared.
+    pub fn check_duplicates(&self) -> Result<(), CalibError> {
+        let mut first: Option<(usize, usize, u8, f64)> = None;
+        for (robot, pts) in [(1u8, &self.p_b1), (2u8, &self.p_b2)] {
+            if let Some((i, j, d)) = first_close_pair(pts, DUPLICATE_DISTANCE_M) {
+                if first.is_none_or(|(a, b, _, _)| (i, j) < (a, b)) {
+                    first = Some((i, j, robot, d));
                 }
             }
         }
+        match first {
+            Some((i, j, robot, d)) => Err(CalibError::Duplicate {
+                row_a: self.row(i),
+                row_b: self.row(j),
+                robot,
+                distance_mm: d * 1e3,
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// Checks for duplicate points ([`PointPairs::check_duplicates`]) and for a
+    /// spread mismatch beyond [`SPREAD_RATIO_LIMIT`]. `source_name` names the data in messages.
+    pub fn check_consistency(&self, source_name: &str) -> Result<(), CalibError> {
+        let n = self.len();
+        self.check_duplicates()?;
         if n >= 2 {
             let s1 = rms_spread(&self.p_b1);
             let s2 = rms_spread(&self.p_b2);
@@ -111,6 +123,34 @@ impl PointPairs {
         }
         Ok(())
     }
+}
+
+/// The pair `(i, j)`, `i < j`, of points closer than `limit` (m) that comes first in index order,
+/// with its distance. Points are sorted by their projection on an oblique unit direction (no
+/// layout plane of a cell is perpendicular to it); two points within `limit` are within `limit`
+/// along it, so each point is compared only with its neighbours in that order.
+fn first_close_pair(points: &[Point3<f64>], limit: f64) -> Option<(usize, usize, f64)> {
+    let dir = nalgebra::Vector3::new(1.0, 2f64.sqrt(), 3f64.sqrt()).normalize();
+    let mut order: Vec<(f64, usize)> = points
+        .iter()
+        .enumerate()
+        .map(|(k, p)| (p.coords.dot(&dir), k))
+        .collect();
+    order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    let mut best: Option<(usize, usize, f64)> = None;
+    for (a, &(s_a, i_a)) in order.iter().enumerate() {
+        for &(s_b, i_b) in &order[a + 1..] {
+            if s_b - s_a >= limit {
+                break;
+            }
+            let d = (points[i_a] - points[i_b]).norm();
+            let (i, j) = (i_a.min(i_b), i_a.max(i_b));
+            if d < limit && best.is_none_or(|(bi, bj, _)| (i, j) < (bi, bj)) {
+                best = Some((i, j, d));
+            }
+        }
+    }
+    best
 }
 
 fn rms_spread(points: &[Point3<f64>]) -> f64 {
@@ -404,6 +444,38 @@ mod tests {
             parse(&format!("\u{feff}{}", t.replace(',', ";"))).unwrap(),
             want
         );
+    }
+
+    /// Every row duplicated, in a shuffled order: the first pair in row order is named, as the
+    /// pairwise scan named it.
+    #[test]
+    fn every_row_duplicated_points() {
+        let mut t = GOOD.to_string();
+        for line in GOOD.lines().skip(1).collect::<Vec<_>>().iter().rev() {
+            t += line;
+            t += "\n";
+        }
+        match parse(&t).unwrap_err() {
+            CalibError::Duplicate {
+                row_a,
+                row_b,
+                robot,
+                ..
+            } => {
+                assert_eq!((row_a, row_b, robot), (2, 7, 1))
+            }
+            other => panic!("expected duplicate, got {other}"),
+        }
+        let pts: Vec<Point3<f64>> = (0..200)
+            .map(|k| Point3::new(k as f64 * 1e-3, 0.0, 0.0))
+            .collect();
+        assert_eq!(first_close_pair(&pts, DUPLICATE_DISTANCE_M), None);
+        let mut near = pts.clone();
+        near[150] = near[40] + nalgebra::Vector3::new(0.0, 5e-5, 0.0);
+        near[190] = near[10] + nalgebra::Vector3::new(0.0, 0.0, 5e-5);
+        let (i, j, d) = first_close_pair(&near, DUPLICATE_DISTANCE_M).unwrap();
+        assert_eq!((i, j), (10, 190));
+        assert!((d - 5e-5).abs() < 1e-15);
     }
 
     #[test]

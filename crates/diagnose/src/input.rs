@@ -14,7 +14,8 @@ use crate::DiagnoseError;
 /// cell's tip offset: 0.2 mm covers the rounding of a file and the encoder resolution.
 pub const FK_TOLERANCE_M: f64 = 2e-4;
 
-/// Checks a session against the cell: joint counts, units (radians under `*_deg`, metres under
+/// Checks a session against the cell: joint counts, duplicate points (the rule of
+/// [`calib_core::PointPairs::check_duplicates`]), units (radians under `*_deg`, metres under
 /// `*_mm`), joint limits, the reported tips against FK of the joint columns with the cell's tip
 /// offsets, and that there are enough points to identify anything. `path` is named in messages.
 pub fn check_session(cell: &Cell, s: &Session, path: &Path) -> Result<(), DiagnoseError> {
@@ -43,6 +44,27 @@ pub fn check_session(cell: &Cell, s: &Session, path: &Path) -> Result<(), Diagno
             "{n} handclasp point(s): too few to identify anything; fitting b1_from_b2 (6 unknowns) and one error \
              parameter with a meaningful test needs at least {needed} points, and the full catalogue 20–60 \
              (40 recommended)"
+        )));
+    }
+    // The same duplicate rule as calibrate (calib-core's DUPLICATE_DISTANCE_M), so that a file
+    // one command refuses is not accepted by the other.
+    let (p_b1, p_b2) = s.tips();
+    let pairs = calib_core::PointPairs::new(p_b1, p_b2).map_err(|e| serr(e.to_string()))?;
+    if let Err(calib_core::CalibError::Duplicate {
+        row_a,
+        row_b,
+        robot,
+        distance_mm,
+    }) = pairs.check_duplicates()
+    {
+        // `PointPairs::new` numbers the rows 1..=n: data rows, in file order.
+        let point = |row: usize| s.points[row - 1].point;
+        return Err(serr(format!(
+            "data rows {row_a} and {row_b} (`point` {} and {}): duplicate handclasp point (robot {robot}'s tips are {distance_mm:.4} mm apart, \
+             closer than {} mm; `handclasp calibrate` refuses the same file): delete one of the two rows, or record a new point at least 100 mm away",
+            point(row_a),
+            point(row_b),
+            calib_core::DUPLICATE_DISTANCE_M * 1e3
         )));
     }
     let max_q = s
@@ -319,5 +341,28 @@ mod tests {
             assert_eq!(got, want, "{sep:?}");
             assert_eq!(unit_ranges(&variant), unit_ranges(&text), "{sep:?}");
         }
+    }
+
+    /// A session with every row duplicated (calibrate refuses it): refused, naming the points.
+    #[test]
+    fn every_row_duplicated_session() {
+        let cell = Cell::default_floor_wall();
+        let spec = sim_cell::SessionSpec::new(12, sim_cell::Layout::Random, 0.8);
+        let session =
+            sim_cell::generate_session(&cell, &spec, &mut sim_cell::trial_rng(5, 0)).unwrap();
+        let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
+        let text = session.to_csv_string(d1, d2);
+        let rows: Vec<&str> = text.lines().skip(1).collect();
+        let doubled = format!("{text}{}\n", rows.join("\n"));
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("doubled.csv");
+        std::fs::write(&path, doubled).unwrap();
+        let e = load_session(&path, &cell).unwrap_err().to_string();
+        assert!(
+            e.contains("data rows 1 and 13 (`point` 1 and 1)")
+                && e.contains("duplicate")
+                && e.contains("delete one"),
+            "{e}"
+        );
     }
 }
