@@ -106,14 +106,23 @@ fn selection_on_the_slow_session_stops_within_its_work_bound() {
 }
 
 #[test]
-fn diagnose_of_the_slow_session_reports_a_bounded_selection() {
+fn diagnose_of_the_slow_session_reports_each_selection_step_as_progress() {
     let cell = cell();
     let session = load_session(&fixture("session.csv"), &cell).unwrap();
     let options = DiagnoseOptions {
         trials: 50,
         ..DiagnoseOptions::default()
     };
-    let report = diagnose::diagnose_session(&cell, &session, &options).unwrap();
-    let text = diagnose::render_text(&report);
-    assert!(text.contains("3. Model selection"), "{text}");
+    let mut lines = Vec::new();
+    let report = diagnose::diagnose_session_with_progress(&cell, &session, &options, &mut |l| {
+        lines.push(l.to_string())
+    })
+    .unwrap();
+    // One progress line per selection step, in the report's order; the 4th step is accepted,
+    // then dropped again by the backward F test (the cycle stop).
+    assert_eq!(lines.len(), report.steps.len(), "{lines:?}");
+    assert_eq!(lines.len(), 4, "{lines:?}");
+    assert!(lines[0].starts_with("selection step 1: "), "{lines:?}");
+    assert!(lines[3].contains(" accepted "), "{lines:?}");
+    assert_eq!(report.effects.len(), 3);
 }

@@ -380,11 +380,23 @@ fn backward_eliminate(
 
 /// Runs the forward selection over `candidates` (catalogue indices). Candidates confounded with
 /// the base frame or without effect at the baseline are never selected (see
-/// [`Selection::identifiability`]).
+/// [`Selection::identifiability`]). Failure cases: a bad option or parameter index, too few
+/// points, a model failure.
 pub fn forward_select(
     model: &dyn TipModel,
     candidates: &[usize],
     options: &SelectionOptions,
+) -> Result<Selection, IdentifyError> {
+    forward_select_with_progress(model, candidates, options, &mut |_| {})
+}
+
+/// [`forward_select`], calling `progress` with each step as soon as it is decided (at most
+/// [`SelectionOptions::max_steps`] calls; a step can take a few hundred LM fits).
+pub fn forward_select_with_progress(
+    model: &dyn TipModel,
+    candidates: &[usize],
+    options: &SelectionOptions,
+    progress: &mut dyn FnMut(&SelectionStep),
 ) -> Result<Selection, IdentifyError> {
     if !(options.alpha > 0.0 && options.alpha < 1.0) {
         return Err(IdentifyError::BadOption {
@@ -530,6 +542,9 @@ pub fn forward_select(
             bic_after: new_fit.bic(),
             accepted,
         });
+        if let Some(step) = steps.last() {
+            progress(step);
+        }
         if !accepted {
             break SelectionStop::Rejected;
         }
