@@ -75,8 +75,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         truth,
         ..DiagnoseOptions::default()
     };
-    let report = diagnose::diagnose_session(&cell, &session, &options)
-        .with_context(|| format!("diagnosing {}", args.session.display()))?;
+    // Progress on stderr only when it is a terminal (scripts and captures see the report alone).
+    let tty = std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let report = diagnose::diagnose_session_with_progress(&cell, &session, &options, &mut |line| {
+        if tty {
+            eprintln!("{line}");
+        }
+    })
+    .with_context(|| format!("diagnosing {}", args.session.display()))?;
     if let Some(dir) = &args.export {
         let calibrated = report.b1_from_b2.to_isometry();
         let files =

@@ -66,6 +66,18 @@ pub fn diagnose_session(
     session: &Session,
     options: &DiagnoseOptions,
 ) -> Result<DiagnoseReport, DiagnoseError> {
+    diagnose_session_with_progress(cell, session, options, &mut |_| {})
+}
+
+/// [`diagnose_session`], calling `progress` with a one-line description of each model-selection
+/// step as soon as it is decided (the long part of a diagnosis: at most
+/// `options.selection.max_steps` calls). Errors: as [`diagnose_session`].
+pub fn diagnose_session_with_progress(
+    cell: &Cell,
+    session: &Session,
+    options: &DiagnoseOptions,
+    progress: &mut dyn FnMut(&str),
+) -> Result<DiagnoseReport, DiagnoseError> {
     check_session(cell, session, Path::new("<session>"))?;
     let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
     let (q1, q2) = joints(session);
@@ -75,7 +87,17 @@ pub fn diagnose_session(
     let noise = NoiseModel::new(cell, &q1, &q2, &r_cell)?;
     let model = SessionModel::new(cell, &q1, &q2, &cands).with_weights(noise.whitening());
     let all: Vec<usize> = (0..cands.len()).collect();
-    let sel = identify::forward_select(&model, &all, &options.selection)?;
+    let mut step_no = 0;
+    let sel = identify::forward_select_with_progress(&model, &all, &options.selection, &mut |s| {
+        step_no += 1;
+        let verdict = if s.accepted { "accepted" } else { "rejected" };
+        progress(&format!(
+            "selection step {step_no}: {} {verdict} (p = {:.2e} vs {:.2e})",
+            cands[s.param].label(),
+            s.p_value,
+            s.threshold
+        ));
+    })?;
     let baseline = baseline(&model, &sel, &noise, session, options)?;
     let partial = identify::partial_f_tests(&model, &sel.fit, &options.selection.fit)?;
     // Mount tilts: not from the residuals (they only turn the fit) but from the placement.

@@ -31,7 +31,7 @@ pub mod residuals;
 pub mod session_model;
 
 pub use catalogue::{catalogue, effects_to_errors, Candidate, EffectKind};
-pub use engine::{diagnose_session, DiagnoseOptions};
+pub use engine::{diagnose_session, diagnose_session_with_progress, DiagnoseOptions};
 pub use export::{export_corrected, write_corrected_urdf};
 pub use input::{check_session, load_session, FK_TOLERANCE_M};
 pub use mount_tilt::{

@@ -36,6 +36,10 @@
 //!   accepted step every selected parameter is re-screened against the others and swapped for a
 //!   better one when a refit lowers the RSS (greedy steps can pick a proxy of a true effect), and
 //!   a backward elimination drops any parameter whose F test no longer passes at `α/m₀`.
+//!   The selection stops ([`SelectionStop`]) at a rejected step, at `max_effects`, at
+//!   `max_steps` forward steps, or when an accepted step leads back to a selected set already
+//!   visited (a candidate accepted forward and dropped backward would otherwise be re-accepted
+//!   forever), so its number of LM fits is bounded.
 //! - **Which one** ([`Selection::groups`]): for each selected parameter, the candidates the data
 //!   cannot tell apart from it: its parallel group plus the best-scoring replacements
 //!   ([`RESCREEN_REFITS`] refits with the others kept) whose RSS is within `χ²₁(0.95)·σ̂²` of its

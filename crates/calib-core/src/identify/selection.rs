@@ -63,6 +63,10 @@ pub struct SelectionOptions {
     pub folds: usize,
     /// Maximum number of effects selected (default 6).
     pub max_effects: usize,
+    /// Maximum number of forward steps, accepted or not (default 20). Each step costs at most
+    /// about `FORWARD_REFITS + K + 3·k·(1 + RESCREEN_REFITS) + k²` LM fits for `k` selected
+    /// parameters and `K` folds, so this bounds the work of the selection.
+    pub max_steps: usize,
     /// |cos| above which two projected columns count as the same effect (default 0.999).
     pub group_cos: f64,
     /// LM settings.
@@ -75,6 +79,7 @@ impl Default for SelectionOptions {
             alpha: 0.04,
             folds: 10,
             max_effects: 6,
+            max_steps: 20,
             group_cos: 0.999,
             fit: FitOptions::default(),
         }
@@ -114,6 +119,26 @@ pub struct SelectionStep {
     pub accepted: bool,
 }
 
+/// Why the forward selection stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum SelectionStop {
+    /// The last step's candidate failed the F test, the held-out RMS or the BIC criterion.
+    Rejected,
+    /// [`SelectionOptions::max_effects`] parameters are selected.
+    MaxEffects,
+    /// No identifiable candidate is left to try.
+    PoolExhausted,
+    /// Another parameter would leave fewer than 10 residual degrees of freedom.
+    TooFewPoints,
+    /// After an accepted step (re-screen and backward elimination) the selected set was one
+    /// already visited: going on would repeat the same steps forever (a candidate accepted by
+    /// the forward criteria and then dropped again by the backward F test).
+    Cycle,
+    /// [`SelectionOptions::max_steps`] forward steps were taken.
+    StepCap,
+}
+
 /// Result of the forward selection.
 #[derive(Debug, Clone)]
 pub struct Selection {
@@ -121,7 +146,7 @@ pub struct Selection {
     pub baseline: IdentFit,
     /// Identifiability of the candidates at the baseline.
     pub identifiability: Identifiability,
-    /// The steps, the last one rejected unless `max_effects` was reached or nothing was left.
+    /// The steps, the last one rejected unless the selection stopped otherwise (see `stop`).
     pub steps: Vec<SelectionStep>,
     /// The final fit with the selected parameters (== baseline when nothing was selected).
     pub fit: IdentFit,
@@ -131,6 +156,8 @@ pub struct Selection {
     pub heldout_rms_before: f64,
     /// Held-out RMS of the final model, m.
     pub heldout_rms_after: f64,
+    /// Why the selection stopped.
+    pub stop: SelectionStop,
 }
 
 /// The candidates the data cannot tell apart from `best`: its parallel group, plus those whose
@@ -353,11 +380,23 @@ fn backward_eliminate(
 
 /// Runs the forward selection over `candidates` (catalogue indices). Candidates confounded with
 /// the base frame or without effect at the baseline are never selected (see
-/// [`Selection::identifiability`]).
+/// [`Selection::identifiability`]). Failure cases: a bad option or parameter index, too few
+/// points, a model failure.
 pub fn forward_select(
     model: &dyn TipModel,
     candidates: &[usize],
     options: &SelectionOptions,
+) -> Result<Selection, IdentifyError> {
+    forward_select_with_progress(model, candidates, options, &mut |_| {})
+}
+
+/// [`forward_select`], calling `progress` with each step as soon as it is decided (at most
+/// [`SelectionOptions::max_steps`] calls; a step can take a few hundred LM fits).
+pub fn forward_select_with_progress(
+    model: &dyn TipModel,
+    candidates: &[usize],
+    options: &SelectionOptions,
+    progress: &mut dyn FnMut(&SelectionStep),
 ) -> Result<Selection, IdentifyError> {
     if !(options.alpha > 0.0 && options.alpha < 1.0) {
         return Err(IdentifyError::BadOption {
@@ -389,9 +428,20 @@ pub fn forward_select(
     let level = options.alpha / pool.len().max(1) as f64;
     let mut steps = Vec::new();
     let mut groups = Vec::new();
-    while current.params.len() < options.max_effects && !pool.is_empty() {
+    // Selected sets (sorted) after each accepted step, for the cycle check.
+    let mut visited: Vec<Vec<usize>> = vec![Vec::new()];
+    let stop = loop {
+        if current.params.len() >= options.max_effects {
+            break SelectionStop::MaxEffects;
+        }
+        if pool.is_empty() {
+            break SelectionStop::PoolExhausted;
+        }
         if 3 * n < 6 + current.params.len() + 1 + 10 {
-            break;
+            break SelectionStop::TooFewPoints;
+        }
+        if steps.len() >= options.max_steps {
+            break SelectionStop::StepCap;
         }
         let id = analyze_identifiability(model, &current, &pool, options.group_cos)?;
         // Score test on the projected columns.
@@ -443,7 +493,7 @@ pub fn forward_select(
             }
         }
         let Some((mut param, score, mut new_fit)) = best else {
-            break;
+            break SelectionStop::PoolExhausted;
         };
         let parallel: Vec<usize> = id
             .groups
@@ -492,8 +542,11 @@ pub fn forward_select(
             bic_after: new_fit.bic(),
             accepted,
         });
+        if let Some(step) = steps.last() {
+            progress(step);
+        }
         if !accepted {
-            break;
+            break SelectionStop::Rejected;
         }
         // Parallel mates stay in the pool: from now on they project to zero (confounded with the
         // selected parameter) and are skipped, but a re-screen without it sees them as its group.
@@ -528,7 +581,13 @@ pub fn forward_select(
             Some(&current),
             &options.fit,
         )?;
-    }
+        let mut set = current.params.clone();
+        set.sort_unstable();
+        if visited.contains(&set) {
+            break SelectionStop::Cycle;
+        }
+        visited.push(set);
+    };
     if backward_eliminate(model, &mut current, &mut groups, &mut pool, level, options)? {
         current_cv = kfold_rms(
             model,
@@ -546,5 +605,6 @@ pub fn forward_select(
         groups,
         heldout_rms_before,
         heldout_rms_after: current_cv,
+        stop,
     })
 }

@@ -379,6 +379,31 @@ fn two_simultaneous_effects_are_both_found() {
     }
 }
 
+#[test]
+fn selection_stops_at_its_step_cap_and_reports_each_step() {
+    // Two true effects (as above): the default selection takes 3 steps (2 accepted, 1
+    // rejected); capped at 1 step it stops there, with the reason, after one progress call.
+    let mut truth = [0.0; 10];
+    truth[1] = 0.15f64.to_radians();
+    truth[9] = 1.5e-3;
+    let toy = session(40, truth, 2e-4, 300);
+    let all: Vec<usize> = (0..10).collect();
+    let free = forward_select(&toy, &all, &SelectionOptions::default()).unwrap();
+    assert_eq!(free.stop, SelectionStop::Rejected, "{:?}", free.steps);
+    assert_eq!(free.steps.len(), 3, "{:?}", free.steps);
+    let opts = SelectionOptions {
+        max_steps: 1,
+        ..SelectionOptions::default()
+    };
+    let mut calls = Vec::new();
+    let s =
+        forward_select_with_progress(&toy, &all, &opts, &mut |st| calls.push(st.param)).unwrap();
+    assert_eq!(s.stop, SelectionStop::StepCap);
+    assert_eq!(s.steps.len(), 1);
+    assert_eq!(calls, vec![s.steps[0].param]);
+    assert_eq!(s.fit.params.len(), 1);
+}
+
 /// False-alarm rate on noise-only toy sessions, 400 seeds: `cargo test -p calib-core --lib
 /// identify -- --ignored --nocapture`. Must stay ≤ 5% (tolerance: binomial 2σ above 5% for
 /// 400 trials is 7.2%; we require the point estimate ≤ 5%).
