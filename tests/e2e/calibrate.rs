@@ -358,3 +358,42 @@ fn calibrate_warns_when_the_points_contradict_the_mounts() {
     let v = run_json(&["calibrate", path, "--mounts", "floor-floor", "--json"]);
     assert_eq!(v["mount_check"]["consistent"], true, "{v}");
 }
+
+/// Regression (issue 10, `repro/calibrate_huge_coords.csv`): six exact rigid pairs at about
+/// 1e153 mm made `lsq` return a NaN pose and the text printer panic (`index out of bounds`).
+/// The fit now rescales, so every method prints a finite pose and exits 0; the rotation is
+/// Rz(2 rad) = 114.5916° (file printed to 7 digits, so 1e-4° is its precision).
+#[test]
+fn calibrate_huge_coords() {
+    let f = write(
+        "r1_x_mm,r1_y_mm,r1_z_mm,r2_x_mm,r2_y_mm,r2_z_mm
+1.000000e+153,0.000000e+00,5.000000e+152,-4.161468e+152,-9.092974e+152,5.000000e+152
+0.000000e+00,1.000000e+153,5.000000e+152,9.092974e+152,-4.161468e+152,5.000000e+152
+5.000000e+152,5.000000e+152,1.200000e+153,2.465753e+152,-6.627221e+152,1.200000e+153
+6.000000e+152,2.000000e+152,9.000000e+152,-6.782862e+151,-6.288078e+152,9.000000e+152
+2.000000e+152,7.000000e+152,7.000000e+152,5.532788e+152,-4.731623e+152,7.000000e+152
+9.000000e+152,9.000000e+152,6.000000e+152,4.438355e+152,-1.192900e+153,6.000000e+152
+",
+    );
+    let path = f.path().to_str().unwrap();
+    for method in ["lsq", "generic", "generic-affine", "all"] {
+        let out = bin()
+            .args(["calibrate", path, "--method", method])
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{method}: {stdout}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(
+            stdout.contains("b1_from_b2:") && !stdout.contains("NaN"),
+            "{stdout}"
+        );
+    }
+    let v = run_json(&["calibrate", path, "--method", "lsq", "--json"]);
+    let zyz = v["b1_from_b2"]["zyz_deg"].as_array().unwrap();
+    let yaw = zyz[0].as_f64().unwrap() + zyz[2].as_f64().unwrap();
+    assert!((yaw - 2f64.to_degrees()).abs() < 1e-4, "{v}");
+}
