@@ -358,3 +358,126 @@ fn calibrate_warns_when_the_points_contradict_the_mounts() {
     let v = run_json(&["calibrate", path, "--mounts", "floor-floor", "--json"]);
     assert_eq!(v["mount_check"]["consistent"], true, "{v}");
 }
+
+/// Regression (issue 10, `repro/calibrate_huge_coords.csv`): six exact rigid pairs at about
+/// 1e153 mm made `lsq` return a NaN pose and the text printer panic (`index out of bounds`).
+/// The fit now rescales, so every method gives a finite pose: the file's 7-digit rounding leaves
+/// residuals of ~1e145 mm, so without --force the plausibility check refuses it with a message
+/// (no panic), and with --force it prints; the rotation is Rz(2 rad) = 114.5916° (1e-4° is the
+/// file's precision).
+#[test]
+fn calibrate_huge_coords() {
+    let f = write(
+        "r1_x_mm,r1_y_mm,r1_z_mm,r2_x_mm,r2_y_mm,r2_z_mm
+1.000000e+153,0.000000e+00,5.000000e+152,-4.161468e+152,-9.092974e+152,5.000000e+152
+0.000000e+00,1.000000e+153,5.000000e+152,9.092974e+152,-4.161468e+152,5.000000e+152
+5.000000e+152,5.000000e+152,1.200000e+153,2.465753e+152,-6.627221e+152,1.200000e+153
+6.000000e+152,2.000000e+152,9.000000e+152,-6.782862e+151,-6.288078e+152,9.000000e+152
+2.000000e+152,7.000000e+152,7.000000e+152,5.532788e+152,-4.731623e+152,7.000000e+152
+9.000000e+152,9.000000e+152,6.000000e+152,4.438355e+152,-1.192900e+153,6.000000e+152
+",
+    );
+    let path = f.path().to_str().unwrap();
+    let err = run_err(&["calibrate", path]);
+    assert!(err.contains("far beyond the alignment noise"), "{err}");
+    for method in ["lsq", "generic", "generic-affine", "all"] {
+        let out = bin()
+            .args(["calibrate", path, "--method", method, "--force"])
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{method}: {stdout}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(
+            stdout.contains("b1_from_b2:") && !stdout.contains("NaN"),
+            "{stdout}"
+        );
+    }
+    let v = run_json(&["calibrate", path, "--method", "lsq", "--json", "--force"]);
+    let zyz = v["b1_from_b2"]["zyz_deg"].as_array().unwrap();
+    let yaw = zyz[0].as_f64().unwrap() + zyz[2].as_f64().unwrap();
+    assert!((yaw - 2f64.to_degrees()).abs() < 1e-4, "{v}");
+}
+
+/// 12 exact floor–floor points (mm): robot 2's points and robot 1's (Rz(−44.5°), t = (37.9,
+/// 1476.5, 54.5) mm), with `b2_of_row` choosing robot 2's point for each row and `swap_xy2`
+/// swapping robot 2's x and y columns.
+fn misfit_csv(b2_of_row: impl Fn(usize) -> usize, swap_xy2: bool) -> tempfile::NamedTempFile {
+    let (t, yaw) = ([37.9, 1476.5, 54.5], (-44.5f64).to_radians());
+    let p_b2: Vec<[f64; 3]> = (0..12)
+        .map(|i| {
+            let a = i as f64 * 0.9;
+            [900.0 * a.cos(), 800.0 * a.sin(), 200.0 + 90.0 * i as f64]
+        })
+        .collect();
+    let mut text = String::from("r1_x_mm,r1_y_mm,r1_z_mm,r2_x_mm,r2_y_mm,r2_z_mm\n");
+    for (i, p) in p_b2.iter().enumerate() {
+        let (c, s) = (yaw.cos(), yaw.sin());
+        let q = [
+            c * p[0] - s * p[1] + t[0],
+            s * p[0] + c * p[1] + t[1],
+            p[2] + t[2],
+        ];
+        let mut r2 = p_b2[b2_of_row(i)];
+        if swap_xy2 {
+            r2.swap(0, 1);
+        }
+        text += &format!(
+            "{:.4},{:.4},{:.4},{:.4},{:.4},{:.4}\n",
+            q[0], q[1], q[2], r2[0], r2[1], r2[2]
+        );
+    }
+    write(&text)
+}
+
+/// Regression (issue 10): point pairs shifted by one row, or x/y swapped for one robot, gave
+/// residual RMS ~500 mm and exit 0 ("mount check: the points agree"). Now the fit fails naming
+/// the cause and the worst rows, for lsq and constrained; --force keeps the fit (warning on
+/// stderr); a raised --expected-noise-mm accepts it; valid points still pass.
+#[test]
+fn calibrate_shifted_rows_and_swapped_axes_fail_with_the_cause() {
+    let shifted = misfit_csv(|i| (i + 1) % 12, false);
+    let swapped = misfit_csv(|i| i, true);
+    let good = misfit_csv(|i| i, false);
+    for (file, cause) in [
+        (
+            &shifted,
+            "rows out of order: robot 1's row i matches robot 2's row i-1",
+        ),
+        (
+            &swapped,
+            "swapped axes: robot 2's x and y columns are swapped",
+        ),
+    ] {
+        let path = file.path().to_str().unwrap();
+        for extra in [&["--method", "lsq"][..], &["--mounts", "floor-floor"][..]] {
+            let mut args = vec!["calibrate", path];
+            args.extend_from_slice(extra);
+            let err = run_err(&args);
+            assert!(err.contains("far beyond the alignment noise"), "{err}");
+            assert!(err.contains(cause), "{extra:?}: {err}");
+            assert!(err.contains("worst rows: row "), "{err}");
+            args.push("--force");
+            let out = bin().args(&args).output().unwrap();
+            assert!(out.status.success());
+            assert!(String::from_utf8_lossy(&out.stderr).contains("kept by --force"));
+            assert!(String::from_utf8_lossy(&out.stdout).contains("b1_from_b2:"));
+        }
+        let out = bin()
+            .args(["calibrate", path, "--expected-noise-mm", "5000"])
+            .output()
+            .unwrap();
+        assert!(out.status.success());
+    }
+    let v = run_json(&["calibrate", good.path().to_str().unwrap(), "--json"]);
+    assert!(v["residual_rms_mm"].as_f64().unwrap() < 1e-3, "{v}");
+    let err = run_err(&[
+        "calibrate",
+        good.path().to_str().unwrap(),
+        "--expected-noise-mm=-1",
+    ]);
+    assert!(err.contains("--expected-noise-mm"), "{err}");
+}

@@ -160,4 +160,13 @@ pub enum CalibError {
         /// What is wrong.
         message: String,
     },
+    /// A fit produced no finite proper rotation and translation, even after centring and rescaling
+    /// the points (floating-point overflow or underflow: coordinates far outside any robot's reach).
+    #[error("method `{method}`: {message}. Fix: check the units and magnitudes of the coordinates (mm, within the robots' reach)")]
+    NumericalFailure {
+        /// The method that failed.
+        method: String,
+        /// What was not finite or not a rotation.
+        message: String,
+    },
 }

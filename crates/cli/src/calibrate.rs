@@ -9,8 +9,9 @@
 
 use anyhow::{bail, Context};
 use calib_core::{
-    constrained_soft, fit, leave_one_out, mount_check, read_points_csv, zyz_from_rotation, Fit,
-    Method, Mount, MountPair, PointPairs, MOUNT_CHECK_ALPHA,
+    constrained_soft, explain_misfit, fit, leave_one_out, median_residual_m, mount_check,
+    read_points_csv, zyz_from_rotation, Fit, Method, Mount, MountPair, PointPairs,
+    MOUNT_CHECK_ALPHA,
 };
 use serde_json::{json, Value};
 use std::path::PathBuf;
@@ -58,6 +59,14 @@ pub struct Args {
     /// Print one JSON object instead of the table.
     #[arg(long)]
     pub json: bool,
+    /// Expected handclasp alignment noise, mm: a fit whose median residual norm exceeds it fails
+    /// with the likely data mistake (rows out of order, swapped axes, wrong units, wrong robot
+    /// order) and the worst rows, unless --force is given.
+    #[arg(long, default_value_t = calib_core::DEFAULT_EXPECTED_NOISE_M * 1e3)]
+    pub expected_noise_mm: f64,
+    /// Keep a fit whose residuals exceed --expected-noise-mm (a warning is printed on stderr).
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Validated configuration.
@@ -68,6 +77,9 @@ struct Config {
     all: bool,
     json: bool,
     soft: Option<(f64, f64)>,
+    /// Expected alignment noise, m (`--expected-noise-mm`).
+    expected_noise_m: f64,
+    force: bool,
 }
 
 fn config(args: Args) -> anyhow::Result<Config> {
@@ -136,10 +148,18 @@ fn config(args: Args) -> anyhow::Result<Config> {
             Some((t.to_radians(), args.point_sigma_mm * 1e-3))
         }
     };
+    if !(args.expected_noise_mm.is_finite() && args.expected_noise_mm > 0.0) {
+        bail!(
+            "--expected-noise-mm {}: must be finite and > 0 (the handclasp alignment noise, mm)",
+            args.expected_noise_mm
+        );
+    }
     let points = args
         .points
         .context("give the points CSV (or --cell CELL --session SESSION)")?;
     Ok(Config {
+        expected_noise_m: args.expected_noise_mm * 1e-3,
+        force: args.force,
         soft,
         points,
         mounts,
@@ -172,7 +192,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for &m in &cfg.methods {
         let v = match fit_report(&pairs, m, &mounts, &cfg) {
             Ok(v) => v,
-            Err(e) => json!({"method": m.name(), "error": e.to_string()}),
+            Err(e) => json!({"method": m.name(), "error": format!("{e:#}")}),
         };
         methods.insert(m.name().to_string(), v);
     }
@@ -197,9 +217,10 @@ fn fit_report(
     method: Method,
     mounts: &MountPair,
     cfg: &Config,
-) -> Result<Value, calib_core::CalibError> {
+) -> anyhow::Result<Value> {
     let mut v = if let (Method::Constrained, Some((tilt_sigma, point_sigma))) = (method, cfg.soft) {
         let soft = constrained_soft(pairs, mounts, tilt_sigma, point_sigma)?;
+        plausible(pairs, &soft.fit, mounts, cfg)?;
         let mut v = report(pairs, &soft.fit, cfg.mounts.as_ref());
         v["soft_mount"] = json!({
             "tilt_sigma_deg": tilt_sigma.to_degrees(),
@@ -209,7 +230,9 @@ fn fit_report(
         });
         v
     } else {
-        report(pairs, &fit(pairs, method, mounts)?, cfg.mounts.as_ref())
+        let f = fit(pairs, method, mounts)?;
+        plausible(pairs, &f, mounts, cfg)?;
+        report(pairs, &f, cfg.mounts.as_ref())
     };
     if matches!(method, Method::Paper | Method::Constrained) && cfg.mounts.is_some() {
         // Fewer than 3 usable points already failed the fit above; anything else is reported.
@@ -228,6 +251,82 @@ fn fit_report(
         }
     }
     Ok(v)
+}
+
+/// Rows listed as the worst in a misfit error.
+const WORST_ROWS: usize = 5;
+
+/// Fails when the fit's median residual norm exceeds the expected alignment noise: such residuals
+/// come from a data mistake, not from noise. The error names each mistake whose correction, refitted,
+/// brings the median back below the noise ([`calib_core::explain_misfit`]; ties cannot be told apart
+/// and are listed together), and the worst rows. With `--force` it only warns on stderr. For the
+/// methods that impose mounts it fails only when the free rigid fit is implausible too (otherwise
+/// the mounts are wrong, and the mount check says so).
+fn plausible(pairs: &PointPairs, f: &Fit, mounts: &MountPair, cfg: &Config) -> anyhow::Result<()> {
+    let median = median_residual_m(f);
+    if median <= cfg.expected_noise_m {
+        return Ok(());
+    }
+    // With imposed mounts: if the free rigid fit agrees with the noise, the points are fine and
+    // the mounts are wrong, which the mount check reports (with its advice) instead.
+    if matches!(f.method, Method::Paper | Method::Constrained) {
+        if let Ok(free) = fit(pairs, Method::Lsq, mounts) {
+            if median_residual_m(&free) <= cfg.expected_noise_m {
+                return Ok(());
+            }
+        }
+    }
+    let mut worst: Vec<(usize, f64)> = f
+        .residuals
+        .iter()
+        .enumerate()
+        .map(|(i, r)| (pairs.row(i), r.norm()))
+        .collect();
+    worst.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let worst_txt = worst
+        .iter()
+        .take(WORST_ROWS)
+        .map(|(row, r)| format!("row {row} ({} mm)", mm_text(r * 1e3)))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let found = explain_misfit(pairs, f.method, mounts, cfg.expected_noise_m);
+    let cause = match found.first() {
+        Some(&(_, best)) => {
+            // Equal medians (to 1 %) are the same correction seen differently (e.g. any reflection
+            // of one robot's axes under a free rotation): list them together.
+            let tied: Vec<String> = found
+                .iter()
+                .filter(|c| c.1 <= best * 1.01 + 1e-12)
+                .map(|c| c.0.to_string())
+                .collect();
+            format!(
+                "likely cause (refitting with it corrected gives median {:.3} mm): {}",
+                best * 1e3,
+                tied.join("; or ")
+            )
+        }
+        None => "none of the checked causes explains it (rows shifted by ±1–3, one robot's axes swapped or negated, one robot ×1000 or ×0.001, robots swapped); check the recording and the mounts".into(),
+    };
+    let msg = format!(
+        "the residuals are far beyond the alignment noise: median |r| {} mm > expected {} mm (--expected-noise-mm), residual RMS {} mm; {cause}; worst rows: {worst_txt}. Fix the file, or raise --expected-noise-mm, or give --force to keep this fit",
+        mm_text(median * 1e3),
+        mm_text(cfg.expected_noise_m * 1e3),
+        mm_text(f.residual_rms_m() * 1e3)
+    );
+    if cfg.force {
+        eprintln!("WARNING ({}, kept by --force): {msg}", f.method.name());
+        return Ok(());
+    }
+    bail!("{msg}")
+}
+
+/// A length in mm for a message: 3 decimals, scientific notation from 1e6 mm.
+fn mm_text(v_mm: f64) -> String {
+    if v_mm.abs() < 1e6 {
+        format!("{v_mm:.3}")
+    } else {
+        format!("{v_mm:.3e}")
+    }
 }
 
 /// The text of a failed mount check: what the points say and what to do about it.

@@ -15,6 +15,7 @@ pub(super) enum Family {
 }
 
 pub(super) fn family(mounts: &MountPair) -> Result<Family, CalibError> {
+    mounts.validate()?;
     match (
         mounts.robot1.level_from_base(),
         mounts.robot2.level_from_base(),

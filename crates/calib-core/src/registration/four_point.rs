@@ -2,7 +2,7 @@
 //! the affine least squares for n > 4), the rotation from its 3×3 block (nearest rotation or the
 //! mounts' family), and the translation of eq (12).
 
-use super::checks::{check_pairs, spread_singular_values};
+use super::checks::{check_pairs, fit_rescued, spread_singular_values};
 use super::family::project_rotation_family;
 use super::method::{residuals, Fit, Method};
 use super::mount::MountPair;
@@ -12,7 +12,11 @@ use crate::points::PointPairs;
 use nalgebra::{DMatrix, Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3};
 
 /// Affine `H = A·Bᵀ(B·Bᵀ)⁻¹` (= `A·B⁻¹` for n = 4); returns H's 3×3 block and translation column.
-fn affine_lsq(pairs: &PointPairs) -> Option<(Matrix3<f64>, Vector3<f64>)> {
+/// Errors: `B·Bᵀ` singular (coplanar points), or H not finite (overflow).
+fn affine_lsq(
+    pairs: &PointPairs,
+    method: Method,
+) -> Result<(Matrix3<f64>, Vector3<f64>), CalibError> {
     let n = pairs.p_b1.len();
     let mut a = DMatrix::zeros(4, n);
     let mut b = DMatrix::zeros(4, n);
@@ -25,13 +29,16 @@ fn affine_lsq(pairs: &PointPairs) -> Option<(Matrix3<f64>, Vector3<f64>)> {
         b[(3, k)] = 1.0;
     }
     let bbt = &b * b.transpose();
-    let inv = bbt.try_inverse()?;
+    let inv = bbt.try_inverse().ok_or_else(|| coplanar_error(pairs))?;
     let h = &a * b.transpose() * inv;
     if !h.iter().all(|v| v.is_finite()) {
-        return None;
+        return Err(CalibError::NumericalFailure {
+            method: method.name().into(),
+            message: "the affine solve H = A·B⁻¹ overflowed".into(),
+        });
     }
     let m = Matrix3::from_fn(|i, j| h[(i, j)]);
-    Some((m, Vector3::new(h[(0, 3)], h[(1, 3)], h[(2, 3)])))
+    Ok((m, Vector3::new(h[(0, 3)], h[(1, 3)], h[(2, 3)])))
 }
 
 /// The affine `H = A·B⁻¹` of the 4-point generic method (A, B: homogeneous point columns).
@@ -94,13 +101,17 @@ fn coplanar_error(pairs: &PointPairs) -> CalibError {
 /// With n > 4 points H is the affine least-squares solution. Errors: fewer than 4 points,
 /// collinear or coplanar points, non-finite values.
 pub fn generic_4point(pairs: &PointPairs, affine_translation: bool) -> Result<Fit, CalibError> {
+    fit_rescued(pairs, |p| generic_4point_raw(p, affine_translation))
+}
+
+fn generic_4point_raw(pairs: &PointPairs, affine_translation: bool) -> Result<Fit, CalibError> {
     let method = if affine_translation {
         Method::GenericAffine
     } else {
         Method::Generic
     };
     check_pairs(pairs, method)?;
-    let (m, t_h) = affine_lsq(pairs).ok_or_else(|| coplanar_error(pairs))?;
+    let (m, t_h) = affine_lsq(pairs, method)?;
     let q = UnitQuaternion::from_rotation_matrix(&nearest_rotation(&m));
     let t = if affine_translation {
         t_h
@@ -122,8 +133,12 @@ pub fn generic_4point(pairs: &PointPairs, affine_translation: bool) -> Result<Fi
 /// eqs 16–21 floor–wall, the yaw closed form for known tilts), then eq (12).
 /// Errors: as [`generic_4point`], plus two wall mounts.
 pub fn paper_constrained(pairs: &PointPairs, mounts: &MountPair) -> Result<Fit, CalibError> {
+    fit_rescued(pairs, |p| paper_constrained_raw(p, mounts))
+}
+
+fn paper_constrained_raw(pairs: &PointPairs, mounts: &MountPair) -> Result<Fit, CalibError> {
     check_pairs(pairs, Method::Paper)?;
-    let (m, _) = affine_lsq(pairs).ok_or_else(|| coplanar_error(pairs))?;
+    let (m, _) = affine_lsq(pairs, Method::Paper)?;
     let q = UnitQuaternion::from_rotation_matrix(&project_rotation_family(&m, mounts)?);
     let t = translation_eq12(&pairs.p_b1, &pairs.p_b2, &q);
     let b1_from_b2 = Isometry3::from_parts(Translation3::from(t), q);

@@ -1,7 +1,7 @@
 //! Weighted rigid and installation-constrained least squares, with the covariance of the fit
 //! (see [`Uncertainty`]).
 
-use super::checks::{check_pairs, spread_singular_values};
+use super::checks::{check_pairs, fit_rescued, spread_singular_values};
 use super::family::{family_axes, project_rotation_family};
 use super::method::{residuals, Fit, Method, Uncertainty};
 use super::mount::MountPair;
@@ -191,6 +191,10 @@ pub(crate) fn build_uncertainty(
 /// assert!((fit.b1_from_b2.translation.vector - b1_from_b2.translation.vector).norm() < 1e-9);
 /// ```
 pub fn rigid_lsq(pairs: &PointPairs, weights: Option<&[f64]>) -> Result<Fit, CalibError> {
+    fit_rescued(pairs, |p| rigid_lsq_raw(p, weights))
+}
+
+fn rigid_lsq_raw(pairs: &PointPairs, weights: Option<&[f64]>) -> Result<Fit, CalibError> {
     check_pairs(pairs, Method::Lsq)?;
     let w = weights_checked(pairs, weights)?;
     let (c1, c2, m) = weighted_cross(pairs, &w);
@@ -226,6 +230,14 @@ pub struct ConstrainedOptions {
 /// the member maximising `tr(Rᵀ·M)` with M the weighted cross-covariance, and `T = c1 − R·c2`.
 /// Needs n ≥ 3 non-collinear points (the constraint would allow 2, but then nothing checks it).
 pub fn constrained_lsq(
+    pairs: &PointPairs,
+    mounts: &MountPair,
+    options: &ConstrainedOptions,
+) -> Result<Fit, CalibError> {
+    fit_rescued(pairs, |p| constrained_lsq_raw(p, mounts, options))
+}
+
+fn constrained_lsq_raw(
     pairs: &PointPairs,
     mounts: &MountPair,
     options: &ConstrainedOptions,

@@ -15,7 +15,8 @@ pub enum Mount {
     /// The paper's wall family: base z horizontal, roll about it unknown (two free angles).
     Wall,
     /// A known tilt: `level_from_base = Rx(rx)·Ry(ry)`, radians (a wall with known roll is
-    /// `Tilt { rx: ±90°, ry }`, an inclined pedestal a small tilt).
+    /// `Tilt { rx: ±90°, ry }`, an inclined pedestal a small tilt). Both angles must be finite:
+    /// [`Mount::validate`] (called by every fit that uses the mounts) refuses NaN or ±∞.
     Tilt {
         /// Rotation about the level x axis, rad.
         rx: f64,
@@ -36,6 +37,21 @@ impl Mount {
                     * Rotation3::from_axis_angle(&Vector3::y_axis(), ry),
             ),
         }
+    }
+
+    /// Checks that a [`Mount::Tilt`]'s angles are finite (a NaN or infinite angle gives no
+    /// rotation). Errors: [`CalibError::InvalidOption`] naming the angle.
+    pub fn validate(&self) -> Result<(), CalibError> {
+        if let Mount::Tilt { rx, ry } = *self {
+            if !rx.is_finite() || !ry.is_finite() {
+                return Err(CalibError::InvalidOption {
+                    name: "mount".into(),
+                    value: format!("Tilt {{ rx: {rx}, ry: {ry} }} (rad)"),
+                    message: "tilt angles must be finite; give the mount's measured tilt".into(),
+                });
+            }
+        }
+        Ok(())
     }
 
     /// Parses `floor`, `ceiling`, `wall` or `tilt:RX,RY` (degrees). The error text says what is accepted.
@@ -122,6 +138,12 @@ impl MountPair {
             robot2: Mount::Ceiling,
         }
     }
+    /// Checks both mounts ([`Mount::validate`]).
+    pub fn validate(&self) -> Result<(), CalibError> {
+        self.robot1.validate()?;
+        self.robot2.validate()
+    }
+
     /// Parses `floor-floor`, `floor-wall` or `floor-ceiling` (the paper's three cells).
     pub fn parse_paper(text: &str) -> Result<Self, CalibError> {
         match text.trim().to_ascii_lowercase().as_str() {

@@ -535,3 +535,136 @@ fn fit_fast_matches_fit_for_every_method() {
     assert!(fit_fast(Method::Paper, &MountPair::floor_floor(), &p, &p).is_none());
     assert!(fit_fast(Method::Lsq, &MountPair::floor_floor(), &p, &p[..2]).is_none());
 }
+
+/// The points of `repro/calibrate_huge_coords.csv` (issue 10): six exact rigid pairs at about
+/// 1e153 mm (given here in m). The plain cross-covariance overflows (‖M‖²_F ≈ 1e600).
+fn huge_coords_pairs() -> PointPairs {
+    let rows: [[f64; 6]; 6] = [
+        [1.0e153, 0.0, 5.0e152, -4.161468e152, -9.092974e152, 5.0e152],
+        [0.0, 1.0e153, 5.0e152, 9.092974e152, -4.161468e152, 5.0e152],
+        [
+            5.0e152,
+            5.0e152,
+            1.2e153,
+            2.465753e152,
+            -6.627221e152,
+            1.2e153,
+        ],
+        [
+            6.0e152,
+            2.0e152,
+            9.0e152,
+            -6.782862e151,
+            -6.288078e152,
+            9.0e152,
+        ],
+        [
+            2.0e152,
+            7.0e152,
+            7.0e152,
+            5.532788e152,
+            -4.731623e152,
+            7.0e152,
+        ],
+        [
+            9.0e152,
+            9.0e152,
+            6.0e152,
+            4.438355e152,
+            -1.1929e153,
+            6.0e152,
+        ],
+    ];
+    let p = |v: &[f64]| Point3::new(v[0], v[1], v[2]) * 1e-3;
+    PointPairs::new(
+        rows.iter().map(|r| p(&r[..3])).collect(),
+        rows.iter().map(|r| p(&r[3..])).collect(),
+    )
+    .unwrap()
+}
+
+/// Asserts that `f` is a finite proper rotation (orthonormal, det +1) to `tol`.
+fn assert_proper_rotation(f: &Fit, tol: f64) {
+    let r = f.b1_from_b2.rotation.to_rotation_matrix().into_inner();
+    assert!(r.iter().all(|v| v.is_finite()), "{} {r}", f.method.name());
+    assert!((r.transpose() * r - Matrix3::identity()).amax() < tol);
+    assert!((r.determinant() - 1.0).abs() < tol);
+    assert!(f
+        .b1_from_b2
+        .translation
+        .vector
+        .iter()
+        .all(|v| v.is_finite()));
+    assert!(f.residuals.iter().all(|v| v.iter().all(|c| c.is_finite())));
+}
+
+/// Regression (issue 10, `calibrate_huge_coords.csv`): `lsq` returned Ok with a NaN pose. Every
+/// method now returns a finite proper rotation, found by rescaling: the file's rotation is
+/// Rz(2 rad) (its b2 points are Rz(−2)·p_b1, printed to 7 digits, hence the 1e-6 rad tolerance),
+/// and every residual is small relative to the 1e150 m coordinates.
+#[test]
+fn calibrate_huge_coords() {
+    let pairs = huge_coords_pairs();
+    let truth = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 2.0);
+    for method in Method::ALL {
+        let f = fit(&pairs, method, &MountPair::floor_floor()).unwrap();
+        assert_proper_rotation(&f, 1e-9);
+        let angle = f.b1_from_b2.rotation.angle_to(&truth);
+        assert!(angle < 1e-6, "{}: {angle}", method.name());
+        assert!(f.residual_rms_m() < 1e144, "{}", method.name());
+    }
+}
+
+/// Regression (issue 10): a NaN or infinite tilt angle gave Ok with an all-NaN rotation from
+/// `constrained`; such a mount is now refused by name, for every method that uses mounts.
+#[test]
+fn tilt_mount_nan_or_infinite_is_refused() {
+    let pairs = pairs_for(&Isometry3::identity(), &cloud(6, 3));
+    for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+        let mounts = MountPair {
+            robot1: Mount::Floor,
+            robot2: Mount::Tilt { rx: bad, ry: 0.1 },
+        };
+        assert!(mounts.validate().is_err());
+        for method in [Method::Constrained, Method::Paper] {
+            let e = fit(&pairs, method, &mounts).unwrap_err();
+            assert!(
+                matches!(e, CalibError::InvalidOption { .. }) && e.to_string().contains("finite"),
+                "{e}"
+            );
+        }
+    }
+    assert!(Mount::parse("tilt:nan,0").is_err());
+    assert!(Mount::parse("tilt:inf,0").is_err());
+}
+
+/// Orthonormality and det +1 tolerance of the property below (round-off on a 3×3 rotation).
+const PROPER_ROTATION_TOL: f64 = 1e-9;
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// Any Ok fit is a finite proper rotation: arbitrary finite point sets (4–8 pairs, unrelated
+    /// b1 and b2 points), coordinates in [−1, 1] times 10^e with e from −150 to 150 per robot, for
+    /// every method and every paper mount pair; each fit either errors or passes the check.
+    #[test]
+    fn any_ok_fit_is_a_finite_proper_rotation(
+        raw in proptest::collection::vec(proptest::array::uniform6(-1.0..1.0f64), 4..9),
+        e1 in -150i32..150, e2 in -150i32..150,
+    ) {
+        let (s1, s2) = (10f64.powi(e1), 10f64.powi(e2));
+        let p_b1 = raw.iter().map(|r| Point3::new(r[0], r[1], r[2]) * s1).collect();
+        let p_b2 = raw.iter().map(|r| Point3::new(r[3], r[4], r[5]) * s2).collect();
+        let pairs = PointPairs::new(p_b1, p_b2).unwrap();
+        for mounts in [MountPair::floor_floor(), MountPair::floor_wall(), MountPair::floor_ceiling()] {
+            for method in Method::ALL {
+                if let Ok(f) = fit(&pairs, method, &mounts) {
+                    let r = f.b1_from_b2.rotation.to_rotation_matrix().into_inner();
+                    prop_assert!(r.iter().all(|v| v.is_finite()), "{}", method.name());
+                    prop_assert!((r.transpose() * r - Matrix3::identity()).amax() < PROPER_ROTATION_TOL);
+                    prop_assert!((r.determinant() - 1.0).abs() < PROPER_ROTATION_TOL);
+                    prop_assert!(f.b1_from_b2.translation.vector.iter().all(|v| v.is_finite()));
+                }
+            }
+        }
+    }
+}
