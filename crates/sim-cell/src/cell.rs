@@ -5,7 +5,7 @@
 //! One job: turning a cell file into a checked [`Cell`] and back. The TOML schema, the checks that
 //! make a cell physically possible (robot 2's declared mount against the gravity direction implied
 //! by `b1_from_b2`, robot 1 not on a wall) and the writer all serve that job; its tests take the
-//! last ~150 lines.
+//! last ~230 lines.
 
 use crate::error::SimError;
 use crate::placement::Placement;

@@ -1,6 +1,8 @@
 #![doc = include_str!("../README.md")]
 
 pub mod cell;
+#[cfg(feature = "cli")]
+pub mod cli_support;
 mod error;
 pub mod layout;
 pub mod paper;

@@ -154,7 +154,7 @@ struct SweepArgs {
 }
 
 fn main() -> ExitCode {
-    exit_quietly_on_broken_pipe();
+    sim_cell::cli_support::exit_quietly_on_broken_pipe();
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -368,28 +368,6 @@ fn sweep_cmd(a: SweepArgs) -> Result<()> {
         println!("wrote {}", p.display());
     }
     Ok(())
-}
-
-/// Ends the process quietly with exit 0 when printing fails because stdout was closed early
-/// (`sim-cell … | head`): the reader has what it wanted, so no broken-pipe panic (exit 101). Every
-/// other panic goes to the default hook. (`print!` panics on a failed write; SIGPIPE stays ignored,
-/// as Rust sets it, so the write error is what is seen here.)
-fn exit_quietly_on_broken_pipe() {
-    let default_hook = std::panic::take_hook();
-    std::panic::set_hook(Box::new(move |info| {
-        let payload = info.payload();
-        let message = payload
-            .downcast_ref::<String>()
-            .map(String::as_str)
-            .or_else(|| payload.downcast_ref::<&str>().copied())
-            .unwrap_or("");
-        if message.starts_with("failed printing to stdout")
-            && message.to_ascii_lowercase().contains("broken pipe")
-        {
-            std::process::exit(0);
-        }
-        default_hook(info);
-    }));
 }
 
 /// Parses `X,Y,Z` (mm, any of them negative) for `--centre-mm`; the message says what was given and
