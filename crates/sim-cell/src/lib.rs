@@ -7,6 +7,7 @@ mod error;
 pub mod layout;
 pub mod paper;
 pub mod placement;
+pub mod plan;
 pub mod plot;
 pub mod session;
 pub mod sweep;

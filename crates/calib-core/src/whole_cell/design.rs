@@ -1,11 +1,21 @@
 //! Greedy experiment design: choose observations that minimise the predicted cooperative error
 //! (A-optimal) or maximise the information volume (D-optimal), by rank-k Woodbury updates.
 
-use nalgebra::DMatrix;
+use kinematics::Axis;
+use nalgebra::{DMatrix, Isometry3, Matrix6, Translation3, UnitQuaternion, Vector3, Vector6};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
 use serde::Serialize;
 
 use super::accuracy::ConfigPair;
-use super::{CellEstimate, CellFitError, CellProblem, Evaluator, Observation, ParamLayout};
+use super::{
+    CellEstimate, CellFitError, CellParam, CellProblem, Evaluator, Observation, ParamLayout,
+};
+
+/// Seeded draws of the placement error behind [`DesignPrediction::e_tran_m`] and
+/// [`DesignPrediction::e_rot_rad`].
+pub const PLACEMENT_DRAWS: usize = 2000;
 
 /// σ of the weak prior put on the unpenalised unknowns (placement, nuisances) so that the
 /// design's information matrix is invertible before any observation: 10 (m or rad). Its
@@ -203,6 +213,19 @@ pub fn design_criterion(
             candidates.len()
         )));
     }
+    let (s, info, sigma) = subset_posterior(problem, layout, at, candidates, chosen, eval_pairs)?;
+    Ok(criterion_value(criterion, &sigma, &info, &s.m))
+}
+
+/// `(setup, information, covariance)` of the chosen subset (indices checked by the caller).
+fn subset_posterior(
+    problem: &CellProblem,
+    layout: &ParamLayout,
+    at: &CellEstimate,
+    candidates: &[Observation],
+    chosen: &[usize],
+    eval_pairs: &[ConfigPair],
+) -> Result<(DesignSetup, DMatrix<f64>, DMatrix<f64>), CellFitError> {
     let picked: Vec<Observation> = chosen.iter().map(|&c| candidates[c].clone()).collect();
     let s = setup(problem, layout, at, &picked, eval_pairs)?;
     let mut info = s.info0.clone();
@@ -210,5 +233,92 @@ pub fn design_criterion(
         info += b.transpose() * b;
     }
     let (sigma, _) = super::solve::sym_inverse(&info);
-    Ok(criterion_value(criterion, &sigma, &info, &s.m))
+    Ok((s, info, sigma))
+}
+
+/// What a design predicts for the calibration of its observations (linearised at the design's
+/// estimate, the posterior covariance `Σ = A⁻¹` of the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct DesignPrediction {
+    /// Predicted cooperative rms over the evaluation pairs, `sqrt(mean_k trace(J_v,k·Σ·J_v,kᵀ))`,
+    /// m (the A criterion).
+    pub cooperative_rms_m: f64,
+    /// Predicted rms of the paper's `e_tran` (eq 34: largest |component| of the translation
+    /// error of `b1_from_b2`), m, over [`PLACEMENT_DRAWS`] seeded draws of the placement error
+    /// from its 6×6 posterior block.
+    pub e_tran_m: f64,
+    /// Predicted rms of the paper's `e_rot` (eq 33, largest |ZYZ angle difference|), rad, over
+    /// the same draws.
+    pub e_rot_rad: f64,
+    /// `log det A` of the posterior information (the D criterion), dimensionless.
+    pub log_det_info: f64,
+}
+
+/// The prediction of a given subset `chosen` of `candidates` ([`DesignPrediction`]): the
+/// cooperative rms over `eval_pairs` (A), the placement's predicted `e_tran`/`e_rot` (seeded
+/// draws, `seed`; the placement's true value taken as `at.b1_from_b2`) and `log det` (D).
+///
+/// Errors: an index out of range, no evaluation pairs, or as [`greedy_design`].
+pub fn design_prediction(
+    problem: &CellProblem,
+    layout: &ParamLayout,
+    at: &CellEstimate,
+    candidates: &[Observation],
+    chosen: &[usize],
+    eval_pairs: &[ConfigPair],
+    seed: u64,
+) -> Result<DesignPrediction, CellFitError> {
+    if let Some(&bad) = chosen.iter().find(|&&c| c >= candidates.len()) {
+        return Err(CellFitError::InvalidInput(format!(
+            "design: candidate index {bad} is out of range ({} candidates)",
+            candidates.len()
+        )));
+    }
+    if eval_pairs.is_empty() {
+        return Err(CellFitError::InvalidInput(
+            "design: the cooperative prediction needs evaluation pairs".into(),
+        ));
+    }
+    let (s, info, sigma) = subset_posterior(problem, layout, at, candidates, chosen, eval_pairs)?;
+    // Placement block: columns of ρ (translation) then φ (rotation), b1 axes.
+    let mut cols = [0usize; 6];
+    for (k, axis) in Axis::ALL.into_iter().enumerate() {
+        let missing = || {
+            CellFitError::InvalidInput(
+                "design: the layout does not fit b1_from_b2 (placement columns missing)".into(),
+            )
+        };
+        cols[k] = layout
+            .column(&CellParam::PlacementTranslation { axis })
+            .ok_or_else(missing)?;
+        cols[k + 3] = layout
+            .column(&CellParam::PlacementRotation { axis })
+            .ok_or_else(missing)?;
+    }
+    let block = Matrix6::from_fn(|a, b| sigma[(cols[a], cols[b])]);
+    let eig = block.symmetric_eigen();
+    let root = eig.eigenvectors * Matrix6::from_diagonal(&eig.eigenvalues.map(|e| e.max(0.0).sqrt()));
+    let x = at.b1_from_b2;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let (mut sum_t, mut sum_r) = (0.0, 0.0);
+    for _ in 0..PLACEMENT_DRAWS {
+        let z = Vector6::from_fn(|_, _| StandardNormal.sample(&mut rng));
+        let d = root * z;
+        // The left perturbation of the module documentation: X ← Translation(ρ)·Rotation(φ)·X.
+        let est = Isometry3::from_parts(Translation3::from(Vector3::new(d[0], d[1], d[2])), UnitQuaternion::identity())
+            * Isometry3::from_parts(
+                Translation3::identity(),
+                UnitQuaternion::from_scaled_axis(Vector3::new(d[3], d[4], d[5])),
+            )
+            * x;
+        sum_t += crate::e_tran(&x, &est).powi(2);
+        sum_r += crate::e_rot(&x, &est).powi(2);
+    }
+    let draws = PLACEMENT_DRAWS as f64;
+    Ok(DesignPrediction {
+        cooperative_rms_m: criterion_value(DesignCriterion::CooperativeA, &sigma, &info, &s.m),
+        e_tran_m: (sum_t / draws).sqrt(),
+        e_rot_rad: (sum_r / draws).sqrt(),
+        log_det_info: criterion_value(DesignCriterion::D, &sigma, &info, &s.m),
+    })
 }

@@ -119,7 +119,8 @@ pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
 pub use calibrate::{calibrate_cell, CalibrationReport, CellCalibration};
 pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool};
 pub use design::{
-    design_criterion, greedy_design, DesignCriterion, DesignResult, WEAK_PRIOR_SIGMA,
+    design_criterion, design_prediction, greedy_design, DesignCriterion, DesignPrediction,
+    DesignResult, PLACEMENT_DRAWS, WEAK_PRIOR_SIGMA,
 };
 pub use layout::{
     tangent_basis, CellEstimate, CellParam, ParamLayout, PlaneEstimate, RobotCorrection,

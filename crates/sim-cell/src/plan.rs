@@ -1,0 +1,371 @@
+//! Session planning: choose `n` handclasp poses, from `k` seeded reachable candidates, that
+//! minimise the predicted cooperative error of the whole-cell calibration (A-optimal) or maximise
+//! its information volume (D-optimal), with the cell's `[robotN.tolerance]` as the prior and its
+//! `[noise]` as the noise ([`calib_core::whole_cell::greedy_design`]).
+//!
+//! # Candidates
+//! Candidate `i` is a meeting point drawn uniformly in a cube of side `spread_m` around the teach
+//! centre by [`trial_rng`]`(seed, i)` and simulated as `sim-cell session` places a handclasp
+//! ([`generate_session`] with that one explicit point) on the cell's **nominal** robots with no
+//! noise: both robots reach it head-on, from the first approach direction of the session
+//! generator's list that both reach within their joint limits. Points neither robot pair
+//! reaches are skipped; at most [`ATTEMPTS_PER_CANDIDATE`]`·k` points are drawn. The tip is not
+//! checked for collision with its own links (not modelled).
+//!
+//! # Prediction
+//! The cooperative error is predicted over the cross pairs `(q1_i, q2_j)` of
+//! [`EVAL_POSES`] further reachable poses (streams after the candidates' attempts: held out from
+//! the candidates), linearised at the nominal cell. The plan is compared with
+//! [`PlanSpec::random_draws`] random picks of `n` of the same candidates (seeded); the report
+//! gives their mean.
+
+use calib_core::whole_cell::{
+    design_prediction, greedy_design, CellEstimate, CellFitError, ConfigPair, DesignCriterion,
+    DesignPrediction, ParamLayout,
+};
+use kinematics::KinematicErrors;
+use nalgebra::{Point3, Vector3};
+use rand::Rng;
+use rayon::prelude::*;
+
+use crate::cell::Cell;
+use crate::error::SimError;
+use crate::session::{generate_session, Session, SessionPoint, SessionSpec};
+use crate::trial_rng;
+use crate::whole_cell::{cell_problem, FitModel};
+use crate::Layout;
+
+/// Draws per wanted candidate before giving up (`k` candidates: at most `4·k` points tried).
+pub const ATTEMPTS_PER_CANDIDATE: usize = 4;
+/// Held-out reachable poses whose cross pairs (`EVAL_POSES²`) carry the cooperative prediction.
+pub const EVAL_POSES: usize = 20;
+/// Default number of random picks the plan is compared with.
+pub const DEFAULT_RANDOM_DRAWS: usize = 20;
+/// Seed of the placement draws behind the predicted `e_tran`/`e_rot`.
+const PREDICTION_SEED: u64 = 7;
+/// Points drawn per parallel batch (progress is reported between batches).
+const BATCH: usize = 32;
+/// Stream offset of the random picks, far from any candidate or evaluation stream.
+const RANDOM_STREAM: u64 = 1 << 40;
+
+/// What to plan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanSpec {
+    /// Poses to choose (≥ 1).
+    pub n: usize,
+    /// Reachable candidates to choose from (≥ `n`).
+    pub candidates: usize,
+    /// A (cooperative accuracy) or D (information volume).
+    pub criterion: DesignCriterion,
+    /// Seed of the candidates, the evaluation poses and the random picks.
+    pub seed: u64,
+    /// Side of the candidates' cube, m.
+    pub spread_m: f64,
+    /// Centre of the cube, m, b1 (`None`: the cell's teach centre).
+    pub centre_b1: Option<Point3<f64>>,
+    /// Random picks of `n` candidates the plan is compared with (≥ 1).
+    pub random_draws: usize,
+}
+
+impl PlanSpec {
+    /// `n` of `candidates` for `criterion`, seed 1, a 1 m cube around the cell's teach centre,
+    /// [`DEFAULT_RANDOM_DRAWS`] random picks.
+    pub fn new(n: usize, candidates: usize, criterion: DesignCriterion) -> Self {
+        PlanSpec {
+            n,
+            candidates,
+            criterion,
+            seed: 1,
+            spread_m: 1.0,
+            centre_b1: None,
+            random_draws: DEFAULT_RANDOM_DRAWS,
+        }
+    }
+}
+
+/// A planned session.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// The chosen poses in the order chosen, numbered 1..n: joints (rad) and nominal tips (m).
+    pub session: Session,
+    /// Index of each chosen pose among the candidates.
+    pub chosen: Vec<usize>,
+    /// The reachable candidates (poses numbered by candidate index + 1).
+    pub candidates: Vec<SessionPoint>,
+    /// Points drawn to find them.
+    pub attempts: usize,
+    /// The held-out evaluation pairs of the prediction.
+    pub eval_pairs: Vec<ConfigPair>,
+    /// The plan's prediction.
+    pub predicted: DesignPrediction,
+    /// Mean over the random picks of each field of their predictions.
+    pub random_mean: DesignPrediction,
+    /// Each random pick's prediction.
+    pub random: Vec<DesignPrediction>,
+}
+
+/// The cell with nominal robots (no `[robotN.errors]`) and no noise: where candidates are placed.
+fn nominal(cell: &Cell) -> Cell {
+    let mut c = cell.clone();
+    for r in [&mut c.robot1, &mut c.robot2] {
+        r.errors = KinematicErrors::zero(r.model.dof());
+    }
+    c.noise.alignment_m = Vector3::zeros();
+    c.noise.repeatability_m = 0.0;
+    c.noise.encoder_resolution_rad = 0.0;
+    c
+}
+
+/// One attempt: the point of stream `stream` and the pose placing it, if both robots reach it.
+fn attempt(nominal: &Cell, centre: &Point3<f64>, spread_m: f64, seed: u64, stream: u64) -> Option<SessionPoint> {
+    let mut rng = trial_rng(seed, stream);
+    let p = crate::teach_points(Layout::Random, 1, spread_m, centre, &mut rng)[0];
+    let spec = SessionSpec {
+        points_b1: Some(vec![p]),
+        ..SessionSpec::new(1, Layout::Random, spread_m)
+    };
+    generate_session(nominal, &spec, &mut rng)
+        .ok()
+        .and_then(|s| s.points.into_iter().next())
+}
+
+/// Up to `count` reachable poses of the nominal cell, drawn from streams `first_stream..` (at most
+/// `max_attempts` draws), in stream order; `progress(found, drawn)` after each batch. Returns the
+/// poses (numbered 1..) and the draws used. Deterministic whatever the thread count.
+pub fn reachable_poses(
+    cell: &Cell,
+    count: usize,
+    spread_m: f64,
+    centre_b1: &Point3<f64>,
+    seed: u64,
+    first_stream: u64,
+    max_attempts: usize,
+    progress: &mut dyn FnMut(usize, usize),
+) -> (Vec<SessionPoint>, usize) {
+    let nominal = nominal(cell);
+    let mut out = Vec::with_capacity(count);
+    let mut drawn = 0;
+    while out.len() < count && drawn < max_attempts {
+        let batch = BATCH.min(max_attempts - drawn);
+        let found: Vec<Option<SessionPoint>> = (drawn..drawn + batch)
+            .into_par_iter()
+            .map(|i| attempt(&nominal, centre_b1, spread_m, seed, first_stream + i as u64))
+            .collect();
+        for p in found.into_iter().flatten() {
+            if out.len() < count {
+                out.push(p);
+            }
+        }
+        drawn += batch;
+        progress(out.len(), drawn);
+    }
+    for (i, p) in out.iter_mut().enumerate() {
+        p.point = i + 1;
+    }
+    (out, drawn)
+}
+
+fn plan_error(e: CellFitError) -> SimError {
+    SimError::InvalidInput(format!("planning: {e}"))
+}
+
+/// Plans a session on `cell` (see the module documentation); `progress(found, drawn)` reports
+/// the candidate search (the long part for large `k`).
+///
+/// Errors: `n` = 0, `n` > `k`, no random draws, a non-positive spread; fewer than `n`
+/// reachable candidates (naming how many were found and what to change); a cell none of whose
+/// drawn points both robots reach.
+pub fn plan_session(
+    cell: &Cell,
+    spec: &PlanSpec,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Plan, SimError> {
+    if spec.n == 0 {
+        return Err(SimError::InvalidSetting {
+            field: "n",
+            message: "is 0: plan at least 1 pose (40 is a good session)".into(),
+        });
+    }
+    if spec.n > spec.candidates {
+        return Err(SimError::InvalidSetting {
+            field: "n",
+            message: format!(
+                "{} is more than the {} candidates: give at least as many candidates as poses (e.g. {})",
+                spec.n,
+                spec.candidates,
+                5 * spec.n
+            ),
+        });
+    }
+    if spec.random_draws == 0 {
+        return Err(SimError::InvalidSetting {
+            field: "random_draws",
+            message: "is 0: compare with at least 1 random pick".into(),
+        });
+    }
+    if !(spec.spread_m.is_finite() && spec.spread_m > 0.0) {
+        return Err(SimError::InvalidSetting {
+            field: "spread_m",
+            message: format!("{} m must be a positive length (e.g. 1 m)", spec.spread_m),
+        });
+    }
+    let centre = spec.centre_b1.unwrap_or(cell.centre_b1);
+    let max_attempts = ATTEMPTS_PER_CANDIDATE * spec.candidates;
+    let (candidates, attempts) = reachable_poses(
+        cell,
+        spec.candidates,
+        spec.spread_m,
+        &centre,
+        spec.seed,
+        0,
+        max_attempts,
+        progress,
+    );
+    let c_mm = centre * 1e3;
+    let hint = format!(
+        "reduce the spread ({:.0} mm) or move the centre ({:.0}, {:.0}, {:.0}) mm into the common workspace",
+        spec.spread_m * 1e3,
+        c_mm.x,
+        c_mm.y,
+        c_mm.z
+    );
+    if candidates.is_empty() {
+        return Err(SimError::Unreachable {
+            point: 1,
+            p_b1_mm: [c_mm.x, c_mm.y, c_mm.z],
+            message: format!(
+                "none of {attempts} points drawn in the {:.0} mm cube around the centre is reached head-on by both robots; {hint}",
+                spec.spread_m * 1e3
+            ),
+        });
+    }
+    if candidates.len() < spec.n {
+        return Err(SimError::InvalidInput(format!(
+            "only {} of {attempts} drawn points are reached by both robots, fewer than the {} poses asked; \
+             {hint}, or plan fewer poses",
+            candidates.len(),
+            spec.n
+        )));
+    }
+    // Held-out evaluation poses: the streams after every candidate attempt.
+    let (eval, _) = reachable_poses(
+        cell,
+        EVAL_POSES,
+        spec.spread_m,
+        &centre,
+        spec.seed,
+        max_attempts as u64,
+        ATTEMPTS_PER_CANDIDATE * EVAL_POSES,
+        &mut |_, _| {},
+    );
+    if eval.is_empty() {
+        return Err(SimError::InvalidInput(format!(
+            "no evaluation pose is reached by both robots; {hint}"
+        )));
+    }
+    let eval_pairs: Vec<ConfigPair> = eval
+        .iter()
+        .flat_map(|a| {
+            eval.iter().map(|b| ConfigPair {
+                q1: a.q1.clone(),
+                q2: b.q2.clone(),
+                tool1: 0,
+                tool2: 0,
+            })
+        })
+        .collect();
+    let problem = cell_problem(
+        cell,
+        &Session {
+            points: candidates.clone(),
+        },
+        FitModel::Kinematic,
+    );
+    problem.check().map_err(plan_error)?;
+    let layout = ParamLayout::new(&problem, &[]);
+    let at = CellEstimate::nominal(&problem, cell.b1_from_b2);
+    let obs = &problem.observations;
+    let design = greedy_design(
+        &problem,
+        &layout,
+        &at,
+        obs,
+        &eval_pairs,
+        spec.n,
+        spec.criterion,
+    )
+    .map_err(plan_error)?;
+    let predict = |chosen: &[usize]| {
+        design_prediction(
+            &problem,
+            &layout,
+            &at,
+            obs,
+            chosen,
+            &eval_pairs,
+            PREDICTION_SEED,
+        )
+        .map_err(plan_error)
+    };
+    let predicted = predict(&design.chosen)?;
+    let random = (0..spec.random_draws)
+        .map(|d| {
+            let mut rng = trial_rng(spec.seed, RANDOM_STREAM + d as u64);
+            let pick = rand::seq::index::sample(&mut rng, candidates.len(), spec.n).into_vec();
+            predict(&pick)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let mean = |f: &dyn Fn(&DesignPrediction) -> f64| {
+        random.iter().map(f).sum::<f64>() / random.len() as f64
+    };
+    let random_mean = DesignPrediction {
+        cooperative_rms_m: mean(&|p| p.cooperative_rms_m),
+        e_tran_m: mean(&|p| p.e_tran_m),
+        e_rot_rad: mean(&|p| p.e_rot_rad),
+        log_det_info: mean(&|p| p.log_det_info),
+    };
+    let points = design
+        .chosen
+        .iter()
+        .enumerate()
+        .map(|(k, &c)| SessionPoint {
+            point: k + 1,
+            ..candidates[c].clone()
+        })
+        .collect();
+    Ok(Plan {
+        session: Session { points },
+        chosen: design.chosen,
+        candidates,
+        attempts,
+        eval_pairs,
+        predicted,
+        random_mean,
+        random,
+    })
+}
+
+/// Draws `truth`'s kinematic errors from its tolerances: every parameter the whole-cell fit
+/// estimates (tolerance > 0) and the tip offset from `U(±tolerance)` (the band of
+/// [`calib_core::whole_cell::Tolerance`]), seeded by `rng`. For studies of planned sessions.
+pub fn draw_errors_from_tolerance(truth: &mut Cell, rng: &mut impl Rng) {
+    let problem = cell_problem(truth, &Session { points: vec![] }, FitModel::Kinematic);
+    for (r, wr) in [
+        (&mut truth.robot1, &problem.robot1),
+        (&mut truth.robot2, &problem.robot2),
+    ] {
+        let mut e = KinematicErrors::zero(r.model.dof());
+        for p in wr.fitted_params() {
+            let tol = wr.tolerance.prior_sigma(p) * 3f64.sqrt();
+            e.set(p, rng.random_range(-tol..=tol));
+        }
+        let tip = wr.tolerance.tip_m;
+        if tip > 0.0 {
+            e.tip = Vector3::from_fn(|_, _| rng.random_range(-tip..=tip));
+        }
+        r.errors = e;
+    }
+}
+
+#[cfg(test)]
+mod tests;
