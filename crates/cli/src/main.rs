@@ -14,6 +14,7 @@ mod fk;
 mod ik;
 mod paper;
 mod paper_diagnose;
+mod plan;
 
 /// Calibrate the base frames of two cooperating robots from handclasp points.
 ///
@@ -39,6 +40,8 @@ enum Command {
     Paper(paper::Command),
     /// Find what the nominal models get wrong in a measured session, name the cause, and measure the gain.
     Diagnose(diagnose::Args),
+    /// Plan a session: the N handclasp poses that calibrate the whole cell best, as a session CSV to teach from.
+    Plan(plan::Args),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -48,6 +51,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Calibrate(args) => calibrate::run(args),
         Command::Paper(cmd) => paper::run(cmd),
         Command::Diagnose(args) => diagnose::run(args),
+        Command::Plan(args) => plan::run(args),
     }
 }
 

@@ -1,5 +1,6 @@
-//! The diagnosis of one session ([`diagnose_session`]), in named steps: the selection on the
-//! whitened identification problem, the baseline against the cell's noise (`baseline`), the
+//! The diagnosis of one session ([`diagnose_session`]), in named steps: the blunder screen
+//! (`screen_blunders`, the whole-cell fit's screen), the selection on the whitened
+//! identification problem, the baseline against the cell's noise (`baseline`), the
 //! identifiability of each (robot, kind) family (`families`), and the gain (`gain`);
 //! [`crate::report`] turns the SI findings into the report.
 
@@ -9,14 +10,16 @@ use calib_core::identify::{
     self, IdentFit, IdentStatus, Robot, Selection, SelectionOptions, TipModel,
 };
 use calib_core::stats::chi2_sf;
+use calib_core::whole_cell::{calibrate_cell, CellFitError, ScreenOptions, SolveOptions};
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
+use sim_cell::whole_cell::{cell_problem, FitModel};
 use sim_cell::{Cell, Session};
 
 use crate::catalogue::{catalogue, Candidate, EffectKind};
 use crate::input::check_session;
 use crate::mount_tilt::{self, Placement};
 use crate::noise::{simulate_rms, NoiseModel};
-use crate::report::{self, CorrelationReport, DiagnoseReport, FamilyReport};
+use crate::report::{self, CorrelationReport, DiagnoseReport, FamilyReport, RejectedPointReport};
 use crate::residuals::correlations;
 use crate::session_model::SessionModel;
 use crate::DiagnoseError;
@@ -35,6 +38,9 @@ pub struct DiagnoseOptions {
     /// Uncertainty of the cell's stated `b1_from_b2` angles, degrees, in the placement check
     /// (default 0.001°: the rounding of a cell file written with 3 decimals, conservatively).
     pub placement_sd_deg: f64,
+    /// Screen the session for blunders before the diagnosis (default true): see
+    /// [`diagnose_session`].
+    pub screen_blunders: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -45,13 +51,24 @@ impl Default for DiagnoseOptions {
             selection: SelectionOptions::default(),
             truth: None,
             placement_sd_deg: 0.001,
+            screen_blunders: true,
         }
     }
 }
 
 /// Runs the full diagnosis of a session on its cell (the cell's stated `[robotN.errors]`, if
-/// any, are NOT used: the nominal models are the URDFs). Errors: a session that does not fit the
-/// cell ([`check_session`]) or a model failure.
+/// any, are NOT used: the nominal models are the URDFs).
+///
+/// First (unless `options.screen_blunders` is off) the rows are screened for gross errors by the
+/// whole-cell calibration's screen ([`calib_core::whole_cell::calibrate_cell`] on
+/// [`sim_cell::whole_cell::cell_problem`] with the kinematic model: `b1_from_b2` and every
+/// kinematic parameter the cell's `[robotN.tolerance]` admits, so that kinematic errors are not
+/// mistaken for blunders; a robust Huber start, then studentised residuals against a Bonferroni
+/// limit at α = 1 %). The rejected rows are named in the report with their size in σ, and the
+/// diagnosis runs on the others.
+///
+/// Errors: a session that does not fit the cell ([`check_session`]), too few rows left after the
+/// screen (naming the rows to re-record), or a model failure.
 ///
 /// # Examples
 /// ```no_run
@@ -79,6 +96,12 @@ pub fn diagnose_session_with_progress(
     progress: &mut dyn FnMut(&str),
 ) -> Result<DiagnoseReport, DiagnoseError> {
     check_session(cell, session, Path::new("<session>"))?;
+    let (kept, rejected) = if options.screen_blunders {
+        screen_blunders(cell, session)?
+    } else {
+        (session.clone(), Vec::new())
+    };
+    let session = &kept;
     let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
     let (q1, q2) = joints(session);
     // The cell's noise at these configurations: residuals are whitened by it, so the F tests
@@ -112,6 +135,7 @@ pub fn diagnose_session_with_progress(
             &cell.b1_from_b2.rotation.to_rotation_matrix(),
         ),
         n_points: session.points.len(),
+        rejected,
         sigma_m,
         baseline,
         partial_p: partial.iter().map(|p| p.1).collect(),
@@ -134,8 +158,10 @@ pub(crate) struct Findings<'a> {
     pub sel: &'a Selection,
     /// The cell's ZYZ angles of `b1_from_b2`, rad (the branch the report's angles follow).
     pub reference_zyz: [f64; 3],
-    /// Points in the session.
+    /// Points diagnosed (the session's, less the rejected blunders).
     pub n_points: usize,
+    /// Rows rejected as blunders by the screen, by point number.
+    pub rejected: Vec<RejectedPointReport>,
     /// The cell's effective noise σ per axis, m.
     pub sigma_m: f64,
     /// Step 1.
@@ -187,6 +213,62 @@ pub(crate) struct TruthErrors {
     pub e_rot_rad: [f64; 2],
     /// Geodesic angle, rad.
     pub geodesic_rad: [f64; 2],
+}
+
+/// The blunder screen of [`diagnose_session`]: the session without the rows the whole-cell
+/// calibration's screen rejects, and those rows (point number, size in σ, residual in mm).
+///
+/// Errors: the screen's ([`CellFitError::TooFewRows`] names the rows to re-record), or fewer
+/// points left than the diagnosis needs (naming the rejected rows to re-record).
+fn screen_blunders(
+    cell: &Cell,
+    session: &Session,
+) -> Result<(Session, Vec<RejectedPointReport>), DiagnoseError> {
+    let problem = cell_problem(cell, session, FitModel::Kinematic);
+    let cal = calibrate_cell(&problem, &SolveOptions::default(), &ScreenOptions::default())
+        .map_err(|e| match e {
+            CellFitError::TooFewRows { .. } => DiagnoseError::Session {
+                path: "<session>".into(),
+                message: format!("blunder screen: {e}"),
+            },
+            other => DiagnoseError::Session {
+                path: "<session>".into(),
+                message: format!(
+                    "blunder screen (whole-cell fit with the cell's tolerances): {other}"
+                ),
+            },
+        })?;
+    let rejected: Vec<RejectedPointReport> = cal
+        .rejected
+        .iter()
+        .map(|r| RejectedPointReport {
+            point: r.row,
+            size_sigma: r.size_sigma,
+            residual_mm: r.residual_m * 1e3,
+        })
+        .collect();
+    let kept = Session {
+        points: session
+            .points
+            .iter()
+            .filter(|p| !rejected.iter().any(|r| r.point == p.point))
+            .cloned()
+            .collect(),
+    };
+    if !rejected.is_empty() {
+        if let Err(e) = check_session(cell, &kept, Path::new("<session>")) {
+            let rows: Vec<usize> = rejected.iter().map(|r| r.point).collect();
+            return Err(DiagnoseError::Session {
+                path: "<session>".into(),
+                message: format!(
+                    "after rejecting the blunders at points {rows:?}, {} points are left, too few to diagnose ({e}); \
+                     re-record points {rows:?}",
+                    kept.points.len()
+                ),
+            });
+        }
+    }
+    Ok((kept, rejected))
 }
 
 /// Joint vectors of a session (rad): `(q1s, q2s)`.

@@ -39,7 +39,7 @@ pub use mount_tilt::{
 };
 pub use report::{
     render_text, CorrelationReport, DetectableReport, DiagnoseReport, EffectReport, FamilyReport,
-    MountTiltTest, PlacementReport, PoseReport,
+    MountTiltTest, PlacementReport, PoseReport, RejectedPointReport,
 };
 pub use session_model::SessionModel;
 

@@ -87,6 +87,17 @@ impl PlacementReport {
     }
 }
 
+/// A session row rejected as a blunder (see [`crate::diagnose_session`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct RejectedPointReport {
+    /// The row's point number (the CSV's `point` column).
+    pub point: usize,
+    /// Its deletion-studentised residual against the fit without it, in σ of the cell's noise.
+    pub size_sigma: f64,
+    /// Its residual against that fit, mm (3-D norm).
+    pub residual_mm: f64,
+}
+
 /// The mount-tilt test in report units: which robot's base is tilted, if any, when the cell
 /// states the TRUE placement of the nominal bases (see [`crate::mount_tilt_test`]).
 #[derive(Debug, Clone, Serialize)]
@@ -228,8 +239,11 @@ pub struct DiagnoseReport {
     pub b1_from_b2: PoseReport,
     /// `b1_from_b2` of the nominal fit.
     pub b1_from_b2_before: PoseReport,
-    /// Points.
+    /// Points diagnosed: the session's, less the rejected blunders.
     pub n_points: usize,
+    /// Rows the blunder screen rejected (left out of everything else in this report), by
+    /// point number, with their size in σ; empty when none (or when the screen is off).
+    pub rejected_points: Vec<RejectedPointReport>,
     /// The cell's noise as an effective σ per axis at these configurations (alignment,
     /// repeatability of both robots and encoder resolution, RMS over points), mm.
     pub sigma_cell_mm: f64,
@@ -345,6 +359,7 @@ pub(crate) fn assemble(f: &Findings<'_>) -> DiagnoseReport {
         b1_from_b2: PoseReport::from_isometry(&fit.b1_from_b2, f.reference_zyz),
         b1_from_b2_before: PoseReport::from_isometry(&base.b1_from_b2, f.reference_zyz),
         n_points: f.n_points,
+        rejected_points: f.rejected.clone(),
         sigma_cell_mm: mm(f.sigma_m),
         sigma_hat_before_mm: mm(base.sigma_hat),
         sigma_hat_after_mm: mm(fit.sigma_hat),
@@ -435,6 +450,21 @@ pub fn render_text(r: &DiagnoseReport) -> String {
         "handclasp diagnose: {} points, cell noise σ = {:.3} mm per axis (alignment, repeatability, encoders; effective)",
         r.n_points, r.sigma_cell_mm
     );
+    if !r.rejected_points.is_empty() {
+        let _ = writeln!(
+            s,
+            "\n0. Blunders: {} rows rejected by the whole-cell screen (studentised residual above the Bonferroni limit) \
+             and left out of everything below; re-record them:",
+            r.rejected_points.len()
+        );
+        for b in &r.rejected_points {
+            let _ = writeln!(
+                s,
+                "   point {:>4}: {:.1} σ (residual {:.3} mm)",
+                b.point, b.size_sigma, b.residual_mm
+            );
+        }
+    }
     let _ = writeln!(s, "\n1. Baseline (nominal models)");
     let _ = writeln!(
         s,

@@ -13,9 +13,14 @@
 //! checked for collision with its own links (not modelled).
 //!
 //! # Prediction
-//! The cooperative error is predicted over the cross pairs `(q1_i, q2_j)` of
-//! [`EVAL_POSES`] further reachable poses (streams after the candidates' attempts: held out from
-//! the candidates), linearised at the nominal cell. The plan is compared with
+//! The cooperative error is predicted over [`EVAL_POSES`] further reachable handclasp poses
+//! `(q1_i, q2_i)` (streams after the candidates' attempts: held out from the candidates, spread
+//! over the same cube), linearised at the nominal cell. These pairs meet, so the error of the
+//! predicted vector is invariant to anything confounded with the base frames (a base rotation
+//! turns a vector of length ~0). Cross pairs `(q1_i, q2_j)` would not be: their vectors are up to
+//! ~1.5 m long, and the base rotations that no handclasp can observe (e.g. robot 1's joint-1
+//! offset against the placement's yaw) turn them by the prior's 0.05°, ~0.8 mm whatever the
+//! session. The plan is compared with
 //! [`PlanSpec::random_draws`] random picks of `n` of the same candidates (seeded); the report
 //! gives their mean.
 
@@ -37,8 +42,8 @@ use crate::Layout;
 
 /// Draws per wanted candidate before giving up (`k` candidates: at most `4·k` points tried).
 pub const ATTEMPTS_PER_CANDIDATE: usize = 4;
-/// Held-out reachable poses whose cross pairs (`EVAL_POSES²`) carry the cooperative prediction.
-pub const EVAL_POSES: usize = 20;
+/// Held-out reachable handclasp poses `(q1_i, q2_i)` over which the cooperative error is predicted.
+pub const EVAL_POSES: usize = 200;
 /// Default number of random picks the plan is compared with.
 pub const DEFAULT_RANDOM_DRAWS: usize = 20;
 /// Seed of the placement draws behind the predicted `e_tran`/`e_rot`.
@@ -265,13 +270,11 @@ pub fn plan_session(
     }
     let eval_pairs: Vec<ConfigPair> = eval
         .iter()
-        .flat_map(|a| {
-            eval.iter().map(|b| ConfigPair {
-                q1: a.q1.clone(),
-                q2: b.q2.clone(),
-                tool1: 0,
-                tool2: 0,
-            })
+        .map(|p| ConfigPair {
+            q1: p.q1.clone(),
+            q2: p.q2.clone(),
+            tool1: 0,
+            tool2: 0,
         })
         .collect();
     let problem = cell_problem(
