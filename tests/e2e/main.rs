@@ -8,4 +8,5 @@ mod fk_ik;
 mod inputs;
 mod paper;
 mod paper_diagnose;
+mod plan;
 mod sim;

@@ -217,8 +217,8 @@ fn print_text(v: &Value) {
     for p in v["poses"].as_array().cloned().unwrap_or_default() {
         println!(
             "{:>5} {:>9}  {:<58} {:<50} {}",
-            p["point"],
-            p["candidate"],
+            p["point"].as_u64().unwrap_or(0),
+            p["candidate"].as_u64().unwrap_or(0),
             list(&p["r1_q_deg"], 2),
             list(&p["r2_q_deg"], 2),
             list(&p["r1_tip_mm"], 1)
@@ -247,6 +247,10 @@ fn print_text(v: &Value) {
     println!(
         "  the plan's cooperative rms is {:.0} % below the random picks' mean",
         num(&v["cooperative_gain_over_random_percent"])
+    );
+    println!(
+        "  (e_tran/e_rot of b1_from_b2 carry the kinematic errors no handclasp can tell from the placement, \
+         held by the prior; the cooperative error does not)"
     );
     println!("note: the tip is not checked for collision with its own robot's links");
     println!("wrote {}", v["out"].as_str().unwrap_or("?"));
