@@ -45,7 +45,10 @@ fn plan_json_keys_and_csv_read_back() {
     for who in ["plan", "random"] {
         for key in ["cooperative_rms_mm", "e_tran_mm", "e_rot_deg"] {
             let x = v["predicted"][who][key].as_f64();
-            assert!(x.is_some_and(|x| x.is_finite() && x > 0.0), "{who}.{key}: {v}");
+            assert!(
+                x.is_some_and(|x| x.is_finite() && x > 0.0),
+                "{who}.{key}: {v}"
+            );
         }
     }
     assert!(
@@ -95,6 +98,9 @@ fn plan_errors_say_what_to_change() {
     ]);
     assert!(!o.status.success());
     let e = String::from_utf8_lossy(&o.stderr);
-    assert!(e.contains("outside the common workspace") && e.contains("move the centre"), "{e}");
+    assert!(
+        e.contains("outside the common workspace") && e.contains("move the centre"),
+        "{e}"
+    );
     assert!(!out.exists(), "no plan written on error");
 }

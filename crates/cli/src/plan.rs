@@ -51,7 +51,12 @@ pub struct Args {
     pub spread_mm: f64,
     /// Centre of that cube in base 1, mm, as X,Y,Z (negative values allowed; default: the
     /// cell's [teach] centre).
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true, value_name = "X,Y,Z")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        value_name = "X,Y,Z"
+    )]
     pub centre_mm: Option<Vec<f64>>,
     /// Random picks of N candidates the plan is compared with (the report gives their mean).
     #[arg(long, default_value_t = DEFAULT_RANDOM_DRAWS)]
@@ -211,8 +216,8 @@ fn print_text(v: &Value) {
         v["seed"]
     );
     println!(
-        "{:>5} {:>9}  {:<58} {:<50} {}",
-        "point", "candidate", "robot 1 joints, deg", "robot 2 joints, deg", "meeting point in b1, mm"
+        "{:>5} {:>9}  {:<58} {:<50} meeting point in b1, mm",
+        "point", "candidate", "robot 1 joints, deg", "robot 2 joints, deg",
     );
     for p in v["poses"].as_array().cloned().unwrap_or_default() {
         println!(
@@ -233,7 +238,10 @@ fn print_text(v: &Value) {
     for (name, k) in [
         ("plan", "plan"),
         (
-            &format!("random (mean of {} picks of the same candidates)", v["random_draws"]),
+            &format!(
+                "random (mean of {} picks of the same candidates)",
+                v["random_draws"]
+            ),
             "random",
         ),
     ] {

@@ -225,19 +225,21 @@ fn screen_blunders(
     session: &Session,
 ) -> Result<(Session, Vec<RejectedPointReport>), DiagnoseError> {
     let problem = cell_problem(cell, session, FitModel::Kinematic);
-    let cal = calibrate_cell(&problem, &SolveOptions::default(), &ScreenOptions::default())
-        .map_err(|e| match e {
-            CellFitError::TooFewRows { .. } => DiagnoseError::Session {
-                path: "<session>".into(),
-                message: format!("blunder screen: {e}"),
-            },
-            other => DiagnoseError::Session {
-                path: "<session>".into(),
-                message: format!(
-                    "blunder screen (whole-cell fit with the cell's tolerances): {other}"
-                ),
-            },
-        })?;
+    let cal = calibrate_cell(
+        &problem,
+        &SolveOptions::default(),
+        &ScreenOptions::default(),
+    )
+    .map_err(|e| match e {
+        CellFitError::TooFewRows { .. } => DiagnoseError::Session {
+            path: "<session>".into(),
+            message: format!("blunder screen: {e}"),
+        },
+        other => DiagnoseError::Session {
+            path: "<session>".into(),
+            message: format!("blunder screen (whole-cell fit with the cell's tolerances): {other}"),
+        },
+    })?;
     let rejected: Vec<RejectedPointReport> = cal
         .rejected
         .iter()

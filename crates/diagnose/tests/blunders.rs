@@ -41,10 +41,10 @@ fn add_blunder(cell: &Cell, s: &mut Session, i: usize, mm: f64) {
 /// The session on `cell` with the hidden offset (seeded), and the blunders added when asked.
 fn session(cell: &Cell, seed: u64, blunders: bool) -> Session {
     let mut truth = cell.clone();
-    truth
-        .robot2
-        .errors
-        .set(ErrorParam::JointOffset { joint: 2 }, OFFSET_DEG.to_radians());
+    truth.robot2.errors.set(
+        ErrorParam::JointOffset { joint: 2 },
+        OFFSET_DEG.to_radians(),
+    );
     let spec = SessionSpec::new(N_POINTS, Layout::Random, 0.8);
     let mut s = generate_session(&truth, &spec, &mut trial_rng(seed, 1)).expect("session");
     if blunders {
@@ -91,7 +91,12 @@ fn three_blunders_are_named_and_the_hidden_offset_is_still_found() {
             .find(|e| {
                 e.kind == EffectKind::JointOffset && e.robot == Robot::Two && e.joint == Some(3)
             })
-            .unwrap_or_else(|| panic!("seed {seed}: robot 2 joint-3 offset not named: {:?}", report.effects));
+            .unwrap_or_else(|| {
+                panic!(
+                    "seed {seed}: robot 2 joint-3 offset not named: {:?}",
+                    report.effects
+                )
+            });
         assert!(
             offset.ci95[0] <= OFFSET_DEG && OFFSET_DEG <= offset.ci95[1],
             "seed {seed}: {} ° with 95 % interval {:?} misses {OFFSET_DEG}°",
@@ -113,7 +118,11 @@ fn a_clean_session_loses_no_rows() {
     let cell = Cell::default_floor_wall();
     let s = session(&cell, 21, false);
     let report = diagnose::diagnose_session(&cell, &s, &options(21)).unwrap();
-    assert!(report.rejected_points.is_empty(), "{:?}", report.rejected_points);
+    assert!(
+        report.rejected_points.is_empty(),
+        "{:?}",
+        report.rejected_points
+    );
     assert_eq!(report.n_points, N_POINTS);
     assert!(!diagnose::render_text(&report).contains("Blunders"));
 }
@@ -123,7 +132,8 @@ fn too_few_rows_after_the_screen_name_the_rows_to_re_record() {
     let cell = Cell::default_floor_floor();
     let mut s = session(&cell, 31, true);
     // Keep 8 rows, 3 of them blunders: 5 clean rows are too few to diagnose (6 needed).
-    s.points.retain(|p| p.point <= 5 || BLUNDERS.iter().any(|(i, _)| *i + 1 == p.point));
+    s.points
+        .retain(|p| p.point <= 5 || BLUNDERS.iter().any(|(i, _)| *i + 1 == p.point));
     let e = diagnose::diagnose_session(&cell, &s, &options(31))
         .unwrap_err()
         .to_string();

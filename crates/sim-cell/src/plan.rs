@@ -122,27 +122,35 @@ fn nominal(cell: &Cell) -> Cell {
 }
 
 /// One attempt: the point of stream `stream` and the pose placing it, if both robots reach it.
-fn attempt(nominal: &Cell, centre: &Point3<f64>, spread_m: f64, seed: u64, stream: u64) -> Option<SessionPoint> {
-    let mut rng = trial_rng(seed, stream);
-    let p = crate::teach_points(Layout::Random, 1, spread_m, centre, &mut rng)[0];
+fn attempt(nominal: &Cell, cube: &Cube, stream: u64) -> Option<SessionPoint> {
+    let mut rng = trial_rng(cube.seed, stream);
+    let p = crate::teach_points(Layout::Random, 1, cube.spread_m, &cube.centre_b1, &mut rng)[0];
     let spec = SessionSpec {
         points_b1: Some(vec![p]),
-        ..SessionSpec::new(1, Layout::Random, spread_m)
+        ..SessionSpec::new(1, Layout::Random, cube.spread_m)
     };
     generate_session(nominal, &spec, &mut rng)
         .ok()
         .and_then(|s| s.points.into_iter().next())
 }
 
-/// Up to `count` reachable poses of the nominal cell, drawn from streams `first_stream..` (at most
-/// `max_attempts` draws), in stream order; `progress(found, drawn)` after each batch. Returns the
-/// poses (numbered 1..) and the draws used. Deterministic whatever the thread count.
-pub fn reachable_poses(
-    cell: &Cell,
-    count: usize,
+/// Where candidate meeting points are drawn: a cube of side `spread_m` around `centre_b1` (m,
+/// b1), stream `i` of `seed` drawing point `i`.
+#[derive(Debug, Clone, Copy)]
+struct Cube {
+    centre_b1: Point3<f64>,
     spread_m: f64,
-    centre_b1: &Point3<f64>,
     seed: u64,
+}
+
+/// Up to `count` reachable poses of the nominal cell, drawn from streams `first_stream..` of the
+/// cube (at most `max_attempts` draws), in stream order; `progress(found, drawn)` after each
+/// batch. Returns the poses (numbered 1..) and the draws used. Deterministic whatever the
+/// thread count.
+fn reachable_poses(
+    cell: &Cell,
+    cube: Cube,
+    count: usize,
     first_stream: u64,
     max_attempts: usize,
     progress: &mut dyn FnMut(usize, usize),
@@ -154,7 +162,7 @@ pub fn reachable_poses(
         let batch = BATCH.min(max_attempts - drawn);
         let found: Vec<Option<SessionPoint>> = (drawn..drawn + batch)
             .into_par_iter()
-            .map(|i| attempt(&nominal, centre_b1, spread_m, seed, first_stream + i as u64))
+            .map(|i| attempt(&nominal, &cube, first_stream + i as u64))
             .collect();
         for p in found.into_iter().flatten() {
             if out.len() < count {
@@ -216,16 +224,13 @@ pub fn plan_session(
     }
     let centre = spec.centre_b1.unwrap_or(cell.centre_b1);
     let max_attempts = ATTEMPTS_PER_CANDIDATE * spec.candidates;
-    let (candidates, attempts) = reachable_poses(
-        cell,
-        spec.candidates,
-        spec.spread_m,
-        &centre,
-        spec.seed,
-        0,
-        max_attempts,
-        progress,
-    );
+    let cube = Cube {
+        centre_b1: centre,
+        spread_m: spec.spread_m,
+        seed: spec.seed,
+    };
+    let (candidates, attempts) =
+        reachable_poses(cell, cube, spec.candidates, 0, max_attempts, progress);
     let c_mm = centre * 1e3;
     let hint = format!(
         "reduce the spread ({:.0} mm) or move the centre ({:.0}, {:.0}, {:.0}) mm into the common workspace",
@@ -255,10 +260,8 @@ pub fn plan_session(
     // Held-out evaluation poses: the streams after every candidate attempt.
     let (eval, _) = reachable_poses(
         cell,
+        cube,
         EVAL_POSES,
-        spec.spread_m,
-        &centre,
-        spec.seed,
         max_attempts as u64,
         ATTEMPTS_PER_CANDIDATE * EVAL_POSES,
         &mut |_, _| {},

@@ -297,7 +297,8 @@ pub fn design_prediction(
     }
     let block = Matrix6::from_fn(|a, b| sigma[(cols[a], cols[b])]);
     let eig = block.symmetric_eigen();
-    let root = eig.eigenvectors * Matrix6::from_diagonal(&eig.eigenvalues.map(|e| e.max(0.0).sqrt()));
+    let root =
+        eig.eigenvectors * Matrix6::from_diagonal(&eig.eigenvalues.map(|e| e.max(0.0).sqrt()));
     let x = at.b1_from_b2;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let (mut sum_t, mut sum_r) = (0.0, 0.0);
@@ -305,12 +306,13 @@ pub fn design_prediction(
         let z = Vector6::from_fn(|_, _| StandardNormal.sample(&mut rng));
         let d = root * z;
         // The left perturbation of the module documentation: X ← Translation(ρ)·Rotation(φ)·X.
-        let est = Isometry3::from_parts(Translation3::from(Vector3::new(d[0], d[1], d[2])), UnitQuaternion::identity())
-            * Isometry3::from_parts(
-                Translation3::identity(),
-                UnitQuaternion::from_scaled_axis(Vector3::new(d[3], d[4], d[5])),
-            )
-            * x;
+        let est = Isometry3::from_parts(
+            Translation3::from(Vector3::new(d[0], d[1], d[2])),
+            UnitQuaternion::identity(),
+        ) * Isometry3::from_parts(
+            Translation3::identity(),
+            UnitQuaternion::from_scaled_axis(Vector3::new(d[3], d[4], d[5])),
+        ) * x;
         sum_t += crate::e_tran(&x, &est).powi(2);
         sum_r += crate::e_rot(&x, &est).powi(2);
     }

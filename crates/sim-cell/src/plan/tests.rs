@@ -70,7 +70,11 @@ fn the_plan_beats_random_picks_on_its_criterion() {
         .iter()
         .filter(|r| a.predicted.cooperative_rms_m < r.cooperative_rms_m)
         .count();
-    assert_eq!(better, a.random.len(), "the greedy A plan lost to a random pick");
+    assert_eq!(
+        better,
+        a.random.len(),
+        "the greedy A plan lost to a random pick"
+    );
     let d = small_plan(&cell, DesignCriterion::D, 5);
     assert!(
         d.predicted.log_det_info > d.random_mean.log_det_info,
@@ -107,13 +111,9 @@ fn plan_csv_reads_back_as_a_session() {
 fn bad_requests_say_what_to_change() {
     let cell = Cell::default_floor_floor();
     let none = &mut |_: usize, _: usize| {};
-    let e = plan_session(
-        &cell,
-        &PlanSpec::new(50, 40, DesignCriterion::D),
-        none,
-    )
-    .unwrap_err()
-    .to_string();
+    let e = plan_session(&cell, &PlanSpec::new(50, 40, DesignCriterion::D), none)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("more than the 40 candidates"), "{e}");
     let e = plan_session(&cell, &PlanSpec::new(0, 40, DesignCriterion::D), none)
         .unwrap_err()
@@ -135,7 +135,10 @@ fn drawn_errors_stay_in_their_bands() {
     draw_errors_from_tolerance(&mut cell, &mut trial_rng(4, 0));
     let tol = cell.robot2.tolerance;
     let e = &cell.robot2.errors;
-    assert!(e.joint_offset.iter().all(|v| v.abs() <= tol.joint_offset_rad));
+    assert!(e
+        .joint_offset
+        .iter()
+        .all(|v| v.abs() <= tol.joint_offset_rad));
     assert!(e.joint_offset.iter().any(|v| *v != 0.0));
     assert!(e.origin_xyz.iter().all(|v| v.amax() <= tol.origin_xyz_m));
     assert!(e.tip.amax() <= tol.tip_m && e.tip.amax() > 0.0);
@@ -166,9 +169,15 @@ fn calibrate_at(
     };
     let session = generate_session(truth, &spec, &mut trial_rng(seed, 0)).ok()?;
     let problem = cell_problem(truth, &session, FitModel::Kinematic);
-    let cal = calibrate_cell(&problem, &SolveOptions::default(), &ScreenOptions::default()).ok()?;
+    let cal = calibrate_cell(
+        &problem,
+        &SolveOptions::default(),
+        &ScreenOptions::default(),
+    )
+    .ok()?;
     let truth_est = truth_estimate(truth, &problem);
-    let measured = measure_cooperative_error(&problem, &cal.fit.estimate, &truth_est, held_out).ok()?;
+    let measured =
+        measure_cooperative_error(&problem, &cal.fit.estimate, &truth_est, held_out).ok()?;
     let predicted = predict_cooperative_accuracy(&problem, &cal.fit, held_out, 1).ok()?;
     Some(Outcome {
         measured_rms_m: measured.rms_m,
