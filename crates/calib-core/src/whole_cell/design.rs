@@ -324,3 +324,86 @@ pub fn design_prediction(
         log_det_info: criterion_value(DesignCriterion::D, &sigma, &info, &s.m),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::fixtures::{sim_cell, Cell};
+    use super::super::{Noise3, ObservationKind, Tolerance};
+    use super::*;
+    use nalgebra::Matrix3;
+
+    /// Relative agreement of two evaluations of the same posterior (round-off of the two
+    /// inverses only).
+    const SAME_REL: f64 = 1e-9;
+
+    /// `design_prediction` agrees with `design_criterion` on A and D for the same subset, and its
+    /// predicted e_tran lies between the bounds the placement's translation covariance
+    /// `Σ_t = [I −[t]×]·Σ_ρφ·[I −[t]×]ᵀ` (the left perturbation) sets for an rms of the largest
+    /// |component|: `sqrt(max diag Σ_t) ≤ rms ≤ sqrt(trace Σ_t)`, up to the draws' sampling error.
+    #[test]
+    fn prediction_matches_the_criterion_and_bounds_e_tran() {
+        let sc = sim_cell(Cell::Wall, Tolerance::default(), false, 3);
+        let p = sc.problem();
+        let x = sc.truth.b1_from_b2;
+        let cands: Vec<Observation> = sc
+            .eval_pairs(30, 0.8, 4)
+            .into_iter()
+            .enumerate()
+            .map(|(i, pair)| Observation {
+                row: i + 1,
+                kind: ObservationKind::Coincident {
+                    q1: pair.q1,
+                    q2: pair.q2,
+                    tool1: 0,
+                    tool2: 0,
+                    noise: Noise3::Isotropic { sigma_m: 3e-4 },
+                },
+            })
+            .collect();
+        let eval = sc.eval_pairs(20, 0.8, 5);
+        let layout = ParamLayout::new(&p, &[]);
+        let at = CellEstimate::nominal(&p, x);
+        let chosen: Vec<usize> = (0..30).step_by(2).collect();
+        let pred = design_prediction(&p, &layout, &at, &cands, &chosen, &eval, 1).unwrap();
+        let a = design_criterion(
+            &p,
+            &layout,
+            &at,
+            &cands,
+            &chosen,
+            &eval,
+            DesignCriterion::CooperativeA,
+        )
+        .unwrap();
+        let d =
+            design_criterion(&p, &layout, &at, &cands, &chosen, &eval, DesignCriterion::D).unwrap();
+        assert!((pred.cooperative_rms_m - a).abs() <= SAME_REL * a);
+        assert!((pred.log_det_info - d).abs() <= SAME_REL * d.abs());
+        let (_, _, sigma) = subset_posterior(&p, &layout, &at, &cands, &chosen, &eval).unwrap();
+        let col = |param| layout.column(&param).unwrap();
+        let rho: Vec<usize> = Axis::ALL
+            .map(|axis| col(CellParam::PlacementTranslation { axis }))
+            .to_vec();
+        let phi: Vec<usize> = Axis::ALL
+            .map(|axis| col(CellParam::PlacementRotation { axis }))
+            .to_vec();
+        let block = |r: &[usize], c: &[usize]| Matrix3::from_fn(|i, j| sigma[(r[i], c[j])]);
+        let t = -x.translation.vector.cross_matrix();
+        // δt = ρ + φ × t = ρ − [t]×·φ.
+        let sigma_t = block(&rho, &rho)
+            + t * block(&phi, &rho)
+            + block(&rho, &phi) * t.transpose()
+            + t * block(&phi, &phi) * t.transpose();
+        let lo = sigma_t.diagonal().max().sqrt();
+        let hi = sigma_t.trace().sqrt();
+        // 2000 draws: the rms carries ~2 % sampling error; 5 % margin each side.
+        assert!(
+            pred.e_tran_m > 0.95 * lo && pred.e_tran_m < 1.05 * hi,
+            "e_tran {:e} m outside [{lo:e}, {hi:e}]",
+            pred.e_tran_m
+        );
+        assert!(pred.e_rot_rad.is_finite() && pred.e_rot_rad > 0.0);
+        let e = design_prediction(&p, &layout, &at, &cands, &[30], &eval, 1).unwrap_err();
+        assert!(e.to_string().contains("out of range"), "{e}");
+    }
+}
