@@ -164,12 +164,16 @@ fn reachable_poses(
             .into_par_iter()
             .map(|i| attempt(&nominal, &cube, first_stream + i as u64))
             .collect();
-        for p in found.into_iter().flatten() {
-            if out.len() < count {
+        for p in found {
+            if out.len() == count {
+                break;
+            }
+            // Drawn so far: up to and including this point.
+            drawn += 1;
+            if let Some(p) = p {
                 out.push(p);
             }
         }
-        drawn += batch;
         progress(out.len(), drawn);
     }
     for (i, p) in out.iter_mut().enumerate() {
