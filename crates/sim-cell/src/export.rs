@@ -82,7 +82,7 @@ pub fn export_calibrated_cell(
             .map_err(|e| bad(format!("cannot write the corrected URDF: {e}")))?;
         let file = match robot {
             Robot::One => names.robot1_urdf,
-            _ => names.robot2_urdf,
+            Robot::Two => names.robot2_urdf,
         };
         let path = dir.join(file);
         let tmp = path.with_extension("urdf.tmp");
