@@ -93,10 +93,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "pair_set": "every (q1_i, q2_j) of the session's rows",
     });
     let written = match &args.export {
-        Some(dir) => {
-            export_calibrated_cell(&cell, &cal.fit.estimate, dir, &CALIBRATE_EXPORT_NAMES)
-                .with_context(|| format!("--export {}", dir.display()))?
-        }
+        Some(dir) => export_calibrated_cell(&cell, &cal.fit.estimate, dir, &CALIBRATE_EXPORT_NAMES)
+            .with_context(|| format!("--export {}", dir.display()))?,
         None => Vec::new(),
     };
     if args.json {

@@ -63,10 +63,30 @@ pub struct Recording {
 /// (base name, role, pattern, right arm?) of every recording the study reads. The
 /// repeatability files (one pose repeated) carry no geometry and are not used.
 pub const RECORDINGS: [(&str, Role, &str, bool); 22] = [
-    ("no_leica_self_upper1_4x4", Role::SelfContact, "self_upper", true),
-    ("no_leica_self_upper2_4x4", Role::SelfContact, "self_upper", true),
-    ("no_leica_self_lower1_4x4", Role::SelfContact, "self_lower", true),
-    ("no_leica_self_lower2_4x4", Role::SelfContact, "self_lower", true),
+    (
+        "no_leica_self_upper1_4x4",
+        Role::SelfContact,
+        "self_upper",
+        true,
+    ),
+    (
+        "no_leica_self_upper2_4x4",
+        Role::SelfContact,
+        "self_upper",
+        true,
+    ),
+    (
+        "no_leica_self_lower1_4x4",
+        Role::SelfContact,
+        "self_lower",
+        true,
+    ),
+    (
+        "no_leica_self_lower2_4x4",
+        Role::SelfContact,
+        "self_lower",
+        true,
+    ),
     ("no_leica_wall_table1_5x5", Role::Plane, "wall", true),
     ("no_leica_wall_table2_5x5", Role::Plane, "wall", true),
     ("no_leica_higher_table1_5x5", Role::Plane, "higher", true),
@@ -75,16 +95,46 @@ pub const RECORDINGS: [(&str, Role, &str, bool); 22] = [
     ("no_leica_lower_table2_5x5", Role::Plane, "lower", true),
     ("leica_right_hand_6x6x6", Role::Tracker, "right_grid", true),
     ("leica_left_hand_6x6x6", Role::Tracker, "left_grid", false),
-    ("leica_higher_table1_5x5", Role::Tracker, "leica_table", true),
-    ("leica_higher_table2_5x5", Role::Tracker, "leica_table", true),
+    (
+        "leica_higher_table1_5x5",
+        Role::Tracker,
+        "leica_table",
+        true,
+    ),
+    (
+        "leica_higher_table2_5x5",
+        Role::Tracker,
+        "leica_table",
+        true,
+    ),
     ("leica_lower_table1_5x5", Role::Tracker, "leica_table", true),
     ("leica_lower_table2_5x5", Role::Tracker, "leica_table", true),
     ("leica_wall_table1_5x5", Role::Tracker, "leica_table", true),
     ("leica_wall_table2_5x5", Role::Tracker, "leica_table", true),
-    ("leica_self_upper1_4x4", Role::TrackerSelfContact, "leica_self", true),
-    ("leica_self_upper2_4x4", Role::TrackerSelfContact, "leica_self", true),
-    ("leica_self_lower1_4x4", Role::TrackerSelfContact, "leica_self", true),
-    ("leica_self_lower2_4x4", Role::TrackerSelfContact, "leica_self", true),
+    (
+        "leica_self_upper1_4x4",
+        Role::TrackerSelfContact,
+        "leica_self",
+        true,
+    ),
+    (
+        "leica_self_upper2_4x4",
+        Role::TrackerSelfContact,
+        "leica_self",
+        true,
+    ),
+    (
+        "leica_self_lower1_4x4",
+        Role::TrackerSelfContact,
+        "leica_self",
+        true,
+    ),
+    (
+        "leica_self_lower2_4x4",
+        Role::TrackerSelfContact,
+        "leica_self",
+        true,
+    ),
 ];
 
 /// Reads one recording `DIR/<name>_dataset.csv`. Errors name the file, row and column.
@@ -134,7 +184,11 @@ pub fn read_recording(
         };
         let req = |c: usize| -> anyhow::Result<f64> {
             num(c)?.with_context(|| {
-                format!("{} row {row} column `{}` is empty", path.display(), &headers[c])
+                format!(
+                    "{} row {row} column `{}` is empty",
+                    path.display(),
+                    &headers[c]
+                )
             })
         };
         let q_right = right.iter().map(|&c| req(c)).collect::<Result<_, _>>()?;
@@ -185,8 +239,11 @@ pub fn locate_dataset(repo: &Path) -> Option<PathBuf> {
     if let Some(p) = std::env::var_os("CTU_MOTOMAN_DATA") {
         return Some(PathBuf::from(p));
     }
-    ["../shared/data/ctu-motoman", "../../shared/data/ctu-motoman"]
-        .iter()
-        .map(|rel| repo.join(rel))
-        .find(|p| p.join("README.md").is_file())
+    [
+        "../shared/data/ctu-motoman",
+        "../../shared/data/ctu-motoman",
+    ]
+    .iter()
+    .map(|rel| repo.join(rel))
+    .find(|p| p.join("README.md").is_file())
 }

@@ -60,51 +60,74 @@ fn repo_root() -> PathBuf {
 
 /// One cross-validated choice.
 struct Choice {
+    /// The one-standard-error choice (exported).
     spec: ModelSpec,
-    /// (spec, criterion) of every candidate.
-    table: Vec<(ModelSpec, f64)>,
+    /// The candidate with the smallest criterion.
+    min_spec: ModelSpec,
+    /// Standard error of the smallest criterion.
+    min_se: f64,
+    /// (spec, criterion, its standard error) of every candidate.
+    table: Vec<(ModelSpec, f64, f64)>,
 }
 
-/// Grouped CV: for every spec, train on all recordings but one held-out group, score the
-/// held-out group with `score` (returns Σ cost, count), pool over groups; the criterion is
-/// sqrt(Σ cost / Σ count). Picks the smallest criterion (ties: the smaller set, the larger σ).
+/// Grouped CV: for every spec, train on all recordings but one held-out group and score the
+/// held-out group with `score` (one squared error per held-out scalar or point), pooled over the
+/// groups; the criterion is the rms `c = sqrt(mean e²)` with standard error
+/// `SE = sd(e²) / (2·c·sqrt(n))` (delta method). The choice is the one-standard-error rule:
+/// the simplest candidate (offsets before offsets + lengths, then the smaller prior σ) whose
+/// criterion is within one SE of the smallest. Chosen before the tracker scores were looked at,
+/// as the standard guard against a minimum that noise picked.
 fn cross_validate(
     cell: &Cell,
     recs: &[&Recording],
     folds: &[&str],
     noise: &NoiseLevels,
-    score: &dyn Fn(&[&Recording], (&KinematicErrors, &KinematicErrors)) -> anyhow::Result<(f64, usize)>,
+    score: &dyn Fn(&[&Recording], (&KinematicErrors, &KinematicErrors)) -> anyhow::Result<Vec<f64>>,
 ) -> anyhow::Result<Choice> {
     let mut table = Vec::new();
     for set in ParamSet::ALL {
         for sigma in SIGMA_GRID {
             let spec = ModelSpec { set, sigma };
-            let (mut cost, mut count) = (0.0, 0usize);
+            let mut e2: Vec<f64> = Vec::new();
             for fold in folds {
-                let train: Vec<&Recording> =
-                    recs.iter().copied().filter(|r| r.pattern != *fold).collect();
-                let test: Vec<&Recording> =
-                    recs.iter().copied().filter(|r| r.pattern == *fold).collect();
+                let train: Vec<&Recording> = recs
+                    .iter()
+                    .copied()
+                    .filter(|r| r.pattern != *fold)
+                    .collect();
+                let test: Vec<&Recording> = recs
+                    .iter()
+                    .copied()
+                    .filter(|r| r.pattern == *fold)
+                    .collect();
                 let b = build_problem(cell, &train, Some(spec), noise);
                 let f = fit(&b.problem, None, None)
                     .with_context(|| format!("CV fold {fold}, {} σ {sigma}", set.name()))?;
                 let (r, l) = corrections(&f);
-                let (c, n) = score(&test, (&r, &l))?;
-                cost += c;
-                count += n;
+                e2.extend(score(&test, (&r, &l))?);
             }
-            table.push((spec, (cost / count.max(1) as f64).sqrt()));
+            let n = e2.len().max(1) as f64;
+            let mean = e2.iter().sum::<f64>() / n;
+            let var = e2.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
+            let c = mean.sqrt();
+            table.push((spec, c, var.sqrt() / (2.0 * c * n.sqrt())));
         }
     }
-    let best = table
+    let &(min_spec, min_c, min_se) = table
         .iter()
-        .fold(None::<(ModelSpec, f64)>, |acc, &(s, v)| match acc {
-            Some((_, bv)) if bv <= v => acc,
-            _ => Some((s, v)),
-        })
-        .map(|b| b.0)
+        .min_by(|a, b| a.1.total_cmp(&b.1))
         .context("no CV candidate")?;
-    Ok(Choice { spec: best, table })
+    // Table order is already simplest first: set, then σ ascending.
+    let spec = table
+        .iter()
+        .find(|t| t.1 <= min_c + min_se)
+        .map_or(min_spec, |t| t.0);
+    Ok(Choice {
+        spec,
+        min_spec,
+        min_se,
+        table,
+    })
 }
 
 fn print_cv(title: &str, unit: &str, c: &Choice) {
@@ -116,14 +139,17 @@ fn print_cv(title: &str, unit: &str, c: &Choice) {
     println!();
     for set in ParamSet::ALL {
         print!("  {:<16}", set.name());
-        for (spec, v) in c.table.iter().filter(|(s, _)| s.set == set) {
+        for (spec, v, _) in c.table.iter().filter(|(s, _, _)| s.set == set) {
             let mark = if *spec == c.spec { "*" } else { " " };
             print!(" {v:>7.4}{mark}");
         }
         println!();
     }
     println!(
-        "  chosen: {} with σ = {} mrad / mm (smallest {unit})",
+        "  smallest {unit}: {} σ {} (SE {:.4}); chosen (simplest within one SE, *): {} with σ = {} mrad / mm",
+        c.min_spec.set.name(),
+        c.min_spec.sigma,
+        c.min_se,
         c.spec.set.name(),
         c.spec.sigma
     );
@@ -131,9 +157,15 @@ fn print_cv(title: &str, unit: &str, c: &Choice) {
 
 fn write_cv(path: &Path, c: &Choice, criterion: &str) -> anyhow::Result<()> {
     let mut w = std::fs::File::create(path).with_context(|| format!("{}", path.display()))?;
-    writeln!(w, "set,sigma_mrad_or_mm,{criterion},chosen")?;
-    for (s, v) in &c.table {
-        writeln!(w, "{},{},{v:.6},{}", s.set.name(), s.sigma, *s == c.spec)?;
+    writeln!(w, "set,sigma_mrad_or_mm,{criterion},se,chosen")?;
+    for (s, v, se) in &c.table {
+        writeln!(
+            w,
+            "{},{},{v:.6},{se:.6},{}",
+            s.set.name(),
+            s.sigma,
+            *s == c.spec
+        )?;
     }
     Ok(())
 }
@@ -159,9 +191,8 @@ fn write_parameters(path: &Path, problem: &CellProblem, f: &CellFit) -> anyhow::
 fn unit(p: &CellParam) -> (&'static str, f64) {
     match p {
         CellParam::Kinematic { param, .. } => match param {
-            kinematics::ErrorParam::JointOffset { .. } | kinematics::ErrorParam::OriginRpy { .. } => {
-                ("mrad", 1e3)
-            }
+            kinematics::ErrorParam::JointOffset { .. }
+            | kinematics::ErrorParam::OriginRpy { .. } => ("mrad", 1e3),
             _ => ("mm", 1e3),
         },
         CellParam::PlacementRotation { .. }
@@ -194,7 +225,7 @@ fn calibrate_and_export(
     let header = format!(
         "# Written by `cargo run --example ctu_motoman`: the CTU dual-arm Motoman cell calibrated from\n\
          # {how}.\n# robot1 = right arm, robot2 = left arm; parameter set {} with prior σ {} mrad / mm \
-         (chosen by grouped CV).\n# Joint offsets and origins are in right_arm.urdf / left_arm.urdf.\n",
+         (chosen by grouped CV, one-SE rule).\n# Joint offsets and origins are in right_arm.urdf / left_arm.urdf.\n",
         choice.spec.set.name(),
         choice.spec.sigma
     );
@@ -276,7 +307,10 @@ fn run(args: Args) -> anyhow::Result<()> {
     );
 
     let by_role = |roles: &[Role]| -> Vec<&Recording> {
-        recordings.iter().filter(|r| roles.contains(&r.role)).collect()
+        recordings
+            .iter()
+            .filter(|r| roles.contains(&r.role))
+            .collect()
     };
     let nuisance_score = |test: &[&Recording], corr: (&KinematicErrors, &KinematicErrors)| {
         held_out_nuisance_cost(&cell, test, corr, &noise)
@@ -305,7 +339,11 @@ fn run(args: Args) -> anyhow::Result<()> {
         &args.out,
         "the no-tracker self-contact files only (no tracker value used)",
     )?;
-    write_cv(&args.out.join("self/cv.csv"), &self_choice, "heldout_rms_sigma")?;
+    write_cv(
+        &args.out.join("self/cv.csv"),
+        &self_choice,
+        "heldout_rms_sigma",
+    )?;
 
     // --- planes: self-contact + no-tracker planes; CV leaves one pattern out (5).
     let plane_recs = by_role(&[Role::SelfContact, Role::Plane]);
@@ -330,20 +368,23 @@ fn run(args: Args) -> anyhow::Result<()> {
         &args.out,
         "the no-tracker self-contact and plane-contact files (no tracker value used)",
     )?;
-    write_cv(&args.out.join("planes/cv.csv"), &plane_choice, "heldout_rms_sigma")?;
+    write_cv(
+        &args.out.join("planes/cv.csv"),
+        &plane_choice,
+        "heldout_rms_sigma",
+    )?;
 
     // --- all: everything, tracker files included; CV holds out whole tracker patterns and
     // scores them with the honest protocol (mm).
     let all_recs: Vec<&Recording> = recordings.iter().collect();
     let tracker_score = |test: &[&Recording], corr: (&KinematicErrors, &KinematicErrors)| {
-        let (mut s, mut n) = (0.0, 0usize);
+        let mut e2 = Vec::new();
         for r in test {
             for p in score_recording(&cell, r, corr, None)? {
-                s += (p.error_m * 1e3).powi(2);
-                n += 1;
+                e2.push((p.error_m * 1e3).powi(2));
             }
         }
-        Ok((s, n))
+        Ok(e2)
     };
     let all_choice = cross_validate(
         &cell,
@@ -366,21 +407,21 @@ fn run(args: Args) -> anyhow::Result<()> {
         &args.out,
         "every recording of the dataset, tracker files included",
     )?;
-    write_cv(&args.out.join("all/cv.csv"), &all_choice, "heldout_tracker_rms_mm")?;
+    write_cv(
+        &args.out.join("all/cv.csv"),
+        &all_choice,
+        "heldout_tracker_rms_mm",
+    )?;
 
     // --- scores on every tracker file.
     let zero = KinematicErrors::zero(6);
-    let models: Vec<(&str, KinematicErrors, KinematicErrors, bool)> = std::iter::once((
-        "nominal",
-        zero.clone(),
-        zero.clone(),
-        true,
-    ))
-    .chain([&cal_self, &cal_planes, &cal_all].iter().map(|c| {
-        let (r, l) = corrections(&c.fit);
-        (c.name, r, l, c.name != "all")
-    }))
-    .collect();
+    let models: Vec<(&str, KinematicErrors, KinematicErrors, bool)> =
+        std::iter::once(("nominal", zero.clone(), zero.clone(), true))
+            .chain([&cal_self, &cal_planes, &cal_all].iter().map(|c| {
+                let (r, l) = corrections(&c.fit);
+                (c.name, r, l, c.name != "all")
+            }))
+            .collect();
     let mut rows: Vec<ScoreRow> = Vec::new();
     let mut per_pose: Vec<(String, String, Vec<ScoredPose>)> = Vec::new();
     let trackers = by_role(&[Role::Tracker, Role::TrackerSelfContact]);
@@ -412,7 +453,10 @@ fn run(args: Args) -> anyhow::Result<()> {
     }
     print_scores(&rows, &trackers);
     write_scores(&args.out.join("scores.csv"), &rows)?;
-    plot::per_file_svg(&args.out.join("scores_per_file.svg"), &rows_for_plot(&rows, &trackers))?;
+    plot::per_file_svg(
+        &args.out.join("scores_per_file.svg"),
+        &rows_for_plot(&rows, &trackers),
+    )?;
     plot::residual_vs_joint_svg(
         &args.out.join("residual_vs_joint.svg"),
         &per_pose,

@@ -132,8 +132,9 @@ pub fn residual_vs_joint_svg(
             let c = COLOURS[i];
             chart
                 .draw_series(
-                    s.iter()
-                        .map(|p| Circle::new((p.q[j].to_degrees(), p.error_m * 1e3), 2, c.filled())),
+                    s.iter().map(|p| {
+                        Circle::new((p.q[j].to_degrees(), p.error_m * 1e3), 2, c.filled())
+                    }),
                 )
                 .map_err(|x| e(&x))?;
         }

@@ -39,6 +39,10 @@ pub const TIP_TOLERANCE_M: f64 = 10.0;
 const PLACEMENT_HOLD_SIGMA: f64 = 1e-7;
 /// Tracker-frame σ of the honest score's fit, m (any positive value: every row has the same).
 const SCORE_SIGMA_M: f64 = 2e-4;
+/// Relative cost decrease at which a fit has converged: 1e-8 of a χ² of ~10³ moves no
+/// parameter by a visible amount (the library's default 1e-10 only costs iterations in the flat
+/// directions of free reflector offsets).
+const COST_TOLERANCE: f64 = 1e-8;
 /// Seed of the half split of the honest score.
 pub const SPLIT_SEED: u64 = 12;
 /// The prior σ values cross-validation chooses from (mrad for offsets and mm for lengths).
@@ -179,7 +183,11 @@ pub fn build_problem(
     }
     let mut origin = Vec::new();
     for (ri, rec) in recordings.iter().enumerate() {
-        let arm = if rec.right_arm { Robot::One } else { Robot::Two };
+        let arm = if rec.right_arm {
+            Robot::One
+        } else {
+            Robot::Two
+        };
         let plane = p.planes.len();
         if rec.role == Role::Plane {
             p.planes.push(PlaneGroup {
@@ -305,15 +313,12 @@ pub fn fit(
         est.robot1.errors = right.clone();
         est.robot2.errors = left.clone();
     }
-    let fit = fit_cell_with(
-        problem,
-        layout,
-        active,
-        None,
-        Some(&est),
-        &SolveOptions::default(),
-    )
-    .context("MAP fit")?;
+    let options = SolveOptions {
+        cost_tolerance: COST_TOLERANCE,
+        ..SolveOptions::default()
+    };
+    let fit =
+        fit_cell_with(problem, layout, active, None, Some(&est), &options).context("MAP fit")?;
     Ok(fit)
 }
 
@@ -380,18 +385,18 @@ pub fn corrections(fit: &CellFit) -> (KinematicErrors, KinematicErrors) {
 
 /// Held-out error of held-out recordings that are not scored by the tracker protocol: the
 /// problem of `recordings` with nominal tolerances (only contact distances and planes fitted) at
-/// the given corrections; returns (Σ whitened squares, scalar rows).
+/// the given corrections; returns the whitened square of each scalar row (σ units).
 pub fn held_out_nuisance_cost(
     cell: &Cell,
     recordings: &[&Recording],
     corr: (&KinematicErrors, &KinematicErrors),
     noise: &NoiseLevels,
-) -> anyhow::Result<(f64, usize)> {
+) -> anyhow::Result<Vec<f64>> {
     let b = build_problem(cell, recordings, None, noise);
     let f = fit(&b.problem, None, Some(corr))?;
     let res = residuals(&b.problem, &f, &f.estimate)?;
-    let rows = b.problem.observations.iter().map(|o| o.kind.rows()).sum();
-    Ok((res.iter().map(|r| r.1).sum(), rows))
+    // Contact and plane rows are scalar: the whitened square is the row's.
+    Ok(res.iter().map(|r| r.1).collect())
 }
 
 /// One held-out tracker point of the honest score.
