@@ -20,8 +20,6 @@ const LEICA: [&str; 3] = ["leica_x_m", "leica_y_m", "leica_z_m"];
 /// One pose of a recording.
 #[derive(Debug, Clone)]
 pub struct Pose {
-    /// Pose id in the file (1-based).
-    pub pose: usize,
     /// Right arm joints S..T, rad.
     pub q_right: Vec<f64>,
     /// Left arm joints S..T, rad.
@@ -160,7 +158,7 @@ pub fn read_recording(
             .position(|h| h == c)
             .with_context(|| format!("{}: no column `{c}`", path.display()))
     };
-    let pose_col = col("pose")?;
+    col("pose")?; // present in every file of the dataset: a check that this is one
     let right: Vec<usize> = RIGHT.iter().map(|c| col(c)).collect::<Result<_, _>>()?;
     let left: Vec<usize> = LEFT.iter().map(|c| col(c)).collect::<Result<_, _>>()?;
     let leica: Vec<usize> = LEICA.iter().map(|c| col(c)).collect::<Result<_, _>>()?;
@@ -199,7 +197,6 @@ pub fn read_recording(
             _ => None,
         };
         poses.push(Pose {
-            pose: req(pose_col)? as usize,
             q_right,
             q_left,
             p_tracker,

@@ -41,6 +41,20 @@ struct Args {
     /// Output folder (created): self/, planes/, all/, scores.csv and the SVG figures.
     #[arg(long)]
     out: PathBuf,
+    /// How cross-validation picks the parameter set and prior σ: `one-se` (the simplest
+    /// candidate within one standard error of the smallest CV error; default) or `min` (the
+    /// smallest CV error).
+    #[arg(long, value_enum, default_value_t = CvRule::OneSe)]
+    cv_rule: CvRule,
+}
+
+/// `--cv-rule`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum CvRule {
+    /// The simplest candidate within one standard error of the smallest CV error.
+    OneSe,
+    /// The smallest CV error.
+    Min,
 }
 
 /// Right arm = robot 1, left arm = robot 2.
@@ -57,6 +71,11 @@ fn export_names(header: &str) -> ExportNames<'_> {
 fn repo_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
+
+/// Scores held-out recordings at given (right, left) corrections: one squared error per
+/// held-out scalar row or tracker point.
+type HeldOutScore<'a> =
+    dyn Fn(&[&Recording], (&KinematicErrors, &KinematicErrors)) -> anyhow::Result<Vec<f64>> + 'a;
 
 /// One cross-validated choice.
 struct Choice {
@@ -82,7 +101,8 @@ fn cross_validate(
     recs: &[&Recording],
     folds: &[&str],
     noise: &NoiseLevels,
-    score: &dyn Fn(&[&Recording], (&KinematicErrors, &KinematicErrors)) -> anyhow::Result<Vec<f64>>,
+    rule: CvRule,
+    score: &HeldOutScore,
 ) -> anyhow::Result<Choice> {
     let mut table = Vec::new();
     for set in ParamSet::ALL {
@@ -118,10 +138,13 @@ fn cross_validate(
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .context("no CV candidate")?;
     // Table order is already simplest first: set, then σ ascending.
-    let spec = table
-        .iter()
-        .find(|t| t.1 <= min_c + min_se)
-        .map_or(min_spec, |t| t.0);
+    let spec = match rule {
+        CvRule::Min => min_spec,
+        CvRule::OneSe => table
+            .iter()
+            .find(|t| t.1 <= min_c + min_se)
+            .map_or(min_spec, |t| t.0),
+    };
     Ok(Choice {
         spec,
         min_spec,
@@ -146,7 +169,7 @@ fn print_cv(title: &str, unit: &str, c: &Choice) {
         println!();
     }
     println!(
-        "  smallest {unit}: {} σ {} (SE {:.4}); chosen (simplest within one SE, *): {} with σ = {} mrad / mm",
+        "  smallest {unit}: {} σ {} (SE {:.4}); chosen (*): {} with σ = {} mrad / mm",
         c.min_spec.set.name(),
         c.min_spec.sigma,
         c.min_se,
@@ -190,12 +213,12 @@ fn write_parameters(path: &Path, problem: &CellProblem, f: &CellFit) -> anyhow::
 
 fn unit(p: &CellParam) -> (&'static str, f64) {
     match p {
-        CellParam::Kinematic { param, .. } => match param {
-            kinematics::ErrorParam::JointOffset { .. }
-            | kinematics::ErrorParam::OriginRpy { .. } => ("mrad", 1e3),
-            _ => ("mm", 1e3),
-        },
-        CellParam::PlacementRotation { .. }
+        CellParam::Kinematic {
+            param:
+                kinematics::ErrorParam::JointOffset { .. } | kinematics::ErrorParam::OriginRpy { .. },
+            ..
+        }
+        | CellParam::PlacementRotation { .. }
         | CellParam::TrackerRotation { .. }
         | CellParam::PlaneNormal { .. } => ("mrad", 1e3),
         _ => ("mm", 1e3),
@@ -225,7 +248,7 @@ fn calibrate_and_export(
     let header = format!(
         "# Written by `cargo run --example ctu_motoman`: the CTU dual-arm Motoman cell calibrated from\n\
          # {how}.\n# robot1 = right arm, robot2 = left arm; parameter set {} with prior σ {} mrad / mm \
-         (chosen by grouped CV, one-SE rule).\n# Joint offsets and origins are in right_arm.urdf / left_arm.urdf.\n",
+         (chosen by grouped CV).\n# Joint offsets and origins are in right_arm.urdf / left_arm.urdf.\n",
         choice.spec.set.name(),
         choice.spec.sigma
     );
@@ -323,6 +346,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         &self_recs,
         &["self_upper", "self_lower"],
         &noise,
+        args.cv_rule,
         &nuisance_score,
     )?;
     print_cv(
@@ -352,6 +376,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         &plane_recs,
         &["self_upper", "self_lower", "wall", "higher", "lower"],
         &noise,
+        args.cv_rule,
         &nuisance_score,
     )?;
     print_cv(
@@ -391,6 +416,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         &all_recs,
         &["right_grid", "left_grid", "leica_table", "leica_self"],
         &noise,
+        args.cv_rule,
         &tracker_score,
     )?;
     print_cv(
@@ -508,7 +534,7 @@ fn print_effects(c: &Calibrated) {
     }
 }
 
-fn rows_for_plot<'a>(rows: &'a [ScoreRow], trackers: &[&Recording]) -> Vec<(String, Vec<f64>)> {
+fn rows_for_plot(rows: &[ScoreRow], trackers: &[&Recording]) -> Vec<(String, Vec<f64>)> {
     let models = ["nominal", "self", "planes", "all", "file_geometry"];
     models
         .iter()
