@@ -117,3 +117,132 @@ pub fn export_calibrated_cell(
     written.push(cell_path);
     Ok(written)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::whole_cell::{cell_problem, FitModel};
+    use crate::{generate_session, trial_rng, Layout, SessionSpec};
+    use kinematics::true_base_from_tip;
+    use nalgebra::{Isometry3, Vector3};
+
+    /// Exported model vs fitted model: the URDF patch's own tolerance
+    /// (kinematics::PATCH_TOLERANCE_M); the cell TOML keeps 10 decimals of mm (1e-13 m).
+    const TOL_M: f64 = 1e-9;
+    /// The cell TOML keeps 10 decimals of deg/kNm: 1e-10 deg/kNm = 1.7e-15 rad/(N·m).
+    const COMPLIANCE_TOL: f64 = 2e-15;
+
+    fn floor_floor() -> Cell {
+        Cell::from_toml_file(
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells/floor-floor.toml"),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn exported_cell_reproduces_the_estimate_with_the_given_names() {
+        let cell = floor_floor();
+        let session = generate_session(
+            &cell,
+            &SessionSpec::new(4, Layout::Tetrahedron, 1.0),
+            &mut trial_rng(1, 0),
+        )
+        .unwrap();
+        let problem = cell_problem(&cell, &session, FitModel::Kinematic);
+        let mut est = CellEstimate::nominal(
+            &problem,
+            Isometry3::new(
+                Vector3::new(0.01, -0.02, 0.003),
+                Vector3::new(0.0, 0.0, 0.01),
+            ),
+        );
+        est.robot1.errors.joint_offset[1] = 2e-3;
+        est.robot1.errors.origin_xyz[2].x = 4e-4;
+        est.robot2.errors.origin_rpy[3].z = -1e-3;
+        est.robot2.errors.compliance[1] = 1e-6;
+        est.robot2.tool_tip_m[0] = Vector3::new(1e-3, 0.0, -2e-3);
+        let dir = tempfile::tempdir().unwrap();
+        let names = ExportNames {
+            cell: "calibrated.toml",
+            robot1_urdf: "a.urdf",
+            robot2_urdf: "b.urdf",
+            header: "# a test header\n",
+        };
+        let written = export_calibrated_cell(&cell, &est, dir.path(), &names).unwrap();
+        assert_eq!(
+            written,
+            vec![
+                dir.path().join("a.urdf"),
+                dir.path().join("b.urdf"),
+                dir.path().join("calibrated.toml")
+            ]
+        );
+        let text = std::fs::read_to_string(dir.path().join("calibrated.toml")).unwrap();
+        assert!(text.starts_with("# a test header\n"));
+        let out = Cell::from_toml_file(&dir.path().join("calibrated.toml")).unwrap();
+        assert!(
+            (out.b1_from_b2.translation.vector - est.b1_from_b2.translation.vector).norm() < TOL_M
+        );
+        // The compliance, which a URDF cannot hold, is in [robot2.errors]; the rest in the URDFs.
+        assert!((out.robot2.errors.compliance[1] - 1e-6).abs() < COMPLIANCE_TOL);
+        assert_eq!(out.robot1.errors.joint_offset[1], 0.0);
+        for (setup, fitted, tip_err, exported) in [
+            (
+                &cell.robot1,
+                &est.robot1.errors,
+                est.robot1.tool_tip_m[0],
+                &out.robot1,
+            ),
+            (
+                &cell.robot2,
+                &est.robot2.errors,
+                est.robot2.tool_tip_m[0],
+                &out.robot2,
+            ),
+        ] {
+            for p in &session.points {
+                let q = if std::ptr::eq(setup, &cell.robot1) {
+                    &p.q1
+                } else {
+                    &p.q2
+                };
+                let want = true_base_from_tip(
+                    &setup.model,
+                    fitted,
+                    q,
+                    &(setup.flange_from_tip + tip_err),
+                    &setup.g_base,
+                )
+                .unwrap();
+                let got = true_base_from_tip(
+                    &exported.model,
+                    &exported.errors,
+                    q,
+                    &exported.flange_from_tip,
+                    &exported.g_base,
+                )
+                .unwrap();
+                assert!((want.translation.vector - got.translation.vector).norm() < TOL_M);
+            }
+        }
+    }
+
+    #[test]
+    fn an_estimate_without_the_tip_tool_is_refused_naming_the_robot() {
+        let cell = floor_floor();
+        let session = generate_session(
+            &cell,
+            &SessionSpec::new(4, Layout::Tetrahedron, 1.0),
+            &mut trial_rng(1, 0),
+        )
+        .unwrap();
+        let problem = cell_problem(&cell, &session, FitModel::Kinematic);
+        let mut est = CellEstimate::nominal(&problem, cell.b1_from_b2);
+        est.robot1.tool_tip_m.clear();
+        let dir = tempfile::tempdir().unwrap();
+        let e = export_calibrated_cell(&cell, &est, dir.path(), &CALIBRATE_EXPORT_NAMES)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("robot 1") && e.contains("tool 0"), "{e}");
+    }
+}
