@@ -15,18 +15,16 @@
 //! Output units: mm and degrees (ZYZ, `R = Rz(φ)·Ry(θ)·Rz(ψ)`); parameters in their unit (`deg`,
 //! `mm`, `ratio`, `deg/kNm`).
 
-use std::path::{Path, PathBuf};
-
 use anyhow::{bail, Context};
 use calib_core::whole_cell::{
     calibrate_cell, predict_cooperative_accuracy, CellCalibration, CellParam, CellProblem,
     ReductionReason, ScreenOptions, SolveOptions,
 };
-use calib_core::{zyz_from_rotation, Robot};
-use kinematics::{patch_urdf_text, split_for_urdf, verify_patched_urdf, ErrorParam, RobotModel};
+use calib_core::zyz_from_rotation;
+use kinematics::ErrorParam;
 use serde_json::{json, Value};
 use sim_cell::whole_cell::{cell_problem, session_config_pairs, FitModel};
-use sim_cell::{Cell, Session};
+use sim_cell::{export_calibrated_cell, Cell, Session, CALIBRATE_EXPORT_NAMES};
 
 use crate::calibrate::Args;
 
@@ -95,9 +93,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "pair_set": "every (q1_i, q2_j) of the session's rows",
     });
     let written = match &args.export {
-        Some(dir) => {
-            export(&cell, &cal, dir).with_context(|| format!("--export {}", dir.display()))?
-        }
+        Some(dir) => export_calibrated_cell(&cell, &cal.fit.estimate, dir, &CALIBRATE_EXPORT_NAMES)
+            .with_context(|| format!("--export {}", dir.display()))?,
         None => Vec::new(),
     };
     if args.json {
@@ -363,74 +360,4 @@ fn dropped_line(d: &Value) -> String {
         Some("no_effect") => format!("{name}: moves no observed tip"),
         _ => d["why"].as_str().unwrap_or(name).to_string(),
     }
-}
-
-/// Writes `path` through a temporary file in the same folder, renamed into place.
-fn write_atomically(path: &Path, text: &str) -> anyhow::Result<()> {
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, text).with_context(|| format!("writing {}", tmp.display()))?;
-    std::fs::rename(&tmp, path)
-        .with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))
-}
-
-/// Writes `DIR/robot1.urdf`, `DIR/robot2.urdf` (the URDF-expressible corrections: joint offsets,
-/// origin xyz/rpy) and `DIR/cell.toml` (fitted `b1_from_b2`, corrected tips, the corrected URDFs;
-/// joint scale and compliance, which a URDF cannot hold, as `[robotN.errors]`). Each URDF is
-/// written to a temporary file, re-loaded, verified against the fitted model
-/// ([`verify_patched_urdf`]) and renamed into place; the cell is re-loaded from its file.
-fn export(cell: &Cell, cal: &CellCalibration, dir: &Path) -> anyhow::Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let est = &cal.fit.estimate;
-    let mut out = cell.clone();
-    out.base_dir = dir.to_path_buf();
-    out.b1_from_b2 = est.b1_from_b2;
-    let mut written = Vec::new();
-    for robot in [Robot::One, Robot::Two] {
-        let setup = cell.robot(robot);
-        let correction = est.robot(robot);
-        let (urdf_part, rest) = split_for_urdf(&correction.errors);
-        let xml = std::fs::read_to_string(&setup.urdf_path)
-            .with_context(|| format!("{robot}: reading {}", setup.urdf_path.display()))?;
-        let patched = patch_urdf_text(&xml, &setup.model, &urdf_part)
-            .with_context(|| format!("{robot}: correcting {}", setup.urdf_path.display()))?;
-        let file = format!("robot{}.urdf", robot.number());
-        let path = dir.join(&file);
-        let tmp = path.with_extension("urdf.tmp");
-        std::fs::write(&tmp, &patched).with_context(|| format!("writing {}", tmp.display()))?;
-        let reread = std::fs::read_to_string(&tmp)
-            .with_context(|| format!("re-reading {}", tmp.display()))?;
-        verify_patched_urdf(&reread, &setup.model, &urdf_part)
-            .with_context(|| format!("verifying {}", tmp.display()))?;
-        let model = RobotModel::from_urdf_file(&tmp, &setup.tool_link)
-            .with_context(|| format!("re-loading {}", tmp.display()))?;
-        std::fs::rename(&tmp, &path)
-            .with_context(|| format!("renaming {} to {}", tmp.display(), path.display()))?;
-        written.push(path.clone());
-        let r = if robot == Robot::One {
-            &mut out.robot1
-        } else {
-            &mut out.robot2
-        };
-        r.model = model;
-        r.urdf = file;
-        r.urdf_path = path;
-        r.flange_from_tip = setup.flange_from_tip + correction.tool_tip_m[0];
-        // What a URDF cannot hold (scale, compliance; tips are in tip_mm, mounts are never fitted).
-        r.errors = rest;
-    }
-    // Robot 2's gravity follows the calibrated placement.
-    out.robot2.g_base = out.b1_from_b2.rotation.inverse() * out.robot1.g_base;
-    let cell_path = dir.join("cell.toml");
-    let text = format!(
-        "# Written by `handclasp calibrate --cell --export`: the calibrated cell (fitted b1_from_b2,\n\
-         # corrected URDFs robot1.urdf / robot2.urdf and tip offsets; [robotN.errors] holds only what a\n\
-         # URDF cannot express). A session recorded with the old models has their tip columns, which\n\
-         # these models reject (record a new session, or use the old cell for it).\n{}",
-        out.to_toml_string()
-    );
-    write_atomically(&cell_path, &text)?;
-    Cell::from_toml_file(&cell_path)
-        .with_context(|| format!("re-loading the exported {}", cell_path.display()))?;
-    written.push(cell_path);
-    Ok(written)
 }

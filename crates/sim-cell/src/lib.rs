@@ -4,6 +4,7 @@ pub mod cell;
 #[cfg(feature = "cli")]
 pub mod cli_support;
 mod error;
+pub mod export;
 pub mod layout;
 pub mod paper;
 pub mod placement;
@@ -15,6 +16,7 @@ pub mod whole_cell;
 
 pub use cell::{Cell, CellRobot, Noise};
 pub use error::SimError;
+pub use export::{export_calibrated_cell, ExportNames, CALIBRATE_EXPORT_NAMES};
 pub use layout::{teach_points, Layout};
 pub use session::{generate_session, Session, SessionPoint, SessionSpec};
 pub use sweep::{geometry_trial, GeometrySpec, TrialErrors};

@@ -1,0 +1,504 @@
+//! The study's core: the whole-cell problems of the CTU recordings (`calib_core::whole_cell`),
+//! the MAP fits with the common base held fixed, grouped cross-validation of the prior σ and the
+//! parameter set, and the honest tracker score (registration + reflector fitted on one half of a
+//! file's poses, scored on the other half, both ways).
+//!
+//! Units: SI inside (m, rad); the prior σ of a spec is one number `s` used as `s` mrad for joint
+//! offsets and `s` mm for joint origin positions (as in the Python study).
+
+use anyhow::Context;
+use calib_core::stats::{quantile, sorted_finite};
+use calib_core::whole_cell::{
+    fit_cell_with, initial_estimate, CellEstimate, CellFit, CellParam, CellProblem, CellRobot,
+    ContactGroup, Evaluator, Noise3, Observation, ObservationKind, ParamLayout, PlaneGroup,
+    SolveOptions, Tolerance, Tool, TrackerGroup,
+};
+use calib_core::Robot;
+use kinematics::{Axis, KinematicErrors};
+use nalgebra::{DMatrix, Isometry3, Vector3};
+use sim_cell::Cell;
+
+use crate::data::{Recording, Role};
+
+/// Starting self-contact distance of the no-tracker self-contact files, m (dataset README).
+pub const CONTACT_START_M: f64 = 0.116;
+/// Starting self-contact distance of the `leica_self_*` files, m (their nominal mean; another
+/// set-up, fitted as its own group).
+pub const LEICA_SELF_CONTACT_START_M: f64 = 0.1146;
+/// Nominal Leica reflector on the right arm, tool0 frame, m (DH EE row a = 45 mm, d = 245 mm,
+/// offset −0.38 rad).
+pub const REFLECTOR_RIGHT_M: [f64; 3] = [0.041_789_9, -0.016_691_4, 0.245];
+/// Nominal Leica reflector on the left arm, tool0 frame, m.
+pub const REFLECTOR_LEFT_M: [f64; 3] = [0.05, 0.0, 0.25];
+/// Tolerance of every tool tip offset that is fitted (the reflectors, one per tracker file),
+/// m: 10 m, i.e. free in effect (the reflector's mounting is not known; on a file with small
+/// wrist rotations its offset is weakly determined, and a tighter prior would bias the score).
+pub const TIP_TOLERANCE_M: f64 = 10.0;
+/// σ of the prior rows that hold `b1_from_b2` at the identity, m and rad: both DH tables start
+/// at the same base frame, so the placement is known, not fitted.
+const PLACEMENT_HOLD_SIGMA: f64 = 1e-7;
+/// Tracker-frame σ of the honest score's fit, m (any positive value: every row has the same).
+const SCORE_SIGMA_M: f64 = 2e-4;
+/// Relative cost decrease at which a fit has converged: 1e-8 of a χ² of ~10³ moves no
+/// parameter by a visible amount (the library's default 1e-10 only costs iterations in the flat
+/// directions of free reflector offsets).
+const COST_TOLERANCE: f64 = 1e-8;
+/// Seed of the half split of the honest score.
+pub const SPLIT_SEED: u64 = 12;
+/// The prior σ values cross-validation chooses from (mrad for offsets and mm for lengths).
+///
+/// 10 mrad / 10 mm is left out: with lengths free and no length reference (the contact distance
+/// and the planes are fitted), a loose prior lets the whole chain shrink — measured: the
+/// self + planes fit at σ = 10 stopped at the iteration cap with a contact distance of 61.5 mm
+/// and the arm 5–13 mm off on the tracker.
+pub const SIGMA_GRID: [f64; 4] = [0.1, 0.3, 1.0, 3.0];
+
+/// Which kinematic parameters of both arms are fitted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ParamSet {
+    /// Joint offsets S..T.
+    Offsets,
+    /// Joint offsets and joint origin positions (the link lengths) S..T.
+    OffsetsLengths,
+}
+
+impl ParamSet {
+    /// Both sets, smaller first.
+    pub const ALL: [ParamSet; 2] = [ParamSet::Offsets, ParamSet::OffsetsLengths];
+
+    /// A short name for tables.
+    pub fn name(self) -> &'static str {
+        match self {
+            ParamSet::Offsets => "offsets",
+            ParamSet::OffsetsLengths => "offsets+lengths",
+        }
+    }
+}
+
+/// A model to fit: parameter set and prior σ (mrad / mm).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModelSpec {
+    /// Fitted parameters.
+    pub set: ParamSet,
+    /// Prior σ: mrad for offsets, mm for origin positions.
+    pub sigma: f64,
+}
+
+/// Noise σ of each observation class, m (from the nominal fit's residuals, see
+/// [`noise_from_nominal`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoiseLevels {
+    /// No-tracker self-contact distance.
+    pub contact_m: f64,
+    /// `leica_self` self-contact distance.
+    pub leica_contact_m: f64,
+    /// Plane contact.
+    pub plane_m: f64,
+    /// Tracker position, per axis.
+    pub tracker_m: f64,
+}
+
+/// Where an observation of a built problem came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Origin {
+    /// Index into the recordings given to [`build_problem`].
+    pub recording: usize,
+    /// Index of the pose in that recording.
+    pub pose: usize,
+}
+
+/// A problem with the source of each observation.
+pub struct Built {
+    /// The problem.
+    pub problem: CellProblem,
+    /// Source of each observation.
+    pub origin: Vec<Origin>,
+}
+
+fn tolerance(spec: Option<ModelSpec>) -> Tolerance {
+    let mut t = Tolerance::none();
+    t.tip_m = TIP_TOLERANCE_M;
+    if let Some(s) = spec {
+        // tolerance = √3·σ (the prior of a tolerance is N(0, (tol/√3)²)).
+        t.joint_offset_rad = 3f64.sqrt() * s.sigma * 1e-3;
+        if s.set == ParamSet::OffsetsLengths {
+            t.origin_xyz_m = 3f64.sqrt() * s.sigma * 1e-3;
+        }
+    }
+    t
+}
+
+fn cell_robot(cell: &Cell, robot: Robot, spec: Option<ModelSpec>) -> CellRobot {
+    let r = cell.robot(robot);
+    CellRobot {
+        model: r.model.clone(),
+        tools: vec![Tool {
+            name: "marker".into(),
+            flange_from_tip: r.flange_from_tip,
+        }],
+        g_base: r.g_base,
+        tolerance: tolerance(spec),
+    }
+}
+
+/// The whole-cell problem of `recordings` in `cell` (robot 1 = right arm, robot 2 = left arm,
+/// tool 0 = the marker dodecahedron of the cell): self-contact rows as `Contact` (one fitted
+/// distance for the no-tracker files, one for `leica_self`), plane rows as `Plane` of the right
+/// arm's marker (one plane per file), tracker rows as `Tracker` of the measured arm (one frame
+/// and one reflector tool per file). `spec = None`: nominal kinematics (only the nuisances and
+/// the reflectors are fitted).
+pub fn build_problem(
+    cell: &Cell,
+    recordings: &[&Recording],
+    spec: Option<ModelSpec>,
+    noise: &NoiseLevels,
+) -> Built {
+    let mut p = CellProblem {
+        robot1: cell_robot(cell, Robot::One, spec),
+        robot2: cell_robot(cell, Robot::Two, spec),
+        observations: Vec::new(),
+        trackers: Vec::new(),
+        planes: Vec::new(),
+        contacts: Vec::new(),
+    };
+    // Contact groups only for the set-ups present (a group without rows would be a free,
+    // undetermined unknown).
+    let mut group_of = [None::<usize>; 2];
+    for (k, (name, start)) in [
+        ("no_leica_self", CONTACT_START_M),
+        ("leica_self", LEICA_SELF_CONTACT_START_M),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let role = [Role::SelfContact, Role::TrackerSelfContact][k];
+        if recordings.iter().any(|r| r.role == role) {
+            group_of[k] = Some(p.contacts.len());
+            p.contacts.push(ContactGroup {
+                name: name.into(),
+                distance_m: start,
+                fit_distance: true,
+            });
+        }
+    }
+    let mut origin = Vec::new();
+    for (ri, rec) in recordings.iter().enumerate() {
+        let arm = if rec.right_arm {
+            Robot::One
+        } else {
+            Robot::Two
+        };
+        let plane = p.planes.len();
+        if rec.role == Role::Plane {
+            p.planes.push(PlaneGroup {
+                name: rec.name.clone(),
+                anchor: Robot::One,
+                initial: None,
+            });
+        }
+        let (tracker, reflector) = (p.trackers.len(), p.robot(arm).tools.len());
+        if matches!(rec.role, Role::Tracker | Role::TrackerSelfContact) {
+            p.trackers.push(TrackerGroup {
+                name: rec.name.clone(),
+                anchor: arm,
+                initial_tracker_from_anchor: None,
+            });
+            let nominal = if rec.right_arm {
+                REFLECTOR_RIGHT_M
+            } else {
+                REFLECTOR_LEFT_M
+            };
+            let tool = Tool {
+                name: format!("reflector {}", rec.name),
+                flange_from_tip: Vector3::from(nominal),
+            };
+            if arm == Robot::One {
+                p.robot1.tools.push(tool);
+            } else {
+                p.robot2.tools.push(tool);
+            }
+        }
+        for (pi, pose) in rec.poses.iter().enumerate() {
+            let q_arm = if rec.right_arm {
+                &pose.q_right
+            } else {
+                &pose.q_left
+            };
+            let mut kinds = Vec::new();
+            match rec.role {
+                Role::SelfContact | Role::TrackerSelfContact => {
+                    let leica = rec.role == Role::TrackerSelfContact;
+                    kinds.push(ObservationKind::Contact {
+                        q1: pose.q_right.clone(),
+                        q2: pose.q_left.clone(),
+                        tool1: 0,
+                        tool2: 0,
+                        group: group_of[usize::from(leica)].unwrap_or(0),
+                        sigma_m: if leica {
+                            noise.leica_contact_m
+                        } else {
+                            noise.contact_m
+                        },
+                    });
+                }
+                Role::Plane => kinds.push(ObservationKind::Plane {
+                    robot: Robot::One,
+                    q: pose.q_right.clone(),
+                    tool: 0,
+                    group: plane,
+                    sigma_m: noise.plane_m,
+                }),
+                Role::Tracker => {}
+            }
+            if matches!(rec.role, Role::Tracker | Role::TrackerSelfContact) {
+                if let Some(p_tracker) = pose.p_tracker {
+                    kinds.push(ObservationKind::Tracker {
+                        robot: arm,
+                        q: q_arm.clone(),
+                        tool: reflector,
+                        group: tracker,
+                        p_tracker,
+                        noise: Noise3::Isotropic {
+                            sigma_m: noise.tracker_m,
+                        },
+                    });
+                }
+            }
+            for kind in kinds {
+                p.observations.push(Observation {
+                    row: p.observations.len() + 1,
+                    kind,
+                });
+                origin.push(Origin {
+                    recording: ri,
+                    pose: pi,
+                });
+            }
+        }
+    }
+    Built { problem: p, origin }
+}
+
+/// MAP fit of `problem` over `active` (all rows when `None`), starting from `start` corrections
+/// (`None`: nominal), with `b1_from_b2` held at the identity (prior rows of σ
+/// [`PLACEMENT_HOLD_SIGMA`]) and the marker tips (tool 0) not fitted.
+pub fn fit(
+    problem: &CellProblem,
+    active: Option<&[usize]>,
+    start: Option<(&KinematicErrors, &KinematicErrors)>,
+) -> anyhow::Result<CellFit> {
+    let all: Vec<usize> = (0..problem.observations.len()).collect();
+    let active = active.unwrap_or(&all);
+    let mut fixed = Vec::new();
+    for robot in [Robot::One, Robot::Two] {
+        for axis in Axis::ALL {
+            fixed.push(CellParam::ToolTip {
+                robot,
+                tool: 0,
+                axis,
+            });
+        }
+    }
+    let mut layout = ParamLayout::new(problem, &fixed);
+    let (rows, n) = layout.prior_sqrt_info.shape();
+    let mut r_p = DMatrix::zeros(rows + 6, n);
+    r_p.rows_mut(0, rows).copy_from(&layout.prior_sqrt_info);
+    for j in 0..6 {
+        r_p[(rows + j, j)] = 1.0 / PLACEMENT_HOLD_SIGMA;
+    }
+    layout.prior_sqrt_info = r_p;
+    let mut est = initial_estimate(problem, Some(Isometry3::identity()), active)
+        .context("starting values (tracker frames, planes)")?;
+    if let Some((right, left)) = start {
+        est.robot1.errors = right.clone();
+        est.robot2.errors = left.clone();
+    }
+    let options = SolveOptions {
+        cost_tolerance: COST_TOLERANCE,
+        ..SolveOptions::default()
+    };
+    let fit =
+        fit_cell_with(problem, layout, active, None, Some(&est), &options).context("MAP fit")?;
+    Ok(fit)
+}
+
+/// Residuals (m, unwhitened, one norm per observation) and whitened squared norms of every
+/// observation of `problem` at `est`.
+pub fn residuals(
+    problem: &CellProblem,
+    fit: &CellFit,
+    est: &CellEstimate,
+) -> anyhow::Result<Vec<(f64, f64)>> {
+    let ev = Evaluator::new(problem, &fit.layout);
+    problem
+        .observations
+        .iter()
+        .map(|o| {
+            let l = ev.linearise(o, est, false)?;
+            let w = &l.whitening * &l.residual;
+            Ok((l.residual.norm(), w.norm_squared()))
+        })
+        .collect()
+}
+
+/// Noise σ of each class from the nominal fit of every recording (kinematics nominal; contact
+/// distances, planes, tracker frames and reflectors fitted): the rms residual per scalar row.
+/// These σ are the model error of the nominal model, which is what a calibration must explain.
+pub fn noise_from_nominal(cell: &Cell, recordings: &[Recording]) -> anyhow::Result<NoiseLevels> {
+    let start = NoiseLevels {
+        contact_m: 1e-3,
+        leica_contact_m: 1e-3,
+        plane_m: 1e-3,
+        tracker_m: 1e-3,
+    };
+    let recs: Vec<&Recording> = recordings.iter().collect();
+    let b = build_problem(cell, &recs, None, &start);
+    let f = fit(&b.problem, None, None)?;
+    let res = residuals(&b.problem, &f, &f.estimate)?;
+    let mut acc = [(0.0, 0usize); 4];
+    for (o, (r, _)) in b.problem.observations.iter().zip(&res) {
+        let (k, dim) = match &o.kind {
+            ObservationKind::Contact { group: 0, .. } => (0, 1),
+            ObservationKind::Contact { .. } => (1, 1),
+            ObservationKind::Plane { .. } => (2, 1),
+            _ => (3, 3),
+        };
+        acc[k].0 += r * r;
+        acc[k].1 += dim;
+    }
+    let rms = |(s, n): (f64, usize)| (s / n.max(1) as f64).sqrt();
+    Ok(NoiseLevels {
+        contact_m: rms(acc[0]),
+        leica_contact_m: rms(acc[1]),
+        plane_m: rms(acc[2]),
+        tracker_m: rms(acc[3]),
+    })
+}
+
+/// Both arms' kinematic corrections of a fit (right, left).
+pub fn corrections(fit: &CellFit) -> (KinematicErrors, KinematicErrors) {
+    (
+        fit.estimate.robot1.errors.clone(),
+        fit.estimate.robot2.errors.clone(),
+    )
+}
+
+/// Held-out error of held-out recordings that are not scored by the tracker protocol: the
+/// problem of `recordings` with nominal tolerances (only contact distances and planes fitted) at
+/// the given corrections; returns the whitened square of each scalar row (σ units).
+pub fn held_out_nuisance_cost(
+    cell: &Cell,
+    recordings: &[&Recording],
+    corr: (&KinematicErrors, &KinematicErrors),
+    noise: &NoiseLevels,
+) -> anyhow::Result<Vec<f64>> {
+    let b = build_problem(cell, recordings, None, noise);
+    let f = fit(&b.problem, None, Some(corr))?;
+    let res = residuals(&b.problem, &f, &f.estimate)?;
+    // Contact and plane rows are scalar: the whitened square is the row's.
+    Ok(res.iter().map(|r| r.1).collect())
+}
+
+/// One held-out tracker point of the honest score.
+#[derive(Debug, Clone)]
+pub struct ScoredPose {
+    /// The measured arm's joints, rad.
+    pub q: Vec<f64>,
+    /// Held-out 3-D error, m.
+    pub error_m: f64,
+}
+
+fn splitmix64(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// The seeded half split of `n` rows: indices of half A (⌊n/2⌋ rows) and half B, each ascending.
+pub fn halves(n: usize, seed: u64) -> (Vec<usize>, Vec<usize>) {
+    let mut idx: Vec<usize> = (0..n).collect();
+    idx.sort_by_key(|&i| splitmix64(seed ^ splitmix64(i as u64)));
+    let (a, b) = idx.split_at(n / 2);
+    let (mut a, mut b) = (a.to_vec(), b.to_vec());
+    a.sort_unstable();
+    b.sort_unstable();
+    (a, b)
+}
+
+/// The honest tracker score of one arm model on one tracker recording: one rigid registration
+/// (`tracker_from_base`) and the reflector offset (tool0) fitted on half A of the poses (seeded
+/// split, [`SPLIT_SEED`]), the other half's 3-D errors predicted; then the halves swapped. The
+/// arm's kinematics are `corr` (held). With `local_sigma = Some(s)`, offsets and lengths are
+/// also fitted on the fitting half with the weak prior `s` (mrad / mm): the error left by a
+/// rigid-geometry calibration of this file alone.
+pub fn score_recording(
+    cell: &Cell,
+    rec: &Recording,
+    corr: (&KinematicErrors, &KinematicErrors),
+    local_sigma: Option<f64>,
+) -> anyhow::Result<Vec<ScoredPose>> {
+    let noise = NoiseLevels {
+        contact_m: SCORE_SIGMA_M,
+        leica_contact_m: SCORE_SIGMA_M,
+        plane_m: SCORE_SIGMA_M,
+        tracker_m: SCORE_SIGMA_M,
+    };
+    let tracker_only = Recording {
+        role: Role::Tracker,
+        ..rec.clone()
+    };
+    let spec = local_sigma.map(|sigma| ModelSpec {
+        set: ParamSet::OffsetsLengths,
+        sigma,
+    });
+    let b = build_problem(cell, &[&tracker_only], spec, &noise);
+    let n = b.problem.observations.len();
+    let (ha, hb) = halves(n, SPLIT_SEED);
+    let mut out = Vec::new();
+    for (train, test) in [(&ha, &hb), (&hb, &ha)] {
+        let f = fit(&b.problem, Some(train), Some(corr))
+            .with_context(|| format!("scoring {}", rec.name))?;
+        let res = residuals(&b.problem, &f, &f.estimate)?;
+        for &i in test.iter() {
+            let pose = &rec.poses[b.origin[i].pose];
+            out.push(ScoredPose {
+                q: if rec.right_arm {
+                    pose.q_right.clone()
+                } else {
+                    pose.q_left.clone()
+                },
+                error_m: res[i].0,
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// rms, median, p95, max of errors (m in, mm out) and their count.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Summary {
+    /// Count.
+    pub n: usize,
+    /// rms, mm.
+    pub rms_mm: f64,
+    /// Median, mm.
+    pub median_mm: f64,
+    /// 95th percentile, mm.
+    pub p95_mm: f64,
+    /// Maximum, mm.
+    pub max_mm: f64,
+}
+
+/// Summary of errors in m.
+pub fn summarise(errors_m: &[f64]) -> Summary {
+    let s = sorted_finite(errors_m.iter().map(|e| e * 1e3));
+    let n = s.len();
+    Summary {
+        n,
+        rms_mm: (s.iter().map(|e| e * e).sum::<f64>() / n.max(1) as f64).sqrt(),
+        median_mm: quantile(&s, 0.5),
+        p95_mm: quantile(&s, 0.95),
+        max_mm: s.last().copied().unwrap_or(f64::NAN),
+    }
+}

@@ -1,0 +1,259 @@
+//! Writing a calibrated cell: corrected URDFs (the URDF-expressible corrections — joint offsets,
+//! origin xyz/rpy) and a cell TOML (the fitted `b1_from_b2`, corrected tips, and in
+//! `[robotN.errors]` what a URDF cannot hold: joint scale, compliance). Used by
+//! `handclasp calibrate --cell --export` and the `ctu_motoman` study.
+
+use std::path::{Path, PathBuf};
+
+use calib_core::whole_cell::CellEstimate;
+use calib_core::Robot;
+use kinematics::{patch_urdf_text, split_for_urdf, verify_patched_urdf, RobotModel};
+
+use crate::cell::Cell;
+use crate::error::SimError;
+
+/// The files [`export_calibrated_cell`] writes, relative to its output folder, and the comment
+/// put at the top of the cell file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ExportNames<'a> {
+    /// The cell file, e.g. `cell.toml`.
+    pub cell: &'a str,
+    /// Robot 1's corrected URDF, e.g. `robot1.urdf`.
+    pub robot1_urdf: &'a str,
+    /// Robot 2's corrected URDF, e.g. `robot2.urdf`.
+    pub robot2_urdf: &'a str,
+    /// Comment lines (each starting with `#`, ending with a newline) written before the TOML.
+    pub header: &'a str,
+}
+
+/// The names `handclasp calibrate --cell --export DIR` uses: `robot1.urdf`, `robot2.urdf`,
+/// `cell.toml`.
+pub const CALIBRATE_EXPORT_NAMES: ExportNames<'static> = ExportNames {
+    cell: "cell.toml",
+    robot1_urdf: "robot1.urdf",
+    robot2_urdf: "robot2.urdf",
+    header: "# Written by `handclasp calibrate --cell --export`: the calibrated cell (fitted b1_from_b2,\n\
+             # corrected URDFs robot1.urdf / robot2.urdf and tip offsets; [robotN.errors] holds only what a\n\
+             # URDF cannot express). A session recorded with the old models has their tip columns, which\n\
+             # these models reject (record a new session, or use the old cell for it).\n",
+};
+
+/// Writes the calibrated `cell` into `dir` (created if missing): each robot's URDF corrected by
+/// the URDF-expressible part of `estimate`'s corrections ([`split_for_urdf`]), and the cell file
+/// with `estimate.b1_from_b2`, the tips corrected by tool 0's tip error (tool 0 = the cell's tip,
+/// as [`crate::whole_cell::cell_problem`] builds it), the rest of each robot's errors (joint
+/// scale, compliance) as `[robotN.errors]`, and robot 2's gravity rotated by the fitted placement.
+/// Each URDF is written to a temporary file, re-loaded, verified against the fitted model
+/// ([`verify_patched_urdf`], flange within [`kinematics::PATCH_TOLERANCE_M`]) and renamed into
+/// place; the cell file is written the same way and re-loaded. Returns the files written (the two
+/// URDFs, then the cell).
+///
+/// Exactness: without compliance the exported cell reproduces the estimate's tips to
+/// [`kinematics::PATCH_TOLERANCE_M`]. With compliance AND geometry corrections on the same robot
+/// it does not, exactly: the fit evaluates the gravity torques with the nominal model, the
+/// exported cell with the corrected URDF, so the tips differ by about `compliance × δτ` (δτ the
+/// torque change the geometry correction causes; ~1 µm for 1e-6 rad/(N·m) and 1 mrad). Robot 2's
+/// gravity in the written file comes from its mount, not from `cell`'s (possibly tilted) robot 2
+/// gravity the fit used, which moves a compliant robot 2 by `compliance × δτ` too (~2e-9 m for
+/// 1e-6 rad/(N·m) and a 1.2e-5 rad tilt).
+///
+/// Errors: `estimate` of the wrong shape for `cell` (joint counts, no tool 0), a URDF that cannot
+/// be read or corrected ([`SimError::Cell`] naming the robot and file), any file that cannot be
+/// written ([`SimError::Io`]), a written cell that does not load.
+pub fn export_calibrated_cell(
+    cell: &Cell,
+    estimate: &CellEstimate,
+    dir: &Path,
+    names: &ExportNames<'_>,
+) -> Result<Vec<PathBuf>, SimError> {
+    std::fs::create_dir_all(dir).map_err(|e| SimError::io(dir, e))?;
+    let mut out = cell.clone();
+    out.base_dir = dir.to_path_buf();
+    out.b1_from_b2 = estimate.b1_from_b2;
+    let mut written = Vec::new();
+    for robot in [Robot::One, Robot::Two] {
+        let setup = cell.robot(robot);
+        let correction = estimate.robot(robot);
+        let bad = |message: String| SimError::Cell {
+            path: setup.urdf_path.clone(),
+            message: format!("{robot}: {message}"),
+        };
+        let Some(tip_error) = correction.tool_tip_m.first() else {
+            return Err(bad(
+                "the estimate has no tool 0 (the cell's tip); build it from this cell's problem"
+                    .into(),
+            ));
+        };
+        let (urdf_part, rest) = split_for_urdf(&correction.errors);
+        let xml = std::fs::read_to_string(&setup.urdf_path)
+            .map_err(|e| SimError::io(&setup.urdf_path, e))?;
+        let patched = patch_urdf_text(&xml, &setup.model, &urdf_part)
+            .map_err(|e| bad(format!("cannot write the corrected URDF: {e}")))?;
+        let file = match robot {
+            Robot::One => names.robot1_urdf,
+            Robot::Two => names.robot2_urdf,
+        };
+        let path = dir.join(file);
+        let tmp = path.with_extension("urdf.tmp");
+        std::fs::write(&tmp, &patched).map_err(|e| SimError::io(&tmp, e))?;
+        let reread = std::fs::read_to_string(&tmp).map_err(|e| SimError::io(&tmp, e))?;
+        verify_patched_urdf(&reread, &setup.model, &urdf_part)
+            .map_err(|e| bad(format!("verifying {}: {e}", tmp.display())))?;
+        let model = RobotModel::from_urdf_file(&tmp, &setup.tool_link)
+            .map_err(|e| bad(format!("re-loading {}: {e}", tmp.display())))?;
+        std::fs::rename(&tmp, &path).map_err(|e| SimError::io(&path, e))?;
+        written.push(path.clone());
+        let r = if robot == Robot::One {
+            &mut out.robot1
+        } else {
+            &mut out.robot2
+        };
+        r.model = model;
+        r.urdf = file.to_string();
+        r.urdf_path = path;
+        r.flange_from_tip = setup.flange_from_tip + tip_error;
+        // What a URDF cannot hold (scale, compliance; tips are in tip_mm, mounts are never fitted).
+        r.errors = rest;
+    }
+    // Robot 2's gravity follows the calibrated placement.
+    out.robot2.g_base = out.b1_from_b2.rotation.inverse() * out.robot1.g_base;
+    let cell_path = dir.join(names.cell);
+    let text = format!("{}{}", names.header, out.to_toml_string());
+    let tmp = cell_path.with_extension("tmp");
+    std::fs::write(&tmp, text).map_err(|e| SimError::io(&tmp, e))?;
+    std::fs::rename(&tmp, &cell_path).map_err(|e| SimError::io(&cell_path, e))?;
+    Cell::from_toml_file(&cell_path)?;
+    written.push(cell_path);
+    Ok(written)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::whole_cell::{cell_problem, FitModel};
+    use crate::{generate_session, trial_rng, Layout, SessionSpec};
+    use kinematics::true_base_from_tip;
+    use nalgebra::{Isometry3, Vector3};
+
+    /// Exported model vs fitted model: the URDF patch's own tolerance
+    /// (kinematics::PATCH_TOLERANCE_M); the cell TOML keeps 10 decimals of mm (1e-13 m).
+    const TOL_M: f64 = 1e-9;
+    /// The cell TOML keeps 10 decimals of deg/kNm: 1e-10 deg/kNm = 1.7e-15 rad/(N·m).
+    const COMPLIANCE_TOL: f64 = 2e-15;
+
+    fn floor_floor() -> Cell {
+        Cell::from_toml_file(
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells/floor-floor.toml"),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn exported_cell_reproduces_the_estimate_with_the_given_names() {
+        let cell = floor_floor();
+        let session = generate_session(
+            &cell,
+            &SessionSpec::new(4, Layout::Tetrahedron, 1.0),
+            &mut trial_rng(1, 0),
+        )
+        .unwrap();
+        let problem = cell_problem(&cell, &session, FitModel::Kinematic);
+        let mut est = CellEstimate::nominal(
+            &problem,
+            Isometry3::new(
+                Vector3::new(0.01, -0.02, 0.003),
+                Vector3::new(0.0, 0.0, 0.01),
+            ),
+        );
+        // Geometry on robot 2, compliance on robot 1 alone: exact (see the function's doc).
+        est.robot2.errors.joint_offset[1] = 2e-3;
+        est.robot2.errors.origin_xyz[2].x = 4e-4;
+        est.robot2.errors.origin_rpy[3].z = -1e-3;
+        est.robot2.tool_tip_m[0] = Vector3::new(1e-3, 0.0, -2e-3);
+        est.robot1.errors.compliance[1] = 1e-6;
+        let dir = tempfile::tempdir().unwrap();
+        let names = ExportNames {
+            cell: "calibrated.toml",
+            robot1_urdf: "a.urdf",
+            robot2_urdf: "b.urdf",
+            header: "# a test header\n",
+        };
+        let written = export_calibrated_cell(&cell, &est, dir.path(), &names).unwrap();
+        assert_eq!(
+            written,
+            vec![
+                dir.path().join("a.urdf"),
+                dir.path().join("b.urdf"),
+                dir.path().join("calibrated.toml")
+            ]
+        );
+        let text = std::fs::read_to_string(dir.path().join("calibrated.toml")).unwrap();
+        assert!(text.starts_with("# a test header\n"));
+        let out = Cell::from_toml_file(&dir.path().join("calibrated.toml")).unwrap();
+        assert!(
+            (out.b1_from_b2.translation.vector - est.b1_from_b2.translation.vector).norm() < TOL_M
+        );
+        // The compliance, which a URDF cannot hold, is in [robot2.errors]; the rest in the URDFs.
+        assert!((out.robot1.errors.compliance[1] - 1e-6).abs() < COMPLIANCE_TOL);
+        assert_eq!(out.robot2.errors.joint_offset[1], 0.0);
+        for (setup, fitted, tip_err, exported) in [
+            (
+                &cell.robot1,
+                &est.robot1.errors,
+                est.robot1.tool_tip_m[0],
+                &out.robot1,
+            ),
+            (
+                &cell.robot2,
+                &est.robot2.errors,
+                est.robot2.tool_tip_m[0],
+                &out.robot2,
+            ),
+        ] {
+            for p in &session.points {
+                let q = if std::ptr::eq(setup, &cell.robot1) {
+                    &p.q1
+                } else {
+                    &p.q2
+                };
+                let want = true_base_from_tip(
+                    &setup.model,
+                    fitted,
+                    q,
+                    &(setup.flange_from_tip + tip_err),
+                    &setup.g_base,
+                )
+                .unwrap();
+                let got = true_base_from_tip(
+                    &exported.model,
+                    &exported.errors,
+                    q,
+                    &exported.flange_from_tip,
+                    &exported.g_base,
+                )
+                .unwrap();
+                let d = (want.translation.vector - got.translation.vector).norm();
+                assert!(d < TOL_M, "{}: {d} m", exported.urdf);
+            }
+        }
+    }
+
+    #[test]
+    fn an_estimate_without_the_tip_tool_is_refused_naming_the_robot() {
+        let cell = floor_floor();
+        let session = generate_session(
+            &cell,
+            &SessionSpec::new(4, Layout::Tetrahedron, 1.0),
+            &mut trial_rng(1, 0),
+        )
+        .unwrap();
+        let problem = cell_problem(&cell, &session, FitModel::Kinematic);
+        let mut est = CellEstimate::nominal(&problem, cell.b1_from_b2);
+        est.robot1.tool_tip_m.clear();
+        let dir = tempfile::tempdir().unwrap();
+        let e = export_calibrated_cell(&cell, &est, dir.path(), &CALIBRATE_EXPORT_NAMES)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("robot 1") && e.contains("tool 0"), "{e}");
+    }
+}
