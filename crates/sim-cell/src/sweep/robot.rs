@@ -16,7 +16,7 @@
 //! in the spread cube around the cell's centre. The same cube holds the held-out pairs.
 
 use calib_core::whole_cell::{
-    calibrate_cell, cooperative_covariances, greedy_design, measure_cooperative_error,
+    calibrate_cell, greedy_design, measure_cooperative_error, predict_cooperative_accuracy,
     CellEstimate, CellFitError, CellProblem, ConfigPair, DesignCriterion, ParamLayout,
     ScreenOptions, SolveOptions,
 };
@@ -260,7 +260,8 @@ fn nominal_models_cooperative(
 }
 
 /// A whole-cell fit of `model` on the session: `b1_from_b2` and the cooperative error of its
-/// models, with the predicted rms `sqrt(mean_k trace Σ_v,k)` over the same pairs.
+/// models, with the fit's predicted rms over the same pairs
+/// ([`calib_core::whole_cell::predict_cooperative_accuracy`], the model-error term included).
 fn whole_cell_outcome(
     cell: &Cell,
     session: &Session,
@@ -278,16 +279,15 @@ fn whole_cell_outcome(
     let fit = &cal.fit;
     let measured = measure_cooperative_error(&problem, &fit.estimate, truth, pairs)
         .map_err(|_| Failure::FitFailed)?;
-    let covs =
-        cooperative_covariances(&problem, &fit.layout, &fit.estimate, &fit.covariance, pairs)
-            .map_err(|_| Failure::FitFailed)?;
-    let mean_trace = covs.iter().map(|c| c.trace()).sum::<f64>() / covs.len().max(1) as f64;
+    // Only the rms is used (exact); the p95 draw's seed does not matter.
+    let predicted =
+        predict_cooperative_accuracy(&problem, fit, pairs, 0).map_err(|_| Failure::FitFailed)?;
     Ok(TrialOutcome {
         errors: TrialErrors::between(&cell.b1_from_b2, &fit.estimate.b1_from_b2),
         cooperative: Some(Cooperative {
             rms_m: measured.rms_m,
             p95_m: measured.p95_m,
-            predicted_rms_m: Some(mean_trace.max(0.0).sqrt()),
+            predicted_rms_m: Some(predicted.predicted_rms_m),
         }),
     })
 }
