@@ -50,7 +50,7 @@ impl From<Method> for SweepMethod {
 }
 
 impl SweepMethod {
-    /// The registration methods and the robot-mode methods, in display order.
+    /// The methods beyond calib-core's registration methods (robot mode only), in display order.
     pub const ROBOT_EXTRAS: [SweepMethod; 3] = [
         SweepMethod::PaperSpread4,
         SweepMethod::Placement,
