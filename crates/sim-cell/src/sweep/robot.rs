@@ -21,7 +21,7 @@ use calib_core::whole_cell::{
     ScreenOptions, SolveOptions,
 };
 use calib_core::{fit_fast, Method, MountPair, TrialErrors};
-use kinematics::KinematicErrors;
+use kinematics::{ErrorParam, KinematicErrors};
 use nalgebra::{Isometry3, Point3, Vector3};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -189,8 +189,17 @@ pub fn draw_kinematic_errors(robot: &mut CellRobot, rng: &mut impl Rng) {
         g_base: robot.g_base,
         tolerance: robot.tolerance,
     };
+    let t = robot.tolerance;
     for p in wc.fitted_params() {
-        let tol = robot.tolerance.prior_sigma(p) * 3f64.sqrt();
+        let tol = match p {
+            ErrorParam::JointOffset { .. } => t.joint_offset_rad,
+            ErrorParam::OriginXyz { .. } => t.origin_xyz_m,
+            ErrorParam::OriginRpy { .. } => t.origin_rpy_rad,
+            ErrorParam::JointScale { .. } => t.joint_scale.unwrap_or(0.0),
+            ErrorParam::Compliance { .. } => t.compliance_rad_per_nm.unwrap_or(0.0),
+            // The half-width behind the prior σ = tol/√3 of any other kind.
+            _ => t.prior_sigma(p) * 3f64.sqrt(),
+        };
         robot.errors.set(p, rng.random_range(-tol..=tol));
     }
     let tip = robot.tolerance.tip_m;

@@ -2,7 +2,7 @@
 //! determinism whatever the thread count, replay of one trial, expected trends and the outputs.
 
 use super::geometry::*;
-use super::robot::{most_spread_four, SPREAD4_EXHAUSTIVE};
+use super::robot::{draw_kinematic_errors, most_spread_four, SPREAD4_EXHAUSTIVE};
 use super::*;
 use crate::layout::Layout;
 use crate::placement::PAPER;
@@ -368,4 +368,32 @@ fn robot_sweep_cooperative_columns_are_thread_independent() {
         assert_eq!(!r[pred].is_empty(), whole_cell, "{r:?}");
     }
     assert!(text.contains("cooperative_rms_mm_median,cooperative_rms_mm_median_lo"));
+}
+
+/// Tolerance draws stay inside their bands, move every selected parameter, and depend on the
+/// generator alone.
+#[test]
+fn kinematic_errors_are_drawn_inside_the_tolerances() {
+    use crate::cell::Cell;
+    use kinematics::ErrorParam;
+    let cell = Cell::default_floor_wall();
+    let mut robot = cell.robot2.clone();
+    draw_kinematic_errors(&mut robot, &mut trial_rng(3, 9));
+    let tol = robot.tolerance;
+    let dof = robot.model.dof();
+    for joint in 0..dof {
+        let offset = robot.errors.get(ErrorParam::JointOffset { joint });
+        assert!(
+            offset != 0.0 && offset.abs() <= tol.joint_offset_rad,
+            "{joint}: {offset}"
+        );
+    }
+    assert!(robot
+        .errors
+        .tip
+        .iter()
+        .all(|t| *t != 0.0 && t.abs() <= tol.tip_m));
+    let mut again = cell.robot2.clone();
+    draw_kinematic_errors(&mut again, &mut trial_rng(3, 9));
+    assert_eq!(again.errors, robot.errors);
 }
