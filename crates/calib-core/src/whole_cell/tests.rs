@@ -952,6 +952,8 @@ struct ScaleTrial {
     scale1_rms: f64,
     placement_rms: f64,
     scale: f64,
+    /// Wall-clock time of the one-call calibration, s.
+    seconds: f64,
 }
 
 /// `truth_fraction`: the truth is drawn from `U(±truth_fraction·tolerance)` while the prior
@@ -970,7 +972,9 @@ fn scale_trial(cell: Cell, seed: u64, n: usize, sigma: f64, truth_fraction: f64)
     p.robot1.tolerance = tol;
     p.robot2.tolerance = tol;
     let pairs = sc.eval_pairs(200, 0.7, seed + 2000);
+    let start = Instant::now();
     let cal = calibrate_cell(&p, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
+    let seconds = start.elapsed().as_secs_f64();
     let chosen = measure_cooperative_error(&p, &cal.fit.estimate, &sc.truth, &pairs).unwrap();
     let all: Vec<usize> = (0..n).collect();
     let init = initial_estimate(&p, None, &all).unwrap();
@@ -989,6 +993,7 @@ fn scale_trial(cell: Cell, seed: u64, n: usize, sigma: f64, truth_fraction: f64)
         scale1_rms: scale1.rms_m,
         placement_rms: placement_error(&p, &sc, &pairs).rms_m,
         scale: cal.prior_scale.scale,
+        seconds,
     }
 }
 
@@ -1017,7 +1022,7 @@ fn prior_scale_monte_carlo() {
         eprintln!(
             "Wall σ {:.1} mm, truth U(±{fraction}·tol): mean coop rms placement {:.3} mm; scale-1 MAP {:.3} mm (worse in \
              {}/40, worst ratio {:.2}); evidence-chosen {:.3} mm (worse in {}/40, worst ratio \
-             {:.2}); scales chosen: {}",
+             {:.2}); calibrate_cell {:.1} ms mean, {:.1} ms max; scales chosen: {}",
             sigma * 1e3,
             mean(&|x| x.placement_rms),
             mean(&|x| x.scale1_rms),
@@ -1026,6 +1031,8 @@ fn prior_scale_monte_carlo() {
             mean(&|x| x.chosen_rms),
             worse(&|x| x.chosen_rms),
             worst(&|x| x.chosen_rms),
+            mean(&|x| x.seconds),
+            t.iter().map(|x| x.seconds).fold(0.0, f64::max) * 1e3,
             t.iter()
                 .map(|x| format!("{}", x.scale))
                 .collect::<Vec<_>>()
