@@ -301,8 +301,9 @@ fn print_text(v: &Value) {
     }
     if v["model"].as_str() == Some("placement") {
         println!(
-            "note: the placement model takes both robots' nominal kinematics as exact; kinematic errors show as \
-             rejected rows and are not in the predicted accuracy (use --model kinematic)"
+            "note: the placement model takes both robots' nominal kinematics as exact; its blunder screen and \
+             predicted accuracy allow for their errors only as extra noise, from the residuals' variance \
+             factor (use --model kinematic to fit them)"
         );
     }
     let c = &v["cooperative_accuracy_mm"];

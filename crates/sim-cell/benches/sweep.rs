@@ -71,8 +71,9 @@ fn geometry_sweep_two_threads(c: &mut Criterion) {
             noise_mm: vec![1.0],
             spread_m: vec![1.0],
             n_points: vec![4],
-            methods,
-            layout: Layout::Tetrahedron,
+            methods: methods.into_iter().map(Into::into).collect(),
+            layout: Layout::Tetrahedron.into(),
+            kinematic_errors: sim_cell::sweep::KinematicErrorDraw::None,
             trials,
             seed: 7,
         };

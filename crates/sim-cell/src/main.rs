@@ -5,11 +5,11 @@
 //! `sim-cell paper` sets the simulation beside the paper's Table 1.
 
 use anyhow::{bail, Context, Result};
-use calib_core::{Method, MountPair};
+use calib_core::MountPair;
 use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use sim_cell::layout::Layout;
-use sim_cell::sweep::{self, Mode, SweepConfig};
+use sim_cell::sweep::{self, KinematicErrorDraw, Mode, SweepConfig, SweepLayout, SweepMethod};
 use sim_cell::{generate_session, trial_rng, Cell, SessionSpec, SimError};
 use std::io::{BufWriter, IsTerminal, Write};
 use std::path::PathBuf;
@@ -65,6 +65,42 @@ impl From<LayoutArg> for Layout {
             LayoutArg::Clustered => Layout::Clustered,
         }
     }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum SweepLayoutArg {
+    /// Paper's advice: regular tetrahedron (edge = spread), extra points inside.
+    Tetrahedron,
+    /// Uniform in a cube of side = spread.
+    Random,
+    /// Near-planar: horizontal square of side = spread, ±1 % thick.
+    Planar,
+    /// Two small clusters spread apart.
+    Clustered,
+    /// Robot mode: the greedy A-optimal plan (cooperative accuracy) of N points from 300 seeded
+    /// reachable candidates in the spread cube, made once per grid cell on the nominal cell.
+    Planned,
+}
+
+impl From<SweepLayoutArg> for SweepLayout {
+    fn from(l: SweepLayoutArg) -> SweepLayout {
+        match l {
+            SweepLayoutArg::Tetrahedron => Layout::Tetrahedron.into(),
+            SweepLayoutArg::Random => Layout::Random.into(),
+            SweepLayoutArg::Planar => Layout::Planar.into(),
+            SweepLayoutArg::Clustered => Layout::Clustered.into(),
+            SweepLayoutArg::Planned => SweepLayout::Planned,
+        }
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum KinematicErrorsArg {
+    /// The cell files' `[robotN.errors]` as written (zero when absent), the same every trial.
+    None,
+    /// Per trial, every parameter of `[robotN.tolerance]` drawn from U(±tolerance), both robots,
+    /// seeded per trial.
+    Tolerance,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -125,16 +161,23 @@ struct SweepArgs {
     /// Numbers of teach points (comma-separated grid).
     #[arg(long, value_delimiter = ',', default_value = "4,6,8,12")]
     points: Vec<usize>,
-    /// Methods: generic, generic-affine, paper, lsq, constrained (comma-separated).
+    /// Methods (comma-separated): generic, generic-affine, paper, lsq, constrained on every
+    /// point; robot mode also: paper-spread4 (the paper's method on the 4 most spread points),
+    /// placement (whole-cell placement-only fit), kinematic (whole-cell MAP fit of the placement
+    /// and both robots' kinematic parameters).
     #[arg(
         long,
         value_delimiter = ',',
         default_value = "generic,generic-affine,paper,lsq,constrained"
     )]
     methods: Vec<String>,
-    /// Teach-point layout.
+    /// Teach-point layout (planned: robot mode only).
     #[arg(long, value_enum, default_value = "tetrahedron")]
-    layout: LayoutArg,
+    layout: SweepLayoutArg,
+    /// Robot mode: the robots' true kinematic errors (tolerance: drawn per trial from
+    /// [robotN.tolerance]).
+    #[arg(long, value_enum, default_value = "none")]
+    kinematic_errors: KinematicErrorsArg,
     /// Trials per grid cell (default: 200 in geometry mode, 5 in robot mode).
     #[arg(long)]
     trials: Option<usize>,
@@ -252,8 +295,8 @@ fn sweep_cmd(a: SweepArgs) -> Result<()> {
         .methods
         .iter()
         .map(|m| {
-            Method::from_name(m).with_context(|| {
-                format!("--methods: unknown method `{m}`; use generic, generic-affine, paper, lsq or constrained")
+            SweepMethod::from_name(m).with_context(|| {
+                format!("--methods: unknown method `{m}`; use generic, generic-affine, paper, lsq, constrained, or in robot mode paper-spread4, placement, kinematic")
             })
         })
         .collect::<Result<Vec<_>>>()?;
@@ -265,6 +308,10 @@ fn sweep_cmd(a: SweepArgs) -> Result<()> {
         n_points: a.points.clone(),
         methods,
         layout: a.layout.into(),
+        kinematic_errors: match a.kinematic_errors {
+            KinematicErrorsArg::None => KinematicErrorDraw::None,
+            KinematicErrorsArg::Tolerance => KinematicErrorDraw::Tolerance,
+        },
         trials: a.trials.unwrap_or(match mode {
             Mode::Geometry => 200,
             Mode::Robot => 5,

@@ -235,17 +235,19 @@ fn medians(
             }
             let Some(x) = pick(g) else { continue };
             let trials = ci * c.trials..(ci + 1) * c.trials;
-            let et = sorted_finite(
-                trials
-                    .clone()
-                    .filter_map(|t| result.outcome(t, m).as_ref().ok().map(|e| e.e_tran * 1e3)),
-            );
+            let et = sorted_finite(trials.clone().filter_map(|t| {
+                result
+                    .outcome(t, m)
+                    .as_ref()
+                    .ok()
+                    .map(|e| e.errors.e_tran * 1e3)
+            }));
             let er = sorted_finite(trials.filter_map(|t| {
                 result
                     .outcome(t, m)
                     .as_ref()
                     .ok()
-                    .map(|e| e.e_rot.to_degrees())
+                    .map(|e| e.errors.e_rot.to_degrees())
             }));
             pt.push((x, quantile(&et, 0.5)));
             pr.push((x, quantile(&er, 0.5)));

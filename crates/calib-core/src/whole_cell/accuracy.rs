@@ -62,7 +62,8 @@ pub fn cooperative_covariances(
 
 /// Predicted cooperative accuracy of `fit` over `pairs`: the error `δv` of the predicted
 /// `v = f1(q1) − b1_from_b2·f2(q2)` (m, b1 axes) has covariance `J_v·Σ·J_vᵀ` with `Σ` the
-/// posterior covariance of every unknown (the prior-regularised ones included). rms exact from
+/// posterior covariance of every unknown (the prior-regularised ones included), plus the fit's
+/// unmodelled-error variance `fit.model_error_var_m2·I` (placement-only fits). rms exact from
 /// the traces; p95 from a seeded draw (`seed`; identical on any machine and thread count).
 ///
 /// Errors: no pairs, or a pair the models reject (its 0-based index is in the message).
@@ -77,8 +78,11 @@ pub fn predict_cooperative_accuracy(
             "cooperative accuracy needs at least one configuration pair".into(),
         ));
     }
-    let covs =
+    let mut covs =
         cooperative_covariances(problem, &fit.layout, &fit.estimate, &fit.covariance, pairs)?;
+    for c in &mut covs {
+        *c += nalgebra::Matrix3::identity() * fit.model_error_var_m2;
+    }
     Ok(summarise_covariances(&covs, seed))
 }
 

@@ -59,6 +59,12 @@ pub struct ScreenedFit {
     pub threshold_sigma_3: f64,
     /// The threshold for 1-row blocks, in σ.
     pub threshold_sigma_1: f64,
+    /// The noise scale the screen used, relative to the stated noise: 1, or for a
+    /// placement-only model (no penalised unknown) `sqrt` of the a-posteriori variance factor
+    /// `χ²/(rows − unknowns)` of its fit on every row when above 1 (the robots' unmodelled
+    /// kinematic error is not a blunder). Sizes and thresholds above are in units of the
+    /// scaled σ.
+    pub noise_scale: f64,
 }
 
 struct BlockStats {
@@ -133,7 +139,18 @@ pub fn fit_screened(
             .map(|d| d.inverse_cdf(1.0 - screen.alpha / blocks))
             .unwrap_or(f64::INFINITY)
     };
-    let thr = [quant(1), quant(3)];
+    let mut weights = vec![1.0; all.len()];
+    let mut fit = fit_cell_with(problem, layout.clone(), &all, None, None, solve)?;
+    // The screen's noise scale: 1 (the stated noise) when the model has kinematic unknowns;
+    // for a placement-only model (no penalised unknown), whose residuals also carry the robots'
+    // unmodelled kinematic error, the a-posteriori variance factor when it exceeds 1.
+    let placement_only = (0..layout.len()).all(|j| layout.prior_sigma(j) == 0.0);
+    let scale2 = if placement_only {
+        variance_factor(&fit)
+    } else {
+        1.0
+    };
+    let thr = [quant(1) * scale2, quant(3) * scale2];
     let thr_of = |i: usize| {
         if problem.observations[i].kind.rows() == 3 {
             thr[1]
@@ -146,10 +163,9 @@ pub fn fit_screened(
         ChiSquared::new(dim)
             .map(|d| d.inverse_cdf(0.95).sqrt())
             .unwrap_or(2.0)
+            * scale2.sqrt()
     };
     // Robust start: Huber IRLS on the whitened block norms.
-    let mut weights = vec![1.0; all.len()];
-    let mut fit = fit_cell_with(problem, layout.clone(), &all, None, None, solve)?;
     for _ in 0..screen.irls_rounds {
         let sys = assemble(problem, &fit.layout, &fit.estimate, &all, None, false)?;
         let mut changed = 0.0f64;
@@ -276,14 +292,29 @@ pub fn fit_screened(
         out.push(RejectedRow {
             row: problem.observations[i].row,
             kind: problem.observations[i].kind.name(),
-            size_sigma: t2.sqrt(),
+            size_sigma: (t2 / scale2).sqrt(),
             residual_m: res,
         });
     }
     Ok(ScreenedFit {
         fit,
         rejected: out,
-        threshold_sigma_3: thr[1].sqrt(),
-        threshold_sigma_1: thr[0].sqrt(),
+        threshold_sigma_3: (thr[1] / scale2).sqrt(),
+        threshold_sigma_1: (thr[0] / scale2).sqrt(),
+        noise_scale: scale2.sqrt(),
     })
+}
+
+/// Squared noise scale of a fit's residuals, the a-posteriori variance factor
+/// `σ̂₀² = χ²_data / (rows − unknowns)` of the least-squares fit on every row (as Pope's τ test
+/// estimates the noise when the stated one is not trusted), never below 1 (the screen never
+/// tightens below the stated noise). A blunder inflates it only by its share of the total
+/// χ², so a gross error still stands out against it.
+fn variance_factor(fit: &CellFit) -> f64 {
+    let dof = fit.residual_rows.saturating_sub(fit.layout.len());
+    if dof == 0 {
+        1.0
+    } else {
+        (fit.data_chi2 / dof as f64).max(1.0)
+    }
 }

@@ -1,13 +1,31 @@
 //! The one-call whole-cell calibration a CLI needs: starting values, base-parameter reduction,
 //! MAP fit with blunder screening, and a serialisable report.
 
-use nalgebra::Isometry3;
+use nalgebra::{DMatrix, Isometry3};
 use serde::Serialize;
 
 use super::blunders::{fit_screened, RejectedRow, ScreenOptions};
 use super::reduce::{reduce, Reduction, ReductionEntry};
-use super::solve::{CellFit, FittedParam, SolveOptions, StopReason};
-use super::{initial_estimate, CellFitError, CellProblem};
+use super::solve::{
+    assemble, fit_cell_with, sym_inverse, CellFit, FittedParam, SolveOptions, StopReason,
+};
+use super::{initial_estimate, CellFitError, CellProblem, ParamLayout};
+
+/// Prior scales `s` [`calibrate_cell`] compares (every prior σ multiplied by `s`): the
+/// tolerances as given (1), halved down to 1/16, and 1e-3, the placement-only limit (the
+/// kinematic parameters held at their nominal values by a prior 1000 times tighter than the
+/// tolerances; the same columns, so the evidence and the error covariance stay comparable).
+pub const PRIOR_SCALES: [f64; 6] = [1.0, 0.5, 0.25, 0.125, 0.0625, 1e-3];
+
+/// The prior scale [`calibrate_cell`] chose and why.
+#[derive(Debug, Clone, Serialize)]
+pub struct PriorScaleChoice {
+    /// The chosen scale `s` (prior σ = `s`·tolerance/√3).
+    pub scale: f64,
+    /// `(s, log evidence)` for every scale of [`PRIOR_SCALES`] that fitted (natural log, up to
+    /// a constant common to all scales).
+    pub log_evidence: Vec<(f64, f64)>,
+}
 
 /// Result of [`calibrate_cell`].
 #[derive(Debug, Clone)]
@@ -18,6 +36,13 @@ pub struct CellCalibration {
     pub reduction: Reduction,
     /// Rejected blunders.
     pub rejected: Vec<RejectedRow>,
+    /// The prior scale chosen from the session's own evidence.
+    pub prior_scale: PriorScaleChoice,
+    /// The blunder screen's noise scale ([`super::ScreenedFit::noise_scale`]): 1, or for a
+    /// placement-only model `sqrt` of its a-posteriori variance factor (then also applied to the
+    /// covariance, and its excess over 1 is the fit's model-error term,
+    /// [`CellFit::model_error_var_m2`]).
+    pub noise_scale: f64,
 }
 
 /// A serialisable summary of a calibration (SI units: m, rad; field names say so).
@@ -39,6 +64,8 @@ pub struct CalibrationReport {
     pub data_chi2: f64,
     /// Residual rows used.
     pub residual_rows: usize,
+    /// The prior scale chosen from the session's evidence (see [`PRIOR_SCALES`]).
+    pub prior_scale: f64,
 }
 
 impl CellCalibration {
@@ -53,13 +80,27 @@ impl CellCalibration {
             iterations: self.fit.iterations,
             data_chi2: self.fit.data_chi2,
             residual_rows: self.fit.residual_rows,
+            prior_scale: self.prior_scale.scale,
         }
     }
 }
 
 /// Calibrates the whole cell: starting values ([`initial_estimate`]), base-parameter reduction
-/// at the start ([`reduce`]), then the screened MAP fit ([`fit_screened`]) on the reduced
-/// unknowns.
+/// at the start ([`reduce`]), the screened MAP fit ([`fit_screened`]) on the reduced
+/// unknowns, then the prior scale chosen from the session's own data.
+///
+/// **Prior scale.** The tolerances bound the errors; how much of them a session can resolve
+/// depends on its noise and geometry. On the screened rows the fit is repeated with every prior
+/// σ multiplied by each `s` of [`PRIOR_SCALES`], and the scale of largest Laplace evidence
+/// (type-II maximum likelihood; the linearised marginal likelihood of the data)
+/// `log Z(s) = −C(s)/2 − log det H(s)/2 + log det(R_p,s·R_p,sᵀ)/2` is kept (`C` the MAP cost,
+/// `H = JᵀJ` over data and prior rows at the optimum, `R_p,s = R_p/s`; the unpenalised
+/// unknowns' flat prior adds the same constant to every `s`). When the data cannot support the
+/// kinematic parameters, the evidence prefers the smallest scale, whose fit is the placement-only
+/// fit to within 1e-6 of the tolerances. The reported covariance is then the error covariance of
+/// the chosen estimator under the tolerance prior (`s = 1`):
+/// `H⁻¹·(H − Λ_s + Λ_s/s²)·H⁻¹`, `Λ_s = R_p,sᵀR_p,s` (equal to `H⁻¹` at `s = 1`), so the
+/// predicted cooperative accuracy includes the kinematic error the shrunk fit leaves.
 ///
 /// Errors: invalid input, no starting placement, model failures, or too few rows after
 /// rejecting blunders (naming the rows to re-record).
@@ -148,9 +189,120 @@ pub fn calibrate_cell(
     let start = initial_estimate(problem, solve.initial_b1_from_b2, &all)?;
     let reduction = reduce(problem, &start, &all)?;
     let screened = fit_screened(problem, Some(reduction.layout.clone()), solve, screen)?;
+    let noise_scale = screened.noise_scale;
+    let (mut fit, prior_scale) = choose_prior_scale(problem, screened.fit, solve)?;
+    let placement_only = fit.layout.prior_sqrt_info.nrows() == 0;
+    if placement_only && noise_scale > 1.0 {
+        // The residuals carry error the model does not represent: scale the placement's
+        // covariance by the variance factor (the data's own noise level), and predict
+        // the unmodelled part at any configuration pair from its variance at the handclasps.
+        let s2 = noise_scale * noise_scale;
+        fit.covariance *= s2;
+        fit.model_error_var_m2 = (s2 - 1.0) * mean_noise_var(problem, &fit)?;
+    }
     Ok(CellCalibration {
-        fit: screened.fit,
+        fit,
         reduction,
         rejected: screened.rejected,
+        prior_scale,
+        noise_scale,
     })
+}
+
+/// Mean stated noise variance per residual row (m²) over the fit's active observations.
+fn mean_noise_var(problem: &CellProblem, fit: &CellFit) -> Result<f64, CellFitError> {
+    let ev = super::Evaluator::new(problem, &fit.layout);
+    let (mut sum, mut rows) = (0.0, 0usize);
+    for &i in &fit.active {
+        let l = ev.linearise(&problem.observations[i], &fit.estimate, false)?;
+        let w = &l.whitening;
+        if let Some(inv) = (w.transpose() * w).try_inverse() {
+            sum += inv.trace();
+            rows += w.nrows();
+        }
+    }
+    Ok(if rows == 0 { 0.0 } else { sum / rows as f64 })
+}
+
+/// The layout with every prior σ multiplied by `scale`.
+fn scaled_layout(layout: &ParamLayout, scale: f64) -> ParamLayout {
+    let mut l = layout.clone();
+    l.prior_sqrt_info /= scale;
+    l
+}
+
+/// Laplace log evidence of a converged fit (see [`calibrate_cell`]); `None` when `H` or the
+/// prior rows are singular.
+fn log_evidence(problem: &CellProblem, fit: &CellFit) -> Result<Option<f64>, CellFitError> {
+    let sys = assemble(problem, &fit.layout, &fit.estimate, &fit.active, None, true)?;
+    let h = sys.j.transpose() * &sys.j;
+    let logdet = |m: DMatrix<f64>| {
+        m.cholesky()
+            .map(|c| 2.0 * c.l().diagonal().iter().map(|v| v.ln()).sum::<f64>())
+    };
+    let rp = &fit.layout.prior_sqrt_info;
+    let prior = if rp.nrows() == 0 {
+        Some(0.0)
+    } else {
+        logdet(rp * rp.transpose())
+    };
+    Ok(match (logdet(h), prior) {
+        (Some(lh), Some(lp)) => Some(-0.5 * (fit.data_chi2 + fit.prior_chi2) - 0.5 * lh + 0.5 * lp),
+        _ => None,
+    })
+}
+
+/// Refits `screened` (a fit at scale 1) at every scale of [`PRIOR_SCALES`] on its rows, keeps
+/// the one of largest evidence and gives it the error covariance under the scale-1 prior.
+fn choose_prior_scale(
+    problem: &CellProblem,
+    screened: CellFit,
+    solve: &SolveOptions,
+) -> Result<(CellFit, PriorScaleChoice), CellFitError> {
+    let penalised = screened.layout.prior_sqrt_info.nrows() > 0;
+    let Some(base_evidence) = log_evidence(problem, &screened)?.filter(|_| penalised) else {
+        return Ok((
+            screened,
+            PriorScaleChoice {
+                scale: 1.0,
+                log_evidence: Vec::new(),
+            },
+        ));
+    };
+    let base_layout = screened.layout.clone();
+    let mut log_ev = vec![(1.0, base_evidence)];
+    let mut best = (1.0, base_evidence, screened.clone());
+    for &s in &PRIOR_SCALES[1..] {
+        let fit = fit_cell_with(
+            problem,
+            scaled_layout(&base_layout, s),
+            &screened.active,
+            None,
+            Some(&screened.estimate),
+            solve,
+        )?;
+        if let Some(ev) = log_evidence(problem, &fit)? {
+            log_ev.push((s, ev));
+            if ev > best.1 {
+                best = (s, ev, fit);
+            }
+        }
+    }
+    let (scale, _, mut fit) = best;
+    if scale != 1.0 {
+        let sys = assemble(problem, &fit.layout, &fit.estimate, &fit.active, None, true)?;
+        let h = sys.j.transpose() * &sys.j;
+        let rp = &fit.layout.prior_sqrt_info;
+        let lambda = rp.transpose() * rp;
+        let (h_inv, _) = sym_inverse(&h);
+        let middle = &h - &lambda + lambda / (scale * scale);
+        fit.covariance = &h_inv * middle * &h_inv;
+    }
+    Ok((
+        fit,
+        PriorScaleChoice {
+            scale,
+            log_evidence: log_ev,
+        },
+    ))
 }

@@ -116,7 +116,9 @@ pub use accuracy::{
     summarise_covariances, ConfigPair, CooperativeError, CooperativePrediction, P95_DRAWS_PER_PAIR,
 };
 pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
-pub use calibrate::{calibrate_cell, CalibrationReport, CellCalibration};
+pub use calibrate::{
+    calibrate_cell, CalibrationReport, CellCalibration, PriorScaleChoice, PRIOR_SCALES,
+};
 pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool};
 pub use design::{
     design_criterion, design_prediction, greedy_design, DesignCriterion, DesignPrediction,

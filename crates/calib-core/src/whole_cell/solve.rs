@@ -107,6 +107,11 @@ pub struct CellFit {
     pub iterations: usize,
     /// Why the solver stopped.
     pub stopped: StopReason,
+    /// Variance per b1 axis (m²) of the error the model does not represent, added to every
+    /// predicted cooperative covariance ([`super::predict_cooperative_accuracy`]): 0 from the
+    /// solver; set by [`super::calibrate_cell`] for a placement-only model from the excess of
+    /// its residuals over the stated noise (the robots' unmodelled kinematic error).
+    pub model_error_var_m2: f64,
 }
 
 impl CellFit {
@@ -375,5 +380,6 @@ pub fn fit_cell_with(
         active: active.to_vec(),
         iterations,
         stopped,
+        model_error_var_m2: 0.0,
     })
 }

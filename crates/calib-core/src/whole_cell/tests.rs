@@ -944,3 +944,181 @@ fn every_joint_session_converges_within_the_iteration_bound() {
         }
     }
 }
+
+/// Cooperative rms (m) of the one-call calibration, of the scale-1 MAP fit on its rows (the
+/// fit before the prior scale was chosen) and of the placement-only fit, and the chosen scale.
+struct ScaleTrial {
+    chosen_rms: f64,
+    scale1_rms: f64,
+    placement_rms: f64,
+    scale: f64,
+    /// Wall-clock time of the one-call calibration, s.
+    seconds: f64,
+}
+
+/// `truth_fraction`: the truth is drawn from `U(±truth_fraction·tolerance)` while the prior
+/// keeps the full tolerances (1: the prior is right; < 1: the robots are better than their
+/// tolerances, the prior too wide).
+fn scale_trial(cell: Cell, seed: u64, n: usize, sigma: f64, truth_fraction: f64) -> ScaleTrial {
+    let tol = realistic();
+    let truth_tol = Tolerance {
+        joint_offset_rad: tol.joint_offset_rad * truth_fraction,
+        origin_xyz_m: tol.origin_xyz_m * truth_fraction,
+        tip_m: tol.tip_m * truth_fraction,
+        ..tol
+    };
+    let sc = sim_cell(cell, truth_tol, false, seed);
+    let mut p = coincident_problem(&sc, n, sigma, seed + 1000);
+    p.robot1.tolerance = tol;
+    p.robot2.tolerance = tol;
+    let pairs = sc.eval_pairs(200, 0.7, seed + 2000);
+    let start = Instant::now();
+    let cal = calibrate_cell(&p, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
+    let seconds = start.elapsed().as_secs_f64();
+    let chosen = measure_cooperative_error(&p, &cal.fit.estimate, &sc.truth, &pairs).unwrap();
+    let all: Vec<usize> = (0..n).collect();
+    let init = initial_estimate(&p, None, &all).unwrap();
+    let scale1 = fit_cell_with(
+        &p,
+        cal.reduction.layout.clone(),
+        &cal.fit.active,
+        None,
+        Some(&init),
+        &SolveOptions::default(),
+    )
+    .unwrap();
+    let scale1 = measure_cooperative_error(&p, &scale1.estimate, &sc.truth, &pairs).unwrap();
+    ScaleTrial {
+        chosen_rms: chosen.rms_m,
+        scale1_rms: scale1.rms_m,
+        placement_rms: placement_error(&p, &sc, &pairs).rms_m,
+        scale: cal.prior_scale.scale,
+        seconds,
+    }
+}
+
+/// Item 3's measurement (`cargo test --release -p calib-core --lib whole_cell::tests::prior_scale_monte_carlo -- --ignored --nocapture`):
+/// floor–wall, 40 points, 40 trials per σ: cooperative rms of the scale-1 MAP fit (before) and
+/// of the evidence-chosen scale (after) against the placement-only fit.
+#[test]
+#[ignore = "a Monte Carlo for the report: run in release with --ignored --nocapture"]
+fn prior_scale_monte_carlo() {
+    for (sigma, fraction) in [
+        (3e-4, 1.0),
+        (1e-3, 1.0),
+        (4.4e-3, 1.0),
+        (1e-3, 0.25),
+        (4.4e-3, 0.25),
+    ] {
+        let t: Vec<ScaleTrial> = (0..40)
+            .map(|s| scale_trial(Cell::Wall, 700 + s, 40, sigma, fraction))
+            .collect();
+        let mean = |f: &dyn Fn(&ScaleTrial) -> f64| t.iter().map(f).sum::<f64>() / 40.0 * 1e3;
+        let worse =
+            |f: &dyn Fn(&ScaleTrial) -> f64| t.iter().filter(|x| f(x) > x.placement_rms).count();
+        let worst = |f: &dyn Fn(&ScaleTrial) -> f64| {
+            t.iter().map(|x| f(x) / x.placement_rms).fold(0.0, f64::max)
+        };
+        eprintln!(
+            "Wall σ {:.1} mm, truth U(±{fraction}·tol): mean coop rms placement {:.3} mm; scale-1 MAP {:.3} mm (worse in \
+             {}/40, worst ratio {:.2}); evidence-chosen {:.3} mm (worse in {}/40, worst ratio \
+             {:.2}); calibrate_cell {:.1} ms mean, {:.1} ms max; scales chosen: {}",
+            sigma * 1e3,
+            mean(&|x| x.placement_rms),
+            mean(&|x| x.scale1_rms),
+            worse(&|x| x.scale1_rms),
+            worst(&|x| x.scale1_rms),
+            mean(&|x| x.chosen_rms),
+            worse(&|x| x.chosen_rms),
+            worst(&|x| x.chosen_rms),
+            mean(&|x| x.seconds),
+            t.iter().map(|x| x.seconds).fold(0.0, f64::max) * 1e3,
+            t.iter()
+                .map(|x| format!("{}", x.scale))
+                .collect::<Vec<_>>()
+                .join(" ")
+        );
+    }
+}
+
+/// Issue 11's accuracy target for a prediction: within ±25 % of the measured value.
+const PREDICTION_TOL_REL: f64 = 0.25;
+
+/// Issue 11 item 4: the placement-only model on sessions whose robots carry errors on every
+/// joint (offsets ±0.05°, origins and tips ±0.5 mm, σ = 0.3 mm, 30 points). Its residuals hold
+/// the unmodelled kinematic error, so the screen works at the residuals' robust scale: no clean
+/// row is rejected, a 10 mm blunder still is, and the prediction carries the model-error term.
+#[test]
+fn placement_only_screen_and_prediction_allow_for_model_error() {
+    for seed in [61u64, 62, 63] {
+        let sc = sim_cell(Cell::Floor, realistic(), false, seed);
+        let mut p = sc.problem();
+        p.robot1.tolerance = Tolerance::none();
+        p.robot2.tolerance = Tolerance::none();
+        p.observations = sc.coincident(30, 3e-4, 0.7, seed + 7);
+        let cal = calibrate_cell(&p, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
+        assert!(cal.rejected.is_empty(), "seed {seed}: {:?}", cal.rejected);
+        assert!(cal.noise_scale > 1.0, "seed {seed}: {}", cal.noise_scale);
+        let pairs = sc.eval_pairs(200, 0.7, seed + 2000);
+        let pred = predict_cooperative_accuracy(&p, &cal.fit, &pairs, seed).unwrap();
+        let meas = measure_cooperative_error(&p, &cal.fit.estimate, &sc.truth, &pairs).unwrap();
+        eprintln!(
+            "seed {seed}: noise scale {:.2}, predicted {:.3} mm, measured {:.3} mm",
+            cal.noise_scale,
+            pred.predicted_rms_m * 1e3,
+            meas.rms_m * 1e3
+        );
+        // The issue's ±25 % between predicted and measured cooperative rms (before the
+        // model-error term the prediction was ~0.15 mm against ~1 mm measured).
+        assert!(
+            (pred.predicted_rms_m / meas.rms_m - 1.0).abs() <= PREDICTION_TOL_REL,
+            "seed {seed}: predicted {} vs measured {}",
+            pred.predicted_rms_m,
+            meas.rms_m
+        );
+        let mut q = p.clone();
+        q.observations = sc.coincident_with_blunders(30, 3e-4, 0.7, seed + 7, &[(12, 10e-3)]);
+        let cal = calibrate_cell(&q, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
+        let rows: Vec<usize> = cal.rejected.iter().map(|r| r.row).collect();
+        assert_eq!(rows, vec![12], "seed {seed}");
+    }
+}
+
+/// The evidence-chosen scale 1e-3 shrinks the kinematic corrections to ~1e-6 of their
+/// tolerances: its fit is the placement-only fit far inside 0.1 %.
+const PLACEMENT_LIMIT_REL: f64 = 1e-3;
+
+/// Regression of issue 11's "never worse than lsq" at σ = 4.4 mm (floor–wall, 40 points, the
+/// seed-709 session of `prior_scale_monte_carlo`): the MAP fit at the tolerances' prior lost to
+/// the placement-only fit (1.637 vs 1.583 mm); the session's evidence now chooses the
+/// placement-only limit and the calibration is at the placement-only fit's level.
+#[test]
+fn high_noise_session_is_not_worse_than_placement_only() {
+    let t = scale_trial(Cell::Wall, 709, 40, 4.4e-3, 1.0);
+    assert!(
+        t.scale1_rms > t.placement_rms,
+        "the session no longer shows the defect"
+    );
+    assert_eq!(t.scale, PRIOR_SCALES[PRIOR_SCALES.len() - 1]);
+    assert!(
+        t.chosen_rms <= t.placement_rms * (1.0 + PLACEMENT_LIMIT_REL),
+        "chosen {} vs placement-only {}",
+        t.chosen_rms,
+        t.placement_rms
+    );
+}
+
+/// Robots four times better than their tolerances (truth U(±tol/4), prior from tol), σ = 1 mm,
+/// 7 sessions: the MAP fit at the tolerances' prior fits noise into the kinematic parameters and
+/// loses to the placement-only fit by > 20 % on average; the evidence-chosen scale keeps the
+/// calibration within 5 % of it (measured: +0.9 %; scale-1 +27 %).
+#[test]
+fn too_wide_a_prior_is_shrunk_to_placement_level_by_the_evidence() {
+    let t: Vec<ScaleTrial> = (700..707)
+        .map(|s| scale_trial(Cell::Wall, s, 40, 1e-3, 0.25))
+        .collect();
+    let mean = |f: &dyn Fn(&ScaleTrial) -> f64| t.iter().map(f).sum::<f64>() / t.len() as f64;
+    let place = mean(&|x| x.placement_rms);
+    assert!(mean(&|x| x.scale1_rms) > 1.2 * place);
+    assert!(mean(&|x| x.chosen_rms) < 1.05 * place);
+}

@@ -26,6 +26,122 @@ impl Mode {
     }
 }
 
+/// A method fitted on every trial of a sweep.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum SweepMethod {
+    /// A point-registration method of calib-core ([`Method`]) on all the session's nominal tips.
+    Registration(Method),
+    /// Robot mode: the paper's 4-point method on the 4 most spread tips of the session (the
+    /// four whose tetrahedron has the largest volume, robot 1's nominal tips).
+    PaperSpread4,
+    /// Robot mode: the whole-cell placement-only fit ([`crate::whole_cell::FitModel::Placement`],
+    /// both robots nominal, blunder-screened).
+    Placement,
+    /// Robot mode: the whole-cell MAP fit of `b1_from_b2` and both robots' kinematic parameters
+    /// ([`crate::whole_cell::FitModel::Kinematic`], [`calib_core::whole_cell::calibrate_cell`]).
+    Kinematic,
+}
+
+impl From<Method> for SweepMethod {
+    fn from(m: Method) -> Self {
+        SweepMethod::Registration(m)
+    }
+}
+
+impl SweepMethod {
+    /// The methods beyond calib-core's registration methods (robot mode only), in display order.
+    pub const ROBOT_EXTRAS: [SweepMethod; 3] = [
+        SweepMethod::PaperSpread4,
+        SweepMethod::Placement,
+        SweepMethod::Kinematic,
+    ];
+
+    /// The name in files and on the command line (a registration method's own name,
+    /// `paper-spread4`, `placement`, `kinematic`).
+    pub fn name(self) -> &'static str {
+        match self {
+            SweepMethod::Registration(m) => m.name(),
+            SweepMethod::PaperSpread4 => "paper-spread4",
+            SweepMethod::Placement => "placement",
+            SweepMethod::Kinematic => "kinematic",
+        }
+    }
+
+    /// Parses a name given by [`SweepMethod::name`]; `None` otherwise.
+    pub fn from_name(text: &str) -> Option<SweepMethod> {
+        if let Some(m) = Method::from_name(text) {
+            return Some(m.into());
+        }
+        let t = text.trim().to_ascii_lowercase();
+        Self::ROBOT_EXTRAS.into_iter().find(|m| m.name() == t)
+    }
+
+    /// Whether the method needs robot mode (a session, not bare points).
+    pub fn robot_only(self) -> bool {
+        !matches!(self, SweepMethod::Registration(_))
+    }
+}
+
+/// Where a sweep's teach points come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum SweepLayout {
+    /// A drawn [`Layout`] (a fresh draw per trial; random layouts redrawn until reachable).
+    Points(Layout),
+    /// Robot mode: the greedy A-optimal plan of the grid cell's point count from
+    /// [`super::PLAN_CANDIDATES`] seeded reachable candidates in the spread cube around the
+    /// cell's centre, made once per grid cell on the NOMINAL cell
+    /// ([`calib_core::whole_cell::greedy_design`], cooperative criterion over the held-out pairs);
+    /// every trial teaches the same planned points on its own true robots.
+    Planned,
+}
+
+impl From<Layout> for SweepLayout {
+    fn from(l: Layout) -> Self {
+        SweepLayout::Points(l)
+    }
+}
+
+impl SweepLayout {
+    /// The name in files and on the command line (`planned` or the layout's name).
+    pub fn name(self) -> &'static str {
+        match self {
+            SweepLayout::Points(l) => l.name(),
+            SweepLayout::Planned => "planned",
+        }
+    }
+}
+
+impl std::fmt::Display for SweepLayout {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The true kinematic errors of a robot-mode trial's robots.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum KinematicErrorDraw {
+    /// The cell's `[robotN.errors]` as written (zero when absent), the same in every trial.
+    None,
+    /// Per trial, every parameter the robot's `[robotN.tolerance]` selects (joint offsets,
+    /// origin xyz/rpy, scale and compliance when given, the tip) drawn from `U(±tolerance)`,
+    /// both robots, from the trial's own generator (replacing the cell's value of that
+    /// parameter; mount errors stay as written).
+    Tolerance,
+}
+
+impl KinematicErrorDraw {
+    /// `none` or `tolerance`.
+    pub fn name(self) -> &'static str {
+        match self {
+            KinematicErrorDraw::None => "none",
+            KinematicErrorDraw::Tolerance => "tolerance",
+        }
+    }
+}
+
 /// A sweep's grid and settings. Noise is the operator's isotropic alignment σ per axis.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SweepConfig {
@@ -40,9 +156,11 @@ pub struct SweepConfig {
     /// Point counts.
     pub n_points: Vec<usize>,
     /// Methods fitted on every trial.
-    pub methods: Vec<Method>,
+    pub methods: Vec<SweepMethod>,
     /// Teach-point layout.
-    pub layout: Layout,
+    pub layout: SweepLayout,
+    /// Robot mode: the robots' true kinematic errors per trial.
+    pub kinematic_errors: KinematicErrorDraw,
     /// Trials per grid cell.
     pub trials: usize,
     /// Master seed.
@@ -63,8 +181,9 @@ impl Default for SweepConfig {
             noise_mm: vec![0.5, 1.0, 2.0, 3.0],
             spread_m: vec![0.25, 0.5, 1.0, 1.5],
             n_points: vec![4, 6, 8, 12],
-            methods: Method::ALL.to_vec(),
-            layout: Layout::Tetrahedron,
+            methods: Method::ALL.map(SweepMethod::from).to_vec(),
+            layout: Layout::Tetrahedron.into(),
+            kinematic_errors: KinematicErrorDraw::None,
             trials: 200,
             seed: 1,
         }
@@ -136,6 +255,22 @@ impl SweepConfig {
             )));
         }
         if self.mode == Mode::Geometry {
+            if let Some(m) = self.methods.iter().find(|m| m.robot_only()) {
+                return Err(SimError::InvalidInput(format!(
+                    "method {} needs robot sessions: use --mode robot",
+                    m.name()
+                )));
+            }
+            if self.layout == SweepLayout::Planned {
+                return Err(SimError::InvalidInput(
+                    "the planned layout needs robots: use --mode robot".into(),
+                ));
+            }
+            if self.kinematic_errors != KinematicErrorDraw::None {
+                return Err(SimError::InvalidInput(
+                    "kinematic errors need robots: use --mode robot".into(),
+                ));
+            }
             if let Some(m) = self.mounts.iter().find(|m| paper_placement(m).is_none()) {
                 return Err(SimError::InvalidInput(format!(
                     "geometry mode knows the paper's cells only (floor-floor, floor-wall, floor-ceiling), not {}",

@@ -4,13 +4,14 @@ use nalgebra::{Point3, Vector3};
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
-use super::config::{GridCell, Mode, SweepConfig};
+use super::config::{GridCell, Mode, SweepConfig, SweepLayout, SweepMethod};
 use super::geometry::{draw_geometry, GeometrySpec};
+use super::robot::{robot_setup, robot_trial, setup_rng, RobotSetup};
 use super::{CHUNK, MAX_GEOMETRY_POINTS};
 use crate::cell::Cell;
 use crate::error::SimError;
+use crate::layout::Layout;
 use crate::placement::{mounts_label, paper_placement};
-use crate::session::{generate_session, SessionSpec};
 use crate::trial_rng;
 use calib_core::{fit_fast, ErotTruth, TrialErrors};
 
@@ -59,8 +60,29 @@ impl Failure {
     }
 }
 
+/// Cooperative accuracy of one robot-mode fit over the grid cell's held-out pairs (see
+/// [`super::robot`]), m.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cooperative {
+    /// Measured rms of the error of the cooperative vector `v` over the pairs, m.
+    pub rms_m: f64,
+    /// Measured 95th percentile of that error over the pairs, m.
+    pub p95_m: f64,
+    /// The fit's own prediction of the rms (whole-cell methods only), m.
+    pub predicted_rms_m: Option<f64>,
+}
+
+/// A trial's estimate of one method, scored.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrialOutcome {
+    /// `e_tran`, `e_rot` and the geodesic angle of the fitted `b1_from_b2` against the truth.
+    pub errors: TrialErrors,
+    /// Robot mode: the cooperative accuracy (`None` in geometry mode).
+    pub cooperative: Option<Cooperative>,
+}
+
 /// A trial's result for one method.
-pub type Outcome = Result<TrialErrors, Failure>;
+pub type Outcome = Result<TrialOutcome, Failure>;
 
 /// A finished sweep: outcome `[trial · methods.len() + method]` for every global trial index.
 #[derive(Debug, Clone)]
@@ -123,16 +145,29 @@ pub fn run_sweep(
             (spec, spec.erot_truth())
         })
         .collect();
+    let setups: Vec<RobotSetup> = if config.mode == Mode::Robot {
+        grid.par_iter()
+            .enumerate()
+            .map(|(i, g)| robot_setup(config, g, &cells[g.mounts], &mut setup_rng(config.seed, i)))
+            .collect::<Result<_, _>>()?
+    } else {
+        Vec::new()
+    };
     let rngs = TrialRngs::new(config.seed);
     // One item per trial × method, written in place into `outcomes` by rayon (no serial
     // pre-fill of the output); a worker runs a trial's methods when it meets the trial's first
     // item it is given (a trial split between two workers is run by both, identically).
     let mut outcomes: Vec<Outcome> = Vec::new();
+    // Robot trials take milliseconds each: one trial per work item and per progress step.
+    let chunk = match config.mode {
+        Mode::Geometry => CHUNK,
+        Mode::Robot => 1,
+    };
     (0..total * n_methods)
         .into_par_iter()
-        .with_min_len(CHUNK * n_methods)
+        .with_min_len(chunk * n_methods)
         .map_init(
-            || Worker::new(progress),
+            || Worker::new(progress, chunk as u64),
             |w, item| {
                 let trial = item / n_methods;
                 if w.trial != Some(trial) {
@@ -146,13 +181,17 @@ pub fn run_sweep(
                             let (p1, p2) = (&mut w.buf1[..spec.n], &mut w.buf2[..spec.n]);
                             draw_geometry(spec, &mut rng, p1, p2);
                             w.outcomes.extend(config.methods.iter().map(|&method| {
+                                let SweepMethod::Registration(method) = method else {
+                                    return Err(Failure::FitFailed); // refused by validate()
+                                };
                                 fit_fast(method, &spec.mounts, p1, p2)
-                                    .map(|est| {
-                                        TrialErrors::between_fast(
+                                    .map(|est| TrialOutcome {
+                                        errors: TrialErrors::between_fast(
                                             &spec.b1_from_b2,
                                             erot_truth,
                                             &est,
-                                        )
+                                        ),
+                                        cooperative: None,
                                     })
                                     .ok_or(Failure::FitFailed)
                             }));
@@ -163,6 +202,7 @@ pub fn run_sweep(
                                 config,
                                 cell,
                                 &cells[cell.mounts],
+                                &setups[cell_index],
                                 &mut rng,
                                 &mut w.outcomes,
                             );
@@ -185,7 +225,8 @@ pub fn run_sweep(
 }
 
 /// Per-worker state of [`run_sweep`]: point buffers, the trial in hand and its outcomes (one per
-/// method), and progress not yet reported (reported every [`CHUNK`] trials and when dropped).
+/// method), and progress not yet reported (reported every `report_every` trials — [`CHUNK`] in
+/// geometry mode, 1 in robot mode — and when dropped).
 pub(super) struct Worker<'a> {
     buf1: Vec<Point3<f64>>,
     buf2: Vec<Point3<f64>>,
@@ -193,10 +234,11 @@ pub(super) struct Worker<'a> {
     outcomes: Vec<Outcome>,
     progress: &'a (dyn Fn(u64) + Sync),
     pending: u64,
+    report_every: u64,
 }
 
 impl<'a> Worker<'a> {
-    fn new(progress: &'a (dyn Fn(u64) + Sync)) -> Self {
+    fn new(progress: &'a (dyn Fn(u64) + Sync), report_every: u64) -> Self {
         Worker {
             buf1: vec![Point3::origin(); MAX_GEOMETRY_POINTS],
             buf2: vec![Point3::origin(); MAX_GEOMETRY_POINTS],
@@ -204,12 +246,13 @@ impl<'a> Worker<'a> {
             outcomes: Vec::new(),
             progress,
             pending: 0,
+            report_every,
         }
     }
 
     fn count_trial(&mut self) {
         self.pending += 1;
-        if self.pending == CHUNK as u64 {
+        if self.pending == self.report_every {
             (self.progress)(self.pending);
             self.pending = 0;
         }
@@ -231,43 +274,13 @@ pub(super) fn geometry_spec(config: &SweepConfig, cell: &GridCell) -> GeometrySp
     GeometrySpec {
         mounts: *mounts,
         b1_from_b2: p.b1_from_b2(),
-        layout: config.layout,
+        layout: match config.layout {
+            SweepLayout::Points(l) => l,
+            SweepLayout::Planned => Layout::Random, // refused in geometry mode by validate()
+        },
         n: config.n_points[cell.n],
         spread_m: config.spread_m[cell.spread],
         centre_b1: p.centre_b1(),
         sigma_m: Vector3::repeat(config.noise_mm[cell.noise] / 1000.0),
-    }
-}
-
-/// One robot-mode trial: a simulated session on `cell` (σ from the grid), every method fitted on
-/// the controllers' nominal tips, errors against the cell's true `b1_from_b2`.
-pub(super) fn robot_trial(
-    config: &SweepConfig,
-    grid_cell: &GridCell,
-    cell: &Cell,
-    rng: &mut rand_chacha::ChaCha8Rng,
-    out: &mut Vec<Outcome>,
-) {
-    let mut cell = cell.clone();
-    cell.noise.alignment_m = Vector3::repeat(config.noise_mm[grid_cell.noise] / 1000.0);
-    let spec = SessionSpec {
-        n: config.n_points[grid_cell.n],
-        layout: config.layout,
-        spread_m: config.spread_m[grid_cell.spread],
-        centre_b1: None,
-        points_b1: None,
-    };
-    match generate_session(&cell, &spec, rng) {
-        Ok(session) => {
-            let (p1, p2) = session.tips();
-            for &method in &config.methods {
-                out.push(
-                    fit_fast(method, &config.mounts[grid_cell.mounts], &p1, &p2)
-                        .map(|est| TrialErrors::between(&cell.b1_from_b2, &est))
-                        .ok_or(Failure::FitFailed),
-                );
-            }
-        }
-        Err(_) => out.extend(config.methods.iter().map(|_| Err(Failure::Unreachable))),
     }
 }

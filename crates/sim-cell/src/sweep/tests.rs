@@ -2,6 +2,7 @@
 //! determinism whatever the thread count, replay of one trial, expected trends and the outputs.
 
 use super::geometry::*;
+use super::robot::{draw_kinematic_errors, most_spread_four, SPREAD4_EXHAUSTIVE};
 use super::*;
 use crate::layout::Layout;
 use crate::placement::PAPER;
@@ -23,8 +24,9 @@ fn small_config() -> SweepConfig {
         noise_mm: vec![0.5, 3.0],
         spread_m: vec![0.25, 1.5],
         n_points: vec![4, 12],
-        methods: Method::ALL.to_vec(),
-        layout: Layout::Tetrahedron,
+        methods: Method::ALL.map(SweepMethod::from).to_vec(),
+        layout: Layout::Tetrahedron.into(),
+        kinematic_errors: KinematicErrorDraw::None,
         trials: 30,
         seed: 7,
     }
@@ -187,15 +189,21 @@ fn trial_k_replays_alone() {
     let g = result.grid[k / config.trials];
     let spec = GeometrySpec::paper(
         &config.mounts[g.mounts],
-        config.layout,
+        Layout::Tetrahedron,
         config.n_points[g.n],
         config.spread_m[g.spread],
         config.noise_mm[g.noise] / 1000.0,
     )
     .unwrap();
     for (m, method) in config.methods.iter().enumerate() {
-        let alone = geometry_trial(&spec, *method, &mut trial_rng(config.seed, k as u64)).unwrap();
-        assert_eq!(alone.ok_or(Failure::FitFailed), *result.outcome(k, m));
+        let SweepMethod::Registration(method) = *method else {
+            unreachable!("geometry sweeps fit registration methods only")
+        };
+        let alone = geometry_trial(&spec, method, &mut trial_rng(config.seed, k as u64)).unwrap();
+        assert_eq!(
+            alone.ok_or(Failure::FitFailed),
+            result.outcome(k, m).map(|o| o.errors)
+        );
     }
 }
 
@@ -212,7 +220,7 @@ fn median_of(
         .iter()
         .find(|r| {
             r.mounts == mounts
-                && r.method == method
+                && r.method == SweepMethod::from(method)
                 && r.noise_mm == Some(noise)
                 && r.spread_m == Some(spread)
                 && r.n == Some(n)
@@ -226,15 +234,16 @@ fn small_sweep_shows_the_expected_trends() {
     let mut config = small_config();
     config.trials = 300;
     config.mounts = vec![MountPair::floor_floor(), MountPair::floor_ceiling()];
-    config.methods = vec![
+    let methods = [
         Method::Generic,
         Method::Paper,
         Method::Lsq,
         Method::Constrained,
     ];
+    config.methods = methods.map(SweepMethod::from).to_vec();
     let rows = summarize_cells(&run_sweep(&config, &[], &|_| {}).unwrap());
     for mounts in ["floor-floor", "floor-ceiling"] {
-        for &method in &config.methods {
+        for method in methods {
             // Error falls with spread (n = 4, σ = 1 mm... here 0.5 and 3 mm).
             for noise in [0.5, 3.0] {
                 let small = median_of(&rows, mounts, method, noise, 0.25, 4);
@@ -271,4 +280,120 @@ fn table_and_summary_csv_render() {
     write_summary_csv(&summarize_cells(&result), &mut out).unwrap();
     let text = String::from_utf8(out).unwrap();
     assert_eq!(text.lines().count(), 1 + result.grid.len() * 5);
+}
+
+#[test]
+fn most_spread_four_picks_the_largest_tetrahedron() {
+    // A unit cube's corners plus interior points: the largest tetrahedron of a cube's corners
+    // is the regular one (volume 1/3, |det| = 2); both searches find a quadruple of that size.
+    let mut pts: Vec<Point3<f64>> = (0..8)
+        .map(|i| Point3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64))
+        .collect();
+    pts.extend((0..5).map(|i| Point3::new(0.5, 0.1 * i as f64 + 0.3, 0.5)));
+    let det = |idx: [usize; 4]| {
+        let [a, b, c, d] = idx.map(|i| pts[i]);
+        (b - a).cross(&(c - a)).dot(&(d - a)).abs()
+    };
+    assert!((det(most_spread_four(&pts).unwrap()) - 2.0).abs() < EXACT_TOL);
+    assert_eq!(most_spread_four(&pts[..3]), None);
+    // Beyond the exhaustive size the greedy search still finds a corner tetrahedron.
+    let mut many = pts.clone();
+    many.extend((0..SPREAD4_EXHAUSTIVE).map(|i| Point3::new(0.5, 0.5, i as f64 / 100.0 + 0.2)));
+    let idx = most_spread_four(&many).unwrap();
+    assert!(idx.iter().all(|&i| i < 8), "{idx:?}");
+}
+
+/// Robot mode with per-trial tolerance-drawn errors, the planned layout and the whole-cell
+/// methods: the new columns are written (cooperative for every method, predicted for the
+/// whole-cell ones only) and the CSVs are byte-identical with one and two threads.
+#[test]
+fn robot_sweep_cooperative_columns_are_thread_independent() {
+    use crate::cell::Cell;
+    let config = SweepConfig {
+        mode: Mode::Robot,
+        mounts: vec![MountPair::floor_floor()],
+        noise_mm: vec![0.3],
+        spread_m: vec![0.8],
+        n_points: vec![10],
+        methods: vec![
+            Method::Lsq.into(),
+            SweepMethod::PaperSpread4,
+            SweepMethod::Placement,
+            SweepMethod::Kinematic,
+        ],
+        layout: SweepLayout::Planned,
+        kinematic_errors: KinematicErrorDraw::Tolerance,
+        trials: 3,
+        seed: 11,
+    };
+    let cells = vec![Cell::default_floor_floor()];
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let r = pool
+            .install(|| run_sweep(&config, &cells, &|_| {}))
+            .unwrap();
+        let mut out = Vec::new();
+        write_trials_csv(&r, &mut out).unwrap();
+        write_summary_csv(&summarize_cells(&r), &mut out).unwrap();
+        out
+    };
+    let one = run(1);
+    assert_eq!(one, run(2));
+    let text = String::from_utf8(one).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (method, status) = (col("method"), col("status"));
+    let (coop, p95, pred) = (
+        col("cooperative_rms_mm"),
+        col("cooperative_p95_mm"),
+        col("predicted_cooperative_rms_mm"),
+    );
+    let rows: Vec<Vec<&str>> = lines
+        .take(3 * config.methods.len())
+        .map(|l| l.split(',').collect())
+        .collect();
+    for r in &rows {
+        assert_eq!(r[status], "ok", "{r:?}");
+        assert_eq!(r[col("layout")], "planned");
+        assert_eq!(r[col("kinematic_errors")], "tolerance");
+        let rms: f64 = r[coop].parse().unwrap();
+        let q95: f64 = r[p95].parse().unwrap();
+        // Sub-mm to a few mm (σ 0.3 mm, errors of 0.05° / 0.5 mm): finite, positive, p95 ≥ rms/2.
+        assert!(rms > 0.0 && rms < 10.0 && q95 > 0.5 * rms, "{r:?}");
+        let whole_cell = matches!(r[method], "placement" | "kinematic");
+        assert_eq!(!r[pred].is_empty(), whole_cell, "{r:?}");
+    }
+    assert!(text.contains("cooperative_rms_mm_median,cooperative_rms_mm_median_lo"));
+}
+
+/// Tolerance draws stay inside their bands, move every selected parameter, and depend on the
+/// generator alone.
+#[test]
+fn kinematic_errors_are_drawn_inside_the_tolerances() {
+    use crate::cell::Cell;
+    use kinematics::ErrorParam;
+    let cell = Cell::default_floor_wall();
+    let mut robot = cell.robot2.clone();
+    draw_kinematic_errors(&mut robot, &mut trial_rng(3, 9));
+    let tol = robot.tolerance;
+    let dof = robot.model.dof();
+    for joint in 0..dof {
+        let offset = robot.errors.get(ErrorParam::JointOffset { joint });
+        assert!(
+            offset != 0.0 && offset.abs() <= tol.joint_offset_rad,
+            "{joint}: {offset}"
+        );
+    }
+    assert!(robot
+        .errors
+        .tip
+        .iter()
+        .all(|t| *t != 0.0 && t.abs() <= tol.tip_m));
+    let mut again = cell.robot2.clone();
+    draw_kinematic_errors(&mut again, &mut trial_rng(3, 9));
+    assert_eq!(again.errors, robot.errors);
 }

@@ -279,8 +279,9 @@ fn robot_mode_sweep_is_thread_independent_and_follows_noise() {
         noise_mm: vec![0.2, 3.0],
         spread_m: vec![1.0],
         n_points: vec![6],
-        methods: vec![Method::Lsq, Method::Constrained],
-        layout: Layout::Tetrahedron,
+        methods: vec![Method::Lsq.into(), Method::Constrained.into()],
+        layout: Layout::Tetrahedron.into(),
+        kinematic_errors: sim_cell::sweep::KinematicErrorDraw::None,
         trials: 12,
         seed: 5,
     };
@@ -305,7 +306,7 @@ fn robot_mode_sweep_is_thread_independent_and_follows_noise() {
     for m in [Method::Lsq, Method::Constrained] {
         let at = |noise: f64| {
             rows.iter()
-                .find(|r| r.method == m && r.noise_mm == Some(noise))
+                .find(|r| r.method == m.into() && r.noise_mm == Some(noise))
                 .unwrap()
                 .e_tran_mm_median
                 .value
@@ -338,8 +339,9 @@ fn tilted_mount_sweep_csvs_read_back_with_the_header_field_count() {
         noise_mm: vec![1.0],
         spread_m: vec![0.5],
         n_points: vec![4],
-        methods: vec![Method::Lsq, Method::Constrained],
-        layout: Layout::Tetrahedron,
+        methods: vec![Method::Lsq.into(), Method::Constrained.into()],
+        layout: Layout::Tetrahedron.into(),
+        kinematic_errors: sim_cell::sweep::KinematicErrorDraw::None,
         trials: 1,
         seed: 7,
     };
