@@ -14,6 +14,11 @@ pub mod stats;
 mod stop;
 pub mod whole_cell;
 
+/// The nalgebra this crate's API is written in (`Isometry3`, `Point3`, `Matrix6`, …), the same
+/// one `kinematics` re-exports. Use `calib_core::nalgebra::…` (or pin the same nalgebra version,
+/// see the README) so your types are the ones these functions take.
+pub use nalgebra;
+
 pub use error::CalibError;
 pub use identify::Robot;
 pub use kinematics::{rotation_from_zyz, wrap_angle, zyz_from_rotation, zyz_nearest};
