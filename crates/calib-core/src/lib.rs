@@ -33,11 +33,11 @@ pub use points::{
 };
 pub use pose::PoseMmDeg;
 pub use registration::{
-    affine_lsq_fast, constrained_fast, constrained_lsq, fit, fit_fast, generic_4point,
-    generic_fast, nearest_rotation, paper_constrained, paper_fast, project_rotation_family,
-    rigid_fit_fast, rigid_lsq, rotation_maximizing_trace, spread_singular_values,
-    wall_family_angles, wall_rotation, ConstrainedOptions, Fit, Method, Mount, MountPair,
-    Uncertainty, COLLINEAR_REL, COPLANAR_REL,
+    affine_lsq_fast, constrained_fast, constrained_lsq, fit, fit_fast, fit_unconstrained,
+    generic_4point, generic_fast, nearest_rotation, paper_constrained, paper_fast,
+    project_rotation_family, rigid_fit_fast, rigid_lsq, rotation_maximizing_trace,
+    spread_singular_values, wall_family_angles, wall_rotation, ConstrainedOptions, Fit, Method,
+    Mount, MountPair, Uncertainty, COLLINEAR_REL, COPLANAR_REL,
 };
 pub use robust::{
     explain_misfit, leave_one_out, leave_one_out_linearised, median_residual_m, MisfitCause,

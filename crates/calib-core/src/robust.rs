@@ -15,7 +15,8 @@ pub const OUTLIER_MIN_M: f64 = 1e-3;
 pub const EXACT_LOO_MAX_POINTS: usize = 200;
 
 /// Leave-one-out residuals of every point, and the points flagged as bad handclasps.
-#[derive(Debug, Clone, PartialEq)]
+/// Serialises (serde) with the fields' SI units.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct OutlierReport {
     /// Source rows, one per point.
     pub rows: Vec<usize>,
@@ -183,7 +184,10 @@ pub fn median_residual_m(fit: &Fit) -> f64 {
 }
 
 /// A data mistake that can make a fit's residuals far larger than the alignment noise.
-#[derive(Debug, Clone, Copy, PartialEq)]
+///
+/// Serialises (serde) as `{"kind": "rows-shifted", "robot2_offset": 1}` etc.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
 #[non_exhaustive]
 pub enum MisfitCause {
     /// Rows out of order: robot 1's row i belongs with robot 2's row `i + robot2_offset`.
