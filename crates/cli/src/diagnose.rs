@@ -37,6 +37,10 @@ pub struct Args {
     /// Monte Carlo trials for the predicted residual distributions (at least 20).
     #[arg(long, default_value_t = 400)]
     pub trials: usize,
+    /// Also list (on stderr) each URDF's joints and links outside the base-to-flange chain,
+    /// which are ignored.
+    #[arg(long)]
+    pub verbose: bool,
 }
 
 /// Runs `handclasp diagnose`.
@@ -68,6 +72,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let cell = Cell::from_toml_file(&args.cell)?;
+    if args.verbose {
+        crate::fk::print_cell_branches(&cell);
+    }
     let session = diagnose::load_session(&args.session, &cell).context("--session")?;
     let options = DiagnoseOptions {
         seed: args.seed,
