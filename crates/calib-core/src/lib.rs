@@ -40,8 +40,9 @@ pub use registration::{
     Mount, MountPair, Uncertainty, COLLINEAR_REL, COPLANAR_REL,
 };
 pub use robust::{
-    explain_misfit, leave_one_out, leave_one_out_linearised, median_residual_m, MisfitCause,
-    OutlierReport, DEFAULT_EXPECTED_NOISE_M, EXACT_LOO_MAX_POINTS, OUTLIER_FACTOR, OUTLIER_MIN_M,
+    explain_misfit, leave_one_out, leave_one_out_four_point, leave_one_out_linearised,
+    median_residual_m, MisfitCause, OutlierReport, DEFAULT_EXPECTED_NOISE_M, EXACT_LOO_MAX_POINTS,
+    OUTLIER_FACTOR, OUTLIER_MIN_M,
 };
 pub use soft::{constrained_soft, SoftFit};
 pub use stop::StopReason;

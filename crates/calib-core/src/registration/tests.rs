@@ -421,6 +421,10 @@ fn fit_jacobian_matches_central_differences() {
             );
         }
     }
+    // The point-by-point accumulation that the uncertainty uses equals JᵀJ of the checked
+    // Jacobian (entries of order 10: round-off 1e-13).
+    let jtj = fit_jtj(&pairs, &w, &truth, &axes);
+    assert!((jtj - j.transpose() * &j).amax() < 1e-12);
 }
 
 /// The predicted uncertainty matches a small seeded Monte Carlo: the empirical RMS translation
