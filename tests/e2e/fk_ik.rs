@@ -309,3 +309,320 @@ fn bad_inputs_say_what_is_wrong_and_how_to_fix_it() {
         "{e}"
     );
 }
+
+/// A floor–floor cell (hp20 as robot 1, va1400 as robot 2) whose robot 1 carries compliance, a
+/// joint scale and a joint offset in `[robot1.errors]`: terms a URDF cannot hold (the first two).
+fn write_error_cell(dir: &Path) -> std::path::PathBuf {
+    let text = format!(
+        r#"[robot1]
+urdf = "{HP20}"
+mount = "floor"
+tip_mm = [0.0, 0.0, 150.0]
+
+[robot2]
+urdf = "{VA1400}"
+mount = "floor"
+tip_mm = [0.0, 0.0, 120.0]
+
+[b1_from_b2]
+xyz_mm = [37.9, 1476.5, 54.5]
+zyz_deg = [0.0, 0.0, -44.5]
+
+[robot1.errors]
+joint_offset_deg = [0.0, 0.02, -0.01, 0.0, 0.0, 0.0]
+joint_scale = [0.0, 2e-4, 0.0, 0.0, 0.0, 0.0]
+compliance_deg_per_knm = [0.0, 0.3, 0.3, 0.0, 0.0, 0.0]
+tip_mm = [0.0, 0.0, 0.2]
+"#
+    );
+    let path = dir.join("cell.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// Joint angles (deg) of the batch tests: three hp20 poses with a lever for gravity.
+const BATCH_Q_DEG: [[f64; 6]; 3] = [
+    [0.0, 20.0, -10.0, 0.0, 30.0, 0.0],
+    [35.5, -15.25, 40.0, 10.0, -45.0, 90.0],
+    [-60.0, 45.0, 5.0, -120.0, 20.0, -30.0],
+];
+
+fn write_q_csv(dir: &Path) -> std::path::PathBuf {
+    let mut text = String::from("pose_id,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,note\n");
+    for (i, q) in BATCH_Q_DEG.iter().enumerate() {
+        let cols: Vec<String> = q.iter().map(|v| v.to_string()).collect();
+        text += &format!("P{i},{},hand\n", cols.join(","));
+    }
+    let path = dir.join("q.csv");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// Reads `fk --q-csv` output: header and rows of strings.
+fn read_out(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap().split(',').map(String::from).collect();
+    let rows = lines
+        .map(|l| l.split(',').map(String::from).collect())
+        .collect();
+    (header, rows)
+}
+
+/// `fk --cell --q-csv --cell-tip` equals kinematics::true_base_from_tip with the cell's errors
+/// and gravity to 1e-9 m, and differs from the bare URDF by the compliance and scale terms.
+#[test]
+fn fk_cell_q_csv_equals_true_fk_with_compliance() {
+    let dir = tempfile::tempdir().unwrap();
+    let cell_path = write_error_cell(dir.path());
+    let q_csv = write_q_csv(dir.path());
+    let out = dir.path().join("out.csv");
+    let run = handclasp(&[
+        "fk",
+        "--cell",
+        cell_path.to_str().unwrap(),
+        "--robot",
+        "1",
+        "--q-csv",
+        q_csv.to_str().unwrap(),
+        "--id-column",
+        "pose_id",
+        "--cell-tip",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("ignoring column(s) note"), "{stderr}");
+    let (header, rows) = read_out(&out);
+    assert_eq!(
+        header,
+        ["pose_id", "x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"]
+    );
+    assert_eq!(rows.len(), BATCH_Q_DEG.len());
+
+    let cell = sim_cell::Cell::from_toml_file(&cell_path).unwrap();
+    let r1 = &cell.robot1;
+    assert!(r1.errors.compliance[1] > 0.0);
+    let nominal = RobotModel::from_urdf_file(Path::new(HP20), "tool0").unwrap();
+    for (i, (row, q_deg)) in rows.iter().zip(&BATCH_Q_DEG).enumerate() {
+        assert_eq!(row[0], format!("P{i}"));
+        let v: Vec<f64> = row[1..].iter().map(|x| x.parse().unwrap()).collect();
+        let q: Vec<f64> = q_deg.iter().map(|d| d.to_radians()).collect();
+        let truth = kinematics::true_base_from_tip(
+            &r1.model,
+            &r1.errors,
+            &q,
+            &r1.flange_from_tip,
+            &r1.g_base,
+        )
+        .unwrap();
+        let t_mm = truth.translation.vector * 1e3;
+        let got_mm = Vector3::new(v[0], v[1], v[2]);
+        assert!(
+            (got_mm - t_mm).norm() < 1e-9 * 1e3,
+            "row {i}: {got_mm} vs {t_mm}"
+        );
+        let qt = truth.rotation.quaternion();
+        let sign = if qt.w < 0.0 { -1.0 } else { 1.0 };
+        for (got, want) in v[3..].iter().zip([qt.w, qt.i, qt.j, qt.k]) {
+            assert!((got - sign * want).abs() < 1e-12, "row {i}: quaternion");
+        }
+        let bare = base_from_tip(&nominal, &q, &r1.flange_from_tip).unwrap();
+        let gap_mm = (bare.translation.vector * 1e3 - got_mm).norm();
+        assert!(
+            gap_mm > 0.1,
+            "row {i}: the cell's errors moved the tip only {gap_mm} mm"
+        );
+    }
+}
+
+/// Each batch row equals the single-pose `fk --cell --q-deg` of the same angles (the two paths
+/// agree), and `--tip-mm` is applied as given in the flange frame.
+#[test]
+fn fk_cell_q_csv_round_trips_single_pose_fk() {
+    let dir = tempfile::tempdir().unwrap();
+    let cell_path = write_error_cell(dir.path());
+    let q_csv = write_q_csv(dir.path());
+    let cell = cell_path.to_str().unwrap();
+    let run = handclasp(&[
+        "fk",
+        "--cell",
+        cell,
+        "--robot",
+        "1",
+        "--q-csv",
+        q_csv.to_str().unwrap(),
+        "--tip-mm",
+        "10,-5,150",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let text = String::from_utf8(run.stdout).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next().unwrap(), "x_mm,y_mm,z_mm,qw,qx,qy,qz");
+    for (line, q_deg) in lines.zip(&BATCH_Q_DEG) {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        let q_text: Vec<String> = q_deg.iter().map(|d| d.to_string()).collect();
+        let single = json_ok(&[
+            "fk",
+            "--cell",
+            cell,
+            "--robot",
+            "1",
+            "--q-deg",
+            &q_text.join(","),
+            "--tip-mm",
+            "10,-5,150",
+            "--json",
+        ]);
+        let xyz = floats(&single["xyz_mm"]);
+        for k in 0..3 {
+            assert!((v[k] - xyz[k]).abs() < EXACT_MM, "{line} vs {xyz:?}");
+        }
+        let q = floats(&single["quaternion_wxyz"]);
+        let sign = if q[0] < 0.0 { -1.0 } else { 1.0 };
+        for k in 0..4 {
+            assert!((v[3 + k] - sign * q[k]).abs() < 1e-12);
+        }
+    }
+}
+
+/// Bad q files fail naming the line and column: out of limits, not a number, a missing column,
+/// a column too many; a radian file is warned about.
+#[test]
+fn fk_cell_q_csv_errors_name_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let cell_path = write_error_cell(dir.path());
+    let cell = cell_path.to_str().unwrap();
+    let case = |name: &str, text: &str| -> std::process::Output {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        handclasp(&[
+            "fk",
+            "--cell",
+            cell,
+            "--robot",
+            "1",
+            "--q-csv",
+            path.to_str().unwrap(),
+        ])
+    };
+    let head = "q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n";
+    let err = |o: std::process::Output| {
+        assert!(!o.status.success());
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let e = err(case(
+        "limits.csv",
+        &format!("{head}0,0,0,0,0,0\n0,500,0,0,0,0\n"),
+    ));
+    assert!(
+        e.contains("line 3, column `q2_deg`") && e.contains("outside its limits"),
+        "{e}"
+    );
+    let e = err(case("nan.csv", &format!("{head}0,0,NaN,0,0,0\n")));
+    assert!(
+        e.contains("line 2, column `q3_deg`") && e.contains("not a finite"),
+        "{e}"
+    );
+    let e = err(case("text.csv", &format!("{head}0,0,0,x,0,0\n")));
+    assert!(e.contains("line 2, column `q4_deg`"), "{e}");
+    let e = err(case(
+        "short.csv",
+        "q1_deg,q2_deg,q3_deg,q4_deg,q5_deg\n0,0,0,0,0\n",
+    ));
+    assert!(e.contains("missing column `q6_deg`"), "{e}");
+    let e = err(case(
+        "long.csv",
+        "q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,q7_deg\n0,0,0,0,0,0,0\n",
+    ));
+    assert!(e.contains("`q7_deg`") && e.contains("6 joints"), "{e}");
+    let ok = case("radians.csv", &format!("{head}0.1,0.5,-0.3,1.2,0.4,-2.0\n"));
+    assert!(ok.status.success());
+    let w = String::from_utf8_lossy(&ok.stderr);
+    assert!(w.contains("look like radians"), "{w}");
+    let e = err(handclasp(&[
+        "fk",
+        "--cell",
+        cell,
+        "--robot",
+        "3",
+        "--q-deg",
+        "0,0,0,0,0,0",
+    ]));
+    assert!(e.contains("1 or 2"), "{e}");
+}
+
+/// A tip offset written in metres (0,0,0.15) is refused naming the unit, in fk and ik.
+#[test]
+fn tip_mm_in_metres_is_refused() {
+    let e = err_text(&[
+        "fk",
+        "--robot",
+        HP20,
+        "--q-deg",
+        "0,0,0,0,0,0",
+        "--tip-mm",
+        "0,0,0.15",
+    ]);
+    assert!(
+        e.contains("looks like metres") && e.contains("0,0,150"),
+        "{e}"
+    );
+    let e = err_text(&[
+        "ik",
+        "--robot",
+        HP20,
+        "--xyz-mm",
+        "1000,0,900",
+        "--tip-mm",
+        "0,0,0.15",
+    ]);
+    assert!(e.contains("looks like metres"), "{e}");
+}
+
+/// `--verbose` names the URDF joints and links outside the chain (a gripper branch here).
+#[test]
+fn verbose_lists_ignored_branches() {
+    let dir = tempfile::tempdir().unwrap();
+    let urdf = dir.path().join("branch.urdf");
+    std::fs::write(
+        &urdf,
+        r#"<robot name="arm">
+  <link name="base_link"/><link name="tool0"/><link name="gripper"/>
+  <joint name="j1" type="revolute"><parent link="base_link"/><child link="tool0"/>
+    <origin xyz="0 0 0.5"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="gripper_mount" type="fixed"><parent link="base_link"/><child link="gripper"/></joint>
+</robot>"#,
+    )
+    .unwrap();
+    let out = handclasp(&[
+        "fk",
+        "--robot",
+        urdf.to_str().unwrap(),
+        "--q-deg",
+        "10",
+        "--verbose",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        e.contains("joints [gripper_mount]") && e.contains("links [gripper]"),
+        "{e}"
+    );
+    let out = handclasp(&["ik", "--robot", HP20, "--xyz-mm", "1000,0,900", "--verbose"]);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(e.contains("no URDF joint or link outside the chain"), "{e}");
+}

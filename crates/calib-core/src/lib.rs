@@ -14,6 +14,11 @@ pub mod stats;
 mod stop;
 pub mod whole_cell;
 
+/// The nalgebra this crate's API is written in (`Isometry3`, `Point3`, `Matrix6`, …), the same
+/// one `kinematics` re-exports. Use `calib_core::nalgebra::…` (or pin the same nalgebra version,
+/// see the README) so your types are the ones these functions take.
+pub use nalgebra;
+
 pub use error::CalibError;
 pub use identify::Robot;
 pub use kinematics::{rotation_from_zyz, wrap_angle, zyz_from_rotation, zyz_nearest};
@@ -28,15 +33,16 @@ pub use points::{
 };
 pub use pose::PoseMmDeg;
 pub use registration::{
-    affine_lsq_fast, constrained_fast, constrained_lsq, fit, fit_fast, generic_4point,
-    generic_fast, nearest_rotation, paper_constrained, paper_fast, project_rotation_family,
-    rigid_fit_fast, rigid_lsq, rotation_maximizing_trace, spread_singular_values,
-    wall_family_angles, wall_rotation, ConstrainedOptions, Fit, Method, Mount, MountPair,
-    Uncertainty, COLLINEAR_REL, COPLANAR_REL,
+    affine_lsq_fast, constrained_fast, constrained_lsq, fit, fit_fast, fit_unconstrained,
+    generic_4point, generic_fast, nearest_rotation, paper_constrained, paper_fast,
+    project_rotation_family, rigid_fit_fast, rigid_lsq, rotation_maximizing_trace,
+    spread_singular_values, wall_family_angles, wall_rotation, ConstrainedOptions, Fit, Method,
+    Mount, MountPair, Uncertainty, COLLINEAR_REL, COPLANAR_REL,
 };
 pub use robust::{
-    explain_misfit, leave_one_out, leave_one_out_linearised, median_residual_m, MisfitCause,
-    OutlierReport, DEFAULT_EXPECTED_NOISE_M, EXACT_LOO_MAX_POINTS, OUTLIER_FACTOR, OUTLIER_MIN_M,
+    explain_misfit, leave_one_out, leave_one_out_four_point, leave_one_out_linearised,
+    median_residual_m, MisfitCause, OutlierReport, DEFAULT_EXPECTED_NOISE_M, EXACT_LOO_MAX_POINTS,
+    OUTLIER_FACTOR, OUTLIER_MIN_M,
 };
 pub use soft::{constrained_soft, SoftFit};
 pub use stop::StopReason;

@@ -23,8 +23,9 @@ pub const MOUNT_CHECK_ALPHA: f64 = 1e-3;
 /// both fits are at round-off and their ratio means nothing.
 const RSS_FLOOR_PER_COORD_M2: f64 = 1e-18;
 
-/// The F-test of the mounts against the points (see the module doc).
-#[derive(Debug, Clone, PartialEq)]
+/// The F-test of the mounts against the points (see the module doc). Serialises (serde) with
+/// the fields' SI units.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct MountCheck {
     /// Residual sum of squares of the installation-constrained fit, m².
     pub rss_constrained_m2: f64,

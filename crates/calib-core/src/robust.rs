@@ -2,8 +2,11 @@
 
 use crate::error::CalibError;
 use crate::points::PointPairs;
-use crate::registration::{family_axes, fit, Fit, Method, MountPair};
-use nalgebra::{DMatrix, Matrix3, Vector3};
+use crate::registration::{
+    family_axes, fit, nearest_rotation, project_rotation_family, spread_singular_values, Fit,
+    Method, MountPair,
+};
+use nalgebra::{DMatrix, Matrix3, Matrix4, Matrix4x3, Vector3, Vector4};
 
 /// A point is flagged when its leave-one-out residual exceeds this multiple of the residual scale of
 /// the fit without it (an externally studentised residual) …
@@ -15,7 +18,8 @@ pub const OUTLIER_MIN_M: f64 = 1e-3;
 pub const EXACT_LOO_MAX_POINTS: usize = 200;
 
 /// Leave-one-out residuals of every point, and the points flagged as bad handclasps.
-#[derive(Debug, Clone, PartialEq)]
+/// Serialises (serde) with the fields' SI units.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct OutlierReport {
     /// Source rows, one per point.
     pub rows: Vec<usize>,
@@ -49,7 +53,9 @@ impl OutlierReport {
 ///
 /// Cost: exact refits up to [`EXACT_LOO_MAX_POINTS`] points; above, `lsq` and `constrained` take
 /// the linearised formulas of [`leave_one_out_linearised`] (linear in n, equal to the refits to
-/// second order in the point's influence, tested), the 4-point methods still refit (O(n²)).
+/// second order in the point's influence, tested), and the 4-point methods (`generic`,
+/// `generic-affine`, `paper`) the downdated sums of [`leave_one_out_four_point`] (linear in n,
+/// equal to the refits to round-off, tested).
 pub fn leave_one_out(
     pairs: &PointPairs,
     method: Method,
@@ -66,6 +72,12 @@ pub fn leave_one_out(
     if n > EXACT_LOO_MAX_POINTS && matches!(method, Method::Lsq | Method::Constrained) {
         let full = fit(pairs, method, mounts)?;
         return leave_one_out_linearised(pairs, &full, mounts);
+    }
+    if n > EXACT_LOO_MAX_POINTS {
+        // The 4-point methods: the full fit first, so that its errors (degenerate points, wall
+        // mounts for `paper`) come out as they would from the refits.
+        fit(pairs, method, mounts)?;
+        return leave_one_out_four_point(pairs, method, mounts);
     }
     let mut loo = Vec::with_capacity(n);
     let mut thresholds_m = Vec::with_capacity(n);
@@ -161,6 +173,119 @@ pub fn leave_one_out_linearised(
     })
 }
 
+/// Leave-one-out of the 4-point methods (`generic`, `generic-affine`, `paper`) in O(n), equal to
+/// the refits of [`leave_one_out`] to round-off: every quantity a refit without point i needs is
+/// a sum over the points, so it is the full sum minus point i's term.
+///
+/// In coordinates centred on the full centroids (`a = p1 − c1`, `b = p2 − c2`; residuals do not
+/// change), with `x = [b; 1]`: the affine fit without i is `H₋ᵢ = (G − xᵢxᵢᵀ)⁻¹(C − xᵢaᵢᵀ)`
+/// (`G = Σ xxᵀ`, `C = Σ xaᵀ`, 4×4 and 4×3), its rotation the nearest rotation of (or, for `paper`,
+/// the mounts' family member nearest to) the 3×3 block, its translation H's column (moved back
+/// to the original origin for `generic-affine`) or eq (12) from the downdated centroids. The residual sum of squares
+/// without i follows from `Σ‖a‖²`, `Σ‖b‖²`, `Σ a·bᵀ`, `Σ a`, `Σ b` (R orthogonal):
+/// `RSS₋ᵢ = Σ‖a‖² + Σ‖b‖² + m‖t‖² − 2·tr(Rᵀ·Σ a·bᵀ) − 2·tᵀΣa + 2·tᵀR·Σb` over the m = n − 1
+/// other points. Thresholds and flags as in [`leave_one_out`].
+///
+/// Errors: `TooFewPoints` below 5 points or for `lsq`/`constrained` (use
+/// [`leave_one_out_linearised`]); `Coplanar` when the points without i are coplanar; the mount
+/// errors of `paper`; `NumericalFailure` when an affine solve overflows.
+pub fn leave_one_out_four_point(
+    pairs: &PointPairs,
+    method: Method,
+    mounts: &MountPair,
+) -> Result<OutlierReport, CalibError> {
+    let n = pairs.len();
+    if n < 5 || matches!(method, Method::Lsq | Method::Constrained) {
+        return Err(CalibError::TooFewPoints {
+            method: format!("four-point leave-one-out with {}", method.name()),
+            needed: 5,
+            got: n,
+        });
+    }
+    let centroid = |p: &[nalgebra::Point3<f64>]| {
+        p.iter().fold(Vector3::zeros(), |s, q| s + q.coords) / n as f64
+    };
+    let (c1, c2) = (centroid(&pairs.p_b1), centroid(&pairs.p_b2));
+    let a: Vec<Vector3<f64>> = pairs.p_b1.iter().map(|p| p.coords - c1).collect();
+    let b: Vec<Vector3<f64>> = pairs.p_b2.iter().map(|p| p.coords - c2).collect();
+    let x = |i: usize| Vector4::new(b[i].x, b[i].y, b[i].z, 1.0);
+    let mut g = Matrix4::zeros();
+    let mut c = Matrix4x3::zeros();
+    let (mut s_a, mut s_b) = (Vector3::zeros(), Vector3::zeros());
+    let mut s_ab = Matrix3::zeros();
+    let (mut q_a, mut q_b) = (0.0, 0.0);
+    for i in 0..n {
+        let xi = x(i);
+        g += xi * xi.transpose();
+        c += xi * a[i].transpose();
+        s_a += a[i];
+        s_b += b[i];
+        s_ab += a[i] * b[i].transpose();
+        q_a += a[i].norm_squared();
+        q_b += b[i].norm_squared();
+    }
+    let m = (n - 1) as f64;
+    let dof = (3 * (n - 1)).saturating_sub(6).max(1) as f64;
+    let mut loo = Vec::with_capacity(n);
+    let mut thresholds_m = Vec::with_capacity(n);
+    for i in 0..n {
+        let xi = x(i);
+        let g_i = g - xi * xi.transpose();
+        let Some(g_inv) = g_i.try_inverse() else {
+            let (rows, p_b2): (Vec<usize>, Vec<_>) = (0..n)
+                .filter(|&j| j != i)
+                .map(|j| (pairs.row(j), pairs.p_b2[j]))
+                .unzip();
+            return Err(CalibError::Coplanar {
+                rows,
+                robot: 2,
+                singular_values_mm: spread_singular_values(&p_b2).map(|s| s * 1e3),
+            });
+        };
+        let h = g_inv * (c - xi * a[i].transpose());
+        if !h.iter().all(|v| v.is_finite()) {
+            return Err(CalibError::NumericalFailure {
+                method: method.name().into(),
+                message: format!(
+                    "leave-one-out without row {}: the affine solve overflowed",
+                    pairs.row(i)
+                ),
+            });
+        }
+        let block = Matrix3::from_fn(|r, col| h[(col, r)]);
+        let r = match method {
+            Method::Paper => project_rotation_family(&block, mounts)?.into_inner(),
+            _ => nearest_rotation(&block).into_inner(),
+        };
+        let (sa, sb) = (s_a - a[i], s_b - b[i]);
+        let t = match method {
+            // H's column in the original coordinates is `t_H + c1 − M·c2`, so in the centred
+            // ones the translation paired with R is `t_H − (M − R)·c2` (generic-affine is not
+            // invariant to the origin).
+            Method::GenericAffine => {
+                Vector3::new(h[(3, 0)], h[(3, 1)], h[(3, 2)]) - (block - r) * c2
+            }
+            _ => sa / m - r * (sb / m),
+        };
+        let e = a[i] - r * b[i] - t;
+        loo.push(e.norm());
+        let sab = s_ab - a[i] * b[i].transpose();
+        let rss = q_a - a[i].norm_squared() + q_b - b[i].norm_squared() + m * t.norm_squared()
+            - 2.0 * (r.transpose() * sab).trace()
+            - 2.0 * t.dot(&sa)
+            + 2.0 * t.dot(&(r * sb));
+        let scale = (3.0 * rss.max(0.0) / dof).sqrt();
+        thresholds_m.push((OUTLIER_FACTOR * scale).max(OUTLIER_MIN_M));
+    }
+    let flagged = loo.iter().zip(&thresholds_m).map(|(r, t)| r > t).collect();
+    Ok(OutlierReport {
+        rows: (0..n).map(|i| pairs.row(i)).collect(),
+        loo_residuals_m: loo,
+        thresholds_m,
+        flagged,
+    })
+}
+
 /// Default expected alignment noise of a handclasp, m: the median residual norm a valid session
 /// stays below (recorded handclasps agree to about 0.1–1 mm; a few mm allows for worn tips and
 /// uncalibrated kinematics). The CLI's `--expected-noise-mm` overrides it.
@@ -183,7 +308,10 @@ pub fn median_residual_m(fit: &Fit) -> f64 {
 }
 
 /// A data mistake that can make a fit's residuals far larger than the alignment noise.
-#[derive(Debug, Clone, Copy, PartialEq)]
+///
+/// Serialises (serde) as `{"kind": "rows-shifted", "robot2_offset": 1}` etc.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
 #[non_exhaustive]
 pub enum MisfitCause {
     /// Rows out of order: robot 1's row i belongs with robot 2's row `i + robot2_offset`.
@@ -438,6 +566,63 @@ mod tests {
                 assert_eq!(fast.flagged, exact.flagged);
                 assert_eq!(exact.flagged_rows(), vec![18], "{mounts} {}", method.name());
             }
+        }
+    }
+
+    /// The O(n) leave-one-out of the 4-point methods equals the refits (60 noisy points with a
+    /// 20 mm blunder, floor–floor and floor–wall): the same sums, so only round-off differs
+    /// (metre-scale coordinates, residuals of 1e-3 m: 1e-10 m is far above it, far below noise).
+    #[test]
+    fn four_point_leave_one_out_matches_refits() {
+        use rand::{Rng, SeedableRng};
+        use rand_distr::{Distribution, Normal};
+        const FOUR_POINT_LOO_TOL: f64 = 1e-10;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12);
+        let noise = Normal::new(0.0, 0.5e-3).unwrap();
+        let p_b2: Vec<Point3<f64>> = (0..60)
+            .map(|_| {
+                Point3::new(
+                    rng.random_range(-0.8..0.8),
+                    rng.random_range(-0.8..0.8),
+                    rng.random_range(0.0..1.2),
+                )
+            })
+            .collect();
+        for mounts in [MountPair::floor_floor(), MountPair::floor_wall()] {
+            let truth = match mounts.robot2 {
+                crate::Mount::Wall => Isometry3::from_parts(
+                    nalgebra::Translation3::new(0.3, 1.4, 0.6),
+                    nalgebra::UnitQuaternion::from_rotation_matrix(
+                        &crate::registration::wall_rotation(0.4, -0.9),
+                    ),
+                ),
+                _ => Isometry3::new(
+                    Vector3::new(0.04, 1.48, 0.05),
+                    Vector3::new(0.0, 0.0, -0.78),
+                ),
+            };
+            let mut p_b1: Vec<Point3<f64>> = p_b2
+                .iter()
+                .map(|p| truth * p + Vector3::from_fn(|_, _| noise.sample(&mut rng)))
+                .collect();
+            p_b1[23].y -= 0.02;
+            let pairs = PointPairs::new(p_b1, p_b2.clone()).unwrap();
+            for method in [Method::Generic, Method::GenericAffine, Method::Paper] {
+                let fast = leave_one_out_four_point(&pairs, method, &mounts).unwrap();
+                let exact = leave_one_out(&pairs, method, &mounts).unwrap();
+                for i in 0..pairs.len() {
+                    let d = (fast.loo_residuals_m[i] - exact.loo_residuals_m[i]).abs();
+                    let dt = (fast.thresholds_m[i] - exact.thresholds_m[i]).abs();
+                    assert!(
+                        d < FOUR_POINT_LOO_TOL && dt < FOUR_POINT_LOO_TOL,
+                        "{mounts} {} point {i}: {d} {dt}",
+                        method.name()
+                    );
+                }
+                assert_eq!(fast.flagged, exact.flagged);
+                assert_eq!(exact.flagged_rows(), vec![24], "{mounts} {}", method.name());
+            }
+            assert!(leave_one_out_four_point(&pairs, Method::Lsq, &mounts).is_err());
         }
     }
 

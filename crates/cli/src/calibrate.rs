@@ -67,6 +67,10 @@ pub struct Args {
     /// Keep a fit whose residuals exceed --expected-noise-mm (a warning is printed on stderr).
     #[arg(long)]
     pub force: bool,
+    /// With --cell: also list (on stderr) each URDF's joints and links outside the
+    /// base-to-flange chain, which are ignored.
+    #[arg(long, requires = "cell")]
+    pub verbose: bool,
 }
 
 /// Validated configuration.

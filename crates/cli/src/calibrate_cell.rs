@@ -68,6 +68,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bail!("--cell CELL needs --session SESSION (the session CSV of that cell)");
     };
     let cell = Cell::from_toml_file(cell_path)?;
+    if args.verbose {
+        crate::fk::print_cell_branches(&cell);
+    }
     let session = Session::read_csv(session_path, &cell)?;
     let problem = cell_problem(&cell, &session, args.model.fit_model());
     let cal = calibrate_cell(

@@ -4,33 +4,100 @@
 //! `handclasp fk --robot robots/hp20.urdf --q-deg 0,10,-20,0,30,0 --tip-mm 0,0,150 --json` prints
 //! `{"xyz_mm": [x, y, z], "zyz_deg": [φ, θ, ψ], "rotation": [[…], […], […]], …}` for
 //! `base_from_tip`; without `--json` a readable table.
+//!
+//! With `--cell CELL --robot 1|2` the robot is the cell's, with everything the cell models: the
+//! URDF plus the `[robotN.errors]` terms (joint offsets and scales, origin errors, the base's mount
+//! error, compliance under the cell's gravity; `kinematics::true_base_from_flange`). `--q-csv FILE`
+//! then evaluates one pose per row (columns `q1_deg` … `qN_deg`) and writes
+//! `x_mm,y_mm,z_mm,qw,qx,qy,qz` (see [`run_batch`]).
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use kinematics::{base_from_tip, zyz_from_rotation, ModelError, RobotModel};
-use nalgebra::{Isometry3, Vector3};
+use calib_core::identify::Robot;
+use kinematics::{
+    base_from_tip, true_base_from_flange, zyz_from_rotation, KinematicErrors, ModelError,
+    RobotModel,
+};
+use nalgebra::{Isometry3, Translation3, Vector3};
 use serde_json::{json, Value};
 
 /// Arguments of `handclasp fk`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The robot's URDF file (e.g. robots/hp20.urdf).
+    /// The robot: its URDF file (e.g. robots/hp20.urdf), or with --cell the robot of the cell,
+    /// 1 or 2.
     #[arg(long)]
-    pub robot: PathBuf,
-    /// The flange link the chain ends at.
-    #[arg(long, default_value = "tool0")]
+    pub robot: String,
+    /// A cell file (TOML, e.g. a calibrated cell): FK with everything it models for robot
+    /// --robot 1|2: the URDF and the [robotN.errors] terms a URDF cannot hold (joint scale,
+    /// compliance under gravity, mount error). The pose is in that robot's nominal base frame.
+    #[arg(long)]
+    pub cell: Option<PathBuf>,
+    /// The flange link the chain ends at (with --cell: the cell's tool_link).
+    #[arg(long, default_value = "tool0", conflicts_with = "cell")]
     pub tool_link: String,
     /// Joint angles in degrees, comma separated, in chain order from the base (one per joint).
-    #[arg(long, allow_hyphen_values = true)]
-    pub q_deg: String,
+    #[arg(long, allow_hyphen_values = true, required_unless_present = "q_csv")]
+    pub q_deg: Option<String>,
+    /// A CSV of joint angles (with --cell): columns q1_deg … qN_deg in chain order, one pose per
+    /// row; other columns are ignored (named on stderr) unless given as --id-column. Comma,
+    /// semicolon or tab separated.
+    #[arg(long, conflicts_with = "q_deg", requires = "cell")]
+    pub q_csv: Option<PathBuf>,
+    /// With --q-csv: a column copied as the first output column (e.g. a pose id).
+    #[arg(long, requires = "q_csv")]
+    pub id_column: Option<String>,
+    /// With --q-csv: the output CSV (x_mm,y_mm,z_mm,qw,qx,qy,qz; default: standard output).
+    #[arg(long, requires = "q_csv")]
+    pub out: Option<PathBuf>,
     /// Tip offset in the flange frame, mm: x,y,z (the measuring pin; 0,0,150 = 150 mm along the
-    /// flange z axis).
-    #[arg(long, default_value = "0,0,0", allow_hyphen_values = true)]
-    pub tip_mm: String,
-    /// Print one JSON object instead of the table.
-    #[arg(long)]
+    /// flange z axis). With --cell it is taken as given (the cell's tip and its tip error are not
+    /// added; see --cell-tip). Default 0,0,0: the tool0 pose.
+    #[arg(long, allow_hyphen_values = true, conflicts_with = "cell_tip")]
+    pub tip_mm: Option<String>,
+    /// With --cell: use the cell's calibrated tip (its tip_mm plus [robotN.errors] tip_mm).
+    #[arg(long, requires = "cell")]
+    pub cell_tip: bool,
+    /// Print one JSON object instead of the table (single pose only).
+    #[arg(long, conflicts_with = "q_csv")]
     pub json: bool,
+    /// Also list (on stderr) the URDF joints and links outside the base-to-flange chain, which
+    /// are ignored.
+    #[arg(long)]
+    pub verbose: bool,
+}
+
+/// Tip offsets whose every coordinate is below this (mm) but not all zero look like metres.
+const TIP_METRES_LIMIT_MM: f64 = calib_core::METRES_LIMIT_MM;
+
+/// Stderr lines listing what a URDF holds beyond the modelled chain (for `--verbose`).
+pub(crate) fn ignored_branches_text(model: &RobotModel, what: &str) -> String {
+    let mut s = format!(
+        "{what}: {} ({} joints), base link {}, flange {}",
+        model.name(),
+        model.dof(),
+        model.base_link(),
+        model.tool_link()
+    );
+    if model.ignored_joints().is_empty() && model.ignored_links().is_empty() {
+        s += "; no URDF joint or link outside the chain";
+    } else {
+        s += &format!(
+            "; ignored (outside the base-to-flange chain): joints [{}], links [{}]",
+            model.ignored_joints().join(", "),
+            model.ignored_links().join(", ")
+        );
+    }
+    s
+}
+
+/// Prints (stderr) [`ignored_branches_text`] for both robots of a cell (for `--verbose`).
+pub(crate) fn print_cell_branches(cell: &sim_cell::Cell) {
+    for (label, robot) in [("robot 1", &cell.robot1), ("robot 2", &cell.robot2)] {
+        eprintln!("{}", ignored_branches_text(&robot.model, label));
+    }
 }
 
 /// Parses a comma-separated list of finite numbers given to `flag`; `expected` names what the
@@ -69,14 +136,26 @@ pub(crate) fn parse_list(
     Ok(out)
 }
 
-/// Parses `--tip-mm` (x,y,z mm) into metres.
+/// Parses `--tip-mm` (x,y,z mm) into metres. A tip whose every coordinate is below
+/// [`TIP_METRES_LIMIT_MM`] but not all zero is refused as metres written as millimetres (a
+/// measuring pin of 0.15 mm does not exist; 0,0,0.15 means 150 mm).
 pub(crate) fn parse_tip(text: &str) -> anyhow::Result<Vector3<f64>> {
     let v = parse_list(
         "--tip-mm",
         text,
         Some((3, "a tip offset has 3 (x,y,z in mm)")),
     )?;
-    Ok(Vector3::new(v[0], v[1], v[2]) * 1e-3)
+    let tip_mm = Vector3::new(v[0], v[1], v[2]);
+    if tip_mm != Vector3::zeros() && tip_mm.iter().all(|c| c.abs() < TIP_METRES_LIMIT_MM) {
+        bail!(
+            "--tip-mm {text} is within {TIP_METRES_LIMIT_MM} mm of the flange: this looks like metres; \
+             --tip-mm is in millimetres, so multiply by 1000 (--tip-mm {},{},{})",
+            v[0] * 1000.0,
+            v[1] * 1000.0,
+            v[2] * 1000.0
+        );
+    }
+    Ok(tip_mm * 1e-3)
 }
 
 /// Loads the robot model with a message that says what to fix.
@@ -162,31 +241,282 @@ pub(crate) fn pose_table(base_from_tip: &Isometry3<f64>) -> String {
     s
 }
 
+/// The robot that `fk` evaluates: a bare URDF, or a cell's robot with its error terms.
+struct FkRobot {
+    model: RobotModel,
+    /// The cell's `[robotN.errors]` (zero for a bare URDF).
+    errors: KinematicErrors,
+    /// Gravity in the robot's nominal base frame, m/s² (the cell's; compliance only).
+    g_base: Vector3<f64>,
+    /// The tip offset used, m, flange frame.
+    flange_from_tip: Vector3<f64>,
+    /// `Some(cell path)` with --cell.
+    cell: Option<PathBuf>,
+}
+
+impl FkRobot {
+    /// `base_from_tip` at `q` (rad): the nominal FK for a bare URDF, the cell's true FK
+    /// (`true_base_from_flange` · tip) with --cell.
+    fn base_from_tip(&self, q: &[f64]) -> Result<Isometry3<f64>, kinematics::KinematicsError> {
+        if self.cell.is_none() {
+            return base_from_tip(&self.model, q, &self.flange_from_tip);
+        }
+        let base_from_flange = true_base_from_flange(&self.model, &self.errors, q, &self.g_base)?;
+        Ok(base_from_flange * Translation3::from(self.flange_from_tip))
+    }
+}
+
+fn load_fk_robot(args: &Args) -> anyhow::Result<FkRobot> {
+    let Some(cell_path) = &args.cell else {
+        let model = load_robot(Path::new(&args.robot), &args.tool_link)?;
+        let flange_from_tip = parse_tip(args.tip_mm.as_deref().unwrap_or("0,0,0"))?;
+        return Ok(FkRobot {
+            errors: KinematicErrors::zero(model.dof()),
+            model,
+            g_base: Vector3::zeros(),
+            flange_from_tip,
+            cell: None,
+        });
+    };
+    let which = match args.robot.trim() {
+        "1" => Robot::One,
+        "2" => Robot::Two,
+        other => bail!(
+            "--robot {other}: with --cell, --robot is the cell's robot, 1 or 2 (a URDF path is \
+             for use without --cell)"
+        ),
+    };
+    let cell = sim_cell::Cell::from_toml_file(cell_path)
+        .with_context(|| format!("--cell {}", cell_path.display()))?;
+    let robot = cell.robot(which);
+    let flange_from_tip = if args.cell_tip {
+        robot.flange_from_tip + robot.errors.tip
+    } else {
+        parse_tip(args.tip_mm.as_deref().unwrap_or("0,0,0"))?
+    };
+    Ok(FkRobot {
+        model: robot.model.clone(),
+        errors: robot.errors.clone(),
+        g_base: robot.g_base,
+        flange_from_tip,
+        cell: Some(cell_path.clone()),
+    })
+}
+
 /// Runs `handclasp fk`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let model = load_robot(&args.robot, &args.tool_link)?;
-    let tip = parse_tip(&args.tip_mm)?;
-    let (q, q_deg) = parse_q_deg("--q-deg", &args.q_deg, &model)?;
-    let base_from_tip = base_from_tip(&model, &q, &tip).context("--q-deg")?;
+    let robot = load_fk_robot(&args)?;
+    if args.verbose {
+        eprintln!("{}", ignored_branches_text(&robot.model, "--robot"));
+    }
+    if let Some(q_csv) = &args.q_csv {
+        return run_batch(
+            &robot,
+            q_csv,
+            args.id_column.as_deref(),
+            args.out.as_deref(),
+        );
+    }
+    let q_text = args
+        .q_deg
+        .as_deref()
+        .context("give --q-deg (one pose) or --q-csv (with --cell)")?;
+    let model = &robot.model;
+    let tip = robot.flange_from_tip;
+    let (q, q_deg) = parse_q_deg("--q-deg", q_text, model)?;
+    let base_from_tip = robot.base_from_tip(&q).context("--q-deg")?;
     if args.json {
         let mut v = pose_json(&base_from_tip);
         v["robot"] = json!(model.name());
         v["tool_link"] = json!(model.tool_link());
         v["q_deg"] = json!(q_deg);
         v["tip_mm"] = json!([tip.x * 1e3, tip.y * 1e3, tip.z * 1e3]);
+        if let Some(cell) = &robot.cell {
+            v["cell"] = json!(cell.display().to_string());
+        }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         println!(
-            "{} ({} joints), flange {}, tip ({}, {}, {}) mm in the flange frame",
+            "{} ({} joints), flange {}, tip ({}, {}, {}) mm in the flange frame{}",
             model.name(),
             model.dof(),
             model.tool_link(),
             tip.x * 1e3,
             tip.y * 1e3,
-            tip.z * 1e3
+            tip.z * 1e3,
+            match &robot.cell {
+                Some(cell) => format!(", with the errors of cell {}", cell.display()),
+                None => String::new(),
+            }
         );
         println!("base_from_tip (ZYZ: R = Rz(phi)·Ry(theta)·Rz(psi)):");
         print!("{}", pose_table(&base_from_tip));
+    }
+    Ok(())
+}
+
+/// Angles whose magnitudes all stay below this, deg, while some exceed [`RADIANS_MIN_DEG`] look
+/// like radians written in a degree column (π rad = 180°, so a radian file never exceeds it).
+const RADIANS_MAX_DEG: f64 = std::f64::consts::PI + 1e-9;
+/// See [`RADIANS_MAX_DEG`]: below this every pose is near zero and the test means nothing, deg.
+const RADIANS_MIN_DEG: f64 = 0.1;
+
+/// `fk --q-csv`: one pose per row of `q_csv` (columns `q1_deg` … `qN_deg`; other columns ignored
+/// and named on stderr, `id_column` copied first), written as `x_mm,y_mm,z_mm,qw,qx,qy,qz`
+/// (`base_from_tip` in the robot's nominal base frame; the quaternion with `qw ≥ 0`, full f64
+/// precision) to `out` or standard output.
+///
+/// Errors name the line and column: a missing or extra `qK_deg`, an empty or non-finite value,
+/// an angle outside the joint's limits. A file whose angles all lie within ±π is warned about on
+/// stderr as radians written as degrees.
+fn run_batch(
+    robot: &FkRobot,
+    q_csv: &Path,
+    id_column: Option<&str>,
+    out: Option<&Path>,
+) -> anyhow::Result<()> {
+    let name = q_csv.display().to_string();
+    let raw = std::fs::read_to_string(q_csv).with_context(|| format!("--q-csv {name}"))?;
+    let text = calib_core::strip_bom(&raw);
+    let mut reader = csv::ReaderBuilder::new()
+        .delimiter(calib_core::csv_delimiter(text))
+        .trim(csv::Trim::All)
+        .from_reader(text.as_bytes());
+    let header: Vec<String> = reader
+        .headers()
+        .with_context(|| format!("{name}: cannot read the header"))?
+        .iter()
+        .map(str::to_string)
+        .collect();
+    let model = &robot.model;
+    let dof = model.dof();
+    let mut q_cols = Vec::with_capacity(dof);
+    for k in 1..=dof {
+        let col = format!("q{k}_deg");
+        match header.iter().position(|h| *h == col) {
+            Some(i) => q_cols.push(i),
+            None => bail!(
+                "{name}: missing column `{col}` (header has: {}); {} has {dof} joints: give q1_deg … q{dof}_deg in chain order",
+                header.join(","),
+                model.name()
+            ),
+        }
+    }
+    let extra_q: Vec<&String> = header
+        .iter()
+        .filter(|h| {
+            h.strip_prefix('q')
+                .and_then(|r| r.strip_suffix("_deg"))
+                .and_then(|k| k.parse::<usize>().ok())
+                .is_some_and(|k| k == 0 || k > dof)
+        })
+        .collect();
+    if let Some(col) = extra_q.first() {
+        bail!(
+            "{name}: column `{col}` but {} has {dof} joints (q1_deg … q{dof}_deg); is this the other robot's file?",
+            model.name()
+        );
+    }
+    let id_index = match id_column {
+        None => None,
+        Some(id) => Some(header.iter().position(|h| h == id).with_context(|| {
+            format!(
+                "{name}: no column `{id}` for --id-column (header has: {})",
+                header.join(",")
+            )
+        })?),
+    };
+    let ignored: Vec<&str> = header
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !q_cols.contains(i) && Some(*i) != id_index)
+        .map(|(_, h)| h.as_str())
+        .collect();
+    if !ignored.is_empty() {
+        eprintln!(
+            "note: {name}: ignoring column(s) {} (give one with --id-column to copy it to the output)",
+            ignored.join(", ")
+        );
+    }
+
+    let mut rows: Vec<(Option<String>, Vec<f64>)> = Vec::new();
+    for (i, record) in reader.records().enumerate() {
+        let line = i + 2;
+        let record = record.with_context(|| format!("{name}, line {line}: malformed CSV"))?;
+        let mut q_deg = Vec::with_capacity(dof);
+        for (k, &c) in q_cols.iter().enumerate() {
+            let cell = record.get(c).unwrap_or("");
+            let col = &header[c];
+            let v: f64 = cell.parse().map_err(|_| {
+                anyhow::anyhow!("{name}, line {line}, column `{col}`: `{cell}` is not a number; give the angle in degrees")
+            })?;
+            if !v.is_finite() {
+                bail!("{name}, line {line}, column `{col}`: {cell} is not a finite angle");
+            }
+            let joint = &model.joints()[k];
+            let (lo, hi) = (joint.lower.to_degrees(), joint.upper.to_degrees());
+            let slack = 1e-9f64.to_degrees();
+            if v < lo - slack || v > hi + slack {
+                bail!(
+                    "{name}, line {line}, column `{col}`: joint {} ({}) is {v} deg, outside its limits {lo:.3}..{hi:.3} deg; give an angle inside the range (degrees, not radians)",
+                    k + 1,
+                    joint.name
+                );
+            }
+            q_deg.push(v);
+        }
+        let id = id_index.map(|c| record.get(c).unwrap_or("").to_string());
+        rows.push((id, q_deg));
+    }
+    if rows.is_empty() {
+        bail!("{name}: no rows after the header; give one pose per row");
+    }
+    let max_abs = rows
+        .iter()
+        .flat_map(|(_, q)| q.iter())
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    if max_abs <= RADIANS_MAX_DEG && max_abs > RADIANS_MIN_DEG {
+        eprintln!(
+            "warning: {name}: every angle is within ±{:.4} deg (largest {max_abs}): these look like radians; the columns are degrees (multiply by 180/π)",
+            RADIANS_MAX_DEG
+        );
+    }
+
+    let sink: Box<dyn Write> = match out {
+        Some(path) => Box::new(
+            std::fs::File::create(path).with_context(|| format!("--out {}", path.display()))?,
+        ),
+        None => Box::new(std::io::stdout().lock()),
+    };
+    let mut writer = csv::Writer::from_writer(std::io::BufWriter::new(sink));
+    let mut head: Vec<&str> = Vec::new();
+    if let Some(id) = id_column {
+        head.push(id);
+    }
+    head.extend(["x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"]);
+    writer.write_record(&head)?;
+    for (i, (id, q_deg)) in rows.iter().enumerate() {
+        let q: Vec<f64> = q_deg.iter().map(|v| v.to_radians()).collect();
+        let pose = robot
+            .base_from_tip(&q)
+            .with_context(|| format!("{name}, line {}", i + 2))?;
+        let t = pose.translation.vector * 1e3;
+        let mut quat = *pose.rotation.quaternion();
+        if quat.w < 0.0 {
+            quat = -quat;
+        }
+        let mut record: Vec<String> = Vec::with_capacity(8);
+        if let Some(id) = id {
+            record.push(id.clone());
+        }
+        for v in [t.x, t.y, t.z, quat.w, quat.i, quat.j, quat.k] {
+            record.push(v.to_string());
+        }
+        writer.write_record(&record)?;
+    }
+    writer.flush()?;
+    if let Some(path) = out {
+        eprintln!("wrote {} poses to {}", rows.len(), path.display());
     }
     Ok(())
 }

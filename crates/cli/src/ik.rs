@@ -6,7 +6,7 @@
 //! [--json]` prints `{"reachable": bool, "q_deg": […], …}`. An unreachable target is a result
 //! (`"reachable": false`, exit status 0, `q_deg` the closest joint vector found), not an error.
 //! A target whose every coordinate is below calib-core's `METRES_LIMIT_MM` (5 mm) is refused as
-//! metres written as millimetres.
+//! metres written as millimetres, and so is a `--tip-mm` below 5 mm in every coordinate.
 
 use std::path::PathBuf;
 
@@ -15,7 +15,9 @@ use kinematics::{base_from_tip, ik_tip_position, IkOptions};
 use nalgebra::{Point3, Unit, Vector3};
 use serde_json::json;
 
-use crate::fk::{load_robot, parse_list, parse_q_deg, parse_tip, pose_json, pose_table};
+use crate::fk::{
+    ignored_branches_text, load_robot, parse_list, parse_q_deg, parse_tip, pose_json, pose_table,
+};
 
 /// Arguments of `handclasp ik`.
 #[derive(clap::Args, Debug)]
@@ -29,7 +31,8 @@ pub struct Args {
     /// Target tip position in the base frame, mm: x,y,z.
     #[arg(long, allow_hyphen_values = true)]
     pub xyz_mm: String,
-    /// Tip offset in the flange frame, mm: x,y,z.
+    /// Tip offset in the flange frame, mm: x,y,z (0,0,150 = a 150 mm pin along the flange z;
+    /// a tip below 5 mm in every coordinate is refused as metres).
     #[arg(long, default_value = "0,0,0", allow_hyphen_values = true)]
     pub tip_mm: String,
     /// Desired direction of the flange z axis in the base frame: x,y,z (any length > 0).
@@ -42,11 +45,18 @@ pub struct Args {
     /// Print one JSON object instead of the table.
     #[arg(long)]
     pub json: bool,
+    /// Also list (on stderr) the URDF joints and links outside the base-to-flange chain, which
+    /// are ignored.
+    #[arg(long)]
+    pub verbose: bool,
 }
 
 /// Runs `handclasp ik`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let model = load_robot(&args.robot, &args.tool_link)?;
+    if args.verbose {
+        eprintln!("{}", ignored_branches_text(&model, "--robot"));
+    }
     let tip = parse_tip(&args.tip_mm)?;
     let xyz = parse_list(
         "--xyz-mm",

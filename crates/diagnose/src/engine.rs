@@ -86,9 +86,10 @@ pub fn diagnose_session(
     diagnose_session_with_progress(cell, session, options, &mut |_| {})
 }
 
-/// [`diagnose_session`], calling `progress` with a one-line description of each model-selection
-/// step as soon as it is decided (the long part of a diagnosis: at most
-/// `options.selection.max_steps` calls). Errors: as [`diagnose_session`].
+/// [`diagnose_session`], calling `progress` with a one-line description of each phase as it
+/// starts (the noise model, the selection, the Monte Carlo baseline, the gain) and of each
+/// model-selection step as soon as it is decided (the long part of a diagnosis: at most
+/// `options.selection.max_steps` steps). Errors: as [`diagnose_session`].
 pub fn diagnose_session_with_progress(
     cell: &Cell,
     session: &Session,
@@ -104,12 +105,18 @@ pub fn diagnose_session_with_progress(
     let session = &kept;
     let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
     let (q1, q2) = joints(session);
+    progress(&format!(
+        "{} points: noise model and {} candidate effects",
+        session.points.len(),
+        cands.len()
+    ));
     // The cell's noise at these configurations: residuals are whitened by it, so the F tests
     // hold their size under anisotropic alignment noise.
     let r_cell = cell.b1_from_b2.rotation.to_rotation_matrix().into_inner();
     let noise = NoiseModel::new(cell, &q1, &q2, &r_cell)?;
     let model = SessionModel::new(cell, &q1, &q2, &cands).with_weights(noise.whitening());
     let all: Vec<usize> = (0..cands.len()).collect();
+    progress("model selection: identifiability, then one screened step at a time");
     let mut step_no = 0;
     let sel = identify::forward_select_with_progress(&model, &all, &options.selection, &mut |s| {
         step_no += 1;
@@ -121,6 +128,10 @@ pub fn diagnose_session_with_progress(
             s.threshold
         ));
     })?;
+    progress(&format!(
+        "baseline and gain: {} Monte Carlo trials",
+        options.trials
+    ));
     let baseline = baseline(&model, &sel, &noise, session, options)?;
     let partial = identify::partial_f_tests(&model, &sel.fit, &options.selection.fit)?;
     // Mount tilts: not from the residuals (they only turn the fit) but from the placement.

@@ -118,11 +118,20 @@ fn diagnose_of_the_slow_session_reports_each_selection_step_as_progress() {
         lines.push(l.to_string())
     })
     .unwrap();
-    // One progress line per selection step, in the report's order; the 4th step is accepted,
-    // then dropped again by the backward F test (the cycle stop).
-    assert_eq!(lines.len(), report.steps.len(), "{lines:?}");
-    assert_eq!(lines.len(), 4, "{lines:?}");
-    assert!(lines[0].starts_with("selection step 1: "), "{lines:?}");
-    assert!(lines[3].contains(" accepted "), "{lines:?}");
+    // Two phase lines, one progress line per selection step in the report's order, then the
+    // Monte Carlo phase; the 4th step is accepted, then dropped again by the backward F test
+    // (the cycle stop).
+    assert_eq!(lines.len(), report.steps.len() + 3, "{lines:?}");
+    assert!(lines[0].starts_with("20 points: "), "{lines:?}");
+    assert!(lines[1].starts_with("model selection"), "{lines:?}");
+    assert!(lines[6].starts_with("baseline and gain: 50 "), "{lines:?}");
+    let steps: Vec<&String> = lines[2..lines.len() - 1].iter().collect();
+    assert_eq!(steps.len(), 4, "{lines:?}");
+    assert!(
+        steps.iter().all(|l| l.starts_with("selection step ")),
+        "{lines:?}"
+    );
+    assert!(steps[0].starts_with("selection step 1: "), "{lines:?}");
+    assert!(steps[3].contains(" accepted "), "{lines:?}");
     assert_eq!(report.effects.len(), 3);
 }

@@ -14,6 +14,11 @@ mod test_fixtures;
 mod true_fk;
 mod urdf_patch;
 
+/// The nalgebra this crate's API is written in (`Isometry3`, `Point3`, `Vector3`, `DVector`, …).
+/// Use `kinematics::nalgebra::…` (or pin the same nalgebra version, see the README) so your types
+/// are the ones these functions take.
+pub use nalgebra;
+
 pub use axis::Axis;
 pub use error::{KinematicsError, ModelError, UrdfPatchError};
 pub use error_model::{all_params, ErrorParam, KinematicErrors};

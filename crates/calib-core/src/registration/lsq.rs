@@ -86,8 +86,49 @@ pub(crate) fn fill_fit_jacobian(
     }
 }
 
+/// `JᵀJ` (k × k, k = axes + 3 ≤ 6; panics on more than 3 axes, a caller bug) of the weighted fit Jacobian of [`fill_fit_jacobian`], accumulated
+/// point by point: memory O(k²) whatever the number of points (the 3n × k Jacobian is never
+/// formed; at 1e6 points it would take 3n·k·8 bytes ≈ 144 MB, twice with its scaled copy).
+pub(crate) fn fit_jtj(
+    pairs: &PointPairs,
+    w: &[f64],
+    b1_from_b2: &Isometry3<f64>,
+    axes: &[Vector3<f64>],
+) -> DMatrix<f64> {
+    assert!(axes.len() <= 3, "at most 3 rotation axes");
+    let k = axes.len() + 3;
+    let mut jtj = DMatrix::zeros(k, k);
+    let mut row = [0.0f64; 6];
+    let mut cols = [Vector3::zeros(); 3];
+    for (p_b2, wi) in pairs.p_b2.iter().zip(w) {
+        let sw = wi.sqrt();
+        let y = b1_from_b2 * p_b2;
+        for (col, a) in cols.iter_mut().zip(axes) {
+            *col = y.coords.cross(a) * sw;
+        }
+        for r in 0..3 {
+            for (c, col) in cols[..axes.len()].iter().enumerate() {
+                row[c] = col[r];
+            }
+            for c in 0..3 {
+                row[axes.len() + c] = if c == r { -sw } else { 0.0 };
+            }
+            for a in 0..k {
+                if row[a] == 0.0 {
+                    continue;
+                }
+                for b in 0..k {
+                    jtj[(a, b)] += row[a] * row[b];
+                }
+            }
+        }
+    }
+    jtj
+}
+
 /// Uncertainty and conditioning for a least-squares fit with free rotation axes `axes` (b1 frame)
-/// plus a free translation.
+/// plus a free translation. Memory and time linear in the points, O(k²) extra memory
+/// ([`fit_jtj`]).
 fn lsq_uncertainty(
     pairs: &PointPairs,
     w: &[f64],
@@ -98,7 +139,6 @@ fn lsq_uncertainty(
     let n = pairs.p_b1.len();
     let k = axes.len() + 3;
     // Jacobian of r_i = p1 − X·p2 w.r.t. [rotation angles about axes; δt]: [ (X p2) × a ; −I ].
-    let mut j = DMatrix::zeros(3 * n, k);
     let mut g = nalgebra::DMatrix::zeros(6, k);
     for (c, a) in axes.iter().enumerate() {
         for r in 0..3 {
@@ -108,25 +148,17 @@ fn lsq_uncertainty(
     for r in 0..3 {
         g[(3 + r, axes.len() + r)] = 1.0;
     }
-    fill_fit_jacobian(pairs, w, b1_from_b2, axes, &mut j);
+    let jtj = fit_jtj(pairs, w, b1_from_b2, axes);
     let radius = {
         let sv = spread_singular_values(&pairs.p_b2);
         ((sv[0] * sv[0] + sv[1] * sv[1] + sv[2] * sv[2]) / n as f64)
             .sqrt()
             .max(1e-12)
     };
-    let mut j_scaled = DMatrix::zeros(3 * n, k);
-    for i in 0..3 * n {
-        for c in 0..k {
-            j_scaled[(i, c)] = if c < axes.len() {
-                j[(i, c)] / radius
-            } else {
-                j[(i, c)]
-            };
-        }
-    }
-    let jtj = j.transpose() * &j;
-    let js = j_scaled.transpose() * &j_scaled;
+    // The conditioning uses the rotation columns divided by the points' RMS radius:
+    // JsᵀJs = D·JᵀJ·D with D = diag(1/radius (rotation), 1 (translation)).
+    let scale = |c: usize| if c < axes.len() { 1.0 / radius } else { 1.0 };
+    let js = DMatrix::from_fn(k, k, |a, b| jtj[(a, b)] * scale(a) * scale(b));
     let ev = js.symmetric_eigenvalues();
     let (mn, mx) = ev
         .iter()

@@ -2,9 +2,11 @@
 
 use crate::points::PointPairs;
 use nalgebra::{Isometry3, Matrix3, Matrix6, Point3, Vector3};
+use serde::Serialize;
 
-/// A calibration method (see the module table).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+/// A calibration method (see the module table). Serialises as its [`Method::name`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum Method {
     /// The 4-point generic method with the eq (12) translation.
     Generic,
@@ -44,6 +46,13 @@ impl Method {
         Method::ALL.into_iter().find(|m| m.name() == text.trim())
     }
 
+    /// Whether the method uses the installation ([`crate::MountPair`]): `paper` and `constrained`
+    /// do; `generic`, `generic-affine` and `lsq` ignore it (run them with
+    /// [`crate::fit_unconstrained`]).
+    pub fn uses_mounts(self) -> bool {
+        matches!(self, Method::Paper | Method::Constrained)
+    }
+
     /// Minimum number of points the method needs.
     pub fn min_points(self) -> usize {
         match self {
@@ -59,7 +68,10 @@ impl Method {
 /// with `δθ` (rad) and `δt` (m) in b1 axes; [`Uncertainty::covariance`] is ordered `[δθ; δt]`.
 /// It is `σ̂²·G·(JᵀJ)⁻¹·Gᵀ` with `σ̂² = RSS/(3n − k)` (k free parameters, G mapping them to `[δθ; δt]`),
 /// i.e. it assumes isotropic, independent point noise and a correct mount model.
-#[derive(Debug, Clone, PartialEq)]
+///
+/// Serialises (serde) with SI units as named on the fields; `covariance` as nalgebra writes a
+/// matrix: its 36 entries in column-major order.
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Uncertainty {
     /// 6×6 covariance of `[δθ (rad); δt (m)]`.
     pub covariance: Matrix6<f64>,
@@ -94,7 +106,11 @@ impl Uncertainty {
 }
 
 /// The result of a fit.
-#[derive(Debug, Clone, PartialEq)]
+///
+/// Serialises (serde) with SI units: `b1_from_b2` as nalgebra writes an `Isometry3`
+/// (`rotation`: the unit quaternion `[x, y, z, w]`, `translation`: `[x, y, z]` in m), `residuals`
+/// as `[x, y, z]` in m, `method` as its name.
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Fit {
     /// The method that produced it.
     pub method: Method,

@@ -44,6 +44,8 @@ pub use fast::{
     affine_lsq_fast, constrained_fast, fit_fast, generic_fast, paper_fast, rigid_fit_fast,
 };
 pub use four_point::{generic_4point, paper_constrained};
+#[cfg(test)]
+use lsq::fit_jtj;
 pub(crate) use lsq::{build_uncertainty, fill_fit_jacobian};
 pub use lsq::{constrained_lsq, rigid_lsq, ConstrainedOptions};
 pub(crate) use method::residuals;
@@ -54,7 +56,8 @@ pub use rotation::{nearest_rotation, rotation_maximizing_trace};
 use crate::error::CalibError;
 use crate::points::PointPairs;
 
-/// Runs `method` on `pairs` (the mounts are used by `paper` and `constrained` only).
+/// Runs `method` on `pairs` (the mounts are used by `paper` and `constrained` only; for the
+/// others [`fit_unconstrained`] needs no mounts).
 pub fn fit(pairs: &PointPairs, method: Method, mounts: &MountPair) -> Result<Fit, CalibError> {
     match method {
         Method::Generic => generic_4point(pairs, false),
@@ -62,5 +65,44 @@ pub fn fit(pairs: &PointPairs, method: Method, mounts: &MountPair) -> Result<Fit
         Method::Paper => paper_constrained(pairs, mounts),
         Method::Lsq => rigid_lsq(pairs, None),
         Method::Constrained => constrained_lsq(pairs, mounts, &ConstrainedOptions::default()),
+    }
+}
+
+/// Runs a `method` that does not use the installation (`generic`, `generic-affine`, `lsq`: see
+/// [`Method::uses_mounts`]) on `pairs`, without a [`MountPair`] to invent.
+///
+/// Errors: [`CalibError::InvalidOption`] for `paper` and `constrained` (they need the mounts:
+/// call [`fit`]); otherwise those of the method ([`generic_4point`], [`rigid_lsq`]).
+///
+/// # Examples
+/// ```
+/// use calib_core::{fit_unconstrained, Method, PointPairs};
+/// use calib_core::nalgebra::{Isometry3, Point3, Vector3};
+///
+/// let b1_from_b2 = Isometry3::new(Vector3::new(1.5, 0.0, 0.1), Vector3::new(0.1, 0.0, 3.0));
+/// let p_b2 = vec![
+///     Point3::new(0.8, 0.1, 0.2), Point3::new(0.2, 0.9, 0.3),
+///     Point3::new(0.5, 0.5, 1.1), Point3::new(0.9, 0.7, 0.6),
+/// ];
+/// let p_b1: Vec<_> = p_b2.iter().map(|p| b1_from_b2 * p).collect();
+/// let pairs = PointPairs::new(p_b1, p_b2).unwrap();
+/// let fit = fit_unconstrained(&pairs, Method::Lsq).unwrap();
+/// assert!((fit.b1_from_b2.translation.vector - b1_from_b2.translation.vector).norm() < 1e-9);
+/// assert!(fit_unconstrained(&pairs, Method::Constrained).is_err());
+/// ```
+pub fn fit_unconstrained(pairs: &PointPairs, method: Method) -> Result<Fit, CalibError> {
+    match method {
+        Method::Generic => generic_4point(pairs, false),
+        Method::GenericAffine => generic_4point(pairs, true),
+        Method::Lsq => rigid_lsq(pairs, None),
+        Method::Paper | Method::Constrained => Err(CalibError::InvalidOption {
+            name: "method".into(),
+            value: method.name().into(),
+            message: format!(
+                "`{}` fits within the installation's rotation family and needs both mounts: call \
+                 calib_core::fit(pairs, method, &mounts) (or use generic, generic-affine or lsq)",
+                method.name()
+            ),
+        }),
     }
 }

@@ -6,7 +6,10 @@ use std::f64::consts::PI;
 use std::fmt;
 
 /// How a robot base is installed, relative to a level frame whose z axis points up (against gravity).
-#[derive(Debug, Clone, Copy, PartialEq)]
+///
+/// Serialises (serde) as `"floor"`, `"ceiling"`, `"wall"` or `{"tilt": {"rx": …, "ry": …}}` (rad).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum Mount {
     /// On the floor: base z up (`level_from_base = I`).
     Floor,
@@ -107,8 +110,8 @@ impl fmt::Display for Mount {
     }
 }
 
-/// The installation of both robots.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The installation of both robots. Serialises (serde) as `{"robot1": …, "robot2": …}`.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct MountPair {
     /// Robot 1's mount.
     pub robot1: Mount,

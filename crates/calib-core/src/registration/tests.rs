@@ -421,6 +421,10 @@ fn fit_jacobian_matches_central_differences() {
             );
         }
     }
+    // The point-by-point accumulation that the uncertainty uses equals JᵀJ of the checked
+    // Jacobian (entries of order 10: round-off 1e-13).
+    let jtj = fit_jtj(&pairs, &w, &truth, &axes);
+    assert!((jtj - j.transpose() * &j).amax() < 1e-12);
 }
 
 /// The predicted uncertainty matches a small seeded Monte Carlo: the empirical RMS translation
@@ -667,4 +671,66 @@ proptest! {
             }
         }
     }
+}
+
+/// `fit_unconstrained` needs no mounts: it equals `fit` with any mounts for the methods that
+/// ignore them, and refuses the two that use them, naming `fit`.
+#[test]
+fn fit_unconstrained_matches_fit_and_refuses_mount_methods() {
+    let truth = iso([1.4, -0.2, 0.05], rotation_from_zyz([0.3, 0.1, -0.4]));
+    let pairs = pairs_for(&truth, &cloud(8, 11));
+    for method in Method::ALL {
+        if method.uses_mounts() {
+            let err = fit_unconstrained(&pairs, method).unwrap_err();
+            assert!(matches!(err, CalibError::InvalidOption { .. }), "{err}");
+            assert!(err.to_string().contains("calib_core::fit("), "{err}");
+        } else {
+            let free = fit_unconstrained(&pairs, method).unwrap();
+            let with_mounts = fit(&pairs, method, &MountPair::floor_floor()).unwrap();
+            assert_eq!(free, with_mounts, "{}", method.name());
+            assert!(e_tran(&truth, &free.b1_from_b2) < EXACT_TOL);
+        }
+    }
+}
+
+/// A fit serialises with SI units: the method by name, the translation in metres, the rotation
+/// as nalgebra's quaternion `[x, y, z, w]`, the uncertainty's fields by name.
+#[test]
+fn fit_serialises_in_si_units() {
+    let truth = iso(
+        [1.5, 0.25, -0.1],
+        Rotation3::from_axis_angle(&Vector3::z_axis(), 0.5),
+    );
+    let p_b2 = cloud(6, 3);
+    let mut pairs = pairs_for(&truth, &p_b2);
+    // Small noise so that the uncertainty is not zero.
+    pairs.p_b1[0].x += 1e-4;
+    let f = fit(&pairs, Method::Constrained, &MountPair::floor_floor()).unwrap();
+    let json: serde_json::Value = serde_json::to_value(&f).unwrap();
+    assert_eq!(json["method"], "constrained");
+    let t = &json["b1_from_b2"]["translation"];
+    let t_x = t[0].as_f64().unwrap();
+    assert!(
+        (t_x - f.b1_from_b2.translation.vector.x).abs() < EXACT_TOL,
+        "{json}"
+    );
+    let q = &json["b1_from_b2"]["rotation"];
+    assert_eq!(q[3].as_f64().unwrap(), f.b1_from_b2.rotation.w, "{json}");
+    assert_eq!(json["residuals"].as_array().unwrap().len(), 6);
+    let u = f.uncertainty.as_ref().unwrap();
+    assert_eq!(
+        json["uncertainty"]["sigma_point_m"].as_f64().unwrap(),
+        u.sigma_point_m
+    );
+    assert_eq!(
+        json["uncertainty"]["covariance"].as_array().unwrap().len(),
+        36
+    );
+    let mounts = serde_json::to_value(MountPair {
+        robot1: Mount::Floor,
+        robot2: Mount::Tilt { rx: 0.1, ry: -0.2 },
+    })
+    .unwrap();
+    assert_eq!(mounts["robot1"], "floor");
+    assert_eq!(mounts["robot2"]["tilt"]["ry"].as_f64().unwrap(), -0.2);
 }
