@@ -133,7 +133,10 @@ fn csv_reader(text: &str) -> csv::Reader<&[u8]> {
 }
 
 /// Reads a session CSV for `cell` with sim-cell's reader, after a unit pre-check that names the
-/// likely mistake (radians under `*_deg`, metres under `*_mm`), then [`check_session`].
+/// likely mistake (radians under `*_deg`, metres under `*_mm`), then [`check_session`] on its
+/// coincident handclasps at the cell's tips (`Session::points`). Rows of other kinds or tools
+/// stay in `Session::observations`, which the engine does not use; a session with too few
+/// coincident rows is refused, naming `handclasp calibrate --cell`.
 ///
 /// Errors: the file cannot be read ([`DiagnoseError::Io`]); sim-cell rejects it
 /// ([`DiagnoseError::Sim`], or [`DiagnoseError::SessionUnits`] when a unit mistake explains
@@ -164,6 +167,16 @@ pub fn load_session(path: &Path, cell: &Cell) -> Result<Session, DiagnoseError> 
             })
         }
     };
+    if !session.is_handclasp_only() && session.points.len() < identify::min_points(1) {
+        return Err(serr(format!(
+            "{} coincident handclasp row(s) at the cell's tips and {} row(s) of other kinds or tools: diagnose explains \
+             coincident handclasps only and needs at least {}; calibrate this session with \
+             `handclasp calibrate --cell CELL --session SESSION --model kinematic`",
+            session.points.len(),
+            session.observations.len(),
+            identify::min_points(1)
+        )));
+    }
     check_session(cell, &session, path)?;
     Ok(session)
 }
