@@ -12,6 +12,7 @@ mod calibrate_cell;
 mod diagnose;
 mod fk;
 mod ik;
+mod import;
 mod paper;
 mod paper_diagnose;
 
@@ -39,6 +40,8 @@ enum Command {
     Paper(paper::Command),
     /// Find what the nominal models get wrong in a measured session, name the cause, and measure the gain.
     Diagnose(diagnose::Args),
+    /// Convert a controller's or dataset's CSV into a session CSV, as a mapping file says.
+    Import(import::Args),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -48,6 +51,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Calibrate(args) => calibrate::run(args),
         Command::Paper(cmd) => paper::run(cmd),
         Command::Diagnose(args) => diagnose::run(args),
+        Command::Import(args) => import::run(args),
     }
 }
 
