@@ -5,4 +5,5 @@
 
 mod cli;
 mod paper;
+mod kinds;
 mod session;
