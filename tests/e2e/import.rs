@@ -65,15 +65,26 @@ fn ctu_maps_import_and_self_contact_calibrates() {
     // Tracker maps: rows without a tracker value are skipped and counted (README: 212 of 216
     // right-arm grid poses and 208 of 216 left-arm ones have one).
     let tr = dir.path().join("tracker_right.csv");
-    let text = import("tracker_right.toml", &["leica_right_hand_6x6x6_dataset.csv"], &tr);
+    let text = import(
+        "tracker_right.toml",
+        &["leica_right_hand_6x6x6_dataset.csv"],
+        &tr,
+    );
     assert!(text.contains("212 tracker row(s), 4 skipped"), "{text}");
     let tl = dir.path().join("tracker_left.csv");
-    let text = import("tracker_left.toml", &["leica_left_hand_6x6x6_dataset.csv"], &tl);
+    let text = import(
+        "tracker_left.toml",
+        &["leica_left_hand_6x6x6_dataset.csv"],
+        &tl,
+    );
     assert!(text.contains("208 tracker row(s), 8 skipped"), "{text}");
     let pl = dir.path().join("plane.csv");
     let text = import(
         "plane_right.toml",
-        &["no_leica_wall_table1_5x5_dataset.csv", "no_leica_lower_table1_5x5_dataset.csv"],
+        &[
+            "no_leica_wall_table1_5x5_dataset.csv",
+            "no_leica_lower_table1_5x5_dataset.csv",
+        ],
         &pl,
     );
     assert!(text.contains("wrote 184 rows"), "{text}");
@@ -84,7 +95,10 @@ fn ctu_maps_import_and_self_contact_calibrates() {
     let sc = dir.path().join("self.csv");
     let text = import(
         "self_contact.toml",
-        &["leica_self_lower1_4x4_dataset.csv", "leica_self_upper1_4x4_dataset.csv"],
+        &[
+            "leica_self_lower1_4x4_dataset.csv",
+            "leica_self_upper1_4x4_dataset.csv",
+        ],
         &sc,
     );
     assert!(text.contains("wrote 32 rows"), "{text}");

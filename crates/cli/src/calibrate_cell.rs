@@ -78,8 +78,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         // the cell's own b1_from_b2.
         solve.initial_b1_from_b2 = Some(cell.b1_from_b2);
     }
-    let cal = calibrate_cell(&problem, &solve, &ScreenOptions::default())
-    .with_context(|| {
+    let cal = calibrate_cell(&problem, &solve, &ScreenOptions::default()).with_context(|| {
         format!(
             "calibrating {} with cell {}",
             session_path.display(),
@@ -92,7 +91,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         out["cooperative_accuracy_mm"] = Value::Null;
     } else {
         let prediction = predict_cooperative_accuracy(&problem, &cal.fit, &pairs, P95_SEED)
-            .context("predicting the cooperative accuracy over the session's configuration pairs")?;
+            .context(
+                "predicting the cooperative accuracy over the session's configuration pairs",
+            )?;
         out["cooperative_accuracy_mm"] = json!({
             "predicted_rms": prediction.predicted_rms_m * 1e3,
             "predicted_p95": prediction.predicted_p95_m * 1e3,
@@ -375,7 +376,11 @@ fn print_text(v: &Value) {
                 "  contact group {}: distance {:.3} mm ({})",
                 c["group"],
                 num(&c["distance_mm"]),
-                if c["fitted"].as_bool() == Some(true) { "fitted" } else { "given" }
+                if c["fitted"].as_bool() == Some(true) {
+                    "fitted"
+                } else {
+                    "given"
+                }
             );
         }
         for p in g["plane"].as_array().into_iter().flatten() {

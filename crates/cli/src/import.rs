@@ -137,19 +137,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .iter()
             .map(|c| json!({"input": c.path, "rows": c.rows, "skipped": c.skipped}))
             .collect();
-        let out = json!({"out": args.out, "kind": plan.kind, "rows": session.len(), "files": files});
+        let out =
+            json!({"out": args.out, "kind": plan.kind, "rows": session.len(), "files": files});
         println!("{}", serde_json::to_string_pretty(&out)?);
     } else {
         for c in &counts {
             let skipped = if c.skipped > 0 {
-                format!(
-                    ", {} skipped (no tracker value: empty or NaN)",
-                    c.skipped
-                )
+                format!(", {} skipped (no tracker value: empty or NaN)", c.skipped)
             } else {
                 String::new()
             };
-            println!("{}: {} {} row(s){skipped}", c.path.display(), c.rows, plan.kind);
+            println!(
+                "{}: {} {} row(s){skipped}",
+                c.path.display(),
+                c.rows,
+                plan.kind
+            );
         }
         println!("wrote {} rows to {}", session.len(), args.out.display());
     }
@@ -185,18 +188,15 @@ impl Plan {
         let two_robot = matches!(kind, "coincident" | "contact");
         let robot = match (two_robot, map.robot) {
             (true, None) => Robot::One,
-            (true, Some(_)) => {
-                return Err(at(format!(
-                    "`robot` is for tracker and plane maps; a {kind} row uses both robots: remove it"
-                )))
+            (true, Some(_)) => return Err(at(format!(
+                "`robot` is for tracker and plane maps; a {kind} row uses both robots: remove it"
+            ))),
+            (false, Some(n)) => {
+                Robot::from_number(n).ok_or_else(|| at(format!("robot = {n}: write 1 or 2")))?
             }
-            (false, Some(n)) => Robot::from_number(n)
-                .ok_or_else(|| at(format!("robot = {n}: write 1 or 2")))?,
-            (false, None) => {
-                return Err(at(format!(
-                    "a {kind} map needs `robot = 1` or `robot = 2` (the robot whose tool is measured)"
-                )))
-            }
+            (false, None) => return Err(at(format!(
+                "a {kind} map needs `robot = 1` or `robot = 2` (the robot whose tool is measured)"
+            ))),
         };
         let tool_of = |r: Robot, key: &str, name: &Option<String>| -> anyhow::Result<usize> {
             match name {
@@ -233,7 +233,11 @@ impl Plan {
         let deg_per_unit = match map.joints.unit.as_str() {
             "rad" => 1f64.to_degrees(),
             "deg" => 1.0,
-            u => return Err(at(format!("[joints] unit = \"{u}\": write \"rad\" or \"deg\""))),
+            u => {
+                return Err(at(format!(
+                    "[joints] unit = \"{u}\": write \"rad\" or \"deg\""
+                )))
+            }
         };
         let dofs = [cell.robot1.model.dof(), cell.robot2.model.dof()];
         let needed: Vec<Robot> = if two_robot {
@@ -275,7 +279,11 @@ impl Plan {
                 let m_per_unit = match t.unit.as_str() {
                     "m" => 1.0,
                     "mm" => 1e-3,
-                    u => return Err(at(format!("[tracker] unit = \"{u}\": write \"m\" or \"mm\""))),
+                    u => {
+                        return Err(at(format!(
+                            "[tracker] unit = \"{u}\": write \"m\" or \"mm\""
+                        )))
+                    }
                 };
                 if t.sigma_column.is_some() && sigma_m.is_some() {
                     return Err(at(
@@ -286,38 +294,50 @@ impl Plan {
             }
             (None, "tracker") => {
                 return Err(at(
-                    "a tracker map needs [tracker] columns = [x, y, z] and unit = \"m\" | \"mm\"".into(),
+                    "a tracker map needs [tracker] columns = [x, y, z] and unit = \"m\" | \"mm\""
+                        .into(),
                 ))
             }
             (Some(_), _) => return Err(at(format!("[tracker] is for tracker maps, not {kind}"))),
             (None, _) => None,
         };
-        if kind != "coincident" && sigma_m.is_none() && tracker.as_ref().is_none_or(|t| t.2.is_none()) {
+        if kind != "coincident"
+            && sigma_m.is_none()
+            && tracker.as_ref().is_none_or(|t| t.2.is_none())
+        {
             return Err(at(format!(
                 "a {kind} map needs sigma_mm (the σ of each row, mm){}",
-                if kind == "tracker" { " or [tracker] sigma_column" } else { "" }
+                if kind == "tracker" {
+                    " or [tracker] sigma_column"
+                } else {
+                    ""
+                }
             )));
         }
         if kind == "coincident" && sigma_m.is_some() {
-            return Err(at("coincident rows take the cell's [noise]; remove sigma_mm".into()));
+            return Err(at(
+                "coincident rows take the cell's [noise]; remove sigma_mm".into(),
+            ));
         }
         let distance_m = match (map.distance_mm, kind) {
             (Some(d), "contact") if d.is_finite() && d >= 0.0 => Some(d * 1e-3),
-            (Some(d), "contact") => return Err(at(format!("distance_mm = {d}: give a distance ≥ 0 in mm"))),
+            (Some(d), "contact") => {
+                return Err(at(format!("distance_mm = {d}: give a distance ≥ 0 in mm")))
+            }
             (Some(_), _) => return Err(at(format!("distance_mm is for contact maps, not {kind}"))),
             (None, _) => None,
         };
         let group = match (&map.group, kind) {
             (Some(g), "coincident") => {
-                return Err(at(format!("group = \"{g}\": coincident rows have no group; remove it")))
+                return Err(at(format!(
+                    "group = \"{g}\": coincident rows have no group; remove it"
+                )))
             }
             (Some(g), _) => g.clone(),
             (None, "coincident") => String::new(),
-            (None, _) => {
-                return Err(at(format!(
-                    "a {kind} map needs group = \"NAME\" (or \"{{stem}}\": one group per input file)"
-                )))
-            }
+            (None, _) => return Err(at(format!(
+                "a {kind} map needs group = \"NAME\" (or \"{{stem}}\": one group per input file)"
+            ))),
         };
         Ok(Plan {
             kind,
@@ -377,7 +397,10 @@ impl Plan {
         };
         let group = self.group.replace(
             "{stem}",
-            &input.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
+            &input
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default(),
         );
         let (mut rows, mut skipped) = (0, 0);
         for record in reader.records() {
@@ -387,7 +410,10 @@ impl Plan {
                 continue;
             }
             let value = |i: usize| -> Option<f64> {
-                record.get(i).and_then(|c| c.parse::<f64>().ok()).filter(|x| x.is_finite())
+                record
+                    .get(i)
+                    .and_then(|c| c.parse::<f64>().ok())
+                    .filter(|x| x.is_finite())
             };
             let mut q: [Option<Vec<f64>>; 2] = [None, None];
             for k in 0..2 {
@@ -423,17 +449,24 @@ impl Plan {
                             sigma_m: self.sigma_m.unwrap_or_default(),
                         }
                     } else {
-                        let tip = |r: Robot, q: &[f64], tool: usize| -> anyhow::Result<Point3<f64>> {
-                            let c = cell.robot(r);
-                            let t = c.flange_from_tool(tool).unwrap_or(c.flange_from_tip);
-                            let f = base_from_tip(&c.model, q, &t)
-                                .map_err(|e| at(format!("line {line}: {r}'s joints: {e}")))?;
-                            Ok(Point3::from(f.translation.vector))
-                        };
+                        let tip =
+                            |r: Robot, q: &[f64], tool: usize| -> anyhow::Result<Point3<f64>> {
+                                let c = cell.robot(r);
+                                let t = c.flange_from_tool(tool).unwrap_or(c.flange_from_tip);
+                                let f = base_from_tip(&c.model, q, &t)
+                                    .map_err(|e| at(format!("line {line}: {r}'s joints: {e}")))?;
+                                Ok(Point3::from(f.translation.vector))
+                            };
                         let p_b1 = tip(Robot::One, &q1, self.tools[0])?;
                         let p_b2 = tip(Robot::Two, &q2, self.tools[1])?;
                         if self.tools == [0, 0] {
-                            session.points.push(SessionPoint { point, q1, q2, p_b1, p_b2 });
+                            session.points.push(SessionPoint {
+                                point,
+                                q1,
+                                q2,
+                                p_b1,
+                                p_b2,
+                            });
                             rows += 1;
                             continue;
                         }
@@ -466,7 +499,9 @@ impl Plan {
                             continue;
                         };
                         if sigma_m <= 0.0 {
-                            bail!(at(format!("line {line}: the tracker σ {sigma_m} m must be > 0")));
+                            bail!(at(format!(
+                                "line {line}: the tracker σ {sigma_m} m must be > 0"
+                            )));
                         }
                         SessionKind::Tracker {
                             robot: self.robot,
@@ -487,7 +522,9 @@ impl Plan {
                     }
                 }
             };
-            session.observations.push(SessionObservation { point, kind });
+            session
+                .observations
+                .push(SessionObservation { point, kind });
             rows += 1;
         }
         Ok(FileCount {

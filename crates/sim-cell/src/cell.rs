@@ -82,7 +82,10 @@ impl CellRobot {
         if name == TIP_TOOL {
             return Some(0);
         }
-        self.tools.iter().position(|t| t.name == name).map(|k| k + 1)
+        self.tools
+            .iter()
+            .position(|t| t.name == name)
+            .map(|k| k + 1)
     }
 
     /// Name of tool `index` ([`CellRobot::tool_index`]'s numbering); `None` out of range.

@@ -280,7 +280,10 @@ impl Session {
     pub fn kind_counts(&self) -> [usize; 4] {
         let mut n = [self.points.len(), 0, 0, 0];
         for o in &self.observations {
-            let k = KIND_NAMES.iter().position(|k| *k == o.kind.name()).unwrap_or(0);
+            let k = KIND_NAMES
+                .iter()
+                .position(|k| *k == o.kind.name())
+                .unwrap_or(0);
             n[k] += 1;
         }
         n
@@ -359,8 +362,16 @@ impl Session {
         }
         // Writing to memory cannot fail, and every field is plain ASCII.
         let _ = out.write_record(&header);
-        let deg = |q: &[f64]| q.iter().map(|x| format!("{:.6}", x.to_degrees())).collect::<Vec<_>>();
-        let mm3 = |p: &Point3<f64>| (0..3).map(|a| format!("{:.6}", p[a] * 1e3)).collect::<Vec<_>>();
+        let deg = |q: &[f64]| {
+            q.iter()
+                .map(|x| format!("{:.6}", x.to_degrees()))
+                .collect::<Vec<_>>()
+        };
+        let mm3 = |p: &Point3<f64>| {
+            (0..3)
+                .map(|a| format!("{:.6}", p[a] * 1e3))
+                .collect::<Vec<_>>()
+        };
         let mm = |x: f64| format!("{:.6}", x * 1e3);
         for row in self.rows() {
             let mut record = vec![row.point().to_string()];
@@ -603,7 +614,10 @@ impl Session {
                 });
                 continue;
             }
-            let kind_text = row.extra("kind").unwrap_or("coincident").to_ascii_lowercase();
+            let kind_text = row
+                .extra("kind")
+                .unwrap_or("coincident")
+                .to_ascii_lowercase();
             let Some(&kind) = KIND_NAMES.iter().find(|k| **k == kind_text) else {
                 return Err(err(format!(
                     "line {line_no}, column `kind`: `{kind_text}` is not an observation kind; use one of {} (empty = coincident)",
@@ -748,7 +762,10 @@ impl Session {
                             .enumerate()
                         {
                             p[a] = row.optional_number(c)?.ok_or_else(|| {
-                                row.missing(c, "a tracker row needs the measured position (mm, tracker frame)")
+                                row.missing(
+                                    c,
+                                    "a tracker row needs the measured position (mm, tracker frame)",
+                                )
                             })? * 1e-3;
                         }
                         SessionKind::Tracker {
@@ -806,7 +823,9 @@ fn check_tip(
         message,
     };
     let robot = cell.robot(r);
-    let flange_from_tool = robot.flange_from_tool(tool).unwrap_or(robot.flange_from_tip);
+    let flange_from_tool = robot
+        .flange_from_tool(tool)
+        .unwrap_or(robot.flange_from_tip);
     let n = r.number();
     let fk = base_from_tip(&robot.model, q, &flange_from_tool)
         .map_err(|e| err(format!("line {line_no}: robot {n}'s joint columns: {e}")))?;
@@ -850,9 +869,7 @@ impl RowReader<'_> {
 
     /// The value of standard column `k` ("" when the column is absent).
     fn cell(&self, k: usize) -> &str {
-        self.idx[k]
-            .and_then(|i| self.record.get(i))
-            .unwrap_or("")
+        self.idx[k].and_then(|i| self.record.get(i)).unwrap_or("")
     }
 
     /// Standard column `k` as a finite number.
@@ -905,9 +922,7 @@ impl RowReader<'_> {
         if s > 0.0 {
             Ok(s * 1e-3)
         } else {
-            Err(self.err(format!(
-                "column `sigma_mm`: {s} must be > 0 (mm), e.g. 0.1"
-            )))
+            Err(self.err(format!("column `sigma_mm`: {s} must be > 0 (mm), e.g. 0.1")))
         }
     }
 
@@ -954,7 +969,9 @@ impl RowReader<'_> {
         let mut p = [0.0; 3];
         for (a, k) in (k0..k0 + 3).enumerate() {
             if self.cell(k).is_empty() {
-                return Err(self.missing(&self.want[k], "give all three tip coordinates (mm) or none"));
+                return Err(
+                    self.missing(&self.want[k], "give all three tip coordinates (mm) or none")
+                );
             }
             p[a] = self.number(k)? * 1e-3;
         }
@@ -1081,26 +1098,15 @@ pub(crate) fn solve_true_tool(
         return Some(q);
     }
     for _ in 0..TRUE_NEWTON_ITER {
-        let tip = true_base_from_tip(
-            &robot.model,
-            &errors,
-            &q,
-            &flange_from_tool,
-            &robot.g_base,
-        )
-        .ok()?;
+        let tip =
+            true_base_from_tip(&robot.model, &errors, &q, &flange_from_tool, &robot.g_base).ok()?;
         let e = target.coords - tip.translation.vector;
         if e.norm() < TRUE_TIP_TOL_M {
             return Some(q);
         }
-        let j = tip_joint_jacobian_true(
-            &robot.model,
-            &errors,
-            &q,
-            &flange_from_tool,
-            &robot.g_base,
-        )
-        .ok()?;
+        let j =
+            tip_joint_jacobian_true(&robot.model, &errors, &q, &flange_from_tool, &robot.g_base)
+                .ok()?;
         let jjt: Matrix3<f64> = &j * j.transpose();
         let y = jjt.try_inverse()? * e;
         let dq = j.transpose() * y;

@@ -14,8 +14,8 @@ use crate::error::SimError;
 use crate::layout::teach_points;
 use crate::session::{
     approach_directions, gauss3, generate_session, quantise, solve_true_tool, tool_errors,
-    unreachable, PointFailure, Session, SessionKind, SessionObservation, SessionPoint,
-    SessionSpec, MAX_LAYOUT_ATTEMPTS,
+    unreachable, PointFailure, Session, SessionKind, SessionObservation, SessionPoint, SessionSpec,
+    MAX_LAYOUT_ATTEMPTS,
 };
 use calib_core::Robot;
 use kinematics::{base_from_tip, true_base_from_tip};
@@ -126,7 +126,11 @@ pub fn teach_from_plan(plan: &Session) -> Result<Vec<Teach>, SimError> {
 
 fn check_spec(k: &KindSpec) -> Result<(), SimError> {
     for (name, v, zero_ok) in [
-        ("contact distance (--contact-distance-mm)", k.contact_distance_m, true),
+        (
+            "contact distance (--contact-distance-mm)",
+            k.contact_distance_m,
+            true,
+        ),
         ("contact σ (--contact-sigma-mm)", k.contact_sigma_m, false),
         ("tracker σ (--tracker-sigma-mm)", k.tracker_sigma_m, false),
         ("plane σ (--plane-sigma-mm)", k.plane_sigma_m, false),
@@ -161,13 +165,22 @@ fn kind_of(kind: SimKind, i: usize) -> (SimKind, Robot) {
 /// Draws the nuisance truth: a tracker 2–3 m from the teach centre, level to ±2°, turned
 /// anywhere about the vertical; a plane through the centre tilted up to
 /// `plane_max_tilt_rad` from level; the contact distance of `k`.
-fn draw_truth(cell: &Cell, centre: &Point3<f64>, k: &KindSpec, rng: &mut impl Rng) -> NuisanceTruth {
+fn draw_truth(
+    cell: &Cell,
+    centre: &Point3<f64>,
+    k: &KindSpec,
+    rng: &mut impl Rng,
+) -> NuisanceTruth {
     let up = Unit::new_normalize(-cell.robot1.g_base);
     let level = Rotation3::rotation_between(&Vector3::z(), &up).unwrap_or_else(Rotation3::identity);
     let yaw: f64 = rng.random_range(0.0..std::f64::consts::TAU);
     let dist: f64 = rng.random_range(2.0..3.0);
     let small = 2f64.to_radians();
-    let tilt = Vector3::new(rng.random_range(-small..small), rng.random_range(-small..small), 0.0);
+    let tilt = Vector3::new(
+        rng.random_range(-small..small),
+        rng.random_range(-small..small),
+        0.0,
+    );
     let heading: f64 = rng.random_range(0.0..std::f64::consts::TAU);
     let tracker_in_level = Vector3::new(dist * yaw.cos(), dist * yaw.sin(), 0.3);
     let b1_from_tracker = Isometry3::from_parts(
@@ -219,7 +232,8 @@ pub fn generate_kind_session(
         };
         return Ok((generate_session(cell, spec, rng)?, truth));
     }
-    let tracker_tools = [Robot::One, Robot::Two].map(|r| cell.robot(r).tool_index(&kinds.tracker_tool));
+    let tracker_tools =
+        [Robot::One, Robot::Two].map(|r| cell.robot(r).tool_index(&kinds.tracker_tool));
     if matches!(kinds.kind, SimKind::Tracker | SimKind::Mixed) {
         for (r, t) in [Robot::One, Robot::Two].iter().zip(&tracker_tools) {
             if t.is_none() {
@@ -251,16 +265,24 @@ pub fn generate_kind_session(
         let mut session = Session::default();
         for (i, p) in points.iter().enumerate() {
             if !p.iter().all(|x| x.is_finite()) {
-                return Err(SimError::InvalidInput(format!("teach point {} is not finite", i + 1)));
+                return Err(SimError::InvalidInput(format!(
+                    "teach point {} is not finite",
+                    i + 1
+                )));
             }
-            let t = Teach { p_b1: *p, planned: None };
+            let t = Teach {
+                p_b1: *p,
+                planned: None,
+            };
             sim.row(&t, i, &mut session, rng)
                 .map_err(|(robot, why)| unreachable(cell, i + 1, p, robot, &why, None))?;
         }
         return Ok((session, truth));
     }
     if spec.n == 0 {
-        return Err(SimError::InvalidInput("a session needs at least 1 point".into()));
+        return Err(SimError::InvalidInput(
+            "a session needs at least 1 point".into(),
+        ));
     }
     if !(spec.spread_m.is_finite() && spec.spread_m > 0.0) {
         return Err(SimError::InvalidInput(format!(
@@ -273,7 +295,10 @@ pub fn generate_kind_session(
         let pts = teach_points(spec.layout, spec.n, spec.spread_m, &centre, rng);
         let mut session = Session::default();
         for (i, p) in pts.iter().enumerate() {
-            let t = Teach { p_b1: *p, planned: None };
+            let t = Teach {
+                p_b1: *p,
+                planned: None,
+            };
             if let Err((robot, why)) = sim.row(&t, i, &mut session, rng) {
                 last_fail = Some((i + 1, *p, robot, why));
                 continue 'draw;
@@ -333,7 +358,10 @@ impl Sim<'_> {
                         tool1: 0,
                         tool2: 0,
                         group: CONTACT_GROUP.into(),
-                        distance_m: self.kinds.contact_known.then_some(self.truth.contact_distance_m),
+                        distance_m: self
+                            .kinds
+                            .contact_known
+                            .then_some(self.truth.contact_distance_m),
                         sigma_m: self.kinds.contact_sigma_m,
                     },
                 });
@@ -396,7 +424,10 @@ impl Sim<'_> {
             }
         }
         dirs.extend(approach_directions(cell, &t.p_b1));
-        let seeds = t.planned.as_ref().map(|(a, b)| (a.as_slice(), b.as_slice()));
+        let seeds = t
+            .planned
+            .as_ref()
+            .map(|(a, b)| (a.as_slice(), b.as_slice()));
         let mut last = (Robot::One, String::new());
         for d in dirs {
             let target1 = t.p_b1 + d1;
@@ -541,7 +572,9 @@ pub fn parse_points_b1_csv(
         out.push(Point3::from(p));
     }
     if out.is_empty() {
-        return Err(err("no point: give one row of x_mm,y_mm,z_mm per teach point".into()));
+        return Err(err(
+            "no point: give one row of x_mm,y_mm,z_mm per teach point".into(),
+        ));
     }
     Ok(out)
 }

@@ -91,18 +91,19 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
     let mut contacts: Vec<ContactGroup> = Vec::new();
     // Per contact group with a fitted distance: (sum of nominal distances, count), m.
     let mut contact_sums: Vec<(f64, usize)> = Vec::new();
-    let anchored = |name: &str, robot: Robot, groups: &mut Vec<(String, Robot)>| {
-        match groups.iter().position(|(n, _)| n == name) {
-            Some(g) => {
-                if groups[g].1 != robot {
-                    groups[g].1 = Robot::One;
-                }
-                g
+    let anchored = |name: &str, robot: Robot, groups: &mut Vec<(String, Robot)>| match groups
+        .iter()
+        .position(|(n, _)| n == name)
+    {
+        Some(g) => {
+            if groups[g].1 != robot {
+                groups[g].1 = Robot::One;
             }
-            None => {
-                groups.push((name.to_string(), robot));
-                groups.len() - 1
-            }
+            g
+        }
+        None => {
+            groups.push((name.to_string(), robot));
+            groups.len() - 1
         }
     };
     let mut tracker_anchor: Vec<(String, Robot)> = Vec::new();
@@ -207,11 +208,15 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
             c.distance_m = sum / n as f64;
         }
     }
-    trackers.extend(tracker_anchor.into_iter().map(|(name, anchor)| TrackerGroup {
-        name,
-        anchor,
-        initial_tracker_from_anchor: None,
-    }));
+    trackers.extend(
+        tracker_anchor
+            .into_iter()
+            .map(|(name, anchor)| TrackerGroup {
+                name,
+                anchor,
+                initial_tracker_from_anchor: None,
+            }),
+    );
     planes.extend(plane_anchor.into_iter().map(|(name, anchor)| PlaneGroup {
         name,
         anchor,
@@ -228,9 +233,25 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
 }
 
 /// Distance between the two tools' nominal points at `(q1, q2)` with the cell's `b1_from_b2`, m.
-fn nominal_distance(cell: &Cell, q1: &[f64], q2: &[f64], tool1: usize, tool2: usize) -> Option<f64> {
-    let f1 = base_from_tip(&cell.robot1.model, q1, &cell.robot1.flange_from_tool(tool1)?).ok()?;
-    let f2 = base_from_tip(&cell.robot2.model, q2, &cell.robot2.flange_from_tool(tool2)?).ok()?;
+fn nominal_distance(
+    cell: &Cell,
+    q1: &[f64],
+    q2: &[f64],
+    tool1: usize,
+    tool2: usize,
+) -> Option<f64> {
+    let f1 = base_from_tip(
+        &cell.robot1.model,
+        q1,
+        &cell.robot1.flange_from_tool(tool1)?,
+    )
+    .ok()?;
+    let f2 = base_from_tip(
+        &cell.robot2.model,
+        q2,
+        &cell.robot2.flange_from_tool(tool2)?,
+    )
+    .ok()?;
     let p2_b1 = cell.b1_from_b2 * nalgebra::Point3::from(f2.translation.vector);
     Some((f1.translation.vector - p2_b1.coords).norm())
 }

@@ -76,8 +76,18 @@ fn mixed_session_round_trips_through_the_csv() {
         assert_eq!(a.point, b.point);
         assert_eq!(a.kind.name(), b.kind.name());
         if let (
-            SessionKind::Tracker { p_tracker: p, tool, robot, .. },
-            SessionKind::Tracker { p_tracker: q, tool: t2, robot: r2, .. },
+            SessionKind::Tracker {
+                p_tracker: p,
+                tool,
+                robot,
+                ..
+            },
+            SessionKind::Tracker {
+                p_tracker: q,
+                tool: t2,
+                robot: r2,
+                ..
+            },
         ) = (&a.kind, &b.kind)
         {
             assert!((p - q).amax() < 1e-9, "{p} {q}");
@@ -105,7 +115,18 @@ fn session_without_kind_is_unchanged() {
     let with_kind: String = old
         .lines()
         .enumerate()
-        .map(|(i, l)| format!("{l},{}\n", if i == 0 { "kind" } else if i % 2 == 0 { "coincident" } else { "" }))
+        .map(|(i, l)| {
+            format!(
+                "{l},{}\n",
+                if i == 0 {
+                    "kind"
+                } else if i % 2 == 0 {
+                    "coincident"
+                } else {
+                    ""
+                }
+            )
+        })
         .collect();
     let back2 = Session::parse_csv(&with_kind, Path::new("s.csv"), &cell).unwrap();
     assert_eq!(back2, back);
@@ -143,21 +164,44 @@ fn kind_errors_name_row_column_and_fix() {
     };
     assert!(lines[3].contains(",tracker,1,"), "{}", lines[3]);
     let e = err(edit(4, "kind", "laser"));
-    assert!(e.contains("line 4, column `kind`") && e.contains("coincident, contact, tracker, plane"), "{e}");
+    assert!(
+        e.contains("line 4, column `kind`") && e.contains("coincident, contact, tracker, plane"),
+        "{e}"
+    );
     let e = err(edit(4, "sigma_mm", ""));
     assert!(e.contains("line 4, column `sigma_mm` is empty"), "{e}");
     let e = err(edit_all(
         4,
-        &["r2_q1_deg", "r2_q2_deg", "r2_q3_deg", "r2_q4_deg", "r2_q5_deg", "r2_q6_deg"],
+        &[
+            "r2_q1_deg",
+            "r2_q2_deg",
+            "r2_q3_deg",
+            "r2_q4_deg",
+            "r2_q5_deg",
+            "r2_q6_deg",
+        ],
         "10",
     ));
-    assert!(e.contains("line 4") && e.contains("joints given for robot 2") && e.contains("leave the other robot's joint cells empty"), "{e}");
+    assert!(
+        e.contains("line 4")
+            && e.contains("joints given for robot 2")
+            && e.contains("leave the other robot's joint cells empty"),
+        "{e}"
+    );
     let e = err(edit(4, "tool", "probe"));
-    assert!(e.contains("line 4, column `tool`") && e.contains("tip, reflector") && e.contains("[robot1.tools]"), "{e}");
+    assert!(
+        e.contains("line 4, column `tool`")
+            && e.contains("tip, reflector")
+            && e.contains("[robot1.tools]"),
+        "{e}"
+    );
     let e = err(edit(4, "tracker_y_mm", ""));
     assert!(e.contains("line 4, column `tracker_y_mm` is empty"), "{e}");
     let e = err(edit(4, "distance_mm", "100"));
-    assert!(e.contains("line 4, column `distance_mm`") && e.contains("leave it empty"), "{e}");
+    assert!(
+        e.contains("line 4, column `distance_mm`") && e.contains("leave it empty"),
+        "{e}"
+    );
     let e = err(edit(4, "robot", "3"));
     assert!(e.contains("line 4, column `robot`: `3`"), "{e}");
     // Line 2 is a coincident row: its tips are required and FK-checked.
@@ -188,8 +232,20 @@ fn calibrating_a_mixed_session_recovers_the_truth() {
     let text = s.csv_text(&cell);
     let s = Session::parse_csv(&text, Path::new("mixed.csv"), &cell).unwrap();
     let problem = cell_problem(&cell, &s, FitModel::Kinematic);
-    assert_eq!((problem.trackers.len(), problem.planes.len(), problem.contacts.len()), (1, 1, 1));
-    let cal = calibrate_cell(&problem, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
+    assert_eq!(
+        (
+            problem.trackers.len(),
+            problem.planes.len(),
+            problem.contacts.len()
+        ),
+        (1, 1, 1)
+    );
+    let cal = calibrate_cell(
+        &problem,
+        &SolveOptions::default(),
+        &ScreenOptions::default(),
+    )
+    .unwrap();
     let est = &cal.fit.estimate;
     let params = cal.fit.parameters(&problem);
     for axis in Axis::ALL {
@@ -199,7 +255,11 @@ fn calibrating_a_mixed_session_recovers_the_truth() {
             .find(|p| p.param == calib_core::whole_cell::CellParam::PlacementTranslation { axis })
             .unwrap();
         let e = est.b1_from_b2.translation.vector[k] - cell.b1_from_b2.translation.vector[k];
-        assert!(e.abs() < SIGMA_FACTOR * p.posterior_sigma, "{axis}: {e} m vs σ {}", p.posterior_sigma);
+        assert!(
+            e.abs() < SIGMA_FACTOR * p.posterior_sigma,
+            "{axis}: {e} m vs σ {}",
+            p.posterior_sigma
+        );
     }
     // Nuisances: contact distance within 4 σ_c/√n of 100 mm (8 rows, σ 0.2 mm → 0.3 mm), the
     // tracker frame within 0.5 mm at the teach centre, the plane normal within 0.1°.
@@ -208,12 +268,20 @@ fn calibrating_a_mixed_session_recovers_the_truth() {
     // away, carries the lever arm of the frame's rotation σ).
     let c = cell.centre_b1;
     let t_err = (est.tracker_from_anchor[0] * c - truth.tracker_from_b1 * c).norm();
-    assert!(t_err < 0.5e-3, "tracker frame off by {t_err} m at the teach centre");
+    assert!(
+        t_err < 0.5e-3,
+        "tracker frame off by {t_err} m at the teach centre"
+    );
     assert!(est.planes[0].normal_anchor.angle(&truth.plane_b1.0) < 0.1f64.to_radians());
     let pairs = session_config_pairs(&s);
     let predicted = predict_cooperative_accuracy(&problem, &cal.fit, &pairs, 1).unwrap();
     let measured =
         measure_cooperative_error(&problem, est, &truth_estimate(&cell, &problem), &pairs).unwrap();
     let ratio = measured.rms_m / predicted.predicted_rms_m;
-    assert!((0.5..2.0).contains(&ratio), "measured {} vs predicted {} m", measured.rms_m, predicted.predicted_rms_m);
+    assert!(
+        (0.5..2.0).contains(&ratio),
+        "measured {} vs predicted {} m",
+        measured.rms_m,
+        predicted.predicted_rms_m
+    );
 }

@@ -4,6 +4,6 @@
 //! tests stay in `tests/diagnose_hidden.rs`.
 
 mod cli;
-mod paper;
 mod kinds;
+mod paper;
 mod session;
