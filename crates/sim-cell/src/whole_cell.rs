@@ -256,11 +256,18 @@ fn nominal_distance(
     Some((f1.translation.vector - p2_b1.coords).norm())
 }
 
-/// Every configuration pair `(q1_i, q2_j)` of the session (`n²` pairs, row-major in `i`): the
+/// Most configuration pairs [`session_config_pairs`] returns (a 100-point session's 10 000 pairs
+/// are all kept).
+pub const MAX_CONFIG_PAIRS: usize = 10_000;
+
+/// Every configuration pair `(q1_i, q2_j)` of the session (`n1·n2` pairs, row-major in `i`): the
 /// session's own workspace, over which the calibration's cooperative accuracy is predicted.
 /// The `q1`s are robot 1's joints of every row that has them (coincident and contact rows, and
 /// robot 1's tracker and plane rows), the `q2`s robot 2's, in row order; tool 0 (the tips).
-/// For a handclasp-only session that is every `(q1_i, q2_j)` of its points.
+/// For a handclasp-only session that is every `(q1_i, q2_j)` of its points. Above
+/// [`MAX_CONFIG_PAIRS`] pairs, every `s`-th pair of that row-major order is kept (`s` the
+/// smallest stride ≥ `n1·n2 / MAX_CONFIG_PAIRS` coprime with `n2`, so every `q1` and every `q2`
+/// still appears): deterministic, at most [`MAX_CONFIG_PAIRS`] pairs.
 pub fn session_config_pairs(session: &Session) -> Vec<ConfigPair> {
     let (mut q1s, mut q2s): (Vec<&Vec<f64>>, Vec<&Vec<f64>>) = (Vec::new(), Vec::new());
     for row in session.rows() {
@@ -284,18 +291,29 @@ pub fn session_config_pairs(session: &Session) -> Vec<ConfigPair> {
             },
         }
     }
-    let mut pairs = Vec::with_capacity(q1s.len() * q2s.len());
-    for a in &q1s {
-        for b in &q2s {
-            pairs.push(ConfigPair {
-                q1: (*a).clone(),
-                q2: (*b).clone(),
-                tool1: 0,
-                tool2: 0,
-            });
-        }
+    let (n1, n2) = (q1s.len(), q2s.len());
+    let total = n1 * n2;
+    let mut stride = total.div_ceil(MAX_CONFIG_PAIRS).max(1);
+    while stride > 1 && gcd(stride, n2) != 1 {
+        stride += 1;
     }
-    pairs
+    (0..total)
+        .step_by(stride)
+        .map(|t| ConfigPair {
+            q1: q1s[t / n2].clone(),
+            q2: q2s[t % n2].clone(),
+            tool1: 0,
+            tool2: 0,
+        })
+        .collect()
+}
+
+fn gcd(a: usize, b: usize) -> usize {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
 }
 
 /// The cell's truth as an estimate of `problem` (built by [`cell_problem`] from this cell): the
@@ -347,6 +365,29 @@ mod tests {
         // σ² = 0.3² + 2·0.03² mm² per axis for the shipped floor–floor cell.
         let c = handclasp_covariance(&cell);
         assert!((c[(0, 0)] - (0.3e-3f64.powi(2) + 2.0 * 0.03e-3f64.powi(2))).abs() < 1e-15);
+    }
+
+    /// Above MAX_CONFIG_PAIRS the pairs are thinned deterministically, keeping every q1 and q2.
+    #[test]
+    fn config_pairs_are_capped_and_cover_every_row() {
+        let points = (0..150)
+            .map(|i| crate::SessionPoint {
+                point: i + 1,
+                q1: vec![i as f64],
+                q2: vec![-(i as f64)],
+                p_b1: nalgebra::Point3::origin(),
+                p_b2: nalgebra::Point3::origin(),
+            })
+            .collect();
+        let s = Session::from_points(points);
+        let pairs = session_config_pairs(&s);
+        assert!(pairs.len() <= MAX_CONFIG_PAIRS && pairs.len() > MAX_CONFIG_PAIRS / 2);
+        for i in 0..150 {
+            assert!(pairs.iter().any(|p| p.q1[0] == i as f64));
+            assert!(pairs.iter().any(|p| p.q2[0] == -(i as f64)));
+        }
+        let small = Session::from_points(s.points[..100].to_vec());
+        assert_eq!(session_config_pairs(&small).len(), 10_000);
     }
 
     #[test]
