@@ -228,6 +228,7 @@ fn report(problem: &CellProblem, cal: &CellCalibration, model: ModelArg, rows: u
     let params = cal.fit.parameters(problem);
     let mut parameters = Vec::new();
     let mut placement_sigma = Vec::new();
+    let mut nuisance = Vec::new();
     for p in &params {
         let (unit, k) = unit_of(&p.param);
         match describe(&p.param) {
@@ -239,8 +240,20 @@ fn report(problem: &CellProblem, cal: &CellCalibration, model: ModelArg, rows: u
                 v["prior_sigma"] = json!(p.prior_sigma * k);
                 parameters.push(v);
             }
-            None => placement_sigma
-                .push(json!({"name": p.name, "unit": unit, "sigma": p.posterior_sigma * k})),
+            None => {
+                let entry = json!({"name": p.name, "unit": unit, "value": p.value * k, "sigma": p.posterior_sigma * k});
+                if matches!(
+                    p.param,
+                    CellParam::PlacementTranslation { .. } | CellParam::PlacementRotation { .. }
+                ) {
+                    placement_sigma.push(
+                        json!({"name": p.name, "unit": unit, "sigma": p.posterior_sigma * k}),
+                    );
+                } else {
+                    // Tracker frames, planes, contact distances (mixed sessions only).
+                    nuisance.push(entry);
+                }
+            }
         }
     }
     let unidentifiable: Vec<Value> = cal
@@ -269,7 +282,7 @@ fn report(problem: &CellProblem, cal: &CellCalibration, model: ModelArg, rows: u
             })
         })
         .collect();
-    json!({
+    let mut out = json!({
         "model": model.name(),
         "rows": rows,
         "rows_used": cal.fit.active.len(),
@@ -289,7 +302,11 @@ fn report(problem: &CellProblem, cal: &CellCalibration, model: ModelArg, rows: u
         "residual_rows": cal.fit.residual_rows,
         "data_determined_directions": cal.reduction.data_determined,
         "prior_dominated_directions": cal.reduction.prior_dominated,
-    })
+    });
+    if !nuisance.is_empty() {
+        out["nuisance_parameters"] = json!(nuisance);
+    }
+    out
 }
 
 fn num(v: &Value) -> f64 {
@@ -371,6 +388,24 @@ fn print_text(v: &Value) {
             "rows by kind: {} coincident, {} contact, {} tracker, {} plane",
             k["coincident"], k["contact"], k["tracker"], k["plane"]
         );
+        // Contacts, planes and trackers may leave the placement weakly determined: say how well.
+        let sigma: Vec<String> = v["b1_from_b2"]["sigma"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(|p| {
+                format!(
+                    "{} ± {:.3} {}",
+                    p["name"]
+                        .as_str()
+                        .unwrap_or("?")
+                        .trim_start_matches("b1_from_b2 "),
+                    num(&p["sigma"]),
+                    p["unit"].as_str().unwrap_or("")
+                )
+            })
+            .collect();
+        println!("b1_from_b2 posterior σ: {}", sigma.join(", "));
         for c in g["contact"].as_array().into_iter().flatten() {
             println!(
                 "  contact group {}: distance {:.3} mm ({})",

@@ -188,15 +188,19 @@ impl Plan {
         let two_robot = matches!(kind, "coincident" | "contact");
         let robot = match (two_robot, map.robot) {
             (true, None) => Robot::One,
-            (true, Some(_)) => return Err(at(format!(
+            (true, Some(_)) => {
+                return Err(at(format!(
                 "`robot` is for tracker and plane maps; a {kind} row uses both robots: remove it"
-            ))),
+            )))
+            }
             (false, Some(n)) => {
                 Robot::from_number(n).ok_or_else(|| at(format!("robot = {n}: write 1 or 2")))?
             }
-            (false, None) => return Err(at(format!(
+            (false, None) => {
+                return Err(at(format!(
                 "a {kind} map needs `robot = 1` or `robot = 2` (the robot whose tool is measured)"
-            ))),
+            )))
+            }
         };
         let tool_of = |r: Robot, key: &str, name: &Option<String>| -> anyhow::Result<usize> {
             match name {
@@ -335,9 +339,11 @@ impl Plan {
             }
             (Some(g), _) => g.clone(),
             (None, "coincident") => String::new(),
-            (None, _) => return Err(at(format!(
+            (None, _) => {
+                return Err(at(format!(
                 "a {kind} map needs group = \"NAME\" (or \"{{stem}}\": one group per input file)"
-            ))),
+            )))
+            }
         };
         Ok(Plan {
             kind,

@@ -247,14 +247,30 @@ fn session_kinds_points_csv_and_plan() {
             String::from_utf8_lossy(&out.stderr).into_owned(),
         )
     };
-    let (ok, csv, err) = run(&["--kind", "mixed", "--n", "12", "--layout", "random", "--spread-mm", "600"]);
+    let (ok, csv, err) = run(&[
+        "--kind",
+        "mixed",
+        "--n",
+        "12",
+        "--layout",
+        "random",
+        "--spread-mm",
+        "600",
+    ]);
     assert!(ok, "{err}");
-    assert!(err.contains("rows: 2 coincident, 2 contact, 4 tracker, 4 plane"), "{err}");
+    assert!(
+        err.contains("rows: 2 coincident, 2 contact, 4 tracker, 4 plane"),
+        "{err}"
+    );
     assert!(csv.lines().next().unwrap().contains(",kind,robot,group,"));
     assert_eq!(csv.lines().count(), 13);
 
     let points = dir.path().join("points.csv");
-    std::fs::write(&points, "x_mm,y_mm,z_mm\n400,-100,900\n600,100,1000\n500,0,1100\n").unwrap();
+    std::fs::write(
+        &points,
+        "x_mm,y_mm,z_mm\n400,-100,900\n600,100,1000\n500,0,1100\n",
+    )
+    .unwrap();
     let plan = dir.path().join("plan.csv");
     let (ok, _, err) = run(&[
         "--points-csv",
@@ -275,7 +291,12 @@ fn session_kinds_points_csv_and_plan() {
         let fb: Vec<f64> = b.split(',').map(|x| x.parse().unwrap()).collect();
         // Joint columns 1..=13 (7 + 6 joints of the floor–wall cell): the planned pose.
         for k in 1..=13 {
-            assert!((fa[k] - fb[k]).abs() < 1.0, "column {k}: {} vs {}", fa[k], fb[k]);
+            assert!(
+                (fa[k] - fb[k]).abs() < 1.0,
+                "column {k}: {} vs {}",
+                fa[k],
+                fb[k]
+            );
         }
     }
     std::fs::write(&points, "x_mm,y_mm,z_mm\n400,-100,abc\n").unwrap();
