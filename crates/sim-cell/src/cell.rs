@@ -881,6 +881,34 @@ mod tests {
         }
     }
 
+    /// `[robotN.tools]`: parsed in mm, looked up by name (`tip` = index 0), written back; the
+    /// reserved name and a tip written in metres are refused with the key named.
+    #[test]
+    fn tools_table_parses_round_trips_and_names_errors() {
+        let text = FLOOR_WALL_TOML.to_string()
+            + "\n[robot1.tools]\nreflector = [41.79, -16.69, 245.0]\nprobe = [0, 0, 80]\n";
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+        let cell = Cell::from_toml_str(&text, &dir).unwrap();
+        let r = &cell.robot1;
+        assert_eq!(r.tool_names(), ["tip", "probe", "reflector"]);
+        assert_eq!(r.tool_index("reflector"), Some(2));
+        assert_eq!(r.tool_index("tip"), Some(0));
+        assert_eq!(r.tool_index("laser"), None);
+        let reflector = r.flange_from_tool(2).unwrap();
+        assert!((reflector - Vector3::new(0.04179, -0.01669, 0.245)).amax() < ROUND_TRIP_TOL);
+        assert!(cell.robot2.tools.is_empty());
+        let back = Cell::from_toml_str(&cell.to_toml_string(), &dir).unwrap();
+        assert_eq!(back.robot1.tools, cell.robot1.tools);
+        for (bad, want) in [
+            ("tip = [0, 0, 10]", "robot1.tools.tip"),
+            ("reflector = [0, 0, 0.245]", "robot1.tools.reflector"),
+        ] {
+            let text = FLOOR_WALL_TOML.to_string() + "\n[robot1.tools]\n" + bad + "\n";
+            let e = Cell::from_toml_str(&text, &dir).unwrap_err().to_string();
+            assert!(e.contains(want), "{e}");
+        }
+    }
+
     #[test]
     fn errors_and_anisotropic_noise_round_trip() {
         let text = FLOOR_WALL_TOML.to_string()
