@@ -265,9 +265,9 @@ pub const MAX_CONFIG_PAIRS: usize = 10_000;
 /// The `q1`s are robot 1's joints of every row that has them (coincident and contact rows, and
 /// robot 1's tracker and plane rows), the `q2`s robot 2's, in row order; tool 0 (the tips).
 /// For a handclasp-only session that is every `(q1_i, q2_j)` of its points. Above
-/// [`MAX_CONFIG_PAIRS`] pairs, every `s`-th pair of that row-major order is kept (`s` the
-/// smallest stride ≥ `n1·n2 / MAX_CONFIG_PAIRS` coprime with `n2`, so every `q1` and every `q2`
-/// still appears): deterministic, at most [`MAX_CONFIG_PAIRS`] pairs.
+/// [`MAX_CONFIG_PAIRS`] pairs, each `q1_i` is paired with `⌊MAX_CONFIG_PAIRS / n1⌋` evenly spaced
+/// `q2`s shifted by `i`, so every `q1` and every `q2` still appears: deterministic, at most
+/// `max(MAX_CONFIG_PAIRS, n1)` pairs.
 pub fn session_config_pairs(session: &Session) -> Vec<ConfigPair> {
     let (mut q1s, mut q2s): (Vec<&Vec<f64>>, Vec<&Vec<f64>>) = (Vec::new(), Vec::new());
     for row in session.rows() {
@@ -292,28 +292,25 @@ pub fn session_config_pairs(session: &Session) -> Vec<ConfigPair> {
         }
     }
     let (n1, n2) = (q1s.len(), q2s.len());
-    let total = n1 * n2;
-    let mut stride = total.div_ceil(MAX_CONFIG_PAIRS).max(1);
-    while stride > 1 && gcd(stride, n2) != 1 {
-        stride += 1;
+    let pair = |i: usize, j: usize| ConfigPair {
+        q1: q1s[i].clone(),
+        q2: q2s[j].clone(),
+        tool1: 0,
+        tool2: 0,
+    };
+    if n1 * n2 <= MAX_CONFIG_PAIRS {
+        return (0..n1)
+            .flat_map(|i| (0..n2).map(move |j| (i, j)))
+            .map(|(i, j)| pair(i, j))
+            .collect();
     }
-    (0..total)
-        .step_by(stride)
-        .map(|t| ConfigPair {
-            q1: q1s[t / n2].clone(),
-            q2: q2s[t % n2].clone(),
-            tool1: 0,
-            tool2: 0,
-        })
+    // `per_row` evenly spaced q2s per q1, shifted by one per row, so that every q2 appears
+    // (the spacing n1·n2/MAX_CONFIG_PAIRS is at most n1 while n2 ≤ MAX_CONFIG_PAIRS).
+    let per_row = (MAX_CONFIG_PAIRS / n1).max(1);
+    (0..n1)
+        .flat_map(|i| (0..per_row).map(move |m| (i, (m * n2 / per_row + i) % n2)))
+        .map(|(i, j)| pair(i, j))
         .collect()
-}
-
-fn gcd(a: usize, b: usize) -> usize {
-    if b == 0 {
-        a
-    } else {
-        gcd(b, a % b)
-    }
 }
 
 /// The cell's truth as an estimate of `problem` (built by [`cell_problem`] from this cell): the
