@@ -5,6 +5,7 @@ mod calibrate;
 mod calibrate_cell;
 mod diagnose;
 mod fk_ik;
+mod import;
 mod inputs;
 mod paper;
 mod paper_diagnose;

@@ -73,12 +73,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let session = Session::read_csv(session_path, &cell)?;
     let problem = cell_problem(&cell, &session, args.model.fit_model());
-    let cal = calibrate_cell(
-        &problem,
-        &SolveOptions::default(),
-        &ScreenOptions::default(),
-    )
-    .with_context(|| {
+    let mut solve = SolveOptions::default();
+    if session.points.len() < MIN_COINCIDENT_FOR_START {
+        // Contact, tracker and plane rows alone give no rigid starting placement: start from
+        // the cell's own b1_from_b2.
+        solve.initial_b1_from_b2 = Some(cell.b1_from_b2);
+    }
+    let cal = calibrate_cell(&problem, &solve, &ScreenOptions::default()).with_context(|| {
         format!(
             "calibrating {} with cell {}",
             session_path.display(),
@@ -86,15 +87,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )
     })?;
     let pairs = session_config_pairs(&session);
-    let prediction = predict_cooperative_accuracy(&problem, &cal.fit, &pairs, P95_SEED)
-        .context("predicting the cooperative accuracy over the session's configuration pairs")?;
-    let mut out = report(&problem, &cal, args.model, session.points.len());
-    out["cooperative_accuracy_mm"] = json!({
-        "predicted_rms": prediction.predicted_rms_m * 1e3,
-        "predicted_p95": prediction.predicted_p95_m * 1e3,
-        "pairs": pairs.len(),
-        "pair_set": "every (q1_i, q2_j) of the session's rows",
-    });
+    let mut out = report(&problem, &cal, args.model, session.len());
+    if pairs.is_empty() {
+        out["cooperative_accuracy_mm"] = Value::Null;
+    } else {
+        let prediction = predict_cooperative_accuracy(&problem, &cal.fit, &pairs, P95_SEED)
+            .context(
+                "predicting the cooperative accuracy over the session's configuration pairs",
+            )?;
+        out["cooperative_accuracy_mm"] = json!({
+            "predicted_rms": prediction.predicted_rms_m * 1e3,
+            "predicted_p95": prediction.predicted_p95_m * 1e3,
+            "pairs": pairs.len(),
+            "pair_set": "every (q1_i, q2_j) of the session's rows",
+        });
+    }
+    if !session.is_handclasp_only() {
+        let counts = session.kind_counts();
+        out["rows_by_kind"] = json!({
+            "coincident": counts[0], "contact": counts[1], "tracker": counts[2], "plane": counts[3],
+        });
+        out["groups"] = groups_json(&problem, &cal);
+    }
     let written = match &args.export {
         Some(dir) => export_calibrated_cell(&cell, &cal.fit.estimate, dir, &CALIBRATE_EXPORT_NAMES)
             .with_context(|| format!("--export {}", dir.display()))?,
@@ -109,6 +123,48 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// Fewer coincident rows than this: the fit starts from the cell's `b1_from_b2` (a rigid start
+/// needs 3 points not on a line).
+const MIN_COINCIDENT_FOR_START: usize = 3;
+
+/// The fitted nuisance groups of a mixed session (mm, degrees): contact distances, planes
+/// (unit normal and offset in the anchor robot's base), tracker frames (`anchor_from_tracker`:
+/// the tracker's origin and ZYZ angles in the anchor robot's base).
+fn groups_json(problem: &CellProblem, cal: &CellCalibration) -> Value {
+    let est = &cal.fit.estimate;
+    let contacts: Vec<Value> = problem
+        .contacts
+        .iter()
+        .zip(&est.contact_distance_m)
+        .map(|(g, d)| json!({"group": g.name, "distance_mm": d * 1e3, "fitted": g.fit_distance}))
+        .collect();
+    let planes: Vec<Value> = problem
+        .planes
+        .iter()
+        .zip(&est.planes)
+        .map(|(g, p)| {
+            let n = p.normal_anchor;
+            json!({"group": g.name, "anchor_robot": g.anchor, "normal": [n.x, n.y, n.z], "offset_mm": p.offset_m * 1e3})
+        })
+        .collect();
+    let trackers: Vec<Value> = problem
+        .trackers
+        .iter()
+        .zip(&est.tracker_from_anchor)
+        .map(|(g, t)| {
+            let a = t.inverse();
+            let zyz = zyz_from_rotation(&a.rotation.to_rotation_matrix());
+            let v = a.translation.vector * 1e3;
+            json!({
+                "group": g.name,
+                "anchor_robot": g.anchor,
+                "anchor_from_tracker": {"xyz_mm": [v.x, v.y, v.z], "zyz_deg": zyz.map(f64::to_degrees)},
+            })
+        })
+        .collect();
+    json!({"contact": contacts, "plane": planes, "tracker": trackers})
 }
 
 /// Unit and SI → unit factor of a kinematic parameter.
@@ -172,6 +228,7 @@ fn report(problem: &CellProblem, cal: &CellCalibration, model: ModelArg, rows: u
     let params = cal.fit.parameters(problem);
     let mut parameters = Vec::new();
     let mut placement_sigma = Vec::new();
+    let mut nuisance = Vec::new();
     for p in &params {
         let (unit, k) = unit_of(&p.param);
         match describe(&p.param) {
@@ -183,8 +240,20 @@ fn report(problem: &CellProblem, cal: &CellCalibration, model: ModelArg, rows: u
                 v["prior_sigma"] = json!(p.prior_sigma * k);
                 parameters.push(v);
             }
-            None => placement_sigma
-                .push(json!({"name": p.name, "unit": unit, "sigma": p.posterior_sigma * k})),
+            None => {
+                let entry = json!({"name": p.name, "unit": unit, "value": p.value * k, "sigma": p.posterior_sigma * k});
+                if matches!(
+                    p.param,
+                    CellParam::PlacementTranslation { .. } | CellParam::PlacementRotation { .. }
+                ) {
+                    placement_sigma.push(
+                        json!({"name": p.name, "unit": unit, "sigma": p.posterior_sigma * k}),
+                    );
+                } else {
+                    // Tracker frames, planes, contact distances (mixed sessions only).
+                    nuisance.push(entry);
+                }
+            }
         }
     }
     let unidentifiable: Vec<Value> = cal
@@ -213,7 +282,7 @@ fn report(problem: &CellProblem, cal: &CellCalibration, model: ModelArg, rows: u
             })
         })
         .collect();
-    json!({
+    let mut out = json!({
         "model": model.name(),
         "rows": rows,
         "rows_used": cal.fit.active.len(),
@@ -233,7 +302,11 @@ fn report(problem: &CellProblem, cal: &CellCalibration, model: ModelArg, rows: u
         "residual_rows": cal.fit.residual_rows,
         "data_determined_directions": cal.reduction.data_determined,
         "prior_dominated_directions": cal.reduction.prior_dominated,
-    })
+    });
+    if !nuisance.is_empty() {
+        out["nuisance_parameters"] = json!(nuisance);
+    }
+    out
 }
 
 fn num(v: &Value) -> f64 {
@@ -309,13 +382,77 @@ fn print_text(v: &Value) {
              factor (use --model kinematic to fit them)"
         );
     }
+    let g = &v["groups"];
+    if !g.is_null() {
+        let k = &v["rows_by_kind"];
+        println!(
+            "rows by kind: {} coincident, {} contact, {} tracker, {} plane",
+            k["coincident"], k["contact"], k["tracker"], k["plane"]
+        );
+        // Contacts, planes and trackers may leave the placement weakly determined: say how well.
+        let sigma: Vec<String> = v["b1_from_b2"]["sigma"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .map(|p| {
+                format!(
+                    "{} ± {:.3} {}",
+                    p["name"]
+                        .as_str()
+                        .unwrap_or("?")
+                        .trim_start_matches("b1_from_b2 "),
+                    num(&p["sigma"]),
+                    p["unit"].as_str().unwrap_or("")
+                )
+            })
+            .collect();
+        println!("b1_from_b2 posterior σ: {}", sigma.join(", "));
+        for c in g["contact"].as_array().into_iter().flatten() {
+            println!(
+                "  contact group {}: distance {:.3} mm ({})",
+                c["group"],
+                num(&c["distance_mm"]),
+                if c["fitted"].as_bool() == Some(true) {
+                    "fitted"
+                } else {
+                    "given"
+                }
+            );
+        }
+        for p in g["plane"].as_array().into_iter().flatten() {
+            println!(
+                "  plane group {}: normal ({:.5}, {:.5}, {:.5}), offset {:.3} mm (base of robot {})",
+                p["group"],
+                num(&p["normal"][0]),
+                num(&p["normal"][1]),
+                num(&p["normal"][2]),
+                num(&p["offset_mm"]),
+                p["anchor_robot"]
+            );
+        }
+        for t in g["tracker"].as_array().into_iter().flatten() {
+            let f = &t["anchor_from_tracker"];
+            println!(
+                "  tracker group {}: origin ({:.3}, {:.3}, {:.3}) mm in the base of robot {}",
+                t["group"],
+                num(&f["xyz_mm"][0]),
+                num(&f["xyz_mm"][1]),
+                num(&f["xyz_mm"][2]),
+                t["anchor_robot"]
+            );
+        }
+    }
     let c = &v["cooperative_accuracy_mm"];
-    println!(
-        "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the {} configuration pairs of this session): rms {:.3} mm, p95 {:.3} mm",
-        c["pairs"],
-        num(&c["predicted_rms"]),
-        num(&c["predicted_p95"])
-    );
+    if c.is_null() {
+        println!("predicted cooperative accuracy: none (no row gives joint angles of both robots)");
+    } else {
+        println!(
+            "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the {} configuration pairs of this session): rms {:.3} mm, p95 {:.3} mm",
+            c["pairs"],
+            num(&c["predicted_rms"]),
+            num(&c["predicted_p95"])
+        );
+    }
     println!(
         "solver: {} after {} iterations (data χ² {:.1} over {} residual rows)",
         v["stopped"].as_str().unwrap_or("?"),

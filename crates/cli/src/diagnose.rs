@@ -79,7 +79,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.verbose {
         crate::fk::print_cell_branches(&cell);
     }
-    let session = diagnose::load_session(&args.session, &cell).context("--session")?;
+    let mut session = diagnose::load_session(&args.session, &cell).context("--session")?;
+    if !session.is_handclasp_only() {
+        // diagnose's engine explains coincident handclasps; the other kinds (and other tools)
+        // are the whole-cell calibration's (calibrate --cell), so they are set aside here.
+        let [_, contact, tracker, plane] = session.kind_counts();
+        eprintln!(
+            "note: {}: diagnose uses the {} coincident handclasp rows at the cell's tips only; {} other row(s) \
+             ({contact} contact, {tracker} tracker, {plane} plane, the rest with other tools) are set aside: \
+             calibrate them with `handclasp calibrate --cell CELL --session SESSION --model kinematic`",
+            args.session.display(),
+            session.points.len(),
+            session.observations.len()
+        );
+        session.observations.clear();
+    }
     let options = DiagnoseOptions {
         seed: args.seed,
         trials: args.trials,

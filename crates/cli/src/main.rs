@@ -12,6 +12,7 @@ mod calibrate_cell;
 mod diagnose;
 mod fk;
 mod ik;
+mod import;
 mod paper;
 mod paper_diagnose;
 mod plan;
@@ -42,6 +43,8 @@ enum Command {
     Diagnose(diagnose::Args),
     /// Plan a session: the N handclasp poses that calibrate the whole cell best, as a session CSV to teach from.
     Plan(plan::Args),
+    /// Convert a controller's or dataset's CSV into a session CSV, as a mapping file says.
+    Import(import::Args),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -52,6 +55,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Paper(cmd) => paper::run(cmd),
         Command::Diagnose(args) => diagnose::run(args),
         Command::Plan(args) => plan::run(args),
+        Command::Import(args) => import::run(args),
     }
 }
 

@@ -260,14 +260,14 @@ fn screen_blunders(
             residual_mm: r.residual_m * 1e3,
         })
         .collect();
-    let kept = Session {
-        points: session
+    let kept = Session::from_points(
+        session
             .points
             .iter()
             .filter(|p| !rejected.iter().any(|r| r.point == p.point))
             .cloned()
             .collect(),
-    };
+    );
     if !rejected.is_empty() {
         if let Err(e) = check_session(cell, &kept, Path::new("<session>")) {
             let rows: Vec<usize> = rejected.iter().map(|r| r.point).collect();

@@ -133,7 +133,10 @@ fn csv_reader(text: &str) -> csv::Reader<&[u8]> {
 }
 
 /// Reads a session CSV for `cell` with sim-cell's reader, after a unit pre-check that names the
-/// likely mistake (radians under `*_deg`, metres under `*_mm`), then [`check_session`].
+/// likely mistake (radians under `*_deg`, metres under `*_mm`), then [`check_session`] on its
+/// coincident handclasps at the cell's tips (`Session::points`). Rows of other kinds or tools
+/// stay in `Session::observations`, which the engine does not use; a session with too few
+/// coincident rows is refused, naming `handclasp calibrate --cell`.
 ///
 /// Errors: the file cannot be read ([`DiagnoseError::Io`]); sim-cell rejects it
 /// ([`DiagnoseError::Sim`], or [`DiagnoseError::SessionUnits`] when a unit mistake explains
@@ -164,12 +167,22 @@ pub fn load_session(path: &Path, cell: &Cell) -> Result<Session, DiagnoseError> 
             })
         }
     };
+    if !session.is_handclasp_only() && session.points.len() < identify::min_points(1) {
+        return Err(serr(format!(
+            "{} coincident handclasp row(s) at the cell's tips and {} row(s) of other kinds or tools: diagnose explains \
+             coincident handclasps only and needs at least {}; calibrate this session with \
+             `handclasp calibrate --cell CELL --session SESSION --model kinematic`",
+            session.points.len(),
+            session.observations.len(),
+            identify::min_points(1)
+        )));
+    }
     check_session(cell, &session, path)?;
     Ok(session)
 }
 
-/// The largest |value| under `*_deg` and under `*_mm` columns (unparsable fields skipped), and
-/// the number of data rows. Text that is no CSV gives zeros (sim-cell's reader says why).
+/// The largest |value| under the robots' `r1_*_deg`/`r2_*_deg` and `r1_*_mm`/`r2_*_mm` columns
+/// (unparsable fields skipped), and the number of data rows. Text that is no CSV gives zeros (sim-cell's reader says why).
 fn unit_ranges(text: &str) -> (f64, f64, usize) {
     let mut reader = csv_reader(text);
     let Ok(names) = reader.headers().cloned() else {
@@ -185,6 +198,12 @@ fn unit_ranges(text: &str) -> (f64, f64, usize) {
             let Ok(v) = v.parse::<f64>() else {
                 continue;
             };
+            // Only the robots' own columns (r1_…, r2_…): a mixed session's sigma_mm,
+            // distance_mm and tracker_*_mm are not tip coordinates.
+            let robot_column = name.starts_with("r1_") || name.starts_with("r2_");
+            if !robot_column {
+                continue;
+            }
             if name.ends_with("_deg") {
                 max_deg = max_deg.max(v.abs());
             } else if name.ends_with("_mm") {
@@ -272,11 +291,54 @@ fn unit_hint(text: &str, cell: &Cell) -> Option<String> {
 mod tests {
     use super::*;
 
+    /// A session of other kinds only is refused naming `calibrate --cell`; a mixed one with
+    /// enough coincident rows is read, its other rows kept aside in `observations`.
+    #[test]
+    fn mixed_sessions_keep_the_coincident_rows_or_name_calibrate_cell() {
+        let cell = Cell::default_floor_floor();
+        let dir = tempfile::tempdir().unwrap();
+        for (kind, n, ok) in [
+            (sim_cell::SimKind::Contact, 12, false),
+            (sim_cell::SimKind::Mixed, 60, true),
+        ] {
+            let spec = sim_cell::SessionSpec::new(n, sim_cell::Layout::Random, 0.7);
+            let kinds = sim_cell::KindSpec {
+                kind,
+                ..sim_cell::KindSpec::default()
+            };
+            let (s, _) = sim_cell::generate_kind_session(
+                &cell,
+                &spec,
+                &kinds,
+                None,
+                &mut sim_cell::trial_rng(9, 0),
+            )
+            .unwrap();
+            let path = dir.path().join("mixed.csv");
+            s.write_csv(&path, &cell).unwrap();
+            match load_session(&path, &cell) {
+                Ok(back) => {
+                    assert!(ok);
+                    assert_eq!(back.points.len(), 10);
+                    assert_eq!(back.observations.len(), 50);
+                }
+                Err(e) => {
+                    let text = e.to_string();
+                    assert!(!ok, "{text}");
+                    assert!(
+                        text.contains("0 coincident") && text.contains("calibrate --cell"),
+                        "{text}"
+                    );
+                }
+            }
+        }
+    }
+
     /// The unit pre-check reads the text as CSV: trimmed and quoted fields, blank lines and
-    /// non-numeric fields are handled, and only `*_deg` / `*_mm` columns count.
+    /// non-numeric fields are handled, and only the robots' `r1_`/`r2_` `*_deg` / `*_mm` columns count.
     #[test]
     fn unit_ranges_read_csv_fields() {
-        let text = "point, r1_q1_deg ,r1_x_mm,note\n1, -2.5 ,\"1200.0\",a\n\n2,1.0,-7,\"x,y\"\n";
+        let text = "point, r1_q1_deg ,r1_x_mm,note,sigma_mm\n1, -2.5 ,\"1200.0\",a,0.1\n\n2,1.0,-7,\"x,y\",5000\n";
         let (max_deg, max_mm, rows) = unit_ranges(text);
         assert_eq!((max_deg, max_mm, rows), (2.5, 1200.0, 2));
         assert_eq!(unit_ranges(""), (0.0, 0.0, 0));

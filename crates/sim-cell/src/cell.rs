@@ -9,7 +9,7 @@
 
 use crate::error::SimError;
 use crate::placement::Placement;
-use calib_core::whole_cell::Tolerance;
+use calib_core::whole_cell::{Tolerance, Tool};
 use calib_core::{zyz_from_rotation, Mount, MountPair, PoseMmDeg, Robot};
 use kinematics::{KinematicErrors, RobotModel};
 use nalgebra::{Isometry3, Point3, Rotation3, Vector3};
@@ -42,6 +42,9 @@ const EMBEDDED_URDFS: [(&str, &str); 2] = [
     ),
 ];
 
+/// Name of each robot's default tool, the cell's `tip_mm` (tool index 0; extra tools follow).
+pub const TIP_TOOL: &str = "tip";
+
 /// One robot of a cell.
 #[derive(Debug, Clone)]
 pub struct CellRobot {
@@ -53,8 +56,12 @@ pub struct CellRobot {
     pub urdf_path: PathBuf,
     /// The URDF link of the flange (`tool_link`, default `tool0`).
     pub tool_link: String,
-    /// Nominal tip offset, m, flange (`tool0`) frame.
+    /// Nominal tip offset, m, flange (`tool0`) frame: the default tool, named [`TIP_TOOL`].
     pub flange_from_tip: Vector3<f64>,
+    /// Extra named tools (`[robotN.tools] name = [x, y, z]`, mm in the file, m here, flange
+    /// frame), e.g. a tracker reflector, in name order; never named [`TIP_TOOL`]. Session rows
+    /// pick one by name (`tool1`, `tool2`, `tool` columns).
+    pub tools: Vec<Tool>,
     /// The mount.
     pub mount: Mount,
     /// Gravity in this robot's nominal base frame, m/s² (robot 1: from its mount; robot 2:
@@ -66,6 +73,43 @@ pub struct CellRobot {
     /// default [`Tolerance::default`]: 0.05° joint offsets and origin rpy, 0.5 mm origin xyz and
     /// tip; half-widths of a uniform band, see [`Tolerance`]).
     pub tolerance: Tolerance,
+}
+
+impl CellRobot {
+    /// Index of the tool named `name`: 0 for [`TIP_TOOL`] (`tip_mm`), `k` for `tools[k − 1]`;
+    /// `None` if the robot has no such tool.
+    pub fn tool_index(&self, name: &str) -> Option<usize> {
+        if name == TIP_TOOL {
+            return Some(0);
+        }
+        self.tools
+            .iter()
+            .position(|t| t.name == name)
+            .map(|k| k + 1)
+    }
+
+    /// Name of tool `index` ([`CellRobot::tool_index`]'s numbering); `None` out of range.
+    pub fn tool_name(&self, index: usize) -> Option<&str> {
+        match index {
+            0 => Some(TIP_TOOL),
+            k => self.tools.get(k - 1).map(|t| t.name.as_str()),
+        }
+    }
+
+    /// Nominal offset of tool `index` in the flange frame, m; `None` out of range.
+    pub fn flange_from_tool(&self, index: usize) -> Option<Vector3<f64>> {
+        match index {
+            0 => Some(self.flange_from_tip),
+            k => self.tools.get(k - 1).map(|t| t.flange_from_tip),
+        }
+    }
+
+    /// Every tool's name, index order (`tip` first), for messages.
+    pub fn tool_names(&self) -> Vec<&str> {
+        std::iter::once(TIP_TOOL)
+            .chain(self.tools.iter().map(|t| t.name.as_str()))
+            .collect()
+    }
 }
 
 /// The noise of a simulated session.
@@ -121,6 +165,8 @@ struct RobotFile {
     tool_link: Option<String>,
     mount: toml::Value,
     tip_mm: [f64; 3],
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    tools: Option<std::collections::BTreeMap<String, [f64; 3]>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     errors: Option<ErrorsFile>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -519,6 +565,15 @@ impl Cell {
                 r.flange_from_tip.y * 1e3,
                 r.flange_from_tip.z * 1e3,
             ],
+            tools: (!r.tools.is_empty()).then(|| {
+                r.tools
+                    .iter()
+                    .map(|t| {
+                        let v = t.flange_from_tip * 1e3;
+                        (t.name.clone(), [v.x, v.y, v.z])
+                    })
+                    .collect()
+            }),
             errors: errors_file(&r.errors),
             tolerance: tolerance_file(&r.tolerance),
         };
@@ -621,7 +676,7 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
             .map(|r| format!("line {}: ", text[..r.start.min(text.len())].lines().count().max(1)))
             .unwrap_or_default();
         ctx.err(format!(
-            "{at}{} (keys: [robot1], [robot2] with urdf, mount, tip_mm, tool_link, [robotN.errors], [robotN.tolerance] joint_offset_deg, origin_mm, origin_deg, tip_mm; [b1_from_b2] xyz_mm, zyz_deg; [noise] alignment_mm, repeatability_mm, encoder_resolution_deg; [teach] centre_mm)",
+            "{at}{} (keys: [robot1], [robot2] with urdf, mount, tip_mm, tool_link, [robotN.tools] name = [x, y, z], [robotN.errors], [robotN.tolerance] joint_offset_deg, origin_mm, origin_deg, tip_mm; [b1_from_b2] xyz_mm, zyz_deg; [noise] alignment_mm, repeatability_mm, encoder_resolution_deg; [teach] centre_mm)",
             e.message().trim_end()
         ))
     })?;
@@ -637,8 +692,22 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
             Some(t) => build_tolerance(&ctx, key, t)?,
             None => Tolerance::default(),
         };
+        let mut tools = Vec::new();
+        for (name, v) in r.tools.iter().flatten() {
+            if name == TIP_TOOL || name.is_empty() || name.contains([',', ';', '\t', '"']) {
+                return Err(ctx.err(format!(
+                    "`{key}.tools.{name}`: a tool name must be non-empty, not `{TIP_TOOL}` (the name of tip_mm) \
+                     and free of commas, semicolons, tabs and quotes; rename it (e.g. reflector)"
+                )));
+            }
+            tools.push(Tool {
+                name: name.clone(),
+                flange_from_tip: tip3(&ctx, &format!("{key}.tools.{name}"), *v)? * 1e-3,
+            });
+        }
         Ok(CellRobot {
             mount: parse_mount(&ctx, &format!("{key}.mount"), &r.mount)?,
+            tools,
             flange_from_tip: tip3(&ctx, &format!("{key}.tip_mm"), r.tip_mm)? * 1e-3,
             model,
             urdf: r.urdf.clone(),
@@ -809,6 +878,34 @@ mod tests {
             let text = cell.to_toml_string();
             let back = Cell::from_toml_str(&text, &cell.base_dir).unwrap();
             assert_cells_equal(&cell, &back);
+        }
+    }
+
+    /// `[robotN.tools]`: parsed in mm, looked up by name (`tip` = index 0), written back; the
+    /// reserved name and a tip written in metres are refused with the key named.
+    #[test]
+    fn tools_table_parses_round_trips_and_names_errors() {
+        let text = FLOOR_WALL_TOML.to_string()
+            + "\n[robot1.tools]\nreflector = [41.79, -16.69, 245.0]\nprobe = [0, 0, 80]\n";
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+        let cell = Cell::from_toml_str(&text, &dir).unwrap();
+        let r = &cell.robot1;
+        assert_eq!(r.tool_names(), ["tip", "probe", "reflector"]);
+        assert_eq!(r.tool_index("reflector"), Some(2));
+        assert_eq!(r.tool_index("tip"), Some(0));
+        assert_eq!(r.tool_index("laser"), None);
+        let reflector = r.flange_from_tool(2).unwrap();
+        assert!((reflector - Vector3::new(0.04179, -0.01669, 0.245)).amax() < ROUND_TRIP_TOL);
+        assert!(cell.robot2.tools.is_empty());
+        let back = Cell::from_toml_str(&cell.to_toml_string(), &dir).unwrap();
+        assert_eq!(back.robot1.tools, cell.robot1.tools);
+        for (bad, want) in [
+            ("tip = [0, 0, 10]", "robot1.tools.tip"),
+            ("reflector = [0, 0, 0.245]", "robot1.tools.reflector"),
+        ] {
+            let text = FLOOR_WALL_TOML.to_string() + "\n[robot1.tools]\n" + bad + "\n";
+            let e = Cell::from_toml_str(&text, &dir).unwrap_err().to_string();
+            assert!(e.contains(want), "{e}");
         }
     }
 

@@ -11,6 +11,7 @@ pub mod placement;
 pub mod plan;
 pub mod plot;
 pub mod session;
+pub mod session_kinds;
 pub mod sweep;
 pub mod whole_cell;
 
@@ -18,7 +19,14 @@ pub use cell::{Cell, CellRobot, Noise};
 pub use error::SimError;
 pub use export::{export_calibrated_cell, ExportNames, CALIBRATE_EXPORT_NAMES};
 pub use layout::{teach_points, Layout};
-pub use session::{generate_session, Session, SessionPoint, SessionSpec};
+pub use session::{
+    generate_session, Session, SessionKind, SessionObservation, SessionPoint, SessionRow,
+    SessionSpec,
+};
+pub use session_kinds::{
+    generate_kind_session, read_points_b1_csv, teach_from_plan, KindSpec, NuisanceTruth, SimKind,
+    Teach,
+};
 pub use sweep::{geometry_trial, GeometrySpec, TrialErrors};
 
 use rand::SeedableRng;

@@ -10,7 +10,10 @@ use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use sim_cell::layout::Layout;
 use sim_cell::sweep::{self, KinematicErrorDraw, Mode, SweepConfig, SweepLayout, SweepMethod};
-use sim_cell::{generate_session, trial_rng, Cell, SessionSpec, SimError};
+use sim_cell::{
+    generate_kind_session, read_points_b1_csv, teach_from_plan, trial_rng, Cell, KindSpec, Session,
+    SessionSpec, SimError, SimKind,
+};
 use std::io::{BufWriter, IsTerminal, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -138,6 +141,52 @@ struct SessionArgs {
     /// Output CSV (default: standard output).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Observation kind of the rows: coincident handclasps (the default, today's files), contacts
+    /// at a distance, tracker measurements, plane touches, or all of them in turn (mixed).
+    #[arg(long, value_enum, default_value = "coincident")]
+    kind: KindArg,
+    /// Teach points from a CSV with columns x_mm,y_mm,z_mm (robot 1's tip in base 1, mm, one per
+    /// row) instead of --n/--layout/--spread-mm.
+    #[arg(long, value_name = "FILE", conflicts_with = "plan")]
+    points_csv: Option<PathBuf>,
+    /// Teach poses from a plan (a session CSV of this cell, e.g. `handclasp plan --out plan.csv`):
+    /// its robot 1 tips are the teach points and its joint angles seed the robots' poses; the
+    /// reported joints and tips are regenerated with the cell's errors and noise.
+    #[arg(long, value_name = "PLAN.csv")]
+    plan: Option<PathBuf>,
+    /// Contact kind: true distance between the two tips, mm.
+    #[arg(long, default_value_t = 100.0)]
+    contact_distance_mm: f64,
+    /// Contact kind: σ of the distance, mm.
+    #[arg(long, default_value_t = 0.2)]
+    contact_sigma_mm: f64,
+    /// Contact kind: write the distance into the rows (known) instead of leaving `distance_mm`
+    /// empty (fitted per group).
+    #[arg(long)]
+    contact_known: bool,
+    /// Tracker kind: σ per axis of a tracker measurement, mm.
+    #[arg(long, default_value_t = 0.05)]
+    tracker_sigma_mm: f64,
+    /// Tracker kind: the tool the tracker sees (`tip` or a name of the cell's [robotN.tools]).
+    #[arg(long, default_value = "tip")]
+    tracker_tool: String,
+    /// Plane kind: σ of a touch (distance of the tip from the plane), mm.
+    #[arg(long, default_value_t = 0.1)]
+    plane_sigma_mm: f64,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum KindArg {
+    /// Coincident handclasps (the two tips meet).
+    Coincident,
+    /// The two tips a distance apart (--contact-distance-mm), fitted or known.
+    Contact,
+    /// One robot's tool measured by a tracker in an unknown frame (robots alternate).
+    Tracker,
+    /// One robot's tip touches an unknown plane (robots alternate).
+    Plane,
+    /// Coincident, contact, tracker (robot 1), plane (robot 1), tracker (robot 2), plane (robot 2), in turn.
+    Mixed,
 }
 
 #[derive(clap::Args)]
@@ -240,23 +289,69 @@ fn session(a: SessionArgs) -> Result<()> {
     if let Some(c) = &a.centre_mm {
         spec.centre_b1 = Some(nalgebra::Point3::new(c[0], c[1], c[2]) * 1e-3);
     }
-    let session =
-        generate_session(&cell, &spec, &mut trial_rng(a.seed, 0)).map_err(|e| match e {
-            // The library says what to change; the binary names the flags that change it.
-            SimError::Unreachable { .. } if spec.points_b1.is_none() => {
-                anyhow::anyhow!("{e} (the spread is --spread-mm, the centre --centre-mm)")
-            }
-            other => other.into(),
-        })?;
+    if let Some(p) = &a.points_csv {
+        spec.points_b1 = Some(read_points_b1_csv(p).context("--points-csv")?);
+    }
+    let plan = match &a.plan {
+        Some(p) => {
+            let plan = Session::read_csv(p, &cell).context("--plan")?;
+            Some(teach_from_plan(&plan).with_context(|| format!("--plan {}", p.display()))?)
+        }
+        None => None,
+    };
+    let kinds = KindSpec {
+        kind: match a.kind {
+            KindArg::Coincident => SimKind::Coincident,
+            KindArg::Contact => SimKind::Contact,
+            KindArg::Tracker => SimKind::Tracker,
+            KindArg::Plane => SimKind::Plane,
+            KindArg::Mixed => SimKind::Mixed,
+        },
+        contact_distance_m: a.contact_distance_mm * 1e-3,
+        contact_sigma_m: a.contact_sigma_mm * 1e-3,
+        contact_known: a.contact_known,
+        tracker_sigma_m: a.tracker_sigma_mm * 1e-3,
+        tracker_tool: a.tracker_tool.clone(),
+        plane_sigma_m: a.plane_sigma_mm * 1e-3,
+        ..KindSpec::default()
+    };
+    let (session, truth) = generate_kind_session(
+        &cell,
+        &spec,
+        &kinds,
+        plan.as_deref(),
+        &mut trial_rng(a.seed, 0),
+    )
+    .map_err(|e| match e {
+        // The library says what to change; the binary names the flags that change it.
+        SimError::Unreachable { .. } if spec.points_b1.is_none() && plan.is_none() => {
+            anyhow::anyhow!("{e} (the spread is --spread-mm, the centre --centre-mm)")
+        }
+        other => other.into(),
+    })?;
+    if !matches!(a.kind, KindArg::Coincident) {
+        let [c, ct, tr, pl] = session.kind_counts();
+        let t = truth.tracker_from_b1.inverse().translation.vector * 1e3;
+        let (n, d) = truth.plane_b1;
+        eprintln!(
+            "rows: {c} coincident, {ct} contact, {tr} tracker, {pl} plane; truth: contact distance {:.3} mm, \
+             tracker origin in b1 ({:.1}, {:.1}, {:.1}) mm, plane normal (b1) ({:.4}, {:.4}, {:.4}) offset {:.3} mm",
+            truth.contact_distance_m * 1e3,
+            t.x,
+            t.y,
+            t.z,
+            n.x,
+            n.y,
+            n.z,
+            d * 1e3
+        );
+    }
     match &a.out {
         Some(p) => {
             session.write_csv(p, &cell)?;
-            eprintln!("wrote {} points to {}", session.points.len(), p.display());
+            eprintln!("wrote {} points to {}", session.len(), p.display());
         }
-        None => print!(
-            "{}",
-            session.to_csv_string(cell.robot1.model.dof(), cell.robot2.model.dof())
-        ),
+        None => print!("{}", session.csv_text(&cell)),
     }
     Ok(())
 }

@@ -286,9 +286,7 @@ pub fn plan_session(
         .collect();
     let problem = cell_problem(
         cell,
-        &Session {
-            points: candidates.clone(),
-        },
+        &Session::from_points(candidates.clone()),
         FitModel::Kinematic,
     );
     problem.check().map_err(plan_error)?;
@@ -344,7 +342,7 @@ pub fn plan_session(
         })
         .collect();
     Ok(Plan {
-        session: Session { points },
+        session: Session::from_points(points),
         chosen: design.chosen,
         candidates,
         attempts,
@@ -359,7 +357,7 @@ pub fn plan_session(
 /// estimates (tolerance > 0) and the tip offset from `U(±tolerance)` (the band of
 /// [`calib_core::whole_cell::Tolerance`]), seeded by `rng`. For studies of planned sessions.
 pub fn draw_errors_from_tolerance(truth: &mut Cell, rng: &mut impl Rng) {
-    let problem = cell_problem(truth, &Session { points: vec![] }, FitModel::Kinematic);
+    let problem = cell_problem(truth, &Session::from_points(vec![]), FitModel::Kinematic);
     for (r, wr) in [
         (&mut truth.robot1, &problem.robot1),
         (&mut truth.robot2, &problem.robot2),

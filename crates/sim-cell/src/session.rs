@@ -1,10 +1,16 @@
 //! Handclasp sessions: what the two controllers report at each teach point (joint angles and
-//! nominal-model tip positions), simulated on a [`Cell`] or read from / written to CSV.
+//! nominal-model tip positions), and rows of the other observation kinds (contact, tracker,
+//! plane), simulated on a [`Cell`] or read from / written to CSV.
 //!
 //! CSV: header `point,r1_q1_deg,…,r1_qN_deg,r2_q1_deg,…,r2_qM_deg,r1_x_mm,r1_y_mm,r1_z_mm,
 //! r2_x_mm,r2_y_mm,r2_z_mm` (N, M = the models' joint counts, URDF chain order), one row per point,
 //! degrees and millimetres with 6 decimals; tips in each robot's own base frame. It is valid input
 //! to `handclasp calibrate` (calib-core's reader ignores the joint columns).
+//!
+//! Mixed sessions add the columns [`EXTRA_COLUMNS`] (`kind`, `robot`, `group`, `tool1`, `tool2`,
+//! `tool`, `distance_mm`, `sigma_mm`, `tracker_x_mm`, `tracker_y_mm`, `tracker_z_mm`); a file
+//! without a `kind` column is all coincident handclasps, read exactly as before. Which kind uses
+//! which column is [`FIELD_KINDS`]; the crate README has the table and an example.
 
 use crate::cell::{Cell, CellRobot};
 use crate::error::SimError;
@@ -42,11 +48,137 @@ pub struct SessionPoint {
     pub p_b2: Point3<f64>,
 }
 
-/// A handclasp session.
+/// The observation kinds of the `kind` column, in the order documented.
+pub const KIND_NAMES: [&str; 4] = ["coincident", "contact", "tracker", "plane"];
+
+/// The columns of a mixed session after the standard ones ([`Session::csv_header`]), in the
+/// order they are written.
+pub const EXTRA_COLUMNS: [&str; 11] = [
+    "kind",
+    "robot",
+    "group",
+    "tool1",
+    "tool2",
+    "tool",
+    "distance_mm",
+    "sigma_mm",
+    "tracker_x_mm",
+    "tracker_y_mm",
+    "tracker_z_mm",
+];
+
+/// Which kinds use each optional column (any other kind must leave it empty).
+pub const FIELD_KINDS: [(&str, &[&str]); 10] = [
+    ("robot", &["tracker", "plane"]),
+    ("group", &["contact", "tracker", "plane"]),
+    ("tool1", &["coincident", "contact"]),
+    ("tool2", &["coincident", "contact"]),
+    ("tool", &["tracker", "plane"]),
+    ("distance_mm", &["contact"]),
+    ("sigma_mm", &["contact", "tracker", "plane"]),
+    ("tracker_x_mm", &["tracker"]),
+    ("tracker_y_mm", &["tracker"]),
+    ("tracker_z_mm", &["tracker"]),
+];
+
+/// A session row that is not a coincident handclasp at both robots' default tips. Tools are
+/// indices into the cell robot's tools ([`crate::CellRobot::tool_index`]: 0 = `tip_mm`).
 #[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum SessionKind {
+    /// A coincident handclasp with at least one non-default tool.
+    Coincident {
+        /// Robot 1's reported joints, rad.
+        q1: Vec<f64>,
+        /// Robot 2's reported joints, rad.
+        q2: Vec<f64>,
+        /// Robot 1's tool.
+        tool1: usize,
+        /// Robot 2's tool.
+        tool2: usize,
+        /// Robot 1's tool point by its nominal model, m, base 1.
+        p_b1: Point3<f64>,
+        /// Robot 2's tool point by its nominal model, m, base 2.
+        p_b2: Point3<f64>,
+    },
+    /// The two tool points are a distance apart (e.g. two spheres touching).
+    Contact {
+        /// Robot 1's reported joints, rad.
+        q1: Vec<f64>,
+        /// Robot 2's reported joints, rad.
+        q2: Vec<f64>,
+        /// Robot 1's tool.
+        tool1: usize,
+        /// Robot 2's tool.
+        tool2: usize,
+        /// Contact group: its rows share one distance.
+        group: String,
+        /// The distance, m; `None`: fitted (one unknown per group).
+        distance_m: Option<f64>,
+        /// σ of the distance, m.
+        sigma_m: f64,
+    },
+    /// One robot's tool point measured by an external device (a laser tracker) in the unknown
+    /// frame of its group.
+    Tracker {
+        /// The robot measured.
+        robot: Robot,
+        /// Its reported joints, rad.
+        q: Vec<f64>,
+        /// Its tool (e.g. the reflector).
+        tool: usize,
+        /// Tracker group: one unknown tracker frame per group.
+        group: String,
+        /// The measured position, m, tracker frame.
+        p_tracker: Point3<f64>,
+        /// σ per axis of the measured position, m.
+        sigma_m: f64,
+    },
+    /// One robot's tool point touches a plane of unknown position.
+    Plane {
+        /// The robot touching.
+        robot: Robot,
+        /// Its reported joints, rad.
+        q: Vec<f64>,
+        /// Its tool.
+        tool: usize,
+        /// Plane group: one unknown plane per group.
+        group: String,
+        /// σ of the point's distance from the plane, m.
+        sigma_m: f64,
+    },
+}
+
+impl SessionKind {
+    /// The `kind` column's value (one of [`KIND_NAMES`]).
+    pub fn name(&self) -> &'static str {
+        match self {
+            SessionKind::Coincident { .. } => "coincident",
+            SessionKind::Contact { .. } => "contact",
+            SessionKind::Tracker { .. } => "tracker",
+            SessionKind::Plane { .. } => "plane",
+        }
+    }
+}
+
+/// One row of another kind than a default-tool coincident handclasp.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SessionObservation {
+    /// Point number (the CSV `point` column).
+    pub point: usize,
+    /// What was observed.
+    pub kind: SessionKind,
+}
+
+/// A session: coincident handclasps at both robots' tips (`points`, what every reader of
+/// handclasp sessions uses) and rows of the other kinds (`observations`, used by the whole-cell
+/// calibration).
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Session {
-    /// The points, in teaching order.
+    /// The coincident handclasps at the default tips, in file order.
     pub points: Vec<SessionPoint>,
+    /// Every other row (other kinds, or other tools), in file order.
+    pub observations: Vec<SessionObservation>,
 }
 
 /// What to simulate.
@@ -78,7 +210,85 @@ impl SessionSpec {
     }
 }
 
+/// One row of a session, in file order ([`Session::rows`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SessionRow<'a> {
+    /// A coincident handclasp at the default tips.
+    Point(&'a SessionPoint),
+    /// A row of another kind.
+    Observation(&'a SessionObservation),
+}
+
+impl SessionRow<'_> {
+    /// The row's point number.
+    pub fn point(&self) -> usize {
+        match self {
+            SessionRow::Point(p) => p.point,
+            SessionRow::Observation(o) => o.point,
+        }
+    }
+}
+
 impl Session {
+    /// A session of coincident handclasps only.
+    pub fn from_points(points: Vec<SessionPoint>) -> Self {
+        Session {
+            points,
+            observations: Vec::new(),
+        }
+    }
+
+    /// True when every row is a coincident handclasp at the default tips (the session every
+    /// points-based tool, such as `diagnose`, reads in full).
+    pub fn is_handclasp_only(&self) -> bool {
+        self.observations.is_empty()
+    }
+
+    /// Number of rows of all kinds.
+    pub fn len(&self) -> usize {
+        self.points.len() + self.observations.len()
+    }
+
+    /// True when there is no row.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Every row, merged by point number (a stable merge of `points` and `observations`, so a
+    /// file whose point numbers increase is given back in file order).
+    pub fn rows(&self) -> Vec<SessionRow<'_>> {
+        let mut out = Vec::with_capacity(self.len());
+        let (mut i, mut j) = (0, 0);
+        while i < self.points.len() || j < self.observations.len() {
+            let take_point = match (self.points.get(i), self.observations.get(j)) {
+                (Some(p), Some(o)) => p.point <= o.point,
+                (Some(_), None) => true,
+                _ => false,
+            };
+            if take_point {
+                out.push(SessionRow::Point(&self.points[i]));
+                i += 1;
+            } else {
+                out.push(SessionRow::Observation(&self.observations[j]));
+                j += 1;
+            }
+        }
+        out
+    }
+
+    /// Count of rows per kind, in [`KIND_NAMES`] order.
+    pub fn kind_counts(&self) -> [usize; 4] {
+        let mut n = [self.points.len(), 0, 0, 0];
+        for o in &self.observations {
+            let k = KIND_NAMES
+                .iter()
+                .position(|k| *k == o.kind.name())
+                .unwrap_or(0);
+            n[k] += 1;
+        }
+        n
+    }
+
     /// The nominal tips `(p_b1, p_b2)`, m.
     pub fn tips(&self) -> (Vec<Point3<f64>>, Vec<Point3<f64>>) {
         (
@@ -114,20 +324,150 @@ impl Session {
         header
     }
 
-    /// The CSV text (see the module docs) for joint counts `dof1`, `dof2`.
+    /// The CSV text (see the module docs) for joint counts `dof1`, `dof2`: today's columns for a
+    /// handclasp-only session, plus [`EXTRA_COLUMNS`] when it has rows of other kinds. Without
+    /// the cell, a tool other than the tip is written by its index (`#1`, …), which
+    /// [`Session::parse_csv`] refuses: write such sessions with [`Session::csv_text`].
     pub fn to_csv_string(&self, dof1: usize, dof2: usize) -> String {
-        let mut out = csv::Writer::from_writer(Vec::new());
-        // Writing to memory cannot fail, and every field is plain ASCII.
-        let _ = out.write_record(Session::csv_header(dof1, dof2));
-        for p in &self.points {
-            let mut record = vec![p.point.to_string()];
-            for q in p.q1.iter().chain(&p.q2) {
-                record.push(format!("{:.6}", q.to_degrees()));
+        self.write_text(dof1, dof2, &|_, k| {
+            if k == 0 {
+                crate::cell::TIP_TOOL.to_string()
+            } else {
+                format!("#{k}")
             }
-            for v in [&p.p_b1, &p.p_b2] {
-                for a in 0..3 {
-                    record.push(format!("{:.6}", v[a] * 1e3));
+        })
+    }
+
+    /// The CSV text for `cell` (tools by their names in the cell); see
+    /// [`Session::to_csv_string`].
+    pub fn csv_text(&self, cell: &Cell) -> String {
+        self.write_text(cell.robot1.model.dof(), cell.robot2.model.dof(), &|r, k| {
+            cell.robot(r)
+                .tool_name(k)
+                .map_or_else(|| format!("#{k}"), str::to_string)
+        })
+    }
+
+    fn write_text(
+        &self,
+        dof1: usize,
+        dof2: usize,
+        tool_name: &dyn Fn(Robot, usize) -> String,
+    ) -> String {
+        let mixed = !self.is_handclasp_only();
+        let mut out = csv::Writer::from_writer(Vec::new());
+        let mut header = Session::csv_header(dof1, dof2);
+        if mixed {
+            header.extend(EXTRA_COLUMNS.map(String::from));
+        }
+        // Writing to memory cannot fail, and every field is plain ASCII.
+        let _ = out.write_record(&header);
+        let deg = |q: &[f64]| {
+            q.iter()
+                .map(|x| format!("{:.6}", x.to_degrees()))
+                .collect::<Vec<_>>()
+        };
+        let mm3 = |p: &Point3<f64>| {
+            (0..3)
+                .map(|a| format!("{:.6}", p[a] * 1e3))
+                .collect::<Vec<_>>()
+        };
+        let mm = |x: f64| format!("{:.6}", x * 1e3);
+        for row in self.rows() {
+            let mut record = vec![row.point().to_string()];
+            let mut extra = vec![String::new(); EXTRA_COLUMNS.len()];
+            let mut set = |name: &str, v: String| {
+                if let Some(k) = EXTRA_COLUMNS.iter().position(|c| *c == name) {
+                    extra[k] = v;
                 }
+            };
+            let (q1, q2, t1, t2): (Vec<String>, Vec<String>, Vec<String>, Vec<String>) = match row {
+                SessionRow::Point(p) => {
+                    set("kind", "coincident".into());
+                    (deg(&p.q1), deg(&p.q2), mm3(&p.p_b1), mm3(&p.p_b2))
+                }
+                SessionRow::Observation(o) => {
+                    set("kind", o.kind.name().into());
+                    let blank = |n: usize| vec![String::new(); n];
+                    match &o.kind {
+                        SessionKind::Coincident {
+                            q1,
+                            q2,
+                            tool1,
+                            tool2,
+                            p_b1,
+                            p_b2,
+                        } => {
+                            set("tool1", tool_name(Robot::One, *tool1));
+                            set("tool2", tool_name(Robot::Two, *tool2));
+                            (deg(q1), deg(q2), mm3(p_b1), mm3(p_b2))
+                        }
+                        SessionKind::Contact {
+                            q1,
+                            q2,
+                            tool1,
+                            tool2,
+                            group,
+                            distance_m,
+                            sigma_m,
+                        } => {
+                            set("tool1", tool_name(Robot::One, *tool1));
+                            set("tool2", tool_name(Robot::Two, *tool2));
+                            set("group", group.clone());
+                            set("distance_mm", distance_m.map(mm).unwrap_or_default());
+                            set("sigma_mm", mm(*sigma_m));
+                            (deg(q1), deg(q2), blank(3), blank(3))
+                        }
+                        SessionKind::Tracker {
+                            robot,
+                            q,
+                            tool,
+                            group,
+                            p_tracker,
+                            sigma_m,
+                        } => {
+                            set("robot", robot.number().to_string());
+                            set("tool", tool_name(*robot, *tool));
+                            set("group", group.clone());
+                            set("sigma_mm", mm(*sigma_m));
+                            for (a, c) in ["tracker_x_mm", "tracker_y_mm", "tracker_z_mm"]
+                                .iter()
+                                .enumerate()
+                            {
+                                set(c, mm(p_tracker[a]));
+                            }
+                            if *robot == Robot::One {
+                                (deg(q), blank(dof2), blank(3), blank(3))
+                            } else {
+                                (blank(dof1), deg(q), blank(3), blank(3))
+                            }
+                        }
+                        SessionKind::Plane {
+                            robot,
+                            q,
+                            tool,
+                            group,
+                            sigma_m,
+                        } => {
+                            set("robot", robot.number().to_string());
+                            set("tool", tool_name(*robot, *tool));
+                            set("group", group.clone());
+                            set("sigma_mm", mm(*sigma_m));
+                            if *robot == Robot::One {
+                                (deg(q), blank(dof2), blank(3), blank(3))
+                            } else {
+                                (blank(dof1), deg(q), blank(3), blank(3))
+                            }
+                        }
+                    }
+                }
+            };
+            record.extend(q1);
+            record.extend(q2);
+            record.extend(t1);
+            record.extend(t2);
+            if mixed {
+                record.extend(extra);
             }
             let _ = out.write_record(&record);
         }
@@ -135,13 +475,9 @@ impl Session {
         String::from_utf8(bytes).unwrap_or_default()
     }
 
-    /// Writes the session CSV for `cell`'s robots.
+    /// Writes the session CSV for `cell`'s robots ([`Session::csv_text`]).
     pub fn write_csv(&self, path: &Path, cell: &Cell) -> Result<(), SimError> {
-        std::fs::write(
-            path,
-            self.to_csv_string(cell.robot1.model.dof(), cell.robot2.model.dof()),
-        )
-        .map_err(|e| SimError::io(path, e))
+        std::fs::write(path, self.csv_text(cell)).map_err(|e| SimError::io(path, e))
     }
 
     /// Reads a session CSV for `cell` (see [`Session::parse_csv`]).
@@ -154,10 +490,16 @@ impl Session {
     /// ([`calib_core::parse_points_csv`]): a UTF-8 BOM and CRLF line ends are accepted, fields may be
     /// quoted and separated by commas, semicolons or tabs (detected from the header line,
     /// [`calib_core::csv_delimiter`]), columns are found by header name in any order and extra columns are ignored, blank
-    /// lines are skipped. Every column of `cell`'s joint counts must be present and every value
-    /// finite; each row's tip columns must match FK of its joint columns with the cell's nominal
-    /// models and tip offsets within [`TIP_CONSISTENCY_MM`] (catches a wrong cell, tip or unit).
-    /// Errors name the line and column and say what would work.
+    /// lines are skipped. Every joint column of `cell`'s joint counts must be in the header.
+    ///
+    /// Without a `kind` column every row is a coincident handclasp: every value finite, and each
+    /// row's tip columns must match FK of its joint columns with the cell's nominal models and tip
+    /// offsets within [`TIP_CONSISTENCY_MM`] (catches a wrong cell, tip or unit). With a `kind`
+    /// column each row is one of [`KIND_NAMES`] (empty = `coincident`) and carries the fields of
+    /// [`SessionKind`] (the crate README's table): fields a kind does not use must be empty,
+    /// tip columns are required on coincident rows and FK-checked wherever given, tools are named
+    /// from the cell (`tip` or `[robotN.tools]`), and the rows of one contact group agree on
+    /// `distance_mm`. Errors name the line and column and say what would work.
     pub fn parse_csv(text: &str, path: &Path, cell: &Cell) -> Result<Session, SimError> {
         let err = |message: String| SimError::Session {
             path: path.to_path_buf(),
@@ -178,12 +520,23 @@ impl Session {
         if headers.iter().all(str::is_empty) {
             return Err(err("the file is empty; expected a header line".into()));
         }
-        let mut idx = Vec::with_capacity(want.len());
-        for name in &want {
-            let k = headers.iter().position(|h| h == name).ok_or_else(|| {
+        let col = |name: &str| headers.iter().position(|h| h == name);
+        let has_kind = col("kind").is_some();
+        // Without a `kind` column, today's rule: every column of `want` is required. With one,
+        // the tip columns are needed only by coincident rows (checked per row).
+        let required = if has_kind { 1 + d1 + d2 } else { want.len() };
+        let mut idx: Vec<Option<usize>> = Vec::with_capacity(want.len());
+        for (k, name) in want.iter().enumerate() {
+            let found = col(name);
+            if found.is_none() && k < required {
+                let known: Vec<&str> = want
+                    .iter()
+                    .map(String::as_str)
+                    .chain(EXTRA_COLUMNS)
+                    .collect();
                 let unused: Vec<String> = headers
                     .iter()
-                    .filter(|h| !want.iter().any(|w| w == h))
+                    .filter(|h| !known.contains(h))
                     .map(|h| format!("`{h}`"))
                     .collect();
                 let unused = if unused.is_empty() {
@@ -196,17 +549,20 @@ impl Session {
                 } else {
                     format!(" (columns not used: {})", unused.join(", "))
                 };
-                err(format!(
+                return Err(err(format!(
                     "line 1: the header has no column `{name}`{unused}, which this cell ({} with {d1} joints, {} with {d2}) needs; \
                      the header must hold these columns (any order, extra columns ignored): {}",
                     cell.robot1.model.name(),
                     cell.robot2.model.name(),
-                    want.join(","),
-                ))
-            })?;
-            idx.push(k);
+                    want[..required].join(","),
+                )));
+            }
+            idx.push(found);
         }
+        let extra: Vec<Option<usize>> = EXTRA_COLUMNS.iter().map(|c| col(c)).collect();
         let mut points = Vec::new();
+        let mut observations = Vec::new();
+        let mut contact_distance: Vec<(String, Option<f64>, u64)> = Vec::new();
         for record in reader.records() {
             let record = record.map_err(|e| {
                 let line = e.position().map_or(0, |p| p.line());
@@ -223,60 +579,440 @@ impl Session {
                     headers.len()
                 )));
             }
-            let cells: Vec<&str> = idx.iter().map(|&k| record.get(k).unwrap_or("")).collect();
-            let point: usize = cells[0].parse().map_err(|_| {
+            let row = RowReader {
+                record: &record,
+                line_no,
+                want: &want,
+                idx: &idx,
+                extra: &extra,
+                path,
+            };
+            let point: usize = row.cell(0).parse().map_err(|_| {
                 err(format!(
                     "line {line_no}, column `point`: `{}` is not a point number (1, 2, …)",
-                    cells[0]
+                    row.cell(0)
                 ))
             })?;
-            let mut v = Vec::with_capacity(cells.len() - 1);
-            for (k, c) in cells.iter().enumerate().skip(1) {
-                let x: f64 = c
-                    .parse()
-                    .ok()
-                    .filter(|x: &f64| x.is_finite())
-                    .ok_or_else(|| {
-                        err(format!(
-                            "line {line_no}, column `{}`: `{c}` is not a finite number",
-                            want[k]
-                        ))
-                    })?;
-                v.push(x);
+            if !has_kind {
+                let mut v = Vec::with_capacity(want.len() - 1);
+                for k in 1..want.len() {
+                    v.push(row.number(k)?);
+                }
+                let q1: Vec<f64> = v[..d1].iter().map(|x| x.to_radians()).collect();
+                let q2: Vec<f64> = v[d1..d1 + d2].iter().map(|x| x.to_radians()).collect();
+                let t = &v[d1 + d2..];
+                let p_b1 = Point3::new(t[0], t[1], t[2]) * 1e-3;
+                let p_b2 = Point3::new(t[3], t[4], t[5]) * 1e-3;
+                check_tip(cell, Robot::One, 0, &q1, &p_b1, line_no, path)?;
+                check_tip(cell, Robot::Two, 0, &q2, &p_b2, line_no, path)?;
+                points.push(SessionPoint {
+                    point,
+                    q1,
+                    q2,
+                    p_b1,
+                    p_b2,
+                });
+                continue;
             }
-            let q1: Vec<f64> = v[..d1].iter().map(|x| x.to_radians()).collect();
-            let q2: Vec<f64> = v[d1..d1 + d2].iter().map(|x| x.to_radians()).collect();
-            let t = &v[d1 + d2..];
-            let p_b1 = Point3::new(t[0], t[1], t[2]) * 1e-3;
-            let p_b2 = Point3::new(t[3], t[4], t[5]) * 1e-3;
-            for (r, robot, q, p) in [(1, &cell.robot1, &q1, &p_b1), (2, &cell.robot2, &q2, &p_b2)] {
-                let fk = base_from_tip(&robot.model, q, &robot.flange_from_tip)
-                    .map_err(|e| err(format!("line {line_no}: robot {r}'s joint columns: {e}")))?;
-                let d_mm = (fk.translation.vector - p.coords).norm() * 1e3;
-                if d_mm > TIP_CONSISTENCY_MM {
-                    return Err(err(format!(
-                        "line {line_no}: robot {r}'s tip columns are {d_mm:.3} mm from the nominal FK of its joint columns \
-                         (tip_mm = {:?}); check the cell (URDF, tip_mm) and that angles are in degrees and lengths in mm",
-                        (robot.flange_from_tip * 1e3).as_slice()
+            let kind_text = row
+                .extra("kind")
+                .unwrap_or("coincident")
+                .to_ascii_lowercase();
+            let Some(&kind) = KIND_NAMES.iter().find(|k| **k == kind_text) else {
+                return Err(err(format!(
+                    "line {line_no}, column `kind`: `{kind_text}` is not an observation kind; use one of {} (empty = coincident)",
+                    KIND_NAMES.join(", ")
+                )));
+            };
+            row.only_fields_of(kind)?;
+            let q1 = row.joints(cell, Robot::One)?;
+            let q2 = row.joints(cell, Robot::Two)?;
+            let tips = [row.tip(Robot::One, d1, d2)?, row.tip(Robot::Two, d1, d2)?];
+            let both = |q1: Option<Vec<f64>>, q2: Option<Vec<f64>>| match (q1, q2) {
+                (Some(a), Some(b)) => Ok((a, b)),
+                (None, _) => Err(row.missing(
+                    &format!("r1_q1_deg … r1_q{d1}_deg"),
+                    &format!("a {kind} row needs both robots' joint angles (degrees)"),
+                )),
+                (_, None) => Err(row.missing(
+                    &format!("r2_q1_deg … r2_q{d2}_deg"),
+                    &format!("a {kind} row needs both robots' joint angles (degrees)"),
+                )),
+            };
+            match kind {
+                "coincident" | "contact" => {
+                    let (q1, q2) = both(q1, q2)?;
+                    let tool1 = row.tool(cell, Robot::One, "tool1")?;
+                    let tool2 = row.tool(cell, Robot::Two, "tool2")?;
+                    for (r, q, tool, tip) in [
+                        (Robot::One, &q1, tool1, &tips[0]),
+                        (Robot::Two, &q2, tool2, &tips[1]),
+                    ] {
+                        if let Some(p) = tip {
+                            check_tip(cell, r, tool, q, p, line_no, path)?;
+                        }
+                    }
+                    if kind == "contact" {
+                        let group = row.required_text("group", "name the contact group (rows of one group share one distance), e.g. contact")?;
+                        let distance_m = row.optional_number("distance_mm")?.map(|d| d * 1e-3);
+                        if let Some(d) = distance_m {
+                            if d < 0.0 {
+                                return Err(err(format!("line {line_no}, column `distance_mm`: {} is negative; give the distance between the two tool points in mm (≥ 0), or leave it empty to fit it", d * 1e3)));
+                            }
+                        }
+                        match contact_distance.iter().find(|(g, _, _)| *g == group) {
+                            Some((_, d, first)) if *d != distance_m => {
+                                return Err(err(format!(
+                                    "line {line_no}, column `distance_mm`: contact group `{group}` has distance {} here but {} on line {first}; \
+                                     give every row of a group the same distance_mm (or leave all empty to fit it)",
+                                    fmt_opt_mm(distance_m),
+                                    fmt_opt_mm(*d)
+                                )));
+                            }
+                            Some(_) => {}
+                            None => contact_distance.push((group.clone(), distance_m, line_no)),
+                        }
+                        observations.push(SessionObservation {
+                            point,
+                            kind: SessionKind::Contact {
+                                q1,
+                                q2,
+                                tool1,
+                                tool2,
+                                group,
+                                distance_m,
+                                sigma_m: row.sigma()?,
+                            },
+                        });
+                    } else {
+                        let [Some(p_b1), Some(p_b2)] = tips else {
+                            let r = if tips[0].is_none() { 1 } else { 2 };
+                            return Err(row.missing(
+                                &format!("r{r}_x_mm, r{r}_y_mm, r{r}_z_mm"),
+                                "a coincident row needs both robots' reported tips (mm, each robot's base)",
+                            ));
+                        };
+                        if tool1 == 0 && tool2 == 0 {
+                            points.push(SessionPoint {
+                                point,
+                                q1,
+                                q2,
+                                p_b1,
+                                p_b2,
+                            });
+                        } else {
+                            observations.push(SessionObservation {
+                                point,
+                                kind: SessionKind::Coincident {
+                                    q1,
+                                    q2,
+                                    tool1,
+                                    tool2,
+                                    p_b1,
+                                    p_b2,
+                                },
+                            });
+                        }
+                    }
+                }
+                _ => {
+                    let robot = row.robot()?;
+                    let (q, other_given) = match robot {
+                        Robot::One => (q1, q2.is_some()),
+                        Robot::Two => (q2, q1.is_some()),
+                    };
+                    let other_robot = other(robot);
+                    if other_given {
+                        return Err(err(format!(
+                            "line {line_no}, columns `r{}_q*_deg`: joints given for {other_robot}, but this {kind} row is for {robot} (column `robot`); \
+                             leave the other robot's joint cells empty or set `robot` to {}",
+                            other_robot.number(),
+                            other_robot.number()
+                        )));
+                    }
+                    let slot = usize::from(other_robot.number() - 1);
+                    if tips[slot].is_some() {
+                        return Err(err(format!(
+                            "line {line_no}, columns `r{n}_x_mm, r{n}_y_mm, r{n}_z_mm`: a tip given for {other_robot}, but this {kind} row is for {robot}; leave them empty",
+                            n = other_robot.number()
+                        )));
+                    }
+                    let n = robot.number();
+                    let q = q.ok_or_else(|| {
+                        row.missing(
+                            &format!("r{n}_q1_deg …"),
+                            &format!("a {kind} row for {robot} needs its joint angles (degrees)"),
+                        )
+                    })?;
+                    let tool = row.tool(cell, robot, "tool")?;
+                    if let Some(p) = &tips[usize::from(n - 1)] {
+                        check_tip(cell, robot, tool, &q, p, line_no, path)?;
+                    }
+                    let what = if kind == "tracker" {
+                        "name the tracker frame (one unknown frame per group), e.g. the file it came from"
+                    } else {
+                        "name the plane (one unknown plane per group), e.g. table"
+                    };
+                    let group = row.required_text("group", what)?;
+                    let sigma_m = row.sigma()?;
+                    let kind = if kind == "tracker" {
+                        let mut p = [0.0; 3];
+                        for (a, c) in ["tracker_x_mm", "tracker_y_mm", "tracker_z_mm"]
+                            .iter()
+                            .enumerate()
+                        {
+                            p[a] = row.optional_number(c)?.ok_or_else(|| {
+                                row.missing(
+                                    c,
+                                    "a tracker row needs the measured position (mm, tracker frame)",
+                                )
+                            })? * 1e-3;
+                        }
+                        SessionKind::Tracker {
+                            robot,
+                            q,
+                            tool,
+                            group,
+                            p_tracker: Point3::from(p),
+                            sigma_m,
+                        }
+                    } else {
+                        SessionKind::Plane {
+                            robot,
+                            q,
+                            tool,
+                            group,
+                            sigma_m,
+                        }
+                    };
+                    observations.push(SessionObservation { point, kind });
+                }
+            }
+        }
+        Ok(Session {
+            points,
+            observations,
+        })
+    }
+}
+
+/// The robot that is not `r`.
+fn other(r: Robot) -> Robot {
+    match r {
+        Robot::One => Robot::Two,
+        Robot::Two => Robot::One,
+    }
+}
+
+fn fmt_opt_mm(d: Option<f64>) -> String {
+    d.map_or("empty (fitted)".into(), |d| format!("{} mm", d * 1e3))
+}
+
+/// Checks a tip column triple against nominal FK of the row's joints with tool `tool`.
+fn check_tip(
+    cell: &Cell,
+    r: Robot,
+    tool: usize,
+    q: &[f64],
+    p: &Point3<f64>,
+    line_no: u64,
+    path: &Path,
+) -> Result<(), SimError> {
+    let err = |message: String| SimError::Session {
+        path: path.to_path_buf(),
+        message,
+    };
+    let robot = cell.robot(r);
+    let flange_from_tool = robot
+        .flange_from_tool(tool)
+        .unwrap_or(robot.flange_from_tip);
+    let n = r.number();
+    let fk = base_from_tip(&robot.model, q, &flange_from_tool)
+        .map_err(|e| err(format!("line {line_no}: robot {n}'s joint columns: {e}")))?;
+    let d_mm = (fk.translation.vector - p.coords).norm() * 1e3;
+    if d_mm > TIP_CONSISTENCY_MM {
+        let what = if tool == 0 {
+            "tip_mm".to_string()
+        } else {
+            format!("tool `{}`", robot.tool_name(tool).unwrap_or("?"))
+        };
+        return Err(err(format!(
+            "line {line_no}: robot {n}'s tip columns are {d_mm:.3} mm from the nominal FK of its joint columns \
+             ({what} = {:?}); check the cell (URDF, tip_mm) and that angles are in degrees and lengths in mm",
+            (flange_from_tool * 1e3).as_slice()
+        )));
+    }
+    Ok(())
+}
+
+/// One data row of a session CSV being parsed.
+struct RowReader<'a> {
+    record: &'a csv::StringRecord,
+    line_no: u64,
+    want: &'a [String],
+    idx: &'a [Option<usize>],
+    extra: &'a [Option<usize>],
+    path: &'a Path,
+}
+
+impl RowReader<'_> {
+    fn err(&self, message: String) -> SimError {
+        SimError::Session {
+            path: self.path.to_path_buf(),
+            message: format!("line {}, {message}", self.line_no),
+        }
+    }
+
+    fn missing(&self, column: &str, why: &str) -> SimError {
+        self.err(format!("column `{column}` is empty: {why}"))
+    }
+
+    /// The value of standard column `k` ("" when the column is absent).
+    fn cell(&self, k: usize) -> &str {
+        self.idx[k].and_then(|i| self.record.get(i)).unwrap_or("")
+    }
+
+    /// Standard column `k` as a finite number.
+    fn number(&self, k: usize) -> Result<f64, SimError> {
+        let c = self.cell(k);
+        c.parse()
+            .ok()
+            .filter(|x: &f64| x.is_finite())
+            .ok_or_else(|| {
+                self.err(format!(
+                    "column `{}`: `{c}` is not a finite number",
+                    self.want[k]
+                ))
+            })
+    }
+
+    /// Extra column `name`, `None` when absent or empty.
+    fn extra(&self, name: &str) -> Option<&str> {
+        let k = EXTRA_COLUMNS.iter().position(|c| *c == name)?;
+        self.extra[k]
+            .and_then(|i| self.record.get(i))
+            .filter(|s| !s.is_empty())
+    }
+
+    fn optional_number(&self, name: &str) -> Result<Option<f64>, SimError> {
+        match self.extra(name) {
+            None => Ok(None),
+            Some(c) => c
+                .parse()
+                .ok()
+                .filter(|x: &f64| x.is_finite())
+                .map(Some)
+                .ok_or_else(|| self.err(format!("column `{name}`: `{c}` is not a finite number"))),
+        }
+    }
+
+    fn required_text(&self, name: &str, why: &str) -> Result<String, SimError> {
+        self.extra(name)
+            .map(str::to_string)
+            .ok_or_else(|| self.missing(name, why))
+    }
+
+    fn sigma(&self) -> Result<f64, SimError> {
+        let s = self.optional_number("sigma_mm")?.ok_or_else(|| {
+            self.missing(
+                "sigma_mm",
+                "give the measurement's standard deviation in mm (a contact's distance, a plane's normal offset, a tracker's per-axis σ)",
+            )
+        })?;
+        if s > 0.0 {
+            Ok(s * 1e-3)
+        } else {
+            Err(self.err(format!("column `sigma_mm`: {s} must be > 0 (mm), e.g. 0.1")))
+        }
+    }
+
+    fn robot(&self) -> Result<Robot, SimError> {
+        match self.extra("robot") {
+            Some("1") => Ok(Robot::One),
+            Some("2") => Ok(Robot::Two),
+            Some(c) => Err(self.err(format!(
+                "column `robot`: `{c}` is not a robot; write 1 or 2 (the robot whose tool is measured)"
+            ))),
+            None => Err(self.missing("robot", "write 1 or 2 (the robot whose tool is measured)")),
+        }
+    }
+
+    /// The joint angles of robot `r` (rad): `None` if all its joint cells are empty.
+    fn joints(&self, cell: &Cell, r: Robot) -> Result<Option<Vec<f64>>, SimError> {
+        let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
+        let range = match r {
+            Robot::One => 1..1 + d1,
+            Robot::Two => 1 + d1..1 + d1 + d2,
+        };
+        if range.clone().all(|k| self.cell(k).is_empty()) {
+            return Ok(None);
+        }
+        let mut q = Vec::with_capacity(range.len());
+        for k in range {
+            if self.cell(k).is_empty() {
+                return Err(self.missing(
+                    &self.want[k],
+                    &format!("give all of {r}'s joint angles (degrees) or none"),
+                ));
+            }
+            q.push(self.number(k)?.to_radians());
+        }
+        Ok(Some(q))
+    }
+
+    /// The reported tip of robot `r` (m): `None` if its three tip cells are empty.
+    fn tip(&self, r: Robot, d1: usize, d2: usize) -> Result<Option<Point3<f64>>, SimError> {
+        let k0 = 1 + d1 + d2 + 3 * usize::from(r.number() - 1);
+        if (k0..k0 + 3).all(|k| self.cell(k).is_empty()) {
+            return Ok(None);
+        }
+        let mut p = [0.0; 3];
+        for (a, k) in (k0..k0 + 3).enumerate() {
+            if self.cell(k).is_empty() {
+                return Err(
+                    self.missing(&self.want[k], "give all three tip coordinates (mm) or none")
+                );
+            }
+            p[a] = self.number(k)? * 1e-3;
+        }
+        Ok(Some(Point3::from(p)))
+    }
+
+    /// The tool named in column `name` (index into the cell robot's tools; empty = `tip`).
+    fn tool(&self, cell: &Cell, r: Robot, name: &str) -> Result<usize, SimError> {
+        let Some(t) = self.extra(name) else {
+            return Ok(0);
+        };
+        let robot = cell.robot(r);
+        robot.tool_index(t).ok_or_else(|| {
+            self.err(format!(
+                "column `{name}`: {r} has no tool `{t}`; its tools are {} (add `{t} = [x, y, z]` in mm to [robot{}.tools] of the cell)",
+                robot.tool_names().join(", "),
+                r.number()
+            ))
+        })
+    }
+
+    /// Fails when a column the row's kind does not use holds a value.
+    fn only_fields_of(&self, kind: &str) -> Result<(), SimError> {
+        for (name, kinds) in FIELD_KINDS {
+            if !kinds.contains(&kind) {
+                if let Some(v) = self.extra(name) {
+                    return Err(self.err(format!(
+                        "column `{name}` = `{v}`: a {kind} row does not use it (it belongs to {} rows); leave it empty",
+                        kinds.join("/")
                     )));
                 }
             }
-            points.push(SessionPoint {
-                point,
-                q1,
-                q2,
-                p_b1,
-                p_b2,
-            });
         }
-        Ok(Session { points })
+        Ok(())
     }
 }
 
 /// Head-on approach directions (b1, unit) to try for a point, best first: along the line between
 /// the shoulders, from robot 1's shoulder to the point, then those turned ±30°/±60° about the
 /// vertical and tilted ±30°.
-fn approach_directions(cell: &Cell, p: &Point3<f64>) -> Vec<Unit<Vector3<f64>>> {
+pub(crate) fn approach_directions(cell: &Cell, p: &Point3<f64>) -> Vec<Unit<Vector3<f64>>> {
     let s1 = cell
         .robot1
         .model
@@ -321,42 +1057,56 @@ fn solve_true(
     target: &Point3<f64>,
     axis: Option<Unit<Vector3<f64>>>,
 ) -> Option<Vec<f64>> {
+    solve_true_tool(robot, 0, target, axis, None)
+}
+
+/// The true errors that move tool `tool`: the cell's `[robotN.errors]`, with the tip error for
+/// tool 0 only (the extra tools are exact, as in [`crate::whole_cell::truth_estimate`]).
+pub(crate) fn tool_errors(robot: &CellRobot, tool: usize) -> kinematics::KinematicErrors {
+    let mut errors = robot.errors.clone();
+    if tool != 0 {
+        errors.tip = Vector3::zeros();
+    }
+    errors
+}
+
+/// [`solve_true`] for tool `tool` of `robot` ([`CellRobot::flange_from_tool`]), the IK seeded
+/// with `seed` when given (rad).
+pub(crate) fn solve_true_tool(
+    robot: &CellRobot,
+    tool: usize,
+    target: &Point3<f64>,
+    axis: Option<Unit<Vector3<f64>>>,
+    seed: Option<&[f64]>,
+) -> Option<Vec<f64>> {
+    let flange_from_tool = robot.flange_from_tool(tool)?;
     let opts = IkOptions {
         tool_axis_base: axis,
+        initial_q: seed.map(<[f64]>::to_vec),
         tolerance_m: 1e-9,
         axis_tolerance_rad: 1e-7,
         restarts: 8,
         ..IkOptions::default()
     };
-    let sol = ik_tip_position(&robot.model, target, &robot.flange_from_tip, &opts).ok()?;
+    let sol = ik_tip_position(&robot.model, target, &flange_from_tool, &opts).ok()?;
     if !sol.reachable() {
         return None;
     }
     let mut q = sol.q;
-    if robot.errors.is_zero() {
+    let errors = tool_errors(robot, tool);
+    if errors.is_zero() {
         return Some(q);
     }
     for _ in 0..TRUE_NEWTON_ITER {
-        let tip = true_base_from_tip(
-            &robot.model,
-            &robot.errors,
-            &q,
-            &robot.flange_from_tip,
-            &robot.g_base,
-        )
-        .ok()?;
+        let tip =
+            true_base_from_tip(&robot.model, &errors, &q, &flange_from_tool, &robot.g_base).ok()?;
         let e = target.coords - tip.translation.vector;
         if e.norm() < TRUE_TIP_TOL_M {
             return Some(q);
         }
-        let j = tip_joint_jacobian_true(
-            &robot.model,
-            &robot.errors,
-            &q,
-            &robot.flange_from_tip,
-            &robot.g_base,
-        )
-        .ok()?;
+        let j =
+            tip_joint_jacobian_true(&robot.model, &errors, &q, &flange_from_tool, &robot.g_base)
+                .ok()?;
         let jjt: Matrix3<f64> = &j * j.transpose();
         let y = jjt.try_inverse()? * e;
         let dq = j.transpose() * y;
@@ -367,7 +1117,7 @@ fn solve_true(
     None
 }
 
-fn quantise(robot: &CellRobot, q: &mut [f64], resolution: f64) {
+pub(crate) fn quantise(robot: &CellRobot, q: &mut [f64], resolution: f64) {
     if resolution > 0.0 {
         for (qi, jt) in q.iter_mut().zip(robot.model.joints()) {
             let mut v = (*qi / resolution).round() * resolution;
@@ -382,7 +1132,7 @@ fn quantise(robot: &CellRobot, q: &mut [f64], resolution: f64) {
     }
 }
 
-fn gauss3(rng: &mut impl Rng, sigma: &Vector3<f64>) -> Vector3<f64> {
+pub(crate) fn gauss3(rng: &mut impl Rng, sigma: &Vector3<f64>) -> Vector3<f64> {
     Vector3::new(
         sigma.x * rng.sample::<f64, _>(StandardNormal),
         sigma.y * rng.sample::<f64, _>(StandardNormal),
@@ -391,7 +1141,7 @@ fn gauss3(rng: &mut impl Rng, sigma: &Vector3<f64>) -> Vector3<f64> {
 }
 
 /// Why one point failed: (the robot that failed, message).
-type PointFailure = (Robot, String);
+pub(crate) type PointFailure = (Robot, String);
 
 /// Simulates one teach point `p` (true meeting point, m, b1). Robot 1's true tip is at `p`,
 /// robot 2's at `p + ε` (alignment); the reported joints put the true tips there up to
@@ -470,7 +1220,7 @@ pub fn generate_session(
                 Err((robot, why)) => return Err(unreachable(cell, i + 1, p, robot, &why, None)),
             }
         }
-        return Ok(Session { points: out });
+        return Ok(Session::from_points(out));
     }
     if spec.n == 0 {
         return Err(SimError::InvalidInput(
@@ -490,13 +1240,13 @@ pub fn generate_session(
                 }
             }
         }
-        return Ok(Session { points: out });
+        return Ok(Session::from_points(out));
     }
     let (i, p, robot, why) = last_fail.unwrap_or((1, centre, Robot::One, String::new()));
     Err(unreachable(cell, i, &p, robot, &why, Some(spec)))
 }
 
-fn unreachable(
+pub(crate) fn unreachable(
     cell: &Cell,
     point: usize,
     p: &Point3<f64>,

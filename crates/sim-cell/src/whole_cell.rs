@@ -1,7 +1,9 @@
 //! The whole-cell calibration problem of a [`Cell`] and a measured [`Session`]
-//! ([`calib_core::whole_cell`]): the cell's two nominal robots with their tips as the only tools,
-//! gravity from the mounts, the noise of each handclasp from the cell's `[noise]`, the prior from
-//! `[robotN.tolerance]`, and one coincident observation per session row.
+//! ([`calib_core::whole_cell`]): the cell's two nominal robots with their tools (tool 0 = the
+//! tip, then `[robotN.tools]`), gravity from the mounts, the noise of each handclasp from the
+//! cell's `[noise]`, the prior from `[robotN.tolerance]`, and one observation per session row
+//! (coincident, contact, tracker or plane, with their own σ) with one nuisance group per named
+//! `group` of each kind.
 //!
 //! Noise of a handclasp (b1 axes): the operator's alignment error (σ per b1 axis,
 //! `noise.alignment_mm`) plus both robots' repeatability (`noise.repeatability_mm`, isotropic, so
@@ -15,8 +17,13 @@ use calib_core::whole_cell::{
 };
 use nalgebra::{Matrix3, Vector3};
 
+use calib_core::whole_cell::{ContactGroup, PlaneGroup, TrackerGroup};
+use calib_core::Robot;
+use kinematics::base_from_tip;
+
+pub use crate::cell::TIP_TOOL;
 use crate::cell::{Cell, CellRobot};
-use crate::session::Session;
+use crate::session::{Session, SessionKind, SessionRow};
 
 /// Which unknowns the whole-cell fit estimates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -29,16 +36,15 @@ pub enum FitModel {
     Kinematic,
 }
 
-/// Name of the one tool of each robot: the cell's tip (`robotN.tip_mm`).
-pub const TIP_TOOL: &str = "tip";
-
 fn robot(r: &CellRobot, model: FitModel) -> WholeCellRobot {
     WholeCellRobot {
         model: r.model.clone(),
-        tools: vec![Tool {
+        tools: std::iter::once(Tool {
             name: TIP_TOOL.into(),
             flange_from_tip: r.flange_from_tip,
-        }],
+        })
+        .chain(r.tools.iter().cloned())
+        .collect(),
         g_base: r.g_base,
         tolerance: match model {
             FitModel::Placement => Tolerance::none(),
@@ -60,11 +66,16 @@ pub fn handclasp_covariance(cell: &Cell) -> Matrix3<f64> {
     ))
 }
 
-/// The whole-cell problem of `cell` and `session`: one coincident observation per session row
-/// (row = the CSV's `point` label), tool 0 of each robot = the cell's tip. `model` selects the
-/// unknowns ([`FitModel`]). The session must have been read for this cell (its joint vectors have
-/// the cell's joint counts; [`Session::read_csv`] checks that); [`CellProblem::check`] reports
-/// anything else by row.
+/// The whole-cell problem of `cell` and `session`: one observation per session row in row
+/// order ([`Session::rows`]; row = the CSV's `point` label). Coincident handclasps carry the
+/// cell's handclasp noise ([`handclasp_covariance`]), the other kinds their row's `sigma_m`.
+/// Each distinct `group` name of a kind becomes one nuisance group, in order of first
+/// appearance: a tracker frame or plane anchored at its rows' robot's base (robot 1's when the
+/// group holds rows of both robots), a contact distance held at the rows' `distance_m` or, when
+/// empty, fitted from the mean nominal distance of its rows. Tool `k` of a robot is the cell
+/// robot's tool `k` (0 = `tip_mm`). `model` selects the unknowns ([`FitModel`]). The session
+/// must have been read for this cell ([`Session::read_csv`] checks joint counts and tool
+/// names); [`CellProblem::check`] reports anything else by row.
 pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProblem {
     let cov_m2 = handclasp_covariance(cell);
     let isotropic = cov_m2[(0, 0)] == cov_m2[(1, 1)] && cov_m2[(1, 1)] == cov_m2[(2, 2)];
@@ -75,59 +86,246 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
     } else {
         Noise3::Covariance { cov_m2 }
     };
+    let mut trackers: Vec<TrackerGroup> = Vec::new();
+    let mut planes: Vec<PlaneGroup> = Vec::new();
+    let mut contacts: Vec<ContactGroup> = Vec::new();
+    // Per contact group with a fitted distance: (sum of nominal distances, count), m.
+    let mut contact_sums: Vec<(f64, usize)> = Vec::new();
+    let anchored = |name: &str, robot: Robot, groups: &mut Vec<(String, Robot)>| match groups
+        .iter()
+        .position(|(n, _)| n == name)
+    {
+        Some(g) => {
+            if groups[g].1 != robot {
+                groups[g].1 = Robot::One;
+            }
+            g
+        }
+        None => {
+            groups.push((name.to_string(), robot));
+            groups.len() - 1
+        }
+    };
+    let mut tracker_anchor: Vec<(String, Robot)> = Vec::new();
+    let mut plane_anchor: Vec<(String, Robot)> = Vec::new();
+    let mut observations = Vec::with_capacity(session.len());
+    for row in session.rows() {
+        let kind = match row {
+            SessionRow::Point(p) => ObservationKind::Coincident {
+                q1: p.q1.clone(),
+                q2: p.q2.clone(),
+                tool1: 0,
+                tool2: 0,
+                noise,
+            },
+            SessionRow::Observation(o) => match &o.kind {
+                SessionKind::Coincident {
+                    q1,
+                    q2,
+                    tool1,
+                    tool2,
+                    ..
+                } => ObservationKind::Coincident {
+                    q1: q1.clone(),
+                    q2: q2.clone(),
+                    tool1: *tool1,
+                    tool2: *tool2,
+                    noise,
+                },
+                SessionKind::Contact {
+                    q1,
+                    q2,
+                    tool1,
+                    tool2,
+                    group,
+                    distance_m,
+                    sigma_m,
+                } => {
+                    let g = match contacts.iter().position(|c| &c.name == group) {
+                        Some(g) => g,
+                        None => {
+                            contacts.push(ContactGroup {
+                                name: group.clone(),
+                                distance_m: distance_m.unwrap_or(0.0),
+                                fit_distance: distance_m.is_none(),
+                            });
+                            contact_sums.push((0.0, 0));
+                            contacts.len() - 1
+                        }
+                    };
+                    if distance_m.is_none() {
+                        if let Some(d) = nominal_distance(cell, q1, q2, *tool1, *tool2) {
+                            contact_sums[g].0 += d;
+                            contact_sums[g].1 += 1;
+                        }
+                    }
+                    ObservationKind::Contact {
+                        q1: q1.clone(),
+                        q2: q2.clone(),
+                        tool1: *tool1,
+                        tool2: *tool2,
+                        group: g,
+                        sigma_m: *sigma_m,
+                    }
+                }
+                SessionKind::Tracker {
+                    robot,
+                    q,
+                    tool,
+                    group,
+                    p_tracker,
+                    sigma_m,
+                } => ObservationKind::Tracker {
+                    robot: *robot,
+                    q: q.clone(),
+                    tool: *tool,
+                    group: anchored(group, *robot, &mut tracker_anchor),
+                    p_tracker: *p_tracker,
+                    noise: Noise3::Isotropic { sigma_m: *sigma_m },
+                },
+                SessionKind::Plane {
+                    robot,
+                    q,
+                    tool,
+                    group,
+                    sigma_m,
+                } => ObservationKind::Plane {
+                    robot: *robot,
+                    q: q.clone(),
+                    tool: *tool,
+                    group: anchored(group, *robot, &mut plane_anchor),
+                    sigma_m: *sigma_m,
+                },
+            },
+        };
+        observations.push(Observation {
+            row: row.point(),
+            kind,
+        });
+    }
+    for (c, (sum, n)) in contacts.iter_mut().zip(contact_sums) {
+        if c.fit_distance && n > 0 {
+            c.distance_m = sum / n as f64;
+        }
+    }
+    trackers.extend(
+        tracker_anchor
+            .into_iter()
+            .map(|(name, anchor)| TrackerGroup {
+                name,
+                anchor,
+                initial_tracker_from_anchor: None,
+            }),
+    );
+    planes.extend(plane_anchor.into_iter().map(|(name, anchor)| PlaneGroup {
+        name,
+        anchor,
+        initial: None,
+    }));
     CellProblem {
         robot1: robot(&cell.robot1, model),
         robot2: robot(&cell.robot2, model),
-        observations: session
-            .points
-            .iter()
-            .map(|p| Observation {
-                row: p.point,
-                kind: ObservationKind::Coincident {
-                    q1: p.q1.clone(),
-                    q2: p.q2.clone(),
-                    tool1: 0,
-                    tool2: 0,
-                    noise,
-                },
-            })
-            .collect(),
-        trackers: Vec::new(),
-        planes: Vec::new(),
-        contacts: Vec::new(),
+        observations,
+        trackers,
+        planes,
+        contacts,
     }
 }
 
-/// Every configuration pair `(q1_i, q2_j)` of the session's rows (`n²` pairs, row-major in `i`):
-/// the session's own workspace, over which the calibration's cooperative accuracy is predicted.
+/// Distance between the two tools' nominal points at `(q1, q2)` with the cell's `b1_from_b2`, m.
+fn nominal_distance(
+    cell: &Cell,
+    q1: &[f64],
+    q2: &[f64],
+    tool1: usize,
+    tool2: usize,
+) -> Option<f64> {
+    let f1 = base_from_tip(
+        &cell.robot1.model,
+        q1,
+        &cell.robot1.flange_from_tool(tool1)?,
+    )
+    .ok()?;
+    let f2 = base_from_tip(
+        &cell.robot2.model,
+        q2,
+        &cell.robot2.flange_from_tool(tool2)?,
+    )
+    .ok()?;
+    let p2_b1 = cell.b1_from_b2 * nalgebra::Point3::from(f2.translation.vector);
+    Some((f1.translation.vector - p2_b1.coords).norm())
+}
+
+/// Most configuration pairs [`session_config_pairs`] returns (a 100-point session's 10 000 pairs
+/// are all kept).
+pub const MAX_CONFIG_PAIRS: usize = 10_000;
+
+/// Every configuration pair `(q1_i, q2_j)` of the session (`n1·n2` pairs, row-major in `i`): the
+/// session's own workspace, over which the calibration's cooperative accuracy is predicted.
+/// The `q1`s are robot 1's joints of every row that has them (coincident and contact rows, and
+/// robot 1's tracker and plane rows), the `q2`s robot 2's, in row order; tool 0 (the tips).
+/// For a handclasp-only session that is every `(q1_i, q2_j)` of its points. Above
+/// [`MAX_CONFIG_PAIRS`] pairs, each `q1_i` is paired with `⌊MAX_CONFIG_PAIRS / n1⌋` evenly spaced
+/// `q2`s shifted by `i`, so every `q1` and every `q2` still appears: deterministic, at most
+/// `max(MAX_CONFIG_PAIRS, n1)` pairs.
 pub fn session_config_pairs(session: &Session) -> Vec<ConfigPair> {
-    let mut pairs = Vec::with_capacity(session.points.len().pow(2));
-    for a in &session.points {
-        for b in &session.points {
-            pairs.push(ConfigPair {
-                q1: a.q1.clone(),
-                q2: b.q2.clone(),
-                tool1: 0,
-                tool2: 0,
-            });
+    let (mut q1s, mut q2s): (Vec<&Vec<f64>>, Vec<&Vec<f64>>) = (Vec::new(), Vec::new());
+    for row in session.rows() {
+        match row {
+            SessionRow::Point(p) => {
+                q1s.push(&p.q1);
+                q2s.push(&p.q2);
+            }
+            SessionRow::Observation(o) => match &o.kind {
+                SessionKind::Coincident { q1, q2, .. } | SessionKind::Contact { q1, q2, .. } => {
+                    q1s.push(q1);
+                    q2s.push(q2);
+                }
+                SessionKind::Tracker { robot, q, .. } | SessionKind::Plane { robot, q, .. } => {
+                    if *robot == Robot::One {
+                        q1s.push(q);
+                    } else {
+                        q2s.push(q);
+                    }
+                }
+            },
         }
     }
-    pairs
+    let (n1, n2) = (q1s.len(), q2s.len());
+    let pair = |i: usize, j: usize| ConfigPair {
+        q1: q1s[i].clone(),
+        q2: q2s[j].clone(),
+        tool1: 0,
+        tool2: 0,
+    };
+    if n1 * n2 <= MAX_CONFIG_PAIRS {
+        return (0..n1)
+            .flat_map(|i| (0..n2).map(move |j| (i, j)))
+            .map(|(i, j)| pair(i, j))
+            .collect();
+    }
+    // `per_row` evenly spaced q2s per q1, shifted by one per row, so that every q2 appears
+    // (the spacing n1·n2/MAX_CONFIG_PAIRS is at most n1 while n2 ≤ MAX_CONFIG_PAIRS).
+    let per_row = (MAX_CONFIG_PAIRS / n1).max(1);
+    (0..n1)
+        .flat_map(|i| (0..per_row).map(move |m| (i, (m * n2 / per_row + i) % n2)))
+        .map(|(i, j)| pair(i, j))
+        .collect()
 }
 
 /// The cell's truth as an estimate of `problem` (built by [`cell_problem`] from this cell): the
 /// cell's `b1_from_b2` and each robot's true kinematic errors (`[robotN.errors]`, the tip error
-/// as tool 0's), for [`calib_core::whole_cell::measure_cooperative_error`] in studies and tests.
+/// as tool 0's; the extra tools are exact), for
+/// [`calib_core::whole_cell::measure_cooperative_error`] in studies and tests.
 pub fn truth_estimate(cell: &Cell, problem: &CellProblem) -> CellEstimate {
     let mut est = CellEstimate::nominal(problem, cell.b1_from_b2);
     let correction = |r: &CellRobot| {
         let mut errors = r.errors.clone();
         let tip = errors.tip;
         errors.tip = Vector3::zeros();
-        RobotCorrection {
-            errors,
-            tool_tip_m: vec![tip],
-        }
+        let mut tool_tip_m = vec![Vector3::zeros(); 1 + r.tools.len()];
+        tool_tip_m[0] = tip;
+        RobotCorrection { errors, tool_tip_m }
     };
     est.robot1 = correction(&cell.robot1);
     est.robot2 = correction(&cell.robot2);
@@ -164,6 +362,29 @@ mod tests {
         // σ² = 0.3² + 2·0.03² mm² per axis for the shipped floor–floor cell.
         let c = handclasp_covariance(&cell);
         assert!((c[(0, 0)] - (0.3e-3f64.powi(2) + 2.0 * 0.03e-3f64.powi(2))).abs() < 1e-15);
+    }
+
+    /// Above MAX_CONFIG_PAIRS the pairs are thinned deterministically, keeping every q1 and q2.
+    #[test]
+    fn config_pairs_are_capped_and_cover_every_row() {
+        let points = (0..150)
+            .map(|i| crate::SessionPoint {
+                point: i + 1,
+                q1: vec![i as f64],
+                q2: vec![-(i as f64)],
+                p_b1: nalgebra::Point3::origin(),
+                p_b2: nalgebra::Point3::origin(),
+            })
+            .collect();
+        let s = Session::from_points(points);
+        let pairs = session_config_pairs(&s);
+        assert!(pairs.len() <= MAX_CONFIG_PAIRS && pairs.len() > MAX_CONFIG_PAIRS / 2);
+        for i in 0..150 {
+            assert!(pairs.iter().any(|p| p.q1[0] == i as f64));
+            assert!(pairs.iter().any(|p| p.q2[0] == -(i as f64)));
+        }
+        let small = Session::from_points(s.points[..100].to_vec());
+        assert_eq!(session_config_pairs(&small).len(), 10_000);
     }
 
     #[test]

@@ -138,15 +138,13 @@ pub fn robot_setup(
             .collect();
     let planned_b1 = if config.layout == SweepLayout::Planned {
         let n = config.n_points[grid_cell.n];
-        let candidates = Session {
-            points: reachable_handclasps(
-                &nominal,
-                spread_m,
-                PLAN_CANDIDATES,
-                "plan candidates",
-                rng,
-            )?,
-        };
+        let candidates = Session::from_points(reachable_handclasps(
+            &nominal,
+            spread_m,
+            PLAN_CANDIDATES,
+            "plan candidates",
+            rng,
+        )?);
         let mut noisy = nominal.clone();
         noisy.noise = cell.noise;
         noisy.noise.alignment_m = Vector3::repeat(config.noise_mm[grid_cell.noise] * 1e-3);

@@ -232,3 +232,74 @@ fn session_piped_into_head() {
     assert!(out.status.success(), "{:?}: {err}", out.status);
     assert!(!err.contains("panicked"), "{err}");
 }
+
+/// `sim-cell session --kind mixed` writes every kind; `--points-csv` and `--plan` take the teach
+/// points from a file (a plan's joints seed the poses: the regenerated session's joints stay
+/// within a degree of the plan's on a cell without errors), and errors name the file and line.
+#[test]
+fn session_kinds_points_csv_and_plan() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |args: &[&str]| {
+        let out = bin().arg("session").args(args).output().unwrap();
+        (
+            out.status.success(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let (ok, csv, err) = run(&[
+        "--kind",
+        "mixed",
+        "--n",
+        "12",
+        "--layout",
+        "random",
+        "--spread-mm",
+        "600",
+    ]);
+    assert!(ok, "{err}");
+    assert!(
+        err.contains("rows: 2 coincident, 2 contact, 4 tracker, 4 plane"),
+        "{err}"
+    );
+    assert!(csv.lines().next().unwrap().contains(",kind,robot,group,"));
+    assert_eq!(csv.lines().count(), 13);
+
+    let points = dir.path().join("points.csv");
+    std::fs::write(
+        &points,
+        "x_mm,y_mm,z_mm\n400,-100,900\n600,100,1000\n500,0,1100\n",
+    )
+    .unwrap();
+    let plan = dir.path().join("plan.csv");
+    let (ok, _, err) = run(&[
+        "--points-csv",
+        points.to_str().unwrap(),
+        "--noise-mm",
+        "0",
+        "--out",
+        plan.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    let plan_text = std::fs::read_to_string(&plan).unwrap();
+    assert_eq!(plan_text.lines().count(), 4);
+    let (ok, regenerated, err) = run(&["--plan", plan.to_str().unwrap(), "--seed", "5"]);
+    assert!(ok, "{err}");
+    assert!(!regenerated.contains("kind"));
+    for (a, b) in plan_text.lines().zip(regenerated.lines()).skip(1) {
+        let fa: Vec<f64> = a.split(',').map(|x| x.parse().unwrap()).collect();
+        let fb: Vec<f64> = b.split(',').map(|x| x.parse().unwrap()).collect();
+        // Joint columns 1..=13 (7 + 6 joints of the floor–wall cell): the planned pose.
+        for k in 1..=13 {
+            assert!(
+                (fa[k] - fb[k]).abs() < 1.0,
+                "column {k}: {} vs {}",
+                fa[k],
+                fb[k]
+            );
+        }
+    }
+    std::fs::write(&points, "x_mm,y_mm,z_mm\n400,-100,abc\n").unwrap();
+    let (ok, _, err) = run(&["--points-csv", points.to_str().unwrap()]);
+    assert!(!ok && err.contains("line 2, column `z_mm`"), "{err}");
+}

@@ -4,5 +4,6 @@
 //! tests stay in `tests/diagnose_hidden.rs`.
 
 mod cli;
+mod kinds;
 mod paper;
 mod session;
