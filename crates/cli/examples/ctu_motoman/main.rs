@@ -7,7 +7,8 @@
 //! ```
 //!
 //! Writes `DIR/{self,planes,all}/` (cell.toml, right_arm.urdf, left_arm.urdf, parameters.csv,
-//! cv.csv), `DIR/scores.csv`, `DIR/scores_per_file.svg`, `DIR/residual_vs_joint.svg`. Method and
+//! cv.csv; the cross-validated choice), `DIR/{self,planes,all}+c/` (the choice among the
+//! candidates with L/U gravity compliance, same files but cv.csv), `DIR/scores.csv`, `DIR/scores_per_file.svg`, `DIR/residual_vs_joint.svg`. Method and
 //! findings: docs/ctu-motoman-findings.md (section "Rust study").
 
 mod data;
@@ -414,7 +415,8 @@ fn export(
 
 /// The calibrations of one recording set: the rule's choice over every candidate (exported as
 /// `out/name/`), and its choices among the candidates without and with compliance (scored as
-/// `name` and `name+c`; the latter exported as `out/name+c/` to measure the export caveat).
+/// `name` and `name+c`; the latter exported as `out/name+c/` to measure the export caveat). The
+/// chosen model is one of the two, or else fitted and scored as `name*`.
 struct Calibrations {
     /// Rule over every candidate.
     chosen: Calibrated,
@@ -452,10 +454,11 @@ fn calibrate_all(
     let chosen = if choice.spec == without.spec {
         calibrate_clone(&without, name)
     } else if choice.spec == with.spec {
-        calibrate_clone(&with, name)
+        calibrate_clone(&with, &format!("{name}+c"))
     } else {
-        calibrate(cell, format!("{name} (chosen)"), recs, choice.spec, noise)?
+        calibrate(cell, format!("{name}*"), recs, choice.spec, noise)?
     };
+    println!("exporting {} as {name}/", chosen.name);
     export(cell, &chosen, name, recs, out, how)?;
     export(cell, &with, &format!("{name}+c"), recs, out, how)?;
     Ok(Calibrations {
@@ -643,7 +646,13 @@ fn run(args: Args) -> anyhow::Result<()> {
             .chain(
                 [&cal_self, &cal_planes, &cal_all]
                     .iter()
-                    .flat_map(|c| [&c.without, &c.with])
+                    .flat_map(|c| {
+                        // The chosen model is scored on its own only when it is neither.
+                        let distinct = c.chosen.name.ends_with('*');
+                        [&c.without, &c.with, &c.chosen]
+                            .into_iter()
+                            .take(if distinct { 3 } else { 2 })
+                    })
                     .map(|c| {
                         let (r, l) = corrections(&c.fit);
                         (c.name.clone(), r, l, !c.name.starts_with("all"))
@@ -679,11 +688,12 @@ fn run(args: Args) -> anyhow::Result<()> {
             summary: summarise(&errs),
         });
     }
-    print_scores(&rows, &trackers);
+    let names: Vec<&str> = models.iter().map(|m| m.0.as_str()).collect();
+    print_scores(&rows, &trackers, &names);
     write_scores(&args.out.join("scores.csv"), &rows)?;
     plot::per_file_svg(
         &args.out.join("scores_per_file.svg"),
-        &rows_for_plot(&rows, &trackers),
+        &rows_for_plot(&rows, &trackers, &names),
     )?;
     plot::residual_vs_joint_svg(
         &args.out.join("residual_vs_joint.svg"),
@@ -697,13 +707,11 @@ fn run(args: Args) -> anyhow::Result<()> {
         args.out.join("residual_vs_joint.svg").display()
     );
     print_effects(&cal_all.chosen);
-    for c in [&cal_self.chosen, &cal_planes.chosen] {
+    for (folder, c) in [("self", &cal_self.chosen), ("planes", &cal_planes.chosen)] {
         println!(
-            "{}: {} σ {} — see {}/parameters.csv",
-            c.name,
+            "{folder} (exported): {} σ {} — see {folder}/parameters.csv",
             c.spec.set.name(),
             c.spec.sigma,
-            c.name
         );
     }
     println!("done in {:.1} s", t0.elapsed().as_secs_f64());
@@ -736,13 +744,12 @@ fn print_effects(c: &Calibrated) {
     }
 }
 
-/// The scored models, in table order.
-const MODELS: [&str; 7] = [
-    "nominal", "self", "self+c", "planes", "planes+c", "all", "all+c",
-];
-
-fn rows_for_plot(rows: &[ScoreRow], trackers: &[&Recording]) -> Vec<(String, Vec<f64>)> {
-    MODELS
+fn rows_for_plot(
+    rows: &[ScoreRow],
+    trackers: &[&Recording],
+    models: &[&str],
+) -> Vec<(String, Vec<f64>)> {
+    models
         .iter()
         .chain(std::iter::once(&"file_geometry"))
         .map(|m| {
@@ -760,29 +767,31 @@ fn rows_for_plot(rows: &[ScoreRow], trackers: &[&Recording]) -> Vec<(String, Vec
         .collect()
 }
 
-fn print_scores(rows: &[ScoreRow], trackers: &[&Recording]) {
+/// Prints the held-out rms of `models` (in this order, nominal first) and the file-geometry
+/// column per tracker file, and the pooled rms.
+fn print_scores(rows: &[ScoreRow], trackers: &[&Recording], models: &[&str]) {
     println!(
         "held-out tracker rms, mm (registration + reflector fitted on one half, scored on the other, both ways; \
          +c = with L/U gravity compliance; median/p95/max in scores.csv):"
     );
     print!("  {:<26} {:>5} {:>4}", "file", "arm", "n");
-    for m in MODELS.iter().chain(std::iter::once(&"file geom")) {
+    for m in models.iter().chain(std::iter::once(&"file geom")) {
         print!(" {m:>9}");
     }
     println!();
-    let mut pooled = [(0.0f64, 0usize); 8];
+    let mut pooled = vec![(0.0f64, 0usize); models.len() + 1];
     for t in trackers {
         let get = |m: &str| rows.iter().find(|r| r.file == t.name && r.model == m);
         let Some(nom) = get("nominal") else { continue };
         print!("  {:<26} {:>5} {:>4}", t.name, nom.arm, nom.summary.n);
-        for (k, m) in MODELS
+        for (k, m) in models
             .iter()
             .chain(std::iter::once(&"file_geometry"))
             .enumerate()
         {
             if let Some(r) = get(m) {
                 let s = r.summary;
-                let flag = if k > 0 && k < MODELS.len() && s.rms_mm > nom.summary.rms_mm {
+                let flag = if k > 0 && k < models.len() && s.rms_mm > nom.summary.rms_mm {
                     "!"
                 } else {
                     " "

@@ -59,9 +59,10 @@ pub const SIGMA_GRID: [f64; 4] = [0.1, 0.3, 1.0, 3.0];
 /// overall scale only rescales the fitted compliance, but through this prior it also sets how
 /// tight the prior is; CV over `s` chooses the width.
 pub const COMPLIANCE_TORQUE_REF_NM: f64 = 50.0;
-/// Joints (chain index) whose compliance is fitted: L and U. S is vertical (no gravity torque);
-/// R, B and T carry no mass off their axes in the URDFs (the wrist mass sits on the R and B
-/// axes), so their torque is zero and they are held.
+/// Joints (chain index) whose compliance is fitted: L and U (the Python study's compliance
+/// group). R, B and T carry no mass off their axes in the URDFs (the wrist mass sits on the R and
+/// B axes), so their torque is zero; S (tilted 15° from the base z by DH row TT) does carry a
+/// torque, but its compliance is held at 0 like R, B and T.
 pub const COMPLIANT_JOINTS: [usize; 2] = [1, 2];
 
 /// Which kinematic parameters of both arms are fitted.
