@@ -8,8 +8,9 @@
 //!
 //! Writes `DIR/{self,planes,all}/` (cell.toml, right_arm.urdf, left_arm.urdf, parameters.csv,
 //! cv.csv; the cross-validated choice), `DIR/{self,planes,all}+c/` (the choice among the
-//! candidates with L/U gravity compliance, same files but cv.csv), `DIR/scores.csv`, `DIR/scores_per_file.svg`, `DIR/residual_vs_joint.svg`. Method and
-//! findings: docs/ctu-motoman-findings.md (section "Rust study").
+//! candidates with L/U gravity compliance, same files but cv.csv), `DIR/scores.csv`,
+//! `DIR/scores_per_file.svg`, `DIR/residual_vs_joint.svg`. Method and findings:
+//! docs/ctu-motoman-findings.md (section "Rust study").
 
 mod data;
 mod plot;
