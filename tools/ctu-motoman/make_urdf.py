@@ -53,7 +53,9 @@ EFFORT_NM = {"s": 500, "l": 500, "u": 250, "r": 40, "b": 40, "t": 20}
 # reflector mount, ~2 kg) -> WRIST_MASS_KG = 10 at the wrist centre.
 # Only the RATIO (3 : 1) shapes the model: the fitted compliance of each joint absorbs the overall
 # scale (a joint's compliance c_j multiplies tau_j, and every tau_j is linear in the masses), so the
-# masses twice as large would give compliances half as large and the same tips. The ratio sets how
+# masses twice as large would give compliances half as large and the same tips (with a prior on the
+# compliance, the scale also sets the prior's width in deflection; the study's CV over the prior
+# sigma covers that). The ratio sets how
 # the L joint's gravity deflection is shared between the elbow and wrist levers (the Python study
 # fitted both weights freely; the library has one compliance per joint).
 ELBOW_MASS_KG = 30.0
