@@ -9,6 +9,12 @@ the bracket is a constant transform, written as the <origin> of the NEXT joint w
 xyz = (a cos(offset), a sin(offset), d) and rpy = (alpha, 0, offset) (URDF: Rz(yaw)·Ry(pitch)·Rx(roll)).
 The end effectors are not links: they are tip offsets in tool0 (see docs/ctu-motoman-findings.md).
 
+Inertials: two POINT MASSES per arm, only for the gravity-compliance term of the kinematic error
+model (kinematics gravity.rs: tau_j = z_j . sum (c_k - o_j) x m_k g). They sit where the Python
+study's gravity levers put them (tools/ctu-motoman/study.py, gravity_levers): an elbow mass on the
+U axis (link_l, at the origin of joint U) and a wrist mass at the wrist centre (link_r, at the origin
+of joint B, on the R and B axes). See ELBOW_MASS_KG / WRIST_MASS_KG for the source and assumption.
+
 Run: python3 tools/ctu-motoman/make_urdf.py [--out-dir robots]   (pure Python; numpy for dh.py)
 """
 import argparse
@@ -38,6 +44,22 @@ LIMITS_DEG = {
 # for these arms.
 VELOCITY_DEG_S = {"s": 220, "l": 200, "u": 220, "r": 410, "b": 410, "t": 610}
 EFFORT_NM = {"s": 500, "l": 500, "u": 250, "r": 40, "b": 40, "t": 20}
+# Lumped point masses, kg: ESTIMATES, not published figures (no inertial data of the MA1400 was
+# found). Basis: the MA1400 class (Yaskawa MA1400: 3 kg payload, 1434 mm reach, manipulator mass
+# about 130 kg, most of it in the base, S casting and L drive below the L axis). Above L: the lower
+# arm (~15 kg, 0.614 m; as a weight about L worth ~7.5 kg at its far end) plus the elbow casting
+# with the U drive and the R/B/T drives behind it (~20-25 kg) -> ELBOW_MASS_KG = 30 at the U axis;
+# the forearm tube (half of ~8 kg), the wrist unit (~4 kg) and the end effector (marker or
+# reflector mount, ~2 kg) -> WRIST_MASS_KG = 10 at the wrist centre.
+# Only the RATIO (3 : 1) shapes the model: the fitted compliance of each joint absorbs the overall
+# scale (a joint's compliance c_j multiplies tau_j, and every tau_j is linear in the masses), so the
+# masses twice as large would give compliances half as large and the same tips (with a prior on the
+# compliance, the scale also sets the prior's width in deflection; the study's CV over the prior
+# sigma covers that). The ratio sets how
+# the L joint's gravity deflection is shared between the elbow and wrist levers (the Python study
+# fitted both weights freely; the library has one compliance per joint).
+ELBOW_MASS_KG = 30.0
+WRIST_MASS_KG = 10.0
 
 
 def f(x):
@@ -71,13 +93,34 @@ def urdf(side):
         f"     End effectors (tip offsets in tool0, mm): marker dodecahedron [{marker[0]:.3f}, {marker[1]:.3f}, {marker[2]:.3f}];",
         f"     Leica reflector [{refl[0]:.4f}, {refl[1]:.4f}, {refl[2]:.4f}] (from EE row a, d, offset).",
         "     Joint limits: conservative ranges containing every pose of the data (no published MA1400 source found);",
-        "     velocities/efforts: estimates. No inertials: no source found (links are massless). -->",
+        "     velocities/efforts: estimates. Inertials: two point masses for the gravity-compliance model only, ESTIMATES",
+        f"     from the MA1400 class (no published inertials): {ELBOW_MASS_KG:g} kg on the U axis (elbow, link_l) and",
+        f"     {WRIST_MASS_KG:g} kg at the wrist centre (link_r); only their ratio matters (fitted compliances absorb the",
+        "     scale). Source and assumption: tools/ctu-motoman/make_urdf.py. Other links massless. -->",
         f'<robot name="{name}">',
         '  <link name="base_link"/>',
         '  <link name="link_e"/>',
     ]
+    # Point masses at the joint origins of the NEXT rows: U axis (end of row L), wrist centre (end of row R).
+    point_masses = {
+        "l": (ELBOW_MASS_KG, origin_of_row(ARM_ROWS[JOINT_NAMES.index("l")])[0], "elbow: on the U axis"),
+        "r": (WRIST_MASS_KG, origin_of_row(ARM_ROWS[JOINT_NAMES.index("r")])[0], "wrist centre: on the R and B axes"),
+    }
     for j in JOINT_NAMES:
-        lines.append(f'  <link name="link_{j}"/>')
+        if j in point_masses:
+            m, xyz, what = point_masses[j]
+            lines += [
+                f'  <link name="link_{j}">',
+                f"    <!-- point mass, {what} (estimate; see the header) -->",
+                "    <inertial>",
+                '      <origin xyz="{} {} {}" rpy="0 0 0"/>'.format(*(f(v) for v in xyz)),
+                f'      <mass value="{f(m)}"/>',
+                '      <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/>',
+                "    </inertial>",
+                "  </link>",
+            ]
+        else:
+            lines.append(f'  <link name="link_{j}"/>')
     lines.append('  <link name="tool0"/>')
     xyz, rpy = origin_of_row(tt)
     lines += [

@@ -165,3 +165,36 @@ fn halves_are_disjoint_and_cover_every_row() {
     assert_eq!(all, (0..25).collect::<Vec<_>>());
     assert_eq!(study::halves(25, study::SPLIT_SEED), (a, b), "seeded");
 }
+
+/// Torque below which a joint counts as carrying no gravity torque, N·m (round-off of sums of
+/// ~10² N·m terms).
+const ZERO_TORQUE_NM: f64 = 1e-9;
+
+#[test]
+fn point_mass_inertials_load_only_l_and_u_gravity_torques() {
+    // Needs no data: the URDFs' point masses (30 kg on the U axis, 10 kg at the wrist centre)
+    // give no torque about R, B, T (the wrist mass sits on the R and B axes, T carries no mass).
+    // S is tilted 15° from the base z by DH row TT, so it does carry a torque (not fitted).
+    let cell = Cell::from_toml_file(&repo().join("cells/ctu-motoman.toml")).unwrap();
+    let g = nalgebra::Vector3::new(0.0, 0.0, -9.81);
+    for robot in [&cell.robot1, &cell.robot2] {
+        for q in [
+            [0.0, 0.0, 0.0, 0.0, std::f64::consts::FRAC_PI_2, 0.0],
+            [0.3, 0.5, -0.6, 1.0, 0.8, -2.0],
+            [-1.0, 1.1, 0.4, -2.2, 2.5, 3.0],
+        ] {
+            let tau = kinematics::gravity_torques(&robot.model, &q, &g).unwrap();
+            for j in [3, 4, 5] {
+                assert!(tau[j].abs() < ZERO_TORQUE_NM, "joint {j}: {} N·m", tau[j]);
+            }
+            // The U torque is the wrist weight times its horizontal lever (≤ 0.67 m: 0.64 m
+            // forearm, 0.2 m offset), and L's adds the elbow's (≤ 0.614 m).
+            let w = 10.0 * 9.81;
+            assert!(tau[2].abs() <= w * 0.67, "U {} N·m", tau[2]);
+            assert!(tau[1].abs() <= w * (0.614 + 0.67) + 30.0 * 9.81 * 0.614);
+        }
+        let tau = kinematics::gravity_torques(&robot.model, &[0.0, 0.5, -0.6, 0.0, 1.0, 0.0], &g)
+            .unwrap();
+        assert!(tau[1].abs() > 1.0 && tau[2].abs() > 1.0, "{tau:?}");
+    }
+}

@@ -7,8 +7,10 @@
 //! ```
 //!
 //! Writes `DIR/{self,planes,all}/` (cell.toml, right_arm.urdf, left_arm.urdf, parameters.csv,
-//! cv.csv), `DIR/scores.csv`, `DIR/scores_per_file.svg`, `DIR/residual_vs_joint.svg`. Method and
-//! findings: docs/ctu-motoman-findings.md (section "Rust study").
+//! cv.csv; the cross-validated choice), `DIR/{self,planes,all}+c/` (the choice among the
+//! candidates with L/U gravity compliance, same files but cv.csv), `DIR/scores.csv`,
+//! `DIR/scores_per_file.svg`, `DIR/residual_vs_joint.svg`. Method and findings:
+//! docs/ctu-motoman-findings.md (section "Rust study").
 
 mod data;
 mod plot;
@@ -21,13 +23,13 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 use calib_core::whole_cell::{CellFit, CellParam, CellProblem};
 use clap::Parser;
-use kinematics::KinematicErrors;
+use kinematics::{true_base_from_tip, ErrorParam, KinematicErrors};
 use sim_cell::{export_calibrated_cell, Cell, ExportNames};
 
 use data::{read_dataset, Recording, Role};
 use study::{
     build_problem, corrections, fit, held_out_nuisance_cost, noise_from_nominal, score_recording,
-    summarise, ModelSpec, NoiseLevels, ParamSet, ScoredPose, Summary, SIGMA_GRID,
+    summarise, ModelSpec, NoiseLevels, ParamSet, ScoredPose, Summary, COMPLIANT_JOINTS, SIGMA_GRID,
 };
 
 /// The CTU dual-arm Motoman study: three calibrations (self-contact; + planes; + tracker), each
@@ -74,13 +76,22 @@ fn repo_root() -> PathBuf {
 
 /// Scores held-out recordings at given (right, left) corrections: one squared error per
 /// held-out scalar row or tracker point.
-type HeldOutScore<'a> =
-    dyn Fn(&[&Recording], (&KinematicErrors, &KinematicErrors)) -> anyhow::Result<Vec<f64>> + 'a;
+type HeldOutScore<'a> = dyn Fn(&[&Recording], (&KinematicErrors, &KinematicErrors)) -> anyhow::Result<Vec<f64>>
+    + Sync
+    + 'a;
+
+/// Threads over which the CV candidates are spread (each candidate is independent and the table
+/// keeps the candidate order, so the result does not depend on this number).
+const CV_THREADS: usize = 2;
 
 /// One cross-validated choice.
 struct Choice {
-    /// The one-standard-error choice (exported).
+    /// The choice of the rule over every candidate (exported).
     spec: ModelSpec,
+    /// The rule's choice among the candidates without compliance.
+    without_compliance: ModelSpec,
+    /// The rule's choice among the candidates with compliance.
+    with_compliance: ModelSpec,
     /// The candidate with the smallest criterion.
     min_spec: ModelSpec,
     /// Standard error of the smallest criterion.
@@ -104,49 +115,84 @@ fn cross_validate(
     rule: CvRule,
     score: &HeldOutScore,
 ) -> anyhow::Result<Choice> {
-    let mut table = Vec::new();
-    for set in ParamSet::ALL {
-        for sigma in SIGMA_GRID {
-            let spec = ModelSpec { set, sigma };
-            let mut e2: Vec<f64> = Vec::new();
-            for fold in folds {
-                let train: Vec<&Recording> = recs
-                    .iter()
-                    .copied()
-                    .filter(|r| r.pattern != *fold)
-                    .collect();
-                let test: Vec<&Recording> = recs
-                    .iter()
-                    .copied()
-                    .filter(|r| r.pattern == *fold)
-                    .collect();
-                let b = build_problem(cell, &train, Some(spec), noise);
-                let f = fit(&b.problem, None, None)
-                    .with_context(|| format!("CV fold {fold}, {} σ {sigma}", set.name()))?;
-                let (r, l) = corrections(&f);
-                e2.extend(score(&test, (&r, &l))?);
-            }
-            let n = e2.len().max(1) as f64;
-            let mean = e2.iter().sum::<f64>() / n;
-            let var = e2.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
-            let c = mean.sqrt();
-            table.push((spec, c, var.sqrt() / (2.0 * c * n.sqrt())));
-        }
-    }
-    let &(min_spec, min_c, min_se) = table
+    let specs: Vec<ModelSpec> = ParamSet::ALL
         .iter()
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .context("no CV candidate")?;
-    // Table order is already simplest first: set, then σ ascending.
-    let spec = match rule {
-        CvRule::Min => min_spec,
-        CvRule::OneSe => table
-            .iter()
-            .find(|t| t.1 <= min_c + min_se)
-            .map_or(min_spec, |t| t.0),
+        .flat_map(|&set| SIGMA_GRID.map(|sigma| ModelSpec { set, sigma }))
+        .collect();
+    let evaluate = |spec: ModelSpec| -> anyhow::Result<(ModelSpec, f64, f64)> {
+        let mut e2: Vec<f64> = Vec::new();
+        for fold in folds {
+            let train: Vec<&Recording> = recs
+                .iter()
+                .copied()
+                .filter(|r| r.pattern != *fold)
+                .collect();
+            let test: Vec<&Recording> = recs
+                .iter()
+                .copied()
+                .filter(|r| r.pattern == *fold)
+                .collect();
+            let b = build_problem(cell, &train, Some(spec), noise);
+            let f = fit(&b.problem, None, None)
+                .with_context(|| format!("CV fold {fold}, {} σ {}", spec.set.name(), spec.sigma))?;
+            let (r, l) = corrections(&f);
+            e2.extend(score(&test, (&r, &l))?);
+        }
+        let n = e2.len().max(1) as f64;
+        let mean = e2.iter().sum::<f64>() / n;
+        let var = e2.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
+        let c = mean.sqrt();
+        Ok((spec, c, var.sqrt() / (2.0 * c * n.sqrt())))
     };
+    // Candidate k goes to thread k % CV_THREADS; the results are put back in candidate order.
+    let mut slots: Vec<Option<anyhow::Result<(ModelSpec, f64, f64)>>> =
+        (0..specs.len()).map(|_| None).collect();
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..CV_THREADS)
+            .map(|t| {
+                let (specs, evaluate) = (&specs, &evaluate);
+                scope.spawn(move || {
+                    (t..specs.len())
+                        .step_by(CV_THREADS)
+                        .map(|k| (k, evaluate(specs[k])))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        for h in handles {
+            for (k, r) in h.join().expect("a CV thread panicked") {
+                slots[k] = Some(r);
+            }
+        }
+    });
+    let table = slots
+        .into_iter()
+        .map(|s| s.context("a CV candidate was not evaluated")?)
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let pick = |with: Option<bool>| -> anyhow::Result<(ModelSpec, ModelSpec, f64)> {
+        let sub: Vec<&(ModelSpec, f64, f64)> = table
+            .iter()
+            .filter(|t| with.is_none_or(|w| t.0.set.compliance() == w))
+            .collect();
+        let &&(min_spec, min_c, min_se) = sub
+            .iter()
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .context("no CV candidate")?;
+        // Table order is already simplest first: set, then σ ascending.
+        let spec = match rule {
+            CvRule::Min => min_spec,
+            CvRule::OneSe => sub
+                .iter()
+                .find(|t| t.1 <= min_c + min_se)
+                .map_or(min_spec, |t| t.0),
+        };
+        Ok((spec, min_spec, min_se))
+    };
+    let (spec, min_spec, min_se) = pick(None)?;
     Ok(Choice {
         spec,
+        without_compliance: pick(Some(false))?.0,
+        with_compliance: pick(Some(true))?.0,
         min_spec,
         min_se,
         table,
@@ -175,6 +221,13 @@ fn print_cv(title: &str, unit: &str, c: &Choice) {
         c.min_se,
         c.spec.set.name(),
         c.spec.sigma
+    );
+    println!(
+        "  the rule within the sets without compliance: {} σ {}; within those with: {} σ {}",
+        c.without_compliance.set.name(),
+        c.without_compliance.sigma,
+        c.with_compliance.set.name(),
+        c.with_compliance.sigma
     );
 }
 
@@ -225,41 +278,28 @@ fn unit(p: &CellParam) -> (&'static str, f64) {
     }
 }
 
-/// A calibrated model: its folder name, fit, problem and corrections.
+/// A calibrated model: its name, fit, problem and parameter set.
 struct Calibrated {
-    name: &'static str,
+    name: String,
     problem: CellProblem,
     fit: CellFit,
     spec: ModelSpec,
 }
 
-fn calibrate_and_export(
+/// The MAP fit of `recs` with `spec`; `name` labels the score rows.
+fn calibrate(
     cell: &Cell,
-    name: &'static str,
+    name: String,
     recs: &[&Recording],
-    choice: &Choice,
+    spec: ModelSpec,
     noise: &NoiseLevels,
-    out: &Path,
-    how: &str,
 ) -> anyhow::Result<Calibrated> {
-    let b = build_problem(cell, recs, Some(choice.spec), noise);
+    let b = build_problem(cell, recs, Some(spec), noise);
     let f = fit(&b.problem, None, None).with_context(|| format!("calibrating {name}"))?;
-    let dir = out.join(name);
-    let header = format!(
-        "# Written by `cargo run --example ctu_motoman`: the CTU dual-arm Motoman cell calibrated from\n\
-         # {how}.\n# robot1 = right arm, robot2 = left arm; parameter set {} with prior σ {} mrad / mm \
-         (chosen by grouped CV).\n# Joint offsets and origins are in right_arm.urdf / left_arm.urdf.\n",
-        choice.spec.set.name(),
-        choice.spec.sigma
-    );
-    let written = export_calibrated_cell(cell, &f.estimate, &dir, &export_names(&header))
-        .with_context(|| format!("exporting {}", dir.display()))?;
-    write_parameters(&dir.join("parameters.csv"), &b.problem, &f)?;
-    for w in &written {
-        println!("wrote {}", w.display());
-    }
     println!(
-        "  fit: {} after {} iterations, {} rows, data χ² {:.1}; contact distance {}",
+        "{name} ({} σ {}): {} after {} iterations, {} rows, data χ² {:.1}; contact distance {}{}",
+        spec.set.name(),
+        spec.sigma,
         f.stopped.name(),
         f.iterations,
         f.residual_rows,
@@ -270,14 +310,172 @@ fn calibrate_and_export(
             .zip(&f.estimate.contact_distance_m)
             .map(|(g, d)| format!("{} {:.3} mm", g.name, d * 1e3))
             .collect::<Vec<_>>()
-            .join(", ")
+            .join(", "),
+        compliance_text(&f)
     );
     Ok(Calibrated {
         name,
         problem: b.problem,
         fit: f,
-        spec: choice.spec,
+        spec,
     })
+}
+
+/// The fitted compliances of L and U of both arms, as text (empty without compliance).
+fn compliance_text(f: &CellFit) -> String {
+    let mut out = String::new();
+    for (arm, e) in [
+        ("right", &f.estimate.robot1.errors),
+        ("left", &f.estimate.robot2.errors),
+    ] {
+        let c: Vec<String> = COMPLIANT_JOINTS
+            .iter()
+            .map(|&joint| format!("{:.2}", e.get(ErrorParam::Compliance { joint }) * 1e6))
+            .collect();
+        if c.iter().any(|v| v != "0.00") {
+            out += &format!("; {arm} compliance L, U {} µrad/(N·m)", c.join(", "));
+        }
+    }
+    out
+}
+
+/// Exports `c` as `out/folder/` (cell.toml, right_arm.urdf, left_arm.urdf, parameters.csv) and
+/// measures the export's departure from the fit at every pose of `recs` (marker tips of both
+/// arms): with compliance, the fit takes gravity torques from the NOMINAL geometry and the
+/// exported cell from the corrected URDF (`sim_cell::export_calibrated_cell`'s caveat).
+/// Returns (rms, max) of that departure, m.
+fn export(
+    cell: &Cell,
+    c: &Calibrated,
+    folder: &str,
+    recs: &[&Recording],
+    out: &Path,
+    how: &str,
+) -> anyhow::Result<(f64, f64)> {
+    let dir = out.join(folder);
+    let header = format!(
+        "# Written by `cargo run --example ctu_motoman`: the CTU dual-arm Motoman cell calibrated from\n\
+         # {how}.\n# robot1 = right arm, robot2 = left arm; parameter set {} with prior σ {} mrad / mm \
+         (chosen by grouped CV).\n# Joint offsets and origins are in right_arm.urdf / left_arm.urdf.\n",
+        c.spec.set.name(),
+        c.spec.sigma
+    );
+    let written = export_calibrated_cell(cell, &c.fit.estimate, &dir, &export_names(&header))
+        .with_context(|| format!("exporting {}", dir.display()))?;
+    write_parameters(&dir.join("parameters.csv"), &c.problem, &c.fit)?;
+    for w in &written {
+        println!("wrote {}", w.display());
+    }
+    let exported = Cell::from_toml_file(&dir.join("cell.toml"))?;
+    let (mut sum2, mut max, mut n) = (0.0f64, 0.0f64, 0usize);
+    for (setup, fitted, exp) in [
+        (
+            &cell.robot1,
+            &c.fit.estimate.robot1.errors,
+            &exported.robot1,
+        ),
+        (
+            &cell.robot2,
+            &c.fit.estimate.robot2.errors,
+            &exported.robot2,
+        ),
+    ] {
+        let right = std::ptr::eq(setup, &cell.robot1);
+        for rec in recs {
+            for pose in &rec.poses {
+                let q = if right { &pose.q_right } else { &pose.q_left };
+                let want = true_base_from_tip(
+                    &setup.model,
+                    fitted,
+                    q,
+                    &setup.flange_from_tip,
+                    &setup.g_base,
+                )?;
+                let got = true_base_from_tip(
+                    &exp.model,
+                    &exp.errors,
+                    q,
+                    &exp.flange_from_tip,
+                    &exp.g_base,
+                )?;
+                let d = (want.translation.vector - got.translation.vector).norm();
+                sum2 += d * d;
+                max = max.max(d);
+                n += 1;
+            }
+        }
+    }
+    let rms = (sum2 / n.max(1) as f64).sqrt();
+    println!(
+        "  exported cell vs the fit at the {n} marker tips of its recordings: rms {:.3} µm, max {:.3} µm",
+        rms * 1e6,
+        max * 1e6
+    );
+    Ok((rms, max))
+}
+
+/// The calibrations of one recording set: the rule's choice over every candidate (exported as
+/// `out/name/`), and its choices among the candidates without and with compliance (scored as
+/// `name` and `name+c`; the latter exported as `out/name+c/` to measure the export caveat). The
+/// chosen model is one of the two, or else fitted and scored as `name*`.
+struct Calibrations {
+    /// Rule over every candidate.
+    chosen: Calibrated,
+    /// Rule over the candidates without compliance (the study before compliance was a candidate).
+    without: Calibrated,
+    /// Rule over the candidates with compliance.
+    with: Calibrated,
+}
+
+/// Fits the three models of [`Calibrations`] (each spec once) and exports the chosen one to
+/// `out/name/` and the compliance one to `out/name+c/`.
+fn calibrate_all(
+    cell: &Cell,
+    name: &str,
+    recs: &[&Recording],
+    choice: &Choice,
+    noise: &NoiseLevels,
+    out: &Path,
+    how: &str,
+) -> anyhow::Result<Calibrations> {
+    let without = calibrate(
+        cell,
+        name.to_string(),
+        recs,
+        choice.without_compliance,
+        noise,
+    )?;
+    let with = calibrate(
+        cell,
+        format!("{name}+c"),
+        recs,
+        choice.with_compliance,
+        noise,
+    )?;
+    let chosen = if choice.spec == without.spec {
+        calibrate_clone(&without, name)
+    } else if choice.spec == with.spec {
+        calibrate_clone(&with, &format!("{name}+c"))
+    } else {
+        calibrate(cell, format!("{name}*"), recs, choice.spec, noise)?
+    };
+    println!("exporting {} as {name}/", chosen.name);
+    export(cell, &chosen, name, recs, out, how)?;
+    export(cell, &with, &format!("{name}+c"), recs, out, how)?;
+    Ok(Calibrations {
+        chosen,
+        without,
+        with,
+    })
+}
+
+fn calibrate_clone(c: &Calibrated, name: &str) -> Calibrated {
+    Calibrated {
+        name: name.to_string(),
+        problem: c.problem.clone(),
+        fit: c.fit.clone(),
+        spec: c.spec,
+    }
 }
 
 /// One row of the score table.
@@ -354,7 +552,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         "held-out rms",
         &self_choice,
     );
-    let cal_self = calibrate_and_export(
+    let cal_self = calibrate_all(
         &cell,
         "self",
         &self_recs,
@@ -363,6 +561,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         &args.out,
         "the no-tracker self-contact files only (no tracker value used)",
     )?;
+    println!("self done at {:.1} s", t0.elapsed().as_secs_f64());
     write_cv(
         &args.out.join("self/cv.csv"),
         &self_choice,
@@ -384,7 +583,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         "held-out rms",
         &plane_choice,
     );
-    let cal_planes = calibrate_and_export(
+    let cal_planes = calibrate_all(
         &cell,
         "planes",
         &plane_recs,
@@ -393,6 +592,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         &args.out,
         "the no-tracker self-contact and plane-contact files (no tracker value used)",
     )?;
+    println!("planes done at {:.1} s", t0.elapsed().as_secs_f64());
     write_cv(
         &args.out.join("planes/cv.csv"),
         &plane_choice,
@@ -424,7 +624,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         "held-out tracker rms",
         &all_choice,
     );
-    let cal_all = calibrate_and_export(
+    let cal_all = calibrate_all(
         &cell,
         "all",
         &all_recs,
@@ -433,20 +633,32 @@ fn run(args: Args) -> anyhow::Result<()> {
         &args.out,
         "every recording of the dataset, tracker files included",
     )?;
+    println!("all done at {:.1} s", t0.elapsed().as_secs_f64());
     write_cv(
         &args.out.join("all/cv.csv"),
         &all_choice,
         "heldout_tracker_rms_mm",
     )?;
 
-    // --- scores on every tracker file.
+    // --- scores on every tracker file: each calibration without and with compliance.
     let zero = KinematicErrors::zero(6);
-    let models: Vec<(&str, KinematicErrors, KinematicErrors, bool)> =
-        std::iter::once(("nominal", zero.clone(), zero.clone(), true))
-            .chain([&cal_self, &cal_planes, &cal_all].iter().map(|c| {
-                let (r, l) = corrections(&c.fit);
-                (c.name, r, l, c.name != "all")
-            }))
+    let models: Vec<(String, KinematicErrors, KinematicErrors, bool)> =
+        std::iter::once(("nominal".to_string(), zero.clone(), zero.clone(), true))
+            .chain(
+                [&cal_self, &cal_planes, &cal_all]
+                    .iter()
+                    .flat_map(|c| {
+                        // The chosen model is scored on its own only when it is neither.
+                        let distinct = c.chosen.name.ends_with('*');
+                        [&c.without, &c.with, &c.chosen]
+                            .into_iter()
+                            .take(if distinct { 3 } else { 2 })
+                    })
+                    .map(|c| {
+                        let (r, l) = corrections(&c.fit);
+                        (c.name.clone(), r, l, !c.name.starts_with("all"))
+                    }),
+            )
             .collect();
     let mut rows: Vec<ScoreRow> = Vec::new();
     let mut per_pose: Vec<(String, String, Vec<ScoredPose>)> = Vec::new();
@@ -459,7 +671,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             rows.push(ScoreRow {
                 file: rec.name.clone(),
                 arm,
-                model: name.to_string(),
+                model: name.clone(),
                 held_out: *held_out,
                 summary: summarise(&errs),
             });
@@ -477,11 +689,12 @@ fn run(args: Args) -> anyhow::Result<()> {
             summary: summarise(&errs),
         });
     }
-    print_scores(&rows, &trackers);
+    let names: Vec<&str> = models.iter().map(|m| m.0.as_str()).collect();
+    print_scores(&rows, &trackers, &names);
     write_scores(&args.out.join("scores.csv"), &rows)?;
     plot::per_file_svg(
         &args.out.join("scores_per_file.svg"),
-        &rows_for_plot(&rows, &trackers),
+        &rows_for_plot(&rows, &trackers, &names),
     )?;
     plot::residual_vs_joint_svg(
         &args.out.join("residual_vs_joint.svg"),
@@ -494,14 +707,12 @@ fn run(args: Args) -> anyhow::Result<()> {
         args.out.join("scores_per_file.svg").display(),
         args.out.join("residual_vs_joint.svg").display()
     );
-    print_effects(&cal_all);
-    for c in [&cal_self, &cal_planes] {
+    print_effects(&cal_all.chosen);
+    for (folder, c) in [("self", &cal_self.chosen), ("planes", &cal_planes.chosen)] {
         println!(
-            "{}: {} σ {} — see {}/parameters.csv",
-            c.name,
+            "{folder} (exported): {} σ {} — see {folder}/parameters.csv",
             c.spec.set.name(),
             c.spec.sigma,
-            c.name
         );
     }
     println!("done in {:.1} s", t0.elapsed().as_secs_f64());
@@ -534,10 +745,14 @@ fn print_effects(c: &Calibrated) {
     }
 }
 
-fn rows_for_plot(rows: &[ScoreRow], trackers: &[&Recording]) -> Vec<(String, Vec<f64>)> {
-    let models = ["nominal", "self", "planes", "all", "file_geometry"];
+fn rows_for_plot(
+    rows: &[ScoreRow],
+    trackers: &[&Recording],
+    models: &[&str],
+) -> Vec<(String, Vec<f64>)> {
     models
         .iter()
+        .chain(std::iter::once(&"file_geometry"))
         .map(|m| {
             let v = trackers
                 .iter()
@@ -553,38 +768,48 @@ fn rows_for_plot(rows: &[ScoreRow], trackers: &[&Recording]) -> Vec<(String, Vec
         .collect()
 }
 
-fn print_scores(rows: &[ScoreRow], trackers: &[&Recording]) {
+/// Prints the held-out rms of `models` (in this order, nominal first) and the file-geometry
+/// column per tracker file, and the pooled rms.
+fn print_scores(rows: &[ScoreRow], trackers: &[&Recording], models: &[&str]) {
     println!(
-        "held-out tracker error (registration + reflector fitted on one half, scored on the other, both ways), rms / median / p95 / max mm:"
+        "held-out tracker rms, mm (registration + reflector fitted on one half, scored on the other, both ways; \
+         +c = with L/U gravity compliance; median/p95/max in scores.csv):"
     );
-    println!(
-        "  {:<26} {:>5} {:>4} | {:^23} | {:^23} | {:^23} | {:^23} | {:^9}",
-        "file", "arm", "n", "nominal", "self", "planes", "all (in-sample)", "file geom"
-    );
+    print!("  {:<26} {:>5} {:>4}", "file", "arm", "n");
+    for m in models.iter().chain(std::iter::once(&"file geom")) {
+        print!(" {m:>9}");
+    }
+    println!();
+    let mut pooled = vec![(0.0f64, 0usize); models.len() + 1];
     for t in trackers {
         let get = |m: &str| rows.iter().find(|r| r.file == t.name && r.model == m);
         let Some(nom) = get("nominal") else { continue };
         print!("  {:<26} {:>5} {:>4}", t.name, nom.arm, nom.summary.n);
-        for m in ["nominal", "self", "planes", "all"] {
+        for (k, m) in models
+            .iter()
+            .chain(std::iter::once(&"file_geometry"))
+            .enumerate()
+        {
             if let Some(r) = get(m) {
                 let s = r.summary;
-                let flag = if m != "nominal" && s.rms_mm > nom.summary.rms_mm {
+                let flag = if k > 0 && k < models.len() && s.rms_mm > nom.summary.rms_mm {
                     "!"
                 } else {
                     " "
                 };
-                print!(
-                    " | {:.3}{flag}/{:.3}/{:.3}/{:.3}",
-                    s.rms_mm, s.median_mm, s.p95_mm, s.max_mm
-                );
+                print!(" {:>8.3}{flag}", s.rms_mm);
+                pooled[k].0 += s.rms_mm.powi(2) * s.n as f64;
+                pooled[k].1 += s.n;
             }
-        }
-        if let Some(r) = get("file_geometry") {
-            print!(" | {:>9.3}", r.summary.rms_mm);
         }
         println!();
     }
-    println!("  (! = worse than nominal in rms; `all` saw these files' tracker values, so it is not held out)");
+    print!("  {:<26} {:>5} {:>4}", "pooled", "", pooled[0].1);
+    for (s2, n) in pooled {
+        print!(" {:>8.3} ", (s2 / n.max(1) as f64).sqrt());
+    }
+    println!();
+    println!("  (! = worse than nominal in rms; `all`/`all+c` saw these files' tracker values, so they are not held out)");
 }
 
 fn write_scores(path: &Path, rows: &[ScoreRow]) -> anyhow::Result<()> {

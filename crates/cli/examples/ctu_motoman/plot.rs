@@ -9,11 +9,14 @@ use plotters::prelude::*;
 use crate::data::Recording;
 use crate::study::ScoredPose;
 
-const COLOURS: [RGBColor; 5] = [
+const COLOURS: [RGBColor; 8] = [
     RGBColor(127, 127, 127),
     RGBColor(31, 119, 180),
+    RGBColor(23, 190, 207),
     RGBColor(44, 160, 44),
+    RGBColor(188, 189, 34),
     RGBColor(214, 39, 40),
+    RGBColor(255, 127, 14),
     RGBColor(148, 103, 189),
 ];
 

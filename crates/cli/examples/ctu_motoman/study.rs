@@ -14,7 +14,7 @@ use calib_core::whole_cell::{
     SolveOptions, Tolerance, Tool, TrackerGroup,
 };
 use calib_core::Robot;
-use kinematics::{Axis, KinematicErrors};
+use kinematics::{Axis, ErrorParam, KinematicErrors};
 use nalgebra::{DMatrix, Isometry3, Vector3};
 use sim_cell::Cell;
 
@@ -52,26 +52,67 @@ pub const SPLIT_SEED: u64 = 12;
 /// self + planes fit at σ = 10 stopped at the iteration cap with a contact distance of 61.5 mm
 /// and the arm 5–13 mm off on the tracker.
 pub const SIGMA_GRID: [f64; 4] = [0.1, 0.3, 1.0, 3.0];
+/// Torque that scales the compliance prior, N·m: a spec's σ `s` is `s` mrad of deflection at
+/// this torque, i.e. a compliance prior σ of `s·1e-3 / 50` rad/(N·m). 50 N·m is about the
+/// largest gravity torque about U of the URDFs' point masses (10 kg at the wrist centre, 0.64 m
+/// from U): the prior on the deflection is as wide as the prior on the offsets. The masses'
+/// overall scale only rescales the fitted compliance, but through this prior it also sets how
+/// tight the prior is; CV over `s` chooses the width.
+pub const COMPLIANCE_TORQUE_REF_NM: f64 = 50.0;
+/// Joints (chain index) whose compliance is fitted: L and U (the Python study's compliance
+/// group). R, B and T carry no mass off their axes in the URDFs (the wrist mass sits on the R and
+/// B axes), so their torque is zero; S (tilted 15° from the base z by DH row TT) does carry a
+/// torque, but its compliance is held at 0 like R, B and T.
+pub const COMPLIANT_JOINTS: [usize; 2] = [1, 2];
 
 /// Which kinematic parameters of both arms are fitted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ParamSet {
     /// Joint offsets S..T.
     Offsets,
+    /// Joint offsets and the gravity compliance of L and U (rad/(N·m), torques from the URDFs'
+    /// point-mass inertials).
+    OffsetsCompliance,
     /// Joint offsets and joint origin positions (the link lengths) S..T.
     OffsetsLengths,
+    /// Offsets, lengths and the gravity compliance of L and U.
+    OffsetsLengthsCompliance,
 }
 
 impl ParamSet {
-    /// Both sets, smaller first.
-    pub const ALL: [ParamSet; 2] = [ParamSet::Offsets, ParamSet::OffsetsLengths];
+    /// Every set, fewest parameters first (the one-standard-error rule's order of simplicity:
+    /// 12, 16, 48, 52 parameters over both arms).
+    pub const ALL: [ParamSet; 4] = [
+        ParamSet::Offsets,
+        ParamSet::OffsetsCompliance,
+        ParamSet::OffsetsLengths,
+        ParamSet::OffsetsLengthsCompliance,
+    ];
 
     /// A short name for tables.
     pub fn name(self) -> &'static str {
         match self {
             ParamSet::Offsets => "offsets",
+            ParamSet::OffsetsCompliance => "offsets+compl",
             ParamSet::OffsetsLengths => "offsets+lengths",
+            ParamSet::OffsetsLengthsCompliance => "offs+len+compl",
         }
+    }
+
+    /// Whether the set fits joint origin positions.
+    pub fn lengths(self) -> bool {
+        matches!(
+            self,
+            ParamSet::OffsetsLengths | ParamSet::OffsetsLengthsCompliance
+        )
+    }
+
+    /// Whether the set fits the gravity compliance of L and U.
+    pub fn compliance(self) -> bool {
+        matches!(
+            self,
+            ParamSet::OffsetsCompliance | ParamSet::OffsetsLengthsCompliance
+        )
     }
 }
 
@@ -121,8 +162,11 @@ fn tolerance(spec: Option<ModelSpec>) -> Tolerance {
     if let Some(s) = spec {
         // tolerance = √3·σ (the prior of a tolerance is N(0, (tol/√3)²)).
         t.joint_offset_rad = 3f64.sqrt() * s.sigma * 1e-3;
-        if s.set == ParamSet::OffsetsLengths {
+        if s.set.lengths() {
             t.origin_xyz_m = 3f64.sqrt() * s.sigma * 1e-3;
+        }
+        if s.set.compliance() {
+            t.compliance_rad_per_nm = Some(3f64.sqrt() * s.sigma * 1e-3 / COMPLIANCE_TORQUE_REF_NM);
         }
     }
     t
@@ -281,7 +325,8 @@ pub fn build_problem(
 
 /// MAP fit of `problem` over `active` (all rows when `None`), starting from `start` corrections
 /// (`None`: nominal), with `b1_from_b2` held at the identity (prior rows of σ
-/// [`PLACEMENT_HOLD_SIGMA`]) and the marker tips (tool 0) not fitted.
+/// [`PLACEMENT_HOLD_SIGMA`]), the marker tips (tool 0) not fitted, and compliance (when the
+/// tolerances select it) only on [`COMPLIANT_JOINTS`].
 pub fn fit(
     problem: &CellProblem,
     active: Option<&[usize]>,
@@ -296,6 +341,12 @@ pub fn fit(
                 robot,
                 tool: 0,
                 axis,
+            });
+        }
+        for joint in (0..6).filter(|j| !COMPLIANT_JOINTS.contains(j)) {
+            fixed.push(CellParam::Kinematic {
+                robot,
+                param: ErrorParam::Compliance { joint },
             });
         }
     }
