@@ -39,7 +39,12 @@ else
     mapfile -t targets < <(cargo +nightly fuzz list)
 fi
 
-cargo +nightly fuzz build || exit 2
+# FUZZ_NO_BUILD=1 runs the binaries built before (fuzz/target/<triple>/release/<target>), so
+# that editing the crates during a long run does not rebuild under it.
+if [ -z "${FUZZ_NO_BUILD:-}" ]; then
+    cargo +nightly fuzz build || exit 2
+fi
+triple="$(rustc +nightly -vV | sed -n 's/^host: //p')"
 summary=()
 status=0
 for t in "${targets[@]}"; do
@@ -47,7 +52,7 @@ for t in "${targets[@]}"; do
     log="work/$t.log"
     touch "$log.start"
     echo "== $t: ${seconds} s" >&2
-    cargo +nightly fuzz run "$t" "work/$t" "corpus/$t" -- \
+    "target/$triple/release/$t" -artifact_prefix="artifacts/$t/" "work/$t" "corpus/$t" \
         -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
         -fork="${FUZZ_JOBS:-1}" -ignore_crashes=1 -ignore_timeouts=1 -ignore_ooms=1 \
         >"$log" 2>&1
@@ -55,7 +60,12 @@ for t in "${targets[@]}"; do
     # Fork mode's progress lines: "#EXECS: cov: C ft: F corp: N exec/s: R oom/timeout/crash: O/T/K time: Ts ..."
     last=$(grep -E '^#[0-9]+: cov:' "$log" | tail -1)
     execs=$(sed -nE 's/^#([0-9]+):.*/\1/p' <<<"$last")
-    rate=$(sed -nE 's/.* exec\/s: ([0-9]+).*/\1/p' <<<"$last")
+    # The line's exec/s is the last job's; the run's average is executions / elapsed time.
+    elapsed=$(sed -nE 's/.* time: ([0-9]+)s.*/\1/p' <<<"$last")
+    rate=""
+    if [ -n "$execs" ] && [ -n "$elapsed" ] && [ "$elapsed" -gt 0 ]; then
+        rate=$((execs / elapsed))
+    fi
     corp=$(sed -nE 's/.* corp: ([0-9]+).*/\1/p' <<<"$last")
     otc=$(sed -nE 's/.* oom\/timeout\/crash: ([0-9]+\/[0-9]+\/[0-9]+).*/\1/p' <<<"$last")
     arts=$(find "artifacts/$t" -type f -newer "$log.start" 2>/dev/null | wc -l)
