@@ -31,6 +31,15 @@ fn centroids_and_cross(
     (c1, c2, m)
 }
 
+/// `Some(x)` when every component of `x` is finite: a NaN, ±∞ or overflowing input gives `None`
+/// instead of a non-finite transform (found by the issue-10 property test: `constrained_fast`
+/// returned a NaN transform for a point with a NaN coordinate).
+fn finite(x: Isometry3<f64>) -> Option<Isometry3<f64>> {
+    let ok = x.translation.vector.iter().all(|v| v.is_finite())
+        && x.rotation.coords.iter().all(|v| v.is_finite());
+    ok.then_some(x)
+}
+
 /// Rigid least-squares `b1_from_b2` (no scale): minimises `Σ ‖p_b1_i − (R·p_b2_i + T)‖²`, n ≥ 3.
 ///
 /// Same maths as [`crate::rigid_lsq`] without weights, diagnostics or allocation. `None` when the
@@ -43,12 +52,13 @@ pub fn rigid_fit_fast(p_b1: &[Point3<f64>], p_b2: &[Point3<f64>]) -> Option<Isom
     let (c1, c2, m) = centroids_and_cross(p_b1, p_b2);
     let q = rotation_maximizing_trace(&m)?;
     let t = c1 - q * c2;
-    Some(Isometry3::from_parts(Translation3::from(t), q))
+    finite(Isometry3::from_parts(Translation3::from(t), q))
 }
 
 /// The paper's generic 4-point method, allocation-free: `H = A·B⁻¹`, the nearest rotation of its
 /// 3×3 block, then eq (12) (`affine_translation = false`) or H's own translation column
-/// (`affine_translation = true`). `None` if the points are coplanar (B singular) or degenerate.
+/// (`affine_translation = true`). `None` if the points are coplanar (B singular) or degenerate, or
+/// a value is not finite.
 pub fn generic_fast(
     p_b1: &[Point3<f64>; 4],
     p_b2: &[Point3<f64>; 4],
@@ -61,13 +71,14 @@ pub fn generic_fast(
     } else {
         translation_eq12(p_b1, p_b2, &q)
     };
-    Some(Isometry3::from_parts(Translation3::from(t), q))
+    finite(Isometry3::from_parts(Translation3::from(t), q))
 }
 
 /// The paper's constrained 4-point method, allocation-free: `H = A·B⁻¹`, projection of its 3×3 block
 /// onto the rotations the mounts allow (eq 11 floor–floor, eq 30 floor–ceiling, eqs 16–21
 /// floor–wall, and the same projection generalised to tilted mounts), then eq (12).
-/// `None` if the points are coplanar or the mount pair is unsupported (both `Wall`).
+/// `None` if the points are coplanar, the mount pair is unsupported (both `Wall`), or a value is
+/// not finite.
 pub fn paper_fast(
     p_b1: &[Point3<f64>; 4],
     p_b2: &[Point3<f64>; 4],
@@ -77,12 +88,12 @@ pub fn paper_fast(
     let r = project_rotation_family_fast(&m, mounts)?;
     let q = UnitQuaternion::from_rotation_matrix(&r);
     let t = translation_eq12(p_b1, p_b2, &q);
-    Some(Isometry3::from_parts(Translation3::from(t), q))
+    finite(Isometry3::from_parts(Translation3::from(t), q))
 }
 
 /// Installation-constrained least squares, allocation-free (see [`crate::constrained_lsq`]):
 /// the rotation is restricted to the mounts' family inside the least-squares cost. `None` on
-/// length mismatch, n < 2, or unsupported mounts.
+/// length mismatch, n < 2, unsupported mounts, or a value that is not finite.
 pub fn constrained_fast(
     p_b1: &[Point3<f64>],
     p_b2: &[Point3<f64>],
@@ -95,7 +106,7 @@ pub fn constrained_fast(
     let r = project_rotation_family_fast(&m, mounts)?;
     let q = UnitQuaternion::from_rotation_matrix(&r);
     let t = c1 - q * c2;
-    Some(Isometry3::from_parts(Translation3::from(t), q))
+    finite(Isometry3::from_parts(Translation3::from(t), q))
 }
 
 /// Centred affine least squares `p1 ≈ M·p2 + t` (n ≥ 4, allocation-free): `(M, t)` (M unitless,
@@ -125,7 +136,8 @@ pub fn affine_lsq_fast(
 /// `constrained` at any n); for the 4-point methods with n > 4, the affine least-squares `H`
 /// ([`affine_lsq_fast`], as [`crate::generic_4point`] does) then the same rotation step and
 /// eq (12). Points in metres. `None` when the lengths differ, the method needs more points, the
-/// points are degenerate for it, or the mounts are unsupported.
+/// points are degenerate for it, the mounts are unsupported, or a value (input, or result through
+/// overflow) is not finite: every `Some` is a finite proper rotation and translation.
 pub fn fit_fast(
     method: Method,
     mounts: &MountPair,
@@ -159,7 +171,7 @@ pub fn fit_fast(
             } else {
                 translation_eq12(p_b1, p_b2, &q)
             };
-            Some(Isometry3::from_parts(Translation3::from(t), q))
+            finite(Isometry3::from_parts(Translation3::from(t), q))
         }
     }
 }

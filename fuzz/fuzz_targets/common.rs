@@ -1,0 +1,83 @@
+//! Shared by the fuzz targets: the repository's shipped robots and cells, loaded once per process,
+//! and the invariants the targets assert.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use kinematics::RobotModel;
+use nalgebra::Isometry3;
+use sim_cell::Cell;
+
+/// The repository root (the fuzz crate sits in `<root>/fuzz`).
+pub fn repo_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The shipped URDFs (`robots/*.urdf`), in a fixed order.
+pub const ROBOT_FILES: [&str; 4] = [
+    "hp20.urdf",
+    "va1400.urdf",
+    "motoman_right_arm.urdf",
+    "motoman_left_arm.urdf",
+];
+
+/// The shipped cells (`cells/*.toml`), in a fixed order.
+pub const CELL_FILES: [&str; 4] = [
+    "floor-wall.toml",
+    "floor-floor.toml",
+    "floor-ceiling.toml",
+    "ctu-motoman.toml",
+];
+
+/// `(URDF text, model with tool link tool0)` of every shipped robot.
+pub fn robots() -> &'static [(String, RobotModel)] {
+    static ROBOTS: OnceLock<Vec<(String, RobotModel)>> = OnceLock::new();
+    ROBOTS.get_or_init(|| {
+        ROBOT_FILES
+            .iter()
+            .map(|f| {
+                let path = repo_root().join("robots").join(f);
+                let text = std::fs::read_to_string(&path).expect("shipped URDF readable");
+                let model = RobotModel::from_urdf_str(&text, "tool0").expect("shipped URDF loads");
+                (text, model)
+            })
+            .collect()
+    })
+}
+
+/// Every shipped cell.
+pub fn cells() -> &'static [Cell] {
+    static CELLS: OnceLock<Vec<Cell>> = OnceLock::new();
+    CELLS.get_or_init(|| {
+        CELL_FILES
+            .iter()
+            .map(|f| {
+                Cell::from_toml_file(&repo_root().join("cells").join(f))
+                    .expect("shipped cell loads")
+            })
+            .collect()
+    })
+}
+
+/// Panics unless `b1_from_b2` is finite and its rotation proper (orthonormal, det +1) to 1e-9:
+/// the promise of every registration method's Ok result.
+pub fn assert_finite_proper(b1_from_b2: &Isometry3<f64>, what: &str) {
+    let t = b1_from_b2.translation.vector;
+    assert!(
+        t.iter().all(|v| v.is_finite()),
+        "{what}: translation {t:?} not finite"
+    );
+    let q = b1_from_b2.rotation.quaternion();
+    assert!(
+        q.coords.iter().all(|v| v.is_finite()),
+        "{what}: rotation {q:?} not finite"
+    );
+    let r = b1_from_b2.rotation.to_rotation_matrix().into_inner();
+    let ortho = (r.transpose() * r - nalgebra::Matrix3::identity())
+        .abs()
+        .max();
+    assert!(ortho < 1e-9, "{what}: RᵀR − I = {ortho:e}");
+    let det = r.determinant();
+    assert!((det - 1.0).abs() < 1e-9, "{what}: det R = {det}");
+}

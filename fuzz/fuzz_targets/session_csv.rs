@@ -1,0 +1,26 @@
+//! Session CSV text → `sim_cell::Session::parse_csv` for a shipped cell. Input: one byte choosing
+//! the cell (`cells/*.toml`, see `common::CELL_FILES`), then the CSV text.
+#![no_main]
+
+#[path = "common.rs"]
+mod common;
+
+use std::path::Path;
+
+use libfuzzer_sys::fuzz_target;
+use sim_cell::Session;
+
+fuzz_target!(|data: &[u8]| {
+    let Some((&which, rest)) = data.split_first() else {
+        return;
+    };
+    let Ok(text) = std::str::from_utf8(rest) else {
+        return;
+    };
+    let cells = common::cells();
+    let cell = &cells[usize::from(which) % cells.len()];
+    if let Ok(session) = Session::parse_csv(text, Path::new("fuzz.csv"), cell) {
+        let pairs = session.to_point_pairs();
+        assert_eq!(pairs.len(), session.points.len());
+    }
+});
