@@ -2,6 +2,7 @@
 //! and the invariants the targets assert.
 #![allow(dead_code)]
 
+use calib_core::nalgebra;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 

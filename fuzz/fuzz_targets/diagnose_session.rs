@@ -16,6 +16,7 @@ mod common;
 
 use arbitrary::Arbitrary;
 use calib_core::identify::{FitOptions, SelectionOptions};
+use calib_core::nalgebra;
 use diagnose::{diagnose_session, DiagnoseOptions};
 use kinematics::{
     base_from_tip, ik_tip_position, true_base_from_tip, IkOptions, KinematicErrors, RobotModel,
@@ -136,7 +137,7 @@ fuzz_target!(|input: Input| {
             p_b2: Point3::from(p_b2.translation.vector),
         });
     }
-    let session = Session { points };
+    let session = Session::from_points(points);
     let options = DiagnoseOptions {
         seed: input.seed,
         trials: 12,

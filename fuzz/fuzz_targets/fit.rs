@@ -8,6 +8,7 @@
 mod common;
 
 use arbitrary::Arbitrary;
+use calib_core::nalgebra;
 use calib_core::{
     constrained_lsq, fit, fit_fast, leave_one_out, rigid_lsq, ConstrainedOptions, Method, Mount,
     MountPair, PointPairs,

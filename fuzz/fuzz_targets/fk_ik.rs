@@ -8,6 +8,7 @@
 mod common;
 
 use arbitrary::Arbitrary;
+use calib_core::nalgebra;
 use kinematics::{
     base_from_flange, base_from_tip, geometric_jacobian, ik_tip_position, tip_position_jacobian,
     IkOptions, IkStatus, JacobianFrame, RobotModel,
