@@ -274,8 +274,9 @@ proptest! {
             noise_mm: vec![noise_mm],
             spread_m: vec![spread_m],
             n_points: vec![n],
-            methods,
-            layout,
+            methods: methods.into_iter().map(Into::into).collect(),
+            layout: layout.into(),
+            kinematic_errors: sim_cell::sweep::KinematicErrorDraw::None,
             trials: 2 * 2048 + extra,
             seed,
         };
