@@ -460,11 +460,18 @@ fn print_text(v: &Value) {
             num(&c["predicted_p95"])
         );
     }
-    println!(
-        "prior scale chosen by the evidence: {} (prior σ = scale × tolerance/√3; 1e-3 = placement-only limit); blunder-screen noise scale {:.3}",
-        num(&v["prior_scale"]["chosen"]),
-        num(&v["noise_scale"])
-    );
+    if params.is_empty() {
+        println!(
+            "prior scale: none (no kinematic parameter fitted); blunder-screen noise scale {:.3}",
+            num(&v["noise_scale"])
+        );
+    } else {
+        println!(
+            "prior scale chosen by the evidence: {} (prior σ = scale × tolerance/√3; 1e-3 = placement-only limit); blunder-screen noise scale {:.3}",
+            num(&v["prior_scale"]["chosen"]),
+            num(&v["noise_scale"])
+        );
+    }
     println!(
         "solver: {} after {} iterations (data χ² {:.1} over {} residual rows)",
         v["stopped"].as_str().unwrap_or("?"),
