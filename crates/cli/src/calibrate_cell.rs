@@ -23,7 +23,7 @@ use calib_core::whole_cell::{
 use calib_core::zyz_from_rotation;
 use kinematics::ErrorParam;
 use serde_json::{json, Value};
-use sim_cell::whole_cell::{cell_problem, session_config_pairs, FitModel};
+use sim_cell::whole_cell::{cell_problem, session_meeting_pairs, FitModel};
 use sim_cell::{export_calibrated_cell, Cell, Session, CALIBRATE_EXPORT_NAMES};
 
 use crate::calibrate::Args;
@@ -86,20 +86,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             cell_path.display()
         )
     })?;
-    let pairs = session_config_pairs(&session);
+    let pairs = session_meeting_pairs(&session);
     let mut out = report(&problem, &cal, args.model, session.len());
     if pairs.is_empty() {
         out["cooperative_accuracy_mm"] = Value::Null;
     } else {
         let prediction = predict_cooperative_accuracy(&problem, &cal.fit, &pairs, P95_SEED)
-            .context(
-                "predicting the cooperative accuracy over the session's configuration pairs",
-            )?;
+            .context("predicting the cooperative accuracy over the session's meeting pairs")?;
         out["cooperative_accuracy_mm"] = json!({
             "predicted_rms": prediction.predicted_rms_m * 1e3,
             "predicted_p95": prediction.predicted_p95_m * 1e3,
             "pairs": pairs.len(),
-            "pair_set": "every (q1_i, q2_j) of the session's rows",
+            "pair_set": "meeting pairs (q1_i, q2_i) of the session's coincident and contact rows",
         });
     }
     if !session.is_handclasp_only() {
@@ -302,6 +300,13 @@ fn report(problem: &CellProblem, cal: &CellCalibration, model: ModelArg, rows: u
         "residual_rows": cal.fit.residual_rows,
         "data_determined_directions": cal.reduction.data_determined,
         "prior_dominated_directions": cal.reduction.prior_dominated,
+        "prior_scale": {
+            "chosen": cal.prior_scale.scale,
+            "log_evidence": cal.prior_scale.log_evidence.iter()
+                .map(|(s, z)| json!({"scale": s, "log_evidence": z}))
+                .collect::<Vec<_>>(),
+        },
+        "noise_scale": cal.noise_scale,
     });
     if !nuisance.is_empty() {
         out["nuisance_parameters"] = json!(nuisance);
@@ -444,13 +449,27 @@ fn print_text(v: &Value) {
     }
     let c = &v["cooperative_accuracy_mm"];
     if c.is_null() {
-        println!("predicted cooperative accuracy: none (no row gives joint angles of both robots)");
+        println!(
+            "predicted cooperative accuracy: none (no coincident or contact row: no meeting pair)"
+        );
     } else {
         println!(
-            "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the {} configuration pairs of this session): rms {:.3} mm, p95 {:.3} mm",
+            "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the {} meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms {:.3} mm, p95 {:.3} mm",
             c["pairs"],
             num(&c["predicted_rms"]),
             num(&c["predicted_p95"])
+        );
+    }
+    if params.is_empty() {
+        println!(
+            "prior scale: none (no kinematic parameter fitted); blunder-screen noise scale {:.3}",
+            num(&v["noise_scale"])
+        );
+    } else {
+        println!(
+            "prior scale chosen by the evidence: {} (prior σ = scale × tolerance/√3; 1e-3 = placement-only limit); blunder-screen noise scale {:.3}",
+            num(&v["prior_scale"]["chosen"]),
+            num(&v["noise_scale"])
         );
     }
     println!(

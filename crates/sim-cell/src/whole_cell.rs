@@ -313,6 +313,50 @@ pub fn session_config_pairs(session: &Session) -> Vec<ConfigPair> {
         .collect()
 }
 
+/// The session's own meeting pairs `(q1_i, q2_i)`: one per two-robot row (a coincident
+/// handclasp or a contact), in row order, with that row's tools. This is the pair set of the
+/// project's **cooperative accuracy** (the error of `tip1 − X·tip2` where the two tools meet, as
+/// `handclasp plan` and `sim-cell sweep --mode robot` measure it over held-out handclasp
+/// poses); [`session_config_pairs`] pairs every `q1` with every `q2` instead (vectors up to the
+/// workspace's size, a different and larger quantity). Tracker and plane rows give no pair;
+/// empty when the session has no two-robot row.
+pub fn session_meeting_pairs(session: &Session) -> Vec<ConfigPair> {
+    session
+        .rows()
+        .into_iter()
+        .filter_map(|row| match row {
+            SessionRow::Point(p) => Some(ConfigPair {
+                q1: p.q1.clone(),
+                q2: p.q2.clone(),
+                tool1: 0,
+                tool2: 0,
+            }),
+            SessionRow::Observation(o) => match &o.kind {
+                SessionKind::Coincident {
+                    q1,
+                    q2,
+                    tool1,
+                    tool2,
+                    ..
+                }
+                | SessionKind::Contact {
+                    q1,
+                    q2,
+                    tool1,
+                    tool2,
+                    ..
+                } => Some(ConfigPair {
+                    q1: q1.clone(),
+                    q2: q2.clone(),
+                    tool1: *tool1,
+                    tool2: *tool2,
+                }),
+                SessionKind::Tracker { .. } | SessionKind::Plane { .. } => None,
+            },
+        })
+        .collect()
+}
+
 /// The cell's truth as an estimate of `problem` (built by [`cell_problem`] from this cell): the
 /// cell's `b1_from_b2` and each robot's true kinematic errors (`[robotN.errors]`, the tip error
 /// as tool 0's; the extra tools are exact), for
@@ -359,6 +403,12 @@ mod tests {
         let p0 = cell_problem(&cell, &session, FitModel::Placement);
         assert!(p0.robot1.fitted_params().is_empty());
         assert_eq!(session_config_pairs(&session).len(), 64);
+        let meeting = session_meeting_pairs(&session);
+        assert_eq!(meeting.len(), 8);
+        assert!(meeting
+            .iter()
+            .zip(&session.points)
+            .all(|(m, p)| m.q1 == p.q1 && m.q2 == p.q2 && m.tool1 == 0 && m.tool2 == 0));
         // σ² = 0.3² + 2·0.03² mm² per axis for the shipped floor–floor cell.
         let c = handclasp_covariance(&cell);
         assert!((c[(0, 0)] - (0.3e-3f64.powi(2) + 2.0 * 0.03e-3f64.powi(2))).abs() < 1e-15);

@@ -66,6 +66,9 @@ pub struct CalibrationReport {
     pub residual_rows: usize,
     /// The prior scale chosen from the session's evidence (see [`PRIOR_SCALES`]).
     pub prior_scale: f64,
+    /// The blunder screen's noise scale ([`CellCalibration::noise_scale`]; 1 unless the model
+    /// is placement-only).
+    pub noise_scale: f64,
 }
 
 impl CellCalibration {
@@ -81,6 +84,7 @@ impl CellCalibration {
             data_chi2: self.fit.data_chi2,
             residual_rows: self.fit.residual_rows,
             prior_scale: self.prior_scale.scale,
+            noise_scale: self.noise_scale,
         }
     }
 }
