@@ -136,11 +136,24 @@ pub struct Cell {
     pub robot2: CellRobot,
     /// Placement of base 2 in base 1 (the truth of a simulation), m, rad.
     pub b1_from_b2: Isometry3<f64>,
+    /// How well `b1_from_b2` is known (`[b1_from_b2] sigma_mm, sigma_deg`): `Some` puts a prior
+    /// around it in the whole-cell fit (e.g. two arms on one base); `None`: the placement is
+    /// fitted freely.
+    pub b1_from_b2_sigma: Option<PlacementSigma>,
     /// Session noise.
     pub noise: Noise,
     /// Centre of the teach points, m, b1 frame (`[teach] centre_mm`; default: the midpoint of the
     /// two shoulders, i.e. of joint 2's origins at q = 0).
     pub centre_b1: Point3<f64>,
+}
+
+/// The stated uncertainty of a cell's `b1_from_b2` (per component, SI).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlacementSigma {
+    /// σ of each translation component, m (≥ 0; 0 leaves the translation free).
+    pub sigma_m: f64,
+    /// σ of each rotation-vector component, rad (≥ 0; 0 leaves the rotation free).
+    pub sigma_rad: f64,
 }
 
 // ---- file format -------------------------------------------------------------------------
@@ -150,11 +163,23 @@ pub struct Cell {
 struct CellFile {
     robot1: RobotFile,
     robot2: RobotFile,
-    b1_from_b2: PoseMmDeg,
+    b1_from_b2: PlacementFile,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     noise: Option<NoiseFile>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     teach: Option<TeachFile>,
+}
+
+/// `[b1_from_b2]`: the placement (mm, ZYZ degrees) and, optionally, how well it is known.
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PlacementFile {
+    xyz_mm: [f64; 3],
+    zyz_deg: [f64; 3],
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    sigma_mm: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    sigma_deg: Option<f64>,
 }
 
 #[derive(Debug, Serialize, Deserialize)]
@@ -583,9 +608,11 @@ impl Cell {
         let file = CellFile {
             robot1: robot(&self.robot1),
             robot2: robot(&self.robot2),
-            b1_from_b2: PoseMmDeg {
+            b1_from_b2: PlacementFile {
                 xyz_mm: [t.x, t.y, t.z],
                 zyz_deg: zyz.map(f64::to_degrees),
+                sigma_mm: self.b1_from_b2_sigma.map(|s| s.sigma_m * 1e3),
+                sigma_deg: self.b1_from_b2_sigma.map(|s| s.sigma_rad.to_degrees()),
             },
             noise: Some(NoiseFile {
                 alignment_mm: Some(if a.x == a.y && a.y == a.z {
@@ -676,7 +703,7 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
             .map(|r| format!("line {}: ", text[..r.start.min(text.len())].lines().count().max(1)))
             .unwrap_or_default();
         ctx.err(format!(
-            "{at}{} (keys: [robot1], [robot2] with urdf, mount, tip_mm, tool_link, [robotN.tools] name = [x, y, z], [robotN.errors], [robotN.tolerance] joint_offset_deg, origin_mm, origin_deg, tip_mm; [b1_from_b2] xyz_mm, zyz_deg; [noise] alignment_mm, repeatability_mm, encoder_resolution_deg; [teach] centre_mm)",
+            "{at}{} (keys: [robot1], [robot2] with urdf, mount, tip_mm, tool_link, [robotN.tools] name = [x, y, z], [robotN.errors], [robotN.tolerance] joint_offset_deg, origin_mm, origin_deg, tip_mm; [b1_from_b2] xyz_mm, zyz_deg, sigma_mm, sigma_deg; [noise] alignment_mm, repeatability_mm, encoder_resolution_deg; [teach] centre_mm)",
             e.message().trim_end()
         ))
     })?;
@@ -722,7 +749,32 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
     let mut robot2 = robot("robot2", &file.robot2)?;
     finite3(&ctx, "b1_from_b2.xyz_mm", file.b1_from_b2.xyz_mm)?;
     finite3(&ctx, "b1_from_b2.zyz_deg", file.b1_from_b2.zyz_deg)?;
-    let b1_from_b2 = file.b1_from_b2.to_isometry();
+    let b1_from_b2 = PoseMmDeg {
+        xyz_mm: file.b1_from_b2.xyz_mm,
+        zyz_deg: file.b1_from_b2.zyz_deg,
+    }
+    .to_isometry();
+    let b1_from_b2_sigma = match (file.b1_from_b2.sigma_mm, file.b1_from_b2.sigma_deg) {
+        (None, None) => None,
+        (Some(mm), Some(deg)) => {
+            for (key, v) in [("sigma_mm", mm), ("sigma_deg", deg)] {
+                if !(v.is_finite() && v >= 0.0) {
+                    return Err(ctx.err(format!(
+                        "`b1_from_b2.{key}` = {v} must be a finite σ ≥ 0 (0 leaves that part free)"
+                    )));
+                }
+            }
+            Some(PlacementSigma {
+                sigma_m: mm * 1e-3,
+                sigma_rad: deg.to_radians(),
+            })
+        }
+        _ => {
+            return Err(ctx.err(
+                "`[b1_from_b2]` gives only one of sigma_mm and sigma_deg; give both (a known placement) or neither (fitted freely)",
+            ))
+        }
+    };
 
     // Gravity: robot 1's mount fixes the level frame; robot 2's follows from the placement.
     let level_from_b1 = robot1.mount.level_from_base().ok_or_else(|| {
@@ -818,6 +870,7 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
         robot1,
         robot2,
         b1_from_b2,
+        b1_from_b2_sigma,
         noise,
         centre_b1,
     })

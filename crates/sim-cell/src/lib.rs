@@ -15,7 +15,7 @@ pub mod session_kinds;
 pub mod sweep;
 pub mod whole_cell;
 
-pub use cell::{Cell, CellRobot, Noise};
+pub use cell::{Cell, CellRobot, Noise, PlacementSigma};
 pub use error::SimError;
 pub use export::{export_calibrated_cell, ExportNames, CALIBRATE_EXPORT_NAMES};
 pub use layout::{teach_points, Layout};

@@ -17,7 +17,7 @@ use calib_core::whole_cell::{
 };
 use nalgebra::{Matrix3, Vector3};
 
-use calib_core::whole_cell::{ContactGroup, PlaneGroup, TrackerGroup};
+use calib_core::whole_cell::{ContactGroup, PlacementPrior, PlaneGroup, TrackerGroup};
 use calib_core::Robot;
 use kinematics::base_from_tip;
 
@@ -75,7 +75,8 @@ pub fn handclasp_covariance(cell: &Cell) -> Matrix3<f64> {
 /// empty, fitted from the mean nominal distance of its rows. Tool `k` of a robot is the cell
 /// robot's tool `k` (0 = `tip_mm`). `model` selects the unknowns ([`FitModel`]). The session
 /// must have been read for this cell ([`Session::read_csv`] checks joint counts and tool
-/// names); [`CellProblem::check`] reports anything else by row.
+/// names); [`CellProblem::check`] reports anything else by row. The cell's
+/// `b1_from_b2_sigma`, if any, becomes a placement prior around `cell.b1_from_b2`.
 pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProblem {
     let cov_m2 = handclasp_covariance(cell);
     let isotropic = cov_m2[(0, 0)] == cov_m2[(1, 1)] && cov_m2[(1, 1)] == cov_m2[(2, 2)];
@@ -229,6 +230,11 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
         trackers,
         planes,
         contacts,
+        placement_prior: cell.b1_from_b2_sigma.map(|s| PlacementPrior {
+            nominal_b1_from_b2: cell.b1_from_b2,
+            sigma_m: s.sigma_m,
+            sigma_rad: s.sigma_rad,
+        }),
     }
 }
 

@@ -171,6 +171,7 @@ impl CellCalibration {
 ///     trackers: vec![],
 ///     planes: vec![],
 ///     contacts: vec![],
+///     placement_prior: None,
 /// };
 ///
 /// let cal = calibrate_cell(&problem, &SolveOptions::default(), &ScreenOptions::default())?;

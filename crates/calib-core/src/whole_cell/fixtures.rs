@@ -119,6 +119,7 @@ pub fn sim_cell(cell: Cell, tol: Tolerance, second_tool: bool, seed: u64) -> Sim
         trackers: vec![],
         planes: vec![],
         contacts: vec![],
+        placement_prior: None,
     };
     let mut truth = CellEstimate::nominal(&problem, x);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -157,6 +158,7 @@ impl SimCell {
             trackers: vec![],
             planes: vec![],
             contacts: vec![],
+            placement_prior: None,
         }
     }
 

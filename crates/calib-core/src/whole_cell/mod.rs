@@ -101,6 +101,7 @@ mod cell;
 mod design;
 mod layout;
 mod observations;
+mod placement_prior;
 mod reduce;
 mod residuals;
 mod solve;
@@ -130,6 +131,7 @@ pub use layout::{
 pub use observations::{
     CellProblem, ContactGroup, Observation, ObservationKind, PlaneGroup, TrackerGroup,
 };
+pub use placement_prior::PlacementPrior;
 pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, RANK_TOL};
 pub use residuals::{Evaluator, ObservationLinearisation};
 pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions, StopReason};

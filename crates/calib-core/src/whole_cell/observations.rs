@@ -4,6 +4,7 @@
 use nalgebra::{Isometry3, Point3, Unit, Vector3};
 
 use super::cell::{CellFitError, CellRobot, Noise3};
+use super::PlacementPrior;
 use crate::Robot;
 
 /// What one observation saw. Joint vectors in rad, chain order; tools by index into
@@ -153,6 +154,9 @@ pub struct CellProblem {
     pub planes: Vec<PlaneGroup>,
     /// Contact groups.
     pub contacts: Vec<ContactGroup>,
+    /// Optional prior on `b1_from_b2` around a known nominal (e.g. two arms on one base);
+    /// `None`: the placement is fitted unpenalised.
+    pub placement_prior: Option<PlacementPrior>,
 }
 
 impl CellProblem {
@@ -168,6 +172,9 @@ impl CellProblem {
     /// Checks the problem: robot indices, tools, groups, joint vector lengths, noise, and
     /// tolerances. Errors name the observation row and the field.
     pub fn check(&self) -> Result<(), CellFitError> {
+        if let Some(p) = &self.placement_prior {
+            p.check()?;
+        }
         for r in [Robot::One, Robot::Two] {
             let rb = self.robot(r);
             rb.tolerance.check(r)?;

@@ -97,7 +97,7 @@ pub struct CellFit {
     pub singular: bool,
     /// Data part of the cost `Σ‖W_i·r_i‖²` (dimensionless, χ²-like).
     pub data_chi2: f64,
-    /// Prior part of the cost `‖R_p·θ‖²`.
+    /// Prior part of the cost `‖R_p·θ‖²` plus the placement prior's (if any).
     pub prior_chi2: f64,
     /// Residual rows (scalars) of the data used.
     pub residual_rows: usize,
@@ -156,7 +156,7 @@ pub struct FittedParam {
 
 /// The stacked whitened system at an estimate.
 pub(crate) struct System {
-    /// Whitened residuals, data rows then prior rows.
+    /// Whitened residuals, data rows, then the layout's prior rows, then the placement prior's.
     pub r: DVector<f64>,
     /// Whitened Jacobian, same rows.
     pub j: DMatrix<f64>,
@@ -183,7 +183,11 @@ pub(crate) fn assemble(
         .collect::<Result<_, _>>()?;
     let data_rows: usize = lins.iter().map(|l| l.residual.len()).sum();
     let p = layout.prior_sqrt_info.nrows();
-    let m = data_rows + p;
+    let placement = problem
+        .placement_prior
+        .map(|pp| pp.linearise(&est.b1_from_b2));
+    let pl_rows = placement.as_ref().map_or(0, |(r, _)| r.len());
+    let m = data_rows + p + pl_rows;
     let mut r = DVector::zeros(m);
     let mut j = DMatrix::zeros(if want_jac { m } else { 0 }, n);
     let mut block_start = Vec::with_capacity(active.len());
@@ -205,6 +209,18 @@ pub(crate) fn assemble(
         .copy_from(&(&layout.prior_sqrt_info * theta));
     if want_jac {
         j.rows_mut(data_rows, p).copy_from(&layout.prior_sqrt_info);
+    }
+    // The placement prior (columns 0..6 are the placement's left perturbation); not scaled by
+    // IRLS weights or the prior scale, not a data row for the blunder screen.
+    if let Some((pr, pj)) = placement {
+        for (k, (rv, jv)) in pr.iter().zip(&pj).enumerate() {
+            r[data_rows + p + k] = *rv;
+            if want_jac {
+                for (c, v) in jv.iter().enumerate() {
+                    j[(data_rows + p + k, c)] = *v;
+                }
+            }
+        }
     }
     Ok(System {
         r,

@@ -204,6 +204,7 @@ pub fn build_problem(
         trackers: Vec::new(),
         planes: Vec::new(),
         contacts: Vec::new(),
+        placement_prior: None,
     };
     // Contact groups only for the set-ups present (a group without rows would be a free,
     // undetermined unknown).

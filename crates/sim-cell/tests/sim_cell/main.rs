@@ -7,5 +7,6 @@
 mod cli;
 mod kinds;
 mod paper;
+mod placement_prior;
 mod properties;
 mod session;
