@@ -1140,4 +1140,45 @@ mod tolerance_tests {
         let e = err_text(&negative);
         assert!(e.contains("robot2.tolerance.origin_mm"), "{e}");
     }
+
+    /// `FLOOR_FLOOR_TOML` with `lines` added to its `[b1_from_b2]` table.
+    fn with_placement_sigma(lines: &str) -> String {
+        FLOOR_FLOOR_TOML.replacen("[b1_from_b2]", &format!("[b1_from_b2]\n{lines}"), 1)
+    }
+
+    #[test]
+    fn placement_sigma_is_optional_parsed_and_round_trips() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+        let plain = Cell::from_toml_str(FLOOR_FLOOR_TOML, &dir).unwrap();
+        assert_eq!(plain.b1_from_b2_sigma, None);
+        assert!(!plain.to_toml_string().contains("sigma_mm"));
+        let text = with_placement_sigma("sigma_mm = 0.01\nsigma_deg = 0.002");
+        let cell = Cell::from_toml_str(&text, &dir).unwrap();
+        let s = cell.b1_from_b2_sigma.unwrap();
+        assert!((s.sigma_m - 0.01e-3).abs() < TOLERANCE_TOL);
+        assert!((s.sigma_rad - 0.002f64.to_radians()).abs() < TOLERANCE_TOL);
+        let back = Cell::from_toml_str(&cell.to_toml_string(), &dir).unwrap();
+        assert!(back.b1_from_b2.rotation.angle_to(&cell.b1_from_b2.rotation) < TOLERANCE_TOL);
+        let b = back.b1_from_b2_sigma.unwrap();
+        assert!((b.sigma_m - s.sigma_m).abs() < TOLERANCE_TOL);
+        assert!((b.sigma_rad - s.sigma_rad).abs() < TOLERANCE_TOL);
+        // The shipped CTU cell states its placement.
+        let ctu = Cell::from_toml_file(&dir.join("ctu-motoman.toml")).unwrap();
+        assert!(ctu.b1_from_b2_sigma.is_some());
+    }
+
+    #[test]
+    fn bad_placement_sigma_is_named() {
+        let e = err_text(&with_placement_sigma("sigma_mm = -0.01\nsigma_deg = 0.001"));
+        assert!(e.contains("b1_from_b2.sigma_mm"), "{e}");
+        let e = err_text(&with_placement_sigma("sigma_mm = 0.01\nsigma_deg = nan"));
+        assert!(e.contains("b1_from_b2.sigma_deg"), "{e}");
+        let e = err_text(&with_placement_sigma("sigma_mm = 0.01"));
+        assert!(e.contains("sigma_deg") && e.contains("both"), "{e}");
+        let e = err_text(&with_placement_sigma("sigma_m = 0.01"));
+        assert!(
+            e.contains("sigma_m") && e.contains("sigma_mm, sigma_deg"),
+            "{e}"
+        );
+    }
 }
