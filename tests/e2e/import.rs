@@ -117,4 +117,39 @@ fn ctu_maps_import_and_self_contact_calibrates() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["rows_by_kind"]["contact"], 32);
     assert_eq!(v["groups"]["contact"].as_array().map(Vec::len), Some(2));
+    // The cell's `[b1_from_b2]` prior (σ 0.01 mm, 0.001°: both arms on one base) holds the
+    // placement: contacts alone moved it ~3 m and hit the iteration cap without it.
+    assert_eq!(v["stopped"], "converged", "{}", v["stopped"]);
+    let b = &v["b1_from_b2"];
+    for (k, s) in b["sigma"].as_array().unwrap().iter().enumerate() {
+        let sigma = s["sigma"].as_f64().unwrap();
+        let prior = if k < 3 { 0.01 } else { 0.001 };
+        assert!(
+            sigma <= prior * PRIOR_SIGMA_SLACK,
+            "{}: posterior σ {sigma} above the prior {prior}",
+            s["name"]
+        );
+    }
+    for (k, x) in b["xyz_mm"].as_array().unwrap().iter().enumerate() {
+        let x = x.as_f64().unwrap();
+        assert!(x.abs() < 0.01, "b1_from_b2 xyz_mm[{k}] = {x} mm, σ 0.01 mm");
+    }
+    let q: Vec<f64> = b["quaternion_wxyz"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let angle_rad = 2.0
+        * (q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+            .sqrt()
+            .atan2(q[0].abs());
+    assert!(
+        angle_rad.to_degrees() < 0.001,
+        "b1_from_b2 rotated by {}°, σ 0.001°",
+        angle_rad.to_degrees()
+    );
 }
+
+/// Round-off allowance on the reported posterior σ against the prior σ.
+const PRIOR_SIGMA_SLACK: f64 = 1.0 + 1e-6;
