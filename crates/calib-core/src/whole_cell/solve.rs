@@ -120,7 +120,8 @@ impl CellFit {
         self.covariance[(j, j)].max(0.0).sqrt()
     }
 
-    /// The fitted value of each unknown with its prior and posterior σ (SI units).
+    /// The fitted value of each unknown with its prior and posterior σ (SI units; the
+    /// placement's prior σ is the problem's [`super::PlacementPrior`], if any).
     pub fn parameters(&self, problem: &CellProblem) -> Vec<FittedParam> {
         let values = self.layout.values(&self.estimate);
         self.layout
@@ -131,7 +132,11 @@ impl CellFit {
                 param: p.clone(),
                 name: p.describe(problem),
                 value: values[j],
-                prior_sigma: self.layout.prior_sigma(j),
+                prior_sigma: match (p, &problem.placement_prior) {
+                    (CellParam::PlacementTranslation { .. }, Some(pp)) => pp.sigma_m,
+                    (CellParam::PlacementRotation { .. }, Some(pp)) => pp.sigma_rad,
+                    _ => self.layout.prior_sigma(j),
+                },
                 posterior_sigma: self.std_error(j),
             })
             .collect()

@@ -18,8 +18,9 @@ fn ctu_cell() -> Cell {
 
 /// A seeded contact-only session of `n` rows on `cell`, calibrated with `--model kinematic`
 /// from the cell's own `b1_from_b2` (as `handclasp calibrate` starts a session without
-/// coincident rows). Returns the calibration and the placement error (m, rad).
-fn contact_only(cell: &Cell, n: usize, seed: u64) -> (CellCalibration, f64, f64) {
+/// coincident rows). Returns the calibration, the placement error (m, rad) and the placement
+/// columns' reported prior σ (m ×3, rad ×3).
+fn contact_only(cell: &Cell, n: usize, seed: u64) -> (CellCalibration, f64, f64, Vec<f64>) {
     let spec = SessionSpec::new(n, Layout::Random, 0.3);
     let kinds = KindSpec {
         kind: SimKind::Contact,
@@ -36,7 +37,11 @@ fn contact_only(cell: &Cell, n: usize, seed: u64) -> (CellCalibration, f64, f64)
     let x = cal.fit.estimate.b1_from_b2;
     let dt = (x.translation.vector - cell.b1_from_b2.translation.vector).norm();
     let dr = x.rotation.angle_to(&cell.b1_from_b2.rotation);
-    (cal, dt, dr)
+    let prior = cal.fit.parameters(&problem)[..6]
+        .iter()
+        .map(|p| p.prior_sigma)
+        .collect();
+    (cal, dt, dr, prior)
 }
 
 /// Placement tolerance with the prior: this many prior σ (translation norm, rotation angle).
@@ -61,13 +66,18 @@ fn placement_prior_pins_a_contact_only_session() {
     let mut free = cell.clone();
     free.b1_from_b2_sigma = None;
     for seed in [3, 4, 5] {
-        let (cal, dt, dr) = contact_only(&cell, 40, seed);
+        let (cal, dt, dr, problem_prior) = contact_only(&cell, 40, seed);
         assert_eq!(cal.fit.stopped, StopReason::Converged, "seed {seed}");
+        assert_eq!(
+            problem_prior,
+            [[sigma.sigma_m; 3], [sigma.sigma_rad; 3]].concat(),
+            "the report names the placement prior"
+        );
         assert!(
             dt < PRIOR_FACTOR * sigma.sigma_m && dr < PRIOR_FACTOR * sigma.sigma_rad,
             "seed {seed}: placement off by {dt} m, {dr} rad"
         );
-        let (cal_free, dt_free, _) = contact_only(&free, 40, seed);
+        let (cal_free, dt_free, _, _) = contact_only(&free, 40, seed);
         // The prior shrinks every placement column's posterior σ (measured 1.0–1.9 prior σ:
         // the chosen prior scale's error covariance also carries the kinematic shrinkage; free:
         // 0.9–3.2 mm or mrad).
