@@ -510,19 +510,9 @@ mod tests {
         assert!(leave_one_out(&few, Method::Lsq, &MountPair::floor_floor()).is_err());
     }
 
-    /// The linearised leave-one-out equals the exact refits on moderate data: 60 points over about
-    /// 1.6 m, 0.5 mm noise and one 20 mm bad handclasp, for `lsq` and `constrained` (floor–floor,
-    /// floor–wall). The neglected terms are second order in the fit's change when a point is left
-    /// out (measured ≤ 7e-8 m here); `LINEARISED_LOO_TOL` allows 1 µm, a thousandth
-    /// of the report's 1e-3 mm print precision. The flags agree exactly.
-    #[test]
-    fn linearised_leave_one_out_matches_refits() {
-        use rand::{Rng, SeedableRng};
-        use rand_distr::{Distribution, Normal};
-        const LINEARISED_LOO_TOL: f64 = 1e-6;
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(10);
-        let noise = Normal::new(0.0, 0.5e-3).unwrap();
-        let p_b2: Vec<Point3<f64>> = (0..60)
+    /// `n` points scattered over a 1.6 × 1.6 × 1.2 m box in b2 (the leave-one-out tests' data).
+    fn loo_scattered_points(rng: &mut impl rand::Rng, n: usize) -> Vec<Point3<f64>> {
+        (0..n)
             .map(|_| {
                 Point3::new(
                     rng.random_range(-0.8..0.8),
@@ -530,24 +520,50 @@ mod tests {
                     rng.random_range(0.0..1.2),
                 )
             })
-            .collect();
+            .collect()
+    }
+
+    /// `p_b2` mapped into b1 by a fixed placement that fits `mounts` (a wall rotation for a wall
+    /// robot 2, a yaw otherwise), plus `noise` per axis, m.
+    fn loo_noisy_images(
+        mounts: &MountPair,
+        p_b2: &[Point3<f64>],
+        noise: &rand_distr::Normal<f64>,
+        rng: &mut impl rand::Rng,
+    ) -> Vec<Point3<f64>> {
+        use rand_distr::Distribution;
+        let truth = match mounts.robot2 {
+            crate::Mount::Wall => Isometry3::from_parts(
+                nalgebra::Translation3::new(0.3, 1.4, 0.6),
+                nalgebra::UnitQuaternion::from_rotation_matrix(
+                    &crate::registration::wall_rotation(0.4, -0.9),
+                ),
+            ),
+            _ => Isometry3::new(
+                Vector3::new(0.04, 1.48, 0.05),
+                Vector3::new(0.0, 0.0, -0.78),
+            ),
+        };
+        p_b2.iter()
+            .map(|p| truth * p + Vector3::from_fn(|_, _| noise.sample(rng)))
+            .collect()
+    }
+
+    /// The linearised leave-one-out equals the exact refits on moderate data: 60 points over about
+    /// 1.6 m, 0.5 mm noise and one 20 mm bad handclasp, for `lsq` and `constrained` (floor–floor,
+    /// floor–wall). The neglected terms are second order in the fit's change when a point is left
+    /// out (measured ≤ 7e-8 m here); `LINEARISED_LOO_TOL` allows 1 µm, a thousandth
+    /// of the report's 1e-3 mm print precision. The flags agree exactly.
+    #[test]
+    fn linearised_leave_one_out_matches_refits() {
+        use rand::SeedableRng;
+        use rand_distr::Normal;
+        const LINEARISED_LOO_TOL: f64 = 1e-6;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(10);
+        let noise = Normal::new(0.0, 0.5e-3).unwrap();
+        let p_b2 = loo_scattered_points(&mut rng, 60);
         for mounts in [MountPair::floor_floor(), MountPair::floor_wall()] {
-            let truth = match mounts.robot2 {
-                crate::Mount::Wall => Isometry3::from_parts(
-                    nalgebra::Translation3::new(0.3, 1.4, 0.6),
-                    nalgebra::UnitQuaternion::from_rotation_matrix(
-                        &crate::registration::wall_rotation(0.4, -0.9),
-                    ),
-                ),
-                _ => Isometry3::new(
-                    Vector3::new(0.04, 1.48, 0.05),
-                    Vector3::new(0.0, 0.0, -0.78),
-                ),
-            };
-            let mut p_b1: Vec<Point3<f64>> = p_b2
-                .iter()
-                .map(|p| truth * p + Vector3::from_fn(|_, _| noise.sample(&mut rng)))
-                .collect();
+            let mut p_b1 = loo_noisy_images(&mounts, &p_b2, &noise, &mut rng);
             p_b1[17].x += 0.02;
             let pairs = PointPairs::new(p_b1, p_b2.clone()).unwrap();
             for method in [Method::Lsq, Method::Constrained] {
@@ -574,37 +590,14 @@ mod tests {
     /// (metre-scale coordinates, residuals of 1e-3 m: 1e-10 m is far above it, far below noise).
     #[test]
     fn four_point_leave_one_out_matches_refits() {
-        use rand::{Rng, SeedableRng};
-        use rand_distr::{Distribution, Normal};
+        use rand::SeedableRng;
+        use rand_distr::Normal;
         const FOUR_POINT_LOO_TOL: f64 = 1e-10;
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(12);
         let noise = Normal::new(0.0, 0.5e-3).unwrap();
-        let p_b2: Vec<Point3<f64>> = (0..60)
-            .map(|_| {
-                Point3::new(
-                    rng.random_range(-0.8..0.8),
-                    rng.random_range(-0.8..0.8),
-                    rng.random_range(0.0..1.2),
-                )
-            })
-            .collect();
+        let p_b2 = loo_scattered_points(&mut rng, 60);
         for mounts in [MountPair::floor_floor(), MountPair::floor_wall()] {
-            let truth = match mounts.robot2 {
-                crate::Mount::Wall => Isometry3::from_parts(
-                    nalgebra::Translation3::new(0.3, 1.4, 0.6),
-                    nalgebra::UnitQuaternion::from_rotation_matrix(
-                        &crate::registration::wall_rotation(0.4, -0.9),
-                    ),
-                ),
-                _ => Isometry3::new(
-                    Vector3::new(0.04, 1.48, 0.05),
-                    Vector3::new(0.0, 0.0, -0.78),
-                ),
-            };
-            let mut p_b1: Vec<Point3<f64>> = p_b2
-                .iter()
-                .map(|p| truth * p + Vector3::from_fn(|_, _| noise.sample(&mut rng)))
-                .collect();
+            let mut p_b1 = loo_noisy_images(&mounts, &p_b2, &noise, &mut rng);
             p_b1[23].y -= 0.02;
             let pairs = PointPairs::new(p_b1, p_b2.clone()).unwrap();
             for method in [Method::Generic, Method::GenericAffine, Method::Paper] {

@@ -11,6 +11,10 @@
 //! `tool`, `distance_mm`, `sigma_mm`, `tracker_x_mm`, `tracker_y_mm`, `tracker_z_mm`); a file
 //! without a `kind` column is all coincident handclasps, read exactly as before. Which kind uses
 //! which column is [`FIELD_KINDS`]; the crate README has the table and an example.
+//!
+//! One job: the session CSV (its schema, reading with row/column errors, writing) and the
+//! simulation of coincident handclasp sessions; the other kinds are simulated in
+//! `session_kinds`.
 
 use crate::cell::{Cell, CellRobot};
 use crate::error::SimError;

@@ -11,6 +11,10 @@
 //! candidates with L/U gravity compliance, same files but cv.csv), `DIR/scores.csv`,
 //! `DIR/scores_per_file.svg`, `DIR/residual_vs_joint.svg`. Method and findings:
 //! docs/ctu-motoman-findings.md (section "Rust study").
+//!
+//! One job: the study's driver — arguments, the cross-validated choice of each model, export,
+//! and the printed/CSV reports. Reading the dataset is `data`, the fits and the scoring protocol
+//! are `study`, the figures are `plot`.
 
 mod data;
 mod plot;
@@ -279,6 +283,7 @@ fn unit(p: &CellParam) -> (&'static str, f64) {
 }
 
 /// A calibrated model: its name, fit, problem and parameter set.
+#[derive(Clone)]
 struct Calibrated {
     name: String,
     problem: CellProblem,
@@ -453,9 +458,9 @@ fn calibrate_all(
         noise,
     )?;
     let chosen = if choice.spec == without.spec {
-        calibrate_clone(&without, name)
+        renamed(&without, name)
     } else if choice.spec == with.spec {
-        calibrate_clone(&with, &format!("{name}+c"))
+        renamed(&with, &format!("{name}+c"))
     } else {
         calibrate(cell, format!("{name}*"), recs, choice.spec, noise)?
     };
@@ -469,12 +474,11 @@ fn calibrate_all(
     })
 }
 
-fn calibrate_clone(c: &Calibrated, name: &str) -> Calibrated {
+/// `c` under another name (the score rows' label).
+fn renamed(c: &Calibrated, name: &str) -> Calibrated {
     Calibrated {
         name: name.to_string(),
-        problem: c.problem.clone(),
-        fit: c.fit.clone(),
-        spec: c.spec,
+        ..c.clone()
     }
 }
 
