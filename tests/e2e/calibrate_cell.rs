@@ -339,6 +339,73 @@ fn three_blunders_are_named_in_json_and_text() {
     }
 }
 
+/// The placement's prior σ is reported beside its posterior σ (JSON `b1_from_b2.sigma[].prior_sigma`,
+/// mm and deg; `null` without a prior) and in the text report.
+#[test]
+fn placement_prior_sigma_is_reported_beside_the_posterior() {
+    let dir = tempfile::tempdir().unwrap();
+    let free_path = write_cell(dir.path(), 14);
+    let truth = Cell::from_toml_file(&free_path).unwrap();
+    let s = session(&truth, 12, 6);
+    let session_path = dir.path().join("session.csv");
+    s.write_csv(&session_path, &truth).unwrap();
+    let text = std::fs::read_to_string(&free_path).unwrap();
+    assert!(text.contains("[b1_from_b2]"));
+    let known_path = dir.path().join("known.toml");
+    std::fs::write(
+        &known_path,
+        text.replacen(
+            "[b1_from_b2]",
+            "[b1_from_b2]\nsigma_mm = 0.5\nsigma_deg = 0.05\n",
+            1,
+        ),
+    )
+    .unwrap();
+    for (cell, prior) in [(&free_path, None), (&known_path, Some([0.5, 0.05]))] {
+        let v = calibrate_json(cell, &session_path, "placement", None);
+        let sigma = v["b1_from_b2"]["sigma"].as_array().unwrap();
+        assert_eq!(sigma.len(), 6, "{sigma:?}");
+        for (k, e) in sigma.iter().enumerate() {
+            let posterior = e["sigma"].as_f64().unwrap();
+            assert!(posterior > 0.0, "{e}");
+            assert_eq!(e["unit"], if k < 3 { "mm" } else { "deg" }, "{e}");
+            match prior {
+                None => assert!(e["prior_sigma"].is_null(), "{e}"),
+                Some(p) => {
+                    let want = p[usize::from(k >= 3)];
+                    let got = e["prior_sigma"].as_f64().unwrap();
+                    // The cell's value through mm → m → mm (or deg → rad → deg): round-off.
+                    // (No posterior ≤ prior check: the placement model scales its covariance by
+                    // the residuals' variance factor, which the robots' errors push above 1.)
+                    assert!((got - want).abs() < 1e-12 * want, "{e}");
+                }
+            }
+        }
+        let out = handclasp(&[
+            "calibrate",
+            "--cell",
+            cell.to_str().unwrap(),
+            "--session",
+            session_path.to_str().unwrap(),
+            "--model",
+            "placement",
+        ]);
+        assert!(out.status.success());
+        let text = String::from_utf8_lossy(&out.stdout);
+        let line = text
+            .lines()
+            .find(|l| l.starts_with("b1_from_b2 posterior σ:"))
+            .unwrap_or_else(|| panic!("no placement σ line in {text}"));
+        match prior {
+            None => assert_eq!(line.matches("prior: free").count(), 6, "{line}"),
+            Some(_) => {
+                assert_eq!(line.matches("(prior 0.5000 mm)").count(), 3, "{line}");
+                assert_eq!(line.matches("(prior 0.0500 deg)").count(), 3, "{line}");
+            }
+        }
+    }
+}
+
 #[test]
 fn cell_mode_errors_name_the_fix() {
     // --cell without --session, and points mixed with --cell, are refused by the argument parser.

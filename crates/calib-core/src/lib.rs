@@ -21,7 +21,10 @@ pub use nalgebra;
 
 pub use error::CalibError;
 pub use identify::Robot;
-pub use kinematics::{rotation_from_zyz, wrap_angle, zyz_from_rotation, zyz_nearest};
+pub use kinematics::{
+    rotation_from_zyz, wrap_angle, zyz_canonical, zyz_from_rotation, zyz_nearest,
+    ZYZ_CANONICAL_TILT_RAD,
+};
 pub use metrics::{
     e_rot, e_rot_fast, e_rot_raw, e_rot_zyz, e_tran, geodesic_angle, ErotTruth, TrialErrors,
     ZYZ_SINGULAR_BAND_RAD,

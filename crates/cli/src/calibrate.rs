@@ -10,8 +10,7 @@
 use anyhow::{bail, Context};
 use calib_core::{
     constrained_soft, explain_misfit, fit, leave_one_out, median_residual_m, mount_check,
-    read_points_csv, zyz_from_rotation, Fit, Method, Mount, MountPair, PointPairs,
-    MOUNT_CHECK_ALPHA,
+    read_points_csv, zyz_canonical, Fit, Method, Mount, MountPair, PointPairs, MOUNT_CHECK_ALPHA,
 };
 use serde_json::{json, Value};
 use std::path::PathBuf;
@@ -366,7 +365,7 @@ fn deg(v: f64) -> f64 {
 fn report(pairs: &PointPairs, f: &Fit, mounts: Option<&MountPair>) -> Value {
     let x = &f.b1_from_b2;
     let r = x.rotation.to_rotation_matrix();
-    let zyz = zyz_from_rotation(&r);
+    let zyz = zyz_canonical(&r);
     let q = x.rotation;
     let rows: Vec<usize> = (0..pairs.len()).map(|i| pairs.row(i)).collect();
     let uncertainty = f.uncertainty.as_ref().map(|u| {

@@ -8,9 +8,14 @@
 //! session. Both screen the rows for blunders and refit without them.
 //!
 //! Predicted cooperative accuracy: the posterior error of the predicted vector from tip 2 to tip
-//! 1 (b1), over **every pair `(q1_i, q2_j)` of the session's rows** (`n²` pairs, rejected rows
-//! included: their joint vectors are still the session's workspace), rms exact, p95 from a
-//! seeded draw (seed [`P95_SEED`]).
+//! 1 (b1), over **the session's meeting pairs `(q1_i, q2_i)`** of its coincident and contact rows
+//! (rejected rows included: their joint vectors are still the session's workspace), rms exact,
+//! p95 from a seeded draw (seed [`P95_SEED`]).
+//!
+//! The placement's uncertainty: JSON `b1_from_b2.sigma`, one entry per translation axis (mm) and
+//! rotation-vector axis (deg, of the left perturbation `b1_from_b2 ← R(φ)·b1_from_b2`), each with
+//! its `sigma` (posterior) and `prior_sigma` (the cell's `[b1_from_b2] sigma_mm`/`sigma_deg`;
+//! `null` when that half is fitted freely); the text report prints the same on one line.
 //!
 //! Output units: mm and degrees (ZYZ, `R = Rz(φ)·Ry(θ)·Rz(ψ)`); parameters in their unit (`deg`,
 //! `mm`, `ratio`, `deg/kNm`).
@@ -20,7 +25,7 @@ use calib_core::whole_cell::{
     calibrate_cell, predict_cooperative_accuracy, CellCalibration, CellParam, CellProblem,
     ReductionReason, ScreenOptions, SolveOptions,
 };
-use calib_core::zyz_from_rotation;
+use calib_core::zyz_canonical;
 use kinematics::ErrorParam;
 use serde_json::{json, Value};
 use sim_cell::whole_cell::{cell_problem, session_meeting_pairs, FitModel};
@@ -153,7 +158,7 @@ fn groups_json(problem: &CellProblem, cal: &CellCalibration) -> Value {
         .zip(&est.tracker_from_anchor)
         .map(|(g, t)| {
             let a = t.inverse();
-            let zyz = zyz_from_rotation(&a.rotation.to_rotation_matrix());
+            let zyz = zyz_canonical(&a.rotation.to_rotation_matrix());
             let v = a.translation.vector * 1e3;
             json!({
                 "group": g.name,
@@ -221,7 +226,7 @@ fn reason_text(r: &ReductionReason) -> (&'static str, Value) {
 fn report(problem: &CellProblem, cal: &CellCalibration, model: ModelArg, rows: usize) -> Value {
     let x = &cal.fit.estimate.b1_from_b2;
     let r = x.rotation.to_rotation_matrix();
-    let zyz = zyz_from_rotation(&r);
+    let zyz = zyz_canonical(&r);
     let q = x.rotation;
     let params = cal.fit.parameters(problem);
     let mut parameters = Vec::new();
@@ -244,9 +249,14 @@ fn report(problem: &CellProblem, cal: &CellCalibration, model: ModelArg, rows: u
                     p.param,
                     CellParam::PlacementTranslation { .. } | CellParam::PlacementRotation { .. }
                 ) {
-                    placement_sigma.push(
-                        json!({"name": p.name, "unit": unit, "sigma": p.posterior_sigma * k}),
-                    );
+                    // A prior σ of 0 is no prior: that half of the placement is fitted freely.
+                    let prior = (p.prior_sigma > 0.0).then(|| p.prior_sigma * k);
+                    placement_sigma.push(json!({
+                        "name": p.name,
+                        "unit": unit,
+                        "sigma": p.posterior_sigma * k,
+                        "prior_sigma": prior,
+                    }));
                 } else {
                     // Tracker frames, planes, contact distances (mixed sessions only).
                     nuisance.push(entry);
@@ -332,6 +342,7 @@ fn print_text(v: &Value) {
         "b1_from_b2:  x {:.3} mm  y {:.3} mm  z {:.3} mm   φ {:.4}°  θ {:.4}°  ψ {:.4}°  (ZYZ, R = Rz(φ)·Ry(θ)·Rz(ψ))",
         xyz[0], xyz[1], xyz[2], zyz[0], zyz[1], zyz[2]
     );
+    println!("{}", placement_sigma_line(&b["sigma"]));
     let params = v["parameters"].as_array().cloned().unwrap_or_default();
     if params.is_empty() {
         println!("kinematic parameters: none fitted (both robots nominal)");
@@ -394,24 +405,6 @@ fn print_text(v: &Value) {
             "rows by kind: {} coincident, {} contact, {} tracker, {} plane",
             k["coincident"], k["contact"], k["tracker"], k["plane"]
         );
-        // Contacts, planes and trackers may leave the placement weakly determined: say how well.
-        let sigma: Vec<String> = v["b1_from_b2"]["sigma"]
-            .as_array()
-            .into_iter()
-            .flatten()
-            .map(|p| {
-                format!(
-                    "{} ± {:.3} {}",
-                    p["name"]
-                        .as_str()
-                        .unwrap_or("?")
-                        .trim_start_matches("b1_from_b2 "),
-                    num(&p["sigma"]),
-                    p["unit"].as_str().unwrap_or("")
-                )
-            })
-            .collect();
-        println!("b1_from_b2 posterior σ: {}", sigma.join(", "));
         for c in g["contact"].as_array().into_iter().flatten() {
             println!(
                 "  contact group {}: distance {:.3} mm ({})",
@@ -479,6 +472,32 @@ fn print_text(v: &Value) {
         num(&v["data_chi2"]),
         v["residual_rows"]
     );
+}
+
+/// The placement's posterior σ per axis, each with its prior σ (`free` without a prior), from
+/// the JSON `b1_from_b2.sigma` entries.
+fn placement_sigma_line(sigma: &Value) -> String {
+    let parts: Vec<String> = sigma
+        .as_array()
+        .into_iter()
+        .flatten()
+        .map(|p| {
+            let unit = p["unit"].as_str().unwrap_or("");
+            let prior = match p["prior_sigma"].as_f64() {
+                Some(s) => format!("prior {s:.4} {unit}"),
+                None => "prior: free".to_string(),
+            };
+            format!(
+                "{} ± {:.4} {unit} ({prior})",
+                p["name"]
+                    .as_str()
+                    .unwrap_or("?")
+                    .trim_start_matches("b1_from_b2 "),
+                num(&p["sigma"]),
+            )
+        })
+        .collect();
+    format!("b1_from_b2 posterior σ: {}", parts.join(", "))
 }
 
 /// One readable line per dropped parameter: why, and for a merge its largest partners.

@@ -17,8 +17,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use calib_core::identify::Robot;
 use kinematics::{
-    base_from_tip, true_base_from_flange, zyz_from_rotation, KinematicErrors, ModelError,
-    RobotModel,
+    base_from_tip, true_base_from_flange, zyz_canonical, KinematicErrors, ModelError, RobotModel,
 };
 use nalgebra::{Isometry3, Translation3, Vector3};
 use serde_json::{json, Value};
@@ -199,7 +198,7 @@ pub(crate) fn parse_q_deg(
 pub(crate) fn pose_json(base_from_tip: &Isometry3<f64>) -> Value {
     let t = base_from_tip.translation.vector * 1e3;
     let r = base_from_tip.rotation.to_rotation_matrix();
-    let zyz = zyz_from_rotation(&r);
+    let zyz = zyz_canonical(&r);
     let m = r.matrix();
     let q = base_from_tip.rotation;
     json!({
@@ -218,7 +217,7 @@ pub(crate) fn pose_json(base_from_tip: &Isometry3<f64>) -> Value {
 pub(crate) fn pose_table(base_from_tip: &Isometry3<f64>) -> String {
     let t = base_from_tip.translation.vector * 1e3;
     let r = base_from_tip.rotation.to_rotation_matrix();
-    let zyz = zyz_from_rotation(&r).map(f64::to_degrees);
+    let zyz = zyz_canonical(&r).map(f64::to_degrees);
     let m = r.matrix();
     let mut s = String::new();
     s += &format!(

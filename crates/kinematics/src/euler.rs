@@ -4,7 +4,9 @@
 //! eq 32 literally, so `θ ∈ [0, π]`, `φ, ψ ∈ (−π, π]`, and at the singularity (`a_x = a_y = 0`,
 //! i.e. `θ = 0` or `θ = π`) it takes `φ = 0`. [`zyz_nearest`] returns, among all angle triples
 //! that produce the same rotation, the one nearest a reference triple (the way the paper's Table 1
-//! reads an estimate at the floor–floor / floor–ceiling singularity).
+//! reads an estimate at the floor–floor / floor–ceiling singularity). [`zyz_canonical`] is what
+//! files and reports write: a tilt below [`ZYZ_CANONICAL_TILT_RAD`] is written as a pure yaw
+//! with `φ = 0`.
 
 use nalgebra::{Rotation3, Vector3};
 use std::f64::consts::{PI, TAU};
@@ -60,6 +62,35 @@ pub fn zyz_from_rotation(r: &Rotation3<f64>) -> [f64; 3] {
 
 /// Below this `sin θ` the split between φ and ψ is treated as free (only φ ± ψ is defined).
 const SINGULAR_SIN_THETA: f64 = 1e-9;
+
+/// Tilt (rad) below which [`zyz_canonical`] writes a rotation as a pure yaw: `θ` within this of
+/// 0 or π. 1e-8 rad is 10 nm per metre of lever, far below what any robot, tracker or
+/// calibration here resolves (a laser tracker's angular uncertainty is ~6e-6 rad), and above
+/// the tilts a fit leaves on a placement held at the identity (measured 5e-11–2e-9 rad on the
+/// CTU cells), whose φ would otherwise print as an arbitrary angle with ψ ≈ −φ.
+pub const ZYZ_CANONICAL_TILT_RAD: f64 = 1e-8;
+
+/// ZYZ angles `[φ, θ, ψ]` (rad) of `r` as files and reports write them: [`zyz_from_rotation`],
+/// except that a tilt within [`ZYZ_CANONICAL_TILT_RAD`] of θ = 0 or θ = π, where φ and ψ are
+/// degenerate (only φ + ψ, resp. φ − ψ, is defined; a near-identity would print as e.g.
+/// `[1.34°, 0°, −1.34°]`), is written canonically: `θ = 0` (resp. π) exactly, `φ = 0`, and ψ
+/// carries the defined angle (`φ + ψ`, resp. `ψ − φ`), wrapped to `(−π, π]`.
+///
+/// The canonical triple reproduces `r` to within its dropped tilt, i.e. to a rotation angle
+/// below [`ZYZ_CANONICAL_TILT_RAD`]; elsewhere the result is exactly [`zyz_from_rotation`]'s.
+/// Never panics; a non-finite matrix gives NaN angles.
+pub fn zyz_canonical(r: &Rotation3<f64>) -> [f64; 3] {
+    let [phi, theta, psi] = zyz_from_rotation(r);
+    if theta < ZYZ_CANONICAL_TILT_RAD {
+        // Rz(φ)·Ry(θ)·Rz(ψ) → Rz(φ + ψ) as θ → 0.
+        [0.0, 0.0, wrap_angle(phi + psi)]
+    } else if PI - theta < ZYZ_CANONICAL_TILT_RAD {
+        // Rz(φ)·Ry(π)·Rz(ψ) = Ry(π)·Rz(ψ − φ), since Rz(φ)·Ry(π) = Ry(π)·Rz(−φ).
+        [0.0, PI, wrap_angle(psi - phi)]
+    } else {
+        [phi, theta, psi]
+    }
+}
 
 /// ZYZ angles (rad) of `r` on the branch nearest `reference` (rad), every angle wrapped to `(−π, π]`.
 ///
@@ -205,6 +236,84 @@ mod tests {
             let r = rotation_from_zyz([0.3, PI - theta, -0.2]);
             let z = zyz_from_rotation(&r);
             assert!(max_abs_diff(&r, &rotation_from_zyz(z)) < ROUND_TRIP_TOL);
+        }
+    }
+
+    /// The rotation angle between two rotations, rad, accurate for tiny angles (2·atan2 of the
+    /// quaternion's vector and scalar parts; `acos` of the trace loses ~1e-8 rad near 0).
+    fn angle_between(a: &Rotation3<f64>, b: &Rotation3<f64>) -> f64 {
+        let q = nalgebra::UnitQuaternion::from_rotation_matrix(&a.rotation_to(b));
+        2.0 * q.vector().norm().atan2(q.scalar().abs())
+    }
+
+    #[test]
+    fn canonical_near_identity_is_a_pure_yaw_with_phi_zero() {
+        // The reported case: a fitted placement 2e-9 rad from the identity read as
+        // [1.34°, 1.1e-7°, −1.34°] by eq 32.
+        let r = rotation_from_zyz([1.34f64.to_radians(), 2e-9, (-1.3353f64).to_radians()]);
+        let raw = zyz_from_rotation(&r);
+        assert!(
+            raw[0].to_degrees() > 1.0,
+            "eq 32 keeps the degenerate φ: {raw:?}"
+        );
+        let z = zyz_canonical(&r);
+        assert_eq!((z[0], z[1]), (0.0, 0.0));
+        assert!(
+            (z[2] - (1.34f64 - 1.3353).to_radians()).abs() < 1e-12,
+            "{z:?}"
+        );
+        assert!(angle_between(&rotation_from_zyz(z), &r) < ZYZ_CANONICAL_TILT_RAD);
+        // The exact identity and an exact yaw are unchanged.
+        assert_eq!(zyz_canonical(&Rotation3::identity()), [0.0, 0.0, 0.0]);
+        let yaw = rotation_from_zyz([0.0, 0.0, -0.7]);
+        assert_eq!(zyz_canonical(&yaw), zyz_from_rotation(&yaw));
+    }
+
+    #[test]
+    fn canonical_near_180_keeps_the_defined_difference() {
+        for &tilt in &[0.0, 1e-12, 5e-9] {
+            let r = rotation_from_zyz([0.9, PI - tilt, -0.4]);
+            let z = zyz_canonical(&r);
+            assert_eq!((z[0], z[1]), (0.0, PI), "{z:?}");
+            assert!(wrap_angle(z[2] - (-0.4 - 0.9)).abs() < 1e-9, "{z:?}");
+            // Tolerance: the dropped tilt plus round-off.
+            assert!(angle_between(&rotation_from_zyz(z), &r) < tilt + 1e-12);
+        }
+    }
+
+    #[test]
+    fn canonical_is_eq32_outside_the_band() {
+        for &theta in &[2e-8, 1e-4, 1.0, PI - 2e-8] {
+            let r = rotation_from_zyz([0.3, theta, -0.2]);
+            assert_eq!(zyz_canonical(&r), zyz_from_rotation(&r), "θ = {theta}");
+        }
+    }
+
+    proptest::proptest! {
+        /// The canonical triple is the same rotation: within the dropped tilt (< 1e-8 rad) in the
+        /// singular band, within round-off elsewhere; φ = 0 whenever θ is 0 or π; θ ∈ [0, π].
+        #[test]
+        fn canonical_form_gives_the_same_rotation(
+            phi in -4.0..4.0f64, psi in -4.0..4.0f64,
+            theta in proptest::prop_oneof![
+                -1e-8..1e-8f64,
+                0.0..std::f64::consts::PI,
+                (std::f64::consts::PI - 1e-8)..(std::f64::consts::PI + 1e-8),
+            ],
+        ) {
+            let r = rotation_from_zyz([phi, theta, psi]);
+            let z = zyz_canonical(&r);
+            let back = rotation_from_zyz(z);
+            // Round-off of the matrix products and of the extraction on unit matrices.
+            const ROUND_OFF_RAD: f64 = 1e-12;
+            let tilt = theta.sin().abs();
+            let bound = if tilt < 2.0 * ZYZ_CANONICAL_TILT_RAD { tilt + ROUND_OFF_RAD } else { ROUND_OFF_RAD };
+            proptest::prop_assert!(angle_between(&back, &r) <= bound, "{z:?}");
+            proptest::prop_assert!(z[1] >= 0.0 && z[1] <= PI);
+            if z[1] == 0.0 || z[1] == PI {
+                proptest::prop_assert_eq!(z[0], 0.0);
+            }
+            proptest::prop_assert!(z[0] > -PI && z[0] <= PI && z[2] > -PI && z[2] <= PI);
         }
     }
 

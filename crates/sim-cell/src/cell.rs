@@ -10,7 +10,7 @@
 use crate::error::SimError;
 use crate::placement::Placement;
 use calib_core::whole_cell::{Tolerance, Tool};
-use calib_core::{zyz_from_rotation, Mount, MountPair, PoseMmDeg, Robot};
+use calib_core::{zyz_canonical, Mount, MountPair, PoseMmDeg, Robot};
 use kinematics::{KinematicErrors, RobotModel};
 use nalgebra::{Isometry3, Point3, Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
@@ -602,7 +602,7 @@ impl Cell {
             errors: errors_file(&r.errors),
             tolerance: tolerance_file(&r.tolerance),
         };
-        let zyz = zyz_from_rotation(&self.b1_from_b2.rotation.to_rotation_matrix());
+        let zyz = zyz_canonical(&self.b1_from_b2.rotation.to_rotation_matrix());
         let t = self.b1_from_b2.translation.vector * 1e3;
         let a = self.noise.alignment_m * 1e3;
         let file = CellFile {

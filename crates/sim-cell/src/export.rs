@@ -2,6 +2,22 @@
 //! origin xyz/rpy) and a cell TOML (the fitted `b1_from_b2`, corrected tips, and in
 //! `[robotN.errors]` what a URDF cannot hold: joint scale, compliance). Used by
 //! `handclasp calibrate --cell --export` and the `ctu_motoman` study.
+//!
+//! # The placement's σ in the exported cell
+//! `[b1_from_b2] sigma_mm / sigma_deg` is the input cell's, unchanged, centred on the fitted
+//! placement; a cell without it is written without it. Never the posterior σ:
+//! - **A known placement** (two arms on one base): the σ states a mechanical fact, which the
+//!   calibration does not change; the fit stays well within it (the CTU self-contact fit moves
+//!   the placement by 2e-6 mm against σ 0.01 mm), so the re-centred prior says the same thing.
+//! - **A placement fitted from the session** (two robots calibrated by handclasp, no σ in the
+//!   cell): the exported cell is written without a σ. Its next use is a new calibration, whose
+//!   job includes finding out whether a robot moved; a prior at this fit's posterior σ (tens of
+//!   µm from 40 handclasps) would pin the placement to the old fit and hide the move. The
+//!   kinematic corrections are treated the same way: the corrected URDFs carry the fit, and the
+//!   next calibration's prior is again the cell's `[robotN.tolerance]`, not a posterior.
+//! - **Both** (a σ in the cell and a session that determines the placement): the posterior σ
+//!   is at most the prior σ, so the kept prior σ is a conservative statement about the fitted
+//!   placement and keeps what the cell's author declared.
 
 use std::path::{Path, PathBuf};
 
@@ -34,15 +50,19 @@ pub const CALIBRATE_EXPORT_NAMES: ExportNames<'static> = ExportNames {
     robot2_urdf: "robot2.urdf",
     header: "# Written by `handclasp calibrate --cell --export`: the calibrated cell (fitted b1_from_b2,\n\
              # corrected URDFs robot1.urdf / robot2.urdf and tip offsets; [robotN.errors] holds only what a\n\
-             # URDF cannot express). A session recorded with the old models has their tip columns, which\n\
-             # these models reject (record a new session, or use the old cell for it).\n",
+             # URDF cannot express). [b1_from_b2] sigma_mm/sigma_deg, if any, is the input cell's prior,\n\
+             # now centred on the fitted placement. A session recorded with the old models has their tip\n\
+             # columns, which these models reject (record a new session, or use the old cell for it).\n",
 };
 
 /// Writes the calibrated `cell` into `dir` (created if missing): each robot's URDF corrected by
 /// the URDF-expressible part of `estimate`'s corrections ([`split_for_urdf`]), and the cell file
 /// with `estimate.b1_from_b2`, the tips corrected by tool 0's tip error (tool 0 = the cell's tip,
 /// as [`crate::whole_cell::cell_problem`] builds it), the rest of each robot's errors (joint
-/// scale, compliance) as `[robotN.errors]`, and robot 2's gravity rotated by the fitted placement.
+/// scale, compliance) as `[robotN.errors]`, robot 2's gravity rotated by the fitted placement, and
+/// the cell's placement σ (if any) unchanged, now centred on the fitted placement (see the
+/// module documentation for why). The placement's angles are written by
+/// [`calib_core::zyz_canonical`] (a tilt below 1e-8 rad is written as a pure yaw).
 /// Each URDF is written to a temporary file, re-loaded, verified against the fitted model
 /// ([`verify_patched_urdf`], flange within [`kinematics::PATCH_TOLERANCE_M`]) and renamed into
 /// place; the cell file is written the same way and re-loaded. Returns the files written (the two
@@ -236,6 +256,97 @@ mod tests {
                 assert!(d < TOL_M, "{}: {d} m", exported.urdf);
             }
         }
+    }
+
+    /// Rotation angle of `q`, rad, accurate near 0 (`UnitQuaternion::angle` takes an `acos`,
+    /// which loses ~1e-8 rad there).
+    fn angle_rad(q: &nalgebra::UnitQuaternion<f64>) -> f64 {
+        2.0 * q.vector().norm().atan2(q.scalar().abs())
+    }
+
+    /// A seeded 4-point floor–floor session and its kinematic problem.
+    fn floor_floor_problem(cell: &Cell) -> calib_core::whole_cell::CellProblem {
+        let session = generate_session(
+            cell,
+            &SessionSpec::new(4, Layout::Tetrahedron, 1.0),
+            &mut trial_rng(1, 0),
+        )
+        .unwrap();
+        cell_problem(cell, &session, FitModel::Kinematic)
+    }
+
+    #[test]
+    fn the_placement_sigma_is_kept_centred_on_the_fit_and_absent_stays_absent() {
+        use crate::PlacementSigma;
+        let plain = floor_floor();
+        let mut known = plain.clone();
+        let sigma = PlacementSigma {
+            sigma_m: 2e-5,
+            sigma_rad: 3e-5,
+        };
+        known.b1_from_b2_sigma = Some(sigma);
+        for (cell, want) in [(&plain, None), (&known, Some(sigma))] {
+            let problem = floor_floor_problem(cell);
+            let fitted = Isometry3::new(
+                Vector3::new(0.04, 1.47, 0.05),
+                Vector3::new(1e-3, -2e-3, -0.77),
+            );
+            let est = CellEstimate::nominal(&problem, fitted);
+            let dir = tempfile::tempdir().unwrap();
+            export_calibrated_cell(cell, &est, dir.path(), &CALIBRATE_EXPORT_NAMES).unwrap();
+            let out = Cell::from_toml_file(&dir.path().join("cell.toml")).unwrap();
+            let got = out.b1_from_b2_sigma;
+            match (got, want) {
+                (None, None) => {}
+                (Some(g), Some(w)) => {
+                    // The TOML keeps 10 decimals of mm and deg.
+                    assert!((g.sigma_m - w.sigma_m).abs() < 1e-13, "{g:?}");
+                    assert!((g.sigma_rad - w.sigma_rad).abs() < 2e-12, "{g:?}");
+                }
+                _ => panic!("placement σ written as {got:?}, want {want:?}"),
+            }
+            // The prior's centre is the fitted placement.
+            let d = out.b1_from_b2.inverse() * fitted;
+            assert!(d.translation.vector.norm() < TOL_M);
+            assert!(angle_rad(&d.rotation) < 1e-9);
+        }
+    }
+
+    #[test]
+    fn a_near_identity_placement_is_written_with_phi_zero_and_reads_back() {
+        let cell = floor_floor();
+        let problem = floor_floor_problem(&cell);
+        // The CTU study's case: a placement held at the identity, left 2e-9 rad from it by the
+        // fit, which eq 32 reads as φ ≈ 1.34°, ψ ≈ −1.34°.
+        let fitted = Isometry3::from_parts(
+            nalgebra::Translation3::new(1e-9, 0.0, -2e-9),
+            calib_core::rotation_from_zyz([1.34f64.to_radians(), 2e-9, (-1.335f64).to_radians()])
+                .into(),
+        );
+        let est = CellEstimate::nominal(&problem, fitted);
+        let dir = tempfile::tempdir().unwrap();
+        export_calibrated_cell(&cell, &est, dir.path(), &CALIBRATE_EXPORT_NAMES).unwrap();
+        let text = std::fs::read_to_string(dir.path().join("cell.toml")).unwrap();
+        assert!(
+            text.contains("zyz_deg = [0.0, 0.0, 0.005]"),
+            "canonical angles: {text}"
+        );
+        let out = Cell::from_toml_file(&dir.path().join("cell.toml")).unwrap();
+        // Same rotation within the dropped tilt (calib_core::ZYZ_CANONICAL_TILT_RAD) and the
+        // file's 10 decimals of degrees.
+        let angle = angle_rad(&(out.b1_from_b2.rotation.inverse() * fitted.rotation));
+        assert!(angle < calib_core::ZYZ_CANONICAL_TILT_RAD, "{angle}");
+        // Written again, the read-back cell gives the same text (a fixed point).
+        let again = tempfile::tempdir().unwrap();
+        let est2 = CellEstimate::nominal(&problem, out.b1_from_b2);
+        export_calibrated_cell(&cell, &est2, again.path(), &CALIBRATE_EXPORT_NAMES).unwrap();
+        let text2 = std::fs::read_to_string(again.path().join("cell.toml")).unwrap();
+        let zyz_line = |t: &str| {
+            t.lines()
+                .find(|l| l.starts_with("zyz_deg"))
+                .map(str::to_string)
+        };
+        assert_eq!(zyz_line(&text), zyz_line(&text2));
     }
 
     #[test]
