@@ -4,18 +4,21 @@
 //! `[noise]` as the noise ([`calib_core::whole_cell::greedy_design`]).
 //!
 //! # Candidates
-//! Candidate `i` is a meeting point drawn uniformly in a cube of side `spread_m` around the teach
-//! centre by [`trial_rng`]`(seed, i)` and simulated as `sim-cell session` places a handclasp
-//! ([`generate_session`] with that one explicit point) on the cell's **nominal** robots with no
-//! noise: both robots reach it head-on, from the first approach direction of the session
-//! generator's list that both reach within their joint limits. Points neither robot pair
-//! reaches are skipped; at most [`ATTEMPTS_PER_CANDIDATE`]`·k` points are drawn. The tip is not
-//! checked for collision with its own links (not modelled).
+//! [`reachable_handclasps`] is the one generator of candidate handclasps, shared with the
+//! robot-mode sweep's held-out pairs and planned layout (`sweep::robot`): meeting points drawn
+//! one after another, uniformly in a cube of side `spread_m` around the teach centre, each
+//! simulated as `sim-cell session` places a handclasp ([`generate_session`] with that one
+//! explicit point) on the cell's **nominal** robots with no noise ([`nominal_cell`]): both robots
+//! reach it head-on, from the first approach direction of the session generator's list that both
+//! reach within their joint limits. Points the robot pair does not reach are skipped; at most
+//! [`ATTEMPTS_PER_CANDIDATE`]`·k` points are drawn. The plan's candidates come from the
+//! generator [`trial_rng`]`(seed, `[`CANDIDATE_STREAM`]`)`. The tip is not checked for
+//! collision with its own links (not modelled).
 //!
 //! # Prediction
 //! The cooperative error is predicted over [`EVAL_POSES`] further reachable handclasp poses
-//! `(q1_i, q2_i)` (streams after the candidates' attempts: held out from the candidates, spread
-//! over the same cube), linearised at the nominal cell. These pairs meet, so the error of the
+//! `(q1_i, q2_i)` (generator [`trial_rng`]`(seed, `[`EVAL_STREAM`]`)`: held out from the
+//! candidates, spread over the same cube), linearised at the nominal cell. These pairs meet, so the error of the
 //! predicted vector is invariant to anything confounded with the base frames (a base rotation
 //! turns a vector of length ~0). Cross pairs `(q1_i, q2_j)` would not be: their vectors are up to
 //! ~1.5 m long, and the base rotations that no handclasp can observe (e.g. robot 1's joint-1
@@ -31,7 +34,7 @@ use calib_core::whole_cell::{
 use kinematics::KinematicErrors;
 use nalgebra::{Point3, Vector3};
 use rand::Rng;
-use rayon::prelude::*;
+use rand_chacha::ChaCha8Rng;
 
 use crate::cell::Cell;
 use crate::error::SimError;
@@ -48,9 +51,13 @@ pub const EVAL_POSES: usize = 200;
 pub const DEFAULT_RANDOM_DRAWS: usize = 20;
 /// Seed of the placement draws behind the predicted `e_tran`/`e_rot`.
 const PREDICTION_SEED: u64 = 7;
-/// Points drawn per parallel batch (progress is reported between batches).
+/// Points drawn between two progress reports.
 const BATCH: usize = 32;
-/// Stream offset of the random picks, far from any candidate or evaluation stream.
+/// Stream of `seed` that draws the candidates.
+pub const CANDIDATE_STREAM: u64 = 0;
+/// Stream of `seed` that draws the held-out evaluation poses.
+pub const EVAL_STREAM: u64 = 1;
+/// Stream offset of the random picks, far from the candidate and evaluation streams.
 const RANDOM_STREAM: u64 = 1 << 40;
 
 /// What to plan.
@@ -109,8 +116,9 @@ pub struct Plan {
     pub random: Vec<DesignPrediction>,
 }
 
-/// The cell with nominal robots (no `[robotN.errors]`) and no noise: where candidates are placed.
-fn nominal(cell: &Cell) -> Cell {
+/// The cell with nominal robots (no `[robotN.errors]`) and no noise: where candidates are
+/// placed (the plan's and the robot-mode sweep's setup, as an operator would plan).
+pub fn nominal_cell(cell: &Cell) -> Cell {
     let mut c = cell.clone();
     for r in [&mut c.robot1, &mut c.robot2] {
         r.errors = KinematicErrors::zero(r.model.dof());
@@ -121,64 +129,48 @@ fn nominal(cell: &Cell) -> Cell {
     c
 }
 
-/// One attempt: the point of stream `stream` and the pose placing it, if both robots reach it.
-fn attempt(nominal: &Cell, cube: &Cube, stream: u64) -> Option<SessionPoint> {
-    let mut rng = trial_rng(cube.seed, stream);
-    let p = crate::teach_points(Layout::Random, 1, cube.spread_m, &cube.centre_b1, &mut rng)[0];
-    let spec = SessionSpec {
-        points_b1: Some(vec![p]),
-        ..SessionSpec::new(1, Layout::Random, cube.spread_m)
-    };
-    generate_session(nominal, &spec, &mut rng)
-        .ok()
-        .and_then(|s| s.points.into_iter().next())
-}
-
-/// Where candidate meeting points are drawn: a cube of side `spread_m` around `centre_b1` (m,
-/// b1), stream `i` of `seed` drawing point `i`.
-#[derive(Debug, Clone, Copy)]
-struct Cube {
-    centre_b1: Point3<f64>,
-    spread_m: f64,
-    seed: u64,
-}
-
-/// Up to `count` reachable poses of the nominal cell, drawn from streams `first_stream..` of the
-/// cube (at most `max_attempts` draws), in stream order; `progress(found, drawn)` after each
-/// batch. Returns the poses (numbered 1..) and the draws used. Deterministic whatever the
-/// thread count.
-fn reachable_poses(
+/// Up to `count` handclasps both robots of `cell` reach head-on, drawn from `rng` one after
+/// another: each meeting point uniform in the cube of side `spread_m` (m) around `centre_b1`
+/// (m, b1), placed by [`generate_session`] with that one point (the same generator continues
+/// into it); unreachable points are skipped, and at most `max_draws` are drawn.
+/// `progress(found, drawn)` every [`BATCH`] draws and at the end. Returns the handclasps
+/// (numbered 1..) and the draws used. Pass a [`nominal_cell`] for noise-free nominal poses.
+///
+/// This is the one candidate generator of `handclasp plan` ([`plan_session`]) and of the
+/// robot-mode sweep (held-out pairs, planned layout). It draws sequentially, so its output
+/// depends on `rng` alone, never on the thread count.
+pub fn reachable_handclasps(
     cell: &Cell,
-    cube: Cube,
+    centre_b1: &Point3<f64>,
+    spread_m: f64,
     count: usize,
-    first_stream: u64,
-    max_attempts: usize,
+    max_draws: usize,
+    rng: &mut ChaCha8Rng,
     progress: &mut dyn FnMut(usize, usize),
 ) -> (Vec<SessionPoint>, usize) {
-    let nominal = nominal(cell);
     let mut out = Vec::with_capacity(count);
     let mut drawn = 0;
-    while out.len() < count && drawn < max_attempts {
-        let batch = BATCH.min(max_attempts - drawn);
-        let found: Vec<Option<SessionPoint>> = (drawn..drawn + batch)
-            .into_par_iter()
-            .map(|i| attempt(&nominal, &cube, first_stream + i as u64))
-            .collect();
-        for p in found {
-            if out.len() == count {
-                break;
-            }
-            // Drawn so far: up to and including this point.
-            drawn += 1;
-            if let Some(p) = p {
+    while out.len() < count && drawn < max_draws {
+        let offset = Vector3::from_fn(|_, _| rng.random_range(-0.5..0.5)) * spread_m;
+        let spec = SessionSpec {
+            n: 1,
+            layout: Layout::Random,
+            spread_m,
+            centre_b1: None,
+            points_b1: Some(vec![centre_b1 + offset]),
+        };
+        drawn += 1;
+        if let Ok(s) = generate_session(cell, &spec, rng) {
+            if let Some(mut p) = s.points.into_iter().next() {
+                p.point = out.len() + 1;
                 out.push(p);
             }
         }
-        progress(out.len(), drawn);
+        if drawn % BATCH == 0 {
+            progress(out.len(), drawn);
+        }
     }
-    for (i, p) in out.iter_mut().enumerate() {
-        p.point = i + 1;
-    }
+    progress(out.len(), drawn);
     (out, drawn)
 }
 
@@ -228,13 +220,16 @@ pub fn plan_session(
     }
     let centre = spec.centre_b1.unwrap_or(cell.centre_b1);
     let max_attempts = ATTEMPTS_PER_CANDIDATE * spec.candidates;
-    let cube = Cube {
-        centre_b1: centre,
-        spread_m: spec.spread_m,
-        seed: spec.seed,
-    };
-    let (candidates, attempts) =
-        reachable_poses(cell, cube, spec.candidates, 0, max_attempts, progress);
+    let nominal = nominal_cell(cell);
+    let (candidates, attempts) = reachable_handclasps(
+        &nominal,
+        &centre,
+        spec.spread_m,
+        spec.candidates,
+        max_attempts,
+        &mut trial_rng(spec.seed, CANDIDATE_STREAM),
+        progress,
+    );
     let c_mm = centre * 1e3;
     let hint = format!(
         "reduce the spread ({:.0} mm) or move the centre ({:.0}, {:.0}, {:.0}) mm into the common workspace",
@@ -261,13 +256,14 @@ pub fn plan_session(
             spec.n
         )));
     }
-    // Held-out evaluation poses: the streams after every candidate attempt.
-    let (eval, _) = reachable_poses(
-        cell,
-        cube,
+    // Held-out evaluation poses: a generator of their own.
+    let (eval, _) = reachable_handclasps(
+        &nominal,
+        &centre,
+        spec.spread_m,
         EVAL_POSES,
-        max_attempts as u64,
         ATTEMPTS_PER_CANDIDATE * EVAL_POSES,
+        &mut trial_rng(spec.seed, EVAL_STREAM),
         &mut |_, _| {},
     );
     if eval.is_empty() {

@@ -13,7 +13,9 @@
 //! (no errors, no noise), as an operator would: the plan is the greedy A-optimal choice
 //! ([`greedy_design`], cooperative criterion over the held-out pairs, the grid cell's σ) of
 //! the grid cell's point count among [`PLAN_CANDIDATES`] reachable handclasps drawn uniformly
-//! in the spread cube around the cell's centre. The same cube holds the held-out pairs.
+//! in the spread cube around the cell's centre. The same cube holds the held-out pairs. Both
+//! are drawn, in that order from the setup generator, by `handclasp plan`'s candidate generator
+//! ([`crate::plan::reachable_handclasps`] on [`crate::plan::nominal_cell`]).
 
 use calib_core::whole_cell::{
     calibrate_cell, greedy_design, measure_cooperative_error, predict_cooperative_accuracy,
@@ -21,7 +23,7 @@ use calib_core::whole_cell::{
     ScreenOptions, SolveOptions,
 };
 use calib_core::{fit_fast, Method, MountPair, TrialErrors};
-use kinematics::{ErrorParam, KinematicErrors};
+use kinematics::ErrorParam;
 use nalgebra::{Isometry3, Point3, Vector3};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -31,6 +33,7 @@ use super::run::{Cooperative, Failure, Outcome, TrialOutcome};
 use crate::cell::{Cell, CellRobot};
 use crate::error::SimError;
 use crate::layout::Layout;
+use crate::plan::{nominal_cell, reachable_handclasps};
 use crate::session::{generate_session, Session, SessionPoint, SessionSpec};
 use crate::trial_rng;
 use crate::whole_cell::{cell_problem, truth_estimate, FitModel};
@@ -57,53 +60,32 @@ pub struct RobotSetup {
     pub planned_b1: Option<Vec<Point3<f64>>>,
 }
 
-/// The cell with both robots nominal (no kinematic errors) and no noise.
-fn nominal_cell(cell: &Cell) -> Cell {
-    let mut c = cell.clone();
-    c.robot1.errors = KinematicErrors::zero(c.robot1.model.dof());
-    c.robot2.errors = KinematicErrors::zero(c.robot2.model.dof());
-    c.noise.alignment_m = Vector3::zeros();
-    c.noise.repeatability_m = 0.0;
-    c.noise.encoder_resolution_rad = 0.0;
-    c
-}
-
-/// `count` handclasps both robots of `cell` reach, at points drawn uniformly in the cube of side
-/// `spread_m` around the cell's centre (unreachable draws skipped). Errors when fewer than
+/// `count` handclasps both nominal robots of `nominal` reach, drawn by the plan's generator
+/// ([`reachable_handclasps`]) around the cell's centre; an error naming `what` when fewer than
 /// `count` of `DRAWS_PER_POINT·count` draws are reachable.
-fn reachable_handclasps(
-    cell: &Cell,
+fn reachable_or_error(
+    nominal: &Cell,
     spread_m: f64,
     count: usize,
     what: &str,
     rng: &mut ChaCha8Rng,
 ) -> Result<Vec<SessionPoint>, SimError> {
-    let mut out = Vec::with_capacity(count);
-    for _ in 0..DRAWS_PER_POINT * count {
-        if out.len() == count {
-            break;
-        }
-        let offset = Vector3::from_fn(|_, _| rng.random_range(-0.5..0.5)) * spread_m;
-        let spec = SessionSpec {
-            n: 1,
-            layout: Layout::Random,
-            spread_m,
-            centre_b1: None,
-            points_b1: Some(vec![cell.centre_b1 + offset]),
-        };
-        if let Ok(s) = generate_session(cell, &spec, rng) {
-            let mut p = s.points[0].clone();
-            p.point = out.len() + 1;
-            out.push(p);
-        }
-    }
+    let max_draws = DRAWS_PER_POINT * count;
+    let (out, _) = reachable_handclasps(
+        nominal,
+        &nominal.centre_b1,
+        spread_m,
+        count,
+        max_draws,
+        rng,
+        &mut |_, _| {},
+    );
     if out.len() < count {
-        let c = cell.centre_b1 * 1e3;
+        let c = nominal.centre_b1 * 1e3;
         return Err(SimError::InvalidInput(format!(
-            "{what}: only {} of {} draws in the {:.0} mm cube around ({:.0}, {:.0}, {:.0}) mm are \
+            "{what}: only {} of {max_draws} draws in the {:.0} mm cube around ({:.0}, {:.0}, {:.0}) mm are \
              reachable by both robots ({count} needed); reduce the spread",
             out.len(),
-            DRAWS_PER_POINT * count,
             spread_m * 1e3,
             c.x,
             c.y,
@@ -127,7 +109,7 @@ pub fn robot_setup(
     let nominal = nominal_cell(cell);
     let spread_m = config.spread_m[grid_cell.spread];
     let eval_pairs: Vec<ConfigPair> =
-        reachable_handclasps(&nominal, spread_m, EVAL_PAIRS, "held-out pairs", rng)?
+        reachable_or_error(&nominal, spread_m, EVAL_PAIRS, "held-out pairs", rng)?
             .into_iter()
             .map(|p| ConfigPair {
                 q1: p.q1,
@@ -138,7 +120,7 @@ pub fn robot_setup(
             .collect();
     let planned_b1 = if config.layout == SweepLayout::Planned {
         let n = config.n_points[grid_cell.n];
-        let candidates = Session::from_points(reachable_handclasps(
+        let candidates = Session::from_points(reachable_or_error(
             &nominal,
             spread_m,
             PLAN_CANDIDATES,
