@@ -250,7 +250,7 @@ fn report(problem: &CellProblem, cal: &CellCalibration, model: ModelArg, rows: u
                     CellParam::PlacementTranslation { .. } | CellParam::PlacementRotation { .. }
                 ) {
                     // A prior σ of 0 is no prior: that half of the placement is fitted freely.
-                    let prior = (p.prior_sigma > 0.0).then(|| p.prior_sigma * k);
+                    let prior = (p.prior_sigma > 0.0).then_some(p.prior_sigma * k);
                     placement_sigma.push(json!({
                         "name": p.name,
                         "unit": unit,

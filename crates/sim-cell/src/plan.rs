@@ -18,10 +18,10 @@
 //! # Prediction
 //! The cooperative error is predicted over [`EVAL_POSES`] further reachable handclasp poses
 //! `(q1_i, q2_i)` (generator [`trial_rng`]`(seed, `[`EVAL_STREAM`]`)`: held out from the
-//! candidates, spread over the same cube), linearised at the nominal cell. These pairs meet, so the error of the
-//! predicted vector is invariant to anything confounded with the base frames (a base rotation
-//! turns a vector of length ~0). Cross pairs `(q1_i, q2_j)` would not be: their vectors are up to
-//! ~1.5 m long, and the base rotations that no handclasp can observe (e.g. robot 1's joint-1
+//! candidates, spread over the same cube), linearised at the nominal cell. These pairs meet, so
+//! the error of the predicted vector is invariant to anything confounded with the base frames
+//! (a base rotation turns a vector of length ~0). Cross pairs `(q1_i, q2_j)` would not be: their
+//! vectors are up to ~1.5 m long, and the base rotations that no handclasp can observe (e.g. robot 1's joint-1
 //! offset against the placement's yaw) turn them by the prior's 0.05°, ~0.8 mm whatever the
 //! session. The plan is compared with
 //! [`PlanSpec::random_draws`] random picks of `n` of the same candidates (seeded); the report
@@ -133,7 +133,7 @@ pub fn nominal_cell(cell: &Cell) -> Cell {
 /// another: each meeting point uniform in the cube of side `spread_m` (m) around `centre_b1`
 /// (m, b1), placed by [`generate_session`] with that one point (the same generator continues
 /// into it); unreachable points are skipped, and at most `max_draws` are drawn.
-/// `progress(found, drawn)` every [`BATCH`] draws and at the end. Returns the handclasps
+/// `progress(found, drawn)` every 32 draws and at the end. Returns the handclasps
 /// (numbered 1..) and the draws used. Pass a [`nominal_cell`] for noise-free nominal poses.
 ///
 /// This is the one candidate generator of `handclasp plan` ([`plan_session`]) and of the
