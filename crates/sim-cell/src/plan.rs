@@ -31,12 +31,12 @@ use calib_core::whole_cell::{
     design_prediction, greedy_design, CellEstimate, CellFitError, ConfigPair, DesignCriterion,
     DesignPrediction, ParamLayout,
 };
-use kinematics::KinematicErrors;
+use kinematics::{ErrorParam, KinematicErrors};
 use nalgebra::{Point3, Vector3};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::cell::Cell;
+use crate::cell::{Cell, CellRobot};
 use crate::error::SimError;
 use crate::session::{generate_session, Session, SessionPoint, SessionSpec};
 use crate::trial_rng;
@@ -349,25 +349,45 @@ pub fn plan_session(
     })
 }
 
-/// Draws `truth`'s kinematic errors from its tolerances: every parameter the whole-cell fit
-/// estimates (tolerance > 0) and the tip offset from `U(±tolerance)` (the band of
-/// [`calib_core::whole_cell::Tolerance`]), seeded by `rng`. For studies of planned sessions.
+/// Draws every parameter `robot`'s tolerance selects from `U(±tol)`, in the catalogue order of
+/// [`calib_core::whole_cell::CellRobot::fitted_params`], then the tip (x, y, z) from
+/// `U(±tip_mm)`; parameters the tolerance does not select keep their value. `tol` is the
+/// tolerance's half-width (`[robotN.tolerance]`: the prior σ is `tol/√3`). The one tolerance
+/// draw of the planning studies ([`draw_errors_from_tolerance`]) and of the robot-mode sweep's
+/// `--kinematic-errors tolerance` (`sweep::KinematicErrorDraw::Tolerance`).
+pub fn draw_kinematic_errors(robot: &mut CellRobot, rng: &mut impl Rng) {
+    let wc = calib_core::whole_cell::CellRobot {
+        model: robot.model.clone(),
+        tools: Vec::new(),
+        g_base: robot.g_base,
+        tolerance: robot.tolerance,
+    };
+    let t = robot.tolerance;
+    for p in wc.fitted_params() {
+        let tol = match p {
+            ErrorParam::JointOffset { .. } => t.joint_offset_rad,
+            ErrorParam::OriginXyz { .. } => t.origin_xyz_m,
+            ErrorParam::OriginRpy { .. } => t.origin_rpy_rad,
+            ErrorParam::JointScale { .. } => t.joint_scale.unwrap_or(0.0),
+            ErrorParam::Compliance { .. } => t.compliance_rad_per_nm.unwrap_or(0.0),
+            // The half-width behind the prior σ = tol/√3 of any other kind.
+            _ => t.prior_sigma(p) * 3f64.sqrt(),
+        };
+        robot.errors.set(p, rng.random_range(-tol..=tol));
+    }
+    let tip = robot.tolerance.tip_m;
+    if tip > 0.0 {
+        robot.errors.tip = Vector3::from_fn(|_, _| rng.random_range(-tip..=tip));
+    }
+}
+
+/// Replaces `truth`'s kinematic errors by a draw from its tolerances: both robots' errors are
+/// zeroed, then each robot (1, then 2) is drawn by [`draw_kinematic_errors`] from `rng`. For
+/// studies of planned sessions.
 pub fn draw_errors_from_tolerance(truth: &mut Cell, rng: &mut impl Rng) {
-    let problem = cell_problem(truth, &Session::from_points(vec![]), FitModel::Kinematic);
-    for (r, wr) in [
-        (&mut truth.robot1, &problem.robot1),
-        (&mut truth.robot2, &problem.robot2),
-    ] {
-        let mut e = KinematicErrors::zero(r.model.dof());
-        for p in wr.fitted_params() {
-            let tol = wr.tolerance.prior_sigma(p) * 3f64.sqrt();
-            e.set(p, rng.random_range(-tol..=tol));
-        }
-        let tip = wr.tolerance.tip_m;
-        if tip > 0.0 {
-            e.tip = Vector3::from_fn(|_, _| rng.random_range(-tip..=tip));
-        }
-        r.errors = e;
+    for r in [&mut truth.robot1, &mut truth.robot2] {
+        r.errors = KinematicErrors::zero(r.model.dof());
+        draw_kinematic_errors(r, rng);
     }
 }
 

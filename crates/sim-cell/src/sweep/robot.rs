@@ -23,16 +23,15 @@ use calib_core::whole_cell::{
     ScreenOptions, SolveOptions,
 };
 use calib_core::{fit_fast, Method, MountPair, TrialErrors};
-use kinematics::ErrorParam;
 use nalgebra::{Isometry3, Point3, Vector3};
-use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
 use super::config::{GridCell, KinematicErrorDraw, SweepConfig, SweepLayout, SweepMethod};
 use super::run::{Cooperative, Failure, Outcome, TrialOutcome};
-use crate::cell::{Cell, CellRobot};
+use crate::cell::Cell;
 use crate::error::SimError;
 use crate::layout::Layout;
+pub use crate::plan::draw_kinematic_errors;
 use crate::plan::{nominal_cell, reachable_handclasps};
 use crate::session::{generate_session, Session, SessionPoint, SessionSpec};
 use crate::trial_rng;
@@ -157,35 +156,6 @@ pub fn robot_setup(
         eval_pairs,
         planned_b1,
     })
-}
-
-/// Draws every parameter `robot`'s tolerance selects from `U(±tol)` (see
-/// [`KinematicErrorDraw::Tolerance`]), in the catalogue order of
-/// [`calib_core::whole_cell::CellRobot::fitted_params`], then the tip (x, y, z).
-pub fn draw_kinematic_errors(robot: &mut CellRobot, rng: &mut impl Rng) {
-    let wc = calib_core::whole_cell::CellRobot {
-        model: robot.model.clone(),
-        tools: Vec::new(),
-        g_base: robot.g_base,
-        tolerance: robot.tolerance,
-    };
-    let t = robot.tolerance;
-    for p in wc.fitted_params() {
-        let tol = match p {
-            ErrorParam::JointOffset { .. } => t.joint_offset_rad,
-            ErrorParam::OriginXyz { .. } => t.origin_xyz_m,
-            ErrorParam::OriginRpy { .. } => t.origin_rpy_rad,
-            ErrorParam::JointScale { .. } => t.joint_scale.unwrap_or(0.0),
-            ErrorParam::Compliance { .. } => t.compliance_rad_per_nm.unwrap_or(0.0),
-            // The half-width behind the prior σ = tol/√3 of any other kind.
-            _ => t.prior_sigma(p) * 3f64.sqrt(),
-        };
-        robot.errors.set(p, rng.random_range(-tol..=tol));
-    }
-    let tip = robot.tolerance.tip_m;
-    if tip > 0.0 {
-        robot.errors.tip = Vector3::from_fn(|_, _| rng.random_range(-tip..=tip));
-    }
 }
 
 /// Indices of the 4 points whose tetrahedron has the largest volume: exhaustive up to
