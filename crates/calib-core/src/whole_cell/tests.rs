@@ -40,11 +40,13 @@ fn random_pose(rng: &mut ChaCha8Rng, scale: f64) -> Isometry3<f64> {
 }
 
 /// A problem with every observation kind, both tracker anchors, both plane anchors, a fitted
-/// contact distance, two tools on robot 1, scale and compliance fitted, at a random estimate.
+/// contact distance, two tools on robot 1, scale, compliance and periodic errors fitted, the
+/// b1-anchored tracker with its scale and drift, at a random estimate.
 fn every_kind(seed: u64) -> (CellProblem, CellEstimate) {
     let tol = Tolerance {
         joint_scale: Some(1e-4),
         compliance_rad_per_nm: Some(1e-6),
+        periodic_rad: Some(1e-3),
         ..Tolerance::default()
     };
     let sc = sim_cell(Cell::Wall, tol, true, seed);
@@ -55,11 +57,15 @@ fn every_kind(seed: u64) -> (CellProblem, CellEstimate) {
             name: "t-b1".into(),
             anchor: Robot::One,
             initial_tracker_from_anchor: None,
+            fit_scale: true,
+            fit_drift: true,
         },
         TrackerGroup {
             name: "t-b2".into(),
             anchor: Robot::Two,
             initial_tracker_from_anchor: None,
+            fit_scale: false,
+            fit_drift: false,
         },
     ];
     p.planes = vec![
@@ -140,10 +146,17 @@ fn every_kind(seed: u64) -> (CellProblem, CellEstimate) {
         })
         .collect();
     est.contact_distance_m = vec![0.1];
+    est.tracker_scale = vec![rng.random_range(-1e-3..1e-3), 0.0];
+    est.tracker_drift_m = vec![
+        Vector3::from_fn(|_, _| rng.random_range(-1e-3..1e-3)),
+        Vector3::zeros(),
+    ];
     for r in [&mut est.robot1, &mut est.robot2] {
         for j in 0..r.errors.dof() {
             r.errors.joint_scale[j] = rng.random_range(-1e-4..1e-4);
             r.errors.compliance[j] = rng.random_range(-1e-6..1e-6);
+            r.errors.periodic_sin[j] = rng.random_range(-1e-3..1e-3);
+            r.errors.periodic_cos[j] = rng.random_range(-1e-3..1e-3);
         }
     }
     (p, est)
@@ -469,6 +482,7 @@ fn reduction_without_kinematic_unknowns_is_empty() {
         tip_m: 0.0,
         joint_scale: None,
         compliance_rad_per_nm: None,
+        periodic_rad: None,
     };
     let sc = sim_cell(Cell::Floor, none, false, 31);
     let p = coincident_problem(&sc, 12, 3e-4, 32);
@@ -684,6 +698,8 @@ fn mixed_session_recovers_groups_and_beats_placement_only() {
         name: "leica".into(),
         anchor: Robot::One,
         initial_tracker_from_anchor: None,
+        fit_scale: false,
+        fit_drift: false,
     }];
     for _ in 0..20 {
         let q = random_q(&p.robot1.model, &mut rng);
