@@ -2,9 +2,9 @@
 //! from its nominal URDF, and for identifying those differences.
 //!
 //! For a reported (controller) joint vector `q_rep` (rad) the TRUE robot is the nominal chain with:
-//! - joint angles `q_true_i = q_rep_i·(1 + joint_scale_i) + joint_offset_i + compliance_i·τ_i(q_rep)
-//!   + periodic_sin_i·sin(q_rep_i) + periodic_cos_i·cos(q_rep_i)`, `τ` the gravity torques of the
-//!   NOMINAL model at the commanded posture `q_rep` ([`gravity_torques`](crate::gravity_torques),
+//! - joint angles `q_true_i = q_rep_i·(1 + joint_scale_i) + joint_offset_i +
+//!   compliance_i·τ_i(q_rep) + periodic_sin_i·sin(q_rep_i) + periodic_cos_i·cos(q_rep_i)`, `τ` the gravity torques of
+//!   the NOMINAL model at the commanded posture `q_rep` ([`gravity_torques`](crate::gravity_torques),
 //!   N·m); the last two terms are the first harmonic of a joint-angle-periodic error (e.g. an
 //!   encoder or gear eccentricity: one period per joint revolution), in rad;
 //! - joint `k`'s URDF origin `xyz + origin_xyz_k` (m, parent link frame) and `rpy + origin_rpy_k`
