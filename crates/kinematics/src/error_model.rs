@@ -2,9 +2,11 @@
 //! from its nominal URDF, and for identifying those differences.
 //!
 //! For a reported (controller) joint vector `q_rep` (rad) the TRUE robot is the nominal chain with:
-//! - joint angles `q_true_i = q_rep_i·(1 + joint_scale_i) + joint_offset_i + compliance_i·τ_i(q_rep)`,
-//!   `τ` the gravity torques of the NOMINAL model at the commanded posture `q_rep`
-//!   ([`gravity_torques`](crate::gravity_torques), N·m);
+//! - joint angles `q_true_i = q_rep_i·(1 + joint_scale_i) + joint_offset_i +
+//!   compliance_i·τ_i(q_rep) + periodic_sin_i·sin(q_rep_i) + periodic_cos_i·cos(q_rep_i)`, `τ` the gravity torques of
+//!   the NOMINAL model at the commanded posture `q_rep` ([`gravity_torques`](crate::gravity_torques),
+//!   N·m); the last two terms are the first harmonic of a joint-angle-periodic error (e.g. an
+//!   encoder or gear eccentricity: one period per joint revolution), in rad;
 //! - joint `k`'s URDF origin `xyz + origin_xyz_k` (m, parent link frame) and `rpy + origin_rpy_k`
 //!   (rad, `Rz(yaw)·Ry(pitch)·Rx(roll)`);
 //! - the tip offset `flange_from_tip + tip` (m, flange = `tool0` axes);
@@ -50,6 +52,20 @@ pub struct KinematicErrors {
     /// Joint compliance, rad/(N·m): the joint deflects by `compliance_i·τ_i` under the gravity
     /// torque `τ_i` of the nominal model at the reported posture.
     pub compliance: Vec<f64>,
+    /// First-harmonic periodic joint error, sine part, rad: adds `periodic_sin_i·sin(q_rep_i)`
+    /// to joint i's true angle. Omitted from the serialised form when all zero.
+    #[serde(default, skip_serializing_if = "all_zero")]
+    pub periodic_sin: Vec<f64>,
+    /// First-harmonic periodic joint error, cosine part, rad: adds `periodic_cos_i·cos(q_rep_i)`
+    /// to joint i's true angle (at `q_rep_i = 0` it acts like a joint offset). Omitted from the
+    /// serialised form when all zero.
+    #[serde(default, skip_serializing_if = "all_zero")]
+    pub periodic_cos: Vec<f64>,
+}
+
+/// True if every entry is exactly zero (serde's skip test of the periodic terms).
+fn all_zero(v: &[f64]) -> bool {
+    v.iter().all(|&x| x == 0.0)
 }
 
 impl KinematicErrors {
@@ -64,6 +80,8 @@ impl KinematicErrors {
             mount_xyz: Vector3::zeros(),
             mount_rpy: Vector3::zeros(),
             compliance: vec![0.0; dof],
+            periodic_sin: vec![0.0; dof],
+            periodic_cos: vec![0.0; dof],
         }
     }
 
@@ -84,10 +102,13 @@ impl KinematicErrors {
             && z(self.mount_xyz.as_slice())
             && z(self.mount_rpy.as_slice())
             && z(&self.compliance)
+            && z(&self.periodic_sin)
+            && z(&self.periodic_cos)
     }
 
     /// Checks the errors against a model: every per-joint vector has `model.dof()` entries and all
-    /// values are finite. Errors name the field and the (1-based) joint.
+    /// values are finite. Errors name the field and the (1-based) joint. (Deserialised errors
+    /// without the periodic fields have them empty: set them to `vec![0.0; dof]`.)
     pub fn check(&self, model: &RobotModel) -> Result<(), KinematicsError> {
         let n = model.dof();
         let lens = [
@@ -96,6 +117,8 @@ impl KinematicErrors {
             ("origin_xyz", self.origin_xyz.len()),
             ("origin_rpy", self.origin_rpy.len()),
             ("compliance", self.compliance.len()),
+            ("periodic_sin", self.periodic_sin.len()),
+            ("periodic_cos", self.periodic_cos.len()),
         ];
         for (field, len) in lens {
             if len != n {
@@ -119,6 +142,8 @@ impl KinematicErrors {
                 ("joint_offset", self.joint_offset[j]),
                 ("joint_scale", self.joint_scale[j]),
                 ("compliance", self.compliance[j]),
+                ("periodic_sin", self.periodic_sin[j]),
+                ("periodic_cos", self.periodic_cos[j]),
             ] {
                 if !v.is_finite() {
                     return Err(bad(field, Some(j), v));
@@ -159,6 +184,8 @@ impl KinematicErrors {
             ErrorParam::MountXyz { axis } => self.mount_xyz[axis.index()],
             ErrorParam::MountRpy { axis } => self.mount_rpy[axis.index()],
             ErrorParam::Compliance { joint } => self.compliance[joint],
+            ErrorParam::PeriodicSin { joint } => self.periodic_sin[joint],
+            ErrorParam::PeriodicCos { joint } => self.periodic_cos[joint],
         }
     }
 
@@ -201,6 +228,8 @@ impl KinematicErrors {
             ErrorParam::MountXyz { axis } => &mut self.mount_xyz[axis.index()],
             ErrorParam::MountRpy { axis } => &mut self.mount_rpy[axis.index()],
             ErrorParam::Compliance { joint } => &mut self.compliance[joint],
+            ErrorParam::PeriodicSin { joint } => &mut self.periodic_sin[joint],
+            ErrorParam::PeriodicCos { joint } => &mut self.periodic_cos[joint],
         }
     }
 
@@ -261,11 +290,21 @@ pub enum ErrorParam {
         /// 0-based joint index.
         joint: usize,
     },
+    /// `periodic_sin[joint]`, rad (amplitude of the `sin(q_rep)` term of the true angle).
+    PeriodicSin {
+        /// 0-based joint index.
+        joint: usize,
+    },
+    /// `periodic_cos[joint]`, rad (amplitude of the `cos(q_rep)` term of the true angle).
+    PeriodicCos {
+        /// 0-based joint index.
+        joint: usize,
+    },
 }
 
 impl ErrorParam {
     /// The field name: `"joint_offset"`, `"joint_scale"`, `"origin_xyz"`, `"origin_rpy"`, `"tip"`,
-    /// `"mount_xyz"`, `"mount_rpy"` or `"compliance"`.
+    /// `"mount_xyz"`, `"mount_rpy"`, `"compliance"`, `"periodic_sin"` or `"periodic_cos"`.
     pub fn kind_name(self) -> &'static str {
         match self {
             ErrorParam::JointOffset { .. } => "joint_offset",
@@ -276,6 +315,8 @@ impl ErrorParam {
             ErrorParam::MountXyz { .. } => "mount_xyz",
             ErrorParam::MountRpy { .. } => "mount_rpy",
             ErrorParam::Compliance { .. } => "compliance",
+            ErrorParam::PeriodicSin { .. } => "periodic_sin",
+            ErrorParam::PeriodicCos { .. } => "periodic_cos",
         }
     }
 
@@ -284,7 +325,9 @@ impl ErrorParam {
         match self {
             ErrorParam::JointOffset { .. }
             | ErrorParam::OriginRpy { .. }
-            | ErrorParam::MountRpy { .. } => "rad",
+            | ErrorParam::MountRpy { .. }
+            | ErrorParam::PeriodicSin { .. }
+            | ErrorParam::PeriodicCos { .. } => "rad",
             ErrorParam::JointScale { .. } => "ratio",
             ErrorParam::OriginXyz { .. } | ErrorParam::Tip { .. } | ErrorParam::MountXyz { .. } => {
                 "m"
@@ -300,7 +343,9 @@ impl ErrorParam {
             | ErrorParam::JointScale { joint }
             | ErrorParam::OriginXyz { joint, .. }
             | ErrorParam::OriginRpy { joint, .. }
-            | ErrorParam::Compliance { joint } => Some(joint),
+            | ErrorParam::Compliance { joint }
+            | ErrorParam::PeriodicSin { joint }
+            | ErrorParam::PeriodicCos { joint } => Some(joint),
             ErrorParam::Tip { .. } | ErrorParam::MountXyz { .. } | ErrorParam::MountRpy { .. } => {
                 None
             }
@@ -349,16 +394,18 @@ impl fmt::Display for ErrorParam {
 }
 
 /// The whole catalogue of parameters for a chain of `dof` joints, in a fixed order: per joint
-/// (offset, scale, origin xyz x/y/z, origin rpy x/y/z, compliance), then tip x/y/z, mount xyz
-/// x/y/z, mount rpy x/y/z. `9·dof + 9` entries.
+/// (offset, scale, origin xyz x/y/z, origin rpy x/y/z, compliance, periodic sin, periodic cos),
+/// then tip x/y/z, mount xyz x/y/z, mount rpy x/y/z. `11·dof + 9` entries.
 pub fn all_params(dof: usize) -> Vec<ErrorParam> {
-    let mut v = Vec::with_capacity(9 * dof + 9);
+    let mut v = Vec::with_capacity(11 * dof + 9);
     for joint in 0..dof {
         v.push(ErrorParam::JointOffset { joint });
         v.push(ErrorParam::JointScale { joint });
         v.extend(Axis::ALL.map(|axis| ErrorParam::OriginXyz { joint, axis }));
         v.extend(Axis::ALL.map(|axis| ErrorParam::OriginRpy { joint, axis }));
         v.push(ErrorParam::Compliance { joint });
+        v.push(ErrorParam::PeriodicSin { joint });
+        v.push(ErrorParam::PeriodicCos { joint });
     }
     v.extend(Axis::ALL.map(|axis| ErrorParam::Tip { axis }));
     v.extend(Axis::ALL.map(|axis| ErrorParam::MountXyz { axis }));
@@ -374,7 +421,7 @@ mod tests {
     fn catalogue_get_set_and_display() {
         let dof = 6;
         let params = all_params(dof);
-        assert_eq!(params.len(), 9 * dof + 9);
+        assert_eq!(params.len(), 11 * dof + 9);
         let mut sorted = params.clone();
         sorted.sort();
         sorted.dedup();
@@ -400,6 +447,11 @@ mod tests {
         assert_eq!(ErrorParam::Tip { axis: Axis::Z }.to_string(), "tip z");
         assert_eq!(ErrorParam::Compliance { joint: 0 }.unit_si(), "rad/(N·m)");
         assert_eq!(ErrorParam::JointScale { joint: 0 }.unit_si(), "ratio");
+        assert_eq!(ErrorParam::PeriodicSin { joint: 0 }.unit_si(), "rad");
+        assert_eq!(
+            ErrorParam::PeriodicCos { joint: 2 }.to_string(),
+            "periodic_cos joint 3"
+        );
         assert_eq!(ErrorParam::MountRpy { axis: Axis::Y }.unit_si(), "rad");
         assert_eq!(ErrorParam::MountXyz { axis: Axis::Y }.unit_si(), "m");
         assert_eq!(Axis::Y.unit(), Vector3::y());

@@ -144,6 +144,8 @@ pub(crate) fn random_errors(dof: usize, rng: &mut ChaCha8Rng) -> KinematicErrors
         e.origin_xyz[j] = random_vec(rng, 0.01);
         e.origin_rpy[j] = random_vec(rng, 0.3);
         e.compliance[j] = rng.random_range(-2e-5..2e-5);
+        e.periodic_sin[j] = rng.random_range(-0.01..0.01);
+        e.periodic_cos[j] = rng.random_range(-0.01..0.01);
     }
     e.tip = random_vec(rng, 0.05);
     e.mount_xyz = random_vec(rng, 0.5);

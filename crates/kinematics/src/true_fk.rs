@@ -61,25 +61,40 @@ fn check_inputs(
 }
 
 /// The true joint angles into `q_true` (len = dof), with the nominal gravity torques into `tau`
-/// (zeros if no compliance is set). No checks.
+/// (zeros if no compliance is set and `need_tau` is false). No checks.
 fn true_joint_angles(
     model: &RobotModel,
     errors: &KinematicErrors,
     q_rep: &[f64],
     g_base: &Vector3<f64>,
+    need_tau: bool,
     tau: &mut [f64],
     q_true: &mut [f64],
 ) {
-    if all_zero(&errors.compliance) {
-        tau.iter_mut().for_each(|t| *t = 0.0);
-    } else {
+    if need_tau || !all_zero(&errors.compliance) {
         gravity_torques_into(model, q_rep, g_base, tau);
+    } else {
+        tau.iter_mut().for_each(|t| *t = 0.0);
     }
     for i in 0..q_rep.len() {
         q_true[i] = q_rep[i] * (1.0 + errors.joint_scale[i])
             + errors.joint_offset[i]
             + errors.compliance[i] * tau[i];
     }
+    // Skipped when zero, so that errors without the periodic terms give bit-identical angles.
+    if !(all_zero(&errors.periodic_sin) && all_zero(&errors.periodic_cos)) {
+        for i in 0..q_rep.len() {
+            let (s, c) = sin_cos(q_rep[i]);
+            q_true[i] += errors.periodic_sin[i] * s + errors.periodic_cos[i] * c;
+        }
+    }
+}
+
+/// `∂q_true_i/∂q_rep_i` (the chain rule factor of joint i apart from compliance):
+/// `1 + joint_scale_i + periodic_sin_i·cos(q_rep_i) − periodic_cos_i·sin(q_rep_i)`.
+fn joint_rate(errors: &KinematicErrors, q_rep: &[f64], i: usize) -> f64 {
+    let (s, c) = sin_cos(q_rep[i]);
+    1.0 + errors.joint_scale[i] + errors.periodic_sin[i] * c - errors.periodic_cos[i] * s
 }
 
 /// The true chain at the true joint angles: `nominal_base_from_flange` as (rotation matrix,
@@ -185,7 +200,7 @@ fn true_flange_rt(
     g_base: &Vector3<f64>,
 ) -> (Matrix3<f64>, Vector3<f64>) {
     with_scratch(model.dof(), |tau, q_true| {
-        true_joint_angles(model, errors, q_rep, g_base, tau, q_true);
+        true_joint_angles(model, errors, q_rep, g_base, false, tau, q_true);
         true_chain(model, errors, q_true, None)
     })
 }
@@ -305,6 +320,7 @@ fn rpy_derivative_axes(parent_rotation: &Matrix3<f64>, rpy: &Vector3<f64>) -> [V
 /// Columns, with `p` the true tip, `o_k`, `z_k` joint k's true origin and axis, `R_P` the rotation
 /// of its parent link frame (all in the nominal base frame):
 /// - joint offset: `z_k × (p − o_k)`; scale: that × `q_rep_k`; compliance: that × `τ_k(q_rep)`;
+///   periodic sin / cos: that × `sin(q_rep_k)` / `cos(q_rep_k)`;
 /// - origin xyz: `R_P·e_axis`; origin rpy: `a × (p − o_k)` with `a = R_P·e_z` (yaw),
 ///   `R_P·Rz(yaw)·e_y` (pitch), `R_P·Rz(yaw)·Ry(pitch)·e_x` (roll) at the true rpy;
 /// - tip: `R_flange·e_axis`; mount xyz: `e_axis`; mount rpy: `a × (p − mount_xyz)` with the same
@@ -327,18 +343,10 @@ pub fn tip_error_jacobian(
     let mut jac = Matrix3xX::zeros(params.len());
     with_chain_scratch(n, |tau, q_true, frames| {
         // Compliance columns need τ even when no compliance is set.
-        if params
+        let need_tau = params
             .iter()
-            .any(|p| matches!(p, ErrorParam::Compliance { .. }))
-            || !all_zero(&errors.compliance)
-        {
-            gravity_torques_into(model, q_rep, g_base, tau);
-        }
-        for i in 0..n {
-            q_true[i] = q_rep[i] * (1.0 + errors.joint_scale[i])
-                + errors.joint_offset[i]
-                + errors.compliance[i] * tau[i];
-        }
+            .any(|p| matches!(p, ErrorParam::Compliance { .. }));
+        true_joint_angles(model, errors, q_rep, g_base, need_tau, tau, q_true);
         let (flange_r, flange_t) = true_chain(model, errors, q_true, Some(frames));
         let p = flange_t + flange_r * (flange_from_tip + errors.tip);
         fill_error_columns(errors, q_rep, tau, frames, &flange_r, &p, params, &mut jac);
@@ -366,6 +374,8 @@ fn fill_error_columns(
             ErrorParam::JointOffset { joint } => joint_col(joint),
             ErrorParam::JointScale { joint } => joint_col(joint) * q_rep[joint],
             ErrorParam::Compliance { joint } => joint_col(joint) * tau[joint],
+            ErrorParam::PeriodicSin { joint } => joint_col(joint) * sin_cos(q_rep[joint]).0,
+            ErrorParam::PeriodicCos { joint } => joint_col(joint) * sin_cos(q_rep[joint]).1,
             ErrorParam::OriginXyz { joint, axis } => frames[joint].parent_rotation * axis.unit(),
             ErrorParam::OriginRpy { joint, axis } => {
                 let f = &frames[joint];
@@ -396,7 +406,8 @@ fn with_chain_scratch<R>(
 }
 
 /// `∂p_tip/∂q_rep` of the TRUE robot, 3×dof, m/rad, nominal base axes, at the reported angles
-/// `q_rep`: column `i` is `(1 + scale_i)·J_i + Σ_k J_k·compliance_k·∂τ_k/∂q_i`, with `J` the tip
+/// `q_rep`: column `i` is `(1 + scale_i + sin_i·cos q_i − cos_i·sin q_i)·J_i
+/// + Σ_k J_k·compliance_k·∂τ_k/∂q_i` (`sin_i`, `cos_i` the periodic amplitudes), with `J` the tip
 /// position Jacobian of the true chain with respect to the true angles and `∂τ/∂q` the nominal
 /// gravity-torque Jacobian ([`gravity_torque_jacobian`](crate::gravity_torque_jacobian)).
 ///
@@ -412,7 +423,7 @@ pub fn tip_joint_jacobian_true(
     let n = model.dof();
     let mut tau = vec![0.0; n];
     let mut q_true = vec![0.0; n];
-    true_joint_angles(model, errors, q_rep, g_base, &mut tau, &mut q_true);
+    true_joint_angles(model, errors, q_rep, g_base, false, &mut tau, &mut q_true);
     let mut frames = vec![TrueJointFrame::default(); n];
     let (flange_r, flange_t) = true_chain(model, errors, &q_true, Some(&mut frames));
     let p = flange_t + flange_r * (flange_from_tip + errors.tip);
@@ -423,7 +434,7 @@ pub fn tip_joint_jacobian_true(
     }
     let mut jac = Matrix3xX::zeros(n);
     for i in 0..n {
-        jac.set_column(i, &(j_true.column(i) * (1.0 + errors.joint_scale[i])));
+        jac.set_column(i, &(j_true.column(i) * joint_rate(errors, q_rep, i)));
     }
     if !all_zero(&errors.compliance) {
         let mut entries = vec![GravityEntry::default(); n];

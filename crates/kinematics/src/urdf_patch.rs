@@ -20,7 +20,7 @@
 //! all the digits of the `f64`. Every result is re-loaded and checked against the error model
 //! ([`verify_patched_urdf`]) before it is returned.
 //!
-//! Joint scale, compliance, tip and mount errors have no URDF element: they are refused
+//! Joint scale, compliance, periodic, tip and mount errors have no URDF element: they are refused
 //! ([`UrdfPatchError::NotExpressible`]); [`split_for_urdf`] separates them.
 
 use nalgebra::{Rotation3, Vector3};
@@ -41,7 +41,7 @@ pub const PATCH_TOLERANCE_M: f64 = 1e-9;
 pub const VERIFY_CONFIGURATIONS: usize = 64;
 
 /// Splits `errors` into the part a URDF can express (joint offsets, origin xyz and rpy errors) and
-/// the rest (joint scale, compliance, tip, mount), each a full [`KinematicErrors`] of the same
+/// the rest (joint scale, compliance, periodic terms, tip, mount), each a full [`KinematicErrors`] of the same
 /// shape, so that `urdf + rest` is `errors`.
 pub fn split_for_urdf(errors: &KinematicErrors) -> (KinematicErrors, KinematicErrors) {
     let n = errors.dof();
@@ -60,7 +60,7 @@ pub fn split_for_urdf(errors: &KinematicErrors) -> (KinematicErrors, KinematicEr
 /// text `xml` from which `model` was loaded, keeping every other byte; returns the corrected text,
 /// verified with [`verify_patched_urdf`].
 ///
-/// Errors: `errors` of the wrong shape or non-finite; a non-zero joint scale, compliance, tip or
+/// Errors: `errors` of the wrong shape or non-finite; a non-zero joint scale, compliance, periodic term, tip or
 /// mount error (these belong beside the URDF, see [`split_for_urdf`]); text that is not
 /// well-formed XML or whose root is not `<robot>`; a model joint with no (or more than one)
 /// `<joint>` of that name under `<robot>`; an `<origin>` whose `xyz`/`rpy` is not 3 finite
@@ -181,6 +181,17 @@ fn check_expressible(model: &RobotModel, errors: &KinematicErrors) -> Result<(),
             "compliance of joint {}: a URDF has no joint stiffness; keep it as a kinematic error \
              beside the URDF",
             compliance.join(", ")
+        ));
+    }
+    let periodic: Vec<String> = joints(&errors.periodic_sin)
+        .into_iter()
+        .chain(joints(&errors.periodic_cos))
+        .collect();
+    if !periodic.is_empty() {
+        found.push(format!(
+            "periodic_sin/periodic_cos of joint {}: a URDF has no angle-dependent joint error; \
+             keep them as kinematic errors beside the URDF",
+            periodic.join(", ")
         ));
     }
     if errors.tip != Vector3::zeros() {

@@ -230,6 +230,7 @@ fn what_a_urdf_cannot_express_is_refused_with_where_it_goes() {
     e.joint_offset[0] = 0.001;
     e.joint_scale[1] = 1e-4;
     e.compliance[2] = 1e-6;
+    e.periodic_cos[4] = 1e-4;
     e.tip.z = 0.001;
     e.mount_rpy.x = 0.001;
     let err = patch_urdf_text(&xml, &model, &e).unwrap_err();
@@ -241,6 +242,7 @@ fn what_a_urdf_cannot_express_is_refused_with_where_it_goes() {
     for needle in [
         "joint_scale of joint 2 (joint_2_l)",
         "compliance of joint 3 (joint_3_u)",
+        "periodic_sin/periodic_cos of joint 5",
         "flange_from_tip",
         "mount_xyz/mount_rpy",
         "placement",
@@ -252,6 +254,7 @@ fn what_a_urdf_cannot_express_is_refused_with_where_it_goes() {
     assert!(patch_urdf_text(&xml, &model, &urdf).is_ok());
     assert_eq!(rest.joint_offset, vec![0.0; 6]);
     assert_eq!((rest.joint_scale[1], rest.tip.z), (1e-4, 0.001));
+    assert_eq!(rest.periodic_cos[4], 1e-4);
 }
 
 #[test]

@@ -250,6 +250,10 @@ struct ErrorsFile {
     mount_rpy_deg: Option<[f64; 3]>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     compliance_deg_per_knm: Option<Vec<f64>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    periodic_sin_deg: Option<Vec<f64>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    periodic_cos_deg: Option<Vec<f64>>,
 }
 
 // ---- parsing -----------------------------------------------------------------------------
@@ -429,6 +433,12 @@ fn build_errors(
     )? {
         out.compliance = v;
     }
+    if let Some(v) = per_joint("periodic_sin_deg", &e.periodic_sin_deg, d2r)? {
+        out.periodic_sin = v;
+    }
+    if let Some(v) = per_joint("periodic_cos_deg", &e.periodic_cos_deg, d2r)? {
+        out.periodic_cos = v;
+    }
     if let Some(v) = per_joint3("origin_xyz_mm", &e.origin_xyz_mm, 1e-3)? {
         out.origin_xyz = v;
     }
@@ -508,6 +518,10 @@ fn errors_file(e: &KinematicErrors) -> Option<ErrorsFile> {
         mount_rpy_deg: nz(e.mount_rpy.as_slice()).then(|| a3(&e.mount_rpy, r2d)),
         compliance_deg_per_knm: nz(&e.compliance)
             .then(|| e.compliance.iter().map(|x| x * r2d * 1000.0).collect()),
+        periodic_sin_deg: nz(&e.periodic_sin)
+            .then(|| e.periodic_sin.iter().map(|x| x * r2d).collect()),
+        periodic_cos_deg: nz(&e.periodic_cos)
+            .then(|| e.periodic_cos.iter().map(|x| x * r2d).collect()),
     })
 }
 
@@ -906,6 +920,14 @@ mod tests {
             for (x, y) in e.compliance.iter().zip(&f.compliance) {
                 assert!((x - y).abs() < ROUND_TRIP_TOL);
             }
+            for (x, y) in e
+                .periodic_sin
+                .iter()
+                .chain(&e.periodic_cos)
+                .zip(f.periodic_sin.iter().chain(&f.periodic_cos))
+            {
+                assert!((x - y).abs() < ROUND_TRIP_TOL);
+            }
             for (x, y) in e.origin_xyz.iter().zip(&f.origin_xyz) {
                 assert!((x - y).amax() < ROUND_TRIP_TOL);
             }
@@ -972,12 +994,17 @@ joint_scale = [0.0, 1e-4, 0.0, 0.0, 0.0, 0.0]
 origin_xyz_mm = [[0.1, 0, 0], [0, 0, 0], [0, -0.2, 0], [0, 0, 0], [0, 0, 0], [0, 0, 0]]
 mount_rpy_deg = [0.01, 0.0, 0.02]
 compliance_deg_per_knm = [0.0, 0.05, 0.05, 0.0, 0.0, 0.0]
+periodic_sin_deg = [0.0, 0.0, 0.01, 0.0, 0.0, 0.0]
+periodic_cos_deg = [0.0, 0.0, -0.02, 0.0, 0.0, 0.0]
 "#;
         let text = text.replace("alignment_mm = 0.3", "alignment_mm = [0.3, 0.5, 0.2]");
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
         let cell = Cell::from_toml_str(&text, &dir).unwrap();
         assert!((cell.robot2.errors.joint_offset[1] - (-0.02f64).to_radians()).abs() < 1e-15);
         assert!((cell.robot2.errors.compliance[1] - 0.05f64.to_radians() / 1000.0).abs() < 1e-18);
+        assert!((cell.robot2.errors.periodic_sin[2] - 0.01f64.to_radians()).abs() < 1e-15);
+        assert!((cell.robot2.errors.periodic_cos[2] - (-0.02f64).to_radians()).abs() < 1e-15);
+        assert!(cell.to_toml_string().contains("periodic_cos_deg"));
         assert!((cell.noise.alignment_m.y - 0.5e-3).abs() < 1e-15);
         let back = Cell::from_toml_str(&cell.to_toml_string(), &dir).unwrap();
         assert_cells_equal(&cell, &back);

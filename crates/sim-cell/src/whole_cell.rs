@@ -216,6 +216,8 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
                 name,
                 anchor,
                 initial_tracker_from_anchor: None,
+                fit_scale: false,
+                fit_drift: false,
             }),
     );
     planes.extend(plane_anchor.into_iter().map(|(name, anchor)| PlaneGroup {

@@ -69,6 +69,9 @@ pub struct Tolerance {
     pub joint_scale: Option<f64>,
     /// Joint compliance under gravity, rad/(N·m). Default `None` (not fitted).
     pub compliance_rad_per_nm: Option<f64>,
+    /// Joint-angle-periodic error, first harmonic: each of the `sin` and `cos` amplitudes, rad
+    /// ([`kinematics::KinematicErrors::periodic_sin`]). Default `None` (not fitted).
+    pub periodic_rad: Option<f64>,
 }
 
 impl Default for Tolerance {
@@ -80,6 +83,7 @@ impl Default for Tolerance {
             tip_m: 0.5e-3,
             joint_scale: None,
             compliance_rad_per_nm: None,
+            periodic_rad: None,
         }
     }
 }
@@ -94,6 +98,7 @@ impl Tolerance {
             tip_m: 0.0,
             joint_scale: None,
             compliance_rad_per_nm: None,
+            periodic_rad: None,
         }
     }
 
@@ -107,6 +112,9 @@ impl Tolerance {
             ErrorParam::OriginRpy { .. } => self.origin_rpy_rad,
             ErrorParam::Tip { .. } => self.tip_m,
             ErrorParam::Compliance { .. } => self.compliance_rad_per_nm.unwrap_or(0.0),
+            ErrorParam::PeriodicSin { .. } | ErrorParam::PeriodicCos { .. } => {
+                self.periodic_rad.unwrap_or(0.0)
+            }
             ErrorParam::MountXyz { .. } | ErrorParam::MountRpy { .. } => 0.0,
         };
         tol / 3f64.sqrt()
@@ -123,6 +131,7 @@ impl Tolerance {
                 "compliance_rad_per_nm",
                 self.compliance_rad_per_nm.unwrap_or(0.0),
             ),
+            ("periodic_rad", self.periodic_rad.unwrap_or(0.0)),
         ];
         for (field, v) in fields {
             if !(v.is_finite() && v >= 0.0) {
@@ -159,7 +168,8 @@ pub struct CellRobot {
 
 impl CellRobot {
     /// The kinematic parameters fitted for this robot (tolerance > 0), in catalogue order: per
-    /// joint offset, scale, origin xyz, origin rpy, compliance. Tip offsets are per tool and not
+    /// joint offset, scale, origin xyz, origin rpy, compliance, periodic sin, periodic cos. Tip
+    /// offsets are per tool and not
     /// in this list; mounts are never fitted.
     pub fn fitted_params(&self) -> Vec<ErrorParam> {
         let mut out = Vec::new();
@@ -171,6 +181,8 @@ impl CellRobot {
             cand.extend(Axis::ALL.map(|axis| ErrorParam::OriginXyz { joint, axis }));
             cand.extend(Axis::ALL.map(|axis| ErrorParam::OriginRpy { joint, axis }));
             cand.push(ErrorParam::Compliance { joint });
+            cand.push(ErrorParam::PeriodicSin { joint });
+            cand.push(ErrorParam::PeriodicCos { joint });
             out.extend(
                 cand.into_iter()
                     .filter(|&p| self.tolerance.prior_sigma(p) > 0.0),

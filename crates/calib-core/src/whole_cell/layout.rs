@@ -54,8 +54,17 @@ pub struct CellEstimate {
     pub robot1: RobotCorrection,
     /// Robot 2's corrections.
     pub robot2: RobotCorrection,
-    /// `tracker_from_b{anchor}` of each tracker group.
+    /// `tracker_from_b{anchor}` of each tracker group (at the middle of its recording when its
+    /// drift is fitted; see [`TrackerGroup`](super::TrackerGroup)).
     pub tracker_from_anchor: Vec<Isometry3<f64>>,
+    /// Scale error `s` of each tracker group, ratio (0 unless fitted). Omitted from the
+    /// serialised form when all zero.
+    #[serde(skip_serializing_if = "all_zero")]
+    pub tracker_scale: Vec<f64>,
+    /// Drift `δ` of each tracker group's translation over its normalised recording order, m per
+    /// unit order, tracker axes (0 unless fitted). Omitted from the serialised form when all zero.
+    #[serde(skip_serializing_if = "all_zero3")]
+    pub tracker_drift_m: Vec<Vector3<f64>>,
     /// Each plane group's plane.
     pub planes: Vec<PlaneEstimate>,
     /// Each contact group's distance, m.
@@ -71,6 +80,8 @@ impl CellEstimate {
             robot1: RobotCorrection::zero(&problem.robot1),
             robot2: RobotCorrection::zero(&problem.robot2),
             tracker_from_anchor: vec![Isometry3::identity(); problem.trackers.len()],
+            tracker_scale: vec![0.0; problem.trackers.len()],
+            tracker_drift_m: vec![Vector3::zeros(); problem.trackers.len()],
             planes: vec![
                 PlaneEstimate {
                     normal_anchor: Vector3::z_axis(),
@@ -87,13 +98,18 @@ impl CellEstimate {
     pub fn check(&self, problem: &CellProblem) -> Result<(), CellFitError> {
         self.check_robots(problem)?;
         if self.tracker_from_anchor.len() != problem.trackers.len()
+            || self.tracker_scale.len() != problem.trackers.len()
+            || self.tracker_drift_m.len() != problem.trackers.len()
             || self.planes.len() != problem.planes.len()
             || self.contact_distance_m.len() != problem.contacts.len()
         {
             return Err(CellFitError::InvalidInput(format!(
-                "cell estimate: {} tracker frame(s), {} plane(s), {} contact distance(s) for {}, \
-                 {} and {} group(s); build it with CellEstimate::nominal for this problem",
+                "cell estimate: {} tracker frame(s) ({} scale(s), {} drift(s)), {} plane(s), {} \
+                 contact distance(s) for {}, {} and {} group(s); build it with \
+                 CellEstimate::nominal for this problem",
                 self.tracker_from_anchor.len(),
+                self.tracker_scale.len(),
+                self.tracker_drift_m.len(),
                 self.planes.len(),
                 self.contact_distance_m.len(),
                 problem.trackers.len(),
@@ -209,6 +225,19 @@ pub enum CellParam {
         /// Axis.
         axis: Axis,
     },
+    /// A tracker group's scale error `s`, ratio (see [`TrackerGroup`](super::TrackerGroup)).
+    TrackerScale {
+        /// Group index.
+        group: usize,
+    },
+    /// A tracker group's translation drift `δ`, m per unit of normalised recording order,
+    /// tracker axes (see [`TrackerGroup`](super::TrackerGroup)).
+    TrackerDrift {
+        /// Group index.
+        group: usize,
+        /// Axis.
+        axis: Axis,
+    },
     /// A plane normal's tangent perturbation (direction 0 or 1 of its tangent basis), rad.
     PlaneNormal {
         /// Group index.
@@ -259,6 +288,12 @@ impl CellParam {
                     problem.trackers[*group].name
                 )
             }
+            CellParam::TrackerScale { group } => {
+                format!("tracker `{}` scale", problem.trackers[*group].name)
+            }
+            CellParam::TrackerDrift { group, axis } => {
+                format!("tracker `{}` drift {axis}", problem.trackers[*group].name)
+            }
             CellParam::PlaneNormal { group, direction } => {
                 format!("plane `{}` normal {direction}", problem.planes[*group].name)
             }
@@ -283,14 +318,19 @@ pub(super) struct RobotLayout {
 /// The unknowns of a fit and their prior: column `j` of every Jacobian is `params[j]`.
 #[derive(Debug, Clone)]
 pub struct ParamLayout {
-    /// The unknowns, in column order: placement (6), robot 1, robot 2, trackers (6 each),
-    /// planes (3 each), fitted contact distances.
+    /// The unknowns, in column order: placement (6), robot 1, robot 2, trackers (6 each, then
+    /// the fitted scale (1) and drift (3) of that group), planes (3 each), fitted contact
+    /// distances.
     pub params: Vec<CellParam>,
     /// Square-root prior information `R_p` (rows × `params.len()`): the prior cost is
     /// `‖R_p·θ‖²` with `θ` the parameter values (zero on unpenalised columns).
     pub prior_sqrt_info: DMatrix<f64>,
     pub(super) robots: [RobotLayout; 2],
     pub(super) tracker_col: Vec<usize>,
+    /// Column of each tracker group's scale, if fitted.
+    pub(super) tracker_scale_col: Vec<Option<usize>>,
+    /// First of the three columns of each tracker group's drift, if fitted.
+    pub(super) tracker_drift_col: Vec<Option<usize>>,
     pub(super) plane_col: Vec<usize>,
     pub(super) contact_col: Vec<Option<usize>>,
 }
@@ -344,7 +384,9 @@ impl ParamLayout {
             robots.push(RobotLayout { kin, tip_col });
         }
         let mut tracker_col = Vec::new();
-        for group in 0..problem.trackers.len() {
+        let mut tracker_scale_col = Vec::new();
+        let mut tracker_drift_col = Vec::new();
+        for (group, t) in problem.trackers.iter().enumerate() {
             tracker_col.push(params.len());
             for axis in Axis::ALL {
                 params.push(CellParam::TrackerTranslation { group, axis });
@@ -353,6 +395,19 @@ impl ParamLayout {
                 params.push(CellParam::TrackerRotation { group, axis });
             }
             sigmas.extend([0.0; 6]);
+            tracker_scale_col.push(t.fit_scale.then(|| {
+                params.push(CellParam::TrackerScale { group });
+                sigmas.push(0.0);
+                params.len() - 1
+            }));
+            tracker_drift_col.push(t.fit_drift.then(|| {
+                let c = params.len();
+                for axis in Axis::ALL {
+                    params.push(CellParam::TrackerDrift { group, axis });
+                }
+                sigmas.extend([0.0; 3]);
+                c
+            }));
         }
         let mut plane_col = Vec::new();
         for group in 0..problem.planes.len() {
@@ -389,6 +444,8 @@ impl ParamLayout {
             prior_sqrt_info,
             robots: [r1, r2],
             tracker_col,
+            tracker_scale_col,
+            tracker_drift_col,
             plane_col,
             contact_col,
         }
@@ -437,6 +494,16 @@ impl ParamLayout {
                 }
             }
         }
+        for (g, c) in self.tracker_scale_col.iter().enumerate() {
+            if let Some(c) = c {
+                v[*c] = estimate.tracker_scale[g];
+            }
+        }
+        for (g, c) in self.tracker_drift_col.iter().enumerate() {
+            if let Some(c) = c {
+                v.rows_mut(*c, 3).copy_from(&estimate.tracker_drift_m[g]);
+            }
+        }
         for (g, c) in self.plane_col.iter().enumerate() {
             v[c + 2] = estimate.planes[g].offset_m;
         }
@@ -476,6 +543,16 @@ impl ParamLayout {
         for (g, &c) in self.tracker_col.iter().enumerate() {
             e.tracker_from_anchor[g] = left(&estimate.tracker_from_anchor[g], c);
         }
+        for (g, c) in self.tracker_scale_col.iter().enumerate() {
+            if let Some(c) = c {
+                e.tracker_scale[g] += delta[*c];
+            }
+        }
+        for (g, c) in self.tracker_drift_col.iter().enumerate() {
+            if let Some(c) = c {
+                e.tracker_drift_m[g] += delta.fixed_rows::<3>(*c);
+            }
+        }
         for (g, &c) in self.plane_col.iter().enumerate() {
             let n = estimate.planes[g].normal_anchor;
             let (u, v) = tangent_basis(&n);
@@ -490,6 +567,16 @@ impl ParamLayout {
         }
         e
     }
+}
+
+/// True if every entry is exactly zero (serde's skip test of the tracker scales).
+fn all_zero(v: &[f64]) -> bool {
+    v.iter().all(|&x| x == 0.0)
+}
+
+/// True if every vector is exactly zero (serde's skip test of the tracker drifts).
+fn all_zero3(v: &[Vector3<f64>]) -> bool {
+    v.iter().all(|x| x.iter().all(|&c| c == 0.0))
 }
 
 /// A deterministic orthonormal basis `(u, v)` of the plane orthogonal to `n`.

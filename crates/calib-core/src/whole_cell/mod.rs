@@ -7,14 +7,16 @@
 //! - `X = b1_from_b2 ∈ SE(3)`, perturbed on the left: `X ← Translation(ρ)·Rotation(φ)·X`
 //!   (`ρ` m, `φ` rad, b1 axes), as in [`crate::identify`]. Unpenalised.
 //! - Each robot's kinematic parameters `θ_r` ([`kinematics::ErrorParam`]: joint offsets, origin
-//!   xyz/rpy, optional scale and compliance) and a tip offset error per tool (m, flange axes).
+//!   xyz/rpy, optional scale, compliance and first-harmonic periodic errors) and a tip offset
+//!   error per tool (m, flange axes).
 //!   The tip of tool `t` of robot `r` at reported joints `q` is
 //!   `f_r,t(q) = kinematics::true_base_from_tip(model_r, θ_r ⊕ tip_t, q, flange_from_tip_t, g_r)`,
 //!   in robot r's nominal base frame, and its derivatives `∂f/∂θ` are
 //!   [`kinematics::tip_error_jacobian`] (exact, at the current values). Mount parameters are
 //!   never fitted: they are the placement's (or a tracker frame's) job.
 //! - Nuisances per named group, all unpenalised: a tracker frame `T = tracker_from_b{a}`
-//!   (left-perturbed like `X`), a plane `{p_a : n·p_a = d}` (normal perturbed as
+//!   (left-perturbed like `X`) with, when switched on, a scale error `s` and a translation drift
+//!   `δ` over the normalised recording order `u ∈ [−½, ½]` ([`TrackerGroup`]), a plane `{p_a : n·p_a = d}` (normal perturbed as
 //!   `n ← normalise(n + α·u + β·v)` with `(u, v)` = [`tangent_basis`]`(n)`, `d` additive), a
 //!   contact distance `d` (known, or fitted).
 //!
@@ -24,8 +26,9 @@
 //! `∂(X⁻¹·f1)/∂φ_i = −R_Xᵀ(e_i × f1)`:
 //! - `Coincident`: `r = f1(q1) − X·f2(q2)` (3 rows);
 //! - `Contact`: `r = ‖f1 − X·f2‖ − d` (1 row; `∂r = ûᵀ·∂(f1 − X·f2) − ∂d`, `û` the unit vector);
-//! - `Tracker`: `r = T·g_a − p_tracker` (3 rows; `∂r/∂ρ_T = I`, `∂r/∂φ_T,i = e_i × T·g_a`,
-//!   `∂r/∂g = R_T`);
+//! - `Tracker`: `r = (1 + s)·(T·g_a + u·δ) − p_tracker` (3 rows; `∂r/∂ρ_T = (1 + s)·I`,
+//!   `∂r/∂φ_T,i = (1 + s)·e_i × T·g_a`, `∂r/∂g = (1 + s)·R_T`, `∂r/∂s = T·g_a + u·δ`,
+//!   `∂r/∂δ = (1 + s)·u·I`; `s = 0`, `δ = 0` unless the group fits them);
 //! - `Plane`: `r = n·g_a − d` (1 row; `∂r/∂α = u·g_a`, `∂r/∂β = v·g_a`, `∂r/∂d = −1`).
 //!
 //! Each row block is whitened by `W_i = L_i⁻¹`, `Σ_i = L_i·L_iᵀ` its noise covariance (or `1/σ`).
@@ -34,7 +37,7 @@
 //! # Prior and MAP cost
 //! A tolerance is the half-width of a uniform band; the prior is `θ_k ~ N(0, (tol_k/√3)²)`, so a
 //! truth drawn from `U(±tol)` has the prior's variance ([`Tolerance`]; defaults 0.05° for joint
-//! offsets and origin rpy, 0.5 mm for origin xyz and tips; scale and compliance off). The fit
+//! offsets and origin rpy, 0.5 mm for origin xyz and tips; scale, compliance and periodic off). The fit
 //! minimises `C = Σ_i ‖W_i·r_i‖² + ‖R_p·θ‖²` (`R_p` the square-root prior information, diagonal
 //! `1/σ_k`, or a full matrix after merging) by Levenberg–Marquardt ([`fit_cell`]): damped normal
 //! equations `(H + λ·diag H)·δ = −g`, `H = JᵀJ`, `g = Jᵀr` over the stacked whitened data and

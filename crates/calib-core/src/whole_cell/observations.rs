@@ -103,7 +103,15 @@ pub struct Observation {
 }
 
 /// A tracker (external measuring device) whose frame is unknown: `tracker_from_b{anchor}` is
-/// fitted (unpenalised).
+/// fitted (unpenalised), optionally with a scale error and a linear drift of its translation.
+///
+/// With both on, a tool at `g` (anchor base frame) is predicted at
+/// `p_tracker = (1 + s)·(tracker_from_anchor·g + u·δ)`: `s` the scale error (ratio), `δ` the
+/// drift (m per unit of `u`, tracker axes) and `u = (row − first)/(last − first) − ½` the
+/// observation's normalised recording order, `row` its 1-based source row and `first`/`last`
+/// the smallest and largest row of the group's tracker observations (all of them, active or
+/// not; `u = 0` for a single row). So `δ` is the translation drift over the whole recording and
+/// `tracker_from_anchor` the frame at its middle. Both are unpenalised and start at 0.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrackerGroup {
     /// Name, for messages.
@@ -114,6 +122,11 @@ pub struct TrackerGroup {
     /// Starting value of `tracker_from_anchor`; `None`: a rigid fit of the group's measurements
     /// to the nominal tips (needs ≥ 3 non-collinear points).
     pub initial_tracker_from_anchor: Option<Isometry3<f64>>,
+    /// Fit the scale error `s` (default off: `s = 0`). Confounded with the robots' link lengths
+    /// when those are fitted without another length reference.
+    pub fit_scale: bool,
+    /// Fit the drift `δ` of the translation over the recording order (default off: `δ = 0`).
+    pub fit_drift: bool,
 }
 
 /// A plane of unknown position, `{p_anchor : n·p_anchor = d}` (fitted, unpenalised).
@@ -160,6 +173,31 @@ pub struct CellProblem {
 }
 
 impl CellProblem {
+    /// The normalised recording order `u ∈ [−½, ½]` of a tracker observation of `group` at
+    /// source row `row` (see [`TrackerGroup`]): `(row − first)/(last − first) − ½` over the
+    /// group's tracker observations, 0 when the group has one row (or none).
+    pub fn tracker_order(&self, group: usize, row: usize) -> f64 {
+        let (first, last) = self.tracker_row_span(group);
+        if last > first {
+            (row as f64 - first as f64) / (last - first) as f64 - 0.5
+        } else {
+            0.0
+        }
+    }
+
+    /// Smallest and largest source row of `group`'s tracker observations (`(0, 0)` if none).
+    pub(super) fn tracker_row_span(&self, group: usize) -> (usize, usize) {
+        let mut span: Option<(usize, usize)> = None;
+        for o in &self.observations {
+            if let ObservationKind::Tracker { group: g, .. } = o.kind {
+                if g == group {
+                    span = Some(span.map_or((o.row, o.row), |(a, b)| (a.min(o.row), b.max(o.row))));
+                }
+            }
+        }
+        span.unwrap_or((0, 0))
+    }
+
     /// Robot 1 or 2.
     pub fn robot(&self, robot: Robot) -> &CellRobot {
         if robot == Robot::One {

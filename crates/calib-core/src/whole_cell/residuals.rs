@@ -29,6 +29,8 @@ pub struct Evaluator<'a> {
     layout: &'a ParamLayout,
     /// Jacobian parameter lists per robot: fitted kin params then tip x, y, z.
     jac_params: [Vec<ErrorParam>; 2],
+    /// Smallest and largest source row of each tracker group (its drift's order span).
+    tracker_span: Vec<(usize, usize)>,
 }
 
 impl<'a> Evaluator<'a> {
@@ -43,6 +45,9 @@ impl<'a> Evaluator<'a> {
             problem,
             layout,
             jac_params: [jp(0), jp(1)],
+            tracker_span: (0..problem.trackers.len())
+                .map(|g| problem.tracker_row_span(g))
+                .collect(),
         }
     }
 
@@ -227,16 +232,42 @@ impl<'a> Evaluator<'a> {
                 let anchor = self.problem.trackers[*group].anchor;
                 let (g, cols) = self.tip_in_anchor(est, *robot, *tool, q, anchor, want_jac, row)?;
                 let t = &est.tracker_from_anchor[*group];
-                let m = (t * Point3::from(g)).coords;
+                let tg = (t * Point3::from(g)).coords;
+                // Scale and drift (see TrackerGroup): m = (1 + s)·(T·g + u·δ); `k = 1 + s`.
+                let (s, drift) = (est.tracker_scale[*group], est.tracker_drift_m[*group]);
+                let (first, last) = self.tracker_span[*group];
+                let u = if last > first {
+                    (row as f64 - first as f64) / (last - first) as f64 - 0.5
+                } else {
+                    0.0
+                };
+                let k = 1.0 + s;
+                // Untouched when both are zero, so that fits without them are bit-identical.
+                let at_u = if drift == Vector3::zeros() {
+                    tg
+                } else {
+                    tg + drift * u
+                };
+                let m = if s == 0.0 { at_u } else { at_u * k };
                 if want_jac {
-                    let r_t = t.rotation.to_rotation_matrix().into_inner();
+                    let r_t = t.rotation.to_rotation_matrix().into_inner() * k;
                     let moved: Cols3 = cols.into_iter().map(|(c, v)| (c, r_t * v)).collect();
                     put3(&mut jac, &moved, 1.0);
                     let c0 = self.layout.tracker_col[*group];
                     for (i, axis) in Axis::ALL.iter().enumerate() {
                         for a in 0..3 {
-                            jac[(a, c0 + i)] += axis.unit()[a];
-                            jac[(a, c0 + 3 + i)] += axis.unit().cross(&m)[a];
+                            jac[(a, c0 + i)] += k * axis.unit()[a];
+                            jac[(a, c0 + 3 + i)] += k * axis.unit().cross(&tg)[a];
+                        }
+                    }
+                    if let Some(c) = self.layout.tracker_scale_col[*group] {
+                        for a in 0..3 {
+                            jac[(a, c)] += at_u[a];
+                        }
+                    }
+                    if let Some(c) = self.layout.tracker_drift_col[*group] {
+                        for a in 0..3 {
+                            jac[(a, c + a)] += k * u;
                         }
                     }
                 }

@@ -247,6 +247,8 @@ pub fn build_problem(
                 name: rec.name.clone(),
                 anchor: arm,
                 initial_tracker_from_anchor: None,
+                fit_scale: false,
+                fit_drift: false,
             });
             let nominal = if rec.right_arm {
                 REFLECTOR_RIGHT_M

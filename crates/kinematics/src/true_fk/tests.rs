@@ -183,14 +183,29 @@ fn each_error_kind_means_what_the_contract_says() {
         "origin errors",
     );
 
-    // Joint offset, scale and compliance: nominal FK at q_true.
+    // Joint offset, scale, compliance and the periodic first harmonic: nominal FK at q_true.
     let mut only = KinematicErrors::zero(n);
     only.joint_offset.clone_from(&e.joint_offset);
     only.joint_scale.clone_from(&e.joint_scale);
     only.compliance.clone_from(&e.compliance);
+    only.periodic_sin.clone_from(&e.periodic_sin);
+    only.periodic_cos.clone_from(&e.periodic_cos);
+    assert!(
+        e.periodic_sin
+            .iter()
+            .chain(&e.periodic_cos)
+            .any(|v| *v != 0.0),
+        "the draw must set some periodic term"
+    );
     let tau = crate::gravity_torques(&m, &q, &g).unwrap();
     let q_true: Vec<f64> = (0..n)
-        .map(|i| q[i] * (1.0 + e.joint_scale[i]) + e.joint_offset[i] + e.compliance[i] * tau[i])
+        .map(|i| {
+            q[i] * (1.0 + e.joint_scale[i])
+                + e.joint_offset[i]
+                + e.compliance[i] * tau[i]
+                + e.periodic_sin[i] * q[i].sin()
+                + e.periodic_cos[i] * q[i].cos()
+        })
         .collect();
     assert!(
         tau.iter().any(|t| t.abs() > 1.0),
@@ -265,6 +280,10 @@ fn bad_inputs_are_named_errors() {
     let short = KinematicErrors::zero(m.dof() - 1);
     let err = true_base_from_tip(&m, &short, &q, &tip, &G_FLOOR).unwrap_err();
     assert!(err.to_string().contains("joint_offset"), "{err}");
+    let mut short_periodic = KinematicErrors::zero(m.dof());
+    short_periodic.periodic_cos.pop();
+    let err = true_base_from_tip(&m, &short_periodic, &q, &tip, &G_FLOOR).unwrap_err();
+    assert!(err.to_string().contains("periodic_cos"), "{err}");
     let mut nan = KinematicErrors::zero(m.dof());
     nan.origin_rpy[2].y = f64::NAN;
     let err = true_base_from_tip(&m, &nan, &q, &tip, &G_FLOOR).unwrap_err();
