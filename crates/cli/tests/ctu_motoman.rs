@@ -63,7 +63,7 @@ fn self_contact_calibration_exports_a_cell_that_reproduces_the_fit() {
     };
     let b = build_problem(&cell, &self_recs, Some(spec), &noise());
     assert_eq!(b.problem.observations.len(), 502);
-    let f = fit(&b.problem, None, None).unwrap();
+    let f = fit(&b, None, None).unwrap();
     assert_eq!(f.stopped.name(), "converged");
     // The contact distance stays near the README's 116 mm (a runaway would move it by tens).
     let d = f.estimate.contact_distance_m[0];

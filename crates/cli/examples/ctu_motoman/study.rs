@@ -10,12 +10,12 @@ use anyhow::Context;
 use calib_core::stats::{quantile, sorted_finite};
 use calib_core::whole_cell::{
     fit_cell_with, initial_estimate, CellEstimate, CellFit, CellParam, CellProblem, CellRobot,
-    ContactGroup, Evaluator, Noise3, Observation, ObservationKind, ParamLayout, PlaneGroup,
-    SolveOptions, Tolerance, Tool, TrackerGroup,
+    ContactGroup, Evaluator, Noise3, Observation, ObservationKind, ParamLayout, PlacementPrior,
+    PlaneGroup, SolveOptions, Tolerance, Tool, TrackerGroup,
 };
 use calib_core::Robot;
 use kinematics::{Axis, ErrorParam, KinematicErrors};
-use nalgebra::{DMatrix, Isometry3, Vector3};
+use nalgebra::{Isometry3, Vector3};
 use sim_cell::Cell;
 
 use crate::data::{Recording, Role};
@@ -34,9 +34,10 @@ pub const REFLECTOR_LEFT_M: [f64; 3] = [0.05, 0.0, 0.25];
 /// m: 10 m, i.e. free in effect (the reflector's mounting is not known; on a file with small
 /// wrist rotations its offset is weakly determined, and a tighter prior would bias the score).
 pub const TIP_TOLERANCE_M: f64 = 10.0;
-/// σ of the prior rows that hold `b1_from_b2` at the identity, m and rad: both DH tables start
-/// at the same base frame, so the placement is known, not fitted.
-const PLACEMENT_HOLD_SIGMA: f64 = 1e-7;
+/// Prior σ of each component of a fitted marker centre (tool 0 tip of either arm), m: a
+/// mounting tolerance of the dodecahedron on its 354 mm stem, set before any fit (the lead's
+/// Python exploration used the same 2 mm); not chosen by any score.
+pub const MARKER_CENTRE_SIGMA_M: f64 = 2e-3;
 /// Tracker-frame σ of the honest score's fit, m (any positive value: every row has the same).
 const SCORE_SIGMA_M: f64 = 2e-4;
 /// Relative cost decrease at which a fit has converged: 1e-8 of a χ² of ~10³ moves no
@@ -73,15 +74,20 @@ pub enum ParamSet {
     /// Joint offsets and the gravity compliance of L and U (rad/(N·m), torques from the URDFs'
     /// point-mass inertials).
     OffsetsCompliance,
+    /// Joint offsets and the marker centres (tool 0 tip of both arms, xyz in tool0, prior σ
+    /// [`MARKER_CENTRE_SIGMA_M`]): the end-effector geometry of the flush face contacts.
+    OffsetsMarker,
     /// Joint offsets and joint origin positions (the link lengths) S..T.
     OffsetsLengths,
     /// Offsets, lengths and the gravity compliance of L and U.
     OffsetsLengthsCompliance,
+    /// Offsets, lengths and the marker centres.
+    OffsetsLengthsMarker,
 }
 
 impl ParamSet {
-    /// Every set, fewest parameters first (the one-standard-error rule's order of simplicity:
-    /// 12, 16, 48, 52 parameters over both arms).
+    /// The sets cross-validated for every model, fewest parameters first (the
+    /// one-standard-error rule's order of simplicity: 12, 16, 48, 52 parameters over both arms).
     pub const ALL: [ParamSet; 4] = [
         ParamSet::Offsets,
         ParamSet::OffsetsCompliance,
@@ -89,13 +95,27 @@ impl ParamSet {
         ParamSet::OffsetsLengthsCompliance,
     ];
 
+    /// The sets cross-validated for the problems with self-contact and no tracker value (`self`,
+    /// `planes`): [`Self::ALL`] and the two marker-centre sets, fewest parameters first (12, 16,
+    /// 18, 48, 52, 54).
+    pub const WITH_MARKER: [ParamSet; 6] = [
+        ParamSet::Offsets,
+        ParamSet::OffsetsCompliance,
+        ParamSet::OffsetsMarker,
+        ParamSet::OffsetsLengths,
+        ParamSet::OffsetsLengthsCompliance,
+        ParamSet::OffsetsLengthsMarker,
+    ];
+
     /// A short name for tables.
     pub fn name(self) -> &'static str {
         match self {
             ParamSet::Offsets => "offsets",
             ParamSet::OffsetsCompliance => "offsets+compl",
+            ParamSet::OffsetsMarker => "offsets+marker",
             ParamSet::OffsetsLengths => "offsets+lengths",
             ParamSet::OffsetsLengthsCompliance => "offs+len+compl",
+            ParamSet::OffsetsLengthsMarker => "offs+len+marker",
         }
     }
 
@@ -103,7 +123,9 @@ impl ParamSet {
     pub fn lengths(self) -> bool {
         matches!(
             self,
-            ParamSet::OffsetsLengths | ParamSet::OffsetsLengthsCompliance
+            ParamSet::OffsetsLengths
+                | ParamSet::OffsetsLengthsCompliance
+                | ParamSet::OffsetsLengthsMarker
         )
     }
 
@@ -112,6 +134,14 @@ impl ParamSet {
         matches!(
             self,
             ParamSet::OffsetsCompliance | ParamSet::OffsetsLengthsCompliance
+        )
+    }
+
+    /// Whether the set fits the marker centres (tool 0 tips).
+    pub fn marker(self) -> bool {
+        matches!(
+            self,
+            ParamSet::OffsetsMarker | ParamSet::OffsetsLengthsMarker
         )
     }
 }
@@ -154,6 +184,8 @@ pub struct Built {
     pub problem: CellProblem,
     /// Source of each observation.
     pub origin: Vec<Origin>,
+    /// Prior σ of the marker centres (tool 0 tips of both arms), m; `None`: held at the cell's.
+    pub marker_sigma_m: Option<f64>,
 }
 
 fn tolerance(spec: Option<ModelSpec>) -> Tolerance {
@@ -204,7 +236,13 @@ pub fn build_problem(
         trackers: Vec::new(),
         planes: Vec::new(),
         contacts: Vec::new(),
-        placement_prior: None,
+        // Both DH tables start at one base: the cell's `[b1_from_b2] sigma_mm, sigma_deg` hold
+        // the placement at the identity (the library's prior rows).
+        placement_prior: cell.b1_from_b2_sigma.map(|s| PlacementPrior {
+            nominal_b1_from_b2: cell.b1_from_b2,
+            sigma_m: s.sigma_m,
+            sigma_rad: s.sigma_rad,
+        }),
     };
     // Contact groups only for the set-ups present (a group without rows would be a free,
     // undetermined unknown).
@@ -321,28 +359,39 @@ pub fn build_problem(
             }
         }
     }
-    Built { problem: p, origin }
+    Built {
+        problem: p,
+        origin,
+        marker_sigma_m: spec
+            .filter(|s| s.set.marker())
+            .map(|_| MARKER_CENTRE_SIGMA_M),
+    }
 }
 
-/// MAP fit of `problem` over `active` (all rows when `None`), starting from `start` corrections
-/// (`None`: nominal), with `b1_from_b2` held at the identity (prior rows of σ
-/// [`PLACEMENT_HOLD_SIGMA`]), the marker tips (tool 0) not fitted, and compliance (when the
-/// tolerances select it) only on [`COMPLIANT_JOINTS`].
+/// MAP fit of `built` over `active` (all rows when `None`), starting from `start` corrections
+/// (`None`: nominal; the `tip` field of each carries the marker centre's offset, see
+/// [`corrections`]), with `b1_from_b2` held by the cell's placement prior
+/// (`CellProblem::placement_prior`), the marker tips (tool 0) fitted with prior σ
+/// `built.marker_sigma_m` or else held at the start, and compliance (when the tolerances select
+/// it) only on [`COMPLIANT_JOINTS`].
 pub fn fit(
-    problem: &CellProblem,
+    built: &Built,
     active: Option<&[usize]>,
     start: Option<(&KinematicErrors, &KinematicErrors)>,
 ) -> anyhow::Result<CellFit> {
+    let problem = &built.problem;
     let all: Vec<usize> = (0..problem.observations.len()).collect();
     let active = active.unwrap_or(&all);
     let mut fixed = Vec::new();
     for robot in [Robot::One, Robot::Two] {
-        for axis in Axis::ALL {
-            fixed.push(CellParam::ToolTip {
-                robot,
-                tool: 0,
-                axis,
-            });
+        if built.marker_sigma_m.is_none() {
+            for axis in Axis::ALL {
+                fixed.push(CellParam::ToolTip {
+                    robot,
+                    tool: 0,
+                    axis,
+                });
+            }
         }
         for joint in (0..6).filter(|j| !COMPLIANT_JOINTS.contains(j)) {
             fixed.push(CellParam::Kinematic {
@@ -352,18 +401,33 @@ pub fn fit(
         }
     }
     let mut layout = ParamLayout::new(problem, &fixed);
-    let (rows, n) = layout.prior_sqrt_info.shape();
-    let mut r_p = DMatrix::zeros(rows + 6, n);
-    r_p.rows_mut(0, rows).copy_from(&layout.prior_sqrt_info);
-    for j in 0..6 {
-        r_p[(rows + j, j)] = 1.0 / PLACEMENT_HOLD_SIGMA;
+    if let Some(sigma) = built.marker_sigma_m {
+        // The tolerance's tip σ is the reflectors' (free in effect); the marker gets its own.
+        for robot in [Robot::One, Robot::Two] {
+            for axis in Axis::ALL {
+                let p = CellParam::ToolTip {
+                    robot,
+                    tool: 0,
+                    axis,
+                };
+                let col = layout
+                    .column(&p)
+                    .context("the marker centre is not a column of the layout")?;
+                for row in 0..layout.prior_sqrt_info.nrows() {
+                    if layout.prior_sqrt_info[(row, col)] != 0.0 {
+                        layout.prior_sqrt_info[(row, col)] = 1.0 / sigma;
+                    }
+                }
+            }
+        }
     }
-    layout.prior_sqrt_info = r_p;
     let mut est = initial_estimate(problem, Some(Isometry3::identity()), active)
         .context("starting values (tracker frames, planes)")?;
     if let Some((right, left)) = start {
         est.robot1.errors = right.clone();
         est.robot2.errors = left.clone();
+        est.robot1.tool_tip_m[0] = right.tip;
+        est.robot2.tool_tip_m[0] = left.tip;
     }
     let options = SolveOptions {
         cost_tolerance: COST_TOLERANCE,
@@ -405,7 +469,7 @@ pub fn noise_from_nominal(cell: &Cell, recordings: &[Recording]) -> anyhow::Resu
     };
     let recs: Vec<&Recording> = recordings.iter().collect();
     let b = build_problem(cell, &recs, None, &start);
-    let f = fit(&b.problem, None, None)?;
+    let f = fit(&b, None, None)?;
     let res = residuals(&b.problem, &f, &f.estimate)?;
     let mut acc = [(0.0, 0usize); 4];
     for (o, (r, _)) in b.problem.observations.iter().zip(&res) {
@@ -427,11 +491,13 @@ pub fn noise_from_nominal(cell: &Cell, recordings: &[Recording]) -> anyhow::Resu
     })
 }
 
-/// Both arms' kinematic corrections of a fit (right, left).
+/// Both arms' kinematic corrections of a fit (right, left), each with its marker centre's
+/// offset (tool 0 tip error, m, tool0 axes) in the `tip` field. Any other tip (a reflector)
+/// must use these with `tip` set to zero.
 pub fn corrections(fit: &CellFit) -> (KinematicErrors, KinematicErrors) {
     (
-        fit.estimate.robot1.errors.clone(),
-        fit.estimate.robot2.errors.clone(),
+        fit.estimate.robot1.errors_for_tool(0),
+        fit.estimate.robot2.errors_for_tool(0),
     )
 }
 
@@ -445,7 +511,7 @@ pub fn held_out_nuisance_cost(
     noise: &NoiseLevels,
 ) -> anyhow::Result<Vec<f64>> {
     let b = build_problem(cell, recordings, None, noise);
-    let f = fit(&b.problem, None, Some(corr))?;
+    let f = fit(&b, None, Some(corr))?;
     let res = residuals(&b.problem, &f, &f.estimate)?;
     // Contact and plane rows are scalar: the whitened square is the row's.
     Ok(res.iter().map(|r| r.1).collect())
@@ -509,8 +575,8 @@ pub fn score_recording(
     let (ha, hb) = halves(n, SPLIT_SEED);
     let mut out = Vec::new();
     for (train, test) in [(&ha, &hb), (&hb, &ha)] {
-        let f = fit(&b.problem, Some(train), Some(corr))
-            .with_context(|| format!("scoring {}", rec.name))?;
+        let f =
+            fit(&b, Some(train), Some(corr)).with_context(|| format!("scoring {}", rec.name))?;
         let res = residuals(&b.problem, &f, &f.estimate)?;
         for &i in test.iter() {
             let pose = &rec.poses[b.origin[i].pose];
