@@ -55,6 +55,21 @@ struct Args {
     /// smallest CV error).
     #[arg(long, value_enum, default_value_t = CvRule::OneSe)]
     cv_rule: CvRule,
+    /// Contact σ of the no-tracker self-contacts in the fits that fit the marker centres:
+    /// `nominal` (default: the nominal model's contact residual, as every other candidate) or
+    /// `marker` (the residual of the fit with only the marker centres, nominal joints: the noise
+    /// rule applied to the marker model). Held-out CV errors use `nominal` units either way.
+    #[arg(long, value_enum, default_value_t = MarkerContactSigma::Nominal)]
+    marker_contact_sigma: MarkerContactSigma,
+}
+
+/// `--marker-contact-sigma`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum MarkerContactSigma {
+    /// The nominal model's contact residual.
+    Nominal,
+    /// The residual of the marker-only fit.
+    Marker,
 }
 
 /// `--cv-rule`.
@@ -575,7 +590,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     );
 
     // Noise of each class: the nominal model's residual (nuisances fitted on every recording).
-    let noise = noise_from_nominal(&cell, &recordings)?;
+    let mut noise = noise_from_nominal(&cell, &recordings)?;
     println!(
         "noise σ from the nominal fit (rms per scalar row): contact {:.3} mm, leica_self contact {:.3} mm, plane {:.3} mm, tracker {:.3} mm/axis",
         noise.contact_m * 1e3,
@@ -590,6 +605,23 @@ fn run(args: Args) -> anyhow::Result<()> {
             .filter(|r| roles.contains(&r.role))
             .collect()
     };
+    if args.marker_contact_sigma == MarkerContactSigma::Marker {
+        let m = calibrate(
+            &cell,
+            "marker only (for the contact σ)".into(),
+            &by_role(&[Role::SelfContact]),
+            ModelSpec {
+                set: ParamSet::OffsetsMarker,
+                sigma: 0.0,
+            },
+            &noise,
+        )?;
+        noise.marker_contact_m = Some(contact_rms(&m)?);
+        println!(
+            "--marker-contact-sigma marker: contact σ of the marker-centre fits {:.3} mm",
+            contact_rms(&m)? * 1e3
+        );
+    }
     let nuisance_score = |test: &[&Recording], corr: (&KinematicErrors, &KinematicErrors)| {
         held_out_nuisance_cost(&cell, test, corr, &noise)
     };

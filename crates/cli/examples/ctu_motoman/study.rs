@@ -74,8 +74,9 @@ pub enum ParamSet {
     /// Joint offsets and the gravity compliance of L and U (rad/(N·m), torques from the URDFs'
     /// point-mass inertials).
     OffsetsCompliance,
-    /// Joint offsets and the marker centres (tool 0 tip of both arms, xyz in tool0, prior σ
-    /// [`MARKER_CENTRE_SIGMA_M`]): the end-effector geometry of the flush face contacts.
+    /// Joint offsets and the marker centres (tool 0 tip of both arms, x and y in tool0, prior σ
+    /// [`MARKER_CENTRE_SIGMA_M`]; z held, see [`fit`]): the end-effector geometry of the flush
+    /// face contacts.
     OffsetsMarker,
     /// Joint offsets and joint origin positions (the link lengths) S..T.
     OffsetsLengths,
@@ -97,7 +98,7 @@ impl ParamSet {
 
     /// The sets cross-validated for the problems with self-contact and no tracker value (`self`,
     /// `planes`): [`Self::ALL`] and the two marker-centre sets, fewest parameters first (12, 16,
-    /// 18, 48, 52, 54).
+    /// 16, 48, 52, 52; a marker set after the compliance set of the same size).
     pub const WITH_MARKER: [ParamSet; 6] = [
         ParamSet::Offsets,
         ParamSet::OffsetsCompliance,
@@ -161,6 +162,10 @@ pub struct ModelSpec {
 pub struct NoiseLevels {
     /// No-tracker self-contact distance.
     pub contact_m: f64,
+    /// No-tracker self-contact distance in the fits of the marker-centre sets
+    /// ([`ParamSet::marker`]); `None`: [`Self::contact_m`]. Held-out rows are always whitened
+    /// with `contact_m`, so CV errors stay comparable between candidates.
+    pub marker_contact_m: Option<f64>,
     /// `leica_self` self-contact distance.
     pub leica_contact_m: f64,
     /// Plane contact.
@@ -319,6 +324,8 @@ pub fn build_problem(
                         group: group_of[usize::from(leica)].unwrap_or(0),
                         sigma_m: if leica {
                             noise.leica_contact_m
+                        } else if spec.is_some_and(|s| s.set.marker()) {
+                            noise.marker_contact_m.unwrap_or(noise.contact_m)
                         } else {
                             noise.contact_m
                         },
@@ -372,7 +379,7 @@ pub fn build_problem(
 /// (`None`: nominal; the `tip` field of each carries the marker centre's offset, see
 /// [`corrections`]), with `b1_from_b2` held by the cell's placement prior
 /// (`CellProblem::placement_prior`), the marker tips (tool 0) fitted with prior σ
-/// `built.marker_sigma_m` or else held at the start, and compliance (when the tolerances select
+/// `built.marker_sigma_m` (x, y; z held) or else held at the start, and compliance (when the tolerances select
 /// it) only on [`COMPLIANT_JOINTS`].
 pub fn fit(
     built: &Built,
@@ -384,14 +391,22 @@ pub fn fit(
     let active = active.unwrap_or(&all);
     let mut fixed = Vec::new();
     for robot in [Robot::One, Robot::Two] {
-        if built.marker_sigma_m.is_none() {
-            for axis in Axis::ALL {
-                fixed.push(CellParam::ToolTip {
-                    robot,
-                    tool: 0,
-                    axis,
-                });
-            }
+        // Marker centres: only x, y are fitted. Along tool z a shift of either centre changes
+        // the distance along every ring-face normal by the same cos(arctan 2)·z, which the
+        // fitted contact distance already is (measured: with z free and the contact σ of the
+        // marker model, the two z drift to ∓11 mm in opposite senses, fitting the sliding of
+        // the faces, which the centre-distance contact row cannot tell from the normal).
+        let marker_fixed: &[Axis] = if built.marker_sigma_m.is_some() {
+            &[Axis::Z]
+        } else {
+            &Axis::ALL
+        };
+        for &axis in marker_fixed {
+            fixed.push(CellParam::ToolTip {
+                robot,
+                tool: 0,
+                axis,
+            });
         }
         for joint in (0..6).filter(|j| !COMPLIANT_JOINTS.contains(j)) {
             fixed.push(CellParam::Kinematic {
@@ -404,7 +419,7 @@ pub fn fit(
     if let Some(sigma) = built.marker_sigma_m {
         // The tolerance's tip σ is the reflectors' (free in effect); the marker gets its own.
         for robot in [Robot::One, Robot::Two] {
-            for axis in Axis::ALL {
+            for axis in [Axis::X, Axis::Y] {
                 let p = CellParam::ToolTip {
                     robot,
                     tool: 0,
@@ -463,6 +478,7 @@ pub fn residuals(
 pub fn noise_from_nominal(cell: &Cell, recordings: &[Recording]) -> anyhow::Result<NoiseLevels> {
     let start = NoiseLevels {
         contact_m: 1e-3,
+        marker_contact_m: None,
         leica_contact_m: 1e-3,
         plane_m: 1e-3,
         tracker_m: 1e-3,
@@ -485,6 +501,7 @@ pub fn noise_from_nominal(cell: &Cell, recordings: &[Recording]) -> anyhow::Resu
     let rms = |(s, n): (f64, usize)| (s / n.max(1) as f64).sqrt();
     Ok(NoiseLevels {
         contact_m: rms(acc[0]),
+        marker_contact_m: None,
         leica_contact_m: rms(acc[1]),
         plane_m: rms(acc[2]),
         tracker_m: rms(acc[3]),
@@ -558,6 +575,7 @@ pub fn score_recording(
 ) -> anyhow::Result<Vec<ScoredPose>> {
     let noise = NoiseLevels {
         contact_m: SCORE_SIGMA_M,
+        marker_contact_m: None,
         leica_contact_m: SCORE_SIGMA_M,
         plane_m: SCORE_SIGMA_M,
         tracker_m: SCORE_SIGMA_M,
