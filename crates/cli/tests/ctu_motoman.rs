@@ -20,8 +20,8 @@ use sim_cell::{export_calibrated_cell, Cell, ExportNames};
 
 use data::{locate_dataset, read_dataset, Role};
 use study::{
-    build_problem, corrections, fit, residuals, score_recording, summarise, ModelSpec,
-    NoiseLevels, ParamSet,
+    build_problem, corrections, fit, residuals, score_recording, summarise, ModelSpec, NoiseLevels,
+    ParamSet,
 };
 
 /// Exported URDF + cell errors against the fitted model: the URDF patch keeps 9 decimals only
@@ -77,7 +77,10 @@ fn self_contact_calibration_exports_a_cell_that_reproduces_the_fit() {
     assert!((d - 0.116).abs() < 2e-3, "contact distance {d} m");
     // The common base is held by the library's placement prior (the cell's `[b1_from_b2]
     // sigma_mm, sigma_deg`): every component stays within one prior σ.
-    let prior = b.problem.placement_prior.expect("the CTU cell states its placement σ");
+    let prior = b
+        .problem
+        .placement_prior
+        .expect("the CTU cell states its placement σ");
     let t = f.estimate.b1_from_b2.translation.vector;
     let w = f.estimate.b1_from_b2.rotation.scaled_axis();
     assert!(
@@ -249,7 +252,12 @@ fn face_pairs_are_eight_in_the_self_files_and_one_in_leica_self() {
     assert!(ring.azimuth_max_dev_rad < 5f64.to_radians());
     let zero = KinematicErrors::zero(6);
     let rows = contact::pair_table(&cell, &self_recs, &ring, &[(&zero, &zero)]).unwrap();
-    assert_eq!(rows.len(), 8, "{:?}", rows.iter().map(|r| r.pair).collect::<Vec<_>>());
+    assert_eq!(
+        rows.len(),
+        8,
+        "{:?}",
+        rows.iter().map(|r| r.pair).collect::<Vec<_>>()
+    );
     assert_eq!(rows.iter().map(|r| r.n).sum::<usize>(), 502);
     for r in &rows {
         // Flush faces: the two normals anti-parallel to a fraction of a degree.

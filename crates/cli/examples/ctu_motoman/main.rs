@@ -61,6 +61,11 @@ struct Args {
     /// rule applied to the marker model). Held-out CV errors use `nominal` units either way.
     #[arg(long, value_enum, default_value_t = MarkerContactSigma::Nominal)]
     marker_contact_sigma: MarkerContactSigma,
+    /// Diagnostic, selects nothing: also fit EVERY `self` CV candidate on all the self-contact
+    /// files and score each on every tracker file, to `DIR/self_candidates.csv` (does any
+    /// self-contact model beat nominal everywhere?). Adds about half a minute.
+    #[arg(long)]
+    score_every_self_candidate: bool,
 }
 
 /// `--marker-contact-sigma`.
@@ -782,6 +787,17 @@ fn run(args: Args) -> anyhow::Result<()> {
     }
     let names: Vec<&str> = models.iter().map(|m| m.0.as_str()).collect();
     print_scores(&rows, &trackers, &names);
+    if args.score_every_self_candidate {
+        score_every_candidate(
+            &cell,
+            &self_recs,
+            &self_choice,
+            &noise,
+            &trackers,
+            &rows,
+            &args.out,
+        )?;
+    }
     write_scores(&args.out.join("scores.csv"), &rows)?;
     plot::per_file_svg(
         &args.out.join("scores_per_file.svg"),
@@ -928,7 +944,7 @@ fn contact_report(
     println!("  (centre distance minus the fitted distance; nominal = the noise σ above)");
     let names: Vec<String> = models
         .iter()
-        .map(|m| m.0.replace(' ', "_").replace('+', "_"))
+        .map(|m| m.0.replace([' ', '+'], "_"))
         .collect();
     let name_refs: Vec<&str> = names.iter().map(String::as_str).collect();
     contact::write_pair_table(&out.join("contact_pairs.csv"), &rows, &name_refs)?;
@@ -955,8 +971,23 @@ fn contact_report(
     );
     // Independent check without tracker values: the leica_self contact rows alone (their tracker
     // values dropped), contact distance refitted, at each model's corrections.
-    let contact_only: Vec<Recording> = leica_self
-        .iter()
+    let contact_only = leica_contact_only(leica_self);
+    let refs: Vec<&Recording> = contact_only.iter().collect();
+    print!("leica_self contact scatter (no tracker value; distance refitted), rms mm:");
+    for m in &models {
+        let e2 = held_out_nuisance_cost(cell, &refs, (&m.1, &m.2), noise)?;
+        let rms = (e2.iter().sum::<f64>() / e2.len().max(1) as f64).sqrt() * noise.contact_m;
+        print!(" {} {:.3};", m.0, rms * 1e3);
+    }
+    println!();
+    Ok(())
+}
+
+/// The `leica_self` recordings among `recs` as no-tracker self-contacts (their tracker values
+/// dropped): contact rows only, scored in the no-tracker contact σ.
+fn leica_contact_only(recs: &[&Recording]) -> Vec<Recording> {
+    recs.iter()
+        .filter(|r| r.role == Role::TrackerSelfContact)
         .map(|r| Recording {
             role: Role::SelfContact,
             poses: r
@@ -969,15 +1000,74 @@ fn contact_report(
                 .collect(),
             ..(*r).clone()
         })
-        .collect();
-    let refs: Vec<&Recording> = contact_only.iter().collect();
-    print!("leica_self contact scatter (no tracker value; distance refitted), rms mm:");
-    for m in &models {
-        let e2 = held_out_nuisance_cost(cell, &refs, (&m.1, &m.2), noise)?;
-        let rms = (e2.iter().sum::<f64>() / e2.len().max(1) as f64).sqrt() * noise.contact_m;
-        print!(" {} {:.3};", m.0, rms * 1e3);
+        .collect()
+}
+
+/// Diagnostic (selects nothing): every CV candidate of `choice` fitted on `recs` and scored on
+/// every tracker file; prints and writes `out/self_candidates.csv` with the number of files on
+/// which each beats nominal (`rows` holds nominal's scores).
+fn score_every_candidate(
+    cell: &Cell,
+    recs: &[&Recording],
+    choice: &Choice,
+    noise: &NoiseLevels,
+    trackers: &[&Recording],
+    rows: &[ScoreRow],
+    out: &Path,
+) -> anyhow::Result<()> {
+    let path = out.join("self_candidates.csv");
+    let mut w = std::fs::File::create(&path).with_context(|| format!("{}", path.display()))?;
+    write!(w, "set,sigma,cv,chosen")?;
+    for t in trackers {
+        write!(w, ",{}_rms_mm", t.name)?;
     }
-    println!();
+    writeln!(
+        w,
+        ",files_better_than_nominal,pooled_rms_mm,leica_self_contact_rms_mm"
+    )?;
+    let leica = leica_contact_only(trackers);
+    let leica_refs: Vec<&Recording> = leica.iter().collect();
+    println!(
+        "DIAGNOSTIC (uses tracker scores, selects nothing): every `self` candidate fitted on all self-contact files; \
+         files (of {}) where it beats nominal, pooled rms mm:",
+        trackers.len()
+    );
+    for (spec, cv, _) in &choice.table {
+        let b = build_problem(cell, recs, Some(*spec), noise);
+        let f = fit(&b, None, None)?;
+        let (r, l) = corrections(&f);
+        let (mut better, mut s2, mut n) = (0usize, 0.0, 0usize);
+        write!(
+            w,
+            "{},{},{cv:.6},{}",
+            spec.set.name(),
+            spec.sigma,
+            *spec == choice.spec
+        )?;
+        for t in trackers {
+            let s = score_recording(cell, t, (&r, &l), None)?;
+            let sum = summarise(&s.iter().map(|p| p.error_m).collect::<Vec<_>>());
+            let nominal = rows
+                .iter()
+                .find(|x| x.file == t.name && x.model == "nominal")
+                .context("nominal score missing")?;
+            better += usize::from(sum.rms_mm < nominal.summary.rms_mm);
+            s2 += sum.rms_mm.powi(2) * sum.n as f64;
+            n += sum.n;
+            write!(w, ",{:.4}", sum.rms_mm)?;
+        }
+        let pooled = (s2 / n.max(1) as f64).sqrt();
+        let e2 = held_out_nuisance_cost(cell, &leica_refs, (&r, &l), noise)?;
+        let leica_rms = (e2.iter().sum::<f64>() / e2.len().max(1) as f64).sqrt() * noise.contact_m;
+        writeln!(w, ",{better},{pooled:.4},{:.4}", leica_rms * 1e3)?;
+        println!(
+            "  {:<16} σ {:<4} CV {cv:.4}: better on {better:>2}, pooled {pooled:.3}; leica_self contact rms {:.3}",
+            spec.set.name(),
+            spec.sigma,
+            leica_rms * 1e3
+        );
+    }
+    println!("wrote {}", path.display());
     Ok(())
 }
 
