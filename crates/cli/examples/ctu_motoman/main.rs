@@ -8,13 +8,18 @@
 //!
 //! Writes `DIR/{self,planes,all}/` (cell.toml, right_arm.urdf, left_arm.urdf, parameters.csv,
 //! cv.csv; the cross-validated choice), `DIR/{self,planes,all}+c/` (the choice among the
-//! candidates with L/U gravity compliance, same files but cv.csv), `DIR/scores.csv`,
-//! `DIR/scores_per_file.svg`, `DIR/residual_vs_joint.svg`. Method and findings:
-//! docs/ctu-motoman-findings.md (section "Rust study").
+//! candidates with L/U gravity compliance, same files but cv.csv), `DIR/{self,planes}+m/` (the
+//! choice among the candidates with the marker centres), `DIR/scores.csv`,
+//! `DIR/scores_per_file.svg`, `DIR/residual_vs_joint.svg`, `DIR/contact_pairs.{csv,svg}` (the
+//! self-contacts' face pairs), `DIR/proxy.csv` (the hidden-set proxy, model vs model) and, with
+//! `--score-every-self-candidate`, `DIR/self_candidates.csv`. Method and findings:
+//! docs/ctu-motoman-findings.md (sections "Rust study" and "Contact geometry, the headline
+//! target and a hidden-set proxy").
 //!
 //! One job: the study's driver — arguments, the cross-validated choice of each model, export,
 //! and the printed/CSV reports. Reading the dataset is `data`, the fits and the scoring protocol
-//! are `study`, the figures are `plot`.
+//! are `study`, the face-contact geometry is `contact`, the proxy set is `proxy`, the figures
+//! are `plot`.
 
 mod contact;
 mod data;
