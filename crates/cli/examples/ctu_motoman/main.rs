@@ -812,6 +812,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         &args.out.join("residual_vs_joint.svg"),
         &per_pose,
         &trackers,
+        &cal_self.chosen.name,
     )?;
     println!(
         "wrote {}, {}, {}",

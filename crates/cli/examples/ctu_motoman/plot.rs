@@ -79,11 +79,12 @@ pub fn per_file_svg(path: &Path, series: &[(String, Vec<f64>)]) -> anyhow::Resul
 }
 
 /// Six panels (joints S..T): held-out error (mm) of every right-arm tracker pose against the
-/// joint angle (deg), nominal and `self` models.
+/// joint angle (deg), nominal and `self_model` (the exported `self` model's score label).
 pub fn residual_vs_joint_svg(
     path: &Path,
     per_pose: &[(String, String, Vec<ScoredPose>)],
     trackers: &[&Recording],
+    self_model: &str,
 ) -> anyhow::Result<()> {
     let right: Vec<&str> = trackers
         .iter()
@@ -97,7 +98,7 @@ pub fn residual_vs_joint_svg(
             .flat_map(|(_, _, s)| s.iter())
             .collect()
     };
-    let sets = [("nominal", pick("nominal")), ("self", pick("self"))];
+    let sets = [("nominal", pick("nominal")), (self_model, pick(self_model))];
     let ymax = sets
         .iter()
         .flat_map(|(_, s)| s.iter().map(|p| p.error_m * 1e3))
@@ -108,7 +109,7 @@ pub fn residual_vs_joint_svg(
     root.fill(&WHITE).map_err(|x| e(&x))?;
     let root = root
         .titled(
-            "CTU Motoman, right arm, every tracker file: held-out error vs joint angle (grey nominal, blue self)",
+            &format!("CTU Motoman, right arm, every tracker file: held-out error vs joint angle (grey nominal, blue {self_model}: the exported self)"),
             ("sans-serif", 17),
         )
         .map_err(|x| e(&x))?;
