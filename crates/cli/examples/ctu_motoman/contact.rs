@@ -286,3 +286,49 @@ pub fn write_pair_table(path: &Path, rows: &[PairRow], names: &[&str]) -> anyhow
     }
     Ok(())
 }
+
+/// Fold names of the face pairs (right face k, left face j) at index `5·k + j`.
+const PAIR_FOLDS: [&str; 25] = [
+    "pair 0-0", "pair 0-1", "pair 0-2", "pair 0-3", "pair 0-4", "pair 1-0", "pair 1-1", "pair 1-2",
+    "pair 1-3", "pair 1-4", "pair 2-0", "pair 2-1", "pair 2-2", "pair 2-3", "pair 2-4", "pair 3-0",
+    "pair 3-1", "pair 3-2", "pair 3-3", "pair 3-4", "pair 4-0", "pair 4-1", "pair 4-2", "pair 4-3",
+    "pair 4-4",
+];
+
+/// `recs` split by face pair (faces assigned at nominal kinematics): one recording per
+/// (recording, pair), its `pattern` the pair's fold name, its poses in their original order.
+/// Returns the recordings and the distinct fold names (ascending).
+pub fn split_by_face_pair(
+    cell: &Cell,
+    recs: &[&Recording],
+    ring: &RingFit,
+) -> anyhow::Result<(Vec<Recording>, Vec<&'static str>)> {
+    let zero = KinematicErrors::zero(6);
+    let mut out = Vec::new();
+    let mut folds = Vec::new();
+    for rec in recs {
+        let contacts = face_contacts(cell, rec, ring, (&zero, &zero))?;
+        for (k, fold) in PAIR_FOLDS.iter().enumerate() {
+            let poses: Vec<_> = rec
+                .poses
+                .iter()
+                .zip(&contacts)
+                .filter(|(_, c)| 5 * c.face_right + c.face_left == k)
+                .map(|(p, _)| p.clone())
+                .collect();
+            if poses.is_empty() {
+                continue;
+            }
+            folds.push(*fold);
+            out.push(Recording {
+                name: format!("{} {fold}", rec.name),
+                pattern: fold,
+                poses,
+                ..(*rec).clone()
+            });
+        }
+    }
+    folds.sort_unstable();
+    folds.dedup();
+    Ok((out, folds))
+}

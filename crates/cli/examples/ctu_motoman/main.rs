@@ -71,6 +71,20 @@ struct Args {
     /// self-contact model beat nominal everywhere?). Adds about half a minute.
     #[arg(long)]
     score_every_self_candidate: bool,
+    /// The folds of the `self` cross-validation: `pattern` (default: leave one contact pattern
+    /// out, upper vs lower) or `face-pair` (leave one of the 8 face pairs out; the held-out
+    /// pair's contact distance is refitted, so it scores the scatter within the pair).
+    #[arg(long, value_enum, default_value_t = SelfFolds::Pattern)]
+    self_cv_folds: SelfFolds,
+}
+
+/// `--self-cv-folds`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum SelfFolds {
+    /// Leave one contact pattern out (upper, lower).
+    Pattern,
+    /// Leave one face pair out.
+    FacePair,
 }
 
 /// `--marker-contact-sigma`.
@@ -638,17 +652,34 @@ fn run(args: Args) -> anyhow::Result<()> {
 
     // --- self: no-tracker self-contact only; CV leaves one contact pattern out.
     let self_recs = by_role(&[Role::SelfContact]);
+    let (pair_recs, pair_folds) = {
+        let ring = contact::fit_ring(&cell, &self_recs)?;
+        contact::split_by_face_pair(&cell, &self_recs, &ring)?
+    };
+    let (cv_recs, cv_folds, cv_title): (Vec<&Recording>, Vec<&str>, &str) = match args.self_cv_folds
+    {
+        SelfFolds::Pattern => (
+            self_recs.clone(),
+            vec!["self_upper", "self_lower"],
+            "CV self (leave one contact pattern out, upper vs lower; held-out contact rms in σ units):",
+        ),
+        SelfFolds::FacePair => (
+            pair_recs.iter().collect(),
+            pair_folds,
+            "CV self (--self-cv-folds face-pair: leave one face pair out of 8, its distance refitted; held-out contact rms in σ units):",
+        ),
+    };
     let self_choice = cross_validate(
         &cell,
-        &self_recs,
+        &cv_recs,
         &ParamSet::WITH_MARKER,
-        &["self_upper", "self_lower"],
+        &cv_folds,
         &noise,
         args.cv_rule,
         &nuisance_score,
     )?;
     print_cv(
-        "CV self (leave one contact pattern out, upper vs lower; held-out contact rms in σ units):",
+        cv_title,
         "held-out rms",
         &ParamSet::WITH_MARKER,
         &self_choice,
@@ -746,6 +777,31 @@ fn run(args: Args) -> anyhow::Result<()> {
         &all_choice,
         "heldout_tracker_rms_mm",
     )?;
+    // Do the self-contacts agree with the tracker-derived joint offsets? The marker centres fitted
+    // on the no-tracker self-contacts with the joints held at `all`'s.
+    {
+        let b = build_problem(
+            &cell,
+            &self_recs,
+            Some(ModelSpec {
+                set: ParamSet::OffsetsMarker,
+                sigma: 0.0,
+            }),
+            &noise,
+        );
+        let (r, l) = corrections(&cal_all.chosen.fit);
+        let f = fit(&b, None, Some((&r, &l)))?;
+        let c = Calibrated {
+            name: "marker at all".into(),
+            problem: b.problem,
+            fit: f,
+            spec: cal_all.chosen.spec,
+        };
+        println!(
+            "self-contact residual with the marker centres fitted and the joints held at `all` (tracker-derived): {:.3} mm",
+            contact_rms(&c)? * 1e3
+        );
+    }
 
     // --- scores on every tracker file: each calibration without and with compliance.
     let zero = KinematicErrors::zero(6);
