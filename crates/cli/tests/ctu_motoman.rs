@@ -9,6 +9,9 @@ mod contact;
 #[path = "../examples/ctu_motoman/data.rs"]
 #[allow(dead_code)]
 mod data;
+#[path = "../examples/ctu_motoman/proxy.rs"]
+#[allow(dead_code)]
+mod proxy;
 #[path = "../examples/ctu_motoman/study.rs"]
 #[allow(dead_code)]
 mod study;
@@ -272,6 +275,42 @@ fn face_pairs_are_eight_in_the_self_files_and_one_in_leica_self() {
         }
     }
     assert!(ring.polar_mean_rad - 3.0 * ring.polar_sd_rad > RING_POLAR_MIN_RAD);
+    // The leave-one-face-pair-out folds: 8 folds, every pose once.
+    let (split, folds) = contact::split_by_face_pair(&cell, &self_recs, &ring).unwrap();
+    assert_eq!(folds.len(), 8, "{folds:?}");
+    assert_eq!(split.iter().map(|r| r.poses.len()).sum::<usize>(), 502);
+}
+
+/// A model scored against its own predictions by the proxy protocol (registration + reflector
+/// fitted on one half) must leave only solver round-off, m.
+const PROXY_SELF_TOL_M: f64 = 1e-9;
+
+#[test]
+fn proxy_set_is_seeded_within_limits_and_scores_a_model_against_itself_to_zero() {
+    let Some(dir) = dataset() else { return };
+    let recs = read_dataset(&dir).unwrap();
+    let cell = Cell::from_toml_file(&repo().join("cells/ctu-motoman.toml")).unwrap();
+    let (joints, draws) = proxy::proxy_joints(&cell, &recs).unwrap();
+    assert_eq!(joints.len(), proxy::PROXY_POSES);
+    assert!(draws >= joints.len());
+    for q in &joints {
+        for (v, j) in q.iter().zip(cell.robot1.model.joints()) {
+            assert!(*v >= j.lower && *v <= j.upper);
+        }
+    }
+    assert_eq!(
+        proxy::proxy_joints(&cell, &recs).unwrap().0,
+        joints,
+        "seeded"
+    );
+    let mut offset = KinematicErrors::zero(6);
+    offset.set(kinematics::ErrorParam::JointOffset { joint: 2 }, 2e-3);
+    let reference = proxy::reference_recording(&cell, &joints, &offset).unwrap();
+    let same = proxy::model_difference(&cell, &reference, &offset).unwrap();
+    assert!(same.rms_mm * 1e-3 < PROXY_SELF_TOL_M, "{} mm", same.rms_mm);
+    // A 2 mrad U offset is not a rigid motion: the nominal model differs by millimetres.
+    let nominal = proxy::model_difference(&cell, &reference, &KinematicErrors::zero(6)).unwrap();
+    assert!(nominal.rms_mm > 0.5, "{} mm", nominal.rms_mm);
 }
 
 #[test]
