@@ -3,9 +3,15 @@
 //! re-load and reproduce the fitted model to 1e-9 m; the cell loads) and the honest tracker
 //! score. Skips with a printed reason when the data folder is absent.
 
+#[path = "../examples/ctu_motoman/contact.rs"]
+#[allow(dead_code)]
+mod contact;
 #[path = "../examples/ctu_motoman/data.rs"]
 #[allow(dead_code)]
 mod data;
+#[path = "../examples/ctu_motoman/proxy.rs"]
+#[allow(dead_code)]
+mod proxy;
 #[path = "../examples/ctu_motoman/study.rs"]
 #[allow(dead_code)]
 mod study;
@@ -16,7 +22,10 @@ use kinematics::{true_base_from_tip, KinematicErrors};
 use sim_cell::{export_calibrated_cell, Cell, ExportNames};
 
 use data::{locate_dataset, read_dataset, Role};
-use study::{build_problem, fit, score_recording, summarise, ModelSpec, NoiseLevels, ParamSet};
+use study::{
+    build_problem, corrections, fit, residuals, score_recording, summarise, ModelSpec, NoiseLevels,
+    ParamSet,
+};
 
 /// Exported URDF + cell errors against the fitted model: the URDF patch keeps 9 decimals only
 /// when their rounding provably stays within half of this (kinematics::PATCH_TOLERANCE_M).
@@ -41,6 +50,7 @@ fn dataset() -> Option<PathBuf> {
 fn noise() -> NoiseLevels {
     NoiseLevels {
         contact_m: 1.33e-3,
+        marker_contact_m: None,
         leica_contact_m: 0.28e-3,
         plane_m: 0.95e-3,
         tracker_m: 0.28e-3,
@@ -63,12 +73,25 @@ fn self_contact_calibration_exports_a_cell_that_reproduces_the_fit() {
     };
     let b = build_problem(&cell, &self_recs, Some(spec), &noise());
     assert_eq!(b.problem.observations.len(), 502);
-    let f = fit(&b.problem, None, None).unwrap();
+    let f = fit(&b, None, None).unwrap();
     assert_eq!(f.stopped.name(), "converged");
     // The contact distance stays near the README's 116 mm (a runaway would move it by tens).
     let d = f.estimate.contact_distance_m[0];
     assert!((d - 0.116).abs() < 2e-3, "contact distance {d} m");
-    assert!(f.estimate.b1_from_b2.translation.vector.norm() < 1e-9);
+    // The common base is held by the library's placement prior (the cell's `[b1_from_b2]
+    // sigma_mm, sigma_deg`): every component stays within one prior σ.
+    let prior = b
+        .problem
+        .placement_prior
+        .expect("the CTU cell states its placement σ");
+    let t = f.estimate.b1_from_b2.translation.vector;
+    let w = f.estimate.b1_from_b2.rotation.scaled_axis();
+    assert!(
+        t.amax() < prior.sigma_m && w.amax() < prior.sigma_rad,
+        "placement moved {t:?} m, {w:?} rad; prior σ {} m, {} rad",
+        prior.sigma_m,
+        prior.sigma_rad
+    );
 
     let out = tempfile::tempdir().unwrap();
     let names = ExportNames {
@@ -197,4 +220,131 @@ fn point_mass_inertials_load_only_l_and_u_gravity_torques() {
             .unwrap();
         assert!(tau[1].abs() > 1.0 && tau[2].abs() > 1.0, "{tau:?}");
     }
+}
+
+/// The contact residual (centre distance minus the fitted distance, rms over the no-tracker
+/// self-contacts) that fitting only the two marker centres (x, y; nominal joints) must reach, m.
+/// Nominal: 1.33 mm; measured with the marker centres: 0.33 mm (the Python study's
+/// along-normal fit: 0.31 mm). A fit that did not move the centres stays above 1 mm.
+const MARKER_CONTACT_RMS_TOL_M: f64 = 0.4e-3;
+
+/// Lowest polar angle of the contact directions from tool z, rad (5° under arctan 2 = 63.43°);
+/// a contact through the marker's top face would be near 0.
+const RING_POLAR_MIN_RAD: f64 = 58.0 * std::f64::consts::PI / 180.0;
+
+#[test]
+fn face_pairs_are_eight_in_the_self_files_and_one_in_leica_self() {
+    let Some(dir) = dataset() else { return };
+    let recs = read_dataset(&dir).unwrap();
+    let cell = Cell::from_toml_file(&repo().join("cells/ctu-motoman.toml")).unwrap();
+    let self_recs: Vec<_> = recs
+        .iter()
+        .filter(|r| r.role == Role::SelfContact)
+        .collect();
+    let leica: Vec<_> = recs
+        .iter()
+        .filter(|r| r.role == Role::TrackerSelfContact)
+        .collect();
+    let ring = contact::fit_ring(&cell, &self_recs).unwrap();
+    assert!(
+        (ring.polar_mean_rad - contact::ring_polar_angle()).abs() < 1f64.to_radians(),
+        "contact directions at {}° from tool z",
+        ring.polar_mean_rad.to_degrees()
+    );
+    // Every direction is within a few degrees of a ring face (the faces are 72° apart).
+    assert!(ring.azimuth_max_dev_rad < 5f64.to_radians());
+    let zero = KinematicErrors::zero(6);
+    let rows = contact::pair_table(&cell, &self_recs, &ring, &[(&zero, &zero)]).unwrap();
+    assert_eq!(
+        rows.len(),
+        8,
+        "{:?}",
+        rows.iter().map(|r| r.pair).collect::<Vec<_>>()
+    );
+    assert_eq!(rows.iter().map(|r| r.n).sum::<usize>(), 502);
+    for r in &rows {
+        // Flush faces: the two normals anti-parallel to a fraction of a degree.
+        assert!(r.misalign.0 < 0.5f64.to_radians(), "{:?}", r);
+    }
+    let leica_rows = contact::pair_table(&cell, &leica, &ring, &[(&zero, &zero)]).unwrap();
+    assert_eq!(leica_rows.len(), 1);
+    assert_eq!(leica_rows[0].n, 64);
+    for rec in self_recs.iter().chain(&leica) {
+        for c in contact::face_contacts(&cell, rec, &ring, (&zero, &zero)).unwrap() {
+            assert!(c.face_right < 5 && c.face_left < 5);
+        }
+    }
+    assert!(ring.polar_mean_rad - 3.0 * ring.polar_sd_rad > RING_POLAR_MIN_RAD);
+    // The leave-one-face-pair-out folds: 8 folds, every pose once.
+    let (split, folds) = contact::split_by_face_pair(&cell, &self_recs, &ring).unwrap();
+    assert_eq!(folds.len(), 8, "{folds:?}");
+    assert_eq!(split.iter().map(|r| r.poses.len()).sum::<usize>(), 502);
+}
+
+/// A model scored against its own predictions by the proxy protocol (registration + reflector
+/// fitted on one half) must leave only solver round-off, m.
+const PROXY_SELF_TOL_M: f64 = 1e-9;
+
+#[test]
+fn proxy_set_is_seeded_within_limits_and_scores_a_model_against_itself_to_zero() {
+    let Some(dir) = dataset() else { return };
+    let recs = read_dataset(&dir).unwrap();
+    let cell = Cell::from_toml_file(&repo().join("cells/ctu-motoman.toml")).unwrap();
+    let (joints, draws) = proxy::proxy_joints(&cell, &recs).unwrap();
+    assert_eq!(joints.len(), proxy::PROXY_POSES);
+    assert!(draws >= joints.len());
+    for q in &joints {
+        for (v, j) in q.iter().zip(cell.robot1.model.joints()) {
+            assert!(*v >= j.lower && *v <= j.upper);
+        }
+    }
+    assert_eq!(
+        proxy::proxy_joints(&cell, &recs).unwrap().0,
+        joints,
+        "seeded"
+    );
+    let mut offset = KinematicErrors::zero(6);
+    offset.set(kinematics::ErrorParam::JointOffset { joint: 2 }, 2e-3);
+    let reference = proxy::reference_recording(&cell, &joints, &offset).unwrap();
+    let same = proxy::model_difference(&cell, &reference, &offset).unwrap();
+    assert!(same.rms_mm * 1e-3 < PROXY_SELF_TOL_M, "{} mm", same.rms_mm);
+    // A 2 mrad U offset is not a rigid motion: the nominal model differs by millimetres.
+    let nominal = proxy::model_difference(&cell, &reference, &KinematicErrors::zero(6)).unwrap();
+    assert!(nominal.rms_mm > 0.5, "{} mm", nominal.rms_mm);
+}
+
+#[test]
+fn marker_centre_fit_lowers_the_contact_residual() {
+    let Some(dir) = dataset() else { return };
+    let recs = read_dataset(&dir).unwrap();
+    let cell = Cell::from_toml_file(&repo().join("cells/ctu-motoman.toml")).unwrap();
+    let self_recs: Vec<_> = recs
+        .iter()
+        .filter(|r| r.role == Role::SelfContact)
+        .collect();
+    let contact_rms = |spec: Option<ModelSpec>| {
+        let b = build_problem(&cell, &self_recs, spec, &noise());
+        let f = fit(&b, None, None).unwrap();
+        assert_eq!(f.stopped.name(), "converged");
+        let r = residuals(&b.problem, &f, &f.estimate).unwrap();
+        let rms = (r.iter().map(|x| x.0 * x.0).sum::<f64>() / r.len() as f64).sqrt();
+        (rms, f)
+    };
+    let (before, _) = contact_rms(None);
+    let (after, f) = contact_rms(Some(ModelSpec {
+        set: ParamSet::OffsetsMarker,
+        sigma: 0.0,
+    }));
+    assert!(before > 1e-3, "nominal contact rms {before} m");
+    assert!(
+        after < MARKER_CONTACT_RMS_TOL_M,
+        "contact rms with the marker centres {after} m (nominal {before} m)"
+    );
+    // Only the marker centres moved (x, y), the joints stayed nominal.
+    let (right, left) = corrections(&f);
+    assert_eq!(right.tip.z, 0.0);
+    assert!(right.tip.xy().norm() > 0.5e-3 && left.tip.xy().norm() > 0.5e-3);
+    let mut joints_only = right.clone();
+    joints_only.tip = nalgebra::Vector3::zeros();
+    assert_eq!(joints_only, KinematicErrors::zero(6));
 }

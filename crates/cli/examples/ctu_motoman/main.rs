@@ -8,16 +8,23 @@
 //!
 //! Writes `DIR/{self,planes,all}/` (cell.toml, right_arm.urdf, left_arm.urdf, parameters.csv,
 //! cv.csv; the cross-validated choice), `DIR/{self,planes,all}+c/` (the choice among the
-//! candidates with L/U gravity compliance, same files but cv.csv), `DIR/scores.csv`,
-//! `DIR/scores_per_file.svg`, `DIR/residual_vs_joint.svg`. Method and findings:
-//! docs/ctu-motoman-findings.md (section "Rust study").
+//! candidates with L/U gravity compliance, same files but cv.csv), `DIR/{self,planes}+m/` (the
+//! choice among the candidates with the marker centres), `DIR/scores.csv`,
+//! `DIR/scores_per_file.svg`, `DIR/residual_vs_joint.svg`, `DIR/contact_pairs.{csv,svg}` (the
+//! self-contacts' face pairs), `DIR/proxy.csv` (the hidden-set proxy, model vs model) and, with
+//! `--score-every-self-candidate`, `DIR/self_candidates.csv`. Method and findings:
+//! docs/ctu-motoman-findings.md (sections "Rust study" and "Contact geometry, the headline
+//! target and a hidden-set proxy").
 //!
 //! One job: the study's driver — arguments, the cross-validated choice of each model, export,
 //! and the printed/CSV reports. Reading the dataset is `data`, the fits and the scoring protocol
-//! are `study`, the figures are `plot`.
+//! are `study`, the face-contact geometry is `contact`, the proxy set is `proxy`, the figures
+//! are `plot`.
 
+mod contact;
 mod data;
 mod plot;
+mod proxy;
 mod study;
 
 use std::io::Write;
@@ -25,15 +32,16 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context};
-use calib_core::whole_cell::{CellFit, CellParam, CellProblem};
+use calib_core::whole_cell::{CellFit, CellParam, CellProblem, ObservationKind};
 use clap::Parser;
 use kinematics::{true_base_from_tip, ErrorParam, KinematicErrors};
 use sim_cell::{export_calibrated_cell, Cell, ExportNames};
 
 use data::{read_dataset, Recording, Role};
 use study::{
-    build_problem, corrections, fit, held_out_nuisance_cost, noise_from_nominal, score_recording,
-    summarise, ModelSpec, NoiseLevels, ParamSet, ScoredPose, Summary, COMPLIANT_JOINTS, SIGMA_GRID,
+    build_problem, corrections, fit, held_out_nuisance_cost, noise_from_nominal, residuals,
+    score_recording, summarise, ModelSpec, NoiseLevels, ParamSet, ScoredPose, Summary,
+    COMPLIANT_JOINTS, SIGMA_GRID,
 };
 
 /// The CTU dual-arm Motoman study: three calibrations (self-contact; + planes; + tracker), each
@@ -52,6 +60,40 @@ struct Args {
     /// smallest CV error).
     #[arg(long, value_enum, default_value_t = CvRule::OneSe)]
     cv_rule: CvRule,
+    /// Contact σ of the no-tracker self-contacts in the fits that fit the marker centres:
+    /// `nominal` (default: the nominal model's contact residual, as every other candidate) or
+    /// `marker` (the residual of the fit with only the marker centres, nominal joints: the noise
+    /// rule applied to the marker model). Held-out CV errors use `nominal` units either way.
+    #[arg(long, value_enum, default_value_t = MarkerContactSigma::Nominal)]
+    marker_contact_sigma: MarkerContactSigma,
+    /// Diagnostic, selects nothing: also fit EVERY `self` CV candidate on all the self-contact
+    /// files and score each on every tracker file, to `DIR/self_candidates.csv` (does any
+    /// self-contact model beat nominal everywhere?). Adds about half a minute.
+    #[arg(long)]
+    score_every_self_candidate: bool,
+    /// The folds of the `self` cross-validation: `pattern` (default: leave one contact pattern
+    /// out, upper vs lower) or `face-pair` (leave one of the 8 face pairs out; the held-out
+    /// pair's contact distance is refitted, so it scores the scatter within the pair).
+    #[arg(long, value_enum, default_value_t = SelfFolds::Pattern)]
+    self_cv_folds: SelfFolds,
+}
+
+/// `--self-cv-folds`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum SelfFolds {
+    /// Leave one contact pattern out (upper, lower).
+    Pattern,
+    /// Leave one face pair out.
+    FacePair,
+}
+
+/// `--marker-contact-sigma`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum MarkerContactSigma {
+    /// The nominal model's contact residual.
+    Nominal,
+    /// The residual of the marker-only fit.
+    Marker,
 }
 
 /// `--cv-rule`.
@@ -96,6 +138,8 @@ struct Choice {
     without_compliance: ModelSpec,
     /// The rule's choice among the candidates with compliance.
     with_compliance: ModelSpec,
+    /// The rule's choice among the candidates with the marker centres (`None`: no such set).
+    with_marker: Option<ModelSpec>,
     /// The candidate with the smallest criterion.
     min_spec: ModelSpec,
     /// Standard error of the smallest criterion.
@@ -114,12 +158,13 @@ struct Choice {
 fn cross_validate(
     cell: &Cell,
     recs: &[&Recording],
+    sets: &[ParamSet],
     folds: &[&str],
     noise: &NoiseLevels,
     rule: CvRule,
     score: &HeldOutScore,
 ) -> anyhow::Result<Choice> {
-    let specs: Vec<ModelSpec> = ParamSet::ALL
+    let specs: Vec<ModelSpec> = sets
         .iter()
         .flat_map(|&set| SIGMA_GRID.map(|sigma| ModelSpec { set, sigma }))
         .collect();
@@ -137,7 +182,7 @@ fn cross_validate(
                 .filter(|r| r.pattern == *fold)
                 .collect();
             let b = build_problem(cell, &train, Some(spec), noise);
-            let f = fit(&b.problem, None, None)
+            let f = fit(&b, None, None)
                 .with_context(|| format!("CV fold {fold}, {} σ {}", spec.set.name(), spec.sigma))?;
             let (r, l) = corrections(&f);
             e2.extend(score(&test, (&r, &l))?);
@@ -173,11 +218,8 @@ fn cross_validate(
         .into_iter()
         .map(|s| s.context("a CV candidate was not evaluated")?)
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let pick = |with: Option<bool>| -> anyhow::Result<(ModelSpec, ModelSpec, f64)> {
-        let sub: Vec<&(ModelSpec, f64, f64)> = table
-            .iter()
-            .filter(|t| with.is_none_or(|w| t.0.set.compliance() == w))
-            .collect();
+    let pick = |keep: &dyn Fn(ParamSet) -> bool| -> anyhow::Result<(ModelSpec, ModelSpec, f64)> {
+        let sub: Vec<&(ModelSpec, f64, f64)> = table.iter().filter(|t| keep(t.0.set)).collect();
         let &&(min_spec, min_c, min_se) = sub
             .iter()
             .min_by(|a, b| a.1.total_cmp(&b.1))
@@ -192,25 +234,30 @@ fn cross_validate(
         };
         Ok((spec, min_spec, min_se))
     };
-    let (spec, min_spec, min_se) = pick(None)?;
+    let (spec, min_spec, min_se) = pick(&|_| true)?;
     Ok(Choice {
         spec,
-        without_compliance: pick(Some(false))?.0,
-        with_compliance: pick(Some(true))?.0,
+        without_compliance: pick(&|s| !s.compliance() && !s.marker())?.0,
+        with_compliance: pick(&|s| s.compliance())?.0,
+        with_marker: if sets.iter().any(|s| s.marker()) {
+            Some(pick(&|s| s.marker())?.0)
+        } else {
+            None
+        },
         min_spec,
         min_se,
         table,
     })
 }
 
-fn print_cv(title: &str, unit: &str, c: &Choice) {
+fn print_cv(title: &str, unit: &str, sets: &[ParamSet], c: &Choice) {
     println!("{title}");
     print!("  {:<16}", "set \\ σ");
     for s in SIGMA_GRID {
         print!(" {s:>8}");
     }
     println!();
-    for set in ParamSet::ALL {
+    for &set in sets {
         print!("  {:<16}", set.name());
         for (spec, v, _) in c.table.iter().filter(|(s, _, _)| s.set == set) {
             let mark = if *spec == c.spec { "*" } else { " " };
@@ -233,6 +280,13 @@ fn print_cv(title: &str, unit: &str, c: &Choice) {
         c.with_compliance.set.name(),
         c.with_compliance.sigma
     );
+    if let Some(m) = c.with_marker {
+        println!(
+            "  the rule within the sets with the marker centres: {} σ {}",
+            m.set.name(),
+            m.sigma
+        );
+    }
 }
 
 fn write_cv(path: &Path, c: &Choice, criterion: &str) -> anyhow::Result<()> {
@@ -300,7 +354,7 @@ fn calibrate(
     noise: &NoiseLevels,
 ) -> anyhow::Result<Calibrated> {
     let b = build_problem(cell, recs, Some(spec), noise);
-    let f = fit(&b.problem, None, None).with_context(|| format!("calibrating {name}"))?;
+    let f = fit(&b, None, None).with_context(|| format!("calibrating {name}"))?;
     println!(
         "{name} ({} σ {}): {} after {} iterations, {} rows, data χ² {:.1}; contact distance {}{}",
         spec.set.name(),
@@ -318,6 +372,16 @@ fn calibrate(
             .join(", "),
         compliance_text(&f)
     );
+    if spec.set.marker() {
+        let m = |t: &nalgebra::Vector3<f64>| {
+            format!("({:+.2}, {:+.2}, {:+.2})", t.x * 1e3, t.y * 1e3, t.z * 1e3)
+        };
+        println!(
+            "  marker centre offsets (tool0, mm): right {}, left {}",
+            m(&f.estimate.robot1.tool_tip_m[0]),
+            m(&f.estimate.robot2.tool_tip_m[0])
+        );
+    }
     Ok(Calibrated {
         name,
         problem: b.problem,
@@ -373,17 +437,11 @@ fn export(
     }
     let exported = Cell::from_toml_file(&dir.join("cell.toml"))?;
     let (mut sum2, mut max, mut n) = (0.0f64, 0.0f64, 0usize);
+    // The fitted marker centre (tool 0 tip error) is in the `tip` field.
+    let (fit_right, fit_left) = corrections(&c.fit);
     for (setup, fitted, exp) in [
-        (
-            &cell.robot1,
-            &c.fit.estimate.robot1.errors,
-            &exported.robot1,
-        ),
-        (
-            &cell.robot2,
-            &c.fit.estimate.robot2.errors,
-            &exported.robot2,
-        ),
+        (&cell.robot1, &fit_right, &exported.robot1),
+        (&cell.robot2, &fit_left, &exported.robot2),
     ] {
         let right = std::ptr::eq(setup, &cell.robot1);
         for rec in recs {
@@ -422,14 +480,31 @@ fn export(
 /// The calibrations of one recording set: the rule's choice over every candidate (exported as
 /// `out/name/`), and its choices among the candidates without and with compliance (scored as
 /// `name` and `name+c`; the latter exported as `out/name+c/` to measure the export caveat). The
-/// chosen model is one of the two, or else fitted and scored as `name*`.
+/// chosen model is one of the two, or else fitted and scored as `name*`. With marker-centre
+/// candidates, their choice is scored as `name+m` and exported as `out/name+m/`.
 struct Calibrations {
     /// Rule over every candidate.
     chosen: Calibrated,
-    /// Rule over the candidates without compliance (the study before compliance was a candidate).
+    /// Rule over the candidates without compliance and without marker centres (the study before
+    /// either was a candidate).
     without: Calibrated,
     /// Rule over the candidates with compliance.
     with: Calibrated,
+    /// Rule over the candidates with the marker centres (when there are such candidates).
+    marker: Option<Calibrated>,
+}
+
+impl Calibrations {
+    /// The models to score, each once: `without`, `with`, `marker`, and `chosen` when it is
+    /// none of these.
+    fn scored(&self) -> Vec<&Calibrated> {
+        let mut v = vec![&self.without, &self.with];
+        v.extend(self.marker.as_ref());
+        if self.chosen.name.ends_with('*') {
+            v.push(&self.chosen);
+        }
+        v
+    }
 }
 
 /// Fits the three models of [`Calibrations`] (each spec once) and exports the chosen one to
@@ -457,20 +532,30 @@ fn calibrate_all(
         choice.with_compliance,
         noise,
     )?;
+    let marker = choice
+        .with_marker
+        .map(|spec| calibrate(cell, format!("{name}+m"), recs, spec, noise))
+        .transpose()?;
     let chosen = if choice.spec == without.spec {
         renamed(&without, name)
     } else if choice.spec == with.spec {
         renamed(&with, &format!("{name}+c"))
+    } else if let Some(m) = marker.as_ref().filter(|m| m.spec == choice.spec) {
+        renamed(m, &format!("{name}+m"))
     } else {
         calibrate(cell, format!("{name}*"), recs, choice.spec, noise)?
     };
     println!("exporting {} as {name}/", chosen.name);
     export(cell, &chosen, name, recs, out, how)?;
     export(cell, &with, &format!("{name}+c"), recs, out, how)?;
+    if let Some(m) = &marker {
+        export(cell, m, &format!("{name}+m"), recs, out, how)?;
+    }
     Ok(Calibrations {
         chosen,
         without,
         with,
+        marker,
     })
 }
 
@@ -513,6 +598,13 @@ fn run(args: Args) -> anyhow::Result<()> {
     let recordings = read_dataset(&args.data)?;
     let cell_path = repo_root().join("cells/ctu-motoman.toml");
     let cell = Cell::from_toml_file(&cell_path)?;
+    if cell.b1_from_b2_sigma.is_none() {
+        bail!(
+            "{}: no `[b1_from_b2] sigma_mm, sigma_deg`; the study holds the common base by that \
+             placement prior (both DH tables start at one base frame)",
+            cell_path.display()
+        );
+    }
     std::fs::create_dir_all(&args.out).with_context(|| format!("{}", args.out.display()))?;
     println!(
         "read {} recordings ({} poses) from {}",
@@ -522,7 +614,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     );
 
     // Noise of each class: the nominal model's residual (nuisances fitted on every recording).
-    let noise = noise_from_nominal(&cell, &recordings)?;
+    let mut noise = noise_from_nominal(&cell, &recordings)?;
     println!(
         "noise σ from the nominal fit (rms per scalar row): contact {:.3} mm, leica_self contact {:.3} mm, plane {:.3} mm, tracker {:.3} mm/axis",
         noise.contact_m * 1e3,
@@ -537,23 +629,59 @@ fn run(args: Args) -> anyhow::Result<()> {
             .filter(|r| roles.contains(&r.role))
             .collect()
     };
+    if args.marker_contact_sigma == MarkerContactSigma::Marker {
+        let m = calibrate(
+            &cell,
+            "marker only (for the contact σ)".into(),
+            &by_role(&[Role::SelfContact]),
+            ModelSpec {
+                set: ParamSet::OffsetsMarker,
+                sigma: 0.0,
+            },
+            &noise,
+        )?;
+        noise.marker_contact_m = Some(contact_rms(&m)?);
+        println!(
+            "--marker-contact-sigma marker: contact σ of the marker-centre fits {:.3} mm",
+            contact_rms(&m)? * 1e3
+        );
+    }
     let nuisance_score = |test: &[&Recording], corr: (&KinematicErrors, &KinematicErrors)| {
         held_out_nuisance_cost(&cell, test, corr, &noise)
     };
 
     // --- self: no-tracker self-contact only; CV leaves one contact pattern out.
     let self_recs = by_role(&[Role::SelfContact]);
+    let (pair_recs, pair_folds) = {
+        let ring = contact::fit_ring(&cell, &self_recs)?;
+        contact::split_by_face_pair(&cell, &self_recs, &ring)?
+    };
+    let (cv_recs, cv_folds, cv_title): (Vec<&Recording>, Vec<&str>, &str) = match args.self_cv_folds
+    {
+        SelfFolds::Pattern => (
+            self_recs.clone(),
+            vec!["self_upper", "self_lower"],
+            "CV self (leave one contact pattern out, upper vs lower; held-out contact rms in σ units):",
+        ),
+        SelfFolds::FacePair => (
+            pair_recs.iter().collect(),
+            pair_folds,
+            "CV self (--self-cv-folds face-pair: leave one face pair out of 8, its distance refitted; held-out contact rms in σ units):",
+        ),
+    };
     let self_choice = cross_validate(
         &cell,
-        &self_recs,
-        &["self_upper", "self_lower"],
+        &cv_recs,
+        &ParamSet::WITH_MARKER,
+        &cv_folds,
         &noise,
         args.cv_rule,
         &nuisance_score,
     )?;
     print_cv(
-        "CV self (leave one contact pattern out, upper vs lower; held-out contact rms in σ units):",
+        cv_title,
         "held-out rms",
+        &ParamSet::WITH_MARKER,
         &self_choice,
     );
     let cal_self = calibrate_all(
@@ -571,12 +699,15 @@ fn run(args: Args) -> anyhow::Result<()> {
         &self_choice,
         "heldout_rms_sigma",
     )?;
+    let leica_self = by_role(&[Role::TrackerSelfContact]);
+    contact_report(&cell, &self_recs, &leica_self, &cal_self, &noise, &args.out)?;
 
     // --- planes: self-contact + no-tracker planes; CV leaves one pattern out (5).
     let plane_recs = by_role(&[Role::SelfContact, Role::Plane]);
     let plane_choice = cross_validate(
         &cell,
         &plane_recs,
+        &ParamSet::WITH_MARKER,
         &["self_upper", "self_lower", "wall", "higher", "lower"],
         &noise,
         args.cv_rule,
@@ -585,6 +716,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     print_cv(
         "CV planes (leave one pattern out of 5: self upper/lower, wall, higher, lower table; held-out rms in σ units):",
         "held-out rms",
+        &ParamSet::WITH_MARKER,
         &plane_choice,
     );
     let cal_planes = calibrate_all(
@@ -618,6 +750,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     let all_choice = cross_validate(
         &cell,
         &all_recs,
+        &ParamSet::ALL,
         &["right_grid", "left_grid", "leica_table", "leica_self"],
         &noise,
         args.cv_rule,
@@ -626,6 +759,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     print_cv(
         "CV all (hold out whole tracker files: right grid, left grid, the 6 table/wall files, the 4 leica_self files; held-out tracker rms, mm):",
         "held-out tracker rms",
+        &ParamSet::ALL,
         &all_choice,
     );
     let cal_all = calibrate_all(
@@ -643,6 +777,31 @@ fn run(args: Args) -> anyhow::Result<()> {
         &all_choice,
         "heldout_tracker_rms_mm",
     )?;
+    // Do the self-contacts agree with the tracker-derived joint offsets? The marker centres fitted
+    // on the no-tracker self-contacts with the joints held at `all`'s.
+    {
+        let b = build_problem(
+            &cell,
+            &self_recs,
+            Some(ModelSpec {
+                set: ParamSet::OffsetsMarker,
+                sigma: 0.0,
+            }),
+            &noise,
+        );
+        let (r, l) = corrections(&cal_all.chosen.fit);
+        let f = fit(&b, None, Some((&r, &l)))?;
+        let c = Calibrated {
+            name: "marker at all".into(),
+            problem: b.problem,
+            fit: f,
+            spec: cal_all.chosen.spec,
+        };
+        println!(
+            "self-contact residual with the marker centres fitted and the joints held at `all` (tracker-derived): {:.3} mm",
+            contact_rms(&c)? * 1e3
+        );
+    }
 
     // --- scores on every tracker file: each calibration without and with compliance.
     let zero = KinematicErrors::zero(6);
@@ -651,13 +810,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             .chain(
                 [&cal_self, &cal_planes, &cal_all]
                     .iter()
-                    .flat_map(|c| {
-                        // The chosen model is scored on its own only when it is neither.
-                        let distinct = c.chosen.name.ends_with('*');
-                        [&c.without, &c.with, &c.chosen]
-                            .into_iter()
-                            .take(if distinct { 3 } else { 2 })
-                    })
+                    .flat_map(|c| c.scored())
                     .map(|c| {
                         let (r, l) = corrections(&c.fit);
                         (c.name.clone(), r, l, !c.name.starts_with("all"))
@@ -695,6 +848,17 @@ fn run(args: Args) -> anyhow::Result<()> {
     }
     let names: Vec<&str> = models.iter().map(|m| m.0.as_str()).collect();
     print_scores(&rows, &trackers, &names);
+    if args.score_every_self_candidate {
+        score_every_candidate(
+            &cell,
+            &self_recs,
+            &self_choice,
+            &noise,
+            &trackers,
+            &rows,
+            &args.out,
+        )?;
+    }
     write_scores(&args.out.join("scores.csv"), &rows)?;
     plot::per_file_svg(
         &args.out.join("scores_per_file.svg"),
@@ -704,6 +868,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         &args.out.join("residual_vs_joint.svg"),
         &per_pose,
         &trackers,
+        &cal_self.chosen.name,
     )?;
     println!(
         "wrote {}, {}, {}",
@@ -711,6 +876,19 @@ fn run(args: Args) -> anyhow::Result<()> {
         args.out.join("scores_per_file.svg").display(),
         args.out.join("residual_vs_joint.svg").display()
     );
+    let reference = corrections(&cal_all.chosen.fit).0;
+    let mut compared: Vec<(String, KinematicErrors)> = vec![("nominal".into(), zero.clone())];
+    for c in [&cal_self, &cal_planes] {
+        compared.push((
+            format!("{} (exported)", c.chosen.name),
+            corrections(&c.chosen.fit).0,
+        ));
+        if let Some(m) = c.marker.as_ref().filter(|m| m.name != c.chosen.name) {
+            compared.push((m.name.clone(), corrections(&m.fit).0));
+        }
+    }
+    compared.push((cal_all.with.name.clone(), corrections(&cal_all.with.fit).0));
+    proxy_report(&cell, &recordings, &reference, &compared, &args.out)?;
     print_effects(&cal_all.chosen);
     for (folder, c) in [("self", &cal_self.chosen), ("planes", &cal_planes.chosen)] {
         println!(
@@ -720,6 +898,277 @@ fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     println!("done in {:.1} s", t0.elapsed().as_secs_f64());
+    Ok(())
+}
+
+/// The rms of the contact rows' residuals (centre distance minus the fitted contact distance)
+/// of a calibration, m.
+fn contact_rms(c: &Calibrated) -> anyhow::Result<f64> {
+    let res = residuals(&c.problem, &c.fit, &c.fit.estimate)?;
+    let (mut s2, mut n) = (0.0, 0usize);
+    for (o, (r, _)) in c.problem.observations.iter().zip(&res) {
+        if matches!(o.kind, ObservationKind::Contact { .. }) {
+            s2 += r * r;
+            n += 1;
+        }
+    }
+    Ok((s2 / n.max(1) as f64).sqrt())
+}
+
+/// Contact geometry (`contact` module): the measured ring of face normals, the face pairs of the
+/// no-tracker self-contacts and of `leica_self`, the along-normal distance per pair at nominal,
+/// with only the marker centres fitted (nominal joints) and at the `self` models; the contact
+/// residual before and after; the `leica_self` contact scatter (no tracker value: an
+/// independent check of the `self` models). Writes `out/contact_pairs.csv` and
+/// `out/contact_pairs.svg`.
+fn contact_report(
+    cell: &Cell,
+    self_recs: &[&Recording],
+    leica_self: &[&Recording],
+    cal_self: &Calibrations,
+    noise: &NoiseLevels,
+    out: &Path,
+) -> anyhow::Result<()> {
+    let ring = contact::fit_ring(cell, self_recs)?;
+    println!(
+        "contact geometry (nominal kinematics): {} contact directions in the tool0 frames at polar angle {:.2} ± {:.2}° \
+         (ideal ring face: arctan 2 = {:.2}°), ring azimuth φ0 = {:.2}° + k·72°, largest azimuth departure {:.2}°",
+        ring.n,
+        ring.polar_mean_rad.to_degrees(),
+        ring.polar_sd_rad.to_degrees(),
+        contact::ring_polar_angle().to_degrees(),
+        ring.phi0_rad.to_degrees(),
+        ring.azimuth_max_dev_rad.to_degrees()
+    );
+    let marker_only = calibrate(
+        cell,
+        "marker only".into(),
+        self_recs,
+        ModelSpec {
+            set: ParamSet::OffsetsMarker,
+            sigma: 0.0,
+        },
+        noise,
+    )?;
+    let zero = KinematicErrors::zero(6);
+    let mut models: Vec<(String, KinematicErrors, KinematicErrors, Option<f64>)> =
+        vec![("nominal".into(), zero.clone(), zero.clone(), None)];
+    for c in std::iter::once(&marker_only)
+        .chain(std::iter::once(&cal_self.chosen))
+        .chain(
+            cal_self
+                .marker
+                .iter()
+                .filter(|m| m.name != cal_self.chosen.name),
+        )
+    {
+        let (r, l) = corrections(&c.fit);
+        models.push((c.name.clone(), r, l, Some(contact_rms(c)?)));
+    }
+    let corr: Vec<(&KinematicErrors, &KinematicErrors)> =
+        models.iter().map(|m| (&m.1, &m.2)).collect();
+    let rows = contact::pair_table(cell, self_recs, &ring, &corr)?;
+    println!(
+        "face pairs of the no-tracker self-contacts ({} pairs; along-normal centre distance mean ± sd, mm; misalignment of the \
+         two face normals at nominal, deg):",
+        rows.len()
+    );
+    print!("  {:<8} {:>4}", "(R, L)", "n");
+    for m in &models {
+        print!(" {:>18}", m.0);
+    }
+    println!(" {:>14}", "misalign");
+    for r in &rows {
+        print!(
+            "  {:<8} {:>4}",
+            format!("({}, {})", r.pair.0, r.pair.1),
+            r.n
+        );
+        for (mu, sd) in &r.along {
+            print!(" {:>10.2} ± {:>5.2}", mu * 1e3, sd * 1e3);
+        }
+        println!(
+            " {:>6.3} ± {:.3}",
+            r.misalign.0.to_degrees(),
+            r.misalign.1.to_degrees()
+        );
+    }
+    print!("  {:<13}", "rms about one distance, mm:");
+    for m in 0..models.len() {
+        print!(" {:>18.3}", contact::along_rms_about_common(&rows, m) * 1e3);
+    }
+    println!();
+    print!("  {:<13}", "contact residual (fit), mm:");
+    for m in &models {
+        let v = m.3.unwrap_or(noise.contact_m);
+        print!(" {:>18.3}", v * 1e3);
+    }
+    println!("  (centre distance minus the fitted distance; nominal = the noise σ above)");
+    let names: Vec<String> = models
+        .iter()
+        .map(|m| m.0.replace([' ', '+'], "_"))
+        .collect();
+    let name_refs: Vec<&str> = names.iter().map(String::as_str).collect();
+    contact::write_pair_table(&out.join("contact_pairs.csv"), &rows, &name_refs)?;
+    plot::contact_pairs_svg(
+        &out.join("contact_pairs.svg"),
+        &rows,
+        &models.iter().map(|m| m.0.as_str()).collect::<Vec<_>>(),
+    )?;
+    let leica_rows = contact::pair_table(cell, leica_self, &ring, &corr[..1])?;
+    println!(
+        "leica_self face pairs: {}",
+        leica_rows
+            .iter()
+            .map(|r| format!(
+                "({}, {}) n {} along {:.2} ± {:.2} mm",
+                r.pair.0,
+                r.pair.1,
+                r.n,
+                r.along[0].0 * 1e3,
+                r.along[0].1 * 1e3
+            ))
+            .collect::<Vec<_>>()
+            .join("; ")
+    );
+    // Independent check without tracker values: the leica_self contact rows alone (their tracker
+    // values dropped), contact distance refitted, at each model's corrections.
+    let contact_only = leica_contact_only(leica_self);
+    let refs: Vec<&Recording> = contact_only.iter().collect();
+    print!("leica_self contact scatter (no tracker value; distance refitted), rms mm:");
+    for m in &models {
+        let e2 = held_out_nuisance_cost(cell, &refs, (&m.1, &m.2), noise)?;
+        let rms = (e2.iter().sum::<f64>() / e2.len().max(1) as f64).sqrt() * noise.contact_m;
+        print!(" {} {:.3};", m.0, rms * 1e3);
+    }
+    println!();
+    Ok(())
+}
+
+/// The `leica_self` recordings among `recs` as no-tracker self-contacts (their tracker values
+/// dropped): contact rows only, scored in the no-tracker contact σ.
+fn leica_contact_only(recs: &[&Recording]) -> Vec<Recording> {
+    recs.iter()
+        .filter(|r| r.role == Role::TrackerSelfContact)
+        .map(|r| Recording {
+            role: Role::SelfContact,
+            poses: r
+                .poses
+                .iter()
+                .map(|p| data::Pose {
+                    p_tracker: None,
+                    ..p.clone()
+                })
+                .collect(),
+            ..(*r).clone()
+        })
+        .collect()
+}
+
+/// Diagnostic (selects nothing): every CV candidate of `choice` fitted on `recs` and scored on
+/// every tracker file; prints and writes `out/self_candidates.csv` with the number of files on
+/// which each beats nominal (`rows` holds nominal's scores).
+fn score_every_candidate(
+    cell: &Cell,
+    recs: &[&Recording],
+    choice: &Choice,
+    noise: &NoiseLevels,
+    trackers: &[&Recording],
+    rows: &[ScoreRow],
+    out: &Path,
+) -> anyhow::Result<()> {
+    let path = out.join("self_candidates.csv");
+    let mut w = std::fs::File::create(&path).with_context(|| format!("{}", path.display()))?;
+    write!(w, "set,sigma,cv,chosen")?;
+    for t in trackers {
+        write!(w, ",{}_rms_mm", t.name)?;
+    }
+    writeln!(
+        w,
+        ",files_better_than_nominal,pooled_rms_mm,leica_self_contact_rms_mm"
+    )?;
+    let leica = leica_contact_only(trackers);
+    let leica_refs: Vec<&Recording> = leica.iter().collect();
+    println!(
+        "DIAGNOSTIC (uses tracker scores, selects nothing): every `self` candidate fitted on all self-contact files; \
+         files (of {}) where it beats nominal, pooled rms mm:",
+        trackers.len()
+    );
+    for (spec, cv, _) in &choice.table {
+        let b = build_problem(cell, recs, Some(*spec), noise);
+        let f = fit(&b, None, None)?;
+        let (r, l) = corrections(&f);
+        let (mut better, mut s2, mut n) = (0usize, 0.0, 0usize);
+        write!(
+            w,
+            "{},{},{cv:.6},{}",
+            spec.set.name(),
+            spec.sigma,
+            *spec == choice.spec
+        )?;
+        for t in trackers {
+            let s = score_recording(cell, t, (&r, &l), None)?;
+            let sum = summarise(&s.iter().map(|p| p.error_m).collect::<Vec<_>>());
+            let nominal = rows
+                .iter()
+                .find(|x| x.file == t.name && x.model == "nominal")
+                .context("nominal score missing")?;
+            better += usize::from(sum.rms_mm < nominal.summary.rms_mm);
+            s2 += sum.rms_mm.powi(2) * sum.n as f64;
+            n += sum.n;
+            write!(w, ",{:.4}", sum.rms_mm)?;
+        }
+        let pooled = (s2 / n.max(1) as f64).sqrt();
+        let e2 = held_out_nuisance_cost(cell, &leica_refs, (&r, &l), noise)?;
+        let leica_rms = (e2.iter().sum::<f64>() / e2.len().max(1) as f64).sqrt() * noise.contact_m;
+        writeln!(w, ",{better},{pooled:.4},{:.4}", leica_rms * 1e3)?;
+        println!(
+            "  {:<16} σ {:<4} CV {cv:.4}: better on {better:>2}, pooled {pooled:.3}; leica_self contact rms {:.3}",
+            spec.set.name(),
+            spec.sigma,
+            leica_rms * 1e3
+        );
+    }
+    println!("wrote {}", path.display());
+    Ok(())
+}
+
+/// The hidden-set proxy (`proxy` module): the difference between each model of `compared` and
+/// the reference (`all`) over a seeded whole-workspace set of right-arm poses, with the issue's
+/// protocol. MODEL vs MODEL, not model vs measurement. Writes `out/proxy.csv`.
+fn proxy_report(
+    cell: &Cell,
+    recordings: &[Recording],
+    reference: &KinematicErrors,
+    compared: &[(String, KinematicErrors)],
+    out: &Path,
+) -> anyhow::Result<()> {
+    let (joints, draws) = proxy::proxy_joints(cell, recordings)?;
+    let mut r = reference.clone();
+    r.tip = nalgebra::Vector3::zeros();
+    let rec = proxy::reference_recording(cell, &joints, &r)?;
+    println!(
+        "hidden-set PROXY (model vs model, no measurement): {} right-arm poses (seed {}, {draws} draws in the URDF limits, tool0 above \
+         the dataset's lowest and ≥ 0.3 m from the S axis), each model vs `all`, registration + reflector on one half, scored on the other:",
+        joints.len(),
+        proxy::PROXY_SEED
+    );
+    let path = out.join("proxy.csv");
+    let mut w = std::fs::File::create(&path).with_context(|| format!("{}", path.display()))?;
+    writeln!(w, "model,reference,n,rms_mm,median_mm,p95_mm,max_mm")?;
+    for (name, m) in compared {
+        let s = proxy::model_difference(cell, &rec, m)?;
+        println!(
+            "  {name:<22} vs all: rms {:.3} mm, median {:.3}, p95 {:.3}, max {:.3}",
+            s.rms_mm, s.median_mm, s.p95_mm, s.max_mm
+        );
+        writeln!(
+            w,
+            "{name},all,{},{:.4},{:.4},{:.4},{:.4}",
+            s.n, s.rms_mm, s.median_mm, s.p95_mm, s.max_mm
+        )?;
+    }
+    println!("wrote {}", path.display());
     Ok(())
 }
 

@@ -6,6 +6,7 @@ use std::path::Path;
 use anyhow::anyhow;
 use plotters::prelude::*;
 
+use crate::contact::PairRow;
 use crate::data::Recording;
 use crate::study::ScoredPose;
 
@@ -78,11 +79,12 @@ pub fn per_file_svg(path: &Path, series: &[(String, Vec<f64>)]) -> anyhow::Resul
 }
 
 /// Six panels (joints S..T): held-out error (mm) of every right-arm tracker pose against the
-/// joint angle (deg), nominal and `self` models.
+/// joint angle (deg), nominal and `self_model` (the exported `self` model's score label).
 pub fn residual_vs_joint_svg(
     path: &Path,
     per_pose: &[(String, String, Vec<ScoredPose>)],
     trackers: &[&Recording],
+    self_model: &str,
 ) -> anyhow::Result<()> {
     let right: Vec<&str> = trackers
         .iter()
@@ -96,7 +98,7 @@ pub fn residual_vs_joint_svg(
             .flat_map(|(_, _, s)| s.iter())
             .collect()
     };
-    let sets = [("nominal", pick("nominal")), ("self", pick("self"))];
+    let sets = [("nominal", pick("nominal")), (self_model, pick(self_model))];
     let ymax = sets
         .iter()
         .flat_map(|(_, s)| s.iter().map(|p| p.error_m * 1e3))
@@ -107,7 +109,7 @@ pub fn residual_vs_joint_svg(
     root.fill(&WHITE).map_err(|x| e(&x))?;
     let root = root
         .titled(
-            "CTU Motoman, right arm, every tracker file: held-out error vs joint angle (grey nominal, blue self)",
+            &format!("CTU Motoman, right arm, every tracker file: held-out error vs joint angle (grey nominal, blue {self_model}: the exported self)"),
             ("sans-serif", 17),
         )
         .map_err(|x| e(&x))?;
@@ -142,6 +144,81 @@ pub fn residual_vs_joint_svg(
                 .map_err(|x| e(&x))?;
         }
     }
+    root.present().map_err(|x| e(&x))?;
+    Ok(())
+}
+
+/// Along-normal centre distance (mm) per face pair of the self-contacts (x = pair, in the
+/// table's order), mean ± sd, one series per model (nominal first).
+pub fn contact_pairs_svg(path: &Path, rows: &[PairRow], models: &[&str]) -> anyhow::Result<()> {
+    let vals = rows.iter().flat_map(|r| {
+        r.along
+            .iter()
+            .flat_map(|(m, s)| [(m - s) * 1e3, (m + s) * 1e3])
+    });
+    let (y0, y1) = vals.fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
+    let pad = ((y1 - y0) * 0.08).max(0.1);
+    let root = SVGBackend::new(path, (900, 460)).into_drawing_area();
+    let e = |e: &dyn std::fmt::Display| anyhow!("{}: {e}", path.display());
+    root.fill(&WHITE).map_err(|x| e(&x))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            "CTU Motoman self-contacts: centre distance along the contact face normal per face pair (mean ± sd)",
+            ("sans-serif", 15),
+        )
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(55)
+        .build_cartesian_2d(0.5..(rows.len() as f64 + 0.5), (y0 - pad)..(y1 + pad))
+        .map_err(|x| e(&x))?;
+    let labels: Vec<String> = rows
+        .iter()
+        .map(|r| format!("({},{})", r.pair.0, r.pair.1))
+        .collect();
+    chart
+        .configure_mesh()
+        .x_desc("face pair (right ring face, left ring face)")
+        .y_desc("along-normal distance, mm")
+        .x_labels(rows.len())
+        .x_label_formatter(&|x| {
+            let k = x.round() as usize;
+            labels.get(k.wrapping_sub(1)).cloned().unwrap_or_default()
+        })
+        .draw()
+        .map_err(|x| e(&x))?;
+    for (i, name) in models.iter().enumerate() {
+        let c = COLOURS[i % COLOURS.len()];
+        let dx = (i as f64 - (models.len() as f64 - 1.0) / 2.0) * 0.1;
+        let pts: Vec<(f64, f64, f64)> = rows
+            .iter()
+            .enumerate()
+            .filter_map(|(k, r)| {
+                r.along
+                    .get(i)
+                    .map(|(m, s)| (k as f64 + 1.0 + dx, m * 1e3, s * 1e3))
+            })
+            .collect();
+        chart
+            .draw_series(pts.iter().map(|&(x, m, s)| {
+                PathElement::new(vec![(x, m - s), (x, m + s)], c.stroke_width(2))
+            }))
+            .map_err(|x| e(&x))?;
+        chart
+            .draw_series(
+                pts.iter()
+                    .map(|&(x, m, _)| Circle::new((x, m), 5, c.filled())),
+            )
+            .map_err(|x| e(&x))?
+            .label(name.to_string())
+            .legend(move |(x, y)| Circle::new((x + 8, y), 5, c.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|x| e(&x))?;
     root.present().map_err(|x| e(&x))?;
     Ok(())
 }

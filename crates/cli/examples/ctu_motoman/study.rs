@@ -10,12 +10,12 @@ use anyhow::Context;
 use calib_core::stats::{quantile, sorted_finite};
 use calib_core::whole_cell::{
     fit_cell_with, initial_estimate, CellEstimate, CellFit, CellParam, CellProblem, CellRobot,
-    ContactGroup, Evaluator, Noise3, Observation, ObservationKind, ParamLayout, PlaneGroup,
-    SolveOptions, Tolerance, Tool, TrackerGroup,
+    ContactGroup, Evaluator, Noise3, Observation, ObservationKind, ParamLayout, PlacementPrior,
+    PlaneGroup, SolveOptions, Tolerance, Tool, TrackerGroup,
 };
 use calib_core::Robot;
 use kinematics::{Axis, ErrorParam, KinematicErrors};
-use nalgebra::{DMatrix, Isometry3, Vector3};
+use nalgebra::{Isometry3, Vector3};
 use sim_cell::Cell;
 
 use crate::data::{Recording, Role};
@@ -34,9 +34,10 @@ pub const REFLECTOR_LEFT_M: [f64; 3] = [0.05, 0.0, 0.25];
 /// m: 10 m, i.e. free in effect (the reflector's mounting is not known; on a file with small
 /// wrist rotations its offset is weakly determined, and a tighter prior would bias the score).
 pub const TIP_TOLERANCE_M: f64 = 10.0;
-/// σ of the prior rows that hold `b1_from_b2` at the identity, m and rad: both DH tables start
-/// at the same base frame, so the placement is known, not fitted.
-const PLACEMENT_HOLD_SIGMA: f64 = 1e-7;
+/// Prior σ of each component of a fitted marker centre (tool 0 tip of either arm), m: a
+/// mounting tolerance of the dodecahedron on its 354 mm stem, set before any fit (the lead's
+/// Python exploration used the same 2 mm); not chosen by any score.
+pub const MARKER_CENTRE_SIGMA_M: f64 = 2e-3;
 /// Tracker-frame σ of the honest score's fit, m (any positive value: every row has the same).
 const SCORE_SIGMA_M: f64 = 2e-4;
 /// Relative cost decrease at which a fit has converged: 1e-8 of a χ² of ~10³ moves no
@@ -73,15 +74,21 @@ pub enum ParamSet {
     /// Joint offsets and the gravity compliance of L and U (rad/(N·m), torques from the URDFs'
     /// point-mass inertials).
     OffsetsCompliance,
+    /// Joint offsets and the marker centres (tool 0 tip of both arms, x and y in tool0, prior σ
+    /// [`MARKER_CENTRE_SIGMA_M`]; z held, see [`fit`]): the end-effector geometry of the flush
+    /// face contacts.
+    OffsetsMarker,
     /// Joint offsets and joint origin positions (the link lengths) S..T.
     OffsetsLengths,
     /// Offsets, lengths and the gravity compliance of L and U.
     OffsetsLengthsCompliance,
+    /// Offsets, lengths and the marker centres.
+    OffsetsLengthsMarker,
 }
 
 impl ParamSet {
-    /// Every set, fewest parameters first (the one-standard-error rule's order of simplicity:
-    /// 12, 16, 48, 52 parameters over both arms).
+    /// The sets cross-validated for every model, fewest parameters first (the
+    /// one-standard-error rule's order of simplicity: 12, 16, 48, 52 parameters over both arms).
     pub const ALL: [ParamSet; 4] = [
         ParamSet::Offsets,
         ParamSet::OffsetsCompliance,
@@ -89,13 +96,27 @@ impl ParamSet {
         ParamSet::OffsetsLengthsCompliance,
     ];
 
+    /// The sets cross-validated for the problems with self-contact and no tracker value (`self`,
+    /// `planes`): [`Self::ALL`] and the two marker-centre sets, fewest parameters first (12, 16,
+    /// 16, 48, 52, 52; a marker set after the compliance set of the same size).
+    pub const WITH_MARKER: [ParamSet; 6] = [
+        ParamSet::Offsets,
+        ParamSet::OffsetsCompliance,
+        ParamSet::OffsetsMarker,
+        ParamSet::OffsetsLengths,
+        ParamSet::OffsetsLengthsCompliance,
+        ParamSet::OffsetsLengthsMarker,
+    ];
+
     /// A short name for tables.
     pub fn name(self) -> &'static str {
         match self {
             ParamSet::Offsets => "offsets",
             ParamSet::OffsetsCompliance => "offsets+compl",
+            ParamSet::OffsetsMarker => "offsets+marker",
             ParamSet::OffsetsLengths => "offsets+lengths",
             ParamSet::OffsetsLengthsCompliance => "offs+len+compl",
+            ParamSet::OffsetsLengthsMarker => "offs+len+marker",
         }
     }
 
@@ -103,7 +124,9 @@ impl ParamSet {
     pub fn lengths(self) -> bool {
         matches!(
             self,
-            ParamSet::OffsetsLengths | ParamSet::OffsetsLengthsCompliance
+            ParamSet::OffsetsLengths
+                | ParamSet::OffsetsLengthsCompliance
+                | ParamSet::OffsetsLengthsMarker
         )
     }
 
@@ -112,6 +135,14 @@ impl ParamSet {
         matches!(
             self,
             ParamSet::OffsetsCompliance | ParamSet::OffsetsLengthsCompliance
+        )
+    }
+
+    /// Whether the set fits the marker centres (tool 0 tips).
+    pub fn marker(self) -> bool {
+        matches!(
+            self,
+            ParamSet::OffsetsMarker | ParamSet::OffsetsLengthsMarker
         )
     }
 }
@@ -131,6 +162,10 @@ pub struct ModelSpec {
 pub struct NoiseLevels {
     /// No-tracker self-contact distance.
     pub contact_m: f64,
+    /// No-tracker self-contact distance in the fits of the marker-centre sets
+    /// ([`ParamSet::marker`]); `None`: [`Self::contact_m`]. Held-out rows are always whitened
+    /// with `contact_m`, so CV errors stay comparable between candidates.
+    pub marker_contact_m: Option<f64>,
     /// `leica_self` self-contact distance.
     pub leica_contact_m: f64,
     /// Plane contact.
@@ -154,6 +189,8 @@ pub struct Built {
     pub problem: CellProblem,
     /// Source of each observation.
     pub origin: Vec<Origin>,
+    /// Prior σ of the marker centres (tool 0 tips of both arms), m; `None`: held at the cell's.
+    pub marker_sigma_m: Option<f64>,
 }
 
 fn tolerance(spec: Option<ModelSpec>) -> Tolerance {
@@ -204,7 +241,13 @@ pub fn build_problem(
         trackers: Vec::new(),
         planes: Vec::new(),
         contacts: Vec::new(),
-        placement_prior: None,
+        // Both DH tables start at one base: the cell's `[b1_from_b2] sigma_mm, sigma_deg` hold
+        // the placement at the identity (the library's prior rows).
+        placement_prior: cell.b1_from_b2_sigma.map(|s| PlacementPrior {
+            nominal_b1_from_b2: cell.b1_from_b2,
+            sigma_m: s.sigma_m,
+            sigma_rad: s.sigma_rad,
+        }),
     };
     // Contact groups only for the set-ups present (a group without rows would be a free,
     // undetermined unknown).
@@ -283,6 +326,8 @@ pub fn build_problem(
                         group: group_of[usize::from(leica)].unwrap_or(0),
                         sigma_m: if leica {
                             noise.leica_contact_m
+                        } else if spec.is_some_and(|s| s.set.marker()) {
+                            noise.marker_contact_m.unwrap_or(noise.contact_m)
                         } else {
                             noise.contact_m
                         },
@@ -323,23 +368,42 @@ pub fn build_problem(
             }
         }
     }
-    Built { problem: p, origin }
+    Built {
+        problem: p,
+        origin,
+        marker_sigma_m: spec
+            .filter(|s| s.set.marker())
+            .map(|_| MARKER_CENTRE_SIGMA_M),
+    }
 }
 
-/// MAP fit of `problem` over `active` (all rows when `None`), starting from `start` corrections
-/// (`None`: nominal), with `b1_from_b2` held at the identity (prior rows of σ
-/// [`PLACEMENT_HOLD_SIGMA`]), the marker tips (tool 0) not fitted, and compliance (when the
-/// tolerances select it) only on [`COMPLIANT_JOINTS`].
+/// MAP fit of `built` over `active` (all rows when `None`), starting from `start` corrections
+/// (`None`: nominal; the `tip` field of each carries the marker centre's offset, see
+/// [`corrections`]), with `b1_from_b2` held by the cell's placement prior
+/// (`CellProblem::placement_prior`), the marker tips (tool 0) fitted with prior σ
+/// `built.marker_sigma_m` (x, y; z held) or else held at the start, and compliance (when the tolerances select
+/// it) only on [`COMPLIANT_JOINTS`].
 pub fn fit(
-    problem: &CellProblem,
+    built: &Built,
     active: Option<&[usize]>,
     start: Option<(&KinematicErrors, &KinematicErrors)>,
 ) -> anyhow::Result<CellFit> {
+    let problem = &built.problem;
     let all: Vec<usize> = (0..problem.observations.len()).collect();
     let active = active.unwrap_or(&all);
     let mut fixed = Vec::new();
     for robot in [Robot::One, Robot::Two] {
-        for axis in Axis::ALL {
+        // Marker centres: only x, y are fitted. Along tool z a shift of either centre changes
+        // the distance along every ring-face normal by the same cos(arctan 2)·z, which the
+        // fitted contact distance already is (measured: with z free and the contact σ of the
+        // marker model, the two z drift to ∓11 mm in opposite senses, fitting the sliding of
+        // the faces, which the centre-distance contact row cannot tell from the normal).
+        let marker_fixed: &[Axis] = if built.marker_sigma_m.is_some() {
+            &[Axis::Z]
+        } else {
+            &Axis::ALL
+        };
+        for &axis in marker_fixed {
             fixed.push(CellParam::ToolTip {
                 robot,
                 tool: 0,
@@ -354,18 +418,33 @@ pub fn fit(
         }
     }
     let mut layout = ParamLayout::new(problem, &fixed);
-    let (rows, n) = layout.prior_sqrt_info.shape();
-    let mut r_p = DMatrix::zeros(rows + 6, n);
-    r_p.rows_mut(0, rows).copy_from(&layout.prior_sqrt_info);
-    for j in 0..6 {
-        r_p[(rows + j, j)] = 1.0 / PLACEMENT_HOLD_SIGMA;
+    if let Some(sigma) = built.marker_sigma_m {
+        // The tolerance's tip σ is the reflectors' (free in effect); the marker gets its own.
+        for robot in [Robot::One, Robot::Two] {
+            for axis in [Axis::X, Axis::Y] {
+                let p = CellParam::ToolTip {
+                    robot,
+                    tool: 0,
+                    axis,
+                };
+                let col = layout
+                    .column(&p)
+                    .context("the marker centre is not a column of the layout")?;
+                for row in 0..layout.prior_sqrt_info.nrows() {
+                    if layout.prior_sqrt_info[(row, col)] != 0.0 {
+                        layout.prior_sqrt_info[(row, col)] = 1.0 / sigma;
+                    }
+                }
+            }
+        }
     }
-    layout.prior_sqrt_info = r_p;
     let mut est = initial_estimate(problem, Some(Isometry3::identity()), active)
         .context("starting values (tracker frames, planes)")?;
     if let Some((right, left)) = start {
         est.robot1.errors = right.clone();
         est.robot2.errors = left.clone();
+        est.robot1.tool_tip_m[0] = right.tip;
+        est.robot2.tool_tip_m[0] = left.tip;
     }
     let options = SolveOptions {
         cost_tolerance: COST_TOLERANCE,
@@ -401,13 +480,14 @@ pub fn residuals(
 pub fn noise_from_nominal(cell: &Cell, recordings: &[Recording]) -> anyhow::Result<NoiseLevels> {
     let start = NoiseLevels {
         contact_m: 1e-3,
+        marker_contact_m: None,
         leica_contact_m: 1e-3,
         plane_m: 1e-3,
         tracker_m: 1e-3,
     };
     let recs: Vec<&Recording> = recordings.iter().collect();
     let b = build_problem(cell, &recs, None, &start);
-    let f = fit(&b.problem, None, None)?;
+    let f = fit(&b, None, None)?;
     let res = residuals(&b.problem, &f, &f.estimate)?;
     let mut acc = [(0.0, 0usize); 4];
     for (o, (r, _)) in b.problem.observations.iter().zip(&res) {
@@ -423,17 +503,20 @@ pub fn noise_from_nominal(cell: &Cell, recordings: &[Recording]) -> anyhow::Resu
     let rms = |(s, n): (f64, usize)| (s / n.max(1) as f64).sqrt();
     Ok(NoiseLevels {
         contact_m: rms(acc[0]),
+        marker_contact_m: None,
         leica_contact_m: rms(acc[1]),
         plane_m: rms(acc[2]),
         tracker_m: rms(acc[3]),
     })
 }
 
-/// Both arms' kinematic corrections of a fit (right, left).
+/// Both arms' kinematic corrections of a fit (right, left), each with its marker centre's
+/// offset (tool 0 tip error, m, tool0 axes) in the `tip` field. Any other tip (a reflector)
+/// must use these with `tip` set to zero.
 pub fn corrections(fit: &CellFit) -> (KinematicErrors, KinematicErrors) {
     (
-        fit.estimate.robot1.errors.clone(),
-        fit.estimate.robot2.errors.clone(),
+        fit.estimate.robot1.errors_for_tool(0),
+        fit.estimate.robot2.errors_for_tool(0),
     )
 }
 
@@ -447,7 +530,7 @@ pub fn held_out_nuisance_cost(
     noise: &NoiseLevels,
 ) -> anyhow::Result<Vec<f64>> {
     let b = build_problem(cell, recordings, None, noise);
-    let f = fit(&b.problem, None, Some(corr))?;
+    let f = fit(&b, None, Some(corr))?;
     let res = residuals(&b.problem, &f, &f.estimate)?;
     // Contact and plane rows are scalar: the whitened square is the row's.
     Ok(res.iter().map(|r| r.1).collect())
@@ -494,6 +577,7 @@ pub fn score_recording(
 ) -> anyhow::Result<Vec<ScoredPose>> {
     let noise = NoiseLevels {
         contact_m: SCORE_SIGMA_M,
+        marker_contact_m: None,
         leica_contact_m: SCORE_SIGMA_M,
         plane_m: SCORE_SIGMA_M,
         tracker_m: SCORE_SIGMA_M,
@@ -511,8 +595,8 @@ pub fn score_recording(
     let (ha, hb) = halves(n, SPLIT_SEED);
     let mut out = Vec::new();
     for (train, test) in [(&ha, &hb), (&hb, &ha)] {
-        let f = fit(&b.problem, Some(train), Some(corr))
-            .with_context(|| format!("scoring {}", rec.name))?;
+        let f =
+            fit(&b, Some(train), Some(corr)).with_context(|| format!("scoring {}", rec.name))?;
         let res = residuals(&b.problem, &f, &f.estimate)?;
         for &i in test.iter() {
             let pose = &rec.poses[b.origin[i].pose];
