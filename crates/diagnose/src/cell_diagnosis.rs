@@ -10,17 +10,24 @@
 //!    joint compliance added where the URDF has inertials: its tolerance is the (widened) joint
 //!    offset tolerance divided by the largest gravity torque of the session's postures, so a
 //!    compliance at its tolerance turns a joint by at most one offset tolerance.
-//! 2. **Screen.** The blunder screen of the whole-cell fit ([`fit_screened`]) with every family
+//! 2. **Noise level.** Every family free, all rows: per kind, the robust scale of the whitened
+//!    residuals `s_k = max(1, 1.4826·median|w|)`; each row's σ is multiplied by its kind's
+//!    `s_k` for everything after (a laser tracker's logged σ of a few µm is far below any
+//!    model's reach and would make every row a blunder and let one kind outweigh the rest).
+//!    The report gives the residuals against the stated σ and `s_k`.
+//! 3. **Screen.** The blunder screen of the whole-cell fit ([`fit_screened`]) with every family
 //!    free; rejected rows are left out of everything after.
-//! 3. **Baseline.** Nominal kinematics with the nuisances fitted (tracker frames, planes, fitted
+//! 4. **Baseline.** Nominal kinematics with the nuisances fitted (tracker frames, planes, fitted
 //!    contact distances, the placement); the residual rms of each kind against its stated σ.
-//! 4. **Selection.** Candidates are [`Family`] entries (a robot's joint offsets, origin
+//! 5. **Selection.** Candidates are [`Family`] entries (a robot's joint offsets, origin
 //!    positions, origin angles, compliance, each tool's tip; the contact distances of groups
 //!    that state one). Each step fits every remaining candidate added to the current model in
 //!    K folds and keeps the one of lowest held-out χ². **Folds** hold out whole units: each
 //!    named group (tracker file, plane, contact group) is a unit, the coincident rows are cut
 //!    into up to [`COINCIDENT_UNITS`] units in row order; units go to
-//!    `min(units, max_folds)` folds round-robin. **Held-out score** of a unit: its own nuisance
+//!    `min(units, max_folds)` folds round-robin. With fewer than 3 units (one tracker file),
+//!    each unit is cut into up to 4 contiguous blocks (recording order) of at least
+//!    [`MIN_GROUP_BLOCK_ROWS`] rows instead. **Held-out score** of a unit: its own nuisance
 //!    (tracker frame, plane, fitted contact distance) is unknown to the training fit, so it is
 //!    fitted on one half of the unit's rows (alternate rows) with the training kinematics and
 //!    placement held, and the other half is scored, then the halves swap: every scored residual
@@ -32,7 +39,7 @@
 //!    `mean/(sd/√n) ≥ min_gain_t` [3]; with fewer than 3 units every unit must gain
 //!    `min_relative_gain`. An effect is thus named only when it helps the held-out groups
 //!    consistently.
-//! 5. **Effects.** Each accepted family: its parameters from the fit of the final model on all
+//! 6. **Effects.** Each accepted family: its parameters from the fit of the final model on all
 //!    screened rows, with a 95 % interval `±1.96·σ` (posterior σ times the variance factor
 //!    `max(1, sqrt(χ²/(rows − unknowns)))`, so that real data whose residuals exceed their
 //!    stated σ get honest intervals); the held-out rms per kind before and after the step; the
@@ -42,7 +49,7 @@
 
 use calib_core::whole_cell::{
     fit_cell_with, fit_screened, initial_estimate, CellEstimate, CellFit, CellFitError, CellParam,
-    CellProblem, Evaluator, ObservationKind, ParamLayout, PlacementPrior, ScreenOptions,
+    CellProblem, Evaluator, Noise3, ObservationKind, ParamLayout, PlacementPrior, ScreenOptions,
     SolveOptions, Tolerance,
 };
 use calib_core::Robot;
@@ -60,6 +67,8 @@ use crate::DiagnoseError;
 pub const COINCIDENT_UNITS: usize = 4;
 /// Fewest rows of a coincident unit.
 pub const MIN_UNIT_ROWS: usize = 6;
+/// Fewest rows of a block cut from a group when the session has fewer than 3 units.
+pub const MIN_GROUP_BLOCK_ROWS: usize = 12;
 /// σ (m and rad) of the placement prior that holds the training placement while a held-out
 /// unit's nuisance is fitted: far below any measurement, far above round-off.
 const HOLD_SIGMA: f64 = 1e-7;
@@ -570,6 +579,19 @@ pub(crate) fn held_out_units(problem: &CellProblem, rows: &[usize]) -> Vec<Vec<u
         let size = coincident.len().div_ceil(parts);
         units.extend(coincident.chunks(size).map(<[usize]>::to_vec));
     }
+    if units.len() < 3 {
+        // Too few units to hold any out: cut each into contiguous blocks (recording order) of
+        // at least 2·MIN_GROUP_BLOCK_ROWS rows; each block's nuisance is refitted when it is
+        // scored, so no held-out row is predicted by a nuisance fitted on it.
+        units = units
+            .into_iter()
+            .flat_map(|u| {
+                let parts = (u.len() / MIN_GROUP_BLOCK_ROWS).clamp(1, COINCIDENT_UNITS);
+                let size = u.len().div_ceil(parts);
+                u.chunks(size).map(<[usize]>::to_vec).collect::<Vec<_>>()
+            })
+            .collect();
+    }
     units
 }
 
@@ -680,10 +702,72 @@ pub(crate) struct CellDiagnosis {
     pub(crate) used: Vec<usize>,
     pub(crate) n_units: usize,
     pub(crate) n_folds: usize,
+    /// Noise scale per kind, in [`KINDS`] order.
+    pub(crate) noise_scale: [f64; 4],
     pub(crate) baseline: (CellProblem, CellFit),
     pub(crate) baseline_held_out: HeldOut,
     pub(crate) steps: Vec<StepRecord>,
     pub(crate) final_fit: (CellProblem, CellFit),
+}
+
+/// Observation kinds in report order.
+pub const KINDS: [&str; 4] = ["contact", "tracker", "plane", "coincident"];
+
+/// Per kind ([`KINDS`] order), `max(1, 1.4826·median|w|)` of the whitened residuals of the fit
+/// with every family free on `rows`.
+fn noise_scales(
+    problem: &CellProblem,
+    families: &[Family],
+    rows: &[usize],
+    options: &CellDiagnoseOptions,
+    x0: nalgebra::Isometry3<f64>,
+) -> Result<[f64; 4], CellFitError> {
+    let (sub, fit) = fit_model(problem, families, rows, None, options, x0)?;
+    let scored = residuals_at(&sub, &fit.layout, &fit.estimate, &fit.active)?;
+    let mut out = [1.0; 4];
+    for (k, kind) in KINDS.iter().enumerate() {
+        let mut w: Vec<f64> = scored
+            .iter()
+            .filter(|r| r.kind == *kind)
+            .flat_map(|r| r.whitened.iter().map(|v| v.abs()).collect::<Vec<_>>())
+            .collect();
+        if w.is_empty() {
+            continue;
+        }
+        w.sort_by(f64::total_cmp);
+        let median = if w.len() % 2 == 1 {
+            w[w.len() / 2]
+        } else {
+            0.5 * (w[w.len() / 2 - 1] + w[w.len() / 2])
+        };
+        out[k] = (1.4826 * median).max(1.0);
+    }
+    Ok(out)
+}
+
+/// `problem` with every row's σ multiplied by its kind's scale ([`KINDS`] order).
+fn scaled_noise(problem: &CellProblem, scale: &[f64; 4]) -> CellProblem {
+    let mut p = problem.clone();
+    for o in &mut p.observations {
+        let k = KINDS.iter().position(|k| *k == o.kind.name()).unwrap_or(0);
+        let s = scale[k];
+        match &mut o.kind {
+            ObservationKind::Contact { sigma_m, .. } | ObservationKind::Plane { sigma_m, .. } => {
+                *sigma_m *= s;
+            }
+            ObservationKind::Coincident { noise, .. } | ObservationKind::Tracker { noise, .. } => {
+                *noise = match *noise {
+                    Noise3::Isotropic { sigma_m } => Noise3::Isotropic { sigma_m: sigma_m * s },
+                    Noise3::Covariance { cov_m2 } => Noise3::Covariance {
+                        cov_m2: cov_m2 * (s * s),
+                    },
+                    other => other,
+                };
+            }
+            _ => {}
+        }
+    }
+    p
 }
 
 /// Diagnoses a session with non-coincident rows on its cell (see the module documentation).
@@ -727,6 +811,9 @@ fn run(
         solve,
         ..options.clone()
     };
+    progress("noise level per kind (every family free)");
+    let noise_scale = noise_scales(&problem, &candidates, &all, options, x0)?;
+    let problem = scaled_noise(&problem, &noise_scale);
     let (used, rejected) = if options.screen_blunders {
         progress("screening blunders (every family free)");
         let p = model_problem(&problem, &candidates);
@@ -823,6 +910,7 @@ fn run(
         used,
         n_units,
         n_folds,
+        noise_scale,
         baseline,
         baseline_held_out,
         steps,

@@ -10,7 +10,8 @@ use serde::ser::SerializeMap;
 use serde::{Serialize, Serializer};
 
 use crate::cell_diagnosis::{
-    joints_of, residuals_at, CellDiagnoseOptions, CellDiagnosis, Family, HeldOut, ScoredRow, Z95,
+    joints_of, residuals_at, CellDiagnoseOptions, CellDiagnosis, Family, HeldOut, ScoredRow, KINDS,
+    Z95,
 };
 
 /// Number of bins of the residual-against-joint table (quartiles of the joint's values).
@@ -83,8 +84,11 @@ pub struct KindResidual {
     pub rms_mm: f64,
     /// RMS of the stated σ, mm.
     pub stated_sigma_mm: f64,
-    /// RMS of the whitened residuals (1 = as stated).
+    /// `rms_mm / stated_sigma_mm` (1 = as stated).
     pub rms_over_sigma: f64,
+    /// The kind's noise scale: its σ is multiplied by this in the diagnosis (see
+    /// [`crate::cell_diagnosis`], step 2).
+    pub noise_scale: f64,
     /// RMS of the held-out residuals of this model, mm.
     pub held_out_rms_mm: f64,
 }
@@ -250,7 +254,6 @@ impl JointTrend {
     }
 }
 
-const KINDS: [&str; 4] = ["contact", "tracker", "plane", "coincident"];
 
 fn kind_rms(rows: &[ScoredRow], kind: &str) -> Option<(usize, f64, f64, f64)> {
     let (mut n, mut raw, mut sig, mut wh) = (0usize, 0.0, 0.0, 0.0);
@@ -276,17 +279,20 @@ fn fit_rows(fit: &(CellProblem, CellFit)) -> Vec<ScoredRow> {
     residuals_at(p, &f.layout, &f.estimate, &f.active).unwrap_or_default()
 }
 
-fn kind_residuals(fitted: &[ScoredRow], held: &HeldOut) -> Vec<KindResidual> {
+fn kind_residuals(fitted: &[ScoredRow], held: &HeldOut, scale: &[f64; 4]) -> Vec<KindResidual> {
     KINDS
         .iter()
-        .filter_map(|&k| {
-            let (n, rms_mm, stated_sigma_mm, rms_over_sigma) = kind_rms(fitted, k)?;
+        .zip(scale)
+        .filter_map(|(&k, &s)| {
+            let (n, rms_mm, scaled_sigma_mm, _) = kind_rms(fitted, k)?;
+            let stated_sigma_mm = scaled_sigma_mm / s;
             Some(KindResidual {
                 kind: k,
                 residual_rows: n,
                 rms_mm,
                 stated_sigma_mm,
-                rms_over_sigma,
+                rms_over_sigma: rms_mm / stated_sigma_mm,
+                noise_scale: s,
                 held_out_rms_mm: kind_rms(&held.rows, k).map_or(f64::NAN, |v| v.1),
             })
         })
@@ -442,14 +448,14 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
         held_out_units: d.n_units,
         held_out_folds: d.n_folds,
         candidates: d.candidates.clone(),
-        baseline: kind_residuals(&fit_rows(&d.baseline), &d.baseline_held_out),
+        baseline: kind_residuals(&fit_rows(&d.baseline), &d.baseline_held_out, &d.noise_scale),
         effects,
         stopped_at: d
             .steps
             .last()
             .filter(|s| !s.accepted)
             .map(|s| summary(&s.family.name, &s.before, &s.after, s.t)),
-        final_residuals: kind_residuals(&fit_rows(&d.final_fit), final_held),
+        final_residuals: kind_residuals(&fit_rows(&d.final_fit), final_held, &d.noise_scale),
         variance_factor: vf,
         final_fit_stopped: format!("{} after {} iterations", ff.stopped.name(), ff.iterations),
     }
@@ -484,18 +490,19 @@ pub fn render_cell_text(r: &CellDiagnoseReport) -> String {
         let _ = writeln!(s, "{title}");
         let _ = writeln!(
             s,
-            "  {:<11} {:>6} {:>9} {:>13} {:>9} {:>15}",
-            "kind", "rows", "rms_mm", "stated_σ_mm", "rms/σ", "held_out_rms_mm"
+            "  {:<11} {:>6} {:>9} {:>13} {:>9} {:>12} {:>15}",
+            "kind", "rows", "rms_mm", "stated_σ_mm", "rms/σ", "noise_scale", "held_out_rms_mm"
         );
         for k in rows {
             let _ = writeln!(
                 s,
-                "  {:<11} {:>6} {:>9.3} {:>13.3} {:>9.2} {:>15.3}",
+                "  {:<11} {:>6} {:>9.3} {:>13.3} {:>9.2} {:>12.2} {:>15.3}",
                 k.kind,
                 k.residual_rows,
                 k.rms_mm,
                 k.stated_sigma_mm,
                 k.rms_over_sigma,
+                k.noise_scale,
                 k.held_out_rms_mm
             );
         }
@@ -529,7 +536,21 @@ pub fn render_cell_text(r: &CellDiagnoseReport) -> String {
                 k.kind, k.rms_mm_before, k.rms_mm_after
             );
         }
-        for p in &e.parameters {
+        // Text: the parameters whose 95 % interval excludes 0 (JSON: all of them).
+        let shown: Vec<&ParamValue> = e
+            .parameters
+            .iter()
+            .filter(|p| p.value.abs() > Z95 * p.sigma)
+            .collect();
+        if shown.len() < e.parameters.len() {
+            let _ = writeln!(
+                s,
+                "     ({} of {} parameters have a 95 % interval that excludes 0; the others are in the JSON)",
+                shown.len(),
+                e.parameters.len()
+            );
+        }
+        for p in shown {
             let [lo, hi] = p.ci95();
             let _ = writeln!(
                 s,
