@@ -120,7 +120,8 @@ pub enum FamilyKind {
     JointOffsets,
     /// Every joint origin position (link lengths and offsets) of the robot.
     OriginXyz,
-    /// Every joint origin angle of the robot.
+    /// Every joint origin angle of the robot, except the one about the joint's own axis (that
+    /// one is the joint offset: [`offset_alias`]).
     OriginRpy,
     /// Joint compliance under gravity, every joint of the robot.
     Compliance,
@@ -250,7 +251,8 @@ fn tools_of(kind: &ObservationKind) -> Vec<(Robot, usize)> {
         | ObservationKind::Contact { tool1, tool2, .. } => {
             vec![(Robot::One, *tool1), (Robot::Two, *tool2)]
         }
-        ObservationKind::Tracker { robot, tool, .. } | ObservationKind::Plane { robot, tool, .. } => {
+        ObservationKind::Tracker { robot, tool, .. }
+        | ObservationKind::Plane { robot, tool, .. } => {
             vec![(*robot, *tool)]
         }
         _ => Vec::new(),
@@ -364,11 +366,42 @@ fn model_layout(problem: &CellProblem, model: &[Family]) -> ParamLayout {
     let fixed: Vec<CellParam> = all
         .params
         .iter()
-        .filter(|p| p.is_kinematic() && !model.iter().any(|f| f.contains(p)))
+        .filter(|p| {
+            p.is_kinematic() && (offset_alias(problem, p) || !model.iter().any(|f| f.contains(p)))
+        })
         .cloned()
         .collect();
     ParamLayout::new(problem, &fixed)
 }
+
+/// Whether `p` is an origin angle whose small rotation is about its joint's own axis: it then
+/// commutes with the joint rotation and equals a joint offset, so [`FamilyKind::OriginRpy`]
+/// leaves it out (the offset family holds it). With `R(rpy)` the nominal origin rotation, the
+/// perturbation `δ` of component `k` turns the child frame by `ω = log(R(rpy)ᵀ·R(rpy + δ·e_k))/δ`
+/// (child axes); aliased when `ω` is parallel to the joint axis within [`ALIAS_TOL`].
+pub fn offset_alias(problem: &CellProblem, p: &CellParam) -> bool {
+    let CellParam::Kinematic {
+        robot,
+        param: ErrorParam::OriginRpy { joint, axis },
+    } = p
+    else {
+        return false;
+    };
+    let Some(j) = problem.robot(*robot).model.joints().get(*joint) else {
+        return false;
+    };
+    // A step small enough for the linearisation, large enough for round-off (1e-6 rad).
+    let h = 1e-6;
+    let mut rpy = j.origin_rpy;
+    let r0 = kinematics::rotation_from_rpy(&rpy);
+    rpy[axis.index()] += h;
+    let r1 = kinematics::rotation_from_rpy(&rpy);
+    let omega = (r0.transpose() * r1).scaled_axis() / h;
+    omega.cross(j.axis.as_ref()).norm() <= ALIAS_TOL * omega.norm()
+}
+
+/// Relative tolerance of [`offset_alias`] (sine of the angle between `ω` and the axis).
+pub const ALIAS_TOL: f64 = 1e-4;
 
 /// The sub-problem of the observations `rows` (indices into `problem.observations`), its groups
 /// renumbered to the ones these rows use.
@@ -628,7 +661,14 @@ fn cross_validate(
     for fold in folds {
         let held: Vec<usize> = fold.iter().flatten().copied().collect();
         let train: Vec<usize> = used.iter().copied().filter(|i| !held.contains(i)).collect();
-        let (_, fit) = fit_model(problem, model, &train, Some(start), options, cell_b1_from_b2)?;
+        let (_, fit) = fit_model(
+            problem,
+            model,
+            &train,
+            Some(start),
+            options,
+            cell_b1_from_b2,
+        )?;
         for unit in fold {
             let scored = score_unit(&scoring_problem, unit, &fit.estimate, options)?;
             unit_chi2[unit_index] = scored.iter().map(|s| s.whitened.norm_squared()).sum();
@@ -757,7 +797,9 @@ fn scaled_noise(problem: &CellProblem, scale: &[f64; 4]) -> CellProblem {
             }
             ObservationKind::Coincident { noise, .. } | ObservationKind::Tracker { noise, .. } => {
                 *noise = match *noise {
-                    Noise3::Isotropic { sigma_m } => Noise3::Isotropic { sigma_m: sigma_m * s },
+                    Noise3::Isotropic { sigma_m } => Noise3::Isotropic {
+                        sigma_m: sigma_m * s,
+                    },
                     Noise3::Covariance { cov_m2 } => Noise3::Covariance {
                         cov_m2: cov_m2 * (s * s),
                     },
@@ -897,7 +939,14 @@ fn run(
             break;
         }
         model.push(family);
-        let next = fit_model(&problem, &model, &used, Some(&current.1.estimate), options, x0)?;
+        let next = fit_model(
+            &problem,
+            &model,
+            &used,
+            Some(&current.1.estimate),
+            options,
+            x0,
+        )?;
         record.fit_after = Some(next.clone());
         steps.push(record);
         current = next;
@@ -950,7 +999,10 @@ mod tests {
                 .iter()
                 .map(|&i| group_of(&p.observations[i].kind))
                 .collect();
-            assert!(groups.windows(2).all(|w| w[0] == w[1]), "one group per unit");
+            assert!(
+                groups.windows(2).all(|w| w[0] == w[1]),
+                "one group per unit"
+            );
             let sub = sub_problem(&p, unit);
             sub.check().unwrap();
             assert_eq!(
@@ -967,12 +1019,26 @@ mod tests {
         let p = diagnosis_problem(&cell, &session, &CellDiagnoseOptions::default()).unwrap();
         let fams = candidate_families(&p);
         let layout = ParamLayout::new(&p, &[]);
+        let mut aliases = 0;
         for param in layout.params.iter().filter(|c| c.is_kinematic()) {
             let n = fams.iter().filter(|f| f.contains(param)).count();
             // Scale parameters are off by default; every other fitted parameter is in exactly
             // one family.
             assert_eq!(n, 1, "{param:?} in {n} families");
+            aliases += usize::from(offset_alias(&p, param));
         }
-        assert!(model_layout(&p, &[]).params.iter().all(|c| !c.is_kinematic()));
+        // Every revolute joint has exactly one origin angle about its own axis when the
+        // nominal angles are multiples of 90° (the shipped URDFs).
+        assert_eq!(aliases, p.robot1.model.dof() + p.robot2.model.dof());
+        let all = fams.clone();
+        let full = model_layout(&p, &all);
+        assert_eq!(
+            full.params.iter().filter(|c| c.is_kinematic()).count(),
+            layout.params.iter().filter(|c| c.is_kinematic()).count() - aliases
+        );
+        assert!(model_layout(&p, &[])
+            .params
+            .iter()
+            .all(|c| !c.is_kinematic()));
     }
 }

@@ -254,7 +254,6 @@ impl JointTrend {
     }
 }
 
-
 fn kind_rms(rows: &[ScoredRow], kind: &str) -> Option<(usize, f64, f64, f64)> {
     let (mut n, mut raw, mut sig, mut wh) = (0usize, 0.0, 0.0, 0.0);
     for r in rows.iter().filter(|r| r.kind == kind) {
@@ -344,10 +343,7 @@ fn joint_bins(problem: &CellProblem, rows: &[ScoredRow]) -> Vec<(u8, usize, Vec<
     out
 }
 
-fn trends(
-    before: &(CellProblem, CellFit),
-    after: &(CellProblem, CellFit),
-) -> Vec<JointTrend> {
+fn trends(before: &(CellProblem, CellFit), after: &(CellProblem, CellFit)) -> Vec<JointTrend> {
     let b = joint_bins(&before.0, &fit_rows(before));
     let a = joint_bins(&after.0, &fit_rows(after));
     b.into_iter()
