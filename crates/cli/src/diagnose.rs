@@ -1,7 +1,9 @@
 //! `handclasp diagnose`: what the nominal models get wrong in a measured session.
 //!
 //! Thin glue over the `diagnose` crate: reads the cell and the session, runs the diagnosis,
-//! prints text or JSON, optionally exports corrected URDFs and a calibrated cell.
+//! prints text or JSON, optionally exports corrected URDFs and a calibrated cell. A session with
+//! contact, tracker or plane rows gets the whole-cell diagnosis
+//! (`diagnose::diagnose_cell_session`; no export).
 
 use std::path::PathBuf;
 

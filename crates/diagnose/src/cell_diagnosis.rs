@@ -643,17 +643,32 @@ impl HeldOut {
     }
 }
 
-/// Cross-validates `model` over `folds` (each a list of units).
+/// The held-out design: the rows used and their units, grouped into folds.
+#[derive(Debug, Clone)]
+pub(crate) struct Folds {
+    /// Rows (observation indices) used, after the blunder screen.
+    pub(crate) used: Vec<usize>,
+    /// Each fold's units (each a list of rows).
+    pub(crate) folds: Vec<Vec<Vec<usize>>>,
+    /// Number of units over all folds.
+    pub(crate) n_units: usize,
+}
+
+/// Cross-validates `model` over `design`'s folds.
 fn cross_validate(
     problem: &CellProblem,
     model: &[Family],
-    used: &[usize],
-    folds: &[Vec<Vec<usize>>],
-    n_units: usize,
+    design: &Folds,
     start: &CellEstimate,
     options: &CellDiagnoseOptions,
     cell_b1_from_b2: nalgebra::Isometry3<f64>,
 ) -> Result<HeldOut, CellFitError> {
+    let Folds {
+        used,
+        folds,
+        n_units,
+    } = design;
+    let n_units = *n_units;
     let scoring_problem = model_problem(problem, model);
     let mut unit_chi2 = vec![0.0; n_units];
     let mut rows = Vec::new();
@@ -875,16 +890,13 @@ fn run(
     // Units in fold order (the order `cross_validate` scores them).
     progress("baseline: nominal kinematics, nuisances fitted");
     let baseline = fit_model(&problem, &[], &used, None, options, x0)?;
-    let baseline_held_out = cross_validate(
-        &problem,
-        &[],
-        &used,
-        &folds,
+    let design = Folds {
+        used: used.clone(),
+        folds,
         n_units,
-        &baseline.1.estimate,
-        options,
-        x0,
-    )?;
+    };
+    let baseline_held_out =
+        cross_validate(&problem, &[], &design, &baseline.1.estimate, options, x0)?;
     let mut model: Vec<Family> = Vec::new();
     let mut current = baseline.clone();
     let mut current_held = baseline_held_out.clone();
@@ -907,16 +919,7 @@ fn run(
             ));
             let mut m = model.clone();
             m.push((*cand).clone());
-            let held = cross_validate(
-                &problem,
-                &m,
-                &used,
-                &folds,
-                n_units,
-                &current.1.estimate,
-                options,
-                x0,
-            )?;
+            let held = cross_validate(&problem, &m, &design, &current.1.estimate, options, x0)?;
             tried.push((cand.name.clone(), held.total()));
             if best.as_ref().is_none_or(|(_, b)| held.total() < b.total()) {
                 best = Some(((*cand).clone(), held));

@@ -15,6 +15,9 @@
 //!    renders it all).
 //! 5. **Export** ([`export`]): corrected URDFs and a cell with the calibrated `b1_from_b2`.
 //!
+//! Sessions with contact, tracker or plane rows take the whole-cell path instead:
+//! [`diagnose_cell_session`] ([`cell_diagnosis`], [`cell_report`]).
+//!
 //! Inside, SI units (m, rad); the report speaks mm and degrees, and its field names carry the
 //! unit.
 
