@@ -33,10 +33,10 @@
 //!    placement held, and the other half is scored, then the halves swap: every scored residual
 //!    is predicted by parameters that did not see it. Units without a nuisance (coincident,
 //!    contacts of a stated distance) are scored directly. A candidate is **accepted** when it
-//!    lowers the total held-out χ² by at least `min_relative_gain` [1 %] and the relative
+//!    lowers the total held-out χ² by at least `min_relative_gain` (default 1 %) and the relative
 //!    gains of the units, `g_u = 1 − χ²_u,after/χ²_u,before` (relative, so that one unit of
 //!    many rows or small σ does not decide alone), have a t statistic
-//!    `mean/(sd/√n) ≥ min_gain_t` [3]; with fewer than 3 units every unit must gain
+//!    `mean/(sd/√n) ≥ min_gain_t` (default 3); with fewer than 3 units every unit must gain
 //!    `min_relative_gain`. An effect is thus named only when it helps the held-out groups
 //!    consistently.
 //! 6. **Effects.** Each accepted family: its parameters from the fit of the final model on all
@@ -75,20 +75,20 @@ const HOLD_SIGMA: f64 = 1e-7;
 /// The 95 % two-sided normal quantile.
 pub const Z95: f64 = 1.959_963_984_540_054;
 
-/// Options of [`diagnose_cell_session`] (defaults in brackets).
+/// Options of [`diagnose_cell_session`] (defaults in parentheses).
 #[derive(Debug, Clone)]
 pub struct CellDiagnoseOptions {
-    /// Every tolerance of the cell is multiplied by this to form the diagnosis prior [10].
+    /// Every tolerance of the cell is multiplied by this to form the diagnosis prior (default 10).
     pub prior_widening: f64,
-    /// Most folds of the held-out criterion [6].
+    /// Most folds of the held-out criterion (default 6).
     pub max_folds: usize,
-    /// Smallest relative decrease of the held-out χ² that accepts a family [0.01].
+    /// Smallest relative decrease of the held-out χ² that accepts a family (default 0.01).
     pub min_relative_gain: f64,
-    /// Smallest t statistic of the per-unit relative held-out gains that accepts a family [3].
+    /// Smallest t statistic of the per-unit relative held-out gains that accepts a family (default 3).
     pub min_gain_t: f64,
-    /// Most selection steps [8].
+    /// Most selection steps (default 8).
     pub max_steps: usize,
-    /// Screen blunders first [true].
+    /// Screen blunders first (default true).
     pub screen_blunders: bool,
     /// Solver settings (the starting placement is set from the cell when the session has fewer
     /// than 3 coincident rows).
