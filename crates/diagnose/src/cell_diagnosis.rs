@@ -25,7 +25,8 @@
 //!    K folds and keeps the one of lowest held-out χ². **Folds** hold out whole units: each
 //!    named group (tracker file, plane, contact group) is a unit, the coincident rows are cut
 //!    into up to [`COINCIDENT_UNITS`] units in row order; units go to
-//!    `min(units, max_folds)` folds round-robin. With fewer than 3 units (one tracker file),
+//!    `min(units, max_folds)` folds round-robin; a group of fewer than its kind's
+//!    [`MIN_SCORED_GROUP_ROWS`] rows is never held out (it trains every fold). With fewer than 3 units (one tracker file),
 //!    each unit is cut into up to 4 contiguous blocks (recording order) of at least
 //!    [`MIN_GROUP_BLOCK_ROWS`] rows instead. **Held-out score** of a unit: its own nuisance
 //!    (tracker frame, plane, fitted contact distance) is unknown to the training fit, so it is
@@ -67,6 +68,9 @@ use crate::DiagnoseError;
 pub const COINCIDENT_UNITS: usize = 4;
 /// Fewest rows of a coincident unit.
 pub const MIN_UNIT_ROWS: usize = 6;
+/// Fewest rows of a group that is held out and scored, per kind (contact, tracker, plane): each
+/// half must fit the group's nuisance (a distance from 1 row, a tracker frame or a plane from 3).
+pub const MIN_SCORED_GROUP_ROWS: [usize; 3] = [2, 6, 6];
 /// Fewest rows of a block cut from a group when the session has fewer than 3 units.
 pub const MIN_GROUP_BLOCK_ROWS: usize = 12;
 /// σ (m and rad) of the placement prior that holds the training placement while a held-out
@@ -589,8 +593,9 @@ fn score_unit(
     Ok(out)
 }
 
-/// The held-out units of the rows `rows`: one per named group (in order of first appearance),
-/// the coincident rows cut into up to [`COINCIDENT_UNITS`] units in row order.
+/// The held-out units of the rows `rows`: one per named group of at least
+/// [`MIN_SCORED_GROUP_ROWS`] rows (in order of first appearance; smaller groups are never held
+/// out), the coincident rows cut into up to [`COINCIDENT_UNITS`] units in row order.
 pub(crate) fn held_out_units(problem: &CellProblem, rows: &[usize]) -> Vec<Vec<usize>> {
     let mut keys: Vec<(usize, usize)> = Vec::new();
     let mut units: Vec<Vec<usize>> = Vec::new();
@@ -607,6 +612,14 @@ pub(crate) fn held_out_units(problem: &CellProblem, rows: &[usize]) -> Vec<Vec<u
             None => coincident.push(i),
         }
     }
+    // A group too small to fit its nuisance on half its rows is never held out (it trains
+    // every fold and is not scored).
+    let mut units: Vec<Vec<usize>> = units
+        .into_iter()
+        .zip(&keys)
+        .filter(|(u, (kind, _))| u.len() >= MIN_SCORED_GROUP_ROWS[*kind])
+        .map(|(u, _)| u)
+        .collect();
     if !coincident.is_empty() {
         let parts = (coincident.len() / MIN_UNIT_ROWS).clamp(1, COINCIDENT_UNITS);
         let size = coincident.len().div_ceil(parts);
@@ -1013,6 +1026,24 @@ mod tests {
                 usize::from(groups[0].is_some())
             );
         }
+    }
+
+    #[test]
+    fn small_groups_are_never_held_out_and_a_small_session_is_diagnosed() {
+        let cell = Cell::default_floor_wall();
+        // 12 rows: 2 coincident, 2 contact, 4 tracker, 4 plane (too few to hold out a tracker
+        // or plane group).
+        let session = mixed_session(&cell, 12, 2);
+        let options = CellDiagnoseOptions::default();
+        let p = diagnosis_problem(&cell, &session, &options).unwrap();
+        let all: Vec<usize> = (0..p.observations.len()).collect();
+        let units = held_out_units(&p, &all);
+        assert!(units
+            .iter()
+            .flatten()
+            .all(|&i| !matches!(group_of(&p.observations[i].kind), Some((1 | 2, _)))));
+        let r = diagnose_cell_session(&cell, &session, &options, &mut |_| {}).unwrap();
+        assert_eq!(r.rows_used + r.rejected_points.len(), 12);
     }
 
     #[test]
