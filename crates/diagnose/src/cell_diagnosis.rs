@@ -22,11 +22,13 @@
 //! 5. **Selection.** Candidates are [`Family`] entries (a robot's joint offsets, origin
 //!    positions, origin angles, compliance, each tool's tip; the contact distances of groups
 //!    that state one). Each step fits every remaining candidate added to the current model in
-//!    K folds and keeps the one of lowest held-out χ². **Folds** hold out whole units: each
+//!    K folds and keeps, of those accepted (below), the one of lowest held-out χ²; it stops
+//!    when none is accepted. **Folds** hold out whole units: each
 //!    named group (tracker file, plane, contact group) is a unit, the coincident rows are cut
 //!    into up to [`COINCIDENT_UNITS`] units in row order; units go to
 //!    `min(units, max_folds)` folds round-robin; a group of fewer than its kind's
-//!    [`MIN_SCORED_GROUP_ROWS`] rows is never held out (it trains every fold). With fewer than 3 units (one tracker file),
+//!    [`MIN_SCORED_GROUP_ROWS`] rows is never held out (it trains every fold). With fewer than
+//!    3 units (one tracker file),
 //!    each unit is cut into up to 4 contiguous blocks (recording order) of at least
 //!    [`MIN_GROUP_BLOCK_ROWS`] rows instead. **Held-out score** of a unit: its own nuisance
 //!    (tracker frame, plane, fitted contact distance) is unknown to the training fit, so it is
@@ -35,9 +37,11 @@
 //!    is predicted by parameters that did not see it. Units without a nuisance (coincident,
 //!    contacts of a stated distance) are scored directly. A candidate is **accepted** when it
 //!    lowers the total held-out χ² by at least `min_relative_gain` (default 1 %) and the relative
-//!    gains of the units, `g_u = 1 − χ²_u,after/χ²_u,before` (relative, so that one unit of
-//!    many rows or small σ does not decide alone), have a t statistic
-//!    `mean/(sd/√n) ≥ min_gain_t` (default 3); with fewer than 3 units every unit must gain
+//!    gains `g_u = 1 − χ²_u,after/χ²_u,before` of the units it is involved in
+//!    ([`Family::involves`]: rows of its robot, or of its tool; relative, so that one unit of
+//!    many rows or small σ does not decide alone; only those units, so that a tip family is not
+//!    diluted by tracker files of another tool) have a t statistic
+//!    `mean/(sd/√n) ≥ min_gain_t` (default 3); with fewer than 3 such units every one must gain
 //!    `min_relative_gain`. An effect is thus named only when it helps the held-out groups
 //!    consistently.
 //! 6. **Effects.** Each accepted family: its parameters from the fit of the final model on all
@@ -176,6 +180,18 @@ impl Family {
 
     fn robot_is(&self, r: Robot) -> bool {
         self.robot == Some(r.number())
+    }
+
+    /// Whether an observation of this kind uses the family's parameters directly: its robot
+    /// (and tool, for a tip), or, for the contact distances, a contact row.
+    pub fn involves(&self, kind: &ObservationKind) -> bool {
+        match self.kind {
+            FamilyKind::ContactDistance => matches!(kind, ObservationKind::Contact { .. }),
+            FamilyKind::ToolTip { tool } => tools_of(kind)
+                .iter()
+                .any(|(r, t)| self.robot_is(*r) && *t == tool),
+            _ => tools_of(kind).iter().any(|(r, _)| self.robot_is(*r)),
+        }
     }
 
     /// Whether the unknown `p` belongs to this family.
@@ -708,13 +724,21 @@ fn cross_validate(
 }
 
 /// Whether `after` gains enough over `before` (see the module documentation); returns the t
-/// statistic of the per-unit relative gains (∞ or 0 with fewer than 3 units).
-fn significant(before: &HeldOut, after: &HeldOut, options: &CellDiagnoseOptions) -> (bool, f64) {
+/// statistic of the relative gains of the units the family is `involved` in (∞ or 0 with fewer
+/// than 3 such units).
+fn significant(
+    before: &HeldOut,
+    after: &HeldOut,
+    involved: &[bool],
+    options: &CellDiagnoseOptions,
+) -> (bool, f64) {
     let rel: Vec<f64> = before
         .unit_chi2
         .iter()
         .zip(&after.unit_chi2)
-        .map(|(b, a)| if *b > 0.0 { (b - a) / b } else { 0.0 })
+        .zip(involved)
+        .filter(|(_, inv)| **inv)
+        .map(|((b, a), _)| if *b > 0.0 { (b - a) / b } else { 0.0 })
         .collect();
     let total_before = before.total();
     let relative = if total_before > 0.0 {
@@ -919,7 +943,10 @@ fn run(
         if remaining.is_empty() {
             break;
         }
-        let mut best: Option<(Family, HeldOut)> = None;
+        // Every candidate's held-out result; the step keeps the lowest held-out χ² among the
+        // significant ones (a candidate that gains more in total but not consistently over the
+        // units does not hide a consistent one), else records the lowest as the stop.
+        let mut results: Vec<(Family, HeldOut, bool, f64)> = Vec::new();
         let mut tried = Vec::new();
         for (k, cand) in remaining.iter().enumerate() {
             progress(&format!(
@@ -934,12 +961,28 @@ fn run(
             m.push((*cand).clone());
             let held = cross_validate(&problem, &m, &design, &current.1.estimate, options, x0)?;
             tried.push((cand.name.clone(), held.total()));
-            if best.as_ref().is_none_or(|(_, b)| held.total() < b.total()) {
-                best = Some(((*cand).clone(), held));
-            }
+            let involved: Vec<bool> = design
+                .folds
+                .iter()
+                .flatten()
+                .map(|unit| {
+                    unit.iter()
+                        .any(|&i| cand.involves(&problem.observations[i].kind))
+                })
+                .collect();
+            let (ok, t) = significant(&current_held, &held, &involved, options);
+            results.push(((*cand).clone(), held, ok, t));
         }
-        let Some((family, held)) = best else { break };
-        let (accepted, t) = significant(&current_held, &held, options);
+        let lowest = |only_significant: bool| {
+            results
+                .iter()
+                .filter(|r| r.2 || !only_significant)
+                .min_by(|a, b| a.1.total().total_cmp(&b.1.total()))
+                .cloned()
+        };
+        let Some((family, held, accepted, t)) = lowest(true).or_else(|| lowest(false)) else {
+            break;
+        };
         let mut record = StepRecord {
             family: family.clone(),
             before: current_held.clone(),
