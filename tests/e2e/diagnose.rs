@@ -328,3 +328,161 @@ fn diagnose_rejects_bad_sessions_with_the_fix() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("joints"), "{err}");
 }
+
+/// The CTU dataset folder (`$CTU_MOTOMAN_DATA` or `/work/shared/data/ctu-motoman`), if present.
+fn ctu_data() -> Option<PathBuf> {
+    let dir = std::env::var_os("CTU_MOTOMAN_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("/work/shared/data/ctu-motoman"));
+    dir.join("README.md").is_file().then_some(dir)
+}
+
+/// The value and 95 % interval (mm) of the parameter `name` of the effect `family`, if named.
+fn effect_param_mm(
+    report: &serde_json::Value,
+    family: &str,
+    name: &str,
+) -> Option<(f64, f64, f64)> {
+    let effect = report["effects"]
+        .as_array()?
+        .iter()
+        .find(|e| e["family"]["name"] == family)?;
+    let p = effect["parameters"]
+        .as_array()?
+        .iter()
+        .find(|p| p["name"] == name)?;
+    let ci = p["ci95_mm"].as_array()?;
+    Some((p["value_mm"].as_f64()?, ci[0].as_f64()?, ci[1].as_f64()?))
+}
+
+#[test]
+fn diagnose_ctu_self_contact_names_the_marker_tip_geometry() {
+    let Some(data) = ctu_data() else {
+        eprintln!(
+            "skipped: /work/shared/data/ctu-motoman (or $CTU_MOTOMAN_DATA) is absent; the CTU dataset is not in the repository"
+        );
+        return;
+    };
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let cell = root.join("cells/ctu-motoman.toml");
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("self.csv");
+    let mut args: Vec<String> = vec![
+        "import".into(),
+        "--cell".into(),
+        cell.display().to_string(),
+        "--map".into(),
+        root.join("tools/ctu-motoman/maps/self_contact.toml")
+            .display()
+            .to_string(),
+        "--out".into(),
+        session.display().to_string(),
+    ];
+    for f in [
+        "no_leica_self_lower1_4x4_dataset.csv",
+        "no_leica_self_lower2_4x4_dataset.csv",
+        "no_leica_self_upper1_4x4_dataset.csv",
+        "no_leica_self_upper2_4x4_dataset.csv",
+    ] {
+        args.push("--input".into());
+        args.push(data.join(f).display().to_string());
+    }
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let out = handclasp(&args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = handclasp(&[
+        "diagnose",
+        "--cell",
+        cell.to_str().unwrap(),
+        "--session",
+        session.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert_eq!(r["mode"], "whole_cell");
+    assert_eq!(r["rows_by_kind"][0]["rows"], 502, "{}", r["rows_by_kind"]);
+    // The end-effector geometry: both marker centres lie off the nominal tip laterally (tool0 x),
+    // by 1–2.5 mm (docs/ctu-motoman-findings.md: ~1.3–1.7 mm), each interval excluding 0.
+    for (robot, family) in [(1, "robot 1 tool `tip` tip"), (2, "robot 2 tool `tip` tip")] {
+        let name = format!("robot {robot} tool `tip` tip x");
+        let (v, lo, hi) = effect_param_mm(&r, family, &name)
+            .unwrap_or_else(|| panic!("`{family}` not named: {}", r["effects"]));
+        assert!((1.0..2.5).contains(&v.abs()), "{name} = {v} mm");
+        assert!(lo * hi > 0.0, "{name}: 95 % [{lo}, {hi}] mm contains 0");
+    }
+    // …and that explains most of the contact-distance scatter on held-out groups.
+    let held = |k: &str| r[k][0]["held_out_rms_mm"].as_f64().unwrap();
+    let (before, after) = (held("baseline"), held("final_residuals"));
+    assert!(
+        after < 0.5 * before,
+        "held-out contact rms {before} → {after} mm"
+    );
+}
+
+#[test]
+fn diagnose_mixed_session_runs_the_whole_cell_diagnosis() {
+    let dir = tempfile::tempdir().unwrap();
+    let cell = Cell::from_toml_file(&cell_path()).expect("cell loads");
+    let spec = SessionSpec::new(36, Layout::Random, 0.7);
+    let kinds = sim_cell::KindSpec {
+        kind: sim_cell::SimKind::Mixed,
+        ..sim_cell::KindSpec::default()
+    };
+    let (s, _) = sim_cell::generate_kind_session(&cell, &spec, &kinds, None, &mut trial_rng(4, 0))
+        .expect("session");
+    let path = dir.path().join("mixed.csv");
+    s.write_csv(&path, &cell).expect("write session");
+    let cell_arg = cell_path();
+    let base = [
+        "diagnose",
+        "--cell",
+        cell_arg.to_str().unwrap(),
+        "--session",
+        path.to_str().unwrap(),
+    ];
+    let out = handclasp(&[&base[..], &["--json"]].concat());
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    assert_eq!(r["mode"], "whole_cell");
+    let kinds: Vec<&str> = r["baseline"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|k| k["kind"].as_str().unwrap())
+        .collect();
+    assert_eq!(kinds, ["contact", "tracker", "plane", "coincident"]);
+    let text = handclasp(&base);
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(text.contains("Whole-cell diagnosis: 36 rows"), "{text}");
+    assert!(
+        text.contains("Baseline (nominal kinematics, nuisances fitted):"),
+        "{text}"
+    );
+    // Export and truth are the coincident path's: refused with the reason.
+    let out = handclasp(
+        &[
+            &base[..],
+            &["--export", dir.path().join("x").to_str().unwrap()],
+        ]
+        .concat(),
+    );
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--export and --truth-* apply to coincident-only sessions"),
+        "{err}"
+    );
+}

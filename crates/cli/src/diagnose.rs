@@ -1,7 +1,9 @@
 //! `handclasp diagnose`: what the nominal models get wrong in a measured session.
 //!
 //! Thin glue over the `diagnose` crate: reads the cell and the session, runs the diagnosis,
-//! prints text or JSON, optionally exports corrected URDFs and a calibrated cell.
+//! prints text or JSON, optionally exports corrected URDFs and a calibrated cell. A session with
+//! contact, tracker or plane rows gets the whole-cell diagnosis
+//! (`diagnose::diagnose_cell_session`; no export).
 
 use std::path::PathBuf;
 
@@ -37,6 +39,11 @@ pub struct Args {
     /// Monte Carlo trials for the predicted residual distributions (at least 20).
     #[arg(long, default_value_t = 400)]
     pub trials: usize,
+    /// Sessions with contact, tracker or plane rows (whole-cell diagnosis): every tolerance of
+    /// the cell is multiplied by this to form the prior of the candidate families (the
+    /// diagnosis looks for errors beyond the stated tolerances).
+    #[arg(long, default_value_t = 10.0)]
+    pub prior_widening: f64,
     /// Also list (on stderr) each URDF's joints and links outside the base-to-flange chain,
     /// which are ignored.
     #[arg(long)]
@@ -46,6 +53,46 @@ pub struct Args {
 /// Sessions of at least this many points print progress on stderr even when it is not a
 /// terminal (a 500-point session with errors takes about 20 s on a loaded 2-core machine).
 const PROGRESS_MIN_POINTS: usize = 500;
+
+/// Sessions of at least this many rows print progress of the whole-cell diagnosis on stderr
+/// even when it is not a terminal (the CTU tracker files take minutes).
+const PROGRESS_MIN_ROWS_WHOLE_CELL: usize = 100;
+
+/// The whole-cell diagnosis of a session with contact, tracker or plane rows.
+fn run_whole_cell(
+    args: &Args,
+    cell: &Cell,
+    session: &sim_cell::Session,
+    truth: bool,
+) -> anyhow::Result<()> {
+    if args.export.is_some() || truth {
+        anyhow::bail!(
+            "{}: --export and --truth-* apply to coincident-only sessions; this session has contact, \
+             tracker or plane rows (whole-cell diagnosis): drop them, or calibrate with \
+             `handclasp calibrate --cell CELL --session SESSION --model kinematic`",
+            args.session.display()
+        );
+    }
+    let options = diagnose::CellDiagnoseOptions {
+        prior_widening: args.prior_widening,
+        ..diagnose::CellDiagnoseOptions::default()
+    };
+    let show = std::io::IsTerminal::is_terminal(&std::io::stderr())
+        || session.len() >= PROGRESS_MIN_ROWS_WHOLE_CELL;
+    let start = std::time::Instant::now();
+    let report = diagnose::diagnose_cell_session(cell, session, &options, &mut |line| {
+        if show {
+            eprintln!("[{:6.1} s] {line}", start.elapsed().as_secs_f64());
+        }
+    })
+    .with_context(|| format!("diagnosing {}", args.session.display()))?;
+    if args.json {
+        println!("{}", serde_json::to_string(&report)?);
+    } else {
+        print!("{}", diagnose::render_cell_text(&report));
+    }
+    Ok(())
+}
 
 /// Runs `handclasp diagnose`.
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -79,21 +126,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.verbose {
         crate::fk::print_cell_branches(&cell);
     }
-    let mut session = diagnose::load_session(&args.session, &cell).context("--session")?;
-    if !session.is_handclasp_only() {
-        // diagnose's engine explains coincident handclasps; the other kinds (and other tools)
-        // are the whole-cell calibration's (calibrate --cell), so they are set aside here.
-        let [_, contact, tracker, plane] = session.kind_counts();
-        eprintln!(
-            "note: {}: diagnose uses the {} coincident handclasp rows at the cell's tips only; {} other row(s) \
-             ({contact} contact, {tracker} tracker, {plane} plane, the rest with other tools) are set aside: \
-             calibrate them with `handclasp calibrate --cell CELL --session SESSION --model kinematic`",
-            args.session.display(),
-            session.points.len(),
-            session.observations.len()
-        );
-        session.observations.clear();
+    if let Ok(session) = sim_cell::Session::read_csv(&args.session, &cell) {
+        if !session.is_handclasp_only() {
+            // Contact, tracker or plane rows (or other tools): the whole-cell diagnosis.
+            return run_whole_cell(&args, &cell, &session, truth.is_some());
+        }
     }
+    let session = diagnose::load_session(&args.session, &cell).context("--session")?;
     let options = DiagnoseOptions {
         seed: args.seed,
         trials: args.trials,

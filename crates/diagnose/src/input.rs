@@ -169,8 +169,9 @@ pub fn load_session(path: &Path, cell: &Cell) -> Result<Session, DiagnoseError> 
     };
     if !session.is_handclasp_only() && session.points.len() < identify::min_points(1) {
         return Err(serr(format!(
-            "{} coincident handclasp row(s) at the cell's tips and {} row(s) of other kinds or tools: diagnose explains \
-             coincident handclasps only and needs at least {}; calibrate this session with \
+            "{} coincident handclasp row(s) at the cell's tips and {} row(s) of other kinds or tools: this engine explains \
+             coincident handclasps only and needs at least {}; diagnose this session with \
+             `diagnose_cell_session` (what `handclasp diagnose` runs on it) or calibrate it with \
              `handclasp calibrate --cell CELL --session SESSION --model kinematic`",
             session.points.len(),
             session.observations.len(),

@@ -15,12 +15,17 @@
 //!    renders it all).
 //! 5. **Export** ([`export`]): corrected URDFs and a cell with the calibrated `b1_from_b2`.
 //!
+//! Sessions with contact, tracker or plane rows take the whole-cell path instead:
+//! [`diagnose_cell_session`] ([`cell_diagnosis`], [`cell_report`]).
+//!
 //! Inside, SI units (m, rad); the report speaks mm and degrees, and its field names carry the
 //! unit.
 
 use std::path::PathBuf;
 
 pub mod catalogue;
+pub mod cell_diagnosis;
+pub mod cell_report;
 pub mod engine;
 pub mod export;
 pub mod input;
@@ -31,6 +36,11 @@ pub mod residuals;
 pub mod session_model;
 
 pub use catalogue::{catalogue, effects_to_errors, Candidate, EffectKind};
+pub use cell_diagnosis::{
+    candidate_families, diagnose_cell_session, diagnosis_problem, CellDiagnoseOptions, Family,
+    FamilyKind,
+};
+pub use cell_report::{render_cell_text, CellDiagnoseReport};
 pub use engine::{diagnose_session, diagnose_session_with_progress, DiagnoseOptions};
 pub use export::{export_corrected, write_corrected_urdf};
 pub use input::{check_session, load_session, FK_TOLERANCE_M};

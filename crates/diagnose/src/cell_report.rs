@@ -1,0 +1,599 @@
+//! The report of the whole-cell diagnosis ([`crate::diagnose_cell_session`]) in mm, mrad and
+//! degrees (field names carry the unit), and its text rendering ([`render_cell_text`]).
+
+use std::fmt::Write as _;
+
+use calib_core::whole_cell::{CellFit, CellParam, CellProblem};
+use calib_core::Robot;
+use kinematics::ErrorParam;
+use serde::ser::SerializeMap;
+use serde::{Serialize, Serializer};
+
+use crate::cell_diagnosis::{
+    joints_of, residuals_at, CellDiagnoseOptions, CellDiagnosis, Family, HeldOut, ScoredRow, KINDS,
+    Z95,
+};
+
+/// Number of bins of the residual-against-joint table (quartiles of the joint's values).
+pub const JOINT_BINS: usize = 4;
+
+/// The whole-cell diagnosis of a session.
+#[derive(Debug, Clone, Serialize)]
+pub struct CellDiagnoseReport {
+    /// `"whole_cell"` (the coincident-only report has no such field).
+    pub mode: &'static str,
+    /// Rows of each kind in the session: contact, tracker, plane, coincident.
+    pub rows_by_kind: Vec<KindCount>,
+    /// Rows used after the blunder screen.
+    pub rows_used: usize,
+    /// Rows rejected by the blunder screen.
+    pub rejected_points: Vec<CellRejectedReport>,
+    /// Every tolerance of the cell times this is the diagnosis prior.
+    pub prior_widening: f64,
+    /// Held-out units (groups and coincident blocks) and folds.
+    pub held_out_units: usize,
+    /// Folds of the held-out criterion.
+    pub held_out_folds: usize,
+    /// The candidate families.
+    pub candidates: Vec<Family>,
+    /// The nominal model (nuisances fitted): residual per kind against its stated σ, fitted
+    /// and held out.
+    pub baseline: Vec<KindResidual>,
+    /// The selected families in order, with values, intervals and held-out gains.
+    pub effects: Vec<CellEffectReport>,
+    /// The best candidate that was not accepted (why the selection stopped), if any.
+    pub stopped_at: Option<StepSummary>,
+    /// The final model: residual per kind against its stated σ.
+    pub final_residuals: Vec<KindResidual>,
+    /// `max(1, sqrt(χ²/(rows − unknowns)))` of the final fit; it multiplies every posterior σ.
+    pub variance_factor: f64,
+    /// Solver iterations and stop reason of the final fit.
+    pub final_fit_stopped: String,
+}
+
+/// Rows of one kind.
+#[derive(Debug, Clone, Serialize)]
+pub struct KindCount {
+    /// Observation kind.
+    pub kind: &'static str,
+    /// Rows.
+    pub rows: usize,
+}
+
+/// A rejected row.
+#[derive(Debug, Clone, Serialize)]
+pub struct CellRejectedReport {
+    /// The row's point number (the CSV's `point` column).
+    pub point: usize,
+    /// Its kind.
+    pub kind: &'static str,
+    /// Its studentised size, σ.
+    pub size_sigma: f64,
+    /// Its residual norm, mm.
+    pub residual_mm: f64,
+}
+
+/// Residual of one kind against its stated σ.
+#[derive(Debug, Clone, Serialize)]
+pub struct KindResidual {
+    /// Observation kind.
+    pub kind: &'static str,
+    /// Scalar residual rows.
+    pub residual_rows: usize,
+    /// RMS of the fitted residuals, mm.
+    pub rms_mm: f64,
+    /// RMS of the stated σ, mm.
+    pub stated_sigma_mm: f64,
+    /// `rms_mm / stated_sigma_mm` (1 = as stated).
+    pub rms_over_sigma: f64,
+    /// The kind's noise scale: its σ is multiplied by this in the diagnosis (see
+    /// [`crate::cell_diagnosis`], step 2).
+    pub noise_scale: f64,
+    /// RMS of the held-out residuals of this model, mm.
+    pub held_out_rms_mm: f64,
+}
+
+/// A candidate at a selection step.
+#[derive(Debug, Clone, Serialize)]
+pub struct StepSummary {
+    /// The family.
+    pub family: String,
+    /// Held-out χ² before and after adding it.
+    pub held_out_chi2_before: f64,
+    /// Held-out χ² with it.
+    pub held_out_chi2_after: f64,
+    /// Relative decrease of the held-out χ².
+    pub relative_gain: f64,
+    /// t statistic of the per-unit relative held-out gains.
+    pub gain_t: f64,
+}
+
+/// One selected family.
+#[derive(Debug, Clone, Serialize)]
+pub struct CellEffectReport {
+    /// 1-based selection step.
+    pub step: usize,
+    /// The family.
+    pub family: Family,
+    /// The held-out gain that selected it.
+    pub gain: StepSummary,
+    /// Held-out rms per kind before and after this step, mm.
+    pub held_out_by_kind: Vec<KindGain>,
+    /// Its parameters in the final model, with 95 % intervals.
+    pub parameters: Vec<ParamValue>,
+    /// Whitened residual rms against each joint before and after this step.
+    pub residual_vs_joint: Vec<JointTrend>,
+    /// Held-out χ² of every candidate tried at this step.
+    pub candidates_held_out_chi2: Vec<(String, f64)>,
+}
+
+/// Held-out rms of one kind before and after a step.
+#[derive(Debug, Clone, Serialize)]
+pub struct KindGain {
+    /// Observation kind.
+    pub kind: &'static str,
+    /// Before, mm.
+    pub rms_mm_before: f64,
+    /// After, mm.
+    pub rms_mm_after: f64,
+}
+
+/// Unit of a reported parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum ParamUnit {
+    /// Millimetres (positions, tip offsets, contact distances).
+    Mm,
+    /// Milliradians (joint offsets, origin angles).
+    Mrad,
+    /// Microradians per newton-metre (compliance).
+    UradPerNm,
+    /// Parts per million (joint scale).
+    Ppm,
+}
+
+impl ParamUnit {
+    /// The suffix of the JSON field names.
+    pub fn suffix(self) -> &'static str {
+        match self {
+            ParamUnit::Mm => "mm",
+            ParamUnit::Mrad => "mrad",
+            ParamUnit::UradPerNm => "urad_per_nm",
+            ParamUnit::Ppm => "ppm",
+        }
+    }
+
+    /// Report units per SI unit.
+    pub fn per_si(self) -> f64 {
+        match self {
+            ParamUnit::Mm | ParamUnit::Mrad => 1e3,
+            ParamUnit::UradPerNm | ParamUnit::Ppm => 1e6,
+        }
+    }
+
+    /// The unit of a cell unknown.
+    pub fn of(p: &CellParam) -> ParamUnit {
+        match p {
+            CellParam::Kinematic { param, .. } => match param {
+                ErrorParam::JointOffset { .. } | ErrorParam::OriginRpy { .. } => ParamUnit::Mrad,
+                ErrorParam::Compliance { .. } => ParamUnit::UradPerNm,
+                ErrorParam::JointScale { .. } => ParamUnit::Ppm,
+                _ => ParamUnit::Mm,
+            },
+            CellParam::PlacementRotation { .. }
+            | CellParam::TrackerRotation { .. }
+            | CellParam::PlaneNormal { .. } => ParamUnit::Mrad,
+            _ => ParamUnit::Mm,
+        }
+    }
+}
+
+/// One fitted parameter in report units. JSON: `name`, `value_<unit>`, `sigma_<unit>`,
+/// `ci95_<unit>` `[low, high]`, `prior_sigma_<unit>`, `unit <unit>`.
+#[derive(Debug, Clone)]
+pub struct ParamValue {
+    /// Readable name.
+    pub name: String,
+    /// Unit.
+    pub unit: ParamUnit,
+    /// Value.
+    pub value: f64,
+    /// Posterior σ times the variance factor.
+    pub sigma: f64,
+    /// Prior σ (the widened tolerance / √3).
+    pub prior_sigma: f64,
+}
+
+impl ParamValue {
+    /// The 95 % interval `value ± 1.96·σ`.
+    pub fn ci95(&self) -> [f64; 2] {
+        [self.value - Z95 * self.sigma, self.value + Z95 * self.sigma]
+    }
+}
+
+impl Serialize for ParamValue {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let u = self.unit.suffix();
+        let mut m = s.serialize_map(Some(6))?;
+        m.serialize_entry("name", &self.name)?;
+        m.serialize_entry("unit", u)?;
+        m.serialize_entry(&format!("value_{u}"), &self.value)?;
+        m.serialize_entry(&format!("sigma_{u}"), &self.sigma)?;
+        m.serialize_entry(&format!("ci95_{u}"), &self.ci95())?;
+        m.serialize_entry(&format!("prior_sigma_{u}"), &self.prior_sigma)?;
+        m.end()
+    }
+}
+
+/// Whitened residual rms of the rows of one robot in quartile bins of one joint.
+#[derive(Debug, Clone, Serialize)]
+pub struct JointTrend {
+    /// Robot, 1 or 2.
+    pub robot: u8,
+    /// Joint, 1-based.
+    pub joint: usize,
+    /// Mean joint angle of each bin, degrees.
+    pub q_deg: Vec<f64>,
+    /// Whitened rms per bin before the step.
+    pub rms_over_sigma_before: Vec<f64>,
+    /// Whitened rms per bin after the step.
+    pub rms_over_sigma_after: Vec<f64>,
+}
+
+impl JointTrend {
+    /// Largest minus smallest bin rms, before and after.
+    pub fn spread(&self) -> (f64, f64) {
+        let s = |v: &[f64]| {
+            v.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+                - v.iter().copied().fold(f64::INFINITY, f64::min)
+        };
+        (
+            s(&self.rms_over_sigma_before),
+            s(&self.rms_over_sigma_after),
+        )
+    }
+}
+
+fn kind_rms(rows: &[ScoredRow], kind: &str) -> Option<(usize, f64, f64, f64)> {
+    let (mut n, mut raw, mut sig, mut wh) = (0usize, 0.0, 0.0, 0.0);
+    for r in rows.iter().filter(|r| r.kind == kind) {
+        n += r.raw_m.len();
+        raw += r.raw_m.norm_squared();
+        sig += r.sigma_m.norm_squared();
+        wh += r.whitened.norm_squared();
+    }
+    (n > 0).then(|| {
+        let m = n as f64;
+        (
+            n,
+            (raw / m).sqrt() * 1e3,
+            (sig / m).sqrt() * 1e3,
+            (wh / m).sqrt(),
+        )
+    })
+}
+
+fn fit_rows(fit: &(CellProblem, CellFit)) -> Vec<ScoredRow> {
+    let (p, f) = fit;
+    residuals_at(p, &f.layout, &f.estimate, &f.active).unwrap_or_default()
+}
+
+fn kind_residuals(fitted: &[ScoredRow], held: &HeldOut, scale: &[f64; 4]) -> Vec<KindResidual> {
+    KINDS
+        .iter()
+        .zip(scale)
+        .filter_map(|(&k, &s)| {
+            let (n, rms_mm, scaled_sigma_mm, _) = kind_rms(fitted, k)?;
+            let stated_sigma_mm = scaled_sigma_mm / s;
+            Some(KindResidual {
+                kind: k,
+                residual_rows: n,
+                rms_mm,
+                stated_sigma_mm,
+                rms_over_sigma: rms_mm / stated_sigma_mm,
+                noise_scale: s,
+                held_out_rms_mm: kind_rms(&held.rows, k).map_or(f64::NAN, |v| v.1),
+            })
+        })
+        .collect()
+}
+
+fn summary(name: &str, before: &HeldOut, after: &HeldOut, t: f64) -> StepSummary {
+    let (b, a) = (before.total(), after.total());
+    StepSummary {
+        family: name.to_string(),
+        held_out_chi2_before: b,
+        held_out_chi2_after: a,
+        relative_gain: if b > 0.0 { (b - a) / b } else { 0.0 },
+        gain_t: t,
+    }
+}
+
+/// Whitened rms per quartile bin of each joint of each robot.
+fn joint_bins(problem: &CellProblem, rows: &[ScoredRow]) -> Vec<(u8, usize, Vec<f64>, Vec<f64>)> {
+    let mut out = Vec::new();
+    for r in [Robot::One, Robot::Two] {
+        for j in 0..problem.robot(r).model.dof() {
+            let mut v: Vec<(f64, f64, usize)> = rows
+                .iter()
+                .filter_map(|s| {
+                    joints_of(&problem.observations[s.index].kind)
+                        .into_iter()
+                        .find(|(rr, _)| *rr == r)
+                        .map(|(_, q)| (q[j], s.whitened.norm_squared(), s.whitened.len()))
+                })
+                .collect();
+            if v.len() < JOINT_BINS {
+                continue;
+            }
+            v.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let size = v.len().div_ceil(JOINT_BINS);
+            let (q, rms): (Vec<f64>, Vec<f64>) = v
+                .chunks(size)
+                .map(|c| {
+                    let q = c.iter().map(|x| x.0).sum::<f64>() / c.len() as f64;
+                    let ss: f64 = c.iter().map(|x| x.1).sum();
+                    let n: usize = c.iter().map(|x| x.2).sum();
+                    (q.to_degrees(), (ss / n as f64).sqrt())
+                })
+                .unzip();
+            out.push((r.number(), j + 1, q, rms));
+        }
+    }
+    out
+}
+
+fn trends(before: &(CellProblem, CellFit), after: &(CellProblem, CellFit)) -> Vec<JointTrend> {
+    let b = joint_bins(&before.0, &fit_rows(before));
+    let a = joint_bins(&after.0, &fit_rows(after));
+    b.into_iter()
+        .zip(a)
+        .map(|((robot, joint, q_deg, rb), (_, _, _, ra))| JointTrend {
+            robot,
+            joint,
+            q_deg,
+            rms_over_sigma_before: rb,
+            rms_over_sigma_after: ra,
+        })
+        .collect()
+}
+
+fn variance_factor(fit: &CellFit) -> f64 {
+    let dof = fit.residual_rows.saturating_sub(fit.layout.len()).max(1) as f64;
+    (fit.data_chi2 / dof).sqrt().max(1.0)
+}
+
+/// Builds the report from the diagnosis.
+pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDiagnoseReport {
+    let (fp, ff) = &d.final_fit;
+    let vf = variance_factor(ff);
+    let params = ff.parameters(fp);
+    let mut counts = [0usize; 4];
+    for o in &d.problem.observations {
+        if let Some(k) = KINDS.iter().position(|k| *k == o.kind.name()) {
+            counts[k] += 1;
+        }
+    }
+    let final_held = d
+        .steps
+        .iter()
+        .rev()
+        .find(|s| s.accepted)
+        .map_or(&d.baseline_held_out, |s| &s.after);
+    let effects = d
+        .steps
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.accepted)
+        .map(|(i, s)| {
+            let after = s.fit_after.as_ref().expect("accepted steps have a fit");
+            CellEffectReport {
+                step: i + 1,
+                family: s.family.clone(),
+                gain: summary(&s.family.name, &s.before, &s.after, s.t),
+                held_out_by_kind: KINDS
+                    .iter()
+                    .filter_map(|&k| {
+                        Some(KindGain {
+                            kind: k,
+                            rms_mm_before: kind_rms(&s.before.rows, k)?.1,
+                            rms_mm_after: kind_rms(&s.after.rows, k)?.1,
+                        })
+                    })
+                    .collect(),
+                parameters: params
+                    .iter()
+                    .filter(|p| s.family.contains(&p.param))
+                    .map(|p| {
+                        let unit = ParamUnit::of(&p.param);
+                        let k = unit.per_si();
+                        ParamValue {
+                            name: p.name.clone(),
+                            unit,
+                            value: p.value * k,
+                            sigma: p.posterior_sigma * vf * k,
+                            prior_sigma: p.prior_sigma * k,
+                        }
+                    })
+                    .collect(),
+                residual_vs_joint: trends(&s.fit_before, after),
+                candidates_held_out_chi2: s.tried.clone(),
+            }
+        })
+        .collect();
+    CellDiagnoseReport {
+        mode: "whole_cell",
+        rows_by_kind: KINDS
+            .iter()
+            .zip(counts)
+            .filter(|(_, n)| *n > 0)
+            .map(|(&kind, rows)| KindCount { kind, rows })
+            .collect(),
+        rows_used: d.used.len(),
+        rejected_points: d
+            .rejected
+            .iter()
+            .map(|r| CellRejectedReport {
+                point: r.row,
+                kind: r.kind,
+                size_sigma: r.size_sigma,
+                residual_mm: r.residual_m * 1e3,
+            })
+            .collect(),
+        prior_widening: options.prior_widening,
+        held_out_units: d.n_units,
+        held_out_folds: d.n_folds,
+        candidates: d.candidates.clone(),
+        baseline: kind_residuals(&fit_rows(&d.baseline), &d.baseline_held_out, &d.noise_scale),
+        effects,
+        stopped_at: d
+            .steps
+            .last()
+            .filter(|s| !s.accepted)
+            .map(|s| summary(&s.family.name, &s.before, &s.after, s.t)),
+        final_residuals: kind_residuals(&fit_rows(&d.final_fit), final_held, &d.noise_scale),
+        variance_factor: vf,
+        final_fit_stopped: format!("{} after {} iterations", ff.stopped.name(), ff.iterations),
+    }
+}
+
+/// The report as text.
+pub fn render_cell_text(r: &CellDiagnoseReport) -> String {
+    let mut s = String::new();
+    let kinds: Vec<String> = r
+        .rows_by_kind
+        .iter()
+        .map(|k| format!("{} {}", k.rows, k.kind))
+        .collect();
+    let _ = writeln!(
+        s,
+        "Whole-cell diagnosis: {} rows ({}), {} used; held out by {} units in {} folds; prior = tolerances × {}",
+        r.rows_by_kind.iter().map(|k| k.rows).sum::<usize>(),
+        kinds.join(", "),
+        r.rows_used,
+        r.held_out_units,
+        r.held_out_folds,
+        r.prior_widening
+    );
+    for p in &r.rejected_points {
+        let _ = writeln!(
+            s,
+            "  rejected row {} ({}): {:.1} σ, residual {:.3} mm",
+            p.point, p.kind, p.size_sigma, p.residual_mm
+        );
+    }
+    let table = |s: &mut String, title: &str, rows: &[KindResidual]| {
+        let _ = writeln!(s, "{title}");
+        let _ = writeln!(
+            s,
+            "  {:<11} {:>6} {:>9} {:>13} {:>9} {:>12} {:>15}",
+            "kind", "rows", "rms_mm", "stated_σ_mm", "rms/σ", "noise_scale", "held_out_rms_mm"
+        );
+        for k in rows {
+            let _ = writeln!(
+                s,
+                "  {:<11} {:>6} {:>9.3} {:>13.3} {:>9.2} {:>12.2} {:>15.3}",
+                k.kind,
+                k.residual_rows,
+                k.rms_mm,
+                k.stated_sigma_mm,
+                k.rms_over_sigma,
+                k.noise_scale,
+                k.held_out_rms_mm
+            );
+        }
+    };
+    table(
+        &mut s,
+        "Baseline (nominal kinematics, nuisances fitted):",
+        &r.baseline,
+    );
+    if r.effects.is_empty() {
+        let _ = writeln!(s, "Significant effects: none");
+    } else {
+        let _ = writeln!(s, "Significant effects (in order of selection):");
+    }
+    for e in &r.effects {
+        let g = &e.gain;
+        let _ = writeln!(
+            s,
+            "{}. {}: held-out χ² {:.1} → {:.1} ({:.1} %, t = {:.1})",
+            e.step,
+            e.family.name,
+            g.held_out_chi2_before,
+            g.held_out_chi2_after,
+            100.0 * g.relative_gain,
+            g.gain_t
+        );
+        for k in &e.held_out_by_kind {
+            let _ = writeln!(
+                s,
+                "     held-out {:<10} rms {:.3} → {:.3} mm",
+                k.kind, k.rms_mm_before, k.rms_mm_after
+            );
+        }
+        // Text: the parameters whose 95 % interval excludes 0 (JSON: all of them).
+        let shown: Vec<&ParamValue> = e
+            .parameters
+            .iter()
+            .filter(|p| p.value.abs() > Z95 * p.sigma)
+            .collect();
+        if shown.len() < e.parameters.len() {
+            let _ = writeln!(
+                s,
+                "     ({} of {} parameters have a 95 % interval that excludes 0; the others are in the JSON)",
+                shown.len(),
+                e.parameters.len()
+            );
+        }
+        for p in shown {
+            let [lo, hi] = p.ci95();
+            let _ = writeln!(
+                s,
+                "     {:<40} {:>9.3} {:<11} 95 % [{:.3}, {:.3}]",
+                p.name,
+                p.value,
+                p.unit.suffix(),
+                lo,
+                hi
+            );
+        }
+        if let Some(t) = e.residual_vs_joint.iter().max_by(|a, b| {
+            let (ab, aa) = a.spread();
+            let (bb, ba) = b.spread();
+            (ab - aa).total_cmp(&(bb - ba))
+        }) {
+            let f = |v: &[f64]| {
+                v.iter()
+                    .map(|x| format!("{x:.2}"))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            };
+            let _ = writeln!(
+                s,
+                "     residual vs robot {} q{} (quartiles at {} deg): rms/σ {} → {}",
+                t.robot,
+                t.joint,
+                f(&t.q_deg),
+                f(&t.rms_over_sigma_before),
+                f(&t.rms_over_sigma_after)
+            );
+        }
+    }
+    if let Some(st) = &r.stopped_at {
+        let _ = writeln!(
+            s,
+            "Stopped: best remaining candidate {} changes the held-out χ² by {:.1} % (t = {:.1}): not significant",
+            st.family,
+            100.0 * st.relative_gain,
+            st.gain_t
+        );
+    }
+    table(&mut s, "Final model:", &r.final_residuals);
+    let _ = writeln!(
+        s,
+        "Final fit: {}; posterior σ × variance factor {:.2}",
+        r.final_fit_stopped, r.variance_factor
+    );
+    s
+}
