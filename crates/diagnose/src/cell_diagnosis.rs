@@ -338,6 +338,7 @@ pub fn diagnosis_problem(
                 None if max_tau > 0.0 && offset > 0.0 => Some(offset / max_tau),
                 None => None,
             },
+            periodic_rad: t.periodic_rad.map(|s| s * w),
         };
     }
     Ok(problem)
