@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 use kinematics::{true_base_from_tip, KinematicErrors};
 use sim_cell::{export_calibrated_cell, Cell, ExportNames};
 
-use data::{locate_dataset, read_dataset, Role};
+use data::{locate_dataset, read_dataset, Recording, Role};
 use study::{
     build_problem, corrections, fit, residuals, score_recording, summarise, ModelSpec, NoiseLevels,
     ParamSet,
@@ -46,6 +46,21 @@ fn dataset() -> Option<PathBuf> {
     d
 }
 
+/// The dataset's recordings and the shipped CTU cell; `None` (with the printed reason) when the
+/// data folder is absent.
+fn dataset_and_cell() -> Option<(Vec<Recording>, Cell)> {
+    let recs = read_dataset(&dataset()?).unwrap();
+    let cell = Cell::from_toml_file(&repo().join("cells/ctu-motoman.toml")).unwrap();
+    Some((recs, cell))
+}
+
+/// The no-tracker self-contact recordings.
+fn self_contact(recs: &[Recording]) -> Vec<&Recording> {
+    recs.iter()
+        .filter(|r| r.role == Role::SelfContact)
+        .collect()
+}
+
 /// Noise levels of the study's nominal fit (the example measures them; fixed here for speed).
 fn noise() -> NoiseLevels {
     NoiseLevels {
@@ -59,13 +74,10 @@ fn noise() -> NoiseLevels {
 
 #[test]
 fn self_contact_calibration_exports_a_cell_that_reproduces_the_fit() {
-    let Some(dir) = dataset() else { return };
-    let recs = read_dataset(&dir).unwrap();
-    let cell = Cell::from_toml_file(&repo().join("cells/ctu-motoman.toml")).unwrap();
-    let self_recs: Vec<_> = recs
-        .iter()
-        .filter(|r| r.role == Role::SelfContact)
-        .collect();
+    let Some((recs, cell)) = dataset_and_cell() else {
+        return;
+    };
+    let self_recs = self_contact(&recs);
     assert_eq!(self_recs.len(), 4);
     let spec = ModelSpec {
         set: ParamSet::OffsetsLengths,
@@ -149,9 +161,9 @@ fn self_contact_calibration_exports_a_cell_that_reproduces_the_fit() {
 
 #[test]
 fn honest_score_reproduces_the_independent_nominal_figure_on_the_right_grid() {
-    let Some(dir) = dataset() else { return };
-    let recs = read_dataset(&dir).unwrap();
-    let cell = Cell::from_toml_file(&repo().join("cells/ctu-motoman.toml")).unwrap();
+    let Some((recs, cell)) = dataset_and_cell() else {
+        return;
+    };
     let grid = recs
         .iter()
         .find(|r| r.name == "leica_right_hand_6x6x6")
@@ -234,13 +246,10 @@ const RING_POLAR_MIN_RAD: f64 = 58.0 * std::f64::consts::PI / 180.0;
 
 #[test]
 fn face_pairs_are_eight_in_the_self_files_and_one_in_leica_self() {
-    let Some(dir) = dataset() else { return };
-    let recs = read_dataset(&dir).unwrap();
-    let cell = Cell::from_toml_file(&repo().join("cells/ctu-motoman.toml")).unwrap();
-    let self_recs: Vec<_> = recs
-        .iter()
-        .filter(|r| r.role == Role::SelfContact)
-        .collect();
+    let Some((recs, cell)) = dataset_and_cell() else {
+        return;
+    };
+    let self_recs = self_contact(&recs);
     let leica: Vec<_> = recs
         .iter()
         .filter(|r| r.role == Role::TrackerSelfContact)
@@ -287,9 +296,9 @@ const PROXY_SELF_TOL_M: f64 = 1e-9;
 
 #[test]
 fn proxy_set_is_seeded_within_limits_and_scores_a_model_against_itself_to_zero() {
-    let Some(dir) = dataset() else { return };
-    let recs = read_dataset(&dir).unwrap();
-    let cell = Cell::from_toml_file(&repo().join("cells/ctu-motoman.toml")).unwrap();
+    let Some((recs, cell)) = dataset_and_cell() else {
+        return;
+    };
     let (joints, draws) = proxy::proxy_joints(&cell, &recs).unwrap();
     assert_eq!(joints.len(), proxy::PROXY_POSES);
     assert!(draws >= joints.len());
@@ -315,13 +324,10 @@ fn proxy_set_is_seeded_within_limits_and_scores_a_model_against_itself_to_zero()
 
 #[test]
 fn marker_centre_fit_lowers_the_contact_residual() {
-    let Some(dir) = dataset() else { return };
-    let recs = read_dataset(&dir).unwrap();
-    let cell = Cell::from_toml_file(&repo().join("cells/ctu-motoman.toml")).unwrap();
-    let self_recs: Vec<_> = recs
-        .iter()
-        .filter(|r| r.role == Role::SelfContact)
-        .collect();
+    let Some((recs, cell)) = dataset_and_cell() else {
+        return;
+    };
+    let self_recs = self_contact(&recs);
     let contact_rms = |spec: Option<ModelSpec>| {
         let b = build_problem(&cell, &self_recs, spec, &noise());
         let f = fit(&b, None, None).unwrap();

@@ -67,15 +67,7 @@ pub fn per_file_svg(path: &Path, series: &[(String, Vec<f64>)]) -> anyhow::Resul
             .label(name.clone())
             .legend(move |(x, y)| Circle::new((x + 8, y), 5, c.filled()));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(|x| e(&x))?;
-    root.present().map_err(|x| e(&x))?;
-    Ok(())
+    legend_and_present(&mut chart, &root, path)
 }
 
 /// Six panels (joints S..T): held-out error (mm) of every right-arm tracker pose against the
@@ -212,6 +204,20 @@ pub fn contact_pairs_svg(path: &Path, rows: &[PairRow], models: &[&str]) -> anyh
             .label(name.to_string())
             .legend(move |(x, y)| Circle::new((x + 8, y), 5, c.filled()));
     }
+    legend_and_present(&mut chart, &root, path)
+}
+
+/// Draws the series legend (upper right) and writes the SVG file at `path` (named in errors).
+fn legend_and_present<'a, X, Y>(
+    chart: &mut ChartContext<'a, SVGBackend<'a>, Cartesian2d<X, Y>>,
+    root: &DrawingArea<SVGBackend<'a>, plotters::coord::Shift>,
+    path: &Path,
+) -> anyhow::Result<()>
+where
+    X: Ranged,
+    Y: Ranged,
+{
+    let e = |e: &dyn std::fmt::Display| anyhow!("{}: {e}", path.display());
     chart
         .configure_series_labels()
         .position(SeriesLabelPosition::UpperRight)
