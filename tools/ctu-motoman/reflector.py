@@ -9,7 +9,7 @@ prior of 10 / 3 / 1 mm around the nominal; each file scored by protocol a of stu
 leaving it (and its twin run) out.
 
 Run:  python3 tools/ctu-motoman/reflector.py --data /work/shared/data/ctu-motoman [--cv]
-(about 1 s; --cv about 5 min on the shared 2-core machine). Units in code m/rad, printed mm/mrad.
+(about 1 s; --cv about 10 min on the shared 2-core machine). Units in code m/rad, printed mm/mrad.
 """
 import argparse
 import os
