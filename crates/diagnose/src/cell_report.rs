@@ -142,13 +142,14 @@ pub struct KindGain {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum ParamUnit {
-    /// Millimetres (positions, tip offsets, contact distances).
+    /// Millimetres (positions, tip offsets, contact distances, a tracker's drift over its
+    /// whole recording).
     Mm,
-    /// Milliradians (joint offsets, origin angles).
+    /// Milliradians (joint offsets, origin angles, joint-periodic amplitudes).
     Mrad,
     /// Microradians per newton-metre (compliance).
     UradPerNm,
-    /// Parts per million (joint scale).
+    /// Parts per million (joint scale, tracker scale).
     Ppm,
 }
 
@@ -175,7 +176,10 @@ impl ParamUnit {
     pub fn of(p: &CellParam) -> ParamUnit {
         match p {
             CellParam::Kinematic { param, .. } => match param {
-                ErrorParam::JointOffset { .. } | ErrorParam::OriginRpy { .. } => ParamUnit::Mrad,
+                ErrorParam::JointOffset { .. }
+                | ErrorParam::OriginRpy { .. }
+                | ErrorParam::PeriodicSin { .. }
+                | ErrorParam::PeriodicCos { .. } => ParamUnit::Mrad,
                 ErrorParam::Compliance { .. } => ParamUnit::UradPerNm,
                 ErrorParam::JointScale { .. } => ParamUnit::Ppm,
                 _ => ParamUnit::Mm,
@@ -183,6 +187,7 @@ impl ParamUnit {
             CellParam::PlacementRotation { .. }
             | CellParam::TrackerRotation { .. }
             | CellParam::PlaneNormal { .. } => ParamUnit::Mrad,
+            CellParam::TrackerScale { .. } => ParamUnit::Ppm,
             _ => ParamUnit::Mm,
         }
     }
