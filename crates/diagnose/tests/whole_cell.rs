@@ -1,7 +1,8 @@
 //! Hidden-effect tests of the whole-cell diagnosis (`diagnose::diagnose_cell_session`) on mixed
 //! sessions simulated by `sim_cell::generate_kind_session` (coincident, contact, tracker and plane
 //! rows in turn) on the shipped floor–wall cell: one hidden effect must be the only family named,
-//! with its true value inside the reported 95 % interval; a noise-only session names nothing.
+//! with its true value inside the reported 95 % interval (joint offsets, a tool tip, a
+//! joint-periodic error, a tracker scale, a tracker drift); a noise-only session names nothing.
 //!
 //! The simulated session has one group per kind; like real sessions (one tracker frame or
 //! plane per recorded file) the rows of each kind are spread over [`GROUPS_PER_KIND`] groups in
@@ -271,4 +272,28 @@ fn noise_only_sessions_of_many_tracker_rows_name_nothing() {
             diagnose::render_cell_text(&r)
         );
     }
+}
+
+#[test]
+fn hidden_joint_periodic_error_of_robot_1_is_the_one_effect_named_and_covered() {
+    // A first harmonic of 2 mrad·sin(q2) on robot 1's shoulder joint (an error of the joint
+    // offset's size that no constant offset holds: q2 spans both signs over the teach cube).
+    let truth_mrad = 2.0;
+    let mut truth = Cell::default_floor_wall();
+    truth
+        .robot1
+        .errors
+        .set(ErrorParam::PeriodicSin { joint: 1 }, truth_mrad * 1e-3);
+    let r = diagnose(&truth, 1);
+    assert_eq!(
+        named(&r),
+        ["robot 1 joint-periodic errors"],
+        "{}",
+        diagnose::render_cell_text(&r)
+    );
+    let (v, [lo, hi]) = param(&r, "robot 1 periodic_sin joint 2");
+    assert!(
+        lo <= truth_mrad && truth_mrad <= hi,
+        "{v} mrad, 95 % [{lo}, {hi}] misses {truth_mrad}"
+    );
 }
