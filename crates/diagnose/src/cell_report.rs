@@ -43,6 +43,10 @@ pub struct CellDiagnoseReport {
     pub effects: Vec<CellEffectReport>,
     /// The best candidate that was not accepted (why the selection stopped), if any.
     pub stopped_at: Option<StepSummary>,
+    /// Held-out χ² of every candidate tried at the step that stopped the selection (empty when
+    /// it stopped for want of candidates or steps); compare with `stopped_at`'s
+    /// `held_out_chi2_before`.
+    pub stopped_candidates_held_out_chi2: Vec<(String, f64)>,
     /// The final model: residual per kind against its stated σ.
     pub final_residuals: Vec<KindResidual>,
     /// `max(1, sqrt(χ²/(rows − unknowns)))` of the final fit; it multiplies every posterior σ.
@@ -456,6 +460,11 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
             .last()
             .filter(|s| !s.accepted)
             .map(|s| summary(&s.family.name, &s.before, &s.after, s.t)),
+        stopped_candidates_held_out_chi2: d
+            .steps
+            .last()
+            .filter(|s| !s.accepted)
+            .map_or_else(Vec::new, |s| s.tried.clone()),
         final_residuals: kind_residuals(&fit_rows(&d.final_fit), final_held, &d.noise_scale),
         variance_factor: vf,
         final_fit_stopped: format!("{} after {} iterations", ff.stopped.name(), ff.iterations),
