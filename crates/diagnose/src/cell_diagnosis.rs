@@ -19,7 +19,8 @@
 //!    model's reach and would make every row a blunder and let one kind outweigh the rest).
 //!    The report gives the residuals against the stated σ and `s_k`.
 //! 3. **Screen.** The blunder screen of the whole-cell fit ([`fit_screened`]) with every family
-//!    free; rejected rows are left out of everything after.
+//!    free (in a session too small for them, less the tracker drifts and scales:
+//!    [`ScreenOptions::min_redundancy`]); rejected rows are left out of everything after.
 //! 4. **Baseline.** Nominal kinematics with the nuisances fitted (tracker frames, planes, fitted
 //!    contact distances, the placement); the residual rms of each kind against its stated σ.
 //! 5. **Selection.** Candidates are [`Family`] entries (a robot's joint offsets, origin
@@ -939,6 +940,27 @@ fn cell_error(e: CellFitError) -> DiagnoseError {
     }
 }
 
+/// The model "every family free" of the noise level and the blunder screen: every candidate,
+/// less the tracker drifts and then the tracker scales (unpenalised, 3 and 1 unknowns per
+/// tracker group) while the unpenalised unknowns plus the screen's
+/// [`ScreenOptions::min_redundancy`] exceed the session's residual rows (a small session).
+fn every_family_free(problem: &CellProblem, candidates: &[Family]) -> Vec<Family> {
+    let rows: usize = problem.observations.iter().map(|o| o.kind.rows()).sum();
+    let needed = ScreenOptions::default().min_redundancy;
+    let mut free = candidates.to_vec();
+    for kind in [FamilyKind::TrackerDrift, FamilyKind::TrackerScale] {
+        let layout = model_layout(&model_problem(problem, &free), &free);
+        let unpenalised = (0..layout.len())
+            .filter(|&j| layout.prior_sigma(j) == 0.0)
+            .count();
+        if unpenalised + needed <= rows {
+            break;
+        }
+        free.retain(|f| f.kind != kind);
+    }
+    free
+}
+
 fn run(
     cell: &Cell,
     problem: CellProblem,
@@ -956,13 +978,14 @@ fn run(
         solve,
         ..options.clone()
     };
+    let free = every_family_free(&problem, &candidates);
     progress("noise level per kind (every family free)");
-    let noise_scale = noise_scales(&problem, &candidates, &all, options, x0)?;
+    let noise_scale = noise_scales(&problem, &free, &all, options, x0)?;
     let problem = scaled_noise(&problem, &noise_scale);
     let (used, rejected) = if options.screen_blunders {
         progress("screening blunders (every family free)");
-        let p = model_problem(&problem, &candidates);
-        let layout = model_layout(&p, &candidates);
+        let p = model_problem(&problem, &free);
+        let layout = model_layout(&p, &free);
         let screened = fit_screened(&p, Some(layout), &options.solve, &ScreenOptions::default())?;
         (screened.fit.active.clone(), screened.rejected)
     } else {
