@@ -9,19 +9,25 @@
 //!    beyond the stated tolerances, so the prior only regularises what the data cannot see), and
 //!    joint compliance added where the URDF has inertials: its tolerance is the (widened) joint
 //!    offset tolerance divided by the largest gravity torque of the session's postures, so a
-//!    compliance at its tolerance turns a joint by at most one offset tolerance.
+//!    compliance at its tolerance turns a joint by at most one offset tolerance; and
+//!    joint-angle-periodic errors where the cell states no `periodic_rad`: each of the `sin`
+//!    and `cos` amplitudes gets the (widened) joint offset tolerance, so a first harmonic at its
+//!    tolerance is an angle error of the joint offset's size (×√2 at most).
 //! 2. **Noise level.** Every family free, all rows: per kind, the robust scale of the whitened
 //!    residuals `s_k = max(1, 1.4826·median|w|)`; each row's σ is multiplied by its kind's
 //!    `s_k` for everything after (a laser tracker's logged σ of a few µm is far below any
 //!    model's reach and would make every row a blunder and let one kind outweigh the rest).
 //!    The report gives the residuals against the stated σ and `s_k`.
 //! 3. **Screen.** The blunder screen of the whole-cell fit ([`fit_screened`]) with every family
-//!    free; rejected rows are left out of everything after.
+//!    free (in a session too small for them, less the tracker drifts and scales:
+//!    [`ScreenOptions::min_redundancy`]); rejected rows are left out of everything after.
 //! 4. **Baseline.** Nominal kinematics with the nuisances fitted (tracker frames, planes, fitted
 //!    contact distances, the placement); the residual rms of each kind against its stated σ.
 //! 5. **Selection.** Candidates are [`Family`] entries (a robot's joint offsets, origin
-//!    positions, origin angles, compliance, each tool's tip; the contact distances of groups
-//!    that state one). Each step fits every remaining candidate added to the current model in
+//!    positions, origin angles, compliance, joint-periodic errors, each tool's tip; the contact
+//!    distances of groups that state one; the tracker scales and the tracker drifts, one
+//!    unpenalised scale or drift per tracker group, switched on like the contact distances).
+//!    Each step fits every remaining candidate added to the current model in
 //!    K folds and keeps, of those accepted (below), the one of lowest held-out χ²; it stops
 //!    when none is accepted. **Folds** hold out whole units: each
 //!    named group (tracker file, plane, contact group) is a unit, the coincident rows are cut
@@ -31,7 +37,8 @@
 //!    3 units (one tracker file),
 //!    each unit is cut into up to 4 contiguous blocks (recording order) of at least
 //!    [`MIN_GROUP_BLOCK_ROWS`] rows instead. **Held-out score** of a unit: its own nuisance
-//!    (tracker frame, plane, fitted contact distance) is unknown to the training fit, so it is
+//!    (tracker frame, and its scale and drift when those families are in the model; plane;
+//!    fitted contact distance) is unknown to the training fit, so it is
 //!    fitted on one half of the unit's rows (alternate rows) with the training kinematics and
 //!    placement held, and the other half is scored, then the halves swap: every scored residual
 //!    is predicted by parameters that did not see it. Units without a nuisance (coincident,
@@ -50,7 +57,8 @@
 //!    stated σ get honest intervals); the held-out rms per kind before and after the step; the
 //!    whitened residual rms against each joint (quartile bins) before and after.
 //!
-//! SI inside; [`crate::cell_report`] speaks mm, mrad and degrees.
+//! SI inside; [`crate::cell_report`] speaks mm, mrad, ppm and degrees (a tracker scale in ppm,
+//! a drift in mm over the group's whole recording, a periodic amplitude in mrad).
 
 use calib_core::whole_cell::{
     fit_cell_with, fit_screened, initial_estimate, CellEstimate, CellFit, CellFitError, CellParam,
@@ -140,12 +148,22 @@ pub enum FamilyKind {
     },
     /// The distances of the contact groups that state one (fitted instead of held).
     ContactDistance,
+    /// Joint-angle-periodic errors of the robot: the first harmonic (`sin q`, `cos q`
+    /// amplitudes) of every joint ([`ErrorParam::PeriodicSin`], [`ErrorParam::PeriodicCos`]).
+    JointPeriodic,
+    /// One scale error per tracker group of the session (unpenalised, like the tracker frame;
+    /// [`calib_core::whole_cell::TrackerGroup::fit_scale`]).
+    TrackerScale,
+    /// One linear drift of the tracker-frame translation over the recording order per tracker
+    /// group (unpenalised; [`calib_core::whole_cell::TrackerGroup::fit_drift`]).
+    TrackerDrift,
 }
 
 /// A candidate family: a kind of parameter on one robot (or the cell's contact groups).
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct Family {
-    /// The robot (1 or 2); `None` for [`FamilyKind::ContactDistance`].
+    /// The robot (1 or 2); `None` for the session-wide families ([`FamilyKind::ContactDistance`],
+    /// [`FamilyKind::TrackerScale`], [`FamilyKind::TrackerDrift`]).
     pub robot: Option<u8>,
     /// The kind.
     #[serde(flatten)]
@@ -166,6 +184,9 @@ impl Family {
                 format!("tool `{}` tip", problem.robot(r).tools[tool].name)
             }
             FamilyKind::ContactDistance => "contact distances".to_string(),
+            FamilyKind::JointPeriodic => "joint-periodic errors".to_string(),
+            FamilyKind::TrackerScale => "tracker scales".to_string(),
+            FamilyKind::TrackerDrift => "tracker drifts".to_string(),
         };
         let name = match robot {
             Some(r) => format!("{r} {what}"),
@@ -183,10 +204,14 @@ impl Family {
     }
 
     /// Whether an observation of this kind uses the family's parameters directly: its robot
-    /// (and tool, for a tip), or, for the contact distances, a contact row.
+    /// (and tool, for a tip), or, for the contact distances, a contact row, or, for the
+    /// tracker scales and drifts, a tracker row.
     pub fn involves(&self, kind: &ObservationKind) -> bool {
         match self.kind {
             FamilyKind::ContactDistance => matches!(kind, ObservationKind::Contact { .. }),
+            FamilyKind::TrackerScale | FamilyKind::TrackerDrift => {
+                matches!(kind, ObservationKind::Tracker { .. })
+            }
             FamilyKind::ToolTip { tool } => tools_of(kind)
                 .iter()
                 .any(|(r, t)| self.robot_is(*r) && *t == tool),
@@ -197,7 +222,9 @@ impl Family {
     /// Whether the unknown `p` belongs to this family.
     pub fn contains(&self, p: &CellParam) -> bool {
         match (self.kind, p) {
-            (FamilyKind::ContactDistance, CellParam::ContactDistance { .. }) => true,
+            (FamilyKind::ContactDistance, CellParam::ContactDistance { .. })
+            | (FamilyKind::TrackerScale, CellParam::TrackerScale { .. })
+            | (FamilyKind::TrackerDrift, CellParam::TrackerDrift { .. }) => true,
             (FamilyKind::ToolTip { tool }, CellParam::ToolTip { robot, tool: t, .. }) => {
                 self.robot_is(*robot) && *t == tool
             }
@@ -209,6 +236,10 @@ impl Family {
                             | (FamilyKind::OriginXyz, ErrorParam::OriginXyz { .. })
                             | (FamilyKind::OriginRpy, ErrorParam::OriginRpy { .. })
                             | (FamilyKind::Compliance, ErrorParam::Compliance { .. })
+                            | (
+                                FamilyKind::JointPeriodic,
+                                ErrorParam::PeriodicSin { .. } | ErrorParam::PeriodicCos { .. }
+                            )
                     )
             }
             _ => false,
@@ -218,7 +249,8 @@ impl Family {
 
 /// The candidate families of `problem` (the widened diagnosis problem): per robot, each
 /// family whose tolerance is > 0 (tool tips only for tools the session uses), then the contact
-/// distances when a contact group states its distance.
+/// distances when a contact group states its distance, then the tracker scales and drifts when
+/// the session has a tracker group.
 pub fn candidate_families(problem: &CellProblem) -> Vec<Family> {
     let mut out = Vec::new();
     for r in [Robot::One, Robot::Two] {
@@ -231,6 +263,10 @@ pub fn candidate_families(problem: &CellProblem) -> Vec<Family> {
             (
                 FamilyKind::Compliance,
                 tol.compliance_rad_per_nm.unwrap_or(0.0) > 0.0,
+            ),
+            (
+                FamilyKind::JointPeriodic,
+                tol.periodic_rad.unwrap_or(0.0) > 0.0,
             ),
         ];
         let used = |o: &&calib_core::whole_cell::Observation| uses_robot(&o.kind, r);
@@ -256,6 +292,10 @@ pub fn candidate_families(problem: &CellProblem) -> Vec<Family> {
     }
     if problem.contacts.iter().any(|c| !c.fit_distance) {
         out.push(Family::new(None, FamilyKind::ContactDistance, problem));
+    }
+    if !problem.trackers.is_empty() {
+        out.push(Family::new(None, FamilyKind::TrackerScale, problem));
+        out.push(Family::new(None, FamilyKind::TrackerDrift, problem));
     }
     out
 }
@@ -338,7 +378,11 @@ pub fn diagnosis_problem(
                 None if max_tau > 0.0 && offset > 0.0 => Some(offset / max_tau),
                 None => None,
             },
-            periodic_rad: t.periodic_rad.map(|s| s * w),
+            periodic_rad: match t.periodic_rad {
+                Some(p) => Some(p * w),
+                None if offset > 0.0 => Some(offset),
+                None => None,
+            },
         };
     }
     Ok(problem)
@@ -369,13 +413,20 @@ fn max_gravity_torque(problem: &CellProblem, r: Robot) -> Result<f64, DiagnoseEr
 }
 
 /// The problem of a model: with [`FamilyKind::ContactDistance`] selected, every contact
-/// group's distance is fitted.
+/// group's distance is fitted; with [`FamilyKind::TrackerScale`] (or
+/// [`FamilyKind::TrackerDrift`]) every tracker group's scale (drift).
 fn model_problem(problem: &CellProblem, model: &[Family]) -> CellProblem {
     let mut p = problem.clone();
-    if model.iter().any(|f| f.kind == FamilyKind::ContactDistance) {
+    let has = |k: FamilyKind| model.iter().any(|f| f.kind == k);
+    if has(FamilyKind::ContactDistance) {
         for c in &mut p.contacts {
             c.fit_distance = true;
         }
+    }
+    let (scale, drift) = (has(FamilyKind::TrackerScale), has(FamilyKind::TrackerDrift));
+    for t in &mut p.trackers {
+        t.fit_scale |= scale;
+        t.fit_drift |= drift;
     }
     p
 }
@@ -889,6 +940,27 @@ fn cell_error(e: CellFitError) -> DiagnoseError {
     }
 }
 
+/// The model "every family free" of the noise level and the blunder screen: every candidate,
+/// less the tracker drifts and then the tracker scales (unpenalised, 3 and 1 unknowns per
+/// tracker group) while the unpenalised unknowns plus the screen's
+/// [`ScreenOptions::min_redundancy`] exceed the session's residual rows (a small session).
+fn every_family_free(problem: &CellProblem, candidates: &[Family]) -> Vec<Family> {
+    let rows: usize = problem.observations.iter().map(|o| o.kind.rows()).sum();
+    let needed = ScreenOptions::default().min_redundancy;
+    let mut free = candidates.to_vec();
+    for kind in [FamilyKind::TrackerDrift, FamilyKind::TrackerScale] {
+        let layout = model_layout(&model_problem(problem, &free), &free);
+        let unpenalised = (0..layout.len())
+            .filter(|&j| layout.prior_sigma(j) == 0.0)
+            .count();
+        if unpenalised + needed <= rows {
+            break;
+        }
+        free.retain(|f| f.kind != kind);
+    }
+    free
+}
+
 fn run(
     cell: &Cell,
     problem: CellProblem,
@@ -906,13 +978,14 @@ fn run(
         solve,
         ..options.clone()
     };
+    let free = every_family_free(&problem, &candidates);
     progress("noise level per kind (every family free)");
-    let noise_scale = noise_scales(&problem, &candidates, &all, options, x0)?;
+    let noise_scale = noise_scales(&problem, &free, &all, options, x0)?;
     let problem = scaled_noise(&problem, &noise_scale);
     let (used, rejected) = if options.screen_blunders {
         progress("screening blunders (every family free)");
-        let p = model_problem(&problem, &candidates);
-        let layout = model_layout(&p, &candidates);
+        let p = model_problem(&problem, &free);
+        let layout = model_layout(&p, &free);
         let screened = fit_screened(&p, Some(layout), &options.solve, &ScreenOptions::default())?;
         (screened.fit.active.clone(), screened.rejected)
     } else {

@@ -43,6 +43,10 @@ pub struct CellDiagnoseReport {
     pub effects: Vec<CellEffectReport>,
     /// The best candidate that was not accepted (why the selection stopped), if any.
     pub stopped_at: Option<StepSummary>,
+    /// Held-out χ² of every candidate tried at the step that stopped the selection (empty when
+    /// it stopped for want of candidates or steps); compare with `stopped_at`'s
+    /// `held_out_chi2_before`.
+    pub stopped_candidates_held_out_chi2: Vec<(String, f64)>,
     /// The final model: residual per kind against its stated σ.
     pub final_residuals: Vec<KindResidual>,
     /// `max(1, sqrt(χ²/(rows − unknowns)))` of the final fit; it multiplies every posterior σ.
@@ -142,13 +146,14 @@ pub struct KindGain {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum ParamUnit {
-    /// Millimetres (positions, tip offsets, contact distances).
+    /// Millimetres (positions, tip offsets, contact distances, a tracker's drift over its
+    /// whole recording).
     Mm,
-    /// Milliradians (joint offsets, origin angles).
+    /// Milliradians (joint offsets, origin angles, joint-periodic amplitudes).
     Mrad,
     /// Microradians per newton-metre (compliance).
     UradPerNm,
-    /// Parts per million (joint scale).
+    /// Parts per million (joint scale, tracker scale).
     Ppm,
 }
 
@@ -175,7 +180,10 @@ impl ParamUnit {
     pub fn of(p: &CellParam) -> ParamUnit {
         match p {
             CellParam::Kinematic { param, .. } => match param {
-                ErrorParam::JointOffset { .. } | ErrorParam::OriginRpy { .. } => ParamUnit::Mrad,
+                ErrorParam::JointOffset { .. }
+                | ErrorParam::OriginRpy { .. }
+                | ErrorParam::PeriodicSin { .. }
+                | ErrorParam::PeriodicCos { .. } => ParamUnit::Mrad,
                 ErrorParam::Compliance { .. } => ParamUnit::UradPerNm,
                 ErrorParam::JointScale { .. } => ParamUnit::Ppm,
                 _ => ParamUnit::Mm,
@@ -183,6 +191,7 @@ impl ParamUnit {
             CellParam::PlacementRotation { .. }
             | CellParam::TrackerRotation { .. }
             | CellParam::PlaneNormal { .. } => ParamUnit::Mrad,
+            CellParam::TrackerScale { .. } => ParamUnit::Ppm,
             _ => ParamUnit::Mm,
         }
     }
@@ -451,6 +460,11 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
             .last()
             .filter(|s| !s.accepted)
             .map(|s| summary(&s.family.name, &s.before, &s.after, s.t)),
+        stopped_candidates_held_out_chi2: d
+            .steps
+            .last()
+            .filter(|s| !s.accepted)
+            .map_or_else(Vec::new, |s| s.tried.clone()),
         final_residuals: kind_residuals(&fit_rows(&d.final_fit), final_held, &d.noise_scale),
         variance_factor: vf,
         final_fit_stopped: format!("{} after {} iterations", ff.stopped.name(), ff.iterations),
