@@ -3,7 +3,7 @@
 use serde_json::Value;
 use std::io::Write;
 
-use crate::support::{handclasp, json_ok};
+use crate::support::{floats, handclasp, json_ok};
 
 /// Zero-noise recovery through the CSV (mm printed with 6 decimals): 1e-3 mm / 1e-6° is round-off.
 const XYZ_TOL_MM: f64 = 1e-3;
@@ -58,18 +58,8 @@ fn floor_floor_csv(extra_error_row: Option<(usize, f64)>) -> tempfile::NamedTemp
 
 fn check_truth(v: &Value) {
     let b = &v["b1_from_b2"];
-    let xyz: Vec<f64> = b["xyz_mm"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect();
-    let zyz: Vec<f64> = b["zyz_deg"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect();
+    let xyz: Vec<f64> = floats(&b["xyz_mm"]);
+    let zyz: Vec<f64> = floats(&b["zyz_deg"]);
     for (a, e) in xyz.iter().zip([37.9, 1476.5, 54.5]) {
         assert!((a - e).abs() < XYZ_TOL_MM, "{} xyz {xyz:?}", v["method"]);
     }

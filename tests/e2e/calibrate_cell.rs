@@ -195,16 +195,12 @@ fn kinematic_model_beats_placement_and_exports_verified_urdfs() {
     // session's tip columns are the old models' and fail its consistency check by design).
     let s2 = random_session(&cal_k, 12, 9);
     let s2_path = write_session_csv(dir.path(), "session_on_calibrated.csv", &s2, &cal_k);
-    let out = handclasp(&[
+    let out = handclasp(&cell_session_args(
         "diagnose",
-        "--cell",
-        out_k.join("cell.toml").to_str().unwrap(),
-        "--session",
-        s2_path.to_str().unwrap(),
-        "--trials",
-        "20",
-        "--json",
-    ]);
+        &out_k.join("cell.toml"),
+        &s2_path,
+        &["--trials", "20", "--json"],
+    ));
     assert_success(&out);
 
     // Cooperative accuracy against the truth, over 400 held-out configuration pairs.

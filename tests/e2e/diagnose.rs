@@ -58,6 +58,14 @@ fn diagnose_args(session: &Path, extra: &[&str]) -> Vec<String> {
     cell_session_args("diagnose", &cell_path(), session, extra)
 }
 
+/// The 95 % interval `[lo, hi]` of a JSON `effects` entry, in its `unit`.
+fn ci95(effect: &serde_json::Value) -> (f64, f64) {
+    (
+        effect["ci95"][0].as_f64().unwrap(),
+        effect["ci95"][1].as_f64().unwrap(),
+    )
+}
+
 #[test]
 fn diagnose_names_a_hidden_joint_offset_in_json() {
     let dir = tempfile::tempdir().unwrap();
@@ -69,10 +77,7 @@ fn diagnose_names_a_hidden_joint_offset_in_json() {
         .unwrap_or_else(|| panic!("joint 3 offset of robot 2 not named: {v}"));
     assert_eq!(hit["unit"], "deg");
     assert!(hit["axis"].is_null());
-    let (lo, hi) = (
-        hit["ci95"][0].as_f64().unwrap(),
-        hit["ci95"][1].as_f64().unwrap(),
-    );
+    let (lo, hi) = ci95(hit);
     assert!(lo <= 0.2 && 0.2 <= hi, "0.2° not in [{lo}, {hi}]");
     for key in [
         "rms_before_mm",
@@ -113,10 +118,7 @@ fn diagnose_names_a_hidden_mount_tilt_in_json() {
         .unwrap_or_else(|| panic!("robot 1's y tilt not named: {v}"));
     assert_eq!(hit["unit"], "deg");
     assert!(hit["joint"].is_null());
-    let (lo, hi) = (
-        hit["ci95"][0].as_f64().unwrap(),
-        hit["ci95"][1].as_f64().unwrap(),
-    );
+    let (lo, hi) = ci95(hit);
     assert!(
         lo <= tilt_deg && tilt_deg <= hi,
         "{tilt_deg}° not in [{lo}, {hi}]"
@@ -162,15 +164,12 @@ fn diagnose_text_and_export() {
     let cell2 = std::fs::read_to_string(export.join("cell_corrected.toml")).unwrap();
     assert!(cell2.contains("robot2_corrected.urdf") && cell2.contains("zyz_deg"));
     // The exported cell is valid input: diagnosing the same session with it finds nothing.
-    let out = handclasp(&[
+    let out = handclasp(&cell_session_args(
         "diagnose",
-        "--cell",
-        export.join("cell_corrected.toml").to_str().unwrap(),
-        "--session",
-        session.to_str().unwrap(),
-        "--trials",
-        "50",
-    ]);
+        &export.join("cell_corrected.toml"),
+        &session,
+        &["--trials", "50"],
+    ));
     // The session's tip columns were computed with the old nominal model, so the corrected cell
     // must reject them as inconsistent (it would otherwise silently mix two models).
     assert!(!out.status.success());

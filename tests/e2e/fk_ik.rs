@@ -6,7 +6,7 @@ use kinematics::{base_from_tip, RobotModel};
 use nalgebra::Vector3;
 use serde_json::Value;
 
-use crate::support::{handclasp, json_ok, stderr_of_failure};
+use crate::support::{floats, handclasp, json_ok, stderr_of_failure};
 
 const HP20: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../robots/hp20.urdf");
 const VA1400: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../robots/va1400.urdf");
@@ -16,14 +16,6 @@ const EXACT_MM: f64 = 1e-9;
 const ROUND_TRIP_MM: f64 = 1e-6;
 /// Angle round-off, deg.
 const EXACT_DEG: f64 = 1e-9;
-
-fn floats(v: &Value) -> Vec<f64> {
-    v.as_array()
-        .expect("array")
-        .iter()
-        .map(|x| x.as_f64().expect("number"))
-        .collect()
-}
 
 #[test]
 fn fk_zero_pose_hp20_is_hand_computed() {

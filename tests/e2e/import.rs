@@ -4,7 +4,7 @@
 //! session. Skipped, with the reason printed, when the data folder is absent.
 
 use crate::support::{
-    cell_session_args, ctu_data_or_skip, ctu_import, handclasp, shipped_cell, stdout_json,
+    cell_session_args, ctu_data_or_skip, ctu_import, floats, handclasp, shipped_cell, stdout_json,
 };
 
 #[test]
@@ -82,12 +82,7 @@ fn ctu_maps_import_and_self_contact_calibrates() {
         let x = x.as_f64().unwrap();
         assert!(x.abs() < 0.01, "b1_from_b2 xyz_mm[{k}] = {x} mm, σ 0.01 mm");
     }
-    let q: Vec<f64> = b["quaternion_wxyz"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
+    let q: Vec<f64> = floats(&b["quaternion_wxyz"]);
     let angle_rad = 2.0
         * (q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
             .sqrt()

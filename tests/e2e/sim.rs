@@ -6,7 +6,7 @@ use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use serde_json::Value;
 use sim_cell::{Cell, Layout};
 
-use crate::support::{json_ok, simulate, workspace, write_session_csv};
+use crate::support::{floats, json_ok, simulate, workspace, write_session_csv};
 
 /// Zero-noise recovery through the CSV (6 decimals of mm and degrees): round-off, mm and degrees.
 const ZERO_NOISE_XYZ_TOL_MM: f64 = 1e-3;
@@ -33,18 +33,8 @@ fn calibrate_all(csv: &std::path::Path, mounts: &str) -> Value {
 /// (largest translation difference, mm; geodesic angle, degrees) between the truth and a fit.
 fn errors(v: &Value, cell: &Cell) -> (f64, f64) {
     let b = &v["b1_from_b2"];
-    let xyz: Vec<f64> = b["xyz_mm"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect();
-    let q: Vec<f64> = b["quaternion_wxyz"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect();
+    let xyz: Vec<f64> = floats(&b["xyz_mm"]);
+    let q: Vec<f64> = floats(&b["quaternion_wxyz"]);
     let est = UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]));
     let t = cell.b1_from_b2.translation.vector * 1e3;
     let dt = (Vector3::new(xyz[0], xyz[1], xyz[2]) - t).amax();

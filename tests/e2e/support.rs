@@ -85,6 +85,16 @@ pub fn json_ok<S: AsRef<OsStr> + Debug>(args: &[S]) -> Value {
     serde_json::from_slice(&out.stdout).expect("stdout is one JSON object")
 }
 
+/// The JSON array `v` as numbers (e.g. `b1_from_b2.xyz_mm`); panics when `v` is not an array of
+/// numbers.
+pub fn floats(v: &Value) -> Vec<f64> {
+    v.as_array()
+        .expect("array")
+        .iter()
+        .map(|x| x.as_f64().expect("number"))
+        .collect()
+}
+
 /// Runs `handclasp` with `args`, requires it to fail (else panics naming the arguments) and
 /// returns its stderr (lossy UTF-8).
 pub fn stderr_of_failure<S: AsRef<OsStr> + Debug>(args: &[S]) -> String {
