@@ -2,15 +2,12 @@
 
 use serde_json::Value;
 use std::io::Write;
-use std::process::Command;
+
+use crate::support::{floats, handclasp, json_ok};
 
 /// Zero-noise recovery through the CSV (mm printed with 6 decimals): 1e-3 mm / 1e-6° is round-off.
 const XYZ_TOL_MM: f64 = 1e-3;
 const ANGLE_TOL_DEG: f64 = 1e-5;
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_handclasp"))
-}
 
 /// Points of a floor–floor cell: b1_from_b2 = (37.9, 1476.5, 54.5) mm, Rz(−44.5°), written with the
 /// sim-cell session header (joint columns present and ignored).
@@ -59,30 +56,10 @@ fn floor_floor_csv(extra_error_row: Option<(usize, f64)>) -> tempfile::NamedTemp
     f
 }
 
-fn run_json(args: &[&str]) -> Value {
-    let out = bin().args(args).output().unwrap();
-    assert!(
-        out.status.success(),
-        "stderr: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).unwrap()
-}
-
 fn check_truth(v: &Value) {
     let b = &v["b1_from_b2"];
-    let xyz: Vec<f64> = b["xyz_mm"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect();
-    let zyz: Vec<f64> = b["zyz_deg"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect();
+    let xyz: Vec<f64> = floats(&b["xyz_mm"]);
+    let zyz: Vec<f64> = floats(&b["zyz_deg"]);
     for (a, e) in xyz.iter().zip([37.9, 1476.5, 54.5]) {
         assert!((a - e).abs() < XYZ_TOL_MM, "{} xyz {xyz:?}", v["method"]);
     }
@@ -102,7 +79,7 @@ fn calibrate_single_method_json_recovers_truth() {
     let f = floor_floor_csv(None);
     let path = f.path().to_str().unwrap();
     for method in ["generic", "paper", "lsq", "constrained"] {
-        let v = run_json(&[
+        let v = json_ok(&[
             "calibrate",
             path,
             "--mounts",
@@ -116,13 +93,13 @@ fn calibrate_single_method_json_recovers_truth() {
         assert_eq!(v["residuals_mm"].as_array().unwrap().len(), 6);
     }
     // Default with mounts: constrained, with uncertainty; without mounts: lsq.
-    let v = run_json(&["calibrate", path, "--mounts", "floor-floor", "--json"]);
+    let v = json_ok(&["calibrate", path, "--mounts", "floor-floor", "--json"]);
     assert_eq!(v["method"], "constrained");
     assert!(v["uncertainty"]["e_tran_1sigma_mm"].as_f64().unwrap() < 1e-3);
-    let v = run_json(&["calibrate", path, "--json"]);
+    let v = json_ok(&["calibrate", path, "--json"]);
     assert_eq!(v["method"], "lsq");
     // Tilted mounts given explicitly (floor = tilt:0,0).
-    let v = run_json(&[
+    let v = json_ok(&[
         "calibrate",
         path,
         "--mount1",
@@ -137,7 +114,7 @@ fn calibrate_single_method_json_recovers_truth() {
 #[test]
 fn calibrate_all_methods_json() {
     let f = floor_floor_csv(None);
-    let v = run_json(&[
+    let v = json_ok(&[
         "calibrate",
         f.path().to_str().unwrap(),
         "--mounts",
@@ -154,15 +131,12 @@ fn calibrate_all_methods_json() {
 #[test]
 fn calibrate_text_output_and_outlier_row() {
     let f = floor_floor_csv(Some((3, 25.0)));
-    let out = bin()
-        .args([
-            "calibrate",
-            f.path().to_str().unwrap(),
-            "--mounts",
-            "floor-floor",
-        ])
-        .output()
-        .unwrap();
+    let out = handclasp(&[
+        "calibrate",
+        f.path().to_str().unwrap(),
+        "--mounts",
+        "floor-floor",
+    ]);
     assert!(out.status.success());
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(
@@ -173,7 +147,7 @@ fn calibrate_text_output_and_outlier_row() {
     );
     // The 4th data row is file line 5.
     assert!(text.contains("rows [5]"), "{text}");
-    let v = run_json(&[
+    let v = json_ok(&[
         "calibrate",
         f.path().to_str().unwrap(),
         "--mounts",
@@ -184,7 +158,7 @@ fn calibrate_text_output_and_outlier_row() {
 }
 
 fn run_err(args: &[&str]) -> String {
-    let out = bin().args(args).output().unwrap();
+    let out = handclasp(args);
     assert!(!out.status.success(), "expected failure for {args:?}");
     assert!(!String::from_utf8_lossy(&out.stderr).contains("panicked"));
     String::from_utf8(out.stderr).unwrap()
@@ -299,7 +273,7 @@ fn calibrate_soft_mount_estimates_tilt() {
     }
     f.flush().unwrap();
     let path = f.path().to_str().unwrap();
-    let v = run_json(&[
+    let v = json_ok(&[
         "calibrate",
         path,
         "--mounts",
@@ -311,7 +285,7 @@ fn calibrate_soft_mount_estimates_tilt() {
     let est = v["soft_mount"]["tilt_estimate_deg"].as_f64().unwrap();
     // 1e-6 mm printing of the inputs: the tilt comes back to well under 1e-3°.
     assert!((est - 0.4).abs() < 1e-3, "{est}");
-    let hard = run_json(&["calibrate", path, "--mounts", "floor-floor", "--json"]);
+    let hard = json_ok(&["calibrate", path, "--mounts", "floor-floor", "--json"]);
     assert!(hard["residual_rms_mm"].as_f64().unwrap() > 1.0);
     assert!(v["residual_rms_mm"].as_f64().unwrap() < 1e-3);
 }
@@ -323,7 +297,7 @@ fn calibrate_warns_when_the_points_contradict_the_mounts() {
     // with no warning at all.
     let f = floor_floor_csv(None);
     let path = f.path().to_str().unwrap();
-    let v = run_json(&[
+    let v = json_ok(&[
         "calibrate",
         path,
         "--mount1",
@@ -338,24 +312,21 @@ fn calibrate_warns_when_the_points_contradict_the_mounts() {
     assert_eq!(c["consistent"], false, "{c}");
     // The least-squares member of the family is not the geodesically nearest one: about 94° here.
     assert!(c["rotation_gap_deg"].as_f64().unwrap() > 60.0, "{c}");
-    let out = bin()
-        .args([
-            "calibrate",
-            path,
-            "--mount1",
-            "floor",
-            "--mount2",
-            "tilt:0,-90",
-        ])
-        .output()
-        .unwrap();
+    let out = handclasp(&[
+        "calibrate",
+        path,
+        "--mount1",
+        "floor",
+        "--mount2",
+        "tilt:0,-90",
+    ]);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
         text.contains("WARNING: the points disagree with the mounts") && text.contains("--mount2"),
         "{text}"
     );
     // The right mounts: consistent, and the text says so.
-    let v = run_json(&["calibrate", path, "--mounts", "floor-floor", "--json"]);
+    let v = json_ok(&["calibrate", path, "--mounts", "floor-floor", "--json"]);
     assert_eq!(v["mount_check"]["consistent"], true, "{v}");
 }
 
@@ -381,10 +352,7 @@ fn calibrate_huge_coords() {
     let err = run_err(&["calibrate", path]);
     assert!(err.contains("far beyond the alignment noise"), "{err}");
     for method in ["lsq", "generic", "generic-affine", "all"] {
-        let out = bin()
-            .args(["calibrate", path, "--method", method, "--force"])
-            .output()
-            .unwrap();
+        let out = handclasp(&["calibrate", path, "--method", method, "--force"]);
         let stdout = String::from_utf8_lossy(&out.stdout);
         assert!(
             out.status.success(),
@@ -396,7 +364,7 @@ fn calibrate_huge_coords() {
             "{stdout}"
         );
     }
-    let v = run_json(&["calibrate", path, "--method", "lsq", "--json", "--force"]);
+    let v = json_ok(&["calibrate", path, "--method", "lsq", "--json", "--force"]);
     let zyz = v["b1_from_b2"]["zyz_deg"].as_array().unwrap();
     let yaw = zyz[0].as_f64().unwrap() + zyz[2].as_f64().unwrap();
     assert!((yaw - 2f64.to_degrees()).abs() < 1e-4, "{v}");
@@ -461,18 +429,15 @@ fn calibrate_shifted_rows_and_swapped_axes_fail_with_the_cause() {
             assert!(err.contains(cause), "{extra:?}: {err}");
             assert!(err.contains("worst rows: row "), "{err}");
             args.push("--force");
-            let out = bin().args(&args).output().unwrap();
+            let out = handclasp(&args);
             assert!(out.status.success());
             assert!(String::from_utf8_lossy(&out.stderr).contains("kept by --force"));
             assert!(String::from_utf8_lossy(&out.stdout).contains("b1_from_b2:"));
         }
-        let out = bin()
-            .args(["calibrate", path, "--expected-noise-mm", "5000"])
-            .output()
-            .unwrap();
+        let out = handclasp(&["calibrate", path, "--expected-noise-mm", "5000"]);
         assert!(out.status.success());
     }
-    let v = run_json(&["calibrate", good.path().to_str().unwrap(), "--json"]);
+    let v = json_ok(&["calibrate", good.path().to_str().unwrap(), "--json"]);
     assert!(v["residual_rms_mm"].as_f64().unwrap() < 1e-3, "{v}");
     let err = run_err(&[
         "calibrate",

@@ -4,13 +4,17 @@
 //! `sim-cell session` does (`generate_session` + `write_csv`).
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use calib_core::Robot;
 use kinematics::{base_from_tip, true_base_from_tip, KinematicErrors, PATCH_TOLERANCE_M};
 use nalgebra::{Point3, Vector3};
 use serde_json::Value;
-use sim_cell::{generate_session, trial_rng, Cell, Layout, Session, SessionSpec};
+use sim_cell::{Cell, Session};
+
+use crate::support::{
+    assert_success, cell_session_args, handclasp, random_session, shipped_cell, stdout_json,
+    workspace, write_session_csv,
+};
 
 /// splitmix64: the seeded draws of the true errors (the test needs no `rand` dependency).
 struct SplitMix(u64);
@@ -40,12 +44,10 @@ const ORIGIN_MM: f64 = 0.5;
 /// The shipped floor–floor cell with seeded true errors on every joint of both robots, written to
 /// `dir/cell.toml` (URDF paths absolute to the workspace's robots/).
 fn write_cell(dir: &Path, seed: u64) -> PathBuf {
-    let robots = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../robots/");
-    let mut text = std::fs::read_to_string(
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../cells/floor-floor.toml"),
-    )
-    .unwrap()
-    .replace("../robots/", &format!("{}/", robots.display()));
+    let robots = workspace("robots/");
+    let mut text = std::fs::read_to_string(shipped_cell("floor-floor"))
+        .unwrap()
+        .replace("../robots/", &format!("{}/", robots.display()));
     let mut rng = SplitMix(seed);
     for (r, dof) in DOF.iter().enumerate() {
         let offsets: Vec<String> = (0..*dof)
@@ -71,42 +73,13 @@ fn write_cell(dir: &Path, seed: u64) -> PathBuf {
     path
 }
 
-/// A simulated session of `n` random-layout points (0.8 m cube around the teach centre).
-fn session(cell: &Cell, n: usize, seed: u64) -> Session {
-    let spec = SessionSpec::new(n, Layout::Random, 0.8);
-    generate_session(cell, &spec, &mut trial_rng(seed, 0)).expect("session")
-}
-
-fn handclasp(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_handclasp"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
 fn calibrate_json(cell: &Path, session: &Path, model: &str, export: Option<&Path>) -> Value {
-    let mut args = vec![
-        "calibrate".to_string(),
-        "--cell".into(),
-        cell.display().to_string(),
-        "--session".into(),
-        session.display().to_string(),
-        "--model".into(),
-        model.into(),
-        "--json".into(),
-    ];
+    let mut args = cell_session_args("calibrate", cell, session, &["--model", model, "--json"]);
     if let Some(dir) = export {
         args.push("--export".into());
         args.push(dir.display().to_string());
     }
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    let out = handclasp(&args);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("one JSON object")
+    stdout_json(&handclasp(&args))
 }
 
 /// Tip of robot `r` of `cell` at reported joints `q` in its base frame, with the cell's errors.
@@ -173,10 +146,9 @@ fn kinematic_model_beats_placement_and_exports_verified_urdfs() {
     let dir = tempfile::tempdir().unwrap();
     let cell_path = write_cell(dir.path(), 11);
     let truth = Cell::from_toml_file(&cell_path).unwrap();
-    let s = session(&truth, 30, 3);
-    let session_path = dir.path().join("session.csv");
-    s.write_csv(&session_path, &truth).unwrap();
-    let held_out = session(&truth, 20, 1003);
+    let s = random_session(&truth, 30, 3);
+    let session_path = write_session_csv(dir.path(), "session.csv", &s, &truth);
+    let held_out = random_session(&truth, 20, 1003);
 
     let out_k = dir.path().join("kinematic");
     let out_p = dir.path().join("placement");
@@ -221,24 +193,15 @@ fn kinematic_model_beats_placement_and_exports_verified_urdfs() {
 
     // `handclasp diagnose` takes the exported cell (with a session recorded on it: the old
     // session's tip columns are the old models' and fail its consistency check by design).
-    let s2 = session(&cal_k, 12, 9);
-    let s2_path = dir.path().join("session_on_calibrated.csv");
-    s2.write_csv(&s2_path, &cal_k).unwrap();
-    let out = handclasp(&[
+    let s2 = random_session(&cal_k, 12, 9);
+    let s2_path = write_session_csv(dir.path(), "session_on_calibrated.csv", &s2, &cal_k);
+    let out = handclasp(&cell_session_args(
         "diagnose",
-        "--cell",
-        out_k.join("cell.toml").to_str().unwrap(),
-        "--session",
-        s2_path.to_str().unwrap(),
-        "--trials",
-        "20",
-        "--json",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+        &out_k.join("cell.toml"),
+        &s2_path,
+        &["--trials", "20", "--json"],
+    ));
+    assert_success(&out);
 
     // Cooperative accuracy against the truth, over 400 held-out configuration pairs.
     let rms_k = cooperative_rms_mm(&cal_k, &truth, &held_out);
@@ -305,13 +268,12 @@ fn three_blunders_are_named_in_json_and_text() {
     let dir = tempfile::tempdir().unwrap();
     let cell_path = write_cell(dir.path(), 12);
     let truth = Cell::from_toml_file(&cell_path).unwrap();
-    let mut s = session(&truth, 30, 5);
+    let mut s = random_session(&truth, 30, 5);
     let bad = [(4usize, 5.0), (11, 7.5), (19, 10.0)];
     for (i, mm) in bad {
         add_blunder(&truth, &mut s, i, mm);
     }
-    let session_path = dir.path().join("session.csv");
-    s.write_csv(&session_path, &truth).unwrap();
+    let session_path = write_session_csv(dir.path(), "session.csv", &s, &truth);
     let v = calibrate_json(&cell_path, &session_path, "kinematic", None);
     let mut rows: Vec<u64> = v["rejected_points"]
         .as_array()
@@ -325,13 +287,12 @@ fn three_blunders_are_named_in_json_and_text() {
     for r in v["rejected_points"].as_array().unwrap() {
         assert!(r["size_sigma"].as_f64().unwrap() > 5.0, "{r}");
     }
-    let out = handclasp(&[
+    let out = handclasp(&cell_session_args(
         "calibrate",
-        "--cell",
-        cell_path.to_str().unwrap(),
-        "--session",
-        session_path.to_str().unwrap(),
-    ]);
+        &cell_path,
+        &session_path,
+        &[],
+    ));
     assert!(out.status.success());
     let text = String::from_utf8_lossy(&out.stdout);
     for row in &want {
@@ -346,9 +307,8 @@ fn placement_prior_sigma_is_reported_beside_the_posterior() {
     let dir = tempfile::tempdir().unwrap();
     let free_path = write_cell(dir.path(), 14);
     let truth = Cell::from_toml_file(&free_path).unwrap();
-    let s = session(&truth, 12, 6);
-    let session_path = dir.path().join("session.csv");
-    s.write_csv(&session_path, &truth).unwrap();
+    let s = random_session(&truth, 12, 6);
+    let session_path = write_session_csv(dir.path(), "session.csv", &s, &truth);
     let text = std::fs::read_to_string(&free_path).unwrap();
     assert!(text.contains("[b1_from_b2]"));
     let known_path = dir.path().join("known.toml");
@@ -381,15 +341,12 @@ fn placement_prior_sigma_is_reported_beside_the_posterior() {
                 }
             }
         }
-        let out = handclasp(&[
+        let out = handclasp(&cell_session_args(
             "calibrate",
-            "--cell",
-            cell.to_str().unwrap(),
-            "--session",
-            session_path.to_str().unwrap(),
-            "--model",
-            "placement",
-        ]);
+            cell,
+            &session_path,
+            &["--model", "placement"],
+        ));
         assert!(out.status.success());
         let text = String::from_utf8_lossy(&out.stdout);
         let line = text
@@ -426,13 +383,7 @@ fn cell_mode_errors_name_the_fix() {
     let cell_path = write_cell(dir.path(), 13);
     let bad = dir.path().join("bad.csv");
     std::fs::write(&bad, "point,r1_x_mm\n1,0\n").unwrap();
-    let out = handclasp(&[
-        "calibrate",
-        "--cell",
-        cell_path.to_str().unwrap(),
-        "--session",
-        bad.to_str().unwrap(),
-    ]);
+    let out = handclasp(&cell_session_args("calibrate", &cell_path, &bad, &[]));
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(

@@ -2,14 +2,18 @@
 //! cells with a hidden effect, written as CSV, diagnosed by the binary as a user would run it.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use kinematics::ErrorParam;
-use sim_cell::{generate_session, trial_rng, Cell, Layout, SessionSpec};
+use sim_cell::{trial_rng, Cell, Layout, SessionSpec};
+
+use crate::support::{
+    assert_success, cell_session_args, ctu_data_or_skip, ctu_import, handclasp, random_session,
+    shipped_cell, stdout_json, write_session_csv,
+};
 
 /// The shipped floor–floor cell file (nominal: no errors).
 fn cell_path() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../cells/floor-floor.toml")
+    shipped_cell("floor-floor")
 }
 
 /// A session of `n` points on the shipped floor–floor cell with `param` of robot `robot` set to
@@ -30,11 +34,8 @@ fn write_hidden(
         &mut truth.robot2.errors
     };
     errors.set(param, value);
-    let spec = SessionSpec::new(n, Layout::Random, 0.8);
-    let s = generate_session(&truth, &spec, &mut trial_rng(seed, 0)).expect("session");
-    let path = dir.join(format!("session_{seed}.csv"));
-    s.write_csv(&path, &cell).expect("write session");
-    path
+    let s = random_session(&truth, n, seed);
+    write_session_csv(dir, &format!("session_{seed}.csv"), &s, &cell)
 }
 
 /// A session of `n` points with robot 2's joint-3 offset = `offset_deg` hidden.
@@ -46,30 +47,23 @@ fn write_session(dir: &Path, offset_deg: f64, n: usize, seed: u64) -> PathBuf {
 /// `handclasp diagnose --json` on the floor–floor cell and `session` (100 Monte Carlo trials); it
 /// must succeed and print one JSON object.
 fn diagnose_json(session: &Path) -> serde_json::Value {
-    let cell = cell_path();
-    let out = handclasp(&[
-        "diagnose",
-        "--cell",
-        cell.to_str().unwrap(),
-        "--session",
-        session.to_str().unwrap(),
-        "--json",
-        "--trials",
-        "100",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("one JSON object")
+    stdout_json(&handclasp(&diagnose_args(
+        session,
+        &["--json", "--trials", "100"],
+    )))
 }
 
-fn handclasp(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_handclasp"))
-        .args(args)
-        .output()
-        .expect("runs handclasp")
+/// `diagnose --cell <floor–floor> --session <session>` followed by `extra`.
+fn diagnose_args(session: &Path, extra: &[&str]) -> Vec<String> {
+    cell_session_args("diagnose", &cell_path(), session, extra)
+}
+
+/// The 95 % interval `[lo, hi]` of a JSON `effects` entry, in its `unit`.
+fn ci95(effect: &serde_json::Value) -> (f64, f64) {
+    (
+        effect["ci95"][0].as_f64().unwrap(),
+        effect["ci95"][1].as_f64().unwrap(),
+    )
 }
 
 #[test]
@@ -83,10 +77,7 @@ fn diagnose_names_a_hidden_joint_offset_in_json() {
         .unwrap_or_else(|| panic!("joint 3 offset of robot 2 not named: {v}"));
     assert_eq!(hit["unit"], "deg");
     assert!(hit["axis"].is_null());
-    let (lo, hi) = (
-        hit["ci95"][0].as_f64().unwrap(),
-        hit["ci95"][1].as_f64().unwrap(),
-    );
+    let (lo, hi) = ci95(hit);
     assert!(lo <= 0.2 && 0.2 <= hi, "0.2° not in [{lo}, {hi}]");
     for key in [
         "rms_before_mm",
@@ -127,10 +118,7 @@ fn diagnose_names_a_hidden_mount_tilt_in_json() {
         .unwrap_or_else(|| panic!("robot 1's y tilt not named: {v}"));
     assert_eq!(hit["unit"], "deg");
     assert!(hit["joint"].is_null());
-    let (lo, hi) = (
-        hit["ci95"][0].as_f64().unwrap(),
-        hit["ci95"][1].as_f64().unwrap(),
-    );
+    let (lo, hi) = ci95(hit);
     assert!(
         lo <= tilt_deg && tilt_deg <= hi,
         "{tilt_deg}° not in [{lo}, {hi}]"
@@ -141,22 +129,9 @@ fn diagnose_names_a_hidden_mount_tilt_in_json() {
 #[test]
 fn diagnose_noise_only_session_is_clean_in_text() {
     let dir = tempfile::tempdir().unwrap();
-    let cell = cell_path();
     let session = write_session(dir.path(), 0.0, 40, 14);
-    let out = handclasp(&[
-        "diagnose",
-        "--cell",
-        cell.to_str().unwrap(),
-        "--session",
-        session.to_str().unwrap(),
-        "--trials",
-        "50",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = handclasp(&diagnose_args(&session, &["--trials", "50"]));
+    assert_success(&out);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("no significant effect"), "{text}");
     assert!(text.contains("confounded with the base frame"), "{text}");
@@ -165,29 +140,22 @@ fn diagnose_noise_only_session_is_clean_in_text() {
 #[test]
 fn diagnose_text_and_export() {
     let dir = tempfile::tempdir().unwrap();
-    let cell = cell_path();
     let session = write_session(dir.path(), 0.2, 40, 12);
     let export = dir.path().join("corrected");
-    let out = handclasp(&[
-        "diagnose",
-        "--cell",
-        cell.to_str().unwrap(),
-        "--session",
-        session.to_str().unwrap(),
-        "--export",
-        export.to_str().unwrap(),
-        "--trials",
-        "50",
-        "--truth-xyz-mm",
-        "37.9,1476.5,54.5",
-        "--truth-zyz-deg",
-        "-0.001,0.001,-44.5",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = handclasp(&diagnose_args(
+        &session,
+        &[
+            "--export",
+            export.to_str().unwrap(),
+            "--trials",
+            "50",
+            "--truth-xyz-mm",
+            "37.9,1476.5,54.5",
+            "--truth-zyz-deg",
+            "-0.001,0.001,-44.5",
+        ],
+    ));
+    assert_success(&out);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("joint_offset robot 2 joint 3"), "{text}");
     assert!(text.contains("against the truth"), "{text}");
@@ -196,15 +164,12 @@ fn diagnose_text_and_export() {
     let cell2 = std::fs::read_to_string(export.join("cell_corrected.toml")).unwrap();
     assert!(cell2.contains("robot2_corrected.urdf") && cell2.contains("zyz_deg"));
     // The exported cell is valid input: diagnosing the same session with it finds nothing.
-    let out = handclasp(&[
+    let out = handclasp(&cell_session_args(
         "diagnose",
-        "--cell",
-        export.join("cell_corrected.toml").to_str().unwrap(),
-        "--session",
-        session.to_str().unwrap(),
-        "--trials",
-        "50",
-    ]);
+        &export.join("cell_corrected.toml"),
+        &session,
+        &["--trials", "50"],
+    ));
     // The session's tip columns were computed with the old nominal model, so the corrected cell
     // must reject them as inconsistent (it would otherwise silently mix two models).
     assert!(!out.status.success());
@@ -218,73 +183,52 @@ fn diagnose_text_and_export() {
 #[test]
 fn diagnose_rejects_bad_sessions_with_the_fix() {
     let dir = tempfile::tempdir().unwrap();
-    let cell = cell_path();
     let session = write_session(dir.path(), 0.0, 40, 13);
+    // `diagnose` on the floor–floor cell and `bad`: refused; its stderr.
+    let refused = |bad: &Path| {
+        let out = handclasp(&diagnose_args(bad, &[]));
+        assert!(!out.status.success());
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
     let text = std::fs::read_to_string(&session).unwrap();
-    let mut lines = text.lines();
-    let header = lines.next().unwrap();
+    let header = text.lines().next().unwrap();
     let n_q = header.split(',').filter(|h| h.ends_with("_deg")).count();
+    // The session with the data fields of the columns `i` where `pick(i)` replaced by
+    // `scale(value)`, written as `dir/name`.
+    let rescaled = |name: &str, pick: &dyn Fn(usize) -> bool, scale: fn(f64) -> f64| {
+        let rows: Vec<String> = text
+            .lines()
+            .skip(1)
+            .map(|l| {
+                l.split(',')
+                    .enumerate()
+                    .map(|(i, f)| {
+                        if pick(i) {
+                            format!("{}", scale(f.parse::<f64>().unwrap()))
+                        } else {
+                            f.to_string()
+                        }
+                    })
+                    .collect::<Vec<_>>()
+                    .join(",")
+            })
+            .collect();
+        let path = dir.path().join(name);
+        std::fs::write(&path, format!("{header}\n{}\n", rows.join("\n"))).unwrap();
+        path
+    };
     // Joint angles written in radians under *_deg headers.
-    let rad: Vec<String> = lines
-        .clone()
-        .map(|l| {
-            l.split(',')
-                .enumerate()
-                .map(|(i, f)| {
-                    if (1..=n_q).contains(&i) {
-                        format!("{}", f.parse::<f64>().unwrap().to_radians())
-                    } else {
-                        f.to_string()
-                    }
-                })
-                .collect::<Vec<_>>()
-                .join(",")
-        })
-        .collect();
-    let bad = dir.path().join("radians.csv");
-    std::fs::write(&bad, format!("{header}\n{}\n", rad.join("\n"))).unwrap();
-    let out = handclasp(&[
-        "diagnose",
-        "--cell",
-        cell.to_str().unwrap(),
-        "--session",
-        bad.to_str().unwrap(),
-    ]);
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = refused(&rescaled(
+        "radians.csv",
+        &|i| (1..=n_q).contains(&i),
+        f64::to_radians,
+    ));
     assert!(
         err.contains("radians") && err.contains("radians.csv"),
         "{err}"
     );
     // Tips written in metres under *_mm headers.
-    let metres: Vec<String> = text
-        .lines()
-        .skip(1)
-        .map(|l| {
-            l.split(',')
-                .enumerate()
-                .map(|(i, f)| {
-                    if i > n_q {
-                        format!("{}", f.parse::<f64>().unwrap() / 1000.0)
-                    } else {
-                        f.to_string()
-                    }
-                })
-                .collect::<Vec<_>>()
-                .join(",")
-        })
-        .collect();
-    let bad = dir.path().join("metres.csv");
-    std::fs::write(&bad, format!("{header}\n{}\n", metres.join("\n"))).unwrap();
-    let out = handclasp(&[
-        "diagnose",
-        "--cell",
-        cell.to_str().unwrap(),
-        "--session",
-        bad.to_str().unwrap(),
-    ]);
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = refused(&rescaled("metres.csv", &|i| i > n_q, |mm| mm / 1000.0));
     assert!(
         err.contains("metres") && err.contains("millimetres"),
         "{err}"
@@ -293,15 +237,7 @@ fn diagnose_rejects_bad_sessions_with_the_fix() {
     let few = dir.path().join("few.csv");
     let first: Vec<&str> = text.lines().take(4).collect();
     std::fs::write(&few, first.join("\n") + "\n").unwrap();
-    let out = handclasp(&[
-        "diagnose",
-        "--cell",
-        cell.to_str().unwrap(),
-        "--session",
-        few.to_str().unwrap(),
-    ]);
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = refused(&few);
     assert!(err.contains("at least"), "{err}");
     // A joint column missing: the joint counts do not match the URDFs.
     let cut: Vec<String> = text
@@ -317,24 +253,8 @@ fn diagnose_rejects_bad_sessions_with_the_fix() {
         .collect();
     let short = dir.path().join("short.csv");
     std::fs::write(&short, cut.join("\n") + "\n").unwrap();
-    let out = handclasp(&[
-        "diagnose",
-        "--cell",
-        cell.to_str().unwrap(),
-        "--session",
-        short.to_str().unwrap(),
-    ]);
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = refused(&short);
     assert!(err.contains("joints"), "{err}");
-}
-
-/// The CTU dataset folder (`$CTU_MOTOMAN_DATA` or `/work/shared/data/ctu-motoman`), if present.
-fn ctu_data() -> Option<PathBuf> {
-    let dir = std::env::var_os("CTU_MOTOMAN_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from("/work/shared/data/ctu-motoman"));
-    dir.join("README.md").is_file().then_some(dir)
 }
 
 /// The value and 95 % interval (mm) of the parameter `name` of the effect `family`, if named.
@@ -357,57 +277,29 @@ fn effect_param_mm(
 
 #[test]
 fn diagnose_ctu_self_contact_names_the_marker_tip_geometry() {
-    let Some(data) = ctu_data() else {
-        eprintln!(
-            "skipped: /work/shared/data/ctu-motoman (or $CTU_MOTOMAN_DATA) is absent; the CTU dataset is not in the repository"
-        );
+    let Some(data) = ctu_data_or_skip() else {
         return;
     };
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let cell = root.join("cells/ctu-motoman.toml");
+    let cell = shipped_cell("ctu-motoman");
     let dir = tempfile::tempdir().unwrap();
     let session = dir.path().join("self.csv");
-    let mut args: Vec<String> = vec![
-        "import".into(),
-        "--cell".into(),
-        cell.display().to_string(),
-        "--map".into(),
-        root.join("tools/ctu-motoman/maps/self_contact.toml")
-            .display()
-            .to_string(),
-        "--out".into(),
-        session.display().to_string(),
-    ];
-    for f in [
-        "no_leica_self_lower1_4x4_dataset.csv",
-        "no_leica_self_lower2_4x4_dataset.csv",
-        "no_leica_self_upper1_4x4_dataset.csv",
-        "no_leica_self_upper2_4x4_dataset.csv",
-    ] {
-        args.push("--input".into());
-        args.push(data.join(f).display().to_string());
-    }
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    let out = handclasp(&args);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    ctu_import(
+        &data,
+        "self_contact.toml",
+        &[
+            "no_leica_self_lower1_4x4_dataset.csv",
+            "no_leica_self_lower2_4x4_dataset.csv",
+            "no_leica_self_upper1_4x4_dataset.csv",
+            "no_leica_self_upper2_4x4_dataset.csv",
+        ],
+        &session,
     );
-    let out = handclasp(&[
+    let r = stdout_json(&handclasp(&cell_session_args(
         "diagnose",
-        "--cell",
-        cell.to_str().unwrap(),
-        "--session",
-        session.to_str().unwrap(),
-        "--json",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+        &cell,
+        &session,
+        &["--json"],
+    )));
     assert_eq!(r["mode"], "whole_cell");
     assert_eq!(r["rows_by_kind"][0]["rows"], 502, "{}", r["rows_by_kind"]);
     // The end-effector geometry: both marker centres lie off the nominal tip laterally (tool0 x),
@@ -439,23 +331,8 @@ fn diagnose_mixed_session_runs_the_whole_cell_diagnosis() {
     };
     let (s, _) = sim_cell::generate_kind_session(&cell, &spec, &kinds, None, &mut trial_rng(4, 0))
         .expect("session");
-    let path = dir.path().join("mixed.csv");
-    s.write_csv(&path, &cell).expect("write session");
-    let cell_arg = cell_path();
-    let base = [
-        "diagnose",
-        "--cell",
-        cell_arg.to_str().unwrap(),
-        "--session",
-        path.to_str().unwrap(),
-    ];
-    let out = handclasp(&[&base[..], &["--json"]].concat());
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let r: serde_json::Value = serde_json::from_slice(&out.stdout).expect("one JSON object");
+    let path = write_session_csv(dir.path(), "mixed.csv", &s, &cell);
+    let r = stdout_json(&handclasp(&diagnose_args(&path, &["--json"])));
     assert_eq!(r["mode"], "whole_cell");
     let kinds: Vec<&str> = r["baseline"]
         .as_array()
@@ -464,7 +341,7 @@ fn diagnose_mixed_session_runs_the_whole_cell_diagnosis() {
         .map(|k| k["kind"].as_str().unwrap())
         .collect();
     assert_eq!(kinds, ["contact", "tracker", "plane", "coincident"]);
-    let text = handclasp(&base);
+    let text = handclasp(&diagnose_args(&path, &[]));
     let text = String::from_utf8_lossy(&text.stdout);
     assert!(text.contains("Whole-cell diagnosis: 36 rows"), "{text}");
     assert!(
@@ -472,13 +349,10 @@ fn diagnose_mixed_session_runs_the_whole_cell_diagnosis() {
         "{text}"
     );
     // Export and truth are the coincident path's: refused with the reason.
-    let out = handclasp(
-        &[
-            &base[..],
-            &["--export", dir.path().join("x").to_str().unwrap()],
-        ]
-        .concat(),
-    );
+    let out = handclasp(&diagnose_args(
+        &path,
+        &["--export", dir.path().join("x").to_str().unwrap()],
+    ));
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(

@@ -1,11 +1,12 @@
 //! End-to-end tests for `handclasp fk` and `handclasp ik`: the built binary, run as a user would.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
 use kinematics::{base_from_tip, RobotModel};
 use nalgebra::Vector3;
 use serde_json::Value;
+
+use crate::support::{floats, handclasp, json_ok, stderr_of_failure};
 
 const HP20: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../robots/hp20.urdf");
 const VA1400: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../robots/va1400.urdf");
@@ -15,37 +16,6 @@ const EXACT_MM: f64 = 1e-9;
 const ROUND_TRIP_MM: f64 = 1e-6;
 /// Angle round-off, deg.
 const EXACT_DEG: f64 = 1e-9;
-
-fn handclasp(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_handclasp"))
-        .args(args)
-        .output()
-        .expect("run handclasp")
-}
-
-fn json_ok(args: &[&str]) -> Value {
-    let out = handclasp(args);
-    assert!(
-        out.status.success(),
-        "handclasp {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("stdout is one JSON object")
-}
-
-fn floats(v: &Value) -> Vec<f64> {
-    v.as_array()
-        .expect("array")
-        .iter()
-        .map(|x| x.as_f64().expect("number"))
-        .collect()
-}
-
-fn err_text(args: &[&str]) -> String {
-    let out = handclasp(args);
-    assert!(!out.status.success(), "handclasp {args:?} should fail");
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
 
 #[test]
 fn fk_zero_pose_hp20_is_hand_computed() {
@@ -233,21 +203,21 @@ fn ik_unreachable_is_a_result_not_an_error() {
 
 #[test]
 fn bad_inputs_say_what_is_wrong_and_how_to_fix_it() {
-    let e = err_text(&["fk", "--robot", HP20, "--q-deg", "0,10,-20,0,30"]);
+    let e = stderr_of_failure(&["fk", "--robot", HP20, "--q-deg", "0,10,-20,0,30"]);
     assert!(
         e.contains("--q-deg has 5 values but hp20 has 6 joints"),
         "{e}"
     );
-    let e = err_text(&["fk", "--robot", HP20, "--q-deg", "0,10,-200,0,30,0"]);
+    let e = stderr_of_failure(&["fk", "--robot", HP20, "--q-deg", "0,10,-200,0,30,0"]);
     assert!(
         e.contains("joint_3_u") && e.contains("outside its limits"),
         "{e}"
     );
-    let e = err_text(&["fk", "--robot", HP20, "--q-deg", "0,ten,0,0,0,0"]);
+    let e = stderr_of_failure(&["fk", "--robot", HP20, "--q-deg", "0,ten,0,0,0,0"]);
     assert!(e.contains("value 2") && e.contains("not a number"), "{e}");
-    let e = err_text(&["fk", "--robot", HP20, "--q-deg", "0,NaN,0,0,0,0"]);
+    let e = stderr_of_failure(&["fk", "--robot", HP20, "--q-deg", "0,NaN,0,0,0,0"]);
     assert!(e.contains("not a finite number"), "{e}");
-    let e = err_text(&[
+    let e = stderr_of_failure(&[
         "fk",
         "--robot",
         HP20,
@@ -260,12 +230,12 @@ fn bad_inputs_say_what_is_wrong_and_how_to_fix_it() {
         e.contains("link `flange` not found") && e.contains("tool0"),
         "{e}"
     );
-    let e = err_text(&["fk", "--robot", "no/such/robot.urdf", "--q-deg", "0"]);
+    let e = stderr_of_failure(&["fk", "--robot", "no/such/robot.urdf", "--q-deg", "0"]);
     assert!(
         e.contains("no/such/robot.urdf") && e.contains("check the path"),
         "{e}"
     );
-    let e = err_text(&[
+    let e = stderr_of_failure(&[
         "fk",
         "--robot",
         HP20,
@@ -275,7 +245,7 @@ fn bad_inputs_say_what_is_wrong_and_how_to_fix_it() {
         "0,150",
     ]);
     assert!(e.contains("--tip-mm has 2 values"), "{e}");
-    let e = err_text(&[
+    let e = stderr_of_failure(&[
         "ik",
         "--robot",
         HP20,
@@ -285,9 +255,9 @@ fn bad_inputs_say_what_is_wrong_and_how_to_fix_it() {
         "0,0,0",
     ]);
     assert!(e.contains("--axis") && e.contains("zero vector"), "{e}");
-    let e = err_text(&["ik", "--robot", VA1400, "--xyz-mm", "1000,0"]);
+    let e = stderr_of_failure(&["ik", "--robot", VA1400, "--xyz-mm", "1000,0"]);
     assert!(e.contains("--xyz-mm has 2 values"), "{e}");
-    let e = err_text(&[
+    let e = stderr_of_failure(&[
         "ik",
         "--robot",
         VA1400,
@@ -303,7 +273,7 @@ fn bad_inputs_say_what_is_wrong_and_how_to_fix_it() {
     let dir = tempfile::tempdir().unwrap();
     let bad = dir.path().join("bad.urdf");
     std::fs::write(&bad, "<robot name=\"x\"><link").unwrap();
-    let e = err_text(&["fk", "--robot", bad.to_str().unwrap(), "--q-deg", "0"]);
+    let e = stderr_of_failure(&["fk", "--robot", bad.to_str().unwrap(), "--q-deg", "0"]);
     assert!(
         e.contains("bad.urdf") && e.contains("not a valid URDF"),
         "{e}"
@@ -564,7 +534,7 @@ fn fk_cell_q_csv_errors_name_line_and_column() {
 /// A tip offset written in metres (0,0,0.15) is refused naming the unit, in fk and ik.
 #[test]
 fn tip_mm_in_metres_is_refused() {
-    let e = err_text(&[
+    let e = stderr_of_failure(&[
         "fk",
         "--robot",
         HP20,
@@ -577,7 +547,7 @@ fn tip_mm_in_metres_is_refused() {
         e.contains("looks like metres") && e.contains("0,0,150"),
         "{e}"
     );
-    let e = err_text(&[
+    let e = stderr_of_failure(&[
         "ik",
         "--robot",
         HP20,

@@ -3,83 +3,37 @@
 //! `calibrate --cell cells/ctu-motoman.toml --model kinematic` on the imported self-contact
 //! session. Skipped, with the reason printed, when the data folder is absent.
 
-use std::path::PathBuf;
-use std::process::Command;
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn data_dir() -> Option<PathBuf> {
-    let dir = std::env::var_os("CTU_MOTOMAN_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from("/work/shared/data/ctu-motoman"));
-    dir.join("README.md").is_file().then_some(dir)
-}
-
-fn handclasp(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_handclasp"))
-        .args(args)
-        .output()
-        .expect("run handclasp")
-}
-
-/// Imports `files` with `map` and returns the output's text.
-fn import(map: &str, files: &[&str], out: &std::path::Path) -> String {
-    let data = data_dir().expect("checked by the caller");
-    let cell = root().join("cells/ctu-motoman.toml");
-    let map = root().join("tools/ctu-motoman/maps").join(map);
-    let mut args = vec![
-        "import".to_string(),
-        "--cell".into(),
-        cell.display().to_string(),
-        "--map".into(),
-        map.display().to_string(),
-        "--out".into(),
-        out.display().to_string(),
-    ];
-    for f in files {
-        args.push("--input".into());
-        args.push(data.join(f).display().to_string());
-    }
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    let o = handclasp(&args);
-    let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
-    assert!(
-        o.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    stdout
-}
+use crate::support::{
+    cell_session_args, ctu_data_or_skip, ctu_import, floats, handclasp, shipped_cell, stdout_json,
+};
 
 #[test]
 fn ctu_maps_import_and_self_contact_calibrates() {
-    let Some(_) = data_dir() else {
-        eprintln!(
-            "skipped: /work/shared/data/ctu-motoman (or $CTU_MOTOMAN_DATA) is absent; the CTU dataset is not in the repository"
-        );
+    let Some(data) = ctu_data_or_skip() else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
     // Tracker maps: rows without a tracker value are skipped and counted (README: 212 of 216
     // right-arm grid poses and 208 of 216 left-arm ones have one).
     let tr = dir.path().join("tracker_right.csv");
-    let text = import(
+    let text = ctu_import(
+        &data,
         "tracker_right.toml",
         &["leica_right_hand_6x6x6_dataset.csv"],
         &tr,
     );
     assert!(text.contains("212 tracker row(s), 4 skipped"), "{text}");
     let tl = dir.path().join("tracker_left.csv");
-    let text = import(
+    let text = ctu_import(
+        &data,
         "tracker_left.toml",
         &["leica_left_hand_6x6x6_dataset.csv"],
         &tl,
     );
     assert!(text.contains("208 tracker row(s), 8 skipped"), "{text}");
     let pl = dir.path().join("plane.csv");
-    let text = import(
+    let text = ctu_import(
+        &data,
         "plane_right.toml",
         &[
             "no_leica_wall_table1_5x5_dataset.csv",
@@ -93,7 +47,8 @@ fn ctu_maps_import_and_self_contact_calibrates() {
     // Self-contact (two 16-pose tracker-session files: the test stays quick in a debug build;
     // the 502 no-tracker poses import the same way).
     let sc = dir.path().join("self.csv");
-    let text = import(
+    let text = ctu_import(
+        &data,
         "self_contact.toml",
         &[
             "leica_self_lower1_4x4_dataset.csv",
@@ -102,19 +57,12 @@ fn ctu_maps_import_and_self_contact_calibrates() {
         &sc,
     );
     assert!(text.contains("wrote 32 rows"), "{text}");
-    let cell = root().join("cells/ctu-motoman.toml");
-    let o = handclasp(&[
+    let v = stdout_json(&handclasp(&cell_session_args(
         "calibrate",
-        "--cell",
-        &cell.display().to_string(),
-        "--session",
-        &sc.display().to_string(),
-        "--model",
-        "kinematic",
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        &shipped_cell("ctu-motoman"),
+        &sc,
+        &["--model", "kinematic", "--json"],
+    )));
     assert_eq!(v["rows_by_kind"]["contact"], 32);
     assert_eq!(v["groups"]["contact"].as_array().map(Vec::len), Some(2));
     // The cell's `[b1_from_b2]` prior (σ 0.01 mm, 0.001°: both arms on one base) holds the
@@ -134,12 +82,7 @@ fn ctu_maps_import_and_self_contact_calibrates() {
         let x = x.as_f64().unwrap();
         assert!(x.abs() < 0.01, "b1_from_b2 xyz_mm[{k}] = {x} mm, σ 0.01 mm");
     }
-    let q: Vec<f64> = b["quaternion_wxyz"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
+    let q: Vec<f64> = floats(&b["quaternion_wxyz"]);
     let angle_rad = 2.0
         * (q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
             .sqrt()

@@ -3,13 +3,11 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 
-use sim_cell::{generate_session, trial_rng, Cell, Layout, SessionSpec};
+use sim_cell::Cell;
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_handclasp"))
-}
+use crate::support::{handclasp_command, random_session, shipped_cell};
 
 /// `n` exact rigid point pairs (b1_from_b2 = Rz(30°), (1500, 200, 50) mm) as a points CSV with
 /// `sep` between fields, on a spiral so that no two points are duplicates.
@@ -54,7 +52,7 @@ fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
 fn semicolon_separated_points_calibrate() {
     let dir = tempfile::tempdir().unwrap();
     let json = |path: &Path| {
-        let out = bin()
+        let out = handclasp_command()
             .arg("calibrate")
             .arg(path)
             .args(["--method", "lsq", "--json"])
@@ -86,7 +84,7 @@ fn semicolon_separated_points_calibrate() {
 fn calibrate_piped_into_head() {
     let dir = tempfile::tempdir().unwrap();
     let path = write(dir.path(), "many.csv", &points_text(1500, ","));
-    let mut child = bin()
+    let mut child = handclasp_command()
         .arg("calibrate")
         .arg(&path)
         .args(["--method", "lsq"])
@@ -107,8 +105,7 @@ fn calibrate_piped_into_head() {
 /// A session of the shipped floor–floor cell written with `sep` and a BOM.
 fn session_text(sep: &str, bom: bool) -> String {
     let cell = Cell::from_toml_file(&cell_path()).unwrap();
-    let spec = SessionSpec::new(12, Layout::Random, 0.8);
-    let s = generate_session(&cell, &spec, &mut trial_rng(4, 0)).unwrap();
+    let s = random_session(&cell, 12, 4);
     let text = s
         .to_csv_string(cell.robot1.model.dof(), cell.robot2.model.dof())
         .replace(',', sep);
@@ -120,7 +117,7 @@ fn session_text(sep: &str, bom: bool) -> String {
 }
 
 fn cell_path() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../cells/floor-floor.toml")
+    shipped_cell("floor-floor")
 }
 
 /// `diagnose` on a session saved with a BOM and `;` or tabs: the pre-checks and the reader pass
@@ -130,7 +127,7 @@ fn bom_semicolon_session_diagnose() {
     let dir = tempfile::tempdir().unwrap();
     for (name, sep) in [("semicolon.csv", ";"), ("tab.csv", "\t")] {
         let path = write(dir.path(), name, &session_text(sep, true));
-        let out = bin()
+        let out = handclasp_command()
             .args(["diagnose", "--cell"])
             .arg(cell_path())
             .arg("--session")
@@ -148,7 +145,7 @@ fn bom_semicolon_session_diagnose() {
 #[test]
 fn ik_xyz_mm_in_metres() {
     let robot = concat!(env!("CARGO_MANIFEST_DIR"), "/../../robots/hp20.urdf");
-    let out = bin()
+    let out = handclasp_command()
         .args(["ik", "--robot", robot, "--xyz-mm", "1.2,0,0.9"])
         .output()
         .unwrap();

@@ -11,3 +11,4 @@ mod paper;
 mod paper_diagnose;
 mod plan;
 mod sim;
+mod support;

@@ -1,19 +1,10 @@
 //! End-to-end tests for the paper commands.
 
-use std::process::Command;
+use crate::support::{handclasp, json_ok};
 
 #[test]
 fn paper_table1_json_reproduces_published_values() {
-    let out = Command::new(env!("CARGO_BIN_EXE_handclasp"))
-        .args(["paper", "table1", "--json"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = json_ok(&["paper", "table1", "--json"]);
     let rows = v["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 15);
     for r in rows {
@@ -38,10 +29,7 @@ fn paper_table1_json_reproduces_published_values() {
 
 #[test]
 fn paper_table1_text_mentions_inconsistencies() {
-    let out = Command::new(env!("CARGO_BIN_EXE_handclasp"))
-        .args(["paper", "table1"])
-        .output()
-        .unwrap();
+    let out = handclasp(&["paper", "table1"]);
     assert!(out.status.success());
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("agree with the published ones"), "{text}");

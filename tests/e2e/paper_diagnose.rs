@@ -1,13 +1,10 @@
 //! End-to-end tests for `handclasp paper diagnose` (small seeded Monte Carlo to stay fast).
 
-use std::process::Command;
+use crate::support::{handclasp, stdout_json};
 
+/// `handclasp paper diagnose` followed by `args`.
 fn run(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_handclasp"))
-        .args(["paper", "diagnose"])
-        .args(args)
-        .output()
-        .unwrap()
+    handclasp(&[&["paper", "diagnose"][..], args].concat())
 }
 
 /// The JSON object carries the σ fit, the per-cell rows, every candidate with its fitted parameters,
@@ -24,12 +21,7 @@ fn paper_diagnose_json_has_the_documented_fields_and_is_seeded() {
         "0",
     ];
     let out = run(&args);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = stdout_json(&out);
     let common = v["study"]["common"].as_array().unwrap();
     assert_eq!(common.len(), 2);
     for c in common {

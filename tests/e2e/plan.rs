@@ -2,29 +2,20 @@
 //! for the same cell (what `sim-cell session --plan` consumes), its poses are within both robots'
 //! joint limits, and the JSON carries the documented keys.
 
-use std::path::PathBuf;
-use std::process::Command;
-
-use serde_json::Value;
 use sim_cell::{Cell, Session};
 
-fn cell_path(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("../../cells/{name}.toml"))
-}
+use crate::support::{handclasp, shipped_cell, stdout_json};
 
+/// `handclasp plan` followed by `args`.
 fn plan(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_handclasp"))
-        .arg("plan")
-        .args(args)
-        .output()
-        .expect("run handclasp")
+    handclasp(&[&["plan"][..], args].concat())
 }
 
 #[test]
 fn plan_json_keys_and_csv_read_back() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("plan.csv");
-    let cell = cell_path("floor-ceiling");
+    let cell = shipped_cell("floor-ceiling");
     let o = plan(&[
         "--cell",
         cell.to_str().unwrap(),
@@ -40,8 +31,7 @@ fn plan_json_keys_and_csv_read_back() {
         out.to_str().unwrap(),
         "--json",
     ]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let v = stdout_json(&o);
     for who in ["plan", "random"] {
         for key in ["cooperative_rms_mm", "e_tran_mm", "e_rot_deg"] {
             let x = v["predicted"][who][key].as_f64();
@@ -70,7 +60,7 @@ fn plan_json_keys_and_csv_read_back() {
 fn plan_errors_say_what_to_change() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("plan.csv");
-    let cell = cell_path("floor-floor");
+    let cell = shipped_cell("floor-floor");
     let o = plan(&[
         "--cell",
         cell.to_str().unwrap(),

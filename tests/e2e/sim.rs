@@ -4,8 +4,9 @@
 
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use serde_json::Value;
-use sim_cell::{generate_session, trial_rng, Cell, Layout, SessionSpec};
-use std::process::Command;
+use sim_cell::{Cell, Layout};
+
+use crate::support::{floats, json_ok, simulate, workspace, write_session_csv};
 
 /// Zero-noise recovery through the CSV (6 decimals of mm and degrees): round-off, mm and degrees.
 const ZERO_NOISE_XYZ_TOL_MM: f64 = 1e-3;
@@ -17,35 +18,23 @@ const NOISY_XYZ_TOL_MM: f64 = 2.0;
 const NOISY_ANGLE_TOL_DEG: f64 = 0.2;
 
 fn calibrate_all(csv: &std::path::Path, mounts: &str) -> Value {
-    let out = Command::new(env!("CARGO_BIN_EXE_handclasp"))
-        .arg("calibrate")
-        .arg(csv)
-        .args(["--mounts", mounts, "--method", "all", "--json"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).unwrap()
+    let csv = csv.to_str().unwrap();
+    json_ok(&[
+        "calibrate",
+        csv,
+        "--mounts",
+        mounts,
+        "--method",
+        "all",
+        "--json",
+    ])
 }
 
 /// (largest translation difference, mm; geodesic angle, degrees) between the truth and a fit.
 fn errors(v: &Value, cell: &Cell) -> (f64, f64) {
     let b = &v["b1_from_b2"];
-    let xyz: Vec<f64> = b["xyz_mm"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect();
-    let q: Vec<f64> = b["quaternion_wxyz"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect();
+    let xyz: Vec<f64> = floats(&b["xyz_mm"]);
+    let q: Vec<f64> = floats(&b["quaternion_wxyz"]);
     let est = UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]));
     let t = cell.b1_from_b2.translation.vector * 1e3;
     let dt = (Vector3::new(xyz[0], xyz[1], xyz[2]) - t).amax();
@@ -60,19 +49,12 @@ fn simulated_zero_noise_session_is_recovered_by_calibrate() {
         "zyz_deg = [180.0, 89.874, -179.997]",
         "zyz_deg = [180.0, 90.0, -180.0]",
     );
-    let cells = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
-    let mut cell = Cell::from_toml_str(&text, &cells).unwrap();
+    let mut cell = Cell::from_toml_str(&text, &workspace("cells")).unwrap();
     cell.noise.alignment_m = Vector3::zeros();
     cell.noise.repeatability_m = 0.0;
     cell.noise.encoder_resolution_rad = 0.0;
-    let session = generate_session(
-        &cell,
-        &SessionSpec::new(6, Layout::Tetrahedron, 1.0),
-        &mut trial_rng(3, 0),
-    )
-    .unwrap();
-    let csv = dir.path().join("session.csv");
-    session.write_csv(&csv, &cell).unwrap();
+    let session = simulate(&cell, 6, Layout::Tetrahedron, 1.0, 3);
+    let csv = write_session_csv(dir.path(), "session.csv", &session, &cell);
     let v = calibrate_all(&csv, "floor-wall");
     for m in ["generic", "generic-affine", "paper", "lsq", "constrained"] {
         let (dt, dr) = errors(&v["methods"][m], &cell);
@@ -86,15 +68,9 @@ fn simulated_zero_noise_session_is_recovered_by_calibrate() {
 #[test]
 fn simulated_noisy_session_is_calibrated_within_its_noise() {
     let cell = Cell::default_floor_floor();
-    let session = generate_session(
-        &cell,
-        &SessionSpec::new(8, Layout::Tetrahedron, 1.0),
-        &mut trial_rng(4, 0),
-    )
-    .unwrap();
+    let session = simulate(&cell, 8, Layout::Tetrahedron, 1.0, 4);
     let dir = tempfile::tempdir().unwrap();
-    let csv = dir.path().join("session.csv");
-    session.write_csv(&csv, &cell).unwrap();
+    let csv = write_session_csv(dir.path(), "session.csv", &session, &cell);
     let v = calibrate_all(&csv, "floor-floor");
     for m in ["lsq", "constrained", "paper"] {
         let (dt, dr) = errors(&v["methods"][m], &cell);
