@@ -126,22 +126,31 @@ pub fn write_session_csv(dir: &Path, name: &str, session: &Session, reported: &C
     path
 }
 
-/// The CTU dual-arm Motoman dataset folder (`$CTU_MOTOMAN_DATA`, else
-/// `/work/shared/data/ctu-motoman`) when it holds the dataset's `README.md`. When it does not,
-/// prints why the calling test is skipped (the dataset is not in the repository) and returns
-/// `None`: the caller returns.
+/// The CTU dual-arm Motoman dataset folder, the first of `$CTU_MOTOMAN_DATA`,
+/// `../shared/data/ctu-motoman` beside the repository, and `/work/shared/data/ctu-motoman` that
+/// holds the dataset's `README.md` (the same places as the `ctu_motoman` example's tests, plus the
+/// shared folder's absolute path). When none does, prints why the calling test is skipped (the
+/// dataset is not in the repository) and returns `None`: the caller returns.
 pub fn ctu_data_or_skip() -> Option<PathBuf> {
-    let dir = std::env::var_os("CTU_MOTOMAN_DATA")
+    let candidates: Vec<PathBuf> = std::env::var_os("CTU_MOTOMAN_DATA")
         .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from("/work/shared/data/ctu-motoman"));
-    if dir.join("README.md").is_file() {
-        Some(dir)
-    } else {
+        .into_iter()
+        .chain([
+            workspace("../shared/data/ctu-motoman"),
+            PathBuf::from("/work/shared/data/ctu-motoman"),
+        ])
+        .collect();
+    let found = candidates
+        .iter()
+        .find(|d| d.join("README.md").is_file())
+        .cloned();
+    if found.is_none() {
         eprintln!(
-            "skipped: /work/shared/data/ctu-motoman (or $CTU_MOTOMAN_DATA) is absent; the CTU dataset is not in the repository"
+            "skipped: the CTU dataset is not in the repository and none of {candidates:?} holds it \
+             (set $CTU_MOTOMAN_DATA to its folder)"
         );
-        None
     }
+    found
 }
 
 /// `handclasp import --cell cells/ctu-motoman.toml --map tools/ctu-motoman/maps/{map} --out out`
