@@ -29,8 +29,8 @@ pub enum CriterionArg {
 /// Arguments of `handclasp plan`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The cell TOML (robots' URDFs and tips in mm, b1_from_b2, [noise] σ in mm,
-    /// [robotN.tolerance] as the prior, [teach] centre).
+    /// The cell TOML (robots' URDFs and tips in mm, b1_from_b2, `[noise]` σ in mm,
+    /// `[robotN.tolerance]` as the prior, `[teach]` centre).
     #[arg(long)]
     pub cell: PathBuf,
     /// Poses to plan.
@@ -50,7 +50,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1000.0)]
     pub spread_mm: f64,
     /// Centre of that cube in base 1, mm, as X,Y,Z (negative values allowed; default: the
-    /// cell's [teach] centre).
+    /// cell's `[teach]` centre).
     #[arg(
         long,
         value_delimiter = ',',

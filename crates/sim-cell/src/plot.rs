@@ -276,7 +276,7 @@ fn file_stem(label: &str) -> String {
         .collect()
 }
 
-/// Writes `spread_<mounts>.svg` and `noise_<mounts>.svg` (the label through [`file_stem`]) into `dir` for every mount pair of the
+/// Writes `spread_<mounts>.svg` and `noise_<mounts>.svg` (the label through `file_stem`) into `dir` for every mount pair of the
 /// sweep (medians per method; other axes at reference values: noise nearest 1 mm, the smallest
 /// point count (the paper's 4 where present), spread nearest 1 m (the paper's advice)). Returns the
 /// files written.

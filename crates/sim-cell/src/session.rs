@@ -1192,7 +1192,7 @@ fn simulate_point(
     Err(last)
 }
 
-/// Simulates a handclasp session on `cell` (see [`simulate_point`] for one point's model): teach
+/// Simulates a handclasp session on `cell` (see `simulate_point` in this module's source for one point's model): teach
 /// points from `spec` (a layout draw, redrawn up to [`MAX_LAYOUT_ATTEMPTS`] times until both robots
 /// reach every point head-on, or the explicit points). Seeded by `rng` alone.
 ///

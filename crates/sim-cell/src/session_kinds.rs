@@ -60,7 +60,7 @@ pub struct KindSpec {
     pub contact_known: bool,
     /// σ per axis of a tracker measurement, m [0.05 mm].
     pub tracker_sigma_m: f64,
-    /// The tool a tracker measures, by name ([`crate::CellRobot::tool_index`]) [`tip`].
+    /// The tool a tracker measures, by name ([`crate::CellRobot::tool_index`]) \[`tip`, [`crate::cell::TIP_TOOL`]\].
     pub tracker_tool: String,
     /// σ of a plane touch (the tip's distance from the plane), m [0.1 mm].
     pub plane_sigma_m: f64,

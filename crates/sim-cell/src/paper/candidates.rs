@@ -34,7 +34,7 @@ pub enum Candidate {
     /// One noise σ per cell (2 extra parameters).
     SigmaPerCell,
     /// The teach points spread wider (or narrower) than the assumed 1 m tetrahedron: the edge is
-    /// fitted on [`SPREAD_GRID_M`]. A wider layout shrinks the rotation errors, not the translation
+    /// fitted on [`super::SPREAD_GRID_M`]. A wider layout shrinks the rotation errors, not the translation
     /// errors, like anisotropic noise does, so the two compete for the same signature.
     LayoutSpread,
     /// A contact (TCP) offset constant over an experiment's 4 points and random between experiments,
@@ -129,7 +129,7 @@ pub(super) struct Obs {
     pub(super) approach: Vector3<f64>,
     pub(super) cov_perp: DMatrix<f64>,
     pub(super) cov_along: DMatrix<f64>,
-    /// `(cov_perp, cov_along)` per tetrahedron edge of [`SPREAD_GRID_M`].
+    /// `(cov_perp, cov_along)` per tetrahedron edge of [`super::SPREAD_GRID_M`].
     pub(super) covs: Vec<(DMatrix<f64>, DMatrix<f64>)>,
     /// Per candidate (in [`Candidate::ALL`] order): parameter names (qualified, unit, report scale)
     /// and mean columns per unit parameter (6 rows: Δ mm, ω mrad).

@@ -63,7 +63,7 @@ pub const SIGMA_RANGE_MM: [f64; 2] = [0.05, 50.0];
 /// Search range of the anisotropy factor (σ along the approach axis / σ across it).
 pub const ANISOTROPY_RANGE: [f64; 2] = [0.1, 10.0];
 /// Tetrahedron edges tried by the `layout_spread` candidate, m (the paper asks for ≥ 1 m; the
-/// baseline uses [`PAPER_SPREAD_M`], index [`SPREAD_BASE`]).
+/// baseline uses [`PAPER_SPREAD_M`], index `SPREAD_BASE`).
 pub const SPREAD_GRID_M: [f64; 6] = [0.8, 1.0, 1.25, 1.5, 1.75, 2.0];
 /// Index of [`PAPER_SPREAD_M`] in [`SPREAD_GRID_M`].
 pub(super) const SPREAD_BASE: usize = 1;

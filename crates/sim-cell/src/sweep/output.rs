@@ -11,7 +11,7 @@ use crate::placement::mounts_label;
 /// Writes every trial × method as CSV: `seed,trial,cell,trial_in_cell,mode,mounts,layout,method,
 /// noise_mm,spread_mm,n,status,e_tran_mm,e_rot_deg,geodesic_deg,dx_mm,dy_mm,dz_mm` (errors empty
 /// when the status is not `ok`; `trial` is the index given to [`crate::trial_rng`]), and in
-/// robot mode [`ROBOT_TRIALS_COLUMNS`] after them: `kinematic_errors`, the cooperative rms and
+/// robot mode `ROBOT_TRIALS_COLUMNS` after them: `kinematic_errors`, the cooperative rms and
 /// p95 over the held-out pairs, mm, and the fit's predicted rms, mm (whole-cell methods; empty
 /// otherwise). Fields are quoted where CSV needs it (a tilted mount's label holds a comma).
 /// Deterministic text.
@@ -351,7 +351,7 @@ pub fn render_table(rows: &[SummaryRow]) -> String {
 
 /// Writes summary rows as CSV (`mounts,method,noise_mm,spread_mm,n,trials,failed`, then for each
 /// statistic `_value,_lo,_hi`; pooled axes are empty). Rows with cooperative statistics (robot
-/// mode) add [`ROBOT_SUMMARY_STATS`] after the others.
+/// mode) add `ROBOT_SUMMARY_STATS` after the others.
 pub fn write_summary_csv(rows: &[SummaryRow], w: &mut impl Write) -> std::io::Result<()> {
     let robot = rows
         .first()

@@ -105,7 +105,7 @@ impl SweepResult {
 /// Runs the sweep in parallel on the current rayon pool. Robot mode needs one [`Cell`] per mount
 /// pair of the config (same order; their alignment σ is replaced by the noise axis);
 /// geometry mode ignores `cells`. `progress` is called with the number of trials finished since its
-/// last call (from any worker thread, in steps of up to [`CHUNK`] trials).
+/// last call (from any worker thread, in steps of up to `CHUNK` trials).
 pub fn run_sweep(
     config: &SweepConfig,
     cells: &[Cell],
