@@ -1060,7 +1060,7 @@ fn run(
     for (u, unit) in units.into_iter().enumerate() {
         folds[u % n_folds].push(unit);
     }
-    // Units in fold order (the order `cross_validate` scores them).
+    // Units in fold order (the order `cross_validate_all` scores them).
     progress("baseline: nominal kinematics, nuisances fitted");
     let baseline = fit_model(&problem, &[], &used, None, options, x0)?;
     let design = Folds {
