@@ -80,7 +80,7 @@ fn run_whole_cell(
     let show = std::io::IsTerminal::is_terminal(&std::io::stderr())
         || session.len() >= PROGRESS_MIN_ROWS_WHOLE_CELL;
     let start = std::time::Instant::now();
-    let report = diagnose::diagnose_cell_session(cell, session, &options, &mut |line| {
+    let report = diagnose::diagnose_cell_session(cell, session, &options, &|line| {
         if show {
             eprintln!("[{:6.1} s] {line}", start.elapsed().as_secs_f64());
         }

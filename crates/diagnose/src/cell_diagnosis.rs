@@ -68,9 +68,11 @@ use calib_core::whole_cell::{
 use calib_core::Robot;
 use kinematics::{gravity_torques, ErrorParam};
 use nalgebra::DVector;
+use rayon::prelude::*;
 use serde::Serialize;
 use sim_cell::whole_cell::{cell_problem, FitModel};
 use sim_cell::{Cell, Session};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::cell_report::{self, CellDiagnoseReport};
 use crate::DiagnoseError;
@@ -735,44 +737,102 @@ pub(crate) struct Folds {
     pub(crate) n_units: usize,
 }
 
-/// Cross-validates `model` over `design`'s folds.
-fn cross_validate(
+/// Each unit's held-out χ² and scored rows, of one fold, in the fold's unit order.
+type FoldHeldOut = Vec<(f64, Vec<ScoredRow>)>;
+
+/// One fold of the held-out criterion: `model` fitted on the used rows outside fold `fold` of
+/// `design` (starting from `start`), then each of the fold's units scored on `scoring_problem`
+/// (`problem` under `model`). Returns each unit's held-out χ² and scored rows, in the fold's
+/// unit order.
+#[allow(clippy::too_many_arguments)]
+fn fold_held_out(
     problem: &CellProblem,
+    scoring_problem: &CellProblem,
     model: &[Family],
+    design: &Folds,
+    fold: usize,
+    start: &CellEstimate,
+    options: &CellDiagnoseOptions,
+    cell_b1_from_b2: nalgebra::Isometry3<f64>,
+) -> Result<FoldHeldOut, CellFitError> {
+    let units = &design.folds[fold];
+    let held: Vec<usize> = units.iter().flatten().copied().collect();
+    let train: Vec<usize> = design
+        .used
+        .iter()
+        .copied()
+        .filter(|i| !held.contains(i))
+        .collect();
+    let (_, fit) = fit_model(
+        problem,
+        model,
+        &train,
+        Some(start),
+        options,
+        cell_b1_from_b2,
+    )?;
+    units
+        .iter()
+        .map(|unit| {
+            let scored = score_unit(scoring_problem, unit, &fit.estimate, options)?;
+            let chi2 = scored.iter().map(|s| s.whitened.norm_squared()).sum();
+            Ok((chi2, scored))
+        })
+        .collect()
+}
+
+/// Cross-validates each of `models` over `design`'s folds, every training fit starting from
+/// `start`. The (model, fold) fits run in parallel (rayon's current pool) and are assembled in
+/// model order, then fold order, then unit order; each fit depends only on its own inputs, so
+/// the results, and the error returned (the first in that order), are those of running the fits
+/// one after another, whatever the thread count. `on_fit(m)` is called (from any thread) after
+/// each finished fit of model `m`.
+#[allow(clippy::too_many_arguments)]
+fn cross_validate_all(
+    problem: &CellProblem,
+    models: &[Vec<Family>],
     design: &Folds,
     start: &CellEstimate,
     options: &CellDiagnoseOptions,
     cell_b1_from_b2: nalgebra::Isometry3<f64>,
-) -> Result<HeldOut, CellFitError> {
-    let Folds {
-        used,
-        folds,
-        n_units,
-    } = design;
-    let n_units = *n_units;
-    let scoring_problem = model_problem(problem, model);
-    let mut unit_chi2 = vec![0.0; n_units];
-    let mut rows = Vec::new();
-    let mut unit_index = 0;
-    for fold in folds {
-        let held: Vec<usize> = fold.iter().flatten().copied().collect();
-        let train: Vec<usize> = used.iter().copied().filter(|i| !held.contains(i)).collect();
-        let (_, fit) = fit_model(
-            problem,
-            model,
-            &train,
-            Some(start),
-            options,
-            cell_b1_from_b2,
-        )?;
-        for unit in fold {
-            let scored = score_unit(&scoring_problem, unit, &fit.estimate, options)?;
-            unit_chi2[unit_index] = scored.iter().map(|s| s.whitened.norm_squared()).sum();
-            unit_index += 1;
-            rows.extend(scored);
+    on_fit: &(dyn Fn(usize) + Sync),
+) -> Result<Vec<HeldOut>, CellFitError> {
+    let scoring: Vec<CellProblem> = models.iter().map(|m| model_problem(problem, m)).collect();
+    let n_folds = design.folds.len();
+    let jobs: Vec<(usize, usize)> = (0..models.len())
+        .flat_map(|m| (0..n_folds).map(move |f| (m, f)))
+        .collect();
+    let results: Vec<Result<FoldHeldOut, CellFitError>> = jobs
+        .par_iter()
+        .map(|&(m, f)| {
+            let r = fold_held_out(
+                problem,
+                &scoring[m],
+                &models[m],
+                design,
+                f,
+                start,
+                options,
+                cell_b1_from_b2,
+            );
+            on_fit(m);
+            r
+        })
+        .collect();
+    let mut results = results.into_iter();
+    let mut out = Vec::with_capacity(models.len());
+    for _ in models {
+        let mut unit_chi2 = Vec::with_capacity(design.n_units);
+        let mut rows = Vec::new();
+        for fold in results.by_ref().take(n_folds) {
+            for (chi2, scored) in fold? {
+                unit_chi2.push(chi2);
+                rows.extend(scored);
+            }
         }
+        out.push(HeldOut { unit_chi2, rows });
     }
-    Ok(HeldOut { unit_chi2, rows })
+    Ok(out)
 }
 
 /// Whether `after` gains enough over `before` (see the module documentation); returns the t
@@ -917,7 +977,9 @@ fn scaled_noise(problem: &CellProblem, scale: &[f64; 4]) -> CellProblem {
 }
 
 /// Diagnoses a session with non-coincident rows on its cell (see the module documentation).
-/// `progress` receives one line per candidate fit (for a progress display).
+/// `progress` receives one line per phase and per candidate held out (for a progress display;
+/// called from any of rayon's threads, as the candidates' fits run in parallel). The report is
+/// the same whatever the thread count (`RAYON_NUM_THREADS`, or the pool it runs in).
 ///
 /// Errors: invalid problem (naming the row and field), a model failure, or too few rows after
 /// the blunder screen (naming the rows to re-record).
@@ -925,7 +987,7 @@ pub fn diagnose_cell_session(
     cell: &Cell,
     session: &Session,
     options: &CellDiagnoseOptions,
-    progress: &mut dyn FnMut(&str),
+    progress: &(dyn Fn(&str) + Sync),
 ) -> Result<CellDiagnoseReport, DiagnoseError> {
     let problem = diagnosis_problem(cell, session, options)?;
     problem.check().map_err(cell_error)?;
@@ -965,7 +1027,7 @@ fn run(
     cell: &Cell,
     problem: CellProblem,
     options: &CellDiagnoseOptions,
-    progress: &mut dyn FnMut(&str),
+    progress: &(dyn Fn(&str) + Sync),
 ) -> Result<CellDiagnosis, CellFitError> {
     let x0 = cell.b1_from_b2;
     let all: Vec<usize> = (0..problem.observations.len()).collect();
@@ -998,7 +1060,7 @@ fn run(
     for (u, unit) in units.into_iter().enumerate() {
         folds[u % n_folds].push(unit);
     }
-    // Units in fold order (the order `cross_validate` scores them).
+    // Units in fold order (the order `cross_validate_all` scores them).
     progress("baseline: nominal kinematics, nuisances fitted");
     let baseline = fit_model(&problem, &[], &used, None, options, x0)?;
     let design = Folds {
@@ -1006,8 +1068,16 @@ fn run(
         folds,
         n_units,
     };
-    let baseline_held_out =
-        cross_validate(&problem, &[], &design, &baseline.1.estimate, options, x0)?;
+    let baseline_held_out = cross_validate_all(
+        &problem,
+        &[Vec::new()],
+        &design,
+        &baseline.1.estimate,
+        options,
+        x0,
+        &|_| {},
+    )?
+    .remove(0);
     let mut model: Vec<Family> = Vec::new();
     let mut current = baseline.clone();
     let mut current_held = baseline_held_out.clone();
@@ -1020,20 +1090,48 @@ fn run(
         // Every candidate's held-out result; the step keeps the lowest held-out χ² among the
         // significant ones (a candidate that gains more in total but not consistently over the
         // units does not hide a consistent one), else records the lowest as the stop.
+        // The candidates' (candidate, fold) fits run in parallel; the results come back in
+        // candidate order, as if run one after another.
+        let models: Vec<Vec<Family>> = remaining
+            .iter()
+            .map(|cand| {
+                let mut m = model.clone();
+                m.push((*cand).clone());
+                m
+            })
+            .collect();
+        progress(&format!(
+            "step {}: {} candidates × {} folds",
+            step + 1,
+            remaining.len(),
+            n_folds
+        ));
+        let fits_done: Vec<AtomicUsize> = remaining.iter().map(|_| AtomicUsize::new(0)).collect();
+        let candidates_done = AtomicUsize::new(0);
+        let on_fit = |m: usize| {
+            if fits_done[m].fetch_add(1, Ordering::Relaxed) + 1 == n_folds {
+                let k = candidates_done.fetch_add(1, Ordering::Relaxed) + 1;
+                progress(&format!(
+                    "step {}: candidate {}/{} held out: {}",
+                    step + 1,
+                    k,
+                    remaining.len(),
+                    remaining[m].name
+                ));
+            }
+        };
+        let held_out = cross_validate_all(
+            &problem,
+            &models,
+            &design,
+            &current.1.estimate,
+            options,
+            x0,
+            &on_fit,
+        )?;
         let mut results: Vec<(Family, HeldOut, bool, f64)> = Vec::new();
         let mut tried = Vec::new();
-        for (k, cand) in remaining.iter().enumerate() {
-            progress(&format!(
-                "step {}: candidate {}/{}: {} ({} folds)",
-                step + 1,
-                k + 1,
-                remaining.len(),
-                cand.name,
-                n_folds
-            ));
-            let mut m = model.clone();
-            m.push((*cand).clone());
-            let held = cross_validate(&problem, &m, &design, &current.1.estimate, options, x0)?;
+        for (cand, held) in remaining.iter().zip(held_out) {
             tried.push((cand.name.clone(), held.total()));
             let involved: Vec<bool> = design
                 .folds
@@ -1159,8 +1257,65 @@ mod tests {
             .iter()
             .flatten()
             .all(|&i| !matches!(group_of(&p.observations[i].kind), Some((1 | 2, _)))));
-        let r = diagnose_cell_session(&cell, &session, &options, &mut |_| {}).unwrap();
+        let r = diagnose_cell_session(&cell, &session, &options, &|_| {}).unwrap();
         assert_eq!(r.rows_used + r.rejected_points.len(), 12);
+    }
+
+    /// Regression guard for the parallel (candidate, fold) fits: a mixed session with a hidden
+    /// joint offset (so a family is named and the next step runs too) gives the byte-identical
+    /// JSON report in a 1-thread and a 2-thread pool, and the same progress lines.
+    #[test]
+    fn the_report_is_identical_whatever_the_thread_count() {
+        let mut truth = Cell::default_floor_wall();
+        truth
+            .robot1
+            .errors
+            .set(ErrorParam::JointOffset { joint: 1 }, 2e-3);
+        let session = mixed_session(&truth, 36, 5);
+        let nominal = Cell::default_floor_wall();
+        let run_with = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("thread pool");
+            let lines = std::sync::Mutex::new(Vec::new());
+            let report = pool.install(|| {
+                diagnose_cell_session(
+                    &nominal,
+                    &session,
+                    &CellDiagnoseOptions::default(),
+                    &|line| lines.lock().expect("progress lines").push(line.to_owned()),
+                )
+                .expect("diagnosis")
+            });
+            // Candidates finish in thread order, so the count in "step s: candidate k/n held
+            // out: NAME" is dropped; the set of (step, name) lines is what must agree.
+            let mut lines: Vec<String> = lines
+                .into_inner()
+                .expect("progress lines")
+                .into_iter()
+                .map(|l| match l.split_once(" held out: ") {
+                    Some((head, name)) => {
+                        format!(
+                            "{} {name}",
+                            head.split(" candidate ").next().unwrap_or(head)
+                        )
+                    }
+                    None => l,
+                })
+                .collect();
+            lines.sort();
+            (serde_json::to_string(&report).expect("json"), report, lines)
+        };
+        let (json1, report1, lines1) = run_with(1);
+        let (json2, _, lines2) = run_with(2);
+        assert!(
+            !report1.effects.is_empty() && report1.stopped_at.is_some(),
+            "the session must name a family and then stop: {}",
+            crate::render_cell_text(&report1)
+        );
+        assert_eq!(json1, json2);
+        assert_eq!(lines1, lines2);
     }
 
     #[test]

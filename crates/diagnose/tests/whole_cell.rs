@@ -62,8 +62,7 @@ fn diagnose(truth: &Cell, seed: u64) -> CellDiagnoseReport {
 
 fn diagnose_session(s: &Session) -> CellDiagnoseReport {
     let nominal = Cell::default_floor_wall();
-    diagnose_cell_session(&nominal, s, &CellDiagnoseOptions::default(), &mut |_| {})
-        .expect("diagnosis")
+    diagnose_cell_session(&nominal, s, &CellDiagnoseOptions::default(), &|_| {}).expect("diagnosis")
 }
 
 /// Rows of the tracker-nuisance sessions: 40 tracker rows, 20 per group, so that each half of
