@@ -121,7 +121,7 @@ fuzz_target!(|input: Input| {
         ..CellDiagnoseOptions::default()
     };
     options.solve.max_iterations = 30;
-    let Ok(report) = diagnose_cell_session(nominal, &session, &options, &mut |_| {}) else {
+    let Ok(report) = diagnose_cell_session(nominal, &session, &options, &|_| {}) else {
         return; // typed errors (too few rows, degenerate groups) are the expected outcome
     };
     // The text report renders whatever the engine found (a kind without held-out rows has a
