@@ -1,0 +1,286 @@
+//! The candidate families of the selection ([`Family`], [`candidate_families`]) and what a
+//! model of them frees: its problem (fitted contact distances, tracker scales and drifts) and
+//! its unknowns (less each origin angle that is a joint offset: [`offset_alias`]).
+
+use calib_core::whole_cell::{CellParam, CellProblem, ObservationKind, ParamLayout};
+use calib_core::Robot;
+use kinematics::ErrorParam;
+use serde::Serialize;
+
+use super::problem::{tools_of, uses_robot};
+
+/// What a candidate family is. One entry per family of parameters; a new error term of the
+/// library (e.g. joint-periodic errors, tracker scale or drift) is one more variant here, with
+/// its membership test in [`Family::contains`] and its availability in [`candidate_families`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(tag = "family", rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum FamilyKind {
+    /// Every joint zero offset of the robot.
+    JointOffsets,
+    /// Every joint origin position (link lengths and offsets) of the robot.
+    OriginXyz,
+    /// Every joint origin angle of the robot, except the one about the joint's own axis (that
+    /// one is the joint offset: [`offset_alias`]).
+    OriginRpy,
+    /// Joint compliance under gravity, every joint of the robot.
+    Compliance,
+    /// One tool's tip offset (end-effector geometry), 3 components.
+    ToolTip {
+        /// Tool index (0 = the cell's tip, then `[robotN.tools]`).
+        tool: usize,
+    },
+    /// The distances of the contact groups that state one (fitted instead of held).
+    ContactDistance,
+    /// Joint-angle-periodic errors of the robot: the first harmonic (`sin q`, `cos q`
+    /// amplitudes) of every joint ([`ErrorParam::PeriodicSin`], [`ErrorParam::PeriodicCos`]).
+    JointPeriodic,
+    /// One scale error per tracker group of the session (unpenalised, like the tracker frame;
+    /// [`calib_core::whole_cell::TrackerGroup::fit_scale`]).
+    TrackerScale,
+    /// One linear drift of the tracker-frame translation over the recording order per tracker
+    /// group (unpenalised; [`calib_core::whole_cell::TrackerGroup::fit_drift`]).
+    TrackerDrift,
+}
+
+/// A candidate family: a kind of parameter on one robot (or the cell's contact groups).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct Family {
+    /// The robot (1 or 2); `None` for the session-wide families ([`FamilyKind::ContactDistance`],
+    /// [`FamilyKind::TrackerScale`], [`FamilyKind::TrackerDrift`]).
+    pub robot: Option<u8>,
+    /// The kind.
+    #[serde(flatten)]
+    pub kind: FamilyKind,
+    /// A readable name, e.g. `robot 1 joint offsets`, `robot 2 tool tip tip`.
+    pub name: String,
+}
+
+impl Family {
+    fn new(robot: Option<Robot>, kind: FamilyKind, problem: &CellProblem) -> Self {
+        let what = match kind {
+            FamilyKind::JointOffsets => "joint offsets".to_string(),
+            FamilyKind::OriginXyz => "joint origin positions".to_string(),
+            FamilyKind::OriginRpy => "joint origin angles".to_string(),
+            FamilyKind::Compliance => "joint compliance".to_string(),
+            FamilyKind::ToolTip { tool } => {
+                let r = robot.expect("a tool tip family has a robot");
+                format!("tool `{}` tip", problem.robot(r).tools[tool].name)
+            }
+            FamilyKind::ContactDistance => "contact distances".to_string(),
+            FamilyKind::JointPeriodic => "joint-periodic errors".to_string(),
+            FamilyKind::TrackerScale => "tracker scales".to_string(),
+            FamilyKind::TrackerDrift => "tracker drifts".to_string(),
+        };
+        let name = match robot {
+            Some(r) => format!("{r} {what}"),
+            None => what,
+        };
+        Self {
+            robot: robot.map(Robot::number),
+            kind,
+            name,
+        }
+    }
+
+    fn robot_is(&self, r: Robot) -> bool {
+        self.robot == Some(r.number())
+    }
+
+    /// Whether an observation of this kind uses the family's parameters directly: its robot
+    /// (and tool, for a tip), or, for the contact distances, a contact row, or, for the
+    /// tracker scales and drifts, a tracker row.
+    pub fn involves(&self, kind: &ObservationKind) -> bool {
+        match self.kind {
+            FamilyKind::ContactDistance => matches!(kind, ObservationKind::Contact { .. }),
+            FamilyKind::TrackerScale | FamilyKind::TrackerDrift => {
+                matches!(kind, ObservationKind::Tracker { .. })
+            }
+            FamilyKind::ToolTip { tool } => tools_of(kind)
+                .iter()
+                .any(|(r, t)| self.robot_is(*r) && *t == tool),
+            _ => tools_of(kind).iter().any(|(r, _)| self.robot_is(*r)),
+        }
+    }
+
+    /// Whether the unknown `p` belongs to this family.
+    pub fn contains(&self, p: &CellParam) -> bool {
+        match (self.kind, p) {
+            (FamilyKind::ContactDistance, CellParam::ContactDistance { .. })
+            | (FamilyKind::TrackerScale, CellParam::TrackerScale { .. })
+            | (FamilyKind::TrackerDrift, CellParam::TrackerDrift { .. }) => true,
+            (FamilyKind::ToolTip { tool }, CellParam::ToolTip { robot, tool: t, .. }) => {
+                self.robot_is(*robot) && *t == tool
+            }
+            (kind, CellParam::Kinematic { robot, param }) => {
+                self.robot_is(*robot)
+                    && matches!(
+                        (kind, param),
+                        (FamilyKind::JointOffsets, ErrorParam::JointOffset { .. })
+                            | (FamilyKind::OriginXyz, ErrorParam::OriginXyz { .. })
+                            | (FamilyKind::OriginRpy, ErrorParam::OriginRpy { .. })
+                            | (FamilyKind::Compliance, ErrorParam::Compliance { .. })
+                            | (
+                                FamilyKind::JointPeriodic,
+                                ErrorParam::PeriodicSin { .. } | ErrorParam::PeriodicCos { .. }
+                            )
+                    )
+            }
+            _ => false,
+        }
+    }
+}
+
+/// The candidate families of `problem` (the widened diagnosis problem): per robot, each
+/// family whose tolerance is > 0 (tool tips only for tools the session uses), then the contact
+/// distances when a contact group states its distance, then the tracker scales and drifts when
+/// the session has a tracker group.
+pub fn candidate_families(problem: &CellProblem) -> Vec<Family> {
+    let mut out = Vec::new();
+    for r in [Robot::One, Robot::Two] {
+        let rb = problem.robot(r);
+        let tol = &rb.tolerance;
+        let joint_families = [
+            (FamilyKind::JointOffsets, tol.joint_offset_rad > 0.0),
+            (FamilyKind::OriginXyz, tol.origin_xyz_m > 0.0),
+            (FamilyKind::OriginRpy, tol.origin_rpy_rad > 0.0),
+            (
+                FamilyKind::Compliance,
+                tol.compliance_rad_per_nm.unwrap_or(0.0) > 0.0,
+            ),
+            (
+                FamilyKind::JointPeriodic,
+                tol.periodic_rad.unwrap_or(0.0) > 0.0,
+            ),
+        ];
+        let used = |o: &&calib_core::whole_cell::Observation| uses_robot(&o.kind, r);
+        if !problem.observations.iter().any(|o| used(&o)) {
+            continue;
+        }
+        for (kind, on) in joint_families {
+            if on {
+                out.push(Family::new(Some(r), kind, problem));
+            }
+        }
+        if tol.tip_m > 0.0 {
+            for tool in 0..rb.tools.len() {
+                if problem
+                    .observations
+                    .iter()
+                    .any(|o| tools_of(&o.kind).contains(&(r, tool)))
+                {
+                    out.push(Family::new(Some(r), FamilyKind::ToolTip { tool }, problem));
+                }
+            }
+        }
+    }
+    if problem.contacts.iter().any(|c| !c.fit_distance) {
+        out.push(Family::new(None, FamilyKind::ContactDistance, problem));
+    }
+    if !problem.trackers.is_empty() {
+        out.push(Family::new(None, FamilyKind::TrackerScale, problem));
+        out.push(Family::new(None, FamilyKind::TrackerDrift, problem));
+    }
+    out
+}
+
+/// The problem of a model: with [`FamilyKind::ContactDistance`] selected, every contact
+/// group's distance is fitted; with [`FamilyKind::TrackerScale`] (or
+/// [`FamilyKind::TrackerDrift`]) every tracker group's scale (drift).
+pub(super) fn model_problem(problem: &CellProblem, model: &[Family]) -> CellProblem {
+    let mut p = problem.clone();
+    let has = |k: FamilyKind| model.iter().any(|f| f.kind == k);
+    if has(FamilyKind::ContactDistance) {
+        for c in &mut p.contacts {
+            c.fit_distance = true;
+        }
+    }
+    let (scale, drift) = (has(FamilyKind::TrackerScale), has(FamilyKind::TrackerDrift));
+    for t in &mut p.trackers {
+        t.fit_scale |= scale;
+        t.fit_drift |= drift;
+    }
+    p
+}
+
+/// The unknowns of a model: placement, nuisances and the families' parameters (the other
+/// kinematic parameters held at zero).
+pub(super) fn model_layout(problem: &CellProblem, model: &[Family]) -> ParamLayout {
+    let all = ParamLayout::new(problem, &[]);
+    let fixed: Vec<CellParam> = all
+        .params
+        .iter()
+        .filter(|p| {
+            p.is_kinematic() && (offset_alias(problem, p) || !model.iter().any(|f| f.contains(p)))
+        })
+        .cloned()
+        .collect();
+    ParamLayout::new(problem, &fixed)
+}
+
+/// Whether `p` is an origin angle whose small rotation is about its joint's own axis: it then
+/// commutes with the joint rotation and equals a joint offset, so [`FamilyKind::OriginRpy`]
+/// leaves it out (the offset family holds it). With `R(rpy)` the nominal origin rotation, the
+/// perturbation `δ` of component `k` turns the child frame by `ω = log(R(rpy)ᵀ·R(rpy + δ·e_k))/δ`
+/// (child axes); aliased when `ω` is parallel to the joint axis within [`ALIAS_TOL`].
+pub fn offset_alias(problem: &CellProblem, p: &CellParam) -> bool {
+    let CellParam::Kinematic {
+        robot,
+        param: ErrorParam::OriginRpy { joint, axis },
+    } = p
+    else {
+        return false;
+    };
+    let Some(j) = problem.robot(*robot).model.joints().get(*joint) else {
+        return false;
+    };
+    // A step small enough for the linearisation, large enough for round-off (1e-6 rad).
+    let h = 1e-6;
+    let mut rpy = j.origin_rpy;
+    let r0 = kinematics::rotation_from_rpy(&rpy);
+    rpy[axis.index()] += h;
+    let r1 = kinematics::rotation_from_rpy(&rpy);
+    let omega = (r0.transpose() * r1).scaled_axis() / h;
+    omega.cross(j.axis.as_ref()).norm() <= ALIAS_TOL * omega.norm()
+}
+
+/// Relative tolerance of [`offset_alias`] (sine of the angle between `ω` and the axis).
+pub const ALIAS_TOL: f64 = 1e-4;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cell_diagnosis::tests::mixed_session;
+    use crate::cell_diagnosis::{diagnosis_problem, CellDiagnoseOptions};
+    use sim_cell::Cell;
+
+    #[test]
+    fn families_partition_the_kinematic_unknowns() {
+        let cell = Cell::default_floor_wall();
+        let session = mixed_session(&cell, 24, 4);
+        let p = diagnosis_problem(&cell, &session, &CellDiagnoseOptions::default()).unwrap();
+        let fams = candidate_families(&p);
+        let layout = ParamLayout::new(&p, &[]);
+        let mut aliases = 0;
+        for param in layout.params.iter().filter(|c| c.is_kinematic()) {
+            let n = fams.iter().filter(|f| f.contains(param)).count();
+            // Scale parameters are off by default; every other fitted parameter is in exactly
+            // one family.
+            assert_eq!(n, 1, "{param:?} in {n} families");
+            aliases += usize::from(offset_alias(&p, param));
+        }
+        // Every revolute joint has exactly one origin angle about its own axis when the
+        // nominal angles are multiples of 90° (the shipped URDFs).
+        assert_eq!(aliases, p.robot1.model.dof() + p.robot2.model.dof());
+        let all = fams.clone();
+        let full = model_layout(&p, &all);
+        assert_eq!(
+            full.params.iter().filter(|c| c.is_kinematic()).count(),
+            layout.params.iter().filter(|c| c.is_kinematic()).count() - aliases
+        );
+        assert!(model_layout(&p, &[])
+            .params
+            .iter()
+            .all(|c| !c.is_kinematic()));
+    }
+}

@@ -1,0 +1,472 @@
+//! The held-out criterion of the selection: the units and folds, the fit of a model on the
+//! training rows, each held-out unit's score (its own nuisance refitted on half its rows), the
+//! cross-validation of the candidates in parallel, and the test that a gain is significant.
+
+use calib_core::whole_cell::{
+    fit_cell_with, initial_estimate, CellEstimate, CellFit, CellFitError, CellProblem, Evaluator,
+    ObservationKind, ParamLayout, PlacementPrior, Tolerance,
+};
+use nalgebra::DVector;
+use rayon::prelude::*;
+
+use super::families::{model_layout, model_problem, Family};
+use super::problem::group_of;
+use super::CellDiagnoseOptions;
+
+/// At most this many held-out units are cut from the coincident rows (in row order, at least
+/// [`MIN_UNIT_ROWS`] rows each).
+pub const COINCIDENT_UNITS: usize = 4;
+/// Fewest rows of a coincident unit.
+pub const MIN_UNIT_ROWS: usize = 6;
+/// Fewest rows of a group that is held out and scored, per kind (contact, tracker, plane): each
+/// half must fit the group's nuisance (a distance from 1 row, a tracker frame or a plane from 3).
+pub const MIN_SCORED_GROUP_ROWS: [usize; 3] = [2, 6, 6];
+/// Fewest rows of a block cut from a group when the session has fewer than 3 units.
+pub const MIN_GROUP_BLOCK_ROWS: usize = 12;
+/// σ (m and rad) of the placement prior that holds the training placement while a held-out
+/// unit's nuisance is fitted: far below any measurement, far above round-off.
+const HOLD_SIGMA: f64 = 1e-7;
+
+/// The sub-problem of the observations `rows` (indices into `problem.observations`), its groups
+/// renumbered to the ones these rows use.
+pub(super) fn sub_problem(problem: &CellProblem, rows: &[usize]) -> CellProblem {
+    let mut maps: [Vec<Option<usize>>; 3] = [
+        vec![None; problem.contacts.len()],
+        vec![None; problem.trackers.len()],
+        vec![None; problem.planes.len()],
+    ];
+    let mut p = CellProblem {
+        observations: Vec::with_capacity(rows.len()),
+        trackers: Vec::new(),
+        planes: Vec::new(),
+        contacts: Vec::new(),
+        ..problem.clone()
+    };
+    for &i in rows {
+        let mut o = problem.observations[i].clone();
+        if let Some((k, g)) = group_of(&o.kind) {
+            let new = match maps[k][g] {
+                Some(n) => n,
+                None => {
+                    let n = match k {
+                        0 => {
+                            p.contacts.push(problem.contacts[g].clone());
+                            p.contacts.len() - 1
+                        }
+                        1 => {
+                            p.trackers.push(problem.trackers[g].clone());
+                            p.trackers.len() - 1
+                        }
+                        _ => {
+                            p.planes.push(problem.planes[g].clone());
+                            p.planes.len() - 1
+                        }
+                    };
+                    maps[k][g] = Some(n);
+                    n
+                }
+            };
+            match &mut o.kind {
+                ObservationKind::Contact { group, .. }
+                | ObservationKind::Tracker { group, .. }
+                | ObservationKind::Plane { group, .. } => *group = new,
+                _ => {}
+            }
+        }
+        p.observations.push(o);
+    }
+    p
+}
+
+pub(super) fn coincident_count(problem: &CellProblem, rows: &[usize]) -> usize {
+    rows.iter()
+        .filter(|&&i| {
+            matches!(
+                problem.observations[i].kind,
+                ObservationKind::Coincident { .. }
+            )
+        })
+        .count()
+}
+
+/// Fits `model` on the observations `rows` of `problem` (a sub-problem of them), starting from
+/// the robot corrections and placement of `start` when given. Returns the sub-problem and fit.
+pub(super) fn fit_model(
+    problem: &CellProblem,
+    model: &[Family],
+    rows: &[usize],
+    start: Option<&CellEstimate>,
+    options: &CellDiagnoseOptions,
+    cell_b1_from_b2: nalgebra::Isometry3<f64>,
+) -> Result<(CellProblem, CellFit), CellFitError> {
+    let sub = sub_problem(&model_problem(problem, model), rows);
+    let layout = model_layout(&sub, model);
+    let all: Vec<usize> = (0..sub.observations.len()).collect();
+    let placement = match start {
+        Some(s) => Some(s.b1_from_b2),
+        None if coincident_count(&sub, &all) < 3 => Some(cell_b1_from_b2),
+        None => options.solve.initial_b1_from_b2,
+    };
+    let mut est = initial_estimate(&sub, placement, &all)?;
+    if let Some(s) = start {
+        est.robot1 = s.robot1.clone();
+        est.robot2 = s.robot2.clone();
+    }
+    let fit = fit_cell_with(&sub, layout, &all, None, Some(&est), &options.solve)?;
+    Ok((sub, fit))
+}
+
+/// One scored residual block: the observation's kind, its raw residual (m) and its whitened
+/// residual.
+#[derive(Debug, Clone)]
+pub(crate) struct ScoredRow {
+    pub(crate) kind: &'static str,
+    pub(crate) raw_m: DVector<f64>,
+    pub(crate) whitened: DVector<f64>,
+    /// Stated σ of each residual, m (`sqrt diag (WᵀW)⁻¹`).
+    pub(crate) sigma_m: DVector<f64>,
+    /// Index of the observation in its problem.
+    pub(crate) index: usize,
+}
+
+/// Residuals of `rows` of `problem` at `est` under `layout`.
+pub(crate) fn residuals_at(
+    problem: &CellProblem,
+    layout: &ParamLayout,
+    est: &CellEstimate,
+    rows: &[usize],
+) -> Result<Vec<ScoredRow>, CellFitError> {
+    let ev = Evaluator::new(problem, layout);
+    rows.iter()
+        .map(|&i| {
+            let o = &problem.observations[i];
+            let l = ev.linearise(o, est, false)?;
+            let w = &l.whitening;
+            let sigma_m = match (w.transpose() * w).try_inverse() {
+                Some(cov) => cov.diagonal().map(|v| v.max(0.0).sqrt()),
+                None => DVector::from_element(w.nrows(), f64::NAN),
+            };
+            Ok(ScoredRow {
+                kind: o.kind.name(),
+                whitened: w * &l.residual,
+                raw_m: l.residual,
+                sigma_m,
+                index: i,
+            })
+        })
+        .collect()
+}
+
+/// Held-out residuals of one unit (rows of `problem`, all of one nuisance group or none) given a
+/// training estimate: the unit's nuisance fitted on one half with the training kinematics and
+/// placement held, the other half scored, and back.
+fn score_unit(
+    problem: &CellProblem,
+    unit: &[usize],
+    train: &CellEstimate,
+    options: &CellDiagnoseOptions,
+) -> Result<Vec<ScoredRow>, CellFitError> {
+    let mut sub = sub_problem(problem, unit);
+    for rb in [&mut sub.robot1, &mut sub.robot2] {
+        rb.tolerance = Tolerance::none();
+    }
+    sub.placement_prior = Some(PlacementPrior {
+        nominal_b1_from_b2: train.b1_from_b2,
+        sigma_m: HOLD_SIGMA,
+        sigma_rad: HOLD_SIGMA,
+    });
+    let layout = ParamLayout::new(&sub, &[]);
+    let n = sub.observations.len();
+    let with_train = |mut e: CellEstimate| {
+        e.b1_from_b2 = train.b1_from_b2;
+        e.robot1 = train.robot1.clone();
+        e.robot2 = train.robot2.clone();
+        e
+    };
+    let has_nuisance = layout.len() > 6;
+    if !has_nuisance {
+        let mut e = CellEstimate::nominal(&sub, train.b1_from_b2);
+        for (g, c) in sub.contacts.iter().enumerate() {
+            e.contact_distance_m[g] = c.distance_m;
+        }
+        let all: Vec<usize> = (0..n).collect();
+        return residuals_at(&sub, &layout, &with_train(e), &all);
+    }
+    let halves: [Vec<usize>; 2] = [
+        (0..n).filter(|i| i % 2 == 0).collect(),
+        (0..n).filter(|i| i % 2 == 1).collect(),
+    ];
+    let mut out = Vec::with_capacity(n);
+    for h in 0..2 {
+        let (fit_rows, test_rows) = (&halves[h], &halves[1 - h]);
+        let start = with_train(initial_estimate(&sub, Some(train.b1_from_b2), fit_rows)?);
+        let fit = fit_cell_with(
+            &sub,
+            layout.clone(),
+            fit_rows,
+            None,
+            Some(&start),
+            &options.solve,
+        )?;
+        out.extend(residuals_at(&sub, &layout, &fit.estimate, test_rows)?);
+    }
+    Ok(out)
+}
+
+/// The held-out units of the rows `rows`: one per named group of at least
+/// [`MIN_SCORED_GROUP_ROWS`] rows (in order of first appearance; smaller groups are never held
+/// out), the coincident rows cut into up to [`COINCIDENT_UNITS`] units in row order.
+pub(crate) fn held_out_units(problem: &CellProblem, rows: &[usize]) -> Vec<Vec<usize>> {
+    let mut keys: Vec<(usize, usize)> = Vec::new();
+    let mut units: Vec<Vec<usize>> = Vec::new();
+    let mut coincident = Vec::new();
+    for &i in rows {
+        match group_of(&problem.observations[i].kind) {
+            Some(key) => match keys.iter().position(|k| *k == key) {
+                Some(u) => units[u].push(i),
+                None => {
+                    keys.push(key);
+                    units.push(vec![i]);
+                }
+            },
+            None => coincident.push(i),
+        }
+    }
+    // A group too small to fit its nuisance on half its rows is never held out (it trains
+    // every fold and is not scored).
+    let mut units: Vec<Vec<usize>> = units
+        .into_iter()
+        .zip(&keys)
+        .filter(|(u, (kind, _))| u.len() >= MIN_SCORED_GROUP_ROWS[*kind])
+        .map(|(u, _)| u)
+        .collect();
+    if !coincident.is_empty() {
+        let parts = (coincident.len() / MIN_UNIT_ROWS).clamp(1, COINCIDENT_UNITS);
+        let size = coincident.len().div_ceil(parts);
+        units.extend(coincident.chunks(size).map(<[usize]>::to_vec));
+    }
+    if units.len() < 3 {
+        // Too few units to hold any out: cut each into contiguous blocks (recording order) of
+        // at least 2·MIN_GROUP_BLOCK_ROWS rows; each block's nuisance is refitted when it is
+        // scored, so no held-out row is predicted by a nuisance fitted on it.
+        units = units
+            .into_iter()
+            .flat_map(|u| {
+                let parts = (u.len() / MIN_GROUP_BLOCK_ROWS).clamp(1, COINCIDENT_UNITS);
+                let size = u.len().div_ceil(parts);
+                u.chunks(size).map(<[usize]>::to_vec).collect::<Vec<_>>()
+            })
+            .collect();
+    }
+    units
+}
+
+/// The held-out result of one model.
+#[derive(Debug, Clone)]
+pub(crate) struct HeldOut {
+    /// Held-out χ² of each unit (whitened residual sum of squares).
+    pub(crate) unit_chi2: Vec<f64>,
+    /// Scored residual blocks.
+    pub(crate) rows: Vec<ScoredRow>,
+}
+
+impl HeldOut {
+    pub(crate) fn total(&self) -> f64 {
+        self.unit_chi2.iter().sum()
+    }
+}
+
+/// The held-out design: the rows used and their units, grouped into folds.
+#[derive(Debug, Clone)]
+pub(crate) struct Folds {
+    /// Rows (observation indices) used, after the blunder screen.
+    pub(crate) used: Vec<usize>,
+    /// Each fold's units (each a list of rows).
+    pub(crate) folds: Vec<Vec<Vec<usize>>>,
+    /// Number of units over all folds.
+    pub(crate) n_units: usize,
+}
+
+/// Each unit's held-out χ² and scored rows, of one fold, in the fold's unit order.
+type FoldHeldOut = Vec<(f64, Vec<ScoredRow>)>;
+
+/// One fold of the held-out criterion: `model` fitted on the used rows outside fold `fold` of
+/// `design` (starting from `start`), then each of the fold's units scored on `scoring_problem`
+/// (`problem` under `model`). Returns each unit's held-out χ² and scored rows, in the fold's
+/// unit order.
+#[allow(clippy::too_many_arguments)]
+fn fold_held_out(
+    problem: &CellProblem,
+    scoring_problem: &CellProblem,
+    model: &[Family],
+    design: &Folds,
+    fold: usize,
+    start: &CellEstimate,
+    options: &CellDiagnoseOptions,
+    cell_b1_from_b2: nalgebra::Isometry3<f64>,
+) -> Result<FoldHeldOut, CellFitError> {
+    let units = &design.folds[fold];
+    let held: Vec<usize> = units.iter().flatten().copied().collect();
+    let train: Vec<usize> = design
+        .used
+        .iter()
+        .copied()
+        .filter(|i| !held.contains(i))
+        .collect();
+    let (_, fit) = fit_model(
+        problem,
+        model,
+        &train,
+        Some(start),
+        options,
+        cell_b1_from_b2,
+    )?;
+    units
+        .iter()
+        .map(|unit| {
+            let scored = score_unit(scoring_problem, unit, &fit.estimate, options)?;
+            let chi2 = scored.iter().map(|s| s.whitened.norm_squared()).sum();
+            Ok((chi2, scored))
+        })
+        .collect()
+}
+
+/// Cross-validates each of `models` over `design`'s folds, every training fit starting from
+/// `start`. The (model, fold) fits run in parallel (rayon's current pool) and are assembled in
+/// model order, then fold order, then unit order; each fit depends only on its own inputs, so
+/// the results, and the error returned (the first in that order), are those of running the fits
+/// one after another, whatever the thread count. `on_fit(m)` is called (from any thread) after
+/// each finished fit of model `m`.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn cross_validate_all(
+    problem: &CellProblem,
+    models: &[Vec<Family>],
+    design: &Folds,
+    start: &CellEstimate,
+    options: &CellDiagnoseOptions,
+    cell_b1_from_b2: nalgebra::Isometry3<f64>,
+    on_fit: &(dyn Fn(usize) + Sync),
+) -> Result<Vec<HeldOut>, CellFitError> {
+    let scoring: Vec<CellProblem> = models.iter().map(|m| model_problem(problem, m)).collect();
+    let n_folds = design.folds.len();
+    let jobs: Vec<(usize, usize)> = (0..models.len())
+        .flat_map(|m| (0..n_folds).map(move |f| (m, f)))
+        .collect();
+    let results: Vec<Result<FoldHeldOut, CellFitError>> = jobs
+        .par_iter()
+        .map(|&(m, f)| {
+            let r = fold_held_out(
+                problem,
+                &scoring[m],
+                &models[m],
+                design,
+                f,
+                start,
+                options,
+                cell_b1_from_b2,
+            );
+            on_fit(m);
+            r
+        })
+        .collect();
+    let mut results = results.into_iter();
+    let mut out = Vec::with_capacity(models.len());
+    for _ in models {
+        let mut unit_chi2 = Vec::with_capacity(design.n_units);
+        let mut rows = Vec::new();
+        for fold in results.by_ref().take(n_folds) {
+            for (chi2, scored) in fold? {
+                unit_chi2.push(chi2);
+                rows.extend(scored);
+            }
+        }
+        out.push(HeldOut { unit_chi2, rows });
+    }
+    Ok(out)
+}
+
+/// Whether `after` gains enough over `before` (see the [`cell_diagnosis`](crate::cell_diagnosis)
+/// documentation); returns the t statistic of the relative gains of the units the family is
+/// `involved` in (∞ or 0 with fewer than 3 such units).
+pub(super) fn significant(
+    before: &HeldOut,
+    after: &HeldOut,
+    involved: &[bool],
+    options: &CellDiagnoseOptions,
+) -> (bool, f64) {
+    let rel: Vec<f64> = before
+        .unit_chi2
+        .iter()
+        .zip(&after.unit_chi2)
+        .zip(involved)
+        .filter(|(_, inv)| **inv)
+        .map(|((b, a), _)| if *b > 0.0 { (b - a) / b } else { 0.0 })
+        .collect();
+    let total_before = before.total();
+    let relative = if total_before > 0.0 {
+        (total_before - after.total()) / total_before
+    } else {
+        0.0
+    };
+    let n = rel.len() as f64;
+    let t = if rel.len() < 3 {
+        if rel.iter().all(|r| *r >= options.min_relative_gain) {
+            f64::INFINITY
+        } else {
+            0.0
+        }
+    } else {
+        let mean = rel.iter().sum::<f64>() / n;
+        let var = rel.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+        if var > 0.0 {
+            mean / (var / n).sqrt()
+        } else if mean > 0.0 {
+            f64::INFINITY
+        } else {
+            0.0
+        }
+    };
+    (
+        relative >= options.min_relative_gain && t >= options.min_gain_t,
+        t,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cell_diagnosis::tests::mixed_session;
+    use crate::cell_diagnosis::{diagnosis_problem, CellDiagnoseOptions};
+    use sim_cell::Cell;
+
+    use crate::cell_diagnosis::problem::group_of;
+
+    #[test]
+    fn sub_problem_renumbers_groups_and_units_cover_every_row_once() {
+        let cell = Cell::default_floor_wall();
+        let session = mixed_session(&cell, 36, 3);
+        let p = diagnosis_problem(&cell, &session, &CellDiagnoseOptions::default()).unwrap();
+        p.check().unwrap();
+        let all: Vec<usize> = (0..p.observations.len()).collect();
+        let units = held_out_units(&p, &all);
+        let mut seen: Vec<usize> = units.iter().flatten().copied().collect();
+        seen.sort_unstable();
+        assert_eq!(seen, all);
+        for unit in &units {
+            let groups: Vec<_> = unit
+                .iter()
+                .map(|&i| group_of(&p.observations[i].kind))
+                .collect();
+            assert!(
+                groups.windows(2).all(|w| w[0] == w[1]),
+                "one group per unit"
+            );
+            let sub = sub_problem(&p, unit);
+            sub.check().unwrap();
+            assert_eq!(
+                sub.contacts.len() + sub.trackers.len() + sub.planes.len(),
+                usize::from(groups[0].is_some())
+            );
+        }
+    }
+}

@@ -1,0 +1,125 @@
+//! The diagnosis problem ([`diagnosis_problem`]: the cell's problem with widened tolerances,
+//! compliance and joint-periodic errors) and what its observations touch: robots, tools,
+//! joints and nuisance groups.
+
+use calib_core::whole_cell::{CellProblem, ObservationKind, Tolerance};
+use calib_core::Robot;
+use kinematics::gravity_torques;
+use sim_cell::whole_cell::{cell_problem, FitModel};
+use sim_cell::{Cell, Session};
+
+use super::CellDiagnoseOptions;
+use crate::DiagnoseError;
+
+pub(super) fn uses_robot(kind: &ObservationKind, r: Robot) -> bool {
+    tools_of(kind).iter().any(|(rr, _)| *rr == r)
+}
+
+/// The (robot, tool) pairs an observation uses.
+pub(super) fn tools_of(kind: &ObservationKind) -> Vec<(Robot, usize)> {
+    match kind {
+        ObservationKind::Coincident { tool1, tool2, .. }
+        | ObservationKind::Contact { tool1, tool2, .. } => {
+            vec![(Robot::One, *tool1), (Robot::Two, *tool2)]
+        }
+        ObservationKind::Tracker { robot, tool, .. }
+        | ObservationKind::Plane { robot, tool, .. } => {
+            vec![(*robot, *tool)]
+        }
+        _ => Vec::new(),
+    }
+}
+
+/// The joint vectors of an observation with their robots.
+pub(crate) fn joints_of(kind: &ObservationKind) -> Vec<(Robot, &[f64])> {
+    match kind {
+        ObservationKind::Coincident { q1, q2, .. } | ObservationKind::Contact { q1, q2, .. } => {
+            vec![(Robot::One, q1.as_slice()), (Robot::Two, q2.as_slice())]
+        }
+        ObservationKind::Tracker { robot, q, .. } | ObservationKind::Plane { robot, q, .. } => {
+            vec![(*robot, q.as_slice())]
+        }
+        _ => Vec::new(),
+    }
+}
+
+/// The nuisance group of an observation: `(kind index, group)` (0 contact, 1 tracker, 2 plane);
+/// `None` for coincident rows.
+pub(super) fn group_of(kind: &ObservationKind) -> Option<(usize, usize)> {
+    match kind {
+        ObservationKind::Contact { group, .. } => Some((0, *group)),
+        ObservationKind::Tracker { group, .. } => Some((1, *group)),
+        ObservationKind::Plane { group, .. } => Some((2, *group)),
+        _ => None,
+    }
+}
+
+/// The diagnosis problem: the cell's whole-cell problem with widened tolerances and compliance
+/// where the URDF has inertials (see the [`cell_diagnosis`](crate::cell_diagnosis)
+/// documentation).
+pub fn diagnosis_problem(
+    cell: &Cell,
+    session: &Session,
+    options: &CellDiagnoseOptions,
+) -> Result<CellProblem, DiagnoseError> {
+    let mut problem = cell_problem(cell, session, FitModel::Kinematic);
+    let w = options.prior_widening;
+    if !(w.is_finite() && w > 0.0) {
+        return Err(DiagnoseError::Session {
+            path: "<options>".into(),
+            message: format!("prior widening {w} must be finite and > 0 (default 10)"),
+        });
+    }
+    for r in [Robot::One, Robot::Two] {
+        let max_tau = max_gravity_torque(&problem, r)?;
+        let rb = if r == Robot::One {
+            &mut problem.robot1
+        } else {
+            &mut problem.robot2
+        };
+        let t = rb.tolerance;
+        let offset = t.joint_offset_rad * w;
+        rb.tolerance = Tolerance {
+            joint_offset_rad: offset,
+            origin_xyz_m: t.origin_xyz_m * w,
+            origin_rpy_rad: t.origin_rpy_rad * w,
+            tip_m: t.tip_m * w,
+            joint_scale: t.joint_scale.map(|s| s * w),
+            compliance_rad_per_nm: match t.compliance_rad_per_nm {
+                Some(c) => Some(c * w),
+                None if max_tau > 0.0 && offset > 0.0 => Some(offset / max_tau),
+                None => None,
+            },
+            periodic_rad: match t.periodic_rad {
+                Some(p) => Some(p * w),
+                None if offset > 0.0 => Some(offset),
+                None => None,
+            },
+        };
+    }
+    Ok(problem)
+}
+
+/// Largest |gravity torque| (N·m) of robot `r` over the problem's postures; 0 without inertials.
+fn max_gravity_torque(problem: &CellProblem, r: Robot) -> Result<f64, DiagnoseError> {
+    let rb = problem.robot(r);
+    if rb.model.inertials().is_empty() {
+        return Ok(0.0);
+    }
+    let mut max = 0.0f64;
+    for o in &problem.observations {
+        for (rr, q) in joints_of(&o.kind) {
+            if rr == r {
+                let tau = gravity_torques(&rb.model, q, &rb.g_base).map_err(|source| {
+                    DiagnoseError::Model {
+                        robot: r.number(),
+                        point: o.row,
+                        source,
+                    }
+                })?;
+                max = tau.iter().fold(max, |m, t| m.max(t.abs()));
+            }
+        }
+    }
+    Ok(max)
+}
