@@ -93,8 +93,10 @@ pub struct KindResidual {
     /// The kind's noise scale: its σ is multiplied by this in the diagnosis (see
     /// [`crate::cell_diagnosis`], step 2).
     pub noise_scale: f64,
-    /// RMS of the held-out residuals of this model, mm.
-    pub held_out_rms_mm: f64,
+    /// RMS of the held-out residuals of this model, mm; `None` (JSON `null`) when no row of
+    /// this kind was held out (its groups are too small to refit their nuisance on half the
+    /// rows, see [`crate::cell_diagnosis::MIN_SCORED_GROUP_ROWS`]).
+    pub held_out_rms_mm: Option<f64>,
 }
 
 /// A candidate at a selection step.
@@ -301,7 +303,7 @@ fn kind_residuals(fitted: &[ScoredRow], held: &HeldOut, scale: &[f64; 4]) -> Vec
                 stated_sigma_mm,
                 rms_over_sigma: rms_mm / stated_sigma_mm,
                 noise_scale: s,
-                held_out_rms_mm: kind_rms(&held.rows, k).map_or(f64::NAN, |v| v.1),
+                held_out_rms_mm: kind_rms(&held.rows, k).map(|v| v.1),
             })
         })
         .collect()
@@ -506,7 +508,7 @@ pub fn render_cell_text(r: &CellDiagnoseReport) -> String {
         for k in rows {
             let _ = writeln!(
                 s,
-                "  {:<11} {:>6} {:>9.3} {:>13.3} {:>9.2} {:>12.2} {:>15.3}",
+                "  {:<11} {:>6} {:>9.3} {:>13.3} {:>9.2} {:>12.2} {:>15}",
                 k.kind,
                 k.residual_rows,
                 k.rms_mm,
@@ -514,6 +516,7 @@ pub fn render_cell_text(r: &CellDiagnoseReport) -> String {
                 k.rms_over_sigma,
                 k.noise_scale,
                 k.held_out_rms_mm
+                    .map_or_else(|| "–".to_string(), |v| format!("{v:.3}"))
             );
         }
     };
