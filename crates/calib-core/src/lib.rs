@@ -31,8 +31,8 @@ pub use metrics::{
 };
 pub use mount_check::{mount_check, MountCheck, MOUNT_CHECK_ALPHA};
 pub use points::{
-    csv_delimiter, parse_points_csv, read_points_csv, strip_bom, PointPairs, DUPLICATE_DISTANCE_M,
-    METRES_LIMIT_MM, SPREAD_RATIO_LIMIT,
+    csv_delimiter, csv_reader, parse_points_csv, read_points_csv, strip_bom, PointPairs,
+    DUPLICATE_DISTANCE_M, METRES_LIMIT_MM, SPREAD_RATIO_LIMIT,
 };
 pub use pose::PoseMmDeg;
 pub use registration::{

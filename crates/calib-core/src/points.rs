@@ -193,6 +193,19 @@ pub fn csv_delimiter(text: &str) -> u8 {
     }
 }
 
+/// A CSV reader over `text` as the toolkit reads its input files: a leading UTF-8 BOM dropped,
+/// the delimiter taken from the header line ([`csv_delimiter`]), fields trimmed, and rows of any
+/// length accepted (the caller checks each row's length and names its line, which the `csv`
+/// crate's own length error does not say in the toolkit's words).
+pub fn csv_reader(text: &str) -> csv::Reader<&[u8]> {
+    let text = strip_bom(text);
+    csv::ReaderBuilder::new()
+        .delimiter(csv_delimiter(text))
+        .trim(csv::Trim::All)
+        .flexible(true)
+        .from_reader(text.as_bytes())
+}
+
 /// Reads handclasp points from a CSV in millimetres (see the module doc) and returns them in metres.
 ///
 /// Errors (each naming the file, line/column and the fix): unreadable file, malformed CSV, missing
@@ -408,6 +421,17 @@ mod tests {
             CalibError::Duplicate { row_a, row_b, .. } => assert_eq!((row_a, row_b), (2, 5)),
             other => panic!("expected duplicate, got {other}"),
         }
+    }
+
+    /// The shared reader drops the BOM, takes `;` from the header, trims fields and accepts a
+    /// short row (the callers name its line).
+    #[test]
+    fn csv_reader_drops_bom_detects_delimiter_and_accepts_short_rows() {
+        let mut r = csv_reader("\u{feff}a; b ;c\n1;2;3\n4;5\n");
+        let headers: Vec<String> = r.headers().unwrap().iter().map(str::to_string).collect();
+        assert_eq!(headers, ["a", "b", "c"]);
+        let lens: Vec<usize> = r.records().map(|row| row.unwrap().len()).collect();
+        assert_eq!(lens, [3, 2]);
     }
 
     /// A spreadsheet in a European locale writes `;`; a copy from a table writes tabs; both read

@@ -362,12 +362,7 @@ impl Plan {
     fn read(&self, input: &Path, cell: &Cell, session: &mut Session) -> anyhow::Result<FileCount> {
         let text = std::fs::read_to_string(input)
             .with_context(|| format!("--input {}", input.display()))?;
-        let text = calib_core::strip_bom(&text);
-        let mut reader = csv::ReaderBuilder::new()
-            .delimiter(calib_core::csv_delimiter(text))
-            .trim(csv::Trim::All)
-            .flexible(true)
-            .from_reader(text.as_bytes());
+        let mut reader = calib_core::csv_reader(&text);
         let at = |msg: String| anyhow::anyhow!("--input {}: {msg}", input.display());
         let headers = reader
             .headers()

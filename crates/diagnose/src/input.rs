@@ -120,18 +120,6 @@ fn fmt3(v: &Vector3<f64>) -> String {
     format!("[{:.3}, {:.3}, {:.3}]", v.x, v.y, v.z)
 }
 
-/// A CSV reader over session text as sim-cell's reader sees it: a UTF-8 BOM dropped, the
-/// delimiter (comma, semicolon or tab) taken from the header line, fields trimmed, rows of any
-/// length (sim-cell's reader reports a wrong row length with its line number).
-fn csv_reader(text: &str) -> csv::Reader<&[u8]> {
-    let text = calib_core::strip_bom(text);
-    csv::ReaderBuilder::new()
-        .delimiter(calib_core::csv_delimiter(text))
-        .trim(csv::Trim::All)
-        .flexible(true)
-        .from_reader(text.as_bytes())
-}
-
 /// Reads a session CSV for `cell` with sim-cell's reader, after a unit pre-check that names the
 /// likely mistake (radians under `*_deg`, metres under `*_mm`), then [`check_session`] on its
 /// coincident handclasps at the cell's tips (`Session::points`). Rows of other kinds or tools
@@ -185,7 +173,7 @@ pub fn load_session(path: &Path, cell: &Cell) -> Result<Session, DiagnoseError> 
 /// The largest |value| under the robots' `r1_*_deg`/`r2_*_deg` and `r1_*_mm`/`r2_*_mm` columns
 /// (unparsable fields skipped), and the number of data rows. Text that is no CSV gives zeros (sim-cell's reader says why).
 fn unit_ranges(text: &str) -> (f64, f64, usize) {
-    let mut reader = csv_reader(text);
+    let mut reader = calib_core::csv_reader(text);
     let Ok(names) = reader.headers().cloned() else {
         return (0.0, 0.0, 0);
     };
@@ -219,7 +207,7 @@ fn unit_ranges(text: &str) -> (f64, f64, usize) {
 /// first rows (angles in radians under `*_deg`, tips in metres under `*_mm`) and says which one
 /// makes every tried row consistent (within 1 mm), if any.
 fn unit_hint(text: &str, cell: &Cell) -> Option<String> {
-    let mut reader = csv_reader(text);
+    let mut reader = calib_core::csv_reader(text);
     let names: Vec<String> = reader.headers().ok()?.iter().map(str::to_string).collect();
     let col = |n: &str| names.iter().position(|h| h == n);
     let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());

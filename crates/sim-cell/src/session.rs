@@ -511,12 +511,7 @@ impl Session {
         };
         let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
         let want = Session::csv_header(d1, d2);
-        let text = calib_core::strip_bom(text);
-        let mut reader = csv::ReaderBuilder::new()
-            .delimiter(calib_core::csv_delimiter(text))
-            .trim(csv::Trim::All)
-            .flexible(true)
-            .from_reader(text.as_bytes());
+        let mut reader = calib_core::csv_reader(text);
         let headers = reader
             .headers()
             .map_err(|e| err(format!("line 1: the header is not valid CSV: {e}")))?

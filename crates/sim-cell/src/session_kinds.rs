@@ -528,12 +528,7 @@ pub fn parse_points_b1_csv(
         path: path.to_path_buf(),
         message,
     };
-    let text = calib_core::strip_bom(text);
-    let mut reader = csv::ReaderBuilder::new()
-        .delimiter(calib_core::csv_delimiter(text))
-        .trim(csv::Trim::All)
-        .flexible(true)
-        .from_reader(text.as_bytes());
+    let mut reader = calib_core::csv_reader(text);
     let headers = reader
         .headers()
         .map_err(|e| err(format!("line 1: the header is not valid CSV: {e}")))?
