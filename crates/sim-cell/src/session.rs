@@ -393,6 +393,14 @@ impl Session {
                 SessionRow::Observation(o) => {
                     set("kind", o.kind.name().into());
                     let blank = |n: usize| vec![String::new(); n];
+                    // Joint columns of a row that involves one robot; the other's stay empty.
+                    let one_robot = |robot: Robot, q: &[f64]| {
+                        if robot == Robot::One {
+                            (deg(q), blank(dof2), blank(3), blank(3))
+                        } else {
+                            (blank(dof1), deg(q), blank(3), blank(3))
+                        }
+                    };
                     match &o.kind {
                         SessionKind::Coincident {
                             q1,
@@ -440,11 +448,7 @@ impl Session {
                             {
                                 set(c, mm(p_tracker[a]));
                             }
-                            if *robot == Robot::One {
-                                (deg(q), blank(dof2), blank(3), blank(3))
-                            } else {
-                                (blank(dof1), deg(q), blank(3), blank(3))
-                            }
+                            one_robot(*robot, q)
                         }
                         SessionKind::Plane {
                             robot,
@@ -457,11 +461,7 @@ impl Session {
                             set("tool", tool_name(*robot, *tool));
                             set("group", group.clone());
                             set("sigma_mm", mm(*sigma_m));
-                            if *robot == Robot::One {
-                                (deg(q), blank(dof2), blank(3), blank(3))
-                            } else {
-                                (blank(dof1), deg(q), blank(3), blank(3))
-                            }
+                            one_robot(*robot, q)
                         }
                     }
                 }
