@@ -510,6 +510,22 @@ mod tests {
         assert!(leave_one_out(&few, Method::Lsq, &MountPair::floor_floor()).is_err());
     }
 
+    /// A fast leave-one-out equals the exact one: every left-out residual and threshold within
+    /// `tol` m, and the same flagged points.
+    fn assert_same_loo(fast: &OutlierReport, exact: &OutlierReport, tol: f64, what: &str) {
+        for i in 0..exact.loo_residuals_m.len() {
+            let d = (fast.loo_residuals_m[i] - exact.loo_residuals_m[i]).abs();
+            let dt = (fast.thresholds_m[i] - exact.thresholds_m[i]).abs();
+            assert!(d < tol && dt < tol, "{what} point {i}: {d} {dt}");
+        }
+        assert_eq!(
+            fast.loo_residuals_m.len(),
+            exact.loo_residuals_m.len(),
+            "{what}"
+        );
+        assert_eq!(fast.flagged, exact.flagged, "{what}");
+    }
+
     /// `n` points scattered over a 1.6 × 1.6 × 1.2 m box in b2 (the leave-one-out tests' data).
     fn loo_scattered_points(rng: &mut impl rand::Rng, n: usize) -> Vec<Point3<f64>> {
         (0..n)
@@ -570,16 +586,12 @@ mod tests {
                 let full = fit(&pairs, method, &mounts).unwrap();
                 let fast = leave_one_out_linearised(&pairs, &full, &mounts).unwrap();
                 let exact = leave_one_out(&pairs, method, &mounts).unwrap();
-                for i in 0..pairs.len() {
-                    let d = (fast.loo_residuals_m[i] - exact.loo_residuals_m[i]).abs();
-                    let dt = (fast.thresholds_m[i] - exact.thresholds_m[i]).abs();
-                    assert!(
-                        d < LINEARISED_LOO_TOL && dt < LINEARISED_LOO_TOL,
-                        "{mounts} {} point {i}: {d} {dt}",
-                        method.name()
-                    );
-                }
-                assert_eq!(fast.flagged, exact.flagged);
+                assert_same_loo(
+                    &fast,
+                    &exact,
+                    LINEARISED_LOO_TOL,
+                    &format!("{mounts} {}", method.name()),
+                );
                 assert_eq!(exact.flagged_rows(), vec![18], "{mounts} {}", method.name());
             }
         }
@@ -603,16 +615,12 @@ mod tests {
             for method in [Method::Generic, Method::GenericAffine, Method::Paper] {
                 let fast = leave_one_out_four_point(&pairs, method, &mounts).unwrap();
                 let exact = leave_one_out(&pairs, method, &mounts).unwrap();
-                for i in 0..pairs.len() {
-                    let d = (fast.loo_residuals_m[i] - exact.loo_residuals_m[i]).abs();
-                    let dt = (fast.thresholds_m[i] - exact.thresholds_m[i]).abs();
-                    assert!(
-                        d < FOUR_POINT_LOO_TOL && dt < FOUR_POINT_LOO_TOL,
-                        "{mounts} {} point {i}: {d} {dt}",
-                        method.name()
-                    );
-                }
-                assert_eq!(fast.flagged, exact.flagged);
+                assert_same_loo(
+                    &fast,
+                    &exact,
+                    FOUR_POINT_LOO_TOL,
+                    &format!("{mounts} {}", method.name()),
+                );
                 assert_eq!(exact.flagged_rows(), vec![24], "{mounts} {}", method.name());
             }
             assert!(leave_one_out_four_point(&pairs, Method::Lsq, &mounts).is_err());
