@@ -49,7 +49,8 @@ use data::{read_dataset, Recording, Role};
 use proxy_report::proxy_report;
 use scores::{print_scores, score_every_candidate, score_models, write_score_files, ScoredModel};
 use study::{
-    corrections, held_out_nuisance_cost, noise_from_nominal, score_recording, ModelSpec, ParamSet,
+    corrections, held_out_nuisance_rows, noise_from_nominal, score_recording, ModelSpec, ParamSet,
+    RowKind,
 };
 
 /// The CTU dual-arm Motoman study: three calibrations (self-contact; + planes; + tracker), each
@@ -180,7 +181,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let nuisance_score = |test: &[&Recording], corr: (&KinematicErrors, &KinematicErrors)| {
-        held_out_nuisance_cost(&cell, test, corr, &noise)
+        held_out_nuisance_rows(&cell, test, corr, &noise)
     };
 
     // --- self: no-tracker self-contact only; CV leaves one contact pattern out.
@@ -275,7 +276,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         let mut e2 = Vec::new();
         for r in test {
             for p in score_recording(&cell, r, corr, None)? {
-                e2.push((p.error_m * 1e3).powi(2));
+                e2.push((RowKind::Tracker, (p.error_m * 1e3).powi(2)));
             }
         }
         Ok(e2)

@@ -132,7 +132,8 @@ pub fn score_every_candidate(
          files (of {}) where it beats nominal, pooled rms mm:",
         trackers.len()
     );
-    for (spec, cv, _) in &choice.table {
+    for row in &choice.table {
+        let (spec, cv) = (&row.spec, row.pooled.e);
         let b = build_problem(cell, recs, Some(*spec), noise);
         let f = fit(&b, None, None)?;
         let (r, l) = corrections(&f);
