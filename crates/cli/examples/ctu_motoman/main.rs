@@ -64,9 +64,11 @@ struct Args {
     /// Output folder (created): self/, planes/, all/, scores.csv and the SVG figures.
     #[arg(long)]
     out: PathBuf,
-    /// How cross-validation picks the parameter set and prior σ: `one-se` (the simplest
-    /// candidate within one standard error of the smallest CV error; default) or `min` (the
-    /// smallest CV error).
+    /// How cross-validation picks the parameter set and prior σ: `one-se` (default: the simplest
+    /// candidate within one standard error of the smallest CV error of EVERY observation kind,
+    /// contact and plane; when none is, the one with the smallest largest shortfall in SEs),
+    /// `pooled-one-se` (stop 13's rule: one-SE on the error of all kinds pooled) or `min` (the
+    /// smallest pooled CV error). With one kind (`self`, `all`) `one-se` is the one-SE rule.
     #[arg(long, value_enum, default_value_t = CvRule::OneSe)]
     cv_rule: CvRule,
     /// Contact σ of the no-tracker self-contacts in the fits that fit the marker centres:
