@@ -1,7 +1,15 @@
 //! The study's cross-validated choice of a model: every (parameter set, prior σ) candidate is
-//! fitted with one group of recordings held out at a time, the held-out group is scored, and the
-//! one-standard-error rule (or `--cv-rule min`) picks the candidate; plus the CV table's printing
-//! and CSV.
+//! fitted with one group of recordings held out at a time, the held-out group is scored per
+//! observation kind, and the per-kind one-standard-error rule (or `--cv-rule pooled-one-se` /
+//! `min`) picks the candidate; plus the CV table's printing and CSV.
+//!
+//! The per-kind rule (fixed by the lead in stop 14, before it was run; see
+//! docs/ctu-motoman-findings.md, "The `planes` criterion, per kind"): for each observation kind
+//! k of the held-out rows (contact, plane, tracker) the CV error `e_k(c)` of candidate c and its
+//! standard error `SE_k(c)`; `best_k` = the candidate with the smallest `e_k`; c qualifies when
+//! `e_k(c) ≤ e_k(best_k) + SE_k(best_k)` for every k; the choice is the simplest qualifying
+//! candidate (table order), or, when none qualifies, the one minimising
+//! `max_k (e_k(c) − e_k(best_k)) / SE_k(best_k)`. With one kind this is the one-SE rule.
 
 use std::io::Write;
 use std::path::Path;
@@ -11,20 +19,40 @@ use kinematics::KinematicErrors;
 use sim_cell::Cell;
 
 use crate::data::Recording;
-use crate::study::{build_problem, corrections, fit, ModelSpec, NoiseLevels, ParamSet, SIGMA_GRID};
+use crate::study::{
+    build_problem, corrections, fit, ModelSpec, NoiseLevels, ParamSet, RowKind, SIGMA_GRID,
+};
 
 /// `--cv-rule`.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CvRule {
-    /// The simplest candidate within one standard error of the smallest CV error.
+    /// The per-kind one-SE rule: the simplest candidate within one SE of the smallest CV error
+    /// of EVERY observation kind (contact, plane) at once; with one kind, the one-SE rule.
     OneSe,
-    /// The smallest CV error.
+    /// Stop 13's rule, kept to reproduce its choice: the one-SE rule on the pooled CV error
+    /// (every held-out row of every kind in one rms, in σ units).
+    PooledOneSe,
+    /// The smallest pooled CV error.
     Min,
 }
 
-/// Scores held-out recordings at given (right, left) corrections: one squared error per
-/// held-out scalar row or tracker point.
-pub type HeldOutScore<'a> = dyn Fn(&[&Recording], (&KinematicErrors, &KinematicErrors)) -> anyhow::Result<Vec<f64>>
+impl CvRule {
+    /// The rule's name in the printed report.
+    pub fn name(self) -> &'static str {
+        match self {
+            CvRule::OneSe => "per-kind one-SE rule",
+            CvRule::PooledOneSe => "pooled one-SE rule",
+            CvRule::Min => "smallest pooled CV error",
+        }
+    }
+}
+
+/// The held-out rows of one candidate: (kind, squared error) per held-out scalar row or tracker
+/// point (σ units, or mm² for tracker scores).
+pub type HeldOutRows = Vec<(RowKind, f64)>;
+
+/// Scores held-out recordings at given (right, left) corrections: their [`HeldOutRows`].
+pub type HeldOutScore<'a> = dyn Fn(&[&Recording], (&KinematicErrors, &KinematicErrors)) -> anyhow::Result<HeldOutRows>
     + Sync
     + 'a;
 
@@ -32,8 +60,46 @@ pub type HeldOutScore<'a> = dyn Fn(&[&Recording], (&KinematicErrors, &KinematicE
 /// keeps the candidate order, so the result does not depend on this number).
 pub const CV_THREADS: usize = 2;
 
+/// A CV error: the held-out rms `e` (σ units, or mm for tracker scores) and its standard error.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CvError {
+    /// Held-out rms, `sqrt(mean e²)`.
+    pub e: f64,
+    /// Its standard error, `sd(e²) / (2·e·sqrt(n))` (delta method).
+    pub se: f64,
+}
+
+impl CvError {
+    /// The CV error of held-out squared errors `e2` (one per row or point).
+    pub fn from_squares(e2: &[f64]) -> CvError {
+        let n = e2.len().max(1) as f64;
+        let mean = e2.iter().sum::<f64>() / n;
+        let var = e2.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
+        let c = mean.sqrt();
+        CvError {
+            e: c,
+            se: var.sqrt() / (2.0 * c * n.sqrt()),
+        }
+    }
+}
+
+/// One candidate's row of the CV table.
+#[derive(Debug, Clone)]
+pub struct CvRow {
+    /// The candidate.
+    pub spec: ModelSpec,
+    /// Every held-out row of every kind pooled in one rms (stop 13's criterion).
+    pub pooled: CvError,
+    /// The CV error of each kind, in the order of [`Choice::kinds`].
+    pub by_kind: Vec<CvError>,
+    /// Whether the candidate qualifies under the per-kind rule over every candidate.
+    pub qualifies: bool,
+}
+
 /// One cross-validated choice.
 pub struct Choice {
+    /// The rule that made the choices.
+    pub rule: CvRule,
     /// The choice of the rule over every candidate (exported).
     pub spec: ModelSpec,
     /// The rule's choice among the candidates without compliance.
@@ -42,21 +108,112 @@ pub struct Choice {
     pub with_compliance: ModelSpec,
     /// The rule's choice among the candidates with the marker centres (`None`: no such set).
     pub with_marker: Option<ModelSpec>,
-    /// The candidate with the smallest criterion.
+    /// The candidate with the smallest pooled criterion.
     pub min_spec: ModelSpec,
-    /// Standard error of the smallest criterion.
+    /// Standard error of the smallest pooled criterion.
     pub min_se: f64,
-    /// (spec, criterion, its standard error) of every candidate.
-    pub table: Vec<(ModelSpec, f64, f64)>,
+    /// The observation kinds of the held-out rows, in [`RowKind`] order.
+    pub kinds: Vec<RowKind>,
+    /// Per kind: the candidate with the smallest CV error of that kind, and that error.
+    pub best: Vec<(ModelSpec, CvError)>,
+    /// The choice of stop 13's pooled one-SE rule over every candidate (for the comparison).
+    pub pooled_one_se: ModelSpec,
+    /// When no candidate qualified under the per-kind rule (over every candidate): the chosen
+    /// candidate's largest shortfall `max_k (e_k − e_k(best_k)) / SE_k(best_k)`.
+    pub shortfall: Option<f64>,
+    /// Every candidate, simplest first.
+    pub table: Vec<CvRow>,
+}
+
+/// The per-kind one-SE rule's pick among candidates listed simplest first.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PerKindPick {
+    /// Index of the chosen candidate.
+    pub index: usize,
+    /// Whether each candidate qualifies (within one SE of each kind's best, on every kind).
+    pub qualifies: Vec<bool>,
+    /// Per kind, the index of the candidate with the smallest error (the first on a tie).
+    pub best: Vec<usize>,
+    /// `None` when the choice qualifies; else its largest shortfall in SEs (the fallback).
+    pub shortfall: Option<f64>,
+}
+
+/// The per-kind one-SE rule on `errors[c][k]` (candidate c, simplest first; kind k): `best_k`
+/// = argmin_c e_k(c); c qualifies when `e_k(c) ≤ e_k(best_k) + SE_k(best_k)` for every k; the
+/// pick is the first qualifying candidate, or, when none qualifies, the one minimising
+/// `max_k (e_k(c) − e_k(best_k)) / SE_k(best_k)` (the first on a tie; a zero SE counts a
+/// positive difference as infinitely many SEs). `None` without candidates or kinds, or when the
+/// candidates disagree on the number of kinds.
+pub fn per_kind_one_se(errors: &[Vec<CvError>]) -> Option<PerKindPick> {
+    let kinds = errors.first()?.len();
+    if kinds == 0 || errors.iter().any(|c| c.len() != kinds) {
+        return None;
+    }
+    let best: Vec<usize> = (0..kinds)
+        .map(|k| {
+            (0..errors.len())
+                .min_by(|&a, &b| errors[a][k].e.total_cmp(&errors[b][k].e))
+                .unwrap_or(0)
+        })
+        .collect();
+    let qualifies: Vec<bool> = errors
+        .iter()
+        .map(|c| {
+            (0..kinds).all(|k| {
+                let b = errors[best[k]][k];
+                c[k].e <= b.e + b.se
+            })
+        })
+        .collect();
+    if let Some(index) = qualifies.iter().position(|&q| q) {
+        return Some(PerKindPick {
+            index,
+            qualifies,
+            best,
+            shortfall: None,
+        });
+    }
+    let shortfall = |c: &[CvError]| -> f64 {
+        (0..kinds)
+            .map(|k| {
+                let b = errors[best[k]][k];
+                let d = c[k].e - b.e;
+                if b.se > 0.0 {
+                    d / b.se
+                } else if d > 0.0 {
+                    f64::INFINITY
+                } else {
+                    0.0
+                }
+            })
+            .fold(f64::NEG_INFINITY, f64::max)
+    };
+    let index = (0..errors.len())
+        .min_by(|&a, &b| shortfall(&errors[a]).total_cmp(&shortfall(&errors[b])))?;
+    Some(PerKindPick {
+        index,
+        shortfall: Some(shortfall(&errors[index])),
+        qualifies,
+        best,
+    })
+}
+
+/// Stop 13's one-SE rule on one (pooled) CV error per candidate, simplest first: the first
+/// candidate with `e ≤ e_min + SE_min`. `None` without candidates.
+pub fn pooled_one_se(pooled: &[CvError]) -> Option<usize> {
+    let min = (0..pooled.len()).min_by(|&a, &b| pooled[a].e.total_cmp(&pooled[b].e))?;
+    pooled
+        .iter()
+        .position(|c| c.e <= pooled[min].e + pooled[min].se)
 }
 
 /// Grouped CV: for every spec, train on all recordings but one held-out group and score the
-/// held-out group with `score` (one squared error per held-out scalar or point), pooled over the
-/// groups; the criterion is the rms `c = sqrt(mean e²)` with standard error
-/// `SE = sd(e²) / (2·c·sqrt(n))` (delta method). The choice is the one-standard-error rule:
-/// the simplest candidate (offsets before offsets + lengths, then the smaller prior σ) whose
-/// criterion is within one SE of the smallest. Chosen before the tracker scores were looked at,
-/// as the standard guard against a minimum that noise picked.
+/// held-out group with `score` (one (kind, squared error) per held-out scalar or point), over
+/// the groups; the criteria are the rms `e = sqrt(mean e²)` of every row (pooled) and of each
+/// kind's rows, each with standard error `SE = sd(e²) / (2·e·sqrt(n))` (delta method). The
+/// candidates are ordered simplest first (offsets before offsets + lengths, then the smaller
+/// prior σ) and `rule` picks one ([`per_kind_one_se`] by default), over every candidate and
+/// within the subsets without compliance, with compliance and with the marker centres.
 pub fn cross_validate(
     cell: &Cell,
     recs: &[&Recording],
@@ -70,8 +227,8 @@ pub fn cross_validate(
         .iter()
         .flat_map(|&set| SIGMA_GRID.map(|sigma| ModelSpec { set, sigma }))
         .collect();
-    let evaluate = |spec: ModelSpec| -> anyhow::Result<(ModelSpec, f64, f64)> {
-        let mut e2: Vec<f64> = Vec::new();
+    let evaluate = |spec: ModelSpec| -> anyhow::Result<HeldOutRows> {
+        let mut e2: HeldOutRows = Vec::new();
         for fold in folds {
             let train: Vec<&Recording> = recs
                 .iter()
@@ -89,14 +246,10 @@ pub fn cross_validate(
             let (r, l) = corrections(&f);
             e2.extend(score(&test, (&r, &l))?);
         }
-        let n = e2.len().max(1) as f64;
-        let mean = e2.iter().sum::<f64>() / n;
-        let var = e2.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
-        let c = mean.sqrt();
-        Ok((spec, c, var.sqrt() / (2.0 * c * n.sqrt())))
+        Ok(e2)
     };
     // Candidate k goes to thread k % CV_THREADS; the results are put back in candidate order.
-    let mut slots: Vec<Option<anyhow::Result<(ModelSpec, f64, f64)>>> =
+    let mut slots: Vec<Option<anyhow::Result<HeldOutRows>>> =
         (0..specs.len()).map(|_| None).collect();
     std::thread::scope(|scope| {
         let handles: Vec<_> = (0..CV_THREADS)
@@ -116,43 +269,105 @@ pub fn cross_validate(
             }
         }
     });
-    let table = slots
+    let rows = slots
         .into_iter()
         .map(|s| s.context("a CV candidate was not evaluated")?)
         .collect::<anyhow::Result<Vec<_>>>()?;
-    let pick = |keep: &dyn Fn(ParamSet) -> bool| -> anyhow::Result<(ModelSpec, ModelSpec, f64)> {
-        let sub: Vec<&(ModelSpec, f64, f64)> = table.iter().filter(|t| keep(t.0.set)).collect();
-        let &&(min_spec, min_c, min_se) = sub
-            .iter()
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .context("no CV candidate")?;
-        // Table order is already simplest first: set, then σ ascending.
-        let spec = match rule {
-            CvRule::Min => min_spec,
-            CvRule::OneSe => sub
-                .iter()
-                .find(|t| t.1 <= min_c + min_se)
-                .map_or(min_spec, |t| t.0),
-        };
-        Ok((spec, min_spec, min_se))
+    let kinds_of = |r: &[(RowKind, f64)]| {
+        let mut k: Vec<RowKind> = r.iter().map(|x| x.0).collect();
+        k.sort();
+        k.dedup();
+        k
     };
-    let (spec, min_spec, min_se) = pick(&|_| true)?;
+    let kinds = kinds_of(rows.first().context("no CV candidate")?);
+    let mut table: Vec<CvRow> = Vec::with_capacity(specs.len());
+    for (spec, r) in specs.iter().zip(&rows) {
+        if kinds_of(r) != kinds {
+            anyhow::bail!(
+                "CV candidate {} σ {}: its held-out rows have other kinds than the first \
+                 candidate's (the folds must score the same rows for every candidate)",
+                spec.set.name(),
+                spec.sigma
+            );
+        }
+        let all: Vec<f64> = r.iter().map(|x| x.1).collect();
+        let by_kind = kinds
+            .iter()
+            .map(|&k| {
+                let e2: Vec<f64> = r.iter().filter(|x| x.0 == k).map(|x| x.1).collect();
+                CvError::from_squares(&e2)
+            })
+            .collect();
+        table.push(CvRow {
+            spec: *spec,
+            pooled: CvError::from_squares(&all),
+            by_kind,
+            qualifies: false,
+        });
+    }
+    // The rule within the candidates `keep` accepts: (choice, per-kind pick over them).
+    let pick = |keep: &dyn Fn(ParamSet) -> bool,
+                rule: CvRule|
+     -> anyhow::Result<(ModelSpec, PerKindPick)> {
+        let sub: Vec<&CvRow> = table.iter().filter(|t| keep(t.spec.set)).collect();
+        let pooled: Vec<CvError> = sub.iter().map(|t| t.pooled).collect();
+        let per_kind = per_kind_one_se(&sub.iter().map(|t| t.by_kind.clone()).collect::<Vec<_>>())
+            .context("no CV candidate")?;
+        let index = match rule {
+            CvRule::OneSe => per_kind.index,
+            CvRule::PooledOneSe => pooled_one_se(&pooled).context("no CV candidate")?,
+            CvRule::Min => (0..pooled.len())
+                .min_by(|&a, &b| pooled[a].e.total_cmp(&pooled[b].e))
+                .context("no CV candidate")?,
+        };
+        Ok((sub[index].spec, per_kind))
+    };
+    let (spec, per_kind) = pick(&|_| true, rule)?;
+    let pooled_one_se_spec = pick(&|_| true, CvRule::PooledOneSe)?.0;
+    let without_compliance = pick(&|s| !s.compliance() && !s.marker(), rule)?.0;
+    let with_compliance = pick(&|s| s.compliance(), rule)?.0;
+    let with_marker = if sets.iter().any(|s| s.marker()) {
+        Some(pick(&|s| s.marker(), rule)?.0)
+    } else {
+        None
+    };
+    let min_row = table
+        .iter()
+        .min_by(|a, b| a.pooled.e.total_cmp(&b.pooled.e))
+        .context("no CV candidate")?;
+    let (min_spec, min_se) = (min_row.spec, min_row.pooled.se);
+    let best = per_kind
+        .best
+        .iter()
+        .enumerate()
+        .map(|(k, &c)| (table[c].spec, table[c].by_kind[k]))
+        .collect();
+    for (row, q) in table.iter_mut().zip(&per_kind.qualifies) {
+        row.qualifies = *q;
+    }
     Ok(Choice {
+        rule,
         spec,
-        without_compliance: pick(&|s| !s.compliance() && !s.marker())?.0,
-        with_compliance: pick(&|s| s.compliance())?.0,
-        with_marker: if sets.iter().any(|s| s.marker()) {
-            Some(pick(&|s| s.marker())?.0)
+        without_compliance,
+        with_compliance,
+        with_marker,
+        min_spec,
+        min_se,
+        kinds,
+        best,
+        pooled_one_se: pooled_one_se_spec,
+        shortfall: if rule == CvRule::OneSe {
+            per_kind.shortfall
         } else {
             None
         },
-        min_spec,
-        min_se,
         table,
     })
 }
 
-/// Prints the CV table of `c` (rows: parameter sets, columns: prior σ; `*` the choice).
+/// Prints the CV table of `c`: the pooled criterion as a grid (rows: parameter sets, columns:
+/// prior σ; `*` the choice) and, with more than one observation kind, every candidate's error
+/// per kind with its SE and whether it qualifies under the per-kind rule (`+`).
 pub fn print_cv(title: &str, unit: &str, sets: &[ParamSet], c: &Choice) {
     println!("{title}");
     print!("  {:<16}", "set \\ σ");
@@ -162,20 +377,74 @@ pub fn print_cv(title: &str, unit: &str, sets: &[ParamSet], c: &Choice) {
     println!();
     for &set in sets {
         print!("  {:<16}", set.name());
-        for (spec, v, _) in c.table.iter().filter(|(s, _, _)| s.set == set) {
-            let mark = if *spec == c.spec { "*" } else { " " };
-            print!(" {v:>7.4}{mark}");
+        for row in c.table.iter().filter(|r| r.spec.set == set) {
+            let mark = if row.spec == c.spec { "*" } else { " " };
+            print!(" {:>7.4}{mark}", row.pooled.e);
         }
         println!();
     }
+    if c.kinds.len() > 1 {
+        println!(
+            "  per kind ({unit}, SE in brackets; + = qualifies: within one SE of the smallest of \
+             EVERY kind; * = chosen):"
+        );
+        print!("  {:<16} {:>4} {:>8}", "set", "σ", "pooled");
+        for k in &c.kinds {
+            print!(" {:>18}", k.name());
+        }
+        println!();
+        for row in &c.table {
+            print!(
+                "  {:<16} {:>4} {:>8.4}",
+                row.spec.set.name(),
+                row.spec.sigma,
+                row.pooled.e
+            );
+            for e in &row.by_kind {
+                print!("   {:>7.4} ({:.4})", e.e, e.se);
+            }
+            let q = if row.qualifies { "+" } else { " " };
+            let star = if row.spec == c.spec { "*" } else { " " };
+            println!(" {q}{star}");
+        }
+        println!(
+            "  smallest per kind: {}",
+            c.kinds
+                .iter()
+                .zip(&c.best)
+                .map(|(k, (s, e))| format!(
+                    "{} {} σ {} ({:.4}, threshold {:.4})",
+                    k.name(),
+                    s.set.name(),
+                    s.sigma,
+                    e.e,
+                    e.e + e.se
+                ))
+                .collect::<Vec<_>>()
+                .join("; ")
+        );
+    }
     println!(
-        "  smallest {unit}: {} σ {} (SE {:.4}); chosen (*): {} with σ = {} mrad / mm",
+        "  smallest {unit}{}: {} σ {} (SE {:.4}); chosen (*) by the {}: {} with σ = {} mrad / mm{}",
+        if c.kinds.len() > 1 { " (pooled)" } else { "" },
         c.min_spec.set.name(),
         c.min_spec.sigma,
         c.min_se,
+        c.rule.name(),
         c.spec.set.name(),
-        c.spec.sigma
+        c.spec.sigma,
+        match c.shortfall {
+            Some(s) => format!(" (no candidate qualifies; its largest shortfall is {s:.2} SE)"),
+            None => String::new(),
+        }
     );
+    if c.kinds.len() > 1 && c.pooled_one_se != c.spec {
+        println!(
+            "  stop 13's pooled one-SE rule would choose {} σ {}",
+            c.pooled_one_se.set.name(),
+            c.pooled_one_se.sigma
+        );
+    }
     println!(
         "  the rule within the sets without compliance: {} σ {}; within those with: {} σ {}",
         c.without_compliance.set.name(),
@@ -192,18 +461,29 @@ pub fn print_cv(title: &str, unit: &str, sets: &[ParamSet], c: &Choice) {
     }
 }
 
-/// Writes the CV table of `c` to `path` (one row per candidate; `criterion` names the column).
+/// Writes the CV table of `c` to `path`: one row per candidate with the pooled criterion
+/// (`criterion` names its column) and its SE, then `e_<kind>,se_<kind>` per observation kind,
+/// `qualifies` (per-kind rule over every candidate) and `chosen`.
 pub fn write_cv(path: &Path, c: &Choice, criterion: &str) -> anyhow::Result<()> {
     let mut w = std::fs::File::create(path).with_context(|| format!("{}", path.display()))?;
-    writeln!(w, "set,sigma_mrad_or_mm,{criterion},se,chosen")?;
-    for (s, v, se) in &c.table {
-        writeln!(
+    write!(w, "set,sigma_mrad_or_mm,{criterion},se")?;
+    for k in &c.kinds {
+        write!(w, ",e_{0},se_{0}", k.name())?;
+    }
+    writeln!(w, ",qualifies,chosen")?;
+    for row in &c.table {
+        write!(
             w,
-            "{},{},{v:.6},{se:.6},{}",
-            s.set.name(),
-            s.sigma,
-            *s == c.spec
+            "{},{},{:.6},{:.6}",
+            row.spec.set.name(),
+            row.spec.sigma,
+            row.pooled.e,
+            row.pooled.se
         )?;
+        for e in &row.by_kind {
+            write!(w, ",{:.6},{:.6}", e.e, e.se)?;
+        }
+        writeln!(w, ",{},{}", row.qualifies, row.spec == c.spec)?;
     }
     Ok(())
 }

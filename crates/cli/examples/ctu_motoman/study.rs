@@ -520,6 +520,29 @@ pub fn corrections(fit: &CellFit) -> (KinematicErrors, KinematicErrors) {
     )
 }
 
+/// The observation kind of a held-out row: each kind has its own CV error in the per-kind
+/// selection rule (`cv`). Ordered as the CV table's columns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum RowKind {
+    /// A self-contact distance row (either contact group).
+    Contact,
+    /// A plane-contact row.
+    Plane,
+    /// A tracker point (the honest protocol's held-out pose, or a tracker observation).
+    Tracker,
+}
+
+impl RowKind {
+    /// The kind's name in tables and CSV columns.
+    pub fn name(self) -> &'static str {
+        match self {
+            RowKind::Contact => "contact",
+            RowKind::Plane => "plane",
+            RowKind::Tracker => "tracker",
+        }
+    }
+}
+
 /// Held-out error of held-out recordings that are not scored by the tracker protocol: the
 /// problem of `recordings` with nominal tolerances (only contact distances and planes fitted) at
 /// the given corrections; returns the whitened square of each scalar row (σ units).
@@ -529,11 +552,41 @@ pub fn held_out_nuisance_cost(
     corr: (&KinematicErrors, &KinematicErrors),
     noise: &NoiseLevels,
 ) -> anyhow::Result<Vec<f64>> {
+    Ok(held_out_nuisance_rows(cell, recordings, corr, noise)?
+        .into_iter()
+        .map(|(_, e2)| e2)
+        .collect())
+}
+
+/// [`held_out_nuisance_cost`] with the kind of each row: (kind, whitened square). Fails on an
+/// observation kind the study does not build (it would have no CV column).
+pub fn held_out_nuisance_rows(
+    cell: &Cell,
+    recordings: &[&Recording],
+    corr: (&KinematicErrors, &KinematicErrors),
+    noise: &NoiseLevels,
+) -> anyhow::Result<Vec<(RowKind, f64)>> {
     let b = build_problem(cell, recordings, None, noise);
     let f = fit(&b, None, Some(corr))?;
     let res = residuals(&b.problem, &f, &f.estimate)?;
     // Contact and plane rows are scalar: the whitened square is the row's.
-    Ok(res.iter().map(|r| r.1).collect())
+    b.problem
+        .observations
+        .iter()
+        .zip(&res)
+        .map(|(o, r)| {
+            let kind = match o.kind {
+                ObservationKind::Contact { .. } => RowKind::Contact,
+                ObservationKind::Plane { .. } => RowKind::Plane,
+                ObservationKind::Tracker { .. } => RowKind::Tracker,
+                _ => anyhow::bail!(
+                    "held-out row of an observation kind the CTU study does not build: {:?}",
+                    o.kind
+                ),
+            };
+            Ok((kind, r.1))
+        })
+        .collect()
 }
 
 /// One held-out tracker point of the honest score.
