@@ -195,6 +195,43 @@ fn a_wrong_data_folder_is_a_clear_error() {
     assert!(e.contains("not the ctu-motoman dataset folder"), "{e}");
 }
 
+/// The `--self-select tracker` choice scores exactly the grids and the four `leica_self` files,
+/// trains on the self-contacts only, and never sees a table/wall file (the evaluation files).
+#[test]
+fn self_selection_scores_the_grids_and_leica_self_and_trains_on_self_contact_only() {
+    let Some((recs, _)) = dataset_and_cell() else {
+        return;
+    };
+    let selection = data::self_selection_recordings(&recs);
+    let mut names: Vec<&str> = selection.iter().map(|r| r.name.as_str()).collect();
+    names.sort_unstable();
+    assert_eq!(
+        names,
+        [
+            "leica_left_hand_6x6x6",
+            "leica_right_hand_6x6x6",
+            "leica_self_lower1_4x4",
+            "leica_self_lower2_4x4",
+            "leica_self_upper1_4x4",
+            "leica_self_upper2_4x4",
+        ]
+    );
+    assert!(selection.iter().all(|r| r.pattern == "selection"));
+    // The CV over self-contacts + selection, fold "selection": its training set.
+    let pool: Vec<&Recording> = self_contact(&recs).into_iter().chain(&selection).collect();
+    let train: Vec<&Recording> = pool
+        .iter()
+        .copied()
+        .filter(|r| r.pattern != "selection")
+        .collect();
+    assert_eq!(train.len(), 4);
+    assert!(train.iter().all(|r| r.role == Role::SelfContact));
+    // No table/wall tracker file is scored.
+    assert!(selection.iter().all(|r| r.pattern != "leica_table"
+        && !r.name.contains("table")
+        && !r.name.contains("wall")));
+}
+
 #[test]
 fn halves_are_disjoint_and_cover_every_row() {
     let (a, b) = study::halves(25, study::SPLIT_SEED);

@@ -58,6 +58,26 @@ pub struct Recording {
     pub poses: Vec<Pose>,
 }
 
+/// Patterns of the tracker files on which the `--self-select tracker` choice scores the `self`
+/// candidates: the grids and the tracker self-contact sets (the issue's "cross-validation on the
+/// self-contact sets, the grids and the tracker self-contact sets"). The six table/wall files
+/// (`leica_table`) are never used in a `self` choice: they are its evaluation.
+pub const SELF_SELECTION_PATTERNS: [&str; 3] = ["right_grid", "left_grid", "leica_self"];
+
+/// Copies of the recordings whose pattern is in [`SELF_SELECTION_PATTERNS`], with the pattern
+/// `"selection"`: one CV fold that holds them all out, so that `cv::cross_validate` over the
+/// self-contacts plus these trains on the self-contacts only and scores these.
+pub fn self_selection_recordings(recordings: &[Recording]) -> Vec<Recording> {
+    recordings
+        .iter()
+        .filter(|r| SELF_SELECTION_PATTERNS.contains(&r.pattern))
+        .map(|r| Recording {
+            pattern: "selection",
+            ..r.clone()
+        })
+        .collect()
+}
+
 /// (base name, role, pattern, right arm?) of every recording the study reads. The
 /// repeatability files (one pose repeated) carry no geometry and are not used.
 pub const RECORDINGS: [(&str, Role, &str, bool); 22] = [

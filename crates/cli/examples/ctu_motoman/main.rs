@@ -45,9 +45,12 @@ use sim_cell::Cell;
 use calibrated::{calibrate, calibrate_all, contact_rms, print_effects};
 use contact_report::{contact_report, marker_at_report};
 use cv::{cross_validate, print_cv, write_cv, CvRule};
-use data::{read_dataset, Recording, Role};
+use data::{read_dataset, self_selection_recordings, Recording, Role, SELF_SELECTION_PATTERNS};
 use proxy_report::proxy_report;
-use scores::{print_scores, score_every_candidate, score_models, write_score_files, ScoredModel};
+use scores::{
+    print_scores, print_selection_split, score_every_candidate, score_models, write_score_files,
+    ScoredModel,
+};
 use study::{
     corrections, held_out_nuisance_rows, noise_from_nominal, score_recording, ModelSpec, ParamSet,
     RowKind,
@@ -87,6 +90,25 @@ struct Args {
     /// pair's contact distance is refitted, so it scores the scatter within the pair).
     #[arg(long, value_enum, default_value_t = SelfFolds::Pattern)]
     self_cv_folds: SelfFolds,
+    /// How the exported `self` model (parameter set and prior σ) is chosen. Its VALUES always
+    /// come from the no-tracker self-contacts only. `tracker` (default; the issue's protocol:
+    /// "cross-validation on the self-contact sets, the grids and the tracker self-contact
+    /// sets"): every candidate fitted on the self-contacts is scored with the honest protocol on
+    /// the SELECTION files (right grid, left grid, the four leica_self files) and the CV rule
+    /// picks; the six table/wall files are never used in the choice and are the evaluation.
+    /// `contact-cv`: stop 13's choice, CV on the self-contacts alone (see --self-cv-folds).
+    /// The other choice is fitted and scored too, for comparison.
+    #[arg(long, value_enum, default_value_t = SelfSelect::Tracker)]
+    self_select: SelfSelect,
+}
+
+/// `--self-select`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum SelfSelect {
+    /// Candidates scored on the grids and the leica_self tracker files.
+    Tracker,
+    /// CV on the self-contacts alone.
+    ContactCv,
 }
 
 /// `--self-cv-folds`.
@@ -185,6 +207,16 @@ fn run(args: Args) -> anyhow::Result<()> {
     let nuisance_score = |test: &[&Recording], corr: (&KinematicErrors, &KinematicErrors)| {
         held_out_nuisance_rows(&cell, test, corr, &noise)
     };
+    // The honest protocol on held-out tracker files (mm), one squared error per point.
+    let tracker_score = |test: &[&Recording], corr: (&KinematicErrors, &KinematicErrors)| {
+        let mut e2 = Vec::new();
+        for r in test {
+            for p in score_recording(&cell, r, corr, None)? {
+                e2.push((RowKind::Tracker, (p.error_m * 1e3).powi(2)));
+            }
+        }
+        Ok(e2)
+    };
 
     // --- self: no-tracker self-contact only; CV leaves one contact pattern out.
     let self_recs = by_role(&[Role::SelfContact]);
@@ -205,7 +237,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             "CV self (--self-cv-folds face-pair: leave one face pair out of 8, its distance refitted; held-out contact rms in σ units):",
         ),
     };
-    let self_choice = cross_validate(
+    let contact_choice = cross_validate(
         &cell,
         &cv_recs,
         &ParamSet::WITH_MARKER,
@@ -218,22 +250,79 @@ fn run(args: Args) -> anyhow::Result<()> {
         cv_title,
         "held-out rms",
         &ParamSet::WITH_MARKER,
-        &self_choice,
+        &contact_choice,
     );
+    // The tracker-file choice: every candidate trained on the self-contacts (the only recordings
+    // whose pattern is not "selection"), scored on the selection files.
+    let selection = self_selection_recordings(&recordings);
+    let tracker_choice = {
+        let recs: Vec<&Recording> = self_recs.iter().copied().chain(&selection).collect();
+        cross_validate(
+            &cell,
+            &recs,
+            &ParamSet::WITH_MARKER,
+            &["selection"],
+            &noise,
+            args.cv_rule,
+            &tracker_score,
+        )?
+    };
+    print_cv(
+        "choice of self by the tracker selection files (each candidate fitted on the self-contacts only, scored on the right grid, left grid and the 4 leica_self files; held-out tracker rms, mm; the table/wall files are not used):",
+        "held-out tracker rms",
+        &ParamSet::WITH_MARKER,
+        &tracker_choice,
+    );
+    let (self_choice, other_choice, other_name, self_criterion) = match args.self_select {
+        SelfSelect::Tracker => (
+            &tracker_choice,
+            &contact_choice,
+            "self(ccv)",
+            "heldout_tracker_rms_mm",
+        ),
+        SelfSelect::ContactCv => (
+            &contact_choice,
+            &tracker_choice,
+            "self(trk)",
+            "heldout_rms_sigma",
+        ),
+    };
     let cal_self = calibrate_all(
         &cell,
         "self",
         &self_recs,
-        &self_choice,
+        self_choice,
         &noise,
         &args.out,
-        "the no-tracker self-contact files only (no tracker value used)",
+        match args.self_select {
+            SelfSelect::Tracker => {
+                "the no-tracker self-contact files only (no tracker value in the fit; the set and\n\
+                 # prior σ chosen by their held-out tracker rms on the grids and the leica_self files)"
+            }
+            SelfSelect::ContactCv => {
+                "the no-tracker self-contact files only (no tracker value used; the set and prior σ\n\
+                 # chosen by grouped CV on the self-contacts)"
+            }
+        },
     )?;
     println!("self done at {:.1} s", t0.elapsed().as_secs_f64());
+    write_cv(&args.out.join("self/cv.csv"), self_choice, self_criterion)?;
     write_cv(
-        &args.out.join("self/cv.csv"),
-        &self_choice,
+        &args.out.join("self/cv_tracker_selection.csv"),
+        &tracker_choice,
+        "heldout_tracker_rms_mm",
+    )?;
+    write_cv(
+        &args.out.join("self/cv_contact.csv"),
+        &contact_choice,
         "heldout_rms_sigma",
+    )?;
+    let self_other = calibrate(
+        &cell,
+        other_name.into(),
+        &self_recs,
+        other_choice.spec,
+        &noise,
     )?;
     let leica_self = by_role(&[Role::TrackerSelfContact]);
     contact_report(&cell, &self_recs, &leica_self, &cal_self, &noise, &args.out)?;
@@ -262,7 +351,8 @@ fn run(args: Args) -> anyhow::Result<()> {
         &plane_choice,
         &noise,
         &args.out,
-        "the no-tracker self-contact and plane-contact files (no tracker value used)",
+        "the no-tracker self-contact and plane-contact files (no tracker value used; the set and\n\
+         # prior σ chosen by grouped CV)",
     )?;
     println!("planes done at {:.1} s", t0.elapsed().as_secs_f64());
     write_cv(
@@ -274,15 +364,6 @@ fn run(args: Args) -> anyhow::Result<()> {
     // --- all: everything, tracker files included; CV holds out whole tracker patterns and
     // scores them with the honest protocol (mm).
     let all_recs: Vec<&Recording> = recordings.iter().collect();
-    let tracker_score = |test: &[&Recording], corr: (&KinematicErrors, &KinematicErrors)| {
-        let mut e2 = Vec::new();
-        for r in test {
-            for p in score_recording(&cell, r, corr, None)? {
-                e2.push((RowKind::Tracker, (p.error_m * 1e3).powi(2)));
-            }
-        }
-        Ok(e2)
-    };
     let all_choice = cross_validate(
         &cell,
         &all_recs,
@@ -305,7 +386,8 @@ fn run(args: Args) -> anyhow::Result<()> {
         &all_choice,
         &noise,
         &args.out,
-        "every recording of the dataset, tracker files included",
+        "every recording of the dataset, tracker files included (the set and prior σ chosen by\n\
+         # grouped CV, whole tracker files held out)",
     )?;
     println!("all done at {:.1} s", t0.elapsed().as_secs_f64());
     write_cv(
@@ -324,6 +406,7 @@ fn run(args: Args) -> anyhow::Result<()> {
                 [&cal_self, &cal_planes, &cal_all]
                     .iter()
                     .flat_map(|c| c.scored())
+                    .chain(std::iter::once(&self_other))
                     .map(|c| {
                         let (r, l) = corrections(&c.fit);
                         (c.name.clone(), r, l, !c.name.starts_with("all"))
@@ -334,11 +417,17 @@ fn run(args: Args) -> anyhow::Result<()> {
     let (rows, per_pose) = score_models(&cell, &models, &trackers)?;
     let names: Vec<&str> = models.iter().map(|m| m.0.as_str()).collect();
     print_scores(&rows, &trackers, &names);
+    print_selection_split(
+        &rows,
+        &trackers,
+        &[&cal_self.chosen.name, &self_other.name],
+        &SELF_SELECTION_PATTERNS,
+    );
     if args.score_every_self_candidate {
         score_every_candidate(
             &cell,
             &self_recs,
-            &self_choice,
+            self_choice,
             &noise,
             &trackers,
             &rows,
@@ -364,6 +453,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             compared.push((m.name.clone(), corrections(&m.fit).0));
         }
     }
+    compared.push((self_other.name.clone(), corrections(&self_other.fit).0));
     compared.push((cal_all.with.name.clone(), corrections(&cal_all.with.fit).0));
     proxy_report(&cell, &recordings, &reference, &compared, &args.out)?;
     print_effects(&cal_all.chosen);

@@ -241,6 +241,47 @@ pub fn print_scores(rows: &[ScoreRow], trackers: &[&Recording], models: &[&str])
     println!("  (! = worse than nominal in rms; `all`/`all+c` saw these files' tracker values, so they are not held out)");
 }
 
+/// For each model of `models`: on how many tracker files it beats nominal, split into the files
+/// whose pattern is in `selection` (used to CHOOSE the `self` model, so not a clean test of the
+/// choice) and the others (the evaluation files, never used in any `self` choice), with the
+/// pooled rms of each part.
+pub fn print_selection_split(
+    rows: &[ScoreRow],
+    trackers: &[&Recording],
+    models: &[&str],
+    selection: &[&str],
+) {
+    println!(
+        "self models on the selection files ({}; used for the tracker choice) and the evaluation files (the rest; never used in a self choice):",
+        selection.join(", ")
+    );
+    for m in models {
+        for (part, used) in [("selection", true), ("evaluation", false)] {
+            let (mut better, mut files, mut s2, mut s2_nom, mut n) = (0, 0, 0.0, 0.0, 0usize);
+            for t in trackers
+                .iter()
+                .filter(|t| selection.contains(&t.pattern) == used)
+            {
+                let get = |name: &str| rows.iter().find(|r| r.file == t.name && r.model == name);
+                let (Some(nom), Some(r)) = (get("nominal"), get(m)) else {
+                    continue;
+                };
+                files += 1;
+                better += usize::from(r.summary.rms_mm < nom.summary.rms_mm);
+                s2 += r.summary.rms_mm.powi(2) * r.summary.n as f64;
+                s2_nom += nom.summary.rms_mm.powi(2) * nom.summary.n as f64;
+                n += r.summary.n;
+            }
+            let n = n.max(1) as f64;
+            println!(
+                "  {m:<10} {part:<10}: better than nominal on {better} of {files} files; pooled {:.3} mm (nominal {:.3})",
+                (s2 / n).sqrt(),
+                (s2_nom / n).sqrt()
+            );
+        }
+    }
+}
+
 /// Writes the score rows (n, rms, median, p95, max in mm) to `path`.
 fn write_scores(path: &Path, rows: &[ScoreRow]) -> anyhow::Result<()> {
     let mut w = std::fs::File::create(path).with_context(|| format!("{}", path.display()))?;
