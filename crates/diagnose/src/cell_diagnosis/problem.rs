@@ -54,6 +54,31 @@ pub(super) fn group_of(kind: &ObservationKind) -> Option<(usize, usize)> {
     }
 }
 
+/// Whether the observations `rows` of `problem` determine the placement `b1_from_b2`: a
+/// coincident or contact row (it ties both robots), or a tracker or plane group with rows of
+/// both robots (a frame or plane seen from both bases). Otherwise the fit holds the placement
+/// where it started (the cell's, or its prior) and an export keeps the cell's.
+pub(crate) fn placement_observed(problem: &CellProblem, rows: &[usize]) -> bool {
+    // Per tracker or plane group: the robots its rows use.
+    let mut seen: Vec<((usize, usize), Robot)> = Vec::new();
+    for &i in rows {
+        let kind = &problem.observations[i].kind;
+        let robots = tools_of(kind);
+        if robots.len() == 2 {
+            return true;
+        }
+        let (Some(key), Some((r, _))) = (group_of(kind), robots.first()) else {
+            continue;
+        };
+        match seen.iter().find(|(k, _)| *k == key) {
+            Some((_, first)) if first != r => return true,
+            Some(_) => {}
+            None => seen.push((key, *r)),
+        }
+    }
+    false
+}
+
 /// The diagnosis problem: the cell's whole-cell problem with widened tolerances and compliance
 /// where the URDF has inertials (see the [`cell_diagnosis`](crate::cell_diagnosis)
 /// documentation).
