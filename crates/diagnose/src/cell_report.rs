@@ -17,11 +17,11 @@ use crate::cell_diagnosis::{
 /// Number of bins of the residual-against-joint table (quartiles of the joint's values).
 pub const JOINT_BINS: usize = 4;
 
-/// The text lists every parameter of a rejected family of at most this many parameters (a
-/// robot's joint offsets, a tool tip, the tracker scales of a dozen files); of a larger one
-/// (origin positions: 3 per joint), only those whose 95 % interval excludes 0. The JSON has
-/// them all.
-pub const REJECTED_TEXT_MAX_PARAMS: usize = 12;
+/// The text lists the parameters of a rejected family that the data determine: those whose
+/// 95 % interval excludes 0, those without a prior (tracker scales and drifts), and those whose
+/// σ is below this fraction of the prior σ; the others' intervals are their prior's, and are in
+/// the JSON only.
+pub const REJECTED_TEXT_PRIOR_FRACTION: f64 = 0.5;
 
 /// The whole-cell diagnosis of a session.
 #[derive(Debug, Clone, Serialize)]
@@ -713,18 +713,24 @@ pub fn render_cell_text(r: &CellDiagnoseReport) -> String {
     }
     for f in &r.rejected_families {
         let _ = writeln!(s, "  {}: {}", f.family.name, f.reason);
-        let shown = if f.parameters.len() <= REJECTED_TEXT_MAX_PARAMS {
-            f.parameters.iter().collect()
-        } else {
-            let shown = excluding_zero(&f.parameters);
+        let shown: Vec<&ParamValue> = f
+            .parameters
+            .iter()
+            .filter(|p| {
+                p.value.abs() > Z95 * p.sigma
+                    || p.prior_sigma == 0.0
+                    || p.sigma < REJECTED_TEXT_PRIOR_FRACTION * p.prior_sigma
+            })
+            .collect();
+        if shown.len() < f.parameters.len() {
             let _ = writeln!(
                 s,
-                "     ({} of {} parameters have a 95 % interval that excludes 0; the others are in the JSON)",
+                "     ({} of {} parameters are determined by the data (interval excludes 0, or σ < {} × prior σ); the others are in the JSON)",
                 shown.len(),
-                f.parameters.len()
+                f.parameters.len(),
+                REJECTED_TEXT_PRIOR_FRACTION
             );
-            shown
-        };
+        }
         for p in shown {
             param_line(&mut s, p);
         }
