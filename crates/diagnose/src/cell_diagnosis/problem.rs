@@ -148,3 +148,43 @@ fn max_gravity_torque(problem: &CellProblem, r: Robot) -> Result<f64, DiagnoseEr
     }
     Ok(max)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cell_diagnosis::tests::mixed_session;
+    use crate::cell_diagnosis::CellDiagnoseOptions;
+
+    /// Rows of `p` whose kind is `name` and whose tools include robot `r` (any robot: `None`).
+    fn rows_of(p: &CellProblem, name: &str, r: Option<Robot>) -> Vec<usize> {
+        (0..p.observations.len())
+            .filter(|&i| {
+                let k = &p.observations[i].kind;
+                k.name() == name && r.is_none_or(|r| uses_robot(k, r))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_placement_is_observed_by_rows_that_tie_both_robots() {
+        let cell = Cell::default_floor_wall();
+        let session = mixed_session(&cell, 36, 3);
+        let p = diagnosis_problem(&cell, &session, &CellDiagnoseOptions::default()).unwrap();
+        for kind in ["coincident", "contact"] {
+            let rows = rows_of(&p, kind, None);
+            assert!(!rows.is_empty() && placement_observed(&p, &rows), "{kind}");
+        }
+        // Tracker (plane) rows of one robot: each group is seen from one base only.
+        for kind in ["tracker", "plane"] {
+            for r in [Robot::One, Robot::Two] {
+                let rows = rows_of(&p, kind, Some(r));
+                assert!(!rows.is_empty(), "{kind} rows of {r}");
+                assert!(!placement_observed(&p, &rows), "{kind} rows of {r} alone");
+            }
+            // The simulated session's one group of the kind holds rows of both robots.
+            let both = rows_of(&p, kind, None);
+            assert!(placement_observed(&p, &both), "{kind} rows of both robots");
+        }
+        assert!(!placement_observed(&p, &[]));
+    }
+}
