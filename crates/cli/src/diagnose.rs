@@ -89,7 +89,7 @@ fn check_export_folder(dir: &Path, force: bool) -> anyhow::Result<()> {
     if let Some(first) = entries.next() {
         let first = first.with_context(|| format!("--export {}", dir.display()))?;
         anyhow::bail!(
-            "--export {}: the folder is not empty (it holds {}{}): choose a new or empty folder, \
+            "--export {}: the folder is not empty (it holds `{}`{}): choose a new or empty folder, \
              or add --force to overwrite the files of the same names",
             dir.display(),
             first.file_name().to_string_lossy(),
