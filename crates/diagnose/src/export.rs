@@ -49,7 +49,10 @@ pub const CELL_DIAGNOSIS_EXPORT_NAMES: ExportNames<'static> = ExportNames {
 ///   ([`render_cell_text`]).
 ///
 /// The session's nuisances (tracker frames, scales and drifts, planes, contact distances) are
-/// not written into the cell: they belong to the recording, not to the robots.
+/// not written into the cell: they belong to the recording, not to the robots. The input cell's
+/// `[robotN.errors]` are not carried over either: the diagnosis fits from the URDFs and tips and
+/// ignores them (as `calibrate --cell` does), so the written `[robotN.errors]` hold the named
+/// compliance and joint-periodic terms only.
 ///
 /// Returns the files written, in that order. Errors: an estimate of the wrong shape for `cell`
 /// (a report of another cell), a URDF that cannot be read or corrected, a file that cannot be
