@@ -323,12 +323,12 @@ fn tip_rms_m(truth: &Cell, model: &Cell, robot: u8) -> f64 {
         } else {
             &cell.robot2
         };
-        let b_from_tip =
+        let base_from_tip =
             true_base_from_tip(&r.model, &r.errors, q, &r.flange_from_tip, &r.g_base).expect("fk");
         if robot == 1 {
-            b_from_tip.translation.vector
+            base_from_tip.translation.vector
         } else {
-            (cell.b1_from_b2 * b_from_tip).translation.vector
+            (cell.b1_from_b2 * base_from_tip).translation.vector
         }
     };
     let ss: f64 = poses
