@@ -163,6 +163,17 @@ fn diagnose_text_and_export() {
     assert!(urdf2.contains("<calibration rising="));
     let cell2 = std::fs::read_to_string(export.join("cell_corrected.toml")).unwrap();
     assert!(cell2.contains("robot2_corrected.urdf") && cell2.contains("zyz_deg"));
+    // Exporting again into the (now non-empty) folder is refused before the diagnosis runs.
+    let again = handclasp(&diagnose_args(
+        &session,
+        &["--export", export.to_str().unwrap()],
+    ));
+    assert!(!again.status.success());
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(
+        err.contains("the folder is not empty") && err.contains("--force"),
+        "{err}"
+    );
     // The exported cell is valid input: diagnosing the same session with it finds nothing.
     let out = handclasp(&cell_session_args(
         "diagnose",
@@ -341,22 +352,85 @@ fn diagnose_mixed_session_runs_the_whole_cell_diagnosis() {
         .map(|k| k["kind"].as_str().unwrap())
         .collect();
     assert_eq!(kinds, ["contact", "tracker", "plane", "coincident"]);
-    let text = handclasp(&diagnose_args(&path, &[]));
-    let text = String::from_utf8_lossy(&text.stdout);
+    // Added fields: the rejected families (the candidates of the stopping step) and whether the
+    // session determines the placement.
+    assert_eq!(r["placement_fitted"], true);
+    let rejected = r["rejected_families"]
+        .as_array()
+        .expect("rejected_families");
+    assert_eq!(
+        rejected.len(),
+        r["stopped_candidates_held_out_chi2"]
+            .as_array()
+            .unwrap()
+            .len()
+    );
+    assert!(rejected
+        .iter()
+        .all(|f| f["parameters"].is_array() && f["reason"].is_string()));
+    // Text, and the export of the fitted cell.
+    let export = dir.path().join("exported");
+    let export_arg = export.to_str().unwrap();
+    let out = handclasp(&diagnose_args(&path, &["--export", export_arg]));
+    assert_success(&out);
+    let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("Whole-cell diagnosis: 36 rows"), "{text}");
     assert!(
         text.contains("Baseline (nominal kinematics, nuisances fitted):"),
         "{text}"
     );
-    // Export and truth are the coincident path's: refused with the reason.
+    for f in [
+        "robot1_corrected.urdf",
+        "robot2_corrected.urdf",
+        "cell_corrected.toml",
+        "effects.json",
+        "report.json",
+        "report.txt",
+    ] {
+        assert!(
+            text.contains(&format!("wrote {}", export.join(f).display())),
+            "{text}"
+        );
+    }
+    // The exported cell is a cell: `fk --cell` evaluates it.
+    let exported = export.join("cell_corrected.toml");
+    let q_deg = vec!["5"; cell.robot1.model.dof()].join(",");
+    assert_success(&handclasp(&[
+        "fk",
+        "--cell",
+        exported.to_str().unwrap(),
+        "--robot",
+        "1",
+        "--q-deg",
+        &q_deg,
+    ]));
+    // A second export into the now non-empty folder is refused before the diagnosis runs…
+    let out = handclasp(&diagnose_args(&path, &["--export", export_arg]));
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("the folder is not empty") && err.contains("--force"),
+        "{err}"
+    );
+    // …and done with --force (the same report: the diagnosis is deterministic).
+    let again = stdout_json(&handclasp(&diagnose_args(
+        &path,
+        &["--json", "--export", export_arg, "--force"],
+    )));
+    assert_eq!(again, r);
+    let written: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(export.join("report.json")).unwrap())
+            .unwrap();
+    assert_eq!(written, r);
+    // A truth placement is the coincident path's: refused with the reason.
     let out = handclasp(&diagnose_args(
         &path,
-        &["--export", dir.path().join("x").to_str().unwrap()],
+        &["--truth-xyz-mm", "0,0,0", "--truth-zyz-deg", "0,0,0"],
     ));
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("--export and --truth-* apply to coincident-only sessions"),
+        err.contains("--truth-* applies to coincident-only sessions"),
         "{err}"
     );
 }

@@ -3,9 +3,9 @@
 //! Thin glue over the `diagnose` crate: reads the cell and the session, runs the diagnosis,
 //! prints text or JSON, optionally exports corrected URDFs and a calibrated cell. A session with
 //! contact, tracker or plane rows gets the whole-cell diagnosis
-//! (`diagnose::diagnose_cell_session`; no export).
+//! (`diagnose::diagnose_cell_session`, exported by `diagnose::export_cell_diagnosis`).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use diagnose::DiagnoseOptions;
@@ -24,9 +24,18 @@ pub struct Args {
     /// Print one JSON object instead of text.
     #[arg(long)]
     pub json: bool,
-    /// Write corrected URDFs, a calibrated cell TOML and effects.json into this folder.
+    /// Write the corrected model into this folder (created if missing; refused if it is not
+    /// empty, unless --force): robot1_corrected.urdf, robot2_corrected.urdf, cell_corrected.toml
+    /// (load it with fk/calibrate/diagnose --cell) and effects.json; a session with contact,
+    /// tracker or plane rows also gets report.json and report.txt. Session nuisances (tracker
+    /// frames, scales, drifts, planes, contact distances) are not cell properties and stay in
+    /// the report.
     #[arg(long)]
     pub export: Option<PathBuf>,
+    /// With --export: write into a folder that is not empty, overwriting files of the same names
+    /// (other files are left as they are).
+    #[arg(long, requires = "export")]
+    pub force: bool,
     /// Truth of the b1_from_b2 translation (e.g. from a CMM), mm: x,y,z. Needs --truth-zyz-deg.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     pub truth_xyz_mm: Option<Vec<f64>>,
@@ -58,6 +67,42 @@ const PROGRESS_MIN_POINTS: usize = 500;
 /// even when it is not a terminal (the CTU tracker files take minutes).
 const PROGRESS_MIN_ROWS_WHOLE_CELL: usize = 100;
 
+/// Refuses an `--export` folder that exists and is not empty, unless `--force`: an export writes
+/// files of fixed names, and a folder with another export's files would mix two models. Checked
+/// before the diagnosis runs (it can take minutes).
+fn check_export_folder(dir: &Path, force: bool) -> anyhow::Result<()> {
+    let mut entries = match std::fs::read_dir(dir) {
+        Ok(entries) => entries,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => {
+            return Err(e).with_context(|| {
+                format!(
+                    "--export {}: cannot read the folder (is it a file?)",
+                    dir.display()
+                )
+            })
+        }
+    };
+    if force {
+        return Ok(());
+    }
+    if let Some(first) = entries.next() {
+        let first = first.with_context(|| format!("--export {}", dir.display()))?;
+        anyhow::bail!(
+            "--export {}: the folder is not empty (it holds `{}`{}): choose a new or empty folder, \
+             or add --force to overwrite the files of the same names",
+            dir.display(),
+            first.file_name().to_string_lossy(),
+            if entries.next().is_some() {
+                " and more"
+            } else {
+                ""
+            }
+        );
+    }
+    Ok(())
+}
+
 /// The whole-cell diagnosis of a session with contact, tracker or plane rows.
 fn run_whole_cell(
     args: &Args,
@@ -65,11 +110,10 @@ fn run_whole_cell(
     session: &sim_cell::Session,
     truth: bool,
 ) -> anyhow::Result<()> {
-    if args.export.is_some() || truth {
+    if truth {
         anyhow::bail!(
-            "{}: --export and --truth-* apply to coincident-only sessions; this session has contact, \
-             tracker or plane rows (whole-cell diagnosis): drop them, or calibrate with \
-             `handclasp calibrate --cell CELL --session SESSION --model kinematic`",
+            "{}: --truth-* applies to coincident-only sessions; this session has contact, \
+             tracker or plane rows (whole-cell diagnosis): drop --truth-xyz-mm and --truth-zyz-deg",
             args.session.display()
         );
     }
@@ -86,6 +130,14 @@ fn run_whole_cell(
         }
     })
     .with_context(|| format!("diagnosing {}", args.session.display()))?;
+    if let Some(dir) = &args.export {
+        let files = diagnose::export_cell_diagnosis(cell, &report, dir).context("--export")?;
+        if !args.json {
+            for f in &files {
+                println!("wrote {}", f.display());
+            }
+        }
+    }
     if args.json {
         println!("{}", serde_json::to_string(&report)?);
     } else {
@@ -121,6 +173,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "--trials {} is too few for a residual distribution: use at least 20 (default 400)",
             args.trials
         );
+    }
+    if let Some(dir) = &args.export {
+        check_export_folder(dir, args.force)?;
     }
     let cell = Cell::from_toml_file(&args.cell)?;
     if args.verbose {

@@ -3,19 +3,25 @@
 
 use std::fmt::Write as _;
 
-use calib_core::whole_cell::{CellFit, CellParam, CellProblem};
+use calib_core::whole_cell::{CellEstimate, CellFit, CellParam, CellProblem};
 use calib_core::Robot;
 use kinematics::ErrorParam;
 use serde::ser::SerializeMap;
 use serde::{Serialize, Serializer};
 
 use crate::cell_diagnosis::{
-    joints_of, residuals_at, CellDiagnoseOptions, CellDiagnosis, Family, HeldOut, ScoredRow, KINDS,
-    Z95,
+    joints_of, residuals_at, CellDiagnoseOptions, CellDiagnosis, Family, HeldOut, NotSelected,
+    ScoredRow, KINDS, Z95,
 };
 
 /// Number of bins of the residual-against-joint table (quartiles of the joint's values).
 pub const JOINT_BINS: usize = 4;
+
+/// The text lists the parameters of a rejected family that the data determine: those whose
+/// 95 % interval excludes 0, those without a prior (tracker scales and drifts), and those whose
+/// σ is below this fraction of the prior σ; the others' intervals are their prior's, and are in
+/// the JSON only.
+pub const REJECTED_TEXT_PRIOR_FRACTION: f64 = 0.5;
 
 /// The whole-cell diagnosis of a session.
 #[derive(Debug, Clone, Serialize)]
@@ -47,12 +53,27 @@ pub struct CellDiagnoseReport {
     /// it stopped for want of candidates or steps); compare with `stopped_at`'s
     /// `held_out_chi2_before`.
     pub stopped_candidates_held_out_chi2: Vec<(String, f64)>,
+    /// Each candidate tried at the step that stopped the selection, in candidate order: its
+    /// held-out change and its value had it been added to the final model (empty when the
+    /// selection stopped for want of candidates or steps).
+    pub rejected_families: Vec<RejectedFamilyReport>,
+    /// Whether the rows used determine `b1_from_b2` (a coincident or contact row, or a tracker
+    /// or plane group with rows of both robots). Without them the fit holds the placement where
+    /// it started and `--export` writes the input cell's.
+    pub placement_fitted: bool,
     /// The final model: residual per kind against its stated σ.
     pub final_residuals: Vec<KindResidual>,
     /// `max(1, sqrt(χ²/(rows − unknowns)))` of the final fit; it multiplies every posterior σ.
     pub variance_factor: f64,
     /// Solver iterations and stop reason of the final fit.
     pub final_fit_stopped: String,
+    /// The final fit's estimate, SI (not serialised: `effects` reports its named parameters).
+    /// Its robot corrections (the named families; zero elsewhere) and placement are cell
+    /// properties, which [`crate::export_cell_diagnosis`] writes; its nuisance groups are
+    /// numbered over the rows used (the blunder screen may drop a whole group), not the
+    /// session's.
+    #[serde(skip)]
+    pub final_estimate: CellEstimate,
 }
 
 /// Rows of one kind.
@@ -131,6 +152,27 @@ pub struct CellEffectReport {
     pub residual_vs_joint: Vec<JointTrend>,
     /// Held-out χ² of every candidate tried at this step.
     pub candidates_held_out_chi2: Vec<(String, f64)>,
+}
+
+/// A candidate family that was not named: tried at the step that stopped the selection, it
+/// failed the criterion (see [`crate::cell_diagnosis`], step 5). What it would be had it been
+/// named.
+#[derive(Debug, Clone, Serialize)]
+pub struct RejectedFamilyReport {
+    /// The family.
+    pub family: Family,
+    /// Its held-out change against the final model (`held_out_chi2_before` is the final
+    /// model's; a negative `relative_gain` is a held-out χ² that rose).
+    pub gain: StepSummary,
+    /// Why it was rejected, e.g. `held-out χ² +1.9 %, a decrease of ≥ 1 % is needed`.
+    pub reason: String,
+    /// Held-out rms per kind, final model and with the family added, mm.
+    pub held_out_by_kind: Vec<KindGain>,
+    /// Its parameters fitted with the family added to the final model on all screened rows,
+    /// with 95 % intervals (posterior σ times that fit's `variance_factor`).
+    pub parameters: Vec<ParamValue>,
+    /// `max(1, sqrt(χ²/(rows − unknowns)))` of that fit.
+    pub variance_factor: f64,
 }
 
 /// Held-out rms of one kind before and after a step.
@@ -374,11 +416,75 @@ fn variance_factor(fit: &CellFit) -> f64 {
     (fit.data_chi2 / dof).sqrt().max(1.0)
 }
 
+/// The parameters of `family` in the fit `fit`, in report units, σ times the variance factor
+/// `vf`.
+fn family_parameters(fit: &(CellProblem, CellFit), family: &Family, vf: f64) -> Vec<ParamValue> {
+    let (p, f) = fit;
+    f.parameters(p)
+        .iter()
+        .filter(|fp| family.contains(&fp.param))
+        .map(|fp| {
+            let unit = ParamUnit::of(&fp.param);
+            let k = unit.per_si();
+            ParamValue {
+                name: fp.name.clone(),
+                unit,
+                value: fp.value * k,
+                sigma: fp.posterior_sigma * vf * k,
+                prior_sigma: fp.prior_sigma * k,
+            }
+        })
+        .collect()
+}
+
+/// Held-out rms per kind before and after, of the kinds scored in both.
+fn kind_gains(before: &HeldOut, after: &HeldOut) -> Vec<KindGain> {
+    KINDS
+        .iter()
+        .filter_map(|&k| {
+            Some(KindGain {
+                kind: k,
+                rms_mm_before: kind_rms(&before.rows, k)?.1,
+                rms_mm_after: kind_rms(&after.rows, k)?.1,
+            })
+        })
+        .collect()
+}
+
+/// The report of a family tried at the stopping step against the final model `final_held`.
+fn rejected_family(
+    n: &NotSelected,
+    final_held: &HeldOut,
+    options: &CellDiagnoseOptions,
+) -> RejectedFamilyReport {
+    let gain = summary(&n.family.name, final_held, &n.held, n.t);
+    let change = -100.0 * gain.relative_gain;
+    let reason = if gain.relative_gain < options.min_relative_gain {
+        format!(
+            "held-out χ² {change:+.1} %, a decrease of ≥ {:.1} % is needed",
+            100.0 * options.min_relative_gain
+        )
+    } else {
+        format!(
+            "held-out χ² {change:+.1} %, but not consistently over the held-out groups: t = {:.1} < {:.1}",
+            n.t, options.min_gain_t
+        )
+    };
+    let vf = variance_factor(&n.fit.1);
+    RejectedFamilyReport {
+        family: n.family.clone(),
+        held_out_by_kind: kind_gains(final_held, &n.held),
+        parameters: family_parameters(&n.fit, &n.family, vf),
+        variance_factor: vf,
+        gain,
+        reason,
+    }
+}
+
 /// Builds the report from the diagnosis.
 pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDiagnoseReport {
-    let (fp, ff) = &d.final_fit;
+    let (_, ff) = &d.final_fit;
     let vf = variance_factor(ff);
-    let params = ff.parameters(fp);
     let mut counts = [0usize; 4];
     for o in &d.problem.observations {
         if let Some(k) = KINDS.iter().position(|k| *k == o.kind.name()) {
@@ -402,31 +508,8 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
                 step: i + 1,
                 family: s.family.clone(),
                 gain: summary(&s.family.name, &s.before, &s.after, s.t),
-                held_out_by_kind: KINDS
-                    .iter()
-                    .filter_map(|&k| {
-                        Some(KindGain {
-                            kind: k,
-                            rms_mm_before: kind_rms(&s.before.rows, k)?.1,
-                            rms_mm_after: kind_rms(&s.after.rows, k)?.1,
-                        })
-                    })
-                    .collect(),
-                parameters: params
-                    .iter()
-                    .filter(|p| s.family.contains(&p.param))
-                    .map(|p| {
-                        let unit = ParamUnit::of(&p.param);
-                        let k = unit.per_si();
-                        ParamValue {
-                            name: p.name.clone(),
-                            unit,
-                            value: p.value * k,
-                            sigma: p.posterior_sigma * vf * k,
-                            prior_sigma: p.prior_sigma * k,
-                        }
-                    })
-                    .collect(),
+                held_out_by_kind: kind_gains(&s.before, &s.after),
+                parameters: family_parameters(&d.final_fit, &s.family, vf),
                 residual_vs_joint: trends(&s.fit_before, after),
                 candidates_held_out_chi2: s.tried.clone(),
             }
@@ -467,10 +550,39 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
             .last()
             .filter(|s| !s.accepted)
             .map_or_else(Vec::new, |s| s.tried.clone()),
+        rejected_families: d
+            .not_selected
+            .iter()
+            .map(|n| rejected_family(n, final_held, options))
+            .collect(),
+        placement_fitted: d.placement_fitted,
         final_residuals: kind_residuals(&fit_rows(&d.final_fit), final_held, &d.noise_scale),
         variance_factor: vf,
         final_fit_stopped: format!("{} after {} iterations", ff.stopped.name(), ff.iterations),
+        final_estimate: ff.estimate.clone(),
     }
+}
+
+/// One parameter line of the text: name, value, unit and 95 % interval.
+fn param_line(s: &mut String, p: &ParamValue) {
+    let [lo, hi] = p.ci95();
+    let _ = writeln!(
+        s,
+        "     {:<40} {:>9.3} {:<11} 95 % [{:.3}, {:.3}]",
+        p.name,
+        p.value,
+        p.unit.suffix(),
+        lo,
+        hi
+    );
+}
+
+/// The parameters of `params` whose 95 % interval excludes 0.
+fn excluding_zero(params: &[ParamValue]) -> Vec<&ParamValue> {
+    params
+        .iter()
+        .filter(|p| p.value.abs() > Z95 * p.sigma)
+        .collect()
 }
 
 /// The report as text.
@@ -550,11 +662,7 @@ pub fn render_cell_text(r: &CellDiagnoseReport) -> String {
             );
         }
         // Text: the parameters whose 95 % interval excludes 0 (JSON: all of them).
-        let shown: Vec<&ParamValue> = e
-            .parameters
-            .iter()
-            .filter(|p| p.value.abs() > Z95 * p.sigma)
-            .collect();
+        let shown = excluding_zero(&e.parameters);
         if shown.len() < e.parameters.len() {
             let _ = writeln!(
                 s,
@@ -564,16 +672,7 @@ pub fn render_cell_text(r: &CellDiagnoseReport) -> String {
             );
         }
         for p in shown {
-            let [lo, hi] = p.ci95();
-            let _ = writeln!(
-                s,
-                "     {:<40} {:>9.3} {:<11} 95 % [{:.3}, {:.3}]",
-                p.name,
-                p.value,
-                p.unit.suffix(),
-                lo,
-                hi
-            );
+            param_line(&mut s, p);
         }
         if let Some(t) = e.residual_vs_joint.iter().max_by(|a, b| {
             let (ab, aa) = a.spread();
@@ -600,11 +699,41 @@ pub fn render_cell_text(r: &CellDiagnoseReport) -> String {
     if let Some(st) = &r.stopped_at {
         let _ = writeln!(
             s,
-            "Stopped: best remaining candidate {} changes the held-out χ² by {:.1} % (t = {:.1}): not significant",
+            "Stopped: best remaining candidate {} changes the held-out χ² by {:+.1} % (t = {:.1}): not significant",
             st.family,
-            100.0 * st.relative_gain,
+            -100.0 * st.relative_gain,
             st.gain_t
         );
+    }
+    if !r.rejected_families.is_empty() {
+        let _ = writeln!(
+            s,
+            "Rejected families (each fitted added to the final model on all rows; not named):"
+        );
+    }
+    for f in &r.rejected_families {
+        let _ = writeln!(s, "  {}: {}", f.family.name, f.reason);
+        let shown: Vec<&ParamValue> = f
+            .parameters
+            .iter()
+            .filter(|p| {
+                p.value.abs() > Z95 * p.sigma
+                    || p.prior_sigma == 0.0
+                    || p.sigma < REJECTED_TEXT_PRIOR_FRACTION * p.prior_sigma
+            })
+            .collect();
+        if shown.len() < f.parameters.len() {
+            let _ = writeln!(
+                s,
+                "     ({} of {} parameters are determined by the data (interval excludes 0, or σ < {} × prior σ); the others are in the JSON)",
+                shown.len(),
+                f.parameters.len(),
+                REJECTED_TEXT_PRIOR_FRACTION
+            );
+        }
+        for p in shown {
+            param_line(&mut s, p);
+        }
     }
     table(&mut s, "Final model:", &r.final_residuals);
     let _ = writeln!(

@@ -3,17 +3,134 @@
 //! with the calibrated `b1_from_b2`, and the effects as JSON. Every file is written to a
 //! temporary file in the target folder, read back and checked (a URDF's FK against the corrected
 //! model, the cell and the JSON by loading them), and only then renamed into place.
+//!
+//! Two diagnoses export: the coincident one ([`export_corrected`]) and the whole-cell one
+//! ([`export_cell_diagnosis`]), with the same file names (`robot1_corrected.urdf`,
+//! `robot2_corrected.urdf`, `cell_corrected.toml`, `effects.json`; the whole-cell export adds
+//! the report as `report.json` and `report.txt`).
 
 use std::path::{Path, PathBuf};
 
 use calib_core::Robot;
 use kinematics::{KinematicErrors, RobotModel};
 use nalgebra::Isometry3;
-use sim_cell::{Cell, CellRobot};
+use sim_cell::{export_calibrated_cell, Cell, CellRobot, ExportNames};
 
 use crate::catalogue::effects_to_errors;
+use crate::cell_report::{render_cell_text, CellDiagnoseReport};
 use crate::report::DiagnoseReport;
 use crate::DiagnoseError;
+
+/// The files of the whole-cell export ([`export_cell_diagnosis`]): the coincident export's
+/// names, and the header of the cell file.
+pub const CELL_DIAGNOSIS_EXPORT_NAMES: ExportNames<'static> = ExportNames {
+    cell: "cell_corrected.toml",
+    robot1_urdf: "robot1_corrected.urdf",
+    robot2_urdf: "robot2_corrected.urdf",
+    header: "# Written by `handclasp diagnose --export` (whole-cell diagnosis): the named families' fitted\n\
+             # values. robot1_corrected.urdf / robot2_corrected.urdf: joint offsets, origin positions and\n\
+             # angles; tip_mm and [robotN.tools]: fitted tool tips; [robotN.errors]: compliance and\n\
+             # joint-periodic terms, which a URDF cannot hold; [b1_from_b2]: fitted when the session\n\
+             # determines it, else the input cell's. Tracker frames, scales and drifts, planes and contact\n\
+             # distances are properties of the session, not of the cell: they are in report.json only.\n",
+};
+
+/// Writes the whole-cell diagnosis `report` of a session on `cell` to `dir` (created if
+/// missing; files of the same names are overwritten):
+/// - `robot1_corrected.urdf`, `robot2_corrected.urdf` and `cell_corrected.toml`: the cell with
+///   the named families' fitted values ([`sim_cell::export_calibrated_cell`]: joint offsets and
+///   origin errors patched into the URDFs and verified; the fitted tip of tool 0 as `tip_mm`
+///   and of every other tool in `[robotN.tools]`; compliance and joint-periodic terms as
+///   `[robotN.errors]`); `b1_from_b2` is the fitted placement when the session determines it
+///   ([`CellDiagnoseReport::placement_fitted`]), else `cell`'s; the cell's placement σ, noise,
+///   tolerances and mounts are kept. The unnamed families are zero, so the file is loaded by
+///   `handclasp fk --cell`, `calibrate --cell` and `diagnose` like any cell;
+/// - `effects.json` (the named effects), `report.json` (the whole report) and `report.txt`
+///   ([`render_cell_text`]).
+///
+/// The session's nuisances (tracker frames, scales and drifts, planes, contact distances) are
+/// not written into the cell: they belong to the recording, not to the robots. The input cell's
+/// `[robotN.errors]` are not carried over either: the diagnosis fits from the URDFs and tips and
+/// ignores them (as `calibrate --cell` does), so the written `[robotN.errors]` hold the named
+/// compliance and joint-periodic terms only.
+///
+/// Returns the files written, in that order. Errors: an estimate of the wrong shape for `cell`
+/// (a report of another cell), a URDF that cannot be read or corrected, a file that cannot be
+/// written or does not read back.
+pub fn export_cell_diagnosis(
+    cell: &Cell,
+    report: &CellDiagnoseReport,
+    dir: &Path,
+) -> Result<Vec<PathBuf>, DiagnoseError> {
+    std::fs::create_dir_all(dir).map_err(|source| DiagnoseError::ExportFolder {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let mut estimate = report.final_estimate.clone();
+    if !report.placement_fitted {
+        estimate.b1_from_b2 = cell.b1_from_b2;
+    }
+    // Tools after tool 0 (`[robotN.tools]`): their fitted tips go into the cell's tool table;
+    // `export_calibrated_cell` writes tool 0's as `tip_mm`.
+    let mut with_tools = cell.clone();
+    for (setup, correction) in [
+        (&mut with_tools.robot1, &estimate.robot1),
+        (&mut with_tools.robot2, &estimate.robot2),
+    ] {
+        if correction.tool_tip_m.len() != setup.tools.len() + 1 {
+            return Err(DiagnoseError::Export {
+                path: setup.urdf_path.clone(),
+                message: format!(
+                    "the diagnosis has {} tools for this robot, the cell {} (tip_mm and [robotN.tools]): export with the cell that was diagnosed",
+                    correction.tool_tip_m.len(),
+                    setup.tools.len() + 1
+                ),
+            });
+        }
+        for (tool, tip_error) in setup.tools.iter_mut().zip(&correction.tool_tip_m[1..]) {
+            tool.flange_from_tip += tip_error;
+        }
+    }
+    let mut written =
+        export_calibrated_cell(&with_tools, &estimate, dir, &CELL_DIAGNOSIS_EXPORT_NAMES)?;
+    let json_files = [
+        (
+            "effects.json",
+            serde_json::to_string_pretty(&report.effects),
+        ),
+        ("report.json", serde_json::to_string_pretty(report)),
+    ];
+    for (name, text) in json_files {
+        let path = dir.join(name);
+        let text = text.map_err(|source| DiagnoseError::Json {
+            path: path.clone(),
+            source,
+        })?;
+        write_checked(&path, &text, |back, tmp| {
+            serde_json::from_str::<serde_json::Value>(back)
+                .map(|_| ())
+                .map_err(|source| DiagnoseError::Json {
+                    path: tmp.to_path_buf(),
+                    source,
+                })
+        })?;
+        written.push(path);
+    }
+    let text_path = dir.join("report.txt");
+    let text = render_cell_text(report);
+    write_checked(&text_path, &text, |back, tmp| {
+        if back == text {
+            Ok(())
+        } else {
+            Err(DiagnoseError::Export {
+                path: tmp.to_path_buf(),
+                message: "the written report reads back different".into(),
+            })
+        }
+    })?;
+    written.push(text_path);
+    Ok(written)
+}
 
 /// Writes `text` to a temporary file beside `path` (in the same folder, so that the rename is
 /// atomic), reads it back, runs `check` on what was read, and only if that passes renames it to

@@ -16,7 +16,8 @@
 //! 5. **Export** ([`export`]): corrected URDFs and a cell with the calibrated `b1_from_b2`.
 //!
 //! Sessions with contact, tracker or plane rows take the whole-cell path instead:
-//! [`diagnose_cell_session`] ([`cell_diagnosis`], [`cell_report`]).
+//! [`diagnose_cell_session`] ([`cell_diagnosis`], [`cell_report`]), exported by
+//! [`export_cell_diagnosis`].
 //!
 //! Inside, SI units (m, rad); the report speaks mm and degrees, and its field names carry the
 //! unit.
@@ -40,9 +41,11 @@ pub use cell_diagnosis::{
     candidate_families, diagnose_cell_session, diagnosis_problem, CellDiagnoseOptions, Family,
     FamilyKind,
 };
-pub use cell_report::{render_cell_text, CellDiagnoseReport};
+pub use cell_report::{render_cell_text, CellDiagnoseReport, RejectedFamilyReport};
 pub use engine::{diagnose_session, diagnose_session_with_progress, DiagnoseOptions};
-pub use export::{export_corrected, write_corrected_urdf};
+pub use export::{
+    export_cell_diagnosis, export_corrected, write_corrected_urdf, CELL_DIAGNOSIS_EXPORT_NAMES,
+};
 pub use input::{check_session, load_session, FK_TOLERANCE_M};
 pub use mount_tilt::{
     mount_tilt_test, placement, MountTiltFit, Placement, TiltStop, ALPHA_TILT, PLACEMENT_SD_XYZ_M,

@@ -56,6 +56,11 @@
 //!    `max(1, sqrt(χ²/(rows − unknowns)))`, so that real data whose residuals exceed their
 //!    stated σ get honest intervals); the held-out rms per kind before and after the step; the
 //!    whitened residual rms against each joint (quartile bins) before and after.
+//! 7. **Rejected families.** Each candidate tried at the step that stopped the selection (none
+//!    accepted): its held-out change against the final model (from that step) and its
+//!    parameters fitted with the family added to the final model on all screened rows, with
+//!    95 % intervals as in step 6 (that fit's own variance factor). None when the selection
+//!    stopped for want of candidates or steps (no candidate was scored against the final model).
 //!
 //! SI inside; [`crate::cell_report`] speaks mm, mrad, ppm and degrees (a tracker scale in ppm,
 //! a drift in mm over the group's whole recording, a periodic amplitude in mrad).
@@ -71,10 +76,12 @@ pub use held_out::{COINCIDENT_UNITS, MIN_GROUP_BLOCK_ROWS, MIN_SCORED_GROUP_ROWS
 pub use noise_scale::KINDS;
 pub use problem::diagnosis_problem;
 pub(crate) use problem::joints_of;
+use problem::placement_observed;
 
 use calib_core::whole_cell::{
     fit_screened, CellFit, CellFitError, CellProblem, ScreenOptions, SolveOptions,
 };
+use rayon::prelude::*;
 use sim_cell::{Cell, Session};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -138,6 +145,19 @@ pub(crate) struct StepRecord {
     pub(crate) tried: Vec<(String, f64)>,
 }
 
+/// A candidate tried at the step that stopped the selection, not accepted (step 7 of the
+/// module documentation).
+#[derive(Debug, Clone)]
+pub(crate) struct NotSelected {
+    pub(crate) family: Family,
+    /// Its held-out result added to the final model.
+    pub(crate) held: HeldOut,
+    /// The t statistic of its per-unit relative held-out gains.
+    pub(crate) t: f64,
+    /// The final model with it added, fitted on all screened rows.
+    pub(crate) fit: (CellProblem, CellFit),
+}
+
 /// Everything [`crate::cell_report`] needs, in SI.
 #[derive(Debug, Clone)]
 pub(crate) struct CellDiagnosis {
@@ -153,6 +173,11 @@ pub(crate) struct CellDiagnosis {
     pub(crate) baseline_held_out: HeldOut,
     pub(crate) steps: Vec<StepRecord>,
     pub(crate) final_fit: (CellProblem, CellFit),
+    /// The candidates of the step that stopped the selection, in candidate order (empty when
+    /// it stopped for want of candidates or steps).
+    pub(crate) not_selected: Vec<NotSelected>,
+    /// Whether the used rows determine `b1_from_b2` ([`placement_observed`]).
+    pub(crate) placement_fitted: bool,
 }
 
 /// Diagnoses a session with non-coincident rows on its cell (see the module documentation).
@@ -261,6 +286,8 @@ fn run(
     let mut current = baseline.clone();
     let mut current_held = baseline_held_out.clone();
     let mut steps = Vec::new();
+    // The candidates of the step that stops the selection: (family, held-out, t).
+    let mut stop_results: Vec<(Family, HeldOut, f64)> = Vec::new();
     for step in 0..options.max_steps {
         let remaining: Vec<&Family> = candidates.iter().filter(|c| !model.contains(c)).collect();
         if remaining.is_empty() {
@@ -346,6 +373,7 @@ fn run(
         };
         if !accepted {
             steps.push(record);
+            stop_results = results.into_iter().map(|(f, h, _, t)| (f, h, t)).collect();
             break;
         }
         model.push(family);
@@ -362,6 +390,31 @@ fn run(
         current = next;
         current_held = held;
     }
+    if !stop_results.is_empty() {
+        progress(&format!(
+            "rejected families: {} fits, each added to the final model (all rows)",
+            stop_results.len()
+        ));
+    }
+    // In parallel, assembled in candidate order (the first error in that order is returned).
+    let fits: Vec<Result<(CellProblem, CellFit), CellFitError>> = stop_results
+        .par_iter()
+        .map(|(family, _, _)| {
+            let mut m = model.clone();
+            m.push(family.clone());
+            fit_model(&problem, &m, &used, Some(&current.1.estimate), options, x0)
+        })
+        .collect();
+    let mut not_selected = Vec::with_capacity(stop_results.len());
+    for ((family, held, t), fit) in stop_results.into_iter().zip(fits) {
+        not_selected.push(NotSelected {
+            family,
+            held,
+            t,
+            fit: fit?,
+        });
+    }
+    let placement_fitted = placement_observed(&problem, &used);
     Ok(CellDiagnosis {
         problem,
         candidates,
@@ -374,6 +427,8 @@ fn run(
         baseline_held_out,
         steps,
         final_fit: current,
+        not_selected,
+        placement_fitted,
     })
 }
 

@@ -54,6 +54,31 @@ pub(super) fn group_of(kind: &ObservationKind) -> Option<(usize, usize)> {
     }
 }
 
+/// Whether the observations `rows` of `problem` determine the placement `b1_from_b2`: a
+/// coincident or contact row (it ties both robots), or a tracker or plane group with rows of
+/// both robots (a frame or plane seen from both bases). Otherwise the fit holds the placement
+/// where it started (the cell's, or its prior) and an export keeps the cell's.
+pub(crate) fn placement_observed(problem: &CellProblem, rows: &[usize]) -> bool {
+    // Per tracker or plane group: the robots its rows use.
+    let mut seen: Vec<((usize, usize), Robot)> = Vec::new();
+    for &i in rows {
+        let kind = &problem.observations[i].kind;
+        let robots = tools_of(kind);
+        if robots.len() == 2 {
+            return true;
+        }
+        let (Some(key), Some((r, _))) = (group_of(kind), robots.first()) else {
+            continue;
+        };
+        match seen.iter().find(|(k, _)| *k == key) {
+            Some((_, first)) if first != r => return true,
+            Some(_) => {}
+            None => seen.push((key, *r)),
+        }
+    }
+    false
+}
+
 /// The diagnosis problem: the cell's whole-cell problem with widened tolerances and compliance
 /// where the URDF has inertials (see the [`cell_diagnosis`](crate::cell_diagnosis)
 /// documentation).
@@ -122,4 +147,44 @@ fn max_gravity_torque(problem: &CellProblem, r: Robot) -> Result<f64, DiagnoseEr
         }
     }
     Ok(max)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cell_diagnosis::tests::mixed_session;
+    use crate::cell_diagnosis::CellDiagnoseOptions;
+
+    /// Rows of `p` whose kind is `name` and whose tools include robot `r` (any robot: `None`).
+    fn rows_of(p: &CellProblem, name: &str, r: Option<Robot>) -> Vec<usize> {
+        (0..p.observations.len())
+            .filter(|&i| {
+                let k = &p.observations[i].kind;
+                k.name() == name && r.is_none_or(|r| uses_robot(k, r))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_placement_is_observed_by_rows_that_tie_both_robots() {
+        let cell = Cell::default_floor_wall();
+        let session = mixed_session(&cell, 36, 3);
+        let p = diagnosis_problem(&cell, &session, &CellDiagnoseOptions::default()).unwrap();
+        for kind in ["coincident", "contact"] {
+            let rows = rows_of(&p, kind, None);
+            assert!(!rows.is_empty() && placement_observed(&p, &rows), "{kind}");
+        }
+        // Tracker (plane) rows of one robot: each group is seen from one base only.
+        for kind in ["tracker", "plane"] {
+            for r in [Robot::One, Robot::Two] {
+                let rows = rows_of(&p, kind, Some(r));
+                assert!(!rows.is_empty(), "{kind} rows of {r}");
+                assert!(!placement_observed(&p, &rows), "{kind} rows of {r} alone");
+            }
+            // The simulated session's one group of the kind holds rows of both robots.
+            let both = rows_of(&p, kind, None);
+            assert!(placement_observed(&p, &both), "{kind} rows of both robots");
+        }
+        assert!(!placement_observed(&p, &[]));
+    }
 }
