@@ -195,7 +195,7 @@ fn a_wrong_data_folder_is_a_clear_error() {
     assert!(e.contains("not the ctu-motoman dataset folder"), "{e}");
 }
 
-/// The `--self-select tracker` choice scores exactly the grids and the four `leica_self` files,
+/// The `--select tracker` choice scores exactly the grids and the four `leica_self` files,
 /// trains on the self-contacts only, and never sees a table/wall file (the evaluation files).
 #[test]
 fn self_selection_scores_the_grids_and_leica_self_and_trains_on_self_contact_only() {

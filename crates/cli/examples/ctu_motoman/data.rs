@@ -58,10 +58,10 @@ pub struct Recording {
     pub poses: Vec<Pose>,
 }
 
-/// Patterns of the tracker files on which the `--self-select tracker` choice scores the `self`
-/// candidates: the grids and the tracker self-contact sets (the issue's "cross-validation on the
-/// self-contact sets, the grids and the tracker self-contact sets"). The six table/wall files
-/// (`leica_table`) are never used in a `self` choice: they are its evaluation.
+/// Patterns of the tracker files on which the `--select tracker` choice scores the candidates of
+/// `self` and `planes`: the grids and the tracker self-contact sets (the issue's "cross-validation
+/// on the self-contact sets, the grids and the tracker self-contact sets"). The six table/wall
+/// files (`leica_table`) are never used in such a choice: they are its evaluation.
 pub const SELF_SELECTION_PATTERNS: [&str; 3] = ["right_grid", "left_grid", "leica_self"];
 
 /// Copies of the recordings whose pattern is in [`SELF_SELECTION_PATTERNS`], with the pattern

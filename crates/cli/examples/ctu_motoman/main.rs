@@ -42,9 +42,9 @@ use clap::Parser;
 use kinematics::KinematicErrors;
 use sim_cell::Cell;
 
-use calibrated::{calibrate, calibrate_all, contact_rms, print_effects};
+use calibrated::{calibrate, calibrate_all, contact_rms, print_effects, Calibrated, Calibrations};
 use contact_report::{contact_report, marker_at_report};
-use cv::{cross_validate, print_cv, write_cv, CvRule};
+use cv::{cross_validate, print_cv, write_cv, Choice, CvRule, HeldOutScore};
 use data::{read_dataset, self_selection_recordings, Recording, Role, SELF_SELECTION_PATTERNS};
 use proxy_report::proxy_report;
 use scores::{
@@ -52,8 +52,8 @@ use scores::{
     ScoredModel,
 };
 use study::{
-    corrections, held_out_nuisance_rows, noise_from_nominal, score_recording, ModelSpec, ParamSet,
-    RowKind,
+    corrections, held_out_nuisance_rows, noise_from_nominal, score_recording, ModelSpec,
+    NoiseLevels, ParamSet, RowKind,
 };
 
 /// The CTU dual-arm Motoman study: three calibrations (self-contact; + planes; + tracker), each
@@ -90,25 +90,108 @@ struct Args {
     /// pair's contact distance is refitted, so it scores the scatter within the pair).
     #[arg(long, value_enum, default_value_t = SelfFolds::Pattern)]
     self_cv_folds: SelfFolds,
-    /// How the exported `self` model (parameter set and prior σ) is chosen. Its VALUES always
-    /// come from the no-tracker self-contacts only. `tracker` (default; the issue's protocol:
-    /// "cross-validation on the self-contact sets, the grids and the tracker self-contact
-    /// sets"): every candidate fitted on the self-contacts is scored with the honest protocol on
-    /// the SELECTION files (right grid, left grid, the four leica_self files) and the CV rule
-    /// picks; the six table/wall files are never used in the choice and are the evaluation.
-    /// `contact-cv`: stop 13's choice, CV on the self-contacts alone (see --self-cv-folds).
-    /// The other choice is fitted and scored too, for comparison.
-    #[arg(long, value_enum, default_value_t = SelfSelect::Tracker)]
-    self_select: SelfSelect,
+    /// How the exported `self` and `planes` models (parameter set and prior σ) are chosen. Their
+    /// VALUES always come from their own no-tracker files. `tracker` (default; the issue's
+    /// protocol: "cross-validation on the self-contact sets, the grids and the tracker
+    /// self-contact sets"): every candidate, fitted on the model's files, is scored with the
+    /// honest protocol on the SELECTION files (right grid, left grid, the four leica_self files)
+    /// and the CV rule picks; the six table/wall tracker files are never used in the choice and
+    /// are the evaluation. `cv`: CV on the model's own files (stop 13/14's choice; see
+    /// --self-cv-folds). The other choice is fitted and scored too, for comparison.
+    #[arg(long, value_enum, default_value_t = Select::Tracker)]
+    select: Select,
 }
 
-/// `--self-select`.
+/// `--select`.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-enum SelfSelect {
+enum Select {
     /// Candidates scored on the grids and the leica_self tracker files.
     Tracker,
-    /// CV on the self-contacts alone.
-    ContactCv,
+    /// CV on the model's own (no-tracker) files.
+    Cv,
+}
+
+/// A no-tracker model (`self` or `planes`): the calibrations of the choice `--select` made, and
+/// the other choice's model (named `NAME(cv)` or `NAME(trk)`), fitted for comparison.
+struct NoTrackerModel {
+    /// The choice `--select` made.
+    choice: Choice,
+    cal: Calibrations,
+    other: Calibrated,
+}
+
+/// Chooses, fits and exports the no-tracker model `name` from `recs`: `cv_choice` is the CV on
+/// its own files; the tracker choice fits every candidate on `recs` and scores it on `selection`
+/// (the recordings of [`self_selection_recordings`], one held-out fold) with `tracker_score`.
+/// Writes `out/name/cv.csv` (the choice made), `cv_tracker_selection.csv` and `cv_own.csv`.
+#[allow(clippy::too_many_arguments)]
+fn no_tracker_model(
+    cell: &Cell,
+    name: &str,
+    recs: &[&Recording],
+    cv_choice: Choice,
+    selection: &[Recording],
+    noise: &NoiseLevels,
+    args: &Args,
+    tracker_score: &HeldOutScore,
+    how: &str,
+) -> anyhow::Result<NoTrackerModel> {
+    // Every candidate is trained on `recs` (the only recordings whose pattern is not
+    // "selection") and scored on the selection files.
+    let pool: Vec<&Recording> = recs.iter().copied().chain(selection).collect();
+    let tracker_choice = cross_validate(
+        cell,
+        &pool,
+        &ParamSet::WITH_MARKER,
+        &["selection"],
+        noise,
+        args.cv_rule,
+        tracker_score,
+    )?;
+    print_cv(
+        &format!(
+            "choice of {name} by the tracker selection files (each candidate fitted on the {name} files only, scored on the right grid, left grid and the 4 leica_self files; held-out tracker rms, mm; the table/wall files are not used):"
+        ),
+        "held-out tracker rms",
+        &ParamSet::WITH_MARKER,
+        &tracker_choice,
+    );
+    let dir = args.out.join(name);
+    std::fs::create_dir_all(&dir).with_context(|| format!("{}", dir.display()))?;
+    write_cv(
+        &dir.join("cv_tracker_selection.csv"),
+        &tracker_choice,
+        "heldout_tracker_rms_mm",
+    )?;
+    write_cv(&dir.join("cv_own.csv"), &cv_choice, "heldout_rms_sigma")?;
+    let (choice, other, other_name, criterion, chosen_how) = match args.select {
+        Select::Tracker => (
+            tracker_choice,
+            cv_choice,
+            format!("{name}(cv)"),
+            "heldout_tracker_rms_mm",
+            "held-out tracker rms on the grids and the leica_self files",
+        ),
+        Select::Cv => (
+            cv_choice,
+            tracker_choice,
+            format!("{name}(trk)"),
+            "heldout_rms_sigma",
+            "grouped CV on these files",
+        ),
+    };
+    let cal = calibrate_all(
+        cell,
+        name,
+        recs,
+        &choice,
+        noise,
+        &args.out,
+        &format!("{how} (no tracker value in the fit;\n# the set and prior σ chosen by their {chosen_how})"),
+    )?;
+    write_cv(&dir.join("cv.csv"), &choice, criterion)?;
+    let other = calibrate(cell, other_name, recs, other.spec, noise)?;
+    Ok(NoTrackerModel { cal, other, choice })
 }
 
 /// `--self-cv-folds`.
@@ -252,80 +335,22 @@ fn run(args: Args) -> anyhow::Result<()> {
         &ParamSet::WITH_MARKER,
         &contact_choice,
     );
-    // The tracker-file choice: every candidate trained on the self-contacts (the only recordings
-    // whose pattern is not "selection"), scored on the selection files.
     let selection = self_selection_recordings(&recordings);
-    let tracker_choice = {
-        let recs: Vec<&Recording> = self_recs.iter().copied().chain(&selection).collect();
-        cross_validate(
-            &cell,
-            &recs,
-            &ParamSet::WITH_MARKER,
-            &["selection"],
-            &noise,
-            args.cv_rule,
-            &tracker_score,
-        )?
-    };
-    print_cv(
-        "choice of self by the tracker selection files (each candidate fitted on the self-contacts only, scored on the right grid, left grid and the 4 leica_self files; held-out tracker rms, mm; the table/wall files are not used):",
-        "held-out tracker rms",
-        &ParamSet::WITH_MARKER,
-        &tracker_choice,
-    );
-    let (self_choice, other_choice, other_name, self_criterion) = match args.self_select {
-        SelfSelect::Tracker => (
-            &tracker_choice,
-            &contact_choice,
-            "self(ccv)",
-            "heldout_tracker_rms_mm",
-        ),
-        SelfSelect::ContactCv => (
-            &contact_choice,
-            &tracker_choice,
-            "self(trk)",
-            "heldout_rms_sigma",
-        ),
-    };
-    let cal_self = calibrate_all(
+    let self_model = no_tracker_model(
         &cell,
         "self",
         &self_recs,
-        self_choice,
+        contact_choice,
+        &selection,
         &noise,
-        &args.out,
-        match args.self_select {
-            SelfSelect::Tracker => {
-                "the no-tracker self-contact files only (no tracker value in the fit; the set and\n\
-                 # prior σ chosen by their held-out tracker rms on the grids and the leica_self files)"
-            }
-            SelfSelect::ContactCv => {
-                "the no-tracker self-contact files only (no tracker value used; the set and prior σ\n\
-                 # chosen by grouped CV on the self-contacts)"
-            }
-        },
+        &args,
+        &tracker_score,
+        "the no-tracker self-contact files only",
     )?;
     println!("self done at {:.1} s", t0.elapsed().as_secs_f64());
-    write_cv(&args.out.join("self/cv.csv"), self_choice, self_criterion)?;
-    write_cv(
-        &args.out.join("self/cv_tracker_selection.csv"),
-        &tracker_choice,
-        "heldout_tracker_rms_mm",
-    )?;
-    write_cv(
-        &args.out.join("self/cv_contact.csv"),
-        &contact_choice,
-        "heldout_rms_sigma",
-    )?;
-    let self_other = calibrate(
-        &cell,
-        other_name.into(),
-        &self_recs,
-        other_choice.spec,
-        &noise,
-    )?;
+    let cal_self = &self_model.cal;
     let leica_self = by_role(&[Role::TrackerSelfContact]);
-    contact_report(&cell, &self_recs, &leica_self, &cal_self, &noise, &args.out)?;
+    contact_report(&cell, &self_recs, &leica_self, cal_self, &noise, &args.out)?;
 
     // --- planes: self-contact + no-tracker planes; CV leaves one pattern out (5).
     let plane_recs = by_role(&[Role::SelfContact, Role::Plane]);
@@ -344,22 +369,19 @@ fn run(args: Args) -> anyhow::Result<()> {
         &ParamSet::WITH_MARKER,
         &plane_choice,
     );
-    let cal_planes = calibrate_all(
+    let planes_model = no_tracker_model(
         &cell,
         "planes",
         &plane_recs,
-        &plane_choice,
+        plane_choice,
+        &selection,
         &noise,
-        &args.out,
-        "the no-tracker self-contact and plane-contact files (no tracker value used; the set and\n\
-         # prior σ chosen by grouped CV)",
+        &args,
+        &tracker_score,
+        "the no-tracker self-contact and plane-contact files",
     )?;
     println!("planes done at {:.1} s", t0.elapsed().as_secs_f64());
-    write_cv(
-        &args.out.join("planes/cv.csv"),
-        &plane_choice,
-        "heldout_rms_sigma",
-    )?;
+    let cal_planes = &planes_model.cal;
 
     // --- all: everything, tracker files included; CV holds out whole tracker patterns and
     // scores them with the honest protocol (mm).
@@ -403,10 +425,10 @@ fn run(args: Args) -> anyhow::Result<()> {
     let models: Vec<ScoredModel> =
         std::iter::once(("nominal".to_string(), zero.clone(), zero.clone(), true))
             .chain(
-                [&cal_self, &cal_planes, &cal_all]
+                [cal_self, cal_planes, &cal_all]
                     .iter()
                     .flat_map(|c| c.scored())
-                    .chain(std::iter::once(&self_other))
+                    .chain([&self_model.other, &planes_model.other])
                     .map(|c| {
                         let (r, l) = corrections(&c.fit);
                         (c.name.clone(), r, l, !c.name.starts_with("all"))
@@ -420,14 +442,19 @@ fn run(args: Args) -> anyhow::Result<()> {
     print_selection_split(
         &rows,
         &trackers,
-        &[&cal_self.chosen.name, &self_other.name],
+        &[
+            &cal_self.chosen.name,
+            &self_model.other.name,
+            &cal_planes.chosen.name,
+            &planes_model.other.name,
+        ],
         &SELF_SELECTION_PATTERNS,
     );
     if args.score_every_self_candidate {
         score_every_candidate(
             &cell,
             &self_recs,
-            self_choice,
+            &self_model.choice,
             &noise,
             &trackers,
             &rows,
@@ -444,7 +471,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     )?;
     let reference = corrections(&cal_all.chosen.fit).0;
     let mut compared: Vec<(String, KinematicErrors)> = vec![("nominal".into(), zero.clone())];
-    for c in [&cal_self, &cal_planes] {
+    for c in [cal_self, cal_planes] {
         compared.push((
             format!("{} (exported)", c.chosen.name),
             corrections(&c.chosen.fit).0,
@@ -453,7 +480,9 @@ fn run(args: Args) -> anyhow::Result<()> {
             compared.push((m.name.clone(), corrections(&m.fit).0));
         }
     }
-    compared.push((self_other.name.clone(), corrections(&self_other.fit).0));
+    for m in [&self_model, &planes_model] {
+        compared.push((m.other.name.clone(), corrections(&m.other.fit).0));
+    }
     compared.push((cal_all.with.name.clone(), corrections(&cal_all.with.fit).0));
     proxy_report(&cell, &recordings, &reference, &compared, &args.out)?;
     print_effects(&cal_all.chosen);

@@ -242,8 +242,8 @@ pub fn print_scores(rows: &[ScoreRow], trackers: &[&Recording], models: &[&str])
 }
 
 /// For each model of `models`: on how many tracker files it beats nominal, split into the files
-/// whose pattern is in `selection` (used to CHOOSE the `self` model, so not a clean test of the
-/// choice) and the others (the evaluation files, never used in any `self` choice), with the
+/// whose pattern is in `selection` (used to CHOOSE the `self` and `planes` models, so not a clean test of the
+/// choice) and the others (the evaluation files, never used in any such choice), with the
 /// pooled rms of each part.
 pub fn print_selection_split(
     rows: &[ScoreRow],
@@ -252,7 +252,7 @@ pub fn print_selection_split(
     selection: &[&str],
 ) {
     println!(
-        "self models on the selection files ({}; used for the tracker choice) and the evaluation files (the rest; never used in a self choice):",
+        "no-tracker models on the selection files ({}; used for the tracker choice) and the evaluation files (the rest; never used in a no-tracker choice):",
         selection.join(", ")
     );
     for m in models {
