@@ -1,22 +1,58 @@
 //! The identification problem of a session for `calib_core::identify`: the tips of both robots
 //! from the kinematic-error model (`kinematics::true_base_from_tip`) and their analytic
 //! Jacobians (`kinematics::tip_error_jacobian`) for the catalogue's parameters.
+//!
+//! Two caches keep the evaluation from redoing work, without changing a single bit of its
+//! results: each robot's nominal tips (zero errors) are computed once, when the model is built
+//! (the fits of the selection evaluate a robot without fitted parameters at its nominal tips over
+//! and over), and each thread keeps the two robots' error sets of the last parameter values it
+//! evaluated (a fit evaluates every point at the same values).
+
+use std::cell::RefCell;
+use std::rc::Rc;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use calib_core::identify::{IdentifyError, Robot, TipEval, TipModel};
 use kinematics::{ErrorParam, KinematicErrors};
 use nalgebra::{Matrix3, Matrix3xX, Point3};
-use sim_cell::Cell;
+use sim_cell::{Cell, CellRobot};
 
 use crate::catalogue::{Candidate, EffectKind};
 
+/// Source of [`SessionModel`] ids (keys of the per-thread error-set cache).
+static NEXT_MODEL_ID: AtomicU64 = AtomicU64::new(0);
+
+/// The two robots' error sets built for one model at one parameter vector.
+struct CachedErrors {
+    /// [`SessionModel::id`] of the model that built them.
+    model: u64,
+    /// The parameters (catalogue indices).
+    params: Vec<usize>,
+    /// Their values, compared bit for bit.
+    values: Vec<u64>,
+    /// Robot 1's and robot 2's errors.
+    errors: Rc<(KinematicErrors, KinematicErrors)>,
+}
+
+thread_local! {
+    /// The error sets this thread built last (see the module documentation).
+    static LAST_ERRORS: RefCell<Option<CachedErrors>> = const { RefCell::new(None) };
+}
+
 /// The identification problem of a session: tips from the kinematic-error model.
 pub struct SessionModel<'a> {
+    /// Unique per model: the key of the per-thread error-set cache.
+    id: u64,
     cell: &'a Cell,
     q1: &'a [Vec<f64>],
     q2: &'a [Vec<f64>],
     candidates: &'a [Candidate],
     /// Per-point whitening matrices (empty: unit weights).
     weights: Vec<Matrix3<f64>>,
+    /// Per point, robot 1's and robot 2's nominal tips (`true_base_from_tip` with zero errors),
+    /// each in its own base frame, m; `None` where that evaluation fails (a bad joint vector:
+    /// [`TipModel::eval`] then reports the failure).
+    nominal_tips: Vec<[Option<Point3<f64>>; 2]>,
 }
 
 impl<'a> SessionModel<'a> {
@@ -27,12 +63,23 @@ impl<'a> SessionModel<'a> {
         q2: &'a [Vec<f64>],
         candidates: &'a [Candidate],
     ) -> Self {
+        let nominal = |robot: &CellRobot, q: &[f64]| {
+            let zero = KinematicErrors::zero(robot.model.dof());
+            tip_b(robot, &zero, q).ok()
+        };
+        let nominal_tips = q1
+            .iter()
+            .zip(q2)
+            .map(|(a, b)| [nominal(&cell.robot1, a), nominal(&cell.robot2, b)])
+            .collect();
         Self {
+            id: NEXT_MODEL_ID.fetch_add(1, Ordering::Relaxed),
             cell,
             q1,
             q2,
             candidates,
             weights: Vec::new(),
+            nominal_tips,
         }
     }
 
@@ -55,6 +102,125 @@ impl<'a> SessionModel<'a> {
             }
         }
         (e1, e2)
+    }
+
+    /// [`SessionModel::errors`] through this thread's cache of the last error sets built.
+    fn cached_errors(
+        &self,
+        params: &[usize],
+        values: &[f64],
+    ) -> Rc<(KinematicErrors, KinematicErrors)> {
+        let hit = LAST_ERRORS.with_borrow(|last| {
+            last.as_ref()
+                .filter(|c| {
+                    c.model == self.id
+                        && c.params == params
+                        && c.values.len() == values.len()
+                        && c.values.iter().zip(values).all(|(&a, b)| a == b.to_bits())
+                })
+                .map(|c| Rc::clone(&c.errors))
+        });
+        if let Some(errors) = hit {
+            return errors;
+        }
+        let errors = Rc::new(self.errors(params, values));
+        LAST_ERRORS.set(Some(CachedErrors {
+            model: self.id,
+            params: params.to_vec(),
+            values: values.iter().map(|v| v.to_bits()).collect(),
+            errors: Rc::clone(&errors),
+        }));
+        errors
+    }
+
+    /// The tip of robot `robot` (0: robot 1, 1: robot 2) at point `point` with errors `errors`,
+    /// its base frame, m: the nominal tip computed in [`SessionModel::new`] when `errors` are
+    /// zero (the same value `true_base_from_tip` returns then), else `true_base_from_tip`.
+    fn tip(
+        &self,
+        point: usize,
+        robot: usize,
+        errors: &KinematicErrors,
+    ) -> Result<Point3<f64>, IdentifyError> {
+        if errors.is_zero() {
+            if let Some(p) = self.nominal_tips.get(point).and_then(|t| t[robot]) {
+                return Ok(p);
+            }
+        }
+        let (setup, q) = if robot == 0 {
+            (&self.cell.robot1, &self.q1[point])
+        } else {
+            (&self.cell.robot2, &self.q2[point])
+        };
+        tip_b(setup, errors, q).map_err(|e| model_error(point, e))
+    }
+
+    /// The Jacobian columns of the catalogue parameters `jacobian_params` at point `point` with
+    /// the two robots' errors `e1`, `e2` (see [`TipEval::jacobian`]).
+    fn jacobian(
+        &self,
+        point: usize,
+        e1: &KinematicErrors,
+        e2: &KinematicErrors,
+        jacobian_params: &[usize],
+    ) -> Result<Matrix3xX<f64>, IdentifyError> {
+        let mut jacobian = Matrix3xX::zeros(jacobian_params.len());
+        if jacobian_params.is_empty() {
+            return Ok(jacobian);
+        }
+        let (r1, r2) = (&self.cell.robot1, &self.cell.robot2);
+        for (robot, setup, errors, q) in [
+            (Robot::One, r1, e1, &self.q1[point]),
+            (Robot::Two, r2, e2, &self.q2[point]),
+        ] {
+            let cols: Vec<usize> = (0..jacobian_params.len())
+                .filter(|&c| self.candidates[jacobian_params[c]].robot() == robot)
+                .collect();
+            if cols.is_empty() {
+                continue;
+            }
+            let eps: Vec<ErrorParam> = cols
+                .iter()
+                .map(|&c| self.candidates[jacobian_params[c]].param())
+                .collect();
+            let j = kinematics::tip_error_jacobian(
+                &setup.model,
+                errors,
+                q,
+                &setup.flange_from_tip,
+                &setup.g_base,
+                &eps,
+            )
+            .map_err(|e| model_error(point, e))?;
+            for (k, &c) in cols.iter().enumerate() {
+                jacobian.set_column(c, &j.column(k));
+            }
+        }
+        Ok(jacobian)
+    }
+}
+
+/// A robot's true tip position in its nominal base frame (`kinematics::true_base_from_tip`), m.
+fn tip_b(
+    robot: &CellRobot,
+    errors: &KinematicErrors,
+    q: &[f64],
+) -> Result<Point3<f64>, kinematics::KinematicsError> {
+    kinematics::true_base_from_tip(
+        &robot.model,
+        errors,
+        q,
+        &robot.flange_from_tip,
+        &robot.g_base,
+    )
+    .map(|x| Point3::from(x.translation.vector))
+}
+
+/// The identification's error for a failure of the kinematic model at `point`.
+fn model_error(point: usize, e: kinematics::KinematicsError) -> IdentifyError {
+    IdentifyError::Model {
+        point,
+        source: Box::new(e),
     }
 }
 
@@ -98,62 +264,25 @@ impl TipModel for SessionModel<'_> {
         values: &[f64],
         jacobian_params: &[usize],
     ) -> Result<TipEval, IdentifyError> {
-        let (e1, e2) = self.errors(params, values);
-        let merr = |e: kinematics::KinematicsError| IdentifyError::Model {
-            point,
-            source: Box::new(e),
-        };
-        let (r1, r2) = (&self.cell.robot1, &self.cell.robot2);
-        let p1 = kinematics::true_base_from_tip(
-            &r1.model,
-            &e1,
-            &self.q1[point],
-            &r1.flange_from_tip,
-            &r1.g_base,
-        )
-        .map_err(merr)?;
-        let p2 = kinematics::true_base_from_tip(
-            &r2.model,
-            &e2,
-            &self.q2[point],
-            &r2.flange_from_tip,
-            &r2.g_base,
-        )
-        .map_err(merr)?;
-        let mut jacobian = Matrix3xX::zeros(jacobian_params.len());
-        if !jacobian_params.is_empty() {
-            for (robot, setup, errors, q) in [
-                (Robot::One, r1, &e1, &self.q1[point]),
-                (Robot::Two, r2, &e2, &self.q2[point]),
-            ] {
-                let cols: Vec<usize> = (0..jacobian_params.len())
-                    .filter(|&c| self.candidates[jacobian_params[c]].robot() == robot)
-                    .collect();
-                if cols.is_empty() {
-                    continue;
-                }
-                let eps: Vec<ErrorParam> = cols
-                    .iter()
-                    .map(|&c| self.candidates[jacobian_params[c]].param())
-                    .collect();
-                let j = kinematics::tip_error_jacobian(
-                    &setup.model,
-                    errors,
-                    q,
-                    &setup.flange_from_tip,
-                    &setup.g_base,
-                    &eps,
-                )
-                .map_err(merr)?;
-                for (k, &c) in cols.iter().enumerate() {
-                    jacobian.set_column(c, &j.column(k));
-                }
-            }
-        }
+        let errors = self.cached_errors(params, values);
+        let (e1, e2) = &*errors;
+        let p1_b1 = self.tip(point, 0, e1)?;
+        let p2_b2 = self.tip(point, 1, e2)?;
+        let jacobian = self.jacobian(point, e1, e2, jacobian_params)?;
         Ok(TipEval {
-            p1_b1: Point3::from(p1.translation.vector),
-            p2_b2: Point3::from(p2.translation.vector),
+            p1_b1,
+            p2_b2,
             jacobian,
         })
+    }
+    fn eval_jacobian(
+        &self,
+        point: usize,
+        params: &[usize],
+        values: &[f64],
+        jacobian_params: &[usize],
+    ) -> Result<Matrix3xX<f64>, IdentifyError> {
+        let errors = self.cached_errors(params, values);
+        self.jacobian(point, &errors.0, &errors.1, jacobian_params)
     }
 }
