@@ -30,8 +30,17 @@ struct CachedErrors {
     params: Vec<usize>,
     /// Their values, compared bit for bit.
     values: Vec<u64>,
+    /// The error sets.
+    errors: Rc<ErrorSets>,
+}
+
+/// The two robots' error sets at one parameter vector, and whether each passed
+/// [`KinematicErrors::check`] against its robot's model.
+struct ErrorSets {
     /// Robot 1's and robot 2's errors.
-    errors: Rc<(KinematicErrors, KinematicErrors)>,
+    robot: [KinematicErrors; 2],
+    /// Whether each is valid for its robot's model.
+    valid: [bool; 2],
 }
 
 thread_local! {
@@ -104,12 +113,9 @@ impl<'a> SessionModel<'a> {
         (e1, e2)
     }
 
-    /// [`SessionModel::errors`] through this thread's cache of the last error sets built.
-    fn cached_errors(
-        &self,
-        params: &[usize],
-        values: &[f64],
-    ) -> Rc<(KinematicErrors, KinematicErrors)> {
+    /// [`SessionModel::errors`] (and their checks) through this thread's cache of the last error
+    /// sets built.
+    fn cached_errors(&self, params: &[usize], values: &[f64]) -> Rc<ErrorSets> {
         let hit = LAST_ERRORS.with_borrow(|last| {
             last.as_ref()
                 .filter(|c| {
@@ -123,7 +129,15 @@ impl<'a> SessionModel<'a> {
         if let Some(errors) = hit {
             return errors;
         }
-        let errors = Rc::new(self.errors(params, values));
+        let (e1, e2) = self.errors(params, values);
+        let valid = [
+            e1.check(&self.cell.robot1.model).is_ok(),
+            e2.check(&self.cell.robot2.model).is_ok(),
+        ];
+        let errors = Rc::new(ErrorSets {
+            robot: [e1, e2],
+            valid,
+        });
         LAST_ERRORS.set(Some(CachedErrors {
             model: self.id,
             params: params.to_vec(),
@@ -133,26 +147,39 @@ impl<'a> SessionModel<'a> {
         errors
     }
 
-    /// The tip of robot `robot` (0: robot 1, 1: robot 2) at point `point` with errors `errors`,
-    /// its base frame, m: the nominal tip computed in [`SessionModel::new`] when `errors` are
-    /// zero (the same value `true_base_from_tip` returns then), else `true_base_from_tip`.
+    /// The tip of robot `robot` (0: robot 1, 1: robot 2) at point `point` with the error sets
+    /// `errors`, its base frame, m: what `true_base_from_tip` returns, bit for bit. When the
+    /// errors are zero, that is the nominal tip computed in [`SessionModel::new`]; when they and
+    /// the point's inputs (which the nominal tip checked) are valid, the unchecked FK; otherwise
+    /// the checked one, which names the failure.
     fn tip(
         &self,
         point: usize,
         robot: usize,
-        errors: &KinematicErrors,
+        errors: &ErrorSets,
     ) -> Result<Point3<f64>, IdentifyError> {
-        if errors.is_zero() {
-            if let Some(p) = self.nominal_tips.get(point).and_then(|t| t[robot]) {
-                return Ok(p);
-            }
-        }
+        let e = &errors.robot[robot];
         let (setup, q) = if robot == 0 {
             (&self.cell.robot1, &self.q1[point])
         } else {
             (&self.cell.robot2, &self.q2[point])
         };
-        tip_b(setup, errors, q).map_err(|e| model_error(point, e))
+        if let Some(nominal) = self.nominal_tips.get(point).and_then(|t| t[robot]) {
+            if e.is_zero() {
+                return Ok(nominal);
+            }
+            if errors.valid[robot] {
+                let tip = kinematics::true_base_from_tip_unchecked(
+                    &setup.model,
+                    e,
+                    q,
+                    &setup.flange_from_tip,
+                    &setup.g_base,
+                );
+                return Ok(Point3::from(tip.translation.vector));
+            }
+        }
+        tip_b(setup, e, q).map_err(|e| model_error(point, e))
     }
 
     /// The Jacobian columns of the catalogue parameters `jacobian_params` at point `point` with
@@ -265,9 +292,9 @@ impl TipModel for SessionModel<'_> {
         jacobian_params: &[usize],
     ) -> Result<TipEval, IdentifyError> {
         let errors = self.cached_errors(params, values);
-        let (e1, e2) = &*errors;
-        let p1_b1 = self.tip(point, 0, e1)?;
-        let p2_b2 = self.tip(point, 1, e2)?;
+        let p1_b1 = self.tip(point, 0, &errors)?;
+        let p2_b2 = self.tip(point, 1, &errors)?;
+        let [e1, e2] = &errors.robot;
         let jacobian = self.jacobian(point, e1, e2, jacobian_params)?;
         Ok(TipEval {
             p1_b1,
@@ -283,6 +310,109 @@ impl TipModel for SessionModel<'_> {
         jacobian_params: &[usize],
     ) -> Result<Matrix3xX<f64>, IdentifyError> {
         let errors = self.cached_errors(params, values);
-        self.jacobian(point, &errors.0, &errors.1, jacobian_params)
+        let [e1, e2] = &errors.robot;
+        self.jacobian(point, e1, e2, jacobian_params)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::catalogue::catalogue;
+    use sim_cell::{generate_session, trial_rng, Layout, SessionSpec};
+
+    /// The caches change no bit: at every point, for parameter sets on neither, one or both
+    /// robots (zero and non-zero values, the same values twice so that the per-thread cache is
+    /// hit), `eval` gives exactly the tips of the checked `true_base_from_tip` and the columns
+    /// of `tip_error_jacobian`, and `eval_jacobian` exactly `eval`'s Jacobian.
+    #[test]
+    fn eval_is_the_checked_fk_bit_for_bit() {
+        let cell = Cell::default_floor_wall();
+        let spec = SessionSpec::new(8, Layout::Random, 0.8);
+        let session = generate_session(&cell, &spec, &mut trial_rng(3, 0)).expect("session");
+        let q1: Vec<Vec<f64>> = session.points.iter().map(|p| p.q1.clone()).collect();
+        let q2: Vec<Vec<f64>> = session.points.iter().map(|p| p.q2.clone()).collect();
+        let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
+        let model = SessionModel::new(&cell, &q1, &q2, &cands);
+        let r1 = (0..cands.len()).find(|&c| cands[c].robot() == Robot::One);
+        let r2 = (0..cands.len())
+            .rev()
+            .find(|&c| cands[c].robot() == Robot::Two);
+        let (r1, r2) = (
+            r1.expect("robot 1 candidate"),
+            r2.expect("robot 2 candidate"),
+        );
+        let all: Vec<usize> = (0..cands.len()).collect();
+        let cases: [(Vec<usize>, Vec<f64>); 5] = [
+            (vec![], vec![]),
+            (vec![r1], vec![0.0]),
+            (vec![r1], vec![2e-3]),
+            (vec![r2], vec![-1e-3]),
+            (vec![r1, r2], vec![1e-3, 3e-4]),
+        ];
+        for (params, values) in &cases {
+            let (e1, e2) = model.errors(params, values);
+            for _repeat in 0..2 {
+                for i in 0..q1.len() {
+                    let got = model.eval(i, params, values, &all).expect("eval");
+                    for (robot, errors, q, tip) in [
+                        (&cell.robot1, &e1, &q1[i], got.p1_b1),
+                        (&cell.robot2, &e2, &q2[i], got.p2_b2),
+                    ] {
+                        let want = kinematics::true_base_from_tip(
+                            &robot.model,
+                            errors,
+                            q,
+                            &robot.flange_from_tip,
+                            &robot.g_base,
+                        )
+                        .expect("fk");
+                        assert_eq!(tip.coords, want.translation.vector, "point {i}");
+                    }
+                    for (c, &p) in all.iter().enumerate() {
+                        let (robot, errors, q) = match cands[p].robot() {
+                            Robot::One => (&cell.robot1, &e1, &q1[i]),
+                            Robot::Two => (&cell.robot2, &e2, &q2[i]),
+                        };
+                        let want = kinematics::tip_error_jacobian(
+                            &robot.model,
+                            errors,
+                            q,
+                            &robot.flange_from_tip,
+                            &robot.g_base,
+                            &[cands[p].param()],
+                        )
+                        .expect("jacobian");
+                        assert_eq!(got.jacobian.column(c), want.column(0), "point {i}");
+                    }
+                    let jac = model
+                        .eval_jacobian(i, params, values, &all)
+                        .expect("jacobian");
+                    assert_eq!(jac, got.jacobian);
+                }
+            }
+        }
+    }
+
+    /// A non-finite parameter value is still reported as the kinematic model's error (the
+    /// cached error sets fail their check, so the checked FK runs), and the model evaluates
+    /// normally afterwards.
+    #[test]
+    fn a_non_finite_value_is_still_an_error() {
+        let cell = Cell::default_floor_wall();
+        let spec = SessionSpec::new(6, Layout::Random, 0.8);
+        let session = generate_session(&cell, &spec, &mut trial_rng(4, 0)).expect("session");
+        let q1: Vec<Vec<f64>> = session.points.iter().map(|p| p.q1.clone()).collect();
+        let q2: Vec<Vec<f64>> = session.points.iter().map(|p| p.q2.clone()).collect();
+        let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
+        let model = SessionModel::new(&cell, &q1, &q2, &cands);
+        for _repeat in 0..2 {
+            let err = model.eval(2, &[0], &[f64::NAN], &[]).unwrap_err();
+            assert!(
+                matches!(err, IdentifyError::Model { point: 2, .. }),
+                "{err}"
+            );
+        }
+        assert!(model.eval(2, &[0], &[1e-3], &[]).is_ok());
     }
 }
