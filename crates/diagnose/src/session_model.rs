@@ -394,6 +394,38 @@ mod tests {
         }
     }
 
+    /// The per-thread cache is per model: two models whose catalogues give the same parameter
+    /// index different meanings, evaluated in turn at the same values on the same thread, each
+    /// give their own tips.
+    #[test]
+    fn the_error_set_cache_is_per_model() {
+        let cell = Cell::default_floor_wall();
+        let spec = SessionSpec::new(4, Layout::Random, 0.8);
+        let session = generate_session(&cell, &spec, &mut trial_rng(5, 0)).expect("session");
+        let q1: Vec<Vec<f64>> = session.points.iter().map(|p| p.q1.clone()).collect();
+        let q2: Vec<Vec<f64>> = session.points.iter().map(|p| p.q2.clone()).collect();
+        let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
+        let reversed: Vec<Candidate> = cands.iter().rev().cloned().collect();
+        let a = SessionModel::new(&cell, &q1, &q2, &cands);
+        let b = SessionModel::new(&cell, &q1, &q2, &reversed);
+        let (params, values) = ([0usize], [2e-3]);
+        for _repeat in 0..2 {
+            for model in [&a, &b] {
+                let got = model.eval(1, &params, &values, &[]).expect("eval");
+                let (e1, e2) = model.errors(&params, &values);
+                let want = |robot: &CellRobot, e: &KinematicErrors, q: &[f64]| {
+                    tip_b(robot, e, q).expect("fk")
+                };
+                assert_eq!(got.p1_b1, want(&cell.robot1, &e1, &q1[1]));
+                assert_eq!(got.p2_b2, want(&cell.robot2, &e2, &q2[1]));
+            }
+        }
+        // The two models do evaluate different parameters.
+        let ta = a.eval(1, &params, &values, &[]).expect("eval");
+        let tb = b.eval(1, &params, &values, &[]).expect("eval");
+        assert!(ta.p1_b1 != tb.p1_b1 || ta.p2_b2 != tb.p2_b2);
+    }
+
     /// A non-finite parameter value is still reported as the kinematic model's error (the
     /// cached error sets fail their check, so the checked FK runs), and the model evaluates
     /// normally afterwards.

@@ -196,7 +196,7 @@ pub(super) fn linearise(
 /// without it: the tips are taken from `previous` and only the Jacobian columns are evaluated
 /// ([`TipModel::eval_jacobian`]), so the tips are not computed twice. The result is the one
 /// `linearise(…, &[], true)` gives at that state, bit for bit.
-fn relinearise_with_jacobian(
+pub(super) fn relinearise_with_jacobian(
     model: &dyn TipModel,
     points: &[usize],
     b1_from_b2: &Isometry3<f64>,

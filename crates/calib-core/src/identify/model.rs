@@ -135,6 +135,8 @@ pub struct TipEval {
 }
 
 /// A handclasp data set with a catalogue of candidate error parameters, indexed `0..n_params()`.
+/// The fits call [`TipModel::eval`] for many points at once from rayon's threads (hence `Sync`);
+/// each call must give the same result whatever thread makes it.
 pub trait TipModel: Sync {
     /// Number of handclasp points.
     fn n_points(&self) -> usize;
