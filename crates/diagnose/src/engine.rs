@@ -489,3 +489,57 @@ fn describe_confounding(
         "a base-frame motion".into()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use kinematics::ErrorParam;
+    use sim_cell::{generate_session, trial_rng, Layout, SessionSpec};
+
+    /// Regression guard for the parallel fits of the selection (points, folds, refits) and the
+    /// parallel Monte Carlo: a session with two hidden effects (so that steps are accepted and
+    /// the re-screen, the backward elimination and the partial F tests all run) gives the
+    /// byte-identical JSON report in a 1-thread and a 2-thread pool, and the same progress lines.
+    #[test]
+    fn the_report_is_identical_whatever_the_thread_count() {
+        let cell = Cell::default_floor_wall();
+        let mut truth = cell.clone();
+        truth
+            .robot2
+            .errors
+            .set(ErrorParam::JointOffset { joint: 2 }, 0.2f64.to_radians());
+        truth
+            .robot1
+            .errors
+            .set(ErrorParam::JointOffset { joint: 1 }, 0.1f64.to_radians());
+        let spec = SessionSpec::new(40, Layout::Random, 0.8);
+        let session = generate_session(&truth, &spec, &mut trial_rng(11, 0)).expect("session");
+        let options = DiagnoseOptions {
+            trials: 60,
+            ..DiagnoseOptions::default()
+        };
+        let run_with = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("thread pool");
+            let mut lines = Vec::new();
+            let report = pool.install(|| {
+                diagnose_session_with_progress(&cell, &session, &options, &mut |l| {
+                    lines.push(l.to_owned())
+                })
+                .expect("diagnosis")
+            });
+            (serde_json::to_string(&report).expect("json"), report, lines)
+        };
+        let (json1, report1, lines1) = run_with(1);
+        let (json2, _, lines2) = run_with(2);
+        assert!(
+            report1.effects.len() >= 2,
+            "the session must name both hidden effects: {}",
+            report::render_text(&report1)
+        );
+        assert_eq!(json1, json2);
+        assert_eq!(lines1, lines2);
+    }
+}

@@ -5,6 +5,7 @@
 use nalgebra::{Isometry3, Matrix3, Matrix3xX, Point3, Vector3};
 use rand::Rng;
 use rand_distr::{Distribution, StandardNormal};
+use rayon::prelude::*;
 use sim_cell::{Cell, CellRobot};
 
 use crate::DiagnoseError;
@@ -118,7 +119,8 @@ impl NoiseModel {
 }
 
 /// MC distribution (ascending) of the rigid-fit residual RMS (m, 3-D per point) for data
-/// `p1 = x·p2 + d + noise`. Trial `t` draws from `trial_rng(seed, t)`.
+/// `p1 = x·p2 + d + noise`. Trial `t` draws from `trial_rng(seed, t)`; the trials run in
+/// parallel on rayon's current pool, and the result does not depend on the thread count.
 pub fn simulate_rms(
     p2: &[Point3<f64>],
     x: &Isometry3<f64>,
@@ -128,6 +130,7 @@ pub fn simulate_rms(
     trials: usize,
 ) -> Vec<f64> {
     let mut out: Vec<f64> = (0..trials)
+        .into_par_iter()
         .map(|t| {
             let mut rng = sim_cell::trial_rng(seed, t as u64);
             let p1: Vec<Point3<f64>> = p2

@@ -22,9 +22,10 @@ use crate::model::{rotation_from_rpy, RobotModel, Step};
 struct TrueJointFrame {
     /// Rotation `nominal_base_from_parent` (the joint's URDF parent link frame).
     parent_rotation: Matrix3<f64>,
-    /// Derivative axes of the origin rotation at the true rpy, indexed by [`Axis::index`] (roll,
-    /// pitch, yaw); see [`rpy_derivative_axes`].
-    rpy_axes: [Vector3<f64>; 3],
+    /// The joint origin's true rpy (nominal + error), rad: [`rpy_derivative_axes`] of it and
+    /// `parent_rotation` gives the origin-rpy Jacobian axes (computed only for the origin-rpy
+    /// columns asked for).
+    rpy: Vector3<f64>,
     /// Origin of the joint frame, m.
     o: Vector3<f64>,
     /// Joint axis, unit.
@@ -35,7 +36,7 @@ impl Default for TrueJointFrame {
     fn default() -> Self {
         Self {
             parent_rotation: Matrix3::identity(),
-            rpy_axes: [Vector3::zeros(); 3],
+            rpy: Vector3::zeros(),
             o: Vector3::zeros(),
             z: Vector3::zeros(),
         }
@@ -157,7 +158,7 @@ fn true_chain(
         if let (Some(f), Some(parent_rotation)) = (frames.as_deref_mut(), parent_rotation) {
             f[k] = TrueJointFrame {
                 parent_rotation,
-                rpy_axes: rpy_derivative_axes(&parent_rotation, &(joint.origin_rpy + drpy)),
+                rpy: joint.origin_rpy + drpy,
                 o: t,
                 z: r * step.axis.into_inner(),
             };
@@ -379,7 +380,7 @@ fn fill_error_columns(
             ErrorParam::OriginXyz { joint, axis } => frames[joint].parent_rotation * axis.unit(),
             ErrorParam::OriginRpy { joint, axis } => {
                 let f = &frames[joint];
-                f.rpy_axes[axis.index()].cross(&(p - f.o))
+                rpy_derivative_axes(&f.parent_rotation, &f.rpy)[axis.index()].cross(&(p - f.o))
             }
             ErrorParam::Tip { axis } => flange_r * axis.unit(),
             ErrorParam::MountXyz { axis } => axis.unit(),

@@ -1,10 +1,13 @@
 //! The joint Levenberg–Marquardt fit of `b1_from_b2` and error parameters, and its covariance
 //! (see the measurement model in [`crate::identify`]).
 
-use super::model::{IdentifyError, Robot, TipModel};
+use super::model::{IdentifyError, Robot, TipEval, TipModel};
 use crate::stats::t_quantile;
 use crate::stop::StopReason;
-use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{
+    DMatrix, DVector, Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3,
+};
+use rayon::prelude::*;
 
 /// Levenberg–Marquardt settings.
 #[derive(Debug, Clone)]
@@ -145,6 +148,29 @@ pub(super) struct Linearisation {
     pub(super) weights: Vec<Matrix3<f64>>,
     /// Robot 1's tips in b1, m (one per point).
     pub(super) p1_b1: Vec<Vector3<f64>>,
+    /// Robot 2's tips in b2, m (one per point).
+    pub(super) p2_b2: Vec<Point3<f64>>,
+}
+
+/// Points per rayon task when the tip model is evaluated in parallel (a few µs per point: about
+/// 0.1 ms per task, far above rayon's scheduling cost).
+const POINTS_PER_TASK: usize = 32;
+
+/// `model.eval` at every point of `points` (in parallel on rayon's current pool), one result per
+/// point in the order of `points`. Each result is the one a sequential call would give, so what
+/// [`assemble`] builds from them does not depend on the thread count.
+fn eval_points(
+    model: &dyn TipModel,
+    points: &[usize],
+    params: &[usize],
+    values: &[f64],
+    jac_params: &[usize],
+) -> Vec<Result<TipEval, IdentifyError>> {
+    points
+        .par_iter()
+        .with_min_len(POINTS_PER_TASK)
+        .map(|&i| model.eval(i, params, values, jac_params))
+        .collect()
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -157,26 +183,70 @@ pub(super) fn linearise(
     extra: &[usize],
     want_jacobian: bool,
 ) -> Result<Linearisation, IdentifyError> {
-    let n = points.len();
-    let k = params.len();
-    let cols = if want_jacobian {
-        6 + k + extra.len()
-    } else {
-        0
-    };
-    let mut residuals = DVector::zeros(3 * n);
-    let mut jacobian = DMatrix::zeros(if want_jacobian { 3 * n } else { 0 }, cols);
     let mut jac_params: Vec<usize> = Vec::new();
     if want_jacobian {
         jac_params.extend_from_slice(params);
         jac_params.extend_from_slice(extra);
     }
+    let evals = eval_points(model, points, params, values, &jac_params);
+    assemble(model, points, b1_from_b2, &jac_params, want_jacobian, evals)
+}
+
+/// [`linearise`] with the Jacobian (no extra columns) at the state `previous` was linearised at
+/// without it: the tips are taken from `previous` and only the Jacobian columns are evaluated
+/// ([`TipModel::eval_jacobian`]), so the tips are not computed twice. The result is the one
+/// `linearise(…, &[], true)` gives at that state, bit for bit.
+pub(super) fn relinearise_with_jacobian(
+    model: &dyn TipModel,
+    points: &[usize],
+    b1_from_b2: &Isometry3<f64>,
+    params: &[usize],
+    values: &[f64],
+    previous: &Linearisation,
+) -> Result<Linearisation, IdentifyError> {
+    let evals: Vec<Result<TipEval, IdentifyError>> = points
+        .par_iter()
+        .zip(previous.p1_b1.par_iter().zip(&previous.p2_b2))
+        .with_min_len(POINTS_PER_TASK)
+        .map(|(&i, (p1, p2))| {
+            model
+                .eval_jacobian(i, params, values, params)
+                .map(|jacobian| TipEval {
+                    p1_b1: Point3::from(*p1),
+                    p2_b2: *p2,
+                    jacobian,
+                })
+        })
+        .collect();
+    assemble(model, points, b1_from_b2, params, true, evals)
+}
+
+/// The linearisation from the tip evaluations `evals` (one per point of `points`, in order),
+/// checked point by point in order (the first failing point's error is returned, as a
+/// sequential evaluation would).
+fn assemble(
+    model: &dyn TipModel,
+    points: &[usize],
+    b1_from_b2: &Isometry3<f64>,
+    jac_params: &[usize],
+    want_jacobian: bool,
+    evals: Vec<Result<TipEval, IdentifyError>>,
+) -> Result<Linearisation, IdentifyError> {
+    let n = points.len();
+    let cols = if want_jacobian {
+        6 + jac_params.len()
+    } else {
+        0
+    };
+    let mut residuals = DVector::zeros(3 * n);
+    let mut jacobian = DMatrix::zeros(if want_jacobian { 3 * n } else { 0 }, cols);
     let r_x = b1_from_b2.rotation.to_rotation_matrix().into_inner();
     let mut p1_b1 = Vec::with_capacity(n);
+    let mut p2_b2 = Vec::with_capacity(n);
     let mut raw = Vec::with_capacity(n);
     let mut weights = Vec::with_capacity(n);
-    for (row, &i) in points.iter().enumerate() {
-        let e = model.eval(i, params, values, &jac_params)?;
+    for (row, (&i, e)) in points.iter().zip(evals).enumerate() {
+        let e = e?;
         p1_b1.push(e.p1_b1.coords);
         let y = b1_from_b2 * e.p2_b2;
         let r = e.p1_b1 - y;
@@ -221,6 +291,7 @@ pub(super) fn linearise(
                 block.copy_from(&(w * b));
             }
         }
+        p2_b2.push(e.p2_b2);
     }
     let rss = residuals.norm_squared();
     let raw_rss = raw.iter().map(|r| r.norm_squared()).sum();
@@ -232,6 +303,7 @@ pub(super) fn linearise(
         raw_rss,
         weights,
         p1_b1,
+        p2_b2,
     })
 }
 
@@ -342,7 +414,7 @@ pub fn fit_points(
                 let rel = (lin.rss - trial.rss) / lin.rss.max(1e-300);
                 x = x_new;
                 values = v_new;
-                lin = linearise(model, points, &x, params, &values, &[], true)?;
+                lin = relinearise_with_jacobian(model, points, &x, params, &values, &trial)?;
                 lambda = (lambda / 10.0).max(1e-12);
                 accepted = true;
                 if rel < options.rss_tolerance {

@@ -49,6 +49,13 @@
 //! - **Detectability** ([`min_detectable`]): the smallest |value| of each candidate the design
 //!   detects with 80 % power, `(z_{1−α/2m} + z_{0.8})·σ/‖p_j‖`.
 //! - **Intervals**: `θ̂ ± t_{0.975, dof}·se`, `se` from the covariance.
+//!
+//! # Threads
+//! The tip model is evaluated at the points in parallel, and the independent fits of a step (the
+//! folds of [`kfold_rms`], the refits of the best-scoring candidates, the re-screen's
+//! replacements, the backward elimination's and [`partial_f_tests`]' reduced fits) run in
+//! parallel, all on rayon's current pool. Every result is assembled and every choice made in the
+//! sequential order, so a selection is bit-identical whatever the thread count.
 
 // File order (each file uses only files before it): model, lm, identifiability, selection;
 // placement uses lm.

@@ -135,6 +135,8 @@ pub struct TipEval {
 }
 
 /// A handclasp data set with a catalogue of candidate error parameters, indexed `0..n_params()`.
+/// The fits call [`TipModel::eval`] for many points at once from rayon's threads (hence `Sync`);
+/// each call must give the same result whatever thread makes it.
 pub trait TipModel: Sync {
     /// Number of handclasp points.
     fn n_points(&self) -> usize;
@@ -170,6 +172,20 @@ pub trait TipModel: Sync {
         values: &[f64],
         jacobian_params: &[usize],
     ) -> Result<TipEval, IdentifyError>;
+    /// The Jacobian columns of `jacobian_params` at point `point` with parameters
+    /// `params[k] = values[k]`: the `jacobian` of [`TipModel::eval`] with the same arguments, bit
+    /// for bit. The fit calls it where it already has the tips at that state; a model can
+    /// override it to skip computing them again. Default: `eval(…).jacobian`.
+    fn eval_jacobian(
+        &self,
+        point: usize,
+        params: &[usize],
+        values: &[f64],
+        jacobian_params: &[usize],
+    ) -> Result<Matrix3xX<f64>, IdentifyError> {
+        self.eval(point, params, values, jacobian_params)
+            .map(|e| e.jacobian)
+    }
 }
 
 #[cfg(test)]

@@ -6,10 +6,12 @@ use super::lm::{check_params, fit, fit_points, linearise, min_points, FitOptions
 use super::model::{IdentifyError, TipModel};
 use crate::stats::f_test_p_value;
 use crate::stats::CHI2_1_95;
+use rayon::prelude::*;
 
 /// K-fold cross-validated residual RMS, m: points are split into `folds` interleaved folds (point
 /// `i` in fold `i mod K`); each fold is predicted by the model fitted on the others.
-/// `sqrt(Σ_heldout ‖r_i‖² / n)`.
+/// `sqrt(Σ_heldout ‖r_i‖² / n)`. The folds' fits run in parallel on rayon's current pool; the
+/// result is the same whatever the thread count.
 pub fn kfold_rms(
     model: &dyn TipModel,
     params: &[usize],
@@ -19,32 +21,40 @@ pub fn kfold_rms(
 ) -> Result<f64, IdentifyError> {
     let n = model.n_points();
     let k = folds.clamp(2, n.max(2));
+    // The folds' fits in parallel; their held-out sums are added in fold order (and the first
+    // failing fold's error returned), so the result does not depend on the thread count.
+    let per_fold: Vec<Result<f64, IdentifyError>> = (0..k)
+        .into_par_iter()
+        .map(|f| {
+            let train: Vec<usize> = (0..n).filter(|i| i % k != f).collect();
+            let test: Vec<usize> = (0..n).filter(|i| i % k == f).collect();
+            if test.is_empty() {
+                return Ok(0.0);
+            }
+            let init_vals = start.map(|s| s.values.as_slice());
+            let fit = fit_points(
+                model,
+                &train,
+                params,
+                init_vals.filter(|v| v.len() == params.len()),
+                start.map(|s| s.b1_from_b2),
+                options,
+            )?;
+            let lin = linearise(
+                model,
+                &test,
+                &fit.b1_from_b2,
+                params,
+                &fit.values,
+                &[],
+                false,
+            )?;
+            Ok(lin.raw_rss)
+        })
+        .collect();
     let mut sum = 0.0;
-    for f in 0..k {
-        let train: Vec<usize> = (0..n).filter(|i| i % k != f).collect();
-        let test: Vec<usize> = (0..n).filter(|i| i % k == f).collect();
-        if test.is_empty() {
-            continue;
-        }
-        let init_vals = start.map(|s| s.values.as_slice());
-        let fit = fit_points(
-            model,
-            &train,
-            params,
-            init_vals.filter(|v| v.len() == params.len()),
-            start.map(|s| s.b1_from_b2),
-            options,
-        )?;
-        let lin = linearise(
-            model,
-            &test,
-            &fit.b1_from_b2,
-            params,
-            &fit.values,
-            &[],
-            false,
-        )?;
-        sum += lin.raw_rss;
+    for fold_rss in per_fold {
+        sum += fold_rss?;
     }
     Ok((sum / n as f64).sqrt())
 }
@@ -252,23 +262,33 @@ fn rescreen(
     // within χ²₁(0.95)·σ̂² of the best.
     let mut ranked = scores.clone();
     ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
+    // The refits in parallel, decided in rank order below (as one at a time would).
+    let to_refit: Vec<usize> = ranked
+        .iter()
+        .take(RESCREEN_REFITS)
+        .map(|&(cand, _)| cand)
+        .filter(|&cand| cand != old && !parallel_of(cand).contains(&old))
+        .collect();
+    let trials: Vec<Result<IdentFit, IdentifyError>> = to_refit
+        .par_iter()
+        .map(|&cand| {
+            let mut p2 = current.params.clone();
+            let mut v2 = current.values.clone();
+            p2[i] = cand;
+            v2[i] = 0.0;
+            fit(
+                model,
+                &p2,
+                Some(&v2),
+                Some(current.b1_from_b2),
+                &options.fit,
+            )
+        })
+        .collect();
     let mut tried: Vec<(usize, f64)> = vec![(old, current.rss)];
     let mut winner: Option<(usize, IdentFit)> = None;
-    for &(cand, _) in ranked.iter().take(RESCREEN_REFITS) {
-        if cand == old || parallel_of(cand).contains(&old) {
-            continue;
-        }
-        let mut p2 = current.params.clone();
-        let mut v2 = current.values.clone();
-        p2[i] = cand;
-        v2[i] = 0.0;
-        let trial = fit(
-            model,
-            &p2,
-            Some(&v2),
-            Some(current.b1_from_b2),
-            &options.fit,
-        )?;
+    for (&cand, trial) in to_refit.iter().zip(trials) {
+        let trial = trial?;
         tried.push((cand, trial.rss));
         let bar = winner
             .as_ref()
@@ -315,13 +335,15 @@ pub const RESCREEN_REFITS: usize = 10;
 
 /// Partial F test of each fitted parameter: refit without it and compare,
 /// `F = (RSS_without − RSS)/(RSS/dof)` against `F(1, dof)`. Returns `(F, p-value)` per parameter
-/// of `fit` (same order). Failure cases: as [`fit`].
+/// of `fit` (same order); the refits run in parallel on rayon's current pool. Failure cases: as
+/// [`fit`].
 pub fn partial_f_tests(
     model: &dyn TipModel,
     current: &IdentFit,
     options: &FitOptions,
 ) -> Result<Vec<(f64, f64)>, IdentifyError> {
     (0..current.params.len())
+        .into_par_iter()
         .map(|i| {
             let (params, values) = without(current, i);
             let reduced = fit(
@@ -334,6 +356,9 @@ pub fn partial_f_tests(
             let f = (reduced.rss - current.rss) / (current.rss / current.dof.max(1) as f64);
             Ok((f, f_test_p_value(f, current.dof)))
         })
+        .collect::<Vec<Result<(f64, f64), IdentifyError>>>()
+        // In parameter order: the first failing parameter's error, whatever the thread count.
+        .into_iter()
         .collect()
 }
 
@@ -349,16 +374,23 @@ fn backward_eliminate(
 ) -> Result<bool, IdentifyError> {
     let mut dropped = false;
     while !current.params.is_empty() {
+        // The reduced fits in parallel, compared in parameter order.
+        let reduced_fits: Vec<Result<IdentFit, IdentifyError>> = (0..current.params.len())
+            .into_par_iter()
+            .map(|i| {
+                let (params, values) = without(current, i);
+                fit(
+                    model,
+                    &params,
+                    Some(&values),
+                    Some(current.b1_from_b2),
+                    &options.fit,
+                )
+            })
+            .collect();
         let mut worst: Option<(usize, f64, IdentFit)> = None;
-        for i in 0..current.params.len() {
-            let (params, values) = without(current, i);
-            let reduced = fit(
-                model,
-                &params,
-                Some(&values),
-                Some(current.b1_from_b2),
-                &options.fit,
-            )?;
+        for (i, reduced) in reduced_fits.into_iter().enumerate() {
+            let reduced = reduced?;
             let f = (reduced.rss - current.rss) / (current.rss / current.dof.max(1) as f64);
             let p = f_test_p_value(f, current.dof);
             if worst.as_ref().is_none_or(|w| p > w.1) {
@@ -485,9 +517,13 @@ pub fn forward_select_with_progress(
                 &options.fit,
             )
         };
+        // The refits in parallel, compared in rank order.
+        let top: Vec<(usize, f64)> = ranked.iter().take(FORWARD_REFITS).copied().collect();
+        let trials: Vec<Result<IdentFit, IdentifyError>> =
+            top.par_iter().map(|&(cand, _)| refit_with(cand)).collect();
         let mut best: Option<(usize, f64, IdentFit)> = None;
-        for &(cand, sc) in ranked.iter().take(FORWARD_REFITS) {
-            let trial = refit_with(cand)?;
+        for (&(cand, sc), trial) in top.iter().zip(trials) {
+            let trial = trial?;
             if best.as_ref().is_none_or(|b| trial.rss < b.2.rss) {
                 best = Some((cand, sc, trial));
             }
