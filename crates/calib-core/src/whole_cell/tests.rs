@@ -130,6 +130,25 @@ fn every_kind(seed: u64) -> (CellProblem, CellEstimate) {
             sigma_m: 1e-4,
         });
     }
+    // Face contacts (own generator, so the draws above stay as they were): generic normals
+    // (not flush, so the faces' slide and the normals' rotation both enter), both tools of
+    // robot 1.
+    let mut rng_face = ChaCha8Rng::seed_from_u64(seed ^ 0xface);
+    for tool1 in [0, 1] {
+        let mut unit =
+            || Unit::new_normalize(Vector3::from_fn(|_, _| rng_face.random_range(-1.0..1.0)));
+        let (n1_tip, n2_tip) = (unit(), unit());
+        obs.push(ObservationKind::FaceContact {
+            q1: q(Robot::One, &mut rng_face),
+            q2: q(Robot::Two, &mut rng_face),
+            tool1,
+            tool2: 0,
+            n1_tip,
+            n2_tip,
+            group: 0,
+            sigma_m: 1e-4,
+        });
+    }
     p.observations = obs
         .into_iter()
         .enumerate()
@@ -235,6 +254,61 @@ fn every_jacobian_matches_central_differences() {
     }
 }
 
+/// The face-contact rows of [`every_kind`] (two per seed, generic normals, a fitted contact
+/// distance, scale, compliance and periodic errors of both robots, the wall cell's rotated
+/// placement): every column's analytic derivative matches central differences within
+/// [`FD_TOL_M`] + [`FD_TOL_REL`] (step [`fd_step`]). Not vacuous: the placement is far from the
+/// identity, the faces slide (the tip-to-tip vector has a tangential part, so the normals'
+/// rotation enters), and every robot-2 kinematic column and placement rotation column is
+/// non-zero on at least one row.
+#[test]
+fn face_contact_jacobian_matches_central_differences() {
+    for seed in [1u64, 2, 3] {
+        let (p, est) = every_kind(seed);
+        let layout = ParamLayout::new(&p, &[]);
+        let ev = Evaluator::new(&p, &layout);
+        assert!(est.b1_from_b2.rotation.angle() > 1.0);
+        let faces: Vec<&Observation> = p
+            .observations
+            .iter()
+            .filter(|o| matches!(o.kind, ObservationKind::FaceContact { .. }))
+            .collect();
+        assert_eq!(faces.len(), 2);
+        let mut touched = vec![false; layout.len()];
+        for o in faces {
+            let lin = ev.linearise(o, &est, true).unwrap();
+            for (j, param) in layout.params.iter().enumerate() {
+                let h = fd_step(param);
+                let mut d = DVector::zeros(layout.len());
+                d[j] = h;
+                let plus = ev.linearise(o, &layout.apply(&est, &d), false).unwrap();
+                let minus = ev.linearise(o, &layout.apply(&est, &(-d)), false).unwrap();
+                let fd = (plus.residual[0] - minus.residual[0]) / 2.0;
+                let an = lin.jacobian[(0, j)] * h;
+                assert!(
+                    (fd - an).abs() <= FD_TOL_M + FD_TOL_REL * an.abs(),
+                    "seed {seed} row {} column {}: analytic {an:e} fd {fd:e}",
+                    o.row,
+                    param.describe(&p)
+                );
+                touched[j] |= an != 0.0;
+            }
+        }
+        for (j, param) in layout.params.iter().enumerate() {
+            let must = match param {
+                CellParam::Kinematic { robot, .. } => *robot == Robot::Two,
+                CellParam::PlacementRotation { .. } | CellParam::ContactDistance { .. } => true,
+                _ => false,
+            };
+            assert!(
+                !must || touched[j],
+                "seed {seed}: column {} has no effect on any face row",
+                param.describe(&p)
+            );
+        }
+    }
+}
+
 #[test]
 fn bad_input_is_a_named_error() {
     let (mut p, _) = every_kind(4);
@@ -249,6 +323,24 @@ fn bad_input_is_a_named_error() {
     }
     let e = p.check().unwrap_err().to_string();
     assert!(e.contains("row 1"), "{e}");
+    // A zero or NaN face normal names the row, the field and the fix.
+    for bad in [Vector3::zeros(), Vector3::new(f64::NAN, 0.0, 1.0)] {
+        let (mut p, _) = every_kind(4);
+        let o = p
+            .observations
+            .iter_mut()
+            .find(|o| matches!(o.kind, ObservationKind::FaceContact { .. }))
+            .unwrap();
+        let row = o.row;
+        if let ObservationKind::FaceContact { n2_tip, .. } = &mut o.kind {
+            *n2_tip = Unit::new_unchecked(bad);
+        }
+        let e = p.check().unwrap_err().to_string();
+        assert!(
+            e.contains(&format!("row {row}")) && e.contains("n2_tip") && e.contains("outward"),
+            "{e}"
+        );
+    }
     let (mut p, _) = every_kind(4);
     p.robot2.tolerance.tip_m = f64::NAN;
     let e = p.check().unwrap_err().to_string();
