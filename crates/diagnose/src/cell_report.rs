@@ -289,7 +289,11 @@ fn fit_rows(fit: &(CellProblem, CellFit)) -> Vec<ScoredRow> {
     residuals_at(p, &f.layout, &f.estimate, &f.active).unwrap_or_default()
 }
 
-fn kind_residuals(fitted: &[ScoredRow], held: &HeldOut, scale: &[f64; 4]) -> Vec<KindResidual> {
+fn kind_residuals(
+    fitted: &[ScoredRow],
+    held: &HeldOut,
+    scale: &[f64; KINDS.len()],
+) -> Vec<KindResidual> {
     KINDS
         .iter()
         .zip(scale)
@@ -379,7 +383,7 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
     let (fp, ff) = &d.final_fit;
     let vf = variance_factor(ff);
     let params = ff.parameters(fp);
-    let mut counts = [0usize; 4];
+    let mut counts = [0usize; KINDS.len()];
     for o in &d.problem.observations {
         if let Some(k) = KINDS.iter().position(|k| *k == o.kind.name()) {
             counts[k] += 1;
