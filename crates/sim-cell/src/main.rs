@@ -169,6 +169,11 @@ struct SessionArgs {
     /// --contact-known are the contact kind's.
     #[arg(long, default_value_t = 5.0)]
     face_slide_mm: f64,
+    /// Face-contact kind: largest tilt of the touching faces' normal from the approach direction
+    /// (robot 1's flange z), degrees (uniform in 0…this, any azimuth; 0: every face normal along
+    /// the flange z, which leaves the tool-frame sideways offsets unobserved).
+    #[arg(long, default_value_t = 20.0)]
+    face_tilt_deg: f64,
     /// Tracker kind: σ per axis of a tracker measurement, mm.
     #[arg(long, default_value_t = 0.05)]
     tracker_sigma_mm: f64,
@@ -321,6 +326,7 @@ fn session(a: SessionArgs) -> Result<()> {
         contact_sigma_m: a.contact_sigma_mm * 1e-3,
         contact_known: a.contact_known,
         face_slide_m: a.face_slide_mm * 1e-3,
+        face_tilt_max_rad: a.face_tilt_deg.to_radians(),
         tracker_sigma_m: a.tracker_sigma_mm * 1e-3,
         tracker_tool: a.tracker_tool.clone(),
         plane_sigma_m: a.plane_sigma_mm * 1e-3,

@@ -497,7 +497,8 @@ impl Session {
                             set("sigma_mm", mm(*sigma_m));
                             let normals = n1_tip.iter().chain(n2_tip.iter());
                             for (c, v) in FACE_COLUMNS.iter().zip(normals) {
-                                set(c, format!("{v:.9}"));
+                                // `+ 0.0` writes −0 as 0.
+                                set(c, format!("{:.9}", v + 0.0));
                             }
                             (deg(q1), deg(q2), blank(3), blank(3))
                         }

@@ -64,6 +64,9 @@ pub struct KindSpec {
     pub contact_known: bool,
     /// Largest slide of a face contact's faces on each other, m, per tangent axis [5 mm].
     pub face_slide_m: f64,
+    /// Largest tilt of a face contact's face normal from the approach direction (robot 1's
+    /// flange z), rad [20°]: which face of a polyhedral marker touches varies from row to row.
+    pub face_tilt_max_rad: f64,
     /// σ per axis of a tracker measurement, m [0.05 mm].
     pub tracker_sigma_m: f64,
     /// The tool a tracker measures, by name ([`crate::CellRobot::tool_index`]) \[`tip`, [`crate::cell::TIP_TOOL`]\].
@@ -82,6 +85,7 @@ impl Default for KindSpec {
             contact_sigma_m: 0.2e-3,
             contact_known: false,
             face_slide_m: 5e-3,
+            face_tilt_max_rad: 20f64.to_radians(),
             tracker_sigma_m: 0.05e-3,
             tracker_tool: crate::cell::TIP_TOOL.into(),
             plane_sigma_m: 0.1e-3,
@@ -140,6 +144,7 @@ fn check_spec(k: &KindSpec) -> Result<(), SimError> {
         ),
         ("contact σ (--contact-sigma-mm)", k.contact_sigma_m, false),
         ("face slide (--face-slide-mm)", k.face_slide_m, true),
+        ("face tilt (--face-tilt-deg)", k.face_tilt_max_rad, true),
         ("tracker σ (--tracker-sigma-mm)", k.tracker_sigma_m, false),
         ("plane σ (--plane-sigma-mm)", k.plane_sigma_m, false),
         ("plane tilt", k.plane_max_tilt_rad, true),
@@ -221,11 +226,14 @@ fn draw_truth(
 /// [`generate_session`], tips in the rows by the nominal models):
 /// - coincident: as [`generate_session`] (which it calls when there is no plan);
 /// - contact: robot 2's true tip at `p + (d + σ_c·ν)·û`, `û` the approach direction of robot 1;
-/// - face contact: robot 2's true tip at `p + (d + σ_c·ν)·û + a·e1 + b·e2`, a slide of the faces
-///   with `a, b ~ U(±face_slide_m)` along the tangent basis `(e1, e2)` of `û`
-///   ([`calib_core::whole_cell::tangent_basis`]); robot 1's face normal is `û` and robot 2's
-///   `−û` (flush), written in each tip frame with the TRUE robot's rotation at the reported
-///   (quantised) joints: `n1_tip = R1ᵀ·û`, `n2_tip = R2ᵀ·R_Xᵀ·(−û)`;
+/// - face contact: the touching faces' normal `n` is the approach direction `û` tilted by
+///   `θ ~ U(0, face_tilt_max_rad)` toward azimuth `φ ~ U(0, 2π)` of the tangent basis
+///   `(t1, t2)` of `û` ([`calib_core::whole_cell::tangent_basis`]):
+///   `n = cos θ·û + sin θ·(cos φ·t1 + sin φ·t2)` (which face of a polyhedral marker touches
+///   varies); robot 2's true tip at `p + (d + σ_c·ν)·n + a·e1 + b·e2`, a slide of the faces
+///   with `a, b ~ U(±face_slide_m)` along the tangent basis `(e1, e2)` of `n`; robot 1's face
+///   normal is `n` and robot 2's `−n` (flush), written in each tip frame with the TRUE robot's
+///   rotation at the reported (quantised) joints: `n1_tip = R1ᵀ·n`, `n2_tip = R2ᵀ·R_Xᵀ·(−n)`;
 /// - tracker: the robot's true tool point at `p`, measured as `tracker_from_b1·p + N(0, σ_t²I)`;
 /// - plane: the true tip at `p` projected onto the plane and moved `σ_p·ν` along its normal,
 ///   approached along the normal where reachable.
@@ -327,6 +335,10 @@ pub fn generate_kind_session(
     Err(unreachable(cell, i, &p, robot, &why, Some(spec)))
 }
 
+/// Both robots' reported joints `(q1, q2)` (rad) of a meeting and the approach direction `û`
+/// it took (b1, unit).
+type Meeting = (Vec<f64>, Vec<f64>, Vector3<f64>);
+
 struct Sim<'a> {
     cell: &'a Cell,
     kinds: &'a KindSpec,
@@ -389,10 +401,21 @@ impl Sim<'_> {
                 let slide = self.kinds.face_slide_m;
                 let a: f64 = rng.random_range(-slide..=slide);
                 let b: f64 = rng.random_range(-slide..=slide);
-                let (q1, q2, u) = self.pair_along(t, rng, |u| {
-                    let (e1, e2) = tangent_basis(&Unit::new_normalize(u));
-                    u * d + e1 * a + e2 * b
+                let theta: f64 = rng.random_range(0.0..=self.kinds.face_tilt_max_rad);
+                let phi: f64 = rng.random_range(0.0..std::f64::consts::TAU);
+                // The face normal for approach direction `u` (b1).
+                let normal = |u: Vector3<f64>| {
+                    let (t1, t2) = tangent_basis(&Unit::new_normalize(u));
+                    Unit::new_normalize(
+                        u * theta.cos() + (t1 * phi.cos() + t2 * phi.sin()) * theta.sin(),
+                    )
+                };
+                let (q1, q2, approach) = self.pair_along(t, rng, |u| {
+                    let n = normal(u);
+                    let (e1, e2) = tangent_basis(&n);
+                    n.into_inner() * d + e1 * a + e2 * b
                 })?;
+                let u = normal(approach).into_inner();
                 let cell = self.cell;
                 let rotation = |r: Robot, q: &[f64]| {
                     let c = cell.robot(r);
@@ -482,7 +505,7 @@ impl Sim<'_> {
         t: &Teach,
         rng: &mut impl Rng,
         offset: impl Fn(Vector3<f64>) -> Vector3<f64>,
-    ) -> Result<(Vec<f64>, Vec<f64>, Vector3<f64>), PointFailure> {
+    ) -> Result<Meeting, PointFailure> {
         let cell = self.cell;
         let rep = Vector3::repeat(cell.noise.repeatability_m);
         let d1 = gauss3(rng, &rep);

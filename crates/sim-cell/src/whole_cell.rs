@@ -194,7 +194,7 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
                         }
                     };
                     if distance_m.is_none() {
-                        let normals = Some((n1_tip, n2_tip));
+                        let normals = Some((*n1_tip, *n2_tip));
                         if let Some(d) = nominal_distance(cell, q1, q2, *tool1, *tool2, normals) {
                             contact_sums[g].0 += d;
                             contact_sums[g].1 += 1;
@@ -282,6 +282,9 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
     }
 }
 
+/// A face contact's outward normals `(n1_tip, n2_tip)`, each in its robot's tip frame.
+type FaceNormals = (Unit<Vector3<f64>>, Unit<Vector3<f64>>);
+
 /// Distance between the two tools' nominal points at `(q1, q2)` with the cell's `b1_from_b2`, m:
 /// the Euclidean distance, or with face normals `(n1_tip, n2_tip)` the distance along the mean
 /// normal `n̄·(p2_b1 − p1_b1)` of a face contact (`None` if the normals face the same way).
@@ -291,7 +294,7 @@ fn nominal_distance(
     q2: &[f64],
     tool1: usize,
     tool2: usize,
-    normals: Option<(&Unit<Vector3<f64>>, &Unit<Vector3<f64>>)>,
+    normals: Option<FaceNormals>,
 ) -> Option<f64> {
     let f1 = base_from_tip(
         &cell.robot1.model,

@@ -47,7 +47,7 @@ fn faces(cell: &Cell, n: usize, slide_m: f64, seed: u64) -> (Session, NuisanceTr
 
 /// A simulated face-contact session written and read back gives the same rows (normals to the
 /// file's 9 decimals), and writing it again gives the same text; the normal columns follow the
-/// other extra columns.
+/// other extra columns; the simulated face normals tilt from the flange z as specified.
 #[test]
 fn face_contact_session_round_trips_through_the_csv() {
     let cell = cell_with_offsets();
@@ -62,6 +62,22 @@ fn face_contact_session_round_trips_through_the_csv() {
         "{}",
         text.lines().next().unwrap()
     );
+    // The touching face varies: its normal within the default 20° (+ the kinematic errors'
+    // ≲ 0.5°) of the flange z, and some far from it.
+    let tilts: Vec<f64> = s
+        .observations
+        .iter()
+        .filter_map(|o| match &o.kind {
+            SessionKind::FaceContact { n1_tip, .. } => Some(n1_tip.angle(&Vector3::z())),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(tilts.len(), 10);
+    assert!(
+        tilts.iter().all(|t| *t <= 20.5f64.to_radians()),
+        "{tilts:?}"
+    );
+    assert!(tilts.iter().any(|t| *t > 5f64.to_radians()), "{tilts:?}");
     let back = Session::parse_csv(&text, Path::new("faces.csv"), &cell).unwrap();
     assert_eq!(back.csv_text(&cell), text);
     for (a, b) in s.observations.iter().zip(&back.observations) {
