@@ -348,10 +348,16 @@ fn session(a: SessionArgs) -> Result<()> {
     })?;
     if !matches!(a.kind, KindArg::Coincident) {
         let [c, ct, tr, pl, fc] = session.kind_counts();
+        // Named only when present, so the other kinds' message is as before.
+        let faces = if fc > 0 {
+            format!(", {fc} face_contact")
+        } else {
+            String::new()
+        };
         let t = truth.tracker_from_b1.inverse().translation.vector * 1e3;
         let (n, d) = truth.plane_b1;
         eprintln!(
-            "rows: {c} coincident, {ct} contact, {fc} face_contact, {tr} tracker, {pl} plane; truth: contact distance {:.3} mm, \
+            "rows: {c} coincident, {ct} contact, {tr} tracker, {pl} plane{faces}; truth: contact distance {:.3} mm, \
              tracker origin in b1 ({:.1}, {:.1}, {:.1}) mm, plane normal (b1) ({:.4}, {:.4}, {:.4}) offset {:.3} mm",
             truth.contact_distance_m * 1e3,
             t.x,
