@@ -341,6 +341,53 @@ fn bad_input_is_a_named_error() {
             "{e}"
         );
     }
+    // Two outward normals that point the same way in b1 (faces not facing each other) are an
+    // error at evaluation, naming the row and the fix.
+    let (mut p, est) = every_kind(4);
+    let i = p
+        .observations
+        .iter()
+        .position(|o| matches!(o.kind, ObservationKind::FaceContact { .. }))
+        .unwrap();
+    let rotation = |r: Robot, tool: usize, q: &[f64]| {
+        let rb = p.robot(r);
+        kinematics::true_base_from_tip(
+            &rb.model,
+            &est.robot(r).errors_for_tool(tool),
+            q,
+            &rb.tools[tool].flange_from_tip,
+            &rb.g_base,
+        )
+        .unwrap()
+        .rotation
+    };
+    let row = p.observations[i].row;
+    if let ObservationKind::FaceContact {
+        q1,
+        q2,
+        tool1,
+        tool2,
+        n1_tip,
+        ..
+    } = &p.observations[i].kind
+    {
+        let n1_b1 = rotation(Robot::One, *tool1, q1) * n1_tip.into_inner();
+        let n2_b2 = est.b1_from_b2.rotation.inverse() * n1_b1;
+        let same = Unit::new_normalize(rotation(Robot::Two, *tool2, q2).inverse() * n2_b2);
+        if let ObservationKind::FaceContact { n2_tip, .. } = &mut p.observations[i].kind {
+            *n2_tip = same;
+        }
+    }
+    p.check().expect("unit normals pass the problem check");
+    let layout = ParamLayout::new(&p, &[]);
+    let e = Evaluator::new(&p, &layout)
+        .linearise(&p.observations[i], &est, true)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains(&format!("row {row}")) && e.contains("same way") && e.contains("OUTWARD"),
+        "{e}"
+    );
     let (mut p, _) = every_kind(4);
     p.robot2.tolerance.tip_m = f64::NAN;
     let e = p.check().unwrap_err().to_string();
