@@ -109,6 +109,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let counts = session.kind_counts();
         out["rows_by_kind"] = json!({
             "coincident": counts[0], "contact": counts[1], "tracker": counts[2], "plane": counts[3],
+            "face_contact": counts[4],
         });
         out["groups"] = groups_json(&problem, &cal);
     }

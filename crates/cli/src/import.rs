@@ -185,6 +185,14 @@ impl Plan {
                     sim_cell::session::KIND_NAMES.join(", ")
                 ))
             })?;
+        if kind == "face_contact" {
+            return Err(at(
+                "kind = \"face_contact\" cannot be imported yet: a map has no face-normal columns \
+                 (n1_x … n2_z); import the rows as `contact` and add the kind and the normals, or \
+                 write the session with sim_cell::Session"
+                    .into(),
+            ));
+        }
         let two_robot = matches!(kind, "coincident" | "contact");
         let robot = match (two_robot, map.robot) {
             (true, None) => Robot::One,

@@ -331,7 +331,11 @@ fn fit_rows(fit: &(CellProblem, CellFit)) -> Vec<ScoredRow> {
     residuals_at(p, &f.layout, &f.estimate, &f.active).unwrap_or_default()
 }
 
-fn kind_residuals(fitted: &[ScoredRow], held: &HeldOut, scale: &[f64; 4]) -> Vec<KindResidual> {
+fn kind_residuals(
+    fitted: &[ScoredRow],
+    held: &HeldOut,
+    scale: &[f64; KINDS.len()],
+) -> Vec<KindResidual> {
     KINDS
         .iter()
         .zip(scale)
@@ -485,7 +489,7 @@ fn rejected_family(
 pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDiagnoseReport {
     let (_, ff) = &d.final_fit;
     let vf = variance_factor(ff);
-    let mut counts = [0usize; 4];
+    let mut counts = [0usize; KINDS.len()];
     for o in &d.problem.observations {
         if let Some(k) = KINDS.iter().position(|k| *k == o.kind.name()) {
             counts[k] += 1;

@@ -164,6 +164,16 @@ struct SessionArgs {
     /// empty (fitted per group).
     #[arg(long)]
     contact_known: bool,
+    /// Face-contact kind: largest slide of the two faces on each other, mm, per tangent axis
+    /// (uniform in ±this; 0 puts the tips on the normal line). The distance, its σ and
+    /// --contact-known are the contact kind's.
+    #[arg(long, default_value_t = 5.0)]
+    face_slide_mm: f64,
+    /// Face-contact kind: largest tilt of the touching faces' normal from the approach direction
+    /// (robot 1's flange z), degrees (uniform in 0…this, any azimuth; 0: every face normal along
+    /// the flange z, which leaves the tool-frame sideways offsets unobserved).
+    #[arg(long, default_value_t = 20.0)]
+    face_tilt_deg: f64,
     /// Tracker kind: σ per axis of a tracker measurement, mm.
     #[arg(long, default_value_t = 0.05)]
     tracker_sigma_mm: f64,
@@ -181,6 +191,10 @@ enum KindArg {
     Coincident,
     /// The two tips a distance apart (--contact-distance-mm), fitted or known.
     Contact,
+    /// Two flat faces flush: the tips a distance apart along the face normal, the faces slid
+    /// (--face-slide-mm); rows of kind `face_contact`.
+    #[value(name = "face_contact", alias = "face-contact")]
+    FaceContact,
     /// One robot's tool measured by a tracker in an unknown frame (robots alternate).
     Tracker,
     /// One robot's tip touches an unknown plane (robots alternate).
@@ -303,6 +317,7 @@ fn session(a: SessionArgs) -> Result<()> {
         kind: match a.kind {
             KindArg::Coincident => SimKind::Coincident,
             KindArg::Contact => SimKind::Contact,
+            KindArg::FaceContact => SimKind::FaceContact,
             KindArg::Tracker => SimKind::Tracker,
             KindArg::Plane => SimKind::Plane,
             KindArg::Mixed => SimKind::Mixed,
@@ -310,6 +325,8 @@ fn session(a: SessionArgs) -> Result<()> {
         contact_distance_m: a.contact_distance_mm * 1e-3,
         contact_sigma_m: a.contact_sigma_mm * 1e-3,
         contact_known: a.contact_known,
+        face_slide_m: a.face_slide_mm * 1e-3,
+        face_tilt_max_rad: a.face_tilt_deg.to_radians(),
         tracker_sigma_m: a.tracker_sigma_mm * 1e-3,
         tracker_tool: a.tracker_tool.clone(),
         plane_sigma_m: a.plane_sigma_mm * 1e-3,
@@ -330,11 +347,17 @@ fn session(a: SessionArgs) -> Result<()> {
         other => other.into(),
     })?;
     if !matches!(a.kind, KindArg::Coincident) {
-        let [c, ct, tr, pl] = session.kind_counts();
+        let [c, ct, tr, pl, fc] = session.kind_counts();
+        // Named only when present, so the other kinds' message is as before.
+        let faces = if fc > 0 {
+            format!(", {fc} face_contact")
+        } else {
+            String::new()
+        };
         let t = truth.tracker_from_b1.inverse().translation.vector * 1e3;
         let (n, d) = truth.plane_b1;
         eprintln!(
-            "rows: {c} coincident, {ct} contact, {tr} tracker, {pl} plane; truth: contact distance {:.3} mm, \
+            "rows: {c} coincident, {ct} contact, {tr} tracker, {pl} plane{faces}; truth: contact distance {:.3} mm, \
              tracker origin in b1 ({:.1}, {:.1}, {:.1}) mm, plane normal (b1) ({:.4}, {:.4}, {:.4}) offset {:.3} mm",
             truth.contact_distance_m * 1e3,
             t.x,

@@ -8,7 +8,8 @@
 //! to `handclasp calibrate` (calib-core's reader ignores the joint columns).
 //!
 //! Mixed sessions add the columns [`EXTRA_COLUMNS`] (`kind`, `robot`, `group`, `tool1`, `tool2`,
-//! `tool`, `distance_mm`, `sigma_mm`, `tracker_x_mm`, `tracker_y_mm`, `tracker_z_mm`); a file
+//! `tool`, `distance_mm`, `sigma_mm`, `tracker_x_mm`, `tracker_y_mm`, `tracker_z_mm`, and, when
+//! a `face_contact` row is present, [`FACE_COLUMNS`] `n1_x,n1_y,n1_z,n2_x,n2_y,n2_z`); a file
 //! without a `kind` column is all coincident handclasps, read exactly as before. Which kind uses
 //! which column is [`FIELD_KINDS`]; the crate README has the table and an example.
 //!
@@ -53,11 +54,16 @@ pub struct SessionPoint {
 }
 
 /// The observation kinds of the `kind` column, in the order documented.
-pub const KIND_NAMES: [&str; 4] = ["coincident", "contact", "tracker", "plane"];
+pub const KIND_NAMES: [&str; 5] = ["coincident", "contact", "tracker", "plane", "face_contact"];
+
+/// The face normals of a `face_contact` row: robot 1's outward face normal in its tip frame
+/// (`n1_*`), robot 2's in its tip frame (`n2_*`); unitless, normalised on reading. Written
+/// only when the session has a `face_contact` row (the last six of [`EXTRA_COLUMNS`]).
+pub const FACE_COLUMNS: [&str; 6] = ["n1_x", "n1_y", "n1_z", "n2_x", "n2_y", "n2_z"];
 
 /// The columns of a mixed session after the standard ones ([`Session::csv_header`]), in the
-/// order they are written.
-pub const EXTRA_COLUMNS: [&str; 11] = [
+/// order they are written ([`FACE_COLUMNS`] only when a `face_contact` row is present).
+pub const EXTRA_COLUMNS: [&str; 17] = [
     "kind",
     "robot",
     "group",
@@ -69,20 +75,32 @@ pub const EXTRA_COLUMNS: [&str; 11] = [
     "tracker_x_mm",
     "tracker_y_mm",
     "tracker_z_mm",
+    "n1_x",
+    "n1_y",
+    "n1_z",
+    "n2_x",
+    "n2_y",
+    "n2_z",
 ];
 
 /// Which kinds use each optional column (any other kind must leave it empty).
-pub const FIELD_KINDS: [(&str, &[&str]); 10] = [
+pub const FIELD_KINDS: [(&str, &[&str]); 16] = [
     ("robot", &["tracker", "plane"]),
-    ("group", &["contact", "tracker", "plane"]),
-    ("tool1", &["coincident", "contact"]),
-    ("tool2", &["coincident", "contact"]),
+    ("group", &["contact", "face_contact", "tracker", "plane"]),
+    ("tool1", &["coincident", "contact", "face_contact"]),
+    ("tool2", &["coincident", "contact", "face_contact"]),
     ("tool", &["tracker", "plane"]),
-    ("distance_mm", &["contact"]),
-    ("sigma_mm", &["contact", "tracker", "plane"]),
+    ("distance_mm", &["contact", "face_contact"]),
+    ("sigma_mm", &["contact", "face_contact", "tracker", "plane"]),
     ("tracker_x_mm", &["tracker"]),
     ("tracker_y_mm", &["tracker"]),
     ("tracker_z_mm", &["tracker"]),
+    ("n1_x", &["face_contact"]),
+    ("n1_y", &["face_contact"]),
+    ("n1_z", &["face_contact"]),
+    ("n2_x", &["face_contact"]),
+    ("n2_y", &["face_contact"]),
+    ("n2_z", &["face_contact"]),
 ];
 
 /// A session row that is not a coincident handclasp at both robots' default tips. Tools are
@@ -118,6 +136,30 @@ pub enum SessionKind {
         /// Contact group: its rows share one distance.
         group: String,
         /// The distance, m; `None`: fitted (one unknown per group).
+        distance_m: Option<f64>,
+        /// σ of the distance, m.
+        sigma_m: f64,
+    },
+    /// Two flat faces touching flush: the two tool points are a distance apart ALONG the faces'
+    /// normal (the faces may slide on each other; see
+    /// [`calib_core::whole_cell::ObservationKind::FaceContact`]).
+    FaceContact {
+        /// Robot 1's reported joints, rad.
+        q1: Vec<f64>,
+        /// Robot 2's reported joints, rad.
+        q2: Vec<f64>,
+        /// Robot 1's tool.
+        tool1: usize,
+        /// Robot 2's tool.
+        tool2: usize,
+        /// Robot 1's outward face normal, its tip frame (unit).
+        n1_tip: Unit<Vector3<f64>>,
+        /// Robot 2's outward face normal, its tip frame (unit).
+        n2_tip: Unit<Vector3<f64>>,
+        /// Contact group: its rows share one distance (one namespace with `Contact` groups).
+        group: String,
+        /// The distance along the normal, m (the two faces' distances from their tool points
+        /// summed); `None`: fitted (one unknown per group).
         distance_m: Option<f64>,
         /// σ of the distance, m.
         sigma_m: f64,
@@ -159,6 +201,7 @@ impl SessionKind {
         match self {
             SessionKind::Coincident { .. } => "coincident",
             SessionKind::Contact { .. } => "contact",
+            SessionKind::FaceContact { .. } => "face_contact",
             SessionKind::Tracker { .. } => "tracker",
             SessionKind::Plane { .. } => "plane",
         }
@@ -281,8 +324,8 @@ impl Session {
     }
 
     /// Count of rows per kind, in [`KIND_NAMES`] order.
-    pub fn kind_counts(&self) -> [usize; 4] {
-        let mut n = [self.points.len(), 0, 0, 0];
+    pub fn kind_counts(&self) -> [usize; 5] {
+        let mut n = [self.points.len(), 0, 0, 0, 0];
         for o in &self.observations {
             let k = KIND_NAMES
                 .iter()
@@ -359,10 +402,16 @@ impl Session {
         tool_name: &dyn Fn(Robot, usize) -> String,
     ) -> String {
         let mixed = !self.is_handclasp_only();
+        let faces = self
+            .observations
+            .iter()
+            .any(|o| matches!(o.kind, SessionKind::FaceContact { .. }));
+        // Without a face contact the face columns are left out (files as before they existed).
+        let n_extra = EXTRA_COLUMNS.len() - if faces { 0 } else { FACE_COLUMNS.len() };
         let mut out = csv::Writer::from_writer(Vec::new());
         let mut header = Session::csv_header(dof1, dof2);
         if mixed {
-            header.extend(EXTRA_COLUMNS.map(String::from));
+            header.extend(EXTRA_COLUMNS[..n_extra].iter().map(|c| c.to_string()));
         }
         // Writing to memory cannot fail, and every field is plain ASCII.
         let _ = out.write_record(&header);
@@ -379,7 +428,7 @@ impl Session {
         let mm = |x: f64| format!("{:.6}", x * 1e3);
         for row in self.rows() {
             let mut record = vec![row.point().to_string()];
-            let mut extra = vec![String::new(); EXTRA_COLUMNS.len()];
+            let mut extra = vec![String::new(); n_extra];
             let mut set = |name: &str, v: String| {
                 if let Some(k) = EXTRA_COLUMNS.iter().position(|c| *c == name) {
                     extra[k] = v;
@@ -428,6 +477,29 @@ impl Session {
                             set("group", group.clone());
                             set("distance_mm", distance_m.map(mm).unwrap_or_default());
                             set("sigma_mm", mm(*sigma_m));
+                            (deg(q1), deg(q2), blank(3), blank(3))
+                        }
+                        SessionKind::FaceContact {
+                            q1,
+                            q2,
+                            tool1,
+                            tool2,
+                            n1_tip,
+                            n2_tip,
+                            group,
+                            distance_m,
+                            sigma_m,
+                        } => {
+                            set("tool1", tool_name(Robot::One, *tool1));
+                            set("tool2", tool_name(Robot::Two, *tool2));
+                            set("group", group.clone());
+                            set("distance_mm", distance_m.map(mm).unwrap_or_default());
+                            set("sigma_mm", mm(*sigma_m));
+                            let normals = n1_tip.iter().chain(n2_tip.iter());
+                            for (c, v) in FACE_COLUMNS.iter().zip(normals) {
+                                // `+ 0.0` writes −0 as 0.
+                                set(c, format!("{:.9}", v + 0.0));
+                            }
                             (deg(q1), deg(q2), blank(3), blank(3))
                         }
                         SessionKind::Tracker {
@@ -639,7 +711,7 @@ impl Session {
                 )),
             };
             match kind {
-                "coincident" | "contact" => {
+                "coincident" | "contact" | "face_contact" => {
                     let (q1, q2) = both(q1, q2)?;
                     let tool1 = row.tool(cell, Robot::One, "tool1")?;
                     let tool2 = row.tool(cell, Robot::Two, "tool2")?;
@@ -651,7 +723,7 @@ impl Session {
                             check_tip(cell, r, tool, q, p, line_no, path)?;
                         }
                     }
-                    if kind == "contact" {
+                    if kind == "contact" || kind == "face_contact" {
                         let group = row.required_text("group", "name the contact group (rows of one group share one distance), e.g. contact")?;
                         let distance_m = row.optional_number("distance_mm")?.map(|d| d * 1e-3);
                         if let Some(d) = distance_m {
@@ -671,18 +743,31 @@ impl Session {
                             Some(_) => {}
                             None => contact_distance.push((group.clone(), distance_m, line_no)),
                         }
-                        observations.push(SessionObservation {
-                            point,
-                            kind: SessionKind::Contact {
+                        let sigma_m = row.sigma()?;
+                        let kind = if kind == "contact" {
+                            SessionKind::Contact {
                                 q1,
                                 q2,
                                 tool1,
                                 tool2,
                                 group,
                                 distance_m,
-                                sigma_m: row.sigma()?,
-                            },
-                        });
+                                sigma_m,
+                            }
+                        } else {
+                            SessionKind::FaceContact {
+                                q1,
+                                q2,
+                                tool1,
+                                tool2,
+                                n1_tip: row.normal(1)?,
+                                n2_tip: row.normal(2)?,
+                                group,
+                                distance_m,
+                                sigma_m,
+                            }
+                        };
+                        observations.push(SessionObservation { point, kind });
                     } else {
                         let [Some(p_b1), Some(p_b2)] = tips else {
                             let r = if tips[0].is_none() { 1 } else { 2 };
@@ -903,6 +988,32 @@ impl RowReader<'_> {
                 .map(Some)
                 .ok_or_else(|| self.err(format!("column `{name}`: `{c}` is not a finite number"))),
         }
+    }
+
+    /// Robot `r`'s face normal of a `face_contact` row (columns `n{r}_x`, `n{r}_y`, `n{r}_z`,
+    /// its tip frame, unitless), normalised. Errors: a missing or non-finite component, or a
+    /// zero vector.
+    fn normal(&self, r: u8) -> Result<Unit<Vector3<f64>>, SimError> {
+        let mut n = Vector3::zeros();
+        for (a, axis) in ["x", "y", "z"].iter().enumerate() {
+            let name = format!("n{r}_{axis}");
+            n[a] = self.optional_number(&name)?.ok_or_else(|| {
+                self.missing(
+                    &name,
+                    &format!(
+                        "a face_contact row needs robot {r}'s outward face normal in its tip frame \
+                         (n{r}_x, n{r}_y, n{r}_z, unitless, normalised on reading)"
+                    ),
+                )
+            })?;
+        }
+        Unit::try_new(n, 1e-12).ok_or_else(|| {
+            self.err(format!(
+                "columns `n{r}_x, n{r}_y, n{r}_z`: the face normal ({}, {}, {}) is zero; give the \
+                 outward normal of robot {r}'s touching face in its tip frame, e.g. 0,0,1",
+                n.x, n.y, n.z
+            ))
+        })
     }
 
     fn required_text(&self, name: &str, why: &str) -> Result<String, SimError> {

@@ -1,5 +1,5 @@
 //! Simulated sessions of every observation kind ([`generate_kind_session`]): coincident
-//! handclasps, contacts at a distance, tracker measurements of one robot's tool and plane
+//! handclasps, contacts at a distance, flush face contacts, tracker measurements of one robot's tool and plane
 //! touches, or a mix, each with its own noise and seeded truth for the nuisances (a tracker
 //! frame somewhere in the cell, a plane through the common workspace, a contact distance).
 //! Teach points come from a layout, an explicit list or a plan (a session whose joint angles
@@ -17,6 +17,7 @@ use crate::session::{
     unreachable, PointFailure, Session, SessionKind, SessionObservation, SessionPoint, SessionSpec,
     MAX_LAYOUT_ATTEMPTS,
 };
+use calib_core::whole_cell::tangent_basis;
 use calib_core::Robot;
 use kinematics::{base_from_tip, true_base_from_tip};
 
@@ -28,6 +29,9 @@ pub enum SimKind {
     Coincident,
     /// Contacts: the two tips a known distance apart along the approach line.
     Contact,
+    /// Face contacts: two flat faces flush, normal to the approach line, the tips the contact
+    /// distance apart along it and the faces slid on each other (`face_slide_m`).
+    FaceContact,
     /// Tracker rows, robots 1 and 2 alternating, one tracker frame (group `tracker`).
     Tracker,
     /// Plane touches, robots 1 and 2 alternating, one plane (group `plane`).
@@ -56,8 +60,13 @@ pub struct KindSpec {
     /// σ of a contact's distance, m [0.2 mm].
     pub contact_sigma_m: f64,
     /// Write the contact distance into the rows (known) instead of leaving it to be fitted
-    /// [false].
+    /// [false]. Contacts and face contacts share the distance, its σ and this switch.
     pub contact_known: bool,
+    /// Largest slide of a face contact's faces on each other, m, per tangent axis [5 mm].
+    pub face_slide_m: f64,
+    /// Largest tilt of a face contact's face normal from the approach direction (robot 1's
+    /// flange z), rad [20°]: which face of a polyhedral marker touches varies from row to row.
+    pub face_tilt_max_rad: f64,
     /// σ per axis of a tracker measurement, m [0.05 mm].
     pub tracker_sigma_m: f64,
     /// The tool a tracker measures, by name ([`crate::CellRobot::tool_index`]) \[`tip`, [`crate::cell::TIP_TOOL`]\].
@@ -75,6 +84,8 @@ impl Default for KindSpec {
             contact_distance_m: 0.1,
             contact_sigma_m: 0.2e-3,
             contact_known: false,
+            face_slide_m: 5e-3,
+            face_tilt_max_rad: 20f64.to_radians(),
             tracker_sigma_m: 0.05e-3,
             tracker_tool: crate::cell::TIP_TOOL.into(),
             plane_sigma_m: 0.1e-3,
@@ -132,6 +143,8 @@ fn check_spec(k: &KindSpec) -> Result<(), SimError> {
             true,
         ),
         ("contact σ (--contact-sigma-mm)", k.contact_sigma_m, false),
+        ("face slide (--face-slide-mm)", k.face_slide_m, true),
+        ("face tilt (--face-tilt-deg)", k.face_tilt_max_rad, true),
         ("tracker σ (--tracker-sigma-mm)", k.tracker_sigma_m, false),
         ("plane σ (--plane-sigma-mm)", k.plane_sigma_m, false),
         ("plane tilt", k.plane_max_tilt_rad, true),
@@ -213,6 +226,14 @@ fn draw_truth(
 /// [`generate_session`], tips in the rows by the nominal models):
 /// - coincident: as [`generate_session`] (which it calls when there is no plan);
 /// - contact: robot 2's true tip at `p + (d + σ_c·ν)·û`, `û` the approach direction of robot 1;
+/// - face contact: the touching faces' normal `n` is the approach direction `û` tilted by
+///   `θ ~ U(0, face_tilt_max_rad)` toward azimuth `φ ~ U(0, 2π)` of the tangent basis
+///   `(t1, t2)` of `û` ([`calib_core::whole_cell::tangent_basis`]):
+///   `n = cos θ·û + sin θ·(cos φ·t1 + sin φ·t2)` (which face of a polyhedral marker touches
+///   varies); robot 2's true tip at `p + (d + σ_c·ν)·n + a·e1 + b·e2`, a slide of the faces
+///   with `a, b ~ U(±face_slide_m)` along the tangent basis `(e1, e2)` of `n`; robot 1's face
+///   normal is `n` and robot 2's `−n` (flush), written in each tip frame with the TRUE robot's
+///   rotation at the reported (quantised) joints: `n1_tip = R1ᵀ·n`, `n2_tip = R2ᵀ·R_Xᵀ·(−n)`;
 /// - tracker: the robot's true tool point at `p`, measured as `tracker_from_b1·p + N(0, σ_t²I)`;
 /// - plane: the true tip at `p` projected onto the plane and moved `σ_p·ν` along its normal,
 ///   approached along the normal where reachable.
@@ -314,6 +335,10 @@ pub fn generate_kind_session(
     Err(unreachable(cell, i, &p, robot, &why, Some(spec)))
 }
 
+/// Both robots' reported joints `(q1, q2)` (rad) of a meeting and the approach direction `û`
+/// it took (b1, unit).
+type Meeting = (Vec<f64>, Vec<f64>, Vector3<f64>);
+
 struct Sim<'a> {
     cell: &'a Cell,
     kinds: &'a KindSpec,
@@ -370,6 +395,61 @@ impl Sim<'_> {
                     },
                 });
             }
+            SimKind::FaceContact => {
+                let nu: f64 = rng.sample(StandardNormal);
+                let d = self.truth.contact_distance_m + self.kinds.contact_sigma_m * nu;
+                let slide = self.kinds.face_slide_m;
+                let a: f64 = rng.random_range(-slide..=slide);
+                let b: f64 = rng.random_range(-slide..=slide);
+                let theta: f64 = rng.random_range(0.0..=self.kinds.face_tilt_max_rad);
+                let phi: f64 = rng.random_range(0.0..std::f64::consts::TAU);
+                // The face normal for approach direction `u` (b1).
+                let normal = |u: Vector3<f64>| {
+                    let (t1, t2) = tangent_basis(&Unit::new_normalize(u));
+                    Unit::new_normalize(
+                        u * theta.cos() + (t1 * phi.cos() + t2 * phi.sin()) * theta.sin(),
+                    )
+                };
+                let (q1, q2, approach) = self.pair_along(t, rng, |u| {
+                    let n = normal(u);
+                    let (e1, e2) = tangent_basis(&n);
+                    n.into_inner() * d + e1 * a + e2 * b
+                })?;
+                let u = normal(approach).into_inner();
+                let cell = self.cell;
+                let rotation = |r: Robot, q: &[f64]| {
+                    let c = cell.robot(r);
+                    true_base_from_tip(
+                        &c.model,
+                        &tool_errors(c, 0),
+                        q,
+                        &c.flange_from_tip,
+                        &c.g_base,
+                    )
+                    .map(|x| x.rotation)
+                    .map_err(|e| (r, e.to_string()))
+                };
+                let n1_tip = Unit::new_normalize(rotation(Robot::One, &q1)?.inverse() * u);
+                let n2_b2 = cell.b1_from_b2.rotation.inverse() * -u;
+                let n2_tip = Unit::new_normalize(rotation(Robot::Two, &q2)?.inverse() * n2_b2);
+                session.observations.push(SessionObservation {
+                    point: label,
+                    kind: SessionKind::FaceContact {
+                        q1,
+                        q2,
+                        tool1: 0,
+                        tool2: 0,
+                        n1_tip,
+                        n2_tip,
+                        group: CONTACT_GROUP.into(),
+                        distance_m: self
+                            .kinds
+                            .contact_known
+                            .then_some(self.truth.contact_distance_m),
+                        sigma_m: self.kinds.contact_sigma_m,
+                    },
+                });
+            }
             SimKind::Tracker => {
                 let tool = self.tracker_tools[usize::from(robot.number() - 1)];
                 let (q, p_true_b1) = self.one(robot, tool, &t.p_b1, None, t, rng)?;
@@ -416,6 +496,16 @@ impl Sim<'_> {
         rng: &mut impl Rng,
         offset: impl Fn(Vector3<f64>) -> Vector3<f64>,
     ) -> Result<(Vec<f64>, Vec<f64>), PointFailure> {
+        self.pair_along(t, rng, offset).map(|(q1, q2, _)| (q1, q2))
+    }
+
+    /// [`Sim::pair`], with the approach direction `û` (b1, unit) the meeting took.
+    fn pair_along(
+        &self,
+        t: &Teach,
+        rng: &mut impl Rng,
+        offset: impl Fn(Vector3<f64>) -> Vector3<f64>,
+    ) -> Result<Meeting, PointFailure> {
         let cell = self.cell;
         let rep = Vector3::repeat(cell.noise.repeatability_m);
         let d1 = gauss3(rng, &rep);
@@ -451,7 +541,7 @@ impl Sim<'_> {
             };
             quantise(&cell.robot1, &mut q1, cell.noise.encoder_resolution_rad);
             quantise(&cell.robot2, &mut q2, cell.noise.encoder_resolution_rad);
-            return Ok((q1, q2));
+            return Ok((q1, q2, d.into_inner()));
         }
         Err(last)
     }

@@ -2,8 +2,8 @@
 //! ([`calib_core::whole_cell`]): the cell's two nominal robots with their tools (tool 0 = the
 //! tip, then `[robotN.tools]`), gravity from the mounts, the noise of each handclasp from the
 //! cell's `[noise]`, the prior from `[robotN.tolerance]`, and one observation per session row
-//! (coincident, contact, tracker or plane, with their own σ) with one nuisance group per named
-//! `group` of each kind.
+//! (coincident, contact, face contact, tracker or plane, with their own σ) with one nuisance
+//! group per named `group` of each kind (contacts and face contacts share the contact groups).
 //!
 //! Noise of a handclasp (b1 axes): the operator's alignment error (σ per b1 axis,
 //! `noise.alignment_mm`) plus both robots' repeatability (`noise.repeatability_mm`, isotropic, so
@@ -13,9 +13,9 @@
 
 use calib_core::whole_cell::{
     CellEstimate, CellProblem, CellRobot as WholeCellRobot, ConfigPair, Noise3, Observation,
-    ObservationKind, RobotCorrection, Tolerance, Tool,
+    ObservationKind, RobotCorrection, Tolerance, Tool, MIN_FACE_NORMAL_SUM,
 };
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, Unit, Vector3};
 
 use calib_core::whole_cell::{ContactGroup, PlacementPrior, PlaneGroup, TrackerGroup};
 use calib_core::Robot;
@@ -71,8 +71,9 @@ pub fn handclasp_covariance(cell: &Cell) -> Matrix3<f64> {
 /// cell's handclasp noise ([`handclasp_covariance`]), the other kinds their row's `sigma_m`.
 /// Each distinct `group` name of a kind becomes one nuisance group, in order of first
 /// appearance: a tracker frame or plane anchored at its rows' robot's base (robot 1's when the
-/// group holds rows of both robots), a contact distance held at the rows' `distance_m` or, when
-/// empty, fitted from the mean nominal distance of its rows. Tool `k` of a robot is the cell
+/// group holds rows of both robots), a contact distance (shared by the `contact` and
+/// `face_contact` rows of one name) held at the rows' `distance_m` or, when empty, fitted from
+/// the mean nominal distance of its rows (along the mean face normal for face contacts). Tool `k` of a robot is the cell
 /// robot's tool `k` (0 = `tip_mm`). `model` selects the unknowns ([`FitModel`]). The session
 /// must have been read for this cell ([`Session::read_csv`] checks joint counts and tool
 /// names); [`CellProblem::check`] reports anything else by row. The cell's
@@ -155,7 +156,7 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
                         }
                     };
                     if distance_m.is_none() {
-                        if let Some(d) = nominal_distance(cell, q1, q2, *tool1, *tool2) {
+                        if let Some(d) = nominal_distance(cell, q1, q2, *tool1, *tool2, None) {
                             contact_sums[g].0 += d;
                             contact_sums[g].1 += 1;
                         }
@@ -165,6 +166,47 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
                         q2: q2.clone(),
                         tool1: *tool1,
                         tool2: *tool2,
+                        group: g,
+                        sigma_m: *sigma_m,
+                    }
+                }
+                SessionKind::FaceContact {
+                    q1,
+                    q2,
+                    tool1,
+                    tool2,
+                    n1_tip,
+                    n2_tip,
+                    group,
+                    distance_m,
+                    sigma_m,
+                } => {
+                    let g = match contacts.iter().position(|c| &c.name == group) {
+                        Some(g) => g,
+                        None => {
+                            contacts.push(ContactGroup {
+                                name: group.clone(),
+                                distance_m: distance_m.unwrap_or(0.0),
+                                fit_distance: distance_m.is_none(),
+                            });
+                            contact_sums.push((0.0, 0));
+                            contacts.len() - 1
+                        }
+                    };
+                    if distance_m.is_none() {
+                        let normals = Some((*n1_tip, *n2_tip));
+                        if let Some(d) = nominal_distance(cell, q1, q2, *tool1, *tool2, normals) {
+                            contact_sums[g].0 += d;
+                            contact_sums[g].1 += 1;
+                        }
+                    }
+                    ObservationKind::FaceContact {
+                        q1: q1.clone(),
+                        q2: q2.clone(),
+                        tool1: *tool1,
+                        tool2: *tool2,
+                        n1_tip: *n1_tip,
+                        n2_tip: *n2_tip,
                         group: g,
                         sigma_m: *sigma_m,
                     }
@@ -240,13 +282,19 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
     }
 }
 
-/// Distance between the two tools' nominal points at `(q1, q2)` with the cell's `b1_from_b2`, m.
+/// A face contact's outward normals `(n1_tip, n2_tip)`, each in its robot's tip frame.
+type FaceNormals = (Unit<Vector3<f64>>, Unit<Vector3<f64>>);
+
+/// Distance between the two tools' nominal points at `(q1, q2)` with the cell's `b1_from_b2`, m:
+/// the Euclidean distance, or with face normals `(n1_tip, n2_tip)` the distance along the mean
+/// normal `n̄·(p2_b1 − p1_b1)` of a face contact (`None` if the normals face the same way).
 fn nominal_distance(
     cell: &Cell,
     q1: &[f64],
     q2: &[f64],
     tool1: usize,
     tool2: usize,
+    normals: Option<FaceNormals>,
 ) -> Option<f64> {
     let f1 = base_from_tip(
         &cell.robot1.model,
@@ -261,7 +309,16 @@ fn nominal_distance(
     )
     .ok()?;
     let p2_b1 = cell.b1_from_b2 * nalgebra::Point3::from(f2.translation.vector);
-    Some((f1.translation.vector - p2_b1.coords).norm())
+    let e = p2_b1.coords - f1.translation.vector;
+    match normals {
+        None => Some(e.norm()),
+        Some((n1_tip, n2_tip)) => {
+            let n1 = f1.rotation * n1_tip.into_inner();
+            let n2 = cell.b1_from_b2.rotation * (f2.rotation * n2_tip.into_inner());
+            let n_bar = Unit::try_new(n1 - n2, MIN_FACE_NORMAL_SUM)?;
+            Some(n_bar.dot(&e))
+        }
+    }
 }
 
 /// Most configuration pairs [`session_config_pairs`] returns (a 100-point session's 10 000 pairs
@@ -270,7 +327,7 @@ pub const MAX_CONFIG_PAIRS: usize = 10_000;
 
 /// Every configuration pair `(q1_i, q2_j)` of the session (`n1·n2` pairs, row-major in `i`): the
 /// session's own workspace, over which the calibration's cooperative accuracy is predicted.
-/// The `q1`s are robot 1's joints of every row that has them (coincident and contact rows, and
+/// The `q1`s are robot 1's joints of every row that has them (coincident, contact and face-contact rows, and
 /// robot 1's tracker and plane rows), the `q2`s robot 2's, in row order; tool 0 (the tips).
 /// For a handclasp-only session that is every `(q1_i, q2_j)` of its points. Above
 /// [`MAX_CONFIG_PAIRS`] pairs, each `q1_i` is paired with `⌊MAX_CONFIG_PAIRS / n1⌋` evenly spaced
@@ -285,7 +342,9 @@ pub fn session_config_pairs(session: &Session) -> Vec<ConfigPair> {
                 q2s.push(&p.q2);
             }
             SessionRow::Observation(o) => match &o.kind {
-                SessionKind::Coincident { q1, q2, .. } | SessionKind::Contact { q1, q2, .. } => {
+                SessionKind::Coincident { q1, q2, .. }
+                | SessionKind::Contact { q1, q2, .. }
+                | SessionKind::FaceContact { q1, q2, .. } => {
                     q1s.push(q1);
                     q2s.push(q2);
                 }
@@ -322,7 +381,7 @@ pub fn session_config_pairs(session: &Session) -> Vec<ConfigPair> {
 }
 
 /// The session's own meeting pairs `(q1_i, q2_i)`: one per two-robot row (a coincident
-/// handclasp or a contact), in row order, with that row's tools. This is the pair set of the
+/// handclasp, a contact or a face contact), in row order, with that row's tools. This is the pair set of the
 /// project's **cooperative accuracy** (the error of `tip1 − X·tip2` where the two tools meet, as
 /// `handclasp plan` and `sim-cell sweep --mode robot` measure it over held-out handclasp
 /// poses); [`session_config_pairs`] pairs every `q1` with every `q2` instead (vectors up to the
@@ -348,6 +407,13 @@ pub fn session_meeting_pairs(session: &Session) -> Vec<ConfigPair> {
                     ..
                 }
                 | SessionKind::Contact {
+                    q1,
+                    q2,
+                    tool1,
+                    tool2,
+                    ..
+                }
+                | SessionKind::FaceContact {
                     q1,
                     q2,
                     tool1,

@@ -26,6 +26,15 @@
 //! `∂(X⁻¹·f1)/∂φ_i = −R_Xᵀ(e_i × f1)`:
 //! - `Coincident`: `r = f1(q1) − X·f2(q2)` (3 rows);
 //! - `Contact`: `r = ‖f1 − X·f2‖ − d` (1 row; `∂r = ûᵀ·∂(f1 − X·f2) − ∂d`, `û` the unit vector);
+//! - `FaceContact` (two flat faces touching flush): `r = n̄·(X·f2 − f1) − d` (1 row), the
+//!   tip-to-tip distance along the faces' mean normal `n̄ = m/‖m‖`, `m = n1 − n2`, with the
+//!   outward face normals fixed in each tip frame and rotated into b1:
+//!   `n1 = R1(θ1)·n1_tip`, `n2 = R_X·R2(θ2)·n2_tip` (`R_r` the rotation of the true
+//!   `base_from_tip`); the tangential part of `X·f2 − f1` (the faces sliding) is not
+//!   observed. With `e = X·f2 − f1`: `∂r = n̄ᵀ·∂e + wᵀ·(∂n1 − ∂n2) − ∂d`,
+//!   `w = (I − n̄n̄ᵀ)·e/‖m‖`; `∂n2/∂φ_i = e_i × n2`, `∂n2/∂ρ = 0`, tip offsets do not rotate
+//!   the normals, and `∂(R_r·n)/∂θ = ∂f_r(t + n)/∂θ − ∂f_r(t)/∂θ` exactly (the tip is affine
+//!   in the tool offset `t`: `f_r(t) = o + R_r·(t + tip)`);
 //! - `Tracker`: `r = (1 + s)·(T·g_a + u·δ) − p_tracker` (3 rows; `∂r/∂ρ_T = (1 + s)·I`,
 //!   `∂r/∂φ_T,i = (1 + s)·e_i × T·g_a`, `∂r/∂g = (1 + s)·R_T`, `∂r/∂s = T·g_a + u·δ`,
 //!   `∂r/∂δ = (1 + s)·u·I`; `s = 0`, `δ = 0` unless the group fits them);
@@ -133,9 +142,10 @@ pub use layout::{
 };
 pub use observations::{
     CellProblem, ContactGroup, Observation, ObservationKind, PlaneGroup, TrackerGroup,
+    UNIT_NORMAL_TOL,
 };
 pub use placement_prior::PlacementPrior;
 pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, RANK_TOL};
-pub use residuals::{Evaluator, ObservationLinearisation};
+pub use residuals::{Evaluator, ObservationLinearisation, MIN_FACE_NORMAL_SUM};
 pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions, StopReason};
 pub use start::initial_estimate;

@@ -41,6 +41,34 @@ pub enum ObservationKind {
         /// σ of the residual, m.
         sigma_m: f64,
     },
+    /// Two flat faces touching flush (e.g. faces of two marker polyhedra): the distance between
+    /// the two tips ALONG the faces' common normal is `d`; a slide of one face on the other
+    /// (the tangential part of the tip-to-tip vector) is not observed. 1 residual
+    /// `n̄·(g2 − p1) − d`, m, with `p1` robot 1's tip in b1, `g2 = b1_from_b2·p2_b2`,
+    /// `n̄ = (n1_b1 − n2_b1)/‖n1_b1 − n2_b1‖` the mean face normal (pointing from robot 1 to
+    /// robot 2), `n1_b1 = R(b1_from_tip1)·n1_tip`, `n2_b1 = R(b1_from_b2)·R(b2_from_tip2)·n2_tip`
+    /// (both rotate with every kinematic parameter and the placement). For flush faces
+    /// `n2_b1 = −n1_b1`, `n̄ = n1_b1`, and `d` is the sum of the two faces' distances from their
+    /// tip points. The tip frame's axes are the flange's ([`super::Tool`] is a translation).
+    FaceContact {
+        /// Robot 1's joints, rad.
+        q1: Vec<f64>,
+        /// Robot 2's joints, rad.
+        q2: Vec<f64>,
+        /// Robot 1's tool.
+        tool1: usize,
+        /// Robot 2's tool.
+        tool2: usize,
+        /// Unit outward normal of robot 1's touching face, in robot 1's TIP frame (rotation of
+        /// base_from_tip = base_from_flange · flange_from_tip).
+        n1_tip: Unit<Vector3<f64>>,
+        /// Unit outward normal of robot 2's touching face, in robot 2's tip frame.
+        n2_tip: Unit<Vector3<f64>>,
+        /// Contact group: its distance d is known or fitted, as for `Contact`.
+        group: usize,
+        /// σ of the residual, m.
+        sigma_m: f64,
+    },
     /// One robot's tool measured by an external device in the unknown frame of its group:
     /// 3 residuals `tracker_from_anchor·p_anchor − p_tracker`, m.
     Tracker {
@@ -74,11 +102,12 @@ pub enum ObservationKind {
 }
 
 impl ObservationKind {
-    /// `"coincident"`, `"contact"`, `"tracker"` or `"plane"`.
+    /// `"coincident"`, `"contact"`, `"face_contact"`, `"tracker"` or `"plane"`.
     pub fn name(&self) -> &'static str {
         match self {
             ObservationKind::Coincident { .. } => "coincident",
             ObservationKind::Contact { .. } => "contact",
+            ObservationKind::FaceContact { .. } => "face_contact",
             ObservationKind::Tracker { .. } => "tracker",
             ObservationKind::Plane { .. } => "plane",
         }
@@ -88,10 +117,17 @@ impl ObservationKind {
     pub fn rows(&self) -> usize {
         match self {
             ObservationKind::Coincident { .. } | ObservationKind::Tracker { .. } => 3,
-            ObservationKind::Contact { .. } | ObservationKind::Plane { .. } => 1,
+            ObservationKind::Contact { .. }
+            | ObservationKind::FaceContact { .. }
+            | ObservationKind::Plane { .. } => 1,
         }
     }
 }
+
+/// Largest allowed `|‖n‖ − 1|` of a face normal of [`ObservationKind::FaceContact`] (a
+/// `Unit` built with `new_normalize` is unit to ~1e-16; this catches zero, NaN and unnormalised
+/// vectors wrapped with `new_unchecked`).
+pub const UNIT_NORMAL_TOL: f64 = 1e-9;
 
 /// One observation with its 1-based source row (used in every message and report).
 #[derive(Debug, Clone, PartialEq)]
@@ -288,6 +324,37 @@ impl CellProblem {
                     group_ok("contact", *group, self.contacts.len(), row)?;
                     sigma_ok(*sigma_m, row)?;
                 }
+                ObservationKind::FaceContact {
+                    tool1,
+                    tool2,
+                    n1_tip,
+                    n2_tip,
+                    group,
+                    sigma_m,
+                    ..
+                } => {
+                    tool_ok(Robot::One, *tool1, row)?;
+                    tool_ok(Robot::Two, *tool2, row)?;
+                    group_ok("contact", *group, self.contacts.len(), row)?;
+                    sigma_ok(*sigma_m, row)?;
+                    for (name, robot, n) in [
+                        ("n1_tip", Robot::One, n1_tip),
+                        ("n2_tip", Robot::Two, n2_tip),
+                    ] {
+                        let norm = n.norm();
+                        if !(n.iter().all(|v| v.is_finite())
+                            && (norm - 1.0).abs() <= UNIT_NORMAL_TOL)
+                        {
+                            return Err(CellFitError::InvalidInput(format!(
+                                "observation row {row}: face normal {name} {:?} is not a unit vector \
+                                 (norm {norm}); give the outward normal of {robot}'s touching face \
+                                 in its tip frame, non-zero and finite, normalised \
+                                 (Unit::new_normalize)",
+                                n.as_slice()
+                            )));
+                        }
+                    }
+                }
                 ObservationKind::Tracker {
                     robot,
                     tool,
@@ -334,7 +401,9 @@ impl CellProblem {
 /// The joint vectors an observation uses, with their robots.
 fn joint_vectors(kind: &ObservationKind) -> Vec<(Robot, &[f64])> {
     match kind {
-        ObservationKind::Coincident { q1, q2, .. } | ObservationKind::Contact { q1, q2, .. } => {
+        ObservationKind::Coincident { q1, q2, .. }
+        | ObservationKind::Contact { q1, q2, .. }
+        | ObservationKind::FaceContact { q1, q2, .. } => {
             vec![(Robot::One, q1.as_slice()), (Robot::Two, q2.as_slice())]
         }
         ObservationKind::Tracker { robot, q, .. } | ObservationKind::Plane { robot, q, .. } => {

@@ -2,12 +2,16 @@
 //! is in the module documentation of [`crate::whole_cell`].
 
 use kinematics::{tip_error_jacobian, true_base_from_tip, Axis, ErrorParam};
-use nalgebra::{DMatrix, DVector, Point3, Vector3};
+use nalgebra::{DMatrix, DVector, Point3, Unit, Vector3};
 
 use super::cell::{robot_slot, CellFitError};
 use super::layout::{tangent_basis, CellEstimate, ParamLayout};
 use super::observations::{CellProblem, Observation, ObservationKind};
 use crate::Robot;
+
+/// Smallest `‖n1_b1 − n2_b1‖` of a face contact (2 for flush faces): below it the two
+/// outward normals point nearly the same way and the mean normal `n̄` is undefined.
+pub const MIN_FACE_NORMAL_SUM: f64 = 1e-6;
 
 /// Sparse 3-row Jacobian: (column, ∂/∂column).
 type Cols3 = Vec<(usize, Vector3<f64>)>;
@@ -149,6 +153,67 @@ impl<'a> Evaluator<'a> {
         }
     }
 
+    /// A unit vector fixed in `robot`'s tip frame (`n_tip`, e.g. a face normal), rotated into
+    /// b1 (`R(b1_from_tip)·n_tip`; for robot 2 `R(b1_from_b2)·R(b2_from_tip)·n_tip`), and its
+    /// Jacobian columns: the kinematic parameters and, for robot 2, the placement rotation
+    /// (`∂/∂φ_i = e_i × n_b1`; translations and tip offsets do not rotate it).
+    ///
+    /// The kinematic columns are exact without a rotation Jacobian: the tip is affine in the
+    /// tool offset, `p(t) = o + R·(t + tip)`, so `R·n = p(t + n) − p(t)` and
+    /// `∂(R·n)/∂θ = ∂p(t + n)/∂θ − ∂p(t)/∂θ`, two [`tip_error_jacobian`]s (the compliance
+    /// torques do not depend on the tool offset).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn normal_in_b1(
+        &self,
+        est: &CellEstimate,
+        robot: Robot,
+        tool: usize,
+        q: &[f64],
+        n_tip: &Unit<Vector3<f64>>,
+        want_jac: bool,
+        row: usize,
+    ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
+        let slot = robot_slot(robot);
+        let rb = self.problem.robot(robot);
+        let tool_def = rb.tools.get(tool).ok_or_else(|| {
+            CellFitError::InvalidInput(format!("observation row {row}: {robot} has no tool {tool}"))
+        })?;
+        let errors = est.robot(robot).errors_for_tool(tool);
+        let kin_err = |e: kinematics::KinematicsError| CellFitError::Kinematics {
+            row,
+            message: format!("{robot}: {e}"),
+        };
+        let t = tool_def.flange_from_tip;
+        let base_from_tip =
+            true_base_from_tip(&rb.model, &errors, q, &t, &rb.g_base).map_err(kin_err)?;
+        let n_base = base_from_tip.rotation * n_tip.into_inner();
+        let mut cols = Cols3::new();
+        let lay = &self.layout.robots[slot];
+        if want_jac && !lay.kin.is_empty() {
+            let params = &self.jac_params[slot][..lay.kin.len()];
+            let shifted = t + n_tip.into_inner();
+            let j_t = tip_error_jacobian(&rb.model, &errors, q, &t, &rb.g_base, params)
+                .map_err(kin_err)?;
+            let j_n = tip_error_jacobian(&rb.model, &errors, q, &shifted, &rb.g_base, params)
+                .map_err(kin_err)?;
+            for (k, &(_, c)) in lay.kin.iter().enumerate() {
+                cols.push((c, j_n.column(k) - j_t.column(k)));
+            }
+        }
+        if robot == Robot::One {
+            return Ok((n_base, cols));
+        }
+        let r_x = est.b1_from_b2.rotation.to_rotation_matrix().into_inner();
+        let n_b1 = r_x * n_base;
+        let mut out: Cols3 = cols.into_iter().map(|(c, v)| (c, r_x * v)).collect();
+        if want_jac {
+            for (i, axis) in Axis::ALL.iter().enumerate() {
+                out.push((3 + i, axis.unit().cross(&n_b1)));
+            }
+        }
+        Ok((n_b1, out))
+    }
+
     /// Residuals, Jacobian rows (layout columns) and whitening of one observation at `est`.
     pub fn linearise(
         &self,
@@ -218,6 +283,52 @@ impl<'a> Evaluator<'a> {
                 }
                 (
                     DVector::from_element(1, dist - est.contact_distance_m[*group]),
+                    DMatrix::from_element(1, 1, 1.0 / sigma_m),
+                )
+            }
+            ObservationKind::FaceContact {
+                q1,
+                q2,
+                tool1,
+                tool2,
+                n1_tip,
+                n2_tip,
+                group,
+                sigma_m,
+            } => {
+                let (p1, c1) =
+                    self.tip_in_anchor(est, Robot::One, *tool1, q1, Robot::One, want_jac, row)?;
+                let (g2, c2) =
+                    self.tip_in_anchor(est, Robot::Two, *tool2, q2, Robot::One, want_jac, row)?;
+                let (n1, cn1) =
+                    self.normal_in_b1(est, Robot::One, *tool1, q1, n1_tip, want_jac, row)?;
+                let (n2, cn2) =
+                    self.normal_in_b1(est, Robot::Two, *tool2, q2, n2_tip, want_jac, row)?;
+                // n̄ = m/‖m‖, m = n1 − n2; ∂(n̄·e) = n̄·∂e + wᵀ·∂m, w = (I − n̄n̄ᵀ)·e/‖m‖.
+                let m = n1 - n2;
+                let m_len = m.norm();
+                if !(m_len.is_finite() && m_len > MIN_FACE_NORMAL_SUM) {
+                    return Err(CellFitError::InvalidInput(format!(
+                        "observation row {row}: the two face normals point the same way in b1 \
+                         (‖n1 − n2‖ = {m_len:.2e}), so the faces do not face each other; give \
+                         each face's OUTWARD normal (flush faces have n2 = −n1 in b1)"
+                    )));
+                }
+                let n_bar = m / m_len;
+                let e = g2 - p1;
+                let along = n_bar.dot(&e);
+                if want_jac {
+                    put1(&mut jac, &c2, &n_bar);
+                    put1(&mut jac, &c1, &(-n_bar));
+                    let w = (e - n_bar * along) / m_len;
+                    put1(&mut jac, &cn1, &w);
+                    put1(&mut jac, &cn2, &(-w));
+                    if let Some(c) = self.layout.contact_col[*group] {
+                        jac[(0, c)] -= 1.0;
+                    }
+                }
+                (
+                    DVector::from_element(1, along - est.contact_distance_m[*group]),
                     DMatrix::from_element(1, 1, 1.0 / sigma_m),
                 )
             }

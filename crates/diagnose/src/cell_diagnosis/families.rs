@@ -92,7 +92,10 @@ impl Family {
     /// tracker scales and drifts, a tracker row.
     pub fn involves(&self, kind: &ObservationKind) -> bool {
         match self.kind {
-            FamilyKind::ContactDistance => matches!(kind, ObservationKind::Contact { .. }),
+            FamilyKind::ContactDistance => matches!(
+                kind,
+                ObservationKind::Contact { .. } | ObservationKind::FaceContact { .. }
+            ),
             FamilyKind::TrackerScale | FamilyKind::TrackerDrift => {
                 matches!(kind, ObservationKind::Tracker { .. })
             }

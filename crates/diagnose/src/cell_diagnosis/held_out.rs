@@ -68,6 +68,7 @@ pub(super) fn sub_problem(problem: &CellProblem, rows: &[usize]) -> CellProblem 
             };
             match &mut o.kind {
                 ObservationKind::Contact { group, .. }
+                | ObservationKind::FaceContact { group, .. }
                 | ObservationKind::Tracker { group, .. }
                 | ObservationKind::Plane { group, .. } => *group = new,
                 _ => {}

@@ -168,7 +168,7 @@ pub(crate) struct CellDiagnosis {
     pub(crate) n_units: usize,
     pub(crate) n_folds: usize,
     /// Noise scale per kind, in [`KINDS`] order.
-    pub(crate) noise_scale: [f64; 4],
+    pub(crate) noise_scale: [f64; KINDS.len()],
     pub(crate) baseline: (CellProblem, CellFit),
     pub(crate) baseline_held_out: HeldOut,
     pub(crate) steps: Vec<StepRecord>,

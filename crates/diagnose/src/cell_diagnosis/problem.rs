@@ -19,7 +19,8 @@ pub(super) fn uses_robot(kind: &ObservationKind, r: Robot) -> bool {
 pub(super) fn tools_of(kind: &ObservationKind) -> Vec<(Robot, usize)> {
     match kind {
         ObservationKind::Coincident { tool1, tool2, .. }
-        | ObservationKind::Contact { tool1, tool2, .. } => {
+        | ObservationKind::Contact { tool1, tool2, .. }
+        | ObservationKind::FaceContact { tool1, tool2, .. } => {
             vec![(Robot::One, *tool1), (Robot::Two, *tool2)]
         }
         ObservationKind::Tracker { robot, tool, .. }
@@ -33,7 +34,9 @@ pub(super) fn tools_of(kind: &ObservationKind) -> Vec<(Robot, usize)> {
 /// The joint vectors of an observation with their robots.
 pub(crate) fn joints_of(kind: &ObservationKind) -> Vec<(Robot, &[f64])> {
     match kind {
-        ObservationKind::Coincident { q1, q2, .. } | ObservationKind::Contact { q1, q2, .. } => {
+        ObservationKind::Coincident { q1, q2, .. }
+        | ObservationKind::Contact { q1, q2, .. }
+        | ObservationKind::FaceContact { q1, q2, .. } => {
             vec![(Robot::One, q1.as_slice()), (Robot::Two, q2.as_slice())]
         }
         ObservationKind::Tracker { robot, q, .. } | ObservationKind::Plane { robot, q, .. } => {
@@ -43,11 +46,13 @@ pub(crate) fn joints_of(kind: &ObservationKind) -> Vec<(Robot, &[f64])> {
     }
 }
 
-/// The nuisance group of an observation: `(kind index, group)` (0 contact, 1 tracker, 2 plane);
-/// `None` for coincident rows.
+/// The nuisance group of an observation: `(kind index, group)` (0 contact or face contact, 1
+/// tracker, 2 plane); `None` for coincident rows.
 pub(super) fn group_of(kind: &ObservationKind) -> Option<(usize, usize)> {
     match kind {
-        ObservationKind::Contact { group, .. } => Some((0, *group)),
+        ObservationKind::Contact { group, .. } | ObservationKind::FaceContact { group, .. } => {
+            Some((0, *group))
+        }
         ObservationKind::Tracker { group, .. } => Some((1, *group)),
         ObservationKind::Plane { group, .. } => Some((2, *group)),
         _ => None,

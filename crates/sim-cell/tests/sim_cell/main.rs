@@ -5,6 +5,7 @@
 //! engine's hidden-parameter tests stay in `tests/diagnose_hidden.rs`.
 
 mod cli;
+mod face_contact;
 mod kinds;
 mod paper;
 mod placement_prior;
