@@ -93,29 +93,12 @@ pub fn export_cell_diagnosis(
     }
     let mut written =
         export_calibrated_cell(&with_tools, &estimate, dir, &CELL_DIAGNOSIS_EXPORT_NAMES)?;
-    let json_files = [
-        (
-            "effects.json",
-            serde_json::to_string_pretty(&report.effects),
-        ),
-        ("report.json", serde_json::to_string_pretty(report)),
-    ];
-    for (name, text) in json_files {
-        let path = dir.join(name);
-        let text = text.map_err(|source| DiagnoseError::Json {
-            path: path.clone(),
-            source,
-        })?;
-        write_checked(&path, &text, |back, tmp| {
-            serde_json::from_str::<serde_json::Value>(back)
-                .map(|_| ())
-                .map_err(|source| DiagnoseError::Json {
-                    path: tmp.to_path_buf(),
-                    source,
-                })
-        })?;
-        written.push(path);
-    }
+    let effects_path = dir.join("effects.json");
+    write_json_checked(&effects_path, &report.effects)?;
+    written.push(effects_path);
+    let report_path = dir.join("report.json");
+    write_json_checked(&report_path, report)?;
+    written.push(report_path);
     let text_path = dir.join("report.txt");
     let text = render_cell_text(report);
     write_checked(&text_path, &text, |back, tmp| {
@@ -136,6 +119,25 @@ pub fn export_cell_diagnosis(
 /// atomic), reads it back, runs `check` on what was read, and only if that passes renames it to
 /// `path`: nothing unchecked is ever written under the final name. On a failed check the
 /// temporary file is removed and the check's error returned.
+/// Writes `value` as pretty JSON to `path` through [`write_checked`], which reads it back as JSON.
+fn write_json_checked<T: serde::Serialize + ?Sized>(
+    path: &Path,
+    value: &T,
+) -> Result<(), DiagnoseError> {
+    let text = serde_json::to_string_pretty(value).map_err(|source| DiagnoseError::Json {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    write_checked(path, &text, |back, tmp| {
+        serde_json::from_str::<serde_json::Value>(back)
+            .map(|_| ())
+            .map_err(|source| DiagnoseError::Json {
+                path: tmp.to_path_buf(),
+                source,
+            })
+    })
+}
+
 fn write_checked<T>(
     path: &Path,
     text: &str,
@@ -267,19 +269,7 @@ pub fn export_corrected(
     })?;
     written.push(cell_path);
     let eff_path = dir.join("effects.json");
-    let eff =
-        serde_json::to_string_pretty(&report.effects).map_err(|source| DiagnoseError::Json {
-            path: eff_path.clone(),
-            source,
-        })?;
-    write_checked(&eff_path, &eff, |back, tmp| {
-        serde_json::from_str::<serde_json::Value>(back)
-            .map(|_| ())
-            .map_err(|source| DiagnoseError::Json {
-                path: tmp.to_path_buf(),
-                source,
-            })
-    })?;
+    write_json_checked(&eff_path, &report.effects)?;
     written.push(eff_path);
     Ok(written)
 }

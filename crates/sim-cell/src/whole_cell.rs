@@ -66,6 +66,28 @@ pub fn handclasp_covariance(cell: &Cell) -> Matrix3<f64> {
     ))
 }
 
+/// The index of contact group `name`, added (with a fitted distance when `distance_m` is `None`,
+/// and an empty nominal-distance sum) when it is new.
+fn contact_group(
+    contacts: &mut Vec<ContactGroup>,
+    sums: &mut Vec<(f64, usize)>,
+    name: &str,
+    distance_m: Option<f64>,
+) -> usize {
+    contacts
+        .iter()
+        .position(|c| c.name == name)
+        .unwrap_or_else(|| {
+            contacts.push(ContactGroup {
+                name: name.to_string(),
+                distance_m: distance_m.unwrap_or(0.0),
+                fit_distance: distance_m.is_none(),
+            });
+            sums.push((0.0, 0));
+            contacts.len() - 1
+        })
+}
+
 /// The whole-cell problem of `cell` and `session`: one observation per session row in row
 /// order ([`Session::rows`]; row = the CSV's `point` label). Coincident handclasps carry the
 /// cell's handclasp noise ([`handclasp_covariance`]), the other kinds their row's `sigma_m`.
@@ -143,18 +165,7 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
                     distance_m,
                     sigma_m,
                 } => {
-                    let g = match contacts.iter().position(|c| &c.name == group) {
-                        Some(g) => g,
-                        None => {
-                            contacts.push(ContactGroup {
-                                name: group.clone(),
-                                distance_m: distance_m.unwrap_or(0.0),
-                                fit_distance: distance_m.is_none(),
-                            });
-                            contact_sums.push((0.0, 0));
-                            contacts.len() - 1
-                        }
-                    };
+                    let g = contact_group(&mut contacts, &mut contact_sums, group, *distance_m);
                     if distance_m.is_none() {
                         if let Some(d) = nominal_distance(cell, q1, q2, *tool1, *tool2, None) {
                             contact_sums[g].0 += d;
@@ -181,18 +192,7 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
                     distance_m,
                     sigma_m,
                 } => {
-                    let g = match contacts.iter().position(|c| &c.name == group) {
-                        Some(g) => g,
-                        None => {
-                            contacts.push(ContactGroup {
-                                name: group.clone(),
-                                distance_m: distance_m.unwrap_or(0.0),
-                                fit_distance: distance_m.is_none(),
-                            });
-                            contact_sums.push((0.0, 0));
-                            contacts.len() - 1
-                        }
-                    };
+                    let g = contact_group(&mut contacts, &mut contact_sums, group, *distance_m);
                     if distance_m.is_none() {
                         let normals = Some((*n1_tip, *n2_tip));
                         if let Some(d) = nominal_distance(cell, q1, q2, *tool1, *tool2, normals) {

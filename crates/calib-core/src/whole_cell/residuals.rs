@@ -1,10 +1,12 @@
 //! Residuals of each observation kind and their analytic Jacobians ([`Evaluator`]); the maths
 //! is in the module documentation of [`crate::whole_cell`].
 
-use kinematics::{tip_error_jacobian, true_base_from_tip, Axis, ErrorParam};
+use kinematics::{
+    tip_error_jacobian, true_base_from_tip, Axis, ErrorParam, KinematicErrors, KinematicsError,
+};
 use nalgebra::{DMatrix, DVector, Point3, Unit, Vector3};
 
-use super::cell::{robot_slot, CellFitError};
+use super::cell::{robot_slot, CellFitError, CellRobot, Tool};
 use super::layout::{tangent_basis, CellEstimate, ParamLayout};
 use super::observations::{CellProblem, Observation, ObservationKind};
 use crate::Robot;
@@ -12,6 +14,14 @@ use crate::Robot;
 /// Smallest `‖n1_b1 − n2_b1‖` of a face contact (2 for flush faces): below it the two
 /// outward normals point nearly the same way and the mean normal `n̄` is undefined.
 pub const MIN_FACE_NORMAL_SUM: f64 = 1e-6;
+
+/// Maps a kinematics error of `robot` at observation `row` to the fit's error.
+fn kinematics_error(robot: Robot, row: usize) -> impl Fn(KinematicsError) -> CellFitError + Copy {
+    move |e| CellFitError::Kinematics {
+        row,
+        message: format!("{robot}: {e}"),
+    }
+}
 
 /// Sparse 3-row Jacobian: (column, ∂/∂column).
 type Cols3 = Vec<(usize, Vector3<f64>)>;
@@ -55,6 +65,22 @@ impl<'a> Evaluator<'a> {
         }
     }
 
+    /// `robot`'s cell robot, the definition of its `tool` and its kinematic errors with that
+    /// tool's fitted tip at `est`; an error naming `row` when the robot has no such tool.
+    fn tool_context(
+        &self,
+        est: &CellEstimate,
+        robot: Robot,
+        tool: usize,
+        row: usize,
+    ) -> Result<(&'a CellRobot, &'a Tool, KinematicErrors), CellFitError> {
+        let rb = self.problem.robot(robot);
+        let tool_def = rb.tools.get(tool).ok_or_else(|| {
+            CellFitError::InvalidInput(format!("observation row {row}: {robot} has no tool {tool}"))
+        })?;
+        Ok((rb, tool_def, est.robot(robot).errors_for_tool(tool)))
+    }
+
     /// Tip of `robot`'s `tool` at `q` in its own base frame, m, and its Jacobian columns.
     pub(super) fn robot_tip(
         &self,
@@ -66,15 +92,8 @@ impl<'a> Evaluator<'a> {
         row: usize,
     ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
         let slot = robot_slot(robot);
-        let rb = self.problem.robot(robot);
-        let tool_def = rb.tools.get(tool).ok_or_else(|| {
-            CellFitError::InvalidInput(format!("observation row {row}: {robot} has no tool {tool}"))
-        })?;
-        let errors = est.robot(robot).errors_for_tool(tool);
-        let kin_err = |e: kinematics::KinematicsError| CellFitError::Kinematics {
-            row,
-            message: format!("{robot}: {e}"),
-        };
+        let (rb, tool_def, errors) = self.tool_context(est, robot, tool, row)?;
+        let kin_err = kinematics_error(robot, row);
         let p = true_base_from_tip(&rb.model, &errors, q, &tool_def.flange_from_tip, &rb.g_base)
             .map_err(kin_err)?
             .translation
@@ -174,15 +193,8 @@ impl<'a> Evaluator<'a> {
         row: usize,
     ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
         let slot = robot_slot(robot);
-        let rb = self.problem.robot(robot);
-        let tool_def = rb.tools.get(tool).ok_or_else(|| {
-            CellFitError::InvalidInput(format!("observation row {row}: {robot} has no tool {tool}"))
-        })?;
-        let errors = est.robot(robot).errors_for_tool(tool);
-        let kin_err = |e: kinematics::KinematicsError| CellFitError::Kinematics {
-            row,
-            message: format!("{robot}: {e}"),
-        };
+        let (rb, tool_def, errors) = self.tool_context(est, robot, tool, row)?;
+        let kin_err = kinematics_error(robot, row);
         let t = tool_def.flange_from_tip;
         let base_from_tip =
             true_base_from_tip(&rb.model, &errors, q, &t, &rb.g_base).map_err(kin_err)?;
