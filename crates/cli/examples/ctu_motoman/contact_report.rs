@@ -106,6 +106,21 @@ pub fn contact_report(
         print!(" {:>18.3}", v * 1e3);
     }
     println!("  (centre distance minus the fitted distance; nominal = the noise σ above)");
+    if self_recs
+        .iter()
+        .all(|r| r.poses.iter().all(|p| p.faces.is_some()))
+    {
+        println!(
+            "  --contact-model face: the contact residual above is the along-normal distance minus the fitted distance; the faces' slide per model:"
+        );
+        for m in &models {
+            let mut c = Vec::new();
+            for rec in self_recs {
+                c.extend(contact::face_contacts(cell, rec, &ring, (&m.1, &m.2))?);
+            }
+            println!("  {}: {}", m.0, contact::slide_summary(&c));
+        }
+    }
     let names: Vec<String> = models
         .iter()
         .map(|m| m.0.replace([' ', '+'], "_"))
