@@ -393,11 +393,7 @@ fn face_contact_rows_differ_from_distance_rows_by_the_slide_term_only() {
         slide_max * 1e3
     );
     let tol = SLIDE_MAX_M.powi(2) / (2.0 * study::CONTACT_START_M) + FACE_ROW_MARGIN_M;
-    let diffs: Vec<f64> = distance
-        .iter()
-        .zip(&face)
-        .map(|(d, f)| d.1 - f.1)
-        .collect();
+    let diffs: Vec<f64> = distance.iter().zip(&face).map(|(d, f)| d.1 - f.1).collect();
     let worst = diffs.iter().map(|d| d.abs()).fold(0.0, f64::max);
     assert!(
         worst < tol,

@@ -43,7 +43,7 @@ use kinematics::KinematicErrors;
 use sim_cell::Cell;
 
 use calibrated::{calibrate, calibrate_all, contact_rms, print_effects, Calibrated, Calibrations};
-use contact_report::{contact_report, marker_at_report};
+use contact_report::{contact_model_comparison, contact_report, marker_at_report};
 use cv::{cross_validate, print_cv, write_cv, Choice, CvRule, HeldOutScore};
 use data::{read_dataset, self_selection_recordings, Recording, Role, SELF_SELECTION_PATTERNS};
 use proxy_report::proxy_report;
@@ -410,6 +410,25 @@ fn run(args: Args) -> anyhow::Result<()> {
     let cal_self = &self_model.cal;
     let leica_self = by_role(&[Role::TrackerSelfContact]);
     contact_report(&cell, &self_recs, &leica_self, cal_self, &noise, &args.out)?;
+    if args.contact_model == ContactModel::Face {
+        contact_model_comparison(
+            &cell,
+            &self_recs,
+            &[
+                ("self (exported)", cal_self.chosen.spec),
+                (&self_model.other.name, self_model.other.spec),
+                // face_contact.py's pattern-CV choice (same set and σ, like for like).
+                (
+                    "face_contact.py's choice",
+                    ModelSpec {
+                        set: ParamSet::OffsetsMarker,
+                        sigma: 0.3,
+                    },
+                ),
+            ],
+            &noise,
+        )?;
+    }
 
     // --- planes: self-contact + no-tracker planes; CV leaves one pattern out (5).
     let plane_recs = by_role(&[Role::SelfContact, Role::Plane]);
