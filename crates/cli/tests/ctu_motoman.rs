@@ -22,6 +22,7 @@ mod study;
 
 use std::path::{Path, PathBuf};
 
+use calib_core::whole_cell::{CellEstimate, Evaluator, ObservationKind, ParamLayout};
 use kinematics::{true_base_from_tip, KinematicErrors};
 use sim_cell::{export_calibrated_cell, Cell, ExportNames};
 
@@ -329,6 +330,80 @@ fn face_pairs_are_eight_in_the_self_files_and_one_in_leica_self() {
     let (split, folds) = contact::split_by_face_pair(&cell, &self_recs, &ring).unwrap();
     assert_eq!(folds.len(), 8, "{folds:?}");
     assert_eq!(split.iter().map(|r| r.poses.len()).sum::<usize>(), 502);
+}
+
+/// Largest slide of the touching faces across their mean normal over the no-tracker
+/// self-contacts at nominal kinematics, m: measured 3.22 mm (`--contact-model face` prints it;
+/// the Python check, tools/ctu-motoman/face_contact.py, found at most 3.2 mm), rounded up.
+const SLIDE_MAX_M: f64 = 3.5e-3;
+/// Margin on the slide term `SLIDE_MAX²/(2·d)` (0.053 mm at d = 116 mm), m. The exact excess of
+/// the centre distance over the along-normal distance `a` is `√(a² + s²) − a ≤ s²/(2·a)`; `a` is
+/// the contact distance d within the nominal contact residual (1.33 mm rms, a few mm at most),
+/// so `s²/(2·a)` exceeds `s²/(2·d)` by a few per cent of 0.053 mm: 5 µm covers 9 %.
+const FACE_ROW_MARGIN_M: f64 = 5e-6;
+
+/// `--contact-model face` (issue 12): at nominal kinematics and the same contact distance, each
+/// no-tracker self-contact row built as `FaceContact` (the ring faces assigned at nominal, the
+/// normals in the marker tip frames) differs from its `Contact` row by the faces' slide term
+/// only, `s²/(2·d)`, bounded by [`SLIDE_MAX_M`] and [`FACE_ROW_MARGIN_M`]. A normal in the
+/// wrong frame or a wrong face tilts the mean normal away from the centre line: a 5° tilt alone
+/// slides the centres by 10 mm, 0.4 mm of difference.
+#[test]
+fn face_contact_rows_differ_from_distance_rows_by_the_slide_term_only() {
+    let Some((mut recs, cell)) = dataset_and_cell() else {
+        return;
+    };
+    let nominal_residuals = |recs: &[Recording]| -> Vec<(bool, f64)> {
+        let b = build_problem(&cell, &self_contact(recs), None, &noise());
+        let est = CellEstimate::nominal(&b.problem, cell.b1_from_b2);
+        assert_eq!(est.contact_distance_m, vec![study::CONTACT_START_M]);
+        let layout = ParamLayout::new(&b.problem, &[]);
+        let ev = Evaluator::new(&b.problem, &layout);
+        b.problem
+            .observations
+            .iter()
+            .map(|o| {
+                let face = matches!(o.kind, ObservationKind::FaceContact { .. });
+                (face, ev.linearise(o, &est, false).unwrap().residual[0])
+            })
+            .collect()
+    };
+    let distance = nominal_residuals(&recs);
+    let ring = contact::fit_ring(&cell, &self_contact(&recs)).unwrap();
+    // The no-tracker (502) and leica_self (64) self-contact poses.
+    assert_eq!(
+        contact::assign_face_normals(&cell, &mut recs, &ring).unwrap(),
+        566
+    );
+    let face = nominal_residuals(&recs);
+    assert_eq!(distance.len(), 502);
+    assert_eq!(face.len(), 502);
+    assert!(distance.iter().all(|r| !r.0) && face.iter().all(|r| r.0));
+
+    let zero = KinematicErrors::zero(6);
+    let mut slide_max: f64 = 0.0;
+    for rec in self_contact(&recs) {
+        for c in contact::face_contacts(&cell, rec, &ring, (&zero, &zero)).unwrap() {
+            slide_max = slide_max.max(c.slide_m);
+        }
+    }
+    assert!(
+        slide_max < SLIDE_MAX_M,
+        "faces slide up to {:.2} mm",
+        slide_max * 1e3
+    );
+    let tol = SLIDE_MAX_M.powi(2) / (2.0 * study::CONTACT_START_M) + FACE_ROW_MARGIN_M;
+    let diffs: Vec<f64> = distance.iter().zip(&face).map(|(d, f)| d.1 - f.1).collect();
+    let worst = diffs.iter().map(|d| d.abs()).fold(0.0, f64::max);
+    assert!(
+        worst < tol,
+        "a face row differs from its distance row by {:.4} mm (tolerance {:.4} mm)",
+        worst * 1e3,
+        tol * 1e3
+    );
+    // The centre distance is never shorter than its projection on the mean normal (1e-12 m:
+    // round-off of two 0.116 m norms).
+    assert!(diffs.iter().all(|&d| d > -1e-12), "{diffs:?}");
 }
 
 /// A model scored against its own predictions by the proxy protocol (registration + reflector

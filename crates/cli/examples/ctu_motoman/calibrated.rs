@@ -292,13 +292,16 @@ fn renamed(c: &Calibrated, name: &str) -> Calibrated {
     }
 }
 
-/// The rms of the contact rows' residuals (centre distance minus the fitted contact distance)
-/// of a calibration, m.
+/// The rms of the contact rows' residuals (centre distance, or for `FaceContact` rows the
+/// distance along the faces' mean normal, minus the fitted contact distance) of a calibration, m.
 pub fn contact_rms(c: &Calibrated) -> anyhow::Result<f64> {
     let res = residuals(&c.problem, &c.fit, &c.fit.estimate)?;
     let (mut s2, mut n) = (0.0, 0usize);
     for (o, (r, _)) in c.problem.observations.iter().zip(&res) {
-        if matches!(o.kind, ObservationKind::Contact { .. }) {
+        if matches!(
+            o.kind,
+            ObservationKind::Contact { .. } | ObservationKind::FaceContact { .. }
+        ) {
             s2 += r * r;
             n += 1;
         }

@@ -15,10 +15,10 @@ use std::path::Path;
 
 use anyhow::Context;
 use kinematics::{true_base_from_tip, KinematicErrors};
-use nalgebra::{Isometry3, Vector3};
+use nalgebra::{Isometry3, Unit, Vector3};
 use sim_cell::Cell;
 
-use crate::data::Recording;
+use crate::data::{FaceNormals, Recording, Role};
 
 /// Polar angle of a ring face normal from the top face normal (tool z) of a regular
 /// dodecahedron: arctan 2, rad.
@@ -135,6 +135,13 @@ pub struct FaceContact {
     pub along_m: f64,
     /// Centre distance, m.
     pub centre_m: f64,
+    /// Centre distance along the faces' mean normal `n̄ = unit(n_r − n_l)` (`n_l` the left
+    /// face's outward normal): what a `FaceContact` row compares with the contact distance, m.
+    pub along_mean_m: f64,
+    /// The centres' offset across `n̄` (how far the faces slide from centred), m. The centre
+    /// distance is `√(along_mean² + slide²)`, so it exceeds `along_mean_m` by
+    /// ≈ `slide²/(2·along_mean)`.
+    pub slide_m: f64,
     /// Angle between the right face normal and the reversed left face normal, rad (0 for a
     /// perfectly flush contact).
     pub misalign_rad: f64,
@@ -169,15 +176,66 @@ pub fn face_contacts(
             let n_r = r.rotation * ring_normal(ring.phi0_rad, face_right);
             let n_l = l.rotation * ring_normal(ring.phi0_rad, face_left);
             let v = l.translation.vector - r.translation.vector;
+            let n_bar = (n_r - n_l).normalize();
+            let along_mean_m = n_bar.dot(&v);
             Ok(FaceContact {
                 face_right,
                 face_left,
                 along_m: v.dot(&n_r),
                 centre_m: v.norm(),
+                along_mean_m,
+                slide_m: (v - n_bar * along_mean_m).norm(),
                 misalign_rad: n_r.angle(&-n_l),
             })
         })
         .collect()
+}
+
+/// Sets the touching faces ([`FaceNormals`]) of every pose of the self-contact recordings of
+/// `recordings` (roles `SelfContact` and `TrackerSelfContact`): the ring faces of `ring`
+/// assigned at nominal kinematics as in [`face_contacts`], each outward normal in its marker's
+/// tip frame. That frame is the rotation of `true_base_from_tip`, i.e. tool0's (a tool's
+/// `flange_from_tip` is a translation), which is also the frame `ring_normal` is measured in,
+/// so the normal needs no rotation. `study::build_problem` then builds these poses' contact
+/// rows as `FaceContact`. Returns the number of poses set.
+pub fn assign_face_normals(
+    cell: &Cell,
+    recordings: &mut [Recording],
+    ring: &RingFit,
+) -> anyhow::Result<usize> {
+    let zero = KinematicErrors::zero(6);
+    let normal = |k: usize| (k, Unit::new_normalize(ring_normal(ring.phi0_rad, k)));
+    let mut n = 0;
+    for rec in recordings
+        .iter_mut()
+        .filter(|r| matches!(r.role, Role::SelfContact | Role::TrackerSelfContact))
+    {
+        let contacts = face_contacts(cell, rec, ring, (&zero, &zero))?;
+        for (pose, c) in rec.poses.iter_mut().zip(contacts) {
+            pose.faces = Some(FaceNormals {
+                right: normal(c.face_right),
+                left: normal(c.face_left),
+            });
+            n += 1;
+        }
+    }
+    Ok(n)
+}
+
+/// One line on how far the faces of `contacts` slide: the mean and largest slide, and the mean
+/// and largest excess of the centre distance over the along-normal distance, mm.
+pub fn slide_summary(contacts: &[FaceContact]) -> String {
+    let n = contacts.len().max(1) as f64;
+    let max = |f: fn(&FaceContact) -> f64| contacts.iter().map(f).fold(0.0, f64::max);
+    let mean = |f: fn(&FaceContact) -> f64| contacts.iter().map(f).sum::<f64>() / n;
+    let excess = |c: &FaceContact| c.centre_m - c.along_mean_m;
+    format!(
+        "faces slide {:.2} mm mean, {:.2} mm max; centre distance − along-normal distance {:.4} mm mean, {:.4} mm max",
+        mean(|c| c.slide_m) * 1e3,
+        max(|c| c.slide_m) * 1e3,
+        mean(excess) * 1e3,
+        max(excess) * 1e3
+    )
 }
 
 /// One row of the per-pair table.

@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use kinematics::KinematicErrors;
+use kinematics::{ErrorParam, KinematicErrors};
 use sim_cell::Cell;
 
 use crate::calibrated::{calibrate, contact_rms, Calibrated, Calibrations};
@@ -106,6 +106,21 @@ pub fn contact_report(
         print!(" {:>18.3}", v * 1e3);
     }
     println!("  (centre distance minus the fitted distance; nominal = the noise σ above)");
+    if self_recs
+        .iter()
+        .all(|r| r.poses.iter().all(|p| p.faces.is_some()))
+    {
+        println!(
+            "  --contact-model face: the contact residual above is the along-normal distance minus the fitted distance; the faces' slide per model:"
+        );
+        for m in &models {
+            let mut c = Vec::new();
+            for rec in self_recs {
+                c.extend(contact::face_contacts(cell, rec, &ring, (&m.1, &m.2))?);
+            }
+            println!("  {}: {}", m.0, contact::slide_summary(&c));
+        }
+    }
     let names: Vec<String> = models
         .iter()
         .map(|m| m.0.replace([' ', '+'], "_"))
@@ -144,6 +159,72 @@ pub fn contact_report(
         print!(" {} {:.3};", m.0, rms * 1e3);
     }
     println!();
+    Ok(())
+}
+
+/// `--contact-model face`: each spec of `specs` (a label and a set with its prior σ) fitted on
+/// the no-tracker self-contacts `self_recs` (their faces set) with both contact models, the
+/// `Contact` rows (faces dropped) and the `FaceContact` rows, same σ and start. Prints, per spec,
+/// the contact residual of each (mm), the largest change of a joint offset (mrad), of a marker
+/// centre component (mm) and of the contact distance (mm).
+pub fn contact_model_comparison(
+    cell: &Cell,
+    self_recs: &[&Recording],
+    specs: &[(&str, ModelSpec)],
+    noise: &NoiseLevels,
+) -> anyhow::Result<()> {
+    let distance_recs: Vec<Recording> = self_recs
+        .iter()
+        .map(|r| Recording {
+            poses: r
+                .poses
+                .iter()
+                .map(|p| data::Pose {
+                    faces: None,
+                    ..p.clone()
+                })
+                .collect(),
+            ..(*r).clone()
+        })
+        .collect();
+    let distance_refs: Vec<&Recording> = distance_recs.iter().collect();
+    println!(
+        "contact models compared (each spec fitted on the no-tracker self-contacts as distance rows, then as face rows; same σ):"
+    );
+    for &(label, spec) in specs {
+        let [d, f] = [&distance_refs[..], self_recs].map(|recs| -> anyhow::Result<Calibrated> {
+            let b = build_problem(cell, recs, Some(spec), noise);
+            let fit = fit(&b, None, None)?;
+            Ok(Calibrated {
+                name: label.to_string(),
+                problem: b.problem,
+                fit,
+                spec,
+            })
+        });
+        let (d, f) = (d?, f?);
+        let (dr, dl) = corrections(&d.fit);
+        let (fr, fl) = corrections(&f.fit);
+        let (mut offset_rad, mut marker_m): (f64, f64) = (0.0, 0.0);
+        for (a, b) in [(&dr, &fr), (&dl, &fl)] {
+            for joint in 0..6 {
+                let p = ErrorParam::JointOffset { joint };
+                offset_rad = offset_rad.max((a.get(p) - b.get(p)).abs());
+            }
+            marker_m = marker_m.max((a.tip - b.tip).amax());
+        }
+        println!(
+            "  {label:<28} ({} σ {}): contact residual {:.3} → {:.3} mm; joint offsets change ≤ {:.3} mrad, marker centres ≤ {:.3} mm, contact distance {:.3} → {:.3} mm",
+            spec.set.name(),
+            spec.sigma,
+            contact_rms(&d)? * 1e3,
+            contact_rms(&f)? * 1e3,
+            offset_rad * 1e3,
+            marker_m * 1e3,
+            d.fit.estimate.contact_distance_m[0] * 1e3,
+            f.fit.estimate.contact_distance_m[0] * 1e3,
+        );
+    }
     Ok(())
 }
 

@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use nalgebra::Point3;
+use nalgebra::{Point3, Unit, Vector3};
 
 /// Joint columns of the right arm (S, L, U, R, B, T), in chain order.
 const RIGHT: [&str; 6] = [
@@ -26,6 +26,22 @@ pub struct Pose {
     pub q_left: Vec<f64>,
     /// Tracker reflector position, m, tracker frame (`None`: the tracker logged nothing).
     pub p_tracker: Option<Point3<f64>>,
+    /// The touching faces of a self-contact pose (`--contact-model face`, set by
+    /// `contact::assign_face_normals`): `Some` builds the pose's contact row as a
+    /// `FaceContact` (distance along the faces' mean normal); `None` (as read) as a `Contact`
+    /// (centre distance). Ignored by the other roles.
+    pub faces: Option<FaceNormals>,
+}
+
+/// The touching ring faces of one self-contact pose: each marker's outward unit face normal in
+/// its own tip frame. The marker's tip frame is tool0 translated to the marker centre (a tool's
+/// `flange_from_tip` is a translation), so these are tool0 axes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FaceNormals {
+    /// Ring face of the right marker (0..5) and its outward normal, right tip frame.
+    pub right: (usize, Unit<Vector3<f64>>),
+    /// Ring face of the left marker (0..5) and its outward normal, left tip frame.
+    pub left: (usize, Unit<Vector3<f64>>),
 }
 
 /// What a recording is, and how the study uses it.
@@ -220,6 +236,7 @@ pub fn read_recording(
             q_right,
             q_left,
             p_tracker,
+            faces: None,
         });
     }
     if poses.is_empty() {

@@ -43,7 +43,7 @@ use kinematics::KinematicErrors;
 use sim_cell::Cell;
 
 use calibrated::{calibrate, calibrate_all, contact_rms, print_effects, Calibrated, Calibrations};
-use contact_report::{contact_report, marker_at_report};
+use contact_report::{contact_model_comparison, contact_report, marker_at_report};
 use cv::{cross_validate, print_cv, write_cv, Choice, CvRule, HeldOutScore};
 use data::{read_dataset, self_selection_recordings, Recording, Role, SELF_SELECTION_PATTERNS};
 use proxy_report::proxy_report;
@@ -100,6 +100,23 @@ struct Args {
     /// --self-cv-folds). The other choice is fitted and scored too, for comparison.
     #[arg(long, value_enum, default_value_t = Select::Tracker)]
     select: Select,
+    /// The observation model of the self-contact rows (no-tracker and `leica_self`): `distance`
+    /// (default: the marker centres are the fitted contact distance apart, `Contact`) or `face`
+    /// (the distance between the centres along the touching ring faces' mean normal,
+    /// `FaceContact`; each pose's faces are assigned at nominal kinematics, the normals fixed in
+    /// the marker frames; same contact groups and σ, and the faces may slide). Everything else
+    /// (CV, the tracker selection, export, scores) runs unchanged on these rows.
+    #[arg(long, value_enum, default_value_t = ContactModel::Distance)]
+    contact_model: ContactModel,
+}
+
+/// `--contact-model`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum ContactModel {
+    /// Centre distance.
+    Distance,
+    /// Distance along the touching faces' mean normal.
+    Face,
 }
 
 /// `--select`.
@@ -212,6 +229,42 @@ enum MarkerContactSigma {
     Marker,
 }
 
+/// `--contact-model face`: sets the touching faces of every self-contact pose (no-tracker and
+/// `leica_self`; the ring measured on the no-tracker self-contacts, faces assigned at nominal
+/// kinematics), so that their rows are built as `FaceContact`, and prints how far the faces
+/// slide at nominal.
+fn face_contact_rows(cell: &Cell, recordings: &mut [Recording]) -> anyhow::Result<()> {
+    let ring = {
+        let self_recs: Vec<&Recording> = recordings
+            .iter()
+            .filter(|r| r.role == Role::SelfContact)
+            .collect();
+        contact::fit_ring(cell, &self_recs)?
+    };
+    let n = contact::assign_face_normals(cell, recordings, &ring)?;
+    println!(
+        "--contact-model face: {n} self-contact rows are face contacts (ring φ0 = {:.2}°)",
+        ring.phi0_rad.to_degrees()
+    );
+    let zero = KinematicErrors::zero(6);
+    for role in [Role::SelfContact, Role::TrackerSelfContact] {
+        let mut c = Vec::new();
+        for rec in recordings.iter().filter(|r| r.role == role) {
+            c.extend(contact::face_contacts(cell, rec, &ring, (&zero, &zero))?);
+        }
+        println!(
+            "  {} at nominal: {}",
+            if role == Role::SelfContact {
+                "no-tracker self-contacts"
+            } else {
+                "leica_self contacts"
+            },
+            contact::slide_summary(&c)
+        );
+    }
+    Ok(())
+}
+
 /// The repository root (the cell and URDFs of the nominal model live there).
 fn repo_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -236,7 +289,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             args.data.display()
         );
     }
-    let recordings = read_dataset(&args.data)?;
+    let mut recordings = read_dataset(&args.data)?;
     let cell_path = repo_root().join("cells/ctu-motoman.toml");
     let cell = Cell::from_toml_file(&cell_path)?;
     if cell.b1_from_b2_sigma.is_none() {
@@ -263,6 +316,12 @@ fn run(args: Args) -> anyhow::Result<()> {
         noise.plane_m * 1e3,
         noise.tracker_m * 1e3
     );
+
+    if args.contact_model == ContactModel::Face {
+        // The σ above stay the distance model's (measured before the faces are set), so the
+        // two models are fitted with the same weights.
+        face_contact_rows(&cell, &mut recordings)?;
+    }
 
     let by_role = |roles: &[Role]| -> Vec<&Recording> {
         recordings
@@ -351,6 +410,25 @@ fn run(args: Args) -> anyhow::Result<()> {
     let cal_self = &self_model.cal;
     let leica_self = by_role(&[Role::TrackerSelfContact]);
     contact_report(&cell, &self_recs, &leica_self, cal_self, &noise, &args.out)?;
+    if args.contact_model == ContactModel::Face {
+        contact_model_comparison(
+            &cell,
+            &self_recs,
+            &[
+                ("self (exported)", cal_self.chosen.spec),
+                (&self_model.other.name, self_model.other.spec),
+                // face_contact.py's pattern-CV choice (same set and σ, like for like).
+                (
+                    "face_contact.py's choice",
+                    ModelSpec {
+                        set: ParamSet::OffsetsMarker,
+                        sigma: 0.3,
+                    },
+                ),
+            ],
+            &noise,
+        )?;
+    }
 
     // --- planes: self-contact + no-tracker planes; CV leaves one pattern out (5).
     let plane_recs = by_role(&[Role::SelfContact, Role::Plane]);

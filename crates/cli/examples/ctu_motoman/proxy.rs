@@ -103,6 +103,7 @@ pub fn reference_recording(
                 q_right: q.clone(),
                 q_left: vec![0.0; 6],
                 p_tracker: Some(Point3::from(t.translation.vector)),
+                faces: None,
             })
         })
         .collect::<anyhow::Result<Vec<_>>>()?;

@@ -224,9 +224,10 @@ fn cell_robot(cell: &Cell, robot: Robot, spec: Option<ModelSpec>) -> CellRobot {
 
 /// The whole-cell problem of `recordings` in `cell` (robot 1 = right arm, robot 2 = left arm,
 /// tool 0 = the marker dodecahedron of the cell): self-contact rows as `Contact` (one fitted
-/// distance for the no-tracker files, one for `leica_self`), plane rows as `Plane` of the right
-/// arm's marker (one plane per file), tracker rows as `Tracker` of the measured arm (one frame
-/// and one reflector tool per file). `spec = None`: nominal kinematics (only the nuisances and
+/// distance for the no-tracker files, one for `leica_self`), or as `FaceContact` in the same
+/// groups and σ for a pose whose touching faces are set (`Pose::faces`); plane rows as `Plane`
+/// of the right arm's marker (one plane per file), tracker rows as `Tracker` of the measured arm
+/// (one frame and one reflector tool per file). `spec = None`: nominal kinematics (only the nuisances and
 /// the reflectors are fitted).
 pub fn build_problem(
     cell: &Cell,
@@ -318,18 +319,33 @@ pub fn build_problem(
             match rec.role {
                 Role::SelfContact | Role::TrackerSelfContact => {
                     let leica = rec.role == Role::TrackerSelfContact;
-                    kinds.push(ObservationKind::Contact {
-                        q1: pose.q_right.clone(),
-                        q2: pose.q_left.clone(),
-                        tool1: 0,
-                        tool2: 0,
-                        group: group_of[usize::from(leica)].unwrap_or(0),
-                        sigma_m: if leica {
-                            noise.leica_contact_m
-                        } else if spec.is_some_and(|s| s.set.marker()) {
-                            noise.marker_contact_m.unwrap_or(noise.contact_m)
-                        } else {
-                            noise.contact_m
+                    let group = group_of[usize::from(leica)].unwrap_or(0);
+                    let sigma_m = if leica {
+                        noise.leica_contact_m
+                    } else if spec.is_some_and(|s| s.set.marker()) {
+                        noise.marker_contact_m.unwrap_or(noise.contact_m)
+                    } else {
+                        noise.contact_m
+                    };
+                    let (q1, q2) = (pose.q_right.clone(), pose.q_left.clone());
+                    kinds.push(match pose.faces {
+                        None => ObservationKind::Contact {
+                            q1,
+                            q2,
+                            tool1: 0,
+                            tool2: 0,
+                            group,
+                            sigma_m,
+                        },
+                        Some(f) => ObservationKind::FaceContact {
+                            q1,
+                            q2,
+                            tool1: 0,
+                            tool2: 0,
+                            n1_tip: f.right.1,
+                            n2_tip: f.left.1,
+                            group,
+                            sigma_m,
                         },
                     });
                 }
@@ -492,8 +508,9 @@ pub fn noise_from_nominal(cell: &Cell, recordings: &[Recording]) -> anyhow::Resu
     let mut acc = [(0.0, 0usize); 4];
     for (o, (r, _)) in b.problem.observations.iter().zip(&res) {
         let (k, dim) = match &o.kind {
-            ObservationKind::Contact { group: 0, .. } => (0, 1),
-            ObservationKind::Contact { .. } => (1, 1),
+            ObservationKind::Contact { group: 0, .. }
+            | ObservationKind::FaceContact { group: 0, .. } => (0, 1),
+            ObservationKind::Contact { .. } | ObservationKind::FaceContact { .. } => (1, 1),
             ObservationKind::Plane { .. } => (2, 1),
             _ => (3, 3),
         };
@@ -576,7 +593,9 @@ pub fn held_out_nuisance_rows(
         .zip(&res)
         .map(|(o, r)| {
             let kind = match o.kind {
-                ObservationKind::Contact { .. } => RowKind::Contact,
+                ObservationKind::Contact { .. } | ObservationKind::FaceContact { .. } => {
+                    RowKind::Contact
+                }
                 ObservationKind::Plane { .. } => RowKind::Plane,
                 ObservationKind::Tracker { .. } => RowKind::Tracker,
                 _ => anyhow::bail!(
