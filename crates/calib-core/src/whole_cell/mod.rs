@@ -145,7 +145,7 @@ pub use observations::{
     UNIT_NORMAL_TOL,
 };
 pub use placement_prior::PlacementPrior;
-pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, RANK_TOL};
+pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, PRIOR_INFO_TOL, RANK_TOL};
 pub use residuals::{Evaluator, ObservationLinearisation, MIN_FACE_NORMAL_SUM};
 pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions, StopReason};
 pub use start::initial_estimate;
