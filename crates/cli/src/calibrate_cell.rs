@@ -211,6 +211,7 @@ fn describe(p: &CellParam) -> Option<Value> {
 fn reason_text(r: &ReductionReason) -> (&'static str, Value) {
     match r {
         ReductionReason::NoEffect => ("no_effect", Value::Null),
+        ReductionReason::PriorDecided => ("prior_decided", Value::Null),
         ReductionReason::ConfoundedWithPlacement => ("confounded_with_placement", Value::Null),
         ReductionReason::ConfoundedWithNuisance => ("confounded_with_nuisance", Value::Null),
         ReductionReason::MergedInto { into } => (
@@ -538,6 +539,7 @@ fn dropped_line(d: &Value) -> String {
         }
         Some("confounded_with_placement") => format!("{name}: absorbed by b1_from_b2"),
         Some("no_effect") => format!("{name}: moves no observed tip"),
+        Some("prior_decided") => format!("{name}: barely seen by the data, the prior decides it"),
         _ => d["why"].as_str().unwrap_or(name).to_string(),
     }
 }

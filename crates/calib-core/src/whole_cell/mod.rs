@@ -63,8 +63,11 @@
 //! columns by how much new information each adds; columns whose `|R_jj| ≤ rank_tol·|R_00|` are
 //! structurally undetermined. Each such column is dropped (held at 0) and reported: "no effect"
 //! if its raw column is zero, "confounded with b1_from_b2 / the nuisance unknowns" if its
-//! projected column is zero, else "merged into" the kept columns `c = R₁₁⁻¹·R₁₂` it is a
-//! combination of. Merging is exact in the linear sense: the kept parameters then stand for
+//! projected column is zero, "decided by the prior" if its data information `‖J_k,j·σ_j‖²`
+//! (prior-σ units: the prior's is 1) is at most [`PRIOR_INFO_TOL`] (such a column is never a
+//! pivot: the relative test alone would keep a column the data barely see, and merge others
+//! onto it with coefficients ~1/its norm), else "merged into" the kept columns
+//! `c = R₁₁⁻¹·R₁₂` it is a combination of. Merging is exact in the linear sense: the kept parameters then stand for
 //! `θ_keep + (D_keep·c_j/σ_j)·θ_j`, so their prior covariance becomes
 //! `D_keep² + Σ_j (D_keep·c_j)(D_keep·c_j)ᵀ` (and `R_p` its inverse Cholesky factor), so the
 //! prediction still carries the dropped parameters' prior uncertainty.
@@ -145,7 +148,7 @@ pub use observations::{
     UNIT_NORMAL_TOL,
 };
 pub use placement_prior::PlacementPrior;
-pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, RANK_TOL};
+pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, PRIOR_INFO_TOL, RANK_TOL};
 pub use residuals::{Evaluator, ObservationLinearisation, MIN_FACE_NORMAL_SUM};
 pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions, StopReason};
 pub use start::initial_estimate;

@@ -20,6 +20,23 @@ use super::{CellEstimate, CellFitError, CellParam, CellProblem, ParamLayout};
 /// the prior anyway, so holding it (or merging it, which keeps its prior) loses nothing.
 pub const RANK_TOL: f64 = 1e-2;
 
+/// A kinematic column whose data information, in prior-σ units (the squared norm of its
+/// whitened, prior-scaled column, the prior's own information being 1), is at most this is
+/// decided by the prior: it is held at nominal ([`ReductionReason::PriorDecided`]) and never
+/// kept as a pivot for other columns to merge into.
+///
+/// Why 1e-8: alone, such a column's posterior σ differs from its prior σ by a relative
+/// `1 − 1/√(1 + info) ≤ info/2 = 5e-9`, far below anything the fit reports, so holding it loses
+/// nothing. Keeping it does harm: the relative [`RANK_TOL`] test passes on its own tiny norm, and
+/// a column that depends on the kept ones only through it gets a merge coefficient of (its own
+/// residual) / (that norm) ≥ 1e4 × its residual, in prior-σ units. Measured: face
+/// contacts whose normals all lie along robot 1's flange z leave the tools' sideways offsets with
+/// information ≤ 2e-15 (`cells/ctu-motoman.toml`, 40 rows), and merging onto them gave
+/// coefficients of 3e7 … 3e9 and merged prior σ of metres; the smallest information of a column
+/// those sessions do see was 1.5e-5, three orders above the threshold. Unchanged by it: every
+/// existing test, the golden outputs and the CTU study's outputs (byte-identical).
+pub const PRIOR_INFO_TOL: f64 = 1e-8;
+
 /// Why a parameter was dropped.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "reason", rename_all = "snake_case")]
@@ -32,6 +49,10 @@ pub enum ReductionReason {
     /// Its effect is absorbed by the placement together with the nuisance unknowns (tracker
     /// frames, planes, contact distances).
     ConfoundedWithNuisance,
+    /// The data carry at most [`PRIOR_INFO_TOL`] of its prior information: the prior decides
+    /// it, so it is held at nominal (e.g. a tool's sideways offset when every observation is a
+    /// distance along the flange z).
+    PriorDecided,
     /// Its effect is a combination of kept parameters (and the unpenalised unknowns): those
     /// parameters now stand for it (their prior covariance carries its prior).
     MergedInto {
@@ -51,7 +72,7 @@ pub struct ReductionEntry {
     /// Why.
     pub reason: ReductionReason,
     /// Fraction of its (whitened, prior-scaled) effect left after projecting out the unknowns
-    /// that absorb it (0 … [`RANK_TOL`]).
+    /// that absorb it (0 … [`RANK_TOL`]; any value for [`ReductionReason::PriorDecided`]).
     pub independent_fraction: f64,
     /// A sentence for people, e.g. "robot 2 origin_xyz joint 1 x is confounded with b1_from_b2".
     pub message: String,
@@ -114,7 +135,11 @@ pub fn reduce(
         let best = remaining
             .iter()
             .copied()
-            .filter(|&c| raw_norm[c] > 0.0 && work.column(c).norm() > RANK_TOL * raw_norm[c])
+            .filter(|&c| {
+                raw_norm[c] > 0.0
+                    && raw_norm[c].powi(2) > PRIOR_INFO_TOL
+                    && work.column(c).norm() > RANK_TOL * raw_norm[c]
+            })
             .max_by(|&x, &y| work.column(x).norm().total_cmp(&work.column(y).norm()));
         let Some(p) = best else { break };
         let q = work.column(p).normalize();
@@ -168,6 +193,15 @@ pub fn reduce(
                     ),
                 )
             }
+        } else if raw_norm[c].powi(2) <= PRIOR_INFO_TOL {
+            (
+                ReductionReason::PriorDecided,
+                format!(
+                    "{name} is barely seen by the data (information {:.1e} of its prior's): \
+                     held at 0, the prior decides it",
+                    raw_norm[c].powi(2)
+                ),
+            )
         } else {
             let coeff = ls
                 .as_ref()

@@ -1956,3 +1956,178 @@ fn flush_face_contacts_without_slide_fit_like_sphere_contacts() {
     eprintln!("a 5° tilted face normal: largest gap {worst_tilted:.2} σ");
     assert!(worst_tilted > 100.0 * SAME_FIT_SIGMAS);
 }
+
+/// As [`face_rows`], but every face normal lies along robot 1's approach (its flange z), the
+/// rows of `sim-cell session --kind face_contact --face-tilt-deg 0`: robot 1 reaches a point
+/// near the centre (±spread/2 per axis) with its flange z along `a1`, robot 2's TRUE tip sits
+/// at `(d + σ·ν)·a1 + s` from robot 1's (`s ⟂ a1`, up to `±max_slide_m` per axis, projected),
+/// meeting it head-on; the normals in the tip frames come from the true flange rotations.
+fn axial_face_rows(
+    sc: &SimCell,
+    n: usize,
+    d: f64,
+    sigma: f64,
+    max_slide_m: f64,
+    seed: u64,
+) -> Vec<FaceRow> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let x = sc.truth.b1_from_b2;
+    let rot = |r: Robot, q: &[f64]| {
+        let rb = if r == Robot::One {
+            &sc.robot1
+        } else {
+            &sc.robot2
+        };
+        kinematics::true_base_from_tip(
+            &rb.model,
+            &sc.truth.robot(r).errors_for_tool(0),
+            q,
+            &rb.tools[0].flange_from_tip,
+            &rb.g_base,
+        )
+        .expect("valid")
+        .rotation
+    };
+    let mut out = Vec::with_capacity(n);
+    while out.len() < n {
+        let p = sc.centre_b1 + Vector3::from_fn(|_, _| rng.random_range(-0.5..0.5)) * 0.6;
+        let toward2 = (x.translation.vector - p.coords).normalize();
+        let tilt = Vector3::from_fn(|_, _| rng.random_range(-0.5..0.5));
+        let a1 = Unit::new_normalize(toward2 + tilt);
+        let raw = Vector3::from_fn(|_, _| rng.random_range(-1.0..=1.0)) * max_slide_m;
+        let slide = raw - a1.into_inner() * a1.dot(&raw);
+        let along = d + sigma
+            * rand_distr::Distribution::<f64>::sample(&rand_distr::StandardNormal, &mut rng);
+        let Some(q1) = sc.solve_true(Robot::One, 0, &p, a1) else {
+            continue;
+        };
+        let t1 = sc.true_tip(Robot::One, 0, &q1);
+        let target2 = x.inverse() * Point3::from(t1 + a1.into_inner() * along + slide);
+        let a2 = Unit::new_normalize(x.rotation.inverse() * (-a1.into_inner()));
+        let Some(q2) = sc.solve_true(Robot::Two, 0, &target2, a2) else {
+            continue;
+        };
+        let n1_tip = Unit::new_normalize(rot(Robot::One, &q1).inverse() * a1.into_inner());
+        let n2_tip = Unit::new_normalize(
+            rot(Robot::Two, &q2).inverse() * (x.rotation.inverse() * -a1.into_inner()),
+        );
+        out.push(FaceRow {
+            pair: ConfigPair {
+                q1,
+                q2,
+                tool1: 0,
+                tool2: 0,
+            },
+            n1_tip,
+            n2_tip,
+        });
+    }
+    out
+}
+
+/// Largest merge coefficient (prior-σ units) a sane reduction of the axial face contacts
+/// produces: measured ≤ 29 on the CTU cell's reproducer draws (below); the near-null pivots
+/// of the old reduction gave 3e7 … 3e9.
+const SANE_MERGE_COEFF: f64 = 1e3;
+
+/// Largest correction of a fitted length (m) in the axial face-contact fit: the truth is within
+/// the 0.5 mm tolerance, so 10 mm is already far off; the old reduction moved a tip by metres.
+const SANE_LENGTH_M: f64 = 0.01;
+
+/// Regression (found building the face-contact kind, reproduced with `sim-cell session --kind
+/// face_contact --face-tilt-deg 0 --cell cells/ctu-motoman.toml` and `handclasp calibrate
+/// --model kinematic`, where one draw stopped at the iteration cap with a tip x at 5.9 m): with
+/// every face normal along robot 1's flange z nothing sees the tools' sideways offsets, whose
+/// columns then carry ~1e-15 of their prior information. The relative rank test alone kept them
+/// as pivots and merged other columns onto them with coefficients ~1e8. Now they are held as
+/// [`ReductionReason::PriorDecided`], every merge coefficient is below [`SANE_MERGE_COEFF`], the
+/// fit (every kinematic parameter free, distance fitted from 3 mm off) converges, and no length
+/// moves by more than [`SANE_LENGTH_M`].
+#[test]
+fn axial_face_contacts_hold_the_unseen_sideways_offsets() {
+    // The prior of every parameter as the tolerance, the truth nominal (as the CTU cell's, which
+    // carries no kinematic error): the flanges then point exactly along the face normals.
+    let mut sc = sim_cell(Cell::Wall, Tolerance::default(), false, 141);
+    sc.truth = CellEstimate::nominal(&sc.problem(), sc.truth.b1_from_b2);
+    let rows = axial_face_rows(&sc, 40, FACE_D_M, FACE_SIGMA_M, 5e-3, 142);
+    let kinds = rows
+        .into_iter()
+        .map(|r| ObservationKind::FaceContact {
+            q1: r.pair.q1,
+            q2: r.pair.q2,
+            tool1: 0,
+            tool2: 0,
+            n1_tip: r.n1_tip,
+            n2_tip: r.n2_tip,
+            group: 0,
+            sigma_m: FACE_SIGMA_M,
+        })
+        .collect();
+    let p = contact_problem(&sc, FACE_D_M + 3e-3, kinds);
+    let options = SolveOptions {
+        // From the cell's placement, as `handclasp calibrate --cell` starts.
+        initial_b1_from_b2: Some(sc.truth.b1_from_b2),
+        ..SolveOptions::default()
+    };
+    let cal = calibrate_cell(&p, &options, &ScreenOptions::default()).unwrap();
+    let red = &cal.reduction;
+    let worst_coeff = red
+        .dropped
+        .iter()
+        .filter_map(|d| match &d.reason {
+            ReductionReason::MergedInto { into } => {
+                Some(into.iter().map(|(_, c)| c.abs()).fold(0.0, f64::max))
+            }
+            _ => None,
+        })
+        .fold(0.0, f64::max);
+    let values = cal.fit.layout.values(&cal.fit.estimate);
+    let worst_length = (0..cal.fit.layout.len())
+        .filter(|&c| match &cal.fit.layout.params[c] {
+            CellParam::Kinematic { param, .. } => matches!(param, ErrorParam::OriginXyz { .. }),
+            CellParam::ToolTip { .. } => true,
+            _ => false,
+        })
+        .map(|c| values[c].abs())
+        .fold(0.0, f64::max);
+    eprintln!(
+        "axial faces: {:?} after {} iterations, largest merge coefficient {worst_coeff:.3e}, \
+         largest length {:.3} mm, {} held as prior-decided",
+        cal.fit.stopped,
+        cal.fit.iterations,
+        worst_length * 1e3,
+        red.dropped
+            .iter()
+            .filter(|d| d.reason == ReductionReason::PriorDecided)
+            .count()
+    );
+    for d in &red.dropped {
+        if d.reason == ReductionReason::PriorDecided {
+            eprintln!("{}", d.message);
+        }
+    }
+    assert!(
+        worst_coeff <= SANE_MERGE_COEFF,
+        "merge coefficient {worst_coeff:e}"
+    );
+    assert_eq!(cal.fit.stopped, StopReason::Converged);
+    assert!(
+        worst_length <= SANE_LENGTH_M,
+        "a length moved {worst_length} m"
+    );
+    for r in [Robot::One, Robot::Two] {
+        for axis in [kinematics::Axis::X, kinematics::Axis::Y] {
+            let d = red
+                .dropped
+                .iter()
+                .find(|d| matches!(&d.param, CellParam::ToolTip { robot, axis: a, .. } if *robot == r && *a == axis))
+                .unwrap_or_else(|| panic!("{r} tip {axis} kept"));
+            assert_eq!(d.reason, ReductionReason::PriorDecided, "{}", d.message);
+            assert!(
+                d.message.contains("barely seen by the data"),
+                "{}",
+                d.message
+            );
+        }
+    }
+}
