@@ -190,6 +190,30 @@ fn kinematic_model_beats_placement_and_exports_verified_urdfs() {
         );
         assert!(cal_k.robot(r).urdf_path.is_file());
     }
+    // A second export into the now non-empty folder is refused before the fit (it would mix two
+    // models' files)…
+    let mut again = cell_session_args("calibrate", &cell_path, &session_path, &["--json"]);
+    again.extend(["--export".to_string(), out_k.display().to_string()]);
+    let refused = handclasp(&again);
+    assert!(!refused.status.success());
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        err.contains("the folder is not empty") && err.contains("--force"),
+        "{err}"
+    );
+    // …and --force overwrites the files of the same names with the same calibration.
+    let before = std::fs::read_to_string(out_k.join("cell.toml")).unwrap();
+    again.push("--force".into());
+    let forced = handclasp(&again);
+    assert!(
+        forced.status.success(),
+        "{}",
+        String::from_utf8_lossy(&forced.stderr)
+    );
+    assert_eq!(
+        std::fs::read_to_string(out_k.join("cell.toml")).unwrap(),
+        before
+    );
 
     // `handclasp diagnose` takes the exported cell (with a session recorded on it: the old
     // session's tip columns are the old models' and fail its consistency check by design).

@@ -33,6 +33,7 @@ pub struct Args {
     #[arg(long, requires = "cell", value_enum, default_value = "kinematic")]
     pub model: crate::calibrate_cell::ModelArg,
     /// With --cell: write DIR/cell.toml, DIR/robot1.urdf and DIR/robot2.urdf (the calibrated cell).
+    /// DIR must be new or empty, unless --force (files of the same names are overwritten).
     #[arg(long, requires = "cell")]
     pub export: Option<PathBuf>,
     /// The paper's cells: floor-floor, floor-wall or floor-ceiling (robot 1 is on the floor).
@@ -63,7 +64,8 @@ pub struct Args {
     /// order) and the worst rows, unless --force is given.
     #[arg(long, default_value_t = calib_core::DEFAULT_EXPECTED_NOISE_M * 1e3)]
     pub expected_noise_mm: f64,
-    /// Keep a fit whose residuals exceed --expected-noise-mm (a warning is printed on stderr).
+    /// Keep a fit whose residuals exceed --expected-noise-mm (a warning is printed on stderr);
+    /// with --cell --export, write into a non-empty folder.
     #[arg(long)]
     pub force: bool,
     /// With --cell: also list (on stderr) each URDF's joints and links outside the

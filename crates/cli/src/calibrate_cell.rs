@@ -72,6 +72,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (Some(cell_path), Some(session_path)) = (&args.cell, &args.session) else {
         bail!("--cell CELL needs --session SESSION (the session CSV of that cell)");
     };
+    if let Some(dir) = &args.export {
+        crate::export_dir::check_export_folder(dir, args.force)?;
+    }
     let cell = Cell::from_toml_file(cell_path)?;
     if args.verbose {
         crate::fk::print_cell_branches(&cell);

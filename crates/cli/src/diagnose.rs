@@ -5,7 +5,7 @@
 //! contact, tracker or plane rows gets the whole-cell diagnosis
 //! (`diagnose::diagnose_cell_session`, exported by `diagnose::export_cell_diagnosis`).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::Context;
 use diagnose::DiagnoseOptions;
@@ -66,42 +66,6 @@ const PROGRESS_MIN_POINTS: usize = 500;
 /// Sessions of at least this many rows print progress of the whole-cell diagnosis on stderr
 /// even when it is not a terminal (the CTU tracker files take minutes).
 const PROGRESS_MIN_ROWS_WHOLE_CELL: usize = 100;
-
-/// Refuses an `--export` folder that exists and is not empty, unless `--force`: an export writes
-/// files of fixed names, and a folder with another export's files would mix two models. Checked
-/// before the diagnosis runs (it can take minutes).
-fn check_export_folder(dir: &Path, force: bool) -> anyhow::Result<()> {
-    let mut entries = match std::fs::read_dir(dir) {
-        Ok(entries) => entries,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) => {
-            return Err(e).with_context(|| {
-                format!(
-                    "--export {}: cannot read the folder (is it a file?)",
-                    dir.display()
-                )
-            })
-        }
-    };
-    if force {
-        return Ok(());
-    }
-    if let Some(first) = entries.next() {
-        let first = first.with_context(|| format!("--export {}", dir.display()))?;
-        anyhow::bail!(
-            "--export {}: the folder is not empty (it holds `{}`{}): choose a new or empty folder, \
-             or add --force to overwrite the files of the same names",
-            dir.display(),
-            first.file_name().to_string_lossy(),
-            if entries.next().is_some() {
-                " and more"
-            } else {
-                ""
-            }
-        );
-    }
-    Ok(())
-}
 
 /// The whole-cell diagnosis of a session with contact, tracker or plane rows.
 fn run_whole_cell(
@@ -175,7 +139,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     if let Some(dir) = &args.export {
-        check_export_folder(dir, args.force)?;
+        crate::export_dir::check_export_folder(dir, args.force)?;
     }
     let cell = Cell::from_toml_file(&args.cell)?;
     if args.verbose {
