@@ -227,6 +227,9 @@ pub fn pooled_one_se(pooled: &[CvError]) -> Option<usize> {
         .position(|c| c.e <= pooled[min].e + pooled[min].se)
 }
 
+/// One CV candidate's held-out rows and the training fit of each fold.
+type Evaluated = (HeldOutRows, Vec<FoldFit>);
+
 /// Grouped CV: for every spec (each of `sets` with each prior σ of `grid`), train on all
 /// recordings but one held-out group and score the
 /// held-out group with `score` (one (kind, squared error) per held-out scalar or point), over
@@ -254,7 +257,7 @@ pub fn cross_validate(
                 .map(move |&sigma| ModelSpec { set, sigma })
         })
         .collect();
-    let evaluate = |spec: ModelSpec| -> anyhow::Result<(HeldOutRows, Vec<FoldFit>)> {
+    let evaluate = |spec: ModelSpec| -> anyhow::Result<Evaluated> {
         let mut e2: HeldOutRows = Vec::new();
         let mut fold_fits = Vec::with_capacity(folds.len());
         for fold in folds {
@@ -283,7 +286,7 @@ pub fn cross_validate(
         Ok((e2, fold_fits))
     };
     // Candidate k goes to thread k % CV_THREADS; the results are put back in candidate order.
-    let mut slots: Vec<Option<anyhow::Result<(HeldOutRows, Vec<FoldFit>)>>> =
+    let mut slots: Vec<Option<anyhow::Result<Evaluated>>> =
         (0..specs.len()).map(|_| None).collect();
     std::thread::scope(|scope| {
         let handles: Vec<_> = (0..CV_THREADS)
