@@ -471,6 +471,54 @@ fn marker_centre_fit_lowers_the_contact_residual() {
     assert_eq!(joints_only, KinematicErrors::zero(6));
 }
 
+/// `--sigma-grid`: the CV candidates are every set at every σ of the given grid (not the
+/// default's), in the table's order (set, then σ), and the choice carries that grid.
+#[test]
+fn cv_candidates_are_the_sets_times_the_given_sigma_grid() {
+    let Some((recs, cell)) = dataset_and_cell() else {
+        return;
+    };
+    let self_recs = self_contact(&recs);
+    let grid: study::SigmaGrid = "0.2,5".parse().unwrap();
+    let noise = noise();
+    let score = |test: &[&Recording], corr: (&KinematicErrors, &KinematicErrors)| {
+        study::held_out_nuisance_rows(&cell, test, corr, &noise)
+    };
+    let sets = [ParamSet::Offsets, ParamSet::OffsetsCompliance];
+    let c = cv::cross_validate(
+        &cell,
+        &self_recs,
+        &sets,
+        &grid,
+        &["self_upper", "self_lower"],
+        &noise,
+        cv::CvRule::OneSe,
+        &score,
+    )
+    .unwrap();
+    let specs: Vec<(ParamSet, f64)> = c.table.iter().map(|r| (r.spec.set, r.spec.sigma)).collect();
+    assert_eq!(
+        specs,
+        [
+            (ParamSet::Offsets, 0.2),
+            (ParamSet::Offsets, 5.0),
+            (ParamSet::OffsetsCompliance, 0.2),
+            (ParamSet::OffsetsCompliance, 5.0),
+        ]
+    );
+    assert_eq!(c.grid, grid);
+    assert!(grid.values().contains(&c.spec.sigma));
+    // One training fit per fold per candidate, each recorded with its contact distance.
+    for row in &c.table {
+        let folds: Vec<&str> = row.fold_fits.iter().map(|f| f.fold.as_str()).collect();
+        assert_eq!(folds, ["self_upper", "self_lower"]);
+        assert!(row
+            .fold_fits
+            .iter()
+            .all(|f| f.contact_distance_m.len() == 1));
+    }
+}
+
 /// A made-up CV error (rms, its standard error).
 fn cv(e: f64, se: f64) -> cv::CvError {
     cv::CvError { e, se }

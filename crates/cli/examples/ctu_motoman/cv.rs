@@ -15,12 +15,13 @@ use std::io::Write;
 use std::path::Path;
 
 use anyhow::Context;
+use calib_core::whole_cell::StopReason;
 use kinematics::KinematicErrors;
 use sim_cell::Cell;
 
 use crate::data::Recording;
 use crate::study::{
-    build_problem, corrections, fit, ModelSpec, NoiseLevels, ParamSet, RowKind, SIGMA_GRID,
+    build_problem, corrections, fit, ModelSpec, NoiseLevels, ParamSet, RowKind, SigmaGrid,
 };
 
 /// `--cv-rule`.
@@ -83,11 +84,28 @@ impl CvError {
     }
 }
 
+/// How one training fit of a CV fold ended (printed when it did not converge, so that a
+/// candidate whose fits misbehave is seen, not hidden behind its CV error).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FoldFit {
+    /// The held-out fold (the training set is every other recording).
+    pub fold: String,
+    /// Why the solver stopped.
+    pub stopped: StopReason,
+    /// Iterations used.
+    pub iterations: usize,
+    /// The fitted distance of each contact group of the training problem, m (a chain that
+    /// shrinks under a loose prior shows here first: the distance starts at about 116 mm).
+    pub contact_distance_m: Vec<f64>,
+}
+
 /// One candidate's row of the CV table.
 #[derive(Debug, Clone)]
 pub struct CvRow {
     /// The candidate.
     pub spec: ModelSpec,
+    /// The training fit of each fold, in fold order.
+    pub fold_fits: Vec<FoldFit>,
     /// Every held-out row of every kind pooled in one rms (stop 13's criterion).
     pub pooled: CvError,
     /// The CV error of each kind, in the order of [`Choice::kinds`].
@@ -100,6 +118,8 @@ pub struct CvRow {
 pub struct Choice {
     /// The rule that made the choices.
     pub rule: CvRule,
+    /// The prior σ grid the candidates were built from.
+    pub grid: SigmaGrid,
     /// The choice of the rule over every candidate (exported).
     pub spec: ModelSpec,
     /// The rule's choice among the candidates without compliance.
@@ -207,17 +227,23 @@ pub fn pooled_one_se(pooled: &[CvError]) -> Option<usize> {
         .position(|c| c.e <= pooled[min].e + pooled[min].se)
 }
 
-/// Grouped CV: for every spec, train on all recordings but one held-out group and score the
+/// One CV candidate's held-out rows and the training fit of each fold.
+type Evaluated = (HeldOutRows, Vec<FoldFit>);
+
+/// Grouped CV: for every spec (each of `sets` with each prior σ of `grid`), train on all
+/// recordings but one held-out group and score the
 /// held-out group with `score` (one (kind, squared error) per held-out scalar or point), over
 /// the groups; the criteria are the rms `e = sqrt(mean e²)` of every row (pooled) and of each
 /// kind's rows, each with standard error `SE = sd(e²) / (2·e·sqrt(n))` (delta method). The
 /// candidates are ordered simplest first (offsets before offsets + lengths, then the smaller
 /// prior σ) and `rule` picks one ([`per_kind_one_se`] by default), over every candidate and
 /// within the subsets without compliance, with compliance and with the marker centres.
+#[allow(clippy::too_many_arguments)]
 pub fn cross_validate(
     cell: &Cell,
     recs: &[&Recording],
     sets: &[ParamSet],
+    grid: &SigmaGrid,
     folds: &[&str],
     noise: &NoiseLevels,
     rule: CvRule,
@@ -225,10 +251,15 @@ pub fn cross_validate(
 ) -> anyhow::Result<Choice> {
     let specs: Vec<ModelSpec> = sets
         .iter()
-        .flat_map(|&set| SIGMA_GRID.map(|sigma| ModelSpec { set, sigma }))
+        .flat_map(|&set| {
+            grid.values()
+                .iter()
+                .map(move |&sigma| ModelSpec { set, sigma })
+        })
         .collect();
-    let evaluate = |spec: ModelSpec| -> anyhow::Result<HeldOutRows> {
+    let evaluate = |spec: ModelSpec| -> anyhow::Result<Evaluated> {
         let mut e2: HeldOutRows = Vec::new();
+        let mut fold_fits = Vec::with_capacity(folds.len());
         for fold in folds {
             let train: Vec<&Recording> = recs
                 .iter()
@@ -243,13 +274,19 @@ pub fn cross_validate(
             let b = build_problem(cell, &train, Some(spec), noise);
             let f = fit(&b, None, None)
                 .with_context(|| format!("CV fold {fold}, {} σ {}", spec.set.name(), spec.sigma))?;
+            fold_fits.push(FoldFit {
+                fold: fold.to_string(),
+                stopped: f.stopped,
+                iterations: f.iterations,
+                contact_distance_m: f.estimate.contact_distance_m.clone(),
+            });
             let (r, l) = corrections(&f);
             e2.extend(score(&test, (&r, &l))?);
         }
-        Ok(e2)
+        Ok((e2, fold_fits))
     };
     // Candidate k goes to thread k % CV_THREADS; the results are put back in candidate order.
-    let mut slots: Vec<Option<anyhow::Result<HeldOutRows>>> =
+    let mut slots: Vec<Option<anyhow::Result<Evaluated>>> =
         (0..specs.len()).map(|_| None).collect();
     std::thread::scope(|scope| {
         let handles: Vec<_> = (0..CV_THREADS)
@@ -279,10 +316,10 @@ pub fn cross_validate(
         k.dedup();
         k
     };
-    let kinds = kinds_of(rows.first().context("no CV candidate")?);
+    let kinds = kinds_of(&rows.first().context("no CV candidate")?.0);
     let mut table: Vec<CvRow> = Vec::with_capacity(specs.len());
-    for (spec, r) in specs.iter().zip(&rows) {
-        if kinds_of(r) != kinds {
+    for (spec, (r, fold_fits)) in specs.iter().zip(rows) {
+        if kinds_of(&r) != kinds {
             anyhow::bail!(
                 "CV candidate {} σ {}: its held-out rows have other kinds than the first \
                  candidate's (the folds must score the same rows for every candidate)",
@@ -300,6 +337,7 @@ pub fn cross_validate(
             .collect();
         table.push(CvRow {
             spec: *spec,
+            fold_fits,
             pooled: CvError::from_squares(&all),
             by_kind,
             qualifies: false,
@@ -347,6 +385,7 @@ pub fn cross_validate(
     }
     Ok(Choice {
         rule,
+        grid: grid.clone(),
         spec,
         without_compliance,
         with_compliance,
@@ -366,12 +405,14 @@ pub fn cross_validate(
 }
 
 /// Prints the CV table of `c`: the pooled criterion as a grid (rows: parameter sets, columns:
-/// prior σ; `*` the choice) and, with more than one observation kind, every candidate's error
-/// per kind with its SE and whether it qualifies under the per-kind rule (`+`).
+/// prior σ of `c.grid`; `*` the choice) and, with more than one observation kind, every
+/// candidate's error per kind with its SE and whether it qualifies under the per-kind rule
+/// (`+`); then the choice, naming the grid and whether it sits at the grid's edge, and every
+/// training fit that did not converge.
 pub fn print_cv(title: &str, unit: &str, sets: &[ParamSet], c: &Choice) {
     println!("{title}");
     print!("  {:<16}", "set \\ σ");
-    for s in SIGMA_GRID {
+    for s in c.grid.values() {
         print!(" {s:>8}");
     }
     println!();
@@ -425,12 +466,13 @@ pub fn print_cv(title: &str, unit: &str, sets: &[ParamSet], c: &Choice) {
         );
     }
     println!(
-        "  smallest {unit}{}: {} σ {} (SE {:.4}); chosen (*) by the {}: {} with σ = {} mrad / mm{}",
+        "  smallest {unit}{}: {} σ {} (SE {:.4}); chosen (*) by the {} over the σ grid {}: {} with σ = {} mrad / mm{}",
         if c.kinds.len() > 1 { " (pooled)" } else { "" },
         c.min_spec.set.name(),
         c.min_spec.sigma,
         c.min_se,
         c.rule.name(),
+        c.grid,
         c.spec.set.name(),
         c.spec.sigma,
         match c.shortfall {
@@ -458,6 +500,46 @@ pub fn print_cv(title: &str, unit: &str, sets: &[ParamSet], c: &Choice) {
             m.set.name(),
             m.sigma
         );
+    }
+    if let Some(edge) = grid_edge(c.grid.values(), c.spec.sigma) {
+        println!(
+            "  the chosen σ {} is the {edge} value of the grid {} (--sigma-grid measures beyond it)",
+            c.spec.sigma, c.grid
+        );
+    }
+    for row in &c.table {
+        for f in row
+            .fold_fits
+            .iter()
+            .filter(|f| f.stopped != StopReason::Converged)
+        {
+            println!(
+                "  NOT CONVERGED: {} σ {} trained without fold {}: {} after {} iterations; \
+                 contact distance {} mm",
+                row.spec.set.name(),
+                row.spec.sigma,
+                f.fold,
+                f.stopped.name(),
+                f.iterations,
+                f.contact_distance_m
+                    .iter()
+                    .map(|d| format!("{:.3}", d * 1e3))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+    }
+}
+
+/// `Some("smallest")` or `Some("largest")` when `sigma` is that end of `grid` (values
+/// increasing), else `None`.
+fn grid_edge(grid: &[f64], sigma: f64) -> Option<&'static str> {
+    if grid.last() == Some(&sigma) {
+        Some("largest")
+    } else if grid.first() == Some(&sigma) {
+        Some("smallest")
+    } else {
+        None
     }
 }
 

@@ -7,6 +7,7 @@ use std::io::Write;
 use std::path::Path;
 
 use anyhow::Context;
+use calib_core::whole_cell::StopReason;
 use kinematics::KinematicErrors;
 use sim_cell::Cell;
 
@@ -128,14 +129,24 @@ pub fn score_every_candidate(
     let leica = leica_contact_only(trackers);
     let leica_refs: Vec<&Recording> = leica.iter().collect();
     println!(
-        "DIAGNOSTIC (uses tracker scores, selects nothing): every `self` candidate fitted on all self-contact files; \
+        "DIAGNOSTIC (uses tracker scores, selects nothing): every `self` candidate (σ grid {}) fitted on all self-contact files; \
          files (of {}) where it beats nominal, pooled rms mm:",
+        choice.grid,
         trackers.len()
     );
     for row in &choice.table {
         let (spec, cv) = (&row.spec, row.pooled.e);
         let b = build_problem(cell, recs, Some(*spec), noise);
         let f = fit(&b, None, None)?;
+        if f.stopped != StopReason::Converged {
+            println!(
+                "  NOT CONVERGED: {} σ {} on all self-contact files: {} after {} iterations",
+                spec.set.name(),
+                spec.sigma,
+                f.stopped.name(),
+                f.iterations
+            );
+        }
         let (r, l) = corrections(&f);
         let (mut better, mut s2, mut n) = (0usize, 0.0, 0usize);
         write!(
@@ -162,10 +173,11 @@ pub fn score_every_candidate(
         let leica_rms = (e2.iter().sum::<f64>() / e2.len().max(1) as f64).sqrt() * noise.contact_m;
         writeln!(w, ",{better},{pooled:.4},{:.4}", leica_rms * 1e3)?;
         println!(
-            "  {:<16} σ {:<4} CV {cv:.4}: better on {better:>2}, pooled {pooled:.3}; leica_self contact rms {:.3}",
+            "  {:<16} σ {:<4} CV {cv:.4}: better on {better:>2}, pooled {pooled:.3}; leica_self contact rms {:.3}; fitted contact distance {:.3} mm",
             spec.set.name(),
             spec.sigma,
-            leica_rms * 1e3
+            leica_rms * 1e3,
+            f.estimate.contact_distance_m.first().copied().unwrap_or(f64::NAN) * 1e3
         );
     }
     println!("wrote {}", path.display());

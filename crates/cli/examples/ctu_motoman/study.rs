@@ -46,13 +46,104 @@ const SCORE_SIGMA_M: f64 = 2e-4;
 const COST_TOLERANCE: f64 = 1e-8;
 /// Seed of the half split of the honest score.
 pub const SPLIT_SEED: u64 = 12;
-/// The prior σ values cross-validation chooses from (mrad for offsets and mm for lengths).
+/// The default prior σ values cross-validation chooses from (mrad for offsets and mm for
+/// lengths; see [`COMPLIANCE_TORQUE_REF_NM`] for compliance), fixed in stop 9 before any
+/// evaluation score was seen; `--sigma-grid` ([`SigmaGrid`]) replaces it for a diagnostic run.
 ///
 /// 10 mrad / 10 mm is left out: with lengths free and no length reference (the contact distance
 /// and the planes are fitted), a loose prior lets the whole chain shrink — measured: the
 /// self + planes fit at σ = 10 stopped at the iteration cap with a contact distance of 61.5 mm
 /// and the arm 5–13 mm off on the tracker.
 pub const SIGMA_GRID: [f64; 4] = [0.1, 0.3, 1.0, 3.0];
+/// Fewest values a [`SigmaGrid`] holds: two, or there is nothing to choose.
+pub const SIGMA_GRID_MIN_LEN: usize = 2;
+/// Most values a [`SigmaGrid`] holds: each value adds one candidate per parameter set (6 sets
+/// for `self` and `planes`, 4 for `all`), each fitted once per fold, so 8 values double the
+/// study's CV cost.
+pub const SIGMA_GRID_MAX_LEN: usize = 8;
+
+/// The prior σ values cross-validation chooses from (`--sigma-grid`): between
+/// [`SIGMA_GRID_MIN_LEN`] and [`SIGMA_GRID_MAX_LEN`] positive, finite, strictly increasing
+/// values, one number `s` each (`s` mrad for joint offsets, `s` mm for joint origin positions,
+/// `s` mrad of deflection at [`COMPLIANCE_TORQUE_REF_NM`] for compliance). The default is
+/// [`SIGMA_GRID`]. Parsed from and displayed as a comma-separated list (`0.1,0.3,1,3`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SigmaGrid(Vec<f64>);
+
+impl SigmaGrid {
+    /// The values, strictly increasing.
+    pub fn values(&self) -> &[f64] {
+        &self.0
+    }
+
+    /// Whether this is the default grid [`SIGMA_GRID`].
+    pub fn is_default(&self) -> bool {
+        self.0 == SIGMA_GRID
+    }
+}
+
+impl Default for SigmaGrid {
+    fn default() -> Self {
+        SigmaGrid(SIGMA_GRID.to_vec())
+    }
+}
+
+impl std::fmt::Display for SigmaGrid {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let text: Vec<String> = self.0.iter().map(|s| s.to_string()).collect();
+        write!(f, "{}", text.join(","))
+    }
+}
+
+impl std::str::FromStr for SigmaGrid {
+    type Err = String;
+
+    /// Parses a comma-separated list (spaces around values allowed). Fails, with a message
+    /// naming `--sigma-grid` and the fix, on an empty entry, a non-number, a value that is not
+    /// positive and finite, a value not larger than the one before, or a count outside
+    /// [`SIGMA_GRID_MIN_LEN`]`..=`[`SIGMA_GRID_MAX_LEN`].
+    fn from_str(list: &str) -> Result<Self, Self::Err> {
+        let fix = format!(
+            "give {SIGMA_GRID_MIN_LEN} to {SIGMA_GRID_MAX_LEN} positive, finite, strictly \
+             increasing prior σ values (mrad / mm) separated by commas, e.g. --sigma-grid \
+             0.1,0.3,1,3,10 (default {})",
+            SigmaGrid::default()
+        );
+        let mut values: Vec<f64> = Vec::new();
+        for (i, item) in list.split(',').enumerate() {
+            let item = item.trim();
+            let v: f64 = item.parse().map_err(|_| {
+                format!(
+                    "--sigma-grid {list:?}: value {} {item:?} is not a number; {fix}",
+                    i + 1
+                )
+            })?;
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!(
+                    "--sigma-grid {list:?}: value {} ({item}) is not positive and finite; {fix}",
+                    i + 1
+                ));
+            }
+            if let Some(&prev) = values.last() {
+                if v <= prev {
+                    return Err(format!(
+                        "--sigma-grid {list:?}: value {} ({item}) is not larger than the one \
+                         before ({prev}); {fix}",
+                        i + 1
+                    ));
+                }
+            }
+            values.push(v);
+        }
+        if !(SIGMA_GRID_MIN_LEN..=SIGMA_GRID_MAX_LEN).contains(&values.len()) {
+            return Err(format!(
+                "--sigma-grid {list:?}: {} value(s); {fix}",
+                values.len()
+            ));
+        }
+        Ok(SigmaGrid(values))
+    }
+}
 /// Torque that scales the compliance prior, N·m: a spec's σ `s` is `s` mrad of deflection at
 /// this torque, i.e. a compliance prior σ of `s·1e-3 / 50` rad/(N·m). 50 N·m is about the
 /// largest gravity torque about U of the URDFs' point masses (10 kg at the wrist centre, 0.64 m
@@ -710,5 +801,59 @@ pub fn summarise(errors_m: &[f64]) -> Summary {
         median_mm: quantile(&s, 0.5),
         p95_mm: quantile(&s, 0.95),
         max_mm: s.last().copied().unwrap_or(f64::NAN),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sigma_grid_parses_good_lists_and_round_trips_through_its_display() {
+        let g: SigmaGrid = "0.1,0.3,1,3".parse().unwrap();
+        assert_eq!(g, SigmaGrid::default());
+        assert!(g.is_default());
+        assert_eq!(g.to_string(), "0.1,0.3,1,3");
+        assert_eq!(g.to_string().parse::<SigmaGrid>().unwrap(), g);
+        let g: SigmaGrid = " 0.1, 0.3 ,1,3,1e1".parse().unwrap();
+        assert_eq!(g.values(), [0.1, 0.3, 1.0, 3.0, 10.0]);
+        assert!(!g.is_default());
+        assert_eq!(g.to_string(), "0.1,0.3,1,3,10");
+        // The length limits are inclusive.
+        assert_eq!("0.5,2".parse::<SigmaGrid>().unwrap().values().len(), 2);
+        let eight = "1,2,3,4,5,6,7,8".parse::<SigmaGrid>().unwrap();
+        assert_eq!(eight.values().len(), SIGMA_GRID_MAX_LEN);
+    }
+
+    #[test]
+    fn sigma_grid_refuses_bad_lists_naming_the_flag_and_the_fix() {
+        for (list, why) in [
+            ("", "not a number"),
+            ("3", "1 value(s)"),
+            ("0.1,,3", "value 2 \"\" is not a number"),
+            ("0.1,x,3", "value 2 \"x\" is not a number"),
+            ("0,1,3", "value 1 (0) is not positive"),
+            ("-1,1,3", "value 1 (-1) is not positive"),
+            ("0.1,inf", "value 2 (inf) is not positive and finite"),
+            ("0.1,NaN", "value 2 (NaN) is not positive and finite"),
+            (
+                "0.1,3,1",
+                "value 3 (1) is not larger than the one before (3)",
+            ),
+            (
+                "0.1,1,1",
+                "value 3 (1) is not larger than the one before (1)",
+            ),
+            ("1,2,3,4,5,6,7,8,9", "9 value(s)"),
+        ] {
+            let e = list.parse::<SigmaGrid>().unwrap_err();
+            assert!(e.starts_with("--sigma-grid "), "{list:?}: {e}");
+            assert!(e.contains(why), "{list:?}: {e}");
+            assert!(
+                e.contains("give 2 to 8 positive, finite, strictly increasing"),
+                "{list:?}: {e}"
+            );
+            assert!(e.contains("(default 0.1,0.3,1,3)"), "{list:?}: {e}");
+        }
     }
 }
