@@ -32,6 +32,7 @@ mod plot;
 mod proxy;
 mod proxy_report;
 mod scores;
+mod splits;
 mod study;
 
 use std::path::{Path, PathBuf};
@@ -108,6 +109,12 @@ struct Args {
     /// (CV, the tracker selection, export, scores) runs unchanged on these rows.
     #[arg(long, value_enum, default_value_t = ContactModel::Distance)]
     contact_model: ContactModel,
+    /// How many seeded random half splits of every tracker file the exported models are also
+    /// scored over (`DIR/split_robustness.csv`; split 0 is the score table's split). Reporting
+    /// only: it chooses nothing.
+    #[arg(long, default_value_t = splits::DEFAULT_SPLITS,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+    splits: usize,
 }
 
 /// `--contact-model`.
@@ -517,6 +524,11 @@ fn run(args: Args) -> anyhow::Result<()> {
     let (rows, per_pose) = score_models(&cell, &models, &trackers)?;
     let names: Vec<&str> = models.iter().map(|m| m.0.as_str()).collect();
     print_scores(&rows, &trackers, &names);
+    let exported = splits::exported_folders(
+        &args.out,
+        &[("self", cal_self), ("planes", cal_planes), ("all", &cal_all)],
+    )?;
+    splits::print_exported(&exported);
     print_selection_split(
         &rows,
         &trackers,
@@ -546,7 +558,10 @@ fn run(args: Args) -> anyhow::Result<()> {
         &trackers,
         &names,
         &cal_self.chosen.name,
+        &exported,
     )?;
+    splits::split_robustness(&cell, &models, &trackers, &exported, args.splits, &args.out)?;
+    println!("split robustness done at {:.1} s", t0.elapsed().as_secs_f64());
     let reference = corrections(&cal_all.chosen.fit).0;
     let mut compared: Vec<(String, KinematicErrors)> = vec![("nominal".into(), zero.clone())];
     for c in [cal_self, cal_planes] {
