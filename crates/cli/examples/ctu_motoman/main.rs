@@ -11,8 +11,9 @@
 //! candidates with L/U gravity compliance, same files but cv.csv), `DIR/{self,planes}+m/` (the
 //! choice among the candidates with the marker centres), `DIR/scores.csv`,
 //! `DIR/scores_per_file.svg`, `DIR/residual_vs_joint.svg`, `DIR/contact_pairs.{csv,svg}` (the
-//! self-contacts' face pairs), `DIR/proxy.csv` (the hidden-set proxy, model vs model) and, with
-//! `--score-every-self-candidate`, `DIR/self_candidates.csv`. Method and findings:
+//! self-contacts' face pairs), `DIR/proxy.csv` (the hidden-set proxy, model vs model),
+//! `DIR/split_robustness{,_per_split}.csv` (the exported models over `--splits` random half
+//! splits) and, with `--score-every-self-candidate`, `DIR/self_candidates.csv`. Method and findings:
 //! docs/ctu-motoman-findings.md (sections "Rust study" and "Contact geometry, the headline
 //! target and a hidden-set proxy").
 //!
@@ -20,8 +21,8 @@
 //! what order, which models are scored and compared. Reading the dataset is `data`, the fits and
 //! the scoring protocol are `study`, the cross-validated choice is `cv`, fitting and exporting a
 //! calibrated model is `calibrated`, the face-contact geometry is `contact` and its report
-//! `contact_report`, the tracker score table is `scores`, the proxy set is `proxy` and its report
-//! `proxy_report`, the figures are `plot`.
+//! `contact_report`, the tracker score table is `scores`, its spread over random half splits
+//! `splits`, the proxy set is `proxy` and its report `proxy_report`, the figures are `plot`.
 
 mod calibrated;
 mod contact;
@@ -526,7 +527,11 @@ fn run(args: Args) -> anyhow::Result<()> {
     print_scores(&rows, &trackers, &names);
     let exported = splits::exported_folders(
         &args.out,
-        &[("self", cal_self), ("planes", cal_planes), ("all", &cal_all)],
+        &[
+            ("self", cal_self),
+            ("planes", cal_planes),
+            ("all", &cal_all),
+        ],
     )?;
     splits::print_exported(&exported);
     print_selection_split(
@@ -561,7 +566,10 @@ fn run(args: Args) -> anyhow::Result<()> {
         &exported,
     )?;
     splits::split_robustness(&cell, &models, &trackers, &exported, args.splits, &args.out)?;
-    println!("split robustness done at {:.1} s", t0.elapsed().as_secs_f64());
+    println!(
+        "split robustness done at {:.1} s",
+        t0.elapsed().as_secs_f64()
+    );
     let reference = corrections(&cal_all.chosen.fit).0;
     let mut compared: Vec<(String, KinematicErrors)> = vec![("nominal".into(), zero.clone())];
     for c in [cal_self, cal_planes] {

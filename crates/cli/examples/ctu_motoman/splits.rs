@@ -41,9 +41,10 @@ pub fn candidate_seed(j: usize) -> u64 {
     SPLIT_SEED.wrapping_add((j as u64).wrapping_mul(SEED_STEP))
 }
 
-/// The half holding row 0 of the split of `n` rows with seed `seed`: it names the partition
-/// (the protocol scores both ways, so halves A/B and B/A are the same split).
-fn partition_key(n: usize, seed: u64) -> Vec<usize> {
+/// The half holding row 0 of the split of `n` rows with seed `seed` (row indices, ascending):
+/// it names the partition (the protocol scores both ways, so halves A/B and B/A are the same
+/// split).
+pub fn partition_key(n: usize, seed: u64) -> Vec<usize> {
     let (a, b) = halves(n, seed);
     if a.first() == Some(&0) {
         a
@@ -174,7 +175,12 @@ pub fn score_splits(
         for _ in models {
             let mut per_split = Vec::with_capacity(k);
             for _ in 0..k {
-                per_split.push(values.next().flatten().context("a split was not scored")??);
+                per_split.push(
+                    values
+                        .next()
+                        .flatten()
+                        .context("a split was not scored")??,
+                );
             }
             file.rms_mm.push(per_split);
         }
@@ -233,11 +239,7 @@ impl SplitTable {
         let nom = self.model("nominal")?;
         let k = self.files.first().map_or(0, |f| f.seeds.len());
         let every_file_wins = (0..k)
-            .filter(|&s| {
-                self.files
-                    .iter()
-                    .all(|f| f.rms_mm[m][s] < f.rms_mm[nom][s])
-            })
+            .filter(|&s| self.files.iter().all(|f| f.rms_mm[m][s] < f.rms_mm[nom][s]))
             .count();
         let mut mean_below_everywhere = true;
         for f in 0..self.files.len() {
