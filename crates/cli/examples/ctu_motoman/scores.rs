@@ -286,8 +286,8 @@ pub fn print_selection_split(
     }
 }
 
-/// Writes the score rows (n, rms, median, p95, max in mm, and the folders the row's model was
-/// exported to, `;`-separated, empty when none) to `path`.
+/// Writes the score rows (n, rms, median, p95, max in mm, and the folder the row's model was
+/// exported to, empty when none: [`crate::splits::exported_column`]) to `path`.
 fn write_scores(
     path: &Path,
     rows: &[ScoreRow],

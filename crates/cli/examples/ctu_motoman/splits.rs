@@ -22,9 +22,10 @@ use crate::data::Recording;
 use crate::study::{halves, score_recording_split, summarise, SPLIT_SEED};
 
 /// Default of `--splits`: the number of random half splits per tracker file. 50, not 100:
-/// measured, 100 splits of the 8 scored models cost 18 s of CPU (15 s wall on the 2 shared
-/// cores, the example's whole run 49 s instead of 34 s); 50 halve that. A count k of 50 has a
-/// binomial standard error of at most 7 points in 100; `--splits 100` for finer counts.
+/// measured, 100 splits of the 8 scored models cost 16–18 s of CPU, 7.5 s wall at load 1.8 and
+/// 15 s at load 2.5 on the 2 shared cores (the whole run 29 s and 49 s, against 21 s without
+/// them); 50 splits cost 4 s wall at load 1.8. A count k of 50 has a binomial standard error of
+/// at most 7 points in 100; `--splits 100` for finer counts.
 pub const DEFAULT_SPLITS: usize = 50;
 /// Threads over which the (file, model, split) scores are spread. Each score is independent and
 /// the results are put back in a fixed order, so the result does not depend on this number.
@@ -287,12 +288,24 @@ pub fn exported_folders(
     Ok(rows)
 }
 
-/// The `exported` column of a score-table row `model`: its folders joined by `;`, or empty.
+/// The `exported` column of a score-table row `model`: the folder it was exported to, or empty.
+/// A row exported twice (`self+c`, the chosen `self/` and the compliance export `self+c/`) gets
+/// the first, the chosen model's folder, so that the column names one folder, as
+/// `tools/ctu-motoman/score_fk.py` reads it; the printed footnote ([`print_exported`]) lists both.
 pub fn exported_column(exported: &[(String, Vec<String>)], model: &str) -> String {
     exported
         .iter()
         .find(|r| r.0 == model)
-        .map(|r| r.1.join(";"))
+        .and_then(|r| r.1.first().cloned())
+        .unwrap_or_default()
+}
+
+/// Every folder the row `model` was exported to, `, `-separated (empty when none).
+fn exported_list(exported: &[(String, Vec<String>)], model: &str) -> String {
+    exported
+        .iter()
+        .find(|r| r.0 == model)
+        .map(|r| r.1.join(", "))
         .unwrap_or_default()
 }
 
@@ -303,7 +316,8 @@ pub fn print_exported(exported: &[(String, Vec<String>)]) {
         .flat_map(|(row, folders)| folders.iter().map(move |f| format!("{f}/ = {row}")))
         .collect();
     println!(
-        "  exported folders (column `exported` of scores.csv; the other columns were not exported): {}",
+        "  exported: {} (scores.csv column `exported` holds each row's first folder; the other \
+         columns were not exported)",
         list.join(", ")
     );
 }
@@ -338,13 +352,13 @@ pub fn split_robustness(
     let nom = table.model("nominal")?;
     let mut verdicts = Vec::new();
     for (m, (name, _, _, held_out)) in chosen.iter().map(|c| &**c).enumerate() {
-        let folders = exported_column(exported, name);
+        let folders = exported_list(exported, name);
         println!(
             "  {name}{}{}:",
             if folders.is_empty() {
                 String::new()
             } else {
-                format!(" (exported as {})", folders.replace(';', ", "))
+                format!(" (exported as {})", folders)
             },
             if *held_out {
                 ""
@@ -372,13 +386,14 @@ pub fn split_robustness(
     for (name, folders, v) in &verdicts {
         println!(
             "    {name:<10} {:<16} beats nominal on every file in {:>3} of {k} splits; mean rms over splits below nominal's on every file: {}",
-            if folders.is_empty() { "".to_string() } else { format!("({})", folders.replace(';', ", ")) },
+            if folders.is_empty() { "".to_string() } else { format!("({})", folders) },
             v.every_file_wins,
             if v.mean_below_everywhere { "yes" } else { "no" }
         );
     }
     println!(
-        "  (\"better than nominal on N of {} files\" in the table above is split 0 alone)",
+        "  (\"better than nominal on N of {} files\" from the table above is ONE draw, split 0; the \
+         small files decide it by their split)",
         table.files.len()
     );
     write_robustness(out, &table, &chosen, exported)?;
