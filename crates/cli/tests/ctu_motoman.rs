@@ -613,3 +613,105 @@ fn cv_error_is_the_rms_with_its_delta_method_standard_error() {
     assert!((c.e - e).abs() < ROUND_OFF_TOL);
     assert!((c.se - 43.0f64.sqrt() / (2.0 * e * 2.0)).abs() < ROUND_OFF_TOL);
 }
+
+// --- How much one split decides (`splits.rs`): the exported models over K half splits.
+
+#[path = "../examples/ctu_motoman/calibrated.rs"]
+#[allow(dead_code)]
+mod calibrated;
+#[path = "../examples/ctu_motoman/splits.rs"]
+#[allow(dead_code)]
+mod splits;
+
+/// The tracker files of the split tests: the smallest (16 rows, 6435 partitions) and an odd one
+/// (23 rows).
+const SPLIT_TEST_FILES: [&str; 2] = ["leica_self_upper1_4x4", "leica_lower_table1_5x5"];
+
+/// A made-up right-arm correction (+1 mrad on L, −0.5 mrad on U): a model other than nominal,
+/// no fit needed.
+fn made_up_correction() -> KinematicErrors {
+    let mut e = KinematicErrors::zero(6);
+    e.set(kinematics::ErrorParam::JointOffset { joint: 1 }, 1e-3);
+    e.set(kinematics::ErrorParam::JointOffset { joint: 2 }, -0.5e-3);
+    e
+}
+
+#[test]
+fn split_zero_of_the_split_scores_is_the_score_tables_figure() {
+    let Some((recs, cell)) = dataset_and_cell() else {
+        return;
+    };
+    let trackers: Vec<&Recording> = SPLIT_TEST_FILES
+        .iter()
+        .map(|n| recs.iter().find(|r| r.name == *n).unwrap())
+        .collect();
+    let (zero, made_up) = (KinematicErrors::zero(6), made_up_correction());
+    let models = [("nominal", &zero, &zero), ("made_up", &made_up, &zero)];
+    let table = splits::score_splits(&cell, &models, &trackers, 3, 2).unwrap();
+    for (file, rec) in table.files.iter().zip(&trackers) {
+        assert_eq!(file.seeds[0], study::SPLIT_SEED, "{}", file.file);
+        for (m, (name, right, left)) in models.iter().enumerate() {
+            // The score table's figure: `score_models` is `summarise(score_recording(…))`.
+            let s = score_recording(&cell, rec, (right, left), None).unwrap();
+            let rms = summarise(&s.iter().map(|p| p.error_m).collect::<Vec<_>>()).rms_mm;
+            assert_eq!(file.rms_mm[m][0], rms, "{} {name}", file.file);
+        }
+    }
+}
+
+#[test]
+fn split_scores_are_identical_over_runs_and_thread_counts_and_differ_between_splits() {
+    let Some((recs, cell)) = dataset_and_cell() else {
+        return;
+    };
+    let trackers: Vec<&Recording> = SPLIT_TEST_FILES
+        .iter()
+        .map(|n| recs.iter().find(|r| r.name == *n).unwrap())
+        .collect();
+    let (zero, made_up) = (KinematicErrors::zero(6), made_up_correction());
+    let models = [("nominal", &zero, &zero), ("made_up", &made_up, &zero)];
+    let k = 4;
+    let one = splits::score_splits(&cell, &models, &trackers, k, 1).unwrap();
+    let again = splits::score_splits(&cell, &models, &trackers, k, 1).unwrap();
+    let three = splits::score_splits(&cell, &models, &trackers, k, 3).unwrap();
+    assert_eq!(one, again, "two runs");
+    assert_eq!(one, three, "1 vs 3 threads");
+    // Each split is another draw: every file and model has k different figures.
+    for file in &one.files {
+        for (m, v) in file.rms_mm.iter().enumerate() {
+            assert_eq!(v.len(), k);
+            let mut bits: Vec<u64> = v.iter().map(|x| x.to_bits()).collect();
+            bits.sort_unstable();
+            bits.dedup();
+            assert_eq!(bits.len(), k, "{} model {m}: {v:?}", file.file);
+        }
+    }
+    let s = one.summary(0, 1).unwrap();
+    assert!(s.min_mm <= s.mean_mm && s.mean_mm <= s.max_mm, "{s:?}");
+}
+
+#[test]
+fn split_seeds_give_distinct_partitions_and_start_at_the_score_tables_split() {
+    // 16 rows have C(16, 8)/2 = 6435 partitions: 1000 free draws repeat some (so the skip is
+    // needed), the 1000 seeds of `split_seeds` never do.
+    let (n, k) = (16, 1000);
+    let seeds = splits::split_seeds(n, k).unwrap();
+    assert_eq!(seeds.len(), k);
+    assert_eq!(seeds[0], study::SPLIT_SEED);
+    let keys: std::collections::HashSet<Vec<usize>> =
+        seeds.iter().map(|&s| splits::partition_key(n, s)).collect();
+    assert_eq!(keys.len(), k, "distinct partitions");
+    let free: std::collections::HashSet<Vec<usize>> = (0..k)
+        .map(|j| splits::partition_key(n, splits::candidate_seed(j)))
+        .collect();
+    assert!(free.len() < k, "free draws repeated no partition");
+    // The key names the partition whichever half holds row 0.
+    let (a, b) = study::halves(n, seeds[1]);
+    let key = splits::partition_key(n, seeds[1]);
+    assert!(key == a || key == b);
+    assert_eq!(key[0], 0);
+    // 4 rows have only 3 partitions; 1 row has none.
+    let e = splits::split_seeds(4, 4).unwrap_err().to_string();
+    assert!(e.contains("only 3 distinct half splits"), "{e}");
+    assert!(splits::split_seeds(1, 1).is_err());
+}

@@ -11,8 +11,9 @@
 //! candidates with L/U gravity compliance, same files but cv.csv), `DIR/{self,planes}+m/` (the
 //! choice among the candidates with the marker centres), `DIR/scores.csv`,
 //! `DIR/scores_per_file.svg`, `DIR/residual_vs_joint.svg`, `DIR/contact_pairs.{csv,svg}` (the
-//! self-contacts' face pairs), `DIR/proxy.csv` (the hidden-set proxy, model vs model) and, with
-//! `--score-every-self-candidate`, `DIR/self_candidates.csv`. Method and findings:
+//! self-contacts' face pairs), `DIR/proxy.csv` (the hidden-set proxy, model vs model),
+//! `DIR/split_robustness{,_per_split}.csv` (the exported models over `--splits` random half
+//! splits) and, with `--score-every-self-candidate`, `DIR/self_candidates.csv`. Method and findings:
 //! docs/ctu-motoman-findings.md (sections "Rust study" and "Contact geometry, the headline
 //! target and a hidden-set proxy").
 //!
@@ -20,8 +21,8 @@
 //! what order, which models are scored and compared. Reading the dataset is `data`, the fits and
 //! the scoring protocol are `study`, the cross-validated choice is `cv`, fitting and exporting a
 //! calibrated model is `calibrated`, the face-contact geometry is `contact` and its report
-//! `contact_report`, the tracker score table is `scores`, the proxy set is `proxy` and its report
-//! `proxy_report`, the figures are `plot`.
+//! `contact_report`, the tracker score table is `scores`, its spread over random half splits
+//! `splits`, the proxy set is `proxy` and its report `proxy_report`, the figures are `plot`.
 
 mod calibrated;
 mod contact;
@@ -32,6 +33,7 @@ mod plot;
 mod proxy;
 mod proxy_report;
 mod scores;
+mod splits;
 mod study;
 
 use std::path::{Path, PathBuf};
@@ -120,6 +122,12 @@ struct Args {
     /// (CV, the tracker selection, export, scores) runs unchanged on these rows.
     #[arg(long, value_enum, default_value_t = ContactModel::Distance)]
     contact_model: ContactModel,
+    /// How many seeded random half splits of every tracker file the exported models are also
+    /// scored over (`DIR/split_robustness.csv`; split 0 is the score table's split). Reporting
+    /// only: it chooses nothing.
+    #[arg(long, default_value_t = splits::DEFAULT_SPLITS,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
+    splits: usize,
 }
 
 /// `--contact-model`.
@@ -552,6 +560,15 @@ fn run(args: Args) -> anyhow::Result<()> {
     let (rows, per_pose) = score_models(&cell, &models, &trackers)?;
     let names: Vec<&str> = models.iter().map(|m| m.0.as_str()).collect();
     print_scores(&rows, &trackers, &names);
+    let exported = splits::exported_folders(
+        &args.out,
+        &[
+            ("self", cal_self),
+            ("planes", cal_planes),
+            ("all", &cal_all),
+        ],
+    )?;
+    splits::print_exported(&exported);
     print_selection_split(
         &rows,
         &trackers,
@@ -581,7 +598,13 @@ fn run(args: Args) -> anyhow::Result<()> {
         &trackers,
         &names,
         &cal_self.chosen.name,
+        &exported,
     )?;
+    splits::split_robustness(&cell, &models, &trackers, &exported, args.splits, &args.out)?;
+    println!(
+        "split robustness done at {:.1} s",
+        t0.elapsed().as_secs_f64()
+    );
     let reference = corrections(&cal_all.chosen.fit).0;
     let mut compared: Vec<(String, KinematicErrors)> = vec![("nominal".into(), zero.clone())];
     for c in [cal_self, cal_planes] {

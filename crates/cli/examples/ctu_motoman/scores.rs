@@ -15,6 +15,7 @@ use crate::contact_report::leica_contact_only;
 use crate::cv::Choice;
 use crate::data::Recording;
 use crate::plot;
+use crate::splits::exported_column;
 use crate::study::{
     build_problem, corrections, fit, held_out_nuisance_cost, score_recording, summarise,
     NoiseLevels, ScoredPose, Summary,
@@ -74,8 +75,10 @@ pub fn score_models(
     Ok((rows, per_pose))
 }
 
-/// Writes `out/scores.csv` and the figures `out/scores_per_file.svg` (rms per file of `names`)
-/// and `out/residual_vs_joint.svg` (residual against each joint angle, nominal vs `self_name`).
+/// Writes `out/scores.csv` (its `exported` column from `exported`, see
+/// [`crate::splits::exported_folders`]) and the figures `out/scores_per_file.svg` (rms per file
+/// of `names`) and `out/residual_vs_joint.svg` (residual against each joint angle, nominal vs
+/// `self_name`).
 pub fn write_score_files(
     out: &Path,
     rows: &[ScoreRow],
@@ -83,8 +86,9 @@ pub fn write_score_files(
     trackers: &[&Recording],
     names: &[&str],
     self_name: &str,
+    exported: &[(String, Vec<String>)],
 ) -> anyhow::Result<()> {
-    write_scores(&out.join("scores.csv"), rows)?;
+    write_scores(&out.join("scores.csv"), rows, exported)?;
     plot::per_file_svg(
         &out.join("scores_per_file.svg"),
         &rows_for_plot(rows, trackers, names),
@@ -294,19 +298,33 @@ pub fn print_selection_split(
     }
 }
 
-/// Writes the score rows (n, rms, median, p95, max in mm) to `path`.
-fn write_scores(path: &Path, rows: &[ScoreRow]) -> anyhow::Result<()> {
+/// Writes the score rows (n, rms, median, p95, max in mm, and the folder the row's model was
+/// exported to, empty when none: [`crate::splits::exported_column`]) to `path`.
+fn write_scores(
+    path: &Path,
+    rows: &[ScoreRow],
+    exported: &[(String, Vec<String>)],
+) -> anyhow::Result<()> {
     let mut w = std::fs::File::create(path).with_context(|| format!("{}", path.display()))?;
     writeln!(
         w,
-        "file,arm,model,kinematics_held_out,n,rms_mm,median_mm,p95_mm,max_mm"
+        "file,arm,model,kinematics_held_out,n,rms_mm,median_mm,p95_mm,max_mm,exported"
     )?;
     for r in rows {
         let s = r.summary;
         writeln!(
             w,
-            "{},{},{},{},{},{:.4},{:.4},{:.4},{:.4}",
-            r.file, r.arm, r.model, r.held_out, s.n, s.rms_mm, s.median_mm, s.p95_mm, s.max_mm
+            "{},{},{},{},{},{:.4},{:.4},{:.4},{:.4},{}",
+            r.file,
+            r.arm,
+            r.model,
+            r.held_out,
+            s.n,
+            s.rms_mm,
+            s.median_mm,
+            s.p95_mm,
+            s.max_mm,
+            exported_column(exported, &r.model)
         )?;
     }
     Ok(())

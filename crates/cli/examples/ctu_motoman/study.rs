@@ -738,6 +738,18 @@ pub fn score_recording(
     corr: (&KinematicErrors, &KinematicErrors),
     local_sigma: Option<f64>,
 ) -> anyhow::Result<Vec<ScoredPose>> {
+    score_recording_split(cell, rec, corr, local_sigma, SPLIT_SEED)
+}
+
+/// [`score_recording`] with the half split of seed `split_seed` ([`halves`] of the recording's
+/// tracker rows) instead of [`SPLIT_SEED`]: the same protocol on another random split.
+pub fn score_recording_split(
+    cell: &Cell,
+    rec: &Recording,
+    corr: (&KinematicErrors, &KinematicErrors),
+    local_sigma: Option<f64>,
+    split_seed: u64,
+) -> anyhow::Result<Vec<ScoredPose>> {
     let noise = NoiseLevels {
         contact_m: SCORE_SIGMA_M,
         marker_contact_m: None,
@@ -755,7 +767,7 @@ pub fn score_recording(
     });
     let b = build_problem(cell, &[&tracker_only], spec, &noise);
     let n = b.problem.observations.len();
-    let (ha, hb) = halves(n, SPLIT_SEED);
+    let (ha, hb) = halves(n, split_seed);
     let mut out = Vec::new();
     for (train, test) in [(&ha, &hb), (&hb, &ha)] {
         let f =
