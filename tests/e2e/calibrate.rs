@@ -241,6 +241,26 @@ fn calibrate_bad_input_names_row_and_fix() {
     // Missing file.
     let e = run_err(&["calibrate", "/nonexistent/points.csv"]);
     assert!(e.contains("/nonexistent/points.csv"), "{e}");
+    // The operating system's reason is said once. Regression (stop 16): a library error that
+    // names its I/O error in its text and also returns it as its source printed it twice.
+    let cell = crate::support::shipped_cell("floor-wall");
+    let e = run_err(&[
+        "calibrate",
+        "--cell",
+        cell.to_str().unwrap(),
+        "--session",
+        "/nonexistent/session.csv",
+    ]);
+    assert!(e.contains("/nonexistent/session.csv"), "{e}");
+    assert_eq!(e.matches("os error").count(), 1, "{e}");
+    let e = run_err(&[
+        "fk",
+        "--robot",
+        "/nonexistent/r.urdf",
+        "--q-deg",
+        "0,0,0,0,0,0",
+    ]);
+    assert_eq!(e.matches("os error").count(), 1, "{e}");
 }
 
 /// A floor–floor cell whose robot 2 stands 0.4° tilted: the soft mount estimates the tilt and

@@ -205,15 +205,21 @@ fn kinematic_model_beats_placement_and_exports_verified_urdfs() {
     let before = std::fs::read_to_string(out_k.join("cell.toml")).unwrap();
     again.push("--force".into());
     let forced = handclasp(&again);
-    assert!(
-        forced.status.success(),
-        "{}",
-        String::from_utf8_lossy(&forced.stderr)
-    );
+    let forced_err = String::from_utf8_lossy(&forced.stderr);
+    assert!(forced.status.success(), "{forced_err}");
     assert_eq!(
         std::fs::read_to_string(out_k.join("cell.toml")).unwrap(),
         before
     );
+    // The input cell's [robotN.errors] (this simulation's truth) are named as not used.
+    for r in [1, 2] {
+        assert!(
+            forced_err.contains(&format!(
+                "[robot{r}.errors] holds joint_offset, origin_xyz terms, which calibrate --cell does not use"
+            )),
+            "{forced_err}"
+        );
+    }
 
     // `handclasp diagnose` takes the exported cell (with a session recorded on it: the old
     // session's tip columns are the old models' and fail its consistency check by design).
@@ -226,6 +232,16 @@ fn kinematic_model_beats_placement_and_exports_verified_urdfs() {
         &["--trials", "20", "--json"],
     ));
     assert_success(&out);
+    // The exported cell keeps nothing in [robotN.errors] here, so calibrating with it notes nothing.
+    let recal = handclasp(&cell_session_args(
+        "calibrate",
+        &out_k.join("cell.toml"),
+        &s2_path,
+        &["--json"],
+    ));
+    let recal_err = String::from_utf8_lossy(&recal.stderr);
+    assert!(recal.status.success(), "{recal_err}");
+    assert!(!recal_err.contains("does not use"), "{recal_err}");
 
     // Cooperative accuracy against the truth, over 400 held-out configuration pairs.
     let rms_k = cooperative_rms_mm(&cal_k, &truth, &held_out);

@@ -67,6 +67,25 @@ impl ModelArg {
     }
 }
 
+/// The kinds of the non-zero `[robotN.errors]` terms of each robot of `cell` (catalogue order,
+/// e.g. `["joint_offset", "compliance"]`), for robots that have any: the whole-cell fit starts
+/// from the URDFs and tips and does not use them.
+fn unused_error_terms(cell: &Cell) -> Vec<(calib_core::Robot, Vec<&'static str>)> {
+    [calib_core::Robot::One, calib_core::Robot::Two]
+        .into_iter()
+        .filter_map(|robot| {
+            let errors = &cell.robot(robot).errors;
+            let mut kinds: Vec<&'static str> = Vec::new();
+            for p in kinematics::all_params(errors.dof()) {
+                if errors.get(p) != 0.0 && !kinds.contains(&p.kind_name()) {
+                    kinds.push(p.kind_name());
+                }
+            }
+            (!kinds.is_empty()).then_some((robot, kinds))
+        })
+        .collect()
+}
+
 /// Runs the whole-cell calibration (`args.cell` is `Some`).
 pub fn run(args: Args) -> anyhow::Result<()> {
     let (Some(cell_path), Some(session_path)) = (&args.cell, &args.session) else {
@@ -78,6 +97,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let cell = Cell::from_toml_file(cell_path)?;
     if args.verbose {
         crate::fk::print_cell_branches(&cell);
+    }
+    for (robot, kinds) in unused_error_terms(&cell) {
+        eprintln!(
+            "note: {}: [robot{}.errors] holds {} terms, which calibrate --cell does not use: it \
+             fits from the URDFs and tips, within [robot{}.tolerance] (a simulated cell's errors \
+             are its hidden truth; an exported cell's are an earlier calibration's, which fk --cell \
+             applies). --export writes this fit's terms in their place.",
+            cell_path.display(),
+            robot.number(),
+            kinds.join(", "),
+            robot.number(),
+        );
     }
     let session = Session::read_csv(session_path, &cell)?;
     let problem = cell_problem(&cell, &session, args.model.fit_model());

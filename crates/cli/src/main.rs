@@ -66,7 +66,10 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!("error: {err:#}");
+            eprintln!(
+                "error: {}",
+                sim_cell::cli_support::error_chain_text(err.as_ref())
+            );
             ExitCode::FAILURE
         }
     }

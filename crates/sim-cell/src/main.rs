@@ -264,7 +264,10 @@ fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!(
+                "error: {}",
+                sim_cell::cli_support::error_chain_text(e.as_ref())
+            );
             ExitCode::FAILURE
         }
     }
