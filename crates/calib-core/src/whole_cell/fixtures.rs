@@ -162,8 +162,8 @@ impl SimCell {
         }
     }
 
-    /// True tip of `robot`'s tool at `q`, its own base frame.
-    pub fn true_tip(&self, robot: Robot, tool: usize, q: &[f64]) -> Vector3<f64> {
+    /// True pose of `robot`'s tool at `q` (`base_from_tip`), its own base frame.
+    pub fn true_pose(&self, robot: Robot, tool: usize, q: &[f64]) -> Isometry3<f64> {
         let rb = if robot == Robot::One {
             &self.robot1
         } else {
@@ -178,8 +178,11 @@ impl SimCell {
             &rb.g_base,
         )
         .expect("valid")
-        .translation
-        .vector
+    }
+
+    /// True tip of `robot`'s tool at `q`, its own base frame.
+    pub fn true_tip(&self, robot: Robot, tool: usize, q: &[f64]) -> Vector3<f64> {
+        self.true_pose(robot, tool, q).translation.vector
     }
 
     /// Joints putting robot `robot`'s TRUE tool `tool` at `target` (its base frame) with the

@@ -1674,6 +1674,22 @@ struct FaceRow {
     n2_tip: Unit<Vector3<f64>>,
 }
 
+impl FaceRow {
+    /// The flush face contact of `pair` (tool 0 of each robot) whose robot-1 outward normal is
+    /// `n1_b1` (b1 axes): both normals in their tip frames from the TRUE flange rotations,
+    /// `n1_tip = R1ᵀ·n1`, `n2_tip = R2ᵀ·R_Xᵀ·(−n1)` (exactly antiparallel at the truth).
+    fn flush(sc: &SimCell, pair: ConfigPair, n1_b1: Vector3<f64>) -> FaceRow {
+        let r1 = sc.true_pose(Robot::One, 0, &pair.q1).rotation;
+        let r2 = sc.true_pose(Robot::Two, 0, &pair.q2).rotation;
+        let x = sc.truth.b1_from_b2.rotation;
+        FaceRow {
+            n1_tip: Unit::new_normalize(r1.inverse() * n1_b1),
+            n2_tip: Unit::new_normalize(r2.inverse() * (x.inverse() * -n1_b1)),
+            pair,
+        }
+    }
+}
+
 /// `n` flush face contacts on `sc` (robot 1's tip, robot 2's tip), seeded: robot 1's outward
 /// face normal `n1` is drawn uniformly on the sphere (b1), robot 2's TRUE tip sits at
 /// `(d + σ·ν)·n1 + s` from robot 1's, `s ⟂ n1` a slide of the faces drawn uniformly in
@@ -1689,23 +1705,6 @@ fn face_rows(
     seed: u64,
 ) -> Vec<FaceRow> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let x = sc.truth.b1_from_b2;
-    let rot = |r: Robot, q: &[f64]| {
-        let rb = if r == Robot::One {
-            &sc.robot1
-        } else {
-            &sc.robot2
-        };
-        kinematics::true_base_from_tip(
-            &rb.model,
-            &sc.truth.robot(r).errors_for_tool(0),
-            q,
-            &rb.tools[0].flange_from_tip,
-            &rb.g_base,
-        )
-        .expect("valid")
-        .rotation
-    };
     let mut out = Vec::with_capacity(n);
     while out.len() < n {
         let g = |rng: &mut ChaCha8Rng| -> f64 {
@@ -1716,15 +1715,7 @@ fn face_rows(
         let slide = raw - n1 * n1.dot(&raw);
         let along = d + sigma * g(&mut rng);
         if let Some(pair) = sc.draw_pair(&mut rng, 0.6, 0, n1 * along + slide) {
-            let n1_tip = Unit::new_normalize(rot(Robot::One, &pair.q1).inverse() * n1);
-            let n2_tip = Unit::new_normalize(
-                rot(Robot::Two, &pair.q2).inverse() * (x.rotation.inverse() * -n1),
-            );
-            out.push(FaceRow {
-                pair,
-                n1_tip,
-                n2_tip,
-            });
+            out.push(FaceRow::flush(sc, pair, n1));
         }
     }
     out
@@ -1972,22 +1963,6 @@ fn axial_face_rows(
 ) -> Vec<FaceRow> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let x = sc.truth.b1_from_b2;
-    let rot = |r: Robot, q: &[f64]| {
-        let rb = if r == Robot::One {
-            &sc.robot1
-        } else {
-            &sc.robot2
-        };
-        kinematics::true_base_from_tip(
-            &rb.model,
-            &sc.truth.robot(r).errors_for_tool(0),
-            q,
-            &rb.tools[0].flange_from_tip,
-            &rb.g_base,
-        )
-        .expect("valid")
-        .rotation
-    };
     let mut out = Vec::with_capacity(n);
     while out.len() < n {
         let p = sc.centre_b1 + Vector3::from_fn(|_, _| rng.random_range(-0.5..0.5)) * 0.6;
@@ -2007,20 +1982,13 @@ fn axial_face_rows(
         let Some(q2) = sc.solve_true(Robot::Two, 0, &target2, a2) else {
             continue;
         };
-        let n1_tip = Unit::new_normalize(rot(Robot::One, &q1).inverse() * a1.into_inner());
-        let n2_tip = Unit::new_normalize(
-            rot(Robot::Two, &q2).inverse() * (x.rotation.inverse() * -a1.into_inner()),
-        );
-        out.push(FaceRow {
-            pair: ConfigPair {
-                q1,
-                q2,
-                tool1: 0,
-                tool2: 0,
-            },
-            n1_tip,
-            n2_tip,
-        });
+        let pair = ConfigPair {
+            q1,
+            q2,
+            tool1: 0,
+            tool2: 0,
+        };
+        out.push(FaceRow::flush(sc, pair, a1.into_inner()));
     }
     out
 }
