@@ -1,6 +1,6 @@
 //! Handclasp sessions: what the two controllers report at each teach point (joint angles and
-//! nominal-model tip positions), and rows of the other observation kinds (contact, tracker,
-//! plane), simulated on a [`Cell`] or read from / written to CSV.
+//! nominal-model tip positions), and rows of the other observation kinds (contact, face contact,
+//! tracker, plane), simulated on a [`Cell`] or read from / written to CSV.
 //!
 //! CSV: header `point,r1_q1_deg,…,r1_qN_deg,r2_q1_deg,…,r2_qM_deg,r1_x_mm,r1_y_mm,r1_z_mm,
 //! r2_x_mm,r2_y_mm,r2_z_mm` (N, M = the models' joint counts, URDF chain order), one row per point,
@@ -471,34 +471,28 @@ impl Session {
                             group,
                             distance_m,
                             sigma_m,
-                        } => {
-                            set("tool1", tool_name(Robot::One, *tool1));
-                            set("tool2", tool_name(Robot::Two, *tool2));
-                            set("group", group.clone());
-                            set("distance_mm", distance_m.map(mm).unwrap_or_default());
-                            set("sigma_mm", mm(*sigma_m));
-                            (deg(q1), deg(q2), blank(3), blank(3))
                         }
-                        SessionKind::FaceContact {
+                        | SessionKind::FaceContact {
                             q1,
                             q2,
                             tool1,
                             tool2,
-                            n1_tip,
-                            n2_tip,
                             group,
                             distance_m,
                             sigma_m,
+                            ..
                         } => {
                             set("tool1", tool_name(Robot::One, *tool1));
                             set("tool2", tool_name(Robot::Two, *tool2));
                             set("group", group.clone());
                             set("distance_mm", distance_m.map(mm).unwrap_or_default());
                             set("sigma_mm", mm(*sigma_m));
-                            let normals = n1_tip.iter().chain(n2_tip.iter());
-                            for (c, v) in FACE_COLUMNS.iter().zip(normals) {
-                                // `+ 0.0` writes −0 as 0.
-                                set(c, format!("{:.9}", v + 0.0));
+                            if let SessionKind::FaceContact { n1_tip, n2_tip, .. } = &o.kind {
+                                let normals = n1_tip.iter().chain(n2_tip.iter());
+                                for (c, v) in FACE_COLUMNS.iter().zip(normals) {
+                                    // `+ 0.0` writes −0 as 0.
+                                    set(c, format!("{:.9}", v + 0.0));
+                                }
                             }
                             (deg(q1), deg(q2), blank(3), blank(3))
                         }

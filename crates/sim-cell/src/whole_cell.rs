@@ -164,51 +164,49 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
                     group,
                     distance_m,
                     sigma_m,
-                } => {
-                    let g = contact_group(&mut contacts, &mut contact_sums, group, *distance_m);
-                    if distance_m.is_none() {
-                        if let Some(d) = nominal_distance(cell, q1, q2, *tool1, *tool2, None) {
-                            contact_sums[g].0 += d;
-                            contact_sums[g].1 += 1;
-                        }
-                    }
-                    ObservationKind::Contact {
-                        q1: q1.clone(),
-                        q2: q2.clone(),
-                        tool1: *tool1,
-                        tool2: *tool2,
-                        group: g,
-                        sigma_m: *sigma_m,
-                    }
                 }
-                SessionKind::FaceContact {
+                | SessionKind::FaceContact {
                     q1,
                     q2,
                     tool1,
                     tool2,
-                    n1_tip,
-                    n2_tip,
                     group,
                     distance_m,
                     sigma_m,
+                    ..
                 } => {
+                    let normals = match &o.kind {
+                        SessionKind::FaceContact { n1_tip, n2_tip, .. } => Some((*n1_tip, *n2_tip)),
+                        _ => None,
+                    };
                     let g = contact_group(&mut contacts, &mut contact_sums, group, *distance_m);
                     if distance_m.is_none() {
-                        let normals = Some((*n1_tip, *n2_tip));
                         if let Some(d) = nominal_distance(cell, q1, q2, *tool1, *tool2, normals) {
                             contact_sums[g].0 += d;
                             contact_sums[g].1 += 1;
                         }
                     }
-                    ObservationKind::FaceContact {
-                        q1: q1.clone(),
-                        q2: q2.clone(),
-                        tool1: *tool1,
-                        tool2: *tool2,
-                        n1_tip: *n1_tip,
-                        n2_tip: *n2_tip,
-                        group: g,
-                        sigma_m: *sigma_m,
+                    let (q1, q2, tool1, tool2, sigma_m) =
+                        (q1.clone(), q2.clone(), *tool1, *tool2, *sigma_m);
+                    match normals {
+                        None => ObservationKind::Contact {
+                            q1,
+                            q2,
+                            tool1,
+                            tool2,
+                            group: g,
+                            sigma_m,
+                        },
+                        Some((n1_tip, n2_tip)) => ObservationKind::FaceContact {
+                            q1,
+                            q2,
+                            tool1,
+                            tool2,
+                            n1_tip,
+                            n2_tip,
+                            group: g,
+                            sigma_m,
+                        },
                     }
                 }
                 SessionKind::Tracker {

@@ -32,10 +32,7 @@ pub enum CellFitError {
         row: usize,
     },
     /// After rejecting blunders too few observation rows remain to fit the unknowns.
-    #[error(
-        "only {remaining} residual rows remain after rejecting blunders at rows {rejected_rows:?}, \
-         but the fit needs at least {needed}; re-record rows {rejected_rows:?}"
-    )]
+    #[error("{}", too_few_rows_text(*remaining, *needed, rejected_rows))]
     TooFewRows {
         /// Residual rows (scalars) left.
         remaining: usize,
@@ -44,6 +41,24 @@ pub enum CellFitError {
         /// 1-based source rows rejected as blunders: the rows to re-record.
         rejected_rows: Vec<usize>,
     },
+}
+
+/// The message of [`CellFitError::TooFewRows`]: the rows to re-record when blunders were
+/// rejected, else that the session is too small for the unknowns.
+fn too_few_rows_text(remaining: usize, needed: usize, rejected_rows: &[usize]) -> String {
+    if rejected_rows.is_empty() {
+        format!(
+            "the session gives only {remaining} residual rows, but the fit needs at least \
+             {needed}: record more rows, or fit fewer unknowns (--model placement, or tighter \
+             [robotN.tolerance])"
+        )
+    } else {
+        format!(
+            "only {remaining} residual rows remain after rejecting blunders at rows \
+             {rejected_rows:?}, but the fit needs at least {needed}; re-record rows \
+             {rejected_rows:?}"
+        )
+    }
 }
 
 /// The 0-based slot of `robot` in per-robot arrays.

@@ -734,12 +734,31 @@ fn too_few_rows_after_rejection_names_the_rows_to_re_record() {
         min_redundancy: 30,
         ..ScreenOptions::default()
     };
-    match fit_screened(&p, None, &SolveOptions::default(), &screen) {
-        Err(CellFitError::TooFewRows { rejected_rows, .. }) => {
-            assert_eq!(rejected_rows, vec![3, 9]);
-        }
+    let Err(e) = fit_screened(&p, None, &SolveOptions::default(), &screen) else {
+        panic!("expected TooFewRows, got a fit");
+    };
+    assert!(e.to_string().contains("re-record rows [3, 9]"), "{e}");
+    match e {
+        CellFitError::TooFewRows { rejected_rows, .. } => assert_eq!(rejected_rows, vec![3, 9]),
         other => panic!("expected TooFewRows, got {other:?}"),
     }
+}
+
+/// With no row rejected, the error says the session is too small, not "re-record rows []"
+/// (regression: `calibrate --cell` on a 6-row face-contact session printed exactly that).
+#[test]
+fn too_few_rows_without_rejection_asks_for_more_rows() {
+    let e = CellFitError::TooFewRows {
+        remaining: 6,
+        needed: 13,
+        rejected_rows: vec![],
+    };
+    let text = e.to_string();
+    assert!(
+        text.contains("only 6 residual rows") && text.contains("record more rows"),
+        "{text}"
+    );
+    assert!(!text.contains("[]"), "{text}");
 }
 
 /// Candidate handclasps (noise-free pairs of the nominal cell) as coincident observations.
