@@ -1707,6 +1707,20 @@ impl FaceRow {
             pair,
         }
     }
+
+    /// The row as a face contact of group 0 with σ [`FACE_SIGMA_M`] (tool 0 of each robot).
+    fn observation(self) -> ObservationKind {
+        ObservationKind::FaceContact {
+            q1: self.pair.q1,
+            q2: self.pair.q2,
+            tool1: 0,
+            tool2: 0,
+            n1_tip: self.n1_tip,
+            n2_tip: self.n2_tip,
+            group: 0,
+            sigma_m: FACE_SIGMA_M,
+        }
+    }
 }
 
 /// `n` flush face contacts on `sc` (robot 1's tip, robot 2's tip), seeded: robot 1's outward
@@ -1795,19 +1809,7 @@ fn face_contacts_recover_joint_offsets_and_distance_within_their_intervals() {
     for seed in [91u64, 92, 93] {
         let sc = sim_cell(Cell::Wall, offsets_only(), false, seed);
         let rows = face_rows(&sc, 60, FACE_D_M, FACE_SIGMA_M, 0.015, seed + 10);
-        let kinds = rows
-            .into_iter()
-            .map(|r| ObservationKind::FaceContact {
-                q1: r.pair.q1,
-                q2: r.pair.q2,
-                tool1: 0,
-                tool2: 0,
-                n1_tip: r.n1_tip,
-                n2_tip: r.n2_tip,
-                group: 0,
-                sigma_m: FACE_SIGMA_M,
-            })
-            .collect();
+        let kinds = rows.into_iter().map(FaceRow::observation).collect();
         let p = contact_problem(&sc, FACE_D_M + 3e-3, kinds);
         let options = SolveOptions {
             initial_b1_from_b2: Some(perturbed_start(&sc)),
@@ -2037,19 +2039,7 @@ fn axial_face_contacts_hold_the_unseen_sideways_offsets() {
     let mut sc = sim_cell(Cell::Wall, Tolerance::default(), false, 141);
     sc.truth = CellEstimate::nominal(&sc.problem(), sc.truth.b1_from_b2);
     let rows = axial_face_rows(&sc, 40, FACE_D_M, FACE_SIGMA_M, 5e-3, 142);
-    let kinds = rows
-        .into_iter()
-        .map(|r| ObservationKind::FaceContact {
-            q1: r.pair.q1,
-            q2: r.pair.q2,
-            tool1: 0,
-            tool2: 0,
-            n1_tip: r.n1_tip,
-            n2_tip: r.n2_tip,
-            group: 0,
-            sigma_m: FACE_SIGMA_M,
-        })
-        .collect();
+    let kinds = rows.into_iter().map(FaceRow::observation).collect();
     let p = contact_problem(&sc, FACE_D_M + 3e-3, kinds);
     let options = SolveOptions {
         // From the cell's placement, as `handclasp calibrate --cell` starts.
