@@ -318,17 +318,10 @@ impl CellProblem {
                     group,
                     sigma_m,
                     ..
-                } => {
-                    tool_ok(Robot::One, *tool1, row)?;
-                    tool_ok(Robot::Two, *tool2, row)?;
-                    group_ok("contact", *group, self.contacts.len(), row)?;
-                    sigma_ok(*sigma_m, row)?;
                 }
-                ObservationKind::FaceContact {
+                | ObservationKind::FaceContact {
                     tool1,
                     tool2,
-                    n1_tip,
-                    n2_tip,
                     group,
                     sigma_m,
                     ..
@@ -337,21 +330,23 @@ impl CellProblem {
                     tool_ok(Robot::Two, *tool2, row)?;
                     group_ok("contact", *group, self.contacts.len(), row)?;
                     sigma_ok(*sigma_m, row)?;
-                    for (name, robot, n) in [
-                        ("n1_tip", Robot::One, n1_tip),
-                        ("n2_tip", Robot::Two, n2_tip),
-                    ] {
-                        let norm = n.norm();
-                        if !(n.iter().all(|v| v.is_finite())
-                            && (norm - 1.0).abs() <= UNIT_NORMAL_TOL)
-                        {
-                            return Err(CellFitError::InvalidInput(format!(
-                                "observation row {row}: face normal {name} {:?} is not a unit vector \
-                                 (norm {norm}); give the outward normal of {robot}'s touching face \
-                                 in its tip frame, non-zero and finite, normalised \
-                                 (Unit::new_normalize)",
-                                n.as_slice()
-                            )));
+                    if let ObservationKind::FaceContact { n1_tip, n2_tip, .. } = &o.kind {
+                        for (name, robot, n) in [
+                            ("n1_tip", Robot::One, n1_tip),
+                            ("n2_tip", Robot::Two, n2_tip),
+                        ] {
+                            let norm = n.norm();
+                            if !(n.iter().all(|v| v.is_finite())
+                                && (norm - 1.0).abs() <= UNIT_NORMAL_TOL)
+                            {
+                                return Err(CellFitError::InvalidInput(format!(
+                                    "observation row {row}: face normal {name} {:?} is not a unit \
+                                     vector (norm {norm}); give the outward normal of {robot}'s \
+                                     touching face in its tip frame, non-zero and finite, \
+                                     normalised (Unit::new_normalize)",
+                                    n.as_slice()
+                                )));
+                            }
                         }
                     }
                 }
