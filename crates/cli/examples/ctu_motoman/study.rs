@@ -1,7 +1,8 @@
 //! The study's core: the whole-cell problems of the CTU recordings (`calib_core::whole_cell`),
-//! the MAP fits with the common base held fixed, grouped cross-validation of the prior σ and the
-//! parameter set, and the honest tracker score (registration + reflector fitted on one half of a
-//! file's poses, scored on the other half, both ways).
+//! the MAP fits with the common base held fixed, grouped cross-validation of the prior σ (over
+//! the [`SigmaGrid`] of `--sigma-grid`) and the parameter set, and the honest tracker score
+//! (registration + reflector fitted on one half of a file's poses, scored on the other half,
+//! both ways; any seeded split through [`score_recording_split`]).
 //!
 //! Units: SI inside (m, rad); the prior σ of a spec is one number `s` used as `s` mrad for joint
 //! offsets and `s` mm for joint origin positions (as in the Python study).
