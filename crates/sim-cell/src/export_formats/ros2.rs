@@ -64,9 +64,10 @@ pub fn base_frame(cell: &Cell, which: Robot) -> String {
 fn pose(iso: &Isometry3<f64>) -> urdf_rs::Pose {
     let t = iso.translation.vector;
     let [yaw, pitch, roll] = zyx_from_rotation(&iso.rotation.to_rotation_matrix());
+    // `+ 0.0` turns −0.0 into 0.0 (printed `-0` otherwise).
     urdf_rs::Pose {
-        xyz: urdf_rs::Vec3([t.x, t.y, t.z]),
-        rpy: urdf_rs::Vec3([roll, pitch, yaw]),
+        xyz: urdf_rs::Vec3([t.x + 0.0, t.y + 0.0, t.z + 0.0]),
+        rpy: urdf_rs::Vec3([roll + 0.0, pitch + 0.0, yaw + 0.0]),
     }
 }
 
@@ -220,6 +221,7 @@ pub(crate) fn cell_urdf(cell: &Cell, header: &Header<'_>) -> Result<String, SimE
         path: cell.base_dir.clone(),
         message: format!("cannot write the cell URDF: {e}"),
     })?;
+    let body = tidy_urdf(&body);
     let comment = header
         .lines(
             "",
@@ -234,6 +236,19 @@ pub(crate) fn cell_urdf(cell: &Cell, header: &Header<'_>) -> Result<String, SimE
     Ok(format!(
         "<?xml version=\"1.0\"?>\n<!--\n{comment}-->\n{body}\n"
     ))
+}
+
+/// What urdf-rs writes for an absent `<inertial>` (a zero one) and for an absent `<axis>` and
+/// `<limit>` (the URDF defaults `1 0 0` and a zero limit, which only fixed and continuous joints
+/// may have): removed, so a link without mass stays without an inertial (KDL warns about an
+/// inertial on the root) and fixed joints carry no axis.
+fn tidy_urdf(body: &str) -> String {
+    const ZERO_INERTIAL: &str = "\n    <inertial>\n      <origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>\n      \
+        <mass value=\"0\"/>\n      <inertia ixx=\"0\" ixy=\"0\" ixz=\"0\" iyy=\"0\" iyz=\"0\" izz=\"0\"/>\n    </inertial>";
+    const DEFAULT_AXIS_LIMIT: &str = "\n    <axis xyz=\"1 0 0\"/>\n    \
+        <limit lower=\"0\" upper=\"0\" effort=\"0\" velocity=\"0\"/>";
+    body.replace(ZERO_INERTIAL, "")
+        .replace(DEFAULT_AXIS_LIMIT, "")
 }
 
 /// Reads a cell URDF back with the project's loader: robot 1's and robot 2's chains from `world`
