@@ -94,8 +94,7 @@ pub struct ExportReport {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::export_dir::check_output_folder(&args.to, args.force, "--to")?;
-    let mut formats: Vec<ControllerFormat> =
-        args.format.iter().flat_map(|f| f.formats()).collect();
+    let mut formats: Vec<ControllerFormat> = args.format.iter().flat_map(|f| f.formats()).collect();
     formats.sort();
     formats.dedup();
     let cell = Cell::from_toml_file(&args.cell)?;
@@ -141,7 +140,10 @@ fn render_text(report: &ExportReport) -> String {
         s += &row(
             "ABB",
             format!("x y z (m)  {:.9} {:.9} {:.9}", v.x_m, v.y_m, v.z_m),
-            format!("q1 q2 q3 q4  {:.12} {:.12} {:.12} {:.12}", v.q1, v.q2, v.q3, v.q4),
+            format!(
+                "q1 q2 q3 q4  {:.12} {:.12} {:.12} {:.12}",
+                v.q1, v.q2, v.q3, v.q4
+            ),
         );
     }
     if let Some(v) = f.kuka {
@@ -162,14 +164,20 @@ fn render_text(report: &ExportReport) -> String {
         s += &row(
             "Yaskawa",
             format!("X Y Z (mm)  {:.6} {:.6} {:.6}", v.x_mm, v.y_mm, v.z_mm),
-            format!("Rx Ry Rz (deg)  {:.9} {:.9} {:.9}", v.rx_deg, v.ry_deg, v.rz_deg),
+            format!(
+                "Rx Ry Rz (deg)  {:.9} {:.9} {:.9}",
+                v.rx_deg, v.ry_deg, v.rz_deg
+            ),
         );
     }
     if let Some(v) = f.ros2 {
         s += &row(
             "ROS 2",
             format!("x y z (m)  {:.9} {:.9} {:.9}", v.x_m, v.y_m, v.z_m),
-            format!("qx qy qz qw  {:.12} {:.12} {:.12} {:.12}", v.qx, v.qy, v.qz, v.qw),
+            format!(
+                "qx qy qz qw  {:.12} {:.12} {:.12} {:.12}",
+                v.qx, v.qy, v.qz, v.qw
+            ),
         );
     }
     s += &format!(
