@@ -135,6 +135,7 @@ def parse_files(d):
         import yourdfpy
     except ImportError:
         yourdfpy = None
+        print("note: yourdfpy is not installed; cell.urdf is read with xml.etree only", file=sys.stderr)
     if yourdfpy is not None:
         robot = yourdfpy.URDF.load(str(d / "cell.urdf"), load_meshes=False, build_collision_scene_graph=False)
         m = robot.get_transform("robot2_base_link", "world")
@@ -162,11 +163,31 @@ def compare(target, ref_t, ref_rot, ref_vals, got):
     return dt_um, drot_urad, ddeg
 
 
+def pendant_rounding(cells, decimals):
+    """The cost of typing the three-angle formats rounded to `decimals` decimals."""
+    print(f"{'cell':<28} {'target':<8} {'dt_um':>8} {'drot_urad':>10} {'at_1.5m_um':>11}")
+    for cell in cells:
+        t, rot = cell_placement(cell)
+        ref = independent(t, rot)
+        for target in ("kuka", "fanuc", "yaskawa"):
+            rounded = {k: round(v, decimals) for k, v in ref[target].items()}
+            rt, rr = placement_of(target, rounded)
+            dt = float(np.linalg.norm(rt - t)) * 1e3
+            drot = float((rot.inv() * rr).magnitude())
+            print(f"{Path(cell).name:<28} {target:<8} {dt:8.1f} {drot * 1e6:10.2f} {dt + drot * 1.5e6:11.1f}")
+    return 0
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--handclasp", required=True, help="the handclasp binary")
     ap.add_argument("cells", nargs="+", help="cell TOML files")
+    ap.add_argument("--pendant-decimals", type=int, default=None,
+                    help="also print what typing the KUKA/Fanuc/Yaskawa numbers rounded to this many "
+                         "decimals (mm and deg) costs: rotation error and the error at 1.5 m")
     a = ap.parse_args()
+    if a.pendant_decimals is not None:
+        return pendant_rounding(a.cells, a.pendant_decimals)
     worst = [0.0, 0.0, 0.0]
     print(f"{'cell':<40} {'target':<22} {'dt_um':>10} {'drot_urad':>10} {'dangle_deg':>11}")
     for cell in a.cells:
