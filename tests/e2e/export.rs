@@ -36,7 +36,7 @@ fn keys(v: &Value) -> Vec<&str> {
     k
 }
 
-fn sorted<'a>(mut v: Vec<&'a str>) -> Vec<&'a str> {
+fn sorted(mut v: Vec<&str>) -> Vec<&str> {
     v.sort_unstable();
     v
 }
@@ -236,7 +236,7 @@ fn calibrated_and_diagnosed_cells_export() {
         let k = &v["formats"]["kuka"];
         assert!((k["x_mm"].as_f64().unwrap() - cell.b1_from_b2.translation.x * 1e3).abs() < 1e-9);
         assert_cell_urdf_matches(&cell_toml, &to);
-        check_independently(&[cell_toml.clone()]);
+        check_independently(std::slice::from_ref(&cell_toml));
     }
 }
 

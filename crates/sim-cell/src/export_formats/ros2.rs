@@ -20,7 +20,7 @@
 //!   xacro properties are `<xacro:property name="…" value="…"/>` in a file with
 //!   `xmlns:xacro="http://www.ros.org/wiki/xacro"`.
 //!
-//! The cell URDF ([`cell_urdf`]) holds each robot's URDF as the cell names it (a cell written by
+//! The cell URDF (`cell.urdf`) holds each robot's URDF as the cell names it (a cell written by
 //! `calibrate --cell --export` or `diagnose --export` names its corrected URDFs, so the calibrated
 //! joint origins come along), every link, joint and material prefixed `robot1_` / `robot2_`, a
 //! root link `world` (= robot 1's base), fixed joints `robot1_mount` (identity) and `robot2_mount`
@@ -438,7 +438,7 @@ pub(crate) fn render_launch(
     )
 }
 
-/// The transform numbers of a launch file written by [`render_launch`].
+/// The transform numbers of a launch file written by this module (`--x … --qw` flags).
 pub fn parse_launch_transform(text: &str) -> Result<Ros2Transform, String> {
     let doc = roxmltree::Document::parse(text).map_err(|e| e.to_string())?;
     let node = doc
