@@ -12,8 +12,8 @@ use serde_json::Value;
 use sim_cell::Cell;
 
 use crate::support::{
-    assert_success, handclasp, json_ok, random_session, shipped_cell, stderr_of_failure, workspace,
-    write_session_csv,
+    assert_success, cell_session_args, handclasp, json_ok, random_session, shipped_cell,
+    stderr_of_failure, workspace, write_session_csv,
 };
 
 const SHIPPED: [&str; 4] = ["floor-wall", "floor-floor", "floor-ceiling", "ctu-motoman"];
@@ -196,30 +196,25 @@ fn calibrated_and_diagnosed_cells_export() {
     );
     let nominal_path = shipped_cell("floor-floor");
     let cal = dir.path().join("cal");
-    json_ok(&[
+    json_ok(&cell_session_args(
         "calibrate",
-        "--cell",
-        nominal_path.to_str().unwrap(),
-        "--session",
-        session.to_str().unwrap(),
-        "--model",
-        "kinematic",
-        "--export",
-        cal.to_str().unwrap(),
-        "--json",
-    ]);
+        &nominal_path,
+        &session,
+        &[
+            "--model",
+            "kinematic",
+            "--json",
+            "--export",
+            cal.to_str().unwrap(),
+        ],
+    ));
     let diag = dir.path().join("diag");
-    assert_success(&handclasp(&[
+    assert_success(&handclasp(&cell_session_args(
         "diagnose",
-        "--cell",
-        nominal_path.to_str().unwrap(),
-        "--session",
-        session.to_str().unwrap(),
-        "--export",
-        diag.to_str().unwrap(),
-        "--trials",
-        "50",
-    ]));
+        &nominal_path,
+        &session,
+        &["--trials", "50", "--export", diag.to_str().unwrap()],
+    )));
     for cell_toml in [cal.join("cell.toml"), diag.join("cell_corrected.toml")] {
         let to = dir.path().join(format!(
             "x-{}",

@@ -44,16 +44,7 @@ pub(crate) fn render(v: &FanucFrame, header: &Header<'_>) -> String {
 
 /// The six values of a listing written by this module.
 pub fn parse_frame(text: &str) -> Result<FanucFrame, String> {
-    let [x_mm, y_mm, z_mm, w_deg, p_deg, r_deg] =
-        parse_listing(text, "!", ["X", "Y", "Z", "W", "P", "R"])?;
-    Ok(FanucFrame {
-        x_mm,
-        y_mm,
-        z_mm,
-        w_deg,
-        p_deg,
-        r_deg,
-    })
+    parse_listing(text, "!", ["X", "Y", "Z", "W", "P", "R"]).map(FanucFrame::from_listed)
 }
 
 pub(crate) fn parse(text: &str) -> Result<Isometry3<f64>, String> {

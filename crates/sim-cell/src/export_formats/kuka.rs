@@ -76,17 +76,12 @@ pub fn parse_frame(text: &str) -> Result<KukaFrame, String> {
             .ok_or_else(|| format!("unknown FRAME component `{key}`"))?;
         values[k] = Some(number(value, key)?);
     }
-    let get = |k: usize| {
-        values[k].ok_or_else(|| format!("component {} missing", ["X", "Y", "Z", "A", "B", "C"][k]))
-    };
-    Ok(KukaFrame {
-        x_mm: get(0)?,
-        y_mm: get(1)?,
-        z_mm: get(2)?,
-        a_deg: get(3)?,
-        b_deg: get(4)?,
-        c_deg: get(5)?,
-    })
+    let mut out = [0.0; 6];
+    for (k, v) in values.iter().enumerate() {
+        out[k] =
+            v.ok_or_else(|| format!("component {} missing", ["X", "Y", "Z", "A", "B", "C"][k]))?;
+    }
+    Ok(KukaFrame::from_listed(out))
 }
 
 pub(crate) fn parse(text: &str) -> Result<Isometry3<f64>, String> {

@@ -254,9 +254,8 @@ impl AbbBaseFrame {
 }
 
 impl KukaFrame {
-    /// The KUKA numbers of `b1_from_b2`.
-    pub fn from_placement(b1_from_b2: &Isometry3<f64>) -> Self {
-        let ([x_mm, y_mm, z_mm], [a_deg, b_deg, c_deg]) = mm_and_zyx_deg(b1_from_b2);
+    /// The frame of its six numbers in the file's order: X, Y, Z (mm), A, B, C (deg).
+    pub fn from_listed([x_mm, y_mm, z_mm, a_deg, b_deg, c_deg]: [f64; 6]) -> Self {
         KukaFrame {
             x_mm,
             y_mm,
@@ -265,6 +264,12 @@ impl KukaFrame {
             b_deg,
             c_deg,
         }
+    }
+
+    /// The KUKA numbers of `b1_from_b2`.
+    pub fn from_placement(b1_from_b2: &Isometry3<f64>) -> Self {
+        let ([x, y, z], [a, b, c]) = mm_and_zyx_deg(b1_from_b2);
+        Self::from_listed([x, y, z, a, b, c])
     }
 
     /// The placement these numbers stand for.
@@ -277,9 +282,8 @@ impl KukaFrame {
 }
 
 impl FanucFrame {
-    /// The Fanuc numbers of `b1_from_b2`.
-    pub fn from_placement(b1_from_b2: &Isometry3<f64>) -> Self {
-        let ([x_mm, y_mm, z_mm], [r_deg, p_deg, w_deg]) = mm_and_zyx_deg(b1_from_b2);
+    /// The frame of its six numbers in the file's order: X, Y, Z (mm), W, P, R (deg).
+    pub fn from_listed([x_mm, y_mm, z_mm, w_deg, p_deg, r_deg]: [f64; 6]) -> Self {
         FanucFrame {
             x_mm,
             y_mm,
@@ -288,6 +292,12 @@ impl FanucFrame {
             p_deg,
             r_deg,
         }
+    }
+
+    /// The Fanuc numbers of `b1_from_b2`.
+    pub fn from_placement(b1_from_b2: &Isometry3<f64>) -> Self {
+        let ([x, y, z], [r, p, w]) = mm_and_zyx_deg(b1_from_b2);
+        Self::from_listed([x, y, z, w, p, r])
     }
 
     /// The placement these numbers stand for.
@@ -300,9 +310,8 @@ impl FanucFrame {
 }
 
 impl YaskawaFrame {
-    /// The Yaskawa numbers of `b1_from_b2`.
-    pub fn from_placement(b1_from_b2: &Isometry3<f64>) -> Self {
-        let ([x_mm, y_mm, z_mm], [rz_deg, ry_deg, rx_deg]) = mm_and_zyx_deg(b1_from_b2);
+    /// The frame of its six numbers in the file's order: X, Y, Z (mm), Rx, Ry, Rz (deg).
+    pub fn from_listed([x_mm, y_mm, z_mm, rx_deg, ry_deg, rz_deg]: [f64; 6]) -> Self {
         YaskawaFrame {
             x_mm,
             y_mm,
@@ -311,6 +320,12 @@ impl YaskawaFrame {
             ry_deg,
             rz_deg,
         }
+    }
+
+    /// The Yaskawa numbers of `b1_from_b2`.
+    pub fn from_placement(b1_from_b2: &Isometry3<f64>) -> Self {
+        let ([x, y, z], [rz, ry, rx]) = mm_and_zyx_deg(b1_from_b2);
+        Self::from_listed([x, y, z, rx, ry, rz])
     }
 
     /// The placement these numbers stand for.

@@ -42,16 +42,7 @@ pub(crate) fn render(v: &YaskawaFrame, header: &Header<'_>) -> String {
 
 /// The six values of a listing written by this module.
 pub fn parse_frame(text: &str) -> Result<YaskawaFrame, String> {
-    let [x_mm, y_mm, z_mm, rx_deg, ry_deg, rz_deg] =
-        parse_listing(text, "'", ["X", "Y", "Z", "Rx", "Ry", "Rz"])?;
-    Ok(YaskawaFrame {
-        x_mm,
-        y_mm,
-        z_mm,
-        rx_deg,
-        ry_deg,
-        rz_deg,
-    })
+    parse_listing(text, "'", ["X", "Y", "Z", "Rx", "Ry", "Rz"]).map(YaskawaFrame::from_listed)
 }
 
 pub(crate) fn parse(text: &str) -> Result<Isometry3<f64>, String> {
