@@ -122,9 +122,11 @@ mod tests {
     use super::*;
     use std::f64::consts::{FRAC_PI_2, PI};
 
-    /// Largest element-wise difference a round trip may leave: pure round-off of a few 3×3
-    /// products and atan2 calls on unit-magnitude numbers (measured ≤ 2e-15; 1e-12 leaves room
-    /// and is far below the 1e-9 rad any file written here resolves).
+    /// Largest element-wise difference a round trip may leave: round-off of a few 3×3 products
+    /// and atan2 calls on unit-magnitude numbers, plus at most `ZYX_LOCK_COS` (1e-13) where the
+    /// lock sets c = 0. Measured over 2e5 seeded rotations (half uniform, half within
+    /// 1e-16…1e-1 rad of the lock): 6.7e-16 uniform, 1.0e-13 near the lock, 7.8e-16 through the
+    /// quaternion. 1e-12 is far below the 1e-9 rad any file written from these resolves.
     const ROUND_TRIP_TOL: f64 = 1e-12;
 
     fn max_abs_diff(a: &Rotation3<f64>, b: &Rotation3<f64>) -> f64 {
