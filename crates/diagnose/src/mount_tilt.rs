@@ -5,8 +5,9 @@
 //! selected from handclasp residuals (a turned base only turns the fit), so this is where the
 //! diagnosis names them.
 
-use calib_core::identify::{self, Robot};
+use calib_core::identify;
 use calib_core::stats::{chi2_sf, t_quantile, t_two_sided_p};
+use calib_core::Robot;
 use kinematics::Axis;
 use nalgebra::{Isometry3, Matrix3, Vector3};
 use sim_cell::Cell;

@@ -1,9 +1,10 @@
 //! The joint Levenberg–Marquardt fit of `b1_from_b2` and error parameters, and its covariance
 //! (see the measurement model in [`crate::identify`]).
 
-use super::model::{IdentifyError, Robot, TipEval, TipModel};
+use super::model::{IdentifyError, TipEval, TipModel};
 use crate::stats::t_quantile;
 use crate::stop::StopReason;
+use crate::Robot;
 use nalgebra::{
     DMatrix, DVector, Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3,
 };

@@ -2,6 +2,7 @@
 //! confounding, false-alarm rate, placement rotation, input errors.
 
 use super::*;
+use crate::Robot;
 use nalgebra::{
     Isometry3, Matrix3, Matrix3xX, Point3, Rotation3, Translation3, UnitQuaternion, Vector3,
 };
