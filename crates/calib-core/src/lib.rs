@@ -2,6 +2,7 @@
 
 mod error;
 pub mod identify;
+mod lm;
 mod metrics;
 mod mount_check;
 pub mod paper;
@@ -25,6 +26,7 @@ pub use kinematics::{
     rotation_from_zyz, wrap_angle, zyz_canonical, zyz_from_rotation, zyz_nearest,
     ZYZ_CANONICAL_TILT_RAD,
 };
+pub use lm::{LmOptionError, LmOptions, SingularStep};
 pub use metrics::{
     e_rot, e_rot_fast, e_rot_raw, e_rot_zyz, e_tran, geodesic_angle, ErotTruth, TrialErrors,
     ZYZ_SINGULAR_BAND_RAD,

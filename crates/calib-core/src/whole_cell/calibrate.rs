@@ -6,10 +6,9 @@ use serde::Serialize;
 
 use super::blunders::{fit_screened, RejectedRow, ScreenOptions};
 use super::reduce::{reduce, Reduction, ReductionEntry};
-use super::solve::{
-    assemble, fit_cell_with, sym_inverse, CellFit, FittedParam, SolveOptions, StopReason,
-};
+use super::solve::{assemble, fit_cell_with, sym_inverse, CellFit, FittedParam, SolveOptions};
 use super::{initial_estimate, CellFitError, CellProblem, ParamLayout};
+use crate::StopReason;
 
 /// Prior scales `s` [`calibrate_cell`] compares (every prior σ multiplied by `s`): the
 /// tolerances as given (1), halved down to 1/16, and 1e-3, the placement-only limit (the
@@ -116,8 +115,9 @@ impl CellCalibration {
 /// ```
 /// use calib_core::whole_cell::{
 ///     calibrate_cell, CellProblem, CellRobot, Noise3, Observation, ObservationKind,
-///     ScreenOptions, SolveOptions, StopReason, Tolerance, Tool,
+///     ScreenOptions, SolveOptions, Tolerance, Tool,
 /// };
+/// use calib_core::StopReason;
 /// use kinematics::{base_from_tip, ik_tip_position, IkOptions, RobotModel};
 /// use nalgebra::{Isometry3, Point3, Vector3};
 ///
@@ -282,7 +282,6 @@ fn choose_prior_scale(
             problem,
             scaled_layout(&base_layout, s),
             &screened.active,
-            None,
             Some(&screened.estimate),
             solve,
         )?;

@@ -2,7 +2,7 @@
 //! tests of every part (Jacobians against central differences, the fit, reduction, screening,
 //! prediction, design and the one-call chain), sharing the fixtures and trial helpers here.
 
-use crate::Robot;
+use crate::{LmOptions, Robot, StopReason};
 use std::time::Instant;
 
 use kinematics::ErrorParam;
@@ -400,7 +400,6 @@ fn bad_input_is_a_named_error() {
         &p,
         ParamLayout::new(&p, &[]),
         &active,
-        None,
         Some(&est),
         &SolveOptions::default(),
     )
@@ -434,17 +433,15 @@ fn iteration_cap_is_a_stop_reason_not_an_error() {
     let sc = sim_cell(Cell::Wall, realistic(), false, 5);
     let p = coincident_problem(&sc, 20, 3e-4, 6);
     let opts = SolveOptions {
-        max_iterations: 1,
+        lm: LmOptions::whole_cell().with_max_iterations(1).unwrap(),
         ..SolveOptions::default()
     };
     let fit = fit_cell(&p, &opts).unwrap();
     assert_eq!(fit.iterations, 1);
     assert_eq!(fit.stopped, StopReason::IterationCap);
-    let bad = SolveOptions {
-        max_iterations: 0,
-        ..SolveOptions::default()
-    };
-    assert!(fit_cell(&p, &bad).is_err());
+    // A cap of 0 is refused when it is set, naming the option.
+    let e = LmOptions::whole_cell().with_max_iterations(0).unwrap_err();
+    assert!(e.to_string().contains("max_iterations"), "{e}");
 }
 
 /// Placement-only fit: every tolerance zero, so only `b1_from_b2` is fitted.
@@ -486,7 +483,6 @@ fn trial(cell: Cell, seed: u64, n: usize, sigma: f64, n_eval: usize) -> Trial {
         &p,
         red.layout,
         &active,
-        None,
         Some(&init),
         &SolveOptions::default(),
     )
@@ -600,7 +596,6 @@ fn reduction_names_what_the_placement_absorbs_and_what_is_merged() {
         &p,
         red.layout,
         &active,
-        None,
         Some(&init),
         &SolveOptions::default(),
     )
@@ -670,8 +665,7 @@ fn three_blunders_are_named_and_the_hidden_offset_is_still_found() {
         .all(|r| r.size_sigma > s.threshold_sigma_3));
     // The screened fit is the fit of the clean rows.
     let clean: Vec<usize> = (0..40).filter(|i| ![6, 18, 32].contains(i)).collect();
-    let clean_fit =
-        fit_cell_with(&p, ParamLayout::new(&p, &[]), &clean, None, None, &solve).unwrap();
+    let clean_fit = fit_cell_with(&p, ParamLayout::new(&p, &[]), &clean, None, &solve).unwrap();
     let dx = (clean_fit.estimate.b1_from_b2.translation.vector
         - s.fit.estimate.b1_from_b2.translation.vector)
         .norm();
@@ -1036,7 +1030,6 @@ fn monte_carlo_three_cells() {
             &p,
             red.layout,
             &active,
-            None,
             Some(&init),
             &SolveOptions::default(),
         )
@@ -1106,7 +1099,7 @@ fn every_joint_session_converges_within_the_iteration_bound() {
         let init = initial_estimate(&p, None, &active).unwrap();
         let red = reduce(&p, &init, &active).unwrap();
         let opts = SolveOptions::default();
-        let fit = fit_cell_with(&p, red.layout, &active, None, Some(&init), &opts).unwrap();
+        let fit = fit_cell_with(&p, red.layout, &active, Some(&init), &opts).unwrap();
         let full = fit_cell(&p, &opts).unwrap();
         eprintln!(
             "seed {seed}: reduced {} iterations {:?}, full {} iterations {:?}",
@@ -1156,7 +1149,6 @@ fn scale_trial(cell: Cell, seed: u64, n: usize, sigma: f64, truth_fraction: f64)
         &p,
         cal.reduction.layout.clone(),
         &cal.fit.active,
-        None,
         Some(&init),
         &SolveOptions::default(),
     )
@@ -1657,7 +1649,7 @@ fn compliance_fit_with_a_free_reflector_offset_converges() {
             })
             .collect();
         let layout = ParamLayout::new(&p, &fixed);
-        let fit = fit_cell_with(&p, layout, &active, None, None, &SolveOptions::default()).unwrap();
+        let fit = fit_cell_with(&p, layout, &active, None, &SolveOptions::default()).unwrap();
         let z_col = fit
             .layout
             .column(&CellParam::ToolTip {
