@@ -123,6 +123,7 @@ mod residuals;
 mod solve;
 mod start;
 
+#[cfg(any(test, feature = "fixtures"))]
 #[doc(hidden)]
 pub mod fixtures;
 #[cfg(test)]
