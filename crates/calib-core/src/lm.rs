@@ -558,7 +558,10 @@ mod tests {
             let min = minimize(&toy, start(), &options).unwrap();
             assert_eq!(min.stopped, StopReason::Converged, "{options:?}");
             let g = gradient(&min.system);
-            assert!(g < 1e-6 * g0, "gradient {g} vs {g0} at the start ({options:?})");
+            assert!(
+                g < 1e-6 * g0,
+                "gradient {g} vs {g0} at the start ({options:?})"
+            );
             assert!((min.point[0] - 2.0).abs() < 0.05 && (min.point[1] - 0.3).abs() < 0.05);
             assert_eq!(min.cost, min.system.r.norm_squared());
         }
