@@ -319,35 +319,34 @@ impl Linearised for Linearisation {
     }
 }
 
+impl IdentProblem<'_> {
+    /// [`linearise`] at `at`, with the Jacobian or without.
+    fn at(&self, at: &IdentPoint, want_jacobian: bool) -> Result<Linearisation, IdentifyError> {
+        let (x, values) = (&at.b1_from_b2, &at.values);
+        linearise(
+            self.model,
+            self.points,
+            x,
+            self.params,
+            values,
+            &[],
+            want_jacobian,
+        )
+    }
+}
+
 impl LeastSquaresProblem for IdentProblem<'_> {
     type Point = IdentPoint;
     type System = Linearisation;
     type Error = IdentifyError;
 
     fn linearise(&self, at: &IdentPoint) -> Result<Linearisation, IdentifyError> {
-        linearise(
-            self.model,
-            self.points,
-            &at.b1_from_b2,
-            self.params,
-            &at.values,
-            &[],
-            true,
-        )
+        self.at(at, true)
     }
 
     /// Every model failure (a non-finite tip included) is an error of the fit, not a stop.
     fn evaluate(&self, at: &IdentPoint) -> Result<Option<Linearisation>, IdentifyError> {
-        linearise(
-            self.model,
-            self.points,
-            &at.b1_from_b2,
-            self.params,
-            &at.values,
-            &[],
-            false,
-        )
-        .map(Some)
+        self.at(at, false).map(Some)
     }
 
     fn relinearise(

@@ -239,34 +239,28 @@ struct MapProblem<'a> {
     weights: Option<&'a [f64]>,
 }
 
+impl MapProblem<'_> {
+    /// [`assemble`] at `at`, with the Jacobian or without.
+    fn at(&self, at: &CellEstimate, want_jac: bool) -> Result<System, CellFitError> {
+        let (problem, layout) = (self.problem, self.layout);
+        assemble(problem, layout, at, self.active, self.weights, want_jac)
+    }
+}
+
 impl LeastSquaresProblem for MapProblem<'_> {
     type Point = CellEstimate;
     type System = System;
     type Error = CellFitError;
 
     fn linearise(&self, at: &CellEstimate) -> Result<System, CellFitError> {
-        assemble(
-            self.problem,
-            self.layout,
-            at,
-            self.active,
-            self.weights,
-            true,
-        )
+        self.at(at, true)
     }
 
     /// A non-finite residual or a kinematics failure at a trial estimate means the step
     /// diverged (`None`: the solver stops with [`StopReason::NonFinite`]); other errors are
     /// errors.
     fn evaluate(&self, at: &CellEstimate) -> Result<Option<System>, CellFitError> {
-        match assemble(
-            self.problem,
-            self.layout,
-            at,
-            self.active,
-            self.weights,
-            false,
-        ) {
+        match self.at(at, false) {
             Ok(s) => Ok(Some(s)),
             Err(CellFitError::NonFinite { .. } | CellFitError::Kinematics { .. }) => Ok(None),
             Err(e) => Err(e),
