@@ -1,8 +1,6 @@
 #![doc = include_str!("../README.md")]
 
 pub mod cell;
-#[cfg(feature = "cli")]
-pub mod cli_support;
 mod error;
 pub mod export;
 pub mod layout;
@@ -29,13 +27,6 @@ pub use session_kinds::{
 };
 pub use sweep::{geometry_trial, GeometrySpec, TrialErrors};
 
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-
-/// The generator of Monte Carlo trial `index` under master `seed`: ChaCha8 seeded with `seed`,
-/// stream `index`. Any trial can be replayed alone, and results never depend on thread count.
-pub fn trial_rng(seed: u64, index: u64) -> ChaCha8Rng {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    rng.set_stream(index);
-    rng
-}
+/// The generator of one Monte Carlo trial; defined in [`calib_core::stats::trial_rng`] and
+/// re-exported for the simulator's users.
+pub use calib_core::stats::trial_rng;

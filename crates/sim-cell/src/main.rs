@@ -260,13 +260,13 @@ struct SweepArgs {
 }
 
 fn main() -> ExitCode {
-    sim_cell::cli_support::exit_quietly_on_broken_pipe();
+    cli_support::exit_quietly_on_broken_pipe();
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!(
                 "error: {}",
-                sim_cell::cli_support::error_chain_text(e.as_ref())
+                cli_support::error_chain_text(e.as_ref())
             );
             ExitCode::FAILURE
         }
