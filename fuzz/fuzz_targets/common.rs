@@ -8,7 +8,7 @@ use std::sync::OnceLock;
 
 use kinematics::RobotModel;
 use nalgebra::Isometry3;
-use sim_cell::Cell;
+use handclasp_cell::Cell;
 
 /// The repository root (the fuzz crate sits in `<root>/fuzz`).
 pub fn repo_root() -> PathBuf {

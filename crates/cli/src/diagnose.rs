@@ -9,8 +9,8 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use diagnose::DiagnoseOptions;
+use handclasp_cell::Cell;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use sim_cell::Cell;
 
 /// Arguments of `handclasp diagnose`.
 #[derive(clap::Args, Debug)]

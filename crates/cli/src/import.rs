@@ -29,11 +29,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use calib_core::Robot;
+use handclasp_cell::Cell;
 use kinematics::base_from_tip;
 use nalgebra::Point3;
 use serde::Deserialize;
 use serde_json::json;
-use sim_cell::{Cell, Session, SessionKind, SessionObservation, SessionPoint};
+use sim_cell::{Session, SessionKind, SessionObservation, SessionPoint};
 
 /// Arguments of `handclasp import`.
 #[derive(clap::Args, Debug)]

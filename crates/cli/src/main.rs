@@ -66,10 +66,7 @@ fn main() -> ExitCode {
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!(
-                "error: {}",
-                cli_support::error_chain_text(err.as_ref())
-            );
+            eprintln!("error: {}", cli_support::error_chain_text(err.as_ref()));
             ExitCode::FAILURE
         }
     }

@@ -11,9 +11,10 @@ use calib_core::identify::{
 };
 use calib_core::stats::chi2_sf;
 use calib_core::whole_cell::{calibrate_cell, CellFitError, ScreenOptions, SolveOptions};
+use handclasp_cell::Cell;
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 use sim_cell::whole_cell::{cell_problem, FitModel};
-use sim_cell::{Cell, Session};
+use sim_cell::Session;
 
 use crate::catalogue::{catalogue, Candidate, EffectKind};
 use crate::input::check_session;
@@ -72,7 +73,7 @@ impl Default for DiagnoseOptions {
 ///
 /// # Examples
 /// ```no_run
-/// let cell = sim_cell::Cell::default_floor_wall();
+/// let cell = handclasp_cell::Cell::default_floor_wall();
 /// let session = diagnose::load_session(std::path::Path::new("session.csv"), &cell)?;
 /// let report = diagnose::diagnose_session(&cell, &session, &diagnose::DiagnoseOptions::default())?;
 /// print!("{}", diagnose::render_text(&report));

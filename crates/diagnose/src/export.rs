@@ -12,9 +12,10 @@
 use std::path::{Path, PathBuf};
 
 use calib_core::Robot;
+use handclasp_cell::{Cell, CellRobot};
 use kinematics::{KinematicErrors, RobotModel};
 use nalgebra::Isometry3;
-use sim_cell::{export_calibrated_cell, Cell, CellRobot, ExportNames};
+use sim_cell::{export_calibrated_cell, ExportNames};
 
 use crate::catalogue::effects_to_errors;
 use crate::cell_report::{render_cell_text, CellDiagnoseReport};

@@ -5,8 +5,9 @@
 use std::path::Path;
 
 use calib_core::identify;
+use handclasp_cell::Cell;
 use nalgebra::Vector3;
-use sim_cell::{Cell, Session};
+use sim_cell::Session;
 
 use crate::DiagnoseError;
 

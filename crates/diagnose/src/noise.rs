@@ -2,11 +2,11 @@
 //! repeatability of both robots, encoder quantisation) and the seeded Monte Carlo of the
 //! rigid-fit residual RMS it predicts ([`simulate_rms`]).
 
+use handclasp_cell::{Cell, CellRobot};
 use nalgebra::{Isometry3, Matrix3, Matrix3xX, Point3, Vector3};
 use rand::Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
-use sim_cell::{Cell, CellRobot};
 
 use crate::DiagnoseError;
 

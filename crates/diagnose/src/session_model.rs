@@ -13,9 +13,9 @@ use std::rc::Rc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use calib_core::identify::{IdentifyError, Robot, TipEval, TipModel};
+use handclasp_cell::{Cell, CellRobot};
 use kinematics::{ErrorParam, KinematicErrors};
 use nalgebra::{Matrix3, Matrix3xX, Point3};
-use sim_cell::{Cell, CellRobot};
 
 use crate::catalogue::{Candidate, EffectKind};
 

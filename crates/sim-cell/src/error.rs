@@ -22,6 +22,10 @@ pub enum SimError {
         /// What is wrong, naming the row or column, and what would work.
         message: String,
     },
+    /// A cell or session file is invalid, or could not be read or written
+    /// ([`handclasp_cell::FormatError`]).
+    #[error(transparent)]
+    Format(#[from] handclasp_cell::FormatError),
     /// A file could not be read or written.
     #[error("{path}: {source}")]
     Io {

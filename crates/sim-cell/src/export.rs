@@ -25,8 +25,8 @@ use calib_core::whole_cell::CellEstimate;
 use calib_core::Robot;
 use kinematics::{patch_urdf_text, split_for_urdf, verify_patched_urdf, RobotModel};
 
-use crate::cell::Cell;
 use crate::error::SimError;
+use handclasp_cell::cell::Cell;
 
 /// The files [`export_calibrated_cell`] writes, relative to its output folder, and the comment
 /// put at the top of the cell file.
@@ -277,7 +277,7 @@ mod tests {
 
     #[test]
     fn the_placement_sigma_is_kept_centred_on_the_fit_and_absent_stays_absent() {
-        use crate::PlacementSigma;
+        use handclasp_cell::PlacementSigma;
         let plain = floor_floor();
         let mut known = plain.clone();
         let sigma = PlacementSigma {

@@ -1,6 +1,5 @@
 #![doc = include_str!("../README.md")]
 
-pub mod cell;
 mod error;
 pub mod export;
 pub mod layout;
@@ -13,7 +12,6 @@ pub mod session_kinds;
 pub mod sweep;
 pub mod whole_cell;
 
-pub use cell::{Cell, CellRobot, Noise, PlacementSigma};
 pub use error::SimError;
 pub use export::{export_calibrated_cell, ExportNames, CALIBRATE_EXPORT_NAMES};
 pub use layout::{teach_points, Layout};

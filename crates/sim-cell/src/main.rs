@@ -7,11 +7,12 @@
 use anyhow::{bail, Context, Result};
 use calib_core::MountPair;
 use clap::{Parser, Subcommand, ValueEnum};
+use handclasp_cell::Cell;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use sim_cell::layout::Layout;
 use sim_cell::sweep::{self, KinematicErrorDraw, Mode, SweepConfig, SweepLayout, SweepMethod};
 use sim_cell::{
-    generate_kind_session, read_points_b1_csv, teach_from_plan, trial_rng, Cell, KindSpec, Session,
+    generate_kind_session, read_points_b1_csv, teach_from_plan, trial_rng, KindSpec, Session,
     SessionSpec, SimError, SimKind,
 };
 use std::io::{BufWriter, IsTerminal, Write};
@@ -264,10 +265,7 @@ fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!(
-                "error: {}",
-                cli_support::error_chain_text(e.as_ref())
-            );
+            eprintln!("error: {}", cli_support::error_chain_text(e.as_ref()));
             ExitCode::FAILURE
         }
     }
@@ -447,8 +445,7 @@ fn sweep_cmd(a: SweepArgs) -> Result<()> {
                 .mounts
                 .iter()
                 .map(|m| {
-                    sim_cell::placement::paper_placement(m)
-                        .and_then(|p| Cell::paper(&p))
+                    Cell::shipped(*m)
                         .context("robot mode without --cell knows the paper's three cells only")
                 })
                 .collect::<Result<_>>()?

@@ -17,10 +17,10 @@
 //! simulation of coincident handclasp sessions; the other kinds are simulated in
 //! `session_kinds`.
 
-use crate::cell::{Cell, CellRobot};
 use crate::error::SimError;
 use crate::layout::{teach_points, Layout};
 use calib_core::{PointPairs, Robot};
+use handclasp_cell::cell::{Cell, CellRobot};
 use kinematics::{
     base_from_tip, ik_tip_position, tip_joint_jacobian_true, true_base_from_tip, IkOptions,
 };
@@ -104,7 +104,7 @@ pub const FIELD_KINDS: [(&str, &[&str]); 16] = [
 ];
 
 /// A session row that is not a coincident handclasp at both robots' default tips. Tools are
-/// indices into the cell robot's tools ([`crate::CellRobot::tool_index`]: 0 = `tip_mm`).
+/// indices into the cell robot's tools ([`handclasp_cell::CellRobot::tool_index`]: 0 = `tip_mm`).
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum SessionKind {
@@ -378,7 +378,7 @@ impl Session {
     pub fn to_csv_string(&self, dof1: usize, dof2: usize) -> String {
         self.write_text(dof1, dof2, &|_, k| {
             if k == 0 {
-                crate::cell::TIP_TOOL.to_string()
+                handclasp_cell::cell::TIP_TOOL.to_string()
             } else {
                 format!("#{k}")
             }

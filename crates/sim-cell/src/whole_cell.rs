@@ -21,9 +21,9 @@ use calib_core::whole_cell::{ContactGroup, PlacementPrior, PlaneGroup, TrackerGr
 use calib_core::Robot;
 use kinematics::base_from_tip;
 
-pub use crate::cell::TIP_TOOL;
-use crate::cell::{Cell, CellRobot};
 use crate::session::{Session, SessionKind, SessionRow};
+pub use handclasp_cell::cell::TIP_TOOL;
+use handclasp_cell::cell::{Cell, CellRobot};
 
 /// Which unknowns the whole-cell fit estimates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -9,8 +9,9 @@ use std::path::Path;
 
 use anyhow::Context;
 use calib_core::whole_cell::{CellFit, CellParam, CellProblem, ObservationKind};
+use handclasp_cell::Cell;
 use kinematics::{true_base_from_tip, ErrorParam};
-use sim_cell::{export_calibrated_cell, Cell, ExportNames};
+use sim_cell::{export_calibrated_cell, ExportNames};
 
 use crate::cv::Choice;
 use crate::data::Recording;

@@ -255,7 +255,7 @@ mod tests {
     use super::*;
     use crate::cell_diagnosis::tests::mixed_session;
     use crate::cell_diagnosis::{diagnosis_problem, CellDiagnoseOptions};
-    use sim_cell::Cell;
+    use handclasp_cell::Cell;
 
     #[test]
     fn families_partition_the_kinematic_unknowns() {

@@ -438,7 +438,7 @@ mod tests {
     use super::*;
     use crate::cell_diagnosis::tests::mixed_session;
     use crate::cell_diagnosis::{diagnosis_problem, CellDiagnoseOptions};
-    use sim_cell::Cell;
+    use handclasp_cell::Cell;
 
     use crate::cell_diagnosis::problem::group_of;
 

@@ -81,8 +81,9 @@ use problem::placement_observed;
 use calib_core::whole_cell::{
     fit_screened, CellFit, CellFitError, CellProblem, ScreenOptions, SolveOptions,
 };
+use handclasp_cell::Cell;
 use rayon::prelude::*;
-use sim_cell::{Cell, Session};
+use sim_cell::Session;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::cell_report::{self, CellDiagnoseReport};

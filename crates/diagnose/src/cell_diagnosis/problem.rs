@@ -4,9 +4,10 @@
 
 use calib_core::whole_cell::{CellProblem, ObservationKind, Tolerance};
 use calib_core::Robot;
+use handclasp_cell::Cell;
 use kinematics::gravity_torques;
 use sim_cell::whole_cell::{cell_problem, FitModel};
-use sim_cell::{Cell, Session};
+use sim_cell::Session;
 
 use super::CellDiagnoseOptions;
 use crate::DiagnoseError;

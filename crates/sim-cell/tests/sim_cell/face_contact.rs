@@ -8,10 +8,11 @@ use calib_core::whole_cell::{
     calibrate_cell, Evaluator, ObservationKind, ParamLayout, ScreenOptions, SolveOptions,
     StopReason,
 };
+use handclasp_cell::Cell;
 use nalgebra::Vector3;
 use sim_cell::whole_cell::{cell_problem, session_meeting_pairs, truth_estimate, FitModel};
 use sim_cell::{
-    generate_kind_session, trial_rng, Cell, KindSpec, Layout, NuisanceTruth, Session, SessionKind,
+    generate_kind_session, trial_rng, KindSpec, Layout, NuisanceTruth, Session, SessionKind,
     SessionSpec, SimKind,
 };
 

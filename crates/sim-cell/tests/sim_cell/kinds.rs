@@ -8,12 +8,13 @@ use calib_core::whole_cell::{
     calibrate_cell, measure_cooperative_error, predict_cooperative_accuracy, ScreenOptions,
     SolveOptions,
 };
+use handclasp_cell::Cell;
 use kinematics::Axis;
 use nalgebra::Vector3;
 use sim_cell::whole_cell::{cell_problem, session_config_pairs, truth_estimate, FitModel};
 use sim_cell::{
-    generate_kind_session, generate_session, trial_rng, Cell, KindSpec, Layout, Session,
-    SessionKind, SessionSpec, SimKind,
+    generate_kind_session, generate_session, trial_rng, KindSpec, Layout, Session, SessionKind,
+    SessionSpec, SimKind,
 };
 
 /// The floor–floor cell with a reflector tool on robot 1 and seeded small kinematic errors

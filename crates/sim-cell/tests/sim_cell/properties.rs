@@ -6,12 +6,13 @@
 use std::path::{Path, PathBuf};
 
 use calib_core::{Method, MountPair};
+use handclasp_cell::Cell;
 use nalgebra::{Isometry3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
 use sim_cell::sweep::{
     run_sweep, summarize_cells, write_summary_csv, write_trials_csv, Mode, SweepConfig,
 };
-use sim_cell::{Cell, Layout};
+use sim_cell::Layout;
 
 /// Lengths (m) and angles (rad) after a TOML round trip: the writer rounds to 1e-10 mm and 1e-10°
 /// (5e-14 m, 9e-13 rad), plus the ZYZ extraction's round-off.

@@ -2,9 +2,10 @@
 //! encoder quantisation, and errors that name the teach point or column.
 
 use calib_core::{fit, Method, MountPair};
+use handclasp_cell::Cell;
 use kinematics::true_base_from_tip;
 use nalgebra::{Point3, Vector3};
-use sim_cell::{generate_session, trial_rng, Cell, Layout, Session, SessionSpec};
+use sim_cell::{generate_session, trial_rng, Layout, Session, SessionSpec};
 use std::path::Path;
 
 /// Zero-noise recovery: IK and the true-robot Newton correction stop at 1e-9 m, so the fit is
