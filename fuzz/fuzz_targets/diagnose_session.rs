@@ -23,7 +23,7 @@ use kinematics::{
 };
 use libfuzzer_sys::fuzz_target;
 use nalgebra::Point3;
-use sim_cell::{Session, SessionPoint};
+use handclasp_cell::{Session, SessionPoint};
 
 #[derive(Debug, Arbitrary)]
 struct HiddenError {

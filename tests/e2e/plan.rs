@@ -3,7 +3,7 @@
 //! joint limits, and the JSON carries the documented keys.
 
 use handclasp_cell::Cell;
-use sim_cell::Session;
+use handclasp_cell::Session;
 
 use crate::support::{handclasp, shipped_cell, stdout_json};
 

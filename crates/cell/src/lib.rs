@@ -2,6 +2,14 @@
 
 pub mod cell;
 mod error;
+pub mod export;
+#[cfg(test)]
+mod fixtures;
+pub mod problem;
+pub mod session;
 
 pub use cell::{Cell, CellRobot, Noise, PlacementSigma, TIP_TOOL};
 pub use error::FormatError;
+pub use export::{export_calibrated_cell, ExportNames, CALIBRATE_EXPORT_NAMES};
+pub use problem::{cell_problem, FitModel};
+pub use session::{Session, SessionKind, SessionObservation, SessionPoint, SessionRow};

@@ -26,11 +26,11 @@ use calib_core::whole_cell::{
     ReductionReason, ScreenOptions, SolveOptions,
 };
 use calib_core::zyz_canonical;
+use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
 use handclasp_cell::Cell;
+use handclasp_cell::{export_calibrated_cell, Session, CALIBRATE_EXPORT_NAMES};
 use kinematics::ErrorParam;
 use serde_json::{json, Value};
-use sim_cell::whole_cell::{cell_problem, session_meeting_pairs, FitModel};
-use sim_cell::{export_calibrated_cell, Session, CALIBRATE_EXPORT_NAMES};
 
 use crate::calibrate::Args;
 

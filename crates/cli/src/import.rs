@@ -1,6 +1,6 @@
 //! `handclasp import --cell CELL --map MAP.toml --input FILE.csv [--input …] --out SESSION.csv
 //! [--json]`: converts a controller's or a dataset's CSV into a session CSV of `CELL`
-//! (`sim_cell::Session`), as the mapping file says.
+//! (`handclasp_cell::Session`), as the mapping file says.
 //!
 //! The mapping file (TOML; documented with an example in the main README):
 //! ```toml
@@ -30,11 +30,11 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use calib_core::Robot;
 use handclasp_cell::Cell;
+use handclasp_cell::{Session, SessionKind, SessionObservation, SessionPoint};
 use kinematics::base_from_tip;
 use nalgebra::Point3;
 use serde::Deserialize;
 use serde_json::json;
-use sim_cell::{Session, SessionKind, SessionObservation, SessionPoint};
 
 /// Arguments of `handclasp import`.
 #[derive(clap::Args, Debug)]
@@ -176,21 +176,21 @@ struct Plan {
 impl Plan {
     fn new(map: &MapFile, cell: &Cell, path: &Path) -> anyhow::Result<Plan> {
         let at = |msg: String| anyhow::anyhow!("--map {}: {msg}", path.display());
-        let kind = sim_cell::session::KIND_NAMES
+        let kind = handclasp_cell::session::KIND_NAMES
             .into_iter()
             .find(|k| *k == map.kind)
             .ok_or_else(|| {
                 at(format!(
                     "kind = \"{}\" is not an observation kind; use one of {}",
                     map.kind,
-                    sim_cell::session::KIND_NAMES.join(", ")
+                    handclasp_cell::session::KIND_NAMES.join(", ")
                 ))
             })?;
         if kind == "face_contact" {
             return Err(at(
                 "kind = \"face_contact\" cannot be imported yet: a map has no face-normal columns \
                  (n1_x … n2_z); import the rows as `contact` and add the kind and the normals, or \
-                 write the session with sim_cell::Session"
+                 write the session with handclasp_cell::Session"
                     .into(),
             ));
         }

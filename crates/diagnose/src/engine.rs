@@ -11,10 +11,10 @@ use calib_core::identify::{
 };
 use calib_core::stats::chi2_sf;
 use calib_core::whole_cell::{calibrate_cell, CellFitError, ScreenOptions, SolveOptions};
+use handclasp_cell::problem::{cell_problem, FitModel};
 use handclasp_cell::Cell;
+use handclasp_cell::Session;
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
-use sim_cell::whole_cell::{cell_problem, FitModel};
-use sim_cell::Session;
 
 use crate::catalogue::{catalogue, Candidate, EffectKind};
 use crate::input::check_session;
@@ -62,7 +62,7 @@ impl Default for DiagnoseOptions {
 ///
 /// First (unless `options.screen_blunders` is off) the rows are screened for gross errors by the
 /// whole-cell calibration's screen ([`calib_core::whole_cell::calibrate_cell`] on
-/// [`sim_cell::whole_cell::cell_problem`] with the kinematic model: `b1_from_b2` and every
+/// [`handclasp_cell::problem::cell_problem`] with the kinematic model: `b1_from_b2` and every
 /// kinematic parameter the cell's `[robotN.tolerance]` admits, so that kinematic errors are not
 /// mistaken for blunders; a robust Huber start, then studentised residuals against a Bonferroni
 /// limit at α = 1 %). The rejected rows are named in the report with their size in σ, and the

@@ -12,10 +12,10 @@
 use std::path::{Path, PathBuf};
 
 use calib_core::Robot;
+use handclasp_cell::{export_calibrated_cell, ExportNames};
 use handclasp_cell::{Cell, CellRobot};
 use kinematics::{KinematicErrors, RobotModel};
 use nalgebra::Isometry3;
-use sim_cell::{export_calibrated_cell, ExportNames};
 
 use crate::catalogue::effects_to_errors;
 use crate::cell_report::{render_cell_text, CellDiagnoseReport};
@@ -39,7 +39,7 @@ pub const CELL_DIAGNOSIS_EXPORT_NAMES: ExportNames<'static> = ExportNames {
 /// Writes the whole-cell diagnosis `report` of a session on `cell` to `dir` (created if
 /// missing; files of the same names are overwritten):
 /// - `robot1_corrected.urdf`, `robot2_corrected.urdf` and `cell_corrected.toml`: the cell with
-///   the named families' fitted values ([`sim_cell::export_calibrated_cell`]: joint offsets and
+///   the named families' fitted values ([`handclasp_cell::export_calibrated_cell`]: joint offsets and
 ///   origin errors patched into the URDFs and verified; the fitted tip of tool 0 as `tip_mm`
 ///   and of every other tool in `[robotN.tools]`; compliance and joint-periodic terms as
 ///   `[robotN.errors]`); `b1_from_b2` is the fitted placement when the session determines it
@@ -287,7 +287,7 @@ mod tests {
 
     /// The FK of `corrected` equals the nominal model with `e` at 20 random postures.
     fn assert_matches_error_model(robot: &CellRobot, e: &KinematicErrors, corrected: &RobotModel) {
-        let mut rng = sim_cell::trial_rng(3, 0);
+        let mut rng = calib_core::stats::trial_rng(3, 0);
         for _ in 0..20 {
             let q: Vec<f64> = robot
                 .model

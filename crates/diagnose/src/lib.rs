@@ -77,18 +77,18 @@ pub enum DiagnoseError {
         /// What is wrong and the fix.
         message: String,
     },
-    /// sim-cell could not read the session; `hint` names the unit mistake that explains it.
+    /// The session file could not be read; `hint` names the unit mistake that explains it.
     #[error("{hint}")]
     SessionUnits {
         /// The likely unit mistake and its fix.
         hint: String,
-        /// sim-cell's reading error.
+        /// The session reader's error.
         #[source]
-        source: sim_cell::SimError,
+        source: handclasp_cell::FormatError,
     },
-    /// The cell or session could not be read by sim-cell.
+    /// The cell or session file could not be read ([`handclasp_cell::FormatError`]).
     #[error(transparent)]
-    Sim(#[from] sim_cell::SimError),
+    Format(#[from] handclasp_cell::FormatError),
     /// A robot model rejected a session's joint vector.
     #[error("robot {robot}, point {point}")]
     Model {

@@ -132,7 +132,7 @@ pub fn simulate_rms(
     let mut out: Vec<f64> = (0..trials)
         .into_par_iter()
         .map(|t| {
-            let mut rng = sim_cell::trial_rng(seed, t as u64);
+            let mut rng = calib_core::stats::trial_rng(seed, t as u64);
             let p1: Vec<Point3<f64>> = p2
                 .iter()
                 .zip(d)

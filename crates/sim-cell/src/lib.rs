@@ -1,28 +1,22 @@
 #![doc = include_str!("../README.md")]
 
 mod error;
-pub mod export;
 pub mod layout;
 pub mod paper;
 pub mod placement;
 pub mod plan;
 pub mod plot;
-pub mod session;
 pub mod session_kinds;
+pub mod simulate;
 pub mod sweep;
-pub mod whole_cell;
 
 pub use error::SimError;
-pub use export::{export_calibrated_cell, ExportNames, CALIBRATE_EXPORT_NAMES};
 pub use layout::{teach_points, Layout};
-pub use session::{
-    generate_session, Session, SessionKind, SessionObservation, SessionPoint, SessionRow,
-    SessionSpec,
-};
 pub use session_kinds::{
     generate_kind_session, read_points_b1_csv, teach_from_plan, KindSpec, NuisanceTruth, SimKind,
     Teach,
 };
+pub use simulate::{generate_session, SessionSpec};
 pub use sweep::{geometry_trial, GeometrySpec, TrialErrors};
 
 /// The generator of one Monte Carlo trial; defined in [`calib_core::stats::trial_rng`] and

@@ -8,12 +8,13 @@ use anyhow::{bail, Context, Result};
 use calib_core::MountPair;
 use clap::{Parser, Subcommand, ValueEnum};
 use handclasp_cell::Cell;
+use handclasp_cell::Session;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use sim_cell::layout::Layout;
 use sim_cell::sweep::{self, KinematicErrorDraw, Mode, SweepConfig, SweepLayout, SweepMethod};
 use sim_cell::{
-    generate_kind_session, read_points_b1_csv, teach_from_plan, trial_rng, KindSpec, Session,
-    SessionSpec, SimError, SimKind,
+    generate_kind_session, read_points_b1_csv, teach_from_plan, trial_rng, KindSpec, SessionSpec,
+    SimError, SimKind,
 };
 use std::io::{BufWriter, IsTerminal, Write};
 use std::path::PathBuf;

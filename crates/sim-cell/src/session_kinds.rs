@@ -11,14 +11,14 @@ use rand_distr::StandardNormal;
 
 use crate::error::SimError;
 use crate::layout::teach_points;
-use crate::session::{
+use crate::simulate::{
     approach_directions, gauss3, generate_session, quantise, solve_true_tool, tool_errors,
-    unreachable, PointFailure, Session, SessionKind, SessionObservation, SessionPoint, SessionSpec,
-    MAX_LAYOUT_ATTEMPTS,
+    unreachable, PointFailure, SessionSpec, MAX_LAYOUT_ATTEMPTS,
 };
 use calib_core::whole_cell::tangent_basis;
 use calib_core::Robot;
 use handclasp_cell::cell::Cell;
+use handclasp_cell::{Session, SessionKind, SessionObservation, SessionPoint};
 use kinematics::{base_from_tip, true_base_from_tip};
 
 /// Which observation kinds a simulated session holds.

@@ -113,7 +113,7 @@ impl CellRobot {
 }
 
 /// The noise of a handclasp session: what the simulator draws, and what the whole-cell fit weighs
-/// coincident rows by (`handclasp_covariance`).
+/// coincident rows by ([`crate::problem::handclasp_covariance`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Noise {
     /// σ of the operator's tip-alignment error per b1 axis, m.

@@ -4,7 +4,7 @@
 //! criterion that holds out whole nuisance groups.
 //!
 //! # Method
-//! 1. **Problem.** [`sim_cell::whole_cell::cell_problem`] with every tolerance of the cell
+//! 1. **Problem.** [`handclasp_cell::problem::cell_problem`] with every tolerance of the cell
 //!    multiplied by [`CellDiagnoseOptions::prior_widening`] (the diagnosis looks for errors
 //!    beyond the stated tolerances, so the prior only regularises what the data cannot see), and
 //!    joint compliance added where the URDF has inertials: its tolerance is the (widened) joint
@@ -82,8 +82,8 @@ use calib_core::whole_cell::{
     fit_screened, CellFit, CellFitError, CellProblem, ScreenOptions, SolveOptions,
 };
 use handclasp_cell::Cell;
+use handclasp_cell::Session;
 use rayon::prelude::*;
-use sim_cell::Session;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::cell_report::{self, CellDiagnoseReport};

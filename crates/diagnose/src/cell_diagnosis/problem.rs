@@ -4,10 +4,10 @@
 
 use calib_core::whole_cell::{CellProblem, ObservationKind, Tolerance};
 use calib_core::Robot;
+use handclasp_cell::problem::{cell_problem, FitModel};
 use handclasp_cell::Cell;
+use handclasp_cell::Session;
 use kinematics::gravity_torques;
-use sim_cell::whole_cell::{cell_problem, FitModel};
-use sim_cell::Session;
 
 use super::CellDiagnoseOptions;
 use crate::DiagnoseError;

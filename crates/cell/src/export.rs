@@ -25,8 +25,8 @@ use calib_core::whole_cell::CellEstimate;
 use calib_core::Robot;
 use kinematics::{patch_urdf_text, split_for_urdf, verify_patched_urdf, RobotModel};
 
-use crate::error::SimError;
-use handclasp_cell::cell::Cell;
+use crate::cell::Cell;
+use crate::error::FormatError;
 
 /// The files [`export_calibrated_cell`] writes, relative to its output folder, and the comment
 /// put at the top of the cell file.
@@ -58,7 +58,7 @@ pub const CALIBRATE_EXPORT_NAMES: ExportNames<'static> = ExportNames {
 /// Writes the calibrated `cell` into `dir` (created if missing): each robot's URDF corrected by
 /// the URDF-expressible part of `estimate`'s corrections ([`split_for_urdf`]), and the cell file
 /// with `estimate.b1_from_b2`, the tips corrected by tool 0's tip error (tool 0 = the cell's tip,
-/// as [`crate::whole_cell::cell_problem`] builds it), the rest of each robot's errors (joint
+/// as [`crate::problem::cell_problem`] builds it), the rest of each robot's errors (joint
 /// scale, compliance) as `[robotN.errors]`, robot 2's gravity rotated by the fitted placement, and
 /// the cell's placement σ (if any) unchanged, now centred on the fitted placement (see the
 /// module documentation for why). The placement's angles are written by
@@ -78,15 +78,15 @@ pub const CALIBRATE_EXPORT_NAMES: ExportNames<'static> = ExportNames {
 /// 1e-6 rad/(N·m) and a 1.2e-5 rad tilt).
 ///
 /// Errors: `estimate` of the wrong shape for `cell` (joint counts, no tool 0), a URDF that cannot
-/// be read or corrected ([`SimError::Cell`] naming the robot and file), any file that cannot be
-/// written ([`SimError::Io`]), a written cell that does not load.
+/// be read or corrected ([`FormatError::Cell`] naming the robot and file), any file that cannot be
+/// written ([`FormatError::Io`]), a written cell that does not load.
 pub fn export_calibrated_cell(
     cell: &Cell,
     estimate: &CellEstimate,
     dir: &Path,
     names: &ExportNames<'_>,
-) -> Result<Vec<PathBuf>, SimError> {
-    std::fs::create_dir_all(dir).map_err(|e| SimError::io(dir, e))?;
+) -> Result<Vec<PathBuf>, FormatError> {
+    std::fs::create_dir_all(dir).map_err(|e| FormatError::io(dir, e))?;
     let mut out = cell.clone();
     out.base_dir = dir.to_path_buf();
     out.b1_from_b2 = estimate.b1_from_b2;
@@ -94,7 +94,7 @@ pub fn export_calibrated_cell(
     for robot in [Robot::One, Robot::Two] {
         let setup = cell.robot(robot);
         let correction = estimate.robot(robot);
-        let bad = |message: String| SimError::Cell {
+        let bad = |message: String| FormatError::Cell {
             path: setup.urdf_path.clone(),
             message: format!("{robot}: {message}"),
         };
@@ -106,7 +106,7 @@ pub fn export_calibrated_cell(
         };
         let (urdf_part, rest) = split_for_urdf(&correction.errors);
         let xml = std::fs::read_to_string(&setup.urdf_path)
-            .map_err(|e| SimError::io(&setup.urdf_path, e))?;
+            .map_err(|e| FormatError::io(&setup.urdf_path, e))?;
         let patched = patch_urdf_text(&xml, &setup.model, &urdf_part)
             .map_err(|e| bad(format!("cannot write the corrected URDF: {e}")))?;
         let file = match robot {
@@ -115,13 +115,13 @@ pub fn export_calibrated_cell(
         };
         let path = dir.join(file);
         let tmp = path.with_extension("urdf.tmp");
-        std::fs::write(&tmp, &patched).map_err(|e| SimError::io(&tmp, e))?;
-        let reread = std::fs::read_to_string(&tmp).map_err(|e| SimError::io(&tmp, e))?;
+        std::fs::write(&tmp, &patched).map_err(|e| FormatError::io(&tmp, e))?;
+        let reread = std::fs::read_to_string(&tmp).map_err(|e| FormatError::io(&tmp, e))?;
         verify_patched_urdf(&reread, &setup.model, &urdf_part)
             .map_err(|e| bad(format!("verifying {}: {e}", tmp.display())))?;
         let model = RobotModel::from_urdf_file(&tmp, &setup.tool_link)
             .map_err(|e| bad(format!("re-loading {}: {e}", tmp.display())))?;
-        std::fs::rename(&tmp, &path).map_err(|e| SimError::io(&path, e))?;
+        std::fs::rename(&tmp, &path).map_err(|e| FormatError::io(&path, e))?;
         written.push(path.clone());
         let r = if robot == Robot::One {
             &mut out.robot1
@@ -140,8 +140,8 @@ pub fn export_calibrated_cell(
     let cell_path = dir.join(names.cell);
     let text = format!("{}{}", names.header, out.to_toml_string());
     let tmp = cell_path.with_extension("tmp");
-    std::fs::write(&tmp, text).map_err(|e| SimError::io(&tmp, e))?;
-    std::fs::rename(&tmp, &cell_path).map_err(|e| SimError::io(&cell_path, e))?;
+    std::fs::write(&tmp, text).map_err(|e| FormatError::io(&tmp, e))?;
+    std::fs::rename(&tmp, &cell_path).map_err(|e| FormatError::io(&cell_path, e))?;
     Cell::from_toml_file(&cell_path)?;
     written.push(cell_path);
     Ok(written)
@@ -150,8 +150,8 @@ pub fn export_calibrated_cell(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::whole_cell::{cell_problem, FitModel};
-    use crate::{generate_session, trial_rng, Layout, SessionSpec};
+    use crate::fixtures::coincident_session;
+    use crate::problem::{cell_problem, FitModel};
     use kinematics::true_base_from_tip;
     use nalgebra::{Isometry3, Vector3};
 
@@ -171,12 +171,7 @@ mod tests {
     #[test]
     fn exported_cell_reproduces_the_estimate_with_the_given_names() {
         let cell = floor_floor();
-        let session = generate_session(
-            &cell,
-            &SessionSpec::new(4, Layout::Tetrahedron, 1.0),
-            &mut trial_rng(1, 0),
-        )
-        .unwrap();
+        let session = coincident_session(&cell, 4);
         let problem = cell_problem(&cell, &session, FitModel::Kinematic);
         let mut est = CellEstimate::nominal(
             &problem,
@@ -266,18 +261,13 @@ mod tests {
 
     /// A seeded 4-point floor–floor session and its kinematic problem.
     fn floor_floor_problem(cell: &Cell) -> calib_core::whole_cell::CellProblem {
-        let session = generate_session(
-            cell,
-            &SessionSpec::new(4, Layout::Tetrahedron, 1.0),
-            &mut trial_rng(1, 0),
-        )
-        .unwrap();
+        let session = coincident_session(cell, 4);
         cell_problem(cell, &session, FitModel::Kinematic)
     }
 
     #[test]
     fn the_placement_sigma_is_kept_centred_on_the_fit_and_absent_stays_absent() {
-        use handclasp_cell::PlacementSigma;
+        use crate::PlacementSigma;
         let plain = floor_floor();
         let mut known = plain.clone();
         let sigma = PlacementSigma {
@@ -352,12 +342,7 @@ mod tests {
     #[test]
     fn an_estimate_without_the_tip_tool_is_refused_naming_the_robot() {
         let cell = floor_floor();
-        let session = generate_session(
-            &cell,
-            &SessionSpec::new(4, Layout::Tetrahedron, 1.0),
-            &mut trial_rng(1, 0),
-        )
-        .unwrap();
+        let session = coincident_session(&cell, 4);
         let problem = cell_problem(&cell, &session, FitModel::Kinematic);
         let mut est = CellEstimate::nominal(&problem, cell.b1_from_b2);
         est.robot1.tool_tip_m.clear();

@@ -21,9 +21,8 @@ use calib_core::whole_cell::{ContactGroup, PlacementPrior, PlaneGroup, TrackerGr
 use calib_core::Robot;
 use kinematics::base_from_tip;
 
+use crate::cell::{Cell, CellRobot, TIP_TOOL};
 use crate::session::{Session, SessionKind, SessionRow};
-pub use handclasp_cell::cell::TIP_TOOL;
-use handclasp_cell::cell::{Cell, CellRobot};
 
 /// Which unknowns the whole-cell fit estimates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -451,22 +450,12 @@ pub fn truth_estimate(cell: &Cell, problem: &CellProblem) -> CellEstimate {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{generate_session, trial_rng, Layout, SessionSpec};
-    use calib_core::whole_cell::{calibrate_cell, ScreenOptions, SolveOptions};
-
-    /// Recovery tolerance of b1_from_b2 from a noise-free, error-free session: the solver's
-    /// convergence (cost tolerance 1e-10 relative) and the 6-decimal joints leave ≪ 1 µm.
-    const PLACEMENT_TOL_M: f64 = 1e-5;
+    use crate::fixtures::coincident_session;
 
     #[test]
     fn problem_has_one_row_per_point_and_the_cells_prior() {
         let cell = Cell::default_floor_floor();
-        let session = generate_session(
-            &cell,
-            &SessionSpec::new(8, Layout::Tetrahedron, 1.0),
-            &mut trial_rng(3, 0),
-        )
-        .unwrap();
+        let session = coincident_session(&cell, 8);
         let p = cell_problem(&cell, &session, FitModel::Kinematic);
         p.check().unwrap();
         assert_eq!(p.observations.len(), 8);
@@ -507,28 +496,5 @@ mod tests {
         }
         let small = Session::from_points(s.points[..100].to_vec());
         assert_eq!(session_config_pairs(&small).len(), 10_000);
-    }
-
-    #[test]
-    fn noise_free_placement_fit_recovers_the_cell() {
-        let mut cell = Cell::default_floor_floor();
-        cell.noise.alignment_m = Vector3::zeros();
-        cell.noise.repeatability_m = 0.0;
-        cell.noise.encoder_resolution_rad = 0.0;
-        let session = generate_session(
-            &cell,
-            &SessionSpec::new(8, Layout::Tetrahedron, 1.0),
-            &mut trial_rng(5, 0),
-        )
-        .unwrap();
-        let p = cell_problem(&cell, &session, FitModel::Placement);
-        let cal = calibrate_cell(&p, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
-        let x = cal.fit.estimate.b1_from_b2;
-        assert!(
-            (x.translation.vector - cell.b1_from_b2.translation.vector).amax() < PLACEMENT_TOL_M
-        );
-        assert!(x.rotation.angle_to(&cell.b1_from_b2.rotation) < PLACEMENT_TOL_M);
-        let truth = truth_estimate(&cell, &p);
-        assert_eq!(truth.b1_from_b2, cell.b1_from_b2);
     }
 }

@@ -1,6 +1,6 @@
 //! Handclasp sessions: what the two controllers report at each teach point (joint angles and
 //! nominal-model tip positions), and rows of the other observation kinds (contact, face contact,
-//! tracker, plane), simulated on a [`Cell`] or read from / written to CSV.
+//! tracker, plane), read from and written to CSV.
 //!
 //! CSV: header `point,r1_q1_deg,…,r1_qN_deg,r2_q1_deg,…,r2_qM_deg,r1_x_mm,r1_y_mm,r1_z_mm,
 //! r2_x_mm,r2_y_mm,r2_z_mm` (N, M = the models' joint counts, URDF chain order), one row per point,
@@ -11,30 +11,22 @@
 //! `tool`, `distance_mm`, `sigma_mm`, `tracker_x_mm`, `tracker_y_mm`, `tracker_z_mm`, and, when
 //! a `face_contact` row is present, [`FACE_COLUMNS`] `n1_x,n1_y,n1_z,n2_x,n2_y,n2_z`); a file
 //! without a `kind` column is all coincident handclasps, read exactly as before. Which kind uses
-//! which column is [`FIELD_KINDS`]; the crate README has the table and an example.
+//! which column is [`FIELD_KINDS`]; sim-cell's README has the table and an example.
 //!
-//! One job: the session CSV (its schema, reading with row/column errors, writing) and the
-//! simulation of coincident handclasp sessions; the other kinds are simulated in
-//! `session_kinds`.
+//! One job: the session CSV. This file holds the row types, the schema and the reader with its
+//! row/column errors; `write.rs` the writer. Sessions are simulated by sim-cell.
 
-use crate::error::SimError;
-use crate::layout::{teach_points, Layout};
-use calib_core::{PointPairs, Robot};
-use handclasp_cell::cell::{Cell, CellRobot};
-use kinematics::{
-    base_from_tip, ik_tip_position, tip_joint_jacobian_true, true_base_from_tip, IkOptions,
-};
-use nalgebra::{Matrix3, Point3, Rotation3, Unit, Vector3};
-use rand::Rng;
-use rand_distr::StandardNormal;
 use std::path::Path;
 
-/// Layout draws tried before a session is declared unreachable.
-pub const MAX_LAYOUT_ATTEMPTS: usize = 20;
-/// Tolerance of the true-robot Newton correction: the true tip is within this of its target, m.
-pub const TRUE_TIP_TOL_M: f64 = 1e-9;
-/// Newton iterations of the true-robot correction.
-const TRUE_NEWTON_ITER: usize = 30;
+use calib_core::{PointPairs, Robot};
+use kinematics::base_from_tip;
+use nalgebra::{Point3, Unit, Vector3};
+
+use crate::cell::Cell;
+use crate::error::FormatError;
+
+mod write;
+
 /// Largest allowed mismatch between a session row's tip columns and FK of its joint columns, mm.
 pub const TIP_CONSISTENCY_MM: f64 = 0.01;
 
@@ -228,35 +220,6 @@ pub struct Session {
     pub observations: Vec<SessionObservation>,
 }
 
-/// What to simulate.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SessionSpec {
-    /// Number of teach points (≥ 1).
-    pub n: usize,
-    /// Layout of the teach points.
-    pub layout: Layout,
-    /// Layout size, m (see [`crate::layout`]).
-    pub spread_m: f64,
-    /// Centre of the layout, m, b1 (None: the cell's `centre_b1`).
-    pub centre_b1: Option<Point3<f64>>,
-    /// Explicit teach points, m, b1 (overrides `n`/`layout`/`spread_m`; an unreachable one is an
-    /// error naming it).
-    pub points_b1: Option<Vec<Point3<f64>>>,
-}
-
-impl SessionSpec {
-    /// `n` points of `layout` with `spread_m` around the cell's centre.
-    pub fn new(n: usize, layout: Layout, spread_m: f64) -> Self {
-        SessionSpec {
-            n,
-            layout,
-            spread_m,
-            centre_b1: None,
-            points_b1: None,
-        }
-    }
-}
-
 /// One row of a session, in file order ([`Session::rows`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum SessionRow<'a> {
@@ -371,188 +334,14 @@ impl Session {
         header
     }
 
-    /// The CSV text (see the module docs) for joint counts `dof1`, `dof2`: today's columns for a
-    /// handclasp-only session, plus [`EXTRA_COLUMNS`] when it has rows of other kinds. Without
-    /// the cell, a tool other than the tip is written by its index (`#1`, …), which
-    /// [`Session::parse_csv`] refuses: write such sessions with [`Session::csv_text`].
-    pub fn to_csv_string(&self, dof1: usize, dof2: usize) -> String {
-        self.write_text(dof1, dof2, &|_, k| {
-            if k == 0 {
-                handclasp_cell::cell::TIP_TOOL.to_string()
-            } else {
-                format!("#{k}")
-            }
-        })
-    }
-
-    /// The CSV text for `cell` (tools by their names in the cell); see
-    /// [`Session::to_csv_string`].
-    pub fn csv_text(&self, cell: &Cell) -> String {
-        self.write_text(cell.robot1.model.dof(), cell.robot2.model.dof(), &|r, k| {
-            cell.robot(r)
-                .tool_name(k)
-                .map_or_else(|| format!("#{k}"), str::to_string)
-        })
-    }
-
-    fn write_text(
-        &self,
-        dof1: usize,
-        dof2: usize,
-        tool_name: &dyn Fn(Robot, usize) -> String,
-    ) -> String {
-        let mixed = !self.is_handclasp_only();
-        let faces = self
-            .observations
-            .iter()
-            .any(|o| matches!(o.kind, SessionKind::FaceContact { .. }));
-        // Without a face contact the face columns are left out (files as before they existed).
-        let n_extra = EXTRA_COLUMNS.len() - if faces { 0 } else { FACE_COLUMNS.len() };
-        let mut out = csv::Writer::from_writer(Vec::new());
-        let mut header = Session::csv_header(dof1, dof2);
-        if mixed {
-            header.extend(EXTRA_COLUMNS[..n_extra].iter().map(|c| c.to_string()));
-        }
-        // Writing to memory cannot fail, and every field is plain ASCII.
-        let _ = out.write_record(&header);
-        let deg = |q: &[f64]| {
-            q.iter()
-                .map(|x| format!("{:.6}", x.to_degrees()))
-                .collect::<Vec<_>>()
-        };
-        let mm3 = |p: &Point3<f64>| {
-            (0..3)
-                .map(|a| format!("{:.6}", p[a] * 1e3))
-                .collect::<Vec<_>>()
-        };
-        let mm = |x: f64| format!("{:.6}", x * 1e3);
-        for row in self.rows() {
-            let mut record = vec![row.point().to_string()];
-            let mut extra = vec![String::new(); n_extra];
-            let mut set = |name: &str, v: String| {
-                if let Some(k) = EXTRA_COLUMNS.iter().position(|c| *c == name) {
-                    extra[k] = v;
-                }
-            };
-            let (q1, q2, t1, t2): (Vec<String>, Vec<String>, Vec<String>, Vec<String>) = match row {
-                SessionRow::Point(p) => {
-                    set("kind", "coincident".into());
-                    (deg(&p.q1), deg(&p.q2), mm3(&p.p_b1), mm3(&p.p_b2))
-                }
-                SessionRow::Observation(o) => {
-                    set("kind", o.kind.name().into());
-                    let blank = |n: usize| vec![String::new(); n];
-                    // Joint columns of a row that involves one robot; the other's stay empty.
-                    let one_robot = |robot: Robot, q: &[f64]| {
-                        if robot == Robot::One {
-                            (deg(q), blank(dof2), blank(3), blank(3))
-                        } else {
-                            (blank(dof1), deg(q), blank(3), blank(3))
-                        }
-                    };
-                    match &o.kind {
-                        SessionKind::Coincident {
-                            q1,
-                            q2,
-                            tool1,
-                            tool2,
-                            p_b1,
-                            p_b2,
-                        } => {
-                            set("tool1", tool_name(Robot::One, *tool1));
-                            set("tool2", tool_name(Robot::Two, *tool2));
-                            (deg(q1), deg(q2), mm3(p_b1), mm3(p_b2))
-                        }
-                        SessionKind::Contact {
-                            q1,
-                            q2,
-                            tool1,
-                            tool2,
-                            group,
-                            distance_m,
-                            sigma_m,
-                        }
-                        | SessionKind::FaceContact {
-                            q1,
-                            q2,
-                            tool1,
-                            tool2,
-                            group,
-                            distance_m,
-                            sigma_m,
-                            ..
-                        } => {
-                            set("tool1", tool_name(Robot::One, *tool1));
-                            set("tool2", tool_name(Robot::Two, *tool2));
-                            set("group", group.clone());
-                            set("distance_mm", distance_m.map(mm).unwrap_or_default());
-                            set("sigma_mm", mm(*sigma_m));
-                            if let SessionKind::FaceContact { n1_tip, n2_tip, .. } = &o.kind {
-                                let normals = n1_tip.iter().chain(n2_tip.iter());
-                                for (c, v) in FACE_COLUMNS.iter().zip(normals) {
-                                    // `+ 0.0` writes −0 as 0.
-                                    set(c, format!("{:.9}", v + 0.0));
-                                }
-                            }
-                            (deg(q1), deg(q2), blank(3), blank(3))
-                        }
-                        SessionKind::Tracker {
-                            robot,
-                            q,
-                            tool,
-                            group,
-                            p_tracker,
-                            sigma_m,
-                        } => {
-                            set("robot", robot.number().to_string());
-                            set("tool", tool_name(*robot, *tool));
-                            set("group", group.clone());
-                            set("sigma_mm", mm(*sigma_m));
-                            for (a, c) in ["tracker_x_mm", "tracker_y_mm", "tracker_z_mm"]
-                                .iter()
-                                .enumerate()
-                            {
-                                set(c, mm(p_tracker[a]));
-                            }
-                            one_robot(*robot, q)
-                        }
-                        SessionKind::Plane {
-                            robot,
-                            q,
-                            tool,
-                            group,
-                            sigma_m,
-                        } => {
-                            set("robot", robot.number().to_string());
-                            set("tool", tool_name(*robot, *tool));
-                            set("group", group.clone());
-                            set("sigma_mm", mm(*sigma_m));
-                            one_robot(*robot, q)
-                        }
-                    }
-                }
-            };
-            record.extend(q1);
-            record.extend(q2);
-            record.extend(t1);
-            record.extend(t2);
-            if mixed {
-                record.extend(extra);
-            }
-            let _ = out.write_record(&record);
-        }
-        let bytes = out.into_inner().unwrap_or_default();
-        String::from_utf8(bytes).unwrap_or_default()
-    }
-
     /// Writes the session CSV for `cell`'s robots ([`Session::csv_text`]).
-    pub fn write_csv(&self, path: &Path, cell: &Cell) -> Result<(), SimError> {
-        std::fs::write(path, self.csv_text(cell)).map_err(|e| SimError::io(path, e))
+    pub fn write_csv(&self, path: &Path, cell: &Cell) -> Result<(), FormatError> {
+        std::fs::write(path, self.csv_text(cell)).map_err(|e| FormatError::io(path, e))
     }
 
     /// Reads a session CSV for `cell` (see [`Session::parse_csv`]).
-    pub fn read_csv(path: &Path, cell: &Cell) -> Result<Session, SimError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SimError::io(path, e))?;
+    pub fn read_csv(path: &Path, cell: &Cell) -> Result<Session, FormatError> {
+        let text = std::fs::read_to_string(path).map_err(|e| FormatError::io(path, e))?;
         Session::parse_csv(&text, path, cell)
     }
 
@@ -570,8 +359,8 @@ impl Session {
     /// tip columns are required on coincident rows and FK-checked wherever given, tools are named
     /// from the cell (`tip` or `[robotN.tools]`), and the rows of one contact group agree on
     /// `distance_mm`. Errors name the line and column and say what would work.
-    pub fn parse_csv(text: &str, path: &Path, cell: &Cell) -> Result<Session, SimError> {
-        let err = |message: String| SimError::Session {
+    pub fn parse_csv(text: &str, path: &Path, cell: &Cell) -> Result<Session, FormatError> {
+        let err = |message: String| FormatError::Session {
             path: path.to_path_buf(),
             message,
         };
@@ -895,8 +684,8 @@ fn check_tip(
     p: &Point3<f64>,
     line_no: u64,
     path: &Path,
-) -> Result<(), SimError> {
-    let err = |message: String| SimError::Session {
+) -> Result<(), FormatError> {
+    let err = |message: String| FormatError::Session {
         path: path.to_path_buf(),
         message,
     };
@@ -934,14 +723,14 @@ struct RowReader<'a> {
 }
 
 impl RowReader<'_> {
-    fn err(&self, message: String) -> SimError {
-        SimError::Session {
+    fn err(&self, message: String) -> FormatError {
+        FormatError::Session {
             path: self.path.to_path_buf(),
             message: format!("line {}, {message}", self.line_no),
         }
     }
 
-    fn missing(&self, column: &str, why: &str) -> SimError {
+    fn missing(&self, column: &str, why: &str) -> FormatError {
         self.err(format!("column `{column}` is empty: {why}"))
     }
 
@@ -951,7 +740,7 @@ impl RowReader<'_> {
     }
 
     /// Standard column `k` as a finite number.
-    fn number(&self, k: usize) -> Result<f64, SimError> {
+    fn number(&self, k: usize) -> Result<f64, FormatError> {
         let c = self.cell(k);
         c.parse()
             .ok()
@@ -972,7 +761,7 @@ impl RowReader<'_> {
             .filter(|s| !s.is_empty())
     }
 
-    fn optional_number(&self, name: &str) -> Result<Option<f64>, SimError> {
+    fn optional_number(&self, name: &str) -> Result<Option<f64>, FormatError> {
         match self.extra(name) {
             None => Ok(None),
             Some(c) => c
@@ -987,7 +776,7 @@ impl RowReader<'_> {
     /// Robot `r`'s face normal of a `face_contact` row (columns `n{r}_x`, `n{r}_y`, `n{r}_z`,
     /// its tip frame, unitless), normalised. Errors: a missing or non-finite component, or a
     /// zero vector.
-    fn normal(&self, r: u8) -> Result<Unit<Vector3<f64>>, SimError> {
+    fn normal(&self, r: u8) -> Result<Unit<Vector3<f64>>, FormatError> {
         let mut n = Vector3::zeros();
         for (a, axis) in ["x", "y", "z"].iter().enumerate() {
             let name = format!("n{r}_{axis}");
@@ -1010,13 +799,13 @@ impl RowReader<'_> {
         })
     }
 
-    fn required_text(&self, name: &str, why: &str) -> Result<String, SimError> {
+    fn required_text(&self, name: &str, why: &str) -> Result<String, FormatError> {
         self.extra(name)
             .map(str::to_string)
             .ok_or_else(|| self.missing(name, why))
     }
 
-    fn sigma(&self) -> Result<f64, SimError> {
+    fn sigma(&self) -> Result<f64, FormatError> {
         let s = self.optional_number("sigma_mm")?.ok_or_else(|| {
             self.missing(
                 "sigma_mm",
@@ -1030,7 +819,7 @@ impl RowReader<'_> {
         }
     }
 
-    fn robot(&self) -> Result<Robot, SimError> {
+    fn robot(&self) -> Result<Robot, FormatError> {
         match self.extra("robot") {
             Some("1") => Ok(Robot::One),
             Some("2") => Ok(Robot::Two),
@@ -1042,7 +831,7 @@ impl RowReader<'_> {
     }
 
     /// The joint angles of robot `r` (rad): `None` if all its joint cells are empty.
-    fn joints(&self, cell: &Cell, r: Robot) -> Result<Option<Vec<f64>>, SimError> {
+    fn joints(&self, cell: &Cell, r: Robot) -> Result<Option<Vec<f64>>, FormatError> {
         let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
         let range = match r {
             Robot::One => 1..1 + d1,
@@ -1065,7 +854,7 @@ impl RowReader<'_> {
     }
 
     /// The reported tip of robot `r` (m): `None` if its three tip cells are empty.
-    fn tip(&self, r: Robot, d1: usize, d2: usize) -> Result<Option<Point3<f64>>, SimError> {
+    fn tip(&self, r: Robot, d1: usize, d2: usize) -> Result<Option<Point3<f64>>, FormatError> {
         let k0 = 1 + d1 + d2 + 3 * usize::from(r.number() - 1);
         if (k0..k0 + 3).all(|k| self.cell(k).is_empty()) {
             return Ok(None);
@@ -1083,7 +872,7 @@ impl RowReader<'_> {
     }
 
     /// The tool named in column `name` (index into the cell robot's tools; empty = `tip`).
-    fn tool(&self, cell: &Cell, r: Robot, name: &str) -> Result<usize, SimError> {
+    fn tool(&self, cell: &Cell, r: Robot, name: &str) -> Result<usize, FormatError> {
         let Some(t) = self.extra(name) else {
             return Ok(0);
         };
@@ -1098,7 +887,7 @@ impl RowReader<'_> {
     }
 
     /// Fails when a column the row's kind does not use holds a value.
-    fn only_fields_of(&self, kind: &str) -> Result<(), SimError> {
+    fn only_fields_of(&self, kind: &str) -> Result<(), FormatError> {
         for (name, kinds) in FIELD_KINDS {
             if !kinds.contains(&kind) {
                 if let Some(v) = self.extra(name) {
@@ -1113,304 +902,5 @@ impl RowReader<'_> {
     }
 }
 
-/// Head-on approach directions (b1, unit) to try for a point, best first: along the line between
-/// the shoulders, from robot 1's shoulder to the point, then those turned ±30°/±60° about the
-/// vertical and tilted ±30°.
-pub(crate) fn approach_directions(cell: &Cell, p: &Point3<f64>) -> Vec<Unit<Vector3<f64>>> {
-    let s1 = cell
-        .robot1
-        .model
-        .joints()
-        .first()
-        .map_or(Vector3::zeros(), |j| j.origin_xyz);
-    let s2 = cell.b1_from_b2
-        * Point3::from(
-            cell.robot2
-                .model
-                .joints()
-                .first()
-                .map_or(Vector3::zeros(), |j| j.origin_xyz),
-        );
-    let up = -cell.robot1.g_base.normalize();
-    let mut base = Vec::new();
-    for d in [s2.coords - s1, p.coords - s1] {
-        if let Some(u) = Unit::try_new(d, 1e-9) {
-            base.push(u);
-        }
-    }
-    let mut out = base.clone();
-    for b in &base {
-        for deg in [30.0f64, -30.0, 60.0, -60.0] {
-            out.push(Rotation3::from_axis_angle(&Unit::new_normalize(up), deg.to_radians()) * *b);
-        }
-        let side = b.cross(&up);
-        if let Some(side) = Unit::try_new(side, 1e-9) {
-            for deg in [30.0f64, -30.0] {
-                out.push(Rotation3::from_axis_angle(&side, deg.to_radians()) * *b);
-            }
-        }
-    }
-    out
-}
-
-/// Reported joints (rad, continuous) that put the TRUE robot's tip at `target` (m, nominal base):
-/// nominal IK with the flange z along `axis`, then Newton steps on the true model
-/// (`∂p/∂q_rep` of the true robot, minimum-norm). `None` if unreachable or outside the limits.
-fn solve_true(
-    robot: &CellRobot,
-    target: &Point3<f64>,
-    axis: Option<Unit<Vector3<f64>>>,
-) -> Option<Vec<f64>> {
-    solve_true_tool(robot, 0, target, axis, None)
-}
-
-/// The true errors that move tool `tool`: the cell's `[robotN.errors]`, with the tip error for
-/// tool 0 only (the extra tools are exact, as in [`crate::whole_cell::truth_estimate`]).
-pub(crate) fn tool_errors(robot: &CellRobot, tool: usize) -> kinematics::KinematicErrors {
-    let mut errors = robot.errors.clone();
-    if tool != 0 {
-        errors.tip = Vector3::zeros();
-    }
-    errors
-}
-
-/// [`solve_true`] for tool `tool` of `robot` ([`CellRobot::flange_from_tool`]), the IK seeded
-/// with `seed` when given (rad).
-pub(crate) fn solve_true_tool(
-    robot: &CellRobot,
-    tool: usize,
-    target: &Point3<f64>,
-    axis: Option<Unit<Vector3<f64>>>,
-    seed: Option<&[f64]>,
-) -> Option<Vec<f64>> {
-    let flange_from_tool = robot.flange_from_tool(tool)?;
-    let opts = IkOptions {
-        tool_axis_base: axis,
-        initial_q: seed.map(<[f64]>::to_vec),
-        tolerance_m: 1e-9,
-        axis_tolerance_rad: 1e-7,
-        restarts: 8,
-        ..IkOptions::default()
-    };
-    let sol = ik_tip_position(&robot.model, target, &flange_from_tool, &opts).ok()?;
-    if !sol.reachable() {
-        return None;
-    }
-    let mut q = sol.q;
-    let errors = tool_errors(robot, tool);
-    if errors.is_zero() {
-        return Some(q);
-    }
-    for _ in 0..TRUE_NEWTON_ITER {
-        let tip =
-            true_base_from_tip(&robot.model, &errors, &q, &flange_from_tool, &robot.g_base).ok()?;
-        let e = target.coords - tip.translation.vector;
-        if e.norm() < TRUE_TIP_TOL_M {
-            return Some(q);
-        }
-        let j =
-            tip_joint_jacobian_true(&robot.model, &errors, &q, &flange_from_tool, &robot.g_base)
-                .ok()?;
-        let jjt: Matrix3<f64> = &j * j.transpose();
-        let y = jjt.try_inverse()? * e;
-        let dq = j.transpose() * y;
-        for ((qi, d), jt) in q.iter_mut().zip(dq.iter()).zip(robot.model.joints()) {
-            *qi = (*qi + d).clamp(jt.lower, jt.upper);
-        }
-    }
-    None
-}
-
-pub(crate) fn quantise(robot: &CellRobot, q: &mut [f64], resolution: f64) {
-    if resolution > 0.0 {
-        for (qi, jt) in q.iter_mut().zip(robot.model.joints()) {
-            let mut v = (*qi / resolution).round() * resolution;
-            if v > jt.upper {
-                v -= resolution;
-            }
-            if v < jt.lower {
-                v += resolution;
-            }
-            *qi = v;
-        }
-    }
-}
-
-pub(crate) fn gauss3(rng: &mut impl Rng, sigma: &Vector3<f64>) -> Vector3<f64> {
-    Vector3::new(
-        sigma.x * rng.sample::<f64, _>(StandardNormal),
-        sigma.y * rng.sample::<f64, _>(StandardNormal),
-        sigma.z * rng.sample::<f64, _>(StandardNormal),
-    )
-}
-
-/// Why one point failed: (the robot that failed, message).
-pub(crate) type PointFailure = (Robot, String);
-
-/// Simulates one teach point `p` (true meeting point, m, b1). Robot 1's true tip is at `p`,
-/// robot 2's at `p + ε` (alignment); the reported joints put the true tips there up to
-/// repeatability `δ` (unseen by the encoders), quantised to the encoder resolution; the tips are
-/// what the nominal models compute from the reported joints.
-fn simulate_point(
-    cell: &Cell,
-    p: &Point3<f64>,
-    label: usize,
-    rng: &mut impl Rng,
-) -> Result<SessionPoint, PointFailure> {
-    let eps = gauss3(rng, &cell.noise.alignment_m);
-    let rep = Vector3::repeat(cell.noise.repeatability_m);
-    let d1 = gauss3(rng, &rep);
-    let d2 = gauss3(rng, &rep);
-    let b2_from_b1 = cell.b1_from_b2.inverse();
-    let target1 = p + d1;
-    let target2 = b2_from_b1 * (p + eps) + d2;
-    let mut last = (Robot::One, String::new());
-    for d in approach_directions(cell, p) {
-        let Some(mut q1) = solve_true(&cell.robot1, &target1, Some(d)) else {
-            last = (Robot::One, "robot 1 cannot reach it head-on".into());
-            continue;
-        };
-        let axis2 = Unit::new_normalize(b2_from_b1.rotation * -d.into_inner());
-        let Some(mut q2) = solve_true(&cell.robot2, &target2, Some(axis2)) else {
-            last = (Robot::Two, "robot 2 cannot reach it head-on".into());
-            continue;
-        };
-        quantise(&cell.robot1, &mut q1, cell.noise.encoder_resolution_rad);
-        quantise(&cell.robot2, &mut q2, cell.noise.encoder_resolution_rad);
-        let t1 = base_from_tip(&cell.robot1.model, &q1, &cell.robot1.flange_from_tip)
-            .map_err(|e| (Robot::One, e.to_string()))?;
-        let t2 = base_from_tip(&cell.robot2.model, &q2, &cell.robot2.flange_from_tip)
-            .map_err(|e| (Robot::Two, e.to_string()))?;
-        return Ok(SessionPoint {
-            point: label,
-            q1,
-            q2,
-            p_b1: Point3::from(t1.translation.vector),
-            p_b2: Point3::from(t2.translation.vector),
-        });
-    }
-    Err(last)
-}
-
-/// Simulates a handclasp session on `cell` (see `simulate_point` in this module's source for one point's model): teach
-/// points from `spec` (a layout draw, redrawn up to [`MAX_LAYOUT_ATTEMPTS`] times until both robots
-/// reach every point head-on, or the explicit points). Seeded by `rng` alone.
-///
-/// Errors: an invalid spec, or a teach point outside the common workspace (naming the point, the
-/// robot and what would work).
-pub fn generate_session(
-    cell: &Cell,
-    spec: &SessionSpec,
-    rng: &mut impl Rng,
-) -> Result<Session, SimError> {
-    if !(spec.spread_m.is_finite() && spec.spread_m > 0.0) && spec.points_b1.is_none() {
-        return Err(SimError::InvalidInput(format!(
-            "spread {} mm must be a positive length (e.g. 1000)",
-            spec.spread_m * 1e3
-        )));
-    }
-    let centre = spec.centre_b1.unwrap_or(cell.centre_b1);
-    if let Some(points) = &spec.points_b1 {
-        let mut out = Vec::with_capacity(points.len());
-        for (i, p) in points.iter().enumerate() {
-            if !p.iter().all(|x| x.is_finite()) {
-                return Err(SimError::InvalidInput(format!(
-                    "teach point {} is not finite",
-                    i + 1
-                )));
-            }
-            match simulate_point(cell, p, i + 1, rng) {
-                Ok(sp) => out.push(sp),
-                Err((robot, why)) => return Err(unreachable(cell, i + 1, p, robot, &why, None)),
-            }
-        }
-        return Ok(Session::from_points(out));
-    }
-    if spec.n == 0 {
-        return Err(SimError::InvalidInput(
-            "a session needs at least 1 point (4 for every method)".into(),
-        ));
-    }
-    let mut last_fail = None;
-    'draw: for _ in 0..MAX_LAYOUT_ATTEMPTS {
-        let pts = teach_points(spec.layout, spec.n, spec.spread_m, &centre, rng);
-        let mut out = Vec::with_capacity(spec.n);
-        for (i, p) in pts.iter().enumerate() {
-            match simulate_point(cell, p, i + 1, rng) {
-                Ok(sp) => out.push(sp),
-                Err((robot, why)) => {
-                    last_fail = Some((i + 1, *p, robot, why));
-                    continue 'draw;
-                }
-            }
-        }
-        return Ok(Session::from_points(out));
-    }
-    let (i, p, robot, why) = last_fail.unwrap_or((1, centre, Robot::One, String::new()));
-    Err(unreachable(cell, i, &p, robot, &why, Some(spec)))
-}
-
-pub(crate) fn unreachable(
-    cell: &Cell,
-    point: usize,
-    p: &Point3<f64>,
-    robot: Robot,
-    why: &str,
-    spec: Option<&SessionSpec>,
-) -> SimError {
-    let c = cell.centre_b1 * 1e3;
-    let hint = match spec {
-        Some(s) => format!(
-            "no draw of {MAX_LAYOUT_ATTEMPTS} {} layouts with spread {:.0} mm fitted; reduce the spread or move the centre toward ({:.0}, {:.0}, {:.0}) mm",
-            s.layout, s.spread_m * 1e3, c.x, c.y, c.z
-        ),
-        None => format!("move it toward the common workspace centre ({:.0}, {:.0}, {:.0}) mm", c.x, c.y, c.z),
-    };
-    SimError::Unreachable {
-        point,
-        p_b1_mm: [p.x * 1e3, p.y * 1e3, p.z * 1e3],
-        message: format!("{why} ({}); {hint}", cell.robot(robot).model.name()),
-    }
-}
-
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A session saved by a spreadsheet in a European locale (`;`) or copied from a table (tabs),
-    /// with or without a BOM, reads like the comma file; the message for an unknown separator
-    /// shows the header it found.
-    #[test]
-    fn semicolon_separated_session() {
-        let cell = Cell::default_floor_wall();
-        let spec = SessionSpec::new(5, Layout::Random, 0.8);
-        let session = generate_session(&cell, &spec, &mut crate::trial_rng(3, 0)).unwrap();
-        let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
-        let text = session.to_csv_string(d1, d2);
-        let p = Path::new("session.csv");
-        let want = Session::parse_csv(&text, p, &cell).unwrap();
-        for sep in [";", "\t"] {
-            let variant = text.replace(',', sep);
-            assert_eq!(
-                Session::parse_csv(&variant, p, &cell).unwrap(),
-                want,
-                "{sep:?}"
-            );
-            let bom = format!("\u{feff}{variant}");
-            assert_eq!(
-                Session::parse_csv(&bom, p, &cell).unwrap(),
-                want,
-                "BOM {sep:?}"
-            );
-        }
-        let e = Session::parse_csv(&text.replace(',', "|"), p, &cell)
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("no column `point`")
-                && e.contains("point|r1_q1_deg")
-                && e.contains("semicolons or tabs"),
-            "{e}"
-        );
-    }
-}
+mod tests;
