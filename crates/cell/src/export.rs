@@ -23,9 +23,11 @@ use std::path::{Path, PathBuf};
 
 use calib_core::whole_cell::CellEstimate;
 use calib_core::Robot;
-use kinematics::{patch_urdf_text, split_for_urdf, verify_patched_urdf, RobotModel};
+use kinematics::{
+    patch_urdf_text, split_for_urdf, verify_patched_urdf, KinematicErrors, RobotModel,
+};
 
-use crate::cell::Cell;
+use crate::cell::{Cell, CellRobot};
 use crate::error::FormatError;
 
 /// The files [`export_calibrated_cell`] writes, relative to its output folder, and the comment
@@ -104,24 +106,12 @@ pub fn export_calibrated_cell(
                     .into(),
             ));
         };
-        let (urdf_part, rest) = split_for_urdf(&correction.errors);
-        let xml = std::fs::read_to_string(&setup.urdf_path)
-            .map_err(|e| FormatError::io(&setup.urdf_path, e))?;
-        let patched = patch_urdf_text(&xml, &setup.model, &urdf_part)
-            .map_err(|e| bad(format!("cannot write the corrected URDF: {e}")))?;
         let file = match robot {
             Robot::One => names.robot1_urdf,
             Robot::Two => names.robot2_urdf,
         };
         let path = dir.join(file);
-        let tmp = path.with_extension("urdf.tmp");
-        std::fs::write(&tmp, &patched).map_err(|e| FormatError::io(&tmp, e))?;
-        let reread = std::fs::read_to_string(&tmp).map_err(|e| FormatError::io(&tmp, e))?;
-        verify_patched_urdf(&reread, &setup.model, &urdf_part)
-            .map_err(|e| bad(format!("verifying {}: {e}", tmp.display())))?;
-        let model = RobotModel::from_urdf_file(&tmp, &setup.tool_link)
-            .map_err(|e| bad(format!("re-loading {}: {e}", tmp.display())))?;
-        std::fs::rename(&tmp, &path).map_err(|e| FormatError::io(&path, e))?;
+        let model = write_corrected_urdf(robot, setup, &correction.errors, &path)?;
         written.push(path.clone());
         let r = if robot == Robot::One {
             &mut out.robot1
@@ -133,7 +123,7 @@ pub fn export_calibrated_cell(
         r.urdf_path = path;
         r.flange_from_tip = setup.flange_from_tip + tip_error;
         // What a URDF cannot hold (scale, compliance; tips are in tip_mm, mounts are never fitted).
-        r.errors = rest;
+        r.errors = split_for_urdf(&correction.errors).1;
     }
     // Robot 2's gravity follows the calibrated placement.
     out.robot2.g_base = out.b1_from_b2.rotation.inverse() * out.robot1.g_base;
@@ -147,13 +137,57 @@ pub fn export_calibrated_cell(
     Ok(written)
 }
 
+/// Writes `setup`'s URDF corrected by the URDF-expressible part of `errors` ([`split_for_urdf`]:
+/// joint offsets, joint origin xyz and rpy; SI) to `path`: patched into the source text by
+/// [`patch_urdf_text`] (every other byte kept), written to a temporary file beside `path`
+/// (`path` with the extension `urdf.tmp`), read back, verified against the corrected model
+/// ([`verify_patched_urdf`]) and re-loaded, and only then renamed to `path`; on a failure the
+/// temporary file is removed. Returns the corrected model as loaded from the written file.
+///
+/// Errors ([`FormatError::Cell`] naming the source URDF and `robot`, or [`FormatError::Io`]):
+/// the source URDF cannot be read or patched, the written text fails the verification or does
+/// not load, the file system refuses the write or the rename.
+pub(crate) fn write_corrected_urdf(
+    robot: Robot,
+    setup: &CellRobot,
+    errors: &KinematicErrors,
+    path: &Path,
+) -> Result<RobotModel, FormatError> {
+    let bad = |message: String| FormatError::Cell {
+        path: setup.urdf_path.clone(),
+        message: format!("{robot}: {message}"),
+    };
+    let (urdf_part, _) = split_for_urdf(errors);
+    let xml = std::fs::read_to_string(&setup.urdf_path)
+        .map_err(|e| FormatError::io(&setup.urdf_path, e))?;
+    let patched = patch_urdf_text(&xml, &setup.model, &urdf_part)
+        .map_err(|e| bad(format!("cannot write the corrected URDF: {e}")))?;
+    let tmp = path.with_extension("urdf.tmp");
+    std::fs::write(&tmp, &patched).map_err(|e| FormatError::io(&tmp, e))?;
+    let checked = (|| {
+        let reread = std::fs::read_to_string(&tmp).map_err(|e| FormatError::io(&tmp, e))?;
+        verify_patched_urdf(&reread, &setup.model, &urdf_part)
+            .map_err(|e| bad(format!("verifying {}: {e}", tmp.display())))?;
+        let model = RobotModel::from_urdf_file(&tmp, &setup.tool_link)
+            .map_err(|e| bad(format!("re-loading {}: {e}", tmp.display())))?;
+        std::fs::rename(&tmp, path).map_err(|e| FormatError::io(path, e))?;
+        Ok(model)
+    })();
+    if checked.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    checked
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::fixtures::coincident_session;
     use crate::problem::{cell_problem, FitModel};
     use kinematics::true_base_from_tip;
+    use kinematics::{Axis, ErrorParam};
     use nalgebra::{Isometry3, Vector3};
+    use rand::Rng;
 
     /// Exported model vs fitted model: the URDF patch's own tolerance
     /// (kinematics::PATCH_TOLERANCE_M); the cell TOML keeps 10 decimals of mm (1e-13 m).
@@ -351,5 +385,138 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("robot 1") && e.contains("tool 0"), "{e}");
+    }
+
+    /// The patched text carries 9 decimals (1 nm, 1 nrad): FK agreement to 1e-8 m.
+    const URDF_DIGITS_TOL_M: f64 = 1e-8;
+
+    /// The FK of `corrected` equals the nominal model with `e` at 20 random postures.
+    fn assert_matches_error_model(robot: &CellRobot, e: &KinematicErrors, corrected: &RobotModel) {
+        let mut rng = calib_core::stats::trial_rng(3, 0);
+        for _ in 0..20 {
+            let q: Vec<f64> = robot
+                .model
+                .joints()
+                .iter()
+                .map(|j| rng.random_range(j.lower.max(-2.0)..j.upper.min(2.0)))
+                .collect();
+            let want = kinematics::true_base_from_tip(
+                &robot.model,
+                e,
+                &q,
+                &robot.flange_from_tip,
+                &robot.g_base,
+            )
+            .expect("fk");
+            let got = kinematics::base_from_tip(corrected, &q, &robot.flange_from_tip).expect("fk");
+            let d = (want.translation.vector - got.translation.vector).norm();
+            assert!(d < URDF_DIGITS_TOL_M, "{}: {d} m", robot.model.name());
+        }
+    }
+
+    /// The corrected URDF (offsets folded into origin rpy, lengths added to origin xyz), as
+    /// written and re-loaded, gives the same tips as the nominal URDF with the error model, at
+    /// random postures; no temporary file is left behind.
+    #[test]
+    fn corrected_urdf_matches_the_error_model() {
+        let cell = Cell::default_floor_floor();
+        let dir = tempfile::tempdir().expect("tempdir");
+        for (k_robot, robot) in [&cell.robot1, &cell.robot2].into_iter().enumerate() {
+            let dof = robot.model.dof();
+            let mut e = KinematicErrors::zero(dof);
+            for k in 0..dof {
+                e.set(
+                    ErrorParam::JointOffset { joint: k },
+                    1e-3 * (k as f64 + 1.0),
+                );
+                e.set(
+                    ErrorParam::OriginXyz {
+                        joint: k,
+                        axis: Axis::X,
+                    },
+                    -2e-4 * k as f64,
+                );
+                e.set(
+                    ErrorParam::OriginXyz {
+                        joint: k,
+                        axis: Axis::Z,
+                    },
+                    3e-4,
+                );
+            }
+            let path = dir.path().join(format!("robot{}.urdf", k_robot + 1));
+            let which = [Robot::One, Robot::Two][k_robot];
+            let corrected = write_corrected_urdf(which, robot, &e, &path).expect("corrected");
+            let text = std::fs::read_to_string(&path).expect("written");
+            assert!(text.contains("<calibration rising="));
+            let reloaded = RobotModel::from_urdf_str(&text, &robot.tool_link).expect("loads");
+            assert_matches_error_model(robot, &e, &corrected);
+            assert_matches_error_model(robot, &e, &reloaded);
+        }
+        let mut names: Vec<String> = std::fs::read_dir(dir.path())
+            .expect("dir")
+            .map(|f| f.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert_eq!(names, ["robot1.urdf", "robot2.urdf"]);
+    }
+
+    /// Regression: the old text patcher corrected the first `<joint name=…>` it found, which in
+    /// kinematics' fixture transmission_first.urdf is the `<joint>` inside a `<transmission>`
+    /// before the real joint, and left the real joint wrong. The export corrects the chain's
+    /// joint and keeps the transmission byte for byte.
+    #[test]
+    fn export_from_a_urdf_with_a_transmission_first_corrects_the_chain_joint() {
+        let fixture = std::path::PathBuf::from(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../kinematics/tests/fixtures/transmission_first.urdf"
+        ));
+        let xml = std::fs::read_to_string(&fixture).expect("fixture");
+        let cell = Cell::default_floor_wall();
+        let mut robot = cell.robot2.clone();
+        robot.model = RobotModel::from_urdf_str(&xml, &robot.tool_link).expect("fixture loads");
+        robot.urdf_path = fixture;
+        let mut e = KinematicErrors::zero(robot.model.dof());
+        e.origin_xyz[0] = Vector3::new(0.0, 0.0, 0.0115);
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("robot2_corrected.urdf");
+        let corrected = write_corrected_urdf(Robot::Two, &robot, &e, &path).expect("exported");
+        let text = std::fs::read_to_string(&path).expect("written");
+        let transmission = |t: &str| {
+            let a = t.find("<transmission").expect("transmission");
+            let b = t.find("</transmission>").expect("end");
+            t[a..b].to_string()
+        };
+        assert_eq!(transmission(&text), transmission(&xml));
+        let changed: Vec<&str> = xml
+            .lines()
+            .zip(text.lines())
+            .filter(|(a, b)| a != b)
+            .map(|(_, b)| b)
+            .collect();
+        assert_eq!(
+            changed,
+            [r#"    <origin xyz="0.000000000 0.000000000 0.516500000" rpy="0 0 0"/>"#]
+        );
+        let joint_1 = text.find(r#"<joint name="joint_1_s""#).expect("joint_1_s");
+        let origin = text.find("0.516500000").expect("corrected origin");
+        assert!(origin > joint_1 && origin > text.find("</transmission>").unwrap());
+        assert_matches_error_model(&robot, &e, &corrected);
+    }
+
+    /// A write that fails after the temporary file exists (here the rename, onto a folder of the
+    /// URDF's name) removes the temporary file and names the path.
+    #[test]
+    fn a_failed_urdf_write_leaves_no_temporary_file() {
+        let cell = Cell::default_floor_floor();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("robot1.urdf");
+        std::fs::create_dir(&path).unwrap();
+        std::fs::write(path.join("keep"), "").unwrap();
+        let errors = KinematicErrors::zero(cell.robot1.model.dof());
+        let e = write_corrected_urdf(Robot::One, &cell.robot1, &errors, &path).unwrap_err();
+        assert!(matches!(e, FormatError::Io { .. }), "{e}");
+        assert!(e.to_string().contains("robot1.urdf"), "{e}");
+        assert!(!dir.path().join("robot1.urdf.tmp").exists());
     }
 }

@@ -6,15 +6,9 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum SimError {
-    /// A cell file (TOML) is invalid; `message` names the key and the fix.
-    #[error("cell {path}: {message}")]
-    Cell {
-        /// The cell file (or `<string>` for text without a file).
-        path: PathBuf,
-        /// What is wrong, naming the key, and what would work.
-        message: String,
-    },
-    /// A session CSV is invalid; `message` names the row/column and the fix.
+    /// A session input of the simulator (a teach-points CSV) is invalid; `message` names the
+    /// row/column and the fix. (The cell and session files' own errors are
+    /// [`SimError::Format`].)
     #[error("session {path}: {message}")]
     Session {
         /// The session file.
