@@ -12,8 +12,8 @@
 //! ≈ 0.01 mm at the tip for 0.001° on a 1.5 m arm) is left out.
 
 use calib_core::whole_cell::{
-    CellEstimate, CellProblem, CellRobot as WholeCellRobot, ConfigPair, Noise3, Observation,
-    ObservationKind, RobotCorrection, Tolerance, Tool, MIN_FACE_NORMAL_SUM,
+    CellEstimate, CellProblem, CellRobot as WholeCellRobot, ConfigPair, GroupKind, Noise3,
+    Observation, ObservationKind, RobotCorrection, Tolerance, Tool, MIN_FACE_NORMAL_SUM,
 };
 use nalgebra::{Matrix3, Unit, Vector3};
 
@@ -22,7 +22,7 @@ use calib_core::Robot;
 use kinematics::base_from_tip;
 
 use crate::cell::{Cell, CellRobot, TIP_TOOL};
-use crate::session::{Session, SessionKind, SessionRow};
+use crate::session::{Session, SessionRow};
 
 /// Which unknowns the whole-cell fit estimates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -141,102 +141,34 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
                 tool2: 0,
                 noise,
             },
-            SessionRow::Observation(o) => match &o.kind {
-                SessionKind::Coincident {
-                    q1,
-                    q2,
-                    tool1,
-                    tool2,
-                    ..
-                } => ObservationKind::Coincident {
-                    q1: q1.clone(),
-                    q2: q2.clone(),
-                    tool1: *tool1,
-                    tool2: *tool2,
-                    noise,
-                },
-                SessionKind::Contact {
-                    q1,
-                    q2,
-                    tool1,
-                    tool2,
-                    group,
-                    distance_m,
-                    sigma_m,
-                }
-                | SessionKind::FaceContact {
-                    q1,
-                    q2,
-                    tool1,
-                    tool2,
-                    group,
-                    distance_m,
-                    sigma_m,
-                    ..
-                } => {
-                    let normals = match &o.kind {
-                        SessionKind::FaceContact { n1_tip, n2_tip, .. } => Some((*n1_tip, *n2_tip)),
-                        _ => None,
-                    };
-                    let g = contact_group(&mut contacts, &mut contact_sums, group, *distance_m);
-                    if distance_m.is_none() {
-                        if let Some(d) = nominal_distance(cell, q1, q2, *tool1, *tool2, normals) {
-                            contact_sums[g].0 += d;
-                            contact_sums[g].1 += 1;
+            SessionRow::Observation(o) => {
+                let s = &o.kind;
+                // A one-robot row's group is anchored at its robot's base.
+                let robot = s.single().map_or(Robot::One, |(r, _, _)| r);
+                let group = match (s.kind().group(), s.group()) {
+                    (Some(GroupKind::Contact), Some(name)) => {
+                        let distance_m = s.distance_m();
+                        let g = contact_group(&mut contacts, &mut contact_sums, name, distance_m);
+                        if distance_m.is_none() {
+                            if let Some(d) = s.pair().and_then(|(q1, q2, tool1, tool2)| {
+                                nominal_distance(cell, q1, q2, tool1, tool2, s.face_normals())
+                            }) {
+                                contact_sums[g].0 += d;
+                                contact_sums[g].1 += 1;
+                            }
                         }
+                        g
                     }
-                    let (q1, q2, tool1, tool2, sigma_m) =
-                        (q1.clone(), q2.clone(), *tool1, *tool2, *sigma_m);
-                    match normals {
-                        None => ObservationKind::Contact {
-                            q1,
-                            q2,
-                            tool1,
-                            tool2,
-                            group: g,
-                            sigma_m,
-                        },
-                        Some((n1_tip, n2_tip)) => ObservationKind::FaceContact {
-                            q1,
-                            q2,
-                            tool1,
-                            tool2,
-                            n1_tip,
-                            n2_tip,
-                            group: g,
-                            sigma_m,
-                        },
+                    (Some(GroupKind::Tracker), Some(name)) => {
+                        anchored(name, robot, &mut tracker_anchor)
                     }
-                }
-                SessionKind::Tracker {
-                    robot,
-                    q,
-                    tool,
-                    group,
-                    p_tracker,
-                    sigma_m,
-                } => ObservationKind::Tracker {
-                    robot: *robot,
-                    q: q.clone(),
-                    tool: *tool,
-                    group: anchored(group, *robot, &mut tracker_anchor),
-                    p_tracker: *p_tracker,
-                    noise: Noise3::Isotropic { sigma_m: *sigma_m },
-                },
-                SessionKind::Plane {
-                    robot,
-                    q,
-                    tool,
-                    group,
-                    sigma_m,
-                } => ObservationKind::Plane {
-                    robot: *robot,
-                    q: q.clone(),
-                    tool: *tool,
-                    group: anchored(group, *robot, &mut plane_anchor),
-                    sigma_m: *sigma_m,
-                },
-            },
+                    (Some(GroupKind::Plane), Some(name)) => {
+                        anchored(name, robot, &mut plane_anchor)
+                    }
+                    _ => 0,
+                };
+                s.observation(noise, group)
+            }
         };
         observations.push(Observation {
             row: row.point(),
@@ -331,34 +263,31 @@ pub const MAX_CONFIG_PAIRS: usize = 10_000;
 /// `q2`s shifted by `i`, so every `q1` and every `q2` still appears: deterministic, at most
 /// `max(MAX_CONFIG_PAIRS, n1)` pairs.
 pub fn session_config_pairs(session: &Session) -> Vec<ConfigPair> {
-    let (mut q1s, mut q2s): (Vec<&Vec<f64>>, Vec<&Vec<f64>>) = (Vec::new(), Vec::new());
+    let (mut q1s, mut q2s): (Vec<&[f64]>, Vec<&[f64]>) = (Vec::new(), Vec::new());
     for row in session.rows() {
         match row {
             SessionRow::Point(p) => {
                 q1s.push(&p.q1);
                 q2s.push(&p.q2);
             }
-            SessionRow::Observation(o) => match &o.kind {
-                SessionKind::Coincident { q1, q2, .. }
-                | SessionKind::Contact { q1, q2, .. }
-                | SessionKind::FaceContact { q1, q2, .. } => {
+            SessionRow::Observation(o) => {
+                if let Some((q1, q2, _, _)) = o.kind.pair() {
                     q1s.push(q1);
                     q2s.push(q2);
-                }
-                SessionKind::Tracker { robot, q, .. } | SessionKind::Plane { robot, q, .. } => {
-                    if *robot == Robot::One {
+                } else if let Some((robot, q, _)) = o.kind.single() {
+                    if robot == Robot::One {
                         q1s.push(q);
                     } else {
                         q2s.push(q);
                     }
                 }
-            },
+            }
         }
     }
     let (n1, n2) = (q1s.len(), q2s.len());
     let pair = |i: usize, j: usize| ConfigPair {
-        q1: q1s[i].clone(),
-        q2: q2s[j].clone(),
+        q1: q1s[i].to_vec(),
+        q2: q2s[j].to_vec(),
         tool1: 0,
         tool2: 0,
     };
@@ -395,35 +324,12 @@ pub fn session_meeting_pairs(session: &Session) -> Vec<ConfigPair> {
                 tool1: 0,
                 tool2: 0,
             }),
-            SessionRow::Observation(o) => match &o.kind {
-                SessionKind::Coincident {
-                    q1,
-                    q2,
-                    tool1,
-                    tool2,
-                    ..
-                }
-                | SessionKind::Contact {
-                    q1,
-                    q2,
-                    tool1,
-                    tool2,
-                    ..
-                }
-                | SessionKind::FaceContact {
-                    q1,
-                    q2,
-                    tool1,
-                    tool2,
-                    ..
-                } => Some(ConfigPair {
-                    q1: q1.clone(),
-                    q2: q2.clone(),
-                    tool1: *tool1,
-                    tool2: *tool2,
-                }),
-                SessionKind::Tracker { .. } | SessionKind::Plane { .. } => None,
-            },
+            SessionRow::Observation(o) => o.kind.pair().map(|(q1, q2, tool1, tool2)| ConfigPair {
+                q1: q1.to_vec(),
+                q2: q2.to_vec(),
+                tool1,
+                tool2,
+            }),
         })
         .collect()
 }

@@ -22,7 +22,7 @@
 
 use anyhow::{bail, Context};
 use calib_core::whole_cell::{
-    calibrate_cell, predict_cooperative_accuracy, CellCalibration, CellParam, CellProblem,
+    calibrate_cell, predict_cooperative_accuracy, CellCalibration, CellParam, CellProblem, Kind,
     ReductionReason, ScreenOptions, SolveOptions,
 };
 use calib_core::zyz_canonical;
@@ -141,11 +141,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         });
     }
     if !session.is_handclasp_only() {
-        let counts = session.kind_counts();
-        out["rows_by_kind"] = json!({
-            "coincident": counts[0], "contact": counts[1], "tracker": counts[2], "plane": counts[3],
-            "face_contact": counts[4],
-        });
+        let counts = Kind::ALL.iter().zip(session.kind_counts());
+        out["rows_by_kind"] = Value::Object(
+            counts
+                .map(|(kind, n)| (kind.name().to_string(), json!(n)))
+                .collect(),
+        );
         out["groups"] = groups_json(&problem, &cal);
     }
     let written = match &args.export {

@@ -5,6 +5,7 @@
 //! `sim-cell paper` sets the simulation beside the paper's Table 1.
 
 use anyhow::{bail, Context, Result};
+use calib_core::whole_cell::Kind;
 use calib_core::MountPair;
 use clap::{Parser, Subcommand, ValueEnum};
 use handclasp_cell::Cell;
@@ -349,18 +350,21 @@ fn session(a: SessionArgs) -> Result<()> {
         other => other.into(),
     })?;
     if !matches!(a.kind, KindArg::Coincident) {
-        let [c, ct, tr, pl, fc] = session.kind_counts();
-        // Named only when present, so the other kinds' message is as before.
-        let faces = if fc > 0 {
-            format!(", {fc} face_contact")
-        } else {
-            String::new()
-        };
+        // Every kind's count; a kind after the first four only when present, so that the message
+        // of a session without it is as before that kind.
+        let rows: Vec<String> = Kind::ALL
+            .iter()
+            .zip(session.kind_counts())
+            .enumerate()
+            .filter(|&(k, (_, n))| k < 4 || n > 0)
+            .map(|(_, (kind, n))| format!("{n} {}", kind.name()))
+            .collect();
         let t = truth.tracker_from_b1.inverse().translation.vector * 1e3;
         let (n, d) = truth.plane_b1;
         eprintln!(
-            "rows: {c} coincident, {ct} contact, {tr} tracker, {pl} plane{faces}; truth: contact distance {:.3} mm, \
+            "rows: {}; truth: contact distance {:.3} mm, \
              tracker origin in b1 ({:.1}, {:.1}, {:.1}) mm, plane normal (b1) ({:.4}, {:.4}, {:.4}) offset {:.3} mm",
+            rows.join(", "),
             truth.contact_distance_m * 1e3,
             t.x,
             t.y,

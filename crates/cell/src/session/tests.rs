@@ -433,3 +433,37 @@ fn mixed_and_face_sessions_round_trip_through_the_csv() {
         }
     }
 }
+
+/// The kind names and each column's owners, derived from `Kind` and `kind_columns`, are the
+/// tables they replaced (`KIND_NAMES` and `FIELD_KINDS` as written out before), in the same
+/// order: the reader's messages name them in these words.
+#[test]
+fn kind_names_and_column_owners_are_the_former_tables() {
+    assert_eq!(
+        super::KIND_NAMES,
+        ["coincident", "contact", "tracker", "plane", "face_contact"]
+    );
+    let former: [(&str, &[&str]); 16] = [
+        ("robot", &["tracker", "plane"]),
+        ("group", &["contact", "face_contact", "tracker", "plane"]),
+        ("tool1", &["coincident", "contact", "face_contact"]),
+        ("tool2", &["coincident", "contact", "face_contact"]),
+        ("tool", &["tracker", "plane"]),
+        ("distance_mm", &["contact", "face_contact"]),
+        ("sigma_mm", &["contact", "face_contact", "tracker", "plane"]),
+        ("tracker_x_mm", &["tracker"]),
+        ("tracker_y_mm", &["tracker"]),
+        ("tracker_z_mm", &["tracker"]),
+        ("n1_x", &["face_contact"]),
+        ("n1_y", &["face_contact"]),
+        ("n1_z", &["face_contact"]),
+        ("n2_x", &["face_contact"]),
+        ("n2_y", &["face_contact"]),
+        ("n2_z", &["face_contact"]),
+    ];
+    let columns: Vec<&str> = former.iter().map(|(c, _)| *c).collect();
+    assert_eq!(columns, super::EXTRA_COLUMNS[1..]);
+    for (column, kinds) in former {
+        assert_eq!(super::kinds::kinds_using(column), kinds, "{column}");
+    }
+}

@@ -1,10 +1,13 @@
 //! Writing a session CSV: the standard columns, and for a mixed session the extra columns of
-//! every kind (the face-normal columns only when a `face_contact` row is present).
+//! every kind (a column added with a later kind, such as the face normals, only when a row of
+//! that kind is present). Each kind fills its own columns (`kinds.rs`).
 
+use calib_core::whole_cell::Kind;
 use calib_core::Robot;
 use nalgebra::Point3;
 
-use super::{Session, SessionKind, SessionRow, EXTRA_COLUMNS, FACE_COLUMNS};
+use super::kinds::{kind_columns, ALWAYS_WRITTEN, EXTRA_COLUMNS};
+use super::{Session, SessionRow};
 use crate::cell::Cell;
 
 impl Session {
@@ -39,146 +42,123 @@ impl Session {
         tool_name: &dyn Fn(Robot, usize) -> String,
     ) -> String {
         let mixed = !self.is_handclasp_only();
-        let faces = self
-            .observations
+        // The extra columns written: the first ALWAYS_WRITTEN, and a later one (such as the face
+        // normals) only when a row uses it, so that files without its kind are as before it.
+        let columns: Vec<&'static str> = EXTRA_COLUMNS
             .iter()
-            .any(|o| matches!(o.kind, SessionKind::FaceContact { .. }));
-        // Without a face contact the face columns are left out (files as before they existed).
-        let n_extra = EXTRA_COLUMNS.len() - if faces { 0 } else { FACE_COLUMNS.len() };
+            .enumerate()
+            .filter(|(k, c)| {
+                *k < ALWAYS_WRITTEN
+                    || self
+                        .observations
+                        .iter()
+                        .any(|o| kind_columns(o.kind.kind()).contains(c))
+            })
+            .map(|(_, c)| *c)
+            .collect();
         let mut out = csv::Writer::from_writer(Vec::new());
         let mut header = Session::csv_header(dof1, dof2);
         if mixed {
-            header.extend(EXTRA_COLUMNS[..n_extra].iter().map(|c| c.to_string()));
+            header.extend(columns.iter().map(|c| c.to_string()));
         }
         // Writing to memory cannot fail, and every field is plain ASCII.
         let _ = out.write_record(&header);
-        let deg = |q: &[f64]| {
-            q.iter()
-                .map(|x| format!("{:.6}", x.to_degrees()))
-                .collect::<Vec<_>>()
-        };
-        let mm3 = |p: &Point3<f64>| {
-            (0..3)
-                .map(|a| format!("{:.6}", p[a] * 1e3))
-                .collect::<Vec<_>>()
-        };
-        let mm = |x: f64| format!("{:.6}", x * 1e3);
         for row in self.rows() {
-            let mut record = vec![row.point().to_string()];
-            let mut extra = vec![String::new(); n_extra];
-            let mut set = |name: &str, v: String| {
-                if let Some(k) = EXTRA_COLUMNS.iter().position(|c| *c == name) {
-                    extra[k] = v;
-                }
+            let mut w = RowWriter {
+                columns: &columns,
+                extra: vec![String::new(); columns.len()],
+                tool_name,
+                q1: vec![String::new(); dof1],
+                q2: vec![String::new(); dof2],
+                tips: [vec![String::new(); 3], vec![String::new(); 3]],
             };
-            let (q1, q2, t1, t2): (Vec<String>, Vec<String>, Vec<String>, Vec<String>) = match row {
+            match row {
                 SessionRow::Point(p) => {
-                    set("kind", "coincident".into());
-                    (deg(&p.q1), deg(&p.q2), mm3(&p.p_b1), mm3(&p.p_b2))
+                    w.set("kind", Kind::Coincident.name().into());
+                    w.joints(Robot::One, &p.q1);
+                    w.joints(Robot::Two, &p.q2);
+                    w.tips(&p.p_b1, &p.p_b2);
                 }
                 SessionRow::Observation(o) => {
-                    set("kind", o.kind.name().into());
-                    let blank = |n: usize| vec![String::new(); n];
-                    // Joint columns of a row that involves one robot; the other's stay empty.
-                    let one_robot = |robot: Robot, q: &[f64]| {
-                        if robot == Robot::One {
-                            (deg(q), blank(dof2), blank(3), blank(3))
-                        } else {
-                            (blank(dof1), deg(q), blank(3), blank(3))
-                        }
-                    };
-                    match &o.kind {
-                        SessionKind::Coincident {
-                            q1,
-                            q2,
-                            tool1,
-                            tool2,
-                            p_b1,
-                            p_b2,
-                        } => {
-                            set("tool1", tool_name(Robot::One, *tool1));
-                            set("tool2", tool_name(Robot::Two, *tool2));
-                            (deg(q1), deg(q2), mm3(p_b1), mm3(p_b2))
-                        }
-                        SessionKind::Contact {
-                            q1,
-                            q2,
-                            tool1,
-                            tool2,
-                            group,
-                            distance_m,
-                            sigma_m,
-                        }
-                        | SessionKind::FaceContact {
-                            q1,
-                            q2,
-                            tool1,
-                            tool2,
-                            group,
-                            distance_m,
-                            sigma_m,
-                            ..
-                        } => {
-                            set("tool1", tool_name(Robot::One, *tool1));
-                            set("tool2", tool_name(Robot::Two, *tool2));
-                            set("group", group.clone());
-                            set("distance_mm", distance_m.map(mm).unwrap_or_default());
-                            set("sigma_mm", mm(*sigma_m));
-                            if let SessionKind::FaceContact { n1_tip, n2_tip, .. } = &o.kind {
-                                let normals = n1_tip.iter().chain(n2_tip.iter());
-                                for (c, v) in FACE_COLUMNS.iter().zip(normals) {
-                                    // `+ 0.0` writes −0 as 0.
-                                    set(c, format!("{:.9}", v + 0.0));
-                                }
-                            }
-                            (deg(q1), deg(q2), blank(3), blank(3))
-                        }
-                        SessionKind::Tracker {
-                            robot,
-                            q,
-                            tool,
-                            group,
-                            p_tracker,
-                            sigma_m,
-                        } => {
-                            set("robot", robot.number().to_string());
-                            set("tool", tool_name(*robot, *tool));
-                            set("group", group.clone());
-                            set("sigma_mm", mm(*sigma_m));
-                            for (a, c) in ["tracker_x_mm", "tracker_y_mm", "tracker_z_mm"]
-                                .iter()
-                                .enumerate()
-                            {
-                                set(c, mm(p_tracker[a]));
-                            }
-                            one_robot(*robot, q)
-                        }
-                        SessionKind::Plane {
-                            robot,
-                            q,
-                            tool,
-                            group,
-                            sigma_m,
-                        } => {
-                            set("robot", robot.number().to_string());
-                            set("tool", tool_name(*robot, *tool));
-                            set("group", group.clone());
-                            set("sigma_mm", mm(*sigma_m));
-                            one_robot(*robot, q)
-                        }
-                    }
+                    w.set("kind", o.kind.name().into());
+                    o.kind.write(&mut w);
                 }
-            };
-            record.extend(q1);
-            record.extend(q2);
+            }
+            let mut record = vec![row.point().to_string()];
+            record.extend(w.q1);
+            record.extend(w.q2);
+            let [t1, t2] = w.tips;
             record.extend(t1);
             record.extend(t2);
             if mixed {
-                record.extend(extra);
+                record.extend(w.extra);
             }
             let _ = out.write_record(&record);
         }
         let bytes = out.into_inner().unwrap_or_default();
         String::from_utf8(bytes).unwrap_or_default()
+    }
+}
+
+/// One data row being written: the standard columns (joints in degrees, tips in mm, 6
+/// decimals; empty until set) and the extra columns the session writes.
+pub(super) struct RowWriter<'a> {
+    columns: &'a [&'static str],
+    extra: Vec<String>,
+    tool_name: &'a dyn Fn(Robot, usize) -> String,
+    q1: Vec<String>,
+    q2: Vec<String>,
+    tips: [Vec<String>; 2],
+}
+
+impl RowWriter<'_> {
+    /// `x` m as mm with 6 decimals.
+    pub(super) fn mm(x: f64) -> String {
+        format!("{:.6}", x * 1e3)
+    }
+
+    /// Sets extra column `name` (a column the session does not write is ignored).
+    pub(super) fn set(&mut self, name: &str, value: String) {
+        if let Some(k) = self.columns.iter().position(|c| *c == name) {
+            self.extra[k] = value;
+        }
+    }
+
+    /// Robot `r`'s joint columns from `q`, rad.
+    fn joints(&mut self, r: Robot, q: &[f64]) {
+        let deg = q.iter().map(|x| format!("{:.6}", x.to_degrees())).collect();
+        match r {
+            Robot::One => self.q1 = deg,
+            Robot::Two => self.q2 = deg,
+        }
+    }
+
+    /// Both robots' joints and tools (`tool1`, `tool2`) of a two-robot row.
+    pub(super) fn pair(&mut self, q1: &[f64], q2: &[f64], tool1: usize, tool2: usize) {
+        self.set("tool1", (self.tool_name)(Robot::One, tool1));
+        self.set("tool2", (self.tool_name)(Robot::Two, tool2));
+        self.joints(Robot::One, q1);
+        self.joints(Robot::Two, q2);
+    }
+
+    /// The robot (`robot`), its tool (`tool`) and its joints of a one-robot row; the other
+    /// robot's joints stay empty.
+    pub(super) fn single(&mut self, robot: Robot, q: &[f64], tool: usize) {
+        self.set("robot", robot.number().to_string());
+        self.set("tool", (self.tool_name)(robot, tool));
+        self.joints(robot, q);
+    }
+
+    /// Both robots' reported tips, m, each robot's base.
+    pub(super) fn tips(&mut self, p_b1: &Point3<f64>, p_b2: &Point3<f64>) {
+        let mm3 = |p: &Point3<f64>| (0..3).map(|a| Self::mm(p[a])).collect();
+        self.tips = [mm3(p_b1), mm3(p_b2)];
+    }
+
+    /// A contact's group, distance (empty when fitted) and σ, m.
+    pub(super) fn contact(&mut self, group: &str, distance_m: Option<f64>, sigma_m: f64) {
+        self.set("group", group.to_string());
+        self.set("distance_mm", distance_m.map(Self::mm).unwrap_or_default());
+        self.set("sigma_mm", Self::mm(sigma_m));
     }
 }

@@ -75,7 +75,6 @@ pub(crate) use held_out::{residuals_at, HeldOut, ScoredRow};
 pub use held_out::{COINCIDENT_UNITS, MIN_GROUP_BLOCK_ROWS, MIN_SCORED_GROUP_ROWS, MIN_UNIT_ROWS};
 pub use noise_scale::KINDS;
 pub use problem::diagnosis_problem;
-pub(crate) use problem::joints_of;
 use problem::placement_observed;
 
 use calib_core::whole_cell::{
@@ -435,8 +434,8 @@ fn run(
 
 #[cfg(test)]
 mod tests {
-    use super::problem::group_of;
     use super::*;
+    use calib_core::whole_cell::GroupKind;
     use kinematics::ErrorParam;
     use sim_cell::{generate_kind_session, trial_rng, KindSpec, Layout, SessionSpec, SimKind};
 
@@ -461,10 +460,10 @@ mod tests {
         let p = diagnosis_problem(&cell, &session, &options).unwrap();
         let all: Vec<usize> = (0..p.observations.len()).collect();
         let units = held_out_units(&p, &all);
-        assert!(units
-            .iter()
-            .flatten()
-            .all(|&i| !matches!(group_of(&p.observations[i].kind), Some((1 | 2, _)))));
+        assert!(units.iter().flatten().all(|&i| !matches!(
+            p.observations[i].kind.group(),
+            Some((GroupKind::Tracker | GroupKind::Plane, _))
+        )));
         let r = diagnose_cell_session(&cell, &session, &options, &|_| {}).unwrap();
         assert_eq!(r.rows_used + r.rejected_points.len(), 12);
     }
