@@ -23,6 +23,22 @@ pub enum FormatError {
         /// What is wrong, naming the row or column, and what would work.
         message: String,
     },
+    /// An import mapping file is invalid; `message` names the key and the fix.
+    #[error("{path}: {message}")]
+    Map {
+        /// The mapping file.
+        path: PathBuf,
+        /// What is wrong, naming the key, and what would work.
+        message: String,
+    },
+    /// An input file of an import cannot be converted; `message` names the line and column.
+    #[error("{path}: {message}")]
+    Input {
+        /// The input file.
+        path: PathBuf,
+        /// What is wrong, naming the line and column, and what would work.
+        message: String,
+    },
     /// A file could not be read or written.
     #[error("{path}: {source}")]
     Io {

@@ -5,11 +5,13 @@ mod error;
 pub mod export;
 #[cfg(test)]
 mod fixtures;
+pub mod import;
 pub mod problem;
 pub mod session;
 
 pub use cell::{Cell, CellRobot, Noise, PlacementSigma, TIP_TOOL};
 pub use error::FormatError;
 pub use export::{export_calibrated_cell, ExportNames, CALIBRATE_EXPORT_NAMES};
+pub use import::{ImportCount, ImportMap};
 pub use problem::{cell_problem, FitModel};
 pub use session::{Session, SessionKind, SessionObservation, SessionPoint, SessionRow};
