@@ -7,8 +7,8 @@ mod common;
 
 use std::path::Path;
 
-use libfuzzer_sys::fuzz_target;
 use handclasp_cell::Session;
+use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     let Some((&which, rest)) = data.split_first() else {
