@@ -499,32 +499,31 @@ pub(super) fn read_row(
                 })
             }
         }
-        Kind::Contact => {
+        Kind::Contact | Kind::FaceContact => {
             let p = row.pair(cell, kind, values)?;
             let (group, distance_m, sigma_m) = row.contact(contacts)?;
-            ReadRow::Observation(SessionKind::Contact {
-                q1: p.q1,
-                q2: p.q2,
-                tool1: p.tool1,
-                tool2: p.tool2,
-                group,
-                distance_m,
-                sigma_m,
-            })
-        }
-        Kind::FaceContact => {
-            let p = row.pair(cell, kind, values)?;
-            let (group, distance_m, sigma_m) = row.contact(contacts)?;
-            ReadRow::Observation(SessionKind::FaceContact {
-                q1: p.q1,
-                q2: p.q2,
-                tool1: p.tool1,
-                tool2: p.tool2,
-                n1_tip: row.normal(1)?,
-                n2_tip: row.normal(2)?,
-                group,
-                distance_m,
-                sigma_m,
+            ReadRow::Observation(if kind == Kind::Contact {
+                SessionKind::Contact {
+                    q1: p.q1,
+                    q2: p.q2,
+                    tool1: p.tool1,
+                    tool2: p.tool2,
+                    group,
+                    distance_m,
+                    sigma_m,
+                }
+            } else {
+                SessionKind::FaceContact {
+                    q1: p.q1,
+                    q2: p.q2,
+                    tool1: p.tool1,
+                    tool2: p.tool2,
+                    n1_tip: row.normal(1)?,
+                    n2_tip: row.normal(2)?,
+                    group,
+                    distance_m,
+                    sigma_m,
+                }
             })
         }
         Kind::Tracker => {
