@@ -6,11 +6,10 @@
 
 use std::path::Path;
 
-use calib_core::identify::{
-    self, IdentFit, IdentStatus, Robot, Selection, SelectionOptions, TipModel,
-};
+use calib_core::identify::{self, IdentFit, IdentStatus, Selection, SelectionOptions, TipModel};
 use calib_core::stats::chi2_sf;
 use calib_core::whole_cell::{calibrate_cell, CellFitError, ScreenOptions, SolveOptions};
+use calib_core::Robot;
 use handclasp_cell::problem::{cell_problem, FitModel};
 use handclasp_cell::Cell;
 use handclasp_cell::Session;

@@ -15,7 +15,7 @@ use std::io::Write;
 use std::path::Path;
 
 use anyhow::Context;
-use calib_core::whole_cell::StopReason;
+use calib_core::StopReason;
 use handclasp_cell::Cell;
 use kinematics::KinematicErrors;
 

@@ -7,8 +7,8 @@ use std::path::Path;
 
 use calib_core::whole_cell::{
     calibrate_cell, Evaluator, ObservationKind, ParamLayout, ScreenOptions, SolveOptions,
-    StopReason,
 };
+use calib_core::StopReason;
 use handclasp_cell::problem::{cell_problem, session_meeting_pairs, truth_estimate, FitModel};
 use handclasp_cell::Cell;
 use handclasp_cell::{Session, SessionKind};

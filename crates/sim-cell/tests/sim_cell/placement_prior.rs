@@ -3,9 +3,8 @@
 
 use std::path::Path;
 
-use calib_core::whole_cell::{
-    calibrate_cell, CellCalibration, ScreenOptions, SolveOptions, StopReason,
-};
+use calib_core::whole_cell::{calibrate_cell, CellCalibration, ScreenOptions, SolveOptions};
+use calib_core::StopReason;
 use handclasp_cell::problem::{cell_problem, FitModel};
 use handclasp_cell::Cell;
 use sim_cell::{generate_kind_session, trial_rng, KindSpec, Layout, SessionSpec, SimKind};
