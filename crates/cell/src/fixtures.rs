@@ -57,7 +57,7 @@ pub(crate) fn coincident_session(cell: &Cell, n: usize) -> Session {
 
 /// The robot of a one-robot row: robot 1 on even cycles, robot 2 on odd ones.
 fn robot_of(cycle: usize) -> Robot {
-    if cycle % 2 == 0 {
+    if cycle.is_multiple_of(2) {
         Robot::One
     } else {
         Robot::Two
@@ -99,7 +99,7 @@ pub(crate) fn mixed_session(cell: &Cell, n: usize) -> Session {
                 let robot = robot_of((r - 2) / 2);
                 let setup = cell.robot(robot);
                 let q = if robot == Robot::One { q1 } else { q2 };
-                if r % 2 == 0 {
+                if r.is_multiple_of(2) {
                     let tool = setup.tools.len();
                     SessionKind::Tracker {
                         robot,

@@ -84,6 +84,11 @@ struct TrackerMap {
     sigma_column: Option<String>,
 }
 
+/// The kinds a map can make (a two-robot kind is a contact or a coincident handclasp, a
+/// one-robot kind a tracker or a plane row); another kind is refused by name when the map is
+/// read, until its fields have columns in the map.
+const IMPORTED_KINDS: [Kind; 4] = [Kind::Coincident, Kind::Contact, Kind::Tracker, Kind::Plane];
+
 /// The tracker columns of a map: the three position columns, m per file unit, the σ column.
 type TrackerColumns = ([String; 3], f64, Option<String>);
 
@@ -137,16 +142,20 @@ impl ImportMap {
                 KIND_NAMES.join(", ")
             ))
         })?;
-        match kind {
-            Kind::Coincident | Kind::Contact | Kind::Tracker | Kind::Plane => {}
-            Kind::FaceContact => {
-                return Err(at(
-                    "kind = \"face_contact\" cannot be imported yet: a map has no face-normal columns \
-                     (n1_x … n2_z); import the rows as `contact` and add the kind and the normals, or \
-                     write the session with handclasp_cell::Session"
-                        .into(),
-                ))
-            }
+        if kind == Kind::FaceContact {
+            return Err(at(
+                "kind = \"face_contact\" cannot be imported yet: a map has no face-normal columns \
+                 (n1_x … n2_z); import the rows as `contact` and add the kind and the normals, or \
+                 write the session with handclasp_cell::Session"
+                    .into(),
+            ));
+        }
+        if !IMPORTED_KINDS.contains(&kind) {
+            return Err(at(format!(
+                "kind = \"{}\" cannot be imported yet: a map has no columns for its fields; write \
+                 the session with handclasp_cell::Session",
+                kind.name()
+            )));
         }
         let name = kind.name();
         let two_robot = kind.two_robot();
@@ -420,15 +429,15 @@ impl ImportMap {
             }
             let point = session.len() + 1;
             let [q1, q2] = q;
-            // The map's checks give every robot the kind uses its joint columns.
-            let both = || {
-                q1.clone().zip(q2.clone()).ok_or_else(|| {
-                    at("internal: both robots' joints are checked by the map".into())
-                })
-            };
-            let kind = match self.kind {
-                Kind::Contact => {
-                    let (q1, q2) = both()?;
+            // The map's checks give every robot the kind uses its joint columns; a kind not in
+            // IMPORTED_KINDS never gets here.
+            let kind = if self.kind.two_robot() {
+                let (Some(q1), Some(q2)) = (q1, q2) else {
+                    return Err(at(
+                        "internal: both robots' joints are checked by the map".into()
+                    ));
+                };
+                if self.kind == Kind::Contact {
                     SessionKind::Contact {
                         q1,
                         q2,
@@ -438,9 +447,7 @@ impl ImportMap {
                         distance_m: self.distance_m,
                         sigma_m: self.sigma_m.unwrap_or_default(),
                     }
-                }
-                Kind::Coincident => {
-                    let (q1, q2) = both()?;
+                } else {
                     let tip =
                         |r: Robot, q: &[f64], tool: usize| -> Result<Point3<f64>, FormatError> {
                             let c = cell.robot(r);
@@ -471,51 +478,47 @@ impl ImportMap {
                         p_b2,
                     }
                 }
-                Kind::Tracker | Kind::Plane => {
-                    let q = if self.robot == Robot::One { q1 } else { q2 };
-                    let q = q.ok_or_else(|| {
-                        at("internal: the measured robot's joints are checked by the map".into())
-                    })?;
-                    if let (Some((cols, sigma_col)), Some((_, m_per_unit, _))) =
-                        (&tracker_cols, &self.tracker)
-                    {
-                        let p: Vec<Option<f64>> = cols.iter().map(|&i| value(i)).collect();
-                        let sigma = match sigma_col {
-                            Some(i) => value(*i).map(|s| s * m_per_unit),
-                            None => self.sigma_m,
-                        };
-                        let (Some(x), Some(y), Some(z), Some(sigma_m)) = (p[0], p[1], p[2], sigma)
-                        else {
-                            count.skipped += 1;
-                            continue;
-                        };
-                        if sigma_m <= 0.0 {
-                            return Err(at(format!(
-                                "line {line}: the tracker σ {sigma_m} m must be > 0"
-                            )));
-                        }
-                        SessionKind::Tracker {
-                            robot: self.robot,
-                            q,
-                            tool: self.tools[0],
-                            group: group.clone(),
-                            p_tracker: Point3::new(x, y, z) * *m_per_unit,
-                            sigma_m,
-                        }
-                    } else {
-                        SessionKind::Plane {
-                            robot: self.robot,
-                            q,
-                            tool: self.tools[0],
-                            group: group.clone(),
-                            sigma_m: self.sigma_m.unwrap_or_default(),
-                        }
-                    }
-                }
-                Kind::FaceContact => {
+            } else {
+                let q = if self.robot == Robot::One { q1 } else { q2 };
+                let Some(q) = q else {
                     return Err(at(
-                        "internal: a face-contact map is refused when it is read".into(),
-                    ))
+                        "internal: the measured robot's joints are checked by the map".into(),
+                    ));
+                };
+                if let (Some((cols, sigma_col)), Some((_, m_per_unit, _))) =
+                    (&tracker_cols, &self.tracker)
+                {
+                    let p: Vec<Option<f64>> = cols.iter().map(|&i| value(i)).collect();
+                    let sigma = match sigma_col {
+                        Some(i) => value(*i).map(|s| s * m_per_unit),
+                        None => self.sigma_m,
+                    };
+                    let (Some(x), Some(y), Some(z), Some(sigma_m)) = (p[0], p[1], p[2], sigma)
+                    else {
+                        count.skipped += 1;
+                        continue;
+                    };
+                    if sigma_m <= 0.0 {
+                        return Err(at(format!(
+                            "line {line}: the tracker σ {sigma_m} m must be > 0"
+                        )));
+                    }
+                    SessionKind::Tracker {
+                        robot: self.robot,
+                        q,
+                        tool: self.tools[0],
+                        group: group.clone(),
+                        p_tracker: Point3::new(x, y, z) * *m_per_unit,
+                        sigma_m,
+                    }
+                } else {
+                    SessionKind::Plane {
+                        robot: self.robot,
+                        q,
+                        tool: self.tools[0],
+                        group: group.clone(),
+                        sigma_m: self.sigma_m.unwrap_or_default(),
+                    }
                 }
             };
             session

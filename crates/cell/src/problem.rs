@@ -22,7 +22,7 @@ use calib_core::Robot;
 use kinematics::base_from_tip;
 
 use crate::cell::{Cell, CellRobot, TIP_TOOL};
-use crate::session::{Session, SessionRow};
+use crate::session::{FaceNormals, Session, SessionRow};
 
 /// Which unknowns the whole-cell fit estimates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -210,9 +210,6 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
         }),
     }
 }
-
-/// A face contact's outward normals `(n1_tip, n2_tip)`, each in its robot's tip frame.
-type FaceNormals = (Unit<Vector3<f64>>, Unit<Vector3<f64>>);
 
 /// Distance between the two tools' nominal points at `(q1, q2)` with the cell's `b1_from_b2`, m:
 /// the Euclidean distance, or with face normals `(n1_tip, n2_tip)` the distance along the mean

@@ -198,6 +198,9 @@ pub enum SessionKind {
 /// A two-robot row's joints and tools: `(q1, q2, tool1, tool2)`, rad.
 pub type ToolPair<'a> = (&'a [f64], &'a [f64], usize, usize);
 
+/// A face contact's outward normals `(n1_tip, n2_tip)`, each in its robot's tip frame.
+pub type FaceNormals = (Unit<Vector3<f64>>, Unit<Vector3<f64>>);
+
 impl SessionKind {
     /// The row's kind.
     pub fn kind(&self) -> Kind {
@@ -281,7 +284,7 @@ impl SessionKind {
 
     /// A face contact's outward normals `(n1_tip, n2_tip)`, each in its robot's tip frame;
     /// `None` for another kind.
-    pub fn face_normals(&self) -> Option<(Unit<Vector3<f64>>, Unit<Vector3<f64>>)> {
+    pub fn face_normals(&self) -> Option<FaceNormals> {
         match self {
             SessionKind::FaceContact { n1_tip, n2_tip, .. } => Some((*n1_tip, *n2_tip)),
             SessionKind::Coincident { .. }

@@ -32,7 +32,8 @@ mod read;
 mod write;
 
 pub use kinds::{
-    kind_columns, SessionKind, ToolPair, ALWAYS_WRITTEN, EXTRA_COLUMNS, FACE_COLUMNS, KIND_NAMES,
+    kind_columns, FaceNormals, SessionKind, ToolPair, ALWAYS_WRITTEN, EXTRA_COLUMNS, FACE_COLUMNS,
+    KIND_NAMES,
 };
 pub use read::TIP_CONSISTENCY_MM;
 
