@@ -6,9 +6,9 @@ use calib_core::nalgebra;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+use handclasp_cell::Cell;
 use kinematics::RobotModel;
 use nalgebra::Isometry3;
-use sim_cell::Cell;
 
 /// The repository root (the fuzz crate sits in `<root>/fuzz`).
 pub fn repo_root() -> PathBuf {

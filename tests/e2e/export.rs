@@ -9,7 +9,7 @@ use std::process::Command;
 use calib_core::Robot;
 use kinematics::{base_from_flange, RobotModel};
 use serde_json::Value;
-use sim_cell::Cell;
+use handclasp_cell::Cell;
 
 use crate::support::{
     assert_success, cell_session_args, handclasp, json_ok, random_session, shipped_cell,

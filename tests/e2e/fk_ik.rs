@@ -375,7 +375,7 @@ fn fk_cell_q_csv_equals_true_fk_with_compliance() {
     );
     assert_eq!(rows.len(), BATCH_Q_DEG.len());
 
-    let cell = sim_cell::Cell::from_toml_file(&cell_path).unwrap();
+    let cell = handclasp_cell::Cell::from_toml_file(&cell_path).unwrap();
     let r1 = &cell.robot1;
     assert!(r1.errors.compliance[1] > 0.0);
     let nominal = RobotModel::from_urdf_file(Path::new(HP20), "tool0").unwrap();

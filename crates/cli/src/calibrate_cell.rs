@@ -22,14 +22,15 @@
 
 use anyhow::{bail, Context};
 use calib_core::whole_cell::{
-    calibrate_cell, predict_cooperative_accuracy, CellCalibration, CellParam, CellProblem,
+    calibrate_cell, predict_cooperative_accuracy, CellCalibration, CellParam, CellProblem, Kind,
     ReductionReason, ScreenOptions, SolveOptions,
 };
 use calib_core::zyz_canonical;
+use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
+use handclasp_cell::Cell;
+use handclasp_cell::{export_calibrated_cell, Session, CALIBRATE_EXPORT_NAMES};
 use kinematics::ErrorParam;
 use serde_json::{json, Value};
-use sim_cell::whole_cell::{cell_problem, session_meeting_pairs, FitModel};
-use sim_cell::{export_calibrated_cell, Cell, Session, CALIBRATE_EXPORT_NAMES};
 
 use crate::calibrate::Args;
 
@@ -140,11 +141,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         });
     }
     if !session.is_handclasp_only() {
-        let counts = session.kind_counts();
-        out["rows_by_kind"] = json!({
-            "coincident": counts[0], "contact": counts[1], "tracker": counts[2], "plane": counts[3],
-            "face_contact": counts[4],
-        });
+        let counts = Kind::ALL.iter().zip(session.kind_counts());
+        out["rows_by_kind"] = Value::Object(
+            counts
+                .map(|(kind, n)| (kind.name().to_string(), json!(n)))
+                .collect(),
+        );
         out["groups"] = groups_json(&problem, &cal);
     }
     let written = match &args.export {

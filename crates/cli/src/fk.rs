@@ -93,7 +93,7 @@ pub(crate) fn ignored_branches_text(model: &RobotModel, what: &str) -> String {
 }
 
 /// Prints (stderr) [`ignored_branches_text`] for both robots of a cell (for `--verbose`).
-pub(crate) fn print_cell_branches(cell: &sim_cell::Cell) {
+pub(crate) fn print_cell_branches(cell: &handclasp_cell::Cell) {
     for (label, robot) in [("robot 1", &cell.robot1), ("robot 2", &cell.robot2)] {
         eprintln!("{}", ignored_branches_text(&robot.model, label));
     }
@@ -285,7 +285,7 @@ fn load_fk_robot(args: &Args) -> anyhow::Result<FkRobot> {
              for use without --cell)"
         ),
     };
-    let cell = sim_cell::Cell::from_toml_file(cell_path)
+    let cell = handclasp_cell::Cell::from_toml_file(cell_path)
         .with_context(|| format!("--cell {}", cell_path.display()))?;
     let robot = cell.robot(which);
     let flange_from_tip = if args.cell_tip {

@@ -65,15 +65,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 }
 
 fn main() -> ExitCode {
-    sim_cell::cli_support::exit_quietly_on_broken_pipe();
+    cli_support::exit_quietly_on_broken_pipe();
     let cli = Cli::parse();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
-            eprintln!(
-                "error: {}",
-                sim_cell::cli_support::error_chain_text(err.as_ref())
-            );
+            eprintln!("error: {}", cli_support::error_chain_text(err.as_ref()));
             ExitCode::FAILURE
         }
     }

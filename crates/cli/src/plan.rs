@@ -12,10 +12,10 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use calib_core::whole_cell::{DesignCriterion, DesignPrediction};
+use handclasp_cell::Cell;
 use nalgebra::Point3;
 use serde_json::{json, Value};
 use sim_cell::plan::{plan_session, Plan, PlanSpec, DEFAULT_RANDOM_DRAWS, EVAL_POSES};
-use sim_cell::Cell;
 
 /// `--criterion`.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]

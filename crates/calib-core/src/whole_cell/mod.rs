@@ -146,8 +146,8 @@ pub use layout::{
     tangent_basis, CellEstimate, CellParam, ParamLayout, PlaneEstimate, RobotCorrection,
 };
 pub use observations::{
-    CellProblem, ContactGroup, Observation, ObservationKind, PlaneGroup, TrackerGroup,
-    UNIT_NORMAL_TOL,
+    CellProblem, ContactGroup, GroupKind, Kind, Observation, ObservationKind, PlaneGroup,
+    TrackerGroup, UNIT_NORMAL_TOL,
 };
 pub use placement_prior::PlacementPrior;
 pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, PRIOR_INFO_TOL, RANK_TOL};
