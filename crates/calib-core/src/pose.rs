@@ -1,7 +1,7 @@
 //! A pose as files and robot controllers write it: x, y, z in mm and ZYZ angles in degrees,
 //! `R = Rz(φ)·Ry(θ)·Rz(ψ)`. Code works in m and rad ([`Isometry3`]); this is the file edge.
 
-use kinematics::euler::{rotation_from_zyz, zyz_nearest};
+use kinematics::euler::{rotation_from_zyz, zyz_canonical, zyz_nearest};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 
@@ -46,6 +46,40 @@ impl PoseMmDeg {
     /// The ZYZ angles in radians.
     pub fn zyz_rad(&self) -> [f64; 3] {
         self.zyz_deg.map(f64::to_radians)
+    }
+}
+
+/// A pose `a_from_b` in every form the reports print: translation x, y, z (mm), ZYZ φ, θ, ψ
+/// (degrees, `R = Rz(φ)·Ry(θ)·Rz(ψ)`, canonical branch: [`zyz_canonical`]), the rotation matrix
+/// (row-major, `rotation[i][j] = R[(i, j)]`: column j is b's axis j in a's axes) and the unit
+/// quaternion `[w, x, y, z]`. Which frames it relates is named by the field that holds it.
+///
+/// Fields in alphabetical order, which is the JSON key order of every report that prints one.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PoseForms {
+    /// Unit quaternion `[w, x, y, z]`.
+    pub quaternion_wxyz: [f64; 4],
+    /// Rotation matrix, row-major.
+    pub rotation: [[f64; 3]; 3],
+    /// x, y, z, mm.
+    pub xyz_mm: [f64; 3],
+    /// φ, θ, ψ (ZYZ, canonical branch), degrees.
+    pub zyz_deg: [f64; 3],
+}
+
+impl PoseForms {
+    /// The forms of an isometry (m, rad): millimetres are metres × 1000, the ZYZ angles are
+    /// [`zyz_canonical`]'s in degrees.
+    pub fn from_isometry(a_from_b: &Isometry3<f64>) -> Self {
+        let t = a_from_b.translation.vector * 1e3;
+        let r = a_from_b.rotation.to_rotation_matrix();
+        let q = a_from_b.rotation;
+        PoseForms {
+            quaternion_wxyz: [q.w, q.i, q.j, q.k],
+            rotation: [0, 1, 2].map(|i| [0, 1, 2].map(|j| r[(i, j)])),
+            xyz_mm: [t.x, t.y, t.z],
+            zyz_deg: zyz_canonical(&r).map(f64::to_degrees),
+        }
     }
 }
 
