@@ -140,6 +140,37 @@ mod tests {
         assert!(e.contains("zyz_degs"), "{e}");
     }
 
+    /// The four forms of one pose: a 90° turn about z (columns of the matrix are b's axes in a)
+    /// and 1.5 m along x; a pure yaw, which the canonical ZYZ writes as ψ alone (θ = φ = 0).
+    #[test]
+    fn pose_forms_of_a_turn_about_z() {
+        let a_from_b = Isometry3::new(
+            nalgebra::Vector3::new(1.5, 0.0, -0.25),
+            nalgebra::Vector3::z() * std::f64::consts::FRAC_PI_2,
+        );
+        let f = PoseForms::from_isometry(&a_from_b);
+        assert_eq!(f.xyz_mm, [1500.0, 0.0, -250.0]);
+        let want = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]];
+        for i in 0..3 {
+            for j in 0..3 {
+                assert!(
+                    (f.rotation[i][j] - want[i][j]).abs() < 1e-15,
+                    "{:?}",
+                    f.rotation
+                );
+            }
+        }
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        for (q, w) in f.quaternion_wxyz.iter().zip([h, 0.0, 0.0, h]) {
+            assert!((q - w).abs() < 1e-15, "{:?}", f.quaternion_wxyz);
+        }
+        assert!(f.zyz_deg[0] == 0.0 && f.zyz_deg[1] == 0.0 && (f.zyz_deg[2] - 90.0).abs() < 1e-12);
+        let json = serde_json::to_string(&f).unwrap();
+        assert!(
+            json.starts_with(r#"{"quaternion_wxyz":["#) && json.contains(r#""zyz_deg":[0.0,0.0,"#)
+        );
+    }
+
     /// Millimetres become metres by a correctly rounded division: 0.3 mm is exactly the f64
     /// nearest 0.0003 m.
     #[test]

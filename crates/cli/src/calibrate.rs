@@ -213,12 +213,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         for outcome in report.methods.values() {
-            match outcome {
-                MethodOutcome::Fit(r) => print!("{}", render_text(r)),
-                MethodOutcome::NotApplicable { error, method } => {
-                    println!("== method {}: not applicable: {error}", method.name());
-                }
-            }
+            print!("{}", outcome_text(outcome));
             println!();
         }
     }
@@ -240,6 +235,16 @@ enum MethodOutcome {
     Fit(Box<FitReport>),
     /// The method does not apply to these points (JSON `{"error": …, "method": …}`).
     NotApplicable { error: String, method: Method },
+}
+
+/// The text of one method's outcome under `--method all`.
+fn outcome_text(outcome: &MethodOutcome) -> String {
+    match outcome {
+        MethodOutcome::Fit(r) => render_text(r),
+        MethodOutcome::NotApplicable { error, method } => {
+            format!("== method {}: not applicable: {error}\n", method.name())
+        }
+    }
 }
 
 /// Fits one method (the soft-mount variant for `constrained` when asked) and builds its report.
@@ -475,5 +480,156 @@ fn write_text(s: &mut String, r: &FitReport) -> std::fmt::Result {
             "outliers: rows {:?} look like bad handclasps; re-record them",
             o.flagged_rows
         ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use calib_core::{OutliersReport, PoseForms, UncertaintyReport};
+
+    /// A constrained fit of three points, the second flagged, with every optional part.
+    fn report() -> FitReport {
+        FitReport {
+            b1_from_b2: PoseForms {
+                quaternion_wxyz: [0.5, 0.5, -0.5, 0.5],
+                rotation: [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+                xyz_mm: [1303.3, -102.3, 1386.3],
+                zyz_deg: [180.0, 89.874, -179.997],
+            },
+            condition: 10.875,
+            method: Method::Constrained,
+            mount_check: Some(MountCheckReport {
+                alpha: 0.001,
+                consistent: false,
+                constraints: 2,
+                dof: 3,
+                f_statistic: 33.71,
+                p_value: 2.4e-6,
+                rms_constrained_mm: 0.911,
+                rms_free_mm: 0.625,
+                rotation_gap_deg: 0.114,
+            }),
+            mounts: Some("floor-wall".into()),
+            outliers: Some(OutliersReport {
+                flagged_rows: vec![3],
+                loo_residuals_mm: vec![0.5, 9.25, 0.75],
+                thresholds_mm: vec![2.0, 2.5, 3.0],
+            }),
+            points: 3,
+            residual_norms_mm: vec![0.25, 6.5, 0.5],
+            residual_rms_mm: 3.76,
+            residuals_mm: vec![[0.1, -0.2, 0.1], [6.0, 2.5, 0.0], [0.0, 0.0, -0.5]],
+            rows: vec![2, 3, 4],
+            soft_mount: Some(SoftMountReport {
+                point_sigma_mm: 0.5,
+                tilt_estimate_deg: 0.11321,
+                tilt_sigma_deg: 0.5,
+                tilt_vector_deg_b1: [0.1, 0.05, 0.0],
+            }),
+            uncertainty: Some(UncertaintyReport {
+                covariance: [[0.0; 6]; 6],
+                covariance_order: "",
+                dof: 3,
+                e_rot_1sigma_deg: 0.0299,
+                e_tran_1sigma_mm: 0.484,
+                sigma_point_mm: 0.567,
+                tre_rms_mm_at_points: vec![0.4, 0.519, 0.3],
+            }),
+        }
+    }
+
+    /// Every line from a typed field: the flagged row marked, the leave-one-out limits, the
+    /// soft mount and a mount warning with the nominal-mount advice (gap ≤ 2°).
+    #[test]
+    fn text_of_a_constrained_fit_with_a_flagged_row() {
+        let text = render_text(&report());
+        let expected = [
+            "== method constrained (mounts: floor-wall, 3 points)",
+            "b1_from_b2:  x 1303.300 mm  y -102.300 mm  z 1386.300 mm   φ 180.0000°  θ 89.8740°  ψ -179.9970°  (ZYZ, R = Rz(φ)·Ry(θ)·Rz(ψ))",
+            "rotation:",
+            "  [ 0.0000000  0.0000000  1.0000000]",
+            "  [ 1.0000000  0.0000000  0.0000000]",
+            "  [ 0.0000000  1.0000000  0.0000000]",
+            "quaternion (w, x, y, z): 0.500000000 0.500000000 -0.500000000 0.500000000",
+            "residuals p_b1 − b1_from_b2·p_b2 (mm; agreement between points, NOT an accuracy):",
+            "  row    2:    0.100   -0.200    0.100  |r| 0.250  leave-one-out 0.500 (limit 2.000)",
+            "  row    3:    6.000    2.500    0.000  |r| 6.500  leave-one-out 9.250 (limit 2.500)  <-- suspect handclasp (leave-one-out)",
+            "  row    4:    0.000    0.000   -0.500  |r| 0.500  leave-one-out 0.750 (limit 3.000)",
+            "residual RMS: 3.760 mm",
+            "condition: 10.88 (≥ 1; larger is worse)",
+            "predicted uncertainty (1σ, from residuals and Jacobian): e_tran 0.484 mm, rotation 0.0299°, point noise σ 0.567 mm (3 dof)",
+            "  predicted error at the handclasp points (TRE, RMS): up to 0.519 mm",
+            "soft mount: estimated relative tilt 0.1132° (prior σ 0.500°)",
+            "WARNING: the points disagree with the mounts (F = 33.7, p = 2.4e-6 < 0.001): the free rigid fit is 0.114° from the nearest rotation they allow, and imposing them raises the residual RMS from 0.625 to 0.911 mm; the mount is nominal only: use --tilt-sigma-deg to estimate the actual tilt, or method lsq",
+            "outliers: rows [3] look like bad handclasps; re-record them",
+        ];
+        assert_eq!(text.lines().collect::<Vec<_>>(), expected);
+    }
+
+    /// A 4-point projection fit: no uncertainty, no leave-one-out, mounts agreeing; and a
+    /// method that does not apply.
+    #[test]
+    fn text_without_the_optional_parts_and_not_applicable() {
+        let mut r = report();
+        r.method = Method::Paper;
+        r.mounts = None;
+        r.uncertainty = None;
+        r.outliers = None;
+        r.soft_mount = None;
+        if let Some(c) = r.mount_check.as_mut() {
+            c.consistent = true;
+            c.p_value = 0.8741;
+        }
+        let text = render_text(&r);
+        for line in [
+            "== method paper (mounts: none given, 3 points)",
+            "  row    3:    6.000    2.500    0.000  |r| 6.500",
+            "predicted uncertainty: not computed for this method (use lsq or constrained)",
+            "mount check: the points agree with the mounts (F-test p = 0.874)",
+            "outliers: not checked (leave-one-out needs one point more than the method)",
+        ] {
+            assert!(
+                text.lines().any(|l| l == line),
+                "{line:?} missing in\n{text}"
+            );
+        }
+        assert!(!text.contains("soft mount") && !text.contains("TRE"));
+        let na = MethodOutcome::NotApplicable {
+            error: "needs 4 points".into(),
+            method: Method::GenericAffine,
+        };
+        assert_eq!(
+            outcome_text(&na),
+            "== method generic-affine: not applicable: needs 4 points\n"
+        );
+    }
+
+    /// `--method all`'s JSON: the methods by name in alphabetical order, a method that does not
+    /// apply as `{"error", "method"}`, the fit's optional parts absent when not run.
+    #[test]
+    fn all_methods_json() {
+        let mut fit = report();
+        fit.mount_check = None;
+        fit.soft_mount = None;
+        let mut methods = BTreeMap::new();
+        methods.insert(Method::Lsq.name(), MethodOutcome::Fit(Box::new(fit)));
+        methods.insert(
+            Method::Generic.name(),
+            MethodOutcome::NotApplicable {
+                error: "e".into(),
+                method: Method::Generic,
+            },
+        );
+        let json = serde_json::to_string(&AllMethods { methods }).unwrap();
+        assert!(
+            json.starts_with(
+                r#"{"methods":{"generic":{"error":"e","method":"generic"},"lsq":{"b1_from_b2""#
+            ),
+            "{json}"
+        );
+        assert!(!json.contains("mount_check") && !json.contains("soft_mount"));
+        let value: serde_json::Value = serde_json::from_str(&json).unwrap();
+        assert_eq!(json, serde_json::to_string(&value).unwrap());
     }
 }

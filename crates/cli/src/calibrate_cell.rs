@@ -544,3 +544,232 @@ fn dropped_line(d: &UnidentifiableReport) -> String {
         _ => d.why.clone(),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use calib_core::whole_cell::{
+        ContactGroupReport, LogEvidenceReport, MergePartner, ParamIdentity, PlaneGroupReport,
+        ReportUnit, TrackerGroupReport,
+    };
+    use calib_core::{PoseMmDeg, Robot};
+
+    fn sigma(name: &str, unit: ReportUnit, prior: Option<f64>) -> PlacementSigmaReport {
+        PlacementSigmaReport {
+            name: format!("b1_from_b2 {name}"),
+            prior_sigma: prior,
+            sigma: 0.25,
+            unit,
+        }
+    }
+
+    fn dropped(
+        name: &str,
+        reason: DropReason,
+        into: Option<Vec<(&str, f64)>>,
+    ) -> UnidentifiableReport {
+        UnidentifiableReport {
+            identity: None,
+            independent_fraction: 0.0,
+            merged_into: into.map(|v| {
+                v.into_iter()
+                    .map(|(p, c)| MergePartner {
+                        coefficient: c,
+                        parameter: p.into(),
+                    })
+                    .collect()
+            }),
+            name: name.into(),
+            reason,
+            why: format!("{name} is confounded with the nuisances"),
+        }
+    }
+
+    /// A kinematic fit of a mixed session with one blunder, every section of the text filled.
+    fn mixed_report() -> CellReport {
+        let parameter = |name: &str, value: f64, prior_sigma: f64| ParameterReport {
+            identity: ParamIdentity {
+                axis: None,
+                joint: Some(2),
+                kind: "joint_offset",
+                robot: Robot::One,
+            },
+            name: name.into(),
+            prior_sigma,
+            sigma: 0.01,
+            unit: ReportUnit::Deg,
+            value,
+        };
+        CellReport {
+            b1_from_b2: FittedPlacementReport {
+                quaternion_wxyz: [1.0, 0.0, 0.0, 0.0],
+                rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+                sigma: vec![
+                    sigma("translation x", ReportUnit::Mm, Some(2.0)),
+                    sigma("rotation z", ReportUnit::Deg, None),
+                ],
+                xyz_mm: [1303.25, -102.5, 1386.125],
+                zyz_deg: [180.0, 89.874, -179.997],
+            },
+            cooperative_accuracy_mm: Some(CooperativeAccuracyReport::new(
+                &CooperativePrediction {
+                    predicted_rms_m: 1.5e-3,
+                    predicted_p95_m: 2.75e-3,
+                    per_pair_rms_m: vec![],
+                },
+                14,
+            )),
+            data_chi2: 62.46,
+            data_determined_directions: 3,
+            groups: Some(GroupsReport {
+                contact: vec![ContactGroupReport {
+                    distance_mm: 100.0214,
+                    fitted: true,
+                    group: "pins \"a\"".into(),
+                }],
+                plane: vec![PlaneGroupReport {
+                    anchor_robot: Robot::Two,
+                    group: "table".into(),
+                    normal: [0.0, 0.6, -0.8],
+                    offset_mm: -971.3256,
+                }],
+                tracker: vec![TrackerGroupReport {
+                    anchor_from_tracker: PoseMmDeg {
+                        xyz_mm: [-1226.9961, 1146.2934, 1295.3159],
+                        zyz_deg: [0.0; 3],
+                    },
+                    anchor_robot: Robot::One,
+                    group: "leica".into(),
+                }],
+            }),
+            iterations: 4,
+            model: ModelArg::Kinematic,
+            noise_scale: 1.0,
+            nuisance_parameters: vec![],
+            parameters: vec![
+                parameter("robot 1 joint_offset joint 2", 0.001, 0.01),
+                parameter("robot 1 joint_offset joint 3", -0.02, 0.01),
+            ],
+            prior_dominated_directions: 1,
+            prior_scale: PriorScaleReport {
+                chosen: 0.0625,
+                log_evidence: vec![LogEvidenceReport {
+                    log_evidence: -3.5,
+                    scale: 0.0625,
+                }],
+            },
+            rejected_points: vec![RejectedRowReport {
+                residual_mm: 7.1234,
+                row: 6,
+                size_sigma: 21.04,
+            }],
+            residual_rows: 80,
+            rows: 41,
+            rows_by_kind: Some(RowsByKind {
+                coincident: 7,
+                contact: 8,
+                face_contact: 0,
+                plane: 13,
+                tracker: 13,
+            }),
+            rows_used: 40,
+            stopped: StopReason::Converged,
+            unidentifiable: vec![
+                dropped(
+                    "robot 1 origin_xyz joint 2 z",
+                    DropReason::Merged,
+                    Some(vec![("a", 0.1), ("b", -0.9), ("c", 0.5), ("d", 0.05)]),
+                ),
+                dropped(
+                    "robot 2 joint_offset joint 1",
+                    DropReason::ConfoundedWithPlacement,
+                    None,
+                ),
+                dropped("robot 1 joint_offset joint 7", DropReason::NoEffect, None),
+                dropped("robot 1 tool `tip` tip x", DropReason::PriorDecided, None),
+                dropped(
+                    "robot 1 origin_xyz joint 1 x",
+                    DropReason::ConfoundedWithNuisance,
+                    None,
+                ),
+            ],
+        }
+    }
+
+    /// Every line of the text comes from a typed field: the figures as they were set, the
+    /// corrections ranked by size in prior σ, merges with their three largest partners, the
+    /// groups quoted as JSON strings.
+    #[test]
+    fn text_of_a_mixed_kinematic_fit() {
+        let text = render_text(&mixed_report());
+        let expected = [
+            "== whole-cell calibration, model kinematic (40 of 41 rows used)",
+            "b1_from_b2:  x 1303.250 mm  y -102.500 mm  z 1386.125 mm   φ 180.0000°  θ 89.8740°  ψ -179.9970°  (ZYZ, R = Rz(φ)·Ry(θ)·Rz(ψ))",
+            "b1_from_b2 posterior σ: translation x ± 0.2500 mm (prior 2.0000 mm), rotation z ± 0.2500 deg (prior: free)",
+            "kinematic parameters: 2 fitted; the 2 largest corrections (in prior σ):",
+            "  robot 1 joint_offset joint 3                -0.0200 deg  ± 0.0100 deg  (prior σ 0.0100; 2.0 σ)",
+            "  robot 1 joint_offset joint 2                +0.0010 deg  ± 0.0100 deg  (prior σ 0.0100; 0.1 σ)",
+            "not identifiable from this session (5; held at nominal, their prior kept in the prediction):",
+            "  robot 1 origin_xyz joint 2 z: merged into -0.900·b, +0.500·c, +0.100·a and 1 smaller (coefficients in prior σ)",
+            "  robot 2 joint_offset joint 1: absorbed by b1_from_b2",
+            "  robot 1 joint_offset joint 7: moves no observed tip",
+            "  robot 1 tool `tip` tip x: barely seen by the data, the prior decides it",
+            "  robot 1 origin_xyz joint 1 x is confounded with the nuisances",
+            "blunders: rejected and refitted without them; re-record these rows:",
+            "  row    6: 21.0 σ (residual 7.123 mm)",
+            "rows by kind: 7 coincident, 8 contact, 13 tracker, 13 plane",
+            "  contact group \"pins \\\"a\\\"\": distance 100.021 mm (fitted)",
+            "  plane group \"table\": normal (0.00000, 0.60000, -0.80000), offset -971.326 mm (base of robot 2)",
+            "  tracker group \"leica\": origin (-1226.996, 1146.293, 1295.316) mm in the base of robot 1",
+            "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the 14 meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms 1.500 mm, p95 2.750 mm",
+            "prior scale chosen by the evidence: 0.0625 (prior σ = scale × tolerance/√3; 1e-3 = placement-only limit); blunder-screen noise scale 1.000",
+            "solver: converged after 4 iterations (data χ² 62.5 over 80 residual rows)",
+        ];
+        assert_eq!(text.lines().collect::<Vec<_>>(), expected);
+    }
+
+    /// A placement fit of plain handclasps without meeting pairs: no parameters, the placement
+    /// note, no groups, and "none" for the accuracy and the prior scale; the JSON then has no
+    /// `groups`, `rows_by_kind` or `nuisance_parameters` and a null accuracy.
+    #[test]
+    fn text_and_json_of_a_placement_fit_without_groups() {
+        let mut r = mixed_report();
+        r.model = ModelArg::Placement;
+        r.parameters.clear();
+        r.unidentifiable.clear();
+        r.rejected_points.clear();
+        r.groups = None;
+        r.rows_by_kind = None;
+        r.cooperative_accuracy_mm = None;
+        let text = render_text(&r);
+        for line in [
+            "== whole-cell calibration, model placement (40 of 41 rows used)",
+            "kinematic parameters: none fitted (both robots nominal)",
+            "blunders: none (no row's studentised residual above the Bonferroni limit)",
+            "predicted cooperative accuracy: none (no coincident or contact row: no meeting pair)",
+            "prior scale: none (no kinematic parameter fitted); blunder-screen noise scale 1.000",
+        ] {
+            assert!(
+                text.lines().any(|l| l == line),
+                "{line:?} missing in\n{text}"
+            );
+        }
+        assert!(text.contains("(use --model kinematic to fit them)"));
+        assert!(!text.contains("not identifiable") && !text.contains("rows by kind"));
+        let json = serde_json::to_string(&r).unwrap();
+        for absent in ["\"groups\"", "\"rows_by_kind\"", "\"nuisance_parameters\""] {
+            assert!(!json.contains(absent), "{absent} in {json}");
+        }
+        assert!(json.contains("\"cooperative_accuracy_mm\":null"));
+        assert!(json.contains("\"model\":\"placement\""));
+    }
+
+    /// The JSON's keys stand in alphabetical order at every level (the order of the
+    /// `serde_json::Value`, a BTreeMap, that this report was before it had types).
+    #[test]
+    fn json_keys_in_value_order() {
+        let json = serde_json::to_string(&mixed_report()).unwrap();
+        let value: serde_json::Value = serde_json::from_str(&json).unwrap();
+        assert_eq!(json, serde_json::to_string(&value).unwrap());
+    }
+}

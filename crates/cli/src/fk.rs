@@ -547,3 +547,59 @@ fn run_batch(
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report(cell: Option<&str>) -> FkReport {
+        let pose = PoseForms::from_isometry(&Isometry3::translation(1.0, -0.25, 0.5));
+        FkReport {
+            cell: cell.map(String::from),
+            q_deg: vec![0.0; 6],
+            quaternion_wxyz: pose.quaternion_wxyz,
+            robot: "hp20".into(),
+            rotation: pose.rotation,
+            tip_mm: [0.0, 0.0, 150.0],
+            tool_link: "tool0".into(),
+            xyz_mm: pose.xyz_mm,
+            zyz_deg: pose.zyz_deg,
+        }
+    }
+
+    #[test]
+    fn text_of_one_pose() {
+        let text = render_text(&report(Some("cells/x.toml")));
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines[0],
+            "hp20 (6 joints), flange tool0, tip (0, 0, 150) mm in the flange frame, with the errors of cell cells/x.toml"
+        );
+        assert_eq!(
+            lines[1],
+            "base_from_tip (ZYZ: R = Rz(phi)·Ry(theta)·Rz(psi)):"
+        );
+        assert_eq!(
+            lines[3],
+            format!(
+                "  {:>12.4} {:>12.4} {:>12.4} {:>12.5} {:>12.5} {:>12.5}",
+                1000.0, -250.0, 500.0, 0.0, 0.0, 0.0
+            )
+        );
+        assert_eq!(lines.len(), 8);
+        assert!(render_text(&report(None)).starts_with(
+            "hp20 (6 joints), flange tool0, tip (0, 0, 150) mm in the flange frame\n"
+        ));
+    }
+
+    /// The JSON's keys in the order of the `serde_json::Value` it was; `cell` only with --cell.
+    #[test]
+    fn json_keys_in_value_order() {
+        for cell in [None, Some("c.toml")] {
+            let json = serde_json::to_string(&report(cell)).unwrap();
+            let value: serde_json::Value = serde_json::from_str(&json).unwrap();
+            assert_eq!(json, serde_json::to_string(&value).unwrap());
+            assert_eq!(json.contains("\"cell\""), cell.is_some());
+        }
+    }
+}

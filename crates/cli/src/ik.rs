@@ -206,3 +206,59 @@ fn write_text(s: &mut String, r: &IkReport) -> std::fmt::Result {
     writeln!(s, "tip pose at these angles:")?;
     write!(s, "{}", pose_table(&r.reached))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Isometry3;
+
+    fn report(reachable: bool, axis_given: bool) -> IkReport {
+        IkReport {
+            axis_error_deg: 0.5,
+            iterations: 12,
+            position_error_mm: if reachable { 1e-6 } else { 812.5 },
+            q_deg: vec![10.0, -20.0],
+            reachable,
+            reached: PoseForms::from_isometry(&Isometry3::identity()),
+            robot: "hp20".into(),
+            target_xyz_mm: vec![1200.0, 0.0, 900.5],
+            tip_mm: [0.0, 0.0, 150.0],
+            tool_link: "tool0".into(),
+            axis_given,
+            joint_names: vec!["joint_1".into(), "joint_2".into()],
+        }
+    }
+
+    #[test]
+    fn text_of_a_reached_and_an_unreachable_target() {
+        let text = render_text(&report(true, true));
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines[0],
+            "hp20: target (1200, 0, 900.5) mm reached (error 1.00e-6 mm, axis error 5.00e-1 deg)."
+        );
+        assert_eq!(
+            lines[2],
+            format!("  {:>4} {:>14} {:>12.6}", 1, "joint_1", 10.0)
+        );
+        assert_eq!(lines[4], "tip pose at these angles:");
+        let text = render_text(&report(false, false));
+        assert!(text.starts_with(
+            "hp20: target (1200, 0, 900.5) mm is UNREACHABLE within the joint limits; closest found: 812.500 mm away.\n"
+        ));
+        let text = render_text(&report(false, true));
+        assert!(text.starts_with(
+            "hp20: target (1200, 0, 900.5) mm is UNREACHABLE within the joint limits with that axis; closest found: 812.500 mm away, axis 0.500 deg off.\n"
+        ));
+    }
+
+    /// The JSON's keys in the order of the `serde_json::Value` it was; the text-only fields are
+    /// not serialised.
+    #[test]
+    fn json_keys_in_value_order() {
+        let json = serde_json::to_string(&report(true, true)).unwrap();
+        let value: serde_json::Value = serde_json::from_str(&json).unwrap();
+        assert_eq!(json, serde_json::to_string(&value).unwrap());
+        assert!(!json.contains("joint_names") && !json.contains("axis_given"));
+    }
+}

@@ -571,3 +571,39 @@ impl Plan {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn text_and_json_of_an_import() {
+        let r = ImportReport {
+            files: vec![
+                FileCount {
+                    path: "a.csv".into(),
+                    rows: 212,
+                    skipped: 4,
+                },
+                FileCount {
+                    path: "b.csv".into(),
+                    rows: 10,
+                    skipped: 0,
+                },
+            ],
+            kind: "tracker",
+            out: "s.csv".into(),
+            rows: 222,
+        };
+        assert_eq!(
+            render_text(&r),
+            "a.csv: 212 tracker row(s), 4 skipped (no tracker value: empty or NaN)\n\
+             b.csv: 10 tracker row(s)\n\
+             wrote 222 rows to s.csv\n"
+        );
+        assert_eq!(
+            serde_json::to_string(&r).unwrap(),
+            r#"{"files":[{"input":"a.csv","rows":212,"skipped":4},{"input":"b.csv","rows":10,"skipped":0}],"kind":"tracker","out":"s.csv","rows":222}"#
+        );
+    }
+}

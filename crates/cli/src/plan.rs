@@ -322,3 +322,91 @@ fn write_text(s: &mut String, r: &PlanReport) -> std::fmt::Result {
     )?;
     writeln!(s, "wrote {}", r.out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn prediction(rms_mm: f64) -> DesignPredictionReport {
+        DesignPredictionReport {
+            cooperative_rms_mm: rms_mm,
+            e_rot_deg: 0.01234,
+            e_tran_mm: 0.25,
+            log_det_information: 12.5,
+        }
+    }
+
+    fn report() -> PlanReport {
+        PlanReport {
+            candidates: CandidateCounts {
+                asked: 400,
+                drawn: 1234,
+                reachable: 400,
+            },
+            cell: "cells/floor-wall.toml".into(),
+            centre_mm: [475.0, -50.0, 995.0],
+            cooperative_gain_over_random_percent: 41.6,
+            criterion: CriterionArg::A,
+            evaluation_pair_set: "200 held-out …".into(),
+            evaluation_pairs: 200,
+            n: 1,
+            out: "plan.csv".into(),
+            poses: vec![PlannedPose {
+                candidate: 17,
+                point: 1,
+                r1_q_deg: vec![10.0, -20.555, 0.0],
+                r1_tip_mm: [475.04, -50.0, 995.0],
+                r2_q_deg: vec![1.0, 2.0],
+                r2_tip_mm: [0.0; 3],
+            }],
+            predicted: Predicted {
+                plan: prediction(0.5),
+                random: prediction(0.85),
+            },
+            random_draws: 20,
+            seed: 1,
+            spread_mm: 1000.0,
+            tip_collision_checked: false,
+        }
+    }
+
+    #[test]
+    fn text_of_a_plan() {
+        let text = render_text(&report());
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines[0],
+            "== session plan: 1 poses, criterion a (smallest predicted cooperative error), from 400 reachable candidates (1234 drawn, seed 1)"
+        );
+        assert_eq!(
+            lines[2],
+            format!(
+                "{:>5} {:>9}  {:<58} {:<50} 475.0 -50.0 995.0",
+                1, 17, "10.00 -20.55 0.00", "1.00 2.00"
+            )
+        );
+        for line in [
+            "  plan                                               cooperative rms 0.500 mm   e_tran 0.250 mm   e_rot 0.0123°",
+            "  random (mean of 20 picks of the same candidates)   cooperative rms 0.850 mm   e_tran 0.250 mm   e_rot 0.0123°",
+            "  the plan's cooperative rms is 42 % below the random picks' mean",
+            "wrote plan.csv",
+        ] {
+            assert!(lines.contains(&line), "{line:?} missing in\n{text}");
+        }
+        let mut d = report();
+        d.criterion = CriterionArg::D;
+        assert!(render_text(&d).contains("criterion d (largest information volume)"));
+    }
+
+    /// The JSON's keys in the order of the `serde_json::Value` it was, the criterion as a letter.
+    #[test]
+    fn json_keys_in_value_order() {
+        let json = serde_json::to_string(&report()).unwrap();
+        let value: serde_json::Value = serde_json::from_str(&json).unwrap();
+        assert_eq!(json, serde_json::to_string(&value).unwrap());
+        assert!(
+            json.contains(r#""criterion":"a""#)
+                && json.contains(r#""tip_collision_checked":false"#)
+        );
+    }
+}
