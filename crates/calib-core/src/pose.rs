@@ -151,13 +151,9 @@ mod tests {
         let f = PoseForms::from_isometry(&a_from_b);
         assert_eq!(f.xyz_mm, [1500.0, 0.0, -250.0]);
         let want = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]];
-        for i in 0..3 {
-            for j in 0..3 {
-                assert!(
-                    (f.rotation[i][j] - want[i][j]).abs() < 1e-15,
-                    "{:?}",
-                    f.rotation
-                );
+        for (row, want_row) in f.rotation.iter().zip(want) {
+            for (v, w) in row.iter().zip(want_row) {
+                assert!((v - w).abs() < 1e-15, "{:?}", f.rotation);
             }
         }
         let h = std::f64::consts::FRAC_1_SQRT_2;

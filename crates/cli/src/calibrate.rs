@@ -621,7 +621,7 @@ mod tests {
                 method: Method::Generic,
             },
         );
-        let json = serde_json::to_string(&AllMethods { methods }).unwrap();
+        let json = crate::test_support::json_in_value_order(&AllMethods { methods });
         assert!(
             json.starts_with(
                 r#"{"methods":{"generic":{"error":"e","method":"generic"},"lsq":{"b1_from_b2""#
@@ -629,7 +629,5 @@ mod tests {
             "{json}"
         );
         assert!(!json.contains("mount_check") && !json.contains("soft_mount"));
-        let value: serde_json::Value = serde_json::from_str(&json).unwrap();
-        assert_eq!(json, serde_json::to_string(&value).unwrap());
     }
 }

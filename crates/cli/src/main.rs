@@ -18,6 +18,25 @@ mod paper;
 mod paper_diagnose;
 mod plan;
 
+/// Test support shared by the subcommands' unit tests.
+#[cfg(test)]
+mod test_support {
+    /// `report`'s compact JSON, after checking that its keys stand in the order a
+    /// `serde_json::Value` gives them (a BTreeMap: this workspace does not turn on
+    /// `preserve_order`), the order of the JSON these commands printed before their reports
+    /// had types.
+    pub(crate) fn json_in_value_order(report: &impl serde::Serialize) -> String {
+        let json = serde_json::to_string(report).unwrap();
+        let value: serde_json::Value = serde_json::from_str(&json).unwrap();
+        assert_eq!(
+            json,
+            serde_json::to_string(&value).unwrap(),
+            "keys out of alphabetical order"
+        );
+        json
+    }
+}
+
 /// Calibrate the base frames of two cooperating robots from handclasp points.
 ///
 /// Files and flags speak millimetres and degrees, like robot controllers. Every command takes

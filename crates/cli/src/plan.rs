@@ -401,9 +401,7 @@ mod tests {
     /// The JSON's keys in the order of the `serde_json::Value` it was, the criterion as a letter.
     #[test]
     fn json_keys_in_value_order() {
-        let json = serde_json::to_string(&report()).unwrap();
-        let value: serde_json::Value = serde_json::from_str(&json).unwrap();
-        assert_eq!(json, serde_json::to_string(&value).unwrap());
+        let json = crate::test_support::json_in_value_order(&report());
         assert!(
             json.contains(r#""criterion":"a""#)
                 && json.contains(r#""tip_collision_checked":false"#)
