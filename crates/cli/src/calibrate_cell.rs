@@ -28,8 +28,9 @@ use calib_core::whole_cell::{
     calibrate_cell, predict_cooperative_accuracy, CalibrationReport, CooperativePrediction,
     DropReason, FittedPlacementReport, GroupsReport, NuisanceReport, ParameterReport,
     PlacementSigmaReport, PriorScaleReport, RejectedRowReport, ScreenOptions, SolveOptions,
-    StopReason, UnidentifiableReport,
+    UnidentifiableReport,
 };
+use calib_core::StopReason;
 use serde::Serialize;
 use sim_cell::whole_cell::{cell_problem, session_meeting_pairs, FitModel};
 use sim_cell::{export_calibrated_cell, Cell, Session, CALIBRATE_EXPORT_NAMES};

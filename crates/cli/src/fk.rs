@@ -15,8 +15,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use calib_core::identify::Robot;
-use calib_core::PoseForms;
+use calib_core::{PoseForms, Robot};
 use kinematics::{base_from_tip, true_base_from_flange, KinematicErrors, ModelError, RobotModel};
 use nalgebra::{Isometry3, Translation3, Vector3};
 use serde::Serialize;

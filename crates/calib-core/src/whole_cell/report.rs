@@ -17,8 +17,8 @@ use super::design::DesignPrediction;
 use super::layout::CellParam;
 use super::observations::CellProblem;
 use super::reduce::{ReductionEntry, ReductionReason};
-use super::solve::StopReason;
-use crate::{PoseForms, PoseMmDeg, Robot};
+
+use crate::{PoseForms, PoseMmDeg, Robot, StopReason};
 
 /// The unit a report gives a parameter in; serialised as its [`ReportUnit::name`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
