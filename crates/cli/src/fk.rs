@@ -15,12 +15,10 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use calib_core::Robot;
-use kinematics::{
-    base_from_tip, true_base_from_flange, zyz_canonical, KinematicErrors, ModelError, RobotModel,
-};
+use calib_core::{PoseForms, Robot};
+use kinematics::{base_from_tip, true_base_from_flange, KinematicErrors, ModelError, RobotModel};
 use nalgebra::{Isometry3, Translation3, Vector3};
-use serde_json::{json, Value};
+use serde::Serialize;
 
 /// Arguments of `handclasp fk`.
 #[derive(clap::Args, Debug)]
@@ -194,31 +192,9 @@ pub(crate) fn parse_q_deg(
     Ok((q_deg.iter().map(|v| v.to_radians()).collect(), q_deg))
 }
 
-/// JSON of a pose: `xyz_mm`, `zyz_deg`, `rotation` (row-major 3×3), `quaternion_wxyz`.
-pub(crate) fn pose_json(base_from_tip: &Isometry3<f64>) -> Value {
-    let t = base_from_tip.translation.vector * 1e3;
-    let r = base_from_tip.rotation.to_rotation_matrix();
-    let zyz = zyz_canonical(&r);
-    let m = r.matrix();
-    let q = base_from_tip.rotation;
-    json!({
-        "xyz_mm": [t.x, t.y, t.z],
-        "zyz_deg": [zyz[0].to_degrees(), zyz[1].to_degrees(), zyz[2].to_degrees()],
-        "rotation": [
-            [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
-            [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
-            [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
-        ],
-        "quaternion_wxyz": [q.w, q.i, q.j, q.k],
-    })
-}
-
 /// Readable lines of a pose (mm, deg, rotation rows).
-pub(crate) fn pose_table(base_from_tip: &Isometry3<f64>) -> String {
-    let t = base_from_tip.translation.vector * 1e3;
-    let r = base_from_tip.rotation.to_rotation_matrix();
-    let zyz = zyz_canonical(&r).map(f64::to_degrees);
-    let m = r.matrix();
+pub(crate) fn pose_table(pose: &PoseForms) -> String {
+    let (t, zyz, m) = (pose.xyz_mm, pose.zyz_deg, pose.rotation);
     let mut s = String::new();
     s += &format!(
         "  {:>12} {:>12} {:>12} {:>12} {:>12} {:>12}\n",
@@ -226,17 +202,73 @@ pub(crate) fn pose_table(base_from_tip: &Isometry3<f64>) -> String {
     );
     s += &format!(
         "  {:>12.4} {:>12.4} {:>12.4} {:>12.5} {:>12.5} {:>12.5}\n",
-        t.x, t.y, t.z, zyz[0], zyz[1], zyz[2]
+        t[0], t[1], t[2], zyz[0], zyz[1], zyz[2]
     );
     s += "  rotation (base axes, columns = tip x, y, z):\n";
-    for row in 0..3 {
-        s += &format!(
-            "  {:>12.8} {:>12.8} {:>12.8}\n",
-            m[(row, 0)],
-            m[(row, 1)],
-            m[(row, 2)]
-        );
+    for row in m {
+        s += &format!("  {:>12.8} {:>12.8} {:>12.8}\n", row[0], row[1], row[2]);
     }
+    s
+}
+
+/// What `handclasp fk` prints for one pose: the robot, the joints and tip it was given, and
+/// `base_from_tip` in every form ([`PoseForms`]). `--json` serialises it; [`render_text`] reads it.
+///
+/// Fields in alphabetical order: the JSON key order (that of the `serde_json::Value` this report
+/// was before it had types).
+#[derive(Debug, Clone, Serialize)]
+struct FkReport {
+    /// `--cell`, when given (absent from the JSON otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    cell: Option<String>,
+    /// The joint angles, degrees, chain order.
+    q_deg: Vec<f64>,
+    /// `base_from_tip`'s unit quaternion `[w, x, y, z]`.
+    quaternion_wxyz: [f64; 4],
+    /// The robot's name (URDF).
+    robot: String,
+    /// `base_from_tip`'s rotation matrix, row-major.
+    rotation: [[f64; 3]; 3],
+    /// The tip offset used, flange frame, mm.
+    tip_mm: [f64; 3],
+    /// The flange link the chain ends at.
+    tool_link: String,
+    /// `base_from_tip`'s translation, mm.
+    xyz_mm: [f64; 3],
+    /// `base_from_tip`'s ZYZ angles (canonical branch), degrees.
+    zyz_deg: [f64; 3],
+}
+
+impl FkReport {
+    /// `base_from_tip` again as one value.
+    fn base_from_tip(&self) -> PoseForms {
+        PoseForms {
+            quaternion_wxyz: self.quaternion_wxyz,
+            rotation: self.rotation,
+            xyz_mm: self.xyz_mm,
+            zyz_deg: self.zyz_deg,
+        }
+    }
+}
+
+/// The text report of one pose.
+fn render_text(r: &FkReport) -> String {
+    let tip = r.tip_mm;
+    let mut s = format!(
+        "{} ({} joints), flange {}, tip ({}, {}, {}) mm in the flange frame{}\n",
+        r.robot,
+        r.q_deg.len(),
+        r.tool_link,
+        tip[0],
+        tip[1],
+        tip[2],
+        match &r.cell {
+            Some(cell) => format!(", with the errors of cell {cell}"),
+            None => String::new(),
+        }
+    );
+    s += "base_from_tip (ZYZ: R = Rz(phi)·Ry(theta)·Rz(psi)):\n";
+    s += &pose_table(&r.base_from_tip());
     s
 }
 
@@ -324,32 +356,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let tip = robot.flange_from_tip;
     let (q, q_deg) = parse_q_deg("--q-deg", q_text, model)?;
     let base_from_tip = robot.base_from_tip(&q).context("--q-deg")?;
+    let PoseForms {
+        quaternion_wxyz,
+        rotation,
+        xyz_mm,
+        zyz_deg,
+    } = PoseForms::from_isometry(&base_from_tip);
+    let report = FkReport {
+        cell: robot.cell.as_ref().map(|c| c.display().to_string()),
+        q_deg,
+        quaternion_wxyz,
+        robot: model.name().to_string(),
+        rotation,
+        tip_mm: [tip.x * 1e3, tip.y * 1e3, tip.z * 1e3],
+        tool_link: model.tool_link().to_string(),
+        xyz_mm,
+        zyz_deg,
+    };
     if args.json {
-        let mut v = pose_json(&base_from_tip);
-        v["robot"] = json!(model.name());
-        v["tool_link"] = json!(model.tool_link());
-        v["q_deg"] = json!(q_deg);
-        v["tip_mm"] = json!([tip.x * 1e3, tip.y * 1e3, tip.z * 1e3]);
-        if let Some(cell) = &robot.cell {
-            v["cell"] = json!(cell.display().to_string());
-        }
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        println!(
-            "{} ({} joints), flange {}, tip ({}, {}, {}) mm in the flange frame{}",
-            model.name(),
-            model.dof(),
-            model.tool_link(),
-            tip.x * 1e3,
-            tip.y * 1e3,
-            tip.z * 1e3,
-            match &robot.cell {
-                Some(cell) => format!(", with the errors of cell {}", cell.display()),
-                None => String::new(),
-            }
-        );
-        println!("base_from_tip (ZYZ: R = Rz(phi)·Ry(theta)·Rz(psi)):");
-        print!("{}", pose_table(&base_from_tip));
+        print!("{}", render_text(&report));
     }
     Ok(())
 }
@@ -518,4 +545,58 @@ fn run_batch(
         eprintln!("wrote {} poses to {}", rows.len(), path.display());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report(cell: Option<&str>) -> FkReport {
+        let pose = PoseForms::from_isometry(&Isometry3::translation(1.0, -0.25, 0.5));
+        FkReport {
+            cell: cell.map(String::from),
+            q_deg: vec![0.0; 6],
+            quaternion_wxyz: pose.quaternion_wxyz,
+            robot: "hp20".into(),
+            rotation: pose.rotation,
+            tip_mm: [0.0, 0.0, 150.0],
+            tool_link: "tool0".into(),
+            xyz_mm: pose.xyz_mm,
+            zyz_deg: pose.zyz_deg,
+        }
+    }
+
+    #[test]
+    fn text_of_one_pose() {
+        let text = render_text(&report(Some("cells/x.toml")));
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines[0],
+            "hp20 (6 joints), flange tool0, tip (0, 0, 150) mm in the flange frame, with the errors of cell cells/x.toml"
+        );
+        assert_eq!(
+            lines[1],
+            "base_from_tip (ZYZ: R = Rz(phi)·Ry(theta)·Rz(psi)):"
+        );
+        assert_eq!(
+            lines[3],
+            format!(
+                "  {:>12.4} {:>12.4} {:>12.4} {:>12.5} {:>12.5} {:>12.5}",
+                1000.0, -250.0, 500.0, 0.0, 0.0, 0.0
+            )
+        );
+        assert_eq!(lines.len(), 8);
+        assert!(render_text(&report(None)).starts_with(
+            "hp20 (6 joints), flange tool0, tip (0, 0, 150) mm in the flange frame\n"
+        ));
+    }
+
+    /// The JSON's keys in the order of the `serde_json::Value` it was; `cell` only with --cell.
+    #[test]
+    fn json_keys_in_value_order() {
+        for cell in [None, Some("c.toml")] {
+            let json = crate::test_support::json_in_value_order(&report(cell));
+            assert_eq!(json.contains("\"cell\""), cell.is_some());
+        }
+    }
 }

@@ -9,7 +9,6 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use handclasp_cell::{Cell, ImportMap, Session};
-use serde_json::json;
 
 /// Arguments of `handclasp import`.
 #[derive(clap::Args, Debug)]
@@ -33,11 +32,53 @@ pub struct Args {
     pub json: bool,
 }
 
-/// What one input gave.
+/// What one input gave (JSON `input`, `rows`, `skipped`).
+#[derive(Debug, serde::Serialize)]
 struct FileCount {
+    /// The input file.
+    #[serde(rename = "input")]
     path: PathBuf,
+    /// Rows imported from it.
     rows: usize,
+    /// Rows skipped (no tracker value: empty or NaN).
     skipped: usize,
+}
+
+/// What `handclasp import` prints: each input's counts, the kind, the session written and its
+/// rows. `--json` serialises it; [`render_text`] reads it.
+///
+/// Fields in alphabetical order: the JSON key order (that of the `serde_json::Value` this report
+/// was before it had types).
+#[derive(Debug, serde::Serialize)]
+struct ImportReport {
+    /// Each input, in order.
+    files: Vec<FileCount>,
+    /// The observation kind imported (the mapping's `kind`).
+    kind: &'static str,
+    /// The session CSV written (`--out`).
+    out: PathBuf,
+    /// Rows in the written session.
+    rows: usize,
+}
+
+/// The text report.
+fn render_text(r: &ImportReport) -> String {
+    let mut s = String::new();
+    for c in &r.files {
+        let skipped = if c.skipped > 0 {
+            format!(", {} skipped (no tracker value: empty or NaN)", c.skipped)
+        } else {
+            String::new()
+        };
+        s += &format!(
+            "{}: {} {} row(s){skipped}\n",
+            c.path.display(),
+            c.rows,
+            r.kind
+        );
+    }
+    s += &format!("wrote {} rows to {}\n", r.rows, r.out.display());
+    s
 }
 
 /// Runs `handclasp import`.
@@ -67,24 +108,51 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     session.write_csv(&args.out, &cell)?;
     // The written file must read back as a session of this cell (tips, tools, groups).
     Session::read_csv(&args.out, &cell).context("reading back the written session")?;
-    let kind = map.kind().name();
+    let report = ImportReport {
+        files: counts,
+        kind: map.kind().name(),
+        out: args.out.clone(),
+        rows: session.len(),
+    };
     if args.json {
-        let files: Vec<_> = counts
-            .iter()
-            .map(|c| json!({"input": c.path, "rows": c.rows, "skipped": c.skipped}))
-            .collect();
-        let out = json!({"out": args.out, "kind": kind, "rows": session.len(), "files": files});
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        for c in &counts {
-            let skipped = if c.skipped > 0 {
-                format!(", {} skipped (no tracker value: empty or NaN)", c.skipped)
-            } else {
-                String::new()
-            };
-            println!("{}: {} {} row(s){skipped}", c.path.display(), c.rows, kind);
-        }
-        println!("wrote {} rows to {}", session.len(), args.out.display());
+        print!("{}", render_text(&report));
     }
     Ok(())
+}
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn text_and_json_of_an_import() {
+        let r = ImportReport {
+            files: vec![
+                FileCount {
+                    path: "a.csv".into(),
+                    rows: 212,
+                    skipped: 4,
+                },
+                FileCount {
+                    path: "b.csv".into(),
+                    rows: 10,
+                    skipped: 0,
+                },
+            ],
+            kind: "tracker",
+            out: "s.csv".into(),
+            rows: 222,
+        };
+        assert_eq!(
+            render_text(&r),
+            "a.csv: 212 tracker row(s), 4 skipped (no tracker value: empty or NaN)\n\
+             b.csv: 10 tracker row(s)\n\
+             wrote 222 rows to s.csv\n"
+        );
+        assert_eq!(
+            serde_json::to_string(&r).unwrap(),
+            r#"{"files":[{"input":"a.csv","rows":212,"skipped":4},{"input":"b.csv","rows":10,"skipped":0}],"kind":"tracker","out":"s.csv","rows":222}"#
+        );
+    }
 }
