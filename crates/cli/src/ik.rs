@@ -7,6 +7,8 @@
 //! (`"reachable": false`, exit status 0, `q_deg` the closest joint vector found), not an error.
 //! A target whose every coordinate is below calib-core's `METRES_LIMIT_MM` (5 mm) is refused as
 //! metres written as millimetres, and so is a `--tip-mm` below 5 mm in every coordinate.
+//! A prismatic joint's value (a track, a lift) is in millimetres, in `q_deg` as in the table;
+//! the JSON then names each value's unit in `q_units`.
 
 use std::path::PathBuf;
 
@@ -16,7 +18,8 @@ use nalgebra::{Point3, Unit, Vector3};
 use serde_json::json;
 
 use crate::fk::{
-    ignored_branches_text, load_robot, parse_list, parse_q_deg, parse_tip, pose_json, pose_table,
+    ignored_branches_text, joint_unit, load_robot, parse_list, parse_q_deg, parse_tip, pose_json,
+    pose_table, to_cli_unit,
 };
 
 /// Arguments of `handclasp ik`.
@@ -38,8 +41,9 @@ pub struct Args {
     /// Desired direction of the flange z axis in the base frame: x,y,z (any length > 0).
     #[arg(long, allow_hyphen_values = true)]
     pub axis: Option<String>,
-    /// Joint angles (deg) the solver starts from and, for a 7-axis arm, the posture the
-    /// redundant freedom is pulled toward. Default: all zero (clamped into the limits).
+    /// Joint angles (deg; mm for a prismatic joint) the solver starts from and, for a 7-axis
+    /// arm, the posture the redundant freedom is pulled toward. Default: all zero (clamped into
+    /// the limits).
     #[arg(long, allow_hyphen_values = true)]
     pub preferred_deg: Option<String>,
     /// Print one JSON object instead of the table.
@@ -96,10 +100,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..IkOptions::default()
     };
     let sol = ik_tip_position(&model, &target, &tip, &options).context("ik")?;
-    let q_deg: Vec<f64> = sol.q.iter().map(|x| x.to_degrees()).collect();
+    // Degrees, and millimetres for a prismatic joint.
+    let q_deg: Vec<f64> = model
+        .joints()
+        .iter()
+        .zip(&sol.q)
+        .map(|(j, &x)| to_cli_unit(j, x))
+        .collect();
+    let units: Vec<&str> = model.joints().iter().map(joint_unit).collect();
+    let prismatic = model.has_prismatic_joints();
     let reached = base_from_tip(&model, &sol.q, &tip).context("ik result")?;
     if args.json {
-        let v = json!({
+        let mut v = json!({
             "reachable": sol.reachable(),
             "q_deg": q_deg,
             "position_error_mm": sol.position_error_m * 1e3,
@@ -111,6 +123,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "tip_mm": [tip.x * 1e3, tip.y * 1e3, tip.z * 1e3],
             "reached": pose_json(&reached),
         });
+        if prismatic {
+            // `q_deg` then mixes units: say each one.
+            v["q_units"] = json!(units);
+        }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         if sol.reachable() {
@@ -143,9 +159,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 }
             );
         }
-        println!("  {:>4} {:>14} {:>12}", "#", "joint", "q_deg");
-        for (i, (j, v)) in model.joints().iter().zip(&q_deg).enumerate() {
-            println!("  {:>4} {:>14} {:>12.6}", i + 1, j.name, v);
+        if prismatic {
+            println!("  {:>4} {:>14} {:>12} {:>4}", "#", "joint", "q", "unit");
+            for (i, ((j, v), unit)) in model.joints().iter().zip(&q_deg).zip(&units).enumerate() {
+                println!("  {:>4} {:>14} {:>12.6} {:>4}", i + 1, j.name, v, unit);
+            }
+        } else {
+            println!("  {:>4} {:>14} {:>12}", "#", "joint", "q_deg");
+            for (i, (j, v)) in model.joints().iter().zip(&q_deg).enumerate() {
+                println!("  {:>4} {:>14} {:>12.6}", i + 1, j.name, v);
+            }
         }
         println!("tip pose at these angles:");
         print!("{}", pose_table(&reached));

@@ -1,7 +1,10 @@
 //! Forward kinematics: `base_from_flange(q)` and `base_from_tip(q)`.
-//! Lengths in metres, angles in radians; `base` is the URDF root link.
+//! Lengths in metres, angles in radians; `base` is the URDF root link. `q` holds the independent
+//! joints (rad, or m for a prismatic joint); the coupled joints' values are computed from it.
 //!
-//! `base_from_flange = Π_k [prev_from_joint_k · Rot(axis_k, q_k)] · last_from_flange`, evaluated
+//! `base_from_flange = Π_k [prev_from_joint_k · Motion_k(q_k)] · last_from_flange` over the chain
+//! joints, `Motion_k` the rotation `Rot(axis_k, q_k)` of a revolute or continuous joint or the
+//! translation `Trans(axis_k·q_k)` of a prismatic one, evaluated
 //! on (rotation columns, translation) arrays: the fixed transforms are classified when the model
 //! is built (identity rotations and zero translation components are skipped, a rotation about
 //! ±x/±y/±z mixes two columns), and the sines and cosines of all joints are computed up front,
@@ -14,7 +17,7 @@ use nalgebra::{
 };
 
 use crate::error::KinematicsError;
-use crate::model::{FixedTransform, RobotModel, Step};
+use crate::model::{FixedTransform, RobotModel, Step, PRISMATIC};
 
 /// Largest |x| handled by [`sin_cos_kernel`]; beyond (and for NaN, ±∞) `f64::sin_cos` is used.
 const SIN_COS_KERNEL_MAX: f64 = 1e5;
@@ -177,9 +180,10 @@ fn add_col(t: &mut [f64; 3], col: &[f64; 3], a: f64) {
     }
 }
 
-/// Applies joint step `step` at angle `q` (rad) to the running pose `(r, t)` = base_from_prev:
-/// `(r, t) ← (r, t) · prev_from_joint · Rot(axis, q)`. Rotations about ±x/±y/±z mix two columns
-/// of `r` (12 flops); an identity origin rotation is skipped. Allocation-free.
+/// Applies joint step `step` at value `q` (rad, or m for a prismatic joint) to the running pose
+/// `(r, t)` = base_from_prev: `(r, t) ← (r, t) · prev_from_joint · Rot(axis, q)` (or
+/// `· Trans(axis·q)` for a prismatic joint). Rotations about ±x/±y/±z mix two columns of `r`
+/// (12 flops); an identity origin rotation is skipped. Allocation-free.
 #[inline(always)]
 pub(crate) fn apply_step(r: &mut Matrix3<f64>, t: &mut Vector3<f64>, step: &Step, q: f64) {
     let sc = if step.axis_kind < 3 {
@@ -195,7 +199,7 @@ pub(crate) fn apply_step(r: &mut Matrix3<f64>, t: &mut Vector3<f64>, step: &Step
 }
 
 /// [`apply_step`] on columns, with `sc = sin_cos(q · axis_sign)` already computed (ignored for a
-/// general axis, which uses `q`).
+/// general axis, which uses `q`, and for a prismatic joint).
 #[inline(always)]
 fn apply_step_sc(r: &mut Cols, t: &mut [f64; 3], step: &Step, q: f64, sc: (f64, f64)) {
     apply_fixed::<false>(r, t, &step.origin);
@@ -206,6 +210,11 @@ fn apply_step_sc(r: &mut Cols, t: &mut [f64; 3], step: &Step, q: f64, sc: (f64, 
         0 => mix_columns::<1, 2>(r, s, c),
         1 => mix_columns::<2, 0>(r, s, c),
         2 => mix_columns::<0, 1>(r, s, c),
+        // t ← t + R·(axis·q): the travel along the axis, in the joint frame's axes.
+        PRISMATIC => {
+            let a = step.axis.into_inner() * q;
+            add_mul_vec(t, r, &[a.x, a.y, a.z]);
+        }
         _ => {
             let rot = Rotation3::from_axis_angle(&step.axis, q);
             *r = mul_mat(r, &rot.matrix().data.0);
@@ -255,10 +264,29 @@ pub(crate) fn to_flange_nalgebra(model: &RobotModel, r: &mut Matrix3<f64>, t: &m
 /// overlaps them); longer chains fall back to one at a time.
 const MAX_BATCH: usize = 8;
 
-/// `base_from_flange(q)` as (rotation columns, translation in m), no checks. Allocation-free.
-/// Joints missing from a short `q` stay at their zero pose.
+/// `base_from_flange(q)` as (rotation columns, translation in m), no checks, for the independent
+/// joint vector `q`. Allocation-free (for chains of up to 16 joints). Joints missing from a short
+/// `q` stay at their zero pose.
 #[inline(always)]
 fn flange_cols(model: &RobotModel, q: &[f64]) -> (Cols, [f64; 3]) {
+    if model.sources.is_some() {
+        return flange_cols_coupled(model, q);
+    }
+    flange_cols_chain(model, q)
+}
+
+/// [`flange_cols`] of a chain with coupled joints: the chain values first.
+#[cold]
+#[inline(never)]
+fn flange_cols_coupled(model: &RobotModel, q: &[f64]) -> (Cols, [f64; 3]) {
+    model.with_chain_q(q, |q_chain| flange_cols_chain(model, q_chain))
+}
+
+/// `base_from_flange` as (rotation columns, translation in m) for the chain values `q` (one per
+/// chain joint), no checks. Allocation-free. Joints missing from a short `q` stay at their zero
+/// pose.
+#[inline(always)]
+fn flange_cols_chain(model: &RobotModel, q: &[f64]) -> (Cols, [f64; 3]) {
     let mut r = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
     let mut t = [0.0; 3];
     if model.steps.len() <= MAX_BATCH && q.len() >= model.steps.len() {
@@ -371,9 +399,11 @@ pub fn base_from_flange_unchecked(model: &RobotModel, q: &[f64]) -> Isometry3<f6
     )
 }
 
-/// Pose of the flange (tool link) in the base frame at joint angles `q` (rad).
+/// Pose of the flange (tool link) in the base frame at the independent joint values `q` (rad, or
+/// m for a prismatic joint; [`RobotModel::joints`]).
 ///
-/// Errors: `q` of the wrong length, non-finite, in degrees, or outside the joint limits.
+/// Errors: `q` of the wrong length, non-finite, in degrees (revolute) or millimetres (prismatic),
+/// or outside the joint limits.
 pub fn base_from_flange(model: &RobotModel, q: &[f64]) -> Result<Isometry3<f64>, KinematicsError> {
     model.check_q(q)?;
     Ok(base_from_flange_unchecked(model, q))
@@ -423,8 +453,9 @@ pub(crate) fn check_tip(flange_from_tip: &Vector3<f64>) -> Result<(), Kinematics
     }
 }
 
-/// Poses `base_from_joint_k` (after joint k's rotation) for every actuated joint, as (rotation
-/// matrix, translation in m), and the flange's. Used by the Jacobians and IK. No checks.
+/// Poses `base_from_joint_k` (after joint k's motion) for every chain joint, as (rotation
+/// matrix, translation in m), and the flange's, at the independent joint vector `q`. Used by the
+/// Jacobians and IK. No checks.
 pub(crate) fn joint_frames(
     model: &RobotModel,
     q: &[f64],
@@ -433,10 +464,12 @@ pub(crate) fn joint_frames(
     out.clear();
     let mut r = Matrix3::identity();
     let mut t = Vector3::zeros();
-    for (step, &qi) in model.steps.iter().zip(q) {
-        apply_step(&mut r, &mut t, step, qi);
-        out.push((r, t));
-    }
+    model.with_chain_q(q, |q_chain| {
+        for (step, &qi) in model.steps.iter().zip(q_chain) {
+            apply_step(&mut r, &mut t, step, qi);
+            out.push((r, t));
+        }
+    });
     to_flange_nalgebra(model, &mut r, &mut t);
     (r, t)
 }

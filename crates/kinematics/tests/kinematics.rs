@@ -250,12 +250,31 @@ fn bad_inputs_are_typed_errors() {
     let e = RobotModel::from_urdf_str(&xml, "flange").unwrap_err();
     assert!(matches!(e, ModelError::MissingLink { .. }));
     assert!(e.to_string().contains("tool0"));
-    let e = RobotModel::from_urdf_str(
+    // Prismatic joints load (their limits read as metres); limits in millimetres and missing
+    // limits are refused.
+    let linear = RobotModel::from_urdf_str(
         &xml.replace("type=\"revolute\"", "type=\"prismatic\""),
         "tool0",
     )
+    .unwrap();
+    assert!(linear
+        .joints()
+        .iter()
+        .all(|j| j.kind == JointKind::Prismatic));
+    let e = RobotModel::from_urdf_str(
+        &xml.replacen("type=\"revolute\"", "type=\"prismatic\"", 1)
+            .replacen(
+                "lower=\"-3.1416\" upper=\"3.1416\"",
+                "lower=\"-3141.6\" upper=\"3141.6\"",
+                1,
+            ),
+        "tool0",
+    )
     .unwrap_err();
-    assert!(matches!(e, ModelError::PrismaticJoint { .. }), "{e}");
+    assert!(
+        matches!(e, ModelError::LimitsLookLikeMillimetres { .. }),
+        "{e}"
+    );
     let e = RobotModel::from_urdf_str(
         &xml.replace("type=\"revolute\"", "type=\"planar\""),
         "tool0",
