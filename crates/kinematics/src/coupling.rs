@@ -212,12 +212,7 @@ fn resolve_one(
 
 /// Marks the independent joints that coupled joint `k` names, directly or through other coupled
 /// joints (the recursion ends: [`resolve_one`] has refused cycles before this runs).
-fn mark_named(
-    k: usize,
-    declared: &[Declared],
-    q_index: &[usize],
-    named: &mut Vec<bool>,
-) {
+fn mark_named(k: usize, declared: &[Declared], q_index: &[usize], named: &mut Vec<bool>) {
     if let Some((terms, _)) = &declared[k] {
         for &(j, _) in terms {
             if declared[j].is_none() {

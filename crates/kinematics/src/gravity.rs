@@ -52,27 +52,40 @@ pub(crate) fn check_gravity(g_base: &Vector3<f64>) -> Result<(), KinematicsError
 /// Fills `entries[k]` (len = chain joints) for the NOMINAL model at the independent joint vector
 /// `q`. No checks.
 pub(crate) fn gravity_entries(model: &RobotModel, q: &[f64], entries: &mut [GravityEntry]) {
+    if model.prismatic {
+        gravity_entries_k::<true>(model, q, entries);
+    } else {
+        gravity_entries_k::<false>(model, q, entries);
+    }
+}
+
+/// [`gravity_entries`] for a chain that may (or, `false`, does not) hold prismatic joints.
+#[inline(always)]
+fn gravity_entries_k<const MAY_BE_PRISMATIC: bool>(
+    model: &RobotModel,
+    q: &[f64],
+    entries: &mut [GravityEntry],
+) {
     let mut r = Matrix3::identity();
     let mut t = Vector3::zeros();
-    model.with_chain_q(q, |q_chain| {
-        for (((step, &qi), inertial), e) in model
-            .steps
-            .iter()
-            .zip(q_chain)
-            .zip(model.inertials())
-            .zip(entries.iter_mut())
-        {
-            apply_step(&mut r, &mut t, step, qi);
-            let c = t + r * inertial.com;
-            *e = GravityEntry {
-                z: r * step.axis.into_inner(),
-                o: t,
-                mc: inertial.mass * c,
-                m: inertial.mass,
-                prismatic: step.axis_kind == PRISMATIC,
-            };
-        }
-    });
+    let mut buf = Vec::new();
+    for (((step, &qi), inertial), e) in model
+        .steps
+        .iter()
+        .zip(model.chain_q(q, &mut buf))
+        .zip(model.inertials())
+        .zip(entries.iter_mut())
+    {
+        apply_step::<MAY_BE_PRISMATIC>(&mut r, &mut t, step, qi);
+        let c = t + r * inertial.com;
+        *e = GravityEntry {
+            z: r * step.axis.into_inner(),
+            o: t,
+            mc: inertial.mass * c,
+            m: inertial.mass,
+            prismatic: MAY_BE_PRISMATIC && step.axis_kind == PRISMATIC,
+        };
+    }
 }
 
 /// `τ_i` from the entries (backward accumulation of the carried mass moments). No checks.
@@ -97,7 +110,7 @@ pub(crate) fn torques_from_entries(
 }
 
 /// Gravity torques of the nominal model at `q` into `out` (len = chain joints), without checks
-/// and, for chains of up to 16 joints, without allocation.
+/// and, for chains of up to 16 joints without coupled joints, without allocation.
 pub(crate) fn gravity_torques_into(
     model: &RobotModel,
     q: &[f64],

@@ -228,7 +228,7 @@ impl Problem<'_> {
             // Chain rule: column i = Σ_k (∂q_k/∂q_i)·(chain column k).
             lin.cols.iter_mut().for_each(|c| *c = [0.0; MAX_ROWS]);
             for (k, ((r, t), step)) in frames.iter().zip(self.model.steps.iter()).enumerate() {
-                let (vel, w) = joint_columns(step, r, t, &p_tip);
+                let (vel, w) = joint_columns::<true>(step, r, t, &p_tip);
                 let mut chain_col = [0.0; MAX_ROWS];
                 chain_col[..3].copy_from_slice(vel.as_slice());
                 if let Some((u, v)) = &basis {
@@ -241,21 +241,36 @@ impl Problem<'_> {
                     }
                 });
             }
+        } else if self.model.prismatic {
+            self.fill_columns::<true>(frames, &p_tip, &basis, lin);
         } else {
-            for (((r, t), step), col) in frames
-                .iter()
-                .zip(self.model.steps.iter())
-                .zip(&mut lin.cols)
-            {
-                let (vel, w) = joint_columns(step, r, t, &p_tip);
-                col[..3].copy_from_slice(vel.as_slice());
-                if let Some((u, v)) = &basis {
-                    col[3] = u.dot(&w);
-                    col[4] = v.dot(&w);
-                }
-            }
+            self.fill_columns::<false>(frames, &p_tip, &basis, lin);
         }
         lin.cost = lin.e[..self.rows].iter().map(|x| x * x).sum();
+    }
+
+    /// The columns of `lin` for a chain without coupled joints (one column per chain joint) that
+    /// may (or, `false`, does not) hold prismatic joints.
+    #[inline(always)]
+    fn fill_columns<const MAY_BE_PRISMATIC: bool>(
+        &self,
+        frames: &[(Matrix3<f64>, Vector3<f64>)],
+        p_tip: &Vector3<f64>,
+        basis: &Option<(Vector3<f64>, Vector3<f64>)>,
+        lin: &mut Lin,
+    ) {
+        for (((r, t), step), col) in frames
+            .iter()
+            .zip(self.model.steps.iter())
+            .zip(&mut lin.cols)
+        {
+            let (vel, w) = joint_columns::<MAY_BE_PRISMATIC>(step, r, t, p_tip);
+            col[..3].copy_from_slice(vel.as_slice());
+            if let Some((u, v)) = basis {
+                col[3] = u.dot(&w);
+                col[4] = v.dot(&w);
+            }
+        }
     }
 }
 

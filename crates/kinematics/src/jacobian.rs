@@ -22,16 +22,16 @@ pub enum JacobianFrame {
 
 /// The columns `(v, ω)` of chain joint `step` with frame `(r, t)` (after its motion, base) for
 /// the tip at `p_tip`: `(w × (p − t), w)` for a rotary joint, `(w, 0)` for a prismatic one,
-/// `w = r·axis`.
-#[inline]
-pub(crate) fn joint_columns(
+/// `w = r·axis`. `MAY_BE_PRISMATIC = false` (a chain without prismatic joints) skips the test.
+#[inline(always)]
+pub(crate) fn joint_columns<const MAY_BE_PRISMATIC: bool>(
     step: &Step,
     r: &Matrix3<f64>,
     t: &Vector3<f64>,
     p_tip: &Vector3<f64>,
 ) -> (Vector3<f64>, Vector3<f64>) {
     let w = r * step.axis.into_inner();
-    if step.axis_kind == PRISMATIC {
+    if MAY_BE_PRISMATIC && step.axis_kind == PRISMATIC {
         (w, Vector3::zeros())
     } else {
         (w.cross(&(p_tip - t)), w)
@@ -49,25 +49,39 @@ pub(crate) fn jacobian_base_into(
 ) -> (Matrix3<f64>, Vector3<f64>) {
     let (r_flange, t_flange) = joint_frames(model, q, frames);
     let p_tip = t_flange + r_flange * flange_from_tip;
-    let coupled = model.has_coupled_joints();
-    if coupled {
+    if model.has_coupled_joints() {
         jac.fill(0.0);
-    }
-    for (k, ((r, t), step)) in frames.iter().zip(&model.steps).enumerate() {
-        let (v, w) = joint_columns(step, r, t, &p_tip);
-        if coupled {
+        for (k, ((r, t), step)) in frames.iter().zip(&model.steps).enumerate() {
+            let (v, w) = joint_columns::<true>(step, r, t, &p_tip);
             // Chain rule: chain joint k moves with every independent joint it depends on.
             model.for_each_dependence(k, |i, c| {
                 let mut col = jac.fixed_view_mut::<6, 1>(0, i);
                 col.fixed_rows_mut::<3>(0).axpy(c, &v, 1.0);
                 col.fixed_rows_mut::<3>(3).axpy(c, &w, 1.0);
             });
-        } else {
-            jac.fixed_view_mut::<3, 1>(0, k).copy_from(&v);
-            jac.fixed_view_mut::<3, 1>(3, k).copy_from(&w);
         }
+    } else if model.prismatic {
+        fill_columns::<true>(model, frames, &p_tip, jac);
+    } else {
+        fill_columns::<false>(model, frames, &p_tip, jac);
     }
     (r_flange, p_tip)
+}
+
+/// The columns of a chain without coupled joints (column k = chain joint k) that may (or,
+/// `false`, does not) hold prismatic joints.
+#[inline(always)]
+fn fill_columns<const MAY_BE_PRISMATIC: bool>(
+    model: &RobotModel,
+    frames: &[(Matrix3<f64>, Vector3<f64>)],
+    p_tip: &Vector3<f64>,
+    jac: &mut Matrix6xX<f64>,
+) {
+    for (k, ((r, t), step)) in frames.iter().zip(&model.steps).enumerate() {
+        let (v, w) = joint_columns::<MAY_BE_PRISMATIC>(step, r, t, p_tip);
+        jac.fixed_view_mut::<3, 1>(0, k).copy_from(&v);
+        jac.fixed_view_mut::<3, 1>(3, k).copy_from(&w);
+    }
 }
 
 /// Geometric Jacobian of the tip, 6×dof, rows `[v; ω]`, in `frame` axes with the reference point

@@ -200,7 +200,7 @@ pub(crate) struct Step {
     pub(crate) origin: FixedTransform,
     /// `3·t_kind + axis_kind` (0–8) when the origin has no rotation, its translation a single
     /// non-zero component and the axis is a coordinate axis: the FK loop's one-dispatch case;
-    /// 9 otherwise.
+    /// [`FAST_PRISMATIC`] for a prismatic joint; 9 otherwise.
     pub(crate) fast_kind: u8,
 }
 
@@ -219,7 +219,9 @@ impl Step {
             classify_axis(&axis)
         };
         let origin = FixedTransform::new(origin_r, origin_t);
-        let fast_kind = if origin.r_kind == 3 && origin.t_kind < 3 && axis_kind < 3 {
+        let fast_kind = if prismatic {
+            FAST_PRISMATIC
+        } else if origin.r_kind == 3 && origin.t_kind < 3 && axis_kind < 3 {
             3 * origin.t_kind + axis_kind
         } else {
             9
@@ -237,8 +239,11 @@ impl Step {
 /// [`Step::axis_kind`] of a prismatic joint.
 pub(crate) const PRISMATIC: u8 = 4;
 
+/// [`Step::fast_kind`] of a prismatic joint.
+pub(crate) const FAST_PRISMATIC: u8 = 10;
+
 /// Chains up to this many moving joints are handled on the stack (no allocation) by the
-/// internal hot paths; longer chains allocate.
+/// internal hot paths; longer chains (and the chain values of coupled chains) allocate.
 pub(crate) const STACK_DOF: usize = 16;
 
 /// Where the value of one chain joint comes from.
@@ -283,6 +288,8 @@ pub struct RobotModel {
     inertials: Vec<LumpedInertial>,
     /// One per chain joint.
     pub(crate) steps: Vec<Step>,
+    /// Some chain joint is prismatic (the hot loops take their prismatic-free variant if not).
+    pub(crate) prismatic: bool,
     /// `(lower − CHECK_SLACK, upper + CHECK_SLACK)` per independent joint, rad or m: the fast
     /// path of `check_q`.
     limits: Vec<(f64, f64)>,
@@ -668,6 +675,7 @@ impl RobotModel {
                 pending.translation.vector,
             ),
             inertials,
+            prismatic: steps.iter().any(|s| s.axis_kind == PRISMATIC),
             steps,
             limits: Vec::new(),
         };
@@ -882,7 +890,7 @@ impl RobotModel {
 
     /// True if some chain joint is prismatic (its value in m, not rad).
     pub fn has_prismatic_joints(&self) -> bool {
-        self.chain.iter().any(|j| j.kind.is_prismatic())
+        self.prismatic
     }
 
     /// The couplings that hold: the URDF's `<mimic>` elements on the chain, then those added
@@ -956,23 +964,26 @@ impl RobotModel {
         }
     }
 
-    /// Runs `f` with the chain values at `q`: `q` itself without coupled joints, else computed
-    /// (on the stack for chains of up to [`STACK_DOF`] joints). No checks.
-    #[inline]
-    pub(crate) fn with_chain_q<R>(&self, q: &[f64], f: impl FnOnce(&[f64]) -> R) -> R {
+    /// The chain values at `q`: `q` itself without coupled joints (no copy), else computed into
+    /// `buf` (which then allocates). No checks. Used as
+    /// `let mut buf = Vec::new(); let q_chain = model.chain_q(q, &mut buf);`, so the hot paths of
+    /// chains without couplings stay as they were (no closure, no copy).
+    #[inline(always)]
+    pub(crate) fn chain_q<'a>(&self, q: &'a [f64], buf: &'a mut Vec<f64>) -> &'a [f64] {
         if self.sources.is_none() {
-            return f(q);
+            return q;
         }
-        let n = self.chain.len();
-        if n <= STACK_DOF {
-            let mut buf = [0.0; STACK_DOF];
-            self.chain_values_into(q, &mut buf[..n]);
-            f(&buf[..n])
-        } else {
-            let mut buf = vec![0.0; n];
-            self.chain_values_into(q, &mut buf);
-            f(&buf)
-        }
+        self.chain_q_coupled(q, buf)
+    }
+
+    /// [`RobotModel::chain_q`] of a chain with coupled joints.
+    #[cold]
+    #[inline(never)]
+    fn chain_q_coupled<'a>(&self, q: &[f64], buf: &'a mut Vec<f64>) -> &'a [f64] {
+        buf.clear();
+        buf.resize(self.chain.len(), 0.0);
+        self.chain_values_into(q, buf);
+        buf
     }
 
     /// Fixed joints after the last actuated joint's frame up to the tool link: `last_from_flange`.

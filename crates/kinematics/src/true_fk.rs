@@ -134,6 +134,21 @@ fn true_chain(
     model: &RobotModel,
     errors: &KinematicErrors,
     q_true: &[f64],
+    frames: Option<&mut [TrueJointFrame]>,
+) -> (Matrix3<f64>, Vector3<f64>) {
+    if model.prismatic {
+        true_chain_k::<true>(model, errors, q_true, frames)
+    } else {
+        true_chain_k::<false>(model, errors, q_true, frames)
+    }
+}
+
+/// [`true_chain`] for a chain that may (or, `false`, does not) hold prismatic joints.
+#[inline(always)]
+fn true_chain_k<const MAY_BE_PRISMATIC: bool>(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_true: &[f64],
     mut frames: Option<&mut [TrueJointFrame]>,
 ) -> (Matrix3<f64>, Vector3<f64>) {
     let mount_zero = all_zero(errors.mount_xyz.as_slice()) && all_zero(errors.mount_rpy.as_slice());
@@ -165,7 +180,7 @@ fn true_chain(
         let parent_rotation = frames.as_ref().map(|_| r * prefix_r());
         if origin_zero {
             // The nominal step, so that zero errors reproduce the nominal FK.
-            apply_step(&mut r, &mut t, step, qk);
+            apply_step::<MAY_BE_PRISMATIC>(&mut r, &mut t, step, qk);
         } else {
             let fp = &joint.fixed_prefix;
             let fp_r = prefix_r();
@@ -180,11 +195,11 @@ fn true_chain(
                 fp.translation.vector + fp_r * (joint.origin_xyz + dxyz),
                 step.axis_kind == PRISMATIC,
             );
-            apply_step(&mut r, &mut t, &perturbed, qk);
+            apply_step::<MAY_BE_PRISMATIC>(&mut r, &mut t, &perturbed, qk);
         }
         if let (Some(f), Some(parent_rotation)) = (frames.as_deref_mut(), parent_rotation) {
             let z = r * step.axis.into_inner();
-            let prismatic = step.axis_kind == PRISMATIC;
+            let prismatic = MAY_BE_PRISMATIC && step.axis_kind == PRISMATIC;
             f[k] = TrueJointFrame {
                 parent_rotation,
                 rpy: joint.origin_rpy + drpy,
@@ -213,7 +228,7 @@ fn with_scratch<R>(dof: usize, f: impl FnOnce(&mut [f64], &mut [f64]) -> R) -> R
     }
 }
 
-/// `true_base_from_flange` without checks (allocation-free for `dof ≤ 16`); see
+/// `true_base_from_flange` without checks (allocation-free for `dof ≤ 16` without coupled joints); see
 /// [`true_base_from_flange`]. Panics only if the lengths do not match the model.
 pub fn true_base_from_flange_unchecked(
     model: &RobotModel,
@@ -233,18 +248,18 @@ fn true_flange_rt(
     g_base: &Vector3<f64>,
 ) -> (Matrix3<f64>, Vector3<f64>) {
     with_scratch(model.chain_joints().len(), |tau, q_true| {
-        model.with_chain_q(q_rep, |q_rep_chain| {
-            true_joint_angles(
-                model,
-                errors,
-                q_rep,
-                q_rep_chain,
-                g_base,
-                false,
-                tau,
-                q_true,
-            );
-        });
+        let mut buf = Vec::new();
+        let q_rep_chain = model.chain_q(q_rep, &mut buf);
+        true_joint_angles(
+            model,
+            errors,
+            q_rep,
+            q_rep_chain,
+            g_base,
+            false,
+            tau,
+            q_true,
+        );
         true_chain(model, errors, q_true, None)
     })
 }
@@ -268,7 +283,7 @@ pub fn true_base_from_flange(
     ))
 }
 
-/// `true_base_from_tip` without checks (allocation-free for `dof ≤ 16`); see
+/// `true_base_from_tip` without checks (allocation-free for `dof ≤ 16` without coupled joints); see
 /// [`true_base_from_tip`]. Panics only if the lengths do not match the model.
 pub fn true_base_from_tip_unchecked(
     model: &RobotModel,
@@ -303,7 +318,8 @@ fn true_tip_general(
 /// acceleration in the nominal base frame, m/s² (used only through `errors.compliance`).
 ///
 /// With [`KinematicErrors::zero`] it equals [`base_from_tip`](crate::base_from_tip) exactly.
-/// Allocation-free for chains of up to 16 joints.
+/// Allocation-free for chains of up to 16 joints without coupled joints (a coupled chain computes
+/// its chain values into a vector).
 ///
 /// Errors: a bad `q_rep` ([`RobotModel::check_q`]; the true angles are not limit-checked), a
 /// non-finite tip offset or `g_base`, or `errors` of the wrong shape or non-finite
@@ -395,30 +411,30 @@ pub fn tip_error_jacobian(
         let need_tau = params
             .iter()
             .any(|p| matches!(p, ErrorParam::Compliance { .. }));
-        model.with_chain_q(q_rep, |q_rep_chain| {
-            true_joint_angles(
-                model,
-                errors,
-                q_rep,
-                q_rep_chain,
-                g_base,
-                need_tau,
-                tau,
-                q_true,
-            );
-            let (flange_r, flange_t) = true_chain(model, errors, q_true, Some(frames));
-            let p = flange_t + flange_r * (flange_from_tip + errors.tip);
-            fill_error_columns(
-                errors,
-                q_rep_chain,
-                tau,
-                frames,
-                &flange_r,
-                &p,
-                params,
-                &mut jac,
-            );
-        });
+        let mut buf = Vec::new();
+        let q_rep_chain = model.chain_q(q_rep, &mut buf);
+        true_joint_angles(
+            model,
+            errors,
+            q_rep,
+            q_rep_chain,
+            g_base,
+            need_tau,
+            tau,
+            q_true,
+        );
+        let (flange_r, flange_t) = true_chain(model, errors, q_true, Some(frames));
+        let p = flange_t + flange_r * (flange_from_tip + errors.tip);
+        fill_error_columns(
+            errors,
+            q_rep_chain,
+            tau,
+            frames,
+            &flange_r,
+            &p,
+            params,
+            &mut jac,
+        );
     });
     Ok(jac)
 }

@@ -342,7 +342,10 @@ fn mimic_and_declared_couplings() {
         terms: vec![("shoulder_roll".into(), -1.0), ("elbow".into(), 0.5)],
         offset: 0.0,
     };
-    let c = m.clone().with_couplings(std::slice::from_ref(&wrist)).unwrap();
+    let c = m
+        .clone()
+        .with_couplings(std::slice::from_ref(&wrist))
+        .unwrap();
     assert_eq!(c.dof(), 5);
     assert_eq!(c.added_couplings(), [wrist]);
     let a = c.coupling_matrix();
