@@ -120,7 +120,11 @@ fuzz_target!(|input: Input| {
         screen_blunders: input.screen,
         ..CellDiagnoseOptions::default()
     };
-    options.solve.max_iterations = 30;
+    options.solve.lm = options
+        .solve
+        .lm
+        .with_max_iterations(30)
+        .expect("30 iterations is a valid cap");
     let Ok(report) = diagnose_cell_session(nominal, &session, &options, &|_| {}) else {
         return; // typed errors (too few rows, degenerate groups) are the expected outcome
     };

@@ -15,7 +15,8 @@
 mod common;
 
 use arbitrary::Arbitrary;
-use calib_core::identify::{FitOptions, SelectionOptions};
+use calib_core::identify::SelectionOptions;
+use calib_core::LmOptions;
 use calib_core::nalgebra;
 use diagnose::{diagnose_session, DiagnoseOptions};
 use kinematics::{
@@ -144,10 +145,9 @@ fuzz_target!(|input: Input| {
         selection: SelectionOptions {
             max_steps: 1 + usize::from(input.max_steps % 3),
             folds: 4,
-            fit: FitOptions {
-                max_iterations: 8,
-                ..FitOptions::default()
-            },
+            fit: LmOptions::identify()
+                .with_max_iterations(8)
+                .expect("8 iterations is a valid cap"),
             ..SelectionOptions::default()
         },
         ..DiagnoseOptions::default()

@@ -14,8 +14,9 @@
 
 use calib_core::whole_cell::fixtures::{sim_cell, Cell};
 use calib_core::whole_cell::{
-    calibrate_cell, fit_cell, CellProblem, ScreenOptions, SolveOptions, StopReason, Tolerance,
+    calibrate_cell, fit_cell, CellProblem, ScreenOptions, SolveOptions, Tolerance,
 };
+use calib_core::StopReason;
 use criterion::{black_box, criterion_group, criterion_main, BenchmarkId, Criterion};
 
 /// Coincident-point noise σ, m.

@@ -2,12 +2,14 @@
 
 mod error;
 pub mod identify;
+mod lm;
 mod metrics;
 mod mount_check;
 pub mod paper;
 mod points;
 mod pose;
 mod registration;
+mod robot;
 mod robust;
 mod soft;
 pub mod stats;
@@ -20,11 +22,11 @@ pub mod whole_cell;
 pub use nalgebra;
 
 pub use error::CalibError;
-pub use identify::Robot;
 pub use kinematics::{
     rotation_from_zyz, wrap_angle, zyz_canonical, zyz_from_rotation, zyz_nearest,
     ZYZ_CANONICAL_TILT_RAD,
 };
+pub use lm::{LmOptionError, LmOptions, SingularStep};
 pub use metrics::{
     e_rot, e_rot_fast, e_rot_raw, e_rot_zyz, e_tran, geodesic_angle, ErotTruth, TrialErrors,
     ZYZ_SINGULAR_BAND_RAD,
@@ -42,6 +44,7 @@ pub use registration::{
     spread_singular_values, wall_family_angles, wall_rotation, ConstrainedOptions, Fit, Method,
     Mount, MountPair, Uncertainty, COLLINEAR_REL, COPLANAR_REL,
 };
+pub use robot::Robot;
 pub use robust::{
     explain_misfit, leave_one_out, leave_one_out_four_point, leave_one_out_linearised,
     median_residual_m, MisfitCause, OutlierReport, DEFAULT_EXPECTED_NOISE_M, EXACT_LOO_MAX_POINTS,

@@ -20,7 +20,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use calib_core::identify::Robot;
+use calib_core::Robot;
 use kinematics::{
     base_from_tip, true_base_from_flange, zyz_canonical, KinematicErrors, ModelError, RobotModel,
 };

@@ -2,7 +2,7 @@
 //! diagnosis may name, grouped in six kinds ([`EffectKind`]), and the way back from a report's
 //! effects to [`KinematicErrors`].
 
-use calib_core::identify::Robot;
+use calib_core::Robot;
 use kinematics::{Axis, ErrorParam, KinematicErrors};
 use serde::Serialize;
 use sim_cell::Cell;

@@ -6,11 +6,10 @@
 
 use std::path::Path;
 
-use calib_core::identify::{
-    self, IdentFit, IdentStatus, Robot, Selection, SelectionOptions, TipModel,
-};
+use calib_core::identify::{self, IdentFit, IdentStatus, Selection, SelectionOptions, TipModel};
 use calib_core::stats::chi2_sf;
 use calib_core::whole_cell::{calibrate_cell, CellFitError, ScreenOptions, SolveOptions};
+use calib_core::Robot;
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 use sim_cell::whole_cell::{cell_problem, FitModel};
 use sim_cell::{Cell, Session};

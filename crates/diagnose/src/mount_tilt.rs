@@ -5,8 +5,9 @@
 //! selected from handclasp residuals (a turned base only turns the fit), so this is where the
 //! diagnosis names them.
 
-use calib_core::identify::{self, Robot};
+use calib_core::identify;
 use calib_core::stats::{chi2_sf, t_quantile, t_two_sided_p};
+use calib_core::Robot;
 use kinematics::Axis;
 use nalgebra::{Isometry3, Matrix3, Vector3};
 use sim_cell::Cell;
@@ -336,7 +337,7 @@ pub fn mount_tilt_test(fit: &identify::IdentFit, cell: &Cell, sd_rad: f64) -> Mo
 #[cfg(test)]
 mod tests {
     use super::*;
-    use calib_core::identify::FitOptions;
+    use calib_core::LmOptions;
     use kinematics::ErrorParam;
     use sim_cell::{generate_session, trial_rng, Layout, SessionSpec};
 
@@ -384,7 +385,7 @@ mod tests {
         let q2: Vec<Vec<f64>> = session.points.iter().map(|p| p.q2.clone()).collect();
         let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
         let model = SessionModel::new(cell, &q1, &q2, &cands);
-        let fit = identify::fit(&model, &[], None, None, &FitOptions::default()).expect("fit");
+        let fit = identify::fit(&model, &[], None, None, &LmOptions::identify()).expect("fit");
         mount_tilt_test(&fit, cell, 1e-3f64.to_radians())
     }
 

@@ -1,9 +1,9 @@
 //! The diagnosis report: its serialised structs (`handclasp diagnose --json` prints
 //! [`DiagnoseReport`]; field names carry the unit, mm and degrees) and [`render_text`].
 
-use calib_core::identify::Robot;
 use calib_core::stats::{fraction_below, quantile};
 use calib_core::PoseMmDeg;
+use calib_core::Robot;
 use serde::Serialize;
 
 use crate::catalogue::EffectKind;

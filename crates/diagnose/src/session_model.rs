@@ -12,7 +12,8 @@ use std::cell::RefCell;
 use std::rc::Rc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use calib_core::identify::{IdentifyError, Robot, TipEval, TipModel};
+use calib_core::identify::{IdentifyError, TipEval, TipModel};
+use calib_core::Robot;
 use kinematics::{ErrorParam, KinematicErrors};
 use nalgebra::{Matrix3, Matrix3xX, Point3};
 use sim_cell::{Cell, CellRobot};

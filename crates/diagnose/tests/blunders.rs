@@ -4,7 +4,7 @@
 //! nothing flagged the three rows. Now the rows are named (with their size in σ), left out, and
 //! the offset is found: the right parameter, the true size inside its 95 % interval.
 
-use calib_core::identify::Robot;
+use calib_core::Robot;
 use diagnose::{DiagnoseOptions, EffectKind};
 use kinematics::{base_from_tip, ErrorParam};
 use nalgebra::Point3;

@@ -8,8 +8,9 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use calib_core::identify::{
-    forward_select, IdentifyError, Robot, SelectionOptions, SelectionStop, TipEval, TipModel,
+    forward_select, IdentifyError, SelectionOptions, SelectionStop, TipEval, TipModel,
 };
+use calib_core::Robot;
 use diagnose::noise::NoiseModel;
 use diagnose::{catalogue, load_session, DiagnoseOptions, SessionModel};
 use nalgebra::Matrix3;

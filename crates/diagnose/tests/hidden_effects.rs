@@ -7,7 +7,7 @@
 //! CI runs a small seeded set; `cargo test -p diagnose --release --test hidden_effects --
 //! --ignored --nocapture` runs the larger study.
 
-use calib_core::identify::Robot;
+use calib_core::Robot;
 use diagnose::{Candidate, DiagnoseOptions, DiagnoseReport, EffectKind};
 use rand::Rng;
 use sim_cell::{generate_session, trial_rng, Cell, Layout, Session, SessionSpec};

@@ -1,7 +1,7 @@
 //! Identifiability of candidate parameters: columns projected out of the `b1_from_b2` span and of
 //! the fitted parameters, no-effect / confounded / parallel groups, and the detectable size.
 
-use super::lm::{check_params, linearise, IdentFit};
+use super::fit::{check_params, linearise, IdentFit};
 use super::model::{IdentifyError, TipModel};
 use crate::stats::normal_quantile;
 use nalgebra::{DMatrix, DVector};

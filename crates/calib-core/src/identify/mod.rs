@@ -57,18 +57,18 @@
 //! parallel, all on rayon's current pool. Every result is assembled and every choice made in the
 //! sequential order, so a selection is bit-identical whatever the thread count.
 
-// File order (each file uses only files before it): model, lm, identifiability, selection;
-// placement uses lm.
+// File order (each file uses only files before it): model, fit, identifiability, selection;
+// placement uses fit.
+mod fit;
 mod identifiability;
-mod lm;
 mod model;
 mod placement;
 mod selection;
 #[cfg(test)]
 mod tests;
 
+pub use fit::*;
 pub use identifiability::*;
-pub use lm::*;
 pub use model::*;
 pub use placement::*;
 pub use selection::*;

@@ -1,6 +1,6 @@
 //! The placement rotation: the turn between the fitted `b1_from_b2` and a reference placement.
 
-use super::lm::IdentFit;
+use super::fit::IdentFit;
 use crate::stats::t_two_sided_p;
 use nalgebra::{Isometry3, Matrix3, Vector3};
 

@@ -1,11 +1,12 @@
 //! Parameter selection: forward selection with score screening and F/K-fold/BIC acceptance,
 //! re-screening of selected parameters, partial F tests, backward elimination, K-fold RMS.
 
+use super::fit::{check_params, fit, fit_points, linearise, min_points, IdentFit};
 use super::identifiability::{analyze_identifiability, IdentStatus, Identifiability};
-use super::lm::{check_params, fit, fit_points, linearise, min_points, FitOptions, IdentFit};
 use super::model::{IdentifyError, TipModel};
 use crate::stats::f_test_p_value;
 use crate::stats::CHI2_1_95;
+use crate::LmOptions;
 use rayon::prelude::*;
 
 /// K-fold cross-validated residual RMS, m: points are split into `folds` interleaved folds (point
@@ -17,7 +18,7 @@ pub fn kfold_rms(
     params: &[usize],
     folds: usize,
     start: Option<&IdentFit>,
-    options: &FitOptions,
+    options: &LmOptions,
 ) -> Result<f64, IdentifyError> {
     let n = model.n_points();
     let k = folds.clamp(2, n.max(2));
@@ -79,8 +80,8 @@ pub struct SelectionOptions {
     pub max_steps: usize,
     /// |cos| above which two projected columns count as the same effect (default 0.999).
     pub group_cos: f64,
-    /// LM settings.
-    pub fit: FitOptions,
+    /// Levenberg–Marquardt settings of every fit (default [`LmOptions::identify`]).
+    pub fit: LmOptions,
 }
 
 impl Default for SelectionOptions {
@@ -91,7 +92,7 @@ impl Default for SelectionOptions {
             max_effects: 6,
             max_steps: 20,
             group_cos: 0.999,
-            fit: FitOptions::default(),
+            fit: LmOptions::identify(),
         }
     }
 }
@@ -340,7 +341,7 @@ pub const RESCREEN_REFITS: usize = 10;
 pub fn partial_f_tests(
     model: &dyn TipModel,
     current: &IdentFit,
-    options: &FitOptions,
+    options: &LmOptions,
 ) -> Result<Vec<(f64, f64)>, IdentifyError> {
     (0..current.params.len())
         .into_par_iter()

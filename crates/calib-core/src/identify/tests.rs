@@ -2,6 +2,7 @@
 //! confounding, false-alarm rate, placement rotation, input errors.
 
 use super::*;
+use crate::{LmOptions, Robot};
 use nalgebra::{
     Isometry3, Matrix3, Matrix3xX, Point3, Rotation3, Translation3, UnitQuaternion, Vector3,
 };
@@ -243,8 +244,8 @@ fn weighted_residual_jacobian_matches_central_differences() {
     }
     // A weighted fit minimises the whitened RSS: its RSS is below the unweighted fit's
     // whitened RSS.
-    let f_w = fit(&model, &params, None, None, &FitOptions::default()).unwrap();
-    let f_u = fit(&model.0, &params, None, None, &FitOptions::default()).unwrap();
+    let f_w = fit(&model, &params, None, None, &LmOptions::identify()).unwrap();
+    let f_u = fit(&model.0, &params, None, None, &LmOptions::identify()).unwrap();
     let rss_u_whitened = linearise(
         &model,
         &points,
@@ -281,7 +282,7 @@ fn noise_free_fit_recovers_parameters() {
     truth[1] = 0.004;
     truth[9] = 0.002;
     let toy = session(20, truth, 0.0, 5);
-    let f = fit(&toy, &[1, 9], None, None, &FitOptions::default()).unwrap();
+    let f = fit(&toy, &[1, 9], None, None, &LmOptions::identify()).unwrap();
     assert!(f.converged());
     // Noise-free: recovered to solver precision (1e-9 rad / m).
     assert!((f.values[0] - 0.004).abs() < 1e-9, "{:?}", f.values);
@@ -302,22 +303,19 @@ fn capped_fit_reports_iteration_cap() {
     truth[1] = 0.004;
     truth[9] = 0.002;
     let toy = session(20, truth, 1e-5, 5);
-    let capped = FitOptions {
-        max_iterations: 1,
-        ..FitOptions::default()
-    };
+    let capped = LmOptions::identify().with_max_iterations(1).unwrap();
     let f = fit(&toy, &[1, 9], None, None, &capped).unwrap();
     assert_eq!(f.iterations, 1);
     assert_eq!(f.stopped, crate::StopReason::IterationCap);
     assert!(!f.converged());
-    let full = fit(&toy, &[1, 9], None, None, &FitOptions::default()).unwrap();
+    let full = fit(&toy, &[1, 9], None, None, &LmOptions::identify()).unwrap();
     assert!(full.converged(), "{:?}", full.stopped);
 }
 
 #[test]
 fn joint_one_offset_is_confounded_with_base_yaw() {
     let toy = session(15, [0.0; 10], 1e-4, 7);
-    let f = fit(&toy, &[], None, None, &FitOptions::default()).unwrap();
+    let f = fit(&toy, &[], None, None, &LmOptions::identify()).unwrap();
     let id = analyze_identifiability(&toy, &f, &(0..10).collect::<Vec<_>>(), 0.999).unwrap();
     // o1 rotates the whole arm about the base z axis: absorbed by b1_from_b2's rotation.
     assert_eq!(id.params[0].status, IdentStatus::ConfoundedWithBase);
@@ -430,7 +428,7 @@ fn placement_rotation_recovers_a_turned_reference() {
     // The reference is the true placement turned by −a0 about b2 axes: the fit (noise 0.1 mm)
     // must show a ≈ a0 within 4 standard errors, and the translation within 4 s.e.
     let toy = session(30, [0.0; 10], 1e-4, 21);
-    let f = fit(&toy, &[], None, None, &FitOptions::default()).unwrap();
+    let f = fit(&toy, &[], None, None, &LmOptions::identify()).unwrap();
     let a0 = Vector3::new(0.004, -0.003, 0.002);
     let reference = toy.b1_from_b2
         * Isometry3::from_parts(

@@ -2,8 +2,7 @@
 //! spread of the points (collinear: σ₂/σ₁ ≤ [`COLLINEAR_REL`]; coplanar: σ₃/σ₁ ≤ [`COPLANAR_REL`],
 //! σ the singular values of the centred points).
 
-use super::lsq::build_uncertainty;
-use super::method::{residuals, Fit, Method};
+use super::method::{build_uncertainty, residuals, Fit, Method};
 use crate::error::CalibError;
 use crate::points::PointPairs;
 use nalgebra::{Isometry3, Matrix3, Matrix6, Point3, Translation3, Vector3};

@@ -3,14 +3,12 @@
 
 use super::checks::{check_pairs, fit_rescued, spread_singular_values};
 use super::family::{family_axes, project_rotation_family};
-use super::method::{residuals, Fit, Method, Uncertainty};
+use super::method::{build_uncertainty, residuals, Fit, Method, Uncertainty};
 use super::mount::MountPair;
 use super::rotation::nearest_rotation;
 use crate::error::CalibError;
 use crate::points::PointPairs;
-use nalgebra::{
-    DMatrix, Isometry3, Matrix3, Matrix6, Point3, Translation3, UnitQuaternion, Vector3,
-};
+use nalgebra::{DMatrix, Isometry3, Matrix3, Matrix6, Translation3, UnitQuaternion, Vector3};
 
 fn weights_checked(pairs: &PointPairs, weights: Option<&[f64]>) -> Result<Vec<f64>, CalibError> {
     let n = pairs.p_b1.len();
@@ -182,28 +180,6 @@ fn lsq_uncertainty(
     let covariance = Matrix6::from_fn(|r, c| cov_dyn[(r, c)]);
     let unc = build_uncertainty(covariance, sigma2.sqrt(), dof, b1_from_b2);
     (condition, Some(unc))
-}
-
-pub(crate) fn build_uncertainty(
-    covariance: Matrix6<f64>,
-    sigma: f64,
-    dof: usize,
-    b1_from_b2: &Isometry3<f64>,
-) -> Uncertainty {
-    let mut u = Uncertainty {
-        covariance,
-        sigma_point_m: sigma,
-        dof,
-        e_tran_1sigma_m: 0.0,
-        e_rot_1sigma_rad: 0.0,
-    };
-    let c_t = u.covariance_at(b1_from_b2, &Point3::origin());
-    u.e_tran_1sigma_m = (0..3)
-        .map(|i| c_t[(i, i)].max(0.0).sqrt())
-        .fold(0.0, f64::max);
-    let c_r: Matrix3<f64> = covariance.fixed_view::<3, 3>(0, 0).into_owned();
-    u.e_rot_1sigma_rad = c_r.symmetric_eigenvalues().max().max(0.0).sqrt();
-    u
 }
 
 /// Rigid least squares (Arun/Umeyama/Horn, no scale): minimises `Σ wᵢ‖p1ᵢ − R·p2ᵢ − T‖²` over all

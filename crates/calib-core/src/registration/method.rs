@@ -105,6 +105,31 @@ impl Uncertainty {
     }
 }
 
+/// The [`Uncertainty`] of a fit with parameter covariance `covariance` (`[δθ (rad); δt (m)]`, the
+/// order of [`Uncertainty::covariance`]), point noise `sigma` (m) and `dof` residual degrees of
+/// freedom: fills the 1-σ translation error at the b2 origin and the 1-σ rotation error.
+pub(crate) fn build_uncertainty(
+    covariance: Matrix6<f64>,
+    sigma: f64,
+    dof: usize,
+    b1_from_b2: &Isometry3<f64>,
+) -> Uncertainty {
+    let mut u = Uncertainty {
+        covariance,
+        sigma_point_m: sigma,
+        dof,
+        e_tran_1sigma_m: 0.0,
+        e_rot_1sigma_rad: 0.0,
+    };
+    let c_t = u.covariance_at(b1_from_b2, &Point3::origin());
+    u.e_tran_1sigma_m = (0..3)
+        .map(|i| c_t[(i, i)].max(0.0).sqrt())
+        .fold(0.0, f64::max);
+    let c_r: Matrix3<f64> = covariance.fixed_view::<3, 3>(0, 0).into_owned();
+    u.e_rot_1sigma_rad = c_r.symmetric_eigenvalues().max().max(0.0).sqrt();
+    u
+}
+
 /// The result of a fit.
 ///
 /// Serialises (serde) with SI units: `b1_from_b2` as nalgebra writes an `Isometry3`

@@ -44,11 +44,11 @@ pub use fast::{
     affine_lsq_fast, constrained_fast, fit_fast, generic_fast, paper_fast, rigid_fit_fast,
 };
 pub use four_point::{generic_4point, paper_constrained};
+pub(crate) use lsq::fill_fit_jacobian;
 #[cfg(test)]
 use lsq::fit_jtj;
-pub(crate) use lsq::{build_uncertainty, fill_fit_jacobian};
 pub use lsq::{constrained_lsq, rigid_lsq, ConstrainedOptions};
-pub(crate) use method::residuals;
+pub(crate) use method::{build_uncertainty, residuals};
 pub use method::{Fit, Method, Uncertainty};
 pub use mount::{Mount, MountPair};
 pub use rotation::{nearest_rotation, rotation_maximizing_trace};

@@ -6,7 +6,7 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-use super::solve::{assemble, fit_cell_with, CellFit, SolveOptions};
+use super::solve::{assemble, fit_cell_weighted, fit_cell_with, CellFit, SolveOptions};
 use super::{CellFitError, CellProblem, ParamLayout};
 
 /// Screening settings. Every default is documented on its field.
@@ -140,7 +140,7 @@ pub fn fit_screened(
             .unwrap_or(f64::INFINITY)
     };
     let mut weights = vec![1.0; all.len()];
-    let mut fit = fit_cell_with(problem, layout.clone(), &all, None, None, solve)?;
+    let mut fit = fit_cell_with(problem, layout.clone(), &all, None, solve)?;
     // The screen's noise scale: 1 (the stated noise) when the model has kinematic unknowns;
     // for a placement-only model (no penalised unknown), whose residuals also carry the robots'
     // unmodelled kinematic error, the a-posteriori variance factor when it exceeds 1.
@@ -177,7 +177,7 @@ pub fn fit_screened(
             changed = changed.max((w - weights[b]).abs());
             weights[b] = w;
         }
-        fit = fit_cell_with(
+        fit = fit_cell_weighted(
             problem,
             layout.clone(),
             &all,
@@ -231,14 +231,7 @@ pub fn fit_screened(
     if let Some(e) = too_few(&active, &rejected) {
         return Err(e);
     }
-    let mut fit = fit_cell_with(
-        problem,
-        layout.clone(),
-        &active,
-        None,
-        Some(&fit.estimate),
-        solve,
-    )?;
+    let mut fit = fit_cell_with(problem, layout.clone(), &active, Some(&fit.estimate), solve)?;
     for _ in 0..screen.max_rounds {
         let mut changed = false;
         // Re-admit rejected blocks that the current fit explains.
@@ -276,14 +269,7 @@ pub fn fit_screened(
         if let Some(e) = too_few(&active, &rejected) {
             return Err(e);
         }
-        fit = fit_cell_with(
-            problem,
-            layout.clone(),
-            &active,
-            None,
-            Some(&fit.estimate),
-            solve,
-        )?;
+        fit = fit_cell_with(problem, layout.clone(), &active, Some(&fit.estimate), solve)?;
     }
     rejected.sort_unstable();
     let mut out = Vec::with_capacity(rejected.len());

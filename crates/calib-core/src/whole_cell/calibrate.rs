@@ -1,15 +1,28 @@
 //! The one-call whole-cell calibration a CLI needs: starting values, base-parameter reduction,
 //! MAP fit with blunder screening, and a serialisable report.
+//!
+//! The steps of [`calibrate_cell`], in order (each MAP fit is [`fit_cell_with`], the crate's
+//! Levenberg–Marquardt solver on the problem of `solve.rs`):
+//! 1. [`CellProblem::check`], then [`initial_estimate`] (`start.rs`): the starting placement and
+//!    nuisances.
+//! 2. [`reduce`] (`reduce.rs`): the unknowns the data can determine at the start (the layout).
+//! 3. [`fit_screened`] (`blunders.rs`): a Huber IRLS start, then the studentised screen that
+//!    drops the worst blunder and refits, one at a time.
+//! 4. `choose_prior_scale`: a refit at every scale of [`PRIOR_SCALES`] from the screened
+//!    estimate, scored by `log_evidence`; the largest evidence wins and gets the error
+//!    covariance under the scale-1 prior.
+//! 5. A placement-only model whose residuals exceed the stated noise: its covariance is scaled
+//!    and the model-error term set (`mean_noise_var`).
+//! 6. [`CellCalibration::report`]: the serialisable summary.
 
 use nalgebra::{DMatrix, Isometry3};
 use serde::Serialize;
 
 use super::blunders::{fit_screened, RejectedRow, ScreenOptions};
 use super::reduce::{reduce, Reduction, ReductionEntry};
-use super::solve::{
-    assemble, fit_cell_with, sym_inverse, CellFit, FittedParam, SolveOptions, StopReason,
-};
+use super::solve::{assemble, fit_cell_with, sym_inverse, CellFit, FittedParam, SolveOptions};
 use super::{initial_estimate, CellFitError, CellProblem, ParamLayout};
+use crate::StopReason;
 
 /// Prior scales `s` [`calibrate_cell`] compares (every prior σ multiplied by `s`): the
 /// tolerances as given (1), halved down to 1/16, and 1e-3, the placement-only limit (the
@@ -116,8 +129,9 @@ impl CellCalibration {
 /// ```
 /// use calib_core::whole_cell::{
 ///     calibrate_cell, CellProblem, CellRobot, Noise3, Observation, ObservationKind,
-///     ScreenOptions, SolveOptions, StopReason, Tolerance, Tool,
+///     ScreenOptions, SolveOptions, Tolerance, Tool,
 /// };
+/// use calib_core::StopReason;
 /// use kinematics::{base_from_tip, ik_tip_position, IkOptions, RobotModel};
 /// use nalgebra::{Isometry3, Point3, Vector3};
 ///
@@ -282,7 +296,6 @@ fn choose_prior_scale(
             problem,
             scaled_layout(&base_layout, s),
             &screened.active,
-            None,
             Some(&screened.estimate),
             solve,
         )?;

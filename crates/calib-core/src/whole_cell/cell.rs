@@ -7,7 +7,7 @@ use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 
 /// Errors of the whole-cell calibration. Non-convergence is not an error (see
-/// [`super::StopReason`]).
+/// [`crate::StopReason`]).
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum CellFitError {

@@ -1,7 +1,8 @@
-//! Test and bench fixtures, not part of the API (hidden from the docs): the shipped robots in
-//! the shipped cells' placements, truths drawn from tolerances, and simulated observations
-//! (built from `kinematics` directly: calib-core cannot depend on sim-cell). Used by the
-//! module tests and by `benches/whole_cell.rs`.
+//! Test and bench fixtures, not part of the API (hidden from the docs, compiled only for the
+//! crate's tests and with the `fixtures` feature): the shipped robots in the shipped cells'
+//! placements, truths drawn from tolerances, and simulated observations (built from
+//! `kinematics` directly: calib-core cannot depend on sim-cell). Used by the module tests and by
+//! `benches/whole_cell.rs` (which gets the feature from calib-core's dev-dependency on itself).
 
 use crate::Robot;
 use kinematics::{

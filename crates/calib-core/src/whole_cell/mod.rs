@@ -48,12 +48,13 @@
 //! truth drawn from `U(±tol)` has the prior's variance ([`Tolerance`]; defaults 0.05° for joint
 //! offsets and origin rpy, 0.5 mm for origin xyz and tips; scale, compliance and periodic off). The fit
 //! minimises `C = Σ_i ‖W_i·r_i‖² + ‖R_p·θ‖²` (`R_p` the square-root prior information, diagonal
-//! `1/σ_k`, or a full matrix after merging) by Levenberg–Marquardt ([`fit_cell`]): damped normal
-//! equations `(H + λ·diag H)·δ = −g`, `H = JᵀJ`, `g = Jᵀr` over the stacked whitened data and
-//! prior rows; a step is accepted when `C` decreases. It stops ([`StopReason`]) when the relative
+//! `1/σ_k`, or a full matrix after merging) by the crate's Levenberg–Marquardt solver
+//! ([`fit_cell`], [`crate::LmOptions::whole_cell`]): damped normal equations
+//! `(H + λ·diag H)·δ = −g`, `H = JᵀJ`, `g = Jᵀr` over the stacked whitened data and prior rows;
+//! a step is accepted when `C` decreases. It stops ([`crate::StopReason`]) when the relative
 //! decrease or the predicted Gauss–Newton decrease `gᵀH⁻¹g` falls below `cost_tolerance·C`
-//! (converged), at `max_iterations`, when no damping up to `λ = 1e10` lowers `C` (step too
-//! small), or on a non-finite residual. The posterior covariance is `Σ = H⁻¹` at the optimum
+//! (converged), at `max_iterations` (iteration cap), when no damping up to `λ = 1e10` lowers `C`
+//! (no descent), or on a non-finite residual (non-finite). The posterior covariance is `Σ = H⁻¹` at the optimum
 //! (Laplace approximation; the noise is taken as stated, not rescaled).
 //!
 //! # Base-parameter reduction ([`reduce`])
@@ -122,6 +123,7 @@ mod residuals;
 mod solve;
 mod start;
 
+#[cfg(any(test, feature = "fixtures"))]
 #[doc(hidden)]
 pub mod fixtures;
 #[cfg(test)]
@@ -150,5 +152,5 @@ pub use observations::{
 pub use placement_prior::PlacementPrior;
 pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, PRIOR_INFO_TOL, RANK_TOL};
 pub use residuals::{Evaluator, ObservationLinearisation, MIN_FACE_NORMAL_SUM};
-pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions, StopReason};
+pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions};
 pub use start::initial_estimate;

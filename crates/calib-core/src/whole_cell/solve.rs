@@ -1,4 +1,6 @@
-//! The MAP solver: Levenberg–Marquardt on the whitened data residuals plus the prior rows.
+//! The MAP fit: the whitened data residuals plus the prior rows as a least-squares problem
+//! ([`assemble`]), minimised by the crate's one Levenberg–Marquardt solver
+//! ([`crate::LmOptions`], schedule [`LmOptions::whole_cell`]).
 
 use nalgebra::{DMatrix, DVector, Isometry3};
 use serde::Serialize;
@@ -7,78 +9,22 @@ use super::{
     initial_estimate, CellEstimate, CellFitError, CellParam, CellProblem, Evaluator,
     ObservationLinearisation, ParamLayout,
 };
+use crate::lm::{minimize, LeastSquaresProblem, Linearised};
+use crate::{LmOptions, StopReason};
+
+/// Eigenvalues of the Jacobi-scaled `JᵀJ` at or below this fraction of the largest are dropped
+/// from the posterior covariance (pseudo-inverse) and flag the fit [`CellFit::singular`].
+const COVARIANCE_REL_EIGEN_TOL: f64 = 1e-14;
 
 /// Solver settings. Every default is documented on its field.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct SolveOptions {
-    /// Iteration cap (default 100; a well-posed cell converges in 3–10).
-    pub max_iterations: usize,
-    /// Converged when an accepted step lowers the cost by less than this fraction, or the
-    /// predicted decrease `gᵀH⁻¹g/2` is below this fraction of the cost (default 1e-10).
-    pub cost_tolerance: f64,
-    /// Initial damping relative to `diag(H)` (default 1e-3).
-    pub initial_damping: f64,
+    /// The Levenberg–Marquardt settings, checked when set (default [`LmOptions::whole_cell`]:
+    /// 100 iterations, cost tolerance 1e-10 on the relative and the predicted decrease, initial
+    /// damping 1e-3).
+    pub lm: LmOptions,
     /// Starting `b1_from_b2`; default `None`: a rigid fit of the coincident rows at nominal.
     pub initial_b1_from_b2: Option<Isometry3<f64>>,
-}
-
-impl Default for SolveOptions {
-    fn default() -> Self {
-        Self {
-            max_iterations: 100,
-            cost_tolerance: 1e-10,
-            initial_damping: 1e-3,
-            initial_b1_from_b2: None,
-        }
-    }
-}
-
-impl SolveOptions {
-    fn check(&self) -> Result<(), CellFitError> {
-        if self.max_iterations == 0 {
-            return Err(CellFitError::InvalidInput(
-                "solver option `max_iterations` must be at least 1".into(),
-            ));
-        }
-        for (f, v) in [
-            ("cost_tolerance", self.cost_tolerance),
-            ("initial_damping", self.initial_damping),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(CellFitError::InvalidInput(format!(
-                    "solver option `{f}` is {v}; it must be finite and > 0"
-                )));
-            }
-        }
-        Ok(())
-    }
-}
-
-/// Why the solver stopped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-#[non_exhaustive]
-pub enum StopReason {
-    /// The cost stopped decreasing (relative change or predicted decrease below tolerance).
-    Converged,
-    /// `max_iterations` reached first.
-    IterationCap,
-    /// No damped step lowers the cost although the predicted decrease is not negligible.
-    StepTooSmall,
-    /// A residual or Jacobian became non-finite (the iterate diverged).
-    NonFinite,
-}
-
-impl StopReason {
-    /// `"converged"`, `"iteration_cap"`, `"step_too_small"` or `"non_finite"`.
-    pub fn name(self) -> &'static str {
-        match self {
-            StopReason::Converged => "converged",
-            StopReason::IterationCap => "iteration_cap",
-            StopReason::StepTooSmall => "step_too_small",
-            StopReason::NonFinite => "non_finite",
-        }
-    }
 }
 
 /// A MAP fit of the cell.
@@ -236,7 +182,8 @@ pub(crate) fn assemble(
 }
 
 /// Inverse of a symmetric positive semi-definite matrix by a Jacobi-scaled eigen-decomposition;
-/// pseudo-inverse (and `true`) when the scaled condition exceeds 1e14.
+/// pseudo-inverse (and `true`) when the scaled condition exceeds 1e14
+/// ([`COVARIANCE_REL_EIGEN_TOL`]).
 pub(crate) fn sym_inverse(h: &DMatrix<f64>) -> (DMatrix<f64>, bool) {
     let m = h.nrows();
     let d = DVector::from_iterator(
@@ -255,7 +202,7 @@ pub(crate) fn sym_inverse(h: &DMatrix<f64>) -> (DMatrix<f64>, bool) {
     let emax = eig.eigenvalues.iter().cloned().fold(0.0, f64::max);
     let mut singular = false;
     let inv_diag = eig.eigenvalues.map(|e| {
-        if e > 1e-14 * emax && e > 0.0 {
+        if e > COVARIANCE_REL_EIGEN_TOL * emax && e > 0.0 {
             1.0 / e
         } else {
             singular = true;
@@ -272,6 +219,63 @@ pub(crate) fn sym_inverse(h: &DMatrix<f64>) -> (DMatrix<f64>, bool) {
     (inv, singular)
 }
 
+impl Linearised for System {
+    fn residuals(&self) -> &DVector<f64> {
+        &self.r
+    }
+
+    fn jacobian(&self) -> &DMatrix<f64> {
+        &self.j
+    }
+}
+
+/// The MAP fit as a least-squares problem for the crate's solver: the active observations
+/// (IRLS-weighted if `weights`) and the prior rows of `layout`; the step has one entry per
+/// column of `layout`, applied by [`ParamLayout::apply`].
+struct MapProblem<'a> {
+    problem: &'a CellProblem,
+    layout: &'a ParamLayout,
+    active: &'a [usize],
+    weights: Option<&'a [f64]>,
+}
+
+impl MapProblem<'_> {
+    /// [`assemble`] at `at`, with the Jacobian or without.
+    fn at(&self, at: &CellEstimate, want_jac: bool) -> Result<System, CellFitError> {
+        let (problem, layout) = (self.problem, self.layout);
+        assemble(problem, layout, at, self.active, self.weights, want_jac)
+    }
+}
+
+impl LeastSquaresProblem for MapProblem<'_> {
+    type Point = CellEstimate;
+    type System = System;
+    type Error = CellFitError;
+
+    fn linearise(&self, at: &CellEstimate) -> Result<System, CellFitError> {
+        self.at(at, true)
+    }
+
+    /// A non-finite residual or a kinematics failure at a trial estimate means the step
+    /// diverged (`None`: the solver stops with [`StopReason::NonFinite`]); other errors are
+    /// errors.
+    fn evaluate(&self, at: &CellEstimate) -> Result<Option<System>, CellFitError> {
+        match self.at(at, false) {
+            Ok(s) => Ok(Some(s)),
+            Err(CellFitError::NonFinite { .. } | CellFitError::Kinematics { .. }) => Ok(None),
+            Err(e) => Err(e),
+        }
+    }
+
+    fn relinearise(&self, at: &CellEstimate, _evaluated: System) -> Result<System, CellFitError> {
+        self.linearise(at)
+    }
+
+    fn retract(&self, at: &CellEstimate, step: &DVector<f64>) -> CellEstimate {
+        self.layout.apply(at, step)
+    }
+}
+
 /// Fits the cell by MAP on all observations. See [`fit_cell_with`] for the options.
 ///
 /// A complete two-robot example (problem built from an inline URDF, then fitted) is on
@@ -280,16 +284,29 @@ pub(crate) fn sym_inverse(h: &DMatrix<f64>) -> (DMatrix<f64>, bool) {
 pub fn fit_cell(problem: &CellProblem, options: &SolveOptions) -> Result<CellFit, CellFitError> {
     let active: Vec<usize> = (0..problem.observations.len()).collect();
     let layout = ParamLayout::new(problem, &[]);
-    fit_cell_with(problem, layout, &active, None, None, options)
+    fit_cell_with(problem, layout, &active, None, options)
 }
 
-/// MAP fit with a given layout (e.g. after [`super::reduce`]), a subset of the observations,
-/// optional per-observation weights (IRLS) and an optional starting estimate.
+/// MAP fit with a given layout (e.g. after [`super::reduce`]) on the observations `active`
+/// (indices into `problem.observations`), from `start` (`None`: [`initial_estimate`] with
+/// [`SolveOptions::initial_b1_from_b2`]).
 ///
-/// Minimises `Σ_i w_i‖W_i·r_i‖² + ‖R_p·θ‖²` by Levenberg–Marquardt. Errors: invalid input
-/// (see [`CellProblem::check`]), no starting placement, or model failures at an observation.
-/// Non-convergence is reported in [`CellFit::stopped`].
+/// Minimises `Σ_i ‖W_i·r_i‖² + ‖R_p·θ‖²` by Levenberg–Marquardt ([`SolveOptions::lm`]). Errors:
+/// invalid input (see [`CellProblem::check`]), no starting placement, or model failures at an
+/// observation. Non-convergence is reported in [`CellFit::stopped`].
 pub fn fit_cell_with(
+    problem: &CellProblem,
+    layout: ParamLayout,
+    active: &[usize],
+    start: Option<&CellEstimate>,
+    options: &SolveOptions,
+) -> Result<CellFit, CellFitError> {
+    fit_cell_weighted(problem, layout, active, None, start, options)
+}
+
+/// [`fit_cell_with`] with per-observation weights `w_i` (one finite weight ≥ 0 per active
+/// observation; the blunder screen's IRLS): minimises `Σ_i w_i‖W_i·r_i‖² + ‖R_p·θ‖²`.
+pub(crate) fn fit_cell_weighted(
     problem: &CellProblem,
     layout: ParamLayout,
     active: &[usize],
@@ -298,7 +315,6 @@ pub fn fit_cell_with(
     options: &SolveOptions,
 ) -> Result<CellFit, CellFitError> {
     problem.check()?;
-    options.check()?;
     if let Some(w) = weights {
         if w.len() != active.len() || !w.iter().all(|v| v.is_finite() && *v >= 0.0) {
             return Err(CellFitError::InvalidInput(
@@ -306,92 +322,27 @@ pub fn fit_cell_with(
             ));
         }
     }
-    let mut est = match start {
+    let est = match start {
         Some(s) => {
             s.check(problem)?;
             s.clone()
         }
         None => initial_estimate(problem, options.initial_b1_from_b2, active)?,
     };
-    let mut sys = assemble(problem, &layout, &est, active, weights, true)?;
-    let mut cost = sys.r.norm_squared();
-    let mut lambda = options.initial_damping;
-    let mut iterations = 0;
-    let mut stopped = StopReason::IterationCap;
-    while iterations < options.max_iterations {
-        iterations += 1;
-        let jt = sys.j.transpose();
-        let h = &jt * &sys.j;
-        let g = &jt * &sys.r;
-        let dmax = (0..h.nrows()).map(|i| h[(i, i)]).fold(0.0, f64::max);
-        let floor = 1e-12 * dmax.max(1e-300);
-        // Predicted decrease of the undamped Gauss–Newton step.
-        let predicted = match h.clone().cholesky() {
-            Some(c) => g.dot(&c.solve(&g)),
-            None => f64::INFINITY,
-        };
-        if predicted.is_finite() && predicted < options.cost_tolerance * cost.max(1e-300) {
-            stopped = StopReason::Converged;
-            break;
-        }
-        let mut accepted = false;
-        let mut non_finite = false;
-        while lambda <= 1e10 {
-            let mut a = h.clone();
-            for i in 0..a.nrows() {
-                a[(i, i)] += lambda * h[(i, i)].max(floor);
-            }
-            let Some(c) = a.cholesky() else {
-                lambda *= 10.0;
-                continue;
-            };
-            let step = -c.solve(&g);
-            let trial = layout.apply(&est, &step);
-            let trial_sys = match assemble(problem, &layout, &trial, active, weights, false) {
-                Ok(s) => s,
-                Err(CellFitError::NonFinite { .. } | CellFitError::Kinematics { .. }) => {
-                    non_finite = true;
-                    break;
-                }
-                Err(e) => return Err(e),
-            };
-            let trial_cost = trial_sys.r.norm_squared();
-            if !trial_cost.is_finite() {
-                non_finite = true;
-                break;
-            }
-            if trial_cost <= cost {
-                let rel = (cost - trial_cost) / cost.max(1e-300);
-                est = trial;
-                sys = assemble(problem, &layout, &est, active, weights, true)?;
-                cost = trial_cost;
-                lambda = (lambda / 10.0).max(1e-12);
-                accepted = true;
-                if rel < options.cost_tolerance {
-                    stopped = StopReason::Converged;
-                }
-                break;
-            }
-            lambda *= 10.0;
-        }
-        if non_finite {
-            stopped = StopReason::NonFinite;
-            break;
-        }
-        if !accepted {
-            stopped = StopReason::StepTooSmall;
-            break;
-        }
-        if stopped == StopReason::Converged {
-            break;
-        }
-    }
+    let map = MapProblem {
+        problem,
+        layout: &layout,
+        active,
+        weights,
+    };
+    let min = minimize(&map, est, &options.lm)?;
+    let sys = min.system;
     let h = sys.j.transpose() * &sys.j;
     let (covariance, singular) = sym_inverse(&h);
     let data_chi2 = sys.r.rows(0, sys.data_rows).norm_squared();
-    let prior_chi2 = cost - data_chi2;
+    let prior_chi2 = min.cost - data_chi2;
     Ok(CellFit {
-        estimate: est,
+        estimate: min.point,
         layout,
         covariance,
         singular,
@@ -399,8 +350,8 @@ pub fn fit_cell_with(
         prior_chi2,
         residual_rows: sys.data_rows,
         active: active.to_vec(),
-        iterations,
-        stopped,
+        iterations: min.iterations,
+        stopped: min.stopped,
         model_error_var_m2: 0.0,
     })
 }

@@ -15,7 +15,7 @@ use std::io::Write;
 use std::path::Path;
 
 use anyhow::Context;
-use calib_core::whole_cell::StopReason;
+use calib_core::StopReason;
 use kinematics::KinematicErrors;
 use sim_cell::Cell;
 

@@ -14,7 +14,7 @@ use calib_core::whole_cell::{
     ContactGroup, Evaluator, Noise3, Observation, ObservationKind, ParamLayout, PlacementPrior,
     PlaneGroup, SolveOptions, Tolerance, Tool, TrackerGroup,
 };
-use calib_core::Robot;
+use calib_core::{LmOptions, Robot};
 use kinematics::{Axis, ErrorParam, KinematicErrors};
 use nalgebra::{Isometry3, Vector3};
 use sim_cell::Cell;
@@ -555,11 +555,10 @@ pub fn fit(
         est.robot2.tool_tip_m[0] = left.tip;
     }
     let options = SolveOptions {
-        cost_tolerance: COST_TOLERANCE,
+        lm: LmOptions::whole_cell().with_cost_tolerance(COST_TOLERANCE)?,
         ..SolveOptions::default()
     };
-    let fit =
-        fit_cell_with(problem, layout, active, None, Some(&est), &options).context("MAP fit")?;
+    let fit = fit_cell_with(problem, layout, active, Some(&est), &options).context("MAP fit")?;
     Ok(fit)
 }
 

@@ -113,7 +113,7 @@ pub(super) fn fit_model(
         est.robot1 = s.robot1.clone();
         est.robot2 = s.robot2.clone();
     }
-    let fit = fit_cell_with(&sub, layout, &all, None, Some(&est), &options.solve)?;
+    let fit = fit_cell_with(&sub, layout, &all, Some(&est), &options.solve)?;
     Ok((sub, fit))
 }
 
@@ -201,14 +201,7 @@ fn score_unit(
     for h in 0..2 {
         let (fit_rows, test_rows) = (&halves[h], &halves[1 - h]);
         let start = with_train(initial_estimate(&sub, Some(train.b1_from_b2), fit_rows)?);
-        let fit = fit_cell_with(
-            &sub,
-            layout.clone(),
-            fit_rows,
-            None,
-            Some(&start),
-            &options.solve,
-        )?;
+        let fit = fit_cell_with(&sub, layout.clone(), fit_rows, Some(&start), &options.solve)?;
         out.extend(residuals_at(&sub, &layout, &fit.estimate, test_rows)?);
     }
     Ok(out)

@@ -6,8 +6,8 @@ use std::path::Path;
 
 use calib_core::whole_cell::{
     calibrate_cell, Evaluator, ObservationKind, ParamLayout, ScreenOptions, SolveOptions,
-    StopReason,
 };
+use calib_core::StopReason;
 use nalgebra::Vector3;
 use sim_cell::whole_cell::{cell_problem, session_meeting_pairs, truth_estimate, FitModel};
 use sim_cell::{

@@ -3,9 +3,8 @@
 
 use std::path::Path;
 
-use calib_core::whole_cell::{
-    calibrate_cell, CellCalibration, ScreenOptions, SolveOptions, StopReason,
-};
+use calib_core::whole_cell::{calibrate_cell, CellCalibration, ScreenOptions, SolveOptions};
+use calib_core::StopReason;
 use sim_cell::whole_cell::{cell_problem, FitModel};
 use sim_cell::{generate_kind_session, trial_rng, Cell, KindSpec, Layout, SessionSpec, SimKind};
 

@@ -1,34 +1,21 @@
 //! The joint Levenberg–Marquardt fit of `b1_from_b2` and error parameters, and its covariance
-//! (see the measurement model in [`crate::identify`]).
+//! (see the measurement model in [`crate::identify`]). The solver is the crate's one
+//! Levenberg–Marquardt loop ([`crate::LmOptions`], schedule [`LmOptions::identify`]); this file
+//! gives it the problem: the stacked (whitened) residuals, their Jacobian and the manifold update.
 
-use super::model::{IdentifyError, Robot, TipEval, TipModel};
+use super::model::{IdentifyError, TipEval, TipModel};
+use crate::lm::{minimize, LeastSquaresProblem, Linearised, COST_FLOOR};
 use crate::stats::t_quantile;
 use crate::stop::StopReason;
+use crate::{LmOptions, Robot};
 use nalgebra::{
     DMatrix, DVector, Isometry3, Matrix3, Point3, Translation3, UnitQuaternion, Vector3,
 };
 use rayon::prelude::*;
 
-/// Levenberg–Marquardt settings.
-#[derive(Debug, Clone)]
-pub struct FitOptions {
-    /// Maximum LM iterations (default 50).
-    pub max_iterations: usize,
-    /// Stop when the relative RSS decrease of an accepted step is below this (default 1e-12).
-    pub rss_tolerance: f64,
-    /// Initial damping relative to diag(JᵀJ) (default 1e-3).
-    pub initial_damping: f64,
-}
-
-impl Default for FitOptions {
-    fn default() -> Self {
-        Self {
-            max_iterations: 50,
-            rss_tolerance: 1e-12,
-            initial_damping: 1e-3,
-        }
-    }
-}
+/// Eigenvalues of the Jacobi-scaled `JᵀJ` at or below this fraction of the largest are dropped
+/// from the covariance (pseudo-inverse) and flag the fit [`IdentFit::singular`].
+const COVARIANCE_REL_EIGEN_TOL: f64 = 1e-12;
 
 /// Result of a joint fit of `b1_from_b2` and error parameters.
 #[derive(Debug, Clone)]
@@ -57,9 +44,10 @@ pub struct IdentFit {
     /// LM iterations used.
     pub iterations: usize,
     /// Why LM stopped: [`StopReason::Converged`] (relative RSS decrease below
-    /// [`FitOptions::rss_tolerance`]), [`StopReason::StepTooSmall`] (step norm below 1e-15),
-    /// [`StopReason::NoDescent`] (no damped step lowers the RSS) or [`StopReason::IterationCap`]
-    /// ([`FitOptions::max_iterations`] reached).
+    /// [`LmOptions::cost_tolerance`]), [`StopReason::StepTooSmall`] (step norm below
+    /// [`LmOptions::step_tolerance`]), [`StopReason::NoDescent`] (no damped step lowers the RSS),
+    /// [`StopReason::NonFinite`] (a trial step's RSS overflowed) or [`StopReason::IterationCap`]
+    /// ([`LmOptions::max_iterations`] reached).
     pub stopped: StopReason,
 }
 
@@ -111,7 +99,7 @@ impl IdentFit {
     pub fn bic(&self) -> f64 {
         let n_obs = 3.0 * self.points.len() as f64;
         let p = (6 + self.params.len()) as f64;
-        n_obs * (self.rss.max(1e-300) / n_obs).ln() + p * n_obs.ln()
+        n_obs * (self.rss.max(COST_FLOOR) / n_obs).ln() + p * n_obs.ln()
     }
 }
 
@@ -307,6 +295,95 @@ fn assemble(
     })
 }
 
+/// The iterate of the identification fit: the placement and the fitted parameters' values.
+struct IdentPoint {
+    b1_from_b2: Isometry3<f64>,
+    values: Vec<f64>,
+}
+
+/// The identification fit as a least-squares problem for the crate's solver: the tip model on
+/// `points` with `params` fitted; the step is `[ρ (m); φ (rad); δθ]`.
+struct IdentProblem<'a> {
+    model: &'a dyn TipModel,
+    points: &'a [usize],
+    params: &'a [usize],
+}
+
+impl Linearised for Linearisation {
+    fn residuals(&self) -> &DVector<f64> {
+        &self.residuals
+    }
+
+    fn jacobian(&self) -> &DMatrix<f64> {
+        &self.jacobian
+    }
+}
+
+impl IdentProblem<'_> {
+    /// [`linearise`] at `at`, with the Jacobian or without.
+    fn at(&self, at: &IdentPoint, want_jacobian: bool) -> Result<Linearisation, IdentifyError> {
+        let (x, values) = (&at.b1_from_b2, &at.values);
+        linearise(
+            self.model,
+            self.points,
+            x,
+            self.params,
+            values,
+            &[],
+            want_jacobian,
+        )
+    }
+}
+
+impl LeastSquaresProblem for IdentProblem<'_> {
+    type Point = IdentPoint;
+    type System = Linearisation;
+    type Error = IdentifyError;
+
+    fn linearise(&self, at: &IdentPoint) -> Result<Linearisation, IdentifyError> {
+        self.at(at, true)
+    }
+
+    /// Every model failure (a non-finite tip included) is an error of the fit, not a stop.
+    fn evaluate(&self, at: &IdentPoint) -> Result<Option<Linearisation>, IdentifyError> {
+        self.at(at, false).map(Some)
+    }
+
+    fn relinearise(
+        &self,
+        at: &IdentPoint,
+        evaluated: Linearisation,
+    ) -> Result<Linearisation, IdentifyError> {
+        relinearise_with_jacobian(
+            self.model,
+            self.points,
+            &at.b1_from_b2,
+            self.params,
+            &at.values,
+            &evaluated,
+        )
+    }
+
+    /// `X ← Translation(ρ)·Rotation(φ)·X`, `θ ← θ + δθ`.
+    fn retract(&self, at: &IdentPoint, step: &DVector<f64>) -> IdentPoint {
+        let rho = Vector3::new(step[0], step[1], step[2]);
+        let phi = Vector3::new(step[3], step[4], step[5]);
+        let b1_from_b2 = Isometry3::from_parts(Translation3::from(rho), UnitQuaternion::identity())
+            * Isometry3::from_parts(
+                Translation3::identity(),
+                UnitQuaternion::from_scaled_axis(phi),
+            )
+            * at.b1_from_b2;
+        let values = at
+            .values
+            .iter()
+            .enumerate()
+            .map(|(c, v)| v + step[6 + c])
+            .collect();
+        IdentPoint { b1_from_b2, values }
+    }
+}
+
 /// Fits `b1_from_b2` and the parameters `params` (starting from `initial_values`, or zeros) on
 /// all points by Levenberg–Marquardt. `b1_from_b2` starts from the rigid fit of the tips at the
 /// initial parameters unless `initial_b1_from_b2` is given.
@@ -318,7 +395,7 @@ pub fn fit(
     params: &[usize],
     initial_values: Option<&[f64]>,
     initial_b1_from_b2: Option<Isometry3<f64>>,
-    options: &FitOptions,
+    options: &LmOptions,
 ) -> Result<IdentFit, IdentifyError> {
     let points: Vec<usize> = (0..model.n_points()).collect();
     fit_points(
@@ -338,15 +415,9 @@ pub fn fit_points(
     params: &[usize],
     initial_values: Option<&[f64]>,
     initial_b1_from_b2: Option<Isometry3<f64>>,
-    options: &FitOptions,
+    options: &LmOptions,
 ) -> Result<IdentFit, IdentifyError> {
     check_params(model, params)?;
-    if options.max_iterations == 0 {
-        return Err(IdentifyError::BadOption {
-            field: "max_iterations",
-            message: "must be at least 1".into(),
-        });
-    }
     let k = params.len();
     let n = points.len();
     if 3 * n < 6 + k + 1 || n < 3 {
@@ -356,11 +427,11 @@ pub fn fit_points(
             needed: min_points(k),
         });
     }
-    let mut values: Vec<f64> = match initial_values {
+    let values: Vec<f64> = match initial_values {
         Some(v) if v.len() == k => v.to_vec(),
         _ => vec![0.0; k],
     };
-    let mut x = match initial_b1_from_b2 {
+    let x = match initial_b1_from_b2 {
         Some(x) => x,
         None => {
             let mut p1 = Vec::with_capacity(n);
@@ -373,70 +444,24 @@ pub fn fit_points(
             crate::rigid_fit_fast(&p1, &p2).unwrap_or_else(Isometry3::identity)
         }
     };
-    let mut lin = linearise(model, points, &x, params, &values, &[], true)?;
-    let mut lambda = options.initial_damping;
-    let mut stopped = StopReason::IterationCap;
-    let mut iterations = 0;
-    while iterations < options.max_iterations {
-        iterations += 1;
-        let jt = lin.jacobian.transpose();
-        let h = &jt * &lin.jacobian;
-        let g = &jt * &lin.residuals;
-        let dmax = (0..h.nrows()).map(|i| h[(i, i)]).fold(0.0, f64::max);
-        let mut accepted = false;
-        for _ in 0..30 {
-            let mut a = h.clone();
-            for i in 0..a.nrows() {
-                a[(i, i)] += lambda * h[(i, i)].max(1e-12 * dmax).max(1e-300);
-            }
-            let step = match a.clone().cholesky() {
-                Some(c) => -c.solve(&g),
-                None => match a.svd(true, true).solve(&(-&g), 1e-14) {
-                    Ok(s) => s,
-                    Err(_) => break,
-                },
-            };
-            let rho = Vector3::new(step[0], step[1], step[2]);
-            let phi = Vector3::new(step[3], step[4], step[5]);
-            let x_new = Isometry3::from_parts(Translation3::from(rho), UnitQuaternion::identity())
-                * Isometry3::from_parts(
-                    Translation3::identity(),
-                    UnitQuaternion::from_scaled_axis(phi),
-                )
-                * x;
-            let v_new: Vec<f64> = values
-                .iter()
-                .enumerate()
-                .map(|(c, v)| v + step[6 + c])
-                .collect();
-            let trial = linearise(model, points, &x_new, params, &v_new, &[], false)?;
-            if trial.rss <= lin.rss {
-                let rel = (lin.rss - trial.rss) / lin.rss.max(1e-300);
-                x = x_new;
-                values = v_new;
-                lin = relinearise_with_jacobian(model, points, &x, params, &values, &trial)?;
-                lambda = (lambda / 10.0).max(1e-12);
-                accepted = true;
-                if rel < options.rss_tolerance {
-                    stopped = StopReason::Converged;
-                } else if step.norm() < 1e-15 {
-                    stopped = StopReason::StepTooSmall;
-                }
-                break;
-            }
-            lambda *= 10.0;
-            if lambda > 1e12 {
-                break;
-            }
-        }
-        if !accepted {
-            // No step decreases the cost: a (numerical) minimum.
-            stopped = StopReason::NoDescent;
-        }
-        if stopped != StopReason::IterationCap {
-            break;
-        }
-    }
+    let problem = IdentProblem {
+        model,
+        points,
+        params,
+    };
+    let min = minimize(
+        &problem,
+        IdentPoint {
+            b1_from_b2: x,
+            values,
+        },
+        options,
+    )?;
+    let IdentPoint {
+        b1_from_b2: x,
+        values,
+    } = min.point;
+    let lin = min.system;
     let dof = (3 * n).saturating_sub(6 + k);
     let sigma_hat = if dof > 0 {
         (lin.rss / dof as f64).sqrt()
@@ -444,7 +469,7 @@ pub fn fit_points(
         f64::NAN
     };
     let h = lin.jacobian.transpose() * &lin.jacobian;
-    let (inv, singular) = sym_inverse(&h);
+    let (inv, singular) = sym_inverse(&h, COVARIANCE_REL_EIGEN_TOL);
     let covariance = inv * (sigma_hat * sigma_hat);
     let residuals = lin.raw.clone();
     Ok(IdentFit {
@@ -458,14 +483,15 @@ pub fn fit_points(
         sigma_hat,
         covariance,
         singular,
-        iterations,
-        stopped,
+        iterations: min.iterations,
+        stopped: min.stopped,
     })
 }
 
 /// Inverse of a symmetric positive semi-definite matrix by scaled eigen-decomposition; pseudo-inverse
-/// (and `true`) when its scaled condition exceeds 1e12.
-pub(super) fn sym_inverse(h: &DMatrix<f64>) -> (DMatrix<f64>, bool) {
+/// (and `true`) when eigenvalues of the scaled matrix are at or below `rel_eigen_tol` times the
+/// largest.
+pub(super) fn sym_inverse(h: &DMatrix<f64>, rel_eigen_tol: f64) -> (DMatrix<f64>, bool) {
     let m = h.nrows();
     let d: Vec<f64> = (0..m)
         .map(|i| {
@@ -485,7 +511,7 @@ pub(super) fn sym_inverse(h: &DMatrix<f64>) -> (DMatrix<f64>, bool) {
     let mut inv_diag = DVector::zeros(m);
     for i in 0..m {
         let e = eig.eigenvalues[i];
-        if e > 1e-12 * emax && e > 0.0 {
+        if e > rel_eigen_tol * emax && e > 0.0 {
             inv_diag[i] = 1.0 / e;
         } else {
             singular = true;
