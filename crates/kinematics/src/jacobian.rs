@@ -142,7 +142,8 @@ mod tests {
     const FD_TOL: f64 = 1e-9;
 
     /// Every column of the base, tip and position Jacobians against central differences of the
-    /// FK in the independent joints, on every test chain: revolute only, a rail under an arm, a
+    /// FK in the independent joints, on every test chain (this replaced the hp20/va1400-only
+    /// check of `tests/kinematics.rs`, same step and tolerance): revolute only, a rail under an arm, a
     /// prismatic joint on an oblique axis and one in the middle, a URDF mimic, a one-to-many
     /// coupling driven by a prismatic joint (chain rule), a coupled torso.
     fn fd_check(m: &RobotModel, seed: u64) {

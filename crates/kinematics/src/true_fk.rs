@@ -84,24 +84,30 @@ fn check_inputs(
 
 /// The true joint values into `q_true` (len = chain joints), with the nominal gravity torques
 /// into `tau` (zeros if no compliance is set and `need_tau` is false), from the reported
-/// independent values `q_rep` and the chain's reported values `q_rep_chain`. No checks.
-#[allow(clippy::too_many_arguments)]
-fn true_joint_angles(
+/// independent values `q_rep`. Returns the chain's reported values (`q_rep` itself without
+/// coupled joints, else computed into `buf`). No checks.
+fn true_joint_angles<'a>(
     model: &RobotModel,
     errors: &KinematicErrors,
-    q_rep: &[f64],
-    q_rep_chain: &[f64],
+    (q_rep, buf): (&'a [f64], &'a mut Vec<f64>),
     g_base: &Vector3<f64>,
     need_tau: bool,
     tau: &mut [f64],
     q_true: &mut [f64],
-) {
+) -> &'a [f64] {
     if need_tau || !all_zero(&errors.compliance) {
         gravity_torques_into(model, q_rep, g_base, tau);
     } else {
         tau.iter_mut().for_each(|t| *t = 0.0);
     }
-    let q_rep = q_rep_chain;
+    let q_rep_chain = model.chain_q(q_rep, buf);
+    true_angles_of_chain(errors, q_rep_chain, tau, q_true);
+    q_rep_chain
+}
+
+/// The per-joint part of [`true_joint_angles`]: `q_true` from the chain's reported values and
+/// the torques.
+fn true_angles_of_chain(errors: &KinematicErrors, q_rep: &[f64], tau: &[f64], q_true: &mut [f64]) {
     for i in 0..q_rep.len() {
         q_true[i] = q_rep[i] * (1.0 + errors.joint_scale[i])
             + errors.joint_offset[i]
@@ -249,17 +255,7 @@ fn true_flange_rt(
 ) -> (Matrix3<f64>, Vector3<f64>) {
     with_scratch(model.chain_joints().len(), |tau, q_true| {
         let mut buf = Vec::new();
-        let q_rep_chain = model.chain_q(q_rep, &mut buf);
-        true_joint_angles(
-            model,
-            errors,
-            q_rep,
-            q_rep_chain,
-            g_base,
-            false,
-            tau,
-            q_true,
-        );
+        true_joint_angles(model, errors, (q_rep, &mut buf), g_base, false, tau, q_true);
         true_chain(model, errors, q_true, None)
     })
 }
@@ -412,12 +408,10 @@ pub fn tip_error_jacobian(
             .iter()
             .any(|p| matches!(p, ErrorParam::Compliance { .. }));
         let mut buf = Vec::new();
-        let q_rep_chain = model.chain_q(q_rep, &mut buf);
-        true_joint_angles(
+        let q_rep_chain = true_joint_angles(
             model,
             errors,
-            q_rep,
-            q_rep_chain,
+            (q_rep, &mut buf),
             g_base,
             need_tau,
             tau,
@@ -508,15 +502,13 @@ pub fn tip_joint_jacobian_true(
 ) -> Result<Matrix3xX<f64>, KinematicsError> {
     check_inputs(model, errors, q_rep, flange_from_tip, g_base)?;
     let n = model.chain_joints().len();
-    let mut q_rep_chain = vec![0.0; n];
-    model.chain_values_into(q_rep, &mut q_rep_chain);
     let mut tau = vec![0.0; n];
     let mut q_true = vec![0.0; n];
-    true_joint_angles(
+    let mut buf = Vec::new();
+    let q_rep_chain = true_joint_angles(
         model,
         errors,
-        q_rep,
-        &q_rep_chain,
+        (q_rep, &mut buf),
         g_base,
         false,
         &mut tau,
@@ -533,7 +525,7 @@ pub fn tip_joint_jacobian_true(
     // ∂p/∂q_rep through each chain joint's own rate, then the couplings (chain rule).
     let mut jac = Matrix3xX::zeros(model.dof());
     for k in 0..n {
-        let col = j_true.column(k) * joint_rate(errors, &q_rep_chain, k);
+        let col = j_true.column(k) * joint_rate(errors, q_rep_chain, k);
         if model.has_coupled_joints() {
             model.for_each_dependence(k, |i, c| {
                 let sum = jac.column(i) + col * c;

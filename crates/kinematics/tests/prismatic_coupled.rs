@@ -6,9 +6,12 @@
 
 use std::path::{Path, PathBuf};
 
+mod common;
+
+use common::random_q;
 use kinematics::*;
 use nalgebra::{Isometry3, Matrix3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 /// Poses built from the same numbers in another order: round-off of metre-scale products.
@@ -25,18 +28,6 @@ fn fixture(name: &str) -> String {
 
 fn load(xml: &str) -> RobotModel {
     RobotModel::from_urdf_str(xml, "tool0").unwrap()
-}
-
-fn random_q(model: &RobotModel, rng: &mut ChaCha8Rng, margin: f64) -> Vec<f64> {
-    model
-        .joints()
-        .iter()
-        .map(|j| {
-            let (lo, hi) = (j.lower.max(-3.0), j.upper.min(3.0));
-            let span = hi - lo;
-            rng.random_range(lo + margin * span..hi - margin * span)
-        })
-        .collect()
 }
 
 /// The TIAGo data folder as CI and the worktrees have it: `../shared/data/figaroh-tiago` (or

@@ -142,6 +142,31 @@ proptest! {
     }
 }
 
+/// The joint terms of `e` (offset, scale, compliance, periodic), everything else zero.
+fn joint_terms_only(e: &KinematicErrors) -> KinematicErrors {
+    let mut only = KinematicErrors::zero(e.dof());
+    only.joint_offset.clone_from(&e.joint_offset);
+    only.joint_scale.clone_from(&e.joint_scale);
+    only.compliance.clone_from(&e.compliance);
+    only.periodic_sin.clone_from(&e.periodic_sin);
+    only.periodic_cos.clone_from(&e.periodic_cos);
+    only
+}
+
+/// The contract's true joint values, written out with libm's sin and cos: the chain's reported
+/// values `q_rep` and gravity torques `tau`.
+fn true_values_by_hand(e: &KinematicErrors, q_rep: &[f64], tau: &[f64]) -> Vec<f64> {
+    (0..q_rep.len())
+        .map(|i| {
+            q_rep[i] * (1.0 + e.joint_scale[i])
+                + e.joint_offset[i]
+                + e.compliance[i] * tau[i]
+                + e.periodic_sin[i] * q_rep[i].sin()
+                + e.periodic_cos[i] * q_rep[i].cos()
+        })
+        .collect()
+}
+
 /// Exact-arithmetic comparisons of metre-scale poses (a few ulps).
 const EXACT_TOL: f64 = 1e-12;
 
@@ -184,12 +209,7 @@ fn each_error_kind_means_what_the_contract_says() {
     );
 
     // Joint offset, scale, compliance and the periodic first harmonic: nominal FK at q_true.
-    let mut only = KinematicErrors::zero(n);
-    only.joint_offset.clone_from(&e.joint_offset);
-    only.joint_scale.clone_from(&e.joint_scale);
-    only.compliance.clone_from(&e.compliance);
-    only.periodic_sin.clone_from(&e.periodic_sin);
-    only.periodic_cos.clone_from(&e.periodic_cos);
+    let only = joint_terms_only(&e);
     assert!(
         e.periodic_sin
             .iter()
@@ -198,15 +218,7 @@ fn each_error_kind_means_what_the_contract_says() {
         "the draw must set some periodic term"
     );
     let tau = crate::gravity_torques(&m, &q, &g).unwrap();
-    let q_true: Vec<f64> = (0..n)
-        .map(|i| {
-            q[i] * (1.0 + e.joint_scale[i])
-                + e.joint_offset[i]
-                + e.compliance[i] * tau[i]
-                + e.periodic_sin[i] * q[i].sin()
-                + e.periodic_cos[i] * q[i].cos()
-        })
-        .collect();
+    let q_true = true_values_by_hand(&e, &q, &tau);
     assert!(
         tau.iter().any(|t| t.abs() > 1.0),
         "the test arm must feel gravity: {tau:?}"
@@ -335,23 +347,9 @@ fn joint_errors_of_prismatic_and_coupled_joints_mean_what_the_contract_says() {
         let tip = random_tip(&mut rng);
         let g = random_g(&mut rng);
         let e = random_errors(m, &mut rng);
-        let mut only = KinematicErrors::zero_for(m);
-        only.joint_offset.clone_from(&e.joint_offset);
-        only.joint_scale.clone_from(&e.joint_scale);
-        only.compliance.clone_from(&e.compliance);
-        only.periodic_sin.clone_from(&e.periodic_sin);
-        only.periodic_cos.clone_from(&e.periodic_cos);
+        let only = joint_terms_only(&e);
         let tau = crate::gravity_torques(m, &q, &g).unwrap();
-        let q_rep = m.chain_values(&q).unwrap();
-        let q_true: Vec<f64> = (0..q_rep.len())
-            .map(|i| {
-                q_rep[i] * (1.0 + e.joint_scale[i])
-                    + e.joint_offset[i]
-                    + e.compliance[i] * tau[i]
-                    + e.periodic_sin[i] * q_rep[i].sin()
-                    + e.periodic_cos[i] * q_rep[i].cos()
-            })
-            .collect();
+        let q_true = true_values_by_hand(&e, &m.chain_values(&q).unwrap(), &tau);
         // The free chain's limits do not bound the true values: evaluate unchecked.
         let want = crate::base_from_tip_unchecked(free, &q_true, &tip);
         assert_pose_eq(
