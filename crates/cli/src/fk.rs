@@ -44,7 +44,7 @@ pub struct Args {
     pub tool_link: String,
     /// Joint values, comma separated, in chain order from the base (one per joint): degrees
     /// for rotary joints, millimetres for prismatic (linear) joints such as a track or a lift.
-    /// A joint that follows another (a URDF <mimic>) takes no value.
+    /// A joint that follows another (a URDF mimic joint) takes no value.
     #[arg(long, allow_hyphen_values = true, required_unless_present = "q_csv")]
     pub q_deg: Option<String>,
     /// A CSV of joint angles (with --cell): columns q1_deg … qN_deg in chain order, one pose per

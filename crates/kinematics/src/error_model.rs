@@ -44,10 +44,10 @@ use crate::model::{origin_isometry, RobotModel};
 /// each one enters the kinematics). Per-joint vectors have one entry per chain joint
 /// ([`RobotModel::chain_joints`]: the moving joints, coupled ones included; `dof` of them without
 /// coupled joints), in chain order (0-based). [`KinematicErrors::zero`] is the nominal robot.
-/// Per-joint units are those of a rotary joint; a prismatic joint's are given in brackets.
+/// Per-joint units are those of a rotary joint unless a prismatic joint's are named.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct KinematicErrors {
-    /// Joint zero offsets, rad [m]: added to the scaled reported value.
+    /// Joint zero offsets, rad (m for a prismatic joint): added to the scaled reported value.
     pub joint_offset: Vec<f64>,
     /// Joint scale (gear-ratio) errors, ratio: `q_true = q_rep·(1 + scale) + …`.
     pub joint_scale: Vec<f64>,
@@ -62,7 +62,8 @@ pub struct KinematicErrors {
     /// Orientation of the true base in the nominal base frame, (roll, pitch, yaw) rad,
     /// `R = Rz(yaw)·Ry(pitch)·Rx(roll)`.
     pub mount_rpy: Vector3<f64>,
-    /// Joint compliance, rad/(N·m) [m/N]: the joint deflects by `compliance_i·τ_i` under the
+    /// Joint compliance, rad/(N·m) (m/N for a prismatic joint): the joint deflects by
+    /// `compliance_i·τ_i` under the
     /// gravity torque (force) `τ_i` of the nominal model at the reported posture.
     pub compliance: Vec<f64>,
     /// First-harmonic periodic joint error, sine part, rad: adds `periodic_sin_i·sin(q_rep_i)`
