@@ -4,6 +4,7 @@
 mod calibrate;
 mod calibrate_cell;
 mod diagnose;
+mod export;
 mod fk_ik;
 mod import;
 mod inputs;

@@ -10,6 +10,7 @@ use clap::{Parser, Subcommand};
 mod calibrate;
 mod calibrate_cell;
 mod diagnose;
+mod export;
 mod export_dir;
 mod fk;
 mod ik;
@@ -46,6 +47,8 @@ enum Command {
     Plan(plan::Args),
     /// Convert a controller's or dataset's CSV into a session CSV, as a mapping file says.
     Import(import::Args),
+    /// Write the cell's b1_from_b2 for ABB, KUKA, Fanuc, Yaskawa controllers and ROS 2, each file read back and checked.
+    Export(export::Args),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -57,6 +60,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Diagnose(args) => diagnose::run(args),
         Command::Plan(args) => plan::run(args),
         Command::Import(args) => import::run(args),
+        Command::Export(args) => export::run(args),
     }
 }
 

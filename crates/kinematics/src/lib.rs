@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 
 mod axis;
+pub mod cardan;
 mod coupling;
 mod error;
 mod error_model;
@@ -21,6 +22,10 @@ mod urdf_patch;
 pub use nalgebra;
 
 pub use axis::Axis;
+pub use cardan::{
+    quaternion_wxyz, rotation_from_quaternion_wxyz, rotation_from_zyx, zyx_from_rotation,
+    ZYX_LOCK_COS,
+};
 pub use coupling::{JointCoupling, LinearCoupling};
 pub use error::{KinematicsError, ModelError, UrdfPatchError};
 pub use error_model::{all_params, all_params_for, ErrorParam, KinematicErrors};

@@ -49,6 +49,15 @@ pub enum SimError {
         /// Which robot failed and what would work.
         message: String,
     },
+    /// An exported file that does not read back to what was meant to be written (a defect of the
+    /// writer or the parser, never expected); the file is not left in place.
+    #[error("export {path}: {message}")]
+    Export {
+        /// The file that was to be written.
+        path: PathBuf,
+        /// What reading it back found.
+        message: String,
+    },
     /// An invalid argument (spec, grid axis, option): the message names it and what would work.
     #[error("{0}")]
     InvalidInput(String),

@@ -5,6 +5,7 @@ pub mod cell;
 pub mod cli_support;
 mod error;
 pub mod export;
+pub mod export_formats;
 pub mod layout;
 pub mod paper;
 pub mod placement;
@@ -18,6 +19,7 @@ pub mod whole_cell;
 pub use cell::{Cell, CellRobot, Noise, PlacementSigma};
 pub use error::SimError;
 pub use export::{export_calibrated_cell, ExportNames, CALIBRATE_EXPORT_NAMES};
+pub use export_formats::{export_placement, ControllerFormat, PlacementExport, PlacementFormats};
 pub use layout::{teach_points, Layout};
 pub use session::{
     generate_session, Session, SessionKind, SessionObservation, SessionPoint, SessionRow,
