@@ -26,14 +26,14 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use calib_core::whole_cell::{
     calibrate_cell, predict_cooperative_accuracy, CalibrationReport, CooperativePrediction,
-    DropReason, FittedPlacementReport, GroupsReport, NuisanceReport, ParameterReport,
+    DropReason, FittedPlacementReport, GroupsReport, Kind, NuisanceReport, ParameterReport,
     PlacementSigmaReport, PriorScaleReport, RejectedRowReport, ScreenOptions, SolveOptions,
-    Kind, UnidentifiableReport,
+    UnidentifiableReport,
 };
 use calib_core::StopReason;
-use serde::Serialize;
 use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
 use handclasp_cell::{export_calibrated_cell, Cell, Session, CALIBRATE_EXPORT_NAMES};
+use serde::Serialize;
 
 /// Seed of the predicted p95's Monte Carlo draw.
 pub const P95_SEED: u64 = 1;

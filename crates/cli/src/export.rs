@@ -7,11 +7,11 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use serde::Serialize;
 use handclasp_cell::export_formats::{
     export_placement, ControllerFormat, PlacementFormats, READ_BACK_TOL_M, READ_BACK_TOL_RAD,
 };
 use handclasp_cell::Cell;
+use serde::Serialize;
 
 /// `--format` values.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]

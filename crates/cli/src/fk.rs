@@ -1,6 +1,11 @@
 //! `handclasp fk`: joint angles (deg) to the tip pose in the robot's base frame, as a pendant
 //! shows it: x, y, z in mm and ZYZ φ, θ, ψ in degrees (`R = Rz(φ)·Ry(θ)·Rz(ψ)`).
 //!
+//! A prismatic (linear) joint, such as a track or a torso lift, takes its value in millimetres
+//! in the same `--q-deg` list: `--q-deg 250,30,-10,…` is a 250 mm lift then the arm's angles in
+//! degrees (`--json` then adds `q_units`). A coupled joint (a URDF `<mimic>`) is computed from the
+//! others and takes no value: the list has one value per independent joint.
+//!
 //! `handclasp fk --robot robots/hp20.urdf --q-deg 0,10,-20,0,30,0 --tip-mm 0,0,150 --json` prints
 //! `{"xyz_mm": [x, y, z], "zyz_deg": [φ, θ, ψ], "rotation": [[…], […], […]], …}` for
 //! `base_from_tip`; without `--json` a readable table.
@@ -35,7 +40,9 @@ pub struct Args {
     /// The flange link the chain ends at (with --cell: the cell's tool_link).
     #[arg(long, default_value = "tool0", conflicts_with = "cell")]
     pub tool_link: String,
-    /// Joint angles in degrees, comma separated, in chain order from the base (one per joint).
+    /// Joint values, comma separated, in chain order from the base (one per joint): degrees
+    /// for rotary joints, millimetres for prismatic (linear) joints such as a track or a lift.
+    /// A joint that follows another (a URDF mimic joint) takes no value.
     #[arg(long, allow_hyphen_values = true, required_unless_present = "q_csv")]
     pub q_deg: Option<String>,
     /// A CSV of joint angles (with --cell): columns q1_deg … qN_deg in chain order, one pose per
@@ -65,6 +72,10 @@ pub struct Args {
     #[arg(long)]
     pub verbose: bool,
 }
+
+/// A prismatic joint value under 1 mm (not 0) on a travel longer than this, mm, is warned about as
+/// metres written as millimetres.
+const PRISMATIC_METRES_SPAN_MM: f64 = 100.0;
 
 /// Tip offsets whose every coordinate is below this (mm) but not all zero look like metres.
 const TIP_METRES_LIMIT_MM: f64 = calib_core::METRES_LIMIT_MM;
@@ -168,16 +179,54 @@ pub(crate) fn load_robot(path: &Path, tool_link: &str) -> anyhow::Result<RobotMo
         .context("--robot: cannot load the robot model")
 }
 
-/// Parses `--q-deg` against the model: count and joint limits (in degrees). Returns
-/// `(q_rad, q_deg)`.
+/// Parses `--q-deg` against the model: count and joint limits, each value in its joint's CLI
+/// unit ([`joint_unit`]: degrees, millimetres for a prismatic joint). Returns
+/// `(q_si, q_as_given)` (rad or m; deg or mm).
 pub(crate) fn parse_q_deg(
     flag: &str,
     text: &str,
     model: &RobotModel,
 ) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
-    let what = format!("{} has {} joints", model.name(), model.dof());
+    let what = if model.has_coupled_joints() {
+        let coupled: Vec<&str> = model
+            .chain_joints()
+            .iter()
+            .filter(|j| j.is_coupled())
+            .map(|j| j.name.as_str())
+            .collect();
+        format!(
+            "{} has {} independent joints (the coupled joints {} follow them)",
+            model.name(),
+            model.dof(),
+            coupled.join(", ")
+        )
+    } else {
+        format!("{} has {} joints", model.name(), model.dof())
+    };
     let q_deg = parse_list(flag, text, Some((model.dof(), &what)))?;
     for (i, (j, &v)) in model.joints().iter().zip(&q_deg).enumerate() {
+        if j.kind.is_prismatic() {
+            let (lo, hi) = (j.lower * 1e3, j.upper * 1e3);
+            // Same 1e-9 m slack as the library's check.
+            let slack = 1e-6;
+            if v < lo - slack || v > hi + slack {
+                bail!(
+                    "{flag}: joint {} ({}) is prismatic and {v} mm, outside its limits {lo:.3}..{hi:.3} mm; give a travel inside the range (millimetres, not metres)",
+                    i + 1,
+                    j.name
+                );
+            }
+            // Under 1 mm on a travel of more than 100 mm: probably metres.
+            if v != 0.0 && v.abs() < 1.0 && hi - lo > PRISMATIC_METRES_SPAN_MM {
+                eprintln!(
+                    "warning: {flag}: joint {} ({}) is prismatic and {v} mm; its values are millimetres: if you meant {v} m, give {}",
+                    i + 1,
+                    j.name,
+                    v * 1e3
+                );
+            }
+            continue;
+        }
         let (lo, hi) = (j.lower.to_degrees(), j.upper.to_degrees());
         // Same 1e-9 rad slack as the library's check.
         let slack = 1e-9f64.to_degrees();
@@ -189,7 +238,37 @@ pub(crate) fn parse_q_deg(
             );
         }
     }
-    Ok((q_deg.iter().map(|v| v.to_radians()).collect(), q_deg))
+    let q_si = model
+        .joints()
+        .iter()
+        .zip(&q_deg)
+        .map(|(j, &v)| {
+            if j.kind.is_prismatic() {
+                v * 1e-3
+            } else {
+                v.to_radians()
+            }
+        })
+        .collect();
+    Ok((q_si, q_deg))
+}
+
+/// The CLI unit of a joint's value: `"mm"` for a prismatic joint, `"deg"` otherwise.
+pub(crate) fn joint_unit(joint: &kinematics::Joint) -> &'static str {
+    if joint.kind.is_prismatic() {
+        "mm"
+    } else {
+        "deg"
+    }
+}
+
+/// A joint value (rad, or m for a prismatic joint) in its CLI unit ([`joint_unit`]).
+pub(crate) fn to_cli_unit(joint: &kinematics::Joint, v: f64) -> f64 {
+    if joint.kind.is_prismatic() {
+        v * 1e3
+    } else {
+        v.to_degrees()
+    }
 }
 
 /// Readable lines of a pose (mm, deg, rotation rows).
@@ -221,8 +300,12 @@ struct FkReport {
     /// `--cell`, when given (absent from the JSON otherwise).
     #[serde(skip_serializing_if = "Option::is_none")]
     cell: Option<String>,
-    /// The joint angles, degrees, chain order.
+    /// The joint values, chain order: degrees, millimetres for a prismatic joint.
     q_deg: Vec<f64>,
+    /// Each value's unit (`"deg"` or `"mm"`), only for a robot with a prismatic joint (then
+    /// `q_deg` mixes units).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    q_units: Option<Vec<&'static str>>,
     /// `base_from_tip`'s unit quaternion `[w, x, y, z]`.
     quaternion_wxyz: [f64; 4],
     /// The robot's name (URDF).
@@ -365,6 +448,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let report = FkReport {
         cell: robot.cell.as_ref().map(|c| c.display().to_string()),
         q_deg,
+        q_units: model
+            .has_prismatic_joints()
+            .then(|| model.joints().iter().map(joint_unit).collect()),
         quaternion_wxyz,
         robot: model.name().to_string(),
         rotation,
@@ -556,6 +642,7 @@ mod tests {
         FkReport {
             cell: cell.map(String::from),
             q_deg: vec![0.0; 6],
+            q_units: None,
             quaternion_wxyz: pose.quaternion_wxyz,
             robot: "hp20".into(),
             rotation: pose.rotation,

@@ -7,6 +7,8 @@
 //! (`"reachable": false`, exit status 0, `q_deg` the closest joint vector found), not an error.
 //! A target whose every coordinate is below calib-core's `METRES_LIMIT_MM` (5 mm) is refused as
 //! metres written as millimetres, and so is a `--tip-mm` below 5 mm in every coordinate.
+//! A prismatic joint's value (a track, a lift) is in millimetres, in `q_deg` as in the table;
+//! the JSON then names each value's unit in `q_units`.
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -18,7 +20,8 @@ use nalgebra::{Point3, Unit, Vector3};
 use serde::Serialize;
 
 use crate::fk::{
-    ignored_branches_text, load_robot, parse_list, parse_q_deg, parse_tip, pose_table,
+    ignored_branches_text, joint_unit, load_robot, parse_list, parse_q_deg, parse_tip, pose_table,
+    to_cli_unit,
 };
 
 /// Arguments of `handclasp ik`.
@@ -98,13 +101,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..IkOptions::default()
     };
     let sol = ik_tip_position(&model, &target, &tip, &options).context("ik")?;
-    let q_deg: Vec<f64> = sol.q.iter().map(|x| x.to_degrees()).collect();
+    // Degrees, and millimetres for a prismatic joint.
+    let q_deg: Vec<f64> = model
+        .joints()
+        .iter()
+        .zip(&sol.q)
+        .map(|(j, &x)| to_cli_unit(j, x))
+        .collect();
+    // `q_deg` mixes units when a joint is prismatic: then the report says each one.
+    let q_units = model
+        .has_prismatic_joints()
+        .then(|| model.joints().iter().map(joint_unit).collect());
     let reached = base_from_tip(&model, &sol.q, &tip).context("ik result")?;
     let report = IkReport {
         axis_error_deg: sol.axis_error_rad.to_degrees(),
         iterations: sol.iterations,
         position_error_mm: sol.position_error_m * 1e3,
         q_deg,
+        q_units,
         reachable: sol.reachable(),
         reached: PoseForms::from_isometry(&reached),
         robot: model.name().to_string(),
@@ -135,8 +149,12 @@ struct IkReport {
     iterations: usize,
     /// Distance from the tip to the target, mm.
     position_error_mm: f64,
-    /// The joint angles found (the closest found when unreachable), degrees.
+    /// The joint values found (the closest found when unreachable): degrees, millimetres for a
+    /// prismatic joint.
     q_deg: Vec<f64>,
+    /// Each value's unit (`"deg"` or `"mm"`), only for a robot with a prismatic joint.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    q_units: Option<Vec<&'static str>>,
     /// Whether the target is reached within the joint limits.
     reachable: bool,
     /// `base_from_tip` at `q_deg`.
@@ -199,9 +217,20 @@ fn write_text(s: &mut String, r: &IkReport) -> std::fmt::Result {
             }
         )?;
     }
-    writeln!(s, "  {:>4} {:>14} {:>12}", "#", "joint", "q_deg")?;
-    for (i, (name, v)) in r.joint_names.iter().zip(&r.q_deg).enumerate() {
-        writeln!(s, "  {:>4} {:>14} {:>12.6}", i + 1, name, v)?;
+    match &r.q_units {
+        Some(units) => {
+            writeln!(s, "  {:>4} {:>14} {:>12} {:>4}", "#", "joint", "q", "unit")?;
+            let rows = r.joint_names.iter().zip(&r.q_deg).zip(units);
+            for (i, ((name, v), unit)) in rows.enumerate() {
+                writeln!(s, "  {:>4} {:>14} {:>12.6} {:>4}", i + 1, name, v, unit)?;
+            }
+        }
+        None => {
+            writeln!(s, "  {:>4} {:>14} {:>12}", "#", "joint", "q_deg")?;
+            for (i, (name, v)) in r.joint_names.iter().zip(&r.q_deg).enumerate() {
+                writeln!(s, "  {:>4} {:>14} {:>12.6}", i + 1, name, v)?;
+            }
+        }
     }
     writeln!(s, "tip pose at these angles:")?;
     write!(s, "{}", pose_table(&r.reached))
@@ -218,6 +247,7 @@ mod tests {
             iterations: 12,
             position_error_mm: if reachable { 1e-6 } else { 812.5 },
             q_deg: vec![10.0, -20.0],
+            q_units: None,
             reachable,
             reached: PoseForms::from_isometry(&Isometry3::identity()),
             robot: "hp20".into(),

@@ -13,9 +13,9 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use calib_core::whole_cell::{DesignCriterion, DesignPredictionReport};
+use handclasp_cell::Cell;
 use nalgebra::Point3;
 use serde::Serialize;
-use handclasp_cell::Cell;
 use sim_cell::plan::{plan_session, Plan, PlanSpec, DEFAULT_RANDOM_DRAWS, EVAL_POSES};
 
 /// `--criterion`; serialised as `"a"` or `"d"`.

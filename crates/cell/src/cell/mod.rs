@@ -707,8 +707,22 @@ fn load_model(
             path.display()
         )));
     }
-    RobotModel::from_urdf_file(path, tool_link)
-        .map_err(|e| ctx.err(format!("`{key}.urdf` = \"{urdf}\": {e}")))
+    let model = RobotModel::from_urdf_file(path, tool_link)
+        .map_err(|e| ctx.err(format!("`{key}.urdf` = \"{urdf}\": {e}")))?;
+    // The session's joint columns and `[robotN.errors]` are per joint in degrees: a prismatic
+    // joint's value would be read as degrees and used as metres, and a coupled joint has no
+    // column. Refused until the formats describe them (issue 22).
+    if model.has_prismatic_joints() || model.has_coupled_joints() {
+        return Err(ctx.err(format!(
+            "`{key}.urdf` = \"{urdf}\": robot {} has prismatic or coupled (mimic) joints, which \
+             cell and session files do not describe yet (their joint columns and errors are per \
+             joint in degrees); evaluate the URDF directly with `handclasp fk --robot {} \
+             --tool-link {tool_link}` (prismatic values in mm)",
+            model.name(),
+            path.display()
+        )));
+    }
+    Ok(model)
 }
 
 fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cell, FormatError> {

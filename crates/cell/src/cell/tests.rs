@@ -278,3 +278,23 @@ mod tolerance_tests {
         );
     }
 }
+
+/// A cell whose robot has a prismatic joint is refused by name until the cell and session files
+/// describe prismatic values (merge of the `prismatic` branch, issue 22: before, the session's
+/// degree column would have been used as metres without a word).
+#[test]
+fn prismatic_robot_refused_until_the_formats_describe_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let rail = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../kinematics/tests/fixtures/rail_6r.urdf"
+    );
+    let toml = format!(
+        "[robot1]\nurdf = \"{rail}\"\nmount = \"floor\"\ntip_mm = [0, 0, 150]\n[robot2]\nurdf = \"{rail}\"\nmount = \"floor\"\ntip_mm = [0, 0, 150]\n[b1_from_b2]\nxyz_mm = [2000, 0, 0]\nzyz_deg = [180, 0, 0]\n"
+    );
+    let path = dir.path().join("cell.toml");
+    std::fs::write(&path, toml).unwrap();
+    let err = Cell::from_toml_file(&path).unwrap_err().to_string();
+    assert!(err.contains("prismatic or coupled"), "{err}");
+    assert!(err.contains("handclasp fk --robot"), "{err}");
+}
