@@ -13,3 +13,4 @@ mod paper_diagnose;
 mod plan;
 mod sim;
 mod support;
+mod validate;

@@ -429,7 +429,67 @@ impl From<&SessionCoverage> for CoverageReport {
     }
 }
 
+/// A joint whose session range spans less than this share of its travel is narrowly covered
+/// (see [`CoverageReport::warnings`]).
+pub const NARROW_JOINT_FRACTION: f64 = 0.1;
+
+/// A session whose tool-point region holds less than this share of a robot's sampled reach
+/// covers it narrowly (see [`CoverageReport::warnings`]).
+pub const NARROW_REACH_FRACTION: f64 = 0.01;
+
 impl CoverageReport {
+    /// One `warning: …` line (without the prefix) per robot whose coverage is narrow: a joint
+    /// spanning less than [`NARROW_JOINT_FRACTION`] of its travel, or a tool-point region
+    /// holding less than [`NARROW_REACH_FRACTION`] of the reach samples. Both thresholds are
+    /// flags for the user, not inputs of any fit. Every session is an extrapolation outside its
+    /// region (the text report gives the numbers); these flag a session that is a spot: a
+    /// 30-point session in a 0.8 m cube of the shipped floor–floor cell's shared workspace
+    /// spans 17–20 % of the least-used joints' travel and a region holding 2–5 % of each
+    /// robot's reach, the intended use, and is not flagged. Below a tenth of a joint's travel,
+    /// or a hundredth of the reach, terms the region does not vary (gravity sag, a scale) are
+    /// absorbed by offsets that can change sign elsewhere (issue 20's CTU exports were fitted
+    /// in two small grids and the self-contact zone).
+    pub fn warnings(&self) -> Vec<String> {
+        self.robots
+            .iter()
+            .filter(|r| r.rows > 0)
+            .filter_map(|r| {
+                let narrow: Vec<String> = r
+                    .joints
+                    .iter()
+                    .filter(|j| j.fraction < NARROW_JOINT_FRACTION)
+                    .map(|j| format!("j{} {:.0} %", j.joint, j.fraction * 100.0))
+                    .collect();
+                let small_region = r.reach_fraction_in_region < NARROW_REACH_FRACTION;
+                if narrow.is_empty() && !small_region {
+                    return None;
+                }
+                let mut causes = Vec::new();
+                if !narrow.is_empty() {
+                    causes.push(format!(
+                        "joints spanning under {:.0} % of their travel ({})",
+                        NARROW_JOINT_FRACTION * 100.0,
+                        narrow.join(", ")
+                    ));
+                }
+                if small_region {
+                    causes.push(format!(
+                        "tool points in a region holding {:.0} % of its reach (under {:.0} %)",
+                        r.reach_fraction_in_region * 100.0,
+                        NARROW_REACH_FRACTION * 100.0
+                    ));
+                }
+                Some(format!(
+                    "narrow coverage of robot {}: {}; the calibration is extrapolated outside \
+                     the session's region: check it on poses where the robot will work \
+                     (`handclasp validate`) before using it there",
+                    r.robot.number(),
+                    causes.join("; ")
+                ))
+            })
+            .collect()
+    }
+
     /// The text lines of the report (no trailing newline on each): per robot, one line of the
     /// joints' covered share and one of the tool points' region against the reach.
     pub fn text_lines(&self) -> Vec<String> {
@@ -650,6 +710,17 @@ mod tests {
         assert!(
             text.contains("0 % of the reach lies in this region"),
             "{text}"
+        );
+        // Robot 1 is narrow on every count, robot 2 (its whole reach) on none.
+        let w = r.warnings();
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(
+            w[0].starts_with(
+                "narrow coverage of robot 1: joints spanning under 10 % of their travel \
+                 (j2 0 %, j3 0 %); tool points in a region holding 0 % of its reach"
+            ),
+            "{}",
+            w[0]
         );
     }
 }

@@ -146,6 +146,7 @@ pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool};
 pub use coverage::{
     session_coverage, CoverageReport, JointCoverage, JointCoverageReport, PointRegion,
     PointRegionReport, RobotCoverage, RobotCoverageReport, SessionCoverage, ENVELOPE_SAMPLES,
+    NARROW_JOINT_FRACTION, NARROW_REACH_FRACTION,
 };
 pub use design::{
     design_criterion, design_prediction, greedy_design, DesignCriterion, DesignPrediction,
