@@ -248,7 +248,7 @@ pub fn carry_nuisances(
     }
     for (g, p) in to_problem.planes.iter().enumerate() {
         let f = find(GroupKind::Plane, &p.name)?;
-        out.planes[g] = from.planes[f].clone();
+        out.planes[g] = from.planes[f];
     }
     for (g, c) in to_problem.contacts.iter().enumerate() {
         if c.fit_distance {
@@ -257,4 +257,113 @@ pub fn carry_nuisances(
         }
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+
+    use super::*;
+    use crate::whole_cell::fixtures::{sim_cell, Cell};
+    use crate::whole_cell::{Noise3, Observation, ObservationKind, TrackerGroup};
+    use crate::Robot;
+
+    /// Noise-free data: a residual at the truth is round-off and the solver's stop (the LM's
+    /// relative step tolerance on metre-sized frames), far below any measurement (1 µm).
+    const EXACT_M: f64 = 1e-6;
+
+    /// A tracker frame 2 m away, turned 30° about a tilted axis.
+    fn tracker_from_b1() -> Isometry3<f64> {
+        Isometry3::from_parts(
+            Translation3::new(1.2, -0.8, 1.5),
+            UnitQuaternion::from_scaled_axis(Vector3::new(0.1, -0.2, 0.45)),
+        )
+    }
+
+    /// The sim cell's problem with `n` coincident rows (noise 1 nm) and a tracker group "t"
+    /// (anchored at robot 1) of `n` noise-free rows of robot 1's true tip at the same joints,
+    /// and its truth with the tracker frame at `frame`.
+    fn problem(n: usize, frame: Isometry3<f64>) -> (CellProblem, CellEstimate) {
+        let sc = sim_cell(Cell::Floor, Tolerance::default(), false, 7);
+        let mut p = sc.problem();
+        let coincident = sc.coincident(n, 1e-9, 0.7, 3);
+        let mut obs = coincident.clone();
+        for (k, o) in coincident.iter().enumerate() {
+            let ObservationKind::Coincident { q1, .. } = &o.kind else {
+                unreachable!()
+            };
+            let tip = sc.true_tip(Robot::One, 0, q1);
+            obs.push(Observation {
+                row: n + k + 1,
+                kind: ObservationKind::Tracker {
+                    robot: Robot::One,
+                    q: q1.clone(),
+                    tool: 0,
+                    group: 0,
+                    p_tracker: tracker_from_b1() * Point3::from(tip),
+                    noise: Noise3::Isotropic { sigma_m: 1e-4 },
+                },
+            });
+        }
+        p.observations = obs;
+        p.trackers = vec![TrackerGroup {
+            name: "t".into(),
+            anchor: Robot::One,
+            initial_tracker_from_anchor: None,
+            fit_scale: false,
+            fit_drift: false,
+        }];
+        let mut truth = sc.truth.clone();
+        truth.tracker_from_anchor = vec![frame];
+        truth.tracker_scale = vec![0.0];
+        truth.tracker_drift_m = vec![Vector3::zeros()];
+        (p, truth)
+    }
+
+    /// At the true cell, split scoring recovers the unknown tracker frame from half the rows
+    /// (every residual ~0); fixed scoring with the true frame agrees, with a wrong one does
+    /// not; a group too small to split is refused by name.
+    #[test]
+    fn split_and_fixed_scoring_at_the_truth() {
+        let (p, truth) = problem(10, Isometry3::identity());
+        let options = SolveOptions::default();
+        let split = held_out_residuals(&p, &truth, NuisanceMode::Split, &options).unwrap();
+        assert_eq!(split.len(), 20);
+        assert_eq!(split[0].kind, Kind::Coincident);
+        assert_eq!(split[12].group, Some((GroupKind::Tracker, 0)));
+        for r in &split {
+            assert!(r.raw_m.norm() < EXACT_M, "{r:?}");
+        }
+        // The tracker frame fitted on all rows is the true one; carried over, it scores ~0.
+        let all: Vec<usize> = (0..20).collect();
+        let fitted = fit_nuisances(&p, &truth, &all, &options).unwrap();
+        let moved = fitted.tracker_from_anchor[0].inverse() * tracker_from_b1();
+        assert!(moved.translation.vector.norm() < EXACT_M, "{moved}");
+        assert_eq!(fitted.b1_from_b2, truth.b1_from_b2);
+        let carried = carry_nuisances(&p, &fitted, &p, &truth).unwrap();
+        let fixed = held_out_residuals(&p, &carried, NuisanceMode::Fixed, &options).unwrap();
+        assert!(fixed.iter().all(|r| r.raw_m.norm() < EXACT_M));
+        // The identity frame as given: the tracker rows are metres off.
+        let wrong = held_out_residuals(&p, &truth, NuisanceMode::Fixed, &options).unwrap();
+        assert!(wrong[10..].iter().all(|r| r.raw_m.norm() > 0.1));
+        // Five tracker rows cannot be split into two halves of three.
+        let (small, truth) = problem(5, Isometry3::identity());
+        let err = held_out_residuals(&small, &truth, NuisanceMode::Split, &options)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("tracker group `t` has 5 row(s)") && err.contains("at least 6"),
+            "{err}"
+        );
+        // A group missing from the calibration session is named.
+        let mut renamed = p.clone();
+        renamed.trackers[0].name = "u".into();
+        let err = carry_nuisances(&p, &fitted, &renamed, &truth)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("tracker group `u`") && err.contains("its groups: t"),
+            "{err}"
+        );
+    }
 }
