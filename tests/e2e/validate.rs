@@ -77,7 +77,7 @@ fn calibrated_cell_beats_nominal_on_held_out_sessions() {
     // contact distance, other poses) held out.
     let [train, mixed] = mixed_sessions(dir.path(), &truth, 40, 3);
     let out = dir.path().join("cal");
-    let cal = handclasp(&[
+    let calibrated = handclasp(&[
         "calibrate",
         "--cell",
         truth_path.to_str().unwrap(),
@@ -87,7 +87,9 @@ fn calibrated_cell_beats_nominal_on_held_out_sessions() {
         out.to_str().unwrap(),
         "--json",
     ]);
-    assert_success(&cal);
+    assert_success(&calibrated);
+    // calibrate --cell reports the session's coverage.
+    crate::diagnose::assert_coverage(&stdout_json(&calibrated)["coverage"], None);
     let cal_cell = out.join("cell.toml");
     let (cal_cell, truth_s) = (cal_cell.to_str().unwrap(), nominal_path.to_str().unwrap());
 
