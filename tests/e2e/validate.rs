@@ -127,7 +127,7 @@ fn calibrated_cell_beats_nominal_on_held_out_sessions() {
             train.to_str().unwrap(),
         ][..],
     ] {
-        let (v, _) = validate(
+        let (v, stderr) = validate(
             &[
                 &[
                     "--cell",
@@ -163,6 +163,13 @@ fn calibrated_cell_beats_nominal_on_held_out_sessions() {
         }
         assert_eq!(v["groups_improved"], serde_json::json!([4, 4]));
         assert!(f(&v["all"]["rms_ratio"]) < 0.8, "{extra:?}: {v}");
+        // The tracker's σ (0.05 mm) is far below what the calibration leaves (tenths of mm):
+        // the whitened rms is above 3, and said so.
+        assert!(f(&v["all"]["calibrated"]["whitened_rms"]) > 3.0, "{v}");
+        assert!(
+            stderr.contains("times the stated noise") && stderr.contains("the nominal cell: "),
+            "{stderr}"
+        );
     }
 
     // The text report names the units and the verdict.

@@ -20,7 +20,8 @@
 //!    for both cells, and their ratio.
 //!
 //! A calibrated cell whose whitened rms over all rows is above the nominal cell's prints a
-//! `warning:` on stderr.
+//! `warning:` on stderr, as does one whose whitened rms over all rows is above
+//! [`NOISE_WARNING_WHITENED_RMS`] (the data contradict the stated noise).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -33,6 +34,13 @@ use calib_core::whole_cell::{
 use handclasp_cell::problem::{cell_problem, truth_estimate, FitModel};
 use handclasp_cell::{Cell, Session};
 use serde::Serialize;
+
+/// A whitened rms over all rows above this prints a `warning:`: the rows are this many times
+/// as far off as the cell's and session's stated σ allow. Over the tens of residuals of a
+/// session, chance alone keeps the whitened rms within a few tenths of 1 (its sampling spread is
+/// about `1/sqrt(2·residuals)`); 3 is far beyond that, and below the factors an understated σ
+/// or an unmodelled error produces (tens, on the CTU tracker files).
+pub const NOISE_WARNING_WHITENED_RMS: f64 = 3.0;
 
 /// Arguments of `handclasp validate`.
 #[derive(clap::Args, Debug)]
@@ -359,6 +367,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 r.all.calibrated.whitened_rms, n.whitened_rms
             );
         }
+    }
+    let w = r.all.calibrated.whitened_rms;
+    if w > NOISE_WARNING_WHITENED_RMS {
+        eprintln!(
+            "warning: the calibrated cell's residuals on this session are {w:.1} times the stated \
+             noise (whitened rms; 1 = as stated): the session's σ columns or the cell's [noise] \
+             understate it, or the cell misses an error on these poses{}",
+            r.all.nominal.map_or(String::new(), |n| format!(
+                " (the nominal cell: {:.1} times)",
+                n.whitened_rms
+            ))
+        );
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
