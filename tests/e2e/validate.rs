@@ -163,13 +163,9 @@ fn calibrated_cell_beats_nominal_on_held_out_sessions() {
         }
         assert_eq!(v["groups_improved"], serde_json::json!([4, 4]));
         assert!(f(&v["all"]["rms_ratio"]) < 0.8, "{extra:?}: {v}");
-        // The tracker's σ (0.05 mm) is far below what the calibration leaves (tenths of mm):
-        // the whitened rms is above 3, and said so.
-        assert!(f(&v["all"]["calibrated"]["whitened_rms"]) > 3.0, "{v}");
-        assert!(
-            stderr.contains("times the stated noise") && stderr.contains("the nominal cell: "),
-            "{stderr}"
-        );
+        // Within 3 times the stated noise (measured 1.7 with split nuisances): no warning.
+        assert!(f(&v["all"]["calibrated"]["whitened_rms"]) < 3.0, "{v}");
+        assert!(!stderr.contains("warning:"), "{stderr}");
     }
 
     // The text report names the units and the verdict.
@@ -204,6 +200,13 @@ fn calibrated_cell_beats_nominal_on_held_out_sessions() {
         cal_cell,
     ]);
     assert!(f(&v["all"]["rms_ratio"]) > 1.0, "{v}");
+    // The nominal cell's rows are many times the stated noise (measured 17 with split
+    // nuisances), and said so.
+    assert!(f(&v["all"]["calibrated"]["whitened_rms"]) > 3.0, "{v}");
+    assert!(
+        stderr.contains("times the stated noise") && stderr.contains("(the nominal cell: "),
+        "{stderr}"
+    );
     assert!(
         stderr
             .contains("warning: the calibrated cell fits this session worse than the nominal cell"),
