@@ -273,9 +273,7 @@ fn run_block(clone: &Clone, place: &str, script: &str) -> Ran {
     let path = std::env::var_os("PATH").unwrap_or_default();
     let mut paths = vec![clone.bin.clone()];
     paths.extend(std::env::split_paths(&path));
-    let full = format!(
-        "trap 'echo \"docs test: failed: $BASH_COMMAND\" >&2' ERR\n{script}"
-    );
+    let full = format!("trap 'echo \"docs test: failed: $BASH_COMMAND\" >&2' ERR\n{script}");
     let start = Instant::now();
     let out = Command::new("bash")
         .args(["--noprofile", "--norc", "-euo", "pipefail", "-c", &full])
@@ -345,8 +343,8 @@ fn run_page(page: &str) {
 /// Runs the command blocks of `page` in order in `clone`, checking output samples and
 /// annotations, and prints what ran and what was skipped.
 fn run_blocks(clone: &Clone, page: &str) {
-    let text = std::fs::read_to_string(workspace(page))
-        .unwrap_or_else(|e| panic!("read {page}: {e}"));
+    let text =
+        std::fs::read_to_string(workspace(page)).unwrap_or_else(|e| panic!("read {page}: {e}"));
     let blocks = blocks(&text, page);
     let data = shared_data();
     let mut last: Option<(String, Ran)> = None;
@@ -407,7 +405,11 @@ fn pages() -> BTreeSet<String> {
         .map(String::from)
         .collect();
     for entry in std::fs::read_dir(workspace("docs/guide")).expect("docs/guide") {
-        let name = entry.expect("entry").file_name().to_string_lossy().into_owned();
+        let name = entry
+            .expect("entry")
+            .file_name()
+            .to_string_lossy()
+            .into_owned();
         if name.ends_with(".md") {
             pages.insert(format!("docs/guide/{name}"));
         }
@@ -587,7 +589,10 @@ fn the_parsers_find_blocks_annotations_and_links() {
         (4, "sh", "echo a\n")
     );
     assert_eq!(b[0].annotation.as_deref(), Some("skip needs the network"));
-    assert_eq!((b[1].lang.as_str(), b[1].annotation.as_deref()), ("toml", None));
+    assert_eq!(
+        (b[1].lang.as_str(), b[1].annotation.as_deref()),
+        ("toml", None)
+    );
     assert_eq!(relative_links(page), vec![(7, "docs/a.md".to_string())]);
 }
 
