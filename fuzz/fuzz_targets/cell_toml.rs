@@ -1,4 +1,4 @@
-//! Cell TOML text → `sim_cell::Cell`. The base directory is the repository's `cells/`, so the
+//! Cell TOML text → `handclasp_cell::Cell`. The base directory is the repository's `cells/`, so the
 //! shipped cells (the seed corpus) resolve `../robots/*.urdf` to the real robots: the target
 //! exercises the TOML schema, units, mounts, errors and tolerances on real models without a temp
 //! directory per input (URDF text itself is the `urdf` target's job). A cell that loads must
@@ -8,8 +8,8 @@
 #[path = "common.rs"]
 mod common;
 
+use handclasp_cell::Cell;
 use libfuzzer_sys::fuzz_target;
-use sim_cell::Cell;
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else {

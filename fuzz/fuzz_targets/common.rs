@@ -6,9 +6,9 @@ use calib_core::nalgebra;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+use handclasp_cell::Cell;
 use kinematics::RobotModel;
 use nalgebra::Isometry3;
-use sim_cell::Cell;
 
 /// The repository root (the fuzz crate sits in `<root>/fuzz`).
 pub fn repo_root() -> PathBuf {
@@ -34,17 +34,31 @@ pub const CELL_FILES: [&str; 4] = [
 /// `(URDF text, model with tool link tool0)` of every shipped robot.
 pub fn robots() -> &'static [(String, RobotModel)] {
     static ROBOTS: OnceLock<Vec<(String, RobotModel)>> = OnceLock::new();
-    ROBOTS.get_or_init(|| {
-        ROBOT_FILES
-            .iter()
-            .map(|f| {
-                let path = repo_root().join("robots").join(f);
-                let text = std::fs::read_to_string(&path).expect("shipped URDF readable");
-                let model = RobotModel::from_urdf_str(&text, "tool0").expect("shipped URDF loads");
-                (text, model)
-            })
-            .collect()
-    })
+    ROBOTS.get_or_init(|| load_urdfs("robots", &ROBOT_FILES))
+}
+
+/// Test fixtures of the kinematics crate (`crates/kinematics/tests/fixtures/`) with what the
+/// shipped robots lack: a prismatic track under an arm, prismatic joints on oblique axes and in
+/// the middle of a chain, `<mimic>` couplings.
+pub const FIXTURE_FILES: [&str; 3] = ["rail_6r.urdf", "mixed_chain.urdf", "mimic_torso.urdf"];
+
+/// `(URDF text, model with tool link tool0)` of every [`FIXTURE_FILES`] entry.
+pub fn fixture_robots() -> &'static [(String, RobotModel)] {
+    static ROBOTS: OnceLock<Vec<(String, RobotModel)>> = OnceLock::new();
+    ROBOTS.get_or_init(|| load_urdfs("crates/kinematics/tests/fixtures", &FIXTURE_FILES))
+}
+
+/// `(text, model with tool link tool0)` of each of `files` in the repository folder `dir`.
+fn load_urdfs(dir: &str, files: &[&str]) -> Vec<(String, RobotModel)> {
+    files
+        .iter()
+        .map(|f| {
+            let path = repo_root().join(dir).join(f);
+            let text = std::fs::read_to_string(&path).expect("URDF readable");
+            let model = RobotModel::from_urdf_str(&text, "tool0").expect("URDF loads");
+            (text, model)
+        })
+        .collect()
 }
 
 /// Every shipped cell.

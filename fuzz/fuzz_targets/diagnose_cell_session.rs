@@ -14,11 +14,10 @@ mod common;
 
 use arbitrary::Arbitrary;
 use diagnose::{diagnose_cell_session, render_cell_text, CellDiagnoseOptions};
+use handclasp_cell::SessionKind;
 use kinematics::{Axis, ErrorParam};
 use libfuzzer_sys::fuzz_target;
-use sim_cell::{
-    generate_kind_session, trial_rng, KindSpec, Layout, SessionKind, SessionSpec, SimKind,
-};
+use sim_cell::{generate_kind_session, trial_rng, KindSpec, Layout, SessionSpec, SimKind};
 
 #[derive(Debug, Arbitrary)]
 struct HiddenError {

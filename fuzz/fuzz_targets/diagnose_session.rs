@@ -19,12 +19,12 @@ use calib_core::identify::SelectionOptions;
 use calib_core::LmOptions;
 use calib_core::nalgebra;
 use diagnose::{diagnose_session, DiagnoseOptions};
+use handclasp_cell::{Session, SessionPoint};
 use kinematics::{
     base_from_tip, ik_tip_position, true_base_from_tip, IkOptions, KinematicErrors, RobotModel,
 };
 use libfuzzer_sys::fuzz_target;
 use nalgebra::Point3;
-use sim_cell::{Session, SessionPoint};
 
 #[derive(Debug, Arbitrary)]
 struct HiddenError {

@@ -1,5 +1,6 @@
-//! FK, Jacobians and IK of the shipped robots (`robots/*.urdf`, tool link `tool0`) on arbitrary
-//! joint vectors, tips, targets and options. No call may panic; an FK or Jacobian that accepts
+//! FK, Jacobians and IK of the shipped robots (`robots/*.urdf`, tool link `tool0`) and the
+//! kinematics crate's prismatic and coupled-joint fixtures on arbitrary joint vectors, tips,
+//! targets and options. No call may panic; an FK or Jacobian that accepts
 //! its input returns finite values; every Ok IK solution is finite and within the joint limits,
 //! and a converged one puts the tip on its target to the stated tolerance.
 #![no_main]
@@ -72,8 +73,12 @@ fn finite(v: impl IntoIterator<Item = f64>) -> bool {
 }
 
 fuzz_target!(|input: Input| {
-    let robots = common::robots();
-    let model = &robots[usize::from(input.robot) % robots.len()].1;
+    let robots: Vec<&RobotModel> = common::robots()
+        .iter()
+        .chain(common::fixture_robots())
+        .map(|(_, m)| m)
+        .collect();
+    let model = robots[usize::from(input.robot) % robots.len()];
     let q = joints(model, &input.q);
     let tip = match input.raw_tip {
         Some(t) => Vector3::from(t),

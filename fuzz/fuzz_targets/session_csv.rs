@@ -1,4 +1,4 @@
-//! Session CSV text → `sim_cell::Session::parse_csv` for a shipped cell. Input: one byte choosing
+//! Session CSV text → `handclasp_cell::Session::parse_csv` for a shipped cell. Input: one byte choosing
 //! the cell (`cells/*.toml`, see `common::CELL_FILES`), then the CSV text.
 #![no_main]
 
@@ -7,8 +7,8 @@ mod common;
 
 use std::path::Path;
 
+use handclasp_cell::Session;
 use libfuzzer_sys::fuzz_target;
-use sim_cell::Session;
 
 fuzz_target!(|data: &[u8]| {
     let Some((&which, rest)) = data.split_first() else {

@@ -6,10 +6,11 @@
 use std::path::{Path, PathBuf};
 
 use calib_core::Robot;
+use handclasp_cell::Cell;
+use handclasp_cell::Session;
 use kinematics::{base_from_tip, true_base_from_tip, KinematicErrors, PATCH_TOLERANCE_M};
 use nalgebra::{Point3, Vector3};
 use serde_json::Value;
-use sim_cell::{Cell, Session};
 
 use crate::support::{
     assert_success, cell_session_args, handclasp, random_session, shipped_cell, stdout_json,

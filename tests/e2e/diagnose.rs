@@ -3,8 +3,9 @@
 
 use std::path::{Path, PathBuf};
 
+use handclasp_cell::Cell;
 use kinematics::ErrorParam;
-use sim_cell::{trial_rng, Cell, Layout, SessionSpec};
+use sim_cell::{trial_rng, Layout, SessionSpec};
 
 use crate::support::{
     assert_success, cell_session_args, ctu_data_or_skip, ctu_import, handclasp, random_session,

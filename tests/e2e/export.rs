@@ -7,9 +7,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use calib_core::Robot;
+use handclasp_cell::Cell;
 use kinematics::{base_from_flange, RobotModel};
 use serde_json::Value;
-use sim_cell::Cell;
 
 use crate::support::{
     assert_success, cell_session_args, handclasp, json_ok, random_session, shipped_cell,

@@ -375,7 +375,7 @@ fn fk_cell_q_csv_equals_true_fk_with_compliance() {
     );
     assert_eq!(rows.len(), BATCH_Q_DEG.len());
 
-    let cell = sim_cell::Cell::from_toml_file(&cell_path).unwrap();
+    let cell = handclasp_cell::Cell::from_toml_file(&cell_path).unwrap();
     let r1 = &cell.robot1;
     assert!(r1.errors.compliance[1] > 0.0);
     let nominal = RobotModel::from_urdf_file(Path::new(HP20), "tool0").unwrap();
@@ -595,4 +595,83 @@ fn verbose_lists_ignored_branches() {
     let out = handclasp(&["ik", "--robot", HP20, "--xyz-mm", "1000,0,900", "--verbose"]);
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(e.contains("no URDF joint or link outside the chain"), "{e}");
+}
+
+/// A robot on a rail (`crates/kinematics/tests/fixtures/rail_6r.urdf`: the hp20 on a 4 m track
+/// along the floor's x axis turned 0.2 rad about z): the track's value is in millimetres in the
+/// `--q-deg` list, the JSON names the units, and the pose is the library's at 1.5 m. Out of travel
+/// and metres-looking values are refused or warned about in mm.
+#[test]
+fn fk_and_ik_take_a_prismatic_joint_in_millimetres() {
+    const RAIL: &str = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../kinematics/tests/fixtures/rail_6r.urdf"
+    );
+    let v = json_ok(&[
+        "fk",
+        "--robot",
+        RAIL,
+        "--q-deg",
+        "1500,0,10,-20,0,30,0",
+        "--json",
+    ]);
+    let model = RobotModel::from_urdf_file(Path::new(RAIL), "tool0").unwrap();
+    let q = [
+        1.5,
+        0.0,
+        10f64.to_radians(),
+        -20f64.to_radians(),
+        0.0,
+        30f64.to_radians(),
+        0.0,
+    ];
+    let want = base_from_tip(&model, &q, &Vector3::zeros())
+        .unwrap()
+        .translation
+        .vector
+        * 1e3;
+    for (got, want) in floats(&v["xyz_mm"]).iter().zip(want.iter()) {
+        assert!((got - want).abs() < EXACT_MM, "{v}");
+    }
+    let units: Vec<&str> = v["q_units"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|u| u.as_str().unwrap())
+        .collect();
+    assert_eq!(units, ["mm", "deg", "deg", "deg", "deg", "deg", "deg"]);
+    // A revolute-only robot's JSON has no q_units.
+    let hp20 = json_ok(&["fk", "--robot", HP20, "--q-deg", "0,0,0,0,0,0", "--json"]);
+    assert!(hp20.get("q_units").is_none());
+
+    let err = stderr_of_failure(&["fk", "--robot", RAIL, "--q-deg", "4500,0,0,0,0,0,0"]);
+    assert!(
+        err.contains("is prismatic and 4500 mm, outside its limits 0.000..4000.000 mm"),
+        "{err}"
+    );
+    let out = handclasp(&["fk", "--robot", RAIL, "--q-deg", "0.5,0,0,0,0,0,0"]);
+    assert!(out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.starts_with("warning: --q-deg: joint 1 (rail) is prismatic and 0.5 mm"),
+        "{stderr}"
+    );
+
+    // IK reports the rail in mm, and its answer reaches the target.
+    let target = format!("{},{},{}", want.x, want.y, want.z);
+    let v = json_ok(&["ik", "--robot", RAIL, "--xyz-mm", &target, "--json"]);
+    assert_eq!(v["reachable"], Value::Bool(true));
+    assert_eq!(v["q_units"][0], "mm");
+    let q_cli = floats(&v["q_deg"]);
+    let q_si: Vec<f64> = q_cli
+        .iter()
+        .enumerate()
+        .map(|(i, x)| if i == 0 { x * 1e-3 } else { x.to_radians() })
+        .collect();
+    let reached = base_from_tip(&model, &q_si, &Vector3::zeros())
+        .unwrap()
+        .translation
+        .vector
+        * 1e3;
+    assert!((reached - want).norm() < ROUND_TRIP_MM, "{v}");
 }

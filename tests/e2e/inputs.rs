@@ -5,7 +5,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::Stdio;
 
-use sim_cell::Cell;
+use handclasp_cell::Cell;
 
 use crate::support::{handclasp_command, random_session, shipped_cell};
 

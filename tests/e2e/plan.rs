@@ -2,7 +2,8 @@
 //! for the same cell (what `sim-cell session --plan` consumes), its poses are within both robots'
 //! joint limits, and the JSON carries the documented keys.
 
-use sim_cell::{Cell, Session};
+use handclasp_cell::Cell;
+use handclasp_cell::Session;
 
 use crate::support::{handclasp, shipped_cell, stdout_json};
 

@@ -2,9 +2,10 @@
 //! robots, nominal-model tips) is valid input to `handclasp calibrate`, which recovers the cell's
 //! true `b1_from_b2`. (The `sim-cell` binary itself is tested in `crates/sim-cell/tests/sim_cell/cli.rs`.)
 
+use handclasp_cell::Cell;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use serde_json::Value;
-use sim_cell::{Cell, Layout};
+use sim_cell::Layout;
 
 use crate::support::{floats, json_ok, simulate, workspace, write_session_csv};
 
@@ -45,7 +46,7 @@ fn errors(v: &Value, cell: &Cell) -> (f64, f64) {
 fn simulated_zero_noise_session_is_recovered_by_calibrate() {
     // The floor-wall cell with its rotation exactly in the wall family (Table 1's is 0.126° off).
     let dir = tempfile::tempdir().unwrap();
-    let text = sim_cell::cell::FLOOR_WALL_TOML.replace(
+    let text = handclasp_cell::cell::FLOOR_WALL_TOML.replace(
         "zyz_deg = [180.0, 89.874, -179.997]",
         "zyz_deg = [180.0, 90.0, -180.0]",
     );

@@ -8,8 +8,10 @@ use std::fmt::Debug;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use handclasp_cell::Cell;
+use handclasp_cell::Session;
 use serde_json::Value;
-use sim_cell::{generate_session, trial_rng, Cell, Layout, Session, SessionSpec};
+use sim_cell::{generate_session, trial_rng, Layout, SessionSpec};
 
 /// `rel` inside the workspace root (the folder holding `cells/`, `robots/` and `tools/`).
 pub fn workspace(rel: &str) -> PathBuf {

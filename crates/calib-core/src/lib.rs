@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 
 mod error;
+mod fit_report;
 pub mod identify;
 mod lm;
 mod metrics;
@@ -22,6 +23,9 @@ pub mod whole_cell;
 pub use nalgebra;
 
 pub use error::CalibError;
+pub use fit_report::{
+    FitReport, MountCheckReport, OutliersReport, SoftMountReport, UncertaintyReport,
+};
 pub use kinematics::{
     rotation_from_zyz, wrap_angle, zyz_canonical, zyz_from_rotation, zyz_nearest,
     ZYZ_CANONICAL_TILT_RAD,
@@ -36,7 +40,7 @@ pub use points::{
     csv_delimiter, csv_reader, parse_points_csv, read_points_csv, strip_bom, PointPairs,
     DUPLICATE_DISTANCE_M, METRES_LIMIT_MM, SPREAD_RATIO_LIMIT,
 };
-pub use pose::PoseMmDeg;
+pub use pose::{PoseForms, PoseMmDeg};
 pub use registration::{
     affine_lsq_fast, constrained_fast, constrained_lsq, fit, fit_fast, fit_unconstrained,
     generic_4point, generic_fast, nearest_rotation, paper_constrained, paper_fast,

@@ -1,7 +1,7 @@
 //! A pose as files and robot controllers write it: x, y, z in mm and ZYZ angles in degrees,
 //! `R = Rz(φ)·Ry(θ)·Rz(ψ)`. Code works in m and rad ([`Isometry3`]); this is the file edge.
 
-use kinematics::euler::{rotation_from_zyz, zyz_nearest};
+use kinematics::euler::{rotation_from_zyz, zyz_canonical, zyz_nearest};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 
@@ -46,6 +46,40 @@ impl PoseMmDeg {
     /// The ZYZ angles in radians.
     pub fn zyz_rad(&self) -> [f64; 3] {
         self.zyz_deg.map(f64::to_radians)
+    }
+}
+
+/// A pose `a_from_b` in every form the reports print: translation x, y, z (mm), ZYZ φ, θ, ψ
+/// (degrees, `R = Rz(φ)·Ry(θ)·Rz(ψ)`, canonical branch: [`zyz_canonical`]), the rotation matrix
+/// (row-major, `rotation[i][j] = R[(i, j)]`: column j is b's axis j in a's axes) and the unit
+/// quaternion `[w, x, y, z]`. Which frames it relates is named by the field that holds it.
+///
+/// Fields in alphabetical order, which is the JSON key order of every report that prints one.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PoseForms {
+    /// Unit quaternion `[w, x, y, z]`.
+    pub quaternion_wxyz: [f64; 4],
+    /// Rotation matrix, row-major.
+    pub rotation: [[f64; 3]; 3],
+    /// x, y, z, mm.
+    pub xyz_mm: [f64; 3],
+    /// φ, θ, ψ (ZYZ, canonical branch), degrees.
+    pub zyz_deg: [f64; 3],
+}
+
+impl PoseForms {
+    /// The forms of an isometry (m, rad): millimetres are metres × 1000, the ZYZ angles are
+    /// [`zyz_canonical`]'s in degrees.
+    pub fn from_isometry(a_from_b: &Isometry3<f64>) -> Self {
+        let t = a_from_b.translation.vector * 1e3;
+        let r = a_from_b.rotation.to_rotation_matrix();
+        let q = a_from_b.rotation;
+        PoseForms {
+            quaternion_wxyz: [q.w, q.i, q.j, q.k],
+            rotation: [0, 1, 2].map(|i| [0, 1, 2].map(|j| r[(i, j)])),
+            xyz_mm: [t.x, t.y, t.z],
+            zyz_deg: zyz_canonical(&r).map(f64::to_degrees),
+        }
     }
 }
 
@@ -104,6 +138,33 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("zyz_degs"), "{e}");
+    }
+
+    /// The four forms of one pose: a 90° turn about z (columns of the matrix are b's axes in a)
+    /// and 1.5 m along x; a pure yaw, which the canonical ZYZ writes as ψ alone (θ = φ = 0).
+    #[test]
+    fn pose_forms_of_a_turn_about_z() {
+        let a_from_b = Isometry3::new(
+            nalgebra::Vector3::new(1.5, 0.0, -0.25),
+            nalgebra::Vector3::z() * std::f64::consts::FRAC_PI_2,
+        );
+        let f = PoseForms::from_isometry(&a_from_b);
+        assert_eq!(f.xyz_mm, [1500.0, 0.0, -250.0]);
+        let want = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]];
+        for (row, want_row) in f.rotation.iter().zip(want) {
+            for (v, w) in row.iter().zip(want_row) {
+                assert!((v - w).abs() < 1e-15, "{:?}", f.rotation);
+            }
+        }
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        for (q, w) in f.quaternion_wxyz.iter().zip([h, 0.0, 0.0, h]) {
+            assert!((q - w).abs() < 1e-15, "{:?}", f.quaternion_wxyz);
+        }
+        assert!(f.zyz_deg[0] == 0.0 && f.zyz_deg[1] == 0.0 && (f.zyz_deg[2] - 90.0).abs() < 1e-12);
+        let json = serde_json::to_string(&f).unwrap();
+        assert!(
+            json.starts_with(r#"{"quaternion_wxyz":["#) && json.contains(r#""zyz_deg":[0.0,0.0,"#)
+        );
     }
 
     /// Millimetres become metres by a correctly rounded division: 0.3 mm is exactly the f64

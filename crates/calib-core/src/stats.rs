@@ -1,6 +1,7 @@
 //! The workspace's one home of statistics: tail probabilities and quantiles of the usual
 //! distributions (through `statrs`), sample quantiles with distribution-free confidence intervals,
-//! correlation, and a tested 1-D maximiser of a log-likelihood with its profile interval.
+//! correlation, a tested 1-D maximiser of a log-likelihood with its profile interval, and the
+//! seeded generator of one Monte Carlo trial ([`trial_rng`]).
 //!
 //! Conventions: `dof` is an integer count of degrees of freedom; a distribution with `dof = 0` is
 //! undefined and every function says what it returns then (NaN for quantiles and χ² tails, 1 for
@@ -8,6 +9,15 @@
 //! must be ascending and finite ([`sorted_finite`] makes such a vector).
 
 use statrs::distribution::{ChiSquared, ContinuousCDF, FisherSnedecor, Normal, StudentsT};
+
+/// The generator of Monte Carlo trial `index` under master `seed`: ChaCha8 seeded with `seed`,
+/// stream `index`. Any trial can be replayed alone, and results never depend on thread count.
+pub fn trial_rng(seed: u64, index: u64) -> rand_chacha::ChaCha8Rng {
+    use rand::SeedableRng;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(index);
+    rng
+}
 
 /// z of a two-sided 95 % normal interval, `Φ⁻¹(0.975)`.
 pub const Z95: f64 = 1.959_963_984_540_054;

@@ -7,35 +7,49 @@
 //!
 //! Default method: `constrained` when mounts are given, otherwise `lsq`.
 
-use anyhow::{bail, Context};
-use calib_core::{
-    constrained_soft, explain_misfit, fit, leave_one_out, median_residual_m, mount_check,
-    read_points_csv, zyz_canonical, Fit, Method, Mount, MountPair, PointPairs, MOUNT_CHECK_ALPHA,
-};
-use serde_json::{json, Value};
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
 use std::path::PathBuf;
 
-/// Arguments of `handclasp calibrate`.
+use anyhow::{bail, Context};
+use calib_core::{
+    constrained_soft, explain_misfit, fit, median_residual_m, mount_check, read_points_csv, Fit,
+    FitReport, Method, Mount, MountCheckReport, MountPair, PointPairs, SoftMountReport,
+};
+use serde::Serialize;
+
+use crate::calibrate_cell::CellArgs;
+
+/// Arguments of `handclasp calibrate`: the points path's own ([`PointsArgs`]), the whole-cell
+/// path's own ([`CellArgs`], chosen by `--cell`), and the two flags both paths take.
+///
+/// `display_order` keeps `--help` in the order the options had when the two paths shared one
+/// struct: the two groups' options first, then `--json`, `--expected-noise-mm`, `--force`,
+/// `--verbose`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
+    /// The whole-cell path's arguments.
+    #[command(flatten)]
+    pub cell: CellArgs,
+    /// The points path's arguments.
+    #[command(flatten)]
+    pub points: PointsArgs,
+    /// Print one JSON object instead of the table.
+    #[arg(long, display_order = 100)]
+    pub json: bool,
+    /// Keep a fit whose residuals exceed --expected-noise-mm (a warning is printed on stderr);
+    /// with --cell --export, write into a non-empty folder.
+    #[arg(long, display_order = 102)]
+    pub force: bool,
+}
+
+/// The points path's own arguments of `handclasp calibrate` (`calibrate POINTS.csv`).
+#[derive(clap::Args, Debug)]
+pub struct PointsArgs {
     /// CSV of handclasp points (mm): columns r1_x_mm,r1_y_mm,r1_z_mm,r2_x_mm,r2_y_mm,r2_z_mm.
     /// Required unless --cell is given.
     #[arg(required_unless_present = "cell", conflicts_with = "cell")]
     pub points: Option<PathBuf>,
-    /// Whole-cell calibration: the cell TOML (robots, tips, noise, [robotN.tolerance]).
-    #[arg(long, requires = "session", conflicts_with_all = ["mounts", "mount1", "mount2", "method", "tilt_sigma_deg"])]
-    pub cell: Option<PathBuf>,
-    /// With --cell: the session CSV (point, r1_q*_deg, r2_q*_deg, r1_x_mm … r2_z_mm).
-    #[arg(long, requires = "cell")]
-    pub session: Option<PathBuf>,
-    /// With --cell: kinematic (b1_from_b2 and every identifiable kinematic parameter of both
-    /// robots, MAP with the cell's tolerances) or placement (b1_from_b2 only).
-    #[arg(long, requires = "cell", value_enum, default_value = "kinematic")]
-    pub model: crate::calibrate_cell::ModelArg,
-    /// With --cell: write DIR/cell.toml, DIR/robot1.urdf and DIR/robot2.urdf (the calibrated cell).
-    /// DIR must be new or empty, unless --force (files of the same names are overwritten).
-    #[arg(long, requires = "cell")]
-    pub export: Option<PathBuf>,
     /// The paper's cells: floor-floor, floor-wall or floor-ceiling (robot 1 is on the floor).
     #[arg(long, conflicts_with_all = ["mount1", "mount2"])]
     pub mounts: Option<String>,
@@ -56,22 +70,11 @@ pub struct Args {
     /// Point noise σ per coordinate for the soft mount, mm.
     #[arg(long, default_value_t = 0.5)]
     pub point_sigma_mm: f64,
-    /// Print one JSON object instead of the table.
-    #[arg(long)]
-    pub json: bool,
     /// Expected handclasp alignment noise, mm: a fit whose median residual norm exceeds it fails
     /// with the likely data mistake (rows out of order, swapped axes, wrong units, wrong robot
     /// order) and the worst rows, unless --force is given.
-    #[arg(long, default_value_t = calib_core::DEFAULT_EXPECTED_NOISE_M * 1e3)]
+    #[arg(long, default_value_t = calib_core::DEFAULT_EXPECTED_NOISE_M * 1e3, display_order = 101)]
     pub expected_noise_mm: f64,
-    /// Keep a fit whose residuals exceed --expected-noise-mm (a warning is printed on stderr);
-    /// with --cell --export, write into a non-empty folder.
-    #[arg(long)]
-    pub force: bool,
-    /// With --cell: also list (on stderr) each URDF's joints and links outside the
-    /// base-to-flange chain, which are ignored.
-    #[arg(long, requires = "cell")]
-    pub verbose: bool,
 }
 
 /// Validated configuration.
@@ -87,7 +90,8 @@ struct Config {
     force: bool,
 }
 
-fn config(args: Args) -> anyhow::Result<Config> {
+/// The points path's configuration from its arguments and the command's `--json`, `--force`.
+fn config(args: PointsArgs, json: bool, force: bool) -> anyhow::Result<Config> {
     let mounts = match (&args.mounts, &args.mount1, &args.mount2) {
         (Some(m), _, _) => {
             Some(MountPair::parse_paper(m).context("--mounts (or give --mount1 and --mount2)")?)
@@ -164,55 +168,83 @@ fn config(args: Args) -> anyhow::Result<Config> {
         .context("give the points CSV (or --cell CELL --session SESSION)")?;
     Ok(Config {
         expected_noise_m: args.expected_noise_mm * 1e-3,
-        force: args.force,
+        force,
         soft,
         points,
         mounts,
         methods,
         all,
-        json: args.json,
+        json,
     })
 }
 
-/// Runs `handclasp calibrate`.
+/// Runs `handclasp calibrate`: the whole-cell path with `--cell`, else the points path.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if args.cell.is_some() {
-        return crate::calibrate_cell::run(args);
+    if args.cell.cell.is_some() {
+        return crate::calibrate_cell::run(args.cell, args.json, args.force);
     }
-    let cfg = config(args)?;
+    let cfg = config(args.points, args.json, args.force)?;
     let pairs = read_points_csv(&cfg.points)?;
     let mounts = cfg.mounts.unwrap_or_else(MountPair::floor_floor);
     if !cfg.all {
         let method = cfg.methods[0];
-        let out = fit_report(&pairs, method, &mounts, &cfg)
+        let report = fit_report(&pairs, method, &mounts, &cfg)
             .with_context(|| format!("{}: method {}", cfg.points.display(), method.name()))?;
         if cfg.json {
-            println!("{}", serde_json::to_string_pretty(&out)?);
+            println!("{}", serde_json::to_string_pretty(&report)?);
         } else {
-            print_text(&out);
+            print!("{}", render_text(&report));
         }
         return Ok(());
     }
-    let mut methods = serde_json::Map::new();
+    let mut methods = BTreeMap::new();
     for &m in &cfg.methods {
-        let v = match fit_report(&pairs, m, &mounts, &cfg) {
-            Ok(v) => v,
-            Err(e) => json!({"method": m.name(), "error": format!("{e:#}")}),
+        let outcome = match fit_report(&pairs, m, &mounts, &cfg) {
+            Ok(r) => MethodOutcome::Fit(Box::new(r)),
+            Err(e) => MethodOutcome::NotApplicable {
+                error: format!("{e:#}"),
+                method: m,
+            },
         };
-        methods.insert(m.name().to_string(), v);
+        methods.insert(m.name(), outcome);
     }
+    let report = AllMethods { methods };
     if cfg.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&json!({"methods": methods}))?
-        );
+        println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        for v in methods.values() {
-            print_text(v);
+        for outcome in report.methods.values() {
+            print!("{}", outcome_text(outcome));
             println!();
         }
     }
     Ok(())
+}
+
+/// `calibrate --method all`: each method's report, or why it does not apply, by method name
+/// (a map: the JSON and the text list the methods in alphabetical order).
+#[derive(Debug, Serialize)]
+struct AllMethods {
+    methods: BTreeMap<&'static str, MethodOutcome>,
+}
+
+/// One method's outcome under `--method all`.
+#[derive(Debug, Serialize)]
+#[serde(untagged)]
+enum MethodOutcome {
+    /// The fit's report.
+    Fit(Box<FitReport>),
+    /// The method does not apply to these points (JSON `{"error": …, "method": …}`).
+    NotApplicable { error: String, method: Method },
+}
+
+/// The text of one method's outcome under `--method all`.
+fn outcome_text(outcome: &MethodOutcome) -> String {
+    match outcome {
+        MethodOutcome::Fit(r) => render_text(r),
+        MethodOutcome::NotApplicable { error, method } => {
+            format!("== method {}: not applicable: {error}\n", method.name())
+        }
+    }
 }
 
 /// Fits one method (the soft-mount variant for `constrained` when asked) and builds its report.
@@ -222,40 +254,26 @@ fn fit_report(
     method: Method,
     mounts: &MountPair,
     cfg: &Config,
-) -> anyhow::Result<Value> {
-    let mut v = if let (Method::Constrained, Some((tilt_sigma, point_sigma))) = (method, cfg.soft) {
-        let soft = constrained_soft(pairs, mounts, tilt_sigma, point_sigma)?;
-        plausible(pairs, &soft.fit, mounts, cfg)?;
-        let mut v = report(pairs, &soft.fit, cfg.mounts.as_ref());
-        v["soft_mount"] = json!({
-            "tilt_sigma_deg": tilt_sigma.to_degrees(),
-            "point_sigma_mm": point_sigma * 1e3,
-            "tilt_estimate_deg": soft.tilt_angle_rad.to_degrees(),
-            "tilt_vector_deg_b1": [soft.tilt_rad.x.to_degrees(), soft.tilt_rad.y.to_degrees(), soft.tilt_rad.z.to_degrees()],
-        });
-        v
-    } else {
-        let f = fit(pairs, method, mounts)?;
-        plausible(pairs, &f, mounts, cfg)?;
-        report(pairs, &f, cfg.mounts.as_ref())
-    };
+) -> anyhow::Result<FitReport> {
+    let mut report =
+        if let (Method::Constrained, Some((tilt_sigma, point_sigma))) = (method, cfg.soft) {
+            let soft = constrained_soft(pairs, mounts, tilt_sigma, point_sigma)?;
+            plausible(pairs, &soft.fit, mounts, cfg)?;
+            let mut report = FitReport::new(pairs, &soft.fit, cfg.mounts.as_ref());
+            report.soft_mount = Some(SoftMountReport::new(&soft, tilt_sigma, point_sigma));
+            report
+        } else {
+            let f = fit(pairs, method, mounts)?;
+            plausible(pairs, &f, mounts, cfg)?;
+            FitReport::new(pairs, &f, cfg.mounts.as_ref())
+        };
     if matches!(method, Method::Paper | Method::Constrained) && cfg.mounts.is_some() {
         // Fewer than 3 usable points already failed the fit above; anything else is reported.
         if let Ok(c) = mount_check(pairs, mounts) {
-            v["mount_check"] = json!({
-                "consistent": c.consistent(),
-                "alpha": MOUNT_CHECK_ALPHA,
-                "f_statistic": c.f_statistic,
-                "p_value": c.p_value,
-                "constraints": c.constraints,
-                "dof": c.dof_free,
-                "rotation_gap_deg": c.rotation_gap_rad.to_degrees(),
-                "rms_constrained_mm": mm((c.rss_constrained_m2 / pairs.len() as f64).sqrt()),
-                "rms_free_mm": mm((c.rss_free_m2 / pairs.len() as f64).sqrt()),
-            });
+            report.mount_check = Some(MountCheckReport::new(&c, pairs.len()));
         }
     }
-    Ok(v)
+    Ok(report)
 }
 
 /// Rows listed as the worst in a misfit error.
@@ -335,11 +353,11 @@ fn mm_text(v_mm: f64) -> String {
 }
 
 /// The text of a failed mount check: what the points say and what to do about it.
-fn mount_warning(c: &Value) -> Option<String> {
-    if c["consistent"].as_bool() != Some(false) {
+fn mount_warning(c: &MountCheckReport) -> Option<String> {
+    if c.consistent {
         return None;
     }
-    let gap = c["rotation_gap_deg"].as_f64().unwrap_or(f64::NAN);
+    let gap = c.rotation_gap_deg;
     let advice = if gap > 2.0 {
         "the mounts look wrong: check --mounts, or the sign and axis of --mount1/--mount2 tilt:RX,RY"
     } else {
@@ -347,188 +365,269 @@ fn mount_warning(c: &Value) -> Option<String> {
     };
     Some(format!(
         "WARNING: the points disagree with the mounts (F = {:.1}, p = {:.1e} < {}): the free rigid fit is {gap:.3}° from the nearest rotation they allow, and imposing them raises the residual RMS from {:.3} to {:.3} mm; {advice}",
-        c["f_statistic"].as_f64().unwrap_or(f64::NAN),
-        c["p_value"].as_f64().unwrap_or(f64::NAN),
-        c["alpha"].as_f64().unwrap_or(f64::NAN),
-        c["rms_free_mm"].as_f64().unwrap_or(f64::NAN),
-        c["rms_constrained_mm"].as_f64().unwrap_or(f64::NAN),
+        c.f_statistic, c.p_value, c.alpha, c.rms_free_mm, c.rms_constrained_mm,
     ))
 }
 
-fn mm(v: f64) -> f64 {
-    (v * 1e3 * 1e6).round() / 1e6
+/// The text report of one fit (mm, degrees).
+fn render_text(r: &FitReport) -> String {
+    let mut s = String::new();
+    // Writing into a String cannot fail.
+    let _ = write_text(&mut s, r);
+    s
 }
 
-fn deg(v: f64) -> f64 {
-    (v.to_degrees() * 1e9).round() / 1e9
-}
-
-/// The JSON object of one fit (all lengths mm, angles degrees).
-fn report(pairs: &PointPairs, f: &Fit, mounts: Option<&MountPair>) -> Value {
-    let x = &f.b1_from_b2;
-    let r = x.rotation.to_rotation_matrix();
-    let zyz = zyz_canonical(&r);
-    let q = x.rotation;
-    let rows: Vec<usize> = (0..pairs.len()).map(|i| pairs.row(i)).collect();
-    let uncertainty = f.uncertainty.as_ref().map(|u| {
-        let tre: Vec<f64> = pairs
-            .p_b2
-            .iter()
-            .map(|p| mm(u.tre_rms_m(x, p)))
-            .collect();
-        json!({
-            "sigma_point_mm": mm(u.sigma_point_m),
-            "dof": u.dof,
-            "e_tran_1sigma_mm": mm(u.e_tran_1sigma_m),
-            "e_rot_1sigma_deg": deg(u.e_rot_1sigma_rad),
-            "tre_rms_mm_at_points": tre,
-            "covariance_order": "[dθx, dθy, dθz (rad, b1 axes), dtx, dty, dtz (m)]",
-            "covariance": (0..6).map(|i| (0..6).map(|j| u.covariance[(i, j)]).collect::<Vec<_>>()).collect::<Vec<_>>(),
-        })
-    });
-    // Leave-one-out needs one point more than the method; the 4-point methods with 4 points have none.
-    let outliers = leave_one_out(pairs, f.method, mounts.unwrap_or(&MountPair::floor_floor()))
-        .ok()
-        .map(|rep| {
-            json!({
-                "loo_residuals_mm": rep.loo_residuals_m.iter().map(|v| mm(*v)).collect::<Vec<_>>(),
-                "thresholds_mm": rep.thresholds_m.iter().map(|v| mm(*v)).collect::<Vec<_>>(),
-                "flagged_rows": rep.flagged_rows(),
-            })
-        });
-    json!({
-        "method": f.method.name(),
-        "mounts": mounts.map(|m| m.to_string()),
-        "points": pairs.len(),
-        "b1_from_b2": {
-            "xyz_mm": [mm(x.translation.x), mm(x.translation.y), mm(x.translation.z)],
-            "zyz_deg": [deg(zyz[0]), deg(zyz[1]), deg(zyz[2])],
-            "rotation": (0..3).map(|i| (0..3).map(|j| r[(i, j)]).collect::<Vec<_>>()).collect::<Vec<_>>(),
-            "quaternion_wxyz": [q.w, q.i, q.j, q.k],
-        },
-        "rows": rows,
-        "residuals_mm": f.residuals.iter().map(|v| [mm(v.x), mm(v.y), mm(v.z)]).collect::<Vec<_>>(),
-        "residual_norms_mm": f.residuals.iter().map(|v| mm(v.norm())).collect::<Vec<_>>(),
-        "residual_rms_mm": mm(f.residual_rms_m()),
-        "condition": f.condition,
-        "uncertainty": uncertainty,
-        "outliers": outliers,
-    })
-}
-
-fn arr(v: &Value) -> Vec<f64> {
-    v.as_array()
-        .map(|a| a.iter().filter_map(|x| x.as_f64()).collect())
-        .unwrap_or_default()
-}
-
-fn print_text(v: &Value) {
-    let name = v["method"].as_str().unwrap_or("?");
-    if let Some(e) = v["error"].as_str() {
-        println!("== method {name}: not applicable: {e}");
-        return;
-    }
-    let mounts = v["mounts"].as_str().unwrap_or("none given");
-    println!(
+fn write_text(s: &mut String, r: &FitReport) -> std::fmt::Result {
+    let name = r.method.name();
+    let mounts = r.mounts.as_deref().unwrap_or("none given");
+    writeln!(
+        s,
         "== method {name} (mounts: {mounts}, {} points)",
-        v["points"]
-    );
-    let b = &v["b1_from_b2"];
-    let xyz = arr(&b["xyz_mm"]);
-    let zyz = arr(&b["zyz_deg"]);
-    println!(
+        r.points
+    )?;
+    let b = &r.b1_from_b2;
+    let (xyz, zyz) = (b.xyz_mm, b.zyz_deg);
+    writeln!(
+        s,
         "b1_from_b2:  x {:.3} mm  y {:.3} mm  z {:.3} mm   φ {:.4}°  θ {:.4}°  ψ {:.4}°  (ZYZ, R = Rz(φ)·Ry(θ)·Rz(ψ))",
         xyz[0], xyz[1], xyz[2], zyz[0], zyz[1], zyz[2]
-    );
-    println!("rotation:");
-    if let Some(rows) = b["rotation"].as_array() {
-        for row in rows {
-            let r = arr(row);
-            println!("  [{:>10.7} {:>10.7} {:>10.7}]", r[0], r[1], r[2]);
-        }
+    )?;
+    writeln!(s, "rotation:")?;
+    for row in &b.rotation {
+        writeln!(s, "  [{:>10.7} {:>10.7} {:>10.7}]", row[0], row[1], row[2])?;
     }
-    let q = arr(&b["quaternion_wxyz"]);
-    println!(
+    let q = b.quaternion_wxyz;
+    writeln!(
+        s,
         "quaternion (w, x, y, z): {:.9} {:.9} {:.9} {:.9}",
         q[0], q[1], q[2], q[3]
-    );
-    println!("residuals p_b1 − b1_from_b2·p_b2 (mm; agreement between points, NOT an accuracy):");
-    let rows = arr(&v["rows"]);
-    let norms = arr(&v["residual_norms_mm"]);
-    let flagged: Vec<f64> = arr(&v["outliers"]["flagged_rows"]);
-    let loo = arr(&v["outliers"]["loo_residuals_mm"]);
-    let thresholds = arr(&v["outliers"]["thresholds_mm"]);
-    if let Some(res) = v["residuals_mm"].as_array() {
-        for (i, r) in res.iter().enumerate() {
-            let r = arr(r);
-            let row = rows.get(i).copied().unwrap_or(0.0);
-            let flag = if flagged.contains(&row) {
-                "  <-- suspect handclasp (leave-one-out)"
-            } else {
-                ""
-            };
-            let loo_txt = loo
-                .get(i)
-                .map(|l| format!("  leave-one-out {l:.3} (limit {:.3})", thresholds[i]))
-                .unwrap_or_default();
-            println!(
-                "  row {:>4}: {:>8.3} {:>8.3} {:>8.3}  |r| {:.3}{loo_txt}{flag}",
-                row, r[0], r[1], r[2], norms[i]
+    )?;
+    writeln!(
+        s,
+        "residuals p_b1 − b1_from_b2·p_b2 (mm; agreement between points, NOT an accuracy):"
+    )?;
+    let (flagged, loo, thresholds): (&[usize], &[f64], &[f64]) = match &r.outliers {
+        Some(o) => (&o.flagged_rows, &o.loo_residuals_mm, &o.thresholds_mm),
+        None => (&[], &[], &[]),
+    };
+    for (i, res) in r.residuals_mm.iter().enumerate() {
+        let row = r.rows.get(i).copied().unwrap_or(0);
+        let flag = if flagged.contains(&row) {
+            "  <-- suspect handclasp (leave-one-out)"
+        } else {
+            ""
+        };
+        let loo_txt = loo
+            .get(i)
+            .map(|l| format!("  leave-one-out {l:.3} (limit {:.3})", thresholds[i]))
+            .unwrap_or_default();
+        writeln!(
+            s,
+            "  row {:>4}: {:>8.3} {:>8.3} {:>8.3}  |r| {:.3}{loo_txt}{flag}",
+            row, res[0], res[1], res[2], r.residual_norms_mm[i]
+        )?;
+    }
+    writeln!(s, "residual RMS: {:.3} mm", r.residual_rms_mm)?;
+    writeln!(s, "condition: {:.2} (≥ 1; larger is worse)", r.condition)?;
+    match &r.uncertainty {
+        None => writeln!(
+            s,
+            "predicted uncertainty: not computed for this method (use lsq or constrained)"
+        )?,
+        Some(u) => {
+            writeln!(
+                s,
+                "predicted uncertainty (1σ, from residuals and Jacobian): e_tran {:.3} mm, rotation {:.4}°, point noise σ {:.3} mm ({} dof)",
+                u.e_tran_1sigma_mm, u.e_rot_1sigma_deg, u.sigma_point_mm, u.dof
+            )?;
+            if !u.tre_rms_mm_at_points.is_empty() {
+                let max = u.tre_rms_mm_at_points.iter().cloned().fold(0.0, f64::max);
+                writeln!(
+                    s,
+                    "  predicted error at the handclasp points (TRE, RMS): up to {max:.3} mm"
+                )?;
+            }
+        }
+    }
+    if let Some(soft) = &r.soft_mount {
+        writeln!(
+            s,
+            "soft mount: estimated relative tilt {:.4}° (prior σ {:.3}°)",
+            soft.tilt_estimate_deg, soft.tilt_sigma_deg
+        )?;
+    }
+    if let Some(c) = &r.mount_check {
+        match mount_warning(c) {
+            Some(w) => writeln!(s, "{w}")?,
+            None => writeln!(
+                s,
+                "mount check: the points agree with the mounts (F-test p = {:.3})",
+                c.p_value
+            )?,
+        }
+    }
+    match &r.outliers {
+        None => writeln!(
+            s,
+            "outliers: not checked (leave-one-out needs one point more than the method)"
+        ),
+        Some(o) if o.flagged_rows.is_empty() => writeln!(
+            s,
+            "outliers: none (no leave-one-out residual above its limit)"
+        ),
+        Some(o) => writeln!(
+            s,
+            "outliers: rows {:?} look like bad handclasps; re-record them",
+            o.flagged_rows
+        ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use calib_core::{OutliersReport, PoseForms, UncertaintyReport};
+
+    /// A constrained fit of three points, the second flagged, with every optional part.
+    fn report() -> FitReport {
+        FitReport {
+            b1_from_b2: PoseForms {
+                quaternion_wxyz: [0.5, 0.5, -0.5, 0.5],
+                rotation: [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+                xyz_mm: [1303.3, -102.3, 1386.3],
+                zyz_deg: [180.0, 89.874, -179.997],
+            },
+            condition: 10.875,
+            method: Method::Constrained,
+            mount_check: Some(MountCheckReport {
+                alpha: 0.001,
+                consistent: false,
+                constraints: 2,
+                dof: 3,
+                f_statistic: 33.71,
+                p_value: 2.4e-6,
+                rms_constrained_mm: 0.911,
+                rms_free_mm: 0.625,
+                rotation_gap_deg: 0.114,
+            }),
+            mounts: Some("floor-wall".into()),
+            outliers: Some(OutliersReport {
+                flagged_rows: vec![3],
+                loo_residuals_mm: vec![0.5, 9.25, 0.75],
+                thresholds_mm: vec![2.0, 2.5, 3.0],
+            }),
+            points: 3,
+            residual_norms_mm: vec![0.25, 6.5, 0.5],
+            residual_rms_mm: 3.76,
+            residuals_mm: vec![[0.1, -0.2, 0.1], [6.0, 2.5, 0.0], [0.0, 0.0, -0.5]],
+            rows: vec![2, 3, 4],
+            soft_mount: Some(SoftMountReport {
+                point_sigma_mm: 0.5,
+                tilt_estimate_deg: 0.11321,
+                tilt_sigma_deg: 0.5,
+                tilt_vector_deg_b1: [0.1, 0.05, 0.0],
+            }),
+            uncertainty: Some(UncertaintyReport {
+                covariance: [[0.0; 6]; 6],
+                covariance_order: "",
+                dof: 3,
+                e_rot_1sigma_deg: 0.0299,
+                e_tran_1sigma_mm: 0.484,
+                sigma_point_mm: 0.567,
+                tre_rms_mm_at_points: vec![0.4, 0.519, 0.3],
+            }),
+        }
+    }
+
+    /// Every line from a typed field: the flagged row marked, the leave-one-out limits, the
+    /// soft mount and a mount warning with the nominal-mount advice (gap ≤ 2°).
+    #[test]
+    fn text_of_a_constrained_fit_with_a_flagged_row() {
+        let text = render_text(&report());
+        let expected = [
+            "== method constrained (mounts: floor-wall, 3 points)",
+            "b1_from_b2:  x 1303.300 mm  y -102.300 mm  z 1386.300 mm   φ 180.0000°  θ 89.8740°  ψ -179.9970°  (ZYZ, R = Rz(φ)·Ry(θ)·Rz(ψ))",
+            "rotation:",
+            "  [ 0.0000000  0.0000000  1.0000000]",
+            "  [ 1.0000000  0.0000000  0.0000000]",
+            "  [ 0.0000000  1.0000000  0.0000000]",
+            "quaternion (w, x, y, z): 0.500000000 0.500000000 -0.500000000 0.500000000",
+            "residuals p_b1 − b1_from_b2·p_b2 (mm; agreement between points, NOT an accuracy):",
+            "  row    2:    0.100   -0.200    0.100  |r| 0.250  leave-one-out 0.500 (limit 2.000)",
+            "  row    3:    6.000    2.500    0.000  |r| 6.500  leave-one-out 9.250 (limit 2.500)  <-- suspect handclasp (leave-one-out)",
+            "  row    4:    0.000    0.000   -0.500  |r| 0.500  leave-one-out 0.750 (limit 3.000)",
+            "residual RMS: 3.760 mm",
+            "condition: 10.88 (≥ 1; larger is worse)",
+            "predicted uncertainty (1σ, from residuals and Jacobian): e_tran 0.484 mm, rotation 0.0299°, point noise σ 0.567 mm (3 dof)",
+            "  predicted error at the handclasp points (TRE, RMS): up to 0.519 mm",
+            "soft mount: estimated relative tilt 0.1132° (prior σ 0.500°)",
+            "WARNING: the points disagree with the mounts (F = 33.7, p = 2.4e-6 < 0.001): the free rigid fit is 0.114° from the nearest rotation they allow, and imposing them raises the residual RMS from 0.625 to 0.911 mm; the mount is nominal only: use --tilt-sigma-deg to estimate the actual tilt, or method lsq",
+            "outliers: rows [3] look like bad handclasps; re-record them",
+        ];
+        assert_eq!(text.lines().collect::<Vec<_>>(), expected);
+    }
+
+    /// A 4-point projection fit: no uncertainty, no leave-one-out, mounts agreeing; and a
+    /// method that does not apply.
+    #[test]
+    fn text_without_the_optional_parts_and_not_applicable() {
+        let mut r = report();
+        r.method = Method::Paper;
+        r.mounts = None;
+        r.uncertainty = None;
+        r.outliers = None;
+        r.soft_mount = None;
+        if let Some(c) = r.mount_check.as_mut() {
+            c.consistent = true;
+            c.p_value = 0.8741;
+        }
+        let text = render_text(&r);
+        for line in [
+            "== method paper (mounts: none given, 3 points)",
+            "  row    3:    6.000    2.500    0.000  |r| 6.500",
+            "predicted uncertainty: not computed for this method (use lsq or constrained)",
+            "mount check: the points agree with the mounts (F-test p = 0.874)",
+            "outliers: not checked (leave-one-out needs one point more than the method)",
+        ] {
+            assert!(
+                text.lines().any(|l| l == line),
+                "{line:?} missing in\n{text}"
             );
         }
-    }
-    println!(
-        "residual RMS: {:.3} mm",
-        v["residual_rms_mm"].as_f64().unwrap_or(f64::NAN)
-    );
-    println!(
-        "condition: {:.2} (≥ 1; larger is worse)",
-        v["condition"].as_f64().unwrap_or(f64::NAN)
-    );
-    let u = &v["uncertainty"];
-    if u.is_null() {
-        println!("predicted uncertainty: not computed for this method (use lsq or constrained)");
-    } else {
-        println!(
-            "predicted uncertainty (1σ, from residuals and Jacobian): e_tran {:.3} mm, rotation {:.4}°, point noise σ {:.3} mm ({} dof)",
-            u["e_tran_1sigma_mm"].as_f64().unwrap_or(f64::NAN),
-            u["e_rot_1sigma_deg"].as_f64().unwrap_or(f64::NAN),
-            u["sigma_point_mm"].as_f64().unwrap_or(f64::NAN),
-            u["dof"]
-        );
-        let tre = arr(&u["tre_rms_mm_at_points"]);
-        if !tre.is_empty() {
-            let max = tre.iter().cloned().fold(0.0, f64::max);
-            println!("  predicted error at the handclasp points (TRE, RMS): up to {max:.3} mm");
-        }
-    }
-    if !v["soft_mount"].is_null() {
-        println!(
-            "soft mount: estimated relative tilt {:.4}° (prior σ {:.3}°)",
-            v["soft_mount"]["tilt_estimate_deg"]
-                .as_f64()
-                .unwrap_or(f64::NAN),
-            v["soft_mount"]["tilt_sigma_deg"]
-                .as_f64()
-                .unwrap_or(f64::NAN)
+        assert!(!text.contains("soft mount") && !text.contains("TRE"));
+        let na = MethodOutcome::NotApplicable {
+            error: "needs 4 points".into(),
+            method: Method::GenericAffine,
+        };
+        assert_eq!(
+            outcome_text(&na),
+            "== method generic-affine: not applicable: needs 4 points\n"
         );
     }
-    if let Some(w) = mount_warning(&v["mount_check"]) {
-        println!("{w}");
-    } else if !v["mount_check"].is_null() {
-        println!(
-            "mount check: the points agree with the mounts (F-test p = {:.3})",
-            v["mount_check"]["p_value"].as_f64().unwrap_or(f64::NAN)
+
+    /// `--method all`'s JSON: the methods by name in alphabetical order, a method that does not
+    /// apply as `{"error", "method"}`, the fit's optional parts absent when not run.
+    #[test]
+    fn all_methods_json() {
+        let mut fit = report();
+        fit.mount_check = None;
+        fit.soft_mount = None;
+        let mut methods = BTreeMap::new();
+        methods.insert(Method::Lsq.name(), MethodOutcome::Fit(Box::new(fit)));
+        methods.insert(
+            Method::Generic.name(),
+            MethodOutcome::NotApplicable {
+                error: "e".into(),
+                method: Method::Generic,
+            },
         );
-    }
-    if v["outliers"].is_null() {
-        println!("outliers: not checked (leave-one-out needs one point more than the method)");
-    } else if flagged.is_empty() {
-        println!("outliers: none (no leave-one-out residual above its limit)");
-    } else {
-        println!(
-            "outliers: rows {:?} look like bad handclasps; re-record them",
-            flagged.iter().map(|r| *r as usize).collect::<Vec<_>>()
+        let json = crate::test_support::json_in_value_order(&AllMethods { methods });
+        assert!(
+            json.starts_with(
+                r#"{"methods":{"generic":{"error":"e","method":"generic"},"lsq":{"b1_from_b2""#
+            ),
+            "{json}"
         );
+        assert!(!json.contains("mount_check") && !json.contains("soft_mount"));
     }
 }

@@ -20,18 +20,20 @@
 //! Output units: mm and degrees (ZYZ, `R = Rz(φ)·Ry(θ)·Rz(ψ)`); parameters in their unit (`deg`,
 //! `mm`, `ratio`, `deg/kNm`).
 
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
 use anyhow::{bail, Context};
 use calib_core::whole_cell::{
-    calibrate_cell, predict_cooperative_accuracy, CellCalibration, CellParam, CellProblem,
-    ReductionReason, ScreenOptions, SolveOptions,
+    calibrate_cell, predict_cooperative_accuracy, CalibrationReport, CooperativePrediction,
+    DropReason, FittedPlacementReport, GroupsReport, Kind, NuisanceReport, ParameterReport,
+    PlacementSigmaReport, PriorScaleReport, RejectedRowReport, ScreenOptions, SolveOptions,
+    UnidentifiableReport,
 };
-use calib_core::zyz_canonical;
-use kinematics::ErrorParam;
-use serde_json::{json, Value};
-use sim_cell::whole_cell::{cell_problem, session_meeting_pairs, FitModel};
-use sim_cell::{export_calibrated_cell, Cell, Session, CALIBRATE_EXPORT_NAMES};
-
-use crate::calibrate::Args;
+use calib_core::StopReason;
+use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
+use handclasp_cell::{export_calibrated_cell, Cell, Session, CALIBRATE_EXPORT_NAMES};
+use serde::Serialize;
 
 /// Seed of the predicted p95's Monte Carlo draw.
 pub const P95_SEED: u64 = 1;
@@ -42,8 +44,33 @@ const TEXT_LARGEST: usize = 10;
 /// How many partners of a merged parameter the text report names (largest coefficients first).
 const MERGE_PARTNERS_SHOWN: usize = 3;
 
-/// `--model`.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+/// The whole-cell path's own arguments of `handclasp calibrate` (`--json` and `--force` are the
+/// command's, [`crate::calibrate::Args`]).
+#[derive(clap::Args, Debug)]
+pub struct CellArgs {
+    /// Whole-cell calibration: the cell TOML (robots, tips, noise, [robotN.tolerance]).
+    #[arg(long, requires = "session", conflicts_with_all = ["mounts", "mount1", "mount2", "method", "tilt_sigma_deg"])]
+    pub cell: Option<PathBuf>,
+    /// With --cell: the session CSV (point, r1_q*_deg, r2_q*_deg, r1_x_mm … r2_z_mm).
+    #[arg(long, requires = "cell")]
+    pub session: Option<PathBuf>,
+    /// With --cell: kinematic (b1_from_b2 and every identifiable kinematic parameter of both
+    /// robots, MAP with the cell's tolerances) or placement (b1_from_b2 only).
+    #[arg(long, requires = "cell", value_enum, default_value = "kinematic")]
+    pub model: ModelArg,
+    /// With --cell: write DIR/cell.toml, DIR/robot1.urdf and DIR/robot2.urdf (the calibrated cell).
+    /// DIR must be new or empty, unless --force (files of the same names are overwritten).
+    #[arg(long, requires = "cell")]
+    pub export: Option<PathBuf>,
+    /// With --cell: also list (on stderr) each URDF's joints and links outside the
+    /// base-to-flange chain, which are ignored.
+    #[arg(long, requires = "cell", display_order = 103)]
+    pub verbose: bool,
+}
+
+/// `--model`; serialised as its [`ModelArg::name`].
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
 pub enum ModelArg {
     /// b1_from_b2 and every identifiable kinematic parameter of both robots (MAP).
     Kinematic,
@@ -86,13 +113,14 @@ fn unused_error_terms(cell: &Cell) -> Vec<(calib_core::Robot, Vec<&'static str>)
         .collect()
 }
 
-/// Runs the whole-cell calibration (`args.cell` is `Some`).
-pub fn run(args: Args) -> anyhow::Result<()> {
+/// Runs the whole-cell calibration (`args.cell` is `Some`); `json` and `force` are the command's
+/// `--json` and `--force`.
+pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
     let (Some(cell_path), Some(session_path)) = (&args.cell, &args.session) else {
         bail!("--cell CELL needs --session SESSION (the session CSV of that cell)");
     };
     if let Some(dir) = &args.export {
-        crate::export_dir::check_export_folder(dir, args.force)?;
+        crate::export_dir::check_export_folder(dir, force)?;
     }
     let cell = Cell::from_toml_file(cell_path)?;
     if args.verbose {
@@ -126,36 +154,31 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )
     })?;
     let pairs = session_meeting_pairs(&session);
-    let mut out = report(&problem, &cal, args.model, session.len());
-    if pairs.is_empty() {
-        out["cooperative_accuracy_mm"] = Value::Null;
+    let cooperative = if pairs.is_empty() {
+        None
     } else {
         let prediction = predict_cooperative_accuracy(&problem, &cal.fit, &pairs, P95_SEED)
             .context("predicting the cooperative accuracy over the session's meeting pairs")?;
-        out["cooperative_accuracy_mm"] = json!({
-            "predicted_rms": prediction.predicted_rms_m * 1e3,
-            "predicted_p95": prediction.predicted_p95_m * 1e3,
-            "pairs": pairs.len(),
-            "pair_set": "meeting pairs (q1_i, q2_i) of the session's coincident and contact rows",
-        });
-    }
-    if !session.is_handclasp_only() {
-        let counts = session.kind_counts();
-        out["rows_by_kind"] = json!({
-            "coincident": counts[0], "contact": counts[1], "tracker": counts[2], "plane": counts[3],
-            "face_contact": counts[4],
-        });
-        out["groups"] = groups_json(&problem, &cal);
-    }
+        Some(CooperativeAccuracyReport::new(&prediction, pairs.len()))
+    };
+    let rows_by_kind =
+        (!session.is_handclasp_only()).then(|| RowsByKind::from_counts(session.kind_counts()));
+    let report = CellReport::new(
+        cal.report(&problem),
+        args.model,
+        session.len(),
+        rows_by_kind,
+        cooperative,
+    );
     let written = match &args.export {
         Some(dir) => export_calibrated_cell(&cell, &cal.fit.estimate, dir, &CALIBRATE_EXPORT_NAMES)
             .with_context(|| format!("--export {}", dir.display()))?,
         None => Vec::new(),
     };
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&out)?);
+    if json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        print_text(&out);
+        print!("{}", render_text(&report));
         for f in &written {
             println!("wrote {}", f.display());
         }
@@ -167,369 +190,332 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// needs 3 points not on a line).
 const MIN_COINCIDENT_FOR_START: usize = 3;
 
-/// The fitted nuisance groups of a mixed session (mm, degrees): contact distances, planes
-/// (unit normal and offset in the anchor robot's base), tracker frames (`anchor_from_tracker`:
-/// the tracker's origin and ZYZ angles in the anchor robot's base).
-fn groups_json(problem: &CellProblem, cal: &CellCalibration) -> Value {
-    let est = &cal.fit.estimate;
-    let contacts: Vec<Value> = problem
-        .contacts
-        .iter()
-        .zip(&est.contact_distance_m)
-        .map(|(g, d)| json!({"group": g.name, "distance_mm": d * 1e3, "fitted": g.fit_distance}))
-        .collect();
-    let planes: Vec<Value> = problem
-        .planes
-        .iter()
-        .zip(&est.planes)
-        .map(|(g, p)| {
-            let n = p.normal_anchor;
-            json!({"group": g.name, "anchor_robot": g.anchor, "normal": [n.x, n.y, n.z], "offset_mm": p.offset_m * 1e3})
-        })
-        .collect();
-    let trackers: Vec<Value> = problem
-        .trackers
-        .iter()
-        .zip(&est.tracker_from_anchor)
-        .map(|(g, t)| {
-            let a = t.inverse();
-            let zyz = zyz_canonical(&a.rotation.to_rotation_matrix());
-            let v = a.translation.vector * 1e3;
-            json!({
-                "group": g.name,
-                "anchor_robot": g.anchor,
-                "anchor_from_tracker": {"xyz_mm": [v.x, v.y, v.z], "zyz_deg": zyz.map(f64::to_degrees)},
-            })
-        })
-        .collect();
-    json!({"contact": contacts, "plane": planes, "tracker": trackers})
+/// [`CooperativeAccuracyReport::pair_set`].
+const MEETING_PAIR_SET: &str =
+    "meeting pairs (q1_i, q2_i) of the session's coincident and contact rows";
+
+/// The predicted cooperative accuracy over the session's meeting pairs, mm.
+#[derive(Debug, Clone, Serialize)]
+struct CooperativeAccuracyReport {
+    /// Which configuration pairs the prediction is over.
+    pair_set: &'static str,
+    /// Their number.
+    pairs: usize,
+    /// Predicted 95th percentile of the cooperative error, mm.
+    predicted_p95: f64,
+    /// Predicted rms of the cooperative error, mm.
+    predicted_rms: f64,
 }
 
-/// Unit and SI → unit factor of a kinematic parameter.
-fn unit_of(p: &CellParam) -> (&'static str, f64) {
-    let deg = 1f64.to_degrees();
-    match p {
-        CellParam::ToolTip { .. } => ("mm", 1e3),
-        CellParam::Kinematic { param, .. } => match param {
-            ErrorParam::JointOffset { .. } | ErrorParam::OriginRpy { .. } => ("deg", deg),
-            ErrorParam::MountRpy { .. } => ("deg", deg),
-            ErrorParam::JointScale { .. } => ("ratio", 1.0),
-            ErrorParam::Compliance { .. } => ("deg/kNm", deg * 1e3),
-            _ => ("mm", 1e3),
-        },
-        CellParam::PlacementRotation { .. } | CellParam::TrackerRotation { .. } => ("deg", deg),
-        CellParam::PlaneNormal { .. } => ("deg", deg),
-        _ => ("mm", 1e3),
-    }
-}
-
-/// Robot, kind, 1-based joint and axis of a kinematic parameter (JSON fields).
-fn describe(p: &CellParam) -> Option<Value> {
-    match p {
-        CellParam::Kinematic { robot, param } => Some(json!({
-            "robot": robot,
-            "kind": param.kind_name(),
-            "joint": param.joint().map(|j| j + 1),
-            "axis": param.axis().map(|a| a.to_string()),
-        })),
-        CellParam::ToolTip { robot, axis, .. } => Some(json!({
-            "robot": robot,
-            "kind": "tip",
-            "joint": Value::Null,
-            "axis": axis.to_string(),
-        })),
-        _ => None,
-    }
-}
-
-fn reason_text(r: &ReductionReason) -> (&'static str, Value) {
-    match r {
-        ReductionReason::NoEffect => ("no_effect", Value::Null),
-        ReductionReason::PriorDecided => ("prior_decided", Value::Null),
-        ReductionReason::ConfoundedWithPlacement => ("confounded_with_placement", Value::Null),
-        ReductionReason::ConfoundedWithNuisance => ("confounded_with_nuisance", Value::Null),
-        ReductionReason::MergedInto { into } => (
-            "merged",
-            into.iter()
-                .map(|(name, c)| json!({"parameter": name, "coefficient": c}))
-                .collect(),
-        ),
-        _ => ("other", Value::Null),
-    }
-}
-
-/// The JSON report (mm, degrees).
-fn report(problem: &CellProblem, cal: &CellCalibration, model: ModelArg, rows: usize) -> Value {
-    let x = &cal.fit.estimate.b1_from_b2;
-    let r = x.rotation.to_rotation_matrix();
-    let zyz = zyz_canonical(&r);
-    let q = x.rotation;
-    let params = cal.fit.parameters(problem);
-    let mut parameters = Vec::new();
-    let mut placement_sigma = Vec::new();
-    let mut nuisance = Vec::new();
-    for p in &params {
-        let (unit, k) = unit_of(&p.param);
-        match describe(&p.param) {
-            Some(mut v) => {
-                v["name"] = json!(p.name);
-                v["value"] = json!(p.value * k);
-                v["unit"] = json!(unit);
-                v["sigma"] = json!(p.posterior_sigma * k);
-                v["prior_sigma"] = json!(p.prior_sigma * k);
-                parameters.push(v);
-            }
-            None => {
-                let entry = json!({"name": p.name, "unit": unit, "value": p.value * k, "sigma": p.posterior_sigma * k});
-                if matches!(
-                    p.param,
-                    CellParam::PlacementTranslation { .. } | CellParam::PlacementRotation { .. }
-                ) {
-                    // A prior σ of 0 is no prior: that half of the placement is fitted freely.
-                    let prior = (p.prior_sigma > 0.0).then_some(p.prior_sigma * k);
-                    placement_sigma.push(json!({
-                        "name": p.name,
-                        "unit": unit,
-                        "sigma": p.posterior_sigma * k,
-                        "prior_sigma": prior,
-                    }));
-                } else {
-                    // Tracker frames, planes, contact distances (mixed sessions only).
-                    nuisance.push(entry);
-                }
-            }
+impl CooperativeAccuracyReport {
+    fn new(p: &CooperativePrediction, pairs: usize) -> Self {
+        CooperativeAccuracyReport {
+            pair_set: MEETING_PAIR_SET,
+            pairs,
+            predicted_p95: p.predicted_p95_m * 1e3,
+            predicted_rms: p.predicted_rms_m * 1e3,
         }
     }
-    let unidentifiable: Vec<Value> = cal
-        .reduction
-        .dropped
-        .iter()
-        .map(|d| {
-            let (reason, into) = reason_text(&d.reason);
-            let mut v = describe(&d.param).unwrap_or_else(|| json!({}));
-            v["name"] = json!(d.name);
-            v["reason"] = json!(reason);
-            v["merged_into"] = into;
-            v["independent_fraction"] = json!(d.independent_fraction);
-            v["why"] = json!(d.message);
-            v
-        })
-        .collect();
-    let rejected: Vec<Value> = cal
-        .rejected
-        .iter()
-        .map(|b| {
-            json!({
-                "row": b.row,
-                "size_sigma": b.size_sigma,
-                "residual_mm": b.residual_m * 1e3,
-            })
-        })
-        .collect();
-    let mut out = json!({
-        "model": model.name(),
-        "rows": rows,
-        "rows_used": cal.fit.active.len(),
-        "b1_from_b2": {
-            "xyz_mm": [x.translation.x * 1e3, x.translation.y * 1e3, x.translation.z * 1e3],
-            "zyz_deg": [zyz[0].to_degrees(), zyz[1].to_degrees(), zyz[2].to_degrees()],
-            "rotation": (0..3).map(|i| (0..3).map(|j| r[(i, j)]).collect::<Vec<_>>()).collect::<Vec<_>>(),
-            "quaternion_wxyz": [q.w, q.i, q.j, q.k],
-            "sigma": placement_sigma,
-        },
-        "parameters": parameters,
-        "unidentifiable": unidentifiable,
-        "rejected_points": rejected,
-        "stopped": cal.fit.stopped.name(),
-        "iterations": cal.fit.iterations,
-        "data_chi2": cal.fit.data_chi2,
-        "residual_rows": cal.fit.residual_rows,
-        "data_determined_directions": cal.reduction.data_determined,
-        "prior_dominated_directions": cal.reduction.prior_dominated,
-        "prior_scale": {
-            "chosen": cal.prior_scale.scale,
-            "log_evidence": cal.prior_scale.log_evidence.iter()
-                .map(|(s, z)| json!({"scale": s, "log_evidence": z}))
-                .collect::<Vec<_>>(),
-        },
-        "noise_scale": cal.noise_scale,
-    });
-    if !nuisance.is_empty() {
-        out["nuisance_parameters"] = json!(nuisance);
+}
+
+/// A session's rows by observation kind, in [`Kind::ALL`]'s order inside; serialised as an
+/// object keyed by [`Kind::name`] in alphabetical order (the JSON key order of every report).
+#[derive(Debug, Clone, Copy)]
+struct RowsByKind([usize; Kind::ALL.len()]);
+
+impl RowsByKind {
+    /// From [`handclasp_cell::Session::kind_counts`] (one count per [`Kind::ALL`] entry).
+    fn from_counts(counts: [usize; Kind::ALL.len()]) -> Self {
+        RowsByKind(counts)
     }
-    out
+
+    /// The rows of `kind`.
+    fn get(&self, kind: Kind) -> usize {
+        Kind::ALL
+            .iter()
+            .position(|k| *k == kind)
+            .map_or(0, |i| self.0[i])
+    }
 }
 
-fn num(v: &Value) -> f64 {
-    v.as_f64().unwrap_or(f64::NAN)
+impl Serialize for RowsByKind {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let sorted: std::collections::BTreeMap<&str, usize> =
+            Kind::ALL.iter().map(|k| (k.name(), self.get(*k))).collect();
+        sorted.serialize(serializer)
+    }
 }
 
-fn print_text(v: &Value) {
-    println!(
+/// What `calibrate --cell` prints: the calibration's report ([`CalibrationReport`], whose
+/// fields these are, see there) framed by the session (`model`, `rows`, `rows_by_kind`,
+/// `cooperative_accuracy_mm`). `--json` serialises it; [`render_text`] reads it.
+///
+/// Fields in alphabetical order: the JSON key order (that of the `serde_json::Value` this
+/// report was before it had types).
+#[derive(Debug, Clone, Serialize)]
+struct CellReport {
+    b1_from_b2: FittedPlacementReport,
+    /// `None` (JSON null) for a session without coincident or contact rows.
+    cooperative_accuracy_mm: Option<CooperativeAccuracyReport>,
+    data_chi2: f64,
+    data_determined_directions: usize,
+    /// Only for a session with rows other than plain handclasps (with `rows_by_kind`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    groups: Option<GroupsReport>,
+    iterations: usize,
+    model: ModelArg,
+    noise_scale: f64,
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    nuisance_parameters: Vec<NuisanceReport>,
+    parameters: Vec<ParameterReport>,
+    prior_dominated_directions: usize,
+    prior_scale: PriorScaleReport,
+    rejected_points: Vec<RejectedRowReport>,
+    residual_rows: usize,
+    /// The session's rows of all kinds.
+    rows: usize,
+    /// Only for a session with rows other than plain handclasps (with `groups`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    rows_by_kind: Option<RowsByKind>,
+    rows_used: usize,
+    stopped: StopReason,
+    unidentifiable: Vec<UnidentifiableReport>,
+}
+
+impl CellReport {
+    /// The calibration's report `cal` framed by the session: its `model`, its number of `rows`,
+    /// its rows by kind (`Some` for a session with rows other than plain handclasps, which then
+    /// also shows the nuisance groups) and the predicted cooperative accuracy.
+    fn new(
+        cal: CalibrationReport,
+        model: ModelArg,
+        rows: usize,
+        rows_by_kind: Option<RowsByKind>,
+        cooperative_accuracy_mm: Option<CooperativeAccuracyReport>,
+    ) -> Self {
+        let CalibrationReport {
+            b1_from_b2,
+            data_chi2,
+            data_determined_directions,
+            groups,
+            iterations,
+            noise_scale,
+            nuisance_parameters,
+            parameters,
+            prior_dominated_directions,
+            prior_scale,
+            rejected_points,
+            residual_rows,
+            rows_used,
+            stopped,
+            unidentifiable,
+        } = cal;
+        CellReport {
+            b1_from_b2,
+            cooperative_accuracy_mm,
+            data_chi2,
+            data_determined_directions,
+            groups: rows_by_kind.is_some().then_some(groups),
+            iterations,
+            model,
+            noise_scale,
+            nuisance_parameters,
+            parameters,
+            prior_dominated_directions,
+            prior_scale,
+            rejected_points,
+            residual_rows,
+            rows,
+            rows_by_kind,
+            rows_used,
+            stopped,
+            unidentifiable,
+        }
+    }
+}
+
+/// A group name as the text report quotes it: a JSON string.
+fn quoted(name: &str) -> String {
+    serde_json::to_string(name).unwrap_or_else(|_| format!("\"{name}\""))
+}
+
+/// The text report (mm, degrees).
+fn render_text(r: &CellReport) -> String {
+    let mut s = String::new();
+    // Writing into a String cannot fail.
+    let _ = write_text(&mut s, r);
+    s
+}
+
+fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
+    writeln!(
+        s,
         "== whole-cell calibration, model {} ({} of {} rows used)",
-        v["model"].as_str().unwrap_or("?"),
-        v["rows_used"],
-        v["rows"]
-    );
-    let b = &v["b1_from_b2"];
-    let xyz: Vec<f64> = (0..3).map(|i| num(&b["xyz_mm"][i])).collect();
-    let zyz: Vec<f64> = (0..3).map(|i| num(&b["zyz_deg"][i])).collect();
-    println!(
+        r.model.name(),
+        r.rows_used,
+        r.rows
+    )?;
+    let b = &r.b1_from_b2;
+    let (xyz, zyz) = (b.xyz_mm, b.zyz_deg);
+    writeln!(
+        s,
         "b1_from_b2:  x {:.3} mm  y {:.3} mm  z {:.3} mm   φ {:.4}°  θ {:.4}°  ψ {:.4}°  (ZYZ, R = Rz(φ)·Ry(θ)·Rz(ψ))",
         xyz[0], xyz[1], xyz[2], zyz[0], zyz[1], zyz[2]
-    );
-    println!("{}", placement_sigma_line(&b["sigma"]));
-    let params = v["parameters"].as_array().cloned().unwrap_or_default();
+    )?;
+    writeln!(s, "{}", placement_sigma_line(&b.sigma))?;
+    let params = &r.parameters;
     if params.is_empty() {
-        println!("kinematic parameters: none fitted (both robots nominal)");
+        writeln!(s, "kinematic parameters: none fitted (both robots nominal)")?;
     } else {
-        let mut ranked: Vec<&Value> = params.iter().collect();
-        let size = |p: &Value| (num(&p["value"]) / num(&p["prior_sigma"])).abs();
+        let mut ranked: Vec<&ParameterReport> = params.iter().collect();
+        let size = |p: &ParameterReport| (p.value / p.prior_sigma).abs();
         ranked.sort_by(|a, b| size(b).total_cmp(&size(a)));
-        println!(
+        writeln!(
+            s,
             "kinematic parameters: {} fitted; the {} largest corrections (in prior σ):",
             params.len(),
             TEXT_LARGEST.min(params.len())
-        );
+        )?;
         for p in ranked.iter().take(TEXT_LARGEST) {
-            let unit = p["unit"].as_str().unwrap_or("");
-            println!(
+            let unit = p.unit.name();
+            writeln!(
+                s,
                 "  {:<40} {:>+10.4} {unit:<4} ± {:.4} {unit:<4} (prior σ {:.4}; {:.1} σ)",
-                p["name"].as_str().unwrap_or("?"),
-                num(&p["value"]),
-                num(&p["sigma"]),
-                num(&p["prior_sigma"]),
+                p.name,
+                p.value,
+                p.sigma,
+                p.prior_sigma,
                 size(p)
-            );
+            )?;
         }
     }
-    let dropped = v["unidentifiable"].as_array().cloned().unwrap_or_default();
-    if !dropped.is_empty() {
-        println!(
+    if !r.unidentifiable.is_empty() {
+        writeln!(
+            s,
             "not identifiable from this session ({}; held at nominal, their prior kept in the prediction):",
-            dropped.len()
-        );
-        for d in &dropped {
-            println!("  {}", dropped_line(d));
+            r.unidentifiable.len()
+        )?;
+        for d in &r.unidentifiable {
+            writeln!(s, "  {}", dropped_line(d))?;
         }
     }
-    let rejected = v["rejected_points"].as_array().cloned().unwrap_or_default();
-    if rejected.is_empty() {
-        println!("blunders: none (no row's studentised residual above the Bonferroni limit)");
+    if r.rejected_points.is_empty() {
+        writeln!(
+            s,
+            "blunders: none (no row's studentised residual above the Bonferroni limit)"
+        )?;
     } else {
-        println!("blunders: rejected and refitted without them; re-record these rows:");
-        for r in &rejected {
-            println!(
+        writeln!(
+            s,
+            "blunders: rejected and refitted without them; re-record these rows:"
+        )?;
+        for b in &r.rejected_points {
+            writeln!(
+                s,
                 "  row {:>4}: {:.1} σ (residual {:.3} mm)",
-                r["row"].as_u64().unwrap_or(0),
-                num(&r["size_sigma"]),
-                num(&r["residual_mm"])
-            );
+                b.row, b.size_sigma, b.residual_mm
+            )?;
         }
     }
-    if v["model"].as_str() == Some("placement") {
-        println!(
+    if r.model == ModelArg::Placement {
+        writeln!(
+            s,
             "note: the placement model takes both robots' nominal kinematics as exact; its blunder screen and \
              predicted accuracy allow for their errors only as extra noise, from the residuals' variance \
              factor (use --model kinematic to fit them)"
-        );
+        )?;
     }
-    let g = &v["groups"];
-    if !g.is_null() {
-        let k = &v["rows_by_kind"];
-        println!(
+    if let (Some(g), Some(k)) = (&r.groups, &r.rows_by_kind) {
+        writeln!(
+            s,
             "rows by kind: {} coincident, {} contact, {} tracker, {} plane",
-            k["coincident"], k["contact"], k["tracker"], k["plane"]
-        );
-        for c in g["contact"].as_array().into_iter().flatten() {
-            println!(
+            k.get(Kind::Coincident),
+            k.get(Kind::Contact),
+            k.get(Kind::Tracker),
+            k.get(Kind::Plane)
+        )?;
+        for c in &g.contact {
+            writeln!(
+                s,
                 "  contact group {}: distance {:.3} mm ({})",
-                c["group"],
-                num(&c["distance_mm"]),
-                if c["fitted"].as_bool() == Some(true) {
-                    "fitted"
-                } else {
-                    "given"
-                }
-            );
+                quoted(&c.group),
+                c.distance_mm,
+                if c.fitted { "fitted" } else { "given" }
+            )?;
         }
-        for p in g["plane"].as_array().into_iter().flatten() {
-            println!(
+        for p in &g.plane {
+            writeln!(
+                s,
                 "  plane group {}: normal ({:.5}, {:.5}, {:.5}), offset {:.3} mm (base of robot {})",
-                p["group"],
-                num(&p["normal"][0]),
-                num(&p["normal"][1]),
-                num(&p["normal"][2]),
-                num(&p["offset_mm"]),
-                p["anchor_robot"]
-            );
+                quoted(&p.group),
+                p.normal[0],
+                p.normal[1],
+                p.normal[2],
+                p.offset_mm,
+                p.anchor_robot.number()
+            )?;
         }
-        for t in g["tracker"].as_array().into_iter().flatten() {
-            let f = &t["anchor_from_tracker"];
-            println!(
+        for t in &g.tracker {
+            let xyz = t.anchor_from_tracker.xyz_mm;
+            writeln!(
+                s,
                 "  tracker group {}: origin ({:.3}, {:.3}, {:.3}) mm in the base of robot {}",
-                t["group"],
-                num(&f["xyz_mm"][0]),
-                num(&f["xyz_mm"][1]),
-                num(&f["xyz_mm"][2]),
-                t["anchor_robot"]
-            );
+                quoted(&t.group),
+                xyz[0],
+                xyz[1],
+                xyz[2],
+                t.anchor_robot.number()
+            )?;
         }
     }
-    let c = &v["cooperative_accuracy_mm"];
-    if c.is_null() {
-        println!(
+    match &r.cooperative_accuracy_mm {
+        None => writeln!(
+            s,
             "predicted cooperative accuracy: none (no coincident or contact row: no meeting pair)"
-        );
-    } else {
-        println!(
+        )?,
+        Some(c) => writeln!(
+            s,
             "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the {} meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms {:.3} mm, p95 {:.3} mm",
-            c["pairs"],
-            num(&c["predicted_rms"]),
-            num(&c["predicted_p95"])
-        );
+            c.pairs, c.predicted_rms, c.predicted_p95
+        )?,
     }
     if params.is_empty() {
-        println!(
+        writeln!(
+            s,
             "prior scale: none (no kinematic parameter fitted); blunder-screen noise scale {:.3}",
-            num(&v["noise_scale"])
-        );
+            r.noise_scale
+        )?;
     } else {
-        println!(
+        writeln!(
+            s,
             "prior scale chosen by the evidence: {} (prior σ = scale × tolerance/√3; 1e-3 = placement-only limit); blunder-screen noise scale {:.3}",
-            num(&v["prior_scale"]["chosen"]),
-            num(&v["noise_scale"])
-        );
+            r.prior_scale.chosen, r.noise_scale
+        )?;
     }
-    println!(
+    writeln!(
+        s,
         "solver: {} after {} iterations (data χ² {:.1} over {} residual rows)",
-        v["stopped"].as_str().unwrap_or("?"),
-        v["iterations"],
-        num(&v["data_chi2"]),
-        v["residual_rows"]
-    );
+        r.stopped.name(),
+        r.iterations,
+        r.data_chi2,
+        r.residual_rows
+    )
 }
 
-/// The placement's posterior σ per axis, each with its prior σ (`free` without a prior), from
-/// the JSON `b1_from_b2.sigma` entries.
-fn placement_sigma_line(sigma: &Value) -> String {
+/// The placement's posterior σ per axis, each with its prior σ (`free` without a prior).
+fn placement_sigma_line(sigma: &[PlacementSigmaReport]) -> String {
     let parts: Vec<String> = sigma
-        .as_array()
-        .into_iter()
-        .flatten()
+        .iter()
         .map(|p| {
-            let unit = p["unit"].as_str().unwrap_or("");
-            let prior = match p["prior_sigma"].as_f64() {
+            let unit = p.unit.name();
+            let prior = match p.prior_sigma {
                 Some(s) => format!("prior {s:.4} {unit}"),
                 None => "prior: free".to_string(),
             };
             format!(
                 "{} ± {:.4} {unit} ({prior})",
-                p["name"]
-                    .as_str()
-                    .unwrap_or("?")
-                    .trim_start_matches("b1_from_b2 "),
-                num(&p["sigma"]),
+                p.name.trim_start_matches("b1_from_b2 "),
+                p.sigma,
             )
         })
         .collect();
@@ -537,23 +523,16 @@ fn placement_sigma_line(sigma: &Value) -> String {
 }
 
 /// One readable line per dropped parameter: why, and for a merge its largest partners.
-fn dropped_line(d: &Value) -> String {
-    let name = d["name"].as_str().unwrap_or("?");
-    match d["reason"].as_str() {
-        Some("merged") => {
-            let mut into: Vec<(String, f64)> = d["merged_into"]
-                .as_array()
-                .map(|a| {
-                    a.iter()
-                        .map(|m| {
-                            (
-                                m["parameter"].as_str().unwrap_or("?").to_string(),
-                                num(&m["coefficient"]),
-                            )
-                        })
-                        .collect()
-                })
-                .unwrap_or_default();
+fn dropped_line(d: &UnidentifiableReport) -> String {
+    let name = &d.name;
+    match d.reason {
+        DropReason::Merged => {
+            let mut into: Vec<(&str, f64)> = d
+                .merged_into
+                .iter()
+                .flatten()
+                .map(|m| (m.parameter.as_str(), m.coefficient))
+                .collect();
             into.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
             let shown: Vec<String> = into
                 .iter()
@@ -571,9 +550,232 @@ fn dropped_line(d: &Value) -> String {
                 shown.join(", ")
             )
         }
-        Some("confounded_with_placement") => format!("{name}: absorbed by b1_from_b2"),
-        Some("no_effect") => format!("{name}: moves no observed tip"),
-        Some("prior_decided") => format!("{name}: barely seen by the data, the prior decides it"),
-        _ => d["why"].as_str().unwrap_or(name).to_string(),
+        DropReason::ConfoundedWithPlacement => format!("{name}: absorbed by b1_from_b2"),
+        DropReason::NoEffect => format!("{name}: moves no observed tip"),
+        DropReason::PriorDecided => {
+            format!("{name}: barely seen by the data, the prior decides it")
+        }
+        _ => d.why.clone(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use calib_core::whole_cell::{
+        ContactGroupReport, LogEvidenceReport, MergePartner, ParamIdentity, PlaneGroupReport,
+        ReportUnit, TrackerGroupReport,
+    };
+    use calib_core::{PoseMmDeg, Robot};
+
+    fn sigma(name: &str, unit: ReportUnit, prior: Option<f64>) -> PlacementSigmaReport {
+        PlacementSigmaReport {
+            name: format!("b1_from_b2 {name}"),
+            prior_sigma: prior,
+            sigma: 0.25,
+            unit,
+        }
+    }
+
+    fn dropped(
+        name: &str,
+        reason: DropReason,
+        into: Option<Vec<(&str, f64)>>,
+    ) -> UnidentifiableReport {
+        UnidentifiableReport {
+            identity: None,
+            independent_fraction: 0.0,
+            merged_into: into.map(|v| {
+                v.into_iter()
+                    .map(|(p, c)| MergePartner {
+                        coefficient: c,
+                        parameter: p.into(),
+                    })
+                    .collect()
+            }),
+            name: name.into(),
+            reason,
+            why: format!("{name} is confounded with the nuisances"),
+        }
+    }
+
+    /// A kinematic fit of a mixed session with one blunder, every section of the text filled.
+    fn mixed_report() -> CellReport {
+        let parameter = |name: &str, value: f64, prior_sigma: f64| ParameterReport {
+            identity: ParamIdentity {
+                axis: None,
+                joint: Some(2),
+                kind: "joint_offset",
+                robot: Robot::One,
+            },
+            name: name.into(),
+            prior_sigma,
+            sigma: 0.01,
+            unit: ReportUnit::Deg,
+            value,
+        };
+        CellReport {
+            b1_from_b2: FittedPlacementReport {
+                quaternion_wxyz: [1.0, 0.0, 0.0, 0.0],
+                rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+                sigma: vec![
+                    sigma("translation x", ReportUnit::Mm, Some(2.0)),
+                    sigma("rotation z", ReportUnit::Deg, None),
+                ],
+                xyz_mm: [1303.25, -102.5, 1386.125],
+                zyz_deg: [180.0, 89.874, -179.997],
+            },
+            cooperative_accuracy_mm: Some(CooperativeAccuracyReport::new(
+                &CooperativePrediction {
+                    predicted_rms_m: 1.5e-3,
+                    predicted_p95_m: 2.75e-3,
+                    per_pair_rms_m: vec![],
+                },
+                14,
+            )),
+            data_chi2: 62.46,
+            data_determined_directions: 3,
+            groups: Some(GroupsReport {
+                contact: vec![ContactGroupReport {
+                    distance_mm: 100.0214,
+                    fitted: true,
+                    group: "pins \"a\"".into(),
+                }],
+                plane: vec![PlaneGroupReport {
+                    anchor_robot: Robot::Two,
+                    group: "table".into(),
+                    normal: [0.0, 0.6, -0.8],
+                    offset_mm: -971.3256,
+                }],
+                tracker: vec![TrackerGroupReport {
+                    anchor_from_tracker: PoseMmDeg {
+                        xyz_mm: [-1226.9961, 1146.2934, 1295.3159],
+                        zyz_deg: [0.0; 3],
+                    },
+                    anchor_robot: Robot::One,
+                    group: "leica".into(),
+                }],
+            }),
+            iterations: 4,
+            model: ModelArg::Kinematic,
+            noise_scale: 1.0,
+            nuisance_parameters: vec![],
+            parameters: vec![
+                parameter("robot 1 joint_offset joint 2", 0.001, 0.01),
+                parameter("robot 1 joint_offset joint 3", -0.02, 0.01),
+            ],
+            prior_dominated_directions: 1,
+            prior_scale: PriorScaleReport {
+                chosen: 0.0625,
+                log_evidence: vec![LogEvidenceReport {
+                    log_evidence: -3.5,
+                    scale: 0.0625,
+                }],
+            },
+            rejected_points: vec![RejectedRowReport {
+                residual_mm: 7.1234,
+                row: 6,
+                size_sigma: 21.04,
+            }],
+            residual_rows: 80,
+            rows: 41,
+            rows_by_kind: Some(RowsByKind::from_counts([7, 8, 13, 13, 0])),
+            rows_used: 40,
+            stopped: StopReason::Converged,
+            unidentifiable: vec![
+                dropped(
+                    "robot 1 origin_xyz joint 2 z",
+                    DropReason::Merged,
+                    Some(vec![("a", 0.1), ("b", -0.9), ("c", 0.5), ("d", 0.05)]),
+                ),
+                dropped(
+                    "robot 2 joint_offset joint 1",
+                    DropReason::ConfoundedWithPlacement,
+                    None,
+                ),
+                dropped("robot 1 joint_offset joint 7", DropReason::NoEffect, None),
+                dropped("robot 1 tool `tip` tip x", DropReason::PriorDecided, None),
+                dropped(
+                    "robot 1 origin_xyz joint 1 x",
+                    DropReason::ConfoundedWithNuisance,
+                    None,
+                ),
+            ],
+        }
+    }
+
+    /// Every line of the text comes from a typed field: the figures as they were set, the
+    /// corrections ranked by size in prior σ, merges with their three largest partners, the
+    /// groups quoted as JSON strings.
+    #[test]
+    fn text_of_a_mixed_kinematic_fit() {
+        let text = render_text(&mixed_report());
+        let expected = [
+            "== whole-cell calibration, model kinematic (40 of 41 rows used)",
+            "b1_from_b2:  x 1303.250 mm  y -102.500 mm  z 1386.125 mm   φ 180.0000°  θ 89.8740°  ψ -179.9970°  (ZYZ, R = Rz(φ)·Ry(θ)·Rz(ψ))",
+            "b1_from_b2 posterior σ: translation x ± 0.2500 mm (prior 2.0000 mm), rotation z ± 0.2500 deg (prior: free)",
+            "kinematic parameters: 2 fitted; the 2 largest corrections (in prior σ):",
+            "  robot 1 joint_offset joint 3                -0.0200 deg  ± 0.0100 deg  (prior σ 0.0100; 2.0 σ)",
+            "  robot 1 joint_offset joint 2                +0.0010 deg  ± 0.0100 deg  (prior σ 0.0100; 0.1 σ)",
+            "not identifiable from this session (5; held at nominal, their prior kept in the prediction):",
+            "  robot 1 origin_xyz joint 2 z: merged into -0.900·b, +0.500·c, +0.100·a and 1 smaller (coefficients in prior σ)",
+            "  robot 2 joint_offset joint 1: absorbed by b1_from_b2",
+            "  robot 1 joint_offset joint 7: moves no observed tip",
+            "  robot 1 tool `tip` tip x: barely seen by the data, the prior decides it",
+            "  robot 1 origin_xyz joint 1 x is confounded with the nuisances",
+            "blunders: rejected and refitted without them; re-record these rows:",
+            "  row    6: 21.0 σ (residual 7.123 mm)",
+            "rows by kind: 7 coincident, 8 contact, 13 tracker, 13 plane",
+            "  contact group \"pins \\\"a\\\"\": distance 100.021 mm (fitted)",
+            "  plane group \"table\": normal (0.00000, 0.60000, -0.80000), offset -971.326 mm (base of robot 2)",
+            "  tracker group \"leica\": origin (-1226.996, 1146.293, 1295.316) mm in the base of robot 1",
+            "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the 14 meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms 1.500 mm, p95 2.750 mm",
+            "prior scale chosen by the evidence: 0.0625 (prior σ = scale × tolerance/√3; 1e-3 = placement-only limit); blunder-screen noise scale 1.000",
+            "solver: converged after 4 iterations (data χ² 62.5 over 80 residual rows)",
+        ];
+        assert_eq!(text.lines().collect::<Vec<_>>(), expected);
+    }
+
+    /// A placement fit of plain handclasps without meeting pairs: no parameters, the placement
+    /// note, no groups, and "none" for the accuracy and the prior scale; the JSON then has no
+    /// `groups`, `rows_by_kind` or `nuisance_parameters` and a null accuracy.
+    #[test]
+    fn text_and_json_of_a_placement_fit_without_groups() {
+        let mut r = mixed_report();
+        r.model = ModelArg::Placement;
+        r.parameters.clear();
+        r.unidentifiable.clear();
+        r.rejected_points.clear();
+        r.groups = None;
+        r.rows_by_kind = None;
+        r.cooperative_accuracy_mm = None;
+        let text = render_text(&r);
+        for line in [
+            "== whole-cell calibration, model placement (40 of 41 rows used)",
+            "kinematic parameters: none fitted (both robots nominal)",
+            "blunders: none (no row's studentised residual above the Bonferroni limit)",
+            "predicted cooperative accuracy: none (no coincident or contact row: no meeting pair)",
+            "prior scale: none (no kinematic parameter fitted); blunder-screen noise scale 1.000",
+        ] {
+            assert!(
+                text.lines().any(|l| l == line),
+                "{line:?} missing in\n{text}"
+            );
+        }
+        assert!(text.contains("(use --model kinematic to fit them)"));
+        assert!(!text.contains("not identifiable") && !text.contains("rows by kind"));
+        let json = serde_json::to_string(&r).unwrap();
+        for absent in ["\"groups\"", "\"rows_by_kind\"", "\"nuisance_parameters\""] {
+            assert!(!json.contains(absent), "{absent} in {json}");
+        }
+        assert!(json.contains("\"cooperative_accuracy_mm\":null"));
+        assert!(json.contains("\"model\":\"placement\""));
+    }
+
+    /// The JSON's keys stand in alphabetical order at every level (the order of the
+    /// `serde_json::Value`, a BTreeMap, that this report was before it had types).
+    #[test]
+    fn json_keys_in_value_order() {
+        crate::test_support::json_in_value_order(&mixed_report());
     }
 }

@@ -9,8 +9,8 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use diagnose::DiagnoseOptions;
+use handclasp_cell::Cell;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use sim_cell::Cell;
 
 /// Arguments of `handclasp diagnose`.
 #[derive(clap::Args, Debug)]
@@ -71,7 +71,7 @@ const PROGRESS_MIN_ROWS_WHOLE_CELL: usize = 100;
 fn run_whole_cell(
     args: &Args,
     cell: &Cell,
-    session: &sim_cell::Session,
+    session: &handclasp_cell::Session,
     truth: bool,
 ) -> anyhow::Result<()> {
     if truth {
@@ -145,7 +145,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.verbose {
         crate::fk::print_cell_branches(&cell);
     }
-    if let Ok(session) = sim_cell::Session::read_csv(&args.session, &cell) {
+    if let Ok(session) = handclasp_cell::Session::read_csv(&args.session, &cell) {
         if !session.is_handclasp_only() {
             // Contact, tracker or plane rows (or other tools): the whole-cell diagnosis.
             return run_whole_cell(&args, &cell, &session, truth.is_some());

@@ -1,17 +1,17 @@
 //! `handclasp export --cell CELL --to DIR [--format abb,kuka,fanuc,yaskawa,ros2|all] [--json]
 //! [--force]`: the cell's placement `b1_from_b2` (robot 2's base frame in robot 1's base frame)
 //! in each controller's and ROS 2's own convention and file, each file read back and checked
-//! before the command succeeds (`sim_cell::export_formats`). The JSON and the text table come
+//! before the command succeeds (`handclasp_cell::export_formats`). The JSON and the text table come
 //! from one typed report, [`ExportReport`].
 
 use std::path::PathBuf;
 
 use anyhow::Context;
-use serde::Serialize;
-use sim_cell::export_formats::{
+use handclasp_cell::export_formats::{
     export_placement, ControllerFormat, PlacementFormats, READ_BACK_TOL_M, READ_BACK_TOL_RAD,
 };
-use sim_cell::Cell;
+use handclasp_cell::Cell;
+use serde::Serialize;
 
 /// `--format` values.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]

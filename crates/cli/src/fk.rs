@@ -1,6 +1,11 @@
 //! `handclasp fk`: joint angles (deg) to the tip pose in the robot's base frame, as a pendant
 //! shows it: x, y, z in mm and ZYZ φ, θ, ψ in degrees (`R = Rz(φ)·Ry(θ)·Rz(ψ)`).
 //!
+//! A prismatic (linear) joint, such as a track or a torso lift, takes its value in millimetres
+//! in the same `--q-deg` list: `--q-deg 250,30,-10,…` is a 250 mm lift then the arm's angles in
+//! degrees (`--json` then adds `q_units`). A coupled joint (a URDF `<mimic>`) is computed from the
+//! others and takes no value: the list has one value per independent joint.
+//!
 //! `handclasp fk --robot robots/hp20.urdf --q-deg 0,10,-20,0,30,0 --tip-mm 0,0,150 --json` prints
 //! `{"xyz_mm": [x, y, z], "zyz_deg": [φ, θ, ψ], "rotation": [[…], […], […]], …}` for
 //! `base_from_tip`; without `--json` a readable table.
@@ -15,12 +20,10 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use calib_core::Robot;
-use kinematics::{
-    base_from_tip, true_base_from_flange, zyz_canonical, KinematicErrors, ModelError, RobotModel,
-};
+use calib_core::{PoseForms, Robot};
+use kinematics::{base_from_tip, true_base_from_flange, KinematicErrors, ModelError, RobotModel};
 use nalgebra::{Isometry3, Translation3, Vector3};
-use serde_json::{json, Value};
+use serde::Serialize;
 
 /// Arguments of `handclasp fk`.
 #[derive(clap::Args, Debug)]
@@ -37,7 +40,9 @@ pub struct Args {
     /// The flange link the chain ends at (with --cell: the cell's tool_link).
     #[arg(long, default_value = "tool0", conflicts_with = "cell")]
     pub tool_link: String,
-    /// Joint angles in degrees, comma separated, in chain order from the base (one per joint).
+    /// Joint values, comma separated, in chain order from the base (one per joint): degrees
+    /// for rotary joints, millimetres for prismatic (linear) joints such as a track or a lift.
+    /// A joint that follows another (a URDF mimic joint) takes no value.
     #[arg(long, allow_hyphen_values = true, required_unless_present = "q_csv")]
     pub q_deg: Option<String>,
     /// A CSV of joint angles (with --cell): columns q1_deg … qN_deg in chain order, one pose per
@@ -68,6 +73,10 @@ pub struct Args {
     pub verbose: bool,
 }
 
+/// A prismatic joint value under 1 mm (not 0) on a travel longer than this, mm, is warned about as
+/// metres written as millimetres.
+const PRISMATIC_METRES_SPAN_MM: f64 = 100.0;
+
 /// Tip offsets whose every coordinate is below this (mm) but not all zero look like metres.
 const TIP_METRES_LIMIT_MM: f64 = calib_core::METRES_LIMIT_MM;
 
@@ -93,7 +102,7 @@ pub(crate) fn ignored_branches_text(model: &RobotModel, what: &str) -> String {
 }
 
 /// Prints (stderr) [`ignored_branches_text`] for both robots of a cell (for `--verbose`).
-pub(crate) fn print_cell_branches(cell: &sim_cell::Cell) {
+pub(crate) fn print_cell_branches(cell: &handclasp_cell::Cell) {
     for (label, robot) in [("robot 1", &cell.robot1), ("robot 2", &cell.robot2)] {
         eprintln!("{}", ignored_branches_text(&robot.model, label));
     }
@@ -170,16 +179,54 @@ pub(crate) fn load_robot(path: &Path, tool_link: &str) -> anyhow::Result<RobotMo
         .context("--robot: cannot load the robot model")
 }
 
-/// Parses `--q-deg` against the model: count and joint limits (in degrees). Returns
-/// `(q_rad, q_deg)`.
+/// Parses `--q-deg` against the model: count and joint limits, each value in its joint's CLI
+/// unit ([`joint_unit`]: degrees, millimetres for a prismatic joint). Returns
+/// `(q_si, q_as_given)` (rad or m; deg or mm).
 pub(crate) fn parse_q_deg(
     flag: &str,
     text: &str,
     model: &RobotModel,
 ) -> anyhow::Result<(Vec<f64>, Vec<f64>)> {
-    let what = format!("{} has {} joints", model.name(), model.dof());
+    let what = if model.has_coupled_joints() {
+        let coupled: Vec<&str> = model
+            .chain_joints()
+            .iter()
+            .filter(|j| j.is_coupled())
+            .map(|j| j.name.as_str())
+            .collect();
+        format!(
+            "{} has {} independent joints (the coupled joints {} follow them)",
+            model.name(),
+            model.dof(),
+            coupled.join(", ")
+        )
+    } else {
+        format!("{} has {} joints", model.name(), model.dof())
+    };
     let q_deg = parse_list(flag, text, Some((model.dof(), &what)))?;
     for (i, (j, &v)) in model.joints().iter().zip(&q_deg).enumerate() {
+        if j.kind.is_prismatic() {
+            let (lo, hi) = (j.lower * 1e3, j.upper * 1e3);
+            // Same 1e-9 m slack as the library's check.
+            let slack = 1e-6;
+            if v < lo - slack || v > hi + slack {
+                bail!(
+                    "{flag}: joint {} ({}) is prismatic and {v} mm, outside its limits {lo:.3}..{hi:.3} mm; give a travel inside the range (millimetres, not metres)",
+                    i + 1,
+                    j.name
+                );
+            }
+            // Under 1 mm on a travel of more than 100 mm: probably metres.
+            if v != 0.0 && v.abs() < 1.0 && hi - lo > PRISMATIC_METRES_SPAN_MM {
+                eprintln!(
+                    "warning: {flag}: joint {} ({}) is prismatic and {v} mm; its values are millimetres: if you meant {v} m, give {}",
+                    i + 1,
+                    j.name,
+                    v * 1e3
+                );
+            }
+            continue;
+        }
         let (lo, hi) = (j.lower.to_degrees(), j.upper.to_degrees());
         // Same 1e-9 rad slack as the library's check.
         let slack = 1e-9f64.to_degrees();
@@ -191,34 +238,42 @@ pub(crate) fn parse_q_deg(
             );
         }
     }
-    Ok((q_deg.iter().map(|v| v.to_radians()).collect(), q_deg))
+    let q_si = model
+        .joints()
+        .iter()
+        .zip(&q_deg)
+        .map(|(j, &v)| {
+            if j.kind.is_prismatic() {
+                v * 1e-3
+            } else {
+                v.to_radians()
+            }
+        })
+        .collect();
+    Ok((q_si, q_deg))
 }
 
-/// JSON of a pose: `xyz_mm`, `zyz_deg`, `rotation` (row-major 3×3), `quaternion_wxyz`.
-pub(crate) fn pose_json(base_from_tip: &Isometry3<f64>) -> Value {
-    let t = base_from_tip.translation.vector * 1e3;
-    let r = base_from_tip.rotation.to_rotation_matrix();
-    let zyz = zyz_canonical(&r);
-    let m = r.matrix();
-    let q = base_from_tip.rotation;
-    json!({
-        "xyz_mm": [t.x, t.y, t.z],
-        "zyz_deg": [zyz[0].to_degrees(), zyz[1].to_degrees(), zyz[2].to_degrees()],
-        "rotation": [
-            [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
-            [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
-            [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
-        ],
-        "quaternion_wxyz": [q.w, q.i, q.j, q.k],
-    })
+/// The CLI unit of a joint's value: `"mm"` for a prismatic joint, `"deg"` otherwise.
+pub(crate) fn joint_unit(joint: &kinematics::Joint) -> &'static str {
+    if joint.kind.is_prismatic() {
+        "mm"
+    } else {
+        "deg"
+    }
+}
+
+/// A joint value (rad, or m for a prismatic joint) in its CLI unit ([`joint_unit`]).
+pub(crate) fn to_cli_unit(joint: &kinematics::Joint, v: f64) -> f64 {
+    if joint.kind.is_prismatic() {
+        v * 1e3
+    } else {
+        v.to_degrees()
+    }
 }
 
 /// Readable lines of a pose (mm, deg, rotation rows).
-pub(crate) fn pose_table(base_from_tip: &Isometry3<f64>) -> String {
-    let t = base_from_tip.translation.vector * 1e3;
-    let r = base_from_tip.rotation.to_rotation_matrix();
-    let zyz = zyz_canonical(&r).map(f64::to_degrees);
-    let m = r.matrix();
+pub(crate) fn pose_table(pose: &PoseForms) -> String {
+    let (t, zyz, m) = (pose.xyz_mm, pose.zyz_deg, pose.rotation);
     let mut s = String::new();
     s += &format!(
         "  {:>12} {:>12} {:>12} {:>12} {:>12} {:>12}\n",
@@ -226,17 +281,77 @@ pub(crate) fn pose_table(base_from_tip: &Isometry3<f64>) -> String {
     );
     s += &format!(
         "  {:>12.4} {:>12.4} {:>12.4} {:>12.5} {:>12.5} {:>12.5}\n",
-        t.x, t.y, t.z, zyz[0], zyz[1], zyz[2]
+        t[0], t[1], t[2], zyz[0], zyz[1], zyz[2]
     );
     s += "  rotation (base axes, columns = tip x, y, z):\n";
-    for row in 0..3 {
-        s += &format!(
-            "  {:>12.8} {:>12.8} {:>12.8}\n",
-            m[(row, 0)],
-            m[(row, 1)],
-            m[(row, 2)]
-        );
+    for row in m {
+        s += &format!("  {:>12.8} {:>12.8} {:>12.8}\n", row[0], row[1], row[2]);
     }
+    s
+}
+
+/// What `handclasp fk` prints for one pose: the robot, the joints and tip it was given, and
+/// `base_from_tip` in every form ([`PoseForms`]). `--json` serialises it; [`render_text`] reads it.
+///
+/// Fields in alphabetical order: the JSON key order (that of the `serde_json::Value` this report
+/// was before it had types).
+#[derive(Debug, Clone, Serialize)]
+struct FkReport {
+    /// `--cell`, when given (absent from the JSON otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    cell: Option<String>,
+    /// The joint values, chain order: degrees, millimetres for a prismatic joint.
+    q_deg: Vec<f64>,
+    /// Each value's unit (`"deg"` or `"mm"`), only for a robot with a prismatic joint (then
+    /// `q_deg` mixes units).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    q_units: Option<Vec<&'static str>>,
+    /// `base_from_tip`'s unit quaternion `[w, x, y, z]`.
+    quaternion_wxyz: [f64; 4],
+    /// The robot's name (URDF).
+    robot: String,
+    /// `base_from_tip`'s rotation matrix, row-major.
+    rotation: [[f64; 3]; 3],
+    /// The tip offset used, flange frame, mm.
+    tip_mm: [f64; 3],
+    /// The flange link the chain ends at.
+    tool_link: String,
+    /// `base_from_tip`'s translation, mm.
+    xyz_mm: [f64; 3],
+    /// `base_from_tip`'s ZYZ angles (canonical branch), degrees.
+    zyz_deg: [f64; 3],
+}
+
+impl FkReport {
+    /// `base_from_tip` again as one value.
+    fn base_from_tip(&self) -> PoseForms {
+        PoseForms {
+            quaternion_wxyz: self.quaternion_wxyz,
+            rotation: self.rotation,
+            xyz_mm: self.xyz_mm,
+            zyz_deg: self.zyz_deg,
+        }
+    }
+}
+
+/// The text report of one pose.
+fn render_text(r: &FkReport) -> String {
+    let tip = r.tip_mm;
+    let mut s = format!(
+        "{} ({} joints), flange {}, tip ({}, {}, {}) mm in the flange frame{}\n",
+        r.robot,
+        r.q_deg.len(),
+        r.tool_link,
+        tip[0],
+        tip[1],
+        tip[2],
+        match &r.cell {
+            Some(cell) => format!(", with the errors of cell {cell}"),
+            None => String::new(),
+        }
+    );
+    s += "base_from_tip (ZYZ: R = Rz(phi)·Ry(theta)·Rz(psi)):\n";
+    s += &pose_table(&r.base_from_tip());
     s
 }
 
@@ -285,7 +400,7 @@ fn load_fk_robot(args: &Args) -> anyhow::Result<FkRobot> {
              for use without --cell)"
         ),
     };
-    let cell = sim_cell::Cell::from_toml_file(cell_path)
+    let cell = handclasp_cell::Cell::from_toml_file(cell_path)
         .with_context(|| format!("--cell {}", cell_path.display()))?;
     let robot = cell.robot(which);
     let flange_from_tip = if args.cell_tip {
@@ -324,32 +439,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let tip = robot.flange_from_tip;
     let (q, q_deg) = parse_q_deg("--q-deg", q_text, model)?;
     let base_from_tip = robot.base_from_tip(&q).context("--q-deg")?;
+    let PoseForms {
+        quaternion_wxyz,
+        rotation,
+        xyz_mm,
+        zyz_deg,
+    } = PoseForms::from_isometry(&base_from_tip);
+    let report = FkReport {
+        cell: robot.cell.as_ref().map(|c| c.display().to_string()),
+        q_deg,
+        q_units: model
+            .has_prismatic_joints()
+            .then(|| model.joints().iter().map(joint_unit).collect()),
+        quaternion_wxyz,
+        robot: model.name().to_string(),
+        rotation,
+        tip_mm: [tip.x * 1e3, tip.y * 1e3, tip.z * 1e3],
+        tool_link: model.tool_link().to_string(),
+        xyz_mm,
+        zyz_deg,
+    };
     if args.json {
-        let mut v = pose_json(&base_from_tip);
-        v["robot"] = json!(model.name());
-        v["tool_link"] = json!(model.tool_link());
-        v["q_deg"] = json!(q_deg);
-        v["tip_mm"] = json!([tip.x * 1e3, tip.y * 1e3, tip.z * 1e3]);
-        if let Some(cell) = &robot.cell {
-            v["cell"] = json!(cell.display().to_string());
-        }
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        println!(
-            "{} ({} joints), flange {}, tip ({}, {}, {}) mm in the flange frame{}",
-            model.name(),
-            model.dof(),
-            model.tool_link(),
-            tip.x * 1e3,
-            tip.y * 1e3,
-            tip.z * 1e3,
-            match &robot.cell {
-                Some(cell) => format!(", with the errors of cell {}", cell.display()),
-                None => String::new(),
-            }
-        );
-        println!("base_from_tip (ZYZ: R = Rz(phi)·Ry(theta)·Rz(psi)):");
-        print!("{}", pose_table(&base_from_tip));
+        print!("{}", render_text(&report));
     }
     Ok(())
 }
@@ -518,4 +631,59 @@ fn run_batch(
         eprintln!("wrote {} poses to {}", rows.len(), path.display());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report(cell: Option<&str>) -> FkReport {
+        let pose = PoseForms::from_isometry(&Isometry3::translation(1.0, -0.25, 0.5));
+        FkReport {
+            cell: cell.map(String::from),
+            q_deg: vec![0.0; 6],
+            q_units: None,
+            quaternion_wxyz: pose.quaternion_wxyz,
+            robot: "hp20".into(),
+            rotation: pose.rotation,
+            tip_mm: [0.0, 0.0, 150.0],
+            tool_link: "tool0".into(),
+            xyz_mm: pose.xyz_mm,
+            zyz_deg: pose.zyz_deg,
+        }
+    }
+
+    #[test]
+    fn text_of_one_pose() {
+        let text = render_text(&report(Some("cells/x.toml")));
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines[0],
+            "hp20 (6 joints), flange tool0, tip (0, 0, 150) mm in the flange frame, with the errors of cell cells/x.toml"
+        );
+        assert_eq!(
+            lines[1],
+            "base_from_tip (ZYZ: R = Rz(phi)·Ry(theta)·Rz(psi)):"
+        );
+        assert_eq!(
+            lines[3],
+            format!(
+                "  {:>12.4} {:>12.4} {:>12.4} {:>12.5} {:>12.5} {:>12.5}",
+                1000.0, -250.0, 500.0, 0.0, 0.0, 0.0
+            )
+        );
+        assert_eq!(lines.len(), 8);
+        assert!(render_text(&report(None)).starts_with(
+            "hp20 (6 joints), flange tool0, tip (0, 0, 150) mm in the flange frame\n"
+        ));
+    }
+
+    /// The JSON's keys in the order of the `serde_json::Value` it was; `cell` only with --cell.
+    #[test]
+    fn json_keys_in_value_order() {
+        for cell in [None, Some("c.toml")] {
+            let json = crate::test_support::json_in_value_order(&report(cell));
+            assert_eq!(json.contains("\"cell\""), cell.is_some());
+        }
+    }
 }

@@ -7,8 +7,8 @@
 //! e_rot of experiments 11, 13, 14, 15) are printed as notes (see `calib_core::paper`).
 
 use crate::paper_diagnose;
-use calib_core::paper::{check_table1, Recomputed, E_ROT_TOL_DEG, E_TRAN_TOL_MM};
-use serde_json::json;
+use calib_core::paper::{check_table1, Recomputed, Table1Check, E_ROT_TOL_DEG, E_TRAN_TOL_MM};
+use serde::Serialize;
 
 /// Subcommands of `handclasp paper`.
 #[derive(clap::Subcommand, Debug)]
@@ -35,48 +35,113 @@ pub fn run(cmd: Command) -> anyhow::Result<()> {
     }
 }
 
+/// Rounded to 1e-4 (the JSON's recomputed figures).
 fn r3(v: f64) -> f64 {
     (v * 1e4).round() / 1e4
+}
+
+/// `paper table1 --json`: the tolerances and every row's recomputed errors beside the published
+/// ones (recomputed figures rounded to 1e-4). The text table reads the same [`Table1Check`]s
+/// unrounded.
+///
+/// Fields in alphabetical order, in every struct: the JSON key order (that of the
+/// `serde_json::Value` this report was before it had types).
+#[derive(Debug, Serialize)]
+struct Table1Report {
+    rows: Vec<Table1RowReport>,
+    tolerance: Table1Tolerance,
+}
+
+impl Table1Report {
+    fn new(checks: &[Table1Check]) -> Self {
+        Table1Report {
+            rows: checks.iter().map(Table1RowReport::from).collect(),
+            tolerance: Table1Tolerance {
+                e_rot_deg: E_ROT_TOL_DEG,
+                e_tran_mm: E_TRAN_TOL_MM,
+            },
+        }
+    }
+}
+
+/// The agreement tolerances, mm and degrees.
+#[derive(Debug, Serialize)]
+struct Table1Tolerance {
+    e_rot_deg: f64,
+    e_tran_mm: f64,
+}
+
+/// One experiment: recomputed (rounded) and published errors, and the notes.
+#[derive(Debug, Serialize)]
+struct Table1RowReport {
+    calib1: RecomputedReport,
+    calib2: RecomputedReport,
+    e_rot1_deg: f64,
+    e_rot2_deg: f64,
+    e_tran1_mm: f64,
+    e_tran2_mm: f64,
+    experiment: u32,
+    geodesic1_deg: f64,
+    geodesic2_deg: f64,
+    mounts: String,
+    notes: Vec<String>,
+    published_e_rot1_deg: f64,
+    published_e_rot2_deg: f64,
+    published_e_tran1_mm: f64,
+    published_e_tran2_mm: f64,
+}
+
+/// One estimate's agreement flags and its e_rot as printed.
+#[derive(Debug, Serialize)]
+struct RecomputedReport {
+    e_rot_agrees: bool,
+    e_rot_as_printed_deg: f64,
+    e_rot_consistent_with_rounding: bool,
+    e_tran_agrees: bool,
+    e_tran_consistent_with_rounding: bool,
+}
+
+impl From<&Recomputed> for RecomputedReport {
+    fn from(r: &Recomputed) -> Self {
+        RecomputedReport {
+            e_rot_agrees: r.e_rot_agrees,
+            e_rot_as_printed_deg: r3(r.e_rot_raw_deg),
+            e_rot_consistent_with_rounding: r.e_rot_consistent,
+            e_tran_agrees: r.e_tran_agrees,
+            e_tran_consistent_with_rounding: r.e_tran_consistent,
+        }
+    }
+}
+
+impl From<&Table1Check> for Table1RowReport {
+    fn from(c: &Table1Check) -> Self {
+        Table1RowReport {
+            calib1: RecomputedReport::from(&c.calib1),
+            calib2: RecomputedReport::from(&c.calib2),
+            e_rot1_deg: r3(c.calib1.e_rot_deg),
+            e_rot2_deg: r3(c.calib2.e_rot_deg),
+            e_tran1_mm: r3(c.calib1.e_tran_mm),
+            e_tran2_mm: r3(c.calib2.e_tran_mm),
+            experiment: c.row.experiment,
+            geodesic1_deg: r3(c.calib1.geodesic_deg),
+            geodesic2_deg: r3(c.calib2.geodesic_deg),
+            mounts: c.row.mounts.clone(),
+            notes: c.notes.clone(),
+            published_e_rot1_deg: c.row.e_rot1_deg,
+            published_e_rot2_deg: c.row.e_rot2_deg,
+            published_e_tran1_mm: c.row.e_tran1_mm,
+            published_e_tran2_mm: c.row.e_tran2_mm,
+        }
+    }
 }
 
 fn table1(args: Table1Args) -> anyhow::Result<()> {
     let checks = check_table1()?;
     if args.json {
-        let rows: Vec<_> = checks
-            .iter()
-            .map(|c| {
-                let one = |r: &Recomputed| {
-                    json!({
-                        "e_tran_agrees": r.e_tran_agrees, "e_rot_agrees": r.e_rot_agrees,
-                        "e_tran_consistent_with_rounding": r.e_tran_consistent,
-                        "e_rot_consistent_with_rounding": r.e_rot_consistent,
-                        "e_rot_as_printed_deg": r3(r.e_rot_raw_deg),
-                    })
-                };
-                json!({
-                    "experiment": c.row.experiment,
-                    "mounts": c.row.mounts,
-                    "e_tran1_mm": r3(c.calib1.e_tran_mm),
-                    "e_rot1_deg": r3(c.calib1.e_rot_deg),
-                    "e_tran2_mm": r3(c.calib2.e_tran_mm),
-                    "e_rot2_deg": r3(c.calib2.e_rot_deg),
-                    "geodesic1_deg": r3(c.calib1.geodesic_deg),
-                    "geodesic2_deg": r3(c.calib2.geodesic_deg),
-                    "published_e_tran1_mm": c.row.e_tran1_mm,
-                    "published_e_rot1_deg": c.row.e_rot1_deg,
-                    "published_e_tran2_mm": c.row.e_tran2_mm,
-                    "published_e_rot2_deg": c.row.e_rot2_deg,
-                    "calib1": one(&c.calib1),
-                    "calib2": one(&c.calib2),
-                    "notes": c.notes,
-                })
-            })
-            .collect();
-        let out = json!({
-            "tolerance": {"e_tran_mm": E_TRAN_TOL_MM, "e_rot_deg": E_ROT_TOL_DEG},
-            "rows": rows,
-        });
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&Table1Report::new(&checks))?
+        );
         return Ok(());
     }
     println!("Gan et al. 2014, Table 1, recomputed from the published transforms (recomputed / published).");
@@ -129,4 +194,23 @@ fn table1(args: Table1Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The JSON's keys in the order of the `serde_json::Value` it was; recomputed figures
+    /// rounded to 1e-4, published ones as printed.
+    #[test]
+    fn table1_json_keys_in_value_order_and_rounded() {
+        let checks = check_table1().unwrap();
+        let report = Table1Report::new(&checks);
+        assert_eq!(report.rows.len(), 15);
+        crate::test_support::json_in_value_order(&report);
+        for (r, c) in report.rows.iter().zip(&checks) {
+            assert_eq!(r.e_tran1_mm, (c.calib1.e_tran_mm * 1e4).round() / 1e4);
+            assert_eq!(r.published_e_tran1_mm, c.row.e_tran1_mm);
+        }
+    }
 }

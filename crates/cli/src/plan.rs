@@ -8,17 +8,19 @@
 //! the operator teaches from it and `Session::read_csv` reads it. The report compares the plan's
 //! prediction with the mean over `--random-draws` random picks of N of the same candidates.
 
+use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
-use calib_core::whole_cell::{DesignCriterion, DesignPrediction};
+use calib_core::whole_cell::{DesignCriterion, DesignPredictionReport};
+use handclasp_cell::Cell;
 use nalgebra::Point3;
-use serde_json::{json, Value};
+use serde::Serialize;
 use sim_cell::plan::{plan_session, Plan, PlanSpec, DEFAULT_RANDOM_DRAWS, EVAL_POSES};
-use sim_cell::Cell;
 
-/// `--criterion`.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+/// `--criterion`; serialised as `"a"` or `"d"`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
 pub enum CriterionArg {
     /// A-optimal: smallest predicted cooperative error (tip 2 → tip 1 in b1) of the whole-cell fit.
     A,
@@ -108,71 +110,128 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     plan.session
         .write_csv(&args.out, &cell)
         .with_context(|| format!("--out {}", args.out.display()))?;
-    let out = report(&args, &cell, &plan);
+    let report = PlanReport::new(&args, &cell, &plan);
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        print_text(&out);
+        print!("{}", render_text(&report));
     }
     Ok(())
 }
 
-fn prediction(p: &DesignPrediction) -> Value {
-    json!({
-        "cooperative_rms_mm": p.cooperative_rms_m * 1e3,
-        "e_tran_mm": p.e_tran_m * 1e3,
-        "e_rot_deg": p.e_rot_rad.to_degrees(),
-        "log_det_information": p.log_det_info,
-    })
+/// What `handclasp plan` prints: the command's inputs (cell, output file, flags), the plan's
+/// poses and its prediction beside the random picks'. `--json` serialises it; [`render_text`]
+/// reads it.
+///
+/// Fields in alphabetical order: the JSON key order (that of the `serde_json::Value` this
+/// report was before it had types).
+#[derive(Debug, Clone, Serialize)]
+struct PlanReport {
+    /// The candidates asked for, found reachable, and the points drawn to find them.
+    candidates: CandidateCounts,
+    /// `--cell`.
+    cell: String,
+    /// The candidates' cube centre in b1, mm (`--centre-mm` or the cell's `[teach]` centre).
+    centre_mm: [f64; 3],
+    /// How much lower the plan's predicted cooperative rms is than the random picks' mean, %.
+    cooperative_gain_over_random_percent: f64,
+    /// `--criterion`.
+    criterion: CriterionArg,
+    /// What the evaluation pairs are.
+    evaluation_pair_set: String,
+    /// Number of held-out evaluation pairs.
+    evaluation_pairs: usize,
+    /// `--n`.
+    n: usize,
+    /// `--out`.
+    out: String,
+    /// The chosen poses, in the order chosen.
+    poses: Vec<PlannedPose>,
+    /// The plan's prediction and the random picks' mean.
+    predicted: Predicted,
+    /// Random picks compared with.
+    random_draws: usize,
+    /// `--seed`.
+    seed: u64,
+    /// `--spread-mm`.
+    spread_mm: f64,
+    /// Always false: the tip is not checked for collision with its own robot's links.
+    tip_collision_checked: bool,
 }
 
-/// The JSON report (mm, degrees).
-fn report(args: &Args, cell: &Cell, plan: &Plan) -> Value {
-    let deg = |q: &[f64]| q.iter().map(|v| v.to_degrees()).collect::<Vec<_>>();
-    let poses: Vec<Value> = plan
-        .session
-        .points
-        .iter()
-        .zip(&plan.chosen)
-        .map(|(p, &c)| {
-            json!({
-                "point": p.point,
-                "candidate": c + 1,
-                "r1_q_deg": deg(&p.q1),
-                "r2_q_deg": deg(&p.q2),
-                "r1_tip_mm": [p.p_b1.x * 1e3, p.p_b1.y * 1e3, p.p_b1.z * 1e3],
-                "r2_tip_mm": [p.p_b2.x * 1e3, p.p_b2.y * 1e3, p.p_b2.z * 1e3],
+/// Candidate counts of a plan.
+#[derive(Debug, Clone, Serialize)]
+struct CandidateCounts {
+    asked: usize,
+    drawn: usize,
+    reachable: usize,
+}
+
+/// The plan's prediction and the mean of the random picks'.
+#[derive(Debug, Clone, Serialize)]
+struct Predicted {
+    plan: DesignPredictionReport,
+    random: DesignPredictionReport,
+}
+
+/// One chosen pose: joints (deg) and nominal tips (mm, each in its robot's base).
+#[derive(Debug, Clone, Serialize)]
+struct PlannedPose {
+    /// Its candidate number (1-based).
+    candidate: usize,
+    /// Its point number in the plan.
+    point: usize,
+    r1_q_deg: Vec<f64>,
+    r1_tip_mm: [f64; 3],
+    r2_q_deg: Vec<f64>,
+    r2_tip_mm: [f64; 3],
+}
+
+impl PlanReport {
+    fn new(args: &Args, cell: &Cell, plan: &Plan) -> Self {
+        let deg = |q: &[f64]| q.iter().map(|v| v.to_degrees()).collect::<Vec<_>>();
+        let poses = plan
+            .session
+            .points
+            .iter()
+            .zip(&plan.chosen)
+            .map(|(p, &c)| PlannedPose {
+                candidate: c + 1,
+                point: p.point,
+                r1_q_deg: deg(&p.q1),
+                r1_tip_mm: [p.p_b1.x * 1e3, p.p_b1.y * 1e3, p.p_b1.z * 1e3],
+                r2_q_deg: deg(&p.q2),
+                r2_tip_mm: [p.p_b2.x * 1e3, p.p_b2.y * 1e3, p.p_b2.z * 1e3],
             })
-        })
-        .collect();
-    let centre = plan_centre(args, cell);
-    let gain = 1.0 - plan.predicted.cooperative_rms_m / plan.random_mean.cooperative_rms_m;
-    json!({
-        "cell": args.cell.display().to_string(),
-        "out": args.out.display().to_string(),
-        "n": args.n,
-        "criterion": match args.criterion { CriterionArg::A => "a", CriterionArg::D => "d" },
-        "seed": args.seed,
-        "spread_mm": args.spread_mm,
-        "centre_mm": centre,
-        "candidates": {
-            "asked": args.candidates,
-            "reachable": plan.candidates.len(),
-            "drawn": plan.attempts,
-        },
-        "evaluation_pairs": plan.eval_pairs.len(),
-        "evaluation_pair_set": format!(
-            "{EVAL_POSES} held-out reachable handclasp poses (q1_i, q2_i) in the same cube"
-        ),
-        "random_draws": plan.random.len(),
-        "predicted": {
-            "plan": prediction(&plan.predicted),
-            "random": prediction(&plan.random_mean),
-        },
-        "cooperative_gain_over_random_percent": gain * 100.0,
-        "tip_collision_checked": false,
-        "poses": poses,
-    })
+            .collect();
+        let gain = 1.0 - plan.predicted.cooperative_rms_m / plan.random_mean.cooperative_rms_m;
+        PlanReport {
+            candidates: CandidateCounts {
+                asked: args.candidates,
+                drawn: plan.attempts,
+                reachable: plan.candidates.len(),
+            },
+            cell: args.cell.display().to_string(),
+            centre_mm: plan_centre(args, cell),
+            cooperative_gain_over_random_percent: gain * 100.0,
+            criterion: args.criterion,
+            evaluation_pair_set: format!(
+                "{EVAL_POSES} held-out reachable handclasp poses (q1_i, q2_i) in the same cube"
+            ),
+            evaluation_pairs: plan.eval_pairs.len(),
+            n: args.n,
+            out: args.out.display().to_string(),
+            poses,
+            predicted: Predicted {
+                plan: DesignPredictionReport::from(&plan.predicted),
+                random: DesignPredictionReport::from(&plan.random_mean),
+            },
+            random_draws: plan.random.len(),
+            seed: args.seed,
+            spread_mm: args.spread_mm,
+            tip_collision_checked: false,
+        }
+    }
 }
 
 fn plan_centre(args: &Args, cell: &Cell) -> [f64; 3] {
@@ -185,81 +244,167 @@ fn plan_centre(args: &Args, cell: &Cell) -> [f64; 3] {
     }
 }
 
-fn num(v: &Value) -> f64 {
-    v.as_f64().unwrap_or(f64::NAN)
+/// Numbers with `decimals` decimals, separated by spaces.
+fn list(v: &[f64], decimals: usize) -> String {
+    v.iter()
+        .map(|x| format!("{x:.decimals$}"))
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
-fn list(v: &Value, decimals: usize) -> String {
-    v.as_array()
-        .map(|a| {
-            a.iter()
-                .map(|x| format!("{:.*}", decimals, num(x)))
-                .collect::<Vec<_>>()
-                .join(" ")
-        })
-        .unwrap_or_default()
+/// The text report (mm, degrees).
+fn render_text(r: &PlanReport) -> String {
+    let mut s = String::new();
+    // Writing into a String cannot fail.
+    let _ = write_text(&mut s, r);
+    s
 }
 
-fn print_text(v: &Value) {
-    let c = &v["candidates"];
-    println!(
-        "== session plan: {} poses, criterion {} ({}), from {} reachable candidates ({} drawn, seed {})",
-        v["n"],
-        v["criterion"].as_str().unwrap_or("?"),
-        if v["criterion"] == "a" {
-            "smallest predicted cooperative error"
-        } else {
-            "largest information volume"
-        },
-        c["reachable"],
-        c["drawn"],
-        v["seed"]
-    );
-    println!(
+fn write_text(s: &mut String, r: &PlanReport) -> std::fmt::Result {
+    let (criterion, goal) = match r.criterion {
+        CriterionArg::A => ("a", "smallest predicted cooperative error"),
+        CriterionArg::D => ("d", "largest information volume"),
+    };
+    writeln!(
+        s,
+        "== session plan: {} poses, criterion {criterion} ({goal}), from {} reachable candidates ({} drawn, seed {})",
+        r.n, r.candidates.reachable, r.candidates.drawn, r.seed
+    )?;
+    writeln!(
+        s,
         "{:>5} {:>9}  {:<58} {:<50} meeting point in b1, mm",
         "point", "candidate", "robot 1 joints, deg", "robot 2 joints, deg",
-    );
-    for p in v["poses"].as_array().cloned().unwrap_or_default() {
-        println!(
+    )?;
+    for p in &r.poses {
+        writeln!(
+            s,
             "{:>5} {:>9}  {:<58} {:<50} {}",
-            p["point"].as_u64().unwrap_or(0),
-            p["candidate"].as_u64().unwrap_or(0),
-            list(&p["r1_q_deg"], 2),
-            list(&p["r2_q_deg"], 2),
-            list(&p["r1_tip_mm"], 1)
-        );
+            p.point,
+            p.candidate,
+            list(&p.r1_q_deg, 2),
+            list(&p.r2_q_deg, 2),
+            list(&p.r1_tip_mm, 1)
+        )?;
     }
-    let pr = &v["predicted"];
-    println!(
+    writeln!(
+        s,
         "predicted after a whole-cell calibration (prior from the cell's tolerances, the cell's noise), \
          cooperative error over the {} held-out configuration pairs:",
-        v["evaluation_pairs"]
+        r.evaluation_pairs
+    )?;
+    let random = format!(
+        "random (mean of {} picks of the same candidates)",
+        r.random_draws
     );
-    for (name, k) in [
-        ("plan", "plan"),
-        (
-            &format!(
-                "random (mean of {} picks of the same candidates)",
-                v["random_draws"]
-            ),
-            "random",
-        ),
+    for (name, p) in [
+        ("plan", &r.predicted.plan),
+        (random.as_str(), &r.predicted.random),
     ] {
-        println!(
+        writeln!(
+            s,
             "  {name:<50} cooperative rms {:.3} mm   e_tran {:.3} mm   e_rot {:.4}°",
-            num(&pr[k]["cooperative_rms_mm"]),
-            num(&pr[k]["e_tran_mm"]),
-            num(&pr[k]["e_rot_deg"])
-        );
+            p.cooperative_rms_mm, p.e_tran_mm, p.e_rot_deg
+        )?;
     }
-    println!(
+    writeln!(
+        s,
         "  the plan's cooperative rms is {:.0} % below the random picks' mean",
-        num(&v["cooperative_gain_over_random_percent"])
-    );
-    println!(
+        r.cooperative_gain_over_random_percent
+    )?;
+    writeln!(
+        s,
         "  (e_tran/e_rot of b1_from_b2 carry the kinematic errors no handclasp can tell from the placement, \
          held by the prior; the cooperative error does not)"
-    );
-    println!("note: the tip is not checked for collision with its own robot's links");
-    println!("wrote {}", v["out"].as_str().unwrap_or("?"));
+    )?;
+    writeln!(
+        s,
+        "note: the tip is not checked for collision with its own robot's links"
+    )?;
+    writeln!(s, "wrote {}", r.out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn prediction(rms_mm: f64) -> DesignPredictionReport {
+        DesignPredictionReport {
+            cooperative_rms_mm: rms_mm,
+            e_rot_deg: 0.01234,
+            e_tran_mm: 0.25,
+            log_det_information: 12.5,
+        }
+    }
+
+    fn report() -> PlanReport {
+        PlanReport {
+            candidates: CandidateCounts {
+                asked: 400,
+                drawn: 1234,
+                reachable: 400,
+            },
+            cell: "cells/floor-wall.toml".into(),
+            centre_mm: [475.0, -50.0, 995.0],
+            cooperative_gain_over_random_percent: 41.6,
+            criterion: CriterionArg::A,
+            evaluation_pair_set: "200 held-out …".into(),
+            evaluation_pairs: 200,
+            n: 1,
+            out: "plan.csv".into(),
+            poses: vec![PlannedPose {
+                candidate: 17,
+                point: 1,
+                r1_q_deg: vec![10.0, -20.555, 0.0],
+                r1_tip_mm: [475.04, -50.0, 995.0],
+                r2_q_deg: vec![1.0, 2.0],
+                r2_tip_mm: [0.0; 3],
+            }],
+            predicted: Predicted {
+                plan: prediction(0.5),
+                random: prediction(0.85),
+            },
+            random_draws: 20,
+            seed: 1,
+            spread_mm: 1000.0,
+            tip_collision_checked: false,
+        }
+    }
+
+    #[test]
+    fn text_of_a_plan() {
+        let text = render_text(&report());
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines[0],
+            "== session plan: 1 poses, criterion a (smallest predicted cooperative error), from 400 reachable candidates (1234 drawn, seed 1)"
+        );
+        assert_eq!(
+            lines[2],
+            format!(
+                "{:>5} {:>9}  {:<58} {:<50} 475.0 -50.0 995.0",
+                1, 17, "10.00 -20.55 0.00", "1.00 2.00"
+            )
+        );
+        for line in [
+            "  plan                                               cooperative rms 0.500 mm   e_tran 0.250 mm   e_rot 0.0123°",
+            "  random (mean of 20 picks of the same candidates)   cooperative rms 0.850 mm   e_tran 0.250 mm   e_rot 0.0123°",
+            "  the plan's cooperative rms is 42 % below the random picks' mean",
+            "wrote plan.csv",
+        ] {
+            assert!(lines.contains(&line), "{line:?} missing in\n{text}");
+        }
+        let mut d = report();
+        d.criterion = CriterionArg::D;
+        assert!(render_text(&d).contains("criterion d (largest information volume)"));
+    }
+
+    /// The JSON's keys in the order of the `serde_json::Value` it was, the criterion as a letter.
+    #[test]
+    fn json_keys_in_value_order() {
+        let json = crate::test_support::json_in_value_order(&report());
+        assert!(
+            json.contains(r#""criterion":"a""#)
+                && json.contains(r#""tip_collision_checked":false"#)
+        );
+    }
 }

@@ -23,8 +23,9 @@ mod study;
 use std::path::{Path, PathBuf};
 
 use calib_core::whole_cell::{CellEstimate, Evaluator, ObservationKind, ParamLayout};
+use handclasp_cell::Cell;
+use handclasp_cell::{export_calibrated_cell, ExportNames};
 use kinematics::{true_base_from_tip, KinematicErrors};
-use sim_cell::{export_calibrated_cell, Cell, ExportNames};
 
 use data::{locate_dataset, read_dataset, Recording, Role};
 use study::{

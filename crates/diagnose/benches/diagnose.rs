@@ -15,8 +15,9 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use diagnose::{diagnose_session, DiagnoseOptions};
+use handclasp_cell::Cell;
 use kinematics::{Axis, ErrorParam};
-use sim_cell::{generate_session, trial_rng, Cell, Layout, SessionSpec};
+use sim_cell::{generate_session, trial_rng, Layout, SessionSpec};
 
 fn bench(c: &mut Criterion) {
     let cell = Cell::default_floor_wall();

@@ -3,9 +3,9 @@
 //! effects to [`KinematicErrors`].
 
 use calib_core::Robot;
+use handclasp_cell::Cell;
 use kinematics::{Axis, ErrorParam, KinematicErrors};
 use serde::Serialize;
-use sim_cell::Cell;
 
 use crate::report::EffectReport;
 

@@ -10,8 +10,8 @@ use serde::ser::SerializeMap;
 use serde::{Serialize, Serializer};
 
 use crate::cell_diagnosis::{
-    joints_of, residuals_at, CellDiagnoseOptions, CellDiagnosis, Family, HeldOut, NotSelected,
-    ScoredRow, KINDS, Z95,
+    residuals_at, CellDiagnoseOptions, CellDiagnosis, Family, HeldOut, NotSelected, ScoredRow,
+    KINDS, Z95,
 };
 
 /// Number of bins of the residual-against-joint table (quartiles of the joint's values).
@@ -340,16 +340,16 @@ fn kind_residuals(
         .iter()
         .zip(scale)
         .filter_map(|(&k, &s)| {
-            let (n, rms_mm, scaled_sigma_mm, _) = kind_rms(fitted, k)?;
+            let (n, rms_mm, scaled_sigma_mm, _) = kind_rms(fitted, k.name())?;
             let stated_sigma_mm = scaled_sigma_mm / s;
             Some(KindResidual {
-                kind: k,
+                kind: k.name(),
                 residual_rows: n,
                 rms_mm,
                 stated_sigma_mm,
                 rms_over_sigma: rms_mm / stated_sigma_mm,
                 noise_scale: s,
-                held_out_rms_mm: kind_rms(&held.rows, k).map(|v| v.1),
+                held_out_rms_mm: kind_rms(&held.rows, k.name()).map(|v| v.1),
             })
         })
         .collect()
@@ -374,7 +374,9 @@ fn joint_bins(problem: &CellProblem, rows: &[ScoredRow]) -> Vec<(u8, usize, Vec<
             let mut v: Vec<(f64, f64, usize)> = rows
                 .iter()
                 .filter_map(|s| {
-                    joints_of(&problem.observations[s.index].kind)
+                    problem.observations[s.index]
+                        .kind
+                        .joints()
                         .into_iter()
                         .find(|(rr, _)| *rr == r)
                         .map(|(_, q)| (q[j], s.whitened.norm_squared(), s.whitened.len()))
@@ -447,9 +449,9 @@ fn kind_gains(before: &HeldOut, after: &HeldOut) -> Vec<KindGain> {
         .iter()
         .filter_map(|&k| {
             Some(KindGain {
-                kind: k,
-                rms_mm_before: kind_rms(&before.rows, k)?.1,
-                rms_mm_after: kind_rms(&after.rows, k)?.1,
+                kind: k.name(),
+                rms_mm_before: kind_rms(&before.rows, k.name())?.1,
+                rms_mm_after: kind_rms(&after.rows, k.name())?.1,
             })
         })
         .collect()
@@ -491,7 +493,7 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
     let vf = variance_factor(ff);
     let mut counts = [0usize; KINDS.len()];
     for o in &d.problem.observations {
-        if let Some(k) = KINDS.iter().position(|k| *k == o.kind.name()) {
+        if let Some(k) = KINDS.iter().position(|k| *k == o.kind.kind()) {
             counts[k] += 1;
         }
     }
@@ -525,7 +527,10 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
             .iter()
             .zip(counts)
             .filter(|(_, n)| *n > 0)
-            .map(|(&kind, rows)| KindCount { kind, rows })
+            .map(|(kind, rows)| KindCount {
+                kind: kind.name(),
+                rows,
+            })
             .collect(),
         rows_used: d.used.len(),
         rejected_points: d

@@ -10,9 +10,10 @@ use calib_core::identify::{self, IdentFit, IdentStatus, Selection, SelectionOpti
 use calib_core::stats::chi2_sf;
 use calib_core::whole_cell::{calibrate_cell, CellFitError, ScreenOptions, SolveOptions};
 use calib_core::Robot;
+use handclasp_cell::problem::{cell_problem, FitModel};
+use handclasp_cell::Cell;
+use handclasp_cell::Session;
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
-use sim_cell::whole_cell::{cell_problem, FitModel};
-use sim_cell::{Cell, Session};
 
 use crate::catalogue::{catalogue, Candidate, EffectKind};
 use crate::input::check_session;
@@ -60,7 +61,7 @@ impl Default for DiagnoseOptions {
 ///
 /// First (unless `options.screen_blunders` is off) the rows are screened for gross errors by the
 /// whole-cell calibration's screen ([`calib_core::whole_cell::calibrate_cell`] on
-/// [`sim_cell::whole_cell::cell_problem`] with the kinematic model: `b1_from_b2` and every
+/// [`handclasp_cell::problem::cell_problem`] with the kinematic model: `b1_from_b2` and every
 /// kinematic parameter the cell's `[robotN.tolerance]` admits, so that kinematic errors are not
 /// mistaken for blunders; a robust Huber start, then studentised residuals against a Bonferroni
 /// limit at α = 1 %). The rejected rows are named in the report with their size in σ, and the
@@ -71,7 +72,7 @@ impl Default for DiagnoseOptions {
 ///
 /// # Examples
 /// ```no_run
-/// let cell = sim_cell::Cell::default_floor_wall();
+/// let cell = handclasp_cell::Cell::default_floor_wall();
 /// let session = diagnose::load_session(std::path::Path::new("session.csv"), &cell)?;
 /// let report = diagnose::diagnose_session(&cell, &session, &diagnose::DiagnoseOptions::default())?;
 /// print!("{}", diagnose::render_text(&report));

@@ -5,8 +5,9 @@
 use std::path::Path;
 
 use calib_core::identify;
+use handclasp_cell::Cell;
+use handclasp_cell::Session;
 use nalgebra::Vector3;
-use sim_cell::{Cell, Session};
 
 use crate::DiagnoseError;
 
@@ -127,7 +128,7 @@ fn fmt3(v: &Vector3<f64>) -> String {
 /// coincident rows is refused, naming `handclasp calibrate --cell`.
 ///
 /// Errors: the file cannot be read ([`DiagnoseError::Io`]); sim-cell rejects it
-/// ([`DiagnoseError::Sim`], or [`DiagnoseError::SessionUnits`] when a unit mistake explains
+/// ([`DiagnoseError::Format`], or [`DiagnoseError::SessionUnits`] when a unit mistake explains
 /// it); the units or the session do not fit the cell ([`DiagnoseError::Session`]).
 pub fn load_session(path: &Path, cell: &Cell) -> Result<Session, DiagnoseError> {
     let text = std::fs::read_to_string(path).map_err(|e| DiagnoseError::io(path, e))?;

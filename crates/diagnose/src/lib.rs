@@ -44,7 +44,7 @@ pub use cell_diagnosis::{
 pub use cell_report::{render_cell_text, CellDiagnoseReport, RejectedFamilyReport};
 pub use engine::{diagnose_session, diagnose_session_with_progress, DiagnoseOptions};
 pub use export::{
-    export_cell_diagnosis, export_corrected, write_corrected_urdf, CELL_DIAGNOSIS_EXPORT_NAMES,
+    export_cell_diagnosis, export_corrected, CELL_DIAGNOSIS_EXPORT_NAMES, CORRECTED_EXPORT_NAMES,
 };
 pub use input::{check_session, load_session, FK_TOLERANCE_M};
 pub use mount_tilt::{
@@ -77,18 +77,18 @@ pub enum DiagnoseError {
         /// What is wrong and the fix.
         message: String,
     },
-    /// sim-cell could not read the session; `hint` names the unit mistake that explains it.
+    /// The session file could not be read; `hint` names the unit mistake that explains it.
     #[error("{hint}")]
     SessionUnits {
         /// The likely unit mistake and its fix.
         hint: String,
-        /// sim-cell's reading error.
+        /// The session reader's error.
         #[source]
-        source: sim_cell::SimError,
+        source: handclasp_cell::FormatError,
     },
-    /// The cell or session could not be read by sim-cell.
+    /// The cell or session file could not be read ([`handclasp_cell::FormatError`]).
     #[error(transparent)]
-    Sim(#[from] sim_cell::SimError),
+    Format(#[from] handclasp_cell::FormatError),
     /// A robot model rejected a session's joint vector.
     #[error("robot {robot}, point {point}")]
     Model {
@@ -108,16 +108,6 @@ pub enum DiagnoseError {
         /// The operating system's error.
         #[source]
         source: std::io::Error,
-    },
-    /// A robot's URDF could not be corrected: its text cannot be patched, or the patched text
-    /// (as read back from the temporary file) does not reproduce the corrected model.
-    #[error("{path}: cannot write the corrected URDF")]
-    UrdfPatch {
-        /// The source URDF, or the temporary file that failed the verification.
-        path: PathBuf,
-        /// The patcher's or the verification's error.
-        #[source]
-        source: kinematics::UrdfPatchError,
     },
     /// An exported file, read back from its temporary file, does not load.
     #[error("{path}: {message}")]

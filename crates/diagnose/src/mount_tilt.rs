@@ -8,9 +8,9 @@
 use calib_core::identify;
 use calib_core::stats::{chi2_sf, t_quantile, t_two_sided_p};
 use calib_core::Robot;
+use handclasp_cell::Cell;
 use kinematics::Axis;
 use nalgebra::{Isometry3, Matrix3, Vector3};
-use sim_cell::Cell;
 
 /// The calibrated `b1_from_b2` against the cell's stated one, SI units (the report converts:
 /// [`crate::PlacementReport`]).

@@ -2,11 +2,11 @@
 //! repeatability of both robots, encoder quantisation) and the seeded Monte Carlo of the
 //! rigid-fit residual RMS it predicts ([`simulate_rms`]).
 
+use handclasp_cell::{Cell, CellRobot};
 use nalgebra::{Isometry3, Matrix3, Matrix3xX, Point3, Vector3};
 use rand::Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
-use sim_cell::{Cell, CellRobot};
 
 use crate::DiagnoseError;
 
@@ -132,7 +132,7 @@ pub fn simulate_rms(
     let mut out: Vec<f64> = (0..trials)
         .into_par_iter()
         .map(|t| {
-            let mut rng = sim_cell::trial_rng(seed, t as u64);
+            let mut rng = calib_core::stats::trial_rng(seed, t as u64);
             let p1: Vec<Point3<f64>> = p2
                 .iter()
                 .zip(d)

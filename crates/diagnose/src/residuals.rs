@@ -2,8 +2,8 @@
 //! the tip position or the reach (Pearson, Bonferroni-corrected t tests).
 
 use calib_core::stats::{pearson, t_two_sided_p};
+use handclasp_cell::Session;
 use nalgebra::Vector3;
-use sim_cell::Session;
 
 use crate::report::CorrelationReport;
 

@@ -14,9 +14,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use calib_core::identify::{IdentifyError, TipEval, TipModel};
 use calib_core::Robot;
+use handclasp_cell::{Cell, CellRobot};
 use kinematics::{ErrorParam, KinematicErrors};
 use nalgebra::{Matrix3, Matrix3xX, Point3};
-use sim_cell::{Cell, CellRobot};
 
 use crate::catalogue::{Candidate, EffectKind};
 

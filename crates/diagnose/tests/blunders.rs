@@ -6,9 +6,11 @@
 
 use calib_core::Robot;
 use diagnose::{DiagnoseOptions, EffectKind};
+use handclasp_cell::Cell;
+use handclasp_cell::Session;
 use kinematics::{base_from_tip, ErrorParam};
 use nalgebra::Point3;
-use sim_cell::{generate_session, trial_rng, Cell, Layout, Session, SessionSpec};
+use sim_cell::{generate_session, trial_rng, Layout, SessionSpec};
 
 /// The hidden effect: robot 2's joint-3 zero offset, degrees.
 const OFFSET_DEG: f64 = 0.12;

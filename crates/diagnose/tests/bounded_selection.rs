@@ -13,8 +13,8 @@ use calib_core::identify::{
 use calib_core::Robot;
 use diagnose::noise::NoiseModel;
 use diagnose::{catalogue, load_session, DiagnoseOptions, SessionModel};
+use handclasp_cell::Cell;
 use nalgebra::Matrix3;
-use sim_cell::Cell;
 
 /// Tip-model evaluations (one point, any parameters) the whole forward selection on the fixture
 /// may use. Measured: 39 580 (4 steps, the 4th accepted and dropped again, then the cycle

@@ -9,8 +9,10 @@
 
 use calib_core::Robot;
 use diagnose::{Candidate, DiagnoseOptions, DiagnoseReport, EffectKind};
+use handclasp_cell::Cell;
+use handclasp_cell::Session;
 use rand::Rng;
-use sim_cell::{generate_session, trial_rng, Cell, Layout, Session, SessionSpec};
+use sim_cell::{generate_session, trial_rng, Layout, SessionSpec};
 
 /// Points per session: mid-range of the 20–60 a handclasp session typically records (the
 /// input check recommends 40).

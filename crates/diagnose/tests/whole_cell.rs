@@ -17,11 +17,12 @@ use std::collections::HashMap;
 use diagnose::{
     diagnose_cell_session, export_cell_diagnosis, CellDiagnoseOptions, CellDiagnoseReport,
 };
+use handclasp_cell::{Cell, CellRobot};
+use handclasp_cell::{Session, SessionKind};
 use kinematics::{true_base_from_tip, Axis, ErrorParam};
 use nalgebra::{Point3, Vector3};
 use sim_cell::{
-    generate_kind_session, generate_session, trial_rng, Cell, CellRobot, KindSpec, Layout, Session,
-    SessionKind, SessionSpec, SimKind,
+    generate_kind_session, generate_session, trial_rng, KindSpec, Layout, SessionSpec, SimKind,
 };
 
 /// Rows per session (60 observations, 10 of each of the 6 kinds in turn).

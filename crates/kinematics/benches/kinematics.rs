@@ -3,7 +3,9 @@
 //! Ids: `fk/<robot>` (checked `base_from_tip`), `fk_unchecked/<robot>`, `jacobian/<robot>`
 //! (`geometric_jacobian`, base axes), `ik/<robot>` (position-only `ik_tip_position` with default
 //! options, cycling over 256 reachable targets drawn from seeded joint vectors) and
-//! `ik_axis/<robot>` (the same with the flange z axis constrained).
+//! `ik_axis/<robot>` (the same with the flange z axis constrained). Robots: the shipped hp20 and
+//! va1400, and two test fixtures: `rail_6r` (the hp20 on a track: a prismatic first joint) and
+//! `mimic_torso` (a coupled joint: the FK's chain-value step).
 
 use std::hint::black_box;
 use std::path::Path;
@@ -17,13 +19,19 @@ use nalgebra::{Point3, Unit, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-const ROBOTS: [&str; 2] = ["hp20", "va1400"];
+const ROBOTS: [&str; 4] = ["hp20", "va1400", "rail_6r", "mimic_torso"];
 const SEED: u64 = 20_140_101;
 const N_INPUTS: usize = 256;
 
+/// A shipped robot (`robots/<name>.urdf`) or, for `rail_6r` and `mimic_torso`, the test fixture.
 fn robot(name: &str) -> RobotModel {
-    let p = format!("{}/../../robots/{name}.urdf", env!("CARGO_MANIFEST_DIR"));
-    RobotModel::from_urdf_file(Path::new(&p), "tool0").expect("shipped URDF loads")
+    let dir = if name == "rail_6r" || name == "mimic_torso" {
+        "tests/fixtures"
+    } else {
+        "../../robots"
+    };
+    let p = format!("{}/{dir}/{name}.urdf", env!("CARGO_MANIFEST_DIR"));
+    RobotModel::from_urdf_file(Path::new(&p), "tool0").expect("URDF loads")
 }
 
 /// Seeded joint vectors inside the limits (5 % margin of each span).

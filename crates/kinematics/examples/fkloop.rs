@@ -14,7 +14,13 @@ fn main() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(10_000_000);
     let robot = std::env::args().nth(3).unwrap_or_else(|| "hp20".into());
-    let p = format!("{}/../../robots/{robot}.urdf", env!("CARGO_MANIFEST_DIR"));
+    // A shipped robot, or a test fixture (rail_6r: a prismatic track; mimic_torso: a coupling).
+    let dir = if robot == "rail_6r" || robot == "mimic_torso" {
+        "tests/fixtures"
+    } else {
+        "../../robots"
+    };
+    let p = format!("{}/{dir}/{robot}.urdf", env!("CARGO_MANIFEST_DIR"));
     let m = RobotModel::from_urdf_file(std::path::Path::new(&p), "tool0").unwrap();
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(20_140_101);
     let qs: Vec<Vec<f64>> = (0..256)

@@ -47,8 +47,8 @@ pub enum ModelError {
         /// File path or `"<string>"`.
         source_name: String,
     },
-    /// A `<mimic>` joint lies on the chain: its angle follows another joint's.
-    #[error("{source_name}: joint `{joint}` on the chain to the tool link mimics joint `{mimicked}` (<mimic>); coupled joints are not modelled: choose a tool link whose chain has only independent joints, or replace the coupling by independent joints")]
+    /// A `<mimic>` joint on the chain follows a joint that is not on the chain.
+    #[error("{source_name}: joint `{joint}` on the chain to the tool link mimics joint `{mimicked}` (<mimic>), which is not a moving joint of that chain (a coupled joint must follow joints of its own chain); choose a tool link whose chain holds both joints, or one before `{joint}`")]
     MimicJoint {
         /// File path or `"<string>"`.
         source_name: String,
@@ -57,13 +57,15 @@ pub enum ModelError {
         /// The joint it follows.
         mimicked: String,
     },
-    /// A prismatic (linear) joint lies on the chain.
-    #[error("{source_name}: joint `{joint}` is prismatic (a linear axis such as a track), which is not supported: the FK kernel, the Jacobians, the IK (joint limits, seeds and degree checks in radians) and the kinematic-error model (joint offsets in rad) are written for rotary joints only. Calibrate the arm at one track position: make the joint fixed (type=\"fixed\" with its <origin> moved to that position) and treat each track position as a separate robot placement")]
-    PrismaticJoint {
-        /// File path or `"<string>"`.
+    /// A declared coupling ([`crate::RobotModel::with_couplings`]) cannot be applied.
+    #[error("{source_name}: the coupling of joint `{joint}`: {problem}")]
+    BadCoupling {
+        /// File path or `"<string>"` of the URDF.
         source_name: String,
-        /// The joint.
+        /// The coupled joint.
         joint: String,
+        /// What is wrong and how to fix it.
+        problem: String,
     },
     /// The joint origins add up to an implausible length: the file is probably in millimetres.
     #[error("{source_name}: the joint origins of the chain add up to {length:.1} m (joint `{joint}` alone {origin:.1} m); URDF lengths are metres and this file looks like it is written in millimetres: divide every <origin xyz> (and <inertial> origin) by 1000")]
@@ -77,8 +79,8 @@ pub enum ModelError {
         /// Sum of the chain's origin lengths as written, "m".
         length: f64,
     },
-    /// A joint type other than revolute, continuous, fixed or prismatic lies on the chain.
-    #[error("{source_name}: joint `{joint}` is of type {kind}, which is unsupported; only revolute, continuous and fixed joints are")]
+    /// A joint type other than revolute, continuous, prismatic or fixed lies on the chain.
+    #[error("{source_name}: joint `{joint}` is of type {kind}, which is unsupported; only revolute, continuous, prismatic and fixed joints are")]
     UnsupportedJoint {
         /// File path or `"<string>"`.
         source_name: String,
@@ -87,7 +89,7 @@ pub enum ModelError {
         /// Its URDF type.
         kind: String,
     },
-    /// An actuated joint has a zero or non-finite axis.
+    /// A moving joint has a zero or non-finite axis.
     #[error("{source_name}: joint `{joint}` has axis {axis:?}, which is zero or not finite; give a non-zero <axis xyz=\"...\"/>")]
     ZeroAxis {
         /// File path or `"<string>"`.
@@ -107,6 +109,31 @@ pub enum ModelError {
         /// Lower limit, rad.
         lower: f64,
         /// Upper limit, rad.
+        upper: f64,
+    },
+    /// A prismatic joint's limits are not finite or lower ≥ upper.
+    #[error("{source_name}: joint `{joint}` has limits lower={lower} m, upper={upper} m; a prismatic joint needs <limit lower=\"..\" upper=\"..\"/> with finite lower < upper in metres")]
+    BadLinearLimits {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The joint.
+        joint: String,
+        /// Lower limit, m.
+        lower: f64,
+        /// Upper limit, m.
+        upper: f64,
+    },
+    /// Prismatic limits beyond [`crate::MAX_PRISMATIC_TRAVEL_M`]: almost surely written in
+    /// millimetres.
+    #[error("{source_name}: joint `{joint}` is prismatic with limits lower={lower}, upper={upper}, which look like millimetres; URDF limits of a prismatic joint are metres: divide them by 1000")]
+    LimitsLookLikeMillimetres {
+        /// File path or `"<string>"`.
+        source_name: String,
+        /// The joint.
+        joint: String,
+        /// Lower limit as written.
+        lower: f64,
+        /// Upper limit as written.
         upper: f64,
     },
     /// Revolute limits beyond ±2 turns: almost surely written in degrees.
@@ -129,8 +156,8 @@ pub enum ModelError {
         /// The joint.
         joint: String,
     },
-    /// The chain from the root to the tool link has no actuated joint.
-    #[error("{source_name}: no revolute or continuous joint between the root and `{tool_link}`; choose a tool link at the end of the arm")]
+    /// The chain from the root to the tool link has no moving joint.
+    #[error("{source_name}: no revolute, continuous or prismatic joint between the root and `{tool_link}`; choose a tool link at the end of the arm")]
     NoActuatedJoints {
         /// File path or `"<string>"`.
         source_name: String,
@@ -152,6 +179,18 @@ pub enum KinematicsError {
         expected: usize,
         /// Number of values given.
         got: usize,
+    },
+    /// Joint vector of the wrong length for a chain with coupled joints.
+    #[error("joint vector has {got} values but {robot} has {expected} independent joints (the coupled joints {coupled} follow them); give one value per independent joint, in chain order")]
+    WrongLengthCoupled {
+        /// Robot name.
+        robot: String,
+        /// Number of independent joints.
+        expected: usize,
+        /// Number of values given.
+        got: usize,
+        /// The coupled joints, comma separated.
+        coupled: String,
     },
     /// A joint value is NaN or infinite.
     #[error("joint {index} ({joint}) is {value}, not a finite number; give finite angles")]
@@ -190,6 +229,34 @@ pub enum KinematicsError {
         lower_deg: f64,
         /// Upper limit, deg.
         upper_deg: f64,
+    },
+    /// A prismatic joint's value is plainly in millimetres where metres are expected.
+    #[error("joint {index} ({joint}) is {value} m, which looks like millimetres ({value} mm is inside the limits {lower_mm:.1}..{upper_mm:.1} mm); a prismatic joint's value is in metres: divide by 1000")]
+    LooksLikeMillimetres {
+        /// 1-based joint number.
+        index: usize,
+        /// Joint name.
+        joint: String,
+        /// The value given, m.
+        value: f64,
+        /// Lower limit, mm.
+        lower_mm: f64,
+        /// Upper limit, mm.
+        upper_mm: f64,
+    },
+    /// A prismatic joint's value is outside its limits.
+    #[error("joint {index} ({joint}) is {value_mm:.3} mm, outside its limits {lower_mm:.3}..{upper_mm:.3} mm; move it inside the range")]
+    OutOfLinearLimits {
+        /// 1-based joint number.
+        index: usize,
+        /// Joint name.
+        joint: String,
+        /// The value, mm.
+        value_mm: f64,
+        /// Lower limit, mm.
+        lower_mm: f64,
+        /// Upper limit, mm.
+        upper_mm: f64,
     },
     /// Another input (target, tip offset, option) is invalid.
     #[error("invalid input: {0}")]

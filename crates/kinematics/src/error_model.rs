@@ -17,8 +17,19 @@
 //! [`tip_error_jacobian`](crate::tip_error_jacobian) its exact analytic derivatives with respect to any [`ErrorParam`], at any
 //! error values (not only at zero).
 //!
-//! This file holds the parameters ([`KinematicErrors`], [`ErrorParam`], [`all_params`]); the true
-//! chain and its Jacobians are in `true_fk.rs`.
+//! Every per-joint term is per chain joint ([`RobotModel::chain_joints`]), coupled joints
+//! included, in that joint's unit:
+//! - a **prismatic** joint's `q` is a travel in m: its offset is a length (m, the zero of the
+//!   linear encoder), its scale an encoder scale (ratio), its compliance in m/N (it deflects by
+//!   `compliance_i·f_i` under the gravity force `f_i` along its axis, N), and it has no periodic
+//!   terms (`sin(q)` of a length has no meaning: a non-zero value is refused by
+//!   [`KinematicErrors::check`]);
+//! - a **coupled** joint's reported value is its coupling evaluated at the reported independent
+//!   joints (`Σ c_i·q_rep_i + c_0`), and its own offset, scale, compliance and periodic terms apply
+//!   to that value like any joint's: its value comes from the others, its errors are its own.
+//!
+//! This file holds the parameters ([`KinematicErrors`], [`ErrorParam`], [`all_params`],
+//! [`all_params_for`]); the true chain and its Jacobians are in `true_fk.rs`.
 
 use std::fmt;
 
@@ -30,11 +41,13 @@ use crate::error::KinematicsError;
 use crate::model::{origin_isometry, RobotModel};
 
 /// Deviations of a real robot from its nominal URDF model (see the module documentation for how
-/// each one enters the kinematics). Per-joint vectors have one entry per actuated joint, in chain
-/// order (0-based). [`KinematicErrors::zero`] is the nominal robot.
+/// each one enters the kinematics). Per-joint vectors have one entry per chain joint
+/// ([`RobotModel::chain_joints`]: the moving joints, coupled ones included; `dof` of them without
+/// coupled joints), in chain order (0-based). [`KinematicErrors::zero`] is the nominal robot.
+/// Per-joint units are those of a rotary joint unless a prismatic joint's are named.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct KinematicErrors {
-    /// Joint zero offsets, rad: added to the scaled reported angle.
+    /// Joint zero offsets, rad (m for a prismatic joint): added to the scaled reported value.
     pub joint_offset: Vec<f64>,
     /// Joint scale (gear-ratio) errors, ratio: `q_true = q_rep·(1 + scale) + …`.
     pub joint_scale: Vec<f64>,
@@ -49,11 +62,13 @@ pub struct KinematicErrors {
     /// Orientation of the true base in the nominal base frame, (roll, pitch, yaw) rad,
     /// `R = Rz(yaw)·Ry(pitch)·Rx(roll)`.
     pub mount_rpy: Vector3<f64>,
-    /// Joint compliance, rad/(N·m): the joint deflects by `compliance_i·τ_i` under the gravity
-    /// torque `τ_i` of the nominal model at the reported posture.
+    /// Joint compliance, rad/(N·m) (m/N for a prismatic joint): the joint deflects by
+    /// `compliance_i·τ_i` under the
+    /// gravity torque (force) `τ_i` of the nominal model at the reported posture.
     pub compliance: Vec<f64>,
     /// First-harmonic periodic joint error, sine part, rad: adds `periodic_sin_i·sin(q_rep_i)`
-    /// to joint i's true angle. Omitted from the serialised form when all zero.
+    /// to joint i's true angle (rotary joints only: zero for a prismatic joint). Omitted from the
+    /// serialised form when all zero.
     #[serde(default, skip_serializing_if = "all_zero")]
     pub periodic_sin: Vec<f64>,
     /// First-harmonic periodic joint error, cosine part, rad: adds `periodic_cos_i·cos(q_rep_i)`
@@ -69,7 +84,8 @@ fn all_zero(v: &[f64]) -> bool {
 }
 
 impl KinematicErrors {
-    /// No errors (the nominal robot) for a chain of `dof` actuated joints.
+    /// No errors (the nominal robot) for a chain of `dof` moving joints (coupled ones included:
+    /// `model.chain_joints().len()`; see [`KinematicErrors::zero_for`]).
     pub fn zero(dof: usize) -> Self {
         Self {
             joint_offset: vec![0.0; dof],
@@ -85,7 +101,12 @@ impl KinematicErrors {
         }
     }
 
-    /// Number of joints (the length of `joint_offset`).
+    /// No errors for `model`: one entry per chain joint ([`RobotModel::chain_joints`]).
+    pub fn zero_for(model: &RobotModel) -> Self {
+        Self::zero(model.chain_joints().len())
+    }
+
+    /// Number of joints (the length of `joint_offset`: the chain joints, coupled ones included).
     pub fn dof(&self) -> usize {
         self.joint_offset.len()
     }
@@ -106,11 +127,21 @@ impl KinematicErrors {
             && z(&self.periodic_cos)
     }
 
-    /// Checks the errors against a model: every per-joint vector has `model.dof()` entries and all
-    /// values are finite. Errors name the field and the (1-based) joint. (Deserialised errors
-    /// without the periodic fields have them empty: set them to `vec![0.0; dof]`.)
+    /// Checks the errors against a model: every per-joint vector has one entry per chain joint
+    /// (`model.chain_joints().len()`, which is `model.dof()` without coupled joints), all values
+    /// are finite, and a prismatic joint has no periodic term. Errors name the field and the
+    /// (1-based) joint. (Deserialised errors without the periodic fields have them empty: set them
+    /// to `vec![0.0; dof]`.)
     pub fn check(&self, model: &RobotModel) -> Result<(), KinematicsError> {
-        let n = model.dof();
+        let n = model.chain_joints().len();
+        let joints_text = if model.has_coupled_joints() {
+            format!(
+                "{n} chain joints ({} independent, the coupled ones included)",
+                model.dof()
+            )
+        } else {
+            format!("{n} joints")
+        };
         let lens = [
             ("joint_offset", self.joint_offset.len()),
             ("joint_scale", self.joint_scale.len()),
@@ -123,15 +154,15 @@ impl KinematicErrors {
         for (field, len) in lens {
             if len != n {
                 return Err(KinematicsError::InvalidInput(format!(
-                    "kinematic errors: `{field}` has {len} entries but {} has {n} joints; give one \
-                     value per joint (KinematicErrors::zero({n}) has the right shape)",
+                    "kinematic errors: `{field}` has {len} entries but {} has {joints_text}; give \
+                     one value per joint (KinematicErrors::zero({n}) has the right shape)",
                     model.name()
                 )));
             }
         }
         let bad = |field: &str, joint: Option<usize>, v: f64| {
             let at = joint.map_or(String::new(), |j| {
-                format!(" of joint {} ({})", j + 1, model.joints()[j].name)
+                format!(" of joint {} ({})", j + 1, model.chain_joints()[j].name)
             });
             KinematicsError::InvalidInput(format!(
                 "kinematic errors: `{field}`{at} is {v}, not a finite number; give finite values"
@@ -155,6 +186,23 @@ impl KinematicErrors {
             ] {
                 if let Some(&x) = v.iter().find(|x| !x.is_finite()) {
                     return Err(bad(field, Some(j), x));
+                }
+            }
+            let joint = &model.chain_joints()[j];
+            if joint.kind.is_prismatic() {
+                for (field, v) in [
+                    ("periodic_sin", self.periodic_sin[j]),
+                    ("periodic_cos", self.periodic_cos[j]),
+                ] {
+                    if v != 0.0 {
+                        return Err(KinematicsError::InvalidInput(format!(
+                            "kinematic errors: `{field}` of joint {} ({}) is {v}, but the joint \
+                             is prismatic: a periodic term is a once-per-turn error of a rotary \
+                             joint (sin and cos of a length in metres mean nothing); set it to 0",
+                            j + 1,
+                            joint.name
+                        )));
+                    }
                 }
             }
         }
@@ -246,7 +294,7 @@ impl KinematicErrors {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum ErrorParam {
-    /// `joint_offset[joint]`, rad.
+    /// `joint_offset[joint]`, rad (m for a prismatic joint).
     JointOffset {
         /// 0-based joint index.
         joint: usize,
@@ -285,7 +333,7 @@ pub enum ErrorParam {
         /// `X` = roll, `Y` = pitch, `Z` = yaw.
         axis: Axis,
     },
-    /// `compliance[joint]`, rad/(N·m).
+    /// `compliance[joint]`, rad/(N·m) (m/N for a prismatic joint).
     Compliance {
         /// 0-based joint index.
         joint: usize,
@@ -320,7 +368,8 @@ impl ErrorParam {
         }
     }
 
-    /// The SI unit of the value: `"rad"`, `"ratio"`, `"m"` or `"rad/(N·m)"`.
+    /// The SI unit of the value for a rotary joint: `"rad"`, `"ratio"`, `"m"` or `"rad/(N·m)"`
+    /// (for a parameter of a given model's joint, [`ErrorParam::unit_si_in`]).
     pub fn unit_si(self) -> &'static str {
         match self {
             ErrorParam::JointOffset { .. }
@@ -364,6 +413,42 @@ impl ErrorParam {
         }
     }
 
+    /// The SI unit of the value in `model`: [`ErrorParam::unit_si`], except for a prismatic
+    /// joint's offset (`"m"`) and compliance (`"m/N"`). A joint index outside the chain gives
+    /// [`ErrorParam::unit_si`].
+    pub fn unit_si_in(self, model: &RobotModel) -> &'static str {
+        let prismatic = self
+            .joint()
+            .and_then(|j| model.chain_joints().get(j))
+            .is_some_and(|j| j.kind.is_prismatic());
+        match self {
+            ErrorParam::JointOffset { .. } if prismatic => "m",
+            ErrorParam::Compliance { .. } if prismatic => "m/N",
+            _ => self.unit_si(),
+        }
+    }
+
+    /// Checks the parameter against `model`: the joint index is a chain joint's
+    /// (`< model.chain_joints().len()`), and a periodic parameter is not a prismatic joint's.
+    ///
+    /// Errors: either is violated (the message names the joint and the fix).
+    pub fn check_model(self, model: &RobotModel) -> Result<(), KinematicsError> {
+        self.check_dof(model.chain_joints().len())?;
+        if let ErrorParam::PeriodicSin { joint } | ErrorParam::PeriodicCos { joint } = self {
+            let j = &model.chain_joints()[joint];
+            if j.kind.is_prismatic() {
+                return Err(KinematicsError::InvalidInput(format!(
+                    "error parameter {self}: joint {} ({}) is prismatic, and a periodic term is a \
+                     once-per-turn error of a rotary joint; leave it out (all_params_for lists \
+                     the parameters of a model)",
+                    joint + 1,
+                    j.name
+                )));
+            }
+        }
+        Ok(())
+    }
+
     /// Checks the joint index against a chain of `dof` joints.
     ///
     /// Errors: the joint index is `≥ dof`.
@@ -393,9 +478,10 @@ impl fmt::Display for ErrorParam {
     }
 }
 
-/// The whole catalogue of parameters for a chain of `dof` joints, in a fixed order: per joint
-/// (offset, scale, origin xyz x/y/z, origin rpy x/y/z, compliance, periodic sin, periodic cos),
-/// then tip x/y/z, mount xyz x/y/z, mount rpy x/y/z. `11·dof + 9` entries.
+/// The whole catalogue of parameters for a chain of `dof` rotary joints, in a fixed order: per
+/// joint (offset, scale, origin xyz x/y/z, origin rpy x/y/z, compliance, periodic sin, periodic
+/// cos), then tip x/y/z, mount xyz x/y/z, mount rpy x/y/z. `11·dof + 9` entries. For a model with
+/// prismatic joints use [`all_params_for`].
 pub fn all_params(dof: usize) -> Vec<ErrorParam> {
     let mut v = Vec::with_capacity(11 * dof + 9);
     for joint in 0..dof {
@@ -411,6 +497,22 @@ pub fn all_params(dof: usize) -> Vec<ErrorParam> {
     v.extend(Axis::ALL.map(|axis| ErrorParam::MountXyz { axis }));
     v.extend(Axis::ALL.map(|axis| ErrorParam::MountRpy { axis }));
     v
+}
+
+/// The catalogue of [`all_params`] for `model`'s chain joints
+/// (`model.chain_joints().len()`), without the periodic parameters of prismatic joints, which
+/// have none: the parameters [`crate::tip_error_jacobian`] accepts for it.
+pub fn all_params_for(model: &RobotModel) -> Vec<ErrorParam> {
+    let chain = model.chain_joints();
+    all_params(chain.len())
+        .into_iter()
+        .filter(|p| match *p {
+            ErrorParam::PeriodicSin { joint } | ErrorParam::PeriodicCos { joint } => {
+                !chain[joint].kind.is_prismatic()
+            }
+            _ => true,
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -1,23 +1,25 @@
-//! Gravity torques about the joint axes from the URDF inertials (lumped per joint, see
-//! [`RobotModel::inertials`]).
+//! Gravity torques about the joint axes (and forces along prismatic axes) from the URDF
+//! inertials (lumped per joint, see [`RobotModel::inertials`]), one per chain joint
+//! ([`RobotModel::chain_joints`], coupled joints included).
 //!
 //! For joint `i` with unit axis `z_i` through the point `o_i` (both in the base frame, at posture
 //! `q`), and the lumped masses `m_k` with centres `c_k` (base frame) carried by joints `k ≥ i`:
 //!
-//! `τ_i = z_i · Σ_{k≥i} (c_k − o_i) × (m_k·g)`, N·m,
+//! - revolute or continuous: `τ_i = z_i · Σ_{k≥i} (c_k − o_i) × (m_k·g)`, N·m, the torque gravity
+//!   exerts about the joint axis;
+//! - prismatic: `f_i = z_i · Σ_{k≥i} m_k·g`, N, the force gravity exerts along the axis (what the
+//!   joint's drive holds; a compliance of the axis, m/N, deflects it by `compliance·f_i`),
 //!
-//! the torque gravity exerts about the joint axis (positive in the joint's positive sense). It equals
-//! `−∂V/∂q_i` with the potential energy `V = −Σ_k m_k·g·c_k`. `g` is the gravity acceleration in the
-//! robot's base frame, m/s² (floor mount: `(0, 0, −9.81)`).
+//! both positive in the joint's positive sense. Each equals `−∂V/∂q_i` with the potential energy
+//! `V = −Σ_k m_k·g·c_k`, `q_i` the chain joint's value (rad or m). `g` is the gravity acceleration
+//! in the robot's base frame, m/s² (floor mount: `(0, 0, −9.81)`).
 
 use nalgebra::{Matrix3, Vector3};
 
 use crate::error::KinematicsError;
 use crate::fk::apply_step;
-use crate::model::RobotModel;
-
-/// Joints handled on the stack (no allocation) by the internal hot paths; longer chains allocate.
-pub(crate) const STACK_DOF: usize = 16;
+pub(crate) use crate::model::STACK_DOF;
+use crate::model::{RobotModel, PRISMATIC};
 
 /// Per-joint quantities of the gravity sums, base frame.
 #[derive(Debug, Clone, Copy, Default)]
@@ -30,6 +32,8 @@ pub(crate) struct GravityEntry {
     pub(crate) mc: Vector3<f64>,
     /// Lumped mass, kg.
     pub(crate) m: f64,
+    /// A prismatic joint (a force along `z`, not a torque about it).
+    pub(crate) prismatic: bool,
 }
 
 /// Checks that the gravity vector is finite.
@@ -45,24 +49,41 @@ pub(crate) fn check_gravity(g_base: &Vector3<f64>) -> Result<(), KinematicsError
     }
 }
 
-/// Fills `entries[i]` (len = dof) for the NOMINAL model at `q`. No checks.
+/// Fills `entries[k]` (len = chain joints) for the NOMINAL model at the independent joint vector
+/// `q`. No checks.
 pub(crate) fn gravity_entries(model: &RobotModel, q: &[f64], entries: &mut [GravityEntry]) {
+    if model.prismatic {
+        gravity_entries_k::<true>(model, q, entries);
+    } else {
+        gravity_entries_k::<false>(model, q, entries);
+    }
+}
+
+/// [`gravity_entries`] for a chain that may (or, `false`, does not) hold prismatic joints.
+#[inline(always)]
+fn gravity_entries_k<const MAY_BE_PRISMATIC: bool>(
+    model: &RobotModel,
+    q: &[f64],
+    entries: &mut [GravityEntry],
+) {
     let mut r = Matrix3::identity();
     let mut t = Vector3::zeros();
+    let mut buf = Vec::new();
     for (((step, &qi), inertial), e) in model
         .steps
         .iter()
-        .zip(q)
+        .zip(model.chain_q(q, &mut buf))
         .zip(model.inertials())
         .zip(entries.iter_mut())
     {
-        apply_step(&mut r, &mut t, step, qi);
+        apply_step::<MAY_BE_PRISMATIC>(&mut r, &mut t, step, qi);
         let c = t + r * inertial.com;
         *e = GravityEntry {
             z: r * step.axis.into_inner(),
             o: t,
             mc: inertial.mass * c,
             m: inertial.mass,
+            prismatic: MAY_BE_PRISMATIC && step.axis_kind == PRISMATIC,
         };
     }
 }
@@ -78,20 +99,25 @@ pub(crate) fn torques_from_entries(
     for (e, tau) in entries.iter().zip(out.iter_mut()).rev() {
         s += e.mc;
         m += e.m;
-        // Σ_{k≥i} m_k (c_k − o_i) = S_i − M_i·o_i.
-        *tau = e.z.dot(&(s - m * e.o).cross(g_base));
+        *tau = if e.prismatic {
+            // The carried weight along the axis.
+            m * e.z.dot(g_base)
+        } else {
+            // Σ_{k≥i} m_k (c_k − o_i) = S_i − M_i·o_i.
+            e.z.dot(&(s - m * e.o).cross(g_base))
+        };
     }
 }
 
-/// Gravity torques of the nominal model at `q` into `out` (len = dof), without checks and, for
-/// `dof ≤ 16`, without allocation.
+/// Gravity torques of the nominal model at `q` into `out` (len = chain joints), without checks
+/// and, for chains of up to 16 joints without coupled joints, without allocation.
 pub(crate) fn gravity_torques_into(
     model: &RobotModel,
     q: &[f64],
     g_base: &Vector3<f64>,
     out: &mut [f64],
 ) {
-    let n = model.dof();
+    let n = model.chain_joints().len();
     if n <= STACK_DOF {
         let mut buf = [GravityEntry::default(); STACK_DOF];
         gravity_entries(model, q, &mut buf[..n]);
@@ -103,15 +129,20 @@ pub(crate) fn gravity_torques_into(
     }
 }
 
-/// Gravity torques about every joint axis, N·m, in chain order.
+/// Gravity torques about every joint axis, N·m (forces along the axis, N, for prismatic
+/// joints), one per chain joint ([`RobotModel::chain_joints`], coupled joints included; `dof`
+/// values for a chain without coupled joints), in chain order.
 ///
 /// `τ_i = z_i · Σ_{k≥i} (c_k − o_i) × (m_k·g_base)`: the torque gravity exerts about joint `i`'s
 /// axis from all the mass it carries (the lumped URDF inertials, [`RobotModel::inertials`]), with
 /// the axis `z_i`, axis point `o_i` and centres of mass `c_k` in the base frame at posture `q`
-/// (rad). `g_base` is the gravity acceleration in the base frame, m/s² (floor mount:
-/// `(0, 0, −9.81)`; a ceiling mount: `(0, 0, +9.81)`). A model without inertials gives zeros.
+/// (the independent joints, rad or m); for a prismatic joint `f_i = z_i · Σ_{k≥i} m_k·g_base`.
+/// `g_base` is the gravity acceleration in the base frame, m/s² (floor mount: `(0, 0, −9.81)`; a
+/// ceiling mount: `(0, 0, +9.81)`). A model without inertials gives zeros.
 ///
-/// Equals `−∂V/∂q_i` with `V = −Σ_k m_k·g_base·c_k`.
+/// Equals `−∂V/∂q_i` with `V = −Σ_k m_k·g_base·c_k` and `q_i` the chain joint's value (the
+/// generalised force on the independent joints is `Aᵀτ`, `A` the
+/// [`RobotModel::coupling_matrix`]).
 ///
 /// Errors: a bad `q` (see [`RobotModel::check_q`]) or a non-finite `g_base`.
 ///
@@ -138,18 +169,23 @@ pub fn gravity_torques(
 ) -> Result<Vec<f64>, KinematicsError> {
     model.check_q(q)?;
     check_gravity(g_base)?;
-    let mut tau = vec![0.0; model.dof()];
+    let mut tau = vec![0.0; model.chain_joints().len()];
     gravity_torques_into(model, q, g_base, &mut tau);
     Ok(tau)
 }
 
-/// `∂τ/∂q`, the dof×dof gravity-torque Jacobian, N·m/rad, row `k` = joint torque `k`, column `i`
-/// = joint angle `i`, at posture `q` (rad). Symmetric (it is minus the Hessian of the potential
-/// energy).
+/// `∂τ/∂q`, the gravity-torque Jacobian, (chain joints)×dof: row `k` = chain joint `k`'s torque
+/// (N·m) or force (N), column `i` = independent joint `i` (per rad, or per m for a prismatic
+/// joint), at posture `q`. Without coupled joints it is dof×dof and symmetric (minus the
+/// Hessian of the potential energy); with them it is the chain Jacobian below times the
+/// [`RobotModel::coupling_matrix`].
 ///
-/// With `W_k = Σ_{m≥k} m_m (c_m − o_k)` (base frame): for `i < k`,
-/// `∂τ_k/∂q_i = (z_i × z_k)·(W_k × g) + z_k·((z_i × W_k) × g)`; for `i ≥ k`,
-/// `∂τ_k/∂q_i = z_k·((z_i × W_i) × g)`.
+/// Chain Jacobian, with `W_k = Σ_{m≥k} m_m (c_m − o_k)` and `M_k = Σ_{m≥k} m_m` (base frame),
+/// `i` rotary: for `i < k`, `∂τ_k/∂q_i = (z_i × z_k)·(W_k × g) + z_k·((z_i × W_k) × g)`; for
+/// `i ≥ k`, `∂τ_k/∂q_i = z_k·((z_i × W_i) × g)`. `i` prismatic (it translates everything it
+/// carries by `z_i`): 0 for `i < k` (`W_k` is unchanged), `z_k·((M_i z_i) × g)` for `i > k`.
+/// A prismatic `k`'s force `f_k = M_k z_k·g` changes only with the direction `z_k`:
+/// `∂f_k/∂q_i = M_k (z_i × z_k)·g` for a rotary `i < k`, 0 otherwise.
 ///
 /// Errors: as [`gravity_torques`].
 pub fn gravity_torque_jacobian(
@@ -159,36 +195,53 @@ pub fn gravity_torque_jacobian(
 ) -> Result<nalgebra::DMatrix<f64>, KinematicsError> {
     model.check_q(q)?;
     check_gravity(g_base)?;
-    let n = model.dof();
+    let n = model.chain_joints().len();
     let mut entries = vec![GravityEntry::default(); n];
     gravity_entries(model, q, &mut entries);
-    Ok(gravity_jacobian_from_entries(&entries, g_base))
+    let chain = gravity_jacobian_from_entries(&entries, g_base);
+    Ok(if model.has_coupled_joints() {
+        chain * model.coupling_matrix()
+    } else {
+        chain
+    })
 }
 
-/// See [`gravity_torque_jacobian`]. No checks.
+/// The chain Jacobian of [`gravity_torque_jacobian`] (chain joints × chain joints). No checks.
 pub(crate) fn gravity_jacobian_from_entries(
     entries: &[GravityEntry],
     g_base: &Vector3<f64>,
 ) -> nalgebra::DMatrix<f64> {
     let n = entries.len();
-    // W_k = S_k − M_k o_k.
+    // W_k = S_k − M_k o_k, and the carried masses M_k.
     let mut w = vec![Vector3::zeros(); n];
+    let mut carried = vec![0.0; n];
     let mut s = Vector3::zeros();
     let mut m = 0.0;
-    for (e, wk) in entries.iter().zip(w.iter_mut()).rev() {
+    for ((e, wk), mk) in entries
+        .iter()
+        .zip(w.iter_mut())
+        .zip(carried.iter_mut())
+        .rev()
+    {
         s += e.mc;
         m += e.m;
         *wk = s - m * e.o;
+        *mk = m;
     }
     let mut jac = nalgebra::DMatrix::zeros(n, n);
     for k in 0..n {
         let zk = entries[k].z;
         for i in 0..n {
             let zi = entries[i].z;
-            jac[(k, i)] = if i < k {
-                zi.cross(&zk).dot(&w[k].cross(g_base)) + zk.dot(&zi.cross(&w[k]).cross(g_base))
-            } else {
-                zk.dot(&zi.cross(&w[i]).cross(g_base))
+            jac[(k, i)] = match (entries[k].prismatic, entries[i].prismatic) {
+                (false, false) if i < k => {
+                    zi.cross(&zk).dot(&w[k].cross(g_base)) + zk.dot(&zi.cross(&w[k]).cross(g_base))
+                }
+                (false, false) => zk.dot(&zi.cross(&w[i]).cross(g_base)),
+                (false, true) if i > k => zk.dot(&(carried[i] * zi).cross(g_base)),
+                (false, true) => 0.0,
+                (true, false) if i < k => carried[k] * zi.cross(&zk).dot(g_base),
+                (true, _) => 0.0,
             };
         }
     }
@@ -208,7 +261,7 @@ mod tests {
     }
 
     fn potential(model: &RobotModel, q: &[f64], g: &Vector3<f64>) -> f64 {
-        let mut e = vec![GravityEntry::default(); model.dof()];
+        let mut e = vec![GravityEntry::default(); model.chain_joints().len()];
         gravity_entries(model, q, &mut e);
         -e.iter().map(|e| e.mc.dot(g)).sum::<f64>()
     }
@@ -298,6 +351,111 @@ mod tests {
         }
         // Minus a Hessian: symmetric.
         assert!((&jac - jac.transpose()).amax() < 1e-9);
+    }
+
+    /// The generalised forces on the independent joints, `Aᵀτ` (`A` the coupling matrix), are
+    /// `−∂V/∂q` (central differences in `q`), the chain torques are those of the same chain with
+    /// every joint independent at the chain values, and `∂τ/∂q` matches central differences of
+    /// `τ` in `q`: on the rail-mounted hp20 (a prismatic joint carrying everything), the mixed
+    /// chain (an oblique rail, a lift in the middle, a mimic) with and without a one-to-many
+    /// coupling, and the mimic torso. Step H and tolerances as above (rail masses ~420 kg at up to
+    /// ~6 m: |V| ≲ 3e4 J, so round-off eps·|V|/H ≈ 7e-6 N·m; TOL_TAU 1e-5 still holds it, with
+    /// TOL_COUPLED_TAU 3e-5 for the sums Aᵀτ).
+    fn check_mixed_chain(m: &RobotModel, independent: &RobotModel, seed: u64) {
+        use crate::test_fixtures::random_q;
+        use rand::SeedableRng;
+        const TOL_COUPLED_TAU: f64 = 3e-5;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let q = random_q(m, &mut rng);
+        let g = Vector3::new(0.3, -0.5, -9.8);
+        let tau = gravity_torques(m, &q, &g).unwrap();
+        assert_eq!(tau.len(), m.chain_joints().len());
+        let generalised =
+            m.coupling_matrix().transpose() * nalgebra::DVector::from_vec(tau.clone());
+        for i in 0..m.dof() {
+            let mut qp = q.clone();
+            let mut qm = q.clone();
+            qp[i] += H;
+            qm[i] -= H;
+            let fd = -(potential(m, &qp, &g) - potential(m, &qm, &g)) / (2.0 * H);
+            assert!(
+                (generalised[i] - fd).abs() < TOL_COUPLED_TAU,
+                "{} joint {i}: analytic {} vs fd {fd}",
+                m.name(),
+                generalised[i]
+            );
+        }
+        let chain_q = m.chain_values(&q).unwrap();
+        let tau_independent = gravity_torques(independent, &chain_q, &g).unwrap();
+        for (a, b) in tau.iter().zip(&tau_independent) {
+            assert!(
+                (a - b).abs() < 1e-9,
+                "{}: {tau:?} vs {tau_independent:?}",
+                m.name()
+            );
+        }
+        let jac = gravity_torque_jacobian(m, &q, &g).unwrap();
+        assert_eq!(jac.shape(), (m.chain_joints().len(), m.dof()));
+        for i in 0..m.dof() {
+            let mut qp = q.clone();
+            let mut qm = q.clone();
+            qp[i] += H;
+            qm[i] -= H;
+            let tp = gravity_torques(m, &qp, &g).unwrap();
+            let tm = gravity_torques(m, &qm, &g).unwrap();
+            for k in 0..m.chain_joints().len() {
+                let fd = (tp[k] - tm[k]) / (2.0 * H);
+                assert!(
+                    (jac[(k, i)] - fd).abs() < TOL_DTAU,
+                    "{} dτ{k}/dq{i}: analytic {} vs fd {fd}",
+                    m.name(),
+                    jac[(k, i)]
+                );
+            }
+        }
+        if !m.has_coupled_joints() {
+            assert!((&jac - jac.transpose()).amax() < 1e-9);
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(16))]
+        #[test]
+        fn prismatic_and_coupled_chains_match_their_potential(seed in any::<u64>()) {
+            use crate::test_fixtures::{mixed_coupled, MIMIC_TORSO, MIXED, RAIL_6R};
+            let rail = model(RAIL_6R);
+            check_mixed_chain(&rail, &rail, seed);
+            let no_mimic = model(&MIXED.replace(r#"<mimic joint="j2" multiplier="-1" offset="0.1"/>"#, ""));
+            check_mixed_chain(&model(MIXED), &no_mimic, seed);
+            check_mixed_chain(&mixed_coupled(), &no_mimic, seed);
+            let torso_free = model(&MIMIC_TORSO.replace(
+                r#"<mimic joint="torso_pitch_1" multiplier="-1" offset="0.05"/>"#, ""));
+            check_mixed_chain(&model(MIMIC_TORSO), &torso_free, seed);
+        }
+    }
+
+    /// Hand computation: a 2 kg slider on a vertical lift feels −2·9.81 N along +z whatever its
+    /// height, and a joint turning the lift by 90° (axis now horizontal) makes it 0; the rotary
+    /// joint under it feels the slider's moment.
+    #[test]
+    fn a_lift_carries_its_weight_as_a_force() {
+        let xml = r#"<robot name="lift">
+          <link name="base"/><link name="post"/>
+          <link name="slider"><inertial><origin xyz="0.5 0 0"/><mass value="2"/>
+            <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+          <joint name="tilt" type="revolute"><parent link="base"/><child link="post"/>
+            <axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+          <joint name="lift" type="prismatic"><parent link="post"/><child link="slider"/>
+            <axis xyz="0 0 1"/><limit lower="0" upper="1" effort="100" velocity="1"/></joint>
+        </robot>"#;
+        let m = RobotModel::from_urdf_str(xml, "slider").unwrap();
+        let g = Vector3::from(G_FLOOR);
+        let tau = gravity_torques(&m, &[0.0, 0.7], &g).unwrap();
+        assert!((tau[1] + 2.0 * 9.81).abs() < 1e-12, "{tau:?}");
+        // (0.5, 0, 0.7) × (0, 0, −19.62) about +y: +0.5·19.62 N·m.
+        assert!((tau[0] - 0.5 * 2.0 * 9.81).abs() < 1e-12, "{tau:?}");
+        let tau = gravity_torques(&m, &[std::f64::consts::FRAC_PI_2, 0.7], &g).unwrap();
+        assert!(tau[1].abs() < 1e-12, "{tau:?}");
     }
 
     proptest! {

@@ -20,11 +20,21 @@
 //! ranges; every other seed, except an `initial_q` the caller gave, first turns joint 1 toward
 //! the target's azimuth); a target that no seed reaches is reported as [`IkStatus::Unreachable`] with the best
 //! joint vector found. All work buffers are allocated once per call.
+//!
+//! Prismatic joints and coupled joints: `q` is the independent joints (rad, or m for a prismatic
+//! joint) and the Jacobian columns are those of [`crate::geometric_jacobian`] (a prismatic
+//! column in m/m, comparable with a rotary column in m/rad on an arm of about 1 m reach, so the
+//! damping, in m², and the step rule are the same); a prismatic joint's limits are an active set
+//! like any other, in m, and its Halton seeds span its whole travel (a rotary joint's at most
+//! 2π). The azimuth aim turns the first rotary joint of the chain when only independent
+//! prismatic joints come before it (a rail under an arm) and no coupled joint follows it; it is
+//! skipped otherwise.
 
 use nalgebra::{Matrix3, Point3, Unit, Vector3};
 
 use crate::error::KinematicsError;
 use crate::fk::{check_tip, joint_frames};
+use crate::jacobian::joint_columns;
 use crate::model::RobotModel;
 
 /// Options of [`ik_tip_position`]. Every default is documented on its field.
@@ -33,9 +43,11 @@ pub struct IkOptions {
     /// Desired direction of the flange z axis in the base frame (default None: position only).
     /// In a handclasp the two tips meet head-on, so each robot's flange z points at the other.
     pub tool_axis_base: Option<Unit<Vector3<f64>>>,
-    /// Joint vector (rad) the redundant freedom is pulled toward (default None).
+    /// Joint vector (rad, or m for a prismatic joint) the redundant freedom is pulled toward
+    /// (default None).
     pub preferred_q: Option<Vec<f64>>,
-    /// First seed (rad); default None: `preferred_q`, else 0 clamped into each joint's range.
+    /// First seed (rad, or m for a prismatic joint); default None: `preferred_q`, else 0 clamped
+    /// into each joint's range.
     pub initial_q: Option<Vec<f64>>,
     /// Position tolerance, m. Default 1e-10.
     pub tolerance_m: f64,
@@ -109,7 +121,8 @@ impl IkStopReason {
 /// Result of [`ik_tip_position`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct IkSolution {
-    /// Joint vector, rad, within the limits (best found if unreachable).
+    /// Joint vector (the independent joints: rad, or m for a prismatic joint), within the
+    /// limits (best found if unreachable).
     pub q: Vec<f64>,
     /// Whether the tolerances were met.
     pub status: IkStatus,
@@ -211,34 +224,89 @@ impl Problem<'_> {
             lin.axis_err = theta;
             basis = Some((u, v));
         }
+        if self.model.has_coupled_joints() {
+            // Chain rule: column i = Σ_k (∂q_k/∂q_i)·(chain column k).
+            lin.cols.iter_mut().for_each(|c| *c = [0.0; MAX_ROWS]);
+            for (k, ((r, t), step)) in frames.iter().zip(self.model.steps.iter()).enumerate() {
+                let (vel, w) = joint_columns::<true>(step, r, t, &p_tip);
+                let mut chain_col = [0.0; MAX_ROWS];
+                chain_col[..3].copy_from_slice(vel.as_slice());
+                if let Some((u, v)) = &basis {
+                    chain_col[3] = u.dot(&w);
+                    chain_col[4] = v.dot(&w);
+                }
+                self.model.for_each_dependence(k, |i, c| {
+                    for (x, y) in lin.cols[i].iter_mut().zip(&chain_col) {
+                        *x += c * y;
+                    }
+                });
+            }
+        } else if self.model.prismatic {
+            self.fill_columns::<true>(frames, &p_tip, &basis, lin);
+        } else {
+            self.fill_columns::<false>(frames, &p_tip, &basis, lin);
+        }
+        lin.cost = lin.e[..self.rows].iter().map(|x| x * x).sum();
+    }
+
+    /// The columns of `lin` for a chain without coupled joints (one column per chain joint) that
+    /// may (or, `false`, does not) hold prismatic joints.
+    #[inline(always)]
+    fn fill_columns<const MAY_BE_PRISMATIC: bool>(
+        &self,
+        frames: &[(Matrix3<f64>, Vector3<f64>)],
+        p_tip: &Vector3<f64>,
+        basis: &Option<(Vector3<f64>, Vector3<f64>)>,
+        lin: &mut Lin,
+    ) {
         for (((r, t), step), col) in frames
             .iter()
             .zip(self.model.steps.iter())
             .zip(&mut lin.cols)
         {
-            let w = r * step.axis.into_inner();
-            let vel = w.cross(&(p_tip - t));
+            let (vel, w) = joint_columns::<MAY_BE_PRISMATIC>(step, r, t, p_tip);
             col[..3].copy_from_slice(vel.as_slice());
-            if let Some((u, v)) = &basis {
+            if let Some((u, v)) = basis {
                 col[3] = u.dot(&w);
                 col[4] = v.dot(&w);
             }
         }
-        lin.cost = lin.e[..self.rows].iter().map(|x| x * x).sum();
     }
 }
 
 impl Problem<'_> {
-    /// Seed improvement: turns the first joint so that the tip has the target's azimuth about
-    /// that joint's axis (one cyclic-coordinate-descent step, clamped to the limits). For the
-    /// usual arm with a vertical first axis this points the arm at the target, which removes most
-    /// joint-limit local minima of the least-squares cost.
+    /// The joint [`Problem::aim_first_joint`] turns: `(chain index, index in q)` of the first
+    /// rotary chain joint when every joint before it is an independent prismatic joint and it
+    /// drives no coupled joint; `None` otherwise.
+    fn aim_joint(&self) -> Option<(usize, usize)> {
+        let chain = self.model.chain_joints();
+        let k = chain.iter().position(|j| !j.kind.is_prismatic())?;
+        if chain[..=k].iter().any(|j| j.is_coupled()) {
+            return None;
+        }
+        // Independent joints before k are all prismatic and uncoupled: k is q index k.
+        let drives_coupled = chain.iter().any(|j| {
+            j.coupling
+                .as_ref()
+                .is_some_and(|c| c.terms.iter().any(|&(i, _)| i == k))
+        });
+        (!drives_coupled).then_some((k, k))
+    }
+
+    /// Seed improvement: turns the first joint (the first rotary one after a rail, see
+    /// [`Problem::aim_joint`]) so that the tip has the target's azimuth about that joint's axis
+    /// (one cyclic-coordinate-descent step, clamped to the limits). For the usual arm with a
+    /// vertical first axis this points the arm at the target, which removes most joint-limit
+    /// local minima of the least-squares cost.
     fn aim_first_joint(&self, q: &mut [f64], frames: &mut Vec<(Matrix3<f64>, Vector3<f64>)>) {
+        let Some((k, qi)) = self.aim_joint() else {
+            return;
+        };
         let (r_flange, t_flange) = joint_frames(self.model, q, frames);
         let (Some((r1, t1)), Some(step), Some(jt)) = (
-            frames.first(),
-            self.model.steps.first(),
-            self.model.joints().first(),
+            frames.get(k),
+            self.model.steps.get(k),
+            self.model.joints().get(qi),
         ) else {
             return;
         };
@@ -250,7 +318,7 @@ impl Problem<'_> {
             return;
         }
         let angle = from.cross(&to).dot(&w).atan2(from.dot(&to));
-        q[0] = (q[0] + angle).clamp(jt.lower, jt.upper);
+        q[qi] = (q[qi] + angle).clamp(jt.lower, jt.upper);
     }
 }
 
@@ -398,8 +466,8 @@ fn lm_step(
     true
 }
 
-/// The deterministic seeds after the first: a Halton sequence over the joint ranges (capped at
-/// 2π, 90 % of the span around its middle).
+/// The deterministic seeds after the first: a Halton sequence over the joint ranges (90 % of the
+/// span around its middle; a rotary joint's span capped at 2π, a prismatic joint's whole travel).
 pub(crate) fn halton_seed(model: &RobotModel, s: usize, out: &mut [f64]) {
     const PRIMES: [usize; 10] = [2, 3, 5, 7, 11, 13, 17, 19, 23, 29];
     for (i, (j, o)) in model.joints().iter().zip(out.iter_mut()).enumerate() {
@@ -411,7 +479,11 @@ pub(crate) fn halton_seed(model: &RobotModel, s: usize, out: &mut [f64]) {
             inv /= b as f64;
         }
         let (lo, hi) = finite_range(j.lower, j.upper);
-        let span = (hi - lo).min(std::f64::consts::TAU);
+        let span = if j.kind.is_prismatic() {
+            hi - lo
+        } else {
+            (hi - lo).min(std::f64::consts::TAU)
+        };
         let c = 0.5 * (lo + hi);
         *o = (c + (f - 0.5) * span * 0.9).clamp(lo, hi);
     }
@@ -429,7 +501,7 @@ fn check_vec(model: &RobotModel, v: &Option<Vec<f64>>, what: &str) -> Result<(),
     if let Some(v) = v {
         if v.len() != model.dof() || v.iter().any(|x| !x.is_finite()) {
             return Err(KinematicsError::InvalidInput(format!(
-                "IkOptions::{what} must hold {} finite angles in rad (one per joint of {}), got {:?}",
+                "IkOptions::{what} must hold {} finite values (rad, or m for a prismatic joint; one per independent joint of {}), got {:?}",
                 model.dof(),
                 model.name(),
                 v
@@ -439,7 +511,8 @@ fn check_vec(model: &RobotModel, v: &Option<Vec<f64>>, what: &str) -> Result<(),
     Ok(())
 }
 
-/// Joint angles (rad) that put the tip at `p_base_tip` (m, base frame), with the tip at
+/// Joint values (the independent joints: rad, or m for a prismatic joint) that put the tip at
+/// `p_base_tip` (m, base frame), with the tip at
 /// `flange_from_tip` (m, flange frame), within the joint limits; with
 /// `options.tool_axis_base`, the flange z axis also points along that direction (base frame).
 ///

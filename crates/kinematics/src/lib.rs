@@ -2,6 +2,7 @@
 
 mod axis;
 pub mod cardan;
+mod coupling;
 mod error;
 mod error_model;
 pub mod euler;
@@ -25,8 +26,9 @@ pub use cardan::{
     quaternion_wxyz, rotation_from_quaternion_wxyz, rotation_from_zyx, zyx_from_rotation,
     ZYX_LOCK_COS,
 };
+pub use coupling::{JointCoupling, LinearCoupling};
 pub use error::{KinematicsError, ModelError, UrdfPatchError};
-pub use error_model::{all_params, ErrorParam, KinematicErrors};
+pub use error_model::{all_params, all_params_for, ErrorParam, KinematicErrors};
 pub use euler::{
     rotation_from_zyz, wrap_angle, zyz_canonical, zyz_from_rotation, zyz_nearest,
     ZYZ_CANONICAL_TILT_RAD,
@@ -38,8 +40,8 @@ pub use gravity::{gravity_torque_jacobian, gravity_torques};
 pub use ik::{ik_tip_position, IkOptions, IkSolution, IkStatus, IkStopReason};
 pub use jacobian::{geometric_jacobian, tip_position_jacobian, JacobianFrame};
 pub use model::{
-    origin_isometry, rotation_from_rpy, Joint, LumpedInertial, RobotModel, MAX_CHAIN_LENGTH_M,
-    WORLD_LINK,
+    origin_isometry, rotation_from_rpy, Joint, JointKind, LumpedInertial, RobotModel,
+    MAX_CHAIN_LENGTH_M, MAX_PRISMATIC_TRAVEL_M, WORLD_LINK,
 };
 pub use true_fk::{
     tip_error_jacobian, tip_joint_jacobian_true, true_base_from_flange,

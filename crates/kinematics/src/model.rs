@@ -1,14 +1,24 @@
 //! Serial-chain robot model loaded from a URDF.
 //!
 //! Frames: `base` is the URDF root link; the flange is the requested tool link (`tool0`).
-//! `base_from_flange(q) = Π_k [fixed_prefix_k · Origin(xyz_k, rpy_k) · Rot(axis_k, q_k)] · last_from_flange`,
-//! with `Origin` rotation `Rz(yaw)·Ry(pitch)·Rx(roll)` (URDF). Lengths in metres, angles in radians.
+//! `base_from_flange(q) = Π_k [fixed_prefix_k · Origin(xyz_k, rpy_k) · Motion_k(q_k)] · last_from_flange`,
+//! with `Origin` rotation `Rz(yaw)·Ry(pitch)·Rx(roll)` (URDF) and `Motion_k` a rotation about the
+//! joint axis by `q_k` rad (revolute, continuous) or a translation along it by `q_k` m
+//! (prismatic). Lengths in metres, angles in radians.
+//!
+//! The product runs over the chain's moving joints ([`RobotModel::chain_joints`]); the joint
+//! vector `q` that every function takes holds the independent ones ([`RobotModel::joints`]), and
+//! the coupled joints' values are computed from it (see `coupling.rs`). A chain without coupled
+//! joints has the same joints in both lists.
 
 use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
-use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3};
+use nalgebra::{
+    DMatrix, Isometry3, Matrix3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3,
+};
 
+use crate::coupling::{resolve, CouplingProblem, JointCoupling, LinearCoupling};
 use crate::error::{KinematicsError, ModelError};
 
 /// URDF rpy to a rotation: `R = Rz(yaw)·Ry(pitch)·Rx(roll)` with `rpy = (roll, pitch, yaw)`, rad.
@@ -26,40 +36,95 @@ pub fn origin_isometry(xyz: &Vector3<f64>, rpy: &Vector3<f64>) -> Isometry3<f64>
     )
 }
 
-/// One actuated (revolute or continuous) joint of the chain.
+/// The kind of a moving joint, which fixes the unit of its value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum JointKind {
+    /// Rotary with limits (URDF `revolute`): the value is an angle, rad.
+    Revolute,
+    /// Rotary without limits (URDF `continuous`): the value is an angle, rad.
+    Continuous,
+    /// Linear (URDF `prismatic`: a track, a lift): the value is a travel along the axis, m.
+    Prismatic,
+}
+
+impl JointKind {
+    /// True for a prismatic (linear) joint.
+    pub fn is_prismatic(self) -> bool {
+        self == JointKind::Prismatic
+    }
+
+    /// The SI unit of the joint's value: `"rad"`, or `"m"` for a prismatic joint.
+    pub fn unit_si(self) -> &'static str {
+        if self.is_prismatic() {
+            "m"
+        } else {
+            "rad"
+        }
+    }
+
+    /// The URDF joint type: `"revolute"`, `"continuous"` or `"prismatic"`.
+    pub fn urdf_name(self) -> &'static str {
+        match self {
+            JointKind::Revolute => "revolute",
+            JointKind::Continuous => "continuous",
+            JointKind::Prismatic => "prismatic",
+        }
+    }
+}
+
+/// One moving (revolute, continuous or prismatic) joint of the chain.
+///
+/// Units follow [`Joint::kind`]: a revolute or continuous joint's value, limits and velocity are
+/// in rad and rad/s and its effort in N·m; a prismatic joint's in m, m/s and N.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Joint {
     /// URDF joint name.
     pub name: String,
+    /// Revolute, continuous or prismatic: says the unit of the joint's value (rad or m).
+    pub kind: JointKind,
     /// URDF parent link.
     pub parent_link: String,
     /// URDF child link.
     pub child_link: String,
-    /// Fixed joints between the previous actuated joint's frame and this joint's URDF parent link
-    /// (identity if none; also holds any fixed joints before the first actuated joint).
+    /// Fixed joints between the previous moving joint's frame and this joint's URDF parent link
+    /// (identity if none; also holds any fixed joints before the first moving joint).
     pub fixed_prefix: Isometry3<f64>,
     /// URDF `<origin xyz>`, m, in the parent link frame.
     pub origin_xyz: Vector3<f64>,
     /// URDF `<origin rpy>`, rad (`Rz(yaw)·Ry(pitch)·Rx(roll)`).
     pub origin_rpy: Vector3<f64>,
-    /// Rotation axis, unit, in the joint frame.
+    /// Rotation axis (revolute, continuous) or direction of travel (prismatic), unit, in the
+    /// joint frame.
     pub axis: Unit<Vector3<f64>>,
-    /// Lower limit, rad (`-inf` for continuous joints).
+    /// Lower limit: rad, or m for a prismatic joint (`-inf` for continuous joints). For a coupled
+    /// joint, as written in the URDF and not checked.
     pub lower: f64,
-    /// Upper limit, rad (`+inf` for continuous joints).
+    /// Upper limit: rad, or m for a prismatic joint (`+inf` for continuous joints). For a coupled
+    /// joint, as written in the URDF and not checked.
     pub upper: f64,
-    /// Velocity limit, rad/s.
+    /// Velocity limit: rad/s, or m/s for a prismatic joint.
     pub velocity: f64,
-    /// Effort limit, N·m.
+    /// Effort limit: N·m, or N for a prismatic joint.
     pub effort: f64,
+    /// `None` for an independent joint (a value of the joint vector `q`); for a coupled joint,
+    /// its value in terms of `q` (a URDF `<mimic>` or [`RobotModel::with_couplings`]).
+    pub coupling: Option<LinearCoupling>,
 }
 
-/// Mass and centre of mass of everything rigidly carried by one actuated joint.
+impl Joint {
+    /// True if the joint's value follows other joints' (it is not part of `q`).
+    pub fn is_coupled(&self) -> bool {
+        self.coupling.is_some()
+    }
+}
+
+/// Mass and centre of mass of everything rigidly carried by one moving joint.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LumpedInertial {
     /// Mass, kg.
     pub mass: f64,
-    /// Centre of mass, m, in the joint's frame after its rotation (zero if `mass == 0`).
+    /// Centre of mass, m, in the joint's frame after its motion (zero if `mass == 0`).
     pub com: Vector3<f64>,
 }
 
@@ -126,7 +191,8 @@ fn classify_rotation(r: &Matrix3<f64>) -> (u8, (f64, f64)) {
 pub(crate) struct Step {
     /// Axis in the joint frame.
     pub(crate) axis: Unit<Vector3<f64>>,
-    /// 0, 1, 2 if the axis is ±x, ±y, ±z exactly; 3 otherwise.
+    /// 0, 1, 2 if the axis is ±x, ±y, ±z exactly; 3 otherwise; [`PRISMATIC`] for a prismatic
+    /// joint (any axis).
     pub(crate) axis_kind: u8,
     /// Sign of the axis when `axis_kind < 3`.
     pub(crate) axis_sign: f64,
@@ -134,20 +200,28 @@ pub(crate) struct Step {
     pub(crate) origin: FixedTransform,
     /// `3·t_kind + axis_kind` (0–8) when the origin has no rotation, its translation a single
     /// non-zero component and the axis is a coordinate axis: the FK loop's one-dispatch case;
-    /// 9 otherwise.
+    /// [`FAST_PRISMATIC`] for a prismatic joint; 9 otherwise.
     pub(crate) fast_kind: u8,
 }
 
 impl Step {
-    /// The step for a joint with axis `axis` and `prev_from_joint = (origin_r, origin_t)`.
+    /// The step for a joint with axis `axis` and `prev_from_joint = (origin_r, origin_t)`,
+    /// rotary or, if `prismatic`, linear.
     pub(crate) fn new(
         axis: Unit<Vector3<f64>>,
         origin_r: Matrix3<f64>,
         origin_t: Vector3<f64>,
+        prismatic: bool,
     ) -> Step {
-        let (axis_kind, axis_sign) = classify_axis(&axis);
+        let (axis_kind, axis_sign) = if prismatic {
+            (PRISMATIC, 1.0)
+        } else {
+            classify_axis(&axis)
+        };
         let origin = FixedTransform::new(origin_r, origin_t);
-        let fast_kind = if origin.r_kind == 3 && origin.t_kind < 3 && axis_kind < 3 {
+        let fast_kind = if prismatic {
+            FAST_PRISMATIC
+        } else if origin.r_kind == 3 && origin.t_kind < 3 && axis_kind < 3 {
             3 * origin.t_kind + axis_kind
         } else {
             9
@@ -162,7 +236,26 @@ impl Step {
     }
 }
 
-/// A serial robot arm from a URDF: the actuated joints from the root link to a tool link.
+/// [`Step::axis_kind`] of a prismatic joint.
+pub(crate) const PRISMATIC: u8 = 4;
+
+/// [`Step::fast_kind`] of a prismatic joint.
+pub(crate) const FAST_PRISMATIC: u8 = 10;
+
+/// Chains up to this many moving joints are handled on the stack (no allocation) by the
+/// internal hot paths; longer chains (and the chain values of coupled chains) allocate.
+pub(crate) const STACK_DOF: usize = 16;
+
+/// Where the value of one chain joint comes from.
+#[derive(Debug, Clone)]
+pub(crate) enum ChainSource {
+    /// `q[i]`.
+    Independent(usize),
+    /// A linear combination of `q`.
+    Coupled(LinearCoupling),
+}
+
+/// A serial robot arm from a URDF: the moving joints from the root link to a tool link.
 /// Immutable once built.
 #[derive(Debug, Clone)]
 pub struct RobotModel {
@@ -176,18 +269,44 @@ pub struct RobotModel {
     ignored_joints: Vec<String>,
     /// Links not on that chain, in file order.
     ignored_links: Vec<String>,
+    /// The file the model was loaded from, or `"<string>"` (for messages).
+    source_name: String,
+    /// Every moving joint of the chain, in chain order.
+    chain: Vec<Joint>,
+    /// The independent ones (the joint vector `q`), in chain order.
     joints: Vec<Joint>,
+    /// `None` without coupled joints (then `q` is the chain's values); else one entry per chain
+    /// joint.
+    pub(crate) sources: Option<Vec<ChainSource>>,
+    /// The couplings from the URDF's `<mimic>` elements on the chain.
+    urdf_couplings: Vec<JointCoupling>,
+    /// The couplings added with [`RobotModel::with_couplings`].
+    added_couplings: Vec<JointCoupling>,
     last_from_flange: Isometry3<f64>,
     /// `last_from_flange` for the FK hot path.
     pub(crate) flange: FixedTransform,
     inertials: Vec<LumpedInertial>,
+    /// One per chain joint.
     pub(crate) steps: Vec<Step>,
-    /// `(lower − CHECK_SLACK, upper + CHECK_SLACK)` per joint, rad: the fast path of `check_q`.
+    /// Some chain joint is prismatic (the hot loops take their prismatic-free variant if not).
+    pub(crate) prismatic: bool,
+    /// `(lower − CHECK_SLACK, upper + CHECK_SLACK)` per independent joint, rad or m: the fast
+    /// path of `check_q`.
     limits: Vec<(f64, f64)>,
 }
 
-/// A joint value within this many radians outside a limit is accepted (round-off).
+/// A joint value within this many radians (or metres) outside a limit is accepted (round-off).
 const CHECK_SLACK: f64 = 1e-9;
+
+/// A prismatic joint whose limits reach beyond this many metres is refused as written in
+/// millimetres ([`ModelError::LimitsLookLikeMillimetres`]): the longest robot tracks are tens of
+/// metres.
+pub const MAX_PRISMATIC_TRAVEL_M: f64 = 100.0;
+
+/// A prismatic joint value outside the limits is reported as millimetres written as metres
+/// ([`KinematicsError::LooksLikeMillimetres`]) when it lies within the limits once divided by
+/// 1000 and exceeds this many times the larger limit's magnitude.
+const MM_FOR_M_RATIO: f64 = 10.0;
 
 /// A chain whose joint origins add up to more than this many metres is refused as written in
 /// millimetres ([`ModelError::LooksLikeMillimetres`]): the largest industrial arms reach about
@@ -213,11 +332,69 @@ fn type_name(t: &urdf_rs::JointType) -> &'static str {
     }
 }
 
+/// Checks a moving joint's limits as read from the URDF.
+fn check_limits(
+    kind: JointKind,
+    lower: f64,
+    upper: f64,
+    joint: &str,
+    src: &str,
+) -> Result<(), ModelError> {
+    if kind == JointKind::Prismatic {
+        if !(lower.is_finite() && upper.is_finite() && lower < upper) {
+            return Err(ModelError::BadLinearLimits {
+                source_name: src.to_string(),
+                joint: joint.to_string(),
+                lower,
+                upper,
+            });
+        }
+        if lower.abs().max(upper.abs()) > MAX_PRISMATIC_TRAVEL_M {
+            return Err(ModelError::LimitsLookLikeMillimetres {
+                source_name: src.to_string(),
+                joint: joint.to_string(),
+                lower,
+                upper,
+            });
+        }
+        return Ok(());
+    }
+    let revolute = kind == JointKind::Revolute;
+    // A revolute joint needs a real range: lower == upper is what urdf-rs gives for a missing
+    // <limit>.
+    if lower.is_nan()
+        || upper.is_nan()
+        || lower > upper
+        || (revolute && (!(lower.is_finite() && upper.is_finite()) || lower == upper))
+    {
+        return Err(ModelError::BadLimits {
+            source_name: src.to_string(),
+            joint: joint.to_string(),
+            lower,
+            upper,
+        });
+    }
+    // Beyond ±2 turns the numbers are almost surely degrees.
+    if revolute && lower.abs().max(upper.abs()) > 2.0 * std::f64::consts::TAU {
+        return Err(ModelError::LimitsLookLikeDegrees {
+            source_name: src.to_string(),
+            joint: joint.to_string(),
+            lower,
+            upper,
+        });
+    }
+    Ok(())
+}
+
 impl RobotModel {
-    /// Loads a URDF file; `tool_link` is the flange link (usually `tool0`).
+    /// Loads a URDF file; `tool_link` is the flange link (usually `tool0`). The chain's moving
+    /// joints may be revolute, continuous or prismatic; a `<mimic>` joint on the chain is a
+    /// coupled joint (its mimicked joint must be on the chain too). More couplings can be added
+    /// with [`RobotModel::with_couplings`].
     ///
     /// Errors: unreadable file, invalid URDF, missing link, branching tree, unsupported joint type,
-    /// zero axis, bad limits ([`ModelError`]); messages name the file.
+    /// zero axis, bad limits, a `<mimic>` of a joint off the chain ([`ModelError`]); messages name
+    /// the file.
     pub fn from_urdf_file(path: &Path, tool_link: &str) -> Result<RobotModel, ModelError> {
         let is_xacro = path
             .file_name()
@@ -332,19 +509,24 @@ impl RobotModel {
             .filter(|l| !chain_links.contains(l.name.as_str()))
             .map(|l| l.name.clone())
             .collect();
-        for j in &path {
-            if let Some(m) = &j.mimic {
-                return Err(ModelError::MimicJoint {
-                    source_name: s(),
-                    joint: j.name.clone(),
-                    mimicked: m.joint.clone(),
-                });
-            }
-        }
+        // The URDF's <mimic> elements on the chain (resolved after the joints are read).
+        let urdf_couplings: Vec<JointCoupling> = path
+            .iter()
+            .filter_map(|j| {
+                j.mimic.as_ref().map(|m| {
+                    JointCoupling::mimic(
+                        &j.name,
+                        &m.joint,
+                        m.multiplier.unwrap_or(1.0),
+                        m.offset.unwrap_or(0.0),
+                    )
+                })
+            })
+            .collect();
 
-        let mut joints = Vec::new();
+        let mut chain = Vec::new();
         let mut steps = Vec::new();
-        // For the inertials: the links carried by each actuated joint, with joint_from_link.
+        // For the inertials: the links carried by each moving joint, with joint_from_link.
         let mut carried: Vec<Vec<(Isometry3<f64>, &urdf_rs::Link)>> = Vec::new();
         let mut pending = Isometry3::identity();
         for j in &path {
@@ -358,87 +540,17 @@ impl RobotModel {
             }
             let origin = origin_isometry(&xyz, &rpy);
             let child = links[j.child.link.as_str()];
-            match j.joint_type {
+            let kind = match j.joint_type {
                 urdf_rs::JointType::Fixed => {
                     pending *= origin;
                     if let Some(c) = carried.last_mut() {
                         c.push((pending, child));
                     }
+                    continue;
                 }
-                urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => {
-                    let a = vec3(&j.axis.xyz);
-                    let n = a.norm();
-                    if !n.is_finite() || n < 1e-12 {
-                        return Err(ModelError::ZeroAxis {
-                            source_name: s(),
-                            joint: j.name.clone(),
-                            axis: [a.x, a.y, a.z],
-                        });
-                    }
-                    let axis = Unit::new_normalize(a);
-                    let (lower, upper) = if matches!(j.joint_type, urdf_rs::JointType::Continuous) {
-                        (f64::NEG_INFINITY, f64::INFINITY)
-                    } else {
-                        (j.limit.lower, j.limit.upper)
-                    };
-                    let revolute = matches!(j.joint_type, urdf_rs::JointType::Revolute);
-                    // A revolute joint needs a real range: lower == upper is what urdf-rs gives
-                    // for a missing <limit>.
-                    if lower.is_nan()
-                        || upper.is_nan()
-                        || lower > upper
-                        || (revolute
-                            && (!(lower.is_finite() && upper.is_finite()) || lower == upper))
-                    {
-                        return Err(ModelError::BadLimits {
-                            source_name: s(),
-                            joint: j.name.clone(),
-                            lower,
-                            upper,
-                        });
-                    }
-                    // Beyond ±2 turns the numbers are almost surely degrees.
-                    if revolute && lower.abs().max(upper.abs()) > 2.0 * std::f64::consts::TAU {
-                        return Err(ModelError::LimitsLookLikeDegrees {
-                            source_name: s(),
-                            joint: j.name.clone(),
-                            lower,
-                            upper,
-                        });
-                    }
-                    let prev_from_joint = pending * origin;
-                    let origin_r = if rpy == Vector3::zeros() && pending.rotation.w == 1.0 {
-                        Matrix3::identity()
-                    } else {
-                        *prev_from_joint.rotation.to_rotation_matrix().matrix()
-                    };
-                    steps.push(Step::new(
-                        axis,
-                        origin_r,
-                        prev_from_joint.translation.vector,
-                    ));
-                    joints.push(Joint {
-                        name: j.name.clone(),
-                        parent_link: j.parent.link.clone(),
-                        child_link: j.child.link.clone(),
-                        fixed_prefix: pending,
-                        origin_xyz: xyz,
-                        origin_rpy: rpy,
-                        axis,
-                        lower,
-                        upper,
-                        velocity: j.limit.velocity,
-                        effort: j.limit.effort,
-                    });
-                    pending = Isometry3::identity();
-                    carried.push(vec![(pending, child)]);
-                }
-                urdf_rs::JointType::Prismatic => {
-                    return Err(ModelError::PrismaticJoint {
-                        source_name: s(),
-                        joint: j.name.clone(),
-                    })
-                }
+                urdf_rs::JointType::Revolute => JointKind::Revolute,
+                urdf_rs::JointType::Continuous => JointKind::Continuous,
+                urdf_rs::JointType::Prismatic => JointKind::Prismatic,
                 ref other => {
                     return Err(ModelError::UnsupportedJoint {
                         source_name: s(),
@@ -446,9 +558,57 @@ impl RobotModel {
                         kind: type_name(other).to_string(),
                     })
                 }
+            };
+            let a = vec3(&j.axis.xyz);
+            let n = a.norm();
+            if !n.is_finite() || n < 1e-12 {
+                return Err(ModelError::ZeroAxis {
+                    source_name: s(),
+                    joint: j.name.clone(),
+                    axis: [a.x, a.y, a.z],
+                });
             }
+            let axis = Unit::new_normalize(a);
+            let (lower, upper) = if kind == JointKind::Continuous {
+                (f64::NEG_INFINITY, f64::INFINITY)
+            } else {
+                (j.limit.lower, j.limit.upper)
+            };
+            // A coupled joint's limits are not used (its value follows the others').
+            if j.mimic.is_none() {
+                check_limits(kind, lower, upper, &j.name, src)?;
+            }
+            let prev_from_joint = pending * origin;
+            let origin_r = if rpy == Vector3::zeros() && pending.rotation.w == 1.0 {
+                Matrix3::identity()
+            } else {
+                *prev_from_joint.rotation.to_rotation_matrix().matrix()
+            };
+            steps.push(Step::new(
+                axis,
+                origin_r,
+                prev_from_joint.translation.vector,
+                kind.is_prismatic(),
+            ));
+            chain.push(Joint {
+                name: j.name.clone(),
+                kind,
+                parent_link: j.parent.link.clone(),
+                child_link: j.child.link.clone(),
+                fixed_prefix: pending,
+                origin_xyz: xyz,
+                origin_rpy: rpy,
+                axis,
+                lower,
+                upper,
+                velocity: j.limit.velocity,
+                effort: j.limit.effort,
+                coupling: None,
+            });
+            pending = Isometry3::identity();
+            carried.push(vec![(pending, child)]);
         }
-        if joints.is_empty() {
+        if chain.is_empty() {
             return Err(ModelError::NoActuatedJoints {
                 source_name: s(),
                 tool_link: tool_link.to_string(),
@@ -495,7 +655,7 @@ impl RobotModel {
                 }
             })
             .collect();
-        Ok(RobotModel {
+        let mut model = RobotModel {
             name: robot.name.clone(),
             root_link,
             base_link,
@@ -503,19 +663,153 @@ impl RobotModel {
             tool_link: tool_link.to_string(),
             ignored_joints,
             ignored_links,
+            source_name: s(),
+            joints: Vec::new(),
+            chain,
+            sources: None,
+            urdf_couplings: Vec::new(),
+            added_couplings: Vec::new(),
             last_from_flange: pending,
             flange: FixedTransform::new(
                 *pending.rotation.to_rotation_matrix().matrix(),
                 pending.translation.vector,
             ),
             inertials,
+            prismatic: steps.iter().any(|s| s.axis_kind == PRISMATIC),
             steps,
-            limits: joints
-                .iter()
-                .map(|j| (j.lower - CHECK_SLACK, j.upper + CHECK_SLACK))
-                .collect(),
-            joints,
-        })
+            limits: Vec::new(),
+        };
+        model.set_couplings(urdf_couplings, Vec::new())?;
+        Ok(model)
+    }
+
+    /// The same robot with `couplings` declared on top of the URDF's `<mimic>` elements (e.g. the
+    /// couplings of a cell file): each named joint's value then follows the others', and it
+    /// leaves the joint vector `q` ([`RobotModel::joints`], [`RobotModel::dof`]). Couplings
+    /// added before are kept.
+    ///
+    /// ```
+    /// # use kinematics::{base_from_flange, JointCoupling, RobotModel};
+    /// let urdf = r#"<robot name="torso">
+    ///   <link name="base"/><link name="l1"/><link name="l2"/><link name="tool0"/>
+    ///   <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>
+    ///     <axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+    ///   <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
+    ///     <origin xyz="0 0 0.5"/><axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+    ///   <joint name="j3" type="revolute"><parent link="l2"/><child link="tool0"/>
+    ///     <origin xyz="0 0 0.5"/><axis xyz="0 1 0"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>
+    /// </robot>"#;
+    /// let model = RobotModel::from_urdf_str(urdf, "tool0")?
+    ///     .with_couplings(&[JointCoupling {
+    ///         joint: "j3".into(),
+    ///         terms: vec![("j1".into(), -1.0), ("j2".into(), -1.0)],
+    ///         offset: 0.0,
+    ///     }])?;
+    /// assert_eq!((model.dof(), model.chain_joints().len()), (2, 3));
+    /// // j3 = −(j1 + j2) keeps the flange level whatever j1 and j2.
+    /// let flange = base_from_flange(&model, &[0.3, -0.7])?;
+    /// assert!(flange.rotation.angle() < 1e-15);
+    /// # Ok::<(), Box<dyn std::error::Error>>(())
+    /// ```
+    ///
+    /// Errors ([`ModelError::BadCoupling`]): a named joint that is not a moving joint of the
+    /// chain, a joint coupled twice (also by a URDF `<mimic>`), a non-finite coefficient or
+    /// offset, couplings that refer to each other in a loop, or every joint coupled.
+    pub fn with_couplings(self, couplings: &[JointCoupling]) -> Result<RobotModel, ModelError> {
+        let mut model = self;
+        let urdf = std::mem::take(&mut model.urdf_couplings);
+        let mut added = std::mem::take(&mut model.added_couplings);
+        added.extend_from_slice(couplings);
+        model.set_couplings(urdf, added)?;
+        Ok(model)
+    }
+
+    /// Resolves the URDF's and the added couplings and sets the chain's coupled joints, the
+    /// independent joints and the value sources.
+    fn set_couplings(
+        &mut self,
+        urdf: Vec<JointCoupling>,
+        added: Vec<JointCoupling>,
+    ) -> Result<(), ModelError> {
+        let all: Vec<JointCoupling> = urdf.iter().chain(&added).cloned().collect();
+        let names: Vec<&str> = self.chain.iter().map(|j| j.name.as_str()).collect();
+        let resolved = resolve(&names, &all).map_err(|problem| {
+            let source_name = self.source_name.clone();
+            let chain = names.join(", ");
+            match problem {
+                CouplingProblem::NotOnChain { index, missing } if index < urdf.len() => {
+                    ModelError::MimicJoint {
+                        source_name,
+                        joint: urdf[index].joint.clone(),
+                        mimicked: missing,
+                    }
+                }
+                CouplingProblem::NotOnChain { index, missing } => ModelError::BadCoupling {
+                    source_name,
+                    joint: all[index].joint.clone(),
+                    problem: format!(
+                        "`{missing}` is not a moving joint of the chain to `{}` (the chain's \
+                         moving joints: {chain}); name joints of that chain",
+                        self.tool_link
+                    ),
+                },
+                CouplingProblem::Duplicate { joint } => ModelError::BadCoupling {
+                    source_name,
+                    problem: if urdf.iter().any(|c| c.joint == joint) {
+                        "the joint already has a <mimic> in the URDF; remove the <mimic> or the \
+                         declared coupling"
+                            .into()
+                    } else {
+                        "the joint is coupled twice; declare one coupling per joint".into()
+                    },
+                    joint,
+                },
+                CouplingProblem::NotFinite { joint } => ModelError::BadCoupling {
+                    source_name,
+                    joint,
+                    problem: "a coefficient or the offset is not a finite number".into(),
+                },
+                CouplingProblem::Cycle { joints } => ModelError::BadCoupling {
+                    source_name,
+                    joint: joints[0].clone(),
+                    problem: format!(
+                        "the couplings refer to each other in a loop ({}); each coupled joint \
+                         must follow joints that do not follow it",
+                        joints.join(" → ")
+                    ),
+                },
+                CouplingProblem::AllCoupled => ModelError::BadCoupling {
+                    source_name,
+                    joint: names.last().copied().unwrap_or_default().to_string(),
+                    problem: format!(
+                        "every moving joint of the chain ({chain}) would be coupled; leave at \
+                         least one independent"
+                    ),
+                },
+            }
+        })?;
+        let coupled = resolved.iter().any(Option::is_some);
+        let mut sources = Vec::with_capacity(self.chain.len());
+        let mut joints = Vec::new();
+        for (joint, coupling) in self.chain.iter_mut().zip(resolved) {
+            match &coupling {
+                None => sources.push(ChainSource::Independent(joints.len())),
+                Some(c) => sources.push(ChainSource::Coupled(c.clone())),
+            }
+            joint.coupling = coupling;
+            if !joint.is_coupled() {
+                joints.push(joint.clone());
+            }
+        }
+        self.limits = joints
+            .iter()
+            .map(|j| (j.lower - CHECK_SLACK, j.upper + CHECK_SLACK))
+            .collect();
+        self.joints = joints;
+        self.sources = coupled.then_some(sources);
+        self.urdf_couplings = urdf;
+        self.added_couplings = added;
+        Ok(())
     }
 
     /// The URDF robot name.
@@ -568,14 +862,128 @@ impl RobotModel {
         &self.tool_link
     }
 
-    /// Number of actuated joints.
+    /// Number of independent joints: the length of the joint vector `q` every function takes
+    /// (the moving joints of the chain that are not coupled).
     pub fn dof(&self) -> usize {
         self.joints.len()
     }
 
-    /// Actuated joints in chain order.
+    /// The independent joints in chain order: `q[i]` is the value of `joints()[i]` (rad, or m
+    /// for a prismatic joint, see [`Joint::kind`]). Without coupled joints these are all the
+    /// chain's moving joints.
     pub fn joints(&self) -> &[Joint] {
         &self.joints
+    }
+
+    /// Every moving joint of the chain in chain order, the coupled ones included (each with its
+    /// [`Joint::coupling`]). The kinematic-error model ([`crate::KinematicErrors`]) and the
+    /// gravity torques ([`crate::gravity_torques`]) have one entry per chain joint.
+    pub fn chain_joints(&self) -> &[Joint] {
+        &self.chain
+    }
+
+    /// True if some chain joint is coupled ([`RobotModel::dof`] is then less than the number of
+    /// chain joints).
+    pub fn has_coupled_joints(&self) -> bool {
+        self.sources.is_some()
+    }
+
+    /// True if some chain joint is prismatic (its value in m, not rad).
+    pub fn has_prismatic_joints(&self) -> bool {
+        self.prismatic
+    }
+
+    /// The couplings that hold: the URDF's `<mimic>` elements on the chain, then those added
+    /// with [`RobotModel::with_couplings`], as declared.
+    pub fn couplings(&self) -> Vec<JointCoupling> {
+        self.urdf_couplings
+            .iter()
+            .chain(&self.added_couplings)
+            .cloned()
+            .collect()
+    }
+
+    /// The couplings added with [`RobotModel::with_couplings`] (not in the URDF), as declared.
+    pub fn added_couplings(&self) -> &[JointCoupling] {
+        &self.added_couplings
+    }
+
+    /// The chain joints' values at the independent joint vector `q` (rad, or m for prismatic
+    /// joints): one per [`RobotModel::chain_joints`] entry, the coupled ones computed.
+    ///
+    /// Errors: a bad `q` ([`RobotModel::check_q`]).
+    pub fn chain_values(&self, q: &[f64]) -> Result<Vec<f64>, KinematicsError> {
+        self.check_q(q)?;
+        let mut out = vec![0.0; self.chain.len()];
+        self.chain_values_into(q, &mut out);
+        Ok(out)
+    }
+
+    /// `∂q_chain/∂q`, the constant (chain joints × [`RobotModel::dof`]) matrix of the couplings:
+    /// row k is the unit row of joint k's index in `q` for an independent joint, the coupling's
+    /// coefficients for a coupled one. The Jacobians of this crate with respect to `q` are the
+    /// chain Jacobians times this matrix.
+    pub fn coupling_matrix(&self) -> DMatrix<f64> {
+        let mut a = DMatrix::zeros(self.chain.len(), self.dof());
+        for k in 0..self.chain.len() {
+            self.for_each_dependence(k, |i, c| a[(k, i)] += c);
+        }
+        a
+    }
+
+    /// Calls `f(i, ∂q_chain_k/∂q_i)` for every independent joint `i` that chain joint `k`
+    /// depends on.
+    #[inline]
+    pub(crate) fn for_each_dependence(&self, k: usize, mut f: impl FnMut(usize, f64)) {
+        match &self.sources {
+            None => f(k, 1.0),
+            Some(sources) => match &sources[k] {
+                ChainSource::Independent(i) => f(*i, 1.0),
+                ChainSource::Coupled(c) => c.terms.iter().for_each(|&(i, x)| f(i, x)),
+            },
+        }
+    }
+
+    /// The chain values at `q` into `out` (len = chain joints); no checks (a missing `q` entry
+    /// counts as 0).
+    pub(crate) fn chain_values_into(&self, q: &[f64], out: &mut [f64]) {
+        match &self.sources {
+            None => {
+                for (o, k) in out.iter_mut().zip(0..) {
+                    *o = q.get(k).copied().unwrap_or(0.0);
+                }
+            }
+            Some(sources) => {
+                for (o, source) in out.iter_mut().zip(sources) {
+                    *o = match source {
+                        ChainSource::Independent(i) => q.get(*i).copied().unwrap_or(0.0),
+                        ChainSource::Coupled(c) => c.value(q),
+                    };
+                }
+            }
+        }
+    }
+
+    /// The chain values at `q`: `q` itself without coupled joints (no copy), else computed into
+    /// `buf` (which then allocates). No checks. Used as
+    /// `let mut buf = Vec::new(); let q_chain = model.chain_q(q, &mut buf);`, so the hot paths of
+    /// chains without couplings stay as they were (no closure, no copy).
+    #[inline(always)]
+    pub(crate) fn chain_q<'a>(&self, q: &'a [f64], buf: &'a mut Vec<f64>) -> &'a [f64] {
+        if self.sources.is_none() {
+            return q;
+        }
+        self.chain_q_coupled(q, buf)
+    }
+
+    /// [`RobotModel::chain_q`] of a chain with coupled joints.
+    #[cold]
+    #[inline(never)]
+    fn chain_q_coupled<'a>(&self, q: &[f64], buf: &'a mut Vec<f64>) -> &'a [f64] {
+        buf.clear();
+        buf.resize(self.chain.len(), 0.0);
+        self.chain_values_into(q, buf);
+        buf
     }
 
     /// Fixed joints after the last actuated joint's frame up to the tool link: `last_from_flange`.
@@ -583,15 +991,17 @@ impl RobotModel {
         &self.last_from_flange
     }
 
-    /// One lumped inertial per actuated joint k: mass (kg) and COM (m, in joint k's frame after its
-    /// rotation) of the links rigidly carried by joint k up to joint k+1; the last one includes
-    /// everything up to the tool link.
+    /// One lumped inertial per chain joint k ([`RobotModel::chain_joints`]): mass (kg) and COM
+    /// (m, in joint k's frame after its motion) of the links rigidly carried by joint k up to
+    /// joint k+1; the last one includes everything up to the tool link.
     pub fn inertials(&self) -> &[LumpedInertial] {
         &self.inertials
     }
 
-    /// Checks a joint vector (rad): length, finiteness, plainly-degrees values, joint limits.
-    /// A value within 1e-9 rad outside a limit is accepted (round-off).
+    /// Checks a joint vector (the independent joints, rad or m for prismatic ones): length,
+    /// finiteness, plainly-degrees values (revolute joints), plainly-millimetre values (prismatic
+    /// joints), joint limits. A value within 1e-9 rad (or m) outside a limit is accepted
+    /// (round-off). A coupled joint's value is not limit-checked.
     pub fn check_q(&self, q: &[f64]) -> Result<(), KinematicsError> {
         // One branch-free pass for the common case; the error is worked out only on failure.
         let ok = q.len() == self.limits.len()
@@ -610,6 +1020,20 @@ impl RobotModel {
     #[cold]
     pub(crate) fn check_q_error(&self, q: &[f64]) -> Result<(), KinematicsError> {
         if q.len() != self.joints.len() {
+            if self.has_coupled_joints() {
+                return Err(KinematicsError::WrongLengthCoupled {
+                    robot: self.name.clone(),
+                    expected: self.joints.len(),
+                    got: q.len(),
+                    coupled: self
+                        .chain
+                        .iter()
+                        .filter(|j| j.is_coupled())
+                        .map(|j| j.name.clone())
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                });
+            }
             return Err(KinematicsError::WrongLength {
                 robot: self.name.clone(),
                 expected: self.joints.len(),
@@ -624,7 +1048,31 @@ impl RobotModel {
                     value: v,
                 });
             }
-            if v < j.lower - CHECK_SLACK || v > j.upper + CHECK_SLACK {
+            let outside = v < j.lower - CHECK_SLACK || v > j.upper + CHECK_SLACK;
+            if outside && j.kind.is_prismatic() {
+                let (lower_mm, upper_mm) = (j.lower * 1e3, j.upper * 1e3);
+                let as_m = v * 1e-3;
+                if as_m >= j.lower - CHECK_SLACK
+                    && as_m <= j.upper + CHECK_SLACK
+                    && v.abs() > MM_FOR_M_RATIO * j.lower.abs().max(j.upper.abs())
+                {
+                    return Err(KinematicsError::LooksLikeMillimetres {
+                        index: i + 1,
+                        joint: j.name.clone(),
+                        value: v,
+                        lower_mm,
+                        upper_mm,
+                    });
+                }
+                return Err(KinematicsError::OutOfLinearLimits {
+                    index: i + 1,
+                    joint: j.name.clone(),
+                    value_mm: v * 1e3,
+                    lower_mm,
+                    upper_mm,
+                });
+            }
+            if outside {
                 let lower_deg = j.lower.to_degrees();
                 let upper_deg = j.upper.to_degrees();
                 if v.abs() > std::f64::consts::TAU && v >= lower_deg && v <= upper_deg {

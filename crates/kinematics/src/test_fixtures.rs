@@ -5,7 +5,8 @@ use nalgebra::Vector3;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::error_model::{all_params, KinematicErrors};
+use crate::coupling::JointCoupling;
+use crate::error_model::{all_params_for, KinematicErrors};
 use crate::model::RobotModel;
 
 /// robots/va1400.urdf (7 axes).
@@ -75,15 +76,61 @@ pub(crate) fn oblique_origins() -> [(Vector3<f64>, Vector3<f64>); 4] {
     ]
 }
 
+/// tests/fixtures/rail_6r.urdf: the hp20 on a 4 m track (a prismatic first joint).
+pub(crate) const RAIL_6R: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/tests/fixtures/rail_6r.urdf"
+));
+
+/// tests/fixtures/mimic_torso.urdf: a torso with a `<mimic>` joint and a 4-joint arm.
+pub(crate) const MIMIC_TORSO: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/tests/fixtures/mimic_torso.urdf"
+));
+
+/// tests/fixtures/mixed_chain.urdf: a 6-joint chain mixing what the shipped URDFs do not have: a prismatic joint on an oblique
+/// axis first (`rail`, −0.5..1.5 m), a prismatic joint in the middle with a rotated origin
+/// (`lift`, 0..0.4 m), a revolute joint on an oblique axis that mimics `j2` (`j3`: multiplier
+/// −1, offset 0.1 rad), a continuous joint, fixed joints before the chain and before tool0, and
+/// inertials on every link.
+pub(crate) const MIXED: &str = include_str!(concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/tests/fixtures/mixed_chain.urdf"
+));
+
+/// The one-to-many coupling [`mixed_coupled`] adds: `j4 = 0.5·j1 − 2·lift + 0.3` (rad; the lift
+/// coefficient in rad/m).
+pub(crate) fn mixed_j4_coupling() -> JointCoupling {
+    JointCoupling {
+        joint: "j4".into(),
+        terms: vec![("j1".into(), 0.5), ("lift".into(), -2.0)],
+        offset: 0.3,
+    }
+}
+
+/// [`MIXED`] with [`mixed_j4_coupling`]: chain rail, j1, j2, lift, j3, j4; independent rail, j1,
+/// j2, lift.
+pub(crate) fn mixed_coupled() -> RobotModel {
+    model(MIXED)
+        .with_couplings(&[mixed_j4_coupling()])
+        .expect("the coupling applies")
+}
+
 pub(crate) fn model(xml: &str) -> RobotModel {
     RobotModel::from_urdf_str(xml, "tool0").expect("test URDF loads")
 }
 
+/// The shipped arms, the oblique test arm, the rail-mounted hp20, the mixed chain with its URDF
+/// mimic only and with the added one-to-many coupling, and the mimic torso.
 pub(crate) fn robots() -> Vec<RobotModel> {
     vec![
         model(VA1400),
         model(HP20),
         model(&oblique_urdf(&oblique_origins())),
+        model(RAIL_6R),
+        model(MIXED),
+        mixed_coupled(),
+        model(MIMIC_TORSO),
     ]
 }
 
@@ -134,9 +181,12 @@ pub(crate) const TWO_JOINT: &str = r#"<robot name="r"><link name="a"/><link name
             <joint name="j2" type="continuous"><parent link="b"/><child link="tool0"/>
               <origin xyz="1 0 0"/><axis xyz="0 1 0"/></joint></robot>"#;
 
-/// Random errors of realistic-to-large size. The angles are large (up to 0.3–0.5 rad) on
-/// purpose: the Jacobian must be exact, not a small-angle approximation.
-pub(crate) fn random_errors(dof: usize, rng: &mut ChaCha8Rng) -> KinematicErrors {
+/// Random errors of realistic-to-large size for `model`'s chain joints. The angles are large (up
+/// to 0.3–0.5 rad) on purpose: the Jacobian must be exact, not a small-angle approximation. A
+/// prismatic joint's offset is then up to 5 cm, its compliance up to 2e-5 m/N, and it has no
+/// periodic terms.
+pub(crate) fn random_errors(model: &RobotModel, rng: &mut ChaCha8Rng) -> KinematicErrors {
+    let dof = model.chain_joints().len();
     let mut e = KinematicErrors::zero(dof);
     for j in 0..dof {
         e.joint_offset[j] = rng.random_range(-0.05..0.05);
@@ -153,9 +203,15 @@ pub(crate) fn random_errors(dof: usize, rng: &mut ChaCha8Rng) -> KinematicErrors
     // Zero about a third of the parameters (all of a joint's origin rpy, say), so that the
     // mixed paths (nominal step for some joints, perturbed for others; xyz-only origin
     // errors) are exercised too.
-    for p in all_params(dof) {
+    for p in all_params_for(model) {
         if rng.random_range(0..3) == 0 {
             e.set(p, 0.0);
+        }
+    }
+    for (j, joint) in model.chain_joints().iter().enumerate() {
+        if joint.kind.is_prismatic() {
+            e.periodic_sin[j] = 0.0;
+            e.periodic_cos[j] = 0.0;
         }
     }
     for j in 0..dof {

@@ -1,7 +1,11 @@
 //! The TRUE robot of the kinematic-error model (see `error_model.rs` for the parameters and how
 //! each one enters): its flange and tip poses in the NOMINAL base frame ([`true_base_from_flange`],
 //! [`true_base_from_tip`]) and their exact analytic derivatives with respect to the error
-//! parameters ([`tip_error_jacobian`]) and the reported joint angles ([`tip_joint_jacobian_true`]).
+//! parameters ([`tip_error_jacobian`]) and the reported joint values ([`tip_joint_jacobian_true`]).
+//!
+//! The errors have one entry per chain joint ([`RobotModel::chain_joints`]); `q_rep` holds the
+//! independent joints, and a coupled joint's reported value is its coupling evaluated at `q_rep`
+//! (its own offset, scale and compliance then apply to that value).
 
 use nalgebra::{Isometry3, Matrix3, Matrix3xX, Vector3};
 
@@ -15,7 +19,7 @@ use crate::gravity::{
     check_gravity, gravity_entries, gravity_jacobian_from_entries, gravity_torques_into,
     GravityEntry, STACK_DOF,
 };
-use crate::model::{rotation_from_rpy, RobotModel, Step};
+use crate::model::{rotation_from_rpy, RobotModel, Step, PRISMATIC};
 
 /// Per-joint frame data of the true chain, nominal base frame.
 #[derive(Debug, Clone, Copy)]
@@ -26,10 +30,26 @@ struct TrueJointFrame {
     /// `parent_rotation` gives the origin-rpy Jacobian axes (computed only for the origin-rpy
     /// columns asked for).
     rpy: Vector3<f64>,
-    /// Origin of the joint frame, m.
+    /// Origin of the joint frame before the joint's motion, m (for a rotary joint the same as
+    /// after it): the pivot of an origin-rpy error and the point on a rotary axis.
     o: Vector3<f64>,
     /// Joint axis, unit.
     z: Vector3<f64>,
+    /// A prismatic joint: `∂p/∂q_true` is `z`, not `z × (p − o)`.
+    prismatic: bool,
+}
+
+impl TrueJointFrame {
+    /// `∂p/∂q_true` of this joint for the tip at `p`: `z × (p − o)` (rotary, per rad) or `z`
+    /// (prismatic, per m).
+    #[inline]
+    fn joint_column(&self, p: &Vector3<f64>) -> Vector3<f64> {
+        if self.prismatic {
+            self.z
+        } else {
+            self.z.cross(&(p - self.o))
+        }
+    }
 }
 
 impl Default for TrueJointFrame {
@@ -39,6 +59,7 @@ impl Default for TrueJointFrame {
             rpy: Vector3::zeros(),
             o: Vector3::zeros(),
             z: Vector3::zeros(),
+            prismatic: false,
         }
     }
 }
@@ -61,22 +82,32 @@ fn check_inputs(
     errors.check(model)
 }
 
-/// The true joint angles into `q_true` (len = dof), with the nominal gravity torques into `tau`
-/// (zeros if no compliance is set and `need_tau` is false). No checks.
-fn true_joint_angles(
+/// The true joint values into `q_true` (len = chain joints), with the nominal gravity torques
+/// into `tau` (zeros if no compliance is set and `need_tau` is false), from the reported
+/// independent values `q_rep`. Returns the chain's reported values (`q_rep` itself without
+/// coupled joints, else computed into `buf`). No checks.
+fn true_joint_angles<'a>(
     model: &RobotModel,
     errors: &KinematicErrors,
-    q_rep: &[f64],
+    (q_rep, buf): (&'a [f64], &'a mut Vec<f64>),
     g_base: &Vector3<f64>,
     need_tau: bool,
     tau: &mut [f64],
     q_true: &mut [f64],
-) {
+) -> &'a [f64] {
     if need_tau || !all_zero(&errors.compliance) {
         gravity_torques_into(model, q_rep, g_base, tau);
     } else {
         tau.iter_mut().for_each(|t| *t = 0.0);
     }
+    let q_rep_chain = model.chain_q(q_rep, buf);
+    true_angles_of_chain(errors, q_rep_chain, tau, q_true);
+    q_rep_chain
+}
+
+/// The per-joint part of [`true_joint_angles`]: `q_true` from the chain's reported values and
+/// the torques.
+fn true_angles_of_chain(errors: &KinematicErrors, q_rep: &[f64], tau: &[f64], q_true: &mut [f64]) {
     for i in 0..q_rep.len() {
         q_true[i] = q_rep[i] * (1.0 + errors.joint_scale[i])
             + errors.joint_offset[i]
@@ -91,20 +122,36 @@ fn true_joint_angles(
     }
 }
 
-/// `∂q_true_i/∂q_rep_i` (the chain rule factor of joint i apart from compliance):
-/// `1 + joint_scale_i + periodic_sin_i·cos(q_rep_i) − periodic_cos_i·sin(q_rep_i)`.
+/// `∂q_true_i/∂q_rep_i` of chain joint i (the chain rule factor apart from compliance), at the
+/// chain's reported values: `1 + joint_scale_i + periodic_sin_i·cos(q_rep_i) −
+/// periodic_cos_i·sin(q_rep_i)`.
 fn joint_rate(errors: &KinematicErrors, q_rep: &[f64], i: usize) -> f64 {
     let (s, c) = sin_cos(q_rep[i]);
     1.0 + errors.joint_scale[i] + errors.periodic_sin[i] * c - errors.periodic_cos[i] * s
 }
 
-/// The true chain at the true joint angles: `nominal_base_from_flange` as (rotation matrix,
-/// translation in m), filling `frames` (if given, len = dof). No checks, no allocation.
+/// The true chain at the true joint values: `nominal_base_from_flange` as (rotation matrix,
+/// translation in m), filling `frames` (if given, len = chain joints). No checks, no allocation.
 ///
 /// Joints without origin error go through the nominal FK step ([`apply_step`]) unchanged; a joint
 /// with an origin error goes through the same step with its origin replaced by
 /// `fixed_prefix · Origin(xyz + Δxyz, rpy + Δrpy)`.
 fn true_chain(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_true: &[f64],
+    frames: Option<&mut [TrueJointFrame]>,
+) -> (Matrix3<f64>, Vector3<f64>) {
+    if model.prismatic {
+        true_chain_k::<true>(model, errors, q_true, frames)
+    } else {
+        true_chain_k::<false>(model, errors, q_true, frames)
+    }
+}
+
+/// [`true_chain`] for a chain that may (or, `false`, does not) hold prismatic joints.
+#[inline(always)]
+fn true_chain_k<const MAY_BE_PRISMATIC: bool>(
     model: &RobotModel,
     errors: &KinematicErrors,
     q_true: &[f64],
@@ -122,7 +169,7 @@ fn true_chain(
     for (k, ((step, joint), &qk)) in model
         .steps
         .iter()
-        .zip(model.joints())
+        .zip(model.chain_joints())
         .zip(q_true)
         .enumerate()
     {
@@ -139,7 +186,7 @@ fn true_chain(
         let parent_rotation = frames.as_ref().map(|_| r * prefix_r());
         if origin_zero {
             // The nominal step, so that zero errors reproduce the nominal FK.
-            apply_step(&mut r, &mut t, step, qk);
+            apply_step::<MAY_BE_PRISMATIC>(&mut r, &mut t, step, qk);
         } else {
             let fp = &joint.fixed_prefix;
             let fp_r = prefix_r();
@@ -152,15 +199,20 @@ fn true_chain(
                 step.axis,
                 origin_r,
                 fp.translation.vector + fp_r * (joint.origin_xyz + dxyz),
+                step.axis_kind == PRISMATIC,
             );
-            apply_step(&mut r, &mut t, &perturbed, qk);
+            apply_step::<MAY_BE_PRISMATIC>(&mut r, &mut t, &perturbed, qk);
         }
         if let (Some(f), Some(parent_rotation)) = (frames.as_deref_mut(), parent_rotation) {
+            let z = r * step.axis.into_inner();
+            let prismatic = MAY_BE_PRISMATIC && step.axis_kind == PRISMATIC;
             f[k] = TrueJointFrame {
                 parent_rotation,
                 rpy: joint.origin_rpy + drpy,
-                o: t,
-                z: r * step.axis.into_inner(),
+                // A prismatic joint's frame moved by z·q along its axis; its origin is before.
+                o: if prismatic { t - z * qk } else { t },
+                z,
+                prismatic,
             };
         }
     }
@@ -168,7 +220,8 @@ fn true_chain(
     (r, t)
 }
 
-/// Runs `f` with two scratch slices of length `dof` (on the stack for `dof ≤ 16`).
+/// Runs `f` with two scratch slices of length `dof` (on the stack for `dof ≤ 16`; `dof` here
+/// is the number of chain joints).
 fn with_scratch<R>(dof: usize, f: impl FnOnce(&mut [f64], &mut [f64]) -> R) -> R {
     if dof <= STACK_DOF {
         let mut a = [0.0; STACK_DOF];
@@ -181,7 +234,7 @@ fn with_scratch<R>(dof: usize, f: impl FnOnce(&mut [f64], &mut [f64]) -> R) -> R
     }
 }
 
-/// `true_base_from_flange` without checks (allocation-free for `dof ≤ 16`); see
+/// `true_base_from_flange` without checks (allocation-free for `dof ≤ 16` without coupled joints); see
 /// [`true_base_from_flange`]. Panics only if the lengths do not match the model.
 pub fn true_base_from_flange_unchecked(
     model: &RobotModel,
@@ -200,14 +253,15 @@ fn true_flange_rt(
     q_rep: &[f64],
     g_base: &Vector3<f64>,
 ) -> (Matrix3<f64>, Vector3<f64>) {
-    with_scratch(model.dof(), |tau, q_true| {
-        true_joint_angles(model, errors, q_rep, g_base, false, tau, q_true);
+    with_scratch(model.chain_joints().len(), |tau, q_true| {
+        let mut buf = Vec::new();
+        true_joint_angles(model, errors, (q_rep, &mut buf), g_base, false, tau, q_true);
         true_chain(model, errors, q_true, None)
     })
 }
 
 /// Flange pose of the TRUE robot (nominal model + `errors`) in the NOMINAL base frame, at the
-/// reported joint angles `q_rep` (rad); `g_base` is the gravity acceleration in the nominal base
+/// reported independent joint values `q_rep` (rad, or m for a prismatic joint); `g_base` is the gravity acceleration in the nominal base
 /// frame, m/s², used for the compliance deflection. The tip error is not applied (see
 /// [`true_base_from_tip`]).
 ///
@@ -225,7 +279,7 @@ pub fn true_base_from_flange(
     ))
 }
 
-/// `true_base_from_tip` without checks (allocation-free for `dof ≤ 16`); see
+/// `true_base_from_tip` without checks (allocation-free for `dof ≤ 16` without coupled joints); see
 /// [`true_base_from_tip`]. Panics only if the lengths do not match the model.
 pub fn true_base_from_tip_unchecked(
     model: &RobotModel,
@@ -253,13 +307,15 @@ fn true_tip_general(
     tip_isometry(&r, &t, &(flange_from_tip + errors.tip))
 }
 
-/// Tip pose of the TRUE robot in the NOMINAL base frame at the reported joint angles `q_rep` (rad):
+/// Tip pose of the TRUE robot in the NOMINAL base frame at the reported independent joint values
+/// `q_rep` (rad, or m for a prismatic joint):
 /// the nominal chain with `errors` applied as described in the module documentation, tip offset
 /// `flange_from_tip + errors.tip` (m, flange axes), orientation the flange's. `g_base` is the gravity
 /// acceleration in the nominal base frame, m/s² (used only through `errors.compliance`).
 ///
 /// With [`KinematicErrors::zero`] it equals [`base_from_tip`](crate::base_from_tip) exactly.
-/// Allocation-free for chains of up to 16 joints.
+/// Allocation-free for chains of up to 16 joints without coupled joints (a coupled chain computes
+/// its chain values into a vector).
 ///
 /// Errors: a bad `q_rep` ([`RobotModel::check_q`]; the true angles are not limit-checked), a
 /// non-finite tip offset or `g_base`, or `errors` of the wrong shape or non-finite
@@ -319,15 +375,19 @@ fn rpy_derivative_axes(parent_rotation: &Matrix3<f64>, rpy: &Vector3<f64>) -> [V
 /// the given `errors` (not only at zero).
 ///
 /// Columns, with `p` the true tip, `o_k`, `z_k` joint k's true origin and axis, `R_P` the rotation
-/// of its parent link frame (all in the nominal base frame):
-/// - joint offset: `z_k × (p − o_k)`; scale: that × `q_rep_k`; compliance: that × `τ_k(q_rep)`;
-///   periodic sin / cos: that × `sin(q_rep_k)` / `cos(q_rep_k)`;
+/// of its parent link frame (all in the nominal base frame), `q_rep_k` chain joint k's reported
+/// value (a coupled joint's from its coupling):
+/// - joint offset: `z_k × (p − o_k)` (m/rad) for a rotary joint, `z_k` (m/m) for a prismatic one;
+///   scale: that × `q_rep_k`; compliance: that × `τ_k(q_rep)` (N·m, or the force in N along a
+///   prismatic axis); periodic sin / cos (rotary joints only): that × `sin(q_rep_k)` /
+///   `cos(q_rep_k)`;
 /// - origin xyz: `R_P·e_axis`; origin rpy: `a × (p − o_k)` with `a = R_P·e_z` (yaw),
 ///   `R_P·Rz(yaw)·e_y` (pitch), `R_P·Rz(yaw)·Ry(pitch)·e_x` (roll) at the true rpy;
 /// - tip: `R_flange·e_axis`; mount xyz: `e_axis`; mount rpy: `a × (p − mount_xyz)` with the same
 ///   axes as the origin rpy, `R_P = I`.
 ///
-/// Errors: as [`true_base_from_tip`], plus a parameter whose joint index is `≥ model.dof()`.
+/// Errors: as [`true_base_from_tip`], plus a parameter whose joint index is not a chain joint's
+/// or a periodic parameter of a prismatic joint ([`ErrorParam::check_model`]).
 pub fn tip_error_jacobian(
     model: &RobotModel,
     errors: &KinematicErrors,
@@ -337,9 +397,9 @@ pub fn tip_error_jacobian(
     params: &[ErrorParam],
 ) -> Result<Matrix3xX<f64>, KinematicsError> {
     check_inputs(model, errors, q_rep, flange_from_tip, g_base)?;
-    let n = model.dof();
+    let n = model.chain_joints().len();
     for p in params {
-        p.check_dof(n)?;
+        p.check_model(model)?;
     }
     let mut jac = Matrix3xX::zeros(params.len());
     with_chain_scratch(n, |tau, q_true, frames| {
@@ -347,10 +407,28 @@ pub fn tip_error_jacobian(
         let need_tau = params
             .iter()
             .any(|p| matches!(p, ErrorParam::Compliance { .. }));
-        true_joint_angles(model, errors, q_rep, g_base, need_tau, tau, q_true);
+        let mut buf = Vec::new();
+        let q_rep_chain = true_joint_angles(
+            model,
+            errors,
+            (q_rep, &mut buf),
+            g_base,
+            need_tau,
+            tau,
+            q_true,
+        );
         let (flange_r, flange_t) = true_chain(model, errors, q_true, Some(frames));
         let p = flange_t + flange_r * (flange_from_tip + errors.tip);
-        fill_error_columns(errors, q_rep, tau, frames, &flange_r, &p, params, &mut jac);
+        fill_error_columns(
+            errors,
+            q_rep_chain,
+            tau,
+            frames,
+            &flange_r,
+            &p,
+            params,
+            &mut jac,
+        );
     });
     Ok(jac)
 }
@@ -370,7 +448,7 @@ fn fill_error_columns(
     let p = *p;
     let mount_axes = rpy_derivative_axes(&Matrix3::identity(), &errors.mount_rpy);
     for (c, param) in params.iter().enumerate() {
-        let joint_col = |k: usize| frames[k].z.cross(&(p - frames[k].o));
+        let joint_col = |k: usize| frames[k].joint_column(&p);
         let col = match *param {
             ErrorParam::JointOffset { joint } => joint_col(joint),
             ErrorParam::JointScale { joint } => joint_col(joint) * q_rep[joint],
@@ -406,11 +484,13 @@ fn with_chain_scratch<R>(
     }
 }
 
-/// `∂p_tip/∂q_rep` of the TRUE robot, 3×dof, m/rad, nominal base axes, at the reported angles
-/// `q_rep`: column `i` is `(1 + scale_i + sin_i·cos q_i − cos_i·sin q_i)·J_i
-/// + Σ_k J_k·compliance_k·∂τ_k/∂q_i` (`sin_i`, `cos_i` the periodic amplitudes), with `J` the tip
-/// position Jacobian of the true chain with respect to the true angles and `∂τ/∂q` the nominal
-/// gravity-torque Jacobian ([`gravity_torque_jacobian`](crate::gravity_torque_jacobian)).
+/// `∂p_tip/∂q_rep` of the TRUE robot, 3×dof, m/rad (m/m for a prismatic joint), nominal base
+/// axes, at the reported independent values `q_rep`: without coupled joints column `i` is
+/// `(1 + scale_i + sin_i·cos q_i − cos_i·sin q_i)·J_i + Σ_k J_k·compliance_k·∂τ_k/∂q_i`
+/// (`sin_i`, `cos_i` the periodic amplitudes), with `J` the tip position Jacobian of the true
+/// chain with respect to the true values and `∂τ/∂q` the nominal gravity-torque Jacobian
+/// ([`gravity_torque_jacobian`](crate::gravity_torque_jacobian)). With coupled joints the first
+/// term is summed over the chain joints k times `∂q_k/∂q_i` (the coupling coefficients).
 ///
 /// Errors: as [`true_base_from_tip`].
 pub fn tip_joint_jacobian_true(
@@ -421,27 +501,48 @@ pub fn tip_joint_jacobian_true(
     g_base: &Vector3<f64>,
 ) -> Result<Matrix3xX<f64>, KinematicsError> {
     check_inputs(model, errors, q_rep, flange_from_tip, g_base)?;
-    let n = model.dof();
+    let n = model.chain_joints().len();
     let mut tau = vec![0.0; n];
     let mut q_true = vec![0.0; n];
-    true_joint_angles(model, errors, q_rep, g_base, false, &mut tau, &mut q_true);
+    let mut buf = Vec::new();
+    let q_rep_chain = true_joint_angles(
+        model,
+        errors,
+        (q_rep, &mut buf),
+        g_base,
+        false,
+        &mut tau,
+        &mut q_true,
+    );
     let mut frames = vec![TrueJointFrame::default(); n];
     let (flange_r, flange_t) = true_chain(model, errors, &q_true, Some(&mut frames));
     let p = flange_t + flange_r * (flange_from_tip + errors.tip);
-    // ∂p/∂q_true.
+    // ∂p/∂q_true, per chain joint.
     let mut j_true = Matrix3xX::zeros(n);
     for (k, f) in frames.iter().enumerate() {
-        j_true.set_column(k, &f.z.cross(&(p - f.o)));
+        j_true.set_column(k, &f.joint_column(&p));
     }
-    let mut jac = Matrix3xX::zeros(n);
-    for i in 0..n {
-        jac.set_column(i, &(j_true.column(i) * joint_rate(errors, q_rep, i)));
+    // ∂p/∂q_rep through each chain joint's own rate, then the couplings (chain rule).
+    let mut jac = Matrix3xX::zeros(model.dof());
+    for k in 0..n {
+        let col = j_true.column(k) * joint_rate(errors, q_rep_chain, k);
+        if model.has_coupled_joints() {
+            model.for_each_dependence(k, |i, c| {
+                let sum = jac.column(i) + col * c;
+                jac.set_column(i, &sum);
+            });
+        } else {
+            jac.set_column(k, &col);
+        }
     }
     if !all_zero(&errors.compliance) {
         let mut entries = vec![GravityEntry::default(); n];
         gravity_entries(model, q_rep, &mut entries);
-        let dtau = gravity_jacobian_from_entries(&entries, g_base);
-        for i in 0..n {
+        let mut dtau = gravity_jacobian_from_entries(&entries, g_base);
+        if model.has_coupled_joints() {
+            dtau *= model.coupling_matrix();
+        }
+        for i in 0..model.dof() {
             let mut col = jac.column(i).into_owned();
             for k in 0..n {
                 col += j_true.column(k) * (errors.compliance[k] * dtau[(k, i)]);

@@ -8,9 +8,16 @@
 //! survive:
 //! - `origin_xyz` error `Δxyz`: `<origin xyz>` becomes `xyz + Δxyz` (m, parent link frame);
 //! - `origin_rpy` error `Δrpy`: `<origin rpy>` becomes `rpy + Δrpy` (rad);
-//! - joint offset `δ`: folded into the origin rotation, `R(rpy') = R(rpy + Δrpy)·Rot(axis, δ)`,
-//!   exact for any URDF consumer, and recorded as `<calibration rising="δ"/>` (rad; informational,
-//!   as in ROS, where calibration does not move the kinematics) after a comment.
+//! - joint offset `δ` of a rotary joint: folded into the origin rotation,
+//!   `R(rpy') = R(rpy + Δrpy)·Rot(axis, δ)`, exact for any URDF consumer, and recorded as
+//!   `<calibration rising="δ"/>` (rad; informational, as in ROS, where calibration does not move
+//!   the kinematics) after a comment;
+//! - joint offset `δ` (m) of a prismatic joint: folded into the origin translation,
+//!   `xyz' = xyz + Δxyz + R(rpy + Δrpy)·axis·δ` (the joint at `q + δ` is the joint at `q` with its
+//!   origin moved `δ` along the axis), recorded the same way (`rising` in m).
+//!
+//! The errors are per chain joint, coupled joints included: a coupled joint's offset is folded
+//! into its own origin like any joint's (its `<mimic>`, if any, is left as it is).
 //!
 //! An `<origin>` (or its `xyz`/`rpy` attribute) that is missing is inserted. Numbers are written
 //! with 9 decimals (1 nm, 1 nrad) when a bound on what that rounding moves the flange, at any
@@ -114,10 +121,12 @@ pub fn verify_patched_urdf(
     errors: &KinematicErrors,
 ) -> Result<f64, UrdfPatchError> {
     check_expressible(model, errors)?;
+    // The couplings declared beside the URDF hold for the patched text too.
     let patched = RobotModel::from_urdf_str(patched_xml, model.tool_link())
+        .and_then(|m| m.with_couplings(model.added_couplings()))
         .map_err(|e| UrdfPatchError::Reload(Box::new(e)))?;
     let names = |m: &RobotModel| {
-        m.joints()
+        m.chain_joints()
             .iter()
             .map(|j| j.name.clone())
             .collect::<Vec<_>>()
@@ -163,7 +172,7 @@ fn check_expressible(model: &RobotModel, errors: &KinematicErrors) -> Result<(),
         v.iter()
             .enumerate()
             .filter(|(_, x)| **x != 0.0)
-            .map(|(j, _)| format!("{} ({})", j + 1, model.joints()[j].name))
+            .map(|(j, _)| format!("{} ({})", j + 1, model.chain_joints()[j].name))
             .collect()
     };
     let mut found = Vec::new();
@@ -267,21 +276,28 @@ fn patch_with(
     }
     let line = |pos: usize| doc.text_pos_at(pos).row;
     let mut edits: Vec<Edit> = Vec::new();
-    // reach[k]: the origin lengths from joint k's frame to the flange, m (a bound on the lever
-    // of a rotation error at joint k).
-    let n = model.dof();
+    // reach[k]: the origin lengths from joint k's frame to the flange, m, plus the largest travel
+    // of every prismatic joint after k (a bound on the lever of a rotation error at joint k).
+    let chain = model.chain_joints();
+    let n = chain.len();
     let mut reach = vec![model.last_from_flange().translation.vector.norm(); n];
     for k in (0..n.saturating_sub(1)).rev() {
-        let next = &model.joints()[k + 1];
+        let next = &chain[k + 1];
+        let travel = if next.kind.is_prismatic() {
+            next.lower.abs().max(next.upper.abs())
+        } else {
+            0.0
+        };
         reach[k] = reach[k + 1]
             + next.fixed_prefix.translation.vector.norm()
-            + (next.origin_xyz + errors.origin_xyz[k + 1]).norm();
+            + (next.origin_xyz + errors.origin_xyz[k + 1]).norm()
+            + travel;
     }
     let mut rounding_bound_m = 0.0;
     // What writing `v` as `text` changes, summed over the components.
     let rounded_by =
         |v: &Vector3<f64>, text: &str| parse3(text).map_or(f64::INFINITY, |w| (w - v).abs().sum());
-    for (k, joint) in model.joints().iter().enumerate() {
+    for (k, joint) in chain.iter().enumerate() {
         let dxyz = errors.origin_xyz[k];
         let drpy = errors.origin_rpy[k];
         let offset = errors.joint_offset[k];
@@ -326,16 +342,21 @@ fn patch_with(
         };
         let xyz = read("xyz")?;
         let rpy = read("rpy")?;
+        let prismatic = joint.kind.is_prismatic();
         // New attribute values, in the order written when the element is created.
         let mut new_attrs: Vec<(&str, String)> = Vec::new();
-        if dxyz != Vector3::zeros() {
-            let text = format3(&(xyz + dxyz), digits);
-            rounding_bound_m += rounded_by(&(xyz + dxyz), &text);
+        if dxyz != Vector3::zeros() || (prismatic && offset != 0.0) {
+            let mut xyz_new = xyz + dxyz;
+            if prismatic {
+                xyz_new += rotation_from_rpy(&(rpy + drpy)) * joint.axis.into_inner() * offset;
+            }
+            let text = format3(&xyz_new, digits);
+            rounding_bound_m += rounded_by(&xyz_new, &text);
             new_attrs.push(("xyz", text));
         }
-        if drpy != Vector3::zeros() || offset != 0.0 {
+        if drpy != Vector3::zeros() || (!prismatic && offset != 0.0) {
             let mut rpy_new = rpy + drpy;
-            if offset != 0.0 {
+            if offset != 0.0 && !prismatic {
                 let r =
                     rotation_from_rpy(&rpy_new) * Rotation3::from_axis_angle(&joint.axis, offset);
                 let (roll, pitch, yaw) = r.euler_angles();
@@ -392,9 +413,15 @@ fn patch_with(
                     line(element.range().start)
                 )))?;
             let rising = format1(offset, digits);
-            let comment = format!(
-                "  <!-- handclasp diagnose: joint offset {rising} rad folded into origin rpy -->\n"
-            );
+            let comment = if prismatic {
+                format!(
+                    "  <!-- handclasp diagnose: joint offset {rising} m folded into origin xyz -->\n"
+                )
+            } else {
+                format!(
+                    "  <!-- handclasp diagnose: joint offset {rising} rad folded into origin rpy -->\n"
+                )
+            };
             let calibration = element.children().find(|n| n.has_tag_name("calibration"));
             match calibration {
                 None => edits.push(Edit {

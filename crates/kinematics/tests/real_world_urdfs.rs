@@ -3,7 +3,10 @@
 
 use std::path::{Path, PathBuf};
 
-use kinematics::{base_from_flange, ModelError, RobotModel, MAX_CHAIN_LENGTH_M, WORLD_LINK};
+use kinematics::{
+    base_from_flange, JointKind, LinearCoupling, ModelError, RobotModel, MAX_CHAIN_LENGTH_M,
+    WORLD_LINK,
+};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -77,13 +80,27 @@ fn ros_industrial_branches() {
     assert_same_fk(&m, &hp20());
     // The shipped hp20 has no branch: nothing is ignored.
     assert!(hp20().ignored_joints().is_empty() && hp20().ignored_links().is_empty());
-    // A tool link beyond the mimic finger puts the coupled (and prismatic) joint on the chain.
+    // A tool link beyond the mimic finger puts the coupled joint on the chain, but the finger it
+    // mimics is on another branch: refused, naming both.
     let e = RobotModel::from_urdf_file(
         &fixture_path("ros_industrial_branches.urdf"),
         "finger_right",
     )
     .unwrap_err();
     assert!(matches!(e, ModelError::MimicJoint { .. }), "{e}");
+    assert!(
+        e.to_string().contains("`finger_right_joint`")
+            && e.to_string().contains("`finger_left_joint`")
+            && e.to_string().contains("not a moving joint of that chain"),
+        "{e}"
+    );
+    // The other finger (prismatic, independent) loads as a seventh joint, in metres.
+    let m =
+        RobotModel::from_urdf_file(&fixture_path("ros_industrial_branches.urdf"), "finger_left")
+            .unwrap();
+    assert_eq!(m.dof(), 7);
+    assert_eq!(m.joints()[6].kind, JointKind::Prismatic);
+    assert_eq!((m.joints()[6].lower, m.joints()[6].upper), (0.0, 0.04));
 }
 
 /// fixtures/world_root.urdf: hp20 fixed to a `world` root 2 m out and turned 90°. The world
@@ -111,18 +128,26 @@ fn world_root() {
     );
 }
 
-/// fixtures/mimic_on_chain.urdf: joint_3 mimics joint_2; refused, naming both.
+/// fixtures/mimic_on_chain.urdf: joint_3 mimics joint_2 (multiplier −1). Refused until issue
+/// 22; now a coupled joint: the user supplies joint_1 and joint_2, joint_3 = −joint_2, so the
+/// flange keeps its pitch (both axes are y) and only joint_1 turns it.
 #[test]
 fn mimic_on_chain() {
-    let e = RobotModel::from_urdf_file(&fixture_path("mimic_on_chain.urdf"), "tool0").unwrap_err();
-    assert!(matches!(e, ModelError::MimicJoint { .. }), "{e}");
-    let msg = e.to_string();
-    assert!(
-        msg.contains("mimic_on_chain.urdf")
-            && msg.contains("`joint_3`")
-            && msg.contains("`joint_2`"),
-        "{msg}"
+    let m = RobotModel::from_urdf_file(&fixture_path("mimic_on_chain.urdf"), "tool0").unwrap();
+    assert_eq!((m.dof(), m.chain_joints().len()), (2, 3));
+    assert_eq!(
+        m.chain_joints()[2].coupling,
+        Some(LinearCoupling {
+            terms: vec![(1, -1.0)],
+            offset: 0.0
+        })
     );
+    let flange = base_from_flange(&m, &[0.4, 1.1]).unwrap();
+    let turn = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.4);
+    assert!(flange.rotation.angle_to(&turn) < SAME_NUMBERS_TOL);
+    // Three values (one for the coupled joint) are refused, naming it.
+    let e = base_from_flange(&m, &[0.4, 1.1, -1.1]).unwrap_err();
+    assert!(e.to_string().contains("2 independent joints") && e.to_string().contains("joint_3"));
     // The chain up to link_2 has no coupling and loads.
     let m = RobotModel::from_urdf_file(&fixture_path("mimic_on_chain.urdf"), "link_2").unwrap();
     assert_eq!(
@@ -132,15 +157,23 @@ fn mimic_on_chain() {
 }
 
 /// fixtures/linear_track.urdf: a prismatic track from `world` (not fixed, so `world` stays the
-/// base) is refused with the reason and what to do.
+/// base). Refused until issue 22; now the track is joint 1, in metres: at 2 m along it with
+/// joint_1 at 0 the flange is 2 + 0.8 m out and 0.5 m up.
 #[test]
 fn linear_track() {
-    let e = RobotModel::from_urdf_file(&fixture_path("linear_track.urdf"), "tool0").unwrap_err();
-    assert!(matches!(e, ModelError::PrismaticJoint { .. }), "{e}");
-    let msg = e.to_string();
+    let m = RobotModel::from_urdf_file(&fixture_path("linear_track.urdf"), "tool0").unwrap();
+    assert_eq!((m.base_link(), m.dof()), (WORLD_LINK, 2));
+    assert_eq!(m.joints()[0].kind, JointKind::Prismatic);
+    let flange = base_from_flange(&m, &[2.0, 0.0]).unwrap();
+    assert!((flange.translation.vector - Vector3::new(2.8, 0.0, 0.5)).norm() < SAME_NUMBERS_TOL);
+    // 2000 for 2 m is millimetres; 7 m is past the 6 m track.
+    let e = base_from_flange(&m, &[2000.0, 0.0]).unwrap_err();
+    assert!(e.to_string().contains("looks like millimetres"), "{e}");
+    let e = base_from_flange(&m, &[7.0, 0.0]).unwrap_err();
     assert!(
-        msg.contains("`track`") && msg.contains("rotary joints only") && msg.contains("fixed"),
-        "{msg}"
+        e.to_string()
+            .contains("7000.000 mm, outside its limits 0.000..6000.000 mm"),
+        "{e}"
     );
     // Loading from the carriage works: the arm alone.
     let xml = std::fs::read_to_string(fixture_path("linear_track.urdf")).unwrap();

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use kinematics::{
     base_from_flange, patch_urdf_text, split_for_urdf, true_base_from_flange, verify_patched_urdf,
-    KinematicErrors, RobotModel, UrdfPatchError, PATCH_TOLERANCE_M,
+    JointCoupling, KinematicErrors, RobotModel, UrdfPatchError, PATCH_TOLERANCE_M,
 };
 use nalgebra::Vector3;
 use proptest::prelude::*;
@@ -45,7 +45,9 @@ const G: Vector3<f64> = Vector3::new(0.0, 0.0, -9.81);
 /// The patched model's flange agrees with the error model at random joint vectors (an rng of
 /// its own, independent of the writer's verification set).
 fn assert_fk_matches(patched_xml: &str, model: &RobotModel, errors: &KinematicErrors, seed: u64) {
-    let patched = load(patched_xml);
+    let patched = load(patched_xml)
+        .with_couplings(model.added_couplings())
+        .unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     for _ in 0..50 {
         let q: Vec<f64> = model
@@ -350,16 +352,32 @@ const OBLIQUE: &str = r#"<robot name="oblique">
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(32))]
 
-    /// Random origin xyz (±5 mm), origin rpy (±0.05 rad) and joint offset (±0.05 rad) errors,
-    /// each joint's kinds switched on at random: the patched URDF's flange equals the nominal
-    /// model plus the errors to PATCH_TOLERANCE_M at 50 random joint vectors.
+    /// Random origin xyz (±5 mm), origin rpy (±0.05 rad) and joint offset (±0.05 rad, or m
+    /// for a prismatic joint) errors, each joint's kinds switched on at random: the patched
+    /// URDF's flange equals the nominal model plus the errors to PATCH_TOLERANCE_M at 50 random
+    /// joint vectors. Also on a rail under an arm, a chain with prismatic joints and a mimic
+    /// (with and without a coupling declared beside the URDF) and a coupled torso: a prismatic
+    /// offset is folded into the origin xyz, a coupled joint's into its own origin.
     #[test]
     fn patched_fk_equals_nominal_plus_errors(seed in any::<u64>()) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        for xml in [shipped("hp20"), shipped("va1400"), OBLIQUE.to_string()] {
-            let model = load(&xml);
-            let mut e = KinematicErrors::zero(model.dof());
-            for k in 0..model.dof() {
+        let j4 = JointCoupling {
+            joint: "j4".into(),
+            terms: vec![("j1".into(), 0.5), ("lift".into(), -2.0)],
+            offset: 0.3,
+        };
+        for (xml, couplings) in [
+            (shipped("hp20"), vec![]),
+            (shipped("va1400"), vec![]),
+            (OBLIQUE.to_string(), vec![]),
+            (fixture("rail_6r.urdf"), vec![]),
+            (fixture("mixed_chain.urdf"), vec![]),
+            (fixture("mixed_chain.urdf"), vec![j4.clone()]),
+            (fixture("mimic_torso.urdf"), vec![]),
+        ] {
+            let model = load(&xml).with_couplings(&couplings).unwrap();
+            let mut e = KinematicErrors::zero_for(&model);
+            for k in 0..model.chain_joints().len() {
                 if rng.random_bool(0.6) {
                     e.origin_xyz[k] = Vector3::from_fn(|_, _| rng.random_range(-0.005..0.005));
                 }
@@ -374,4 +392,35 @@ proptest! {
             assert_fk_matches(&patched, &model, &e, seed);
         }
     }
+}
+
+/// A prismatic joint's offset (m) moves its origin along its axis: 5 mm on the rail (axis x of a
+/// frame turned 0.2 rad about z) is xyz + 5 mm·(cos 0.2, sin 0.2, 0), recorded as a calibration in
+/// m; the arm's joints are untouched.
+#[test]
+fn a_prismatic_offset_moves_the_origin_along_the_axis() {
+    let xml = fixture("rail_6r.urdf");
+    let model = load(&xml);
+    let mut e = KinematicErrors::zero_for(&model);
+    e.joint_offset[0] = 0.005;
+    let patched = patch_urdf_text(&xml, &model, &e).unwrap();
+    let (s, c) = 0.2f64.sin_cos();
+    let want = format!(
+        r#"<origin xyz="{:.9} {:.9} 0.300000000" rpy="0 0 0.2"/>"#,
+        0.005 * c,
+        0.005 * s
+    );
+    assert!(patched.contains(&want), "{patched}");
+    assert!(patched.contains("joint offset 0.005000000 m folded into origin xyz"));
+    assert!(patched.contains(r#"<calibration rising="0.005000000"/>"#));
+    // Nothing else changed: undo the three edits and get the input back.
+    let undone = patched
+        .replace(&want, r#"<origin xyz="0 0 0.3" rpy="0 0 0.2"/>"#)
+        .replace(
+            "    <!-- handclasp diagnose: joint offset 0.005000000 m folded into origin xyz -->\n",
+            "",
+        )
+        .replace("    <calibration rising=\"0.005000000\"/>\n", "");
+    assert_eq!(undone, xml);
+    assert_fk_matches(&patched, &model, &e, 5);
 }

@@ -6,10 +6,11 @@
 
 use calib_core::{Method, MountPair};
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use handclasp_cell::Cell;
 use nalgebra::Point3;
 use sim_cell::layout::Layout;
 use sim_cell::sweep::{geometry_trial_into, run_sweep, GeometrySpec, Mode, SweepConfig, TrialRngs};
-use sim_cell::{generate_session, trial_rng, Cell, SessionSpec};
+use sim_cell::{generate_session, trial_rng, SessionSpec};
 use std::hint::black_box;
 
 /// Trials per measured iteration of the batched benches.

@@ -6,15 +6,9 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum SimError {
-    /// A cell file (TOML) is invalid; `message` names the key and the fix.
-    #[error("cell {path}: {message}")]
-    Cell {
-        /// The cell file (or `<string>` for text without a file).
-        path: PathBuf,
-        /// What is wrong, naming the key, and what would work.
-        message: String,
-    },
-    /// A session CSV is invalid; `message` names the row/column and the fix.
+    /// A session input of the simulator (a teach-points CSV) is invalid; `message` names the
+    /// row/column and the fix. (The cell and session files' own errors are
+    /// [`SimError::Format`].)
     #[error("session {path}: {message}")]
     Session {
         /// The session file.
@@ -22,6 +16,10 @@ pub enum SimError {
         /// What is wrong, naming the row or column, and what would work.
         message: String,
     },
+    /// A cell or session file is invalid, or could not be read or written
+    /// ([`handclasp_cell::FormatError`]).
+    #[error(transparent)]
+    Format(#[from] handclasp_cell::FormatError),
     /// A file could not be read or written.
     #[error("{path}: {source}")]
     Io {
@@ -47,15 +45,6 @@ pub enum SimError {
         /// The point, mm, robot 1's base frame.
         p_b1_mm: [f64; 3],
         /// Which robot failed and what would work.
-        message: String,
-    },
-    /// An exported file that does not read back to what was meant to be written (a defect of the
-    /// writer or the parser, never expected); the file is not left in place.
-    #[error("export {path}: {message}")]
-    Export {
-        /// The file that was to be written.
-        path: PathBuf,
-        /// What reading it back found.
         message: String,
     },
     /// An invalid argument (spec, grid axis, option): the message names it and what would work.

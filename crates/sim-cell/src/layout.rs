@@ -66,7 +66,7 @@ impl fmt::Display for Layout {
 /// `n` teach points (m, b1 frame) of `layout` with size `spread_m` around `centre`, drawn from `rng`.
 ///
 /// For `n = 0` the result is empty. Non-finite or negative `spread_m` gives non-finite points;
-/// callers validate their specs (see [`crate::session::SessionSpec`]).
+/// callers validate their specs (see [`crate::simulate::SessionSpec`]).
 ///
 /// # Examples
 /// ```

@@ -5,14 +5,17 @@
 //! `sim-cell paper` sets the simulation beside the paper's Table 1.
 
 use anyhow::{bail, Context, Result};
+use calib_core::whole_cell::Kind;
 use calib_core::MountPair;
 use clap::{Parser, Subcommand, ValueEnum};
+use handclasp_cell::Cell;
+use handclasp_cell::Session;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use sim_cell::layout::Layout;
 use sim_cell::sweep::{self, KinematicErrorDraw, Mode, SweepConfig, SweepLayout, SweepMethod};
 use sim_cell::{
-    generate_kind_session, read_points_b1_csv, teach_from_plan, trial_rng, Cell, KindSpec, Session,
-    SessionSpec, SimError, SimKind,
+    generate_kind_session, read_points_b1_csv, teach_from_plan, trial_rng, KindSpec, SessionSpec,
+    SimError, SimKind,
 };
 use std::io::{BufWriter, IsTerminal, Write};
 use std::path::PathBuf;
@@ -260,14 +263,11 @@ struct SweepArgs {
 }
 
 fn main() -> ExitCode {
-    sim_cell::cli_support::exit_quietly_on_broken_pipe();
+    cli_support::exit_quietly_on_broken_pipe();
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!(
-                "error: {}",
-                sim_cell::cli_support::error_chain_text(e.as_ref())
-            );
+            eprintln!("error: {}", cli_support::error_chain_text(e.as_ref()));
             ExitCode::FAILURE
         }
     }
@@ -350,18 +350,21 @@ fn session(a: SessionArgs) -> Result<()> {
         other => other.into(),
     })?;
     if !matches!(a.kind, KindArg::Coincident) {
-        let [c, ct, tr, pl, fc] = session.kind_counts();
-        // Named only when present, so the other kinds' message is as before.
-        let faces = if fc > 0 {
-            format!(", {fc} face_contact")
-        } else {
-            String::new()
-        };
+        // Every kind's count; a kind after the first four only when present, so that the message
+        // of a session without it is as before that kind.
+        let rows: Vec<String> = Kind::ALL
+            .iter()
+            .zip(session.kind_counts())
+            .enumerate()
+            .filter(|&(k, (_, n))| k < 4 || n > 0)
+            .map(|(_, (kind, n))| format!("{n} {}", kind.name()))
+            .collect();
         let t = truth.tracker_from_b1.inverse().translation.vector * 1e3;
         let (n, d) = truth.plane_b1;
         eprintln!(
-            "rows: {c} coincident, {ct} contact, {tr} tracker, {pl} plane{faces}; truth: contact distance {:.3} mm, \
+            "rows: {}; truth: contact distance {:.3} mm, \
              tracker origin in b1 ({:.1}, {:.1}, {:.1}) mm, plane normal (b1) ({:.4}, {:.4}, {:.4}) offset {:.3} mm",
+            rows.join(", "),
             truth.contact_distance_m * 1e3,
             t.x,
             t.y,
@@ -447,8 +450,7 @@ fn sweep_cmd(a: SweepArgs) -> Result<()> {
                 .mounts
                 .iter()
                 .map(|m| {
-                    sim_cell::placement::paper_placement(m)
-                        .and_then(|p| Cell::paper(&p))
+                    Cell::shipped(*m)
                         .context("robot mode without --cell knows the paper's three cells only")
                 })
                 .collect::<Result<_>>()?

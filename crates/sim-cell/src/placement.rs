@@ -1,6 +1,6 @@
 //! The paper's three cells (Gan et al. 2014, Table 1): true `b1_from_b2` and the centre of the
 //! common workspace where the teach points go. Needs no robot model (geometry mode uses it directly;
-//! the default [`crate::cell::Cell`]s are built from it).
+//! the shipped cells, [`handclasp_cell::Cell::shipped`], hold the same placements: tested here).
 //!
 //! Table 1's placements are used as published; the centres were checked against the URDFs in
 //! `robots/` (both robots reach a 1 m tetrahedron around them head-on; see the sim-cell README).
@@ -115,5 +115,32 @@ mod tests {
             paper_placement(&MountPair::floor_ceiling()),
             Some(FLOOR_CEILING)
         );
+    }
+}
+
+#[cfg(test)]
+mod shipped_cells {
+    use super::*;
+    use handclasp_cell::Cell;
+
+    /// The geometry-mode placements are the shipped cells' (same truth, same teach centre), to 0.1 mm.
+    const SAME_CELL_TOL_M: f64 = 1e-4;
+
+    #[test]
+    fn placements_match_the_shipped_cells() {
+        for p in PAPER {
+            let cell = Cell::shipped(p.mounts).unwrap();
+            assert!(
+                (cell.b1_from_b2.translation.vector - p.b1_from_b2().translation.vector).amax()
+                    < SAME_CELL_TOL_M
+            );
+            assert!(cell.b1_from_b2.rotation.angle_to(&p.b1_from_b2().rotation) < 1e-9);
+            assert!(
+                (cell.centre_b1 - p.centre_b1()).amax() < SAME_CELL_TOL_M,
+                "{}",
+                p.label()
+            );
+            assert_eq!(cell.mounts(), p.mounts);
+        }
     }
 }

@@ -36,12 +36,13 @@ use nalgebra::{Point3, Vector3};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::cell::{Cell, CellRobot};
 use crate::error::SimError;
-use crate::session::{generate_session, Session, SessionPoint, SessionSpec};
+use crate::simulate::{generate_session, SessionSpec};
 use crate::trial_rng;
-use crate::whole_cell::{cell_problem, FitModel};
 use crate::Layout;
+use handclasp_cell::cell::{Cell, CellRobot};
+use handclasp_cell::problem::{cell_problem, FitModel};
+use handclasp_cell::{Session, SessionPoint};
 
 /// Draws per wanted candidate before giving up (`k` candidates: at most `4·k` points tried).
 pub const ATTEMPTS_PER_CANDIDATE: usize = 4;

@@ -9,16 +9,16 @@ use nalgebra::{Isometry3, Point3, Rotation3, Translation3, Unit, UnitQuaternion,
 use rand::Rng;
 use rand_distr::StandardNormal;
 
-use crate::cell::Cell;
 use crate::error::SimError;
 use crate::layout::teach_points;
-use crate::session::{
+use crate::simulate::{
     approach_directions, gauss3, generate_session, quantise, solve_true_tool, tool_errors,
-    unreachable, PointFailure, Session, SessionKind, SessionObservation, SessionPoint, SessionSpec,
-    MAX_LAYOUT_ATTEMPTS,
+    unreachable, PointFailure, SessionSpec, MAX_LAYOUT_ATTEMPTS,
 };
 use calib_core::whole_cell::tangent_basis;
 use calib_core::Robot;
+use handclasp_cell::cell::Cell;
+use handclasp_cell::{Session, SessionKind, SessionObservation, SessionPoint};
 use kinematics::{base_from_tip, true_base_from_tip};
 
 /// Which observation kinds a simulated session holds.
@@ -69,7 +69,7 @@ pub struct KindSpec {
     pub face_tilt_max_rad: f64,
     /// σ per axis of a tracker measurement, m [0.05 mm].
     pub tracker_sigma_m: f64,
-    /// The tool a tracker measures, by name ([`crate::CellRobot::tool_index`]) \[`tip`, [`crate::cell::TIP_TOOL`]\].
+    /// The tool a tracker measures, by name ([`handclasp_cell::CellRobot::tool_index`]) \[`tip`, [`handclasp_cell::cell::TIP_TOOL`]\].
     pub tracker_tool: String,
     /// σ of a plane touch (the tip's distance from the plane), m [0.1 mm].
     pub plane_sigma_m: f64,
@@ -87,7 +87,7 @@ impl Default for KindSpec {
             face_slide_m: 5e-3,
             face_tilt_max_rad: 20f64.to_radians(),
             tracker_sigma_m: 0.05e-3,
-            tracker_tool: crate::cell::TIP_TOOL.into(),
+            tracker_tool: handclasp_cell::cell::TIP_TOOL.into(),
             plane_sigma_m: 0.1e-3,
             plane_max_tilt_rad: 20f64.to_radians(),
         }

@@ -1,5 +1,5 @@
 //! The one-call whole-cell calibration a CLI needs: starting values, base-parameter reduction,
-//! MAP fit with blunder screening, and a serialisable report.
+//! MAP fit with blunder screening; its report in file units is `report.rs`.
 //!
 //! The steps of [`calibrate_cell`], in order (each MAP fit is [`fit_cell_with`], the crate's
 //! Levenberg–Marquardt solver on the problem of `solve.rs`):
@@ -13,16 +13,15 @@
 //!    covariance under the scale-1 prior.
 //! 5. A placement-only model whose residuals exceed the stated noise: its covariance is scaled
 //!    and the model-error term set (`mean_noise_var`).
-//! 6. [`CellCalibration::report`]: the serialisable summary.
+//! 6. [`CellCalibration::report`] (`report.rs`): the report in file units.
 
-use nalgebra::{DMatrix, Isometry3};
+use nalgebra::DMatrix;
 use serde::Serialize;
 
 use super::blunders::{fit_screened, RejectedRow, ScreenOptions};
-use super::reduce::{reduce, Reduction, ReductionEntry};
-use super::solve::{assemble, fit_cell_with, sym_inverse, CellFit, FittedParam, SolveOptions};
+use super::reduce::{reduce, Reduction};
+use super::solve::{assemble, fit_cell_with, sym_inverse, CellFit, SolveOptions};
 use super::{initial_estimate, CellFitError, CellProblem, ParamLayout};
-use crate::StopReason;
 
 /// Prior scales `s` [`calibrate_cell`] compares (every prior σ multiplied by `s`): the
 /// tolerances as given (1), halved down to 1/16, and 1e-3, the placement-only limit (the
@@ -56,50 +55,6 @@ pub struct CellCalibration {
     /// covariance, and its excess over 1 is the fit's model-error term,
     /// [`CellFit::model_error_var_m2`]).
     pub noise_scale: f64,
-}
-
-/// A serialisable summary of a calibration (SI units: m, rad; field names say so).
-#[derive(Debug, Clone, Serialize)]
-pub struct CalibrationReport {
-    /// Base 2 in base 1 (translation m, unit quaternion).
-    pub b1_from_b2: Isometry3<f64>,
-    /// Every fitted unknown with prior and posterior σ.
-    pub parameters: Vec<FittedParam>,
-    /// Dropped / merged parameters and why.
-    pub unidentifiable: Vec<ReductionEntry>,
-    /// Rejected rows with their size in σ.
-    pub rejected_points: Vec<RejectedRow>,
-    /// Why the solver stopped.
-    pub stopped: StopReason,
-    /// Solver iterations of the final fit.
-    pub iterations: usize,
-    /// Data χ² of the final fit and its residual rows.
-    pub data_chi2: f64,
-    /// Residual rows used.
-    pub residual_rows: usize,
-    /// The prior scale chosen from the session's evidence (see [`PRIOR_SCALES`]).
-    pub prior_scale: f64,
-    /// The blunder screen's noise scale ([`CellCalibration::noise_scale`]; 1 unless the model
-    /// is placement-only).
-    pub noise_scale: f64,
-}
-
-impl CellCalibration {
-    /// The serialisable summary.
-    pub fn report(&self, problem: &CellProblem) -> CalibrationReport {
-        CalibrationReport {
-            b1_from_b2: self.fit.estimate.b1_from_b2,
-            parameters: self.fit.parameters(problem),
-            unidentifiable: self.reduction.dropped.clone(),
-            rejected_points: self.rejected.clone(),
-            stopped: self.fit.stopped,
-            iterations: self.fit.iterations,
-            data_chi2: self.fit.data_chi2,
-            residual_rows: self.fit.residual_rows,
-            prior_scale: self.prior_scale.scale,
-            noise_scale: self.noise_scale,
-        }
-    }
 }
 
 /// Calibrates the whole cell: starting values ([`initial_estimate`]), base-parameter reduction

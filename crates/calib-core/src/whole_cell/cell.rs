@@ -225,6 +225,18 @@ pub enum Noise3 {
 }
 
 impl Noise3 {
+    /// The same noise with each σ multiplied by `s` (a covariance by `s²`).
+    pub fn scaled(self, s: f64) -> Noise3 {
+        match self {
+            Noise3::Isotropic { sigma_m } => Noise3::Isotropic {
+                sigma_m: sigma_m * s,
+            },
+            Noise3::Covariance { cov_m2 } => Noise3::Covariance {
+                cov_m2: cov_m2 * (s * s),
+            },
+        }
+    }
+
     /// The whitening matrix `W = L⁻¹` with `Σ = L·Lᵀ` (Cholesky), so `W·r` has unit covariance.
     pub(super) fn whitening(&self, row: usize) -> Result<Matrix3<f64>, CellFitError> {
         match *self {

@@ -101,14 +101,16 @@
 //!
 //! # One call
 //! [`calibrate_cell`] runs the chain a CLI needs (start, reduce, screened MAP fit) and
-//! [`CellCalibration::report`] gives the serialisable summary.
+//! [`CellCalibration::report`] gives its report in file units (mm, degrees: [`CalibrationReport`],
+//! the typed structs `calibrate --cell` prints as JSON and text).
 //!
 //! # Files, in dependency order (each uses only those before it)
 //! `cell` (error type, robots, tools, tolerances, noise) ← `observations` (observation kinds,
 //! nuisance groups, [`CellProblem`] and its checks) ← `layout` (estimates, columns, prior,
 //! manifold updates) ← `residuals` (residuals and analytic Jacobians, [`Evaluator`]) ← `start`
 //! (starting values) ← `solve` (Levenberg–Marquardt) ← `reduce` ← `blunders` ← `accuracy` ←
-//! `design`, and `calibrate` (the one call). `fixtures` (simulated cells) and `tests` sit on top.
+//! `design`, `calibrate` (the one call) ← `report` (its file-unit report). `fixtures` (simulated
+//! cells) and `tests` sit on top.
 
 mod accuracy;
 mod blunders;
@@ -119,6 +121,7 @@ mod layout;
 mod observations;
 mod placement_prior;
 mod reduce;
+mod report;
 mod residuals;
 mod solve;
 mod start;
@@ -134,9 +137,7 @@ pub use accuracy::{
     summarise_covariances, ConfigPair, CooperativeError, CooperativePrediction, P95_DRAWS_PER_PAIR,
 };
 pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
-pub use calibrate::{
-    calibrate_cell, CalibrationReport, CellCalibration, PriorScaleChoice, PRIOR_SCALES,
-};
+pub use calibrate::{calibrate_cell, CellCalibration, PriorScaleChoice, PRIOR_SCALES};
 pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool};
 pub use design::{
     design_criterion, design_prediction, greedy_design, DesignCriterion, DesignPrediction,
@@ -146,11 +147,17 @@ pub use layout::{
     tangent_basis, CellEstimate, CellParam, ParamLayout, PlaneEstimate, RobotCorrection,
 };
 pub use observations::{
-    CellProblem, ContactGroup, Observation, ObservationKind, PlaneGroup, TrackerGroup,
-    UNIT_NORMAL_TOL,
+    CellProblem, ContactGroup, GroupKind, Kind, Observation, ObservationKind, PlaneGroup,
+    TrackerGroup, UNIT_NORMAL_TOL,
 };
 pub use placement_prior::PlacementPrior;
 pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, PRIOR_INFO_TOL, RANK_TOL};
+pub use report::{
+    CalibrationReport, ContactGroupReport, DesignPredictionReport, DropReason,
+    FittedPlacementReport, GroupsReport, LogEvidenceReport, MergePartner, NuisanceReport,
+    ParamIdentity, ParameterReport, PlacementSigmaReport, PlaneGroupReport, PriorScaleReport,
+    RejectedRowReport, ReportUnit, TrackerGroupReport, UnidentifiableReport,
+};
 pub use residuals::{Evaluator, ObservationLinearisation, MIN_FACE_NORMAL_SUM};
 pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions};
 pub use start::initial_estimate;

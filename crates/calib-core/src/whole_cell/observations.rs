@@ -101,25 +101,200 @@ pub enum ObservationKind {
     },
 }
 
-impl ObservationKind {
-    /// `"coincident"`, `"contact"`, `"face_contact"`, `"tracker"` or `"plane"`.
-    pub fn name(&self) -> &'static str {
+/// The observation kinds without their data: the one list of them. The session CSV's `kind`
+/// names and column sets (handclasp-cell), the residual dispatch ([`ObservationKind`]) and the
+/// per-kind reports (diagnose) are derived from it; a new kind is an arm here and in
+/// [`ObservationKind`] with its residual, and its row's reader and writer in handclasp-cell's
+/// `session/kinds.rs` (docs/ARCHITECTURE.md lists the files). Not `#[non_exhaustive]`, so that
+/// every crate's `match` on it names the new kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Kind {
+    /// Two tool points coincide ([`ObservationKind::Coincident`]).
+    Coincident,
+    /// Two tool points a distance apart ([`ObservationKind::Contact`]).
+    Contact,
+    /// One robot's tool measured by a tracker ([`ObservationKind::Tracker`]).
+    Tracker,
+    /// One robot's tool touches a plane ([`ObservationKind::Plane`]).
+    Plane,
+    /// Two flat faces touching flush ([`ObservationKind::FaceContact`]).
+    FaceContact,
+}
+
+impl Kind {
+    /// Every kind, in the documented order: the session CSV's list of `kind` values (its
+    /// messages name them in this order) and the order of per-kind counts.
+    pub const ALL: [Kind; 5] = [
+        Kind::Coincident,
+        Kind::Contact,
+        Kind::Tracker,
+        Kind::Plane,
+        Kind::FaceContact,
+    ];
+
+    /// The kind's name in files and reports: `"coincident"`, `"contact"`, `"tracker"`,
+    /// `"plane"` or `"face_contact"`.
+    pub const fn name(self) -> &'static str {
         match self {
-            ObservationKind::Coincident { .. } => "coincident",
-            ObservationKind::Contact { .. } => "contact",
-            ObservationKind::FaceContact { .. } => "face_contact",
-            ObservationKind::Tracker { .. } => "tracker",
-            ObservationKind::Plane { .. } => "plane",
+            Kind::Coincident => "coincident",
+            Kind::Contact => "contact",
+            Kind::Tracker => "tracker",
+            Kind::Plane => "plane",
+            Kind::FaceContact => "face_contact",
         }
     }
 
-    /// Number of residuals (1 or 3).
-    pub fn rows(&self) -> usize {
+    /// The kind named `name` (exactly, as [`Kind::name`] writes it); `None` for another text.
+    pub fn from_name(name: &str) -> Option<Kind> {
+        Kind::ALL.into_iter().find(|k| k.name() == name)
+    }
+
+    /// Number of residuals of one observation (1 or 3).
+    pub const fn residual_rows(self) -> usize {
         match self {
-            ObservationKind::Coincident { .. } | ObservationKind::Tracker { .. } => 3,
-            ObservationKind::Contact { .. }
-            | ObservationKind::FaceContact { .. }
-            | ObservationKind::Plane { .. } => 1,
+            Kind::Coincident | Kind::Tracker => 3,
+            Kind::Contact | Kind::FaceContact | Kind::Plane => 1,
+        }
+    }
+
+    /// True when an observation of this kind takes both robots' joints (a pair of tool
+    /// points); false when it takes one robot's (its `robot` field).
+    pub const fn two_robot(self) -> bool {
+        match self {
+            Kind::Coincident | Kind::Contact | Kind::FaceContact => true,
+            Kind::Tracker | Kind::Plane => false,
+        }
+    }
+
+    /// The kind of nuisance group an observation of this kind belongs to (contacts and face
+    /// contacts share the contact groups); `None` for a coincident handclasp.
+    pub const fn group(self) -> Option<GroupKind> {
+        match self {
+            Kind::Coincident => None,
+            Kind::Contact | Kind::FaceContact => Some(GroupKind::Contact),
+            Kind::Tracker => Some(GroupKind::Tracker),
+            Kind::Plane => Some(GroupKind::Plane),
+        }
+    }
+}
+
+/// The kinds of nuisance group of a [`CellProblem`]: its `contacts`, `trackers` and `planes`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum GroupKind {
+    /// A contact distance ([`ContactGroup`]).
+    Contact,
+    /// A tracker frame ([`TrackerGroup`]).
+    Tracker,
+    /// A plane ([`PlaneGroup`]).
+    Plane,
+}
+
+impl GroupKind {
+    /// Every group kind; [`GroupKind::index`] is the position in this list.
+    pub const ALL: [GroupKind; 3] = [GroupKind::Contact, GroupKind::Tracker, GroupKind::Plane];
+
+    /// Position in [`GroupKind::ALL`] (0 contact, 1 tracker, 2 plane), for per-group-kind arrays.
+    pub const fn index(self) -> usize {
+        match self {
+            GroupKind::Contact => 0,
+            GroupKind::Tracker => 1,
+            GroupKind::Plane => 2,
+        }
+    }
+
+    /// `"contact"`, `"tracker"` or `"plane"`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            GroupKind::Contact => "contact",
+            GroupKind::Tracker => "tracker",
+            GroupKind::Plane => "plane",
+        }
+    }
+}
+
+impl ObservationKind {
+    /// The kind without its data.
+    pub fn kind(&self) -> Kind {
+        match self {
+            ObservationKind::Coincident { .. } => Kind::Coincident,
+            ObservationKind::Contact { .. } => Kind::Contact,
+            ObservationKind::FaceContact { .. } => Kind::FaceContact,
+            ObservationKind::Tracker { .. } => Kind::Tracker,
+            ObservationKind::Plane { .. } => Kind::Plane,
+        }
+    }
+
+    /// `"coincident"`, `"contact"`, `"face_contact"`, `"tracker"` or `"plane"` ([`Kind::name`]).
+    pub fn name(&self) -> &'static str {
+        self.kind().name()
+    }
+
+    /// Number of residuals (1 or 3, [`Kind::residual_rows`]).
+    pub fn rows(&self) -> usize {
+        self.kind().residual_rows()
+    }
+
+    /// The joint vectors the observation uses, with their robots (robot 1's first).
+    pub fn joints(&self) -> Vec<(Robot, &[f64])> {
+        match self {
+            ObservationKind::Coincident { q1, q2, .. }
+            | ObservationKind::Contact { q1, q2, .. }
+            | ObservationKind::FaceContact { q1, q2, .. } => {
+                vec![(Robot::One, q1.as_slice()), (Robot::Two, q2.as_slice())]
+            }
+            ObservationKind::Tracker { robot, q, .. } | ObservationKind::Plane { robot, q, .. } => {
+                vec![(*robot, q.as_slice())]
+            }
+        }
+    }
+
+    /// The (robot, tool) pairs the observation uses (robot 1's first).
+    pub fn tools(&self) -> Vec<(Robot, usize)> {
+        match self {
+            ObservationKind::Coincident { tool1, tool2, .. }
+            | ObservationKind::Contact { tool1, tool2, .. }
+            | ObservationKind::FaceContact { tool1, tool2, .. } => {
+                vec![(Robot::One, *tool1), (Robot::Two, *tool2)]
+            }
+            ObservationKind::Tracker { robot, tool, .. }
+            | ObservationKind::Plane { robot, tool, .. } => vec![(*robot, *tool)],
+        }
+    }
+
+    /// The nuisance group: its kind ([`Kind::group`]) and its index in the problem's list of
+    /// that kind; `None` for a coincident handclasp.
+    pub fn group(&self) -> Option<(GroupKind, usize)> {
+        let kind = self.kind().group()?;
+        match self {
+            ObservationKind::Coincident { .. } => None,
+            ObservationKind::Contact { group, .. }
+            | ObservationKind::FaceContact { group, .. }
+            | ObservationKind::Tracker { group, .. }
+            | ObservationKind::Plane { group, .. } => Some((kind, *group)),
+        }
+    }
+
+    /// The nuisance group's index, to renumber it (e.g. in a sub-problem); `None` for a
+    /// coincident handclasp.
+    pub fn group_mut(&mut self) -> Option<&mut usize> {
+        match self {
+            ObservationKind::Coincident { .. } => None,
+            ObservationKind::Contact { group, .. }
+            | ObservationKind::FaceContact { group, .. }
+            | ObservationKind::Tracker { group, .. }
+            | ObservationKind::Plane { group, .. } => Some(group),
+        }
+    }
+
+    /// Scales the observation's stated noise by `s` (each σ times `s`, a covariance times `s²`).
+    pub fn scale_noise(&mut self, s: f64) {
+        match self {
+            ObservationKind::Contact { sigma_m, .. }
+            | ObservationKind::FaceContact { sigma_m, .. }
+            | ObservationKind::Plane { sigma_m, .. } => *sigma_m *= s,
+            ObservationKind::Coincident { noise, .. } | ObservationKind::Tracker { noise, .. } => {
+                *noise = noise.scaled(s);
+            }
         }
     }
 }
@@ -379,7 +554,7 @@ impl CellProblem {
                     sigma_ok(*sigma_m, row)?;
                 }
             }
-            for (r, q) in joint_vectors(&o.kind) {
+            for (r, q) in o.kind.joints() {
                 self.robot(r)
                     .model
                     .check_q(q)
@@ -390,19 +565,5 @@ impl CellProblem {
             }
         }
         Ok(())
-    }
-}
-
-/// The joint vectors an observation uses, with their robots.
-fn joint_vectors(kind: &ObservationKind) -> Vec<(Robot, &[f64])> {
-    match kind {
-        ObservationKind::Coincident { q1, q2, .. }
-        | ObservationKind::Contact { q1, q2, .. }
-        | ObservationKind::FaceContact { q1, q2, .. } => {
-            vec![(Robot::One, q1.as_slice()), (Robot::Two, q2.as_slice())]
-        }
-        ObservationKind::Tracker { robot, q, .. } | ObservationKind::Plane { robot, q, .. } => {
-            vec![(*robot, q.as_slice())]
-        }
     }
 }

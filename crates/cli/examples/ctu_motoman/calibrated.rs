@@ -9,8 +9,9 @@ use std::path::Path;
 
 use anyhow::Context;
 use calib_core::whole_cell::{CellFit, CellParam, CellProblem, ObservationKind};
+use handclasp_cell::Cell;
+use handclasp_cell::{export_calibrated_cell, ExportNames};
 use kinematics::{true_base_from_tip, ErrorParam};
-use sim_cell::{export_calibrated_cell, Cell, ExportNames};
 
 use crate::cv::Choice;
 use crate::data::Recording;
@@ -136,7 +137,7 @@ fn compliance_text(f: &CellFit) -> String {
 /// Exports `c` as `out/folder/` (cell.toml, right_arm.urdf, left_arm.urdf, parameters.csv) and
 /// measures the export's departure from the fit at every pose of `recs` (marker tips of both
 /// arms): with compliance, the fit takes gravity torques from the NOMINAL geometry and the
-/// exported cell from the corrected URDF (`sim_cell::export_calibrated_cell`'s caveat).
+/// exported cell from the corrected URDF (`handclasp_cell::export_calibrated_cell`'s caveat).
 /// Returns (rms, max) of that departure, m.
 fn export(
     cell: &Cell,

@@ -14,9 +14,9 @@ use std::io::Write;
 use std::path::Path;
 
 use anyhow::Context;
+use handclasp_cell::Cell;
 use kinematics::{true_base_from_tip, KinematicErrors};
 use nalgebra::{Isometry3, Unit, Vector3};
-use sim_cell::Cell;
 
 use crate::data::{FaceNormals, Recording, Role};
 

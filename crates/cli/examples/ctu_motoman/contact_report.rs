@@ -6,8 +6,8 @@
 
 use std::path::Path;
 
+use handclasp_cell::Cell;
 use kinematics::{ErrorParam, KinematicErrors};
-use sim_cell::Cell;
 
 use crate::calibrated::{calibrate, contact_rms, Calibrated, Calibrations};
 use crate::contact;

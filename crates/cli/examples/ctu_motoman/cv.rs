@@ -16,8 +16,8 @@ use std::path::Path;
 
 use anyhow::Context;
 use calib_core::StopReason;
+use handclasp_cell::Cell;
 use kinematics::KinematicErrors;
-use sim_cell::Cell;
 
 use crate::data::Recording;
 use crate::study::{

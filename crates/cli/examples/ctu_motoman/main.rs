@@ -41,8 +41,8 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use clap::Parser;
+use handclasp_cell::Cell;
 use kinematics::KinematicErrors;
-use sim_cell::Cell;
 
 use calibrated::{calibrate, calibrate_all, contact_rms, print_effects, Calibrated, Calibrations};
 use contact_report::{contact_model_comparison, contact_report, marker_at_report};

@@ -6,9 +6,9 @@
 //! the other half, both ways). The result is how far two MODELS differ over the whole
 //! workspace, not how far either is from the real arm.
 
+use handclasp_cell::Cell;
 use kinematics::{true_base_from_tip, KinematicErrors};
 use nalgebra::{Point3, Vector3};
-use sim_cell::Cell;
 
 use crate::data::{Pose, Recording, Role};
 use crate::study::{score_recording, summarise, Summary, REFLECTOR_RIGHT_M};

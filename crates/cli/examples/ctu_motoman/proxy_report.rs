@@ -6,8 +6,8 @@ use std::io::Write;
 use std::path::Path;
 
 use anyhow::Context;
+use handclasp_cell::Cell;
 use kinematics::KinematicErrors;
-use sim_cell::Cell;
 
 use crate::data::Recording;
 use crate::proxy;

@@ -8,8 +8,8 @@ use std::path::Path;
 
 use anyhow::Context;
 use calib_core::StopReason;
+use handclasp_cell::Cell;
 use kinematics::KinematicErrors;
-use sim_cell::Cell;
 
 use crate::contact_report::leica_contact_only;
 use crate::cv::Choice;

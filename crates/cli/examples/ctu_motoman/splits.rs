@@ -14,8 +14,8 @@ use std::io::Write;
 use std::path::Path;
 
 use anyhow::{bail, Context};
+use handclasp_cell::Cell;
 use kinematics::KinematicErrors;
-use sim_cell::Cell;
 
 use crate::calibrated::Calibrations;
 use crate::data::Recording;

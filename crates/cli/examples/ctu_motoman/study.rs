@@ -15,9 +15,9 @@ use calib_core::whole_cell::{
     PlaneGroup, SolveOptions, Tolerance, Tool, TrackerGroup,
 };
 use calib_core::{LmOptions, Robot};
+use handclasp_cell::Cell;
 use kinematics::{Axis, ErrorParam, KinematicErrors};
 use nalgebra::{Isometry3, Vector3};
-use sim_cell::Cell;
 
 use crate::data::{Recording, Role};
 

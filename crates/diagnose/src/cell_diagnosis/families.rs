@@ -2,12 +2,12 @@
 //! model of them frees: its problem (fitted contact distances, tracker scales and drifts) and
 //! its unknowns (less each origin angle that is a joint offset: [`offset_alias`]).
 
-use calib_core::whole_cell::{CellParam, CellProblem, ObservationKind, ParamLayout};
+use calib_core::whole_cell::{CellParam, CellProblem, GroupKind, ObservationKind, ParamLayout};
 use calib_core::Robot;
 use kinematics::ErrorParam;
 use serde::Serialize;
 
-use super::problem::{tools_of, uses_robot};
+use super::problem::uses_robot;
 
 /// What a candidate family is. One entry per family of parameters; a new error term of the
 /// library (e.g. joint-periodic errors, tracker scale or drift) is one more variant here, with
@@ -92,17 +92,15 @@ impl Family {
     /// tracker scales and drifts, a tracker row.
     pub fn involves(&self, kind: &ObservationKind) -> bool {
         match self.kind {
-            FamilyKind::ContactDistance => matches!(
-                kind,
-                ObservationKind::Contact { .. } | ObservationKind::FaceContact { .. }
-            ),
+            FamilyKind::ContactDistance => kind.kind().group() == Some(GroupKind::Contact),
             FamilyKind::TrackerScale | FamilyKind::TrackerDrift => {
-                matches!(kind, ObservationKind::Tracker { .. })
+                kind.kind().group() == Some(GroupKind::Tracker)
             }
-            FamilyKind::ToolTip { tool } => tools_of(kind)
+            FamilyKind::ToolTip { tool } => kind
+                .tools()
                 .iter()
                 .any(|(r, t)| self.robot_is(*r) && *t == tool),
-            _ => tools_of(kind).iter().any(|(r, _)| self.robot_is(*r)),
+            _ => kind.tools().iter().any(|(r, _)| self.robot_is(*r)),
         }
     }
 
@@ -170,7 +168,7 @@ pub fn candidate_families(problem: &CellProblem) -> Vec<Family> {
                 if problem
                     .observations
                     .iter()
-                    .any(|o| tools_of(&o.kind).contains(&(r, tool)))
+                    .any(|o| o.kind.tools().contains(&(r, tool)))
                 {
                     out.push(Family::new(Some(r), FamilyKind::ToolTip { tool }, problem));
                 }
@@ -255,7 +253,7 @@ mod tests {
     use super::*;
     use crate::cell_diagnosis::tests::mixed_session;
     use crate::cell_diagnosis::{diagnosis_problem, CellDiagnoseOptions};
-    use sim_cell::Cell;
+    use handclasp_cell::Cell;
 
     #[test]
     fn families_partition_the_kinematic_unknowns() {

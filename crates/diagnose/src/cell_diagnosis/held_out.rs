@@ -4,13 +4,12 @@
 
 use calib_core::whole_cell::{
     fit_cell_with, initial_estimate, CellEstimate, CellFit, CellFitError, CellProblem, Evaluator,
-    ObservationKind, ParamLayout, PlacementPrior, Tolerance,
+    GroupKind, ObservationKind, ParamLayout, PlacementPrior, Tolerance,
 };
 use nalgebra::DVector;
 use rayon::prelude::*;
 
 use super::families::{model_layout, model_problem, Family};
-use super::problem::group_of;
 use super::CellDiagnoseOptions;
 
 /// At most this many held-out units are cut from the coincident rows (in row order, at least
@@ -18,9 +17,10 @@ use super::CellDiagnoseOptions;
 pub const COINCIDENT_UNITS: usize = 4;
 /// Fewest rows of a coincident unit.
 pub const MIN_UNIT_ROWS: usize = 6;
-/// Fewest rows of a group that is held out and scored, per kind (contact, tracker, plane): each
-/// half must fit the group's nuisance (a distance from 1 row, a tracker frame or a plane from 3).
-pub const MIN_SCORED_GROUP_ROWS: [usize; 3] = [2, 6, 6];
+/// Fewest rows of a group that is held out and scored, per group kind
+/// ([`GroupKind::index`]: contact, tracker, plane): each half must fit the group's nuisance (a
+/// distance from 1 row, a tracker frame or a plane from 3).
+pub const MIN_SCORED_GROUP_ROWS: [usize; GroupKind::ALL.len()] = [2, 6, 6];
 /// Fewest rows of a block cut from a group when the session has fewer than 3 units.
 pub const MIN_GROUP_BLOCK_ROWS: usize = 12;
 /// σ (m and rad) of the placement prior that holds the training placement while a held-out
@@ -44,34 +44,30 @@ pub(super) fn sub_problem(problem: &CellProblem, rows: &[usize]) -> CellProblem 
     };
     for &i in rows {
         let mut o = problem.observations[i].clone();
-        if let Some((k, g)) = group_of(&o.kind) {
-            let new = match maps[k][g] {
+        if let Some((k, g)) = o.kind.group() {
+            let new = match maps[k.index()][g] {
                 Some(n) => n,
                 None => {
                     let n = match k {
-                        0 => {
+                        GroupKind::Contact => {
                             p.contacts.push(problem.contacts[g].clone());
                             p.contacts.len() - 1
                         }
-                        1 => {
+                        GroupKind::Tracker => {
                             p.trackers.push(problem.trackers[g].clone());
                             p.trackers.len() - 1
                         }
-                        _ => {
+                        GroupKind::Plane => {
                             p.planes.push(problem.planes[g].clone());
                             p.planes.len() - 1
                         }
                     };
-                    maps[k][g] = Some(n);
+                    maps[k.index()][g] = Some(n);
                     n
                 }
             };
-            match &mut o.kind {
-                ObservationKind::Contact { group, .. }
-                | ObservationKind::FaceContact { group, .. }
-                | ObservationKind::Tracker { group, .. }
-                | ObservationKind::Plane { group, .. } => *group = new,
-                _ => {}
+            if let Some(group) = o.kind.group_mut() {
+                *group = new;
             }
         }
         p.observations.push(o);
@@ -211,11 +207,11 @@ fn score_unit(
 /// [`MIN_SCORED_GROUP_ROWS`] rows (in order of first appearance; smaller groups are never held
 /// out), the coincident rows cut into up to [`COINCIDENT_UNITS`] units in row order.
 pub(crate) fn held_out_units(problem: &CellProblem, rows: &[usize]) -> Vec<Vec<usize>> {
-    let mut keys: Vec<(usize, usize)> = Vec::new();
+    let mut keys: Vec<(GroupKind, usize)> = Vec::new();
     let mut units: Vec<Vec<usize>> = Vec::new();
     let mut coincident = Vec::new();
     for &i in rows {
-        match group_of(&problem.observations[i].kind) {
+        match problem.observations[i].kind.group() {
             Some(key) => match keys.iter().position(|k| *k == key) {
                 Some(u) => units[u].push(i),
                 None => {
@@ -231,7 +227,7 @@ pub(crate) fn held_out_units(problem: &CellProblem, rows: &[usize]) -> Vec<Vec<u
     let mut units: Vec<Vec<usize>> = units
         .into_iter()
         .zip(&keys)
-        .filter(|(u, (kind, _))| u.len() >= MIN_SCORED_GROUP_ROWS[*kind])
+        .filter(|(u, (kind, _))| u.len() >= MIN_SCORED_GROUP_ROWS[kind.index()])
         .map(|(u, _)| u)
         .collect();
     if !coincident.is_empty() {
@@ -431,9 +427,7 @@ mod tests {
     use super::*;
     use crate::cell_diagnosis::tests::mixed_session;
     use crate::cell_diagnosis::{diagnosis_problem, CellDiagnoseOptions};
-    use sim_cell::Cell;
-
-    use crate::cell_diagnosis::problem::group_of;
+    use handclasp_cell::Cell;
 
     #[test]
     fn sub_problem_renumbers_groups_and_units_cover_every_row_once() {
@@ -449,7 +443,7 @@ mod tests {
         for unit in &units {
             let groups: Vec<_> = unit
                 .iter()
-                .map(|&i| group_of(&p.observations[i].kind))
+                .map(|&i| p.observations[i].kind.group())
                 .collect();
             assert!(
                 groups.windows(2).all(|w| w[0] == w[1]),

@@ -4,7 +4,7 @@
 //! criterion that holds out whole nuisance groups.
 //!
 //! # Method
-//! 1. **Problem.** [`sim_cell::whole_cell::cell_problem`] with every tolerance of the cell
+//! 1. **Problem.** [`handclasp_cell::problem::cell_problem`] with every tolerance of the cell
 //!    multiplied by [`CellDiagnoseOptions::prior_widening`] (the diagnosis looks for errors
 //!    beyond the stated tolerances, so the prior only regularises what the data cannot see), and
 //!    joint compliance added where the URDF has inertials: its tolerance is the (widened) joint
@@ -75,14 +75,14 @@ pub(crate) use held_out::{residuals_at, HeldOut, ScoredRow};
 pub use held_out::{COINCIDENT_UNITS, MIN_GROUP_BLOCK_ROWS, MIN_SCORED_GROUP_ROWS, MIN_UNIT_ROWS};
 pub use noise_scale::KINDS;
 pub use problem::diagnosis_problem;
-pub(crate) use problem::joints_of;
 use problem::placement_observed;
 
 use calib_core::whole_cell::{
     fit_screened, CellFit, CellFitError, CellProblem, ScreenOptions, SolveOptions,
 };
+use handclasp_cell::Cell;
+use handclasp_cell::Session;
 use rayon::prelude::*;
-use sim_cell::{Cell, Session};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::cell_report::{self, CellDiagnoseReport};
@@ -434,8 +434,8 @@ fn run(
 
 #[cfg(test)]
 mod tests {
-    use super::problem::group_of;
     use super::*;
+    use calib_core::whole_cell::GroupKind;
     use kinematics::ErrorParam;
     use sim_cell::{generate_kind_session, trial_rng, KindSpec, Layout, SessionSpec, SimKind};
 
@@ -460,10 +460,10 @@ mod tests {
         let p = diagnosis_problem(&cell, &session, &options).unwrap();
         let all: Vec<usize> = (0..p.observations.len()).collect();
         let units = held_out_units(&p, &all);
-        assert!(units
-            .iter()
-            .flatten()
-            .all(|&i| !matches!(group_of(&p.observations[i].kind), Some((1 | 2, _)))));
+        assert!(units.iter().flatten().all(|&i| !matches!(
+            p.observations[i].kind.group(),
+            Some((GroupKind::Tracker | GroupKind::Plane, _))
+        )));
         let r = diagnose_cell_session(&cell, &session, &options, &|_| {}).unwrap();
         assert_eq!(r.rows_used + r.rejected_points.len(), 12);
     }

@@ -1,13 +1,21 @@
 //! The noise level per observation kind ([`KINDS`]): the robust scale of the whitened residuals
 //! of the fit with every family free, and the problem with every row's σ scaled by it.
 
-use calib_core::whole_cell::{CellFitError, CellProblem, Noise3, ObservationKind};
+use calib_core::whole_cell::{CellFitError, CellProblem, Kind};
 
 use super::held_out::{fit_model, residuals_at};
 use super::{CellDiagnoseOptions, Family};
 
-/// Observation kinds in report order (each its own noise scale).
-pub const KINDS: [&str; 5] = ["contact", "tracker", "plane", "coincident", "face_contact"];
+/// Every observation kind ([`Kind::ALL`]) in the report's order (each its own noise scale):
+/// the kinds with a nuisance group first, as the report has always listed them. A new kind is
+/// added here (a test checks that every kind is here once).
+pub const KINDS: [Kind; Kind::ALL.len()] = [
+    Kind::Contact,
+    Kind::Tracker,
+    Kind::Plane,
+    Kind::Coincident,
+    Kind::FaceContact,
+];
 
 /// Per kind ([`KINDS`] order), `max(1, 1.4826·median|w|)` of the whitened residuals of the fit
 /// with every family free on `rows`.
@@ -24,7 +32,7 @@ pub(super) fn noise_scales(
     for (k, kind) in KINDS.iter().enumerate() {
         let mut w: Vec<f64> = scored
             .iter()
-            .filter(|r| r.kind == *kind)
+            .filter(|r| r.kind == kind.name())
             .flat_map(|r| r.whitened.iter().map(|v| v.abs()).collect::<Vec<_>>())
             .collect();
         if w.is_empty() {
@@ -45,27 +53,22 @@ pub(super) fn noise_scales(
 pub(super) fn scaled_noise(problem: &CellProblem, scale: &[f64; KINDS.len()]) -> CellProblem {
     let mut p = problem.clone();
     for o in &mut p.observations {
-        let k = KINDS.iter().position(|k| *k == o.kind.name()).unwrap_or(0);
-        let s = scale[k];
-        match &mut o.kind {
-            ObservationKind::Contact { sigma_m, .. }
-            | ObservationKind::FaceContact { sigma_m, .. }
-            | ObservationKind::Plane { sigma_m, .. } => {
-                *sigma_m *= s;
-            }
-            ObservationKind::Coincident { noise, .. } | ObservationKind::Tracker { noise, .. } => {
-                *noise = match *noise {
-                    Noise3::Isotropic { sigma_m } => Noise3::Isotropic {
-                        sigma_m: sigma_m * s,
-                    },
-                    Noise3::Covariance { cov_m2 } => Noise3::Covariance {
-                        cov_m2: cov_m2 * (s * s),
-                    },
-                    other => other,
-                };
-            }
-            _ => {}
-        }
+        // Every kind is in KINDS (the test below).
+        let k = KINDS.iter().position(|k| *k == o.kind.kind()).unwrap_or(0);
+        o.kind.scale_noise(scale[k]);
     }
     p
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_report_order_holds_every_kind_once() {
+        for kind in Kind::ALL {
+            let n = KINDS.iter().filter(|k| **k == kind).count();
+            assert_eq!(n, 1, "{} is in KINDS {n} times", kind.name());
+        }
+    }
 }

@@ -2,61 +2,18 @@
 //! compliance and joint-periodic errors) and what its observations touch: robots, tools,
 //! joints and nuisance groups.
 
-use calib_core::whole_cell::{CellProblem, ObservationKind, Tolerance};
+use calib_core::whole_cell::{CellProblem, GroupKind, ObservationKind, Tolerance};
 use calib_core::Robot;
+use handclasp_cell::problem::{cell_problem, FitModel};
+use handclasp_cell::Cell;
+use handclasp_cell::Session;
 use kinematics::gravity_torques;
-use sim_cell::whole_cell::{cell_problem, FitModel};
-use sim_cell::{Cell, Session};
 
 use super::CellDiagnoseOptions;
 use crate::DiagnoseError;
 
 pub(super) fn uses_robot(kind: &ObservationKind, r: Robot) -> bool {
-    tools_of(kind).iter().any(|(rr, _)| *rr == r)
-}
-
-/// The (robot, tool) pairs an observation uses.
-pub(super) fn tools_of(kind: &ObservationKind) -> Vec<(Robot, usize)> {
-    match kind {
-        ObservationKind::Coincident { tool1, tool2, .. }
-        | ObservationKind::Contact { tool1, tool2, .. }
-        | ObservationKind::FaceContact { tool1, tool2, .. } => {
-            vec![(Robot::One, *tool1), (Robot::Two, *tool2)]
-        }
-        ObservationKind::Tracker { robot, tool, .. }
-        | ObservationKind::Plane { robot, tool, .. } => {
-            vec![(*robot, *tool)]
-        }
-        _ => Vec::new(),
-    }
-}
-
-/// The joint vectors of an observation with their robots.
-pub(crate) fn joints_of(kind: &ObservationKind) -> Vec<(Robot, &[f64])> {
-    match kind {
-        ObservationKind::Coincident { q1, q2, .. }
-        | ObservationKind::Contact { q1, q2, .. }
-        | ObservationKind::FaceContact { q1, q2, .. } => {
-            vec![(Robot::One, q1.as_slice()), (Robot::Two, q2.as_slice())]
-        }
-        ObservationKind::Tracker { robot, q, .. } | ObservationKind::Plane { robot, q, .. } => {
-            vec![(*robot, q.as_slice())]
-        }
-        _ => Vec::new(),
-    }
-}
-
-/// The nuisance group of an observation: `(kind index, group)` (0 contact or face contact, 1
-/// tracker, 2 plane); `None` for coincident rows.
-pub(super) fn group_of(kind: &ObservationKind) -> Option<(usize, usize)> {
-    match kind {
-        ObservationKind::Contact { group, .. } | ObservationKind::FaceContact { group, .. } => {
-            Some((0, *group))
-        }
-        ObservationKind::Tracker { group, .. } => Some((1, *group)),
-        ObservationKind::Plane { group, .. } => Some((2, *group)),
-        _ => None,
-    }
+    kind.tools().iter().any(|(rr, _)| *rr == r)
 }
 
 /// Whether the observations `rows` of `problem` determine the placement `b1_from_b2`: a
@@ -65,14 +22,14 @@ pub(super) fn group_of(kind: &ObservationKind) -> Option<(usize, usize)> {
 /// where it started (the cell's, or its prior) and an export keeps the cell's.
 pub(crate) fn placement_observed(problem: &CellProblem, rows: &[usize]) -> bool {
     // Per tracker or plane group: the robots its rows use.
-    let mut seen: Vec<((usize, usize), Robot)> = Vec::new();
+    let mut seen: Vec<((GroupKind, usize), Robot)> = Vec::new();
     for &i in rows {
         let kind = &problem.observations[i].kind;
-        let robots = tools_of(kind);
+        let robots = kind.tools();
         if robots.len() == 2 {
             return true;
         }
-        let (Some(key), Some((r, _))) = (group_of(kind), robots.first()) else {
+        let (Some(key), Some((r, _))) = (kind.group(), robots.first()) else {
             continue;
         };
         match seen.iter().find(|(k, _)| *k == key) {
@@ -138,7 +95,7 @@ fn max_gravity_torque(problem: &CellProblem, r: Robot) -> Result<f64, DiagnoseEr
     }
     let mut max = 0.0f64;
     for o in &problem.observations {
-        for (rr, q) in joints_of(&o.kind) {
+        for (rr, q) in o.kind.joints() {
             if rr == r {
                 let tau = gravity_torques(&rb.model, q, &rb.g_base).map_err(|source| {
                     DiagnoseError::Model {

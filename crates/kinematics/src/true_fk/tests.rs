@@ -2,7 +2,7 @@
 //! constructions.
 
 use super::*;
-use crate::all_params;
+use crate::all_params_for;
 use crate::fk::base_from_tip;
 use crate::test_fixtures::{
     model, oblique_origins, oblique_urdf, random_errors, random_q, random_vec, robots, G_FLOOR,
@@ -46,10 +46,10 @@ const FD_TOL_REL: f64 = 1e-7;
 fn check_param_jacobian(model: &RobotModel, seed: u64) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let q = random_q(model, &mut rng);
-    let errors = random_errors(model.dof(), &mut rng);
+    let errors = random_errors(model, &mut rng);
     let tip = random_tip(&mut rng);
     let g = random_g(&mut rng);
-    let params = all_params(model.dof());
+    let params = all_params_for(model);
     let jac = tip_error_jacobian(model, &errors, &q, &tip, &g, &params).unwrap();
     for (c, &p) in params.iter().enumerate() {
         let h = fd_step(p);
@@ -97,7 +97,7 @@ proptest! {
             let tip = random_tip(&mut rng);
             let g = random_g(&mut rng);
             let nominal = base_from_tip(&m, &q, &tip).unwrap();
-            let zero = KinematicErrors::zero(m.dof());
+            let zero = KinematicErrors::zero_for(&m);
             let t = true_base_from_tip(&m, &zero, &q, &tip, &g).unwrap();
             prop_assert_eq!(t, nominal);
             // The general path (no zero shortcut) agrees to round-off.
@@ -117,7 +117,7 @@ proptest! {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         for m in robots() {
             let q = random_q(&m, &mut rng);
-            let errors = random_errors(m.dof(), &mut rng);
+            let errors = random_errors(&m, &mut rng);
             let tip = random_tip(&mut rng);
             let g = random_g(&mut rng);
             let jac = tip_joint_jacobian_true(&m, &errors, &q, &tip, &g).unwrap();
@@ -140,6 +140,31 @@ proptest! {
             }
         }
     }
+}
+
+/// The joint terms of `e` (offset, scale, compliance, periodic), everything else zero.
+fn joint_terms_only(e: &KinematicErrors) -> KinematicErrors {
+    let mut only = KinematicErrors::zero(e.dof());
+    only.joint_offset.clone_from(&e.joint_offset);
+    only.joint_scale.clone_from(&e.joint_scale);
+    only.compliance.clone_from(&e.compliance);
+    only.periodic_sin.clone_from(&e.periodic_sin);
+    only.periodic_cos.clone_from(&e.periodic_cos);
+    only
+}
+
+/// The contract's true joint values, written out with libm's sin and cos: the chain's reported
+/// values `q_rep` and gravity torques `tau`.
+fn true_values_by_hand(e: &KinematicErrors, q_rep: &[f64], tau: &[f64]) -> Vec<f64> {
+    (0..q_rep.len())
+        .map(|i| {
+            q_rep[i] * (1.0 + e.joint_scale[i])
+                + e.joint_offset[i]
+                + e.compliance[i] * tau[i]
+                + e.periodic_sin[i] * q_rep[i].sin()
+                + e.periodic_cos[i] * q_rep[i].cos()
+        })
+        .collect()
 }
 
 /// Exact-arithmetic comparisons of metre-scale poses (a few ulps).
@@ -165,7 +190,7 @@ fn each_error_kind_means_what_the_contract_says() {
     let q = random_q(&m, &mut rng);
     let tip = random_tip(&mut rng);
     let g = random_g(&mut rng);
-    let e = random_errors(n, &mut rng);
+    let e = random_errors(&m, &mut rng);
 
     // Origins: a URDF with xyz + origin_xyz, rpy + origin_rpy.
     let mut only = KinematicErrors::zero(n);
@@ -184,12 +209,7 @@ fn each_error_kind_means_what_the_contract_says() {
     );
 
     // Joint offset, scale, compliance and the periodic first harmonic: nominal FK at q_true.
-    let mut only = KinematicErrors::zero(n);
-    only.joint_offset.clone_from(&e.joint_offset);
-    only.joint_scale.clone_from(&e.joint_scale);
-    only.compliance.clone_from(&e.compliance);
-    only.periodic_sin.clone_from(&e.periodic_sin);
-    only.periodic_cos.clone_from(&e.periodic_cos);
+    let only = joint_terms_only(&e);
     assert!(
         e.periodic_sin
             .iter()
@@ -198,15 +218,7 @@ fn each_error_kind_means_what_the_contract_says() {
         "the draw must set some periodic term"
     );
     let tau = crate::gravity_torques(&m, &q, &g).unwrap();
-    let q_true: Vec<f64> = (0..n)
-        .map(|i| {
-            q[i] * (1.0 + e.joint_scale[i])
-                + e.joint_offset[i]
-                + e.compliance[i] * tau[i]
-                + e.periodic_sin[i] * q[i].sin()
-                + e.periodic_cos[i] * q[i].cos()
-        })
-        .collect();
+    let q_true = true_values_by_hand(&e, &q, &tau);
     assert!(
         tau.iter().any(|t| t.abs() > 1.0),
         "the test arm must feel gravity: {tau:?}"
@@ -262,7 +274,7 @@ fn gravity_direction_only_matters_through_compliance() {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let q = random_q(&m, &mut rng);
     let tip = random_tip(&mut rng);
-    let mut e = random_errors(m.dof(), &mut rng);
+    let mut e = random_errors(&m, &mut rng);
     e.compliance.iter_mut().for_each(|c| *c = 0.0);
     let a = true_base_from_tip(&m, &e, &q, &tip, &G_FLOOR).unwrap();
     let b = true_base_from_tip(&m, &e, &q, &tip, &(-G_FLOOR)).unwrap();
@@ -308,5 +320,112 @@ fn bad_inputs_are_named_errors() {
     );
     assert!(
         true_base_from_tip(&m, &zero, &q, &tip, &Vector3::new(0.0, 0.0, f64::INFINITY)).is_err()
+    );
+}
+
+/// Prismatic and coupled joints: a prismatic joint's offset (m), scale and compliance (m/N, under
+/// the gravity force along its axis) and a coupled joint's own offset, scale, compliance and
+/// periodic terms, applied after its coupling, equal the nominal FK of the same chain with every
+/// joint independent at the true values.
+#[test]
+fn joint_errors_of_prismatic_and_coupled_joints_mean_what_the_contract_says() {
+    use crate::test_fixtures::{mixed_coupled, MIMIC_TORSO, MIXED, RAIL_6R};
+    let mut rng = ChaCha8Rng::seed_from_u64(23);
+    let no_mimic = model(&MIXED.replace(r#"<mimic joint="j2" multiplier="-1" offset="0.1"/>"#, ""));
+    let torso_free = model(&MIMIC_TORSO.replace(
+        r#"<mimic joint="torso_pitch_1" multiplier="-1" offset="0.05"/>"#,
+        "",
+    ));
+    let chains = [
+        (model(RAIL_6R), model(RAIL_6R)),
+        (model(MIXED), no_mimic.clone()),
+        (mixed_coupled(), no_mimic),
+        (model(MIMIC_TORSO), torso_free),
+    ];
+    for (m, free) in &chains {
+        let q = random_q(m, &mut rng);
+        let tip = random_tip(&mut rng);
+        let g = random_g(&mut rng);
+        let e = random_errors(m, &mut rng);
+        let only = joint_terms_only(&e);
+        let tau = crate::gravity_torques(m, &q, &g).unwrap();
+        let q_true = true_values_by_hand(&e, &m.chain_values(&q).unwrap(), &tau);
+        // The free chain's limits do not bound the true values: evaluate unchecked.
+        let want = crate::base_from_tip_unchecked(free, &q_true, &tip);
+        assert_pose_eq(
+            &true_base_from_tip(m, &only, &q, &tip, &g).unwrap(),
+            &want,
+            m.name(),
+        );
+    }
+    // The rail's offset is a length: 5 mm of offset is the arm 5 mm further along the rail.
+    let rail = model(RAIL_6R);
+    let q = [1.0, 0.2, 0.3, -0.1, 0.4, 0.5, 0.6];
+    let mut e = KinematicErrors::zero_for(&rail);
+    e.joint_offset[0] = 0.005;
+    let mut q_moved = q;
+    q_moved[0] += 0.005;
+    assert_pose_eq(
+        &true_base_from_tip(&rail, &e, &q, &Vector3::zeros(), &G_FLOOR).unwrap(),
+        &base_from_tip(&rail, &q_moved, &Vector3::zeros()).unwrap(),
+        "rail offset",
+    );
+}
+
+/// A periodic term of a prismatic joint is refused (errors and Jacobian parameters), and the
+/// units of its offset and compliance are metres.
+#[test]
+fn prismatic_joints_have_no_periodic_terms_and_metre_units() {
+    use crate::test_fixtures::RAIL_6R;
+    let m = model(RAIL_6R);
+    let q = [1.0, 0.2, 0.3, -0.1, 0.4, 0.5, 0.6];
+    let tip = Vector3::zeros();
+    let mut e = KinematicErrors::zero_for(&m);
+    e.periodic_cos[0] = 1e-3;
+    let err = true_base_from_tip(&m, &e, &q, &tip, &G_FLOOR).unwrap_err();
+    assert!(
+        err.to_string().contains("periodic_cos") && err.to_string().contains("prismatic"),
+        "{err}"
+    );
+    let zero = KinematicErrors::zero_for(&m);
+    let err = tip_error_jacobian(
+        &m,
+        &zero,
+        &q,
+        &tip,
+        &G_FLOOR,
+        &[ErrorParam::PeriodicSin { joint: 0 }],
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("rail"), "{err}");
+    // The catalogue for the model leaves them out; the arm's joints keep theirs.
+    let params = all_params_for(&m);
+    assert_eq!(params.len(), 11 * 7 + 9 - 2);
+    assert!(tip_error_jacobian(&m, &zero, &q, &tip, &G_FLOOR, &params).is_ok());
+    assert_eq!(ErrorParam::JointOffset { joint: 0 }.unit_si_in(&m), "m");
+    assert_eq!(ErrorParam::Compliance { joint: 0 }.unit_si_in(&m), "m/N");
+    assert_eq!(
+        ErrorParam::Compliance { joint: 1 }.unit_si_in(&m),
+        "rad/(N·m)"
+    );
+    assert_eq!(ErrorParam::JointScale { joint: 0 }.unit_si_in(&m), "ratio");
+}
+
+/// Errors sized for the independent joints of a coupled chain are refused, naming the chain.
+#[test]
+fn coupled_chain_errors_have_one_entry_per_chain_joint() {
+    let m = crate::test_fixtures::mixed_coupled();
+    let q = [0.2, 0.3, -0.4, 0.1];
+    let err = true_base_from_tip(
+        &m,
+        &KinematicErrors::zero(m.dof()),
+        &q,
+        &Vector3::zeros(),
+        &G_FLOOR,
+    )
+    .unwrap_err();
+    assert!(
+        err.to_string().contains("6 chain joints (4 independent"),
+        "{err}"
     );
 }

@@ -2,11 +2,11 @@
 //! (`cargo test --release -p sim-cell --lib plan::tests::monte_carlo -- --ignored --nocapture`).
 
 use super::*;
-use crate::whole_cell::truth_estimate;
 use calib_core::whole_cell::{
     calibrate_cell, measure_cooperative_error, predict_cooperative_accuracy, ScreenOptions,
     SolveOptions,
 };
+use handclasp_cell::problem::truth_estimate;
 use kinematics::base_from_tip;
 use std::path::Path;
 

@@ -35,11 +35,11 @@ pub enum SweepMethod {
     /// Robot mode: the paper's 4-point method on the 4 most spread tips of the session (the
     /// four whose tetrahedron has the largest volume, robot 1's nominal tips).
     PaperSpread4,
-    /// Robot mode: the whole-cell placement-only fit ([`crate::whole_cell::FitModel::Placement`],
+    /// Robot mode: the whole-cell placement-only fit ([`handclasp_cell::problem::FitModel::Placement`],
     /// both robots nominal, blunder-screened).
     Placement,
     /// Robot mode: the whole-cell MAP fit of `b1_from_b2` and both robots' kinematic parameters
-    /// ([`crate::whole_cell::FitModel::Kinematic`], [`calib_core::whole_cell::calibrate_cell`]).
+    /// ([`handclasp_cell::problem::FitModel::Kinematic`], [`calib_core::whole_cell::calibrate_cell`]).
     Kinematic,
 }
 

@@ -5,7 +5,7 @@
 //!   perturbed by the operator's alignment error, fitted by calib-core's allocation-free kernels
 //!   ([`calib_core::generic_fast`], [`calib_core::paper_fast`], [`calib_core::rigid_fit_fast`],
 //!   [`calib_core::constrained_fast`]); no robots, millions of trials per second.
-//! - **robot**: each trial simulates a full session on a [`crate::Cell`] ([`crate::session::generate_session`]:
+//! - **robot**: each trial simulates a full session on a [`handclasp_cell::Cell`] ([`crate::simulate::generate_session`]:
 //!   IK of both true robots, reach limits, encoder quantisation, repeatability, nominal-model tips),
 //!   optionally with kinematic errors drawn per trial from the robots' tolerances
 //!   ([`KinematicErrorDraw`]) and a planned layout ([`SweepLayout::Planned`]); besides the

@@ -28,14 +28,15 @@ use rand_chacha::ChaCha8Rng;
 
 use super::config::{GridCell, KinematicErrorDraw, SweepConfig, SweepLayout, SweepMethod};
 use super::run::{Cooperative, Failure, Outcome, TrialOutcome};
-use crate::cell::Cell;
 use crate::error::SimError;
 use crate::layout::Layout;
 pub use crate::plan::draw_kinematic_errors;
 use crate::plan::{nominal_cell, reachable_handclasps};
-use crate::session::{generate_session, Session, SessionPoint, SessionSpec};
+use crate::simulate::{generate_session, SessionSpec};
 use crate::trial_rng;
-use crate::whole_cell::{cell_problem, truth_estimate, FitModel};
+use handclasp_cell::cell::Cell;
+use handclasp_cell::problem::{cell_problem, truth_estimate, FitModel};
+use handclasp_cell::{Session, SessionPoint};
 
 /// Held-out configuration pairs per grid cell for the cooperative columns.
 pub const EVAL_PAIRS: usize = 200;

@@ -8,12 +8,12 @@ use super::config::{GridCell, Mode, SweepConfig, SweepLayout, SweepMethod};
 use super::geometry::{draw_geometry, GeometrySpec};
 use super::robot::{robot_setup, robot_trial, setup_rng, RobotSetup};
 use super::{CHUNK, MAX_GEOMETRY_POINTS};
-use crate::cell::Cell;
 use crate::error::SimError;
 use crate::layout::Layout;
 use crate::placement::{mounts_label, paper_placement};
 use crate::trial_rng;
 use calib_core::{fit_fast, ErotTruth, TrialErrors};
+use handclasp_cell::cell::Cell;
 
 /// [`trial_rng`] for many trials of one seed: the seed is expanded into the ChaCha key once, and
 /// each trial's generator is a copy of the fresh keyed generator with its stream set, the same

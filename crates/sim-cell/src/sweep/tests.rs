@@ -308,7 +308,7 @@ fn most_spread_four_picks_the_largest_tetrahedron() {
 /// whole-cell ones only) and the CSVs are byte-identical with one and two threads.
 #[test]
 fn robot_sweep_cooperative_columns_are_thread_independent() {
-    use crate::cell::Cell;
+    use handclasp_cell::cell::Cell;
     let config = SweepConfig {
         mode: Mode::Robot,
         mounts: vec![MountPair::floor_floor()],
@@ -374,7 +374,7 @@ fn robot_sweep_cooperative_columns_are_thread_independent() {
 /// generator alone.
 #[test]
 fn kinematic_errors_are_drawn_inside_the_tolerances() {
-    use crate::cell::Cell;
+    use handclasp_cell::cell::Cell;
     use kinematics::ErrorParam;
     let cell = Cell::default_floor_wall();
     let mut robot = cell.robot2.clone();

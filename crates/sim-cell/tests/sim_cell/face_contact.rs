@@ -1,6 +1,7 @@
-//! Face-contact sessions (`kind = face_contact`): the CSV round trip with the normal columns,
-//! the errors of a bad normal, and a simulated session that satisfies the face-contact model at
-//! the truth (and not the sphere-contact model, because the faces slide).
+//! Simulated face-contact sessions (`kind = face_contact`): their normals tilt as specified and
+//! they read back through the CSV unchanged, and they satisfy the face-contact model at the truth
+//! (and not the sphere-contact model, because the faces slide). (The normal columns' own tests
+//! are handclasp-cell's.)
 
 use std::path::Path;
 
@@ -8,11 +9,12 @@ use calib_core::whole_cell::{
     calibrate_cell, Evaluator, ObservationKind, ParamLayout, ScreenOptions, SolveOptions,
 };
 use calib_core::StopReason;
+use handclasp_cell::problem::{cell_problem, session_meeting_pairs, truth_estimate, FitModel};
+use handclasp_cell::Cell;
+use handclasp_cell::{Session, SessionKind};
 use nalgebra::Vector3;
-use sim_cell::whole_cell::{cell_problem, session_meeting_pairs, truth_estimate, FitModel};
 use sim_cell::{
-    generate_kind_session, trial_rng, Cell, KindSpec, Layout, NuisanceTruth, Session, SessionKind,
-    SessionSpec, SimKind,
+    generate_kind_session, trial_rng, KindSpec, Layout, NuisanceTruth, SessionSpec, SimKind,
 };
 
 /// The floor–floor cell with seeded joint offsets (±0.05°) on both robots, and no
@@ -104,57 +106,6 @@ fn face_contact_session_round_trips_through_the_csv() {
         assert!((a2.into_inner() - b2.into_inner()).amax() < 1e-8);
         assert_eq!((ga, da), (gb, db));
     }
-}
-
-/// A normal that is not unit is normalised on reading; a zero, non-finite or missing component
-/// is an error naming the line, the column and the fix; a sphere-contact row must leave the
-/// normal columns empty.
-#[test]
-fn face_normal_errors_name_line_column_and_fix() {
-    let cell = cell_with_offsets();
-    let (s, _) = faces(&cell, 4, 5e-3, 22);
-    let text = s.csv_text(&cell);
-    let lines: Vec<&str> = text.lines().collect();
-    let header: Vec<&str> = lines[0].split(',').collect();
-    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
-    let edit = |line: usize, values: &[(&str, &str)]| -> String {
-        let mut out: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
-        let mut f: Vec<String> = out[line - 1].split(',').map(String::from).collect();
-        for (column, value) in values {
-            f[col(column)] = value.to_string();
-        }
-        out[line - 1] = f.join(",");
-        out.join("\n") + "\n"
-    };
-    let parse = |t: String| Session::parse_csv(&t, Path::new("f.csv"), &cell);
-    let err = |t: String| parse(t).unwrap_err().to_string();
-    let scaled = parse(edit(2, &[("n1_x", "0"), ("n1_y", "0"), ("n1_z", "2.5")])).unwrap();
-    let SessionKind::FaceContact { n1_tip, .. } = &scaled.observations[0].kind else {
-        panic!("a face contact");
-    };
-    assert_eq!(n1_tip.into_inner(), Vector3::z());
-    let e = err(edit(2, &[("n2_x", "0"), ("n2_y", "0"), ("n2_z", "0")]));
-    assert!(
-        e.contains("line 2, columns `n2_x, n2_y, n2_z`")
-            && e.contains("is zero")
-            && e.contains("outward normal"),
-        "{e}"
-    );
-    let e = err(edit(3, &[("n1_y", "NaN")]));
-    assert!(
-        e.contains("line 3, column `n1_y`: `NaN` is not a finite number"),
-        "{e}"
-    );
-    let e = err(edit(3, &[("n2_z", "")]));
-    assert!(
-        e.contains("line 3, column `n2_z` is empty") && e.contains("outward face normal"),
-        "{e}"
-    );
-    let e = err(edit(4, &[("kind", "contact")]));
-    assert!(
-        e.contains("line 4, column `n1_x`") && e.contains("does not use it"),
-        "{e}"
-    );
 }
 
 /// Residual rms (whitened) at the truth within which the simulation must satisfy the

@@ -1,6 +1,6 @@
-//! Sessions of every observation kind: the CSV `kind` column round trip, its error messages,
-//! backward compatibility of files without it, and a seeded mixed session calibrated by the
-//! whole-cell fit against the truth.
+//! Simulated sessions of every observation kind: a simulated mixed session holds the kinds in
+//! turn and reads back through the CSV unchanged, and a seeded one calibrated by the whole-cell
+//! fit recovers the truth. (The CSV `kind` column's own tests are handclasp-cell's.)
 
 use std::path::Path;
 
@@ -8,13 +8,12 @@ use calib_core::whole_cell::{
     calibrate_cell, measure_cooperative_error, predict_cooperative_accuracy, ScreenOptions,
     SolveOptions,
 };
+use handclasp_cell::problem::{cell_problem, session_config_pairs, truth_estimate, FitModel};
+use handclasp_cell::Cell;
+use handclasp_cell::{Session, SessionKind};
 use kinematics::Axis;
 use nalgebra::Vector3;
-use sim_cell::whole_cell::{cell_problem, session_config_pairs, truth_estimate, FitModel};
-use sim_cell::{
-    generate_kind_session, generate_session, trial_rng, Cell, KindSpec, Layout, Session,
-    SessionKind, SessionSpec, SimKind,
-};
+use sim_cell::{generate_kind_session, trial_rng, KindSpec, Layout, SessionSpec, SimKind};
 
 /// The floor–floor cell with a reflector tool on robot 1 and seeded small kinematic errors
 /// (joint offsets ±0.05°, a few origins ±0.5 mm), the truth of the mixed-session tests.
@@ -95,121 +94,6 @@ fn mixed_session_round_trips_through_the_csv() {
             assert_eq!(*tool, 1, "the reflector");
         }
     }
-}
-
-/// A file without a `kind` column reads as before, and a handclasp-only session is written in
-/// today's columns, byte for byte.
-#[test]
-fn session_without_kind_is_unchanged() {
-    let cell = Cell::default_floor_wall();
-    let spec = SessionSpec::new(7, Layout::Tetrahedron, 0.9);
-    let s = generate_session(&cell, &spec, &mut trial_rng(4, 0)).unwrap();
-    let old = s.to_csv_string(7, 6);
-    assert_eq!(s.csv_text(&cell), old);
-    assert!(!old.contains("kind"));
-    let back = Session::parse_csv(&old, Path::new("s.csv"), &cell).unwrap();
-    assert!(back.is_handclasp_only());
-    assert_eq!(back.points.len(), 7);
-    assert_eq!(back.csv_text(&cell), old);
-    // The same rows with an all-empty or all-"coincident" kind column read identically.
-    let with_kind: String = old
-        .lines()
-        .enumerate()
-        .map(|(i, l)| {
-            format!(
-                "{l},{}\n",
-                if i == 0 {
-                    "kind"
-                } else if i % 2 == 0 {
-                    "coincident"
-                } else {
-                    ""
-                }
-            )
-        })
-        .collect();
-    let back2 = Session::parse_csv(&with_kind, Path::new("s.csv"), &cell).unwrap();
-    assert_eq!(back2, back);
-    // And the whole-cell problem is the same.
-    let a = cell_problem(&cell, &s, FitModel::Kinematic);
-    let b = cell_problem(&cell, &back2, FitModel::Kinematic);
-    assert_eq!(a.observations.len(), b.observations.len());
-    assert!(a.trackers.is_empty() && a.planes.is_empty() && a.contacts.is_empty());
-}
-
-/// Every error names the line, the column and the fix.
-#[test]
-fn kind_errors_name_row_column_and_fix() {
-    let cell = cell_both_reflectors();
-    let s = mixed(&cell, 12, 5);
-    let text = s.csv_text(&cell);
-    let lines: Vec<&str> = text.lines().collect();
-    let header: Vec<&str> = lines[0].split(',').collect();
-    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
-    // Line 4 of the file (data row 3) is a tracker row of robot 1.
-    let edit_all = |line: usize, columns: &[&str], value: &str| -> String {
-        let mut out: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
-        let mut f: Vec<String> = out[line - 1].split(',').map(String::from).collect();
-        for column in columns {
-            f[col(column)] = value.into();
-        }
-        out[line - 1] = f.join(",");
-        out.join("\n") + "\n"
-    };
-    let edit = |line: usize, column: &str, value: &str| edit_all(line, &[column], value);
-    let err = |t: String| {
-        Session::parse_csv(&t, Path::new("m.csv"), &cell)
-            .unwrap_err()
-            .to_string()
-    };
-    assert!(lines[3].contains(",tracker,1,"), "{}", lines[3]);
-    let e = err(edit(4, "kind", "laser"));
-    assert!(
-        e.contains("line 4, column `kind`") && e.contains("coincident, contact, tracker, plane"),
-        "{e}"
-    );
-    let e = err(edit(4, "sigma_mm", ""));
-    assert!(e.contains("line 4, column `sigma_mm` is empty"), "{e}");
-    let e = err(edit_all(
-        4,
-        &[
-            "r2_q1_deg",
-            "r2_q2_deg",
-            "r2_q3_deg",
-            "r2_q4_deg",
-            "r2_q5_deg",
-            "r2_q6_deg",
-        ],
-        "10",
-    ));
-    assert!(
-        e.contains("line 4")
-            && e.contains("joints given for robot 2")
-            && e.contains("leave the other robot's joint cells empty"),
-        "{e}"
-    );
-    let e = err(edit(4, "tool", "probe"));
-    assert!(
-        e.contains("line 4, column `tool`")
-            && e.contains("tip, reflector")
-            && e.contains("[robot1.tools]"),
-        "{e}"
-    );
-    let e = err(edit(4, "tracker_y_mm", ""));
-    assert!(e.contains("line 4, column `tracker_y_mm` is empty"), "{e}");
-    let e = err(edit(4, "distance_mm", "100"));
-    assert!(
-        e.contains("line 4, column `distance_mm`") && e.contains("leave it empty"),
-        "{e}"
-    );
-    let e = err(edit(4, "robot", "3"));
-    assert!(e.contains("line 4, column `robot`: `3`"), "{e}");
-    // Line 2 is a coincident row: its tips are required and FK-checked.
-    let e = err(edit(2, "r1_x_mm", ""));
-    assert!(e.contains("line 2, column `r1_x_mm` is empty"), "{e}");
-    // Line 3 is a contact row: a second distance for its group must agree.
-    let e = err(edit(3, "group", ""));
-    assert!(e.contains("line 3, column `group` is empty"), "{e}");
 }
 
 /// Tolerance of the placement check: the fit's posterior σ per axis times this.

@@ -1,7 +1,7 @@
 //! sim-cell's integration tests as one test binary (`cargo test -p sim-cell --test sim_cell`):
 //! the `sim-cell` binary as a user runs it (`cli`), the paper study through the library
 //! (`paper`), simulated sessions and robot-mode sweeps (`session`), and drawn-input properties
-//! (`properties`: cell TOML round trip, sweep identical at 1 and 2 threads). The diagnose
+//! (`properties`: a sweep identical at 1 and 2 threads). The diagnose
 //! engine's hidden-parameter tests stay in `tests/diagnose_hidden.rs`.
 
 mod cli;

@@ -5,8 +5,9 @@ use std::path::Path;
 
 use calib_core::whole_cell::{calibrate_cell, CellCalibration, ScreenOptions, SolveOptions};
 use calib_core::StopReason;
-use sim_cell::whole_cell::{cell_problem, FitModel};
-use sim_cell::{generate_kind_session, trial_rng, Cell, KindSpec, Layout, SessionSpec, SimKind};
+use handclasp_cell::problem::{cell_problem, FitModel};
+use handclasp_cell::Cell;
+use sim_cell::{generate_kind_session, trial_rng, KindSpec, Layout, SessionSpec, SimKind};
 
 fn ctu_cell() -> Cell {
     Cell::from_toml_file(

@@ -1,10 +1,14 @@
-//! Robot-mode sessions: true tips meet, zero-noise recovery by every method, CSV round trip,
-//! encoder quantisation, and errors that name the teach point or column.
+//! Robot-mode sessions: true tips meet, zero-noise recovery by every method and by the whole-cell
+//! placement fit, encoder quantisation, and errors that name the teach point. (The session CSV's
+//! own tests are handclasp-cell's.)
 
+use calib_core::whole_cell::{calibrate_cell, ScreenOptions, SolveOptions};
 use calib_core::{fit, Method, MountPair};
+use handclasp_cell::problem::{cell_problem, truth_estimate, FitModel};
+use handclasp_cell::Cell;
 use kinematics::true_base_from_tip;
 use nalgebra::{Point3, Vector3};
-use sim_cell::{generate_session, trial_rng, Cell, Layout, Session, SessionSpec};
+use sim_cell::{generate_session, trial_rng, Layout, SessionSpec};
 use std::path::Path;
 
 /// Zero-noise recovery: IK and the true-robot Newton correction stop at 1e-9 m, so the fit is
@@ -12,8 +16,9 @@ use std::path::Path;
 const ZERO_NOISE_TOL: f64 = 1e-7;
 /// True tips of both robots meet to the Newton tolerance (1e-9 m) plus round-off, m.
 const MEET_TOL_M: f64 = 1e-8;
-/// CSV round trip: 6 decimals of degrees / mm (half a unit in the last place), deg and mm.
-const CSV_TOL: f64 = 5.1e-7;
+/// Recovery tolerance of b1_from_b2 from a noise-free, error-free session by the whole-cell
+/// placement fit: the solver's convergence (cost tolerance 1e-10 relative) leaves ≪ 1 µm, m and rad.
+const PLACEMENT_TOL_M: f64 = 1e-5;
 
 fn cells_dir() -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells")
@@ -129,48 +134,6 @@ tip_mm = [0.0, 0.1, 0.2]
 }
 
 #[test]
-fn session_csv_round_trips_and_is_calibrate_input() {
-    let cell = Cell::default_floor_ceiling();
-    let session = generate_session(
-        &cell,
-        &SessionSpec::new(7, Layout::Tetrahedron, 1.2),
-        &mut trial_rng(2, 0),
-    )
-    .unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("s.csv");
-    session.write_csv(&path, &cell).unwrap();
-    let text = std::fs::read_to_string(&path).unwrap();
-    let header = text.lines().next().unwrap();
-    let mut want = String::from("point");
-    for k in 1..=7 {
-        want += &format!(",r1_q{k}_deg");
-    }
-    for k in 1..=6 {
-        want += &format!(",r2_q{k}_deg");
-    }
-    want += ",r1_x_mm,r1_y_mm,r1_z_mm,r2_x_mm,r2_y_mm,r2_z_mm";
-    assert_eq!(header, want);
-    let back = Session::read_csv(&path, &cell).unwrap();
-    assert_eq!(back.points.len(), 7);
-    for (a, b) in session.points.iter().zip(&back.points) {
-        assert_eq!(a.point, b.point);
-        for (x, y) in a.q1.iter().chain(&a.q2).zip(b.q1.iter().chain(&b.q2)) {
-            assert!((x.to_degrees() - y.to_degrees()).abs() < CSV_TOL);
-        }
-        assert!(
-            (a.p_b1 - b.p_b1).amax() * 1e3 < CSV_TOL && (a.p_b2 - b.p_b2).amax() * 1e3 < CSV_TOL
-        );
-    }
-    // Write → read → write is byte-identical.
-    assert_eq!(back.to_csv_string(7, 6), text);
-    // calib-core reads it as it stands.
-    let pairs = calib_core::read_points_csv(&path).unwrap();
-    assert_eq!(pairs.len(), 7);
-    assert!((pairs.p_b1[3] - session.points[3].p_b1).amax() < 1e-9);
-}
-
-#[test]
 fn encoder_quantisation_and_noise_show_in_the_session() {
     let cell = Cell::default_floor_floor(); // encoder 0.001°, alignment 0.3 mm
     let session = generate_session(
@@ -228,45 +191,6 @@ fn teach_point_outside_the_common_workspace_is_named() {
     assert!(e.contains("reduce the spread"), "{e}");
     // A library names no CLI flag (the binary adds them).
     assert!(!e.contains("--"), "{e}");
-}
-
-#[test]
-fn bad_session_csv_names_line_and_column() {
-    let cell = Cell::default_floor_wall();
-    let session = generate_session(
-        &cell,
-        &SessionSpec::new(4, Layout::Tetrahedron, 1.0),
-        &mut trial_rng(2, 2),
-    )
-    .unwrap();
-    let text = session.to_csv_string(7, 6);
-    let p = Path::new("bad.csv");
-    let e = Session::parse_csv(&text.replace("r2_q3_deg", "r2_q3_rad"), p, &cell)
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("r2_q3_rad") && e.contains("r2_q3_deg"), "{e}");
-    let lines: Vec<String> = text.lines().map(String::from).collect();
-    let mut fields: Vec<&str> = lines[2].split(',').collect();
-    fields[3] = "abc";
-    let bad_row = fields.join(",");
-    let mut t2 = lines.clone();
-    t2[2] = bad_row;
-    let e = Session::parse_csv(&(t2.join("\n") + "\n"), p, &cell)
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("line 3") && e.contains("r1_q3_deg"), "{e}");
-    // Tip columns in metres instead of mm: caught by the FK consistency check.
-    let mut fields: Vec<String> = lines[1].split(',').map(String::from).collect();
-    let n = fields.len();
-    for f in &mut fields[n - 6..] {
-        *f = format!("{:.6}", f.parse::<f64>().unwrap() / 1000.0);
-    }
-    let mut t3 = lines.clone();
-    t3[1] = fields.join(",");
-    let e = Session::parse_csv(&(t3.join("\n") + "\n"), p, &cell)
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("line 2") && e.contains("mm"), "{e}");
 }
 
 /// Robot-mode sweep: byte-identical output for 1 and 2 threads, and the error rises with noise.
@@ -365,68 +289,25 @@ fn tilted_mount_sweep_csvs_read_back_with_the_header_field_count() {
     }
 }
 
-/// The session reader follows calib-core's points reader: columns found by header name in any
-/// order, a UTF-8 BOM, CRLF line ends, quoted fields and extra columns are all read to the same
-/// session as the file as written.
+/// The whole-cell placement fit of a noise-free simulated session recovers the cell's
+/// placement, and the cell's truth as an estimate holds it.
 #[test]
-fn session_csv_reader_accepts_reordered_columns_bom_crlf_and_extra_columns() {
-    let cell = Cell::default_floor_wall();
+fn noise_free_placement_fit_recovers_the_cell() {
+    let mut cell = Cell::default_floor_floor();
+    cell.noise.alignment_m = Vector3::zeros();
+    cell.noise.repeatability_m = 0.0;
+    cell.noise.encoder_resolution_rad = 0.0;
     let session = generate_session(
         &cell,
-        &SessionSpec::new(5, Layout::Tetrahedron, 1.0),
-        &mut trial_rng(4, 0),
+        &SessionSpec::new(8, Layout::Tetrahedron, 1.0),
+        &mut trial_rng(5, 0),
     )
     .unwrap();
-    let p = Path::new("variant.csv");
-    let text = session.to_csv_string(cell.robot1.model.dof(), cell.robot2.model.dof());
-    let want = Session::parse_csv(&text, p, &cell).unwrap();
-    let rows: Vec<Vec<&str>> = text
-        .lines()
-        .map(|l| l.split(',').collect::<Vec<_>>())
-        .collect();
-    let join = |rows: &[Vec<String>], end: &str| {
-        rows.iter()
-            .map(|r| r.join(","))
-            .collect::<Vec<_>>()
-            .join(end)
-            + end
-    };
-    let owned = |f: &dyn Fn(usize, &Vec<&str>) -> Vec<String>| -> Vec<Vec<String>> {
-        rows.iter().enumerate().map(|(i, r)| f(i, r)).collect()
-    };
-    let reordered = owned(&|_, r| r.iter().rev().map(|s| s.to_string()).collect());
-    let extra = owned(&|i, r| {
-        let mut v: Vec<String> = r.iter().map(|s| s.to_string()).collect();
-        v.insert(
-            3,
-            if i == 0 {
-                "operator".into()
-            } else {
-                format!("\"Lee, J{i}\"")
-            },
-        );
-        v
-    });
-    let quoted = owned(&|_, r| r.iter().map(|s| format!("\"{s}\"")).collect());
-    let plain = owned(&|_, r| r.iter().map(|s| s.to_string()).collect());
-    let variants = [
-        ("reordered", join(&reordered, "\n")),
-        ("bom", format!("\u{feff}{}", join(&plain, "\n"))),
-        ("crlf", join(&plain, "\r\n")),
-        ("extra column", join(&extra, "\n")),
-        ("quoted", join(&quoted, "\n")),
-    ];
-    for (name, variant) in variants {
-        let got = Session::parse_csv(&variant, p, &cell).unwrap_or_else(|e| panic!("{name}: {e}"));
-        assert_eq!(got, want, "{name}");
-    }
-    // A missing column is named, with the columns this cell needs.
-    let missing = owned(&|_, r| r[1..].iter().map(|s| s.to_string()).collect());
-    let e = Session::parse_csv(&join(&missing, "\n"), p, &cell)
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("line 1") && e.contains("`point`") && e.contains("any order"),
-        "{e}"
-    );
+    let p = cell_problem(&cell, &session, FitModel::Placement);
+    let cal = calibrate_cell(&p, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
+    let x = cal.fit.estimate.b1_from_b2;
+    assert!((x.translation.vector - cell.b1_from_b2.translation.vector).amax() < PLACEMENT_TOL_M);
+    assert!(x.rotation.angle_to(&cell.b1_from_b2.rotation) < PLACEMENT_TOL_M);
+    let truth = truth_estimate(&cell, &p);
+    assert_eq!(truth.b1_from_b2, cell.b1_from_b2);
 }

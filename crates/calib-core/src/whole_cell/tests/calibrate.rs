@@ -105,7 +105,8 @@ fn monte_carlo_three_cells() {
 }
 
 /// The one-call calibration on a session with a blunder: the report names the row, lists what
-/// was dropped, and serialises with SI field names.
+/// was dropped, and serialises in file units with its keys in alphabetical order (the order of
+/// the `serde_json::Value` the CLI built before the report had types).
 #[test]
 fn calibrate_cell_reports_rows_reduction_and_serialises() {
     let sc = sim_cell(Cell::Ceiling, realistic(), false, 81);
@@ -115,17 +116,23 @@ fn calibrate_cell_reports_rows_reduction_and_serialises() {
     let report = cal.report(&p);
     assert_eq!(report.rejected_points.len(), 1);
     assert_eq!(report.rejected_points[0].row, 11);
+    // The 6 mm blunder, in mm.
+    assert!(report.rejected_points[0].residual_mm > 1.0);
     assert_eq!(report.stopped, StopReason::Converged);
     assert!(!report.unidentifiable.is_empty());
+    assert!(!report.parameters.is_empty());
+    assert_eq!(report.b1_from_b2.sigma.len(), 6);
     let json = serde_json::to_string(&report).unwrap();
     for key in [
         "\"size_sigma\"",
         "\"prior_sigma\"",
-        "\"posterior_sigma\"",
+        "\"residual_mm\"",
         "\"stopped\":\"converged\"",
     ] {
         assert!(json.contains(key), "{key} missing in {json}");
     }
+    let sorted = serde_json::to_string(&serde_json::to_value(&report).unwrap()).unwrap();
+    assert_eq!(json, sorted, "report keys out of alphabetical order");
 }
 
 /// Cooperative rms (m) of the one-call calibration, of the scale-1 MAP fit on its rows (the

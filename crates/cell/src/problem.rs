@@ -12,8 +12,8 @@
 //! ≈ 0.01 mm at the tip for 0.001° on a 1.5 m arm) is left out.
 
 use calib_core::whole_cell::{
-    CellEstimate, CellProblem, CellRobot as WholeCellRobot, ConfigPair, Noise3, Observation,
-    ObservationKind, RobotCorrection, Tolerance, Tool, MIN_FACE_NORMAL_SUM,
+    CellEstimate, CellProblem, CellRobot as WholeCellRobot, ConfigPair, GroupKind, Noise3,
+    Observation, ObservationKind, RobotCorrection, Tolerance, Tool, MIN_FACE_NORMAL_SUM,
 };
 use nalgebra::{Matrix3, Unit, Vector3};
 
@@ -21,9 +21,8 @@ use calib_core::whole_cell::{ContactGroup, PlacementPrior, PlaneGroup, TrackerGr
 use calib_core::Robot;
 use kinematics::base_from_tip;
 
-pub use crate::cell::TIP_TOOL;
-use crate::cell::{Cell, CellRobot};
-use crate::session::{Session, SessionKind, SessionRow};
+use crate::cell::{Cell, CellRobot, TIP_TOOL};
+use crate::session::{FaceNormals, Session, SessionRow};
 
 /// Which unknowns the whole-cell fit estimates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -142,102 +141,34 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
                 tool2: 0,
                 noise,
             },
-            SessionRow::Observation(o) => match &o.kind {
-                SessionKind::Coincident {
-                    q1,
-                    q2,
-                    tool1,
-                    tool2,
-                    ..
-                } => ObservationKind::Coincident {
-                    q1: q1.clone(),
-                    q2: q2.clone(),
-                    tool1: *tool1,
-                    tool2: *tool2,
-                    noise,
-                },
-                SessionKind::Contact {
-                    q1,
-                    q2,
-                    tool1,
-                    tool2,
-                    group,
-                    distance_m,
-                    sigma_m,
-                }
-                | SessionKind::FaceContact {
-                    q1,
-                    q2,
-                    tool1,
-                    tool2,
-                    group,
-                    distance_m,
-                    sigma_m,
-                    ..
-                } => {
-                    let normals = match &o.kind {
-                        SessionKind::FaceContact { n1_tip, n2_tip, .. } => Some((*n1_tip, *n2_tip)),
-                        _ => None,
-                    };
-                    let g = contact_group(&mut contacts, &mut contact_sums, group, *distance_m);
-                    if distance_m.is_none() {
-                        if let Some(d) = nominal_distance(cell, q1, q2, *tool1, *tool2, normals) {
-                            contact_sums[g].0 += d;
-                            contact_sums[g].1 += 1;
+            SessionRow::Observation(o) => {
+                let s = &o.kind;
+                // A one-robot row's group is anchored at its robot's base.
+                let robot = s.single().map_or(Robot::One, |(r, _, _)| r);
+                let group = match (s.kind().group(), s.group()) {
+                    (Some(GroupKind::Contact), Some(name)) => {
+                        let distance_m = s.distance_m();
+                        let g = contact_group(&mut contacts, &mut contact_sums, name, distance_m);
+                        if distance_m.is_none() {
+                            if let Some(d) = s.pair().and_then(|(q1, q2, tool1, tool2)| {
+                                nominal_distance(cell, q1, q2, tool1, tool2, s.face_normals())
+                            }) {
+                                contact_sums[g].0 += d;
+                                contact_sums[g].1 += 1;
+                            }
                         }
+                        g
                     }
-                    let (q1, q2, tool1, tool2, sigma_m) =
-                        (q1.clone(), q2.clone(), *tool1, *tool2, *sigma_m);
-                    match normals {
-                        None => ObservationKind::Contact {
-                            q1,
-                            q2,
-                            tool1,
-                            tool2,
-                            group: g,
-                            sigma_m,
-                        },
-                        Some((n1_tip, n2_tip)) => ObservationKind::FaceContact {
-                            q1,
-                            q2,
-                            tool1,
-                            tool2,
-                            n1_tip,
-                            n2_tip,
-                            group: g,
-                            sigma_m,
-                        },
+                    (Some(GroupKind::Tracker), Some(name)) => {
+                        anchored(name, robot, &mut tracker_anchor)
                     }
-                }
-                SessionKind::Tracker {
-                    robot,
-                    q,
-                    tool,
-                    group,
-                    p_tracker,
-                    sigma_m,
-                } => ObservationKind::Tracker {
-                    robot: *robot,
-                    q: q.clone(),
-                    tool: *tool,
-                    group: anchored(group, *robot, &mut tracker_anchor),
-                    p_tracker: *p_tracker,
-                    noise: Noise3::Isotropic { sigma_m: *sigma_m },
-                },
-                SessionKind::Plane {
-                    robot,
-                    q,
-                    tool,
-                    group,
-                    sigma_m,
-                } => ObservationKind::Plane {
-                    robot: *robot,
-                    q: q.clone(),
-                    tool: *tool,
-                    group: anchored(group, *robot, &mut plane_anchor),
-                    sigma_m: *sigma_m,
-                },
-            },
+                    (Some(GroupKind::Plane), Some(name)) => {
+                        anchored(name, robot, &mut plane_anchor)
+                    }
+                    _ => 0,
+                };
+                s.observation(noise, group)
+            }
         };
         observations.push(Observation {
             row: row.point(),
@@ -279,9 +210,6 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
         }),
     }
 }
-
-/// A face contact's outward normals `(n1_tip, n2_tip)`, each in its robot's tip frame.
-type FaceNormals = (Unit<Vector3<f64>>, Unit<Vector3<f64>>);
 
 /// Distance between the two tools' nominal points at `(q1, q2)` with the cell's `b1_from_b2`, m:
 /// the Euclidean distance, or with face normals `(n1_tip, n2_tip)` the distance along the mean
@@ -332,34 +260,31 @@ pub const MAX_CONFIG_PAIRS: usize = 10_000;
 /// `q2`s shifted by `i`, so every `q1` and every `q2` still appears: deterministic, at most
 /// `max(MAX_CONFIG_PAIRS, n1)` pairs.
 pub fn session_config_pairs(session: &Session) -> Vec<ConfigPair> {
-    let (mut q1s, mut q2s): (Vec<&Vec<f64>>, Vec<&Vec<f64>>) = (Vec::new(), Vec::new());
+    let (mut q1s, mut q2s): (Vec<&[f64]>, Vec<&[f64]>) = (Vec::new(), Vec::new());
     for row in session.rows() {
         match row {
             SessionRow::Point(p) => {
                 q1s.push(&p.q1);
                 q2s.push(&p.q2);
             }
-            SessionRow::Observation(o) => match &o.kind {
-                SessionKind::Coincident { q1, q2, .. }
-                | SessionKind::Contact { q1, q2, .. }
-                | SessionKind::FaceContact { q1, q2, .. } => {
+            SessionRow::Observation(o) => {
+                if let Some((q1, q2, _, _)) = o.kind.pair() {
                     q1s.push(q1);
                     q2s.push(q2);
-                }
-                SessionKind::Tracker { robot, q, .. } | SessionKind::Plane { robot, q, .. } => {
-                    if *robot == Robot::One {
+                } else if let Some((robot, q, _)) = o.kind.single() {
+                    if robot == Robot::One {
                         q1s.push(q);
                     } else {
                         q2s.push(q);
                     }
                 }
-            },
+            }
         }
     }
     let (n1, n2) = (q1s.len(), q2s.len());
     let pair = |i: usize, j: usize| ConfigPair {
-        q1: q1s[i].clone(),
-        q2: q2s[j].clone(),
+        q1: q1s[i].to_vec(),
+        q2: q2s[j].to_vec(),
         tool1: 0,
         tool2: 0,
     };
@@ -396,35 +321,12 @@ pub fn session_meeting_pairs(session: &Session) -> Vec<ConfigPair> {
                 tool1: 0,
                 tool2: 0,
             }),
-            SessionRow::Observation(o) => match &o.kind {
-                SessionKind::Coincident {
-                    q1,
-                    q2,
-                    tool1,
-                    tool2,
-                    ..
-                }
-                | SessionKind::Contact {
-                    q1,
-                    q2,
-                    tool1,
-                    tool2,
-                    ..
-                }
-                | SessionKind::FaceContact {
-                    q1,
-                    q2,
-                    tool1,
-                    tool2,
-                    ..
-                } => Some(ConfigPair {
-                    q1: q1.clone(),
-                    q2: q2.clone(),
-                    tool1: *tool1,
-                    tool2: *tool2,
-                }),
-                SessionKind::Tracker { .. } | SessionKind::Plane { .. } => None,
-            },
+            SessionRow::Observation(o) => o.kind.pair().map(|(q1, q2, tool1, tool2)| ConfigPair {
+                q1: q1.to_vec(),
+                q2: q2.to_vec(),
+                tool1,
+                tool2,
+            }),
         })
         .collect()
 }
@@ -451,22 +353,12 @@ pub fn truth_estimate(cell: &Cell, problem: &CellProblem) -> CellEstimate {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{generate_session, trial_rng, Layout, SessionSpec};
-    use calib_core::whole_cell::{calibrate_cell, ScreenOptions, SolveOptions};
-
-    /// Recovery tolerance of b1_from_b2 from a noise-free, error-free session: the solver's
-    /// convergence (cost tolerance 1e-10 relative) and the 6-decimal joints leave ≪ 1 µm.
-    const PLACEMENT_TOL_M: f64 = 1e-5;
+    use crate::fixtures::coincident_session;
 
     #[test]
     fn problem_has_one_row_per_point_and_the_cells_prior() {
         let cell = Cell::default_floor_floor();
-        let session = generate_session(
-            &cell,
-            &SessionSpec::new(8, Layout::Tetrahedron, 1.0),
-            &mut trial_rng(3, 0),
-        )
-        .unwrap();
+        let session = coincident_session(&cell, 8);
         let p = cell_problem(&cell, &session, FitModel::Kinematic);
         p.check().unwrap();
         assert_eq!(p.observations.len(), 8);
@@ -507,28 +399,5 @@ mod tests {
         }
         let small = Session::from_points(s.points[..100].to_vec());
         assert_eq!(session_config_pairs(&small).len(), 10_000);
-    }
-
-    #[test]
-    fn noise_free_placement_fit_recovers_the_cell() {
-        let mut cell = Cell::default_floor_floor();
-        cell.noise.alignment_m = Vector3::zeros();
-        cell.noise.repeatability_m = 0.0;
-        cell.noise.encoder_resolution_rad = 0.0;
-        let session = generate_session(
-            &cell,
-            &SessionSpec::new(8, Layout::Tetrahedron, 1.0),
-            &mut trial_rng(5, 0),
-        )
-        .unwrap();
-        let p = cell_problem(&cell, &session, FitModel::Placement);
-        let cal = calibrate_cell(&p, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
-        let x = cal.fit.estimate.b1_from_b2;
-        assert!(
-            (x.translation.vector - cell.b1_from_b2.translation.vector).amax() < PLACEMENT_TOL_M
-        );
-        assert!(x.rotation.angle_to(&cell.b1_from_b2.rotation) < PLACEMENT_TOL_M);
-        let truth = truth_estimate(&cell, &p);
-        assert_eq!(truth.b1_from_b2, cell.b1_from_b2);
     }
 }

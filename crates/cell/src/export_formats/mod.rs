@@ -34,7 +34,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::cell::Cell;
-use crate::error::SimError;
+use crate::error::FormatError;
 
 /// Largest translation difference, m, between a file read back and the placement (1 µm).
 pub const READ_BACK_TOL_M: f64 = 1e-6;
@@ -456,16 +456,16 @@ impl Deviation {
 /// only then renamed to `NAME`. On any failure the temporary file is removed and nothing of that
 /// file is left in place.
 ///
-/// Errors: a file that cannot be written ([`SimError::Io`]); a robot URDF the cell URDF cannot be
-/// built from ([`SimError::Cell`]); a file that does not read back to the placement
-/// ([`SimError::Export`]: a defect of this crate, never expected).
+/// Errors: a file that cannot be written ([`FormatError::Io`]); a robot URDF the cell URDF cannot be
+/// built from ([`FormatError::Cell`]); a file that does not read back to the placement
+/// ([`FormatError::Export`]: a defect of this crate, never expected).
 pub fn export_placement(
     cell: &Cell,
     source: &str,
     dir: &Path,
     formats: &[ControllerFormat],
-) -> Result<PlacementExport, SimError> {
-    std::fs::create_dir_all(dir).map_err(|e| SimError::io(dir, e))?;
+) -> Result<PlacementExport, FormatError> {
+    std::fs::create_dir_all(dir).map_err(|e| FormatError::io(dir, e))?;
     let b1_from_b2 = cell.b1_from_b2;
     let values = PlacementFormats::new(&b1_from_b2, formats);
     let mut files = Vec::new();
@@ -639,19 +639,19 @@ fn write_checked(
     format: ControllerFormat,
     text: &str,
     check: &dyn Fn(&str) -> Result<Deviation, String>,
-) -> Result<WrittenFile, SimError> {
+) -> Result<WrittenFile, FormatError> {
     let mut tmp_name = path.as_os_str().to_owned();
     tmp_name.push(".tmp");
     let tmp = PathBuf::from(tmp_name);
     let fail = |message: String| {
         let _ = std::fs::remove_file(&tmp);
-        SimError::Export {
+        FormatError::Export {
             path: path.to_path_buf(),
             message,
         }
     };
-    std::fs::write(&tmp, text).map_err(|e| SimError::io(&tmp, e))?;
-    let reread = std::fs::read_to_string(&tmp).map_err(|e| SimError::io(&tmp, e))?;
+    std::fs::write(&tmp, text).map_err(|e| FormatError::io(&tmp, e))?;
+    let reread = std::fs::read_to_string(&tmp).map_err(|e| FormatError::io(&tmp, e))?;
     let dev = check(&reread).map_err(|m| fail(format!("reading the file back: {m}")))?;
     if !(dev.translation_m <= READ_BACK_TOL_M && dev.rotation_rad <= READ_BACK_TOL_RAD) {
         return Err(fail(format!(
@@ -660,7 +660,7 @@ fn write_checked(
             dev.translation_m, dev.rotation_rad
         )));
     }
-    std::fs::rename(&tmp, path).map_err(|e| SimError::io(path, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| FormatError::io(path, e))?;
     Ok(WrittenFile {
         path: path.to_path_buf(),
         format,

@@ -38,7 +38,7 @@ use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
 use super::{metres, number, robots_in_world, unit, Deviation, Header, Ros2Transform};
 use crate::cell::Cell;
-use crate::error::SimError;
+use crate::error::FormatError;
 
 /// The cell URDF's file name.
 pub const URDF_FILE: &str = "cell.urdf";
@@ -123,9 +123,9 @@ fn prefix_geometry(g: &mut urdf_rs::Geometry, urdf_dir: &Path) {
 
 /// The cell URDF text (see the module documentation), with an opening comment.
 ///
-/// Errors: a robot URDF that cannot be read or parsed ([`SimError::Cell`] naming the robot and
+/// Errors: a robot URDF that cannot be read or parsed ([`FormatError::Cell`] naming the robot and
 /// file), or whose cell-URDF form cannot be written.
-pub(crate) fn cell_urdf(cell: &Cell, header: &Header<'_>) -> Result<String, SimError> {
+pub(crate) fn cell_urdf(cell: &Cell, header: &Header<'_>) -> Result<String, FormatError> {
     let mut out = urdf_rs::Robot {
         name: "handclasp_cell".to_string(),
         links: vec![empty_link(WORLD_LINK.to_string())],
@@ -135,12 +135,12 @@ pub(crate) fn cell_urdf(cell: &Cell, header: &Header<'_>) -> Result<String, SimE
     for (which, world_from_base) in robots_in_world(cell) {
         let setup = cell.robot(which);
         let p = prefix(which);
-        let bad = |message: String| SimError::Cell {
+        let bad = |message: String| FormatError::Cell {
             path: setup.urdf_path.clone(),
             message: format!("{which}: building the cell URDF: {message}"),
         };
         let xml = std::fs::read_to_string(&setup.urdf_path)
-            .map_err(|e| SimError::io(&setup.urdf_path, e))?;
+            .map_err(|e| FormatError::io(&setup.urdf_path, e))?;
         let mut robot = urdf_rs::read_from_string(&xml).map_err(|e| bad(e.to_string()))?;
         let urdf_dir = setup
             .urdf_path
@@ -217,7 +217,7 @@ pub(crate) fn cell_urdf(cell: &Cell, header: &Header<'_>) -> Result<String, SimE
             pose(&tip),
         ));
     }
-    let body = urdf_rs::write_to_string(&out).map_err(|e| SimError::Cell {
+    let body = urdf_rs::write_to_string(&out).map_err(|e| FormatError::Cell {
         path: cell.base_dir.clone(),
         message: format!("cannot write the cell URDF: {e}"),
     })?;

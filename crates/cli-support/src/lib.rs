@@ -1,5 +1,4 @@
-//! What the workspace's two binaries (`sim-cell` and `handclasp`) share at the process edge. Built
-//! only with the `cli` feature.
+#![doc = include_str!("../README.md")]
 
 /// Ends the process quietly with exit 0 when printing fails because stdout was closed early
 /// (`handclasp … | head`, `sim-cell … | head`): the reader has what it wanted, so no broken-pipe
@@ -43,7 +42,7 @@ pub fn exit_quietly_on_broken_pipe() {
 ///     }
 /// }
 /// let e = ReadFailed(io::Error::new(io::ErrorKind::NotFound, "not found"));
-/// assert_eq!(sim_cell::cli_support::error_chain_text(&e), "a.csv: not found");
+/// assert_eq!(cli_support::error_chain_text(&e), "a.csv: not found");
 /// ```
 pub fn error_chain_text(err: &(dyn std::error::Error + 'static)) -> String {
     let mut text = err.to_string();

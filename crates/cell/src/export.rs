@@ -23,10 +23,12 @@ use std::path::{Path, PathBuf};
 
 use calib_core::whole_cell::CellEstimate;
 use calib_core::Robot;
-use kinematics::{patch_urdf_text, split_for_urdf, verify_patched_urdf, RobotModel};
+use kinematics::{
+    patch_urdf_text, split_for_urdf, verify_patched_urdf, KinematicErrors, RobotModel,
+};
 
-use crate::cell::Cell;
-use crate::error::SimError;
+use crate::cell::{Cell, CellRobot};
+use crate::error::FormatError;
 
 /// The files [`export_calibrated_cell`] writes, relative to its output folder, and the comment
 /// put at the top of the cell file.
@@ -58,7 +60,7 @@ pub const CALIBRATE_EXPORT_NAMES: ExportNames<'static> = ExportNames {
 /// Writes the calibrated `cell` into `dir` (created if missing): each robot's URDF corrected by
 /// the URDF-expressible part of `estimate`'s corrections ([`split_for_urdf`]), and the cell file
 /// with `estimate.b1_from_b2`, the tips corrected by tool 0's tip error (tool 0 = the cell's tip,
-/// as [`crate::whole_cell::cell_problem`] builds it), the rest of each robot's errors (joint
+/// as [`crate::problem::cell_problem`] builds it), the rest of each robot's errors (joint
 /// scale, compliance) as `[robotN.errors]`, robot 2's gravity rotated by the fitted placement, and
 /// the cell's placement σ (if any) unchanged, now centred on the fitted placement (see the
 /// module documentation for why). The placement's angles are written by
@@ -78,15 +80,15 @@ pub const CALIBRATE_EXPORT_NAMES: ExportNames<'static> = ExportNames {
 /// 1e-6 rad/(N·m) and a 1.2e-5 rad tilt).
 ///
 /// Errors: `estimate` of the wrong shape for `cell` (joint counts, no tool 0), a URDF that cannot
-/// be read or corrected ([`SimError::Cell`] naming the robot and file), any file that cannot be
-/// written ([`SimError::Io`]), a written cell that does not load.
+/// be read or corrected ([`FormatError::Cell`] naming the robot and file), any file that cannot be
+/// written ([`FormatError::Io`]), a written cell that does not load.
 pub fn export_calibrated_cell(
     cell: &Cell,
     estimate: &CellEstimate,
     dir: &Path,
     names: &ExportNames<'_>,
-) -> Result<Vec<PathBuf>, SimError> {
-    std::fs::create_dir_all(dir).map_err(|e| SimError::io(dir, e))?;
+) -> Result<Vec<PathBuf>, FormatError> {
+    std::fs::create_dir_all(dir).map_err(|e| FormatError::io(dir, e))?;
     let mut out = cell.clone();
     out.base_dir = dir.to_path_buf();
     out.b1_from_b2 = estimate.b1_from_b2;
@@ -94,7 +96,7 @@ pub fn export_calibrated_cell(
     for robot in [Robot::One, Robot::Two] {
         let setup = cell.robot(robot);
         let correction = estimate.robot(robot);
-        let bad = |message: String| SimError::Cell {
+        let bad = |message: String| FormatError::Cell {
             path: setup.urdf_path.clone(),
             message: format!("{robot}: {message}"),
         };
@@ -104,24 +106,12 @@ pub fn export_calibrated_cell(
                     .into(),
             ));
         };
-        let (urdf_part, rest) = split_for_urdf(&correction.errors);
-        let xml = std::fs::read_to_string(&setup.urdf_path)
-            .map_err(|e| SimError::io(&setup.urdf_path, e))?;
-        let patched = patch_urdf_text(&xml, &setup.model, &urdf_part)
-            .map_err(|e| bad(format!("cannot write the corrected URDF: {e}")))?;
         let file = match robot {
             Robot::One => names.robot1_urdf,
             Robot::Two => names.robot2_urdf,
         };
         let path = dir.join(file);
-        let tmp = path.with_extension("urdf.tmp");
-        std::fs::write(&tmp, &patched).map_err(|e| SimError::io(&tmp, e))?;
-        let reread = std::fs::read_to_string(&tmp).map_err(|e| SimError::io(&tmp, e))?;
-        verify_patched_urdf(&reread, &setup.model, &urdf_part)
-            .map_err(|e| bad(format!("verifying {}: {e}", tmp.display())))?;
-        let model = RobotModel::from_urdf_file(&tmp, &setup.tool_link)
-            .map_err(|e| bad(format!("re-loading {}: {e}", tmp.display())))?;
-        std::fs::rename(&tmp, &path).map_err(|e| SimError::io(&path, e))?;
+        let model = write_corrected_urdf(robot, setup, &correction.errors, &path)?;
         written.push(path.clone());
         let r = if robot == Robot::One {
             &mut out.robot1
@@ -133,27 +123,71 @@ pub fn export_calibrated_cell(
         r.urdf_path = path;
         r.flange_from_tip = setup.flange_from_tip + tip_error;
         // What a URDF cannot hold (scale, compliance; tips are in tip_mm, mounts are never fitted).
-        r.errors = rest;
+        r.errors = split_for_urdf(&correction.errors).1;
     }
     // Robot 2's gravity follows the calibrated placement.
     out.robot2.g_base = out.b1_from_b2.rotation.inverse() * out.robot1.g_base;
     let cell_path = dir.join(names.cell);
     let text = format!("{}{}", names.header, out.to_toml_string());
     let tmp = cell_path.with_extension("tmp");
-    std::fs::write(&tmp, text).map_err(|e| SimError::io(&tmp, e))?;
-    std::fs::rename(&tmp, &cell_path).map_err(|e| SimError::io(&cell_path, e))?;
+    std::fs::write(&tmp, text).map_err(|e| FormatError::io(&tmp, e))?;
+    std::fs::rename(&tmp, &cell_path).map_err(|e| FormatError::io(&cell_path, e))?;
     Cell::from_toml_file(&cell_path)?;
     written.push(cell_path);
     Ok(written)
 }
 
+/// Writes `setup`'s URDF corrected by the URDF-expressible part of `errors` ([`split_for_urdf`]:
+/// joint offsets, joint origin xyz and rpy; SI) to `path`: patched into the source text by
+/// [`patch_urdf_text`] (every other byte kept), written to a temporary file beside `path`
+/// (`path` with the extension `urdf.tmp`), read back, verified against the corrected model
+/// ([`verify_patched_urdf`]) and re-loaded, and only then renamed to `path`; on a failure the
+/// temporary file is removed. Returns the corrected model as loaded from the written file.
+///
+/// Errors ([`FormatError::Cell`] naming the source URDF and `robot`, or [`FormatError::Io`]):
+/// the source URDF cannot be read or patched, the written text fails the verification or does
+/// not load, the file system refuses the write or the rename.
+pub(crate) fn write_corrected_urdf(
+    robot: Robot,
+    setup: &CellRobot,
+    errors: &KinematicErrors,
+    path: &Path,
+) -> Result<RobotModel, FormatError> {
+    let bad = |message: String| FormatError::Cell {
+        path: setup.urdf_path.clone(),
+        message: format!("{robot}: {message}"),
+    };
+    let (urdf_part, _) = split_for_urdf(errors);
+    let xml = std::fs::read_to_string(&setup.urdf_path)
+        .map_err(|e| FormatError::io(&setup.urdf_path, e))?;
+    let patched = patch_urdf_text(&xml, &setup.model, &urdf_part)
+        .map_err(|e| bad(format!("cannot write the corrected URDF: {e}")))?;
+    let tmp = path.with_extension("urdf.tmp");
+    std::fs::write(&tmp, &patched).map_err(|e| FormatError::io(&tmp, e))?;
+    let checked = (|| {
+        let reread = std::fs::read_to_string(&tmp).map_err(|e| FormatError::io(&tmp, e))?;
+        verify_patched_urdf(&reread, &setup.model, &urdf_part)
+            .map_err(|e| bad(format!("verifying {}: {e}", tmp.display())))?;
+        let model = RobotModel::from_urdf_file(&tmp, &setup.tool_link)
+            .map_err(|e| bad(format!("re-loading {}: {e}", tmp.display())))?;
+        std::fs::rename(&tmp, path).map_err(|e| FormatError::io(path, e))?;
+        Ok(model)
+    })();
+    if checked.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    checked
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::whole_cell::{cell_problem, FitModel};
-    use crate::{generate_session, trial_rng, Layout, SessionSpec};
+    use crate::fixtures::coincident_session;
+    use crate::problem::{cell_problem, FitModel};
     use kinematics::true_base_from_tip;
+    use kinematics::{Axis, ErrorParam};
     use nalgebra::{Isometry3, Vector3};
+    use rand::Rng;
 
     /// Exported model vs fitted model: the URDF patch's own tolerance
     /// (kinematics::PATCH_TOLERANCE_M); the cell TOML keeps 10 decimals of mm (1e-13 m).
@@ -171,12 +205,7 @@ mod tests {
     #[test]
     fn exported_cell_reproduces_the_estimate_with_the_given_names() {
         let cell = floor_floor();
-        let session = generate_session(
-            &cell,
-            &SessionSpec::new(4, Layout::Tetrahedron, 1.0),
-            &mut trial_rng(1, 0),
-        )
-        .unwrap();
+        let session = coincident_session(&cell, 4);
         let problem = cell_problem(&cell, &session, FitModel::Kinematic);
         let mut est = CellEstimate::nominal(
             &problem,
@@ -266,12 +295,7 @@ mod tests {
 
     /// A seeded 4-point floor–floor session and its kinematic problem.
     fn floor_floor_problem(cell: &Cell) -> calib_core::whole_cell::CellProblem {
-        let session = generate_session(
-            cell,
-            &SessionSpec::new(4, Layout::Tetrahedron, 1.0),
-            &mut trial_rng(1, 0),
-        )
-        .unwrap();
+        let session = coincident_session(cell, 4);
         cell_problem(cell, &session, FitModel::Kinematic)
     }
 
@@ -352,12 +376,7 @@ mod tests {
     #[test]
     fn an_estimate_without_the_tip_tool_is_refused_naming_the_robot() {
         let cell = floor_floor();
-        let session = generate_session(
-            &cell,
-            &SessionSpec::new(4, Layout::Tetrahedron, 1.0),
-            &mut trial_rng(1, 0),
-        )
-        .unwrap();
+        let session = coincident_session(&cell, 4);
         let problem = cell_problem(&cell, &session, FitModel::Kinematic);
         let mut est = CellEstimate::nominal(&problem, cell.b1_from_b2);
         est.robot1.tool_tip_m.clear();
@@ -366,5 +385,138 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("robot 1") && e.contains("tool 0"), "{e}");
+    }
+
+    /// The patched text carries 9 decimals (1 nm, 1 nrad): FK agreement to 1e-8 m.
+    const URDF_DIGITS_TOL_M: f64 = 1e-8;
+
+    /// The FK of `corrected` equals the nominal model with `e` at 20 random postures.
+    fn assert_matches_error_model(robot: &CellRobot, e: &KinematicErrors, corrected: &RobotModel) {
+        let mut rng = calib_core::stats::trial_rng(3, 0);
+        for _ in 0..20 {
+            let q: Vec<f64> = robot
+                .model
+                .joints()
+                .iter()
+                .map(|j| rng.random_range(j.lower.max(-2.0)..j.upper.min(2.0)))
+                .collect();
+            let want = kinematics::true_base_from_tip(
+                &robot.model,
+                e,
+                &q,
+                &robot.flange_from_tip,
+                &robot.g_base,
+            )
+            .expect("fk");
+            let got = kinematics::base_from_tip(corrected, &q, &robot.flange_from_tip).expect("fk");
+            let d = (want.translation.vector - got.translation.vector).norm();
+            assert!(d < URDF_DIGITS_TOL_M, "{}: {d} m", robot.model.name());
+        }
+    }
+
+    /// The corrected URDF (offsets folded into origin rpy, lengths added to origin xyz), as
+    /// written and re-loaded, gives the same tips as the nominal URDF with the error model, at
+    /// random postures; no temporary file is left behind.
+    #[test]
+    fn corrected_urdf_matches_the_error_model() {
+        let cell = Cell::default_floor_floor();
+        let dir = tempfile::tempdir().expect("tempdir");
+        for (k_robot, robot) in [&cell.robot1, &cell.robot2].into_iter().enumerate() {
+            let dof = robot.model.dof();
+            let mut e = KinematicErrors::zero(dof);
+            for k in 0..dof {
+                e.set(
+                    ErrorParam::JointOffset { joint: k },
+                    1e-3 * (k as f64 + 1.0),
+                );
+                e.set(
+                    ErrorParam::OriginXyz {
+                        joint: k,
+                        axis: Axis::X,
+                    },
+                    -2e-4 * k as f64,
+                );
+                e.set(
+                    ErrorParam::OriginXyz {
+                        joint: k,
+                        axis: Axis::Z,
+                    },
+                    3e-4,
+                );
+            }
+            let path = dir.path().join(format!("robot{}.urdf", k_robot + 1));
+            let which = [Robot::One, Robot::Two][k_robot];
+            let corrected = write_corrected_urdf(which, robot, &e, &path).expect("corrected");
+            let text = std::fs::read_to_string(&path).expect("written");
+            assert!(text.contains("<calibration rising="));
+            let reloaded = RobotModel::from_urdf_str(&text, &robot.tool_link).expect("loads");
+            assert_matches_error_model(robot, &e, &corrected);
+            assert_matches_error_model(robot, &e, &reloaded);
+        }
+        let mut names: Vec<String> = std::fs::read_dir(dir.path())
+            .expect("dir")
+            .map(|f| f.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert_eq!(names, ["robot1.urdf", "robot2.urdf"]);
+    }
+
+    /// Regression: the old text patcher corrected the first `<joint name=…>` it found, which in
+    /// kinematics' fixture transmission_first.urdf is the `<joint>` inside a `<transmission>`
+    /// before the real joint, and left the real joint wrong. The export corrects the chain's
+    /// joint and keeps the transmission byte for byte.
+    #[test]
+    fn export_from_a_urdf_with_a_transmission_first_corrects_the_chain_joint() {
+        let fixture = std::path::PathBuf::from(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../kinematics/tests/fixtures/transmission_first.urdf"
+        ));
+        let xml = std::fs::read_to_string(&fixture).expect("fixture");
+        let cell = Cell::default_floor_wall();
+        let mut robot = cell.robot2.clone();
+        robot.model = RobotModel::from_urdf_str(&xml, &robot.tool_link).expect("fixture loads");
+        robot.urdf_path = fixture;
+        let mut e = KinematicErrors::zero(robot.model.dof());
+        e.origin_xyz[0] = Vector3::new(0.0, 0.0, 0.0115);
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("robot2_corrected.urdf");
+        let corrected = write_corrected_urdf(Robot::Two, &robot, &e, &path).expect("exported");
+        let text = std::fs::read_to_string(&path).expect("written");
+        let transmission = |t: &str| {
+            let a = t.find("<transmission").expect("transmission");
+            let b = t.find("</transmission>").expect("end");
+            t[a..b].to_string()
+        };
+        assert_eq!(transmission(&text), transmission(&xml));
+        let changed: Vec<&str> = xml
+            .lines()
+            .zip(text.lines())
+            .filter(|(a, b)| a != b)
+            .map(|(_, b)| b)
+            .collect();
+        assert_eq!(
+            changed,
+            [r#"    <origin xyz="0.000000000 0.000000000 0.516500000" rpy="0 0 0"/>"#]
+        );
+        let joint_1 = text.find(r#"<joint name="joint_1_s""#).expect("joint_1_s");
+        let origin = text.find("0.516500000").expect("corrected origin");
+        assert!(origin > joint_1 && origin > text.find("</transmission>").unwrap());
+        assert_matches_error_model(&robot, &e, &corrected);
+    }
+
+    /// A write that fails after the temporary file exists (here the rename, onto a folder of the
+    /// URDF's name) removes the temporary file and names the path.
+    #[test]
+    fn a_failed_urdf_write_leaves_no_temporary_file() {
+        let cell = Cell::default_floor_floor();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("robot1.urdf");
+        std::fs::create_dir(&path).unwrap();
+        std::fs::write(path.join("keep"), "").unwrap();
+        let errors = KinematicErrors::zero(cell.robot1.model.dof());
+        let e = write_corrected_urdf(Robot::One, &cell.robot1, &errors, &path).unwrap_err();
+        assert!(matches!(e, FormatError::Io { .. }), "{e}");
+        assert!(e.to_string().contains("robot1.urdf"), "{e}");
+        assert!(!dir.path().join("robot1.urdf.tmp").exists());
     }
 }

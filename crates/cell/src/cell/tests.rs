@@ -1,0 +1,300 @@
+use super::*;
+
+/// Round-off of mm/degree text conversions, m and rad.
+const ROUND_TRIP_TOL: f64 = 1e-12;
+
+fn assert_cells_equal(a: &Cell, b: &Cell) {
+    assert!(
+        (a.b1_from_b2.translation.vector - b.b1_from_b2.translation.vector).amax() < ROUND_TRIP_TOL
+    );
+    assert!(a.b1_from_b2.rotation.angle_to(&b.b1_from_b2.rotation) < 1e-9);
+    for (r, s) in [(&a.robot1, &b.robot1), (&a.robot2, &b.robot2)] {
+        assert_eq!(r.urdf, s.urdf);
+        assert_eq!(r.mount, s.mount);
+        assert!((r.flange_from_tip - s.flange_from_tip).amax() < ROUND_TRIP_TOL);
+        assert!((r.g_base - s.g_base).amax() < 1e-9);
+        let (e, f) = (&r.errors, &s.errors);
+        for (x, y) in e.joint_offset.iter().zip(&f.joint_offset) {
+            assert!((x - y).abs() < ROUND_TRIP_TOL);
+        }
+        for (x, y) in e.compliance.iter().zip(&f.compliance) {
+            assert!((x - y).abs() < ROUND_TRIP_TOL);
+        }
+        for (x, y) in e
+            .periodic_sin
+            .iter()
+            .chain(&e.periodic_cos)
+            .zip(f.periodic_sin.iter().chain(&f.periodic_cos))
+        {
+            assert!((x - y).abs() < ROUND_TRIP_TOL);
+        }
+        for (x, y) in e.origin_xyz.iter().zip(&f.origin_xyz) {
+            assert!((x - y).amax() < ROUND_TRIP_TOL);
+        }
+        assert!((e.mount_rpy - f.mount_rpy).amax() < ROUND_TRIP_TOL);
+        assert_eq!(e.joint_scale, f.joint_scale);
+    }
+    assert!((a.noise.alignment_m - b.noise.alignment_m).amax() < ROUND_TRIP_TOL);
+    assert!((a.noise.repeatability_m - b.noise.repeatability_m).abs() < ROUND_TRIP_TOL);
+    assert!(
+        (a.noise.encoder_resolution_rad - b.noise.encoder_resolution_rad).abs() < ROUND_TRIP_TOL
+    );
+    assert!((a.centre_b1 - b.centre_b1).amax() < ROUND_TRIP_TOL);
+}
+
+#[test]
+fn shipped_cells_parse_and_round_trip() {
+    for cell in [
+        Cell::default_floor_floor(),
+        Cell::default_floor_wall(),
+        Cell::default_floor_ceiling(),
+    ] {
+        let text = cell.to_toml_string();
+        let back = Cell::from_toml_str(&text, &cell.base_dir).unwrap();
+        assert_cells_equal(&cell, &back);
+    }
+}
+
+/// `[robotN.tools]`: parsed in mm, looked up by name (`tip` = index 0), written back; the
+/// reserved name and a tip written in metres are refused with the key named.
+#[test]
+fn tools_table_parses_round_trips_and_names_errors() {
+    let text = FLOOR_WALL_TOML.to_string()
+        + "\n[robot1.tools]\nreflector = [41.79, -16.69, 245.0]\nprobe = [0, 0, 80]\n";
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+    let cell = Cell::from_toml_str(&text, &dir).unwrap();
+    let r = &cell.robot1;
+    assert_eq!(r.tool_names(), ["tip", "probe", "reflector"]);
+    assert_eq!(r.tool_index("reflector"), Some(2));
+    assert_eq!(r.tool_index("tip"), Some(0));
+    assert_eq!(r.tool_index("laser"), None);
+    let reflector = r.flange_from_tool(2).unwrap();
+    assert!((reflector - Vector3::new(0.04179, -0.01669, 0.245)).amax() < ROUND_TRIP_TOL);
+    assert!(cell.robot2.tools.is_empty());
+    let back = Cell::from_toml_str(&cell.to_toml_string(), &dir).unwrap();
+    assert_eq!(back.robot1.tools, cell.robot1.tools);
+    for (bad, want) in [
+        ("tip = [0, 0, 10]", "robot1.tools.tip"),
+        ("reflector = [0, 0, 0.245]", "robot1.tools.reflector"),
+    ] {
+        let text = FLOOR_WALL_TOML.to_string() + "\n[robot1.tools]\n" + bad + "\n";
+        let e = Cell::from_toml_str(&text, &dir).unwrap_err().to_string();
+        assert!(e.contains(want), "{e}");
+    }
+}
+
+#[test]
+fn errors_and_anisotropic_noise_round_trip() {
+    let text = FLOOR_WALL_TOML.to_string()
+        + r#"
+[robot2.errors]
+joint_offset_deg = [0.01, -0.02, 0.0, 0.0, 0.03, 0.0]
+joint_scale = [0.0, 1e-4, 0.0, 0.0, 0.0, 0.0]
+origin_xyz_mm = [[0.1, 0, 0], [0, 0, 0], [0, -0.2, 0], [0, 0, 0], [0, 0, 0], [0, 0, 0]]
+mount_rpy_deg = [0.01, 0.0, 0.02]
+compliance_deg_per_knm = [0.0, 0.05, 0.05, 0.0, 0.0, 0.0]
+periodic_sin_deg = [0.0, 0.0, 0.01, 0.0, 0.0, 0.0]
+periodic_cos_deg = [0.0, 0.0, -0.02, 0.0, 0.0, 0.0]
+"#;
+    let text = text.replace("alignment_mm = 0.3", "alignment_mm = [0.3, 0.5, 0.2]");
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+    let cell = Cell::from_toml_str(&text, &dir).unwrap();
+    assert!((cell.robot2.errors.joint_offset[1] - (-0.02f64).to_radians()).abs() < 1e-15);
+    assert!((cell.robot2.errors.compliance[1] - 0.05f64.to_radians() / 1000.0).abs() < 1e-18);
+    assert!((cell.robot2.errors.periodic_sin[2] - 0.01f64.to_radians()).abs() < 1e-15);
+    assert!((cell.robot2.errors.periodic_cos[2] - (-0.02f64).to_radians()).abs() < 1e-15);
+    assert!(cell.to_toml_string().contains("periodic_cos_deg"));
+    assert!((cell.noise.alignment_m.y - 0.5e-3).abs() < 1e-15);
+    let back = Cell::from_toml_str(&cell.to_toml_string(), &dir).unwrap();
+    assert_cells_equal(&cell, &back);
+}
+
+#[test]
+fn gravity_of_robot2_follows_the_placement() {
+    let ff = Cell::default_floor_floor();
+    assert!((ff.robot1.g_base - Vector3::new(0.0, 0.0, -G)).norm() < 1e-12);
+    assert!(ff.robot2.g_base.z < -0.9999 * G);
+    let fc = Cell::default_floor_ceiling();
+    assert!(fc.robot2.g_base.z > 0.9999 * G);
+    let fw = Cell::default_floor_wall();
+    assert!(fw.robot2.g_base.z.abs() < 0.01 * G);
+    assert!((fw.robot2.g_base.norm() - G).abs() < 1e-9);
+}
+
+/// `tip_mm = [0, 0, 0.15]` (metres written as mm): refused with the unit and the fix named; a
+/// zero tip (the flange) and a 1 mm tip still load.
+#[test]
+fn tip_mm_of_0_15() {
+    let text = FLOOR_WALL_TOML.replacen("tip_mm = [0.0, 0.0, 150.0]", "tip_mm = [0, 0, 0.15]", 1);
+    assert_ne!(text, FLOOR_WALL_TOML);
+    let e = err_text(&text);
+    assert!(
+        e.contains("robot1.tip_mm")
+            && e.contains("0.15 mm long")
+            && e.contains("metres")
+            && e.contains("[0.0, 0.0, 150.0]"),
+        "{e}"
+    );
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+    for ok in ["tip_mm = [0, 0, 0]", "tip_mm = [0, 0, 1.0]"] {
+        let text = FLOOR_WALL_TOML.replacen("tip_mm = [0.0, 0.0, 150.0]", ok, 1);
+        Cell::from_toml_str(&text, &dir).unwrap_or_else(|e| panic!("{ok}: {e}"));
+    }
+}
+
+fn err_text(text: &str) -> String {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+    Cell::from_toml_str(text, &dir).unwrap_err().to_string()
+}
+
+#[test]
+fn unknown_key_is_named() {
+    let e = err_text(&FLOOR_WALL_TOML.replace("tip_mm", "tip_mmm"));
+    assert!(e.contains("tip_mmm") && e.contains("tip_mm"), "{e}");
+    let e = err_text(
+        &(FLOOR_WALL_TOML.to_string() + "\n[robot2.errors]\njoint_ofset_deg = [0,0,0,0,0,0]\n"),
+    );
+    assert!(
+        e.contains("joint_ofset_deg") && e.contains("joint_offset_deg"),
+        "{e}"
+    );
+}
+
+#[test]
+fn missing_urdf_is_named() {
+    let e = err_text(&FLOOR_WALL_TOML.replace("../robots/hp20.urdf", "../robots/nope.urdf"));
+    assert!(e.contains("robot2.urdf") && e.contains("nope.urdf"), "{e}");
+}
+
+#[test]
+fn impossible_mount_is_named_with_the_fix() {
+    let e = err_text(&FLOOR_WALL_TOML.replace("mount = \"wall\"", "mount = \"ceiling\""));
+    assert!(e.contains("robot2.mount") && e.contains("\"wall\""), "{e}");
+    let e = err_text(&FLOOR_WALL_TOML.replace("mount = \"floor\"", "mount = \"wall\""));
+    assert!(e.contains("robot1.mount"), "{e}");
+    let e = err_text(&FLOOR_WALL_TOML.replace("mount = \"wall\"", "mount = \"roof\""));
+    assert!(e.contains("robot2.mount") && e.contains("ceiling"), "{e}");
+}
+
+#[test]
+fn wrong_error_length_is_named() {
+    let e = err_text(
+        &(FLOOR_WALL_TOML.to_string() + "\n[robot1.errors]\njoint_offset_deg = [0.0, 0.1]\n"),
+    );
+    assert!(
+        e.contains("robot1.errors.joint_offset_deg") && e.contains("7 joints"),
+        "{e}"
+    );
+}
+
+mod tolerance_tests {
+    use super::*;
+
+    fn err_text(text: &str) -> String {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+        Cell::from_toml_str(text, &dir).unwrap_err().to_string()
+    }
+
+    /// Round-off of the mm/degree → SI → mm/degree round trip of a tolerance (tidy_floats keeps
+    /// 10 decimals of mm/deg: 1e-13 m, 1e-12 rad).
+    const TOLERANCE_TOL: f64 = 1e-12;
+
+    #[test]
+    fn tolerance_table_is_optional_parsed_and_round_trips() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+        let plain = Cell::from_toml_str(FLOOR_FLOOR_TOML, &dir).unwrap();
+        assert_eq!(plain.robot1.tolerance, Tolerance::default());
+        assert_eq!(plain.robot2.tolerance, Tolerance::default());
+        let text = FLOOR_FLOOR_TOML.to_string()
+            + "\n[robot2.tolerance]\njoint_offset_deg = 0.1\norigin_mm = 0.2\ntip_mm = 0\n";
+        let cell = Cell::from_toml_str(&text, &dir).unwrap();
+        let t = cell.robot2.tolerance;
+        assert!((t.joint_offset_rad - 0.1f64.to_radians()).abs() < TOLERANCE_TOL);
+        assert!((t.origin_xyz_m - 0.2e-3).abs() < TOLERANCE_TOL);
+        assert_eq!(t.origin_rpy_rad, Tolerance::default().origin_rpy_rad);
+        assert_eq!(t.tip_m, 0.0);
+        assert_eq!(cell.robot1.tolerance, Tolerance::default());
+        let back = Cell::from_toml_str(&cell.to_toml_string(), &dir).unwrap();
+        let b = back.robot2.tolerance;
+        assert!((b.joint_offset_rad - t.joint_offset_rad).abs() < TOLERANCE_TOL);
+        assert!((b.origin_xyz_m - t.origin_xyz_m).abs() < TOLERANCE_TOL);
+        assert!((b.origin_rpy_rad - t.origin_rpy_rad).abs() < TOLERANCE_TOL);
+        assert_eq!(b.tip_m, 0.0);
+        // The default is not written: a cell without the table round-trips without one.
+        assert!(!plain.to_toml_string().contains("tolerance"));
+    }
+
+    #[test]
+    fn bad_tolerance_key_or_value_is_named() {
+        let bad_key = FLOOR_FLOOR_TOML.to_string() + "\n[robot1.tolerance]\noffset_deg = 0.1\n";
+        let e = err_text(&bad_key);
+        assert!(e.contains("offset_deg"), "{e}");
+        for valid in ["joint_offset_deg", "origin_mm", "origin_deg", "tip_mm"] {
+            assert!(e.contains(valid), "{e}");
+        }
+        let negative = FLOOR_FLOOR_TOML.to_string() + "\n[robot2.tolerance]\norigin_mm = -1.0\n";
+        let e = err_text(&negative);
+        assert!(e.contains("robot2.tolerance.origin_mm"), "{e}");
+    }
+
+    /// `FLOOR_FLOOR_TOML` with `lines` added to its `[b1_from_b2]` table.
+    fn with_placement_sigma(lines: &str) -> String {
+        FLOOR_FLOOR_TOML.replacen("[b1_from_b2]", &format!("[b1_from_b2]\n{lines}"), 1)
+    }
+
+    #[test]
+    fn placement_sigma_is_optional_parsed_and_round_trips() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+        let plain = Cell::from_toml_str(FLOOR_FLOOR_TOML, &dir).unwrap();
+        assert_eq!(plain.b1_from_b2_sigma, None);
+        assert!(!plain.to_toml_string().contains("sigma_mm"));
+        let text = with_placement_sigma("sigma_mm = 0.01\nsigma_deg = 0.002");
+        let cell = Cell::from_toml_str(&text, &dir).unwrap();
+        let s = cell.b1_from_b2_sigma.unwrap();
+        assert!((s.sigma_m - 0.01e-3).abs() < TOLERANCE_TOL);
+        assert!((s.sigma_rad - 0.002f64.to_radians()).abs() < TOLERANCE_TOL);
+        let back = Cell::from_toml_str(&cell.to_toml_string(), &dir).unwrap();
+        assert!(back.b1_from_b2.rotation.angle_to(&cell.b1_from_b2.rotation) < TOLERANCE_TOL);
+        let b = back.b1_from_b2_sigma.unwrap();
+        assert!((b.sigma_m - s.sigma_m).abs() < TOLERANCE_TOL);
+        assert!((b.sigma_rad - s.sigma_rad).abs() < TOLERANCE_TOL);
+        // The shipped CTU cell states its placement.
+        let ctu = Cell::from_toml_file(&dir.join("ctu-motoman.toml")).unwrap();
+        assert!(ctu.b1_from_b2_sigma.is_some());
+    }
+
+    #[test]
+    fn bad_placement_sigma_is_named() {
+        let e = err_text(&with_placement_sigma("sigma_mm = -0.01\nsigma_deg = 0.001"));
+        assert!(e.contains("b1_from_b2.sigma_mm"), "{e}");
+        let e = err_text(&with_placement_sigma("sigma_mm = 0.01\nsigma_deg = nan"));
+        assert!(e.contains("b1_from_b2.sigma_deg"), "{e}");
+        let e = err_text(&with_placement_sigma("sigma_mm = 0.01"));
+        assert!(e.contains("sigma_deg") && e.contains("both"), "{e}");
+        let e = err_text(&with_placement_sigma("sigma_m = 0.01"));
+        assert!(
+            e.contains("sigma_m") && e.contains("sigma_mm, sigma_deg"),
+            "{e}"
+        );
+    }
+}
+
+/// A cell whose robot has a prismatic joint is refused by name until the cell and session files
+/// describe prismatic values (merge of the `prismatic` branch, issue 22: before, the session's
+/// degree column would have been used as metres without a word).
+#[test]
+fn prismatic_robot_refused_until_the_formats_describe_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let rail = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../kinematics/tests/fixtures/rail_6r.urdf"
+    );
+    let toml = format!(
+        "[robot1]\nurdf = \"{rail}\"\nmount = \"floor\"\ntip_mm = [0, 0, 150]\n[robot2]\nurdf = \"{rail}\"\nmount = \"floor\"\ntip_mm = [0, 0, 150]\n[b1_from_b2]\nxyz_mm = [2000, 0, 0]\nzyz_deg = [180, 0, 0]\n"
+    );
+    let path = dir.path().join("cell.toml");
+    std::fs::write(&path, toml).unwrap();
+    let err = Cell::from_toml_file(&path).unwrap_err().to_string();
+    assert!(err.contains("prismatic or coupled"), "{err}");
+    assert!(err.contains("handclasp fk --robot"), "{err}");
+}

@@ -1,0 +1,202 @@
+//! Handclasp sessions: what the two controllers report at each teach point (joint angles and
+//! nominal-model tip positions), and rows of the other observation kinds (contact, face contact,
+//! tracker, plane), read from and written to CSV.
+//!
+//! CSV: header `point,r1_q1_deg,…,r1_qN_deg,r2_q1_deg,…,r2_qM_deg,r1_x_mm,r1_y_mm,r1_z_mm,
+//! r2_x_mm,r2_y_mm,r2_z_mm` (N, M = the models' joint counts, URDF chain order), one row per point,
+//! degrees and millimetres with 6 decimals; tips in each robot's own base frame. It is valid input
+//! to `handclasp calibrate` (calib-core's reader ignores the joint columns).
+//!
+//! Mixed sessions add the columns [`EXTRA_COLUMNS`] (`kind`, `robot`, `group`, `tool1`, `tool2`,
+//! `tool`, `distance_mm`, `sigma_mm`, `tracker_x_mm`, `tracker_y_mm`, `tracker_z_mm`, and, when
+//! a `face_contact` row is present, [`FACE_COLUMNS`] `n1_x,n1_y,n1_z,n2_x,n2_y,n2_z`); a file
+//! without a `kind` column is all coincident handclasps, read exactly as before. Which kind uses
+//! which column is [`kind_columns`]; sim-cell's README has the table and an example.
+//!
+//! One job: the session CSV. This file holds the row types; `kinds.rs` each observation kind's
+//! row ([`SessionKind`]: its columns, reader, writer and whole-cell observation), `read.rs` the
+//! reader (header, the columns the kinds share, errors by line and column), `write.rs` the
+//! writer. Sessions are simulated by sim-cell.
+
+use std::path::Path;
+
+use calib_core::whole_cell::Kind;
+use calib_core::PointPairs;
+use nalgebra::Point3;
+
+use crate::cell::Cell;
+use crate::error::FormatError;
+
+mod kinds;
+mod read;
+mod write;
+
+pub use kinds::{
+    kind_columns, FaceNormals, SessionKind, ToolPair, ALWAYS_WRITTEN, EXTRA_COLUMNS, FACE_COLUMNS,
+    KIND_NAMES,
+};
+pub use read::TIP_CONSISTENCY_MM;
+
+/// One teach point as the controllers report it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SessionPoint {
+    /// Point number (1-based label, the CSV `point` column).
+    pub point: usize,
+    /// Robot 1's reported joint angles, rad, URDF chain order.
+    pub q1: Vec<f64>,
+    /// Robot 2's reported joint angles, rad.
+    pub q2: Vec<f64>,
+    /// Robot 1's tip by its nominal model, m, base 1.
+    pub p_b1: Point3<f64>,
+    /// Robot 2's tip by its nominal model, m, base 2.
+    pub p_b2: Point3<f64>,
+}
+
+/// One row of another kind than a default-tool coincident handclasp.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SessionObservation {
+    /// Point number (the CSV `point` column).
+    pub point: usize,
+    /// What was observed.
+    pub kind: SessionKind,
+}
+
+/// A session: coincident handclasps at both robots' tips (`points`, what every reader of
+/// handclasp sessions uses) and rows of the other kinds (`observations`, used by the whole-cell
+/// calibration).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Session {
+    /// The coincident handclasps at the default tips, in file order.
+    pub points: Vec<SessionPoint>,
+    /// Every other row (other kinds, or other tools), in file order.
+    pub observations: Vec<SessionObservation>,
+}
+
+/// One row of a session, in file order ([`Session::rows`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SessionRow<'a> {
+    /// A coincident handclasp at the default tips.
+    Point(&'a SessionPoint),
+    /// A row of another kind.
+    Observation(&'a SessionObservation),
+}
+
+impl SessionRow<'_> {
+    /// The row's point number.
+    pub fn point(&self) -> usize {
+        match self {
+            SessionRow::Point(p) => p.point,
+            SessionRow::Observation(o) => o.point,
+        }
+    }
+}
+
+impl Session {
+    /// A session of coincident handclasps only.
+    pub fn from_points(points: Vec<SessionPoint>) -> Self {
+        Session {
+            points,
+            observations: Vec::new(),
+        }
+    }
+
+    /// True when every row is a coincident handclasp at the default tips (the session every
+    /// points-based tool, such as `diagnose`, reads in full).
+    pub fn is_handclasp_only(&self) -> bool {
+        self.observations.is_empty()
+    }
+
+    /// Number of rows of all kinds.
+    pub fn len(&self) -> usize {
+        self.points.len() + self.observations.len()
+    }
+
+    /// True when there is no row.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Every row, merged by point number (a stable merge of `points` and `observations`, so a
+    /// file whose point numbers increase is given back in file order).
+    pub fn rows(&self) -> Vec<SessionRow<'_>> {
+        let mut out = Vec::with_capacity(self.len());
+        let (mut i, mut j) = (0, 0);
+        while i < self.points.len() || j < self.observations.len() {
+            let take_point = match (self.points.get(i), self.observations.get(j)) {
+                (Some(p), Some(o)) => p.point <= o.point,
+                (Some(_), None) => true,
+                _ => false,
+            };
+            if take_point {
+                out.push(SessionRow::Point(&self.points[i]));
+                i += 1;
+            } else {
+                out.push(SessionRow::Observation(&self.observations[j]));
+                j += 1;
+            }
+        }
+        out
+    }
+
+    /// Count of rows per kind, in [`Kind::ALL`] order (the names [`KIND_NAMES`]).
+    pub fn kind_counts(&self) -> [usize; Kind::ALL.len()] {
+        let mut n = [0; Kind::ALL.len()];
+        let kinds = std::iter::repeat_n(Kind::Coincident, self.points.len())
+            .chain(self.observations.iter().map(|o| o.kind.kind()));
+        for kind in kinds {
+            if let Some(k) = Kind::ALL.iter().position(|k| *k == kind) {
+                n[k] += 1;
+            }
+        }
+        n
+    }
+
+    /// The nominal tips `(p_b1, p_b2)`, m.
+    pub fn tips(&self) -> (Vec<Point3<f64>>, Vec<Point3<f64>>) {
+        (
+            self.points.iter().map(|p| p.p_b1).collect(),
+            self.points.iter().map(|p| p.p_b2).collect(),
+        )
+    }
+
+    /// The tips as calib-core point pairs (rows = point numbers).
+    pub fn to_point_pairs(&self) -> PointPairs {
+        let (p_b1, p_b2) = self.tips();
+        PointPairs {
+            p_b1,
+            p_b2,
+            rows: self.points.iter().map(|p| p.point).collect(),
+        }
+    }
+
+    /// The CSV columns (see the module docs) for joint counts `dof1`, `dof2`.
+    pub fn csv_header(dof1: usize, dof2: usize) -> Vec<String> {
+        let mut header = vec!["point".to_string()];
+        for (r, d) in [(1, dof1), (2, dof2)] {
+            for k in 1..=d {
+                header.push(format!("r{r}_q{k}_deg"));
+            }
+        }
+        header.extend(
+            [
+                "r1_x_mm", "r1_y_mm", "r1_z_mm", "r2_x_mm", "r2_y_mm", "r2_z_mm",
+            ]
+            .map(String::from),
+        );
+        header
+    }
+
+    /// Writes the session CSV for `cell`'s robots ([`Session::csv_text`]).
+    pub fn write_csv(&self, path: &Path, cell: &Cell) -> Result<(), FormatError> {
+        std::fs::write(path, self.csv_text(cell)).map_err(|e| FormatError::io(path, e))
+    }
+
+    /// Reads a session CSV for `cell` (see [`Session::parse_csv`]).
+    pub fn read_csv(path: &Path, cell: &Cell) -> Result<Session, FormatError> {
+        let text = std::fs::read_to_string(path).map_err(|e| FormatError::io(path, e))?;
+        Session::parse_csv(&text, path, cell)
+    }
+}
+
+#[cfg(test)]
+mod tests;
