@@ -444,6 +444,7 @@ page_tests! {
     guide_export => "docs/guide/export.md",
     guide_simulate => "docs/guide/simulate.md",
     guide_real_data => "docs/guide/real-data.md",
+    guide_validate => "docs/guide/validate.md",
 }
 
 #[test]

@@ -14,3 +14,4 @@ mod paper_diagnose;
 mod plan;
 mod sim;
 mod support;
+mod validate;
