@@ -28,7 +28,12 @@ impl Cell {
     fn load(py: Python<'_>, path: PathBuf) -> PyResult<Cell> {
         let cell = py
             .detach(|| handclasp_cell::Cell::from_toml_file(&path))
-            .map_err(|e| to_py(&e, "", Otherwise::Value))?;
+            .map_err(|e| match std::fs::metadata(&path) {
+                // The cell reader names the I/O error in its text only: an unreadable file is
+                // still an `OSError`.
+                Err(io) => crate::errors::os_error(io.kind(), cli_support::error_chain_text(&e)),
+                Ok(_) => to_py(&e, "", Otherwise::Value),
+            })?;
         Ok(Cell {
             cell: Arc::new(cell),
             path: Some(path),

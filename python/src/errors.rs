@@ -1,12 +1,12 @@
 //! Rust errors → Python exceptions, with the CLI's messages ([`cli_support::error_chain_text`]).
 //!
 //! A chain that holds an `std::io::Error` is a file problem: `FileNotFoundError`,
-//! `PermissionError`, `IsADirectoryError` or `OSError`. Otherwise the caller chooses: invalid
+//! `PermissionError`, `IsADirectoryError`, `FileExistsError` or `OSError`. Otherwise the caller chooses: invalid
 //! input is `ValueError`, a fit that fails is [`CalibrationError`].
 
 use pyo3::create_exception;
 use pyo3::exceptions::{
-    PyException, PyFileNotFoundError, PyIsADirectoryError, PyOSError, PyPermissionError,
+    PyException, PyFileExistsError, PyFileNotFoundError, PyIsADirectoryError, PyOSError, PyPermissionError,
     PyValueError,
 };
 use pyo3::PyErr;
@@ -39,6 +39,7 @@ pub fn os_error(kind: std::io::ErrorKind, message: String) -> PyErr {
         K::NotFound => PyFileNotFoundError::new_err(message),
         K::PermissionDenied => PyPermissionError::new_err(message),
         K::IsADirectory => PyIsADirectoryError::new_err(message),
+        K::AlreadyExists => PyFileExistsError::new_err(message),
         _ => PyOSError::new_err(message),
     }
 }

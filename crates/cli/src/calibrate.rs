@@ -397,7 +397,7 @@ fn write_text(s: &mut String, r: &FitReport) -> std::fmt::Result {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use calib_core::{OutliersReport, PoseForms, UncertaintyReport};
+    use calib_core::{OutliersReport, PoseForms, SoftMountReport, UncertaintyReport};
 
     /// A constrained fit of three points, the second flagged, with every optional part.
     fn report() -> FitReport {
