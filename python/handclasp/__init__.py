@@ -10,6 +10,7 @@ Entry points (each mirrors a CLI command; ``.to_dict()`` equals its ``--json`` o
 - ``calibrate_points(p1_mm, p2_mm, method=...)``: ``handclasp calibrate POINTS.csv``
 - ``fk(robot, q_deg, tip=None)``: ``handclasp fk`` for many joint vectors at once
 - ``Cell.load(path)``, ``Session.load(path, cell)``, ``Session.from_arrays(cell, q1_deg, q2_deg)``
+- ``import_session(cell, map, inputs)``: ``handclasp import`` (a dataset's CSVs → a session)
 - ``calibrate_cell(cell, session, model="kinematic")``: ``handclasp calibrate --cell``
 - ``diagnose(cell, session)``: ``handclasp diagnose``
 - ``simulate_session(cell, n, seed)``, ``plan(cell, n)``: ``sim-cell session``, ``handclasp plan``
@@ -36,6 +37,7 @@ from ._handclasp import (
     calibrate_cell,
     diagnose,
     fk,
+    import_session,
     plan,
     simulate_session,
 )
@@ -55,6 +57,7 @@ __all__ = [
     "diagnose",
     "fk",
     "frame",
+    "import_session",
     "plan",
     "simulate_session",
     "sweep",

@@ -204,3 +204,5 @@ def sweep(
     seed: int = 1,
     trials_table: bool = False,
 ) -> Dict[str, Union[_F64, List[str]]]: ...
+def import_session(cell: Cell, map: _Path, inputs: Sequence[_Path]) -> Session:
+    """A dataset's CSV files as a session of `cell`, as a mapping file says (handclasp import)."""

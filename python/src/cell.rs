@@ -462,3 +462,46 @@ fn csv_rows(text: &str) -> Vec<Vec<String>> {
         .map(|r| r.iter().map(str::to_string).collect())
         .collect()
 }
+
+/// Converts a controller's or dataset's CSV files into a session of `cell`, as a mapping file
+/// says (`handclasp import --cell CELL --map MAP --input FILE…`; the CTU maps are in
+/// tools/ctu-motoman/maps/). Errors: `OSError` subclasses for unreadable files, `ValueError`
+/// naming the file, line and column.
+#[pyfunction]
+pub fn import_session(
+    py: Python<'_>,
+    cell: &Cell,
+    map: PathBuf,
+    inputs: Vec<PathBuf>,
+) -> PyResult<Session> {
+    let c = Arc::clone(&cell.cell);
+    let session = py.detach(|| -> PyResult<handclasp_cell::Session> {
+        let read = |p: &Path, flag: &str| {
+            std::fs::read_to_string(p).map_err(|e| {
+                crate::errors::os_error(e.kind(), format!("{flag} {}: {e}", p.display()))
+            })
+        };
+        let text = read(&map, "map")?;
+        let import = handclasp_cell::ImportMap::from_toml_str(&text, &map, &c)
+            .map_err(|e| to_py(&e, "map", Otherwise::Value))?;
+        let mut session = handclasp_cell::Session::default();
+        for input in &inputs {
+            let text = read(input, "input")?;
+            import
+                .read_rows(&text, input, &c, &mut session)
+                .map_err(|e| to_py(&e, "input", Otherwise::Value))?;
+        }
+        if session.is_empty() {
+            return Err(value_error(format!(
+                "no row imported from {} file(s)",
+                inputs.len()
+            )));
+        }
+        Ok(session)
+    })?;
+    Ok(Session {
+        session,
+        cell: c,
+        path: None,
+    })
+}

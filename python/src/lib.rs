@@ -42,5 +42,6 @@ fn _handclasp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sim::simulate_session, m)?)?;
     m.add_function(wrap_pyfunction!(sim::plan, m)?)?;
     m.add_function(wrap_pyfunction!(sim::sweep, m)?)?;
+    m.add_function(wrap_pyfunction!(cell::import_session, m)?)?;
     Ok(())
 }
