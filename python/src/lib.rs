@@ -3,12 +3,12 @@
 //! One binding per engine entry point, each a thin shell: numpy arrays in file units (mm,
 //! degrees) → SI → the library the CLI uses → its typed report, serialised by serde to the CLI's
 //! JSON. Long calls run with the GIL released ([`Python::detach`]). Errors become Python
-//! exceptions ([`errors`]): bad arrays and invalid input `ValueError`, files `OSError`
+//! exceptions (`errors`): bad arrays and invalid input `ValueError`, files `OSError`
 //! subclasses, a fit that fails `handclasp.CalibrationError`.
 //!
-//! Modules: [`errors`] (the mapping), [`arrays`] (numpy in and out), [`points`]
-//! (`calibrate_points`), [`robot`] (`Robot`, `fk`), [`cell`] (`Cell`, `Session`),
-//! [`calibrate`] (`calibrate_cell`, `diagnose`), [`sim`] (`simulate_session`, `plan`, `sweep`).
+//! Modules: `errors` (the mapping), `arrays` (numpy in and out), `points`
+//! (`calibrate_points`), `robot` (`Robot`, `fk`), `cell` (`Cell`, `Session`),
+//! `calibrate` (`calibrate_cell`, `diagnose`), `sim` (`simulate_session`, `plan`, `sweep`).
 
 use pyo3::prelude::*;
 

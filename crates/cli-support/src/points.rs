@@ -4,7 +4,7 @@
 //! and the mounts' F-test for the methods that impose them.
 //!
 //! 1. [`points_report`] fits the method (`constrained_soft` when a soft mount is asked for);
-//! 2. [`plausible`] refuses residuals far beyond the alignment noise, naming the likely data
+//! 2. `plausible` refuses residuals far beyond the alignment noise, naming the likely data
 //!    mistake ([`calib_core::explain_misfit`]) and the worst rows (or only warns when forced);
 //! 3. the methods that impose the mounts get [`calib_core::mount_check`]'s F-test.
 
