@@ -58,9 +58,8 @@ def test_sweep_columns(tmp_path):
                 assert (str(got) == v) if isinstance(got, str) else (float(v) == got or (np.isnan(got) and v == "")), k
 
 
-def test_the_gil_is_released(cell, data):
-    """A second Python thread keeps running while calibrate_cell works in Rust."""
-    s = hc.Session.load(data / "mixed.csv", cell)
+def test_the_gil_is_released(cell):
+    """A second Python thread keeps running while plan works in Rust (about a second of CPU)."""
     ticks = []
     done = threading.Event()
 
@@ -70,12 +69,14 @@ def test_the_gil_is_released(cell, data):
             time.sleep(0.001)
 
     t = threading.Thread(target=count)
-    start = time.perf_counter()
     t.start()
-    hc.calibrate_cell(cell, s)
+    time.sleep(0.01)
+    start = time.perf_counter()
+    hc.plan(cell, n=20, candidates=200)
     end = time.perf_counter()
     done.set()
     t.join()
     during = [x for x in ticks if start < x < end]
-    # Held GIL: the counter could not run at all during the call (only at its edges).
-    assert end - start > 0.05 and len(during) >= 10, (end - start, len(during))
+    # With the GIL held the counter could not tick at all during the call (0 or 1 at its edge);
+    # released, it ticks about every millisecond (at least 10 on a loaded machine).
+    assert len(during) >= 10, (end - start, len(during))
