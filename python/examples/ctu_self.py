@@ -27,4 +27,4 @@ print("b1_from_b2 (mm):\n", result.b1_from_b2.round(3))
 print(hc.frame(result.parameters()))                                      # value ± sigma per parameter
 report = result.to_dict()
 print("rows used:", report["rows_used"], "of", report["rows"], "| rejected:", len(report["rejected_points"]),
-      "| contact residual rms (mm):", report.get("groups", {}).get("contact"))
+      "| fitted contact distances (mm):", [round(g["distance_mm"], 3) for g in report["groups"]["contact"]])
