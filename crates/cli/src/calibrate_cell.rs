@@ -52,7 +52,7 @@ pub struct CellArgs {
     pub verbose: bool,
 }
 
-/// `--model`; serialised as its [`ModelArg::name`].
+/// `--model`; the report names it as [`CellModel::name`] does.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum ModelArg {
