@@ -1,5 +1,9 @@
 #![doc = include_str!("../README.md")]
 
+pub mod cell_report;
+pub mod export_dir;
+pub mod points;
+
 /// Ends the process quietly with exit 0 when printing fails because stdout was closed early
 /// (`handclasp … | head`, `sim-cell … | head`): the reader has what it wanted, so no broken-pipe
 /// panic (exit 101). Every other panic goes to the default hook. (`print!` panics on a failed write; SIGPIPE stays ignored,

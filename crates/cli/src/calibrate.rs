@@ -13,9 +13,9 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use calib_core::{
-    constrained_soft, explain_misfit, fit, median_residual_m, mount_check, read_points_csv, Fit,
-    FitReport, Method, Mount, MountCheckReport, MountPair, PointPairs, SoftMountReport,
+    read_points_csv, FitReport, Method, Mount, MountCheckReport, MountPair, PointPairs,
 };
+use cli_support::points::{points_report, PointsError, PointsOptions, CLI_HINTS};
 use serde::Serialize;
 
 use crate::calibrate_cell::CellArgs;
@@ -185,10 +185,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let cfg = config(args.points, args.json, args.force)?;
     let pairs = read_points_csv(&cfg.points)?;
-    let mounts = cfg.mounts.unwrap_or_else(MountPair::floor_floor);
     if !cfg.all {
         let method = cfg.methods[0];
-        let report = fit_report(&pairs, method, &mounts, &cfg)
+        let report = fit_report(&pairs, method, &cfg)
             .with_context(|| format!("{}: method {}", cfg.points.display(), method.name()))?;
         if cfg.json {
             println!("{}", serde_json::to_string_pretty(&report)?);
@@ -199,10 +198,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let mut methods = BTreeMap::new();
     for &m in &cfg.methods {
-        let outcome = match fit_report(&pairs, m, &mounts, &cfg) {
+        let outcome = match fit_report(&pairs, m, &cfg) {
             Ok(r) => MethodOutcome::Fit(Box::new(r)),
             Err(e) => MethodOutcome::NotApplicable {
-                error: format!("{e:#}"),
+                error: format!("{:#}", anyhow::Error::from(e)),
                 method: m,
             },
         };
@@ -247,109 +246,21 @@ fn outcome_text(outcome: &MethodOutcome) -> String {
     }
 }
 
-/// Fits one method (the soft-mount variant for `constrained` when asked) and builds its report.
-/// The methods that impose the mounts also get the mounts' F-test against the points.
-fn fit_report(
-    pairs: &PointPairs,
-    method: Method,
-    mounts: &MountPair,
-    cfg: &Config,
-) -> anyhow::Result<FitReport> {
-    let mut report =
-        if let (Method::Constrained, Some((tilt_sigma, point_sigma))) = (method, cfg.soft) {
-            let soft = constrained_soft(pairs, mounts, tilt_sigma, point_sigma)?;
-            plausible(pairs, &soft.fit, mounts, cfg)?;
-            let mut report = FitReport::new(pairs, &soft.fit, cfg.mounts.as_ref());
-            report.soft_mount = Some(SoftMountReport::new(&soft, tilt_sigma, point_sigma));
-            report
-        } else {
-            let f = fit(pairs, method, mounts)?;
-            plausible(pairs, &f, mounts, cfg)?;
-            FitReport::new(pairs, &f, cfg.mounts.as_ref())
-        };
-    if matches!(method, Method::Paper | Method::Constrained) && cfg.mounts.is_some() {
-        // Fewer than 3 usable points already failed the fit above; anything else is reported.
-        if let Ok(c) = mount_check(pairs, mounts) {
-            report.mount_check = Some(MountCheckReport::new(&c, pairs.len()));
-        }
-    }
-    Ok(report)
-}
-
-/// Rows listed as the worst in a misfit error.
-const WORST_ROWS: usize = 5;
-
-/// Fails when the fit's median residual norm exceeds the expected alignment noise: such residuals
-/// come from a data mistake, not from noise. The error names each mistake whose correction, refitted,
-/// brings the median back below the noise ([`calib_core::explain_misfit`]; ties cannot be told apart
-/// and are listed together), and the worst rows. With `--force` it only warns on stderr. For the
-/// methods that impose mounts it fails only when the free rigid fit is implausible too (otherwise
-/// the mounts are wrong, and the mount check says so).
-fn plausible(pairs: &PointPairs, f: &Fit, mounts: &MountPair, cfg: &Config) -> anyhow::Result<()> {
-    let median = median_residual_m(f);
-    if median <= cfg.expected_noise_m {
-        return Ok(());
-    }
-    // With imposed mounts: if the free rigid fit agrees with the noise, the points are fine and
-    // the mounts are wrong, which the mount check reports (with its advice) instead.
-    if matches!(f.method, Method::Paper | Method::Constrained) {
-        if let Ok(free) = fit(pairs, Method::Lsq, mounts) {
-            if median_residual_m(&free) <= cfg.expected_noise_m {
-                return Ok(());
-            }
-        }
-    }
-    let mut worst: Vec<(usize, f64)> = f
-        .residuals
-        .iter()
-        .enumerate()
-        .map(|(i, r)| (pairs.row(i), r.norm()))
-        .collect();
-    worst.sort_by(|a, b| b.1.total_cmp(&a.1));
-    let worst_txt = worst
-        .iter()
-        .take(WORST_ROWS)
-        .map(|(row, r)| format!("row {row} ({} mm)", mm_text(r * 1e3)))
-        .collect::<Vec<_>>()
-        .join(", ");
-    let found = explain_misfit(pairs, f.method, mounts, cfg.expected_noise_m);
-    let cause = match found.first() {
-        Some(&(_, best)) => {
-            // Equal medians (to 1 %) are the same correction seen differently (e.g. any reflection
-            // of one robot's axes under a free rotation): list them together.
-            let tied: Vec<String> = found
-                .iter()
-                .filter(|c| c.1 <= best * 1.01 + 1e-12)
-                .map(|c| c.0.to_string())
-                .collect();
-            format!(
-                "likely cause (refitting with it corrected gives median {:.3} mm): {}",
-                best * 1e3,
-                tied.join("; or ")
-            )
-        }
-        None => "none of the checked causes explains it (rows shifted by ±1–3, one robot's axes swapped or negated, one robot ×1000 or ×0.001, robots swapped); check the recording and the mounts".into(),
+/// Fits one method through [`cli_support::points::points_report`] (the library the Python
+/// package shares) and prints its warnings (a misfit kept by `--force`) on stderr.
+fn fit_report(pairs: &PointPairs, method: Method, cfg: &Config) -> Result<FitReport, PointsError> {
+    let options = PointsOptions {
+        method,
+        mounts: cfg.mounts,
+        soft: cfg.soft,
+        expected_noise_m: cfg.expected_noise_m,
+        force: cfg.force,
     };
-    let msg = format!(
-        "the residuals are far beyond the alignment noise: median |r| {} mm > expected {} mm (--expected-noise-mm), residual RMS {} mm; {cause}; worst rows: {worst_txt}. Fix the file, or raise --expected-noise-mm, or give --force to keep this fit",
-        mm_text(median * 1e3),
-        mm_text(cfg.expected_noise_m * 1e3),
-        mm_text(f.residual_rms_m() * 1e3)
-    );
-    if cfg.force {
-        eprintln!("WARNING ({}, kept by --force): {msg}", f.method.name());
-        return Ok(());
+    let fitted = points_report(pairs, &options, CLI_HINTS)?;
+    for w in &fitted.warnings {
+        eprintln!("{w}");
     }
-    bail!("{msg}")
-}
-
-/// A length in mm for a message: 3 decimals, scientific notation from 1e6 mm.
-fn mm_text(v_mm: f64) -> String {
-    if v_mm.abs() < 1e6 {
-        format!("{v_mm:.3}")
-    } else {
-        format!("{v_mm:.3e}")
-    }
+    Ok(fitted.report)
 }
 
 /// The text of a failed mount check: what the points say and what to do about it.
@@ -486,7 +397,7 @@ fn write_text(s: &mut String, r: &FitReport) -> std::fmt::Result {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use calib_core::{OutliersReport, PoseForms, UncertaintyReport};
+    use calib_core::{OutliersReport, PoseForms, SoftMountReport, UncertaintyReport};
 
     /// A constrained fit of three points, the second flagged, with every optional part.
     fn report() -> FitReport {

@@ -79,7 +79,7 @@ fn coverage(
         handclasp_cell::problem::FitModel::Placement,
     );
     let c = calib_core::whole_cell::CoverageReport::from(
-        &calib_core::whole_cell::session_coverage(&problem, crate::calibrate_cell::COVERAGE_SEED)
+        &calib_core::whole_cell::session_coverage(&problem, cli_support::cell_report::COVERAGE_SEED)
             .context("the session's coverage of the robots' joint ranges and reach")?,
     );
     for w in c.warnings() {

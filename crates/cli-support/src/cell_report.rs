@@ -1,0 +1,782 @@
+//! The whole-cell calibration's report, as `handclasp calibrate --cell CELL --session SESSION`
+//! and the Python package's `calibrate_cell` give it ([`calibrate_session`]): the fit
+//! (`calib_core::whole_cell::calibrate_cell`) of the session's problem
+//! (`handclasp_cell::cell_problem`), framed by the session.
+//!
+//! 1. [`calibrate_session`] builds the problem (`cell_problem`) and fits it (`calibrate_cell`,
+//!    starting from the cell's `b1_from_b2` when there are too few coincident rows);
+//! 2. it predicts the cooperative accuracy over the session's meeting pairs
+//!    (`predict_cooperative_accuracy`, seed [`P95_SEED`]);
+//! 3. [`CellReport::new`] frames the calibration's report by the session; [`render_text`] prints it.
+//!
+//! Predicted cooperative accuracy: the posterior error of the predicted vector from tip 2 to tip
+//! 1 (b1), over **the session's meeting pairs `(q1_i, q2_i)`** of its coincident and contact rows
+//! (rejected rows included: their joint vectors are still the session's workspace), rms exact,
+//! p95 from a seeded draw (seed [`P95_SEED`]).
+//!
+//! Output units: mm and degrees (ZYZ, `R = Rz(φ)·Ry(θ)·Rz(ψ)`); parameters in their unit (`deg`,
+//! `mm`, `ratio`, `deg/kNm`).
+
+use std::fmt::Write as _;
+
+use calib_core::whole_cell::{
+    calibrate_cell, predict_cooperative_accuracy, session_coverage, CalibrationReport,
+    CellCalibration, CellFitError, CellProblem, CooperativePrediction, CoverageReport, DropReason, FittedPlacementReport, GroupsReport, Kind,
+    NuisanceReport, ParameterReport, PlacementSigmaReport, PriorScaleReport, RejectedRowReport,
+    ScreenOptions, SolveOptions, UnidentifiableReport,
+};
+use calib_core::StopReason;
+use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
+use handclasp_cell::{Cell, Session};
+use serde::Serialize;
+
+/// Seed of the predicted p95's Monte Carlo draw.
+pub const P95_SEED: u64 = 1;
+
+/// Seed of the coverage report's reach samples
+/// (`calib_core::whole_cell::session_coverage`).
+pub const COVERAGE_SEED: u64 = 1;
+
+/// How many of the largest kinematic corrections the text report lists.
+const TEXT_LARGEST: usize = 10;
+
+/// How many partners of a merged parameter the text report names (largest coefficients first).
+const MERGE_PARTNERS_SHOWN: usize = 3;
+
+/// The whole-cell model; serialised as its [`CellModel::name`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum CellModel {
+    /// b1_from_b2 and every identifiable kinematic parameter of both robots (MAP).
+    Kinematic,
+    /// b1_from_b2 only, both robots nominal.
+    Placement,
+}
+
+impl CellModel {
+    /// The problem's model.
+    pub fn fit_model(self) -> FitModel {
+        match self {
+            CellModel::Kinematic => FitModel::Kinematic,
+            CellModel::Placement => FitModel::Placement,
+        }
+    }
+
+    /// `kinematic` or `placement`.
+    pub fn name(self) -> &'static str {
+        match self {
+            CellModel::Kinematic => "kinematic",
+            CellModel::Placement => "placement",
+        }
+    }
+
+    /// From [`CellModel::name`]; `None` for any other text.
+    pub fn from_name(name: &str) -> Option<CellModel> {
+        match name {
+            "kinematic" => Some(CellModel::Kinematic),
+            "placement" => Some(CellModel::Placement),
+            _ => None,
+        }
+    }
+}
+
+/// Why [`calibrate_session`] failed; the caller names the files.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum CellCalibrationError {
+    /// The fit failed (the problem is invalid, or the solver met a non-finite value).
+    #[error(transparent)]
+    Fit(CellFitError),
+    /// The cooperative-accuracy prediction failed.
+    #[error("predicting the cooperative accuracy over the session's meeting pairs")]
+    Prediction(#[source] CellFitError),
+    /// The coverage report (joint ranges and reach) failed.
+    #[error("the session's coverage of the robots' joint ranges and reach")]
+    Coverage(#[source] CellFitError),
+}
+
+/// A whole-cell calibration: its report, the problem and the fit it came from (for the export).
+#[derive(Debug)]
+pub struct SessionCalibration {
+    /// The report (the CLI's JSON).
+    pub report: CellReport,
+    /// The problem fitted.
+    pub problem: CellProblem,
+    /// The calibration (`calibration.fit.estimate` is what an export writes).
+    pub calibration: CellCalibration,
+}
+
+/// Calibrates `session` of `cell` with `model`: the MAP fit with blunder screening, and the
+/// predicted cooperative accuracy over the session's meeting pairs (none without coincident or
+/// contact rows).
+pub fn calibrate_session(
+    cell: &Cell,
+    session: &Session,
+    model: CellModel,
+) -> Result<SessionCalibration, CellCalibrationError> {
+    let problem = cell_problem(cell, session, model.fit_model());
+    let mut solve = SolveOptions::default();
+    if session.points.len() < MIN_COINCIDENT_FOR_START {
+        // Contact, tracker and plane rows alone give no rigid starting placement: start from
+        // the cell's own b1_from_b2.
+        solve.initial_b1_from_b2 = Some(cell.b1_from_b2);
+    }
+    let cal = calibrate_cell(&problem, &solve, &ScreenOptions::default())
+        .map_err(CellCalibrationError::Fit)?;
+    let pairs = session_meeting_pairs(session);
+    let cooperative = if pairs.is_empty() {
+        None
+    } else {
+        let prediction = predict_cooperative_accuracy(&problem, &cal.fit, &pairs, P95_SEED)
+            .map_err(CellCalibrationError::Prediction)?;
+        Some(CooperativeAccuracyReport::new(&prediction, pairs.len()))
+    };
+    let coverage = CoverageReport::from(
+        &session_coverage(&problem, COVERAGE_SEED).map_err(CellCalibrationError::Coverage)?,
+    );
+    let rows_by_kind =
+        (!session.is_handclasp_only()).then(|| RowsByKind::from_counts(session.kind_counts()));
+    let report = CellReport::new(
+        cal.report(&problem),
+        model,
+        session.len(),
+        rows_by_kind,
+        cooperative,
+        coverage,
+    );
+    Ok(SessionCalibration {
+        report,
+        problem,
+        calibration: cal,
+    })
+}
+
+/// Fewer coincident rows than this: the fit starts from the cell's `b1_from_b2` (a rigid start
+/// needs 3 points not on a line).
+const MIN_COINCIDENT_FOR_START: usize = 3;
+
+/// [`CooperativeAccuracyReport::pair_set`].
+const MEETING_PAIR_SET: &str =
+    "meeting pairs (q1_i, q2_i) of the session's coincident and contact rows";
+
+/// The predicted cooperative accuracy over the session's meeting pairs, mm.
+#[derive(Debug, Clone, Serialize)]
+pub struct CooperativeAccuracyReport {
+    /// Which configuration pairs the prediction is over.
+    pub pair_set: &'static str,
+    /// Their number.
+    pub pairs: usize,
+    /// Predicted 95th percentile of the cooperative error, mm.
+    pub predicted_p95: f64,
+    /// Predicted rms of the cooperative error, mm.
+    pub predicted_rms: f64,
+}
+
+impl CooperativeAccuracyReport {
+    /// From the prediction `p` over `pairs` meeting pairs (m → mm).
+    pub fn new(p: &CooperativePrediction, pairs: usize) -> Self {
+        CooperativeAccuracyReport {
+            pair_set: MEETING_PAIR_SET,
+            pairs,
+            predicted_p95: p.predicted_p95_m * 1e3,
+            predicted_rms: p.predicted_rms_m * 1e3,
+        }
+    }
+}
+
+/// A session's rows by observation kind, in [`Kind::ALL`]'s order inside; serialised as an
+/// object keyed by [`Kind::name`] in alphabetical order (the JSON key order of every report).
+#[derive(Debug, Clone, Copy)]
+pub struct RowsByKind([usize; Kind::ALL.len()]);
+
+impl RowsByKind {
+    /// From [`handclasp_cell::Session::kind_counts`] (one count per [`Kind::ALL`] entry).
+    pub fn from_counts(counts: [usize; Kind::ALL.len()]) -> Self {
+        RowsByKind(counts)
+    }
+
+    /// The rows of `kind`.
+    pub fn get(&self, kind: Kind) -> usize {
+        Kind::ALL
+            .iter()
+            .position(|k| *k == kind)
+            .map_or(0, |i| self.0[i])
+    }
+}
+
+impl Serialize for RowsByKind {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let sorted: std::collections::BTreeMap<&str, usize> =
+            Kind::ALL.iter().map(|k| (k.name(), self.get(*k))).collect();
+        sorted.serialize(serializer)
+    }
+}
+
+/// What `calibrate --cell` prints: the calibration's report ([`CalibrationReport`], whose
+/// fields these are, see there) framed by the session (`model`, `rows`, `rows_by_kind`,
+/// `cooperative_accuracy_mm`). `--json` serialises it; [`render_text`] reads it.
+///
+/// Fields in alphabetical order: the JSON key order (that of the `serde_json::Value` this
+/// report was before it had types).
+#[derive(Debug, Clone, Serialize)]
+pub struct CellReport {
+    /// The fitted `b1_from_b2` (mm, ZYZ deg) with its posterior σ per axis.
+    pub b1_from_b2: FittedPlacementReport,
+    /// `None` (JSON null) for a session without coincident or contact rows.
+    pub cooperative_accuracy_mm: Option<CooperativeAccuracyReport>,
+    /// The session's joint ranges and tool-point region against the limits and the reach
+    /// (its [`CoverageReport::warnings`] are the caller's to print).
+    pub coverage: CoverageReport,
+    /// The data χ² at the solution (residuals in their σ).
+    pub data_chi2: f64,
+    /// Parameter directions the data determine (not the prior).
+    pub data_determined_directions: usize,
+    /// Only for a session with rows other than plain handclasps (with `rows_by_kind`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub groups: Option<GroupsReport>,
+    /// Solver iterations.
+    pub iterations: usize,
+    /// The model fitted.
+    pub model: CellModel,
+    /// The blunder screen's noise scale (residuals' variance factor).
+    pub noise_scale: f64,
+    /// The session's nuisance parameters (tracker frames, scales, planes, contact distances).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub nuisance_parameters: Vec<NuisanceReport>,
+    /// The fitted kinematic parameters with their σ and prior σ, in their units.
+    pub parameters: Vec<ParameterReport>,
+    /// Parameter directions the prior decides.
+    pub prior_dominated_directions: usize,
+    /// The prior scale chosen by the evidence.
+    pub prior_scale: PriorScaleReport,
+    /// Rows rejected as blunders.
+    pub rejected_points: Vec<RejectedRowReport>,
+    /// Residual rows of the final fit.
+    pub residual_rows: usize,
+    /// The session's rows of all kinds.
+    pub rows: usize,
+    /// Only for a session with rows other than plain handclasps (with `groups`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rows_by_kind: Option<RowsByKind>,
+    /// The session's rows used (not rejected).
+    pub rows_used: usize,
+    /// Why the solver stopped.
+    pub stopped: StopReason,
+    /// Parameters the session cannot determine, and why.
+    pub unidentifiable: Vec<UnidentifiableReport>,
+}
+
+impl CellReport {
+    /// The calibration's report `cal` framed by the session: its `model`, its number of `rows`,
+    /// its rows by kind (`Some` for a session with rows other than plain handclasps, which then
+    /// also shows the nuisance groups) and the predicted cooperative accuracy.
+    pub fn new(
+        cal: CalibrationReport,
+        model: CellModel,
+        rows: usize,
+        rows_by_kind: Option<RowsByKind>,
+        cooperative_accuracy_mm: Option<CooperativeAccuracyReport>,
+        coverage: CoverageReport,
+    ) -> Self {
+        let CalibrationReport {
+            b1_from_b2,
+            data_chi2,
+            data_determined_directions,
+            groups,
+            iterations,
+            noise_scale,
+            nuisance_parameters,
+            parameters,
+            prior_dominated_directions,
+            prior_scale,
+            rejected_points,
+            residual_rows,
+            rows_used,
+            stopped,
+            unidentifiable,
+        } = cal;
+        CellReport {
+            b1_from_b2,
+            cooperative_accuracy_mm,
+            coverage,
+            data_chi2,
+            data_determined_directions,
+            groups: rows_by_kind.is_some().then_some(groups),
+            iterations,
+            model,
+            noise_scale,
+            nuisance_parameters,
+            parameters,
+            prior_dominated_directions,
+            prior_scale,
+            rejected_points,
+            residual_rows,
+            rows,
+            rows_by_kind,
+            rows_used,
+            stopped,
+            unidentifiable,
+        }
+    }
+}
+
+/// A group name as the text report quotes it: a JSON string.
+fn quoted(name: &str) -> String {
+    serde_json::to_string(name).unwrap_or_else(|_| format!("\"{name}\""))
+}
+
+/// The text report (mm, degrees).
+pub fn render_text(r: &CellReport) -> String {
+    let mut s = String::new();
+    // Writing into a String cannot fail.
+    let _ = write_text(&mut s, r);
+    s
+}
+
+fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
+    writeln!(
+        s,
+        "== whole-cell calibration, model {} ({} of {} rows used)",
+        r.model.name(),
+        r.rows_used,
+        r.rows
+    )?;
+    let b = &r.b1_from_b2;
+    let (xyz, zyz) = (b.xyz_mm, b.zyz_deg);
+    writeln!(
+        s,
+        "b1_from_b2:  x {:.3} mm  y {:.3} mm  z {:.3} mm   φ {:.4}°  θ {:.4}°  ψ {:.4}°  (ZYZ, R = Rz(φ)·Ry(θ)·Rz(ψ))",
+        xyz[0], xyz[1], xyz[2], zyz[0], zyz[1], zyz[2]
+    )?;
+    writeln!(s, "{}", placement_sigma_line(&b.sigma))?;
+    let params = &r.parameters;
+    if params.is_empty() {
+        writeln!(s, "kinematic parameters: none fitted (both robots nominal)")?;
+    } else {
+        let mut ranked: Vec<&ParameterReport> = params.iter().collect();
+        let size = |p: &ParameterReport| (p.value / p.prior_sigma).abs();
+        ranked.sort_by(|a, b| size(b).total_cmp(&size(a)));
+        writeln!(
+            s,
+            "kinematic parameters: {} fitted; the {} largest corrections (in prior σ):",
+            params.len(),
+            TEXT_LARGEST.min(params.len())
+        )?;
+        for p in ranked.iter().take(TEXT_LARGEST) {
+            let unit = p.unit.name();
+            writeln!(
+                s,
+                "  {:<40} {:>+10.4} {unit:<4} ± {:.4} {unit:<4} (prior σ {:.4}; {:.1} σ)",
+                p.name,
+                p.value,
+                p.sigma,
+                p.prior_sigma,
+                size(p)
+            )?;
+        }
+    }
+    if !r.unidentifiable.is_empty() {
+        writeln!(
+            s,
+            "not identifiable from this session ({}; held at nominal, their prior kept in the prediction):",
+            r.unidentifiable.len()
+        )?;
+        for d in &r.unidentifiable {
+            writeln!(s, "  {}", dropped_line(d))?;
+        }
+    }
+    if r.rejected_points.is_empty() {
+        writeln!(
+            s,
+            "blunders: none (no row's studentised residual above the Bonferroni limit)"
+        )?;
+    } else {
+        writeln!(
+            s,
+            "blunders: rejected and refitted without them; re-record these rows:"
+        )?;
+        for b in &r.rejected_points {
+            writeln!(
+                s,
+                "  row {:>4}: {:.1} σ (residual {:.3} mm)",
+                b.row, b.size_sigma, b.residual_mm
+            )?;
+        }
+    }
+    if r.model == CellModel::Placement {
+        writeln!(
+            s,
+            "note: the placement model takes both robots' nominal kinematics as exact; its blunder screen and \
+             predicted accuracy allow for their errors only as extra noise, from the residuals' variance \
+             factor (use --model kinematic to fit them)"
+        )?;
+    }
+    if let (Some(g), Some(k)) = (&r.groups, &r.rows_by_kind) {
+        writeln!(
+            s,
+            "rows by kind: {} coincident, {} contact, {} tracker, {} plane",
+            k.get(Kind::Coincident),
+            k.get(Kind::Contact),
+            k.get(Kind::Tracker),
+            k.get(Kind::Plane)
+        )?;
+        for c in &g.contact {
+            writeln!(
+                s,
+                "  contact group {}: distance {:.3} mm ({})",
+                quoted(&c.group),
+                c.distance_mm,
+                if c.fitted { "fitted" } else { "given" }
+            )?;
+        }
+        for p in &g.plane {
+            writeln!(
+                s,
+                "  plane group {}: normal ({:.5}, {:.5}, {:.5}), offset {:.3} mm (base of robot {})",
+                quoted(&p.group),
+                p.normal[0],
+                p.normal[1],
+                p.normal[2],
+                p.offset_mm,
+                p.anchor_robot.number()
+            )?;
+        }
+        for t in &g.tracker {
+            let xyz = t.anchor_from_tracker.xyz_mm;
+            writeln!(
+                s,
+                "  tracker group {}: origin ({:.3}, {:.3}, {:.3}) mm in the base of robot {}",
+                quoted(&t.group),
+                xyz[0],
+                xyz[1],
+                xyz[2],
+                t.anchor_robot.number()
+            )?;
+        }
+    }
+    match &r.cooperative_accuracy_mm {
+        None => writeln!(
+            s,
+            "predicted cooperative accuracy: none (no coincident or contact row: no meeting pair)"
+        )?,
+        Some(c) => writeln!(
+            s,
+            "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the {} meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms {:.3} mm, p95 {:.3} mm",
+            c.pairs, c.predicted_rms, c.predicted_p95
+        )?,
+    }
+    for line in r.coverage.text_lines() {
+        writeln!(s, "{line}")?;
+    }
+    if params.is_empty() {
+        writeln!(
+            s,
+            "prior scale: none (no kinematic parameter fitted); blunder-screen noise scale {:.3}",
+            r.noise_scale
+        )?;
+    } else {
+        writeln!(
+            s,
+            "prior scale chosen by the evidence: {} (prior σ = scale × tolerance/√3; 1e-3 = placement-only limit); blunder-screen noise scale {:.3}",
+            r.prior_scale.chosen, r.noise_scale
+        )?;
+    }
+    writeln!(
+        s,
+        "solver: {} after {} iterations (data χ² {:.1} over {} residual rows)",
+        r.stopped.name(),
+        r.iterations,
+        r.data_chi2,
+        r.residual_rows
+    )
+}
+
+/// The placement's posterior σ per axis, each with its prior σ (`free` without a prior).
+fn placement_sigma_line(sigma: &[PlacementSigmaReport]) -> String {
+    let parts: Vec<String> = sigma
+        .iter()
+        .map(|p| {
+            let unit = p.unit.name();
+            let prior = match p.prior_sigma {
+                Some(s) => format!("prior {s:.4} {unit}"),
+                None => "prior: free".to_string(),
+            };
+            format!(
+                "{} ± {:.4} {unit} ({prior})",
+                p.name.trim_start_matches("b1_from_b2 "),
+                p.sigma,
+            )
+        })
+        .collect();
+    format!("b1_from_b2 posterior σ: {}", parts.join(", "))
+}
+
+/// One readable line per dropped parameter: why, and for a merge its largest partners.
+fn dropped_line(d: &UnidentifiableReport) -> String {
+    let name = &d.name;
+    match d.reason {
+        DropReason::Merged => {
+            let mut into: Vec<(&str, f64)> = d
+                .merged_into
+                .iter()
+                .flatten()
+                .map(|m| (m.parameter.as_str(), m.coefficient))
+                .collect();
+            into.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+            let shown: Vec<String> = into
+                .iter()
+                .take(MERGE_PARTNERS_SHOWN)
+                .map(|(n, c)| format!("{c:+.3}·{n}"))
+                .collect();
+            let more = into.len().saturating_sub(MERGE_PARTNERS_SHOWN);
+            let more = if more > 0 {
+                format!(" and {more} smaller")
+            } else {
+                String::new()
+            };
+            format!(
+                "{name}: merged into {}{more} (coefficients in prior σ)",
+                shown.join(", ")
+            )
+        }
+        DropReason::ConfoundedWithPlacement => format!("{name}: absorbed by b1_from_b2"),
+        DropReason::NoEffect => format!("{name}: moves no observed tip"),
+        DropReason::PriorDecided => {
+            format!("{name}: barely seen by the data, the prior decides it")
+        }
+        _ => d.why.clone(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use calib_core::whole_cell::{
+        ContactGroupReport, LogEvidenceReport, MergePartner, ParamIdentity, PlaneGroupReport,
+        ReportUnit, TrackerGroupReport,
+    };
+    use calib_core::{PoseMmDeg, Robot};
+
+    fn sigma(name: &str, unit: ReportUnit, prior: Option<f64>) -> PlacementSigmaReport {
+        PlacementSigmaReport {
+            name: format!("b1_from_b2 {name}"),
+            prior_sigma: prior,
+            sigma: 0.25,
+            unit,
+        }
+    }
+
+    fn dropped(
+        name: &str,
+        reason: DropReason,
+        into: Option<Vec<(&str, f64)>>,
+    ) -> UnidentifiableReport {
+        UnidentifiableReport {
+            identity: None,
+            independent_fraction: 0.0,
+            merged_into: into.map(|v| {
+                v.into_iter()
+                    .map(|(p, c)| MergePartner {
+                        coefficient: c,
+                        parameter: p.into(),
+                    })
+                    .collect()
+            }),
+            name: name.into(),
+            reason,
+            why: format!("{name} is confounded with the nuisances"),
+        }
+    }
+
+    /// A kinematic fit of a mixed session with one blunder, every section of the text filled.
+    fn mixed_report() -> CellReport {
+        let parameter = |name: &str, value: f64, prior_sigma: f64| ParameterReport {
+            identity: ParamIdentity {
+                axis: None,
+                joint: Some(2),
+                kind: "joint_offset",
+                robot: Robot::One,
+            },
+            name: name.into(),
+            prior_sigma,
+            sigma: 0.01,
+            unit: ReportUnit::Deg,
+            value,
+        };
+        CellReport {
+            b1_from_b2: FittedPlacementReport {
+                quaternion_wxyz: [1.0, 0.0, 0.0, 0.0],
+                rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+                sigma: vec![
+                    sigma("translation x", ReportUnit::Mm, Some(2.0)),
+                    sigma("rotation z", ReportUnit::Deg, None),
+                ],
+                xyz_mm: [1303.25, -102.5, 1386.125],
+                zyz_deg: [180.0, 89.874, -179.997],
+            },
+            cooperative_accuracy_mm: Some(CooperativeAccuracyReport::new(
+                &CooperativePrediction {
+                    predicted_rms_m: 1.5e-3,
+                    predicted_p95_m: 2.75e-3,
+                    per_pair_rms_m: vec![],
+                },
+                14,
+            )),
+            coverage: CoverageReport {
+                reach_samples: 4000,
+                robots: vec![],
+                seed: 1,
+            },
+            data_chi2: 62.46,
+            data_determined_directions: 3,
+            groups: Some(GroupsReport {
+                contact: vec![ContactGroupReport {
+                    distance_mm: 100.0214,
+                    fitted: true,
+                    group: "pins \"a\"".into(),
+                }],
+                plane: vec![PlaneGroupReport {
+                    anchor_robot: Robot::Two,
+                    group: "table".into(),
+                    normal: [0.0, 0.6, -0.8],
+                    offset_mm: -971.3256,
+                }],
+                tracker: vec![TrackerGroupReport {
+                    anchor_from_tracker: PoseMmDeg {
+                        xyz_mm: [-1226.9961, 1146.2934, 1295.3159],
+                        zyz_deg: [0.0; 3],
+                    },
+                    anchor_robot: Robot::One,
+                    group: "leica".into(),
+                }],
+            }),
+            iterations: 4,
+            model: CellModel::Kinematic,
+            noise_scale: 1.0,
+            nuisance_parameters: vec![],
+            parameters: vec![
+                parameter("robot 1 joint_offset joint 2", 0.001, 0.01),
+                parameter("robot 1 joint_offset joint 3", -0.02, 0.01),
+            ],
+            prior_dominated_directions: 1,
+            prior_scale: PriorScaleReport {
+                chosen: 0.0625,
+                log_evidence: vec![LogEvidenceReport {
+                    log_evidence: -3.5,
+                    scale: 0.0625,
+                }],
+            },
+            rejected_points: vec![RejectedRowReport {
+                residual_mm: 7.1234,
+                row: 6,
+                size_sigma: 21.04,
+            }],
+            residual_rows: 80,
+            rows: 41,
+            rows_by_kind: Some(RowsByKind::from_counts([7, 8, 13, 13, 0])),
+            rows_used: 40,
+            stopped: StopReason::Converged,
+            unidentifiable: vec![
+                dropped(
+                    "robot 1 origin_xyz joint 2 z",
+                    DropReason::Merged,
+                    Some(vec![("a", 0.1), ("b", -0.9), ("c", 0.5), ("d", 0.05)]),
+                ),
+                dropped(
+                    "robot 2 joint_offset joint 1",
+                    DropReason::ConfoundedWithPlacement,
+                    None,
+                ),
+                dropped("robot 1 joint_offset joint 7", DropReason::NoEffect, None),
+                dropped("robot 1 tool `tip` tip x", DropReason::PriorDecided, None),
+                dropped(
+                    "robot 1 origin_xyz joint 1 x",
+                    DropReason::ConfoundedWithNuisance,
+                    None,
+                ),
+            ],
+        }
+    }
+
+    /// Every line of the text comes from a typed field: the figures as they were set, the
+    /// corrections ranked by size in prior σ, merges with their three largest partners, the
+    /// groups quoted as JSON strings.
+    #[test]
+    fn text_of_a_mixed_kinematic_fit() {
+        let text = render_text(&mixed_report());
+        let expected = [
+            "== whole-cell calibration, model kinematic (40 of 41 rows used)",
+            "b1_from_b2:  x 1303.250 mm  y -102.500 mm  z 1386.125 mm   φ 180.0000°  θ 89.8740°  ψ -179.9970°  (ZYZ, R = Rz(φ)·Ry(θ)·Rz(ψ))",
+            "b1_from_b2 posterior σ: translation x ± 0.2500 mm (prior 2.0000 mm), rotation z ± 0.2500 deg (prior: free)",
+            "kinematic parameters: 2 fitted; the 2 largest corrections (in prior σ):",
+            "  robot 1 joint_offset joint 3                -0.0200 deg  ± 0.0100 deg  (prior σ 0.0100; 2.0 σ)",
+            "  robot 1 joint_offset joint 2                +0.0010 deg  ± 0.0100 deg  (prior σ 0.0100; 0.1 σ)",
+            "not identifiable from this session (5; held at nominal, their prior kept in the prediction):",
+            "  robot 1 origin_xyz joint 2 z: merged into -0.900·b, +0.500·c, +0.100·a and 1 smaller (coefficients in prior σ)",
+            "  robot 2 joint_offset joint 1: absorbed by b1_from_b2",
+            "  robot 1 joint_offset joint 7: moves no observed tip",
+            "  robot 1 tool `tip` tip x: barely seen by the data, the prior decides it",
+            "  robot 1 origin_xyz joint 1 x is confounded with the nuisances",
+            "blunders: rejected and refitted without them; re-record these rows:",
+            "  row    6: 21.0 σ (residual 7.123 mm)",
+            "rows by kind: 7 coincident, 8 contact, 13 tracker, 13 plane",
+            "  contact group \"pins \\\"a\\\"\": distance 100.021 mm (fitted)",
+            "  plane group \"table\": normal (0.00000, 0.60000, -0.80000), offset -971.326 mm (base of robot 2)",
+            "  tracker group \"leica\": origin (-1226.996, 1146.293, 1295.316) mm in the base of robot 1",
+            "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the 14 meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms 1.500 mm, p95 2.750 mm",
+            "coverage (the session against the joint limits and the reach sampled at 4000 joint vectors within them; a calibration is extrapolated outside it):",
+            "prior scale chosen by the evidence: 0.0625 (prior σ = scale × tolerance/√3; 1e-3 = placement-only limit); blunder-screen noise scale 1.000",
+            "solver: converged after 4 iterations (data χ² 62.5 over 80 residual rows)",
+        ];
+        assert_eq!(text.lines().collect::<Vec<_>>(), expected);
+    }
+
+    /// A placement fit of plain handclasps without meeting pairs: no parameters, the placement
+    /// note, no groups, and "none" for the accuracy and the prior scale; the JSON then has no
+    /// `groups`, `rows_by_kind` or `nuisance_parameters` and a null accuracy.
+    #[test]
+    fn text_and_json_of_a_placement_fit_without_groups() {
+        let mut r = mixed_report();
+        r.model = CellModel::Placement;
+        r.parameters.clear();
+        r.unidentifiable.clear();
+        r.rejected_points.clear();
+        r.groups = None;
+        r.rows_by_kind = None;
+        r.cooperative_accuracy_mm = None;
+        let text = render_text(&r);
+        for line in [
+            "== whole-cell calibration, model placement (40 of 41 rows used)",
+            "kinematic parameters: none fitted (both robots nominal)",
+            "blunders: none (no row's studentised residual above the Bonferroni limit)",
+            "predicted cooperative accuracy: none (no coincident or contact row: no meeting pair)",
+            "prior scale: none (no kinematic parameter fitted); blunder-screen noise scale 1.000",
+        ] {
+            assert!(
+                text.lines().any(|l| l == line),
+                "{line:?} missing in\n{text}"
+            );
+        }
+        assert!(text.contains("(use --model kinematic to fit them)"));
+        assert!(!text.contains("not identifiable") && !text.contains("rows by kind"));
+        let json = serde_json::to_string(&r).unwrap();
+        for absent in ["\"groups\"", "\"rows_by_kind\"", "\"nuisance_parameters\""] {
+            assert!(!json.contains(absent), "{absent} in {json}");
+        }
+        assert!(json.contains("\"cooperative_accuracy_mm\":null"));
+        assert!(json.contains("\"model\":\"placement\""));
+    }
+
+    /// The JSON's keys stand in alphabetical order at every level (the order of the
+    /// `serde_json::Value`, a BTreeMap, that this report was before it had types).
+    #[test]
+    fn json_keys_in_value_order() {
+        let json = serde_json::to_string(&mixed_report()).unwrap();
+        let value: serde_json::Value = serde_json::from_str(&json).unwrap();
+        assert_eq!(
+            json,
+            serde_json::to_string(&value).unwrap(),
+            "keys out of alphabetical order"
+        );
+    }
+}

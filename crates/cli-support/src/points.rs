@@ -1,0 +1,196 @@
+//! A points fit's report, as `handclasp calibrate POINTS.csv` and the Python package's
+//! `calibrate_points` give it: the fit ([`calib_core::fit`], or the soft-mount variant of
+//! `constrained`), the plausibility check of its residuals against the expected alignment noise,
+//! and the mounts' F-test for the methods that impose them.
+//!
+//! 1. [`points_report`] fits the method (`constrained_soft` when a soft mount is asked for);
+//! 2. `plausible` refuses residuals far beyond the alignment noise, naming the likely data
+//!    mistake ([`calib_core::explain_misfit`]) and the worst rows (or only warns when forced);
+//! 3. the methods that impose the mounts get [`calib_core::mount_check`]'s F-test.
+
+use calib_core::{
+    constrained_soft, explain_misfit, fit, median_residual_m, mount_check, CalibError, Fit,
+    FitReport, Method, MountCheckReport, MountPair, PointPairs, SoftMountReport,
+};
+
+/// How a points fit runs ([`points_report`]).
+#[derive(Debug, Clone)]
+pub struct PointsOptions {
+    /// The method.
+    pub method: Method,
+    /// The installation's mounts as given (`None`: none given; the fit then uses floor-floor
+    /// where a method needs some, and the report says "none given").
+    pub mounts: Option<MountPair>,
+    /// Soft mount for `constrained`: (prior σ of the mount tilt, rad; point noise σ per
+    /// coordinate, m). Ignored by the other methods.
+    pub soft: Option<(f64, f64)>,
+    /// Expected handclasp alignment noise, m: a fit whose median residual norm exceeds it fails.
+    pub expected_noise_m: f64,
+    /// Keep an implausible fit (the check's text is returned as a warning instead).
+    pub force: bool,
+}
+
+/// The names a misfit message gives the two ways out, as the caller spells them
+/// (`--expected-noise-mm` and `--force` on the command line).
+#[derive(Debug, Clone, Copy)]
+pub struct MisfitHints {
+    /// The option that sets the expected alignment noise.
+    pub noise: &'static str,
+    /// The option that keeps the fit anyway.
+    pub force: &'static str,
+}
+
+/// The command line's names ([`MisfitHints`]).
+pub const CLI_HINTS: MisfitHints = MisfitHints {
+    noise: "--expected-noise-mm",
+    force: "--force",
+};
+
+/// Why a points fit failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PointsError {
+    /// The method cannot fit these points (too few, collinear, …).
+    #[error(transparent)]
+    Fit(#[from] CalibError),
+    /// The residuals are far beyond the alignment noise: the message names the likely data
+    /// mistake and the worst rows.
+    #[error("{0}")]
+    Misfit(String),
+}
+
+/// A points fit's report and the warnings to show beside it (a misfit kept by `force`).
+#[derive(Debug, Clone)]
+pub struct PointsFit {
+    /// The report (the CLI's JSON).
+    pub report: FitReport,
+    /// The fitted model, SI units.
+    pub fit: Fit,
+    /// Warnings for stderr, each starting `WARNING (method, kept by …)`.
+    pub warnings: Vec<String>,
+}
+
+/// Fits one method (the soft-mount variant for `constrained` when asked) and builds its report.
+/// The methods that impose the mounts also get the mounts' F-test against the points.
+///
+/// Errors: [`PointsError::Fit`] when the method does not apply; [`PointsError::Misfit`] when the
+/// median residual norm exceeds `options.expected_noise_m` and `options.force` is off.
+pub fn points_report(
+    pairs: &PointPairs,
+    options: &PointsOptions,
+    hints: MisfitHints,
+) -> Result<PointsFit, PointsError> {
+    let method = options.method;
+    let mounts = options.mounts.unwrap_or_else(MountPair::floor_floor);
+    let mut warnings = Vec::new();
+    let (mut report, f) =
+        if let (Method::Constrained, Some((tilt_sigma, point_sigma))) = (method, options.soft) {
+            let soft = constrained_soft(pairs, &mounts, tilt_sigma, point_sigma)?;
+            warnings.extend(plausible(pairs, &soft.fit, &mounts, options, hints)?);
+            let mut report = FitReport::new(pairs, &soft.fit, options.mounts.as_ref());
+            report.soft_mount = Some(SoftMountReport::new(&soft, tilt_sigma, point_sigma));
+            (report, soft.fit)
+        } else {
+            let f = fit(pairs, method, &mounts)?;
+            warnings.extend(plausible(pairs, &f, &mounts, options, hints)?);
+            (FitReport::new(pairs, &f, options.mounts.as_ref()), f)
+        };
+    if matches!(method, Method::Paper | Method::Constrained) && options.mounts.is_some() {
+        // Fewer than 3 usable points already failed the fit above; anything else is reported.
+        if let Ok(c) = mount_check(pairs, &mounts) {
+            report.mount_check = Some(MountCheckReport::new(&c, pairs.len()));
+        }
+    }
+    Ok(PointsFit {
+        report,
+        fit: f,
+        warnings,
+    })
+}
+
+/// Rows listed as the worst in a misfit error.
+const WORST_ROWS: usize = 5;
+
+/// Fails when the fit's median residual norm exceeds the expected alignment noise: such residuals
+/// come from a data mistake, not from noise. The error names each mistake whose correction, refitted,
+/// brings the median back below the noise ([`calib_core::explain_misfit`]; ties cannot be told apart
+/// and are listed together), and the worst rows. With `force` it returns the text as a warning. For
+/// the methods that impose mounts it fails only when the free rigid fit is implausible too (otherwise
+/// the mounts are wrong, and the mount check says so).
+fn plausible(
+    pairs: &PointPairs,
+    f: &Fit,
+    mounts: &MountPair,
+    options: &PointsOptions,
+    hints: MisfitHints,
+) -> Result<Option<String>, PointsError> {
+    let median = median_residual_m(f);
+    if median <= options.expected_noise_m {
+        return Ok(None);
+    }
+    // With imposed mounts: if the free rigid fit agrees with the noise, the points are fine and
+    // the mounts are wrong, which the mount check reports (with its advice) instead.
+    if matches!(f.method, Method::Paper | Method::Constrained) {
+        if let Ok(free) = fit(pairs, Method::Lsq, mounts) {
+            if median_residual_m(&free) <= options.expected_noise_m {
+                return Ok(None);
+            }
+        }
+    }
+    let mut worst: Vec<(usize, f64)> = f
+        .residuals
+        .iter()
+        .enumerate()
+        .map(|(i, r)| (pairs.row(i), r.norm()))
+        .collect();
+    worst.sort_by(|a, b| b.1.total_cmp(&a.1));
+    let worst_txt = worst
+        .iter()
+        .take(WORST_ROWS)
+        .map(|(row, r)| format!("row {row} ({} mm)", mm_text(r * 1e3)))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let found = explain_misfit(pairs, f.method, mounts, options.expected_noise_m);
+    let cause = match found.first() {
+        Some(&(_, best)) => {
+            // Equal medians (to 1 %) are the same correction seen differently (e.g. any reflection
+            // of one robot's axes under a free rotation): list them together.
+            let tied: Vec<String> = found
+                .iter()
+                .filter(|c| c.1 <= best * 1.01 + 1e-12)
+                .map(|c| c.0.to_string())
+                .collect();
+            format!(
+                "likely cause (refitting with it corrected gives median {:.3} mm): {}",
+                best * 1e3,
+                tied.join("; or ")
+            )
+        }
+        None => "none of the checked causes explains it (rows shifted by ±1–3, one robot's axes swapped or negated, one robot ×1000 or ×0.001, robots swapped); check the recording and the mounts".into(),
+    };
+    let msg = format!(
+        "the residuals are far beyond the alignment noise: median |r| {} mm > expected {} mm ({noise}), residual RMS {} mm; {cause}; worst rows: {worst_txt}. Fix the file, or raise {noise}, or give {force} to keep this fit",
+        mm_text(median * 1e3),
+        mm_text(options.expected_noise_m * 1e3),
+        mm_text(f.residual_rms_m() * 1e3),
+        noise = hints.noise,
+        force = hints.force,
+    );
+    if options.force {
+        return Ok(Some(format!(
+            "WARNING ({}, kept by {}): {msg}",
+            f.method.name(),
+            hints.force
+        )));
+    }
+    Err(PointsError::Misfit(msg))
+}
+
+/// A length in mm for a message: 3 decimals, scientific notation from 1e6 mm.
+pub fn mm_text(v_mm: f64) -> String {
+    if v_mm.abs() < 1e6 {
+        format!("{v_mm:.3}")
+    } else {
+        format!("{v_mm:.3e}")
+    }
+}

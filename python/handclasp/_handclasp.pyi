@@ -1,0 +1,208 @@
+"""Type stubs of the native module (see handclasp/__init__.py for the package's overview)."""
+
+from os import PathLike
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+_Path = Union[str, "PathLike[str]"]
+_Array = npt.ArrayLike
+_F64 = npt.NDArray[np.float64]
+
+__version__: str
+
+class CalibrationError(Exception):
+    """A calibration or diagnosis failed; the message names the cause and the fix."""
+
+class Robot:
+    """A URDF robot model: the chain from the base link to the flange link. Immutable."""
+    @staticmethod
+    def load(path: _Path, tool_link: str = "tool0") -> Robot:
+        """Load a URDF; OSError for an unreadable file, ValueError for an invalid one."""
+    @property
+    def name(self) -> str: ...
+    @property
+    def dof(self) -> int:
+        """Independent joints (the width of q_deg)."""
+    @property
+    def joint_names(self) -> List[str]: ...
+    @property
+    def limits(self) -> List[Tuple[float, float]]:
+        """Joint limits, degrees (mm for a prismatic joint)."""
+
+class Cell:
+    """A cell TOML: two robots (URDFs, tips, mounts, tolerances), b1_from_b2, noise."""
+    @staticmethod
+    def load(path: _Path) -> Cell:
+        """Read a cell TOML; OSError subclasses for files, ValueError for invalid content."""
+    @property
+    def b1_from_b2(self) -> _F64:
+        """The cell's nominal b1_from_b2, (4, 4), translation in mm."""
+    @property
+    def path(self) -> Optional[str]: ...
+    @property
+    def dof(self) -> Tuple[int, int]:
+        """Joint counts of robot 1 and robot 2."""
+    def to_toml(self) -> str: ...
+
+class Session:
+    """A session of one cell: coincident handclasps and rows of the other kinds."""
+    @staticmethod
+    def load(path: _Path, cell: Cell) -> Session:
+        """Read a session CSV of `cell`; ValueError names the line and column."""
+    @staticmethod
+    def from_arrays(
+        cell: Cell,
+        q1_deg: Optional[_Array] = None,
+        q2_deg: Optional[_Array] = None,
+        p1_mm: Optional[_Array] = None,
+        p2_mm: Optional[_Array] = None,
+        point: Optional[Sequence[int]] = None,
+        columns: Optional[Dict[str, Any]] = None,
+    ) -> Session:
+        """A session from arrays: q1_deg (n, dof1), q2_deg (n, dof2) in degrees, tips p1_mm,
+        p2_mm (n, 3) in mm in each robot's base (default: nominal FK), other CSV columns by
+        name in `columns`. Read exactly as the CSV with these columns."""
+    def to_csv(self, path: _Path) -> None: ...
+    def to_csv_string(self) -> str: ...
+    def columns(self) -> Dict[str, Union[_F64, List[str]]]:
+        """The CSV columns by name (numbers float64, NaN for empty; text as lists)."""
+    def to_frame(self) -> Any:
+        """columns() as a pandas DataFrame when pandas is installed, else the dict."""
+    def __len__(self) -> int: ...
+    @property
+    def rows_by_kind(self) -> Dict[str, int]: ...
+    @property
+    def q1_deg(self) -> _F64:
+        """Coincident rows' robot 1 joints, degrees, (n, dof1)."""
+    @property
+    def q2_deg(self) -> _F64:
+        """Coincident rows' robot 2 joints, degrees, (n, dof2)."""
+    @property
+    def p1_mm(self) -> _F64:
+        """Coincident rows' nominal tips of robot 1 in base 1, mm, (n, 3)."""
+    @property
+    def p2_mm(self) -> _F64:
+        """Coincident rows' nominal tips of robot 2 in base 2, mm, (n, 3)."""
+
+class PointsResult:
+    """A points fit: b1_from_b2 and the CLI's report."""
+    @property
+    def b1_from_b2(self) -> _F64:
+        """(4, 4), translation in mm; p_b1 = b1_from_b2 @ p_b2."""
+    @property
+    def method(self) -> str: ...
+    @property
+    def residuals_mm(self) -> _F64:
+        """p_b1 - b1_from_b2·p_b2, mm, (n, 3)."""
+    @property
+    def residual_norms_mm(self) -> _F64: ...
+    @property
+    def residual_rms_mm(self) -> float: ...
+    @property
+    def rows(self) -> List[int]: ...
+    @property
+    def uncertainty(self) -> Optional[Dict[str, Any]]:
+        """Predicted 1σ: e_tran_1sigma_mm, e_rot_1sigma_deg, sigma_point_mm, covariance, ..."""
+    @property
+    def covariance(self) -> Optional[_F64]:
+        """(6, 6) posterior covariance of b1_from_b2, or None."""
+    @property
+    def warnings(self) -> List[str]: ...
+    def to_json(self) -> str: ...
+    def to_dict(self) -> Dict[str, Any]:
+        """Equal to json.loads of `handclasp calibrate POINTS.csv --json`."""
+
+class CellResult:
+    """A whole-cell calibration: b1_from_b2, parameters with σ, predicted accuracy, report."""
+    @property
+    def b1_from_b2(self) -> _F64:
+        """(4, 4), translation in mm."""
+    @property
+    def b1_from_b2_sigma(self) -> _F64:
+        """Posterior σ: translation x, y, z (mm), rotation x, y, z (deg)."""
+    def parameters(self) -> Dict[str, Any]:
+        """Columns name, value, sigma, prior_sigma, unit."""
+    @property
+    def cooperative_accuracy_mm(self) -> Optional[Dict[str, Any]]: ...
+    def export(self, dir: _Path, force: bool = False) -> List[str]:
+        """Write cell.toml, robot1.urdf, robot2.urdf (calibrate --cell --export)."""
+    def text(self) -> str: ...
+    def to_json(self) -> str: ...
+    def to_dict(self) -> Dict[str, Any]:
+        """Equal to json.loads of `handclasp calibrate --cell ... --json`."""
+
+class DiagnoseResult:
+    """A diagnosis: what the nominal models get wrong, and the CLI's report."""
+    @property
+    def mode(self) -> str:
+        """"coincident" or "whole_cell"."""
+    @property
+    def b1_from_b2(self) -> _F64: ...
+    def export(self, dir: _Path, force: bool = False) -> List[str]:
+        """Write the corrected model (diagnose --export)."""
+    def text(self) -> str: ...
+    def to_json(self) -> str: ...
+    def to_dict(self) -> Dict[str, Any]:
+        """Equal to json.loads of `handclasp diagnose ... --json`."""
+
+def calibrate_points(
+    p1_mm: Union[_Array, _Path],
+    p2_mm: Optional[_Array] = None,
+    method: Optional[str] = None,
+    mounts: Optional[str] = None,
+    mount1: Optional[str] = None,
+    mount2: Optional[str] = None,
+    tilt_sigma_deg: Optional[float] = None,
+    point_sigma_mm: float = 0.5,
+    expected_noise_mm: float = 5.0,
+    force: bool = False,
+) -> PointsResult: ...
+def fk(
+    robot: Union[_Path, Robot, Tuple[Cell, int]],
+    q_deg: _Array,
+    tip: Union[None, _Array, str] = None,
+) -> _F64:
+    """base_from_tip, (n, 4, 4) (or (4, 4) for one joint vector), translation in mm."""
+def calibrate_cell(cell: Cell, session: Session, model: str = "kinematic") -> CellResult: ...
+def diagnose(
+    cell: Cell,
+    session: Session,
+    seed: int = 1,
+    trials: int = 400,
+    prior_widening: float = 10.0,
+    truth_xyz_mm: Optional[Sequence[float]] = None,
+    truth_zyz_deg: Optional[Sequence[float]] = None,
+) -> DiagnoseResult: ...
+def simulate_session(
+    cell: Cell,
+    n: int = 6,
+    seed: int = 1,
+    layout: str = "tetrahedron",
+    spread_mm: float = 1000.0,
+    centre_mm: Optional[Sequence[float]] = None,
+    kind: str = "coincident",
+) -> Session: ...
+def plan(
+    cell: Cell,
+    n: int = 40,
+    candidates: int = 400,
+    criterion: str = "a",
+    seed: int = 1,
+    spread_mm: float = 1000.0,
+    centre_mm: Optional[Sequence[float]] = None,
+    random_draws: int = 20,
+) -> Session: ...
+def sweep(
+    mounts: Optional[Sequence[str]] = None,
+    noise_mm: Optional[Sequence[float]] = None,
+    spread_mm: Optional[Sequence[float]] = None,
+    n_points: Optional[Sequence[int]] = None,
+    methods: Optional[Sequence[str]] = None,
+    trials: int = 200,
+    seed: int = 1,
+    trials_table: bool = False,
+) -> Dict[str, Union[_F64, List[str]]]: ...
+def import_session(cell: Cell, map: _Path, inputs: Sequence[_Path]) -> Session:
+    """A dataset's CSV files as a session of `cell`, as a mapping file says (handclasp import)."""

@@ -1,0 +1,354 @@
+//! `calibrate_cell` and `diagnose`: the whole-cell calibration and the diagnosis of a session,
+//! as `handclasp calibrate --cell` and `handclasp diagnose` compute them.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use calib_core::whole_cell::CellEstimate;
+use cli_support::cell_report::{calibrate_session, render_text, CellModel, CellReport};
+use cli_support::export_dir::check_output_folder;
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use numpy::PyArray2;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::arrays::{json_to_py, pose_array, vector};
+use crate::cell::{Cell, Session};
+use crate::errors::{to_py, value_error, Otherwise};
+
+/// Refuses a non-empty export folder unless `force` (the CLI's rule), as `OSError`/`ValueError`.
+fn check_folder(dir: &std::path::Path, force: bool) -> PyResult<()> {
+    check_output_folder(dir, force, "export", "force=True").map_err(|e| match e {
+        cli_support::export_dir::OutputFolderError::NotEmpty { .. } => {
+            crate::errors::os_error(std::io::ErrorKind::AlreadyExists, e.to_string())
+        }
+        e => to_py(&e, "", Otherwise::Value),
+    })
+}
+
+/// The written files as strings.
+fn paths(files: Vec<PathBuf>) -> Vec<String> {
+    files.iter().map(|p| p.display().to_string()).collect()
+}
+
+/// The result of [`calibrate_cell`]: the fitted placement and kinematic parameters, the
+/// predicted cooperative accuracy, and the CLI's report.
+#[pyclass(module = "handclasp", frozen)]
+pub struct CellResult {
+    report: CellReport,
+    estimate: CellEstimate,
+    cell: Arc<handclasp_cell::Cell>,
+    json: String,
+}
+
+#[pymethods]
+impl CellResult {
+    /// The fitted `b1_from_b2` (base 2 in base 1), 4×4, translation in mm.
+    #[getter]
+    fn b1_from_b2<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        pose_array(py, &self.estimate.b1_from_b2)
+    }
+
+    /// The fitted kinematic parameters as columns: `name`, `value`, `sigma` (posterior 1σ),
+    /// `prior_sigma`, `unit` (deg, mm, ratio, deg/kNm). `handclasp` wraps it in a DataFrame when
+    /// pandas is installed.
+    fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let p = &self.report.parameters;
+        let out = PyDict::new(py);
+        out.set_item("name", p.iter().map(|p| p.name.clone()).collect::<Vec<_>>())?;
+        out.set_item("value", vector(py, p.iter().map(|p| p.value).collect()))?;
+        out.set_item("sigma", vector(py, p.iter().map(|p| p.sigma).collect()))?;
+        out.set_item(
+            "prior_sigma",
+            vector(py, p.iter().map(|p| p.prior_sigma).collect()),
+        )?;
+        out.set_item("unit", p.iter().map(|p| p.unit.name()).collect::<Vec<_>>())?;
+        Ok(out)
+    }
+
+    /// `b1_from_b2`'s posterior σ per axis (translation x, y, z in mm; rotation x, y, z in deg),
+    /// shape (6,).
+    #[getter]
+    fn b1_from_b2_sigma<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray1<f64>> {
+        vector(
+            py,
+            self.report
+                .b1_from_b2
+                .sigma
+                .iter()
+                .map(|s| s.sigma)
+                .collect(),
+        )
+    }
+
+    /// The predicted cooperative accuracy over the session's meeting pairs (dict: `pairs`,
+    /// `predicted_rms`, `predicted_p95`, mm), or `None` without coincident or contact rows.
+    #[getter]
+    fn cooperative_accuracy_mm<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.to_dict(py)?.get_item("cooperative_accuracy_mm")
+    }
+
+    /// Writes the calibrated cell into `dir` (`cell.toml`, `robot1.urdf`, `robot2.urdf`), as
+    /// `calibrate --cell --export DIR`; a non-empty folder raises `FileExistsError` unless
+    /// `force`. Returns the files written.
+    #[pyo3(signature = (dir, force=false))]
+    fn export(&self, py: Python<'_>, dir: PathBuf, force: bool) -> PyResult<Vec<String>> {
+        check_folder(&dir, force)?;
+        let files = py
+            .detach(|| {
+                handclasp_cell::export_calibrated_cell(
+                    &self.cell,
+                    &self.estimate,
+                    &dir,
+                    &handclasp_cell::CALIBRATE_EXPORT_NAMES,
+                )
+            })
+            .map_err(|e| to_py(&e, &format!("export {}", dir.display()), Otherwise::Value))?;
+        Ok(paths(files))
+    }
+
+    /// The CLI's text report.
+    fn text(&self) -> String {
+        render_text(&self.report)
+    }
+
+    /// The report as the CLI's JSON text (`calibrate --cell … --json`).
+    fn to_json(&self) -> String {
+        self.json.clone()
+    }
+
+    /// The report as a dict, equal to `json.loads` of the CLI's `--json` output.
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        json_to_py(py, &self.json)
+    }
+
+    fn __repr__(&self) -> String {
+        let b = &self.report.b1_from_b2;
+        format!(
+            "CellResult(model={:?}, rows_used={}, parameters={}, xyz_mm={:?}, zyz_deg={:?})",
+            self.report.model.name(),
+            self.report.rows_used,
+            self.report.parameters.len(),
+            b.xyz_mm,
+            b.zyz_deg
+        )
+    }
+}
+
+/// Calibrates the whole cell from a session, as `handclasp calibrate --cell CELL --session
+/// SESSION --model MODEL` does (the same fit, blunder screen, prediction and report).
+///
+/// `model`: `kinematic` (b1_from_b2 and every identifiable kinematic parameter of both robots,
+/// MAP with the cell's tolerances as the prior) or `placement` (b1_from_b2 alone). Runs with the
+/// GIL released. Errors: `ValueError` for a session of another cell or an unknown model,
+/// `CalibrationError` when the fit fails.
+#[pyfunction]
+#[pyo3(signature = (cell, session, model="kinematic"))]
+pub fn calibrate_cell(
+    py: Python<'_>,
+    cell: &Cell,
+    session: &Session,
+    model: &str,
+) -> PyResult<CellResult> {
+    let Some(model) = CellModel::from_name(model) else {
+        return Err(value_error(format!(
+            "model={model:?}: use \"kinematic\" or \"placement\""
+        )));
+    };
+    if !Arc::ptr_eq(&cell.cell, &session.cell) {
+        return Err(value_error(
+            "session: it was read for another Cell object; load it with this cell (Session.load(path, cell))",
+        ));
+    }
+    let c = Arc::clone(&cell.cell);
+    let calibrated = py
+        .detach(|| calibrate_session(&c, &session.session, model))
+        .map_err(|e| {
+            let context = match (&session.path, &cell.path) {
+                (Some(s), Some(p)) => {
+                    format!("calibrating {} with cell {}", s.display(), p.display())
+                }
+                _ => "calibrating the session".to_string(),
+            };
+            to_py(&e, &context, Otherwise::Calibration)
+        })?;
+    let json = serde_json::to_string_pretty(&calibrated.report)
+        .map_err(|e| value_error(format!("serialising the report: {e}")))?;
+    Ok(CellResult {
+        report: calibrated.report,
+        estimate: calibrated.calibration.fit.estimate,
+        cell: c,
+        json,
+    })
+}
+
+/// What a diagnosis found: the coincident-session report or the whole-cell one.
+enum Diagnosis {
+    /// A session of coincident handclasps only.
+    Coincident(Box<::diagnose::DiagnoseReport>),
+    /// A session with contact, tracker or plane rows.
+    WholeCell(Box<::diagnose::CellDiagnoseReport>),
+}
+
+/// The result of [`diagnose`]: what the nominal models get wrong, and the CLI's report.
+#[pyclass(module = "handclasp", frozen)]
+pub struct DiagnoseResult {
+    diagnosis: Diagnosis,
+    cell: Arc<handclasp_cell::Cell>,
+    json: String,
+}
+
+#[pymethods]
+impl DiagnoseResult {
+    /// `"coincident"` or `"whole_cell"`: which diagnosis ran (by the session's kinds).
+    #[getter]
+    fn mode(&self) -> &'static str {
+        match self.diagnosis {
+            Diagnosis::Coincident(_) => "coincident",
+            Diagnosis::WholeCell(_) => "whole_cell",
+        }
+    }
+
+    /// The diagnosed `b1_from_b2`, 4×4, translation in mm.
+    #[getter]
+    fn b1_from_b2<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        match &self.diagnosis {
+            Diagnosis::Coincident(r) => pose_array(py, &r.b1_from_b2.to_isometry()),
+            Diagnosis::WholeCell(r) => pose_array(py, &r.final_estimate.b1_from_b2),
+        }
+    }
+
+    /// Writes the corrected model into `dir`, as `diagnose --export DIR`; a non-empty folder
+    /// raises `FileExistsError` unless `force`. Returns the files written.
+    #[pyo3(signature = (dir, force=false))]
+    fn export(&self, py: Python<'_>, dir: PathBuf, force: bool) -> PyResult<Vec<String>> {
+        check_folder(&dir, force)?;
+        let files = py
+            .detach(|| match &self.diagnosis {
+                Diagnosis::Coincident(r) => {
+                    ::diagnose::export_corrected(&self.cell, r, &r.b1_from_b2.to_isometry(), &dir)
+                }
+                Diagnosis::WholeCell(r) => ::diagnose::export_cell_diagnosis(&self.cell, r, &dir),
+            })
+            .map_err(|e| to_py(&e, "export", Otherwise::Value))?;
+        Ok(paths(files))
+    }
+
+    /// The CLI's text report.
+    fn text(&self) -> String {
+        match &self.diagnosis {
+            Diagnosis::Coincident(r) => ::diagnose::render_text(r),
+            Diagnosis::WholeCell(r) => ::diagnose::render_cell_text(r),
+        }
+    }
+
+    /// The report as the CLI's JSON text (`diagnose … --json`).
+    fn to_json(&self) -> String {
+        self.json.clone()
+    }
+
+    /// The report as a dict, equal to `json.loads` of the CLI's `--json` output.
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        json_to_py(py, &self.json)
+    }
+
+    fn __repr__(&self) -> String {
+        format!("DiagnoseResult(mode={:?})", self.mode())
+    }
+}
+
+/// Diagnoses what the nominal models get wrong in a measured session, as `handclasp diagnose
+/// --cell CELL --session SESSION` does: a session with contact, tracker or plane rows gets the
+/// whole-cell diagnosis (`prior_widening`), one of coincident handclasps the coincident one
+/// (`seed`, `trials`, optional truth of `b1_from_b2`: `truth_xyz_mm` (3,) mm and
+/// `truth_zyz_deg` (3,) ZYZ degrees). Runs with the GIL released.
+#[pyfunction]
+#[pyo3(signature = (cell, session, seed=1, trials=400, prior_widening=10.0, truth_xyz_mm=None, truth_zyz_deg=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn diagnose(
+    py: Python<'_>,
+    cell: &Cell,
+    session: &Session,
+    seed: u64,
+    trials: usize,
+    prior_widening: f64,
+    truth_xyz_mm: Option<[f64; 3]>,
+    truth_zyz_deg: Option<[f64; 3]>,
+) -> PyResult<DiagnoseResult> {
+    let truth = match (truth_xyz_mm, truth_zyz_deg) {
+        (Some(t), Some(z)) => {
+            if !t.iter().chain(&z).all(|v| v.is_finite()) {
+                return Err(value_error(
+                    "truth_xyz_mm and truth_zyz_deg must be finite numbers",
+                ));
+            }
+            let rot = kinematics::rotation_from_zyz(z.map(f64::to_radians));
+            Some(Isometry3::from_parts(
+                Translation3::from(Vector3::new(t[0], t[1], t[2]) / 1000.0),
+                UnitQuaternion::from_rotation_matrix(&rot),
+            ))
+        }
+        (None, None) => None,
+        _ => return Err(value_error(
+            "give both truth_xyz_mm (x, y, z in mm) and truth_zyz_deg (ZYZ degrees), or neither",
+        )),
+    };
+    if trials < 20 {
+        return Err(value_error(format!(
+            "trials={trials} is too few for a residual distribution: use at least 20 (default 400)"
+        )));
+    }
+    if !Arc::ptr_eq(&cell.cell, &session.cell) {
+        return Err(value_error(
+            "session: it was read for another Cell object; load it with this cell (Session.load(path, cell))",
+        ));
+    }
+    let c = Arc::clone(&cell.cell);
+    let context = match &session.path {
+        Some(p) => format!("diagnosing {}", p.display()),
+        None => "diagnosing the session".to_string(),
+    };
+    let s = &session.session;
+    let (diagnosis, json) = if !s.is_handclasp_only() {
+        if truth.is_some() {
+            return Err(value_error(
+                "truth_* applies to coincident-only sessions; this session has contact, tracker or plane rows (whole-cell diagnosis)",
+            ));
+        }
+        let options = ::diagnose::CellDiagnoseOptions {
+            prior_widening,
+            ..::diagnose::CellDiagnoseOptions::default()
+        };
+        let report = py
+            .detach(|| ::diagnose::diagnose_cell_session(&c, s, &options, &|_| {}))
+            .map_err(|e| to_py(&e, &context, Otherwise::Calibration))?;
+        // The CLI prints this report compact (`serde_json::to_string`).
+        let json = serde_json::to_string(&report).map_err(|e| value_error(e.to_string()))?;
+        (Diagnosis::WholeCell(Box::new(report)), json)
+    } else {
+        let options = ::diagnose::DiagnoseOptions {
+            seed,
+            trials,
+            truth,
+            ..::diagnose::DiagnoseOptions::default()
+        };
+        let report = py
+            .detach(|| {
+                // The CLI reads a coincident session with diagnose's own loader (its unit
+                // checks); a session from arrays is checked by the engine.
+                let loaded = match &session.path {
+                    Some(p) => Some(::diagnose::load_session(p, &c)?),
+                    None => None,
+                };
+                ::diagnose::diagnose_session(&c, loaded.as_ref().unwrap_or(s), &options)
+            })
+            .map_err(|e| to_py(&e, &context, Otherwise::Calibration))?;
+        let json = serde_json::to_string(&report).map_err(|e| value_error(e.to_string()))?;
+        (Diagnosis::Coincident(Box::new(report)), json)
+    };
+    Ok(DiagnoseResult {
+        diagnosis,
+        cell: c,
+        json,
+    })
+}

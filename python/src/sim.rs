@@ -1,0 +1,208 @@
+//! The simulator: `simulate_session` (a simulated measured session) and `plan` (the poses that
+//! calibrate the cell best), as `sim-cell session` and `handclasp plan` compute them.
+
+use std::sync::Arc;
+
+use calib_core::whole_cell::DesignCriterion;
+use nalgebra::Point3;
+use pyo3::prelude::*;
+use sim_cell::plan::{plan_session, PlanSpec, DEFAULT_RANDOM_DRAWS};
+use sim_cell::{generate_kind_session, trial_rng, KindSpec, Layout, SessionSpec, SimKind};
+
+use crate::cell::{Cell, Session};
+use crate::errors::{to_py, value_error, Otherwise};
+
+/// `centre_mm` (3 numbers, mm, b1) in m.
+fn centre(centre_mm: Option<[f64; 3]>) -> PyResult<Option<Point3<f64>>> {
+    match centre_mm {
+        None => Ok(None),
+        Some(c) if c.iter().all(|v| v.is_finite()) => {
+            Ok(Some(Point3::new(c[0], c[1], c[2]) * 1e-3))
+        }
+        Some(c) => Err(value_error(format!(
+            "centre_mm takes three finite numbers x, y, z in mm (e.g. (475, -50, 995)); got {c:?}"
+        ))),
+    }
+}
+
+/// Simulates a measured session of `cell` (its `[robotN.errors]` are the hidden truth, its
+/// `[noise]` the measurement noise), as `sim-cell session --cell CELL --n N --seed SEED` does.
+///
+/// `n`: teach points; `layout`: tetrahedron, random, planar or clustered; `spread_mm`: the
+/// layout's size, mm; `centre_mm`: its centre in b1, mm (default: the cell's teach centre);
+/// `kind`: coincident, contact, face_contact, tracker, plane or mixed (the other kinds' settings
+/// are sim-cell's defaults). Seeded: the same seed gives the same session. Returns a `Session`.
+#[pyfunction]
+#[pyo3(signature = (cell, n=6, seed=1, layout="tetrahedron", spread_mm=1000.0, centre_mm=None, kind="coincident"))]
+#[allow(clippy::too_many_arguments)]
+pub fn simulate_session(
+    py: Python<'_>,
+    cell: &Cell,
+    n: usize,
+    seed: u64,
+    layout: &str,
+    spread_mm: f64,
+    centre_mm: Option<[f64; 3]>,
+    kind: &str,
+) -> PyResult<Session> {
+    let Some(layout) = Layout::from_name(layout) else {
+        return Err(value_error(format!(
+            "layout={layout:?}: use tetrahedron, random, planar or clustered"
+        )));
+    };
+    let kind = match kind {
+        "coincident" => SimKind::Coincident,
+        "contact" => SimKind::Contact,
+        "face_contact" => SimKind::FaceContact,
+        "tracker" => SimKind::Tracker,
+        "plane" => SimKind::Plane,
+        "mixed" => SimKind::Mixed,
+        other => {
+            return Err(value_error(format!(
+                "kind={other:?}: use coincident, contact, face_contact, tracker, plane or mixed"
+            )))
+        }
+    };
+    let mut spec = SessionSpec::new(n, layout, spread_mm * 1e-3);
+    spec.centre_b1 = centre(centre_mm)?;
+    let kinds = KindSpec {
+        kind,
+        ..KindSpec::default()
+    };
+    let c = Arc::clone(&cell.cell);
+    let (session, _truth) = py
+        .detach(|| generate_kind_session(&c, &spec, &kinds, None, &mut trial_rng(seed, 0)))
+        .map_err(|e| to_py(&e, "", Otherwise::Value))?;
+    Ok(Session {
+        session,
+        cell: c,
+        path: None,
+    })
+}
+
+/// Plans a session: the `n` handclasp poses (of `candidates` seeded candidates both robots reach)
+/// that minimise the predicted cooperative error of the whole-cell calibration (`criterion="a"`)
+/// or maximise its information volume (`"d"`), as `handclasp plan` does. `spread_mm`: the side of
+/// the candidates' cube, mm; `centre_mm`: its centre in b1 (default: the cell's teach centre).
+/// Returns the planned poses as a `Session` (joints and nominal tips; `.to_csv` writes the
+/// `plan.csv` the CLI writes).
+#[pyfunction]
+#[pyo3(signature = (cell, n=40, candidates=400, criterion="a", seed=1, spread_mm=1000.0, centre_mm=None, random_draws=DEFAULT_RANDOM_DRAWS))]
+#[allow(clippy::too_many_arguments)]
+pub fn plan(
+    py: Python<'_>,
+    cell: &Cell,
+    n: usize,
+    candidates: usize,
+    criterion: &str,
+    seed: u64,
+    spread_mm: f64,
+    centre_mm: Option<[f64; 3]>,
+    random_draws: usize,
+) -> PyResult<Session> {
+    let criterion = match criterion {
+        "a" => DesignCriterion::CooperativeA,
+        "d" => DesignCriterion::D,
+        other => {
+            return Err(value_error(format!(
+                "criterion={other:?}: use \"a\" (smallest predicted cooperative error) or \"d\" (largest information volume)"
+            )))
+        }
+    };
+    let spec = PlanSpec {
+        n,
+        candidates,
+        criterion,
+        seed,
+        spread_m: spread_mm * 1e-3,
+        centre_b1: centre(centre_mm)?,
+        random_draws,
+    };
+    let c = Arc::clone(&cell.cell);
+    let planned = py
+        .detach(|| plan_session(&c, &spec, &mut |_, _| {}))
+        .map_err(|e| to_py(&e, "planning", Otherwise::Value))?;
+    Ok(Session {
+        session: planned.session,
+        cell: c,
+        path: None,
+    })
+}
+
+/// A seeded Monte Carlo sweep of the points fit over the paper's cells (geometry mode, as
+/// `sim-cell sweep` runs it): for each grid cell (mounts × noise × spread × points) `trials`
+/// simulated handclasp sessions, each fitted by every method. Returns the summary table
+/// (`sim-cell sweep`'s `summary.csv`: one row per grid cell and method, errors in mm and deg) as
+/// a dict of columns, or with `trials_table=True` the per-trial table (`trials.csv`). Runs with
+/// the GIL released; the result is identical whatever the thread count.
+#[pyfunction]
+#[pyo3(signature = (mounts=None, noise_mm=None, spread_mm=None, n_points=None, methods=None, trials=200, seed=1, trials_table=false))]
+#[allow(clippy::too_many_arguments)]
+pub fn sweep<'py>(
+    py: Python<'py>,
+    mounts: Option<Vec<String>>,
+    noise_mm: Option<Vec<f64>>,
+    spread_mm: Option<Vec<f64>>,
+    n_points: Option<Vec<usize>>,
+    methods: Option<Vec<String>>,
+    trials: usize,
+    seed: u64,
+    trials_table: bool,
+) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+    use sim_cell::sweep::{
+        run_sweep, summarize_cells, write_summary_csv, write_trials_csv, SweepConfig, SweepMethod,
+    };
+    let defaults = SweepConfig::default();
+    let mounts = match mounts {
+        None => defaults.mounts.clone(),
+        Some(m) => m
+            .iter()
+            .map(|m| {
+                calib_core::MountPair::parse_paper(m)
+                    .map_err(|e| value_error(format!("mounts: {e}")))
+            })
+            .collect::<PyResult<Vec<_>>>()?,
+    };
+    let methods = match methods {
+        None => defaults.methods.clone(),
+        Some(m) => m
+            .iter()
+            .map(|m| {
+                SweepMethod::from_name(m).ok_or_else(|| {
+                    value_error(format!(
+                        "methods: unknown method `{m}`; use generic, generic-affine, paper, lsq or constrained"
+                    ))
+                })
+            })
+            .collect::<PyResult<Vec<_>>>()?,
+    };
+    let config = SweepConfig {
+        mounts,
+        noise_mm: noise_mm.unwrap_or(defaults.noise_mm.clone()),
+        spread_m: spread_mm.map_or(defaults.spread_m.clone(), |s| {
+            s.iter().map(|v| v * 1e-3).collect()
+        }),
+        n_points: n_points.unwrap_or(defaults.n_points.clone()),
+        methods,
+        trials,
+        seed,
+        ..defaults
+    };
+    let text = py
+        .detach(|| -> Result<Vec<u8>, sim_cell::SimError> {
+            let result = run_sweep(&config, &[], &|_| {})?;
+            let mut out = Vec::new();
+            let written = if trials_table {
+                write_trials_csv(&result, &mut out)
+            } else {
+                write_summary_csv(&summarize_cells(&result), &mut out)
+            };
+            written.map_err(|source| sim_cell::SimError::Io {
+                path: "<memory>".into(),
+                source,
+            })?;
+            Ok(out)
+        })
+        .map_err(|e| to_py(&e, "sweep", Otherwise::Value))?;
+    crate::cell::csv_columns(py, &String::from_utf8_lossy(&text))
+}
