@@ -65,9 +65,13 @@ fn unit(p: &CellParam) -> (&'static str, f64) {
 /// A calibrated model: its name, fit, problem and parameter set.
 #[derive(Clone)]
 pub struct Calibrated {
+    /// The model's name in the score rows and output folders (`self`, `planes`, `all`, …).
     pub name: String,
+    /// The whole-cell problem it was fitted on (its recordings' rows and parameter layout).
     pub problem: CellProblem,
+    /// The MAP fit: estimate, posterior and residuals.
     pub fit: CellFit,
+    /// The parameter set and prior σ it was fitted with.
     pub spec: ModelSpec,
 }
 

@@ -1,24 +1,8 @@
-//! The `ctu_motoman` example's core on the real CTU data (`../shared/data/ctu-motoman` from the
+//! The study's core on the real CTU data (`../shared/data/ctu-motoman` from the
 //! repository root, or `$CTU_MOTOMAN_DATA`): a self-contact calibration, its export (URDFs
 //! re-load and reproduce the fitted model to 1e-9 m; the cell loads) and the honest tracker
 //! score; and the CV selection rules on made-up tables (no data needed). The data tests skip with a
 //! printed reason when the data folder is absent.
-
-#[path = "../examples/ctu_motoman/contact.rs"]
-#[allow(dead_code)]
-mod contact;
-#[path = "../examples/ctu_motoman/cv.rs"]
-#[allow(dead_code)]
-mod cv;
-#[path = "../examples/ctu_motoman/data.rs"]
-#[allow(dead_code)]
-mod data;
-#[path = "../examples/ctu_motoman/proxy.rs"]
-#[allow(dead_code)]
-mod proxy;
-#[path = "../examples/ctu_motoman/study.rs"]
-#[allow(dead_code)]
-mod study;
 
 use std::path::{Path, PathBuf};
 
@@ -26,6 +10,8 @@ use calib_core::whole_cell::{CellEstimate, Evaluator, ObservationKind, ParamLayo
 use handclasp_cell::Cell;
 use handclasp_cell::{export_calibrated_cell, ExportNames};
 use kinematics::{true_base_from_tip, KinematicErrors};
+
+use ctu_motoman::{contact, cv, data, proxy, splits, study};
 
 use data::{locate_dataset, read_dataset, Recording, Role};
 use study::{
@@ -37,12 +23,8 @@ use study::{
 /// when their rounding provably stays within half of this (kinematics::PATCH_TOLERANCE_M).
 const EXPORT_TOL_M: f64 = 1e-9;
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
 fn dataset() -> Option<PathBuf> {
-    let d = locate_dataset(&repo());
+    let d = locate_dataset(&ctu_motoman::repo_root());
     if d.is_none() {
         eprintln!(
             "skipping: the CTU dataset folder ../shared/data/ctu-motoman (from the repository \
@@ -56,7 +38,8 @@ fn dataset() -> Option<PathBuf> {
 /// data folder is absent.
 fn dataset_and_cell() -> Option<(Vec<Recording>, Cell)> {
     let recs = read_dataset(&dataset()?).unwrap();
-    let cell = Cell::from_toml_file(&repo().join("cells/ctu-motoman.toml")).unwrap();
+    let cell =
+        Cell::from_toml_file(&ctu_motoman::repo_root().join("cells/ctu-motoman.toml")).unwrap();
     Some((recs, cell))
 }
 
@@ -253,7 +236,8 @@ fn point_mass_inertials_load_only_l_and_u_gravity_torques() {
     // Needs no data: the URDFs' point masses (30 kg on the U axis, 10 kg at the wrist centre)
     // give no torque about R, B, T (the wrist mass sits on the R and B axes, T carries no mass).
     // S is tilted 15° from the base z by DH row TT, so it does carry a torque (not fitted).
-    let cell = Cell::from_toml_file(&repo().join("cells/ctu-motoman.toml")).unwrap();
+    let cell =
+        Cell::from_toml_file(&ctu_motoman::repo_root().join("cells/ctu-motoman.toml")).unwrap();
     let g = nalgebra::Vector3::new(0.0, 0.0, -9.81);
     for robot in [&cell.robot1, &cell.robot2] {
         for q in [
@@ -616,13 +600,6 @@ fn cv_error_is_the_rms_with_its_delta_method_standard_error() {
 }
 
 // --- How much one split decides (`splits.rs`): the exported models over K half splits.
-
-#[path = "../examples/ctu_motoman/calibrated.rs"]
-#[allow(dead_code)]
-mod calibrated;
-#[path = "../examples/ctu_motoman/splits.rs"]
-#[allow(dead_code)]
-mod splits;
 
 /// The tracker files of the split tests: the smallest (16 rows, 6435 partitions) and an odd one
 /// (23 rows).
