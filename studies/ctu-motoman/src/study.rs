@@ -10,9 +10,8 @@
 use anyhow::Context;
 use calib_core::stats::{quantile, sorted_finite};
 use calib_core::whole_cell::{
-    fit_cell_with, initial_estimate, CellEstimate, CellFit, CellParam, CellProblem, CellRobot,
-    ContactGroup, Evaluator, Noise3, Observation, ObservationKind, ParamLayout, PlacementPrior,
-    PlaneGroup, SolveOptions, Tolerance, Tool, TrackerGroup,
+    fit_cell_with, initial_estimate, CellEstimate, CellFit, CellParam, CellProblem, Evaluator,
+    ObservationKind, ParamLayout, SolveOptions, Tolerance, Tool,
 };
 use calib_core::{LmOptions, Robot};
 use handclasp_cell::{cell_problem, Cell, FitModel, Session, SessionKind, SessionObservation};

@@ -15,9 +15,6 @@
 
 mod urdf;
 
-use std::collections::{HashMap, HashSet};
-use std::path::Path;
-
 use nalgebra::{
     DMatrix, Isometry3, Matrix3, Rotation3, Translation3, Unit, UnitQuaternion, Vector3,
 };

@@ -3,7 +3,17 @@
 //! inertials, and the URDF's `<mimic>` couplings. Errors ([`ModelError`]) name the file (or
 //! `<string>`), the joint or link, and the fix.
 
-use super::*;
+use std::collections::{HashMap, HashSet};
+use std::path::Path;
+
+use nalgebra::{Isometry3, Matrix3, Unit, Vector3};
+
+use super::{
+    origin_isometry, FixedTransform, Joint, JointKind, LumpedInertial, RobotModel, Step,
+    MAX_CHAIN_LENGTH_M, MAX_PRISMATIC_TRAVEL_M, WORLD_LINK,
+};
+use crate::coupling::JointCoupling;
+use crate::error::ModelError;
 
 fn vec3(v: &urdf_rs::Vec3) -> Vector3<f64> {
     Vector3::new(v[0], v[1], v[2])
