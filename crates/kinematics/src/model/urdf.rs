@@ -10,7 +10,7 @@ use nalgebra::{Isometry3, Matrix3, Unit, Vector3};
 
 use super::{
     origin_isometry, FixedTransform, Joint, JointKind, LumpedInertial, RobotModel, Step,
-    MAX_CHAIN_LENGTH_M, MAX_PRISMATIC_TRAVEL_M, WORLD_LINK,
+    MAX_CHAIN_LENGTH_M, MAX_PRISMATIC_TRAVEL_M, PRISMATIC, WORLD_LINK,
 };
 use crate::coupling::JointCoupling;
 use crate::error::ModelError;
