@@ -153,7 +153,7 @@ fn export(
 ) -> anyhow::Result<(f64, f64)> {
     let dir = out.join(folder);
     let header = format!(
-        "# Written by `cargo run --example ctu_motoman`: the CTU dual-arm Motoman cell calibrated from\n\
+        "# Written by `cargo run --release -p ctu-motoman`: the CTU dual-arm Motoman cell calibrated from\n\
          # {how}.\n# robot1 = right arm, robot2 = left arm; parameter set {} with prior σ {} mrad / mm.\n\
          # Joint offsets and origins are in right_arm.urdf / left_arm.urdf.\n",
         c.spec.set.name(),

@@ -85,7 +85,6 @@ fn check_limits(
     Ok(())
 }
 
-
 impl RobotModel {
     /// Loads a URDF file; `tool_link` is the flange link (usually `tool0`). The chain's moving
     /// joints may be revolute, continuous or prismatic; a `<mimic>` joint on the chain is a
