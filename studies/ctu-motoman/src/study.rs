@@ -284,7 +284,10 @@ pub struct Built {
     pub marker_sigma_m: Option<f64>,
 }
 
-fn tolerance(spec: Option<ModelSpec>) -> Tolerance {
+/// The prior of `spec` as tolerances of both robots: joint offsets (and, as the set selects,
+/// origin positions and L/U compliance) at √3·σ, every tool tip free in effect
+/// ([`TIP_TOLERANCE_M`]), the rest held; `None`: only the tips.
+pub fn tolerance(spec: Option<ModelSpec>) -> Tolerance {
     let mut t = Tolerance::none();
     t.tip_m = TIP_TOLERANCE_M;
     if let Some(s) = spec {
@@ -303,7 +306,7 @@ fn tolerance(spec: Option<ModelSpec>) -> Tolerance {
 /// The cell the study fits: `cell` with the prior of `spec` ([`tolerance`]) on both robots and,
 /// as their extra tools (`[robotN.tools]` replaced), one Leica reflector per tracker file in
 /// `recordings` (named `reflector FILE`, at its arm's nominal reflector), in recording order.
-fn study_cell(cell: &Cell, recordings: &[&Recording], spec: Option<ModelSpec>) -> Cell {
+pub fn study_cell(cell: &Cell, recordings: &[&Recording], spec: Option<ModelSpec>) -> Cell {
     let mut cell = cell.clone();
     for robot in [&mut cell.robot1, &mut cell.robot2] {
         robot.tolerance = tolerance(spec);
@@ -326,9 +329,11 @@ fn study_cell(cell: &Cell, recordings: &[&Recording], spec: Option<ModelSpec>) -
 }
 
 /// The recordings as one handclasp session (every row an observation, numbered from 1 in
-/// recording and pose order) and the source of each row; `cell` is [`study_cell`]'s, whose
-/// extra tools are the reflectors in recording order.
-fn session(
+/// recording and pose order) and the source of each row, with the σ of `noise` (the marker
+/// model's contact σ for a `spec` that fits the marker centres). Its tools are those of
+/// [`study_cell`]'s cell: 0 the marker, then each arm's reflectors in recording order. Rows: see
+/// [`build_problem`].
+pub fn recordings_session(
     recordings: &[&Recording],
     spec: Option<ModelSpec>,
     noise: &NoiseLevels,
@@ -433,7 +438,7 @@ fn session(
 
 /// The whole-cell problem of `recordings` in `cell` (robot 1 = right arm, robot 2 = left arm,
 /// tool 0 = the marker dodecahedron of the cell), built by handclasp-cell's adapter
-/// ([`cell_problem`]) from the recordings as a session ([`session`]) in the cell of the study
+/// ([`cell_problem`]) from the recordings as a session ([`recordings_session`]) in the cell of the study
 /// ([`study_cell`]): self-contact rows as `contact` (one fitted distance for the no-tracker
 /// files, group `no_leica_self`, one for `leica_self`), or as `face_contact` in the same groups
 /// and σ for a pose whose touching faces are set (`Pose::faces`); plane rows as `plane` of the
@@ -448,7 +453,7 @@ pub fn build_problem(
     spec: Option<ModelSpec>,
     noise: &NoiseLevels,
 ) -> Built {
-    let (session, origin) = session(recordings, spec, noise);
+    let (session, origin) = recordings_session(recordings, spec, noise);
     let mut problem = cell_problem(
         &study_cell(cell, recordings, spec),
         &session,
