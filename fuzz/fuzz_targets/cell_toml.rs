@@ -5,8 +5,7 @@
 //! serialise ([`Cell::to_toml_string`]) to text that loads again.
 #![no_main]
 
-#[path = "common.rs"]
-mod common;
+use handclasp_fuzz as common;
 
 use handclasp_cell::Cell;
 use libfuzzer_sys::fuzz_target;

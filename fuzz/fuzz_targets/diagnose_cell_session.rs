@@ -9,8 +9,7 @@
 //! panic (degenerate sessions get a typed error) and the text report renders.
 #![no_main]
 
-#[path = "common.rs"]
-mod common;
+use handclasp_fuzz as common;
 
 use arbitrary::Arbitrary;
 use diagnose::{diagnose_cell_session, render_cell_text, CellDiagnoseOptions};

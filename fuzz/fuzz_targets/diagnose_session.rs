@@ -11,8 +11,7 @@
 //! with a small budget (few Monte Carlo trials, few selection steps, short LM fits).
 #![no_main]
 
-#[path = "common.rs"]
-mod common;
+use handclasp_fuzz as common;
 
 use arbitrary::Arbitrary;
 use calib_core::identify::SelectionOptions;

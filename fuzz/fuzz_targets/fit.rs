@@ -4,8 +4,7 @@
 //! proper rotation with a finite translation.
 #![no_main]
 
-#[path = "common.rs"]
-mod common;
+use handclasp_fuzz as common;
 
 use arbitrary::Arbitrary;
 use calib_core::nalgebra;

@@ -5,8 +5,7 @@
 //! and a converged one puts the tip on its target to the stated tolerance.
 #![no_main]
 
-#[path = "common.rs"]
-mod common;
+use handclasp_fuzz as common;
 
 use arbitrary::Arbitrary;
 use calib_core::nalgebra;

@@ -3,8 +3,7 @@
 //! result must be a finite proper rotation.
 #![no_main]
 
-#[path = "common.rs"]
-mod common;
+use handclasp_fuzz as common;
 
 use std::path::Path;
 

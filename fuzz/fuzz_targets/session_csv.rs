@@ -2,8 +2,7 @@
 //! the cell (`cells/*.toml`, see `common::CELL_FILES`), then the CSV text.
 #![no_main]
 
-#[path = "common.rs"]
-mod common;
+use handclasp_fuzz as common;
 
 use std::path::Path;
 

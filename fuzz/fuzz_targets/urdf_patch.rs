@@ -13,8 +13,7 @@
 //! An Ok patch must verify again and reload with the model's joint count.
 #![no_main]
 
-#[path = "common.rs"]
-mod common;
+use handclasp_fuzz as common;
 
 use kinematics::{patch_urdf_text, verify_patched_urdf, KinematicErrors, RobotModel};
 use libfuzzer_sys::fuzz_target;

@@ -349,7 +349,7 @@ fn diagnose_ctu_self_contact_names_the_marker_tip_geometry() {
     assert_eq!(r["mode"], "whole_cell");
     assert_eq!(r["rows_by_kind"][0]["rows"], 502, "{}", r["rows_by_kind"]);
     // The end-effector geometry: both marker centres lie off the nominal tip laterally (tool0 x),
-    // by 1–2.5 mm (docs/ctu-motoman-findings.md: ~1.3–1.7 mm), each interval excluding 0.
+    // by 1–2.5 mm (studies/ctu-motoman/docs/findings.md: ~1.3–1.7 mm), each interval excluding 0.
     for (robot, family) in [(1, "robot 1 tool `tip` tip"), (2, "robot 2 tool `tip` tip")] {
         let name = format!("robot {robot} tool `tip` tip x");
         let (v, lo, hi) = effect_param_mm(&r, family, &name)

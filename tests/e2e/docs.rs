@@ -515,42 +515,6 @@ fn relative_links(markdown: &str) -> Vec<(usize, String)> {
     out
 }
 
-/// Files another branch is moving, as (new path, old path) relative to the workspace root: issue
-/// 19 item 4 moves the CTU study and its documents to `studies/ctu-motoman/`, and the pages link
-/// to the new paths. A link to a new path passes while the old file still exists (the move has not
-/// landed here); once it has, the new path must exist like any other. Remove an entry when its
-/// move is on main.
-const MOVING: &[(&str, &str)] = &[
-    (
-        "studies/ctu-motoman/README.md",
-        "crates/cli/examples/ctu_motoman/main.rs",
-    ),
-    (
-        "studies/ctu-motoman/docs/findings.md",
-        "docs/ctu-motoman-findings.md",
-    ),
-    (
-        "studies/ctu-motoman/docs/region-protocol.md",
-        "docs/ctu-motoman-region-protocol.md",
-    ),
-];
-
-/// `path` relative to the workspace root with `.` and `..` resolved lexically (`page_dir` is
-/// the linking page's folder, relative to the root).
-fn workspace_relative(page_dir: &Path, target: &str) -> PathBuf {
-    let mut out = PathBuf::new();
-    for part in page_dir.join(target).components() {
-        match part {
-            std::path::Component::ParentDir => {
-                out.pop();
-            }
-            std::path::Component::CurDir => {}
-            other => out.push(other),
-        }
-    }
-    out
-}
-
 #[test]
 fn relative_links_name_existing_files() {
     let mut broken = Vec::new();
@@ -558,18 +522,11 @@ fn relative_links_name_existing_files() {
         let path = workspace(&page);
         let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("read {page}: {e}"));
         let dir = path.parent().expect("a folder");
-        let page_dir = Path::new(&page).parent().expect("a folder");
         for (line, target) in relative_links(&text) {
             if dir.join(&target).exists() {
                 continue;
             }
-            let rel = workspace_relative(page_dir, &target);
-            let pending = MOVING
-                .iter()
-                .any(|(new, old)| rel == Path::new(new) && workspace(old).exists());
-            if !pending {
-                broken.push(format!("{page}:{line}: {target}"));
-            }
+            broken.push(format!("{page}:{line}: {target}"));
         }
     }
     assert!(

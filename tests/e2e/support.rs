@@ -129,17 +129,18 @@ pub fn write_session_csv(dir: &Path, name: &str, session: &Session, reported: &C
 }
 
 /// The CTU dual-arm Motoman dataset folder, the first of `$CTU_MOTOMAN_DATA`,
-/// `../shared/data/ctu-motoman` beside the repository, and `/work/shared/data/ctu-motoman` that
-/// holds the dataset's `README.md` (the same places as the `ctu_motoman` example's tests, plus the
-/// shared folder's absolute path). When none does, prints why the calling test is skipped (the
-/// dataset is not in the repository) and returns `None`: the caller returns.
+/// `../shared/data/ctu-motoman` beside the repository (CI's clone) and
+/// `../../shared/data/ctu-motoman` (a worktree one level further down) that holds the dataset's
+/// `README.md`: the same places as the `ctu-motoman` study's tests (`studies/ctu-motoman`,
+/// `data::locate_dataset`). When none does, prints why the calling test is skipped (the dataset
+/// is not in the repository) and returns `None`: the caller returns.
 pub fn ctu_data_or_skip() -> Option<PathBuf> {
     let candidates: Vec<PathBuf> = std::env::var_os("CTU_MOTOMAN_DATA")
         .map(PathBuf::from)
         .into_iter()
         .chain([
             workspace("../shared/data/ctu-motoman"),
-            PathBuf::from("/work/shared/data/ctu-motoman"),
+            workspace("../../shared/data/ctu-motoman"),
         ])
         .collect();
     let found = candidates

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Independent check of the face-to-face contact model of the CTU self-contacts (issue 12).
 
-The self-contacts are flush contacts of two marker dodecahedra (docs/ctu-motoman-findings.md,
+The self-contacts are flush contacts of two marker dodecahedra (studies/ctu-motoman/docs/findings.md,
 "contact geometry"). Two contact models of the same rows, fitted from self-contact data only:
   distance  |c_L - c_R| = d                      (the sphere-like model the study used so far)
   face      n.(c_L - c_R) = d, n = unit(n_R - n_L) (distance along the touching faces' normal)

@@ -7,7 +7,7 @@ E = 0. Then the revolute joints S, L, U, R, B, T, each about its z axis, and `to
 frame after row T (the T flange). Standard DH row i = Rz(q_i) · [Rz(offset_i)·Tz(d_i)·Tx(a_i)·Rx(alpha_i)]:
 the bracket is a constant transform, written as the <origin> of the NEXT joint with
 xyz = (a cos(offset), a sin(offset), d) and rpy = (alpha, 0, offset) (URDF: Rz(yaw)·Ry(pitch)·Rx(roll)).
-The end effectors are not links: they are tip offsets in tool0 (see docs/ctu-motoman-findings.md).
+The end effectors are not links: they are tip offsets in tool0 (see studies/ctu-motoman/docs/findings.md).
 
 Inertials: two POINT MASSES per arm, only for the gravity-compliance term of the kinematic error
 model (kinematics gravity.rs: tau_j = z_j . sum (c_k - o_j) x m_k g). They sit where the Python

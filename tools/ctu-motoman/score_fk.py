@@ -14,7 +14,7 @@ This checks the path the issue's owner will use for the hidden set (`handclasp f
 `cell.toml`, compliance included) against the example's internal scoring. Python 3 + numpy + scipy;
 shares no code with the Rust crates (the protocol helpers come from study.py in this folder).
 
-Run (after `cargo run --release --example ctu_motoman -- --data D --out OUT` and
+Run (after `cargo run --release -p ctu-motoman -- --data D --out OUT` and
 `cargo build --release --bin handclasp`):
   python3 tools/ctu-motoman/score_fk.py --data ../shared/data/ctu-motoman --study OUT \
       [--handclasp target/release/handclasp] [--models nominal,self,planes,all]

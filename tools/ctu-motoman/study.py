@@ -5,7 +5,7 @@ model gets wrong against the Leica tracker, what explains it, and a first self-c
 Python 3 + numpy + scipy; shares no code with the Rust crates. Units in code: m, rad; reports: mm.
 Run:  python3 tools/ctu-motoman/study.py --data /work/shared/data/ctu-motoman [--out DIR] [--quick]
 
-Sections (see tools/ctu-motoman/README.md and docs/ctu-motoman-findings.md):
+Sections (see tools/ctu-motoman/README.md and studies/ctu-motoman/docs/findings.md):
   a  nominal model vs tracker, per file: rigid registration + reflector offset fitted on one half,
      scored on the other, both ways (seeded random halves);
   b  self-contact distance of the nominal model;

@@ -1,7 +1,7 @@
 //! Writing a calibrated cell: corrected URDFs (the URDF-expressible corrections — joint offsets,
 //! origin xyz/rpy) and a cell TOML (the fitted `b1_from_b2`, corrected tips, and in
 //! `[robotN.errors]` what a URDF cannot hold: joint scale, compliance). Used by
-//! `handclasp calibrate --cell --export` and the `ctu_motoman` study.
+//! `handclasp calibrate --cell --export` and the `ctu-motoman` study (studies/ctu-motoman).
 //!
 //! # The placement's σ in the exported cell
 //! `[b1_from_b2] sigma_mm / sigma_deg` is the input cell's, unchanged, centred on the fitted

@@ -142,7 +142,7 @@ mod tests {
 
     #[test]
     fn matches_urdf_rpy_convention() {
-        // The same decomposition as URDF rpy (model.rs's golden-tested rotation_from_rpy).
+        // The same decomposition as URDF rpy (model/mod.rs's golden-tested rotation_from_rpy).
         let (a, b, c) = (0.3, -0.7, 1.9);
         let r = rotation_from_zyx([a, b, c]);
         let urdf = crate::rotation_from_rpy(&Vector3::new(c, b, a));

@@ -10,12 +10,11 @@
 use anyhow::Context;
 use calib_core::stats::{quantile, sorted_finite};
 use calib_core::whole_cell::{
-    fit_cell_with, initial_estimate, CellEstimate, CellFit, CellParam, CellProblem, CellRobot,
-    ContactGroup, Evaluator, Noise3, Observation, ObservationKind, ParamLayout, PlacementPrior,
-    PlaneGroup, SolveOptions, Tolerance, Tool, TrackerGroup,
+    fit_cell_with, initial_estimate, CellEstimate, CellFit, CellParam, CellProblem, Evaluator,
+    ObservationKind, ParamLayout, SolveOptions, Tolerance, Tool,
 };
 use calib_core::{LmOptions, Robot};
-use handclasp_cell::Cell;
+use handclasp_cell::{cell_problem, Cell, FitModel, Session, SessionKind, SessionObservation};
 use kinematics::{Axis, ErrorParam, KinematicErrors};
 use nalgebra::{Isometry3, Vector3};
 
@@ -285,7 +284,10 @@ pub struct Built {
     pub marker_sigma_m: Option<f64>,
 }
 
-fn tolerance(spec: Option<ModelSpec>) -> Tolerance {
+/// The prior of `spec` as tolerances of both robots: joint offsets (and, as the set selects,
+/// origin positions and L/U compliance) at √3·σ, every tool tip free in effect
+/// ([`TIP_TOLERANCE_M`]), the rest held; `None`: only the tips.
+pub fn tolerance(spec: Option<ModelSpec>) -> Tolerance {
     let mut t = Tolerance::none();
     t.tip_m = TIP_TOLERANCE_M;
     if let Some(s) = spec {
@@ -301,106 +303,57 @@ fn tolerance(spec: Option<ModelSpec>) -> Tolerance {
     t
 }
 
-fn cell_robot(cell: &Cell, robot: Robot, spec: Option<ModelSpec>) -> CellRobot {
-    let r = cell.robot(robot);
-    CellRobot {
-        model: r.model.clone(),
-        tools: vec![Tool {
-            name: "marker".into(),
-            flange_from_tip: r.flange_from_tip,
-        }],
-        g_base: r.g_base,
-        tolerance: tolerance(spec),
+/// The cell the study fits: `cell` with the prior of `spec` ([`tolerance`]) on both robots and,
+/// as their extra tools (`[robotN.tools]` replaced), one Leica reflector per tracker file in
+/// `recordings` (named `reflector FILE`, at its arm's nominal reflector), in recording order.
+pub fn study_cell(cell: &Cell, recordings: &[&Recording], spec: Option<ModelSpec>) -> Cell {
+    let mut cell = cell.clone();
+    for robot in [&mut cell.robot1, &mut cell.robot2] {
+        robot.tolerance = tolerance(spec);
+        robot.tools.clear();
     }
-}
-
-/// The whole-cell problem of `recordings` in `cell` (robot 1 = right arm, robot 2 = left arm,
-/// tool 0 = the marker dodecahedron of the cell): self-contact rows as `Contact` (one fitted
-/// distance for the no-tracker files, one for `leica_self`), or as `FaceContact` in the same
-/// groups and σ for a pose whose touching faces are set (`Pose::faces`); plane rows as `Plane`
-/// of the right arm's marker (one plane per file), tracker rows as `Tracker` of the measured arm
-/// (one frame and one reflector tool per file). `spec = None`: nominal kinematics (only the nuisances and
-/// the reflectors are fitted).
-pub fn build_problem(
-    cell: &Cell,
-    recordings: &[&Recording],
-    spec: Option<ModelSpec>,
-    noise: &NoiseLevels,
-) -> Built {
-    let mut p = CellProblem {
-        robot1: cell_robot(cell, Robot::One, spec),
-        robot2: cell_robot(cell, Robot::Two, spec),
-        observations: Vec::new(),
-        trackers: Vec::new(),
-        planes: Vec::new(),
-        contacts: Vec::new(),
-        // Both DH tables start at one base: the cell's `[b1_from_b2] sigma_mm, sigma_deg` hold
-        // the placement at the identity (the library's prior rows).
-        placement_prior: cell.b1_from_b2_sigma.map(|s| PlacementPrior {
-            nominal_b1_from_b2: cell.b1_from_b2,
-            sigma_m: s.sigma_m,
-            sigma_rad: s.sigma_rad,
-        }),
-    };
-    // Contact groups only for the set-ups present (a group without rows would be a free,
-    // undetermined unknown).
-    let mut group_of = [None::<usize>; 2];
-    for (k, (name, start)) in [
-        ("no_leica_self", CONTACT_START_M),
-        ("leica_self", LEICA_SELF_CONTACT_START_M),
-    ]
-    .into_iter()
-    .enumerate()
-    {
-        let role = [Role::SelfContact, Role::TrackerSelfContact][k];
-        if recordings.iter().any(|r| r.role == role) {
-            group_of[k] = Some(p.contacts.len());
-            p.contacts.push(ContactGroup {
-                name: name.into(),
-                distance_m: start,
-                fit_distance: true,
+    for rec in recordings {
+        if matches!(rec.role, Role::Tracker | Role::TrackerSelfContact) {
+            let (robot, nominal) = if rec.right_arm {
+                (&mut cell.robot1, REFLECTOR_RIGHT_M)
+            } else {
+                (&mut cell.robot2, REFLECTOR_LEFT_M)
+            };
+            robot.tools.push(Tool {
+                name: format!("reflector {}", rec.name),
+                flange_from_tip: Vector3::from(nominal),
             });
         }
     }
+    cell
+}
+
+/// The recordings as one handclasp session (every row an observation, numbered from 1 in
+/// recording and pose order) and the source of each row, with the σ of `noise` (the marker
+/// model's contact σ for a `spec` that fits the marker centres). Its tools are those of
+/// [`study_cell`]'s cell: 0 the marker, then each arm's reflectors in recording order. Rows: see
+/// [`build_problem`].
+pub fn recordings_session(
+    recordings: &[&Recording],
+    spec: Option<ModelSpec>,
+    noise: &NoiseLevels,
+) -> (Session, Vec<Origin>) {
+    let mut observations = Vec::new();
     let mut origin = Vec::new();
+    let mut reflectors = [0usize; 2];
     for (ri, rec) in recordings.iter().enumerate() {
         let arm = if rec.right_arm {
             Robot::One
         } else {
             Robot::Two
         };
-        let plane = p.planes.len();
-        if rec.role == Role::Plane {
-            p.planes.push(PlaneGroup {
-                name: rec.name.clone(),
-                anchor: Robot::One,
-                initial: None,
-            });
-        }
-        let (tracker, reflector) = (p.trackers.len(), p.robot(arm).tools.len());
-        if matches!(rec.role, Role::Tracker | Role::TrackerSelfContact) {
-            p.trackers.push(TrackerGroup {
-                name: rec.name.clone(),
-                anchor: arm,
-                initial_tracker_from_anchor: None,
-                fit_scale: false,
-                fit_drift: false,
-            });
-            let nominal = if rec.right_arm {
-                REFLECTOR_RIGHT_M
-            } else {
-                REFLECTOR_LEFT_M
-            };
-            let tool = Tool {
-                name: format!("reflector {}", rec.name),
-                flange_from_tip: Vector3::from(nominal),
-            };
-            if arm == Robot::One {
-                p.robot1.tools.push(tool);
-            } else {
-                p.robot2.tools.push(tool);
-            }
-        }
+        // Tool 0 is the marker (the cell's tip); the reflectors follow, one per tracker file.
+        let reflector = if matches!(rec.role, Role::Tracker | Role::TrackerSelfContact) {
+            reflectors[usize::from(arm == Robot::Two)] += 1;
+            reflectors[usize::from(arm == Robot::Two)]
+        } else {
+            0
+        };
         for (pi, pose) in rec.poses.iter().enumerate() {
             let q_arm = if rec.right_arm {
                 &pose.q_right
@@ -411,7 +364,7 @@ pub fn build_problem(
             match rec.role {
                 Role::SelfContact | Role::TrackerSelfContact => {
                     let leica = rec.role == Role::TrackerSelfContact;
-                    let group = group_of[usize::from(leica)].unwrap_or(0);
+                    let group = if leica { "leica_self" } else { "no_leica_self" }.to_string();
                     let sigma_m = if leica {
                         noise.leica_contact_m
                     } else if spec.is_some_and(|s| s.set.marker()) {
@@ -421,15 +374,16 @@ pub fn build_problem(
                     };
                     let (q1, q2) = (pose.q_right.clone(), pose.q_left.clone());
                     kinds.push(match pose.faces {
-                        None => ObservationKind::Contact {
+                        None => SessionKind::Contact {
                             q1,
                             q2,
                             tool1: 0,
                             tool2: 0,
                             group,
+                            distance_m: None,
                             sigma_m,
                         },
-                        Some(f) => ObservationKind::FaceContact {
+                        Some(f) => SessionKind::FaceContact {
                             q1,
                             q2,
                             tool1: 0,
@@ -437,36 +391,35 @@ pub fn build_problem(
                             n1_tip: f.right.1,
                             n2_tip: f.left.1,
                             group,
+                            distance_m: None,
                             sigma_m,
                         },
                     });
                 }
-                Role::Plane => kinds.push(ObservationKind::Plane {
+                Role::Plane => kinds.push(SessionKind::Plane {
                     robot: Robot::One,
                     q: pose.q_right.clone(),
                     tool: 0,
-                    group: plane,
+                    group: rec.name.clone(),
                     sigma_m: noise.plane_m,
                 }),
                 Role::Tracker => {}
             }
             if matches!(rec.role, Role::Tracker | Role::TrackerSelfContact) {
                 if let Some(p_tracker) = pose.p_tracker {
-                    kinds.push(ObservationKind::Tracker {
+                    kinds.push(SessionKind::Tracker {
                         robot: arm,
                         q: q_arm.clone(),
                         tool: reflector,
-                        group: tracker,
+                        group: rec.name.clone(),
                         p_tracker,
-                        noise: Noise3::Isotropic {
-                            sigma_m: noise.tracker_m,
-                        },
+                        sigma_m: noise.tracker_m,
                     });
                 }
             }
             for kind in kinds {
-                p.observations.push(Observation {
-                    row: p.observations.len() + 1,
+                observations.push(SessionObservation {
+                    point: observations.len() + 1,
                     kind,
                 });
                 origin.push(Origin {
@@ -476,8 +429,48 @@ pub fn build_problem(
             }
         }
     }
+    let session = Session {
+        points: Vec::new(),
+        observations,
+    };
+    (session, origin)
+}
+
+/// The whole-cell problem of `recordings` in `cell` (robot 1 = right arm, robot 2 = left arm,
+/// tool 0 = the marker dodecahedron of the cell), built by handclasp-cell's adapter
+/// ([`cell_problem`]) from the recordings as a session ([`recordings_session`]) in the cell of the study
+/// ([`study_cell`]): self-contact rows as `contact` (one fitted distance for the no-tracker
+/// files, group `no_leica_self`, one for `leica_self`), or as `face_contact` in the same groups
+/// and σ for a pose whose touching faces are set (`Pose::faces`); plane rows as `plane` of the
+/// right arm's marker (one plane per file), tracker rows as `tracker` of the measured arm (one
+/// frame and one reflector tool per file). Two things the adapter does otherwise are set here:
+/// tool 0 is named `marker`, and a contact distance starts at [`CONTACT_START_M`] /
+/// [`LEICA_SELF_CONTACT_START_M`] (the adapter starts it at the rows' mean nominal distance).
+/// `spec = None`: nominal kinematics (only the nuisances and the reflectors are fitted).
+pub fn build_problem(
+    cell: &Cell,
+    recordings: &[&Recording],
+    spec: Option<ModelSpec>,
+    noise: &NoiseLevels,
+) -> Built {
+    let (session, origin) = recordings_session(recordings, spec, noise);
+    let mut problem = cell_problem(
+        &study_cell(cell, recordings, spec),
+        &session,
+        FitModel::Kinematic,
+    );
+    for robot in [&mut problem.robot1, &mut problem.robot2] {
+        robot.tools[0].name = "marker".into();
+    }
+    for group in &mut problem.contacts {
+        group.distance_m = if group.name == "leica_self" {
+            LEICA_SELF_CONTACT_START_M
+        } else {
+            CONTACT_START_M
+        };
+    }
     Built {
-        problem: p,
+        problem,
         origin,
         marker_sigma_m: spec
             .filter(|s| s.set.marker())

@@ -1,6 +1,6 @@
-//! Shared by the fuzz targets: the repository's shipped robots and cells, loaded once per process,
+//! Shared by the fuzz targets (`fuzz_targets/*.rs`, each a binary of this package that imports
+//! it as `handclasp_fuzz`): the repository's shipped robots and cells, loaded once per process,
 //! and the invariants the targets assert.
-#![allow(dead_code)]
 
 use calib_core::nalgebra;
 use std::path::{Path, PathBuf};

@@ -65,9 +65,13 @@ fn unit(p: &CellParam) -> (&'static str, f64) {
 /// A calibrated model: its name, fit, problem and parameter set.
 #[derive(Clone)]
 pub struct Calibrated {
+    /// The model's name in the score rows and output folders (`self`, `planes`, `all`, …).
     pub name: String,
+    /// The whole-cell problem it was fitted on (its recordings' rows and parameter layout).
     pub problem: CellProblem,
+    /// The MAP fit: estimate, posterior and residuals.
     pub fit: CellFit,
+    /// The parameter set and prior σ it was fitted with.
     pub spec: ModelSpec,
 }
 
@@ -149,7 +153,7 @@ fn export(
 ) -> anyhow::Result<(f64, f64)> {
     let dir = out.join(folder);
     let header = format!(
-        "# Written by `cargo run --example ctu_motoman`: the CTU dual-arm Motoman cell calibrated from\n\
+        "# Written by `cargo run --release -p ctu-motoman`: the CTU dual-arm Motoman cell calibrated from\n\
          # {how}.\n# robot1 = right arm, robot2 = left arm; parameter set {} with prior σ {} mrad / mm.\n\
          # Joint offsets and origins are in right_arm.urdf / left_arm.urdf.\n",
         c.spec.set.name(),

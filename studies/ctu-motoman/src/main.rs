@@ -3,7 +3,7 @@
 //! honest protocol, and report what the model gets wrong.
 //!
 //! ```sh
-//! cargo run --release --example ctu_motoman -- --data ../shared/data/ctu-motoman --out DIR
+//! cargo run --release -p ctu-motoman -- --data ../shared/data/ctu-motoman --out DIR
 //! ```
 //!
 //! Writes `DIR/{self,planes,all}/` (cell.toml, right_arm.urdf, left_arm.urdf, parameters.csv,
@@ -14,29 +14,14 @@
 //! self-contacts' face pairs), `DIR/proxy.csv` (the hidden-set proxy, model vs model),
 //! `DIR/split_robustness{,_per_split}.csv` (the exported models over `--splits` random half
 //! splits) and, with `--score-every-self-candidate`, `DIR/self_candidates.csv`. Method and findings:
-//! docs/ctu-motoman-findings.md (sections "Rust study" and "Contact geometry, the headline
+//! studies/ctu-motoman/docs/findings.md (sections "Rust study" and "Contact geometry, the headline
 //! target and a hidden-set proxy").
 //!
 //! One job: the study's outline — arguments, which model is fitted on which recordings and in
-//! what order, which models are scored and compared. Reading the dataset is `data`, the fits and
-//! the scoring protocol are `study`, the cross-validated choice is `cv`, fitting and exporting a
-//! calibrated model is `calibrated`, the face-contact geometry is `contact` and its report
-//! `contact_report`, the tracker score table is `scores`, its spread over random half splits
-//! `splits`, the proxy set is `proxy` and its report `proxy_report`, the figures are `plot`.
+//! what order, which models are scored and compared. The parts are the library's modules (see
+//! its documentation, `ctu_motoman`).
 
-mod calibrated;
-mod contact;
-mod contact_report;
-mod cv;
-mod data;
-mod plot;
-mod proxy;
-mod proxy_report;
-mod scores;
-mod splits;
-mod study;
-
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
@@ -44,16 +29,22 @@ use clap::Parser;
 use handclasp_cell::Cell;
 use kinematics::KinematicErrors;
 
-use calibrated::{calibrate, calibrate_all, contact_rms, print_effects, Calibrated, Calibrations};
-use contact_report::{contact_model_comparison, contact_report, marker_at_report};
-use cv::{cross_validate, print_cv, write_cv, Choice, CvRule, HeldOutScore};
-use data::{read_dataset, self_selection_recordings, Recording, Role, SELF_SELECTION_PATTERNS};
-use proxy_report::proxy_report;
-use scores::{
+use ctu_motoman::{contact, splits};
+
+use ctu_motoman::calibrated::{
+    calibrate, calibrate_all, contact_rms, print_effects, Calibrated, Calibrations,
+};
+use ctu_motoman::contact_report::{contact_model_comparison, contact_report, marker_at_report};
+use ctu_motoman::cv::{cross_validate, print_cv, write_cv, Choice, CvRule, HeldOutScore};
+use ctu_motoman::data::{
+    read_dataset, self_selection_recordings, Recording, Role, SELF_SELECTION_PATTERNS,
+};
+use ctu_motoman::proxy_report::proxy_report;
+use ctu_motoman::scores::{
     print_scores, print_selection_split, score_every_candidate, score_models, write_score_files,
     ScoredModel,
 };
-use study::{
+use ctu_motoman::study::{
     corrections, held_out_nuisance_rows, noise_from_nominal, score_recording, ModelSpec,
     NoiseLevels, ParamSet, RowKind, SigmaGrid,
 };
@@ -302,11 +293,6 @@ fn face_contact_rows(cell: &Cell, recordings: &mut [Recording]) -> anyhow::Resul
     Ok(())
 }
 
-/// The repository root (the cell and URDFs of the nominal model live there).
-fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
 fn main() -> std::process::ExitCode {
     match run(Args::parse()) {
         Ok(()) => std::process::ExitCode::SUCCESS,
@@ -327,7 +313,7 @@ fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let mut recordings = read_dataset(&args.data)?;
-    let cell_path = repo_root().join("cells/ctu-motoman.toml");
+    let cell_path = ctu_motoman::repo_root().join("cells/ctu-motoman.toml");
     let cell = Cell::from_toml_file(&cell_path)?;
     if cell.b1_from_b2_sigma.is_none() {
         bail!(

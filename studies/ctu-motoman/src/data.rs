@@ -268,7 +268,6 @@ pub fn read_dataset(dir: &Path) -> anyhow::Result<Vec<Recording>> {
 
 /// The dataset folder as CI and the worktrees have it: `../shared/data/ctu-motoman` (or
 /// `../../shared/…`) from the repository root (`repo`), or `$CTU_MOTOMAN_DATA`; `None` if absent.
-#[allow(dead_code)] // used by the tests, not the example's main
 pub fn locate_dataset(repo: &Path) -> Option<PathBuf> {
     if let Some(p) = std::env::var_os("CTU_MOTOMAN_DATA") {
         return Some(PathBuf::from(p));

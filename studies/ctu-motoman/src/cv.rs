@@ -4,7 +4,7 @@
 //! `min`) picks the candidate; plus the CV table's printing and CSV.
 //!
 //! The per-kind rule (fixed by the lead in stop 14, before it was run; see
-//! docs/ctu-motoman-findings.md, "The `planes` criterion, per kind"): for each observation kind
+//! studies/ctu-motoman/docs/findings.md, "The `planes` criterion, per kind"): for each observation kind
 //! k of the held-out rows (contact, plane, tracker) the CV error `e_k(c)` of candidate c and its
 //! standard error `SE_k(c)`; `best_k` = the candidate with the smallest `e_k`; c qualifies when
 //! `e_k(c) ≤ e_k(best_k) + SE_k(best_k)` for every k; the choice is the simplest qualifying

@@ -1,31 +1,17 @@
-//! The `ctu_motoman` example's core on the real CTU data (`../shared/data/ctu-motoman` from the
+//! The study's core on the real CTU data (`../shared/data/ctu-motoman` from the
 //! repository root, or `$CTU_MOTOMAN_DATA`): a self-contact calibration, its export (URDFs
 //! re-load and reproduce the fitted model to 1e-9 m; the cell loads) and the honest tracker
 //! score; and the CV selection rules on made-up tables (no data needed). The data tests skip with a
 //! printed reason when the data folder is absent.
 
-#[path = "../examples/ctu_motoman/contact.rs"]
-#[allow(dead_code)]
-mod contact;
-#[path = "../examples/ctu_motoman/cv.rs"]
-#[allow(dead_code)]
-mod cv;
-#[path = "../examples/ctu_motoman/data.rs"]
-#[allow(dead_code)]
-mod data;
-#[path = "../examples/ctu_motoman/proxy.rs"]
-#[allow(dead_code)]
-mod proxy;
-#[path = "../examples/ctu_motoman/study.rs"]
-#[allow(dead_code)]
-mod study;
-
 use std::path::{Path, PathBuf};
 
 use calib_core::whole_cell::{CellEstimate, Evaluator, ObservationKind, ParamLayout};
 use handclasp_cell::Cell;
-use handclasp_cell::{export_calibrated_cell, ExportNames};
+use handclasp_cell::{export_calibrated_cell, ExportNames, ImportMap, Session, SessionKind};
 use kinematics::{true_base_from_tip, KinematicErrors};
+
+use ctu_motoman::{contact, cv, data, proxy, splits, study};
 
 use data::{locate_dataset, read_dataset, Recording, Role};
 use study::{
@@ -37,12 +23,8 @@ use study::{
 /// when their rounding provably stays within half of this (kinematics::PATCH_TOLERANCE_M).
 const EXPORT_TOL_M: f64 = 1e-9;
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
 fn dataset() -> Option<PathBuf> {
-    let d = locate_dataset(&repo());
+    let d = locate_dataset(&ctu_motoman::repo_root());
     if d.is_none() {
         eprintln!(
             "skipping: the CTU dataset folder ../shared/data/ctu-motoman (from the repository \
@@ -56,7 +38,8 @@ fn dataset() -> Option<PathBuf> {
 /// data folder is absent.
 fn dataset_and_cell() -> Option<(Vec<Recording>, Cell)> {
     let recs = read_dataset(&dataset()?).unwrap();
-    let cell = Cell::from_toml_file(&repo().join("cells/ctu-motoman.toml")).unwrap();
+    let cell =
+        Cell::from_toml_file(&ctu_motoman::repo_root().join("cells/ctu-motoman.toml")).unwrap();
     Some((recs, cell))
 }
 
@@ -199,6 +182,246 @@ fn a_wrong_data_folder_is_a_clear_error() {
 
 /// The `--select tracker` choice scores exactly the grids and the four `leica_self` files,
 /// trains on the self-contacts only, and never sees a table/wall file (the evaluation files).
+/// The study's reader (`data::read_dataset`) and `handclasp import` with the shipped maps
+/// (`tools/ctu-motoman/maps/`) read the same numbers from every recording: the contact map the
+/// self-contact files' joints of both arms, the plane map the plane files' right-arm joints, the
+/// tracker maps each tracker file's measured arm and its tracker positions (rows without one are
+/// skipped by the map, kept by the reader as poses without a position). Tracker positions are
+/// equal exactly (both parse the same decimal text, unit m); joints to [`IMPORT_JOINT_ROUNDING_RAD`],
+/// because the import converts every joint through degrees (`(x·deg_per_unit).to_radians()`), a
+/// few ulps (measured: 0.23881 reads as 0.23881000000000002). So a session imported with the maps
+/// holds the data the study fits; the reader stays the study's own because the study keeps both
+/// arms' joints of every pose (the proxy, the figures and the per-pose splits need them), chooses
+/// the rows' σ after reading (from the nominal fit), which a map fixes when it reads, and because
+/// the degree round trip would move the study's outputs in their last digits.
+/// How far an imported joint may sit from the study's reading of the same text, rad: the degree
+/// round trip of the import errs by a few ulps of values up to π (ulp 4.4e-16 at 2..4).
+const IMPORT_JOINT_ROUNDING_RAD: f64 = 4e-15;
+
+/// Whether two joint vectors agree to [`IMPORT_JOINT_ROUNDING_RAD`].
+fn same_joints(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len()
+        && a.iter()
+            .zip(b)
+            .all(|(x, y)| (x - y).abs() <= IMPORT_JOINT_ROUNDING_RAD)
+}
+
+#[test]
+fn the_reader_reads_what_the_shipped_import_maps_read() {
+    let Some((recs, cell)) = dataset_and_cell() else {
+        return;
+    };
+    let dir = dataset().unwrap();
+    let maps = ctu_motoman::repo_root().join("tools/ctu-motoman/maps");
+    let map = |name: &str| {
+        let path = maps.join(name);
+        ImportMap::from_toml_str(&std::fs::read_to_string(&path).unwrap(), &path, &cell).unwrap()
+    };
+    let (contact, plane) = (map("self_contact.toml"), map("plane_right.toml"));
+    let (tracker_right, tracker_left) = (map("tracker_right.toml"), map("tracker_left.toml"));
+    let mut rows_compared = 0;
+    for rec in &recs {
+        let input = dir.join(format!("{}_dataset.csv", rec.name));
+        let text = std::fs::read_to_string(&input).unwrap();
+        let import = |m: &ImportMap| {
+            let mut session = Session::default();
+            m.read_rows(&text, &input, &cell, &mut session).unwrap();
+            assert!(session.points.is_empty(), "{}", rec.name);
+            session.observations
+        };
+        if matches!(rec.role, Role::SelfContact | Role::TrackerSelfContact) {
+            let rows = import(&contact);
+            assert_eq!(rows.len(), rec.poses.len(), "{}", rec.name);
+            for (row, pose) in rows.iter().zip(&rec.poses) {
+                let SessionKind::Contact { q1, q2, .. } = &row.kind else {
+                    panic!("{}: not a contact row", rec.name);
+                };
+                assert!(
+                    same_joints(q1, &pose.q_right) && same_joints(q2, &pose.q_left),
+                    "{}: {q1:?} {q2:?} vs {:?} {:?}",
+                    rec.name,
+                    pose.q_right,
+                    pose.q_left
+                );
+                rows_compared += 1;
+            }
+        }
+        if rec.role == Role::Plane {
+            let rows = import(&plane);
+            assert_eq!(rows.len(), rec.poses.len(), "{}", rec.name);
+            for (row, pose) in rows.iter().zip(&rec.poses) {
+                let SessionKind::Plane { q, .. } = &row.kind else {
+                    panic!("{}: not a plane row", rec.name);
+                };
+                assert!(same_joints(q, &pose.q_right), "{}: {q:?}", rec.name);
+                rows_compared += 1;
+            }
+        }
+        if matches!(rec.role, Role::Tracker | Role::TrackerSelfContact) {
+            let rows = import(if rec.right_arm {
+                &tracker_right
+            } else {
+                &tracker_left
+            });
+            let measured: Vec<_> = rec.poses.iter().filter(|p| p.p_tracker.is_some()).collect();
+            assert_eq!(rows.len(), measured.len(), "{}", rec.name);
+            for (row, pose) in rows.iter().zip(measured) {
+                let SessionKind::Tracker { q, p_tracker, .. } = &row.kind else {
+                    panic!("{}: not a tracker row", rec.name);
+                };
+                let q_arm = if rec.right_arm {
+                    &pose.q_right
+                } else {
+                    &pose.q_left
+                };
+                assert!(same_joints(q, q_arm), "{}: {q:?} vs {q_arm:?}", rec.name);
+                assert_eq!(Some(*p_tracker), pose.p_tracker, "{}", rec.name);
+                rows_compared += 1;
+            }
+        }
+    }
+    // Every recording (22 files) and every row of every role compared: 1746 rows, counted in the
+    // files with Python's csv module (self-contact and plane rows, plus tracker rows with all
+    // three leica_*_m columns set).
+    assert_eq!(recs.len(), 22);
+    assert_eq!(rows_compared, 1746);
+}
+
+/// `build_problem` (the recordings as a session through `handclasp_cell::cell_problem`) on
+/// made-up recordings of every role, no data needed: rows in recording and pose order with their
+/// origins and σ, contact groups `no_leica_self` then `leica_self` starting at the study's
+/// distances and fitted, one plane per plane file at robot 1, one tracker frame and one
+/// reflector tool per tracker file on its arm (a pose without a tracker value gives no row),
+/// tool 0 named `marker`, and the prior of the spec.
+#[test]
+fn build_problem_turns_recordings_into_the_adapters_problem() {
+    let cell =
+        Cell::from_toml_file(&ctu_motoman::repo_root().join("cells/ctu-motoman.toml")).unwrap();
+    let pose = |k: f64, tracker: bool| data::Pose {
+        q_right: vec![0.1 * k, 0.2, -0.1, 0.3, 0.4, -0.2],
+        q_left: vec![-0.1 * k, 0.1, 0.2, -0.3, 0.2, 0.1],
+        p_tracker: tracker.then(|| nalgebra::Point3::new(1.0, 2.0 * k, 0.5)),
+        faces: None,
+    };
+    let rec = |name: &str, role: Role, right_arm: bool, poses: Vec<data::Pose>| Recording {
+        name: name.into(),
+        role,
+        pattern: "made_up",
+        right_arm,
+        poses,
+    };
+    let recs = [
+        rec(
+            "self_a",
+            Role::SelfContact,
+            true,
+            vec![pose(1.0, false), pose(2.0, false)],
+        ),
+        rec("plane_a", Role::Plane, true, vec![pose(3.0, false)]),
+        rec(
+            "grid_left",
+            Role::Tracker,
+            false,
+            vec![pose(4.0, true), pose(5.0, false)],
+        ),
+        rec(
+            "leica_self_a",
+            Role::TrackerSelfContact,
+            true,
+            vec![pose(6.0, true)],
+        ),
+    ];
+    let refs: Vec<&Recording> = recs.iter().collect();
+    let spec = ModelSpec {
+        set: study::ParamSet::OffsetsCompliance,
+        sigma: 3.0,
+    };
+    let b = build_problem(&cell, &refs, Some(spec), &noise());
+    let p = &b.problem;
+    let kinds: Vec<&str> = p
+        .observations
+        .iter()
+        .map(|o| match o.kind {
+            ObservationKind::Contact { .. } => "contact",
+            ObservationKind::Plane { .. } => "plane",
+            ObservationKind::Tracker { .. } => "tracker",
+            _ => "other",
+        })
+        .collect();
+    assert_eq!(
+        kinds,
+        ["contact", "contact", "plane", "tracker", "contact", "tracker"]
+    );
+    let rows: Vec<usize> = p.observations.iter().map(|o| o.row).collect();
+    assert_eq!(rows, [1, 2, 3, 4, 5, 6]);
+    let origin: Vec<(usize, usize)> = b.origin.iter().map(|o| (o.recording, o.pose)).collect();
+    assert_eq!(origin, [(0, 0), (0, 1), (1, 0), (2, 0), (3, 0), (3, 0)]);
+    let contacts: Vec<(&str, f64, bool)> = p
+        .contacts
+        .iter()
+        .map(|c| (c.name.as_str(), c.distance_m, c.fit_distance))
+        .collect();
+    assert_eq!(
+        contacts,
+        [
+            ("no_leica_self", study::CONTACT_START_M, true),
+            ("leica_self", study::LEICA_SELF_CONTACT_START_M, true)
+        ]
+    );
+    assert_eq!(p.planes.len(), 1);
+    assert_eq!(p.planes[0].anchor, calib_core::Robot::One);
+    let trackers: Vec<(&str, calib_core::Robot)> = p
+        .trackers
+        .iter()
+        .map(|t| (t.name.as_str(), t.anchor))
+        .collect();
+    assert_eq!(
+        trackers,
+        [
+            ("grid_left", calib_core::Robot::Two),
+            ("leica_self_a", calib_core::Robot::One)
+        ]
+    );
+    let tools = |r: &calib_core::whole_cell::CellRobot| -> Vec<String> {
+        r.tools.iter().map(|t| t.name.clone()).collect()
+    };
+    assert_eq!(tools(&p.robot1), ["marker", "reflector leica_self_a"]);
+    assert_eq!(tools(&p.robot2), ["marker", "reflector grid_left"]);
+    match (&p.observations[3].kind, &p.observations[5].kind) {
+        (
+            ObservationKind::Tracker {
+                tool: 1, group: 0, ..
+            },
+            ObservationKind::Tracker {
+                tool: 1, group: 1, ..
+            },
+        ) => {}
+        other => panic!("tracker rows' tools and groups: {other:?}"),
+    }
+    match (&p.observations[0].kind, &p.observations[4].kind) {
+        (
+            ObservationKind::Contact {
+                group: 0,
+                sigma_m: s0,
+                ..
+            },
+            ObservationKind::Contact {
+                group: 1,
+                sigma_m: s1,
+                ..
+            },
+        ) => assert_eq!((*s0, *s1), (noise().contact_m, noise().leica_contact_m)),
+        other => panic!("contact rows' groups: {other:?}"),
+    }
+    // The prior of the spec: offsets and compliance at σ 3 (tolerance √3·σ), tips free (10 m).
+    let t = p.robot1.tolerance;
+    assert_eq!(t.joint_offset_rad, 3f64.sqrt() * 3e-3);
+    assert_eq!(t.tip_m, study::TIP_TOLERANCE_M);
+    assert!(t.compliance_rad_per_nm.is_some());
+    assert_eq!(p.robot2.tolerance, t);
+    assert!(b.marker_sigma_m.is_none());
+}
+
 #[test]
 fn self_selection_scores_the_grids_and_leica_self_and_trains_on_self_contact_only() {
     let Some((recs, _)) = dataset_and_cell() else {
@@ -253,7 +476,8 @@ fn point_mass_inertials_load_only_l_and_u_gravity_torques() {
     // Needs no data: the URDFs' point masses (30 kg on the U axis, 10 kg at the wrist centre)
     // give no torque about R, B, T (the wrist mass sits on the R and B axes, T carries no mass).
     // S is tilted 15° from the base z by DH row TT, so it does carry a torque (not fitted).
-    let cell = Cell::from_toml_file(&repo().join("cells/ctu-motoman.toml")).unwrap();
+    let cell =
+        Cell::from_toml_file(&ctu_motoman::repo_root().join("cells/ctu-motoman.toml")).unwrap();
     let g = nalgebra::Vector3::new(0.0, 0.0, -9.81);
     for robot in [&cell.robot1, &cell.robot2] {
         for q in [
@@ -616,13 +840,6 @@ fn cv_error_is_the_rms_with_its_delta_method_standard_error() {
 }
 
 // --- How much one split decides (`splits.rs`): the exported models over K half splits.
-
-#[path = "../examples/ctu_motoman/calibrated.rs"]
-#[allow(dead_code)]
-mod calibrated;
-#[path = "../examples/ctu_motoman/splits.rs"]
-#[allow(dead_code)]
-mod splits;
 
 /// The tracker files of the split tests: the smallest (16 rows, 6435 partitions) and an odd one
 /// (23 rows).

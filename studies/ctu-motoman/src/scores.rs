@@ -23,10 +23,15 @@ use crate::study::{
 
 /// One row of the score table.
 pub struct ScoreRow {
+    /// The tracker file's name (without `_dataset.csv`).
     pub file: String,
+    /// The arm that carries the reflector in that file (`right` or `left`).
     pub arm: &'static str,
+    /// The scored model's name.
     pub model: String,
+    /// Whether the model's kinematics are held out from the tracker files.
     pub held_out: bool,
+    /// The held-out error over the file's poses (rms, median, p95, max, mm).
     pub summary: Summary,
 }
 

@@ -1,0 +1,30 @@
+#![doc = include_str!("../README.md")]
+//!
+//! # Modules
+//!
+//! One job each. Reading the dataset is [`data`]; the whole-cell problems, the fits and the
+//! honest scoring protocol are [`study`]; the cross-validated choice is [`cv`]; fitting and
+//! exporting a calibrated model is [`calibrated`]; the face-contact geometry is [`contact`] and
+//! its report [`contact_report`]; the tracker score table is [`scores`], its spread over random
+//! half splits [`splits`]; the hidden-set proxy is [`proxy`] and its report [`proxy_report`];
+//! the figures are [`plot`]. The binary (`src/main.rs`) is the study's outline: its flags, which
+//! model is fitted on which recordings and in what order, which models are scored and compared.
+
+use std::path::{Path, PathBuf};
+
+pub mod calibrated;
+pub mod contact;
+pub mod contact_report;
+pub mod cv;
+pub mod data;
+pub mod plot;
+pub mod proxy;
+pub mod proxy_report;
+pub mod scores;
+pub mod splits;
+pub mod study;
+
+/// The repository root: the nominal cell `cells/ctu-motoman.toml` and its URDFs live there.
+pub fn repo_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
