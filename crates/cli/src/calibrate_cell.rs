@@ -629,6 +629,7 @@ mod tests {
                 &CooperativePrediction {
                     predicted_rms_m: 1.5e-3,
                     predicted_p95_m: 2.75e-3,
+                    predicted_p95_ci_m: [2.5e-3, 3e-3],
                     per_pair_rms_m: vec![],
                 },
                 14,
