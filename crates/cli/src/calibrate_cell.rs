@@ -33,9 +33,13 @@ use calib_core::whole_cell::{
 use calib_core::StopReason;
 use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
 use handclasp_cell::{export_calibrated_cell, Cell, Session, CALIBRATE_EXPORT_NAMES};
+use report::{
+    calibration_page, joint_coverage, predict_work_site, read_work_points, row_residuals,
+    Acceptance, CalibrationPage, MeetingPairsAccuracy, WorkSiteReport,
+};
 use serde::Serialize;
 
-/// Seed of the predicted p95's Monte Carlo draw.
+/// Seed of the predicted p95's Monte Carlo draw (the session's meeting pairs and the work site).
 pub const P95_SEED: u64 = 1;
 
 /// How many of the largest kinematic corrections the text report lists.
@@ -66,6 +70,23 @@ pub struct CellArgs {
     /// base-to-flange chain, which are ignored.
     #[arg(long, requires = "cell", display_order = 103)]
     pub verbose: bool,
+    /// With --cell: write a self-contained HTML page here (the verdict at the work site first,
+    /// then the placement, the parameters and the plots), to open in a browser.
+    #[arg(long, requires = "cell", value_name = "FILE.html")]
+    pub report: Option<PathBuf>,
+    /// With --cell: the work site, a CSV of tool positions in base 1 (header x_mm,y_mm,z_mm)
+    /// where the robots will work together; the verdict predicts the accuracy there
+    /// (default: the cell's [teach] centre).
+    #[arg(long, requires = "cell", value_name = "FILE.csv")]
+    pub work_points: Option<PathBuf>,
+    /// With --cell: the largest cooperative position error the job accepts at the work site, mm
+    /// (PASS when the predicted p95's 95 % interval lies below it).
+    #[arg(long, requires = "cell", value_name = "MM")]
+    pub accept_mm: Option<f64>,
+    /// With --cell: the largest rotation error of b1_from_b2 the job accepts, degrees (PASS
+    /// when the predicted p95's 95 % interval lies below it).
+    #[arg(long, requires = "cell", value_name = "DEG")]
+    pub accept_deg: Option<f64>,
 }
 
 /// `--model`; serialised as its [`ModelArg::name`].
@@ -122,6 +143,13 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
     if let Some(dir) = &args.export {
         crate::export_dir::check_export_folder(dir, force)?;
     }
+    let acceptance = Acceptance::new(args.accept_mm, args.accept_deg)
+        .context("--accept-mm / --accept-deg")?;
+    let work_points = args
+        .work_points
+        .as_ref()
+        .map(|path| read_work_points(path).context("--work-points"))
+        .transpose()?;
     let cell = Cell::from_toml_file(cell_path)?;
     if args.verbose {
         crate::fk::print_cell_branches(&cell);
@@ -163,13 +191,59 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
     };
     let rows_by_kind =
         (!session.is_handclasp_only()).then(|| RowsByKind::from_counts(session.kind_counts()));
+    let wants_work_site = args.report.is_some()
+        || work_points.is_some()
+        || args.accept_mm.is_some()
+        || args.accept_deg.is_some();
+    let work_site = if wants_work_site {
+        let (points, source) = match (&work_points, &args.work_points) {
+            (Some(points), Some(path)) => (
+                points.clone(),
+                format!("{} points of {}", points.len(), path.display()),
+            ),
+            _ => {
+                let c = cell.centre_b1 * 1e3;
+                (
+                    vec![cell.centre_b1],
+                    format!(
+                        "the cell's teach centre ({:.1}, {:.1}, {:.1}) mm in base 1",
+                        c.x, c.y, c.z
+                    ),
+                )
+            }
+        };
+        let w = predict_work_site(&cell, &problem, &cal, &points, &source, acceptance, P95_SEED)
+            .context("the verdict at the work site")?;
+        for u in &w.unreachable {
+            eprintln!(
+                "warning: work point row {} ({:.1}, {:.1}, {:.1} mm) is not predicted: {}",
+                u.row, u.p_b1_mm[0], u.p_b1_mm[1], u.p_b1_mm[2], u.why
+            );
+        }
+        Some(w)
+    } else {
+        None
+    };
+    let calibration_report = cal.report(&problem);
     let report = CellReport::new(
-        cal.report(&problem),
+        calibration_report.clone(),
         args.model,
         session.len(),
         rows_by_kind,
         cooperative,
+        work_site,
     );
+    if let Some(path) = &args.report {
+        write_report_page(
+            path,
+            &args,
+            &cell,
+            &problem,
+            &cal,
+            &calibration_report,
+            &report,
+        )?;
+    }
     let written = match &args.export {
         Some(dir) => export_calibrated_cell(&cell, &cal.fit.estimate, dir, &CALIBRATE_EXPORT_NAMES)
             .with_context(|| format!("--export {}", dir.display()))?,
@@ -182,8 +256,52 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         for f in &written {
             println!("wrote {}", f.display());
         }
+        if let Some(path) = &args.report {
+            println!("wrote {}", path.display());
+        }
     }
     Ok(())
+}
+
+/// Writes the HTML page of `calibrate --cell … --report FILE` (see [`report::calibration_page`]):
+/// the same `report` as `--json` (embedded as JSON), its [`CalibrationReport`], and the plots'
+/// data from the same fit.
+fn write_report_page(
+    path: &std::path::Path,
+    args: &CellArgs,
+    cell: &Cell,
+    problem: &calib_core::whole_cell::CellProblem,
+    cal: &calib_core::whole_cell::CellCalibration,
+    calibration: &CalibrationReport,
+    report: &CellReport,
+) -> anyhow::Result<()> {
+    let Some(work_site) = &report.work_site else {
+        bail!("internal: the report page needs the work-site verdict");
+    };
+    let residuals = row_residuals(problem, cal).context("--report: the rows' residuals")?;
+    let coverage = joint_coverage(cell, &residuals);
+    let json = serde_json::to_string_pretty(report)?;
+    let display = |p: &Option<PathBuf>| p.as_ref().map(|p| p.display().to_string()).unwrap_or_default();
+    let invocation = crate::report_page::invocation();
+    let html = calibration_page(&CalibrationPage {
+        cell: &display(&args.cell),
+        session: &display(&args.session),
+        model: args.model.name(),
+        rows: report.rows,
+        report: calibration,
+        work_site,
+        meeting_pairs: report.cooperative_accuracy_mm.as_ref().map(|c| MeetingPairsAccuracy {
+            pairs: c.pairs,
+            rms_mm: c.predicted_rms,
+            p95_mm: c.predicted_p95,
+        }),
+        residuals: &residuals,
+        coverage: &coverage,
+        dof: [cell.robot1.model.dof(), cell.robot2.model.dof()],
+        json: &json,
+        invocation: &invocation,
+    });
+    crate::report_page::write(path, &html)
 }
 
 /// Fewer coincident rows than this: the fit starts from the cell's `b1_from_b2` (a rigid start
@@ -280,6 +398,10 @@ struct CellReport {
     rows_used: usize,
     stopped: StopReason,
     unidentifiable: Vec<UnidentifiableReport>,
+    /// The verdict at the work site; only with --report, --work-points, --accept-mm or
+    /// --accept-deg.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    work_site: Option<WorkSiteReport>,
 }
 
 impl CellReport {
@@ -292,6 +414,7 @@ impl CellReport {
         rows: usize,
         rows_by_kind: Option<RowsByKind>,
         cooperative_accuracy_mm: Option<CooperativeAccuracyReport>,
+        work_site: Option<WorkSiteReport>,
     ) -> Self {
         let CalibrationReport {
             b1_from_b2,
@@ -330,6 +453,7 @@ impl CellReport {
             rows_used,
             stopped,
             unidentifiable,
+            work_site,
         }
     }
 }
@@ -478,6 +602,18 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
             "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the {} meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms {:.3} mm, p95 {:.3} mm",
             c.pairs, c.predicted_rms, c.predicted_p95
         )?,
+    }
+    if let Some(w) = &r.work_site {
+        writeln!(
+            s,
+            "predicted cooperative accuracy at the work site ({}): rms {:.3} mm, p95 {:.3} mm (95 % interval {:.3}–{:.3} mm)",
+            w.source,
+            w.predicted_rms_mm,
+            w.predicted_p95_mm,
+            w.predicted_p95_ci_mm[0],
+            w.predicted_p95_ci_mm[1]
+        )?;
+        writeln!(s, "verdict: {}: {}", w.verdict.headline(), w.why)?;
     }
     if params.is_empty() {
         writeln!(
@@ -683,6 +819,7 @@ mod tests {
             rows_by_kind: Some(RowsByKind::from_counts([7, 8, 13, 13, 0])),
             rows_used: 40,
             stopped: StopReason::Converged,
+            work_site: None,
             unidentifiable: vec![
                 dropped(
                     "robot 1 origin_xyz joint 2 z",

@@ -66,6 +66,9 @@ pub struct CalibrationPage<'a> {
     pub invocation: &'a Invocation,
 }
 
+/// Tables longer than this many rows start folded (`<details>`), so the plots stay near the top.
+const FOLDED_ROWS: usize = 12;
+
 /// The page's style sheet.
 const CSS: &str = r#"
 body { font-family: system-ui, "DejaVu Sans", sans-serif; margin: 2em auto; max-width: 980px; color: #222; line-height: 1.4; }
@@ -86,6 +89,8 @@ th, td { border-bottom: 1px solid #e3e3e3; padding: 0.25em 0.7em; text-align: le
 td.num, th.num { text-align: right; font-variant-numeric: tabular-nums; }
 figure { margin: 1em 0; }
 figure svg { max-width: 100%; height: auto; }
+td.detail { font-size: 0.85em; color: #555; max-width: 40em; }
+details summary { cursor: pointer; color: #1f4f8f; margin: 0.3em 0; }
 figcaption { color: #555; font-size: 0.9em; }
 .note { color: #555; font-style: italic; }
 pre.cmd { background: #f4f4f4; padding: 0.6em; white-space: pre-wrap; word-break: break-all; }
@@ -257,6 +262,8 @@ pub fn calibration_page(p: &CalibrationPage) -> String {
         @if r.parameters.is_empty() {
             p { "None fitted: both robots held at their nominal models." }
         } @else {
+            details open[r.parameters.len() <= FOLDED_ROWS] {
+            summary { (r.parameters.len()) " parameters: value ± posterior σ, prior σ" }
             table id="parameters" {
                 tr { th { "parameter" } th class="num" { "value ± posterior σ" } th class="num" { "prior σ" } th class="num" { "size, prior σ" } }
                 @for q in &r.parameters {
@@ -268,6 +275,7 @@ pub fn calibration_page(p: &CalibrationPage) -> String {
                     }
                 }
             }
+            }
             p class="note" { (r.data_determined_directions) " directions determined by the data, " (r.prior_dominated_directions) " dominated by the prior; prior scale chosen by the evidence: " (r.prior_scale.chosen) "." }
         }
         h2 { "Not identifiable from this session (" (r.unidentifiable.len()) ")" }
@@ -275,9 +283,12 @@ pub fn calibration_page(p: &CalibrationPage) -> String {
             p { "Every fitted parameter is identifiable." }
         } @else {
             p class="note" { "Held at nominal; their prior is kept in the prediction." }
-            table id="unidentifiable" {
-                tr { th { "parameter" } th { "why" } }
-                @for d in &r.unidentifiable { tr { td { (d.name) } td { (drop_reason(d.reason)) ": " (d.why) } } }
+            details open[r.unidentifiable.len() <= FOLDED_ROWS] {
+                summary { (r.unidentifiable.len()) " parameters and why" }
+                table id="unidentifiable" {
+                    tr { th { "parameter" } th { "reason" } th { "detail" } }
+                    @for d in &r.unidentifiable { tr { td { (d.name) } td { (drop_reason(d.reason)) } td class="detail" { (d.why) } } }
+                }
             }
         }
         h2 { "Rows rejected as blunders (" (r.rejected_points.len()) ")" }
