@@ -11,5 +11,6 @@ mod inputs;
 mod paper;
 mod paper_diagnose;
 mod plan;
+mod report;
 mod sim;
 mod support;

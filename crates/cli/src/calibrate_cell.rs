@@ -143,8 +143,8 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
     if let Some(dir) = &args.export {
         crate::export_dir::check_export_folder(dir, force)?;
     }
-    let acceptance = Acceptance::new(args.accept_mm, args.accept_deg)
-        .context("--accept-mm / --accept-deg")?;
+    let acceptance =
+        Acceptance::new(args.accept_mm, args.accept_deg).context("--accept-mm / --accept-deg")?;
     let work_points = args
         .work_points
         .as_ref()
@@ -212,8 +212,10 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
                 )
             }
         };
-        let w = predict_work_site(&cell, &problem, &cal, &points, &source, acceptance, P95_SEED)
-            .context("the verdict at the work site")?;
+        let w = predict_work_site(
+            &cell, &problem, &cal, &points, &source, acceptance, P95_SEED,
+        )
+        .context("the verdict at the work site")?;
         for u in &w.unreachable {
             eprintln!(
                 "warning: work point row {} ({:.1}, {:.1}, {:.1} mm) is not predicted: {}",
@@ -281,7 +283,11 @@ fn write_report_page(
     let residuals = row_residuals(problem, cal).context("--report: the rows' residuals")?;
     let coverage = joint_coverage(cell, &residuals);
     let json = serde_json::to_string_pretty(report)?;
-    let display = |p: &Option<PathBuf>| p.as_ref().map(|p| p.display().to_string()).unwrap_or_default();
+    let display = |p: &Option<PathBuf>| {
+        p.as_ref()
+            .map(|p| p.display().to_string())
+            .unwrap_or_default()
+    };
     let invocation = crate::report_page::invocation();
     let html = calibration_page(&CalibrationPage {
         cell: &display(&args.cell),
@@ -290,11 +296,14 @@ fn write_report_page(
         rows: report.rows,
         report: calibration,
         work_site,
-        meeting_pairs: report.cooperative_accuracy_mm.as_ref().map(|c| MeetingPairsAccuracy {
-            pairs: c.pairs,
-            rms_mm: c.predicted_rms,
-            p95_mm: c.predicted_p95,
-        }),
+        meeting_pairs: report
+            .cooperative_accuracy_mm
+            .as_ref()
+            .map(|c| MeetingPairsAccuracy {
+                pairs: c.pairs,
+                rms_mm: c.predicted_rms,
+                p95_mm: c.predicted_p95,
+            }),
         residuals: &residuals,
         coverage: &coverage,
         dof: [cell.robot1.model.dof(), cell.robot2.model.dof()],

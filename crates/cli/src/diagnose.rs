@@ -57,6 +57,10 @@ pub struct Args {
     /// which are ignored.
     #[arg(long)]
     pub verbose: bool,
+    /// Write a self-contained HTML page here (the named causes with their gain, before and
+    /// after, held out; the rejected families; plots), to open in a browser.
+    #[arg(long, value_name = "FILE.html")]
+    pub report: Option<PathBuf>,
 }
 
 /// Sessions of at least this many points print progress on stderr even when it is not a
@@ -102,10 +106,24 @@ fn run_whole_cell(
             }
         }
     }
+    let json = serde_json::to_string(&report)?;
+    if let Some(path) = &args.report {
+        let html = report::cell_diagnosis_page(
+            &report,
+            &args.cell.display().to_string(),
+            &args.session.display().to_string(),
+            &json,
+            &crate::report_page::invocation(),
+        );
+        crate::report_page::write(path, &html)?;
+    }
     if args.json {
-        println!("{}", serde_json::to_string(&report)?);
+        println!("{json}");
     } else {
         print!("{}", diagnose::render_cell_text(&report));
+        if let Some(path) = &args.report {
+            println!("wrote {}", path.display());
+        }
     }
     Ok(())
 }
@@ -180,10 +198,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         }
     }
+    let json = serde_json::to_string(&report)?;
+    if let Some(path) = &args.report {
+        let html = report::coincident_diagnosis_page(
+            &report,
+            &args.cell.display().to_string(),
+            &args.session.display().to_string(),
+            &json,
+            &crate::report_page::invocation(),
+        );
+        crate::report_page::write(path, &html)?;
+    }
     if args.json {
-        println!("{}", serde_json::to_string(&report)?);
+        println!("{json}");
     } else {
         print!("{}", diagnose::render_text(&report));
+        if let Some(path) = &args.report {
+            println!("wrote {}", path.display());
+        }
     }
     Ok(())
 }

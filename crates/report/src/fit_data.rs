@@ -54,12 +54,11 @@ pub fn row_residuals(
                 ObservationKind::Coincident { q1, q2, .. }
                 | ObservationKind::Contact { q1, q2, .. }
                 | ObservationKind::FaceContact { q1, q2, .. } => (Some(deg(q1)), Some(deg(q2))),
-                ObservationKind::Tracker { robot, q, .. } | ObservationKind::Plane { robot, q, .. } => {
-                    match robot {
-                        Robot::One => (Some(deg(q)), None),
-                        Robot::Two => (None, Some(deg(q))),
-                    }
-                }
+                ObservationKind::Tracker { robot, q, .. }
+                | ObservationKind::Plane { robot, q, .. } => match robot {
+                    Robot::One => (Some(deg(q)), None),
+                    Robot::Two => (None, Some(deg(q))),
+                },
                 _ => (None, None),
             };
             Ok(RowResidual {

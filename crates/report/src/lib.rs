@@ -27,6 +27,9 @@ pub use page::{
     MeetingPairsAccuracy,
 };
 pub use work_site::{
-    predict_work_site, read_work_points, Acceptance, RotationPredictionReport,
-    UnreachableReport, Verdict, WorkPointReport, WorkSiteReport,
+    predict_work_site, read_work_points, Acceptance, RotationPredictionReport, UnreachableReport,
+    Verdict, WorkPointReport, WorkSiteReport,
 };
+
+#[cfg(test)]
+mod tests;

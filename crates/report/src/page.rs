@@ -222,7 +222,10 @@ pub fn calibration_page(p: &CalibrationPage) -> String {
         plot::bars(
             "predicted cooperative rms at each work point",
             &labels,
-            &[("predicted rms", w.points.iter().map(|q| q.predicted_rms_mm).collect())],
+            &[(
+                "predicted rms",
+                w.points.iter().map(|q| q.predicted_rms_mm).collect(),
+            )],
             "predicted rms, mm",
         )
     });
@@ -328,7 +331,10 @@ fn diagnosis_box(named: usize, before: f64, after: f64, what: &str) -> Markup {
     let (class, headline) = if named == 0 {
         ("verdict none", "NO CAUSE NAMED".to_string())
     } else {
-        ("verdict pass", format!("{named} CAUSE{} NAMED", if named == 1 { "" } else { "S" }))
+        (
+            "verdict pass",
+            format!("{named} CAUSE{} NAMED", if named == 1 { "" } else { "S" }),
+        )
     };
     html! {
         section class=(class) id="verdict" data-verdict=(headline) {
@@ -340,7 +346,13 @@ fn diagnosis_box(named: usize, before: f64, after: f64, what: &str) -> Markup {
 }
 
 /// The page of `diagnose` on a session of coincident handclasps.
-pub fn coincident_diagnosis_page(r: &DiagnoseReport, cell: &str, session: &str, json: &str, invocation: &Invocation) -> String {
+pub fn coincident_diagnosis_page(
+    r: &DiagnoseReport,
+    cell: &str,
+    session: &str,
+    json: &str,
+    invocation: &Invocation,
+) -> String {
     let body = html! {
         h1 { "handclasp diagnosis report" }
         p class="sub" { "Cell " code { (cell) } ", session " code { (session) } " (" (r.n_points) " points)." }
@@ -391,17 +403,32 @@ pub fn coincident_diagnosis_page(r: &DiagnoseReport, cell: &str, session: &str, 
 
 /// The page of `diagnose` on a session with contact, tracker or plane rows (the whole-cell
 /// diagnosis): the causes with their held-out gain, before/after by kind, the rejected families.
-pub fn cell_diagnosis_page(r: &CellDiagnoseReport, cell: &str, session: &str, json: &str, invocation: &Invocation) -> String {
+pub fn cell_diagnosis_page(
+    r: &CellDiagnoseReport,
+    cell: &str,
+    session: &str,
+    json: &str,
+    invocation: &Invocation,
+) -> String {
     let held = |v: &[diagnose::cell_report::KindResidual]| -> Vec<(String, f64)> {
-        v.iter().filter_map(|k| k.held_out_rms_mm.map(|h| (k.kind.to_string(), h))).collect()
+        v.iter()
+            .filter_map(|k| k.held_out_rms_mm.map(|h| (k.kind.to_string(), h)))
+            .collect()
     };
     let before = held(&r.baseline);
     let after = held(&r.final_residuals);
     let rms = |v: &[(String, f64)]| {
-        if v.is_empty() { f64::NAN } else { (v.iter().map(|x| x.1 * x.1).sum::<f64>() / v.len() as f64).sqrt() }
+        if v.is_empty() {
+            f64::NAN
+        } else {
+            (v.iter().map(|x| x.1 * x.1).sum::<f64>() / v.len() as f64).sqrt()
+        }
     };
     let labels: Vec<String> = before.iter().map(|b| b.0.clone()).collect();
-    let after_by_label: Vec<f64> = labels.iter().map(|l| after.iter().find(|a| &a.0 == l).map_or(f64::NAN, |a| a.1)).collect();
+    let after_by_label: Vec<f64> = labels
+        .iter()
+        .map(|l| after.iter().find(|a| &a.0 == l).map_or(f64::NAN, |a| a.1))
+        .collect();
     let body = html! {
         h1 { "handclasp diagnosis report (whole cell)" }
         p class="sub" { "Cell " code { (cell) } ", session " code { (session) } " (" (r.rows_used) " rows used)." }

@@ -26,7 +26,10 @@ const WIDTH: u32 = 860;
 type PlotResult = Result<(), String>;
 
 /// Draws into an SVG string of `size` with `draw`.
-fn svg(size: (u32, u32), draw: impl FnOnce(&DrawingArea<SVGBackend, Shift>) -> PlotResult) -> Result<String, String> {
+fn svg(
+    size: (u32, u32),
+    draw: impl FnOnce(&DrawingArea<SVGBackend, Shift>) -> PlotResult,
+) -> Result<String, String> {
     let mut out = String::new();
     {
         let root = SVGBackend::with_string(&mut out, size).into_drawing_area();
@@ -41,7 +44,9 @@ fn svg(size: (u32, u32), draw: impl FnOnce(&DrawingArea<SVGBackend, Shift>) -> P
 fn padded(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = values
         .filter(|v| v.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
     if !lo.is_finite() {
         return (0.0, 1.0);
     }
@@ -82,9 +87,9 @@ pub fn residual_per_row(rows: &[RowResidual]) -> Result<String, String> {
             .legend(|(x, y)| Circle::new((x + 8, y), 3, USED.filled()));
         chart
             .draw_series(
-                rows.iter()
-                    .filter(|r| r.rejected)
-                    .map(|r| Cross::new((r.row as f64, r.residual_mm), 6, REJECTED.stroke_width(2))),
+                rows.iter().filter(|r| r.rejected).map(|r| {
+                    Cross::new((r.row as f64, r.residual_mm), 6, REJECTED.stroke_width(2))
+                }),
             )
             .map_err(|e| e.to_string())?
             .label("rejected as a blunder")
@@ -101,7 +106,11 @@ pub fn residual_per_row(rows: &[RowResidual]) -> Result<String, String> {
 
 /// Residual (mm) against each joint of `robot` (`dof` joints), one small panel a joint, three
 /// a line; rejected rows as red crosses.
-pub fn residual_against_joints(rows: &[RowResidual], robot: Robot, dof: usize) -> Result<String, String> {
+pub fn residual_against_joints(
+    rows: &[RowResidual],
+    robot: Robot,
+    dof: usize,
+) -> Result<String, String> {
     let cols = 3usize;
     let lines = dof.div_ceil(cols).max(1);
     let q = |r: &RowResidual| match robot {
@@ -111,13 +120,19 @@ pub fn residual_against_joints(rows: &[RowResidual], robot: Robot, dof: usize) -
     let (_, y1) = padded(rows.iter().map(|r| r.residual_mm).chain([0.0]));
     svg((WIDTH, 230 * lines as u32 + 30), |root| {
         let root = root
-            .titled(&format!("residual against robot {}'s joints", robot.number()), ("sans-serif", FONT + 2))
+            .titled(
+                &format!("residual against robot {}'s joints", robot.number()),
+                ("sans-serif", FONT + 2),
+            )
             .map_err(|e| e.to_string())?;
         let areas = root.split_evenly((lines, cols));
         for (j, area) in areas.iter().enumerate().take(dof) {
             let pts: Vec<(f64, f64, bool)> = rows
                 .iter()
-                .filter_map(|r| q(r).and_then(|v| v.get(j).copied()).map(|x| (x, r.residual_mm, r.rejected)))
+                .filter_map(|r| {
+                    q(r).and_then(|v| v.get(j).copied())
+                        .map(|x| (x, r.residual_mm, r.rejected))
+                })
                 .collect();
             let (x0, x1) = padded(pts.iter().map(|p| p.0));
             let mut chart = ChartBuilder::on(area)
@@ -136,10 +151,18 @@ pub fn residual_against_joints(rows: &[RowResidual], robot: Robot, dof: usize) -
                 .draw()
                 .map_err(|e| e.to_string())?;
             chart
-                .draw_series(pts.iter().filter(|p| !p.2).map(|p| Circle::new((p.0, p.1), 2, USED.filled())))
+                .draw_series(
+                    pts.iter()
+                        .filter(|p| !p.2)
+                        .map(|p| Circle::new((p.0, p.1), 2, USED.filled())),
+                )
                 .map_err(|e| e.to_string())?;
             chart
-                .draw_series(pts.iter().filter(|p| p.2).map(|p| Cross::new((p.0, p.1), 5, REJECTED.stroke_width(2))))
+                .draw_series(
+                    pts.iter()
+                        .filter(|p| p.2)
+                        .map(|p| Cross::new((p.0, p.1), 5, REJECTED.stroke_width(2))),
+                )
                 .map_err(|e| e.to_string())?;
         }
         Ok(())
@@ -153,7 +176,10 @@ pub fn coverage(joints: &[JointCoverage]) -> Result<String, String> {
     let (x0, x1) = padded(joints.iter().flat_map(|j| [j.lower, j.upper]));
     svg((WIDTH, 40 + 26 * n as u32 + 50), |root| {
         let mut chart = ChartBuilder::on(root)
-            .caption("coverage of each joint's range (grey: limits, green: this session)", ("sans-serif", FONT + 2))
+            .caption(
+                "coverage of each joint's range (grey: limits, green: this session)",
+                ("sans-serif", FONT + 2),
+            )
             .margin(10)
             .x_label_area_size(36)
             .y_label_area_size(110)
@@ -185,13 +211,20 @@ pub fn coverage(joints: &[JointCoverage]) -> Result<String, String> {
         let band = |i: usize| (n - 1 - i) as f64;
         chart
             .draw_series(joints.iter().enumerate().map(|(i, j)| {
-                Rectangle::new([(j.lower, band(i) + 0.2), (j.upper, band(i) + 0.8)], LIGHT.filled())
+                Rectangle::new(
+                    [(j.lower, band(i) + 0.2), (j.upper, band(i) + 0.8)],
+                    LIGHT.filled(),
+                )
             }))
             .map_err(|e| e.to_string())?;
         chart
             .draw_series(joints.iter().enumerate().filter_map(|(i, j)| {
-                j.session
-                    .map(|[a, b]| Rectangle::new([(a, band(i) + 0.25), (b.max(a + 1e-9), band(i) + 0.75)], AFTER.filled()))
+                j.session.map(|[a, b]| {
+                    Rectangle::new(
+                        [(a, band(i) + 0.25), (b.max(a + 1e-9), band(i) + 0.75)],
+                        AFTER.filled(),
+                    )
+                })
             }))
             .map_err(|e| e.to_string())?;
         chart
@@ -209,7 +242,12 @@ pub fn coverage(joints: &[JointCoverage]) -> Result<String, String> {
 
 /// A bar per label of `values` (one colour a series; at most 2 series: red then green), for
 /// "before/after" and per-point charts; `y_desc` names the unit.
-pub fn bars(title: &str, labels: &[String], series: &[(&str, Vec<f64>)], y_desc: &str) -> Result<String, String> {
+pub fn bars(
+    title: &str,
+    labels: &[String],
+    series: &[(&str, Vec<f64>)],
+    y_desc: &str,
+) -> Result<String, String> {
     let n = labels.len().max(1);
     let k = series.len().max(1);
     let (_, y1) = padded(series.iter().flat_map(|s| s.1.iter().copied()).chain([0.0]));
@@ -240,15 +278,32 @@ pub fn bars(title: &str, labels: &[String], series: &[(&str, Vec<f64>)], y_desc:
             .map_err(|e| e.to_string())?;
         let width = 0.8 / k as f64;
         for (s, (name, values)) in series.iter().enumerate() {
-            let colour = if series.len() == 1 { USED } else if s == 0 { REJECTED } else { AFTER };
+            let colour = if series.len() == 1 {
+                USED
+            } else if s == 0 {
+                REJECTED
+            } else {
+                AFTER
+            };
             let left = |i: usize| i as f64 + 0.1 + s as f64 * width;
             chart
-                .draw_series(values.iter().enumerate().filter(|(_, v)| v.is_finite()).map(|(i, v)| {
-                    Rectangle::new([(left(i), 0.0), (left(i) + width * 0.95, *v)], colour.filled())
-                }))
+                .draw_series(
+                    values
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, v)| v.is_finite())
+                        .map(|(i, v)| {
+                            Rectangle::new(
+                                [(left(i), 0.0), (left(i) + width * 0.95, *v)],
+                                colour.filled(),
+                            )
+                        }),
+                )
                 .map_err(|e| e.to_string())?
                 .label(*name)
-                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], colour.filled()));
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 5), (x + 10, y + 5)], colour.filled())
+                });
         }
         chart
             .configure_series_labels()
@@ -261,7 +316,14 @@ pub fn bars(title: &str, labels: &[String], series: &[(&str, Vec<f64>)], y_desc:
 }
 
 /// Lines of `(x, before)` and `(x, after)` (the diagnosis's residual trend along one joint).
-pub fn before_after_lines(title: &str, x_desc: &str, y_desc: &str, x: &[f64], before: &[f64], after: &[f64]) -> Result<String, String> {
+pub fn before_after_lines(
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    x: &[f64],
+    before: &[f64],
+    after: &[f64],
+) -> Result<String, String> {
     let (x0, x1) = padded(x.iter().copied());
     let (_, y1) = padded(before.iter().chain(after).copied().chain([0.0]));
     svg((WIDTH / 2, 280), |root| {
@@ -281,12 +343,19 @@ pub fn before_after_lines(title: &str, x_desc: &str, y_desc: &str, x: &[f64], be
             .draw()
             .map_err(|e| e.to_string())?;
         for (name, values, colour) in [("before", before, REJECTED), ("after", after, AFTER)] {
-            let pts: Vec<(f64, f64)> = x.iter().copied().zip(values.iter().copied()).filter(|p| p.1.is_finite()).collect();
+            let pts: Vec<(f64, f64)> = x
+                .iter()
+                .copied()
+                .zip(values.iter().copied())
+                .filter(|p| p.1.is_finite())
+                .collect();
             chart
                 .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2)))
                 .map_err(|e| e.to_string())?
                 .label(name)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2)));
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2))
+                });
             chart
                 .draw_series(pts.into_iter().map(|p| Circle::new(p, 3, colour.filled())))
                 .map_err(|e| e.to_string())?;

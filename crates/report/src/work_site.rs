@@ -106,7 +106,7 @@ impl Acceptance {
     /// check: PASS when every stated threshold holds at the upper end of its p95's interval and
     /// every work point was predicted; FAIL otherwise; [`Verdict::NoAcceptance`] when nothing is
     /// stated.
-    fn verdict(&self, w: &WorkSiteReport) -> (Verdict, String) {
+    pub(crate) fn verdict(&self, w: &WorkSiteReport) -> (Verdict, String) {
         if self.accept_mm.is_none() && self.accept_deg.is_none() {
             return (
                 Verdict::NoAcceptance,
@@ -305,7 +305,11 @@ fn work_site_pairs(
 fn placement_rotation_covariance(cal: &CellCalibration) -> Option<Matrix3<f64>> {
     let cols: Vec<usize> = Axis::ALL
         .into_iter()
-        .map(|axis| cal.fit.layout.column(&CellParam::PlacementRotation { axis }))
+        .map(|axis| {
+            cal.fit
+                .layout
+                .column(&CellParam::PlacementRotation { axis })
+        })
         .collect::<Option<_>>()?;
     Some(Matrix3::from_fn(|a, b| {
         cal.fit.covariance[(cols[a], cols[b])]
