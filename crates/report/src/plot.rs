@@ -250,7 +250,9 @@ pub fn bars(
 ) -> Result<String, String> {
     let n = labels.len().max(1);
     let k = series.len().max(1);
+    // Headroom above the tallest bar for the legend.
     let (_, y1) = padded(series.iter().flat_map(|s| s.1.iter().copied()).chain([0.0]));
+    let y1 = y1 * 1.3;
     let height = 320;
     svg((WIDTH, height), |root| {
         let mut chart = ChartBuilder::on(root)

@@ -18,13 +18,13 @@ fn work_site(p95: f64, ci: [f64; 2], rot_ci: [f64; 2]) -> WorkSiteReport {
     WorkSiteReport {
         acceptance: Acceptance::default(),
         placement_rotation: Some(RotationPredictionReport {
-            p95_deg: (rot_ci[0] + rot_ci[1]) / 2.0,
             p95_ci_deg: rot_ci,
+            p95_deg: (rot_ci[0] + rot_ci[1]) / 2.0,
             rms_deg: rot_ci[0] / 2.0,
         }),
         points: vec![],
-        predicted_p95_mm: p95,
         predicted_p95_ci_mm: ci,
+        predicted_p95_mm: p95,
         predicted_rms_mm: p95 / 2.0,
         seed: 1,
         source: "test".into(),
@@ -160,6 +160,11 @@ fn calibration_page_is_self_contained_and_shows_the_verdict_first() {
     assert_eq!(w.points.len(), 1);
     assert_eq!(w.unreachable.len(), 1, "20 m away is out of reach");
     assert_eq!(w.unreachable[0].row, 2);
+    assert!(
+        w.unreachable[0].why.starts_with("the work point at"),
+        "{}",
+        w.unreachable[0].why
+    );
     assert_eq!(w.verdict, Verdict::Fail, "{}", w.why);
     let [lo, hi] = w.predicted_p95_ci_mm;
     assert!(
@@ -186,6 +191,13 @@ fn calibration_page_is_self_contained_and_shows_the_verdict_first() {
     assert!(coverage
         .iter()
         .all(|c| (0.0..=1.0).contains(&c.fraction) && c.session.is_some()));
+    // The JSON's keys stand in alphabetical order at every level (every report's key order).
+    // (`to_value` sorts the keys without parsing the floats back.)
+    assert_eq!(
+        serde_json::to_string(&w).unwrap(),
+        serde_json::to_string(&serde_json::to_value(&w).unwrap()).unwrap(),
+        "keys out of order"
+    );
     let report = cal.report(&problem);
     let json = serde_json::json!({"work_site": &w, "probe": "</script><script>alert(1)</script>"})
         .to_string();

@@ -78,10 +78,10 @@ pub fn read_work_points(path: &Path) -> Result<Vec<Point3<f64>>, ReportError> {
 /// What the user accepts at the work site; `None` where nothing is stated.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
 pub struct Acceptance {
-    /// Largest accepted cooperative position error (the p95), mm.
-    pub accept_mm: Option<f64>,
     /// Largest accepted rotation error of `b1_from_b2` (the p95), degrees.
     pub accept_deg: Option<f64>,
+    /// Largest accepted cooperative position error (the p95), mm.
+    pub accept_mm: Option<f64>,
 }
 
 impl Acceptance {
@@ -97,8 +97,8 @@ impl Acceptance {
             }
         }
         Ok(Acceptance {
-            accept_mm,
             accept_deg,
+            accept_mm,
         })
     }
 
@@ -223,10 +223,10 @@ pub struct UnreachableReport {
 /// The predicted rotation error of `b1_from_b2` (the norm of its rotation-vector error), deg.
 #[derive(Debug, Clone, Serialize)]
 pub struct RotationPredictionReport {
+    /// Distribution-free 95 % interval of the p95 from the seeded draws, degrees.
+    pub p95_ci_deg: [f64; 2],
     /// Predicted 95th percentile, degrees.
     pub p95_deg: f64,
-    /// Its distribution-free 95 % interval from the seeded draws, degrees.
-    pub p95_ci_deg: [f64; 2],
     /// Predicted rms, degrees.
     pub rms_deg: f64,
 }
@@ -242,10 +242,10 @@ pub struct WorkSiteReport {
     pub placement_rotation: Option<RotationPredictionReport>,
     /// The predicted points.
     pub points: Vec<WorkPointReport>,
+    /// Distribution-free 95 % interval of the p95 from the seeded draws, mm.
+    pub predicted_p95_ci_mm: [f64; 2],
     /// Predicted 95th percentile of the cooperative position error over the points, mm.
     pub predicted_p95_mm: f64,
-    /// Its distribution-free 95 % interval from the seeded draws, mm.
-    pub predicted_p95_ci_mm: [f64; 2],
     /// Predicted rms of the cooperative position error over the points, mm.
     pub predicted_rms_mm: f64,
     /// Seed of the p95 draws.
@@ -294,7 +294,12 @@ fn work_site_pairs(
                 )),
                 None => failed.push((i, "no handclasp placed".into())),
             },
-            Err(e) => failed.push((i, e.to_string())),
+            // The generator numbers the one point it was given 1; say "the work point".
+            Err(e) => failed.push((
+                i,
+                e.to_string()
+                    .replacen("teach point 1 ", "the work point ", 1),
+            )),
         }
     }
     (pairs, failed)
@@ -361,8 +366,8 @@ pub fn predict_work_site(
     let placement_rotation = placement_rotation_covariance(cal).map(|c| {
         let r = summarise_covariances(&[c], seed);
         RotationPredictionReport {
-            p95_deg: r.predicted_p95_m.to_degrees(),
             p95_ci_deg: r.predicted_p95_ci_m.map(f64::to_degrees),
+            p95_deg: r.predicted_p95_m.to_degrees(),
             rms_deg: r.predicted_rms_m.to_degrees(),
         }
     });
@@ -370,8 +375,8 @@ pub fn predict_work_site(
         acceptance,
         placement_rotation,
         points,
-        predicted_p95_mm: prediction.predicted_p95_m * 1e3,
         predicted_p95_ci_mm: prediction.predicted_p95_ci_m.map(|v| v * 1e3),
+        predicted_p95_mm: prediction.predicted_p95_m * 1e3,
         predicted_rms_mm: prediction.predicted_rms_m * 1e3,
         seed,
         source: source.to_string(),
