@@ -260,6 +260,9 @@ pub struct WorkSiteReport {
     pub why: String,
 }
 
+/// The meeting pairs with their 0-based work-point index, and the points that failed with why.
+type PlacedPoints = (Vec<(usize, ConfigPair)>, Vec<(usize, String)>);
+
 /// The work site's meeting pairs: each point (m, b1) placed as a noise-free head-on handclasp
 /// on `cell`'s nominal robots with the placement `b1_from_b2` (the fit's). Returns the pairs
 /// with their 0-based point index, and the points that failed with why.
@@ -268,7 +271,7 @@ fn work_site_pairs(
     b1_from_b2: nalgebra::Isometry3<f64>,
     points_b1: &[Point3<f64>],
     seed: u64,
-) -> (Vec<(usize, ConfigPair)>, Vec<(usize, String)>) {
+) -> PlacedPoints {
     let mut nominal = nominal_cell(cell);
     nominal.b1_from_b2 = b1_from_b2;
     let mut pairs = Vec::new();
