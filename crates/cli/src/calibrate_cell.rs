@@ -76,7 +76,7 @@ pub struct CellArgs {
     pub report: Option<PathBuf>,
     /// With --cell: the work site, a CSV of tool positions in base 1 (header x_mm,y_mm,z_mm)
     /// where the robots will work together; the verdict predicts the accuracy there
-    /// (default: the cell's [teach] centre).
+    /// (default: the cell's `[teach]` centre).
     #[arg(long, requires = "cell", value_name = "FILE.csv")]
     pub work_points: Option<PathBuf>,
     /// With --cell: the largest cooperative position error the job accepts at the work site, mm

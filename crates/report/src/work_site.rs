@@ -106,7 +106,7 @@ impl Acceptance {
     /// check: PASS when every stated threshold holds at the upper end of its p95's interval and
     /// every work point was predicted; FAIL otherwise; [`Verdict::NoAcceptance`] when nothing is
     /// stated.
-    pub(crate) fn verdict(&self, w: &WorkSiteReport) -> (Verdict, String) {
+    pub fn verdict(&self, w: &WorkSiteReport) -> (Verdict, String) {
         if self.accept_mm.is_none() && self.accept_deg.is_none() {
             return (
                 Verdict::NoAcceptance,
