@@ -107,25 +107,14 @@ fn run_whole_cell(
         }
     }
     let json = serde_json::to_string(&report)?;
-    if let Some(path) = &args.report {
-        let html = report::cell_diagnosis_page(
-            &report,
-            &args.cell.display().to_string(),
-            &args.session.display().to_string(),
-            &json,
-            &crate::report_page::invocation(),
-        );
-        crate::report_page::write(path, &html)?;
-    }
-    if args.json {
-        println!("{json}");
-    } else {
-        print!("{}", diagnose::render_cell_text(&report));
-        if let Some(path) = &args.report {
-            println!("wrote {}", path.display());
-        }
-    }
-    Ok(())
+    print_and_write_page(
+        args,
+        &json,
+        &diagnose::render_cell_text(&report),
+        |cell, session, json, invocation| {
+            report::cell_diagnosis_page(&report, cell, session, json, invocation)
+        },
+    )
 }
 
 /// Runs `handclasp diagnose`.
@@ -199,12 +188,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     let json = serde_json::to_string(&report)?;
+    print_and_write_page(
+        &args,
+        &json,
+        &diagnose::render_text(&report),
+        |cell, session, json, invocation| {
+            report::coincident_diagnosis_page(&report, cell, session, json, invocation)
+        },
+    )
+}
+
+/// Writes the page with --report (`page(cell, session, json, invocation)`), then prints the
+/// report: `json` with --json, else `text` and the page's path.
+fn print_and_write_page(
+    args: &Args,
+    json: &str,
+    text: &str,
+    page: impl FnOnce(&str, &str, &str, &report::Invocation) -> String,
+) -> anyhow::Result<()> {
     if let Some(path) = &args.report {
-        let html = report::coincident_diagnosis_page(
-            &report,
+        let html = page(
             &args.cell.display().to_string(),
             &args.session.display().to_string(),
-            &json,
+            json,
             &crate::report_page::invocation(),
         );
         crate::report_page::write(path, &html)?;
@@ -212,7 +218,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.json {
         println!("{json}");
     } else {
-        print!("{}", diagnose::render_text(&report));
+        print!("{text}");
         if let Some(path) = &args.report {
             println!("wrote {}", path.display());
         }

@@ -2,7 +2,7 @@
 //! SVG `<text>` that the browser sets). Each function returns the `<svg>` element, or why it
 //! could not be drawn (the page prints that in the plot's place).
 
-use plotters::coord::Shift;
+use plotters::coord::{CoordTranslate, Shift};
 use plotters::prelude::*;
 
 use crate::fit_data::{JointCoverage, RowResidual};
@@ -38,6 +38,20 @@ fn svg(
         root.present().map_err(|e| e.to_string())?;
     }
     Ok(out)
+}
+
+/// The chart's legend, upper right on a light box.
+fn legend<DB: DrawingBackend, CT: CoordTranslate>(chart: &mut ChartContext<DB, CT>) -> PlotResult
+where
+    DB::ErrorType: 'static,
+{
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| e.to_string())
 }
 
 /// `[lo, hi]` of `values` padded by 5 % (a unit range around a single value; `[0, 1]` for none).
@@ -94,13 +108,7 @@ pub fn residual_per_row(rows: &[RowResidual]) -> Result<String, String> {
             .map_err(|e| e.to_string())?
             .label("rejected as a blunder")
             .legend(|(x, y)| Cross::new((x + 8, y), 5, REJECTED.stroke_width(2)));
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| e.to_string())
+        legend(&mut chart)
     })
 }
 
@@ -307,13 +315,7 @@ pub fn bars(
                     Rectangle::new([(x, y - 5), (x + 10, y + 5)], colour.filled())
                 });
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| e.to_string())
+        legend(&mut chart)
     })
 }
 
@@ -362,12 +364,6 @@ pub fn before_after_lines(
                 .draw_series(pts.into_iter().map(|p| Circle::new(p, 3, colour.filled())))
                 .map_err(|e| e.to_string())?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| e.to_string())
+        legend(&mut chart)
     })
 }
