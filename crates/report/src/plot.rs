@@ -41,7 +41,9 @@ fn svg(
 }
 
 /// The chart's legend, upper right on a light box.
-fn legend<DB: DrawingBackend, CT: CoordTranslate>(chart: &mut ChartContext<DB, CT>) -> PlotResult
+fn legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+) -> PlotResult
 where
     DB::ErrorType: 'static,
 {
