@@ -4,6 +4,7 @@
 mod calibrate;
 mod calibrate_cell;
 mod diagnose;
+mod docs;
 mod export;
 mod fk_ik;
 mod import;

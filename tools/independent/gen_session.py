@@ -19,7 +19,7 @@ A session: teach points P (b1) in the cell's common workspace; the TRUE robots a
 robot 1's true tip is at P and robot 2's at P + eps (isotropic alignment noise, sigma in b1), tool
 axes head-on; the controllers report the joint angles (rounded to 0.001 deg) and the tips the
 NOMINAL model computes from them. Files: cell TOML and session CSV in the formats of
-crates/sim-cell/README.md, plus truth JSON (the effects, the sigma and a noise-free signal figure).
+docs/formats.md, plus truth JSON (the effects, the sigma and a noise-free signal figure).
 
 Usage: gen_session.py --out DIR --seed S [--category noise|joint_offset|...|two_effects]
                       [--mounts floor-floor|floor-wall|floor-ceiling] [--n N] [--sigma-mm S]

@@ -3,7 +3,7 @@
 //! cell; [`ImportMap::read_rows`] converts one input file's text and appends its rows to a
 //! [`Session`].
 //!
-//! The mapping file (TOML; documented with an example in the main README):
+//! The mapping file (TOML; documented with an example in docs/formats.md, § The import mapping file):
 //! ```toml
 //! kind = "contact"            # coincident | contact | tracker | plane
 //! robot = 1                   # tracker and plane: the robot whose tool is measured / touches

@@ -1,7 +1,7 @@
 //! `handclasp import --cell CELL --map MAP.toml --input FILE.csv [--input …] --out SESSION.csv
 //! [--json]`: converts a controller's or a dataset's CSV into a session CSV of `CELL`
 //! (`handclasp_cell::Session`), as the mapping file says. The mapping format and the conversion
-//! are `handclasp_cell::import` (documented there and in the main README); this module reads the
+//! are `handclasp_cell::import` (documented there and in docs/formats.md); this module reads the
 //! files, names the flags in errors, writes the session and reads it back through
 //! `Session::read_csv` before the command succeeds, and prints.
 

@@ -295,8 +295,12 @@ pub struct RobotModel {
     limits: Vec<(f64, f64)>,
 }
 
-/// A joint value within this many radians (or metres) outside a limit is accepted (round-off).
-const CHECK_SLACK: f64 = 1e-9;
+/// A joint value within this many radians (or metres) outside a limit is accepted (round-off):
+/// above the 8.7e-9 rad by which a joint at its limit, written as degrees with 6 decimals (as the
+/// session files are: ±5e-7°), reads back outside it. `handclasp plan` picks poses at joint limits,
+/// and with 1e-9 its plans were refused by the session reader (regression test
+/// `check_q_accepts_a_limit_written_with_six_decimals_of_a_degree`).
+const CHECK_SLACK: f64 = 1e-8;
 
 /// A prismatic joint whose limits reach beyond this many metres is refused as written in
 /// millimetres ([`ModelError::LimitsLookLikeMillimetres`]): the longest robot tracks are tens of
@@ -1000,8 +1004,8 @@ impl RobotModel {
 
     /// Checks a joint vector (the independent joints, rad or m for prismatic ones): length,
     /// finiteness, plainly-degrees values (revolute joints), plainly-millimetre values (prismatic
-    /// joints), joint limits. A value within 1e-9 rad (or m) outside a limit is accepted
-    /// (round-off). A coupled joint's value is not limit-checked.
+    /// joints), joint limits. A value within 1e-8 rad (or m) outside a limit is accepted
+    /// (round-off, including 6 decimals of a degree in a file). A coupled joint's value is not limit-checked.
     pub fn check_q(&self, q: &[f64]) -> Result<(), KinematicsError> {
         // One branch-free pass for the common case; the error is worked out only on failure.
         let ok = q.len() == self.limits.len()

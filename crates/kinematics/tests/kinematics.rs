@@ -169,6 +169,29 @@ fn ik_unreachable_is_a_status() {
     m.check_q(&sol.q).unwrap();
 }
 
+/// Regression (found by the documentation's `plan` → `sim-cell session --plan` commands): a joint
+/// at its limit, written to a session file as degrees with 6 decimals and read back, was up to
+/// 8.7e-9 rad outside it and refused (the slack was 1e-9 rad). Every joint of the VA1400 at each
+/// limit, through the file's rounding, must pass; 1e-6 rad (0.06 millidegree) beyond must not.
+#[test]
+fn check_q_accepts_a_limit_written_with_six_decimals_of_a_degree() {
+    let m = robot("va1400");
+    let written = |rad: f64| {
+        let deg: f64 = format!("{:.6}", rad.to_degrees()).parse().unwrap();
+        deg.to_radians()
+    };
+    for (k, j) in m.joints().iter().enumerate() {
+        for limit in [j.lower, j.upper] {
+            let mut q = vec![0.0; m.dof()];
+            q[k] = written(limit);
+            m.check_q(&q)
+                .unwrap_or_else(|e| panic!("{} at {limit} rad as written: {e}", j.name));
+            q[k] = limit + 1e-6 * limit.signum();
+            assert!(m.check_q(&q).is_err(), "{} 1e-6 rad beyond", j.name);
+        }
+    }
+}
+
 #[test]
 fn bad_inputs_are_typed_errors() {
     let m = robot("hp20");
