@@ -44,7 +44,7 @@ const ORIGIN_MM: f64 = 0.5;
 
 /// The shipped floor–floor cell with seeded true errors on every joint of both robots, written to
 /// `dir/cell.toml` (URDF paths absolute to the workspace's robots/).
-fn write_cell(dir: &Path, seed: u64) -> PathBuf {
+pub(crate) fn write_cell(dir: &Path, seed: u64) -> PathBuf {
     let robots = workspace("robots/");
     let mut text = std::fs::read_to_string(shipped_cell("floor-floor"))
         .unwrap()

@@ -8,8 +8,8 @@ use kinematics::ErrorParam;
 use sim_cell::{trial_rng, Layout, SessionSpec};
 
 use crate::support::{
-    assert_success, cell_session_args, ctu_data_or_skip, ctu_import, handclasp, random_session,
-    shipped_cell, stdout_json, write_session_csv,
+    assert_success, cell_session_args, ctu_data_or_skip, ctu_import, floats, handclasp,
+    random_session, shipped_cell, stdout_json, write_session_csv,
 };
 
 /// The shipped floor–floor cell file (nominal: no errors).
@@ -93,6 +93,40 @@ fn diagnose_names_a_hidden_joint_offset_in_json() {
     );
     assert_eq!(v["b1_from_b2"]["xyz_mm"].as_array().unwrap().len(), 3);
     assert_eq!(v["b1_from_b2"]["zyz_deg"].as_array().unwrap().len(), 3);
+    // The coverage of both robots: 40 rows each, robot 1's 7 joints and robot 2's 6.
+    assert_coverage(&v["coverage"], Some(40));
+}
+
+/// The coverage report `c` of a session of both robots (7 and 6 joints; `rows` rows each when
+/// given): each joint's share of its travel in [0, 1] and its range inside its limits, the tool
+/// points' radius inside the reach's (1 % slack: the reach is sampled), and the reach's share in
+/// the region in [0, 1].
+pub(crate) fn assert_coverage(c: &serde_json::Value, rows: Option<u64>) {
+    let robots = c["robots"]
+        .as_array()
+        .unwrap_or_else(|| panic!("coverage: {c}"));
+    assert_eq!(robots.len(), 2, "{c}");
+    for (r, dof) in robots.iter().zip([7, 6]) {
+        if let Some(n) = rows {
+            assert_eq!(r["rows"], n, "{r}");
+        }
+        let joints = r["joints"].as_array().unwrap();
+        assert_eq!(joints.len(), dof);
+        for j in joints {
+            let f = j["fraction"].as_f64().unwrap();
+            let (range, limits) = (floats(&j["session_range"]), floats(&j["limits"]));
+            assert!((0.0..=1.0).contains(&f), "{j}");
+            assert!(limits[0] <= range[0] && range[1] <= limits[1], "{j}");
+            assert_eq!(j["unit"], "deg");
+        }
+        let (s, reach) = (
+            floats(&r["session"]["radius_mm"]),
+            floats(&r["reach"]["radius_mm"]),
+        );
+        assert!(reach[0] <= s[0] && s[1] <= reach[1] * 1.01, "{r}");
+        let inside = r["reach_fraction_in_region"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&inside), "{r}");
+    }
 }
 
 /// A hidden tilt of robot 1's base (−0.12° about its y axis) is named in the JSON `effects` from
@@ -353,6 +387,7 @@ fn diagnose_mixed_session_runs_the_whole_cell_diagnosis() {
         .map(|k| k["kind"].as_str().unwrap())
         .collect();
     assert_eq!(kinds, ["contact", "tracker", "plane", "coincident"]);
+    assert_coverage(&r["coverage"], None);
     // Added fields: the rejected families (the candidates of the stopping step) and whether the
     // session determines the placement.
     assert_eq!(r["placement_fitted"], true);

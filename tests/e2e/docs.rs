@@ -445,6 +445,7 @@ page_tests! {
     guide_report => "docs/guide/report.md",
     guide_simulate => "docs/guide/simulate.md",
     guide_real_data => "docs/guide/real-data.md",
+    guide_validate => "docs/guide/validate.md",
 }
 
 #[test]

@@ -15,3 +15,4 @@ mod plan;
 mod report;
 mod sim;
 mod support;
+mod validate;

@@ -25,10 +25,10 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use calib_core::whole_cell::{
-    calibrate_cell, predict_cooperative_accuracy, CalibrationReport, CooperativePrediction,
-    DropReason, FittedPlacementReport, GroupsReport, Kind, NuisanceReport, ParameterReport,
-    PlacementSigmaReport, PriorScaleReport, RejectedRowReport, ScreenOptions, SolveOptions,
-    UnidentifiableReport,
+    calibrate_cell, predict_cooperative_accuracy, session_coverage, CalibrationReport,
+    CooperativePrediction, CoverageReport, DropReason, FittedPlacementReport, GroupsReport, Kind,
+    NuisanceReport, ParameterReport, PlacementSigmaReport, PriorScaleReport, RejectedRowReport,
+    ScreenOptions, SolveOptions, UnidentifiableReport,
 };
 use calib_core::StopReason;
 use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
@@ -41,6 +41,10 @@ use serde::Serialize;
 
 /// Seed of the predicted p95's Monte Carlo draw (the session's meeting pairs and the work site).
 pub const P95_SEED: u64 = 1;
+
+/// Seed of the coverage report's reach samples
+/// (`calib_core::whole_cell::session_coverage`).
+pub const COVERAGE_SEED: u64 = 1;
 
 /// How many of the largest kinematic corrections the text report lists.
 const TEXT_LARGEST: usize = 10;
@@ -189,6 +193,13 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
             .context("predicting the cooperative accuracy over the session's meeting pairs")?;
         Some(CooperativeAccuracyReport::new(&prediction, pairs.len()))
     };
+    let coverage = CoverageReport::from(
+        &session_coverage(&problem, COVERAGE_SEED)
+            .context("the session's coverage of the robots' joint ranges and reach")?,
+    );
+    for w in coverage.warnings() {
+        eprintln!("warning: {w}");
+    }
     let rows_by_kind =
         (!session.is_handclasp_only()).then(|| RowsByKind::from_counts(session.kind_counts()));
     let wants_work_site = args.report.is_some()
@@ -233,6 +244,7 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         session.len(),
         rows_by_kind,
         cooperative,
+        coverage,
         work_site,
     );
     if let Some(path) = &args.report {
@@ -384,6 +396,8 @@ struct CellReport {
     b1_from_b2: FittedPlacementReport,
     /// `None` (JSON null) for a session without coincident or contact rows.
     cooperative_accuracy_mm: Option<CooperativeAccuracyReport>,
+    /// The session's joint ranges and tool-point region against the limits and the reach.
+    coverage: CoverageReport,
     data_chi2: f64,
     data_determined_directions: usize,
     /// Only for a session with rows other than plain handclasps (with `rows_by_kind`).
@@ -423,6 +437,7 @@ impl CellReport {
         rows: usize,
         rows_by_kind: Option<RowsByKind>,
         cooperative_accuracy_mm: Option<CooperativeAccuracyReport>,
+        coverage: CoverageReport,
         work_site: Option<WorkSiteReport>,
     ) -> Self {
         let CalibrationReport {
@@ -445,6 +460,7 @@ impl CellReport {
         CellReport {
             b1_from_b2,
             cooperative_accuracy_mm,
+            coverage,
             data_chi2,
             data_determined_directions,
             groups: rows_by_kind.is_some().then_some(groups),
@@ -611,6 +627,9 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
             "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the {} meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms {:.3} mm, p95 {:.3} mm",
             c.pairs, c.predicted_rms, c.predicted_p95
         )?,
+    }
+    for line in r.coverage.text_lines() {
+        writeln!(s, "{line}")?;
     }
     if let Some(w) = &r.work_site {
         writeln!(
@@ -779,6 +798,11 @@ mod tests {
                 },
                 14,
             )),
+            coverage: CoverageReport {
+                reach_samples: 4000,
+                robots: vec![],
+                seed: 1,
+            },
             data_chi2: 62.46,
             data_determined_directions: 3,
             groups: Some(GroupsReport {
@@ -877,6 +901,7 @@ mod tests {
             "  plane group \"table\": normal (0.00000, 0.60000, -0.80000), offset -971.326 mm (base of robot 2)",
             "  tracker group \"leica\": origin (-1226.996, 1146.293, 1295.316) mm in the base of robot 1",
             "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the 14 meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms 1.500 mm, p95 2.750 mm",
+            "coverage (the session against the joint limits and the reach sampled at 4000 joint vectors within them; a calibration is extrapolated outside it):",
             "prior scale chosen by the evidence: 0.0625 (prior σ = scale × tolerance/√3; 1e-3 = placement-only limit); blunder-screen noise scale 1.000",
             "solver: converged after 4 iterations (data χ² 62.5 over 80 residual rows)",
         ];

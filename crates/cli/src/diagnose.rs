@@ -71,6 +71,27 @@ const PROGRESS_MIN_POINTS: usize = 500;
 /// even when it is not a terminal (the CTU tracker files take minutes).
 const PROGRESS_MIN_ROWS_WHOLE_CELL: usize = 100;
 
+/// The coverage report of `session` (read as handclasp-cell's `Session` for `cell`), its
+/// `warning:` lines printed on stderr.
+fn coverage(
+    cell: &Cell,
+    session: &handclasp_cell::Session,
+) -> anyhow::Result<calib_core::whole_cell::CoverageReport> {
+    let problem = handclasp_cell::problem::cell_problem(
+        cell,
+        session,
+        handclasp_cell::problem::FitModel::Placement,
+    );
+    let c = calib_core::whole_cell::CoverageReport::from(
+        &calib_core::whole_cell::session_coverage(&problem, crate::calibrate_cell::COVERAGE_SEED)
+            .context("the session's coverage of the robots' joint ranges and reach")?,
+    );
+    for w in c.warnings() {
+        eprintln!("warning: {w}");
+    }
+    Ok(c)
+}
+
 /// The whole-cell diagnosis of a session with contact, tracker or plane rows.
 fn run_whole_cell(
     args: &Args,
@@ -92,12 +113,13 @@ fn run_whole_cell(
     let show = std::io::IsTerminal::is_terminal(&std::io::stderr())
         || session.len() >= PROGRESS_MIN_ROWS_WHOLE_CELL;
     let start = std::time::Instant::now();
-    let report = diagnose::diagnose_cell_session(cell, session, &options, &|line| {
+    let mut report = diagnose::diagnose_cell_session(cell, session, &options, &|line| {
         if show {
             eprintln!("[{:6.1} s] {line}", start.elapsed().as_secs_f64());
         }
     })
     .with_context(|| format!("diagnosing {}", args.session.display()))?;
+    report.coverage = Some(coverage(cell, session)?);
     if let Some(dir) = &args.export {
         let files = diagnose::export_cell_diagnosis(cell, &report, dir).context("--export")?;
         if !args.json {
@@ -152,10 +174,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.verbose {
         crate::fk::print_cell_branches(&cell);
     }
-    if let Ok(session) = handclasp_cell::Session::read_csv(&args.session, &cell) {
+    let cell_session = handclasp_cell::Session::read_csv(&args.session, &cell).ok();
+    if let Some(session) = &cell_session {
         if !session.is_handclasp_only() {
             // Contact, tracker or plane rows (or other tools): the whole-cell diagnosis.
-            return run_whole_cell(&args, &cell, &session, truth.is_some());
+            return run_whole_cell(&args, &cell, session, truth.is_some());
         }
     }
     let session = diagnose::load_session(&args.session, &cell).context("--session")?;
@@ -171,12 +194,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let show = std::io::IsTerminal::is_terminal(&std::io::stderr())
         || session.points.len() >= PROGRESS_MIN_POINTS;
     let start = std::time::Instant::now();
-    let report = diagnose::diagnose_session_with_progress(&cell, &session, &options, &mut |line| {
-        if show {
-            eprintln!("[{:6.1} s] {line}", start.elapsed().as_secs_f64());
-        }
-    })
-    .with_context(|| format!("diagnosing {}", args.session.display()))?;
+    let mut report =
+        diagnose::diagnose_session_with_progress(&cell, &session, &options, &mut |line| {
+            if show {
+                eprintln!("[{:6.1} s] {line}", start.elapsed().as_secs_f64());
+            }
+        })
+        .with_context(|| format!("diagnosing {}", args.session.display()))?;
+    // The coverage needs the session in handclasp-cell's form (read above; the diagnosis's own
+    // reader also takes sessions that one refuses, which then go without it).
+    if let Some(s) = &cell_session {
+        report.coverage = Some(coverage(&cell, s)?);
+    }
     if let Some(dir) = &args.export {
         let calibrated = report.b1_from_b2.to_isometry();
         let files =

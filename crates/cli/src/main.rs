@@ -19,6 +19,7 @@ mod paper;
 mod paper_diagnose;
 mod plan;
 mod report_page;
+mod validate;
 
 /// Test support shared by the subcommands' unit tests.
 #[cfg(test)]
@@ -69,6 +70,8 @@ enum Command {
     Import(import::Args),
     /// Write the cell's b1_from_b2 for ABB, KUKA, Fanuc, Yaskawa controllers and ROS 2, each file read back and checked.
     Export(export::Args),
+    /// Score a calibrated cell on a session it was not fitted to, per kind and group, against the nominal cell.
+    Validate(validate::Args),
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -81,6 +84,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Plan(args) => plan::run(args),
         Command::Import(args) => import::run(args),
         Command::Export(args) => export::run(args),
+        Command::Validate(args) => validate::run(args),
     }
 }
 

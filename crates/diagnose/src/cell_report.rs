@@ -74,6 +74,12 @@ pub struct CellDiagnoseReport {
     /// session's.
     #[serde(skip)]
     pub final_estimate: CellEstimate,
+    /// The session's coverage: per joint, the range it spans against the limits; per robot,
+    /// its tool points' region against the sampled reach (`calib_core::whole_cell::session_coverage`).
+    /// Set by the caller that holds the session as `handclasp_cell::Session` (the `handclasp`
+    /// CLI); `None`, and left out of the JSON, otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coverage: Option<calib_core::whole_cell::CoverageReport>,
 }
 
 /// Rows of one kind.
@@ -569,6 +575,7 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
         variance_factor: vf,
         final_fit_stopped: format!("{} after {} iterations", ff.stopped.name(), ff.iterations),
         final_estimate: ff.estimate.clone(),
+        coverage: None,
     }
 }
 
@@ -750,5 +757,10 @@ pub fn render_cell_text(r: &CellDiagnoseReport) -> String {
         "Final fit: {}; posterior σ × variance factor {:.2}",
         r.final_fit_stopped, r.variance_factor
     );
+    if let Some(c) = &r.coverage {
+        for line in c.text_lines() {
+            let _ = writeln!(s, "{line}");
+        }
+    }
     s
 }

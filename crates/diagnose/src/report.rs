@@ -299,6 +299,12 @@ pub struct DiagnoseReport {
     pub steps: Vec<String>,
     /// Whether the final LM fit converged.
     pub converged: bool,
+    /// The session's coverage: per joint, the range it spans against the limits; per robot,
+    /// its tool points' region against the sampled reach (`calib_core::whole_cell::session_coverage`).
+    /// Set by the caller that holds the session as `handclasp_cell::Session` (the `handclasp`
+    /// CLI); `None`, and left out of the JSON, otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coverage: Option<calib_core::whole_cell::CoverageReport>,
 }
 
 /// The report of what [`crate::diagnose_session`] found: every unit conversion to mm and
@@ -406,6 +412,7 @@ pub(crate) fn assemble(f: &Findings<'_>) -> DiagnoseReport {
         placement: PlacementReport::from_placement(&f.placement),
         steps,
         converged: fit.converged(),
+        coverage: None,
     }
 }
 
@@ -671,6 +678,11 @@ pub fn render_text(r: &DiagnoseReport) -> String {
                     m.alternative_axes.join(", ")
                 ))
             );
+        }
+    }
+    if let Some(c) = &r.coverage {
+        for line in c.text_lines() {
+            let _ = writeln!(s, "{line}");
         }
     }
     s

@@ -109,13 +109,16 @@
 //! nuisance groups, [`CellProblem`] and its checks) ← `layout` (estimates, columns, prior,
 //! manifold updates) ← `residuals` (residuals and analytic Jacobians, [`Evaluator`]) ← `start`
 //! (starting values) ← `solve` (Levenberg–Marquardt) ← `reduce` ← `blunders` ← `accuracy` ←
-//! `design`, `calibrate` (the one call) ← `report` (its file-unit report). `fixtures` (simulated
-//! cells) and `tests` sit on top.
+//! `design`, `calibrate` (the one call) ← `report` (its file-unit report); beside them, `coverage`
+//! (the joint ranges and tool-point region a session covers against the limits and the reach)
+//! and `validate` (a held cell scored on observations it was not fitted to, nuisances given or
+//! split-refitted). `fixtures` (simulated cells) and `tests` sit on top.
 
 mod accuracy;
 mod blunders;
 mod calibrate;
 mod cell;
+mod coverage;
 mod design;
 mod layout;
 mod observations;
@@ -125,6 +128,7 @@ mod report;
 mod residuals;
 mod solve;
 mod start;
+mod validate;
 
 #[cfg(any(test, feature = "fixtures"))]
 #[doc(hidden)]
@@ -139,6 +143,11 @@ pub use accuracy::{
 pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
 pub use calibrate::{calibrate_cell, CellCalibration, PriorScaleChoice, PRIOR_SCALES};
 pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool};
+pub use coverage::{
+    session_coverage, CoverageReport, JointCoverage, JointCoverageReport, PointRegion,
+    PointRegionReport, RobotCoverage, RobotCoverageReport, SessionCoverage, ENVELOPE_SAMPLES,
+    NARROW_JOINT_FRACTION, NARROW_REACH_FRACTION,
+};
 pub use design::{
     design_criterion, design_prediction, greedy_design, DesignCriterion, DesignPrediction,
     DesignResult, PLACEMENT_DRAWS, WEAK_PRIOR_SIGMA,
@@ -161,3 +170,7 @@ pub use report::{
 pub use residuals::{Evaluator, ObservationLinearisation, MIN_FACE_NORMAL_SUM};
 pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions};
 pub use start::initial_estimate;
+pub use validate::{
+    carry_nuisances, fit_nuisances, group_name, held_out_residuals, hold_cell, HeldOutResidual,
+    NuisanceMode, HOLD_SIGMA, MIN_SPLIT_ROWS,
+};
