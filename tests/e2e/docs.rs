@@ -442,6 +442,7 @@ page_tests! {
     guide_diagnose => "docs/guide/diagnose.md",
     guide_import => "docs/guide/import.md",
     guide_export => "docs/guide/export.md",
+    guide_report => "docs/guide/report.md",
     guide_simulate => "docs/guide/simulate.md",
     guide_real_data => "docs/guide/real-data.md",
     guide_validate => "docs/guide/validate.md",

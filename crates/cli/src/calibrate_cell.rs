@@ -24,9 +24,17 @@
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
-use cli_support::cell_report::{calibrate_session, render_text, CellCalibrationError, CellModel};
+use cli_support::cell_report::{
+    calibrate_session, render_text, CellCalibrationError, CellModel, CellReport,
+};
 use handclasp_cell::{export_calibrated_cell, Cell, Session, CALIBRATE_EXPORT_NAMES};
+use report::{
+    calibration_page, joint_coverage, predict_work_site, read_work_points, row_residuals,
+    Acceptance, CalibrationPage, MeetingPairsAccuracy, WorkSiteReport,
+};
 use serde::Serialize;
+
+use cli_support::cell_report::P95_SEED;
 
 /// The whole-cell path's own arguments of `handclasp calibrate` (`--json` and `--force` are the
 /// command's, [`crate::calibrate::Args`]).
@@ -50,6 +58,23 @@ pub struct CellArgs {
     /// base-to-flange chain, which are ignored.
     #[arg(long, requires = "cell", display_order = 103)]
     pub verbose: bool,
+    /// With --cell: write a self-contained HTML page here (the verdict at the work site first,
+    /// then the placement, the parameters and the plots), to open in a browser.
+    #[arg(long, requires = "cell", value_name = "FILE.html")]
+    pub report: Option<PathBuf>,
+    /// With --cell: the work site, a CSV of tool positions in base 1 (header x_mm,y_mm,z_mm)
+    /// where the robots will work together; the verdict predicts the accuracy there
+    /// (default: the cell's `[teach]` centre).
+    #[arg(long, requires = "cell", value_name = "FILE.csv")]
+    pub work_points: Option<PathBuf>,
+    /// With --cell: the largest cooperative position error the job accepts at the work site, mm
+    /// (PASS when the predicted p95's 95 % interval lies below it).
+    #[arg(long, requires = "cell", value_name = "MM")]
+    pub accept_mm: Option<f64>,
+    /// With --cell: the largest rotation error of b1_from_b2 the job accepts, degrees (PASS
+    /// when the predicted p95's 95 % interval lies below it).
+    #[arg(long, requires = "cell", value_name = "DEG")]
+    pub accept_deg: Option<f64>,
 }
 
 /// `--model`; the report names it as [`CellModel::name`] does.
@@ -99,6 +124,13 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
     if let Some(dir) = &args.export {
         crate::export_dir::check_export_folder(dir, force)?;
     }
+    let acceptance =
+        Acceptance::new(args.accept_mm, args.accept_deg).context("--accept-mm / --accept-deg")?;
+    let work_points = args
+        .work_points
+        .as_ref()
+        .map(|path| read_work_points(path).context("--work-points"))
+        .transpose()?;
     let cell = Cell::from_toml_file(cell_path)?;
     if args.verbose {
         crate::fk::print_cell_branches(&cell);
@@ -137,6 +169,46 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         eprintln!("warning: {w}");
     }
     let cal = calibrated.calibration;
+    let problem = calibrated.problem;
+    let wants_work_site = args.report.is_some()
+        || work_points.is_some()
+        || args.accept_mm.is_some()
+        || args.accept_deg.is_some();
+    let work_site = if wants_work_site {
+        let (points, source) = match (&work_points, &args.work_points) {
+            (Some(points), Some(path)) => (
+                points.clone(),
+                format!("{} points of {}", points.len(), path.display()),
+            ),
+            _ => {
+                let c = cell.centre_b1 * 1e3;
+                (
+                    vec![cell.centre_b1],
+                    format!(
+                        "the cell's teach centre ({:.1}, {:.1}, {:.1}) mm in base 1",
+                        c.x, c.y, c.z
+                    ),
+                )
+            }
+        };
+        let w = predict_work_site(
+            &cell, &problem, &cal, &points, &source, acceptance, P95_SEED,
+        )
+        .context("the verdict at the work site")?;
+        for u in &w.unreachable {
+            eprintln!(
+                "warning: work point row {} ({:.1}, {:.1}, {:.1} mm) is not predicted: {}",
+                u.row, u.p_b1_mm[0], u.p_b1_mm[1], u.p_b1_mm[2], u.why
+            );
+        }
+        Some(w)
+    } else {
+        None
+    };
+    let report = CellReportWithSite { report, work_site };
+    if let Some(path) = &args.report {
+        write_report_page(path, &args, &cell, &problem, &cal, &report)?;
+    }
     let written = match &args.export {
         Some(dir) => export_calibrated_cell(&cell, &cal.fit.estimate, dir, &CALIBRATE_EXPORT_NAMES)
             .with_context(|| format!("--export {}", dir.display()))?,
@@ -145,10 +217,92 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
     if json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        print!("{}", render_text(&report));
+        print!("{}", report.text());
         for f in &written {
             println!("wrote {}", f.display());
         }
+        if let Some(path) = &args.report {
+            println!("wrote {}", path.display());
+        }
     }
     Ok(())
+}
+
+/// Writes the HTML page of `calibrate --cell … --report FILE` (see [`report::calibration_page`]):
+/// the same `report` as `--json` (embedded as JSON), its [`CalibrationReport`], and the plots'
+/// data from the same fit.
+fn write_report_page(
+    path: &std::path::Path,
+    args: &CellArgs,
+    cell: &Cell,
+    problem: &calib_core::whole_cell::CellProblem,
+    cal: &calib_core::whole_cell::CellCalibration,
+    report: &CellReportWithSite,
+) -> anyhow::Result<()> {
+    let calibration = &cal.report(problem);
+    let Some(work_site) = &report.work_site else {
+        bail!("internal: the report page needs the work-site verdict");
+    };
+    let residuals = row_residuals(problem, cal).context("--report: the rows' residuals")?;
+    let coverage = joint_coverage(cell, &residuals);
+    let json = serde_json::to_string_pretty(report)?;
+    let display = |p: &Option<PathBuf>| {
+        p.as_ref()
+            .map(|p| p.display().to_string())
+            .unwrap_or_default()
+    };
+    let invocation = crate::report_page::invocation();
+    let html = calibration_page(&CalibrationPage {
+        cell: &display(&args.cell),
+        session: &display(&args.session),
+        model: args.model.cell_model().name(),
+        rows: report.report.rows,
+        report: calibration,
+        work_site,
+        meeting_pairs: report
+            .report
+            .cooperative_accuracy_mm
+            .as_ref()
+            .map(|c| MeetingPairsAccuracy {
+                pairs: c.pairs,
+                rms_mm: c.predicted_rms,
+                p95_mm: c.predicted_p95,
+            }),
+        residuals: &residuals,
+        coverage: &coverage,
+        dof: [cell.robot1.model.dof(), cell.robot2.model.dof()],
+        json: &json,
+        invocation: &invocation,
+    });
+    crate::report_page::write(path, &html)
+}
+
+/// `calibrate --cell`'s report ([`CellReport`]) with the verdict at the work site when
+/// `--report`, `--work-points`, `--accept-mm` or `--accept-deg` asks for it: the JSON is the
+/// report's object with a `work_site` key after its own (still in alphabetical order).
+#[derive(Debug, Serialize)]
+struct CellReportWithSite {
+    #[serde(flatten)]
+    report: CellReport,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    work_site: Option<WorkSiteReport>,
+}
+
+impl CellReportWithSite {
+    /// The text report: [`render_text`] and, when asked for, the verdict at the work site.
+    fn text(&self) -> String {
+        let mut s = render_text(&self.report);
+        if let Some(w) = &self.work_site {
+            s.push_str(&format!(
+                "predicted cooperative accuracy at the work site ({}): rms {:.3} mm, p95 {:.3} mm (95 % interval {:.3}–{:.3} mm)\n",
+                w.source,
+                w.predicted_rms_mm,
+                w.predicted_p95_mm,
+                w.predicted_p95_ci_mm[0],
+                w.predicted_p95_ci_mm[1]
+            ));
+            s.push_str(&format!("verdict: {}: {}\n", w.verdict.headline(), w.why));
+        }
+        s
+    }
 }

@@ -57,6 +57,10 @@ pub struct Args {
     /// which are ignored.
     #[arg(long)]
     pub verbose: bool,
+    /// Write a self-contained HTML page here (the named causes with their gain, before and
+    /// after, held out; the rejected families; plots), to open in a browser.
+    #[arg(long, value_name = "FILE.html")]
+    pub report: Option<PathBuf>,
 }
 
 /// Sessions of at least this many points print progress on stderr even when it is not a
@@ -124,12 +128,15 @@ fn run_whole_cell(
             }
         }
     }
-    if args.json {
-        println!("{}", serde_json::to_string(&report)?);
-    } else {
-        print!("{}", diagnose::render_cell_text(&report));
-    }
-    Ok(())
+    let json = serde_json::to_string(&report)?;
+    print_and_write_page(
+        args,
+        &json,
+        &diagnose::render_cell_text(&report),
+        |cell, session, json, invocation| {
+            report::cell_diagnosis_page(&report, cell, session, json, invocation)
+        },
+    )
 }
 
 /// Runs `handclasp diagnose`.
@@ -209,10 +216,41 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         }
     }
+    let json = serde_json::to_string(&report)?;
+    print_and_write_page(
+        &args,
+        &json,
+        &diagnose::render_text(&report),
+        |cell, session, json, invocation| {
+            report::coincident_diagnosis_page(&report, cell, session, json, invocation)
+        },
+    )
+}
+
+/// Writes the page with --report (`page(cell, session, json, invocation)`), then prints the
+/// report: `json` with --json, else `text` and the page's path.
+fn print_and_write_page(
+    args: &Args,
+    json: &str,
+    text: &str,
+    page: impl FnOnce(&str, &str, &str, &report::Invocation) -> String,
+) -> anyhow::Result<()> {
+    if let Some(path) = &args.report {
+        let html = page(
+            &args.cell.display().to_string(),
+            &args.session.display().to_string(),
+            json,
+            &crate::report_page::invocation(),
+        );
+        crate::report_page::write(path, &html)?;
+    }
     if args.json {
-        println!("{}", serde_json::to_string(&report)?);
+        println!("{json}");
     } else {
-        print!("{}", diagnose::render_text(&report));
+        print!("{text}");
+        if let Some(path) = &args.report {
+            println!("wrote {}", path.display());
+        }
     }
     Ok(())
 }

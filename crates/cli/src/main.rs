@@ -18,6 +18,7 @@ mod import;
 mod paper;
 mod paper_diagnose;
 mod plan;
+mod report_page;
 mod validate;
 
 /// Test support shared by the subcommands' unit tests.

@@ -9,7 +9,7 @@ use serde::Serialize;
 
 use super::solve::CellFit;
 use super::{CellEstimate, CellFitError, CellProblem, Evaluator, ParamLayout};
-use crate::stats::quantile;
+use crate::stats::{quantile, quantile_ci};
 
 /// A pair of joint configurations of the two robots (rad, chain order) and the tools whose
 /// tips form the cooperative vector `v = f1(q1) − b1_from_b2·f2(q2)`.
@@ -36,6 +36,9 @@ pub struct CooperativePrediction {
     /// Predicted 95th percentile of ‖δv‖ over the pairs, m (seeded Monte Carlo draw of
     /// [`P95_DRAWS_PER_PAIR`] Gaussian errors per pair from `N(0, Σ_v,k)`).
     pub predicted_p95_m: f64,
+    /// Distribution-free 95 % interval of that p95 from the same draws
+    /// ([`crate::stats::quantile_ci`]), m: how far the seeded draw leaves the p95 uncertain.
+    pub predicted_p95_ci_m: [f64; 2],
     /// `sqrt(trace Σ_v,k)` per pair, m.
     pub per_pair_rms_m: Vec<f64>,
 }
@@ -103,9 +106,11 @@ pub fn summarise_covariances(covs: &[nalgebra::Matrix3<f64>], seed: u64) -> Coop
         }
     }
     norms.sort_by(f64::total_cmp);
+    let p95 = quantile_ci(&norms, 0.95);
     CooperativePrediction {
         predicted_rms_m: ms.sqrt(),
-        predicted_p95_m: quantile(&norms, 0.95),
+        predicted_p95_m: p95.value,
+        predicted_p95_ci_m: [p95.lower, p95.upper],
         per_pair_rms_m,
     }
 }

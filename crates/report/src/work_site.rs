@@ -1,0 +1,394 @@
+//! The verdict at the work site: the calibration's predicted cooperative accuracy where the
+//! robots will work, against what the user accepts.
+//!
+//! 1. [`read_work_points`]: the work site, tool positions in base 1 (mm in the file, m inside).
+//! 2. [`predict_work_site`]: each point becomes a meeting pair `(q1, q2)` where both robots'
+//!    tips meet head-on (`sim_cell::generate_session` on the cell's nominal robots with the
+//!    fitted `b1_from_b2`, no noise: the generator `handclasp plan` uses for its candidates),
+//!    and calib-core's [`predict_cooperative_accuracy`] gives the rms and the p95 (with its
+//!    interval) of the error of the cooperative vector over those pairs; the placement's
+//!    rotation error comes from its 3×3 posterior block ([`summarise_covariances`]).
+//! 3. [`Acceptance::verdict`]: PASS when the upper end of each predicted p95's interval is
+//!    within the accepted error, and every work point was predicted.
+
+use std::path::Path;
+
+use calib_core::stats::trial_rng;
+use calib_core::whole_cell::{
+    predict_cooperative_accuracy, summarise_covariances, CellCalibration, CellParam, CellProblem,
+    ConfigPair,
+};
+use handclasp_cell::Cell;
+use kinematics::Axis;
+use nalgebra::{Matrix3, Point3};
+use serde::{Deserialize, Serialize};
+use sim_cell::plan::nominal_cell;
+use sim_cell::{generate_session, Layout, SessionSpec};
+
+use crate::ReportError;
+
+/// One row of the work-points CSV: a tool position in base 1, mm.
+#[derive(Debug, Deserialize)]
+struct WorkPointRow {
+    x_mm: f64,
+    y_mm: f64,
+    z_mm: f64,
+}
+
+/// Reads a work-points CSV (header `x_mm,y_mm,z_mm`, one tool position in base 1 per row, mm)
+/// into points in m, base 1.
+///
+/// Errors: the file cannot be read, a column is missing, a value is not a finite number (the
+/// error names the 1-based data row), or the file has no row.
+pub fn read_work_points(path: &Path) -> Result<Vec<Point3<f64>>, ReportError> {
+    let err = |message: String| ReportError::WorkPoints {
+        path: path.to_path_buf(),
+        message,
+    };
+    let mut reader = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_path(path)
+        .map_err(|e| err(format!("cannot read it ({e})")))?;
+    let mut points = Vec::new();
+    for (i, row) in reader.deserialize::<WorkPointRow>().enumerate() {
+        let row = row.map_err(|e| {
+            err(format!(
+                "data row {}: {e} (the header is x_mm,y_mm,z_mm: tool positions in base 1, mm)",
+                i + 1
+            ))
+        })?;
+        let p = [row.x_mm, row.y_mm, row.z_mm];
+        if !p.iter().all(|v| v.is_finite()) {
+            return Err(err(format!(
+                "data row {}: x_mm, y_mm and z_mm must be finite numbers",
+                i + 1
+            )));
+        }
+        points.push(Point3::new(p[0], p[1], p[2]) * 1e-3);
+    }
+    if points.is_empty() {
+        return Err(err(
+            "no work point: give one row x_mm,y_mm,z_mm per tool position in base 1".into(),
+        ));
+    }
+    Ok(points)
+}
+
+/// What the user accepts at the work site; `None` where nothing is stated.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Acceptance {
+    /// Largest accepted rotation error of `b1_from_b2` (the p95), degrees.
+    pub accept_deg: Option<f64>,
+    /// Largest accepted cooperative position error (the p95), mm.
+    pub accept_mm: Option<f64>,
+}
+
+impl Acceptance {
+    /// An acceptance, checked: each stated threshold positive and finite.
+    ///
+    /// Errors: a threshold that is zero, negative or not finite.
+    pub fn new(accept_mm: Option<f64>, accept_deg: Option<f64>) -> Result<Self, ReportError> {
+        for (name, v) in [("mm", accept_mm), ("deg", accept_deg)] {
+            if let Some(value) = v {
+                if !(value.is_finite() && value > 0.0) {
+                    return Err(ReportError::Acceptance { name, value });
+                }
+            }
+        }
+        Ok(Acceptance {
+            accept_deg,
+            accept_mm,
+        })
+    }
+
+    /// The verdict on `w` (whose own acceptance fields are ignored) and why, one sentence per
+    /// check: PASS when every stated threshold holds at the upper end of its p95's interval and
+    /// every work point was predicted; FAIL otherwise; [`Verdict::NoAcceptance`] when nothing is
+    /// stated.
+    pub fn verdict(&self, w: &WorkSiteReport) -> (Verdict, String) {
+        if self.accept_mm.is_none() && self.accept_deg.is_none() {
+            return (
+                Verdict::NoAcceptance,
+                "no acceptance stated: give the largest error the job accepts (mm, and degrees \
+                 for the placement's rotation) to get PASS or FAIL"
+                    .into(),
+            );
+        }
+        let mut pass = true;
+        let mut why = Vec::new();
+        if let Some(a) = self.accept_mm {
+            let [lo, hi] = w.predicted_p95_ci_mm;
+            if hi <= a {
+                why.push(format!(
+                    "the predicted p95 position error {:.3} mm (95 % interval {lo:.3}–{hi:.3}) is within the accepted {a:.3} mm",
+                    w.predicted_p95_mm
+                ));
+            } else {
+                pass = false;
+                let how = if w.predicted_p95_mm > a {
+                    "exceeds"
+                } else {
+                    "is not shown to be within (its interval reaches above)"
+                };
+                why.push(format!(
+                    "the predicted p95 position error {:.3} mm (95 % interval {lo:.3}–{hi:.3}) {how} the accepted {a:.3} mm",
+                    w.predicted_p95_mm
+                ));
+            }
+        }
+        if let Some(a) = self.accept_deg {
+            match &w.placement_rotation {
+                Some(r) => {
+                    let [lo, hi] = r.p95_ci_deg;
+                    let ok = hi <= a;
+                    pass &= ok;
+                    why.push(format!(
+                        "the placement's predicted p95 rotation error {:.4}° (95 % interval {lo:.4}–{hi:.4}) {} the accepted {a:.4}°",
+                        r.p95_deg,
+                        if ok { "is within" } else if r.p95_deg > a { "exceeds" } else { "is not shown to be within" }
+                    ));
+                }
+                None => {
+                    pass = false;
+                    why.push(
+                        "the placement's rotation was not fitted, so its error is not predicted"
+                            .into(),
+                    );
+                }
+            }
+        }
+        if !w.unreachable.is_empty() {
+            pass = false;
+            why.push(format!(
+                "{} work point(s) are not predicted: both robots do not reach them head-on (rows {})",
+                w.unreachable.len(),
+                w.unreachable
+                    .iter()
+                    .map(|u| u.row.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ));
+        }
+        let verdict = if pass { Verdict::Pass } else { Verdict::Fail };
+        (verdict, why.join("; "))
+    }
+}
+
+/// PASS, FAIL, or no acceptance stated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    /// Every stated threshold holds at the work site.
+    Pass,
+    /// A stated threshold does not hold, or a work point was not predicted.
+    Fail,
+    /// Nothing was accepted or refused: no threshold was stated.
+    NoAcceptance,
+}
+
+impl Verdict {
+    /// `PASS`, `FAIL` or `NO ACCEPTANCE STATED`: the page's headline.
+    pub fn headline(self) -> &'static str {
+        match self {
+            Verdict::Pass => "PASS",
+            Verdict::Fail => "FAIL",
+            Verdict::NoAcceptance => "NO ACCEPTANCE STATED",
+        }
+    }
+}
+
+/// One work point and its own prediction.
+#[derive(Debug, Clone, Serialize)]
+pub struct WorkPointReport {
+    /// The tool position in base 1, mm.
+    pub p_b1_mm: [f64; 3],
+    /// Predicted rms of the cooperative error there, mm.
+    pub predicted_rms_mm: f64,
+    /// 1-based row of the work-points file (1 for the teach centre).
+    pub row: usize,
+}
+
+/// A work point that was not predicted.
+#[derive(Debug, Clone, Serialize)]
+pub struct UnreachableReport {
+    /// The tool position in base 1, mm.
+    pub p_b1_mm: [f64; 3],
+    /// 1-based row of the work-points file.
+    pub row: usize,
+    /// Why (which robot, what would work).
+    pub why: String,
+}
+
+/// The predicted rotation error of `b1_from_b2` (the norm of its rotation-vector error), deg.
+#[derive(Debug, Clone, Serialize)]
+pub struct RotationPredictionReport {
+    /// Distribution-free 95 % interval of the p95 from the seeded draws, degrees.
+    pub p95_ci_deg: [f64; 2],
+    /// Predicted 95th percentile, degrees.
+    pub p95_deg: f64,
+    /// Predicted rms, degrees.
+    pub rms_deg: f64,
+}
+
+/// The verdict at the work site: the predicted cooperative accuracy there (mm), the
+/// placement's rotation error (degrees), what the user accepts, and PASS or FAIL with why.
+/// Fields in alphabetical order (the JSON key order of every report).
+#[derive(Debug, Clone, Serialize)]
+pub struct WorkSiteReport {
+    /// What the user accepts.
+    pub acceptance: Acceptance,
+    /// The predicted rotation error of `b1_from_b2`; `None` when the fit did not estimate it.
+    pub placement_rotation: Option<RotationPredictionReport>,
+    /// The predicted points.
+    pub points: Vec<WorkPointReport>,
+    /// Distribution-free 95 % interval of the p95 from the seeded draws, mm.
+    pub predicted_p95_ci_mm: [f64; 2],
+    /// Predicted 95th percentile of the cooperative position error over the points, mm.
+    pub predicted_p95_mm: f64,
+    /// Predicted rms of the cooperative position error over the points, mm.
+    pub predicted_rms_mm: f64,
+    /// Seed of the p95 draws.
+    pub seed: u64,
+    /// Where the points come from (a file, or the cell's teach centre).
+    pub source: String,
+    /// Work points both robots do not reach head-on (not predicted).
+    pub unreachable: Vec<UnreachableReport>,
+    /// PASS, FAIL or no acceptance stated.
+    pub verdict: Verdict,
+    /// Why, one clause per check.
+    pub why: String,
+}
+
+/// The meeting pairs with their 0-based work-point index, and the points that failed with why.
+type PlacedPoints = (Vec<(usize, ConfigPair)>, Vec<(usize, String)>);
+
+/// The work site's meeting pairs: each point (m, b1) placed as a noise-free head-on handclasp
+/// on `cell`'s nominal robots with the placement `b1_from_b2` (the fit's). Returns the pairs
+/// with their 0-based point index, and the points that failed with why.
+fn work_site_pairs(
+    cell: &Cell,
+    b1_from_b2: nalgebra::Isometry3<f64>,
+    points_b1: &[Point3<f64>],
+    seed: u64,
+) -> PlacedPoints {
+    let mut nominal = nominal_cell(cell);
+    nominal.b1_from_b2 = b1_from_b2;
+    let mut pairs = Vec::new();
+    let mut failed = Vec::new();
+    for (i, p) in points_b1.iter().enumerate() {
+        let spec = SessionSpec {
+            points_b1: Some(vec![*p]),
+            ..SessionSpec::new(1, Layout::Random, 1.0)
+        };
+        // The placement is noise-free; the generator's draws only pick among approach
+        // directions, seeded per point so any point can be replayed alone.
+        let mut rng = trial_rng(seed, i as u64);
+        match generate_session(&nominal, &spec, &mut rng) {
+            Ok(s) => match s.points.into_iter().next() {
+                Some(pt) => pairs.push((
+                    i,
+                    ConfigPair {
+                        q1: pt.q1,
+                        q2: pt.q2,
+                        tool1: 0,
+                        tool2: 0,
+                    },
+                )),
+                None => failed.push((i, "no handclasp placed".into())),
+            },
+            // The generator numbers the one point it was given 1; say "the work point".
+            Err(e) => failed.push((
+                i,
+                e.to_string()
+                    .replacen("teach point 1 ", "the work point ", 1),
+            )),
+        }
+    }
+    (pairs, failed)
+}
+
+/// The rotation block of the fit's posterior, rad² (b1 axes); `None` when the layout does not
+/// fit the placement's rotation.
+fn placement_rotation_covariance(cal: &CellCalibration) -> Option<Matrix3<f64>> {
+    let cols: Vec<usize> = Axis::ALL
+        .into_iter()
+        .map(|axis| {
+            cal.fit
+                .layout
+                .column(&CellParam::PlacementRotation { axis })
+        })
+        .collect::<Option<_>>()?;
+    Some(Matrix3::from_fn(|a, b| {
+        cal.fit.covariance[(cols[a], cols[b])]
+    }))
+}
+
+/// The verdict at the work site `points_b1` (m, base 1; described by `source`) of the
+/// calibration `cal` of `problem` (built from `cell`): see the module documentation. `seed`
+/// seeds the p95 draws and the head-on placement of each point.
+///
+/// Errors: no point reachable by both robots head-on, or a prediction the models reject.
+pub fn predict_work_site(
+    cell: &Cell,
+    problem: &CellProblem,
+    cal: &CellCalibration,
+    points_b1: &[Point3<f64>],
+    source: &str,
+    acceptance: Acceptance,
+    seed: u64,
+) -> Result<WorkSiteReport, ReportError> {
+    let (pairs, failed) = work_site_pairs(cell, cal.fit.estimate.b1_from_b2, points_b1, seed);
+    if pairs.is_empty() {
+        return Err(ReportError::NoReachableWorkPoint {
+            points: points_b1.len(),
+            first: failed.first().map(|f| f.1.clone()).unwrap_or_default(),
+        });
+    }
+    let config: Vec<ConfigPair> = pairs.iter().map(|(_, p)| p.clone()).collect();
+    let prediction = predict_cooperative_accuracy(problem, &cal.fit, &config, seed)
+        .map_err(ReportError::Prediction)?;
+    let mm = |p: &Point3<f64>| [p.x * 1e3, p.y * 1e3, p.z * 1e3];
+    let points = pairs
+        .iter()
+        .zip(&prediction.per_pair_rms_m)
+        .map(|((i, _), rms)| WorkPointReport {
+            p_b1_mm: mm(&points_b1[*i]),
+            predicted_rms_mm: rms * 1e3,
+            row: i + 1,
+        })
+        .collect();
+    let unreachable = failed
+        .into_iter()
+        .map(|(i, why)| UnreachableReport {
+            p_b1_mm: mm(&points_b1[i]),
+            row: i + 1,
+            why,
+        })
+        .collect();
+    let placement_rotation = placement_rotation_covariance(cal).map(|c| {
+        let r = summarise_covariances(&[c], seed);
+        RotationPredictionReport {
+            p95_ci_deg: r.predicted_p95_ci_m.map(f64::to_degrees),
+            p95_deg: r.predicted_p95_m.to_degrees(),
+            rms_deg: r.predicted_rms_m.to_degrees(),
+        }
+    });
+    let mut report = WorkSiteReport {
+        acceptance,
+        placement_rotation,
+        points,
+        predicted_p95_ci_mm: prediction.predicted_p95_ci_m.map(|v| v * 1e3),
+        predicted_p95_mm: prediction.predicted_p95_m * 1e3,
+        predicted_rms_mm: prediction.predicted_rms_m * 1e3,
+        seed,
+        source: source.to_string(),
+        unreachable,
+        verdict: Verdict::NoAcceptance,
+        why: String::new(),
+    };
+    let (verdict, why) = acceptance.verdict(&report);
+    report.verdict = verdict;
+    report.why = why;
+    Ok(report)
+}

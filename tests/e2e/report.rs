@@ -1,0 +1,249 @@
+//! End-to-end tests of the report pages (`calibrate --cell … --report`, `diagnose … --report`)
+//! in a real browser: headless Chromium (Debian's `chromium`, which `.ci/run` installs) loads
+//! each page from a simulated session, and the test reads back the DOM after load: the page's
+//! inline script marks on `<body>` how many plots the browser laid out with a non-zero size
+//! (`data-plots-rendered`) out of how many there are (`data-plots`), and the verdict is shown.
+//! When a check fails, a screenshot of the page is kept beside it under
+//! `target/tmp/e2e-report/` (with the page itself), and the failure names both files.
+//!
+//! Without a Chromium binary the tests print why and skip; under CI (`CI` set) its absence
+//! fails them, since `.ci/run` installs it.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use handclasp_cell::Cell;
+use sim_cell::{trial_rng, Layout, SessionSpec};
+
+use crate::support::{
+    assert_success, cell_session_args, handclasp, random_session, shipped_cell, stdout_json,
+    write_session_csv,
+};
+
+/// The Chromium binary: `$HANDCLASP_CHROMIUM`, else the first of `chromium` and
+/// `chromium-browser` on the PATH. `None` (after printing why the caller skips) when there is
+/// none outside CI; under CI a missing browser is a failure.
+fn chromium_or_skip() -> Option<PathBuf> {
+    let candidates: Vec<PathBuf> = match std::env::var_os("HANDCLASP_CHROMIUM") {
+        Some(p) => vec![PathBuf::from(p)],
+        None => ["chromium", "chromium-browser"]
+            .iter()
+            .filter_map(|name| {
+                std::env::var_os("PATH").and_then(|paths| {
+                    std::env::split_paths(&paths)
+                        .map(|d| d.join(name))
+                        .find(|p| p.is_file())
+                })
+            })
+            .collect(),
+    };
+    if let Some(found) = candidates.into_iter().find(|p| p.is_file()) {
+        return Some(found);
+    }
+    assert!(
+        std::env::var_os("CI").is_none(),
+        "CI: no chromium on the PATH; .ci/run installs Debian's chromium package (apt-get install chromium)"
+    );
+    eprintln!(
+        "skipped: no chromium or chromium-browser on the PATH (set HANDCLASP_CHROMIUM, or apt-get install chromium): the report pages are not checked in a browser"
+    );
+    None
+}
+
+/// Where a failing page and its screenshot are kept: `target/tmp/e2e-report/{name}`.
+fn output_dir(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("e2e-report")
+        .join(name);
+    std::fs::create_dir_all(&dir).expect("creates the test's output folder");
+    dir
+}
+
+/// Headless Chromium's arguments for a local page: no sandbox (CI runs as root), no GPU, and
+/// virtual time so the load handlers run before the DOM is dumped.
+fn headless(chromium: &Path, page: &Path) -> Command {
+    let mut c = Command::new(chromium);
+    c.args([
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--hide-scrollbars",
+        "--virtual-time-budget=3000",
+        "--window-size=1100,3000",
+    ]);
+    c.env("HOME", page.parent().expect("page folder"));
+    c
+}
+
+/// `page` loaded in `chromium`: its DOM after load.
+fn dump_dom(chromium: &Path, page: &Path) -> String {
+    let out = headless(chromium, page)
+        .arg("--dump-dom")
+        .arg(format!("file://{}", page.display()))
+        .output()
+        .expect("runs chromium");
+    assert!(
+        out.status.success(),
+        "chromium --dump-dom {} failed: {}",
+        page.display(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// The value of attribute `name` on the DOM's `<body>` tag.
+fn body_attribute(dom: &str, name: &str) -> Option<String> {
+    let start = dom.find("<body")?;
+    let tag = &dom[start..start + dom[start..].find('>')?];
+    let key = format!("{name}=\"");
+    let at = tag.find(&key)? + key.len();
+    Some(tag[at..at + tag[at..].find('"')?].to_string())
+}
+
+/// Checks the page in the browser: every plot laid out (at least `min_plots`), the verdict
+/// `verdict` shown; on failure keeps the page and a screenshot in `output_dir(name)` and
+/// panics naming them.
+fn check_in_browser(chromium: &Path, page: &Path, name: &str, min_plots: usize, verdict: &str) {
+    let dom = dump_dom(chromium, page);
+    let plots = body_attribute(&dom, "data-plots").and_then(|v| v.parse::<usize>().ok());
+    let rendered =
+        body_attribute(&dom, "data-plots-rendered").and_then(|v| v.parse::<usize>().ok());
+    let mut failures = Vec::new();
+    match (plots, rendered) {
+        (Some(p), Some(r)) if p >= min_plots && r == p => {}
+        _ => failures.push(format!(
+            "plots rendered {rendered:?} of {plots:?} (want all of at least {min_plots}; None: the page's load script did not run)"
+        )),
+    }
+    if dom.matches("<svg").count() < min_plots {
+        failures.push(format!(
+            "{} <svg> elements in the DOM",
+            dom.matches("<svg").count()
+        ));
+    }
+    let shown = format!("data-verdict=\"{verdict}\"");
+    if !dom.contains(&shown) || !dom.contains(&format!("class=\"headline\">{verdict}<")) {
+        failures.push(format!("the verdict {verdict} is not shown"));
+    }
+    if failures.is_empty() {
+        return;
+    }
+    let dir = output_dir(name);
+    let kept = dir.join("page.html");
+    std::fs::copy(page, &kept).expect("keeps the page");
+    let shot = dir.join("screenshot.png");
+    let status = headless(chromium, &kept)
+        .arg(format!("--screenshot={}", shot.display()))
+        .arg(format!("file://{}", kept.display()))
+        .output();
+    panic!(
+        "{name}: {}\npage kept at {}; screenshot {} ({:?})",
+        failures.join("; "),
+        kept.display(),
+        shot.display(),
+        status.map(|o| o.status)
+    );
+}
+
+/// `calibrate --cell … --report` on a simulated session with two work points and an
+/// acceptance: the page renders in Chromium with its five plots (residual per row, against each
+/// robot's joints, coverage, per work point) and the verdict the text and JSON give.
+#[test]
+fn calibration_report_renders_in_chromium() {
+    let Some(chromium) = chromium_or_skip() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let cell_path = shipped_cell("floor-floor");
+    let cell = Cell::from_toml_file(&cell_path).expect("cell loads");
+    let session = random_session(&cell, 20, 41);
+    let session_path = write_session_csv(dir.path(), "session.csv", &session, &cell);
+    let c = cell.centre_b1 * 1e3;
+    let work = dir.path().join("work.csv");
+    std::fs::write(
+        &work,
+        format!(
+            "x_mm,y_mm,z_mm\n{},{},{}\n{},{},{}\n",
+            c.x,
+            c.y,
+            c.z,
+            c.x + 100.0,
+            c.y,
+            c.z - 100.0
+        ),
+    )
+    .unwrap();
+    let page = dir.path().join("report.html");
+    let args = |accept_mm: &str, extra: &[&str]| {
+        let mut a = vec![
+            "--report",
+            page.to_str().unwrap(),
+            "--work-points",
+            work.to_str().unwrap(),
+            "--accept-mm",
+            accept_mm,
+        ];
+        a.extend(extra);
+        cell_session_args("calibrate", &cell_path, &session_path, &a)
+    };
+    let out = handclasp(&args("50", &[]));
+    assert_success(&out);
+    let text = String::from_utf8_lossy(&out.stdout);
+    // A 20-point session of this cell predicts a few mm at most: 50 mm passes.
+    assert!(text.contains("verdict: PASS: "), "{text}");
+    assert!(
+        text.contains(&format!("wrote {}", page.display())),
+        "{text}"
+    );
+    let html = std::fs::read_to_string(&page).unwrap();
+    assert!(!html.contains("src=\"http") && !html.contains("href=\"http"));
+    check_in_browser(&chromium, &page, "calibration", 5, "PASS");
+
+    // The same run's JSON carries the verdict beside the report's fields; with an acceptance
+    // far below the prediction it is FAIL, and the page says so.
+    let v = stdout_json(&handclasp(&args("0.001", &["--json"])));
+    assert_eq!(v["work_site"]["verdict"], "fail", "{v}");
+    assert_eq!(v["work_site"]["points"].as_array().unwrap().len(), 2);
+    check_in_browser(&chromium, &page, "calibration-fail", 5, "FAIL");
+}
+
+/// `diagnose … --report` on a mixed session (the whole-cell diagnosis): the page renders with
+/// its plots and the diagnosis's headline.
+#[test]
+fn diagnosis_report_renders_in_chromium() {
+    let Some(chromium) = chromium_or_skip() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let cell_path = shipped_cell("floor-floor");
+    let cell = Cell::from_toml_file(&cell_path).expect("cell loads");
+    let kinds = sim_cell::KindSpec {
+        kind: sim_cell::SimKind::Mixed,
+        ..sim_cell::KindSpec::default()
+    };
+    let (s, _) = sim_cell::generate_kind_session(
+        &cell,
+        &SessionSpec::new(24, Layout::Random, 0.7),
+        &kinds,
+        None,
+        &mut trial_rng(4, 0),
+    )
+    .expect("session");
+    let session_path = write_session_csv(dir.path(), "mixed.csv", &s, &cell);
+    let page = dir.path().join("diagnosis.html");
+    let out = handclasp(&cell_session_args(
+        "diagnose",
+        &cell_path,
+        &session_path,
+        &["--report", page.to_str().unwrap(), "--json"],
+    ));
+    assert_success(&out);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let named = v["effects"].as_array().unwrap().len();
+    let headline = match named {
+        0 => "NO CAUSE NAMED".to_string(),
+        1 => "1 CAUSE NAMED".to_string(),
+        n => format!("{n} CAUSES NAMED"),
+    };
+    check_in_browser(&chromium, &page, "diagnosis", 1, &headline);
+}
