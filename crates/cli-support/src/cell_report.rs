@@ -21,9 +21,10 @@ use std::fmt::Write as _;
 
 use calib_core::whole_cell::{
     calibrate_cell, predict_cooperative_accuracy, session_coverage, CalibrationReport,
-    CellCalibration, CellFitError, CellProblem, CooperativePrediction, CoverageReport, DropReason, FittedPlacementReport, GroupsReport, Kind,
-    NuisanceReport, ParameterReport, PlacementSigmaReport, PriorScaleReport, RejectedRowReport,
-    ScreenOptions, SolveOptions, UnidentifiableReport,
+    CellCalibration, CellFitError, CellProblem, CooperativePrediction, CoverageReport, DropReason,
+    FittedPlacementReport, GroupsReport, Kind, NuisanceReport, ParameterReport,
+    PlacementSigmaReport, PriorScaleReport, RejectedRowReport, ScreenOptions, SolveOptions,
+    UnidentifiableReport,
 };
 use calib_core::StopReason;
 use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
@@ -618,6 +619,7 @@ mod tests {
                 &CooperativePrediction {
                     predicted_rms_m: 1.5e-3,
                     predicted_p95_m: 2.75e-3,
+                    predicted_p95_ci_m: [2.5e-3, 3.0e-3],
                     per_pair_rms_m: vec![],
                 },
                 14,

@@ -259,15 +259,13 @@ fn write_report_page(
         rows: report.report.rows,
         report: calibration,
         work_site,
-        meeting_pairs: report
-            .report
-            .cooperative_accuracy_mm
-            .as_ref()
-            .map(|c| MeetingPairsAccuracy {
+        meeting_pairs: report.report.cooperative_accuracy_mm.as_ref().map(|c| {
+            MeetingPairsAccuracy {
                 pairs: c.pairs,
                 rms_mm: c.predicted_rms,
                 p95_mm: c.predicted_p95,
-            }),
+            }
+        }),
         residuals: &residuals,
         coverage: &coverage,
         dof: [cell.robot1.model.dof(), cell.robot2.model.dof()],

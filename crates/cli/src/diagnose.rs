@@ -83,8 +83,11 @@ fn coverage(
         handclasp_cell::problem::FitModel::Placement,
     );
     let c = calib_core::whole_cell::CoverageReport::from(
-        &calib_core::whole_cell::session_coverage(&problem, cli_support::cell_report::COVERAGE_SEED)
-            .context("the session's coverage of the robots' joint ranges and reach")?,
+        &calib_core::whole_cell::session_coverage(
+            &problem,
+            cli_support::cell_report::COVERAGE_SEED,
+        )
+        .context("the session's coverage of the robots' joint ranges and reach")?,
     );
     for w in c.warnings() {
         eprintln!("warning: {w}");
