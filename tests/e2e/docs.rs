@@ -446,6 +446,7 @@ page_tests! {
     guide_simulate => "docs/guide/simulate.md",
     guide_real_data => "docs/guide/real-data.md",
     guide_validate => "docs/guide/validate.md",
+    guide_python => "docs/guide/python.md",
 }
 
 #[test]

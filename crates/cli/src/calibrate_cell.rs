@@ -229,8 +229,8 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
 }
 
 /// Writes the HTML page of `calibrate --cell … --report FILE` (see [`report::calibration_page`]):
-/// the same `report` as `--json` (embedded as JSON), its `calib_core::whole_cell::CalibrationReport`, and the plots'
-/// data from the same fit.
+/// the same `report` as `--json` (embedded as JSON), the fit's
+/// `calib_core::whole_cell::CalibrationReport`, and the plots' data from the same fit.
 fn write_report_page(
     path: &std::path::Path,
     args: &CellArgs,
