@@ -257,6 +257,21 @@ impl DiagnoseResult {
     }
 }
 
+/// The diagnosis's coverage report, as `handclasp diagnose` adds it (its warnings as Python
+/// `UserWarning`s are not raised: the report carries them).
+fn coverage(
+    cell: &handclasp_cell::Cell,
+    session: &handclasp_cell::Session,
+) -> PyResult<calib_core::whole_cell::CoverageReport> {
+    cli_support::cell_report::session_coverage_report(cell, session).map_err(|e| {
+        to_py(
+            &e,
+            "the session's coverage of the robots' joint ranges and reach",
+            Otherwise::Calibration,
+        )
+    })
+}
+
 /// Diagnoses what the nominal models get wrong in a measured session, as `handclasp diagnose
 /// --cell CELL --session SESSION` does: a session with contact, tracker or plane rows gets the
 /// whole-cell diagnosis (`prior_widening`), one of coincident handclasps the coincident one
@@ -319,9 +334,10 @@ pub fn diagnose(
             prior_widening,
             ..::diagnose::CellDiagnoseOptions::default()
         };
-        let report = py
+        let mut report = py
             .detach(|| ::diagnose::diagnose_cell_session(&c, s, &options, &|_| {}))
             .map_err(|e| to_py(&e, &context, Otherwise::Calibration))?;
+        report.coverage = Some(coverage(&c, s)?);
         // The CLI prints this report compact (`serde_json::to_string`).
         let json = serde_json::to_string(&report).map_err(|e| value_error(e.to_string()))?;
         (Diagnosis::WholeCell(Box::new(report)), json)
@@ -332,7 +348,7 @@ pub fn diagnose(
             truth,
             ..::diagnose::DiagnoseOptions::default()
         };
-        let report = py
+        let mut report = py
             .detach(|| {
                 // The CLI reads a coincident session with diagnose's own loader (its unit
                 // checks); a session from arrays is checked by the engine.
@@ -343,6 +359,7 @@ pub fn diagnose(
                 ::diagnose::diagnose_session(&c, loaded.as_ref().unwrap_or(s), &options)
             })
             .map_err(|e| to_py(&e, &context, Otherwise::Calibration))?;
+        report.coverage = Some(coverage(&c, s)?);
         let json = serde_json::to_string(&report).map_err(|e| value_error(e.to_string()))?;
         (Diagnosis::Coincident(Box::new(report)), json)
     };

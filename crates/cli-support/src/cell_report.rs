@@ -152,6 +152,24 @@ pub fn calibrate_session(
     })
 }
 
+/// The coverage report of `session` of `cell` (seed [`COVERAGE_SEED`]): each joint's covered
+/// range against its limits and the tool points' region against the sampled reach, as
+/// `calibrate --cell` and `diagnose` report it. Its [`CoverageReport::warnings`] are the caller's
+/// to print.
+///
+/// # Errors
+/// The problem cannot be evaluated (a non-finite tool point).
+pub fn session_coverage_report(
+    cell: &Cell,
+    session: &Session,
+) -> Result<CoverageReport, CellFitError> {
+    let problem = cell_problem(cell, session, FitModel::Placement);
+    Ok(CoverageReport::from(&session_coverage(
+        &problem,
+        COVERAGE_SEED,
+    )?))
+}
+
 /// Fewer coincident rows than this: the fit starts from the cell's `b1_from_b2` (a rigid start
 /// needs 3 points not on a line).
 const MIN_COINCIDENT_FOR_START: usize = 3;

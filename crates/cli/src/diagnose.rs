@@ -77,18 +77,8 @@ fn coverage(
     cell: &Cell,
     session: &handclasp_cell::Session,
 ) -> anyhow::Result<calib_core::whole_cell::CoverageReport> {
-    let problem = handclasp_cell::problem::cell_problem(
-        cell,
-        session,
-        handclasp_cell::problem::FitModel::Placement,
-    );
-    let c = calib_core::whole_cell::CoverageReport::from(
-        &calib_core::whole_cell::session_coverage(
-            &problem,
-            cli_support::cell_report::COVERAGE_SEED,
-        )
-        .context("the session's coverage of the robots' joint ranges and reach")?,
-    );
+    let c = cli_support::cell_report::session_coverage_report(cell, session)
+        .context("the session's coverage of the robots' joint ranges and reach")?;
     for w in c.warnings() {
         eprintln!("warning: {w}");
     }
