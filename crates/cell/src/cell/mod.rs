@@ -1,7 +1,7 @@
 //! A two-robot cell: two robots, their mounts, tip offsets and tools, kinematic errors (a
 //! simulation's hidden truth, or what an earlier calibration left beside the URDFs), the
 //! placement `b1_from_b2` and the noise of a handclasp session. Read from TOML (mm, degrees,
-//! paths relative to the file); every key is documented in sim-cell's README (§ Cell file).
+//! paths relative to the file); every key is documented in `docs/formats.md`.
 //!
 //! One job: turning a cell file into a checked [`Cell`] and back. The TOML schema, the checks that
 //! make a cell physically possible (robot 2's declared mount against the gravity direction implied

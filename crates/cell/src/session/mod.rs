@@ -11,7 +11,7 @@
 //! `tool`, `distance_mm`, `sigma_mm`, `tracker_x_mm`, `tracker_y_mm`, `tracker_z_mm`, and, when
 //! a `face_contact` row is present, [`FACE_COLUMNS`] `n1_x,n1_y,n1_z,n2_x,n2_y,n2_z`); a file
 //! without a `kind` column is all coincident handclasps, read exactly as before. Which kind uses
-//! which column is [`kind_columns`]; sim-cell's README has the table and an example.
+//! which column is [`kind_columns`]; `docs/formats.md` has the table and an example.
 //!
 //! One job: the session CSV. This file holds the row types; `kinds.rs` each observation kind's
 //! row ([`SessionKind`]: its columns, reader, writer and whole-cell observation), `read.rs` the

@@ -52,7 +52,7 @@ impl Session {
     /// row's tip columns must match FK of its joint columns with the cell's nominal models and tip
     /// offsets within [`TIP_CONSISTENCY_MM`] (catches a wrong cell, tip or unit). With a `kind`
     /// column each row is one of [`KIND_NAMES`] (empty = `coincident`) and carries the fields of
-    /// [`super::SessionKind`] (sim-cell's README has the table): fields a kind does not use must be empty,
+    /// [`super::SessionKind`] (`docs/formats.md` has the table): fields a kind does not use must be empty,
     /// tip columns are required on coincident rows and FK-checked wherever given, tools are named
     /// from the cell (`tip` or `[robotN.tools]`), and the rows of one contact group agree on
     /// `distance_mm`. Errors name the line and column and say what would work.
