@@ -48,6 +48,9 @@ pub enum FormatError {
         /// What reading it back found.
         message: String,
     },
+    /// An input file is over the input limit, binary or not UTF-8 (`kinematics::input`).
+    #[error(transparent)]
+    InputFile(#[from] kinematics::input::InputError),
     /// A file could not be read or written.
     #[error("{path}: {source}")]
     Io {
@@ -60,6 +63,15 @@ pub enum FormatError {
 }
 
 impl FormatError {
+    /// An input file read within the toolkit's bounds ([`kinematics::input::read_input_text`]):
+    /// an I/O failure is [`FormatError::Io`], the others [`FormatError::Input`].
+    pub(crate) fn input(e: kinematics::input::InputError) -> Self {
+        match e {
+            kinematics::input::InputError::Io { path, source } => FormatError::Io { path, source },
+            other => FormatError::InputFile(other),
+        }
+    }
+
     /// Shorthand for [`FormatError::Io`].
     pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
         FormatError::Io {

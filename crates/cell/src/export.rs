@@ -158,8 +158,8 @@ pub(crate) fn write_corrected_urdf(
         message: format!("{robot}: {message}"),
     };
     let (urdf_part, _) = split_for_urdf(errors);
-    let xml = std::fs::read_to_string(&setup.urdf_path)
-        .map_err(|e| FormatError::io(&setup.urdf_path, e))?;
+    let xml =
+        kinematics::input::read_input_text(&setup.urdf_path, "URDF").map_err(FormatError::input)?;
     let patched = patch_urdf_text(&xml, &setup.model, &urdf_part)
         .map_err(|e| bad(format!("cannot write the corrected URDF: {e}")))?;
     let tmp = path.with_extension("urdf.tmp");

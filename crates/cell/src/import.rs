@@ -364,7 +364,7 @@ impl ImportMap {
             headers.iter().position(|h| h == name).ok_or_else(|| {
                 at(format!(
                     "line 1: no column `{name}` (named in the map); the header has: {}",
-                    headers.iter().collect::<Vec<_>>().join(",")
+                    kinematics::input::cap_echo(&headers.iter().collect::<Vec<_>>().join(","))
                 ))
             })
         };
@@ -419,7 +419,7 @@ impl ImportMap {
                         let x = value(*i).ok_or_else(|| {
                             at(format!(
                                 "line {line}, column `{name}`: `{}` is not a finite joint angle",
-                                record.get(*i).unwrap_or("")
+                                kinematics::input::cap_echo(record.get(*i).unwrap_or(""))
                             ))
                         })?;
                         v.push((x * self.deg_per_unit).to_radians());

@@ -84,14 +84,14 @@ fn render_text(r: &ImportReport) -> String {
 /// Runs `handclasp import`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let cell = Cell::from_toml_file(&args.cell)?;
-    let text = std::fs::read_to_string(&args.map)
+    let text = kinematics::input::read_input_text(&args.map, "import map TOML")
         .with_context(|| format!("--map {}", args.map.display()))?;
     let map = ImportMap::from_toml_str(&text, &args.map, &cell)
         .map_err(|e| anyhow::anyhow!("--map {e}"))?;
     let mut session = Session::default();
     let mut counts = Vec::new();
     for input in &args.input {
-        let text = std::fs::read_to_string(input)
+        let text = kinematics::input::read_input_text(input, "import input CSV")
             .with_context(|| format!("--input {}", input.display()))?;
         let count = map
             .read_rows(&text, input, &cell, &mut session)

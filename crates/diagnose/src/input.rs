@@ -131,7 +131,10 @@ fn fmt3(v: &Vector3<f64>) -> String {
 /// ([`DiagnoseError::Format`], or [`DiagnoseError::SessionUnits`] when a unit mistake explains
 /// it); the units or the session do not fit the cell ([`DiagnoseError::Session`]).
 pub fn load_session(path: &Path, cell: &Cell) -> Result<Session, DiagnoseError> {
-    let text = std::fs::read_to_string(path).map_err(|e| DiagnoseError::io(path, e))?;
+    let text = kinematics::input::read_input_text(path, "session CSV").map_err(|e| match e {
+        kinematics::input::InputError::Io { source, .. } => DiagnoseError::io(path, source),
+        other => handclasp_cell::FormatError::InputFile(other).into(),
+    })?;
     let serr = |message: String| DiagnoseError::Session {
         path: path.to_path_buf(),
         message,

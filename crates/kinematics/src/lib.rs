@@ -9,6 +9,7 @@ pub mod euler;
 mod fk;
 mod gravity;
 mod ik;
+pub mod input;
 mod jacobian;
 mod model;
 #[cfg(test)]

@@ -193,7 +193,8 @@ impl Session {
 
     /// Reads a session CSV for `cell` (see [`Session::parse_csv`]).
     pub fn read_csv(path: &Path, cell: &Cell) -> Result<Session, FormatError> {
-        let text = std::fs::read_to_string(path).map_err(|e| FormatError::io(path, e))?;
+        let text =
+            kinematics::input::read_input_text(path, "session CSV").map_err(FormatError::input)?;
         Session::parse_csv(&text, path, cell)
     }
 }

@@ -8,6 +8,7 @@ use std::path::Path;
 use calib_core::whole_cell::Kind;
 use calib_core::Robot;
 use kinematics::base_from_tip;
+use kinematics::input::cap_echo;
 use nalgebra::{Point3, Unit, Vector3};
 
 use super::kinds::{kind_columns, kinds_using, read_row, ReadRow, EXTRA_COLUMNS, KIND_NAMES};
@@ -88,17 +89,17 @@ impl Session {
                 let unused: Vec<String> = headers
                     .iter()
                     .filter(|h| !known.contains(h))
-                    .map(|h| format!("`{h}`"))
+                    .map(|h| format!("`{}`", cap_echo(h)))
                     .collect();
                 let unused = if unused.is_empty() {
                     String::new()
                 } else if headers.len() == 1 {
                     format!(
                         " (the header reads as the single column {}: separate the fields by commas, semicolons or tabs)",
-                        unused.join(", ")
+                        cap_echo(&unused.join(", "))
                     )
                 } else {
-                    format!(" (columns not used: {})", unused.join(", "))
+                    format!(" (columns not used: {})", cap_echo(&unused.join(", ")))
                 };
                 return Err(err(format!(
                     "line 1: the header has no column `{name}`{unused}, which this cell ({} with {d1} joints, {} with {d2}) needs; \
@@ -141,7 +142,7 @@ impl Session {
             let point: usize = row.cell(0).parse().map_err(|_| {
                 err(format!(
                     "line {line_no}, column `point`: `{}` is not a point number (1, 2, …)",
-                    row.cell(0)
+                    cap_echo(row.cell(0))
                 ))
             })?;
             if !has_kind {
@@ -171,7 +172,8 @@ impl Session {
                 .to_ascii_lowercase();
             let Some(kind) = Kind::from_name(&kind_text) else {
                 return Err(err(format!(
-                    "line {line_no}, column `kind`: `{kind_text}` is not an observation kind; use one of {} (empty = coincident)",
+                    "line {line_no}, column `kind`: `{}` is not an observation kind; use one of {} (empty = coincident)",
+                    cap_echo(&kind_text),
                     KIND_NAMES.join(", ")
                 )));
             };
@@ -279,8 +281,9 @@ impl RowReader<'_> {
             .filter(|x: &f64| x.is_finite())
             .ok_or_else(|| {
                 self.err(format!(
-                    "column `{}`: `{c}` is not a finite number",
-                    self.want[k]
+                    "column `{}`: `{}` is not a finite number",
+                    self.want[k],
+                    cap_echo(c)
                 ))
             })
     }
@@ -301,7 +304,12 @@ impl RowReader<'_> {
                 .ok()
                 .filter(|x: &f64| x.is_finite())
                 .map(Some)
-                .ok_or_else(|| self.err(format!("column `{name}`: `{c}` is not a finite number"))),
+                .ok_or_else(|| {
+                    self.err(format!(
+                        "column `{name}`: `{}` is not a finite number",
+                        cap_echo(c)
+                    ))
+                }),
         }
     }
 
@@ -425,7 +433,8 @@ impl RowReader<'_> {
             if !used.contains(name) {
                 if let Some(v) = self.extra(name) {
                     return Err(self.err(format!(
-                        "column `{name}` = `{v}`: a {} row does not use it (it belongs to {} rows); leave it empty",
+                        "column `{name}` = `{}`: a {} row does not use it (it belongs to {} rows); leave it empty",
+                        cap_echo(v),
                         kind.name(),
                         kinds_using(name).join("/")
                     )));
