@@ -501,6 +501,8 @@ pub fn import_session(
                 inputs.len()
             )));
         }
+        handclasp_cell::check_session_inputs(&session)
+            .map_err(|e| value_error(format!("the imported session: {e}")))?;
         Ok(session)
     })?;
     Ok(Session {

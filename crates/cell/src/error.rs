@@ -23,6 +23,16 @@ pub enum FormatError {
         /// What is wrong, naming the row or column, and what would work.
         message: String,
     },
+    /// A session that reads but fails the input checks every command shares
+    /// ([`crate::session::check_session_inputs`]).
+    #[error("session {path}: {source}")]
+    SessionCheck {
+        /// The session file (`<session>` for one in memory).
+        path: PathBuf,
+        /// What is wrong and the fix.
+        #[source]
+        source: crate::session::SessionCheckError,
+    },
     /// An import mapping file is invalid; `message` names the key and the fix.
     #[error("{path}: {message}")]
     Map {

@@ -85,6 +85,10 @@ impl CellModel {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum CellCalibrationError {
+    /// The session fails the input checks every command shares
+    /// ([`handclasp_cell::check_session_inputs`]: no rows, radians, metres, duplicates).
+    #[error(transparent)]
+    Session(#[from] handclasp_cell::SessionCheckError),
     /// The fit failed (the problem is invalid, or the solver met a non-finite value).
     #[error(transparent)]
     Fit(CellFitError),
@@ -109,12 +113,14 @@ pub struct SessionCalibration {
 
 /// Calibrates `session` of `cell` with `model`: the MAP fit with blunder screening, and the
 /// predicted cooperative accuracy over the session's meeting pairs (none without coincident or
-/// contact rows).
+/// contact rows). The session first passes the input checks every command shares
+/// ([`handclasp_cell::check_session_inputs`]), so a header-only session is refused, not fitted.
 pub fn calibrate_session(
     cell: &Cell,
     session: &Session,
     model: CellModel,
 ) -> Result<SessionCalibration, CellCalibrationError> {
+    handclasp_cell::check_session_inputs(session)?;
     let problem = cell_problem(cell, session, model.fit_model());
     let mut solve = SolveOptions::default();
     if session.points.len() < MIN_COINCIDENT_FOR_START {

@@ -170,6 +170,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let cell_session = handclasp_cell::Session::read_csv(&args.session, &cell).ok();
     if let Some(session) = &cell_session {
         if !session.is_handclasp_only() {
+            handclasp_cell::check_session_inputs(session).map_err(|source| {
+                handclasp_cell::FormatError::SessionCheck {
+                    path: args.session.clone(),
+                    source,
+                }
+            })?;
             // Contact, tracker or plane rows (or other tools): the whole-cell diagnosis.
             return run_whole_cell(&args, &cell, session, truth.is_some());
         }

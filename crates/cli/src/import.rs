@@ -105,6 +105,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if session.is_empty() {
         bail!("no row imported from {} file(s)", args.input.len());
     }
+    // The input checks every command runs on a session (radians, metres, duplicates), before
+    // a session that calibrate --cell and diagnose would refuse is written.
+    handclasp_cell::check_session_inputs(&session).map_err(|source| {
+        handclasp_cell::FormatError::SessionCheck {
+            path: args.out.clone(),
+            source,
+        }
+    })?;
     session.write_csv(&args.out, &cell)?;
     // The written file must read back as a session of this cell (tips, tools, groups).
     Session::read_csv(&args.out, &cell).context("reading back the written session")?;

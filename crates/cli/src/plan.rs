@@ -107,6 +107,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!();
     }
     let plan = plan.with_context(|| format!("planning on {}", args.cell.display()))?;
+    // The input checks every command runs on a session: the plan is one (a planner defect
+    // otherwise; never written).
+    handclasp_cell::check_session_inputs(&plan.session).map_err(|source| {
+        handclasp_cell::FormatError::SessionCheck {
+            path: args.out.clone(),
+            source,
+        }
+    })?;
     plan.session
         .write_csv(&args.out, &cell)
         .with_context(|| format!("--out {}", args.out.display()))?;

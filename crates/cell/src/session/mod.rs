@@ -27,6 +27,7 @@ use nalgebra::Point3;
 use crate::cell::Cell;
 use crate::error::FormatError;
 
+mod checks;
 mod kinds;
 mod read;
 mod write;
@@ -34,6 +35,9 @@ mod write;
 pub use kinds::{
     kind_columns, FaceNormals, SessionKind, ToolPair, ALWAYS_WRITTEN, EXTRA_COLUMNS, FACE_COLUMNS,
     KIND_NAMES,
+};
+pub use checks::{
+    check_session_inputs, SessionCheckError, METRES_LIMIT_MM, RADIANS_LIMIT_DEG,
 };
 pub use read::TIP_CONSISTENCY_MM;
 
