@@ -16,4 +16,7 @@ pub use export::{export_calibrated_cell, ExportNames, CALIBRATE_EXPORT_NAMES};
 pub use export_formats::{export_placement, ControllerFormat, PlacementExport, PlacementFormats};
 pub use import::{ImportCount, ImportMap};
 pub use problem::{cell_problem, FitModel};
-pub use session::{check_session_inputs, SessionCheckError, Session, SessionKind, SessionObservation, SessionPoint, SessionRow};
+pub use session::{
+    check_session_inputs, Session, SessionCheckError, SessionKind, SessionObservation,
+    SessionPoint, SessionRow,
+};

@@ -70,9 +70,11 @@ pub struct PointsArgs {
     /// Point noise σ per coordinate for the soft mount, mm.
     #[arg(long, default_value_t = 0.5)]
     pub point_sigma_mm: f64,
-    /// Expected handclasp alignment noise, mm: a fit whose median residual norm exceeds it fails
-    /// with the likely data mistake (rows out of order, swapped axes, wrong units, wrong robot
-    /// order) and the worst rows, unless --force is given.
+    /// Expected handclasp alignment noise σ per axis, mm: a fit whose median residual norm exceeds
+    /// the bound this σ allows for its number of points and method (calib_core::misfit_threshold_m,
+    /// 0.1 % false alarms; ~2.2σ at 20 points) fails with the likely data mistake (rows out of
+    /// order, swapped axes, wrong units, wrong robot order) and the worst rows, unless --force is
+    /// given. With every --mounts setting: when only the mounts disagree, a warning says so.
     #[arg(long, default_value_t = calib_core::DEFAULT_EXPECTED_NOISE_M * 1e3, display_order = 101)]
     pub expected_noise_mm: f64,
 }

@@ -107,13 +107,14 @@ pub fn load_session(path: &Path, cell: &Cell) -> Result<Session, DiagnoseError> 
     // Before sim-cell's reader, whose FK check would refuse a unit slip without naming it; the
     // words are the shared checks' (handclasp_cell::check_session_inputs).
     let (max_deg, max_mm, rows) = unit_ranges(&text);
-    let unit_error = if rows > 0 && max_deg > 0.0 && max_deg <= handclasp_cell::session::RADIANS_LIMIT_DEG {
-        Some(handclasp_cell::SessionCheckError::RadiansAsDegrees { max_deg })
-    } else if rows > 0 && max_mm > 0.0 && max_mm < handclasp_cell::session::METRES_LIMIT_MM {
-        Some(handclasp_cell::SessionCheckError::MetresAsMillimetres { max_mm })
-    } else {
-        None
-    };
+    let unit_error =
+        if rows > 0 && max_deg > 0.0 && max_deg <= handclasp_cell::session::RADIANS_LIMIT_DEG {
+            Some(handclasp_cell::SessionCheckError::RadiansAsDegrees { max_deg })
+        } else if rows > 0 && max_mm > 0.0 && max_mm < handclasp_cell::session::METRES_LIMIT_MM {
+            Some(handclasp_cell::SessionCheckError::MetresAsMillimetres { max_mm })
+        } else {
+            None
+        };
     if let Some(source) = unit_error {
         return Err(handclasp_cell::FormatError::SessionCheck {
             path: path.to_path_buf(),

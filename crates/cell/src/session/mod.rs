@@ -32,12 +32,10 @@ mod kinds;
 mod read;
 mod write;
 
+pub use checks::{check_session_inputs, SessionCheckError, METRES_LIMIT_MM, RADIANS_LIMIT_DEG};
 pub use kinds::{
     kind_columns, FaceNormals, SessionKind, ToolPair, ALWAYS_WRITTEN, EXTRA_COLUMNS, FACE_COLUMNS,
     KIND_NAMES,
-};
-pub use checks::{
-    check_session_inputs, SessionCheckError, METRES_LIMIT_MM, RADIANS_LIMIT_DEG,
 };
 pub use read::TIP_CONSISTENCY_MM;
 
