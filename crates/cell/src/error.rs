@@ -61,6 +61,15 @@ pub enum FormatError {
     /// An input file is over the input limit, binary or not UTF-8 (`kinematics::input`).
     #[error(transparent)]
     InputFile(#[from] kinematics::input::InputError),
+    /// An export folder is locked by another export, or not empty under the lock
+    /// ([`crate::output::with_export_lock`]).
+    #[error("{path}: {message}")]
+    OutputFolder {
+        /// The folder.
+        path: PathBuf,
+        /// What is wrong and the fix.
+        message: String,
+    },
     /// A file could not be read or written.
     #[error("{path}: {source}")]
     Io {

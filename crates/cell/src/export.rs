@@ -129,9 +129,7 @@ pub fn export_calibrated_cell(
     out.robot2.g_base = out.b1_from_b2.rotation.inverse() * out.robot1.g_base;
     let cell_path = dir.join(names.cell);
     let text = format!("{}{}", names.header, out.to_toml_string());
-    let tmp = cell_path.with_extension("tmp");
-    std::fs::write(&tmp, text).map_err(|e| FormatError::io(&tmp, e))?;
-    std::fs::rename(&tmp, &cell_path).map_err(|e| FormatError::io(&cell_path, e))?;
+    crate::output::write_atomically(&cell_path, text.as_bytes())?;
     Cell::from_toml_file(&cell_path)?;
     written.push(cell_path);
     Ok(written)

@@ -210,8 +210,15 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         write_report_page(path, &args, &cell, &problem, &cal, &report)?;
     }
     let written = match &args.export {
-        Some(dir) => export_calibrated_cell(&cell, &cal.fit.estimate, dir, &CALIBRATE_EXPORT_NAMES)
-            .with_context(|| format!("--export {}", dir.display()))?,
+        Some(dir) => crate::export_dir::locked(dir, force, "--export", || {
+            Ok(export_calibrated_cell(
+                &cell,
+                &cal.fit.estimate,
+                dir,
+                &CALIBRATE_EXPORT_NAMES,
+            )?)
+        })
+        .with_context(|| format!("--export {}", dir.display()))?,
         None => Vec::new(),
     };
     if json {

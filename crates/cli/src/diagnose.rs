@@ -114,7 +114,10 @@ fn run_whole_cell(
     .with_context(|| format!("diagnosing {}", args.session.display()))?;
     report.coverage = Some(coverage(cell, session)?);
     if let Some(dir) = &args.export {
-        let files = diagnose::export_cell_diagnosis(cell, &report, dir).context("--export")?;
+        let files = crate::export_dir::locked(dir, args.force, "--export", || {
+            Ok(diagnose::export_cell_diagnosis(cell, &report, dir)?)
+        })
+        .context("--export")?;
         if !args.json {
             for f in &files {
                 println!("wrote {}", f.display());
@@ -207,8 +210,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(dir) = &args.export {
         let calibrated = report.b1_from_b2.to_isometry();
-        let files =
-            diagnose::export_corrected(&cell, &report, &calibrated, dir).context("--export")?;
+        let files = crate::export_dir::locked(dir, args.force, "--export", || {
+            Ok(diagnose::export_corrected(
+                &cell,
+                &report,
+                &calibrated,
+                dir,
+            )?)
+        })
+        .context("--export")?;
         if !args.json {
             for f in &files {
                 println!("wrote {}", f.display());

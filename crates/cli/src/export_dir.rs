@@ -15,3 +15,16 @@ pub fn check_output_folder(dir: &Path, force: bool, flag: &str) -> anyhow::Resul
         dir, force, flag, "--force",
     )?)
 }
+
+/// Runs `write`, a multi-file export into `dir`, under the folder's lock
+/// ([`handclasp_cell::output::with_export_lock`]): a concurrent export into the same folder is
+/// refused, the folder must still be empty unless `force` (checked again under the lock), and a
+/// failed export leaves none of its files. `flag` names the folder's option in messages.
+pub fn locked<T>(
+    dir: &Path,
+    force: bool,
+    flag: &str,
+    write: impl FnOnce() -> anyhow::Result<T>,
+) -> anyhow::Result<T> {
+    handclasp_cell::output::with_export_lock(dir, force, flag, write)
+}

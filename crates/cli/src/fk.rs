@@ -597,10 +597,11 @@ fn run_batch(
         );
     }
 
-    let sink: Box<dyn Write> = match out {
-        Some(path) => Box::new(
-            std::fs::File::create(path).with_context(|| format!("--out {}", path.display()))?,
-        ),
+    // A file is built in memory and written atomically (never a truncated CSV under --out's
+    // name); stdout is streamed.
+    let mut buffer: Vec<u8> = Vec::new();
+    let sink: Box<dyn Write + '_> = match out {
+        Some(_) => Box::new(&mut buffer),
         None => Box::new(std::io::stdout().lock()),
     };
     let mut writer = csv::Writer::from_writer(std::io::BufWriter::new(sink));
@@ -630,7 +631,10 @@ fn run_batch(
         writer.write_record(&record)?;
     }
     writer.flush()?;
+    drop(writer);
     if let Some(path) = out {
+        handclasp_cell::output::write_atomically(path, &buffer)
+            .with_context(|| format!("--out {}", path.display()))?;
         eprintln!("wrote {} poses to {}", rows.len(), path.display());
     }
     Ok(())

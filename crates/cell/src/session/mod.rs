@@ -190,7 +190,7 @@ impl Session {
 
     /// Writes the session CSV for `cell`'s robots ([`Session::csv_text`]).
     pub fn write_csv(&self, path: &Path, cell: &Cell) -> Result<(), FormatError> {
-        std::fs::write(path, self.csv_text(cell)).map_err(|e| FormatError::io(path, e))
+        crate::output::write_atomically(path, self.csv_text(cell).as_bytes())
     }
 
     /// Reads a session CSV for `cell` (see [`Session::parse_csv`]).
