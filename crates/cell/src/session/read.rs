@@ -89,7 +89,7 @@ impl Session {
                 let unused: Vec<String> = headers
                     .iter()
                     .filter(|h| !known.contains(h))
-                    .map(|h| format!("`{}`", cap_echo(h)))
+                    .map(|h| format!("`{h}`"))
                     .collect();
                 let unused = if unused.is_empty() {
                     String::new()
