@@ -136,7 +136,7 @@ impl PointPairs {
 /// the ≤ 125 cubes around it: each cube is read by at most 125 such tries. The second index is one
 /// scan of the points after the first.
 fn first_close_pair(points: &[Point3<f64>], limit: f64) -> Option<(usize, usize, f64)> {
-    if points.len() < 2 || !(limit > 0.0) {
+    if points.len() < 2 || limit.is_nan() || limit <= 0.0 {
         return None;
     }
     let side = limit / 1.75;
