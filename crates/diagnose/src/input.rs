@@ -338,7 +338,17 @@ mod tests {
         std::fs::write(&path, bad).unwrap();
         let err = load_session(&path, &cell).unwrap_err();
         let text = err.to_string();
-        assert!(matches!(err, DiagnoseError::Session { .. }), "{text}");
+        // The shared session check's typed error (handclasp_cell::check_session_inputs's words).
+        assert!(
+            matches!(
+                err,
+                DiagnoseError::Format(handclasp_cell::FormatError::SessionCheck {
+                    source: handclasp_cell::SessionCheckError::RadiansAsDegrees { .. },
+                    ..
+                })
+            ),
+            "{text}"
+        );
         assert!(
             text.contains("radians") && text.contains("radians.csv"),
             "{text}"
