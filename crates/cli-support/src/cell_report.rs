@@ -31,7 +31,9 @@ use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
 use handclasp_cell::{Cell, Session};
 use serde::Serialize;
 
-use crate::result_check::{check_result, screen_outcome, ResultCheckReport, ScreenMode, ScreenReport};
+use crate::result_check::{
+    check_result, misfit_outcome, screen_outcome, ResultCheckReport, ScreenMode, ScreenReport,
+};
 
 /// Seed of the predicted p95's Monte Carlo draw.
 pub const P95_SEED: u64 = 1;
@@ -185,7 +187,16 @@ fn fit_with_screen(
         ScreenMode::Off => keep_all.clone(),
         ScreenMode::Auto | ScreenMode::Strict => ScreenOptions::default(),
     };
-    let cal = calibrate_cell(problem, solve, &options)?;
+    let cal = match calibrate_cell(problem, solve, &options) {
+        // The screen would leave too few rows: when most rows disagree with the model, the
+        // model is wrong; auto keeps them all and reports the misfit.
+        Err(CellFitError::TooFewRows { rejected_rows, .. }) if mode == ScreenMode::Auto => {
+            let cal = calibrate_cell(problem, solve, &keep_all)?;
+            let screen = misfit_outcome(problem, &cal, &rejected_rows, mode)?;
+            return Ok((cal, screen));
+        }
+        other => other?,
+    };
     let screen = screen_outcome(problem, &cal, mode)?;
     if screen.rows_kept {
         return Ok((calibrate_cell(problem, solve, &keep_all)?, screen));

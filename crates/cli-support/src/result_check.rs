@@ -104,6 +104,34 @@ pub fn screen_outcome(
     })
 }
 
+/// The screen's outcome when rejecting the source rows `rejected_rows` would leave too few
+/// rows to fit (`CellFitError::TooFewRows`): a model misfit by definition, every row kept
+/// (`cal` is the fit on all of them).
+///
+/// # Errors
+/// The residuals cannot be evaluated.
+pub fn misfit_outcome(
+    problem: &CellProblem,
+    cal: &CellCalibration,
+    rejected_rows: &[usize],
+    mode: ScreenMode,
+) -> Result<ScreenReport, CellFitError> {
+    let rejected: Vec<usize> = problem
+        .observations
+        .iter()
+        .enumerate()
+        .filter(|(_, o)| rejected_rows.contains(&o.row))
+        .map(|(i, _)| i)
+        .collect();
+    let mut pattern = classify_rejections(problem, &cal.fit, &rejected)?;
+    pattern.misfit = true;
+    Ok(ScreenReport {
+        mode,
+        pattern: Some(pattern),
+        rows_kept: true,
+    })
+}
+
 /// One check: its value against its limits (JSON `result_check.checks[]`).
 #[derive(Debug, Clone, Serialize)]
 pub struct CheckItem {
