@@ -95,7 +95,7 @@ pub fn screen_outcome(
         .filter(|(_, o)| cal.rejected.iter().any(|r| r.row == o.row))
         .map(|(i, _)| i)
         .collect();
-    let pattern = classify_rejections(problem, &cal.fit, &rejected)?;
+    let pattern = classify_with_noise(problem, cal, &rejected)?;
     let rows_kept = mode == ScreenMode::Auto && pattern.misfit;
     Ok(ScreenReport {
         mode,
@@ -123,13 +123,40 @@ pub fn misfit_outcome(
         .filter(|(_, o)| rejected_rows.contains(&o.row))
         .map(|(i, _)| i)
         .collect();
-    let mut pattern = classify_rejections(problem, &cal.fit, &rejected)?;
+    let mut pattern = classify_with_noise(problem, cal, &rejected)?;
     pattern.misfit = true;
     Ok(ScreenReport {
         mode,
         pattern: Some(pattern),
         rows_kept: true,
     })
+}
+
+/// [`classify_rejections`] with the fit's robust noise scale and the check's
+/// [`CheckThresholds::noise_high`].
+fn classify_with_noise(
+    problem: &CellProblem,
+    cal: &CellCalibration,
+    rejected: &[usize],
+) -> Result<RejectionPattern, CellFitError> {
+    let noise = robust_noise_scale(problem, &cal.fit, cov_scale(cal))?;
+    classify_rejections(
+        problem,
+        &cal.fit,
+        rejected,
+        noise,
+        CheckThresholds::default().noise_high,
+    )
+}
+
+/// What divides a fit's covariance back to the stated noise: a placement-only fit's
+/// covariance is scaled by its screen's noise scale (`calibrate_cell`), a kinematic one's not.
+fn cov_scale(cal: &CellCalibration) -> f64 {
+    if cal.fit.layout.prior_sqrt_info.nrows() == 0 {
+        cal.noise_scale
+    } else {
+        1.0
+    }
 }
 
 /// One check: its value against its limits (JSON `result_check.checks[]`).
@@ -263,9 +290,7 @@ pub fn check_result(
     screen: ScreenReport,
 ) -> Result<ResultCheckReport, CellFitError> {
     let th = CheckThresholds::default();
-    let placement_only = cal.fit.layout.prior_sqrt_info.nrows() == 0;
-    let cov_scale = if placement_only { cal.noise_scale } else { 1.0 };
-    let noise = robust_noise_scale(problem, &cal.fit, cov_scale)?;
+    let noise = robust_noise_scale(problem, &cal.fit, cov_scale(cal))?;
     let dist = placement_distance(&cal.fit.estimate.b1_from_b2, &cell.b1_from_b2);
     let (allow_mm, allow_deg, allow_source) = allowance(cell, &th);
     let mut checks = Vec::new();

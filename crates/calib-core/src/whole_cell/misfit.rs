@@ -2,7 +2,10 @@
 //! row that disagrees with every reasonable model; a misfit is many rows, or rows clustered in
 //! joint space or in time. [`classify_rejections`] says which.
 //!
-//! 1. share: more than [`MISFIT_SHARE`] of the rows (and at least [`MISFIT_MIN_ROWS`]) rejected;
+//! 1. share: more than [`MISFIT_SHARE_ALONE`] of the rows rejected, or more than
+//!    [`MISFIT_SHARE`] (and at least [`MISFIT_MIN_ROWS`]) while the rows are, robustly, far
+//!    noisier than stated (`rest_noise_scale` above `noisy_above`: the rows the screen keeps
+//!    disagree with the model too; isolated blunders leave the rest at the stated noise);
 //! 2. time: at least [`CLUSTER_MIN_ROWS`] rejected rows within [`TIME_WINDOW`] of the session's
 //!    rows in recording order;
 //! 3. joint space: at least [`CLUSTER_MIN_ROWS`] rejected rows, all in the lowest or all in the
@@ -17,8 +20,10 @@ use super::solve::{assemble, CellFit};
 use super::{CellFitError, CellProblem};
 use crate::Robot;
 
-/// More than this share of the rows rejected is a misfit (5 %).
+/// More than this share of the rows rejected, the rest noisier than stated, is a misfit (5 %).
 pub const MISFIT_SHARE: f64 = 0.05;
+/// More than this share of the rows rejected is a misfit whatever the rest (20 %).
+pub const MISFIT_SHARE_ALONE: f64 = 0.2;
 /// ... and at least this many rows.
 pub const MISFIT_MIN_ROWS: usize = 3;
 /// Clusters need at least this many rejected rows.
@@ -100,7 +105,9 @@ impl RejectionPattern {
 }
 
 /// Classifies the observations `rejected` (indices into `problem.observations`) of a screen
-/// at `fit` (whose residuals give the pattern): see the module documentation.
+/// at `fit` (whose residuals give the pattern), the rows' robust noise scale being
+/// `rest_noise_scale` (`noisy_above`: the scale above which the rows are noisier than
+/// stated): see the module documentation.
 ///
 /// # Errors
 /// The residuals cannot be evaluated.
@@ -108,11 +115,14 @@ pub fn classify_rejections(
     problem: &CellProblem,
     fit: &CellFit,
     rejected: &[usize],
+    rest_noise_scale: f64,
+    noisy_above: f64,
 ) -> Result<RejectionPattern, CellFitError> {
     let n = problem.observations.len();
     let k = rejected.len();
     let share = if n == 0 { 0.0 } else { k as f64 / n as f64 };
-    let by_share = k >= MISFIT_MIN_ROWS && share > MISFIT_SHARE;
+    let by_share = share > MISFIT_SHARE_ALONE
+        || (k >= MISFIT_MIN_ROWS && share > MISFIT_SHARE && rest_noise_scale > noisy_above);
     let mut sorted = rejected.to_vec();
     sorted.sort_unstable();
     let time_cluster = (k >= CLUSTER_MIN_ROWS)

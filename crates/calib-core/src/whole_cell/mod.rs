@@ -153,7 +153,7 @@ pub use check::{
 };
 pub use misfit::{
     classify_rejections, JointCluster, RejectionPattern, ResidualPattern, CLUSTER_MIN_ROWS,
-    JOINT_TAIL, MISFIT_MIN_ROWS, MISFIT_SHARE, TIME_WINDOW,
+    JOINT_TAIL, MISFIT_MIN_ROWS, MISFIT_SHARE, MISFIT_SHARE_ALONE, TIME_WINDOW,
 };
 pub use mistakes::{candidate_mistakes, try_problem, Mistake, Trial};
 pub use coverage::{
