@@ -13,8 +13,11 @@ use kinematics::base_from_tip;
 use nalgebra::Point3;
 use serde_json::Value;
 
+use sim_cell::{generate_kind_session, trial_rng, KindSpec, Layout, SessionSpec, SimKind};
+
 use crate::support::{
     cell_session_args, handclasp, random_session, shipped_cell, workspace, write_session_csv,
+    RANDOM_SPREAD_M,
 };
 
 /// Points per session: the issue's sessions had 40.
@@ -362,4 +365,93 @@ fn three_percent_blunders_are_blunders_not_misfit() {
         assert_eq!(rejected, vec![18, 53, 89]);
         assert_eq!(json["result_check"]["screen"]["pattern"]["misfit"], false);
     }
+}
+
+/// `calibrate --cell --export` writes a fitted named tool (`[robot1.tools] reflector`, 7.5 mm
+/// off in the cell; robot 2's reflector right) into the exported cell, and the export re-predicts the training rows as
+/// the fit did (else it is refused): the exported reflector lands near the truth.
+#[test]
+fn export_carries_fitted_named_tools() {
+    let dir = tempfile::tempdir().unwrap();
+    let with_reflector = |at: &'static str| {
+        move |t: String| {
+            t.replace(
+                "tip_mm = [0.0, 0.0, 120.0]",
+                "tip_mm = [0.0, 0.0, 120.0]\n\n[robot2.tools]\nreflector = [0.0, 20.0, 100.0]",
+            )
+            .replace(
+                "tip_mm = [0.0, 0.0, 150.0]   # tip offset in the tool0 frame",
+                &format!(
+                    "tip_mm = [0.0, 0.0, 150.0]\n\n[robot1.tools]\nreflector = {at}\n\n\
+                     [robot1.tolerance]\ntip_mm = 20.0"
+                ),
+            )
+        }
+    };
+    let truth_path = cell_variant(
+        dir.path(),
+        "floor-wall",
+        "truth.toml",
+        with_reflector("[35.0, -4.0, 104.0]"),
+    );
+    let cell = cell_variant(
+        dir.path(),
+        "floor-wall",
+        "stated.toml",
+        with_reflector("[30.0, 0.0, 100.0]"),
+    );
+    let truth_cell = Cell::from_toml_file(&truth_path).unwrap();
+    let spec = SessionSpec::new(48, Layout::Random, RANDOM_SPREAD_M);
+    let kinds = KindSpec {
+        kind: SimKind::Mixed,
+        tracker_tool: "reflector".into(),
+        ..KindSpec::default()
+    };
+    let (mixed, _) =
+        generate_kind_session(&truth_cell, &spec, &kinds, None, &mut trial_rng(5, 0)).unwrap();
+    let session = write_session_csv(dir.path(), "mixed.csv", &mixed, &truth_cell);
+    let out_dir = dir.path().join("calibrated");
+    let r = run(
+        &cell,
+        &session,
+        "kinematic",
+        &["--export", &out_dir.display().to_string()],
+    );
+    assert!(r.ok, "{}", r.stderr);
+    let exported = Cell::from_toml_file(&out_dir.join("cell.toml")).unwrap();
+    let reflector = exported.robot1.tools[0].flange_from_tip * 1e3;
+    let truth = nalgebra::Vector3::new(35.0, -4.0, 104.0);
+    let stated = nalgebra::Vector3::new(30.0, 0.0, 100.0);
+    // The stated reflector is 7.5 mm from the truth; the fitted one must come within a third.
+    assert!(
+        (reflector - truth).norm() < (stated - truth).norm() / 3.0,
+        "exported reflector {reflector:?}, truth {truth:?}"
+    );
+}
+
+/// `--screen strict` keeps the old screen (a wrong model ends in "re-record rows"); `auto`
+/// keeps the rows and calls it a model misfit; `off` rejects nothing.
+#[test]
+fn screen_modes_strict_auto_off() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = random_session(&truth(), N, 11);
+    for p in &mut s.points {
+        p.q2.swap(3, 5);
+    }
+    let reported = shipped_cell("floor-wall");
+    let cell = Cell::from_toml_file(&reported).unwrap();
+    let csv = write_session_csv(dir.path(), "swap.csv", &with_reported_tips(&s, &cell), &cell);
+    let strict = run(&reported, &csv, "kinematic", &["--screen", "strict", "--force"]);
+    assert!(!strict.ok && strict.stderr.contains("re-record rows"), "{}", strict.stderr);
+    let auto = run(&reported, &csv, "kinematic", &["--force"]);
+    assert!(auto.ok, "{}", auto.stderr);
+    assert!(auto.stderr.contains("warning: kept by --force: model misfit, not blunders"));
+    let json = auto.json.unwrap();
+    assert_eq!(json["rejected_points"].as_array().unwrap().len(), 0);
+    assert_eq!(json["result_check"]["screen"]["rows_kept"], true);
+    assert_eq!(json["result_check"]["status"], "refused");
+    let off = run(&reported, &csv, "placement", &["--screen", "off", "--force"]);
+    let json = off.json.unwrap();
+    assert_eq!(json["result_check"]["screen"]["mode"], "off");
+    assert_eq!(json["rows_used"], N as u64);
 }
