@@ -20,6 +20,17 @@ use crate::support::{
     RANDOM_SPREAD_M,
 };
 
+/// A temporary folder for one test; kept (its path printed) when `RESULT_CHECK_KEEP` is set,
+/// so that the sessions can be given to another build (the table before/after).
+fn workdir() -> tempfile::TempDir {
+    let mut dir = tempfile::tempdir().unwrap();
+    if std::env::var_os("RESULT_CHECK_KEEP").is_some() {
+        dir.disable_cleanup(true);
+        eprintln!("kept {}", dir.path().display());
+    }
+    dir
+}
+
 /// Points per session: the sessions had 40.
 const N: usize = 40;
 
@@ -114,7 +125,7 @@ fn assert_named(dir: &Path, name: &str, session: &Session, reported: &Path, expe
 /// Robot 2's joints 4 and 6 swapped in the file: refused, naming the swap.
 #[test]
 fn joints_4_and_6_swapped_are_named() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = workdir();
     let mut s = random_session(&truth(), N, 11);
     for p in &mut s.points {
         p.q2.swap(3, 5);
@@ -132,7 +143,7 @@ fn joints_4_and_6_swapped_are_named() {
 /// angles stay within them): refused, naming it.
 #[test]
 fn a_flipped_joint_sign_is_named() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = workdir();
     let mut s = random_session(&truth(), N, 12);
     for p in &mut s.points {
         p.q2[4] = -p.q2[4];
@@ -149,7 +160,7 @@ fn a_flipped_joint_sign_is_named() {
 /// Robot 2's joints exported in radians and read as degrees: refused, naming it.
 #[test]
 fn radians_read_as_degrees_are_named() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = workdir();
     let mut s = random_session(&truth(), N, 13);
     for p in &mut s.points {
         for q in &mut p.q2 {
@@ -168,7 +179,7 @@ fn radians_read_as_degrees_are_named() {
 /// Robot 2's columns shifted by one row: refused, naming the shift.
 #[test]
 fn robot_2_rows_shifted_by_one_are_named() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = workdir();
     let mut s = random_session(&truth(), N + 1, 14);
     let q2: Vec<Vec<f64>> = s.points.iter().map(|p| p.q2.clone()).collect();
     for (i, p) in s.points.iter_mut().enumerate().take(N) {
@@ -188,7 +199,7 @@ fn robot_2_rows_shifted_by_one_are_named() {
 /// warning) saying the model misfits.
 #[test]
 fn a_wrong_urdf_for_robot_2_is_a_misfit() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = workdir();
     let urdf = std::fs::read_to_string(workspace("robots/hp20.urdf"))
         .unwrap()
         .replacen("<origin xyz=\"0 0 0.76\"", "<origin xyz=\"0 0 1.21\"", 1);
@@ -211,7 +222,7 @@ fn a_wrong_urdf_for_robot_2_is_a_misfit() {
 /// placement is 90° and 1.2 m from the stated one; refused, naming the other shipped cell.
 #[test]
 fn a_session_of_another_cell_is_named() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = workdir();
     let ceiling = Cell::from_toml_file(&shipped_cell("floor-ceiling")).unwrap();
     let s = random_session(&ceiling, N, 16);
     assert_named(
@@ -227,7 +238,7 @@ fn a_session_of_another_cell_is_named() {
 /// naming the swap.
 #[test]
 fn two_identical_robots_swapped_are_named() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = workdir();
     let cell = cell_variant(dir.path(), "floor-floor", "twins.toml", |t| {
         t.replace("va1400.urdf", "hp20.urdf")
             .replace("tip_mm = [0.0, 0.0, 150.0]", "tip_mm = [0.0, 0.0, 120.0]")
@@ -249,7 +260,7 @@ fn two_identical_robots_swapped_are_named() {
 /// Robot 2's tip_mm with the wrong sign in the cell: refused, naming the tip.
 #[test]
 fn a_tip_with_the_wrong_sign_is_named() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = workdir();
     let cell = cell_variant(dir.path(), "floor-wall", "tip.toml", |t| {
         t.replace("tip_mm = [0.0, 0.0, 120.0]", "tip_mm = [0.0, 0.0, -120.0]")
     });
@@ -266,7 +277,7 @@ fn a_tip_with_the_wrong_sign_is_named() {
 /// σ stated 10× too small: a warning that the residuals are far above the stated noise.
 #[test]
 fn sigma_ten_times_too_small_warns() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = workdir();
     let cell = cell_variant(dir.path(), "floor-wall", "small.toml", |t| {
         t.replace("alignment_mm = 0.3", "alignment_mm = 0.03")
             .replace("repeatability_mm = 0.03", "repeatability_mm = 0.003")
@@ -284,7 +295,7 @@ fn sigma_ten_times_too_small_warns() {
 /// σ stated 10× too large: a warning that the stated noise looks overstated.
 #[test]
 fn sigma_ten_times_too_large_warns() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = workdir();
     let cell = cell_variant(dir.path(), "floor-wall", "large.toml", |t| {
         t.replace("alignment_mm = 0.3", "alignment_mm = 3.0")
             .replace("repeatability_mm = 0.03", "repeatability_mm = 0.3")
@@ -324,7 +335,7 @@ fn assert_quiet(dir: &Path, name: &str, s: &Session, cell: &Path) -> Vec<Value> 
 /// A correct session stays quiet.
 #[test]
 fn a_correct_session_is_quiet() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = workdir();
     let s = random_session(&truth(), N, 21);
     let runs = assert_quiet(dir.path(), "ok.csv", &s, &shipped_cell("floor-wall"));
     for json in runs {
@@ -337,7 +348,7 @@ fn a_correct_session_is_quiet() {
 /// quiet.
 #[test]
 fn the_papers_noise_level_is_quiet() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = workdir();
     let cell = cell_variant(dir.path(), "floor-wall", "paper.toml", |t| {
         t.replace("alignment_mm = 0.3", "alignment_mm = 4.4")
     });
@@ -349,7 +360,7 @@ fn the_papers_noise_level_is_quiet() {
 /// blunders, not called a misfit, and the run stays quiet.
 #[test]
 fn three_percent_blunders_are_blunders_not_misfit() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = workdir();
     let mut s = random_session(&truth(), 100, 23);
     for i in [17, 52, 88] {
         s.points[i].q2[0] += 2f64.to_radians();
@@ -372,7 +383,7 @@ fn three_percent_blunders_are_blunders_not_misfit() {
 /// the fit did (else it is refused): the exported reflector lands near the truth.
 #[test]
 fn export_carries_fitted_named_tools() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = workdir();
     let with_reflector = |at: &'static str| {
         move |t: String| {
             t.replace(
@@ -433,7 +444,7 @@ fn export_carries_fitted_named_tools() {
 /// keeps the rows and calls it a model misfit; `off` rejects nothing.
 #[test]
 fn screen_modes_strict_auto_off() {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = workdir();
     let mut s = random_session(&truth(), N, 11);
     for p in &mut s.points {
         p.q2.swap(3, 5);
@@ -454,4 +465,64 @@ fn screen_modes_strict_auto_off() {
     let json = off.json.unwrap();
     assert_eq!(json["result_check"]["screen"]["mode"], "off");
     assert_eq!(json["rows_used"], N as u64);
+}
+
+/// `diagnose` runs the same result check first: a likely data mistake is named on stderr
+/// before the diagnosis (which would otherwise name effects the mistake made).
+#[test]
+fn diagnose_names_a_likely_mistake_first() {
+    let dir = workdir();
+    let mut s = random_session(&truth(), N, 11);
+    for p in &mut s.points {
+        p.q2.swap(3, 5);
+    }
+    let reported = shipped_cell("floor-wall");
+    let cell = Cell::from_toml_file(&reported).unwrap();
+    let csv = write_session_csv(dir.path(), "swap.csv", &with_reported_tips(&s, &cell), &cell);
+    let out = handclasp(&cell_session_args(
+        "diagnose",
+        &reported,
+        &csv,
+        &["--json", "--trials", "20"],
+    ));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains(
+            "warning: result check (placement fit): likely mistake: robot 2's joints 4 and 6 swapped"
+        ),
+        "{stderr}"
+    );
+}
+
+/// `diagnose --max-steps 1` on a mixed session whose robots carry several errors: the
+/// selection stops at the cap while still accepting, and says so (JSON and `warning:`).
+#[test]
+fn diagnose_reports_its_step_cap() {
+    let dir = workdir();
+    let truth = truth();
+    let spec = SessionSpec::new(36, Layout::Random, 0.7);
+    let kinds = KindSpec {
+        kind: SimKind::Mixed,
+        ..KindSpec::default()
+    };
+    let (mixed, _) =
+        generate_kind_session(&truth, &spec, &kinds, None, &mut trial_rng(4, 0)).unwrap();
+    let cell = shipped_cell("floor-wall");
+    let csv = write_session_csv(dir.path(), "mixed.csv", &mixed, &truth);
+    let out = handclasp(&cell_session_args(
+        "diagnose",
+        &cell,
+        &csv,
+        &["--json", "--max-steps", "1"],
+    ));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["max_steps"], 1);
+    if json["effects"].as_array().unwrap().len() == 1 && json["stopped_at"].is_null() {
+        assert_eq!(json["step_cap_hit"], true);
+        assert!(stderr.contains("warning: the selection stopped at its step cap"), "{stderr}");
+    } else {
+        panic!("expected one accepted family and no stop: {}", json["effects"]);
+    }
 }
