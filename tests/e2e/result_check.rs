@@ -318,7 +318,11 @@ fn assert_quiet(dir: &Path, name: &str, s: &Session, cell: &Path) -> Vec<Value> 
     let mut out = Vec::new();
     for model in ["placement", "kinematic"] {
         let r = run(cell, &csv, model, &[]);
-        eprintln!("{name} ({model}): exit {} | {}", i32::from(!r.ok), r.stderr.trim());
+        eprintln!(
+            "{name} ({model}): exit {} | {}",
+            i32::from(!r.ok),
+            r.stderr.trim()
+        );
         assert!(r.ok, "{name} ({model}) failed:\n{}", r.stderr);
         assert!(
             !r.stderr.contains("warning:"),
@@ -451,17 +455,38 @@ fn screen_modes_strict_auto_off() {
     }
     let reported = shipped_cell("floor-wall");
     let cell = Cell::from_toml_file(&reported).unwrap();
-    let csv = write_session_csv(dir.path(), "swap.csv", &with_reported_tips(&s, &cell), &cell);
-    let strict = run(&reported, &csv, "kinematic", &["--screen", "strict", "--force"]);
-    assert!(!strict.ok && strict.stderr.contains("re-record rows"), "{}", strict.stderr);
+    let csv = write_session_csv(
+        dir.path(),
+        "swap.csv",
+        &with_reported_tips(&s, &cell),
+        &cell,
+    );
+    let strict = run(
+        &reported,
+        &csv,
+        "kinematic",
+        &["--screen", "strict", "--force"],
+    );
+    assert!(
+        !strict.ok && strict.stderr.contains("re-record rows"),
+        "{}",
+        strict.stderr
+    );
     let auto = run(&reported, &csv, "kinematic", &["--force"]);
     assert!(auto.ok, "{}", auto.stderr);
-    assert!(auto.stderr.contains("warning: kept by --force: model misfit, not blunders"));
+    assert!(auto
+        .stderr
+        .contains("warning: kept by --force: model misfit, not blunders"));
     let json = auto.json.unwrap();
     assert_eq!(json["rejected_points"].as_array().unwrap().len(), 0);
     assert_eq!(json["result_check"]["screen"]["rows_kept"], true);
     assert_eq!(json["result_check"]["status"], "refused");
-    let off = run(&reported, &csv, "placement", &["--screen", "off", "--force"]);
+    let off = run(
+        &reported,
+        &csv,
+        "placement",
+        &["--screen", "off", "--force"],
+    );
     let json = off.json.unwrap();
     assert_eq!(json["result_check"]["screen"]["mode"], "off");
     assert_eq!(json["rows_used"], N as u64);
@@ -478,7 +503,12 @@ fn diagnose_names_a_likely_mistake_first() {
     }
     let reported = shipped_cell("floor-wall");
     let cell = Cell::from_toml_file(&reported).unwrap();
-    let csv = write_session_csv(dir.path(), "swap.csv", &with_reported_tips(&s, &cell), &cell);
+    let csv = write_session_csv(
+        dir.path(),
+        "swap.csv",
+        &with_reported_tips(&s, &cell),
+        &cell,
+    );
     let out = handclasp(&cell_session_args(
         "diagnose",
         &reported,
@@ -521,8 +551,14 @@ fn diagnose_reports_its_step_cap() {
     assert_eq!(json["max_steps"], 1);
     if json["effects"].as_array().unwrap().len() == 1 && json["stopped_at"].is_null() {
         assert_eq!(json["step_cap_hit"], true);
-        assert!(stderr.contains("warning: the selection stopped at its step cap"), "{stderr}");
+        assert!(
+            stderr.contains("warning: the selection stopped at its step cap"),
+            "{stderr}"
+        );
     } else {
-        panic!("expected one accepted family and no stop: {}", json["effects"]);
+        panic!(
+            "expected one accepted family and no stop: {}",
+            json["effects"]
+        );
     }
 }

@@ -19,9 +19,9 @@
 use std::path::Path;
 
 use calib_core::whole_cell::{
-    candidate_mistakes, classify_rejections, layout_shape, placement_distance,
-    robust_noise_scale, try_problem, CellCalibration, CellFitError, CellProblem, CheckThresholds,
-    PlacementDistance, RejectionPattern, Trial,
+    candidate_mistakes, classify_rejections, layout_shape, placement_distance, robust_noise_scale,
+    try_problem, CellCalibration, CellFitError, CellProblem, CheckThresholds, PlacementDistance,
+    RejectionPattern, Trial,
 };
 use handclasp_cell::problem::{cell_problem, FitModel};
 use handclasp_cell::{Cell, Session};
@@ -354,7 +354,11 @@ pub fn check_result(
                     shape.spread_mm[0],
                     shape.spread_mm[1],
                     shape.spread_mm[2],
-                    if name == "layout_line_ratio" { "line" } else { "plane" },
+                    if name == "layout_line_ratio" {
+                        "line"
+                    } else {
+                        "plane"
+                    },
                 ));
             }
             checks.push(CheckItem {

@@ -182,28 +182,24 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         );
     }
     let session = Session::read_csv(session_path, &cell)?;
-    let calibrated = calibrate_session_with(
-        &cell,
-        &session,
-        args.model.cell_model(),
-        args.screen.mode(),
-    )
-    .map_err(|e| {
-        let context = match &e {
-            CellCalibrationError::Prediction(_) => String::new(),
-            _ => format!(
-                "calibrating {} with cell {}",
-                session_path.display(),
-                cell_path.display()
-            ),
-        };
-        let e = anyhow::Error::from(e);
-        if context.is_empty() {
-            e
-        } else {
-            e.context(context)
-        }
-    })?;
+    let calibrated =
+        calibrate_session_with(&cell, &session, args.model.cell_model(), args.screen.mode())
+            .map_err(|e| {
+                let context = match &e {
+                    CellCalibrationError::Prediction(_) => String::new(),
+                    _ => format!(
+                        "calibrating {} with cell {}",
+                        session_path.display(),
+                        cell_path.display()
+                    ),
+                };
+                let e = anyhow::Error::from(e);
+                if context.is_empty() {
+                    e
+                } else {
+                    e.context(context)
+                }
+            })?;
     let report = calibrated.report;
     for w in report.coverage.warnings() {
         eprintln!("warning: {w}");

@@ -24,7 +24,8 @@ pub fn check_export_folder_overwrite(
     overwrite: bool,
     force: bool,
 ) -> anyhow::Result<()> {
-    let checked = cli_support::export_dir::check_output_folder(dir, overwrite, "--export", "--overwrite");
+    let checked =
+        cli_support::export_dir::check_output_folder(dir, overwrite, "--export", "--overwrite");
     match checked {
         Err(e) if force => Err(anyhow::Error::from(e).context(
             "--force keeps a refused fit; it does not overwrite an export (add --overwrite)",

@@ -142,9 +142,15 @@ fn findings(
         .get(sigmas.len() / 2)
         .is_some_and(|s| *s <= LASER_TRACKER_MAX_SIGMA_M);
     let (bound, device) = if laser {
-        (LASER_TRACKER_SCALE_PPM, "a laser tracker (its rows' σ ≤ 0.1 mm)")
+        (
+            LASER_TRACKER_SCALE_PPM,
+            "a laser tracker (its rows' σ ≤ 0.1 mm)",
+        )
     } else {
-        (MOTION_CAPTURE_SCALE_PPM, "motion capture (its rows' σ > 0.1 mm)")
+        (
+            MOTION_CAPTURE_SCALE_PPM,
+            "motion capture (its rows' σ > 0.1 mm)",
+        )
     };
     let mut recording = Vec::new();
     for e in effects {

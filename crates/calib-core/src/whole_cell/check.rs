@@ -130,7 +130,7 @@ fn hat_trace(problem: &CellProblem, fit: &CellFit, cov_scale: f64) -> Result<f64
     }
     let sys = assemble(problem, &fit.layout, &fit.estimate, &fit.active, None, true)?;
     let j = sys.j.rows(0, sys.data_rows);
-    let h = &j * &fit.covariance * j.transpose();
+    let h = j * &fit.covariance * j.transpose();
     let s2 = (cov_scale * cov_scale).max(f64::MIN_POSITIVE);
     Ok(h.trace() / s2)
 }
@@ -145,10 +145,7 @@ pub struct PlacementDistance {
 }
 
 /// [`PlacementDistance`] of `fitted` from `stated` (both `b1_from_b2`).
-pub fn placement_distance(
-    fitted: &Isometry3<f64>,
-    stated: &Isometry3<f64>,
-) -> PlacementDistance {
+pub fn placement_distance(fitted: &Isometry3<f64>, stated: &Isometry3<f64>) -> PlacementDistance {
     let delta = fitted * stated.inverse();
     PlacementDistance {
         translation_mm: delta.translation.vector.norm() * 1e3,

@@ -163,8 +163,11 @@ pub fn classify_rejections(
     })
 }
 
-/// Each joint's values over the observations that carry it: `(robot, joint, [(obs, value)])`.
-fn joint_values(problem: &CellProblem) -> Vec<(Robot, usize, Vec<(usize, f64)>)> {
+/// One joint's values over the observations that carry it: `(robot, joint, [(obs, value)])`.
+type JointValues = (Robot, usize, Vec<(usize, f64)>);
+
+/// Each joint's [`JointValues`].
+fn joint_values(problem: &CellProblem) -> Vec<JointValues> {
     let mut out = Vec::new();
     for robot in Robot::BOTH {
         for j in 0..problem.robot(robot).model.dof() {

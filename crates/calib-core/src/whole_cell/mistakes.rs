@@ -93,10 +93,9 @@ impl Mistake {
                 "robot {}'s joints in radians, read as degrees",
                 robot.number()
             ),
-            Mistake::TipSign { robot } => format!(
-                "robot {}'s tip_mm with the wrong sign",
-                robot.number()
-            ),
+            Mistake::TipSign { robot } => {
+                format!("robot {}'s tip_mm with the wrong sign", robot.number())
+            }
             Mistake::TipLeftOut { robot } => format!(
                 "robot {}'s tip_mm should be zero (tool point at the flange)",
                 robot.number()

@@ -151,11 +151,6 @@ pub use check::{
     layout_shape, placement_distance, robust_noise_scale, CheckThresholds, LayoutShape,
     PlacementDistance,
 };
-pub use misfit::{
-    classify_rejections, JointCluster, RejectionPattern, ResidualPattern, CLUSTER_MIN_ROWS,
-    JOINT_TAIL, MISFIT_MIN_ROWS, MISFIT_SHARE, MISFIT_SHARE_ALONE, TIME_WINDOW,
-};
-pub use mistakes::{candidate_mistakes, try_problem, Mistake, Trial};
 pub use coverage::{
     session_coverage, CoverageReport, JointCoverage, JointCoverageReport, PointRegion,
     PointRegionReport, RobotCoverage, RobotCoverageReport, SessionCoverage, ENVELOPE_SAMPLES,
@@ -168,6 +163,11 @@ pub use design::{
 pub use layout::{
     tangent_basis, CellEstimate, CellParam, ParamLayout, PlaneEstimate, RobotCorrection,
 };
+pub use misfit::{
+    classify_rejections, JointCluster, RejectionPattern, ResidualPattern, CLUSTER_MIN_ROWS,
+    JOINT_TAIL, MISFIT_MIN_ROWS, MISFIT_SHARE, MISFIT_SHARE_ALONE, TIME_WINDOW,
+};
+pub use mistakes::{candidate_mistakes, try_problem, Mistake, Trial};
 pub use observations::{
     CellProblem, ContactGroup, GroupKind, Kind, Observation, ObservationKind, PlaneGroup,
     TrackerGroup, UNIT_NORMAL_TOL,

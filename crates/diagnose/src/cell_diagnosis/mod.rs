@@ -467,7 +467,12 @@ fn screen(
             .filter(|&i| rows.contains(&p.observations[i].row))
             .collect()
     };
-    match fit_screened(&p, Some(layout.clone()), &options.solve, &ScreenOptions::default()) {
+    match fit_screened(
+        &p,
+        Some(layout.clone()),
+        &options.solve,
+        &ScreenOptions::default(),
+    ) {
         Ok(screened) => {
             if options.keep_misfit && !screened.rejected.is_empty() {
                 let rows: Vec<usize> = screened.rejected.iter().map(|r| r.row).collect();

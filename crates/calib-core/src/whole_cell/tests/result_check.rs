@@ -29,6 +29,9 @@ fn robust_noise_scale_reads_the_stated_noise() {
     assert!((s / 10.0 - 1.0).abs() < NOISE_SCALE_TOL, "noise scale {s}");
 }
 
+/// Makes a mistake on a copy of clean data.
+type MakeMistake = Box<dyn Fn(&mut CellProblem)>;
+
 /// Each mistake made on clean data and undone by its `apply` gives back the placement: the
 /// swapped joints 4 and 6 of robot 2, a flipped joint 5 (symmetric limits), radians read as degrees, robot 2's rows
 /// shifted by one; the trial of the mistake as given is far off.
@@ -38,9 +41,13 @@ fn undoing_a_mistake_recovers_the_placement() {
     let mut clean = sc.problem();
     clean.observations = sc.coincident(30, 3e-4, 0.7, 64);
     let x = sc.truth.b1_from_b2;
-    let cases: Vec<(Mistake, Box<dyn Fn(&mut CellProblem)>)> = vec![
+    let cases: Vec<(Mistake, MakeMistake)> = vec![
         (
-            Mistake::SwappedJoints { robot: Robot::Two, a: 3, b: 5 },
+            Mistake::SwappedJoints {
+                robot: Robot::Two,
+                a: 3,
+                b: 5,
+            },
             Box::new(|p: &mut CellProblem| {
                 for o in &mut p.observations {
                     if let ObservationKind::Coincident { q2, .. } = &mut o.kind {
@@ -50,7 +57,10 @@ fn undoing_a_mistake_recovers_the_placement() {
             }),
         ),
         (
-            Mistake::FlippedJoint { robot: Robot::Two, joint: 4 },
+            Mistake::FlippedJoint {
+                robot: Robot::Two,
+                joint: 4,
+            },
             Box::new(|p: &mut CellProblem| {
                 for o in &mut p.observations {
                     if let ObservationKind::Coincident { q2, .. } = &mut o.kind {
@@ -107,8 +117,16 @@ fn undoing_a_mistake_recovers_the_placement() {
         );
         // Undone: the stated noise (within its scatter) and the placement within 2 mm / 0.1°
         // (30 handclasps at 0.3 mm); as given: at least 10 times the stated noise.
-        assert!(undone.noise_scale < 1.0 + NOISE_SCALE_TOL, "{}", mistake.describe());
-        assert!(d.translation_mm < 2.0 && d.rotation_deg < 0.1, "{}", mistake.describe());
+        assert!(
+            undone.noise_scale < 1.0 + NOISE_SCALE_TOL,
+            "{}",
+            mistake.describe()
+        );
+        assert!(
+            d.translation_mm < 2.0 && d.rotation_deg < 0.1,
+            "{}",
+            mistake.describe()
+        );
         assert!(as_given.noise_scale > 10.0, "{}", mistake.describe());
     }
 }
@@ -124,7 +142,9 @@ fn mistakes_that_cannot_apply_are_skipped() {
         assert!(Mistake::SwappedRobots.apply(&p).is_none());
     }
     assert!(Mistake::TipSign { robot: Robot::One }.apply(&p).is_none());
-    assert!(Mistake::TipLeftOut { robot: Robot::One }.apply(&p).is_none());
+    assert!(Mistake::TipLeftOut { robot: Robot::One }
+        .apply(&p)
+        .is_none());
 }
 
 /// Blunders or misfit: three rows of forty (7.5 %) with the rest at the stated noise are
@@ -139,9 +159,17 @@ fn blunders_or_misfit() {
     let spread = [3, 17, 31];
     let c = classify_rejections(&p, &fit, &spread, 1.0, 3.0).unwrap();
     assert!(!c.misfit, "{c:?}");
-    assert!(classify_rejections(&p, &fit, &spread, 5.0, 3.0).unwrap().misfit);
+    assert!(
+        classify_rejections(&p, &fit, &spread, 5.0, 3.0)
+            .unwrap()
+            .misfit
+    );
     let quarter: Vec<usize> = (0..40).step_by(4).collect();
-    assert!(classify_rejections(&p, &fit, &quarter, 1.0, 3.0).unwrap().misfit);
+    assert!(
+        classify_rejections(&p, &fit, &quarter, 1.0, 3.0)
+            .unwrap()
+            .misfit
+    );
     let run = [20, 21, 22, 23];
     let c = classify_rejections(&p, &fit, &run, 1.0, 3.0).unwrap();
     assert!(c.misfit && c.time_cluster.is_some(), "{c:?}");
