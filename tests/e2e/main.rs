@@ -14,6 +14,7 @@ mod paper;
 mod paper_diagnose;
 mod plan;
 mod report;
+mod result_check;
 mod sim;
 mod support;
 mod validate;

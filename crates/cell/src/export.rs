@@ -60,7 +60,8 @@ pub const CALIBRATE_EXPORT_NAMES: ExportNames<'static> = ExportNames {
 /// Writes the calibrated `cell` into `dir` (created if missing): each robot's URDF corrected by
 /// the URDF-expressible part of `estimate`'s corrections ([`split_for_urdf`]), and the cell file
 /// with `estimate.b1_from_b2`, the tips corrected by tool 0's tip error (tool 0 = the cell's tip,
-/// as [`crate::problem::cell_problem`] builds it), the rest of each robot's errors (joint
+/// as [`crate::problem::cell_problem`] builds it) and each named tool (`[robotN.tools]`, tools
+/// 1.. in the cell's order) by its own, the rest of each robot's errors (joint
 /// scale, compliance) as `[robotN.errors]`, robot 2's gravity rotated by the fitted placement, and
 /// the cell's placement σ (if any) unchanged, now centred on the fitted placement (see the
 /// module documentation for why). The placement's angles are written by
@@ -122,6 +123,11 @@ pub fn export_calibrated_cell(
         r.urdf = file.to_string();
         r.urdf_path = path;
         r.flange_from_tip = setup.flange_from_tip + tip_error;
+        // The named tools ([robotN.tools], tools 1.. of the problem) carry their fitted tip
+        // errors too.
+        for (tool, error) in r.tools.iter_mut().zip(correction.tool_tip_m.iter().skip(1)) {
+            tool.flange_from_tip += error;
+        }
         // What a URDF cannot hold (scale, compliance; tips are in tip_mm, mounts are never fitted).
         r.errors = split_for_urdf(&correction.errors).1;
     }

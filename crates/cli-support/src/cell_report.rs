@@ -31,6 +31,10 @@ use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
 use handclasp_cell::{Cell, Session};
 use serde::Serialize;
 
+use crate::result_check::{
+    check_result, misfit_outcome, screen_outcome, ResultCheckReport, ScreenMode, ScreenReport,
+};
+
 /// Seed of the predicted p95's Monte Carlo draw.
 pub const P95_SEED: u64 = 1;
 
@@ -120,6 +124,17 @@ pub fn calibrate_session(
     session: &Session,
     model: CellModel,
 ) -> Result<SessionCalibration, CellCalibrationError> {
+    calibrate_session_with(cell, session, model, ScreenMode::Auto)
+}
+
+/// [`calibrate_session`] with the blunder screen's mode (`--screen`): the fit, then the result
+/// check ([`crate::result_check`]), whose report is [`CellReport::result_check`].
+pub fn calibrate_session_with(
+    cell: &Cell,
+    session: &Session,
+    model: CellModel,
+    screen: ScreenMode,
+) -> Result<SessionCalibration, CellCalibrationError> {
     handclasp_cell::check_session_inputs(session)?;
     let problem = cell_problem(cell, session, model.fit_model());
     let mut solve = SolveOptions::default();
@@ -128,8 +143,8 @@ pub fn calibrate_session(
         // the cell's own b1_from_b2.
         solve.initial_b1_from_b2 = Some(cell.b1_from_b2);
     }
-    let cal = calibrate_cell(&problem, &solve, &ScreenOptions::default())
-        .map_err(CellCalibrationError::Fit)?;
+    let (cal, screen_report) =
+        fit_with_screen(&problem, &solve, screen).map_err(CellCalibrationError::Fit)?;
     let pairs = session_meeting_pairs(session);
     let cooperative = if pairs.is_empty() {
         None
@@ -143,7 +158,7 @@ pub fn calibrate_session(
     );
     let rows_by_kind =
         (!session.is_handclasp_only()).then(|| RowsByKind::from_counts(session.kind_counts()));
-    let report = CellReport::new(
+    let mut report = CellReport::new(
         cal.report(&problem),
         model,
         session.len(),
@@ -151,11 +166,48 @@ pub fn calibrate_session(
         cooperative,
         coverage,
     );
+    report.result_check = Some(
+        check_result(cell, session, &problem, &cal, screen_report)
+            .map_err(CellCalibrationError::Fit)?,
+    );
     Ok(SessionCalibration {
         report,
         problem,
         calibration: cal,
     })
+}
+
+/// The screened fit in `mode` ([`ScreenMode`]): `strict` rejects as the screen says, `off`
+/// rejects nothing, `auto` refits without rejection when the rejected rows are a model misfit
+/// ([`screen_outcome`]).
+fn fit_with_screen(
+    problem: &CellProblem,
+    solve: &SolveOptions,
+    mode: ScreenMode,
+) -> Result<(CellCalibration, ScreenReport), CellFitError> {
+    let keep_all = ScreenOptions {
+        reject: false,
+        ..ScreenOptions::default()
+    };
+    let options = match mode {
+        ScreenMode::Off => keep_all.clone(),
+        ScreenMode::Auto | ScreenMode::Strict => ScreenOptions::default(),
+    };
+    let cal = match calibrate_cell(problem, solve, &options) {
+        // The screen would leave too few rows: when most rows disagree with the model, the
+        // model is wrong; auto keeps them all and reports the misfit.
+        Err(CellFitError::TooFewRows { rejected_rows, .. }) if mode == ScreenMode::Auto => {
+            let cal = calibrate_cell(problem, solve, &keep_all)?;
+            let screen = misfit_outcome(problem, &cal, &rejected_rows, mode)?;
+            return Ok((cal, screen));
+        }
+        other => other?,
+    };
+    let screen = screen_outcome(problem, &cal, mode)?;
+    if screen.rows_kept {
+        return Ok((calibrate_cell(problem, solve, &keep_all)?, screen));
+    }
+    Ok((cal, screen))
 }
 
 /// The coverage report of `session` of `cell` (seed [`COVERAGE_SEED`]): each joint's covered
@@ -278,6 +330,11 @@ pub struct CellReport {
     pub rejected_points: Vec<RejectedRowReport>,
     /// Residual rows of the final fit.
     pub residual_rows: usize,
+    /// The result check ([`crate::result_check`]): the fit against what was stated, the likely
+    /// mistakes tried, what the screen did. `None` only for a report built without a session
+    /// check ([`CellReport::new`]); [`calibrate_session`] always sets it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub result_check: Option<ResultCheckReport>,
     /// The session's rows of all kinds.
     pub rows: usize,
     /// Only for a session with rows other than plain handclasps (with `groups`).
@@ -336,6 +393,7 @@ impl CellReport {
             prior_scale,
             rejected_points,
             residual_rows,
+            result_check: None,
             rows,
             rows_by_kind,
             rows_used,
@@ -698,6 +756,7 @@ mod tests {
                 size_sigma: 21.04,
             }],
             residual_rows: 80,
+            result_check: None,
             rows: 41,
             rows_by_kind: Some(RowsByKind::from_counts([7, 8, 13, 13, 0])),
             rows_used: 40,

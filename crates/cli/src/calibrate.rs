@@ -38,7 +38,8 @@ pub struct Args {
     #[arg(long, display_order = 100)]
     pub json: bool,
     /// Keep a fit whose residuals exceed --expected-noise-mm (a warning is printed on stderr);
-    /// with --cell --export, write into a non-empty folder.
+    /// with --cell, keep a fit the result check refuses (its findings become `warning:` lines).
+    /// To write a --cell --export into a non-empty folder, use --overwrite.
     #[arg(long, display_order = 102)]
     pub force: bool,
 }

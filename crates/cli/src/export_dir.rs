@@ -28,3 +28,21 @@ pub fn locked<T>(
 ) -> anyhow::Result<T> {
     handclasp_cell::output::with_export_lock(dir, force, flag, write)
 }
+
+/// [`check_export_folder`] for `calibrate --cell --export`, whose overwrite flag is
+/// `--overwrite` (its `--force` keeps a refused fit): a non-empty folder without `--overwrite`
+/// is refused, and the message says that `--force` alone no longer overwrites.
+pub fn check_export_folder_overwrite(
+    dir: &Path,
+    overwrite: bool,
+    force: bool,
+) -> anyhow::Result<()> {
+    let checked =
+        cli_support::export_dir::check_output_folder(dir, overwrite, "--export", "--overwrite");
+    match checked {
+        Err(e) if force => Err(anyhow::Error::from(e).context(
+            "--force keeps a refused fit; it does not overwrite an export (add --overwrite)",
+        )),
+        other => Ok(other?),
+    }
+}

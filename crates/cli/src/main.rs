@@ -19,6 +19,7 @@ mod paper;
 mod paper_diagnose;
 mod plan;
 mod report_page;
+mod result_check;
 mod validate;
 
 /// Test support shared by the subcommands' unit tests.

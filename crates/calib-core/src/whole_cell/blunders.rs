@@ -22,6 +22,10 @@ pub struct ScreenOptions {
     /// Residual rows that must remain beyond the unpenalised unknowns (default 6); fewer is
     /// [`CellFitError::TooFewRows`].
     pub min_redundancy: usize,
+    /// Reject rows at all (default true). False keeps every row: the fit on all of them, no
+    /// rejection (`calibrate --cell --screen off`, and `auto` when the rejections are a model
+    /// misfit, [`super::classify_rejections`]).
+    pub reject: bool,
 }
 
 impl Default for ScreenOptions {
@@ -31,6 +35,7 @@ impl Default for ScreenOptions {
             irls_rounds: 8,
             max_rounds: 20,
             min_redundancy: 6,
+            reject: true,
         }
     }
 }
@@ -151,6 +156,15 @@ pub fn fit_screened(
         1.0
     };
     let thr = [quant(1) * scale2, quant(3) * scale2];
+    if !screen.reject {
+        return Ok(ScreenedFit {
+            fit,
+            rejected: Vec::new(),
+            threshold_sigma_3: (thr[1] / scale2).sqrt(),
+            threshold_sigma_1: (thr[0] / scale2).sqrt(),
+            noise_scale: scale2.sqrt(),
+        });
+    }
     let thr_of = |i: usize| {
         if problem.observations[i].kind.rows() == 3 {
             thr[1]
