@@ -362,12 +362,15 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
     )?;
     let b = &r.b1_from_b2;
     let xyz = b.xyz_mm;
-    // Near θ = 0° or 180° φ and ψ alone mean nothing: a tilt below the printed resolution or
-    // below its posterior σ is printed as a pure yaw (the JSON keeps the exact angles).
+    // Near θ = 0° or 180° φ and ψ alone mean nothing: a tilt below the printed resolution, or
+    // for a placement held by a rotation prior below its posterior σ, is printed as a pure yaw
+    // (the JSON keeps the exact angles). A freely fitted placement's tilt is printed unless it
+    // is below the resolution: its σ may be large, and a tilt within it is still the estimate.
     let tilt_sigma_deg = b
         .sigma
         .iter()
         .filter(|p| p.name.ends_with("rotation x") || p.name.ends_with("rotation y"))
+        .filter(|p| p.prior_sigma.is_some())
         .map(|p| p.sigma)
         .fold(f64::INFINITY, f64::min);
     let band_deg = if tilt_sigma_deg.is_finite() {
@@ -869,7 +872,8 @@ mod tests {
 
     /// A placement near the identity held by a prior (σ 0.001°) with a tilt of 0.0008°: the
     /// text prints the pure yaw φ + ψ and names the dropped tilt, the JSON keeps the exact
-    /// angles; a noise scale above 1 says which σ is printed and what the scale is.
+    /// angles; without the prior the tilt is printed; a noise scale above 1 says which σ is
+    /// printed and what the scale is.
     #[test]
     fn near_identity_prints_canonical_angles_and_the_noise_scale_is_explained() {
         let mut r = mixed_report();
@@ -896,6 +900,11 @@ mod tests {
             "{line}"
         );
         assert!((forms.zyz_deg[0] - 48.3).abs() < 1e-6, "{:?}", forms.zyz_deg);
+        let mut free = r.clone();
+        free.b1_from_b2.sigma.iter_mut().for_each(|p| p.prior_sigma = None);
+        let free_text = render_text(&free);
+        let line = free_text.lines().nth(1).unwrap();
+        assert!(line.contains("φ 48.3000°  θ 0.0008°  ψ -48.2000°") && !line.contains('['), "{line}");
         assert!(text.contains("posterior σ (as fitted, with the data's stated σ × the noise scale 2.500 and the prior σ as stated)"));
         assert!(text.contains("blunder-screen noise scale 2.500 (the residuals are this many times the stated σ"));
     }
