@@ -16,8 +16,12 @@ fn source_csv(dir: &Path, n: usize) -> PathBuf {
     let mut text = String::from("pose,q1,l1,l2,l3,l4,l5,l6,markers\n");
     for k in 0..n {
         let a = k as f64;
-        let q1: Vec<String> = (0..7).map(|j| format!("{:.3}", 5.0 + 3.0 * a - 2.0 * j as f64)).collect();
-        let q2: Vec<String> = (0..6).map(|j| format!("{:.3}", -4.0 + 2.5 * a + j as f64)).collect();
+        let q1: Vec<String> = (0..7)
+            .map(|j| format!("{:.3}", 5.0 + 3.0 * a - 2.0 * j as f64))
+            .collect();
+        let q2: Vec<String> = (0..6)
+            .map(|j| format!("{:.3}", -4.0 + 2.5 * a + j as f64))
+            .collect();
         text += &format!(
             "id-{k},\"[{}]\",{},\"[[{}, 20.5, 30], [40, 50, {}]]\"\n",
             q1.join(" "),
@@ -85,7 +89,10 @@ fn both_robots_per_row_array_cells_and_source_ids() {
     let mut args = import_args(&map, &input, &out);
     args.push("--json".into());
     let v = json_ok(&args);
-    assert_eq!((v["rows"].as_u64(), v["kind"].as_str()), (Some(6), Some("tracker")));
+    assert_eq!(
+        (v["rows"].as_u64(), v["kind"].as_str()),
+        (Some(6), Some("tracker"))
+    );
     let text = std::fs::read_to_string(&out).unwrap();
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
@@ -128,7 +135,10 @@ fn array_columns_unindexed_and_ignored_keys_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let input = source_csv(dir.path(), 2);
     let out = dir.path().join("s.csv");
-    let unindexed = BOTH_HANDS.replace("columns = \"markers[0]\"", "columns = [\"markers\", \"l1\", \"l2\"]");
+    let unindexed = BOTH_HANDS.replace(
+        "columns = \"markers[0]\"",
+        "columns = [\"markers\", \"l1\", \"l2\"]",
+    );
     let map = write(dir.path(), "unindexed.toml", &unindexed);
     let e = stderr_of_failure(&import_args(&map, &input, &out));
     assert!(
@@ -180,7 +190,10 @@ fn identity_placement_prints_canonical_angles() {
             "xyz_mm = [37.9, 1476.5, 54.5]\nzyz_deg = [-0.001, 0.001, -44.5]",
             "xyz_mm = [0.0, 0.0, 0.0]\nzyz_deg = [0.0, 0.0, 0.0]\nsigma_mm = 0.01\nsigma_deg = 0.001",
         );
-    assert!(cell_text.contains("sigma_deg = 0.001"), "the cell's placement was replaced");
+    assert!(
+        cell_text.contains("sigma_deg = 0.001"),
+        "the cell's placement was replaced"
+    );
     let cell = write(dir.path(), "one-base.toml", &cell_text);
     let map = write(
         dir.path(),
@@ -213,24 +226,50 @@ fn identity_placement_prints_canonical_angles() {
     let b = &v["b1_from_b2"];
     let q = floats(&b["quaternion_wxyz"]);
     assert_eq!(q.len(), 4);
-    let angle_deg = 2.0 * (q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt().atan2(q[0].abs());
-    assert!(angle_deg.to_degrees() < PRIOR_DEG * 10.0, "rotated {}°", angle_deg.to_degrees());
-    assert!(v["noise_scale"].as_f64().unwrap() > 1.0, "the contacts disagree with σ 100 mm");
+    let angle_deg = 2.0
+        * (q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+            .sqrt()
+            .atan2(q[0].abs());
+    assert!(
+        angle_deg.to_degrees() < PRIOR_DEG * 10.0,
+        "rotated {}°",
+        angle_deg.to_degrees()
+    );
+    assert!(
+        v["noise_scale"].as_f64().unwrap() > 1.0,
+        "the contacts disagree with σ 100 mm"
+    );
     // The case: a tilt that is not exactly 0, with φ and ψ far from 0 in the JSON's exact angles.
     let zyz = floats(&b["zyz_deg"]);
     assert!(zyz[1] > 0.0 && zyz[0].abs() > 1.0, "{zyz:?}");
     for s in b["sigma"].as_array().unwrap() {
-        let (sigma, prior) = (s["sigma"].as_f64().unwrap(), s["prior_sigma"].as_f64().unwrap());
-        assert!(sigma <= prior * PRIOR_SIGMA_SLACK, "{}: σ {sigma} above the prior {prior}", s["name"]);
+        let (sigma, prior) = (
+            s["sigma"].as_f64().unwrap(),
+            s["prior_sigma"].as_f64().unwrap(),
+        );
+        assert!(
+            sigma <= prior * PRIOR_SIGMA_SLACK,
+            "{}: σ {sigma} above the prior {prior}",
+            s["name"]
+        );
     }
     let out = calibrate(false);
     let text = String::from_utf8_lossy(&out.stdout);
-    let line = text.lines().find(|l| l.starts_with("b1_from_b2: ")).unwrap();
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("b1_from_b2: "))
+        .unwrap();
     let angles: Vec<f64> = ["φ ", "θ ", "ψ "]
         .iter()
         .map(|k| {
             let at = line.find(k).unwrap() + k.len();
-            line[at..].split('°').next().unwrap().trim().parse().unwrap()
+            line[at..]
+                .split('°')
+                .next()
+                .unwrap()
+                .trim()
+                .parse()
+                .unwrap()
         })
         .collect();
     assert_eq!((angles[0], angles[1]), (0.0, 0.0), "{line}");

@@ -216,15 +216,14 @@ const KEYS_HELP: &str = "keys: kind, robot, group, tool, tool1, tool2, sigma_mm,
 /// is where: `the top` or `[[rows]] entry k`) and the fix.
 fn unknown_keys(table: &toml::Table, top: bool, at: &str) -> Result<(), String> {
     for key in table.keys() {
-        let known =
-            ROW_KEYS.contains(&key.as_str()) || (top && MAP_KEYS.contains(&key.as_str()));
+        let known = ROW_KEYS.contains(&key.as_str()) || (top && MAP_KEYS.contains(&key.as_str()));
         if known {
             continue;
         }
         let hint = match key.as_str() {
-            "robot1" | "robot2" => format!(
-                " (a robot's joint columns go in [joints]: `[joints] {key} = [...]`)"
-            ),
+            "robot1" | "robot2" => {
+                format!(" (a robot's joint columns go in [joints]: `[joints] {key} = [...]`)")
+            }
             "unit" => " (the joints' unit goes in [joints], the tracker's in [tracker])".into(),
             "columns" | "sigma_column" => format!(" (`{key}` goes in [tracker])"),
             "joints" | "source_id" | "rows" => " (it belongs at the top of the map)".into(),
@@ -240,11 +239,14 @@ fn unknown_keys(table: &toml::Table, top: bool, at: &str) -> Result<(), String> 
 /// A TOML error's message with the map line it is on.
 fn toml_message(e: &toml::de::Error, text: &str) -> String {
     // A span over the whole text (an error of a flattened key) names no line.
-    let line = e.span().filter(|s| s.len() < text.trim_end().len()).map(|s| {
-        let n = text[..s.start.min(text.len())].matches('\n').count() + 1;
-        let content = text.lines().nth(n - 1).unwrap_or("").trim();
-        format!(" (line {n}: `{content}`)")
-    });
+    let line = e
+        .span()
+        .filter(|s| s.len() < text.trim_end().len())
+        .map(|s| {
+            let n = text[..s.start.min(text.len())].matches('\n').count() + 1;
+            let content = text.lines().nth(n - 1).unwrap_or("").trim();
+            format!(" (line {n}: `{content}`)")
+        });
     format!(
         "{}{} ({KEYS_HELP})",
         e.message().trim_end(),
@@ -470,7 +472,9 @@ impl ImportMap {
                         let x = number(c)?.ok_or_else(|| {
                             at(format!(
                                 "line {line}, column `{}`: `{}` is not a finite joint angle",
-                                self.joints[k].as_ref().map_or("", |j| j[v.len()].written.as_str()),
+                                self.joints[k]
+                                    .as_ref()
+                                    .map_or("", |j| j[v.len()].written.as_str()),
                                 record.get(c.position()).unwrap_or("")
                             ))
                         })?;
@@ -632,7 +636,9 @@ fn row_spec(keys: &RowKeys, cell: &Cell) -> Result<RowSpec, String> {
                 "`robot` is for tracker and plane rows; a {name} row uses both robots: remove it"
             ))
         }
-        (false, Some(n)) => Robot::from_number(n).ok_or_else(|| format!("robot = {n}: write 1 or 2"))?,
+        (false, Some(n)) => {
+            Robot::from_number(n).ok_or_else(|| format!("robot = {n}: write 1 or 2"))?
+        }
         (false, None) => {
             return Err(format!(
                 "a {name} map needs `robot = 1` or `robot = 2` (the robot whose tool is measured)"
@@ -730,13 +736,17 @@ fn row_spec(keys: &RowKeys, cell: &Cell) -> Result<RowSpec, String> {
     }
     let distance_m = match (keys.distance_mm, kind) {
         (Some(d), Kind::Contact) if d.is_finite() && d >= 0.0 => Some(d * 1e-3),
-        (Some(d), Kind::Contact) => return Err(format!("distance_mm = {d}: give a distance ≥ 0 in mm")),
+        (Some(d), Kind::Contact) => {
+            return Err(format!("distance_mm = {d}: give a distance ≥ 0 in mm"))
+        }
         (Some(_), _) => return Err(format!("distance_mm is for contact rows, not {name}")),
         (None, _) => None,
     };
     let group = match (&keys.group, kind) {
         (Some(g), Kind::Coincident) => {
-            return Err(format!("group = \"{g}\": coincident rows have no group; remove it"))
+            return Err(format!(
+                "group = \"{g}\": coincident rows have no group; remove it"
+            ))
         }
         (Some(g), _) => g.clone(),
         (None, Kind::Coincident) => String::new(),

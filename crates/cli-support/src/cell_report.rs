@@ -899,14 +899,26 @@ mod tests {
                 && line.contains("[θ 0.0008° is within its σ of 0°"),
             "{line}"
         );
-        assert!((forms.zyz_deg[0] - 48.3).abs() < 1e-6, "{:?}", forms.zyz_deg);
+        assert!(
+            (forms.zyz_deg[0] - 48.3).abs() < 1e-6,
+            "{:?}",
+            forms.zyz_deg
+        );
         let mut free = r.clone();
-        free.b1_from_b2.sigma.iter_mut().for_each(|p| p.prior_sigma = None);
+        free.b1_from_b2
+            .sigma
+            .iter_mut()
+            .for_each(|p| p.prior_sigma = None);
         let free_text = render_text(&free);
         let line = free_text.lines().nth(1).unwrap();
-        assert!(line.contains("φ 48.3000°  θ 0.0008°  ψ -48.2000°") && !line.contains('['), "{line}");
+        assert!(
+            line.contains("φ 48.3000°  θ 0.0008°  ψ -48.2000°") && !line.contains('['),
+            "{line}"
+        );
         assert!(text.contains("posterior σ (as fitted, with the data's stated σ × the noise scale 2.500 and the prior σ as stated)"));
-        assert!(text.contains("blunder-screen noise scale 2.500 (the residuals are this many times the stated σ"));
+        assert!(text.contains(
+            "blunder-screen noise scale 2.500 (the residuals are this many times the stated σ"
+        ));
     }
 
     /// The JSON's keys stand in alphabetical order at every level (the order of the

@@ -311,7 +311,10 @@ mod tests {
         assert_eq!(located("markers[1][2]", &h).value(&row), Ok(None));
         assert_eq!(located("id", &h).value(&row), Ok(Some(7.0)));
         let e = located("q", &h).value(&row).unwrap_err();
-        assert!(e.starts_with("column `q` holds an array") && e.contains("`q[0]`"), "{e}");
+        assert!(
+            e.starts_with("column `q` holds an array") && e.contains("`q[0]`"),
+            "{e}"
+        );
         let e = located("q[3]", &h).value(&row).unwrap_err();
         assert!(e.contains("index 3 at depth 1 is past the end"), "{e}");
         let e = located("markers[0]", &h).value(&row).unwrap_err();
@@ -337,7 +340,10 @@ mod tests {
         let e = ColumnList::Many(vec!["a".into()])
             .expand(3, "[tracker] columns", "x, y, z")
             .unwrap_err();
-        assert!(e.starts_with("[tracker] columns names 1 column(s) but needs 3"), "{e}");
+        assert!(
+            e.starts_with("[tracker] columns names 1 column(s) but needs 3"),
+            "{e}"
+        );
         for bad in ["q[", "q[x]", "[0]", "q[0]x"] {
             assert!(ColumnRef::parse(bad, "k").is_err(), "{bad}");
         }
@@ -345,7 +351,10 @@ mod tests {
             .unwrap()
             .locate(&record(&["a", "b"]))
             .unwrap_err();
-        assert_eq!(e, "line 1: no column `m` (named in the map as `m[0][1]`); the header has: a,b");
+        assert_eq!(
+            e,
+            "line 1: no column `m` (named in the map as `m[0][1]`); the header has: a,b"
+        );
         // A header that holds the written name itself takes it as a plain column.
         let c = located("q[3]", &["q[3]"]);
         assert_eq!(c.value(&record(&["0.5"])), Ok(Some(0.5)));

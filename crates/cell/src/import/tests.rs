@@ -49,9 +49,11 @@ fn map_errors_name_the_key_and_the_fix() {
         e.contains("`tool` = \"laser\"") && e.contains("tip, reflector"),
         "{e}"
     );
-    let e = map(&format!("kind = \"contact\"\ngroup = \"c\"\nsigma_mm = 0.1\n[joints]\nunit = \"deg\"\n{JOINTS1}\n"))
-        .unwrap_err()
-        .to_string();
+    let e = map(&format!(
+        "kind = \"contact\"\ngroup = \"c\"\nsigma_mm = 0.1\n[joints]\nunit = \"deg\"\n{JOINTS1}\n"
+    ))
+    .unwrap_err()
+    .to_string();
     assert!(e.contains("a contact map needs [joints] robot2"), "{e}");
     let e = map("kind = \"coincident\"\nunit = \"deg\"\n[joints]\nunit = \"deg\"\n")
         .unwrap_err()
@@ -150,8 +152,7 @@ fn coincident_rows_get_their_tips_from_the_nominal_models() {
     ))
     .unwrap();
     let (q1, q2) = (joints(&cell.robot1, 4), joints(&cell.robot2, 5));
-    let deg =
-        |q: &[f64]| -> Vec<String> { q.iter().map(|v| v.to_degrees().to_string()).collect() };
+    let deg = |q: &[f64]| -> Vec<String> { q.iter().map(|v| v.to_degrees().to_string()).collect() };
     let text = format!(
         "a1,a2,a3,a4,a5,a6,a7,b1,b2,b3,b4,b5,b6\n{},{}\n",
         deg(&q1).join(","),
@@ -174,7 +175,6 @@ fn coincident_rows_get_their_tips_from_the_nominal_models() {
     assert!((p.q1[3] - q1[3]).abs() < 1e-12);
 }
 
-
 /// A map of both robots per input row: one tracker group, robot 1's joints as an array column
 /// (`q1`, numpy text), robot 2's marker an element pair of a 2-D array column; one session row
 /// per robot and input row, numbered in order, each keeping the input row's source id.
@@ -190,7 +190,10 @@ fn rows_of_both_robots_from_one_input_row_with_arrays_and_source_ids() {
          [rows.tracker]\ncolumns = [\"markers[1][0]\", \"markers[1][1]\", \"markers[1][2]\"]\nunit = \"mm\"\n"
     ))
     .unwrap();
-    assert_eq!((m.kinds(), m.rows_per_input_row()), (vec![Kind::Tracker], 2));
+    assert_eq!(
+        (m.kinds(), m.rows_per_input_row()),
+        (vec![Kind::Tracker], 2)
+    );
     let mut text = String::from("pose,q1,b1,b2,b3,b4,b5,b6,markers\n");
     for k in 0..2 {
         let (q1, q2) = (joints(&cell.robot1, k), joints(&cell.robot2, k));
@@ -206,12 +209,23 @@ fn rows_of_both_robots_from_one_input_row_with_arrays_and_source_ids() {
     let count = m
         .read_rows(&text, Path::new("in.csv"), &cell, &mut session)
         .unwrap();
-    assert_eq!(count, ImportCount { rows: 4, skipped: 0 });
+    assert_eq!(
+        count,
+        ImportCount {
+            rows: 4,
+            skipped: 0
+        }
+    );
     let robots: Vec<(usize, Robot, Point3<f64>)> = session
         .observations
         .iter()
         .map(|o| match &o.kind {
-            SessionKind::Tracker { robot, p_tracker, group, .. } => {
+            SessionKind::Tracker {
+                robot,
+                p_tracker,
+                group,
+                ..
+            } => {
                 assert_eq!(group, "cam");
                 (o.point, *robot, *p_tracker)
             }
@@ -220,15 +234,27 @@ fn rows_of_both_robots_from_one_input_row_with_arrays_and_source_ids() {
         .collect();
     assert_eq!(
         robots.iter().map(|r| (r.0, r.1)).collect::<Vec<_>>(),
-        [(1, Robot::One), (2, Robot::Two), (3, Robot::One), (4, Robot::Two)]
+        [
+            (1, Robot::One),
+            (2, Robot::Two),
+            (3, Robot::One),
+            (4, Robot::Two)
+        ]
     );
     assert!((robots[2].2 - Point3::new(1e-3, 2e-3, 1e-3)).norm() < 1e-15);
     assert!((robots[3].2 - Point3::new(4e-3, 5e-3, 6e-3)).norm() < 1e-15);
     let SessionKind::Tracker { q, .. } = &session.observations[2].kind else {
         unreachable!()
     };
-    assert!(q.iter().zip(joints(&cell.robot1, 1)).all(|(a, b)| (a - b).abs() < 1e-11));
-    let ids: Vec<(usize, &str)> = session.source_ids.iter().map(|(k, v)| (*k, v.as_str())).collect();
+    assert!(q
+        .iter()
+        .zip(joints(&cell.robot1, 1))
+        .all(|(a, b)| (a - b).abs() < 1e-11));
+    let ids: Vec<(usize, &str)> = session
+        .source_ids
+        .iter()
+        .map(|(k, v)| (*k, v.as_str()))
+        .collect();
     assert_eq!(ids, [(1, "p0"), (2, "p0"), (3, "p1"), (4, "p1")]);
     // Unindexed, the array column is refused by name.
     let e = ImportMap::from_toml_str(
@@ -243,7 +269,10 @@ fn rows_of_both_robots_from_one_input_row_with_arrays_and_source_ids() {
     .read_rows(&text, Path::new("in.csv"), &cell, &mut Session::default())
     .unwrap_err()
     .to_string();
-    assert!(e.starts_with("in.csv: line 2, column `markers` holds an array"), "{e}");
+    assert!(
+        e.starts_with("in.csv: line 2, column `markers` holds an array"),
+        "{e}"
+    );
 }
 
 /// Keys the map would not use are refused, naming the key and the fix: a joint list of a robot
@@ -252,9 +281,11 @@ fn rows_of_both_robots_from_one_input_row_with_arrays_and_source_ids() {
 #[test]
 fn keys_a_map_would_ignore_are_refused() {
     let tracker = "kind = \"tracker\"\nrobot = 1\ngroup = \"g\"\nsigma_mm = 0.1\n[tracker]\ncolumns = [\"x\", \"y\", \"z\"]\nunit = \"mm\"\n";
-    let e = map(&format!("{tracker}[joints]\nunit = \"rad\"\n{JOINTS1}\n{JOINTS2}\n"))
-        .unwrap_err()
-        .to_string();
+    let e = map(&format!(
+        "{tracker}[joints]\nunit = \"rad\"\n{JOINTS1}\n{JOINTS2}\n"
+    ))
+    .unwrap_err()
+    .to_string();
     assert!(
         e.starts_with("m.toml: [joints] robot2 is given but no row uses robot 2's joints")
             && e.contains("add a [[rows]] entry with robot = 2"),
@@ -265,20 +296,33 @@ fn keys_a_map_would_ignore_are_refused() {
     ))
     .unwrap_err()
     .to_string();
-    assert!(e.contains("`robot` at the top is overridden by every [[rows]] entry"), "{e}");
+    assert!(
+        e.contains("`robot` at the top is overridden by every [[rows]] entry"),
+        "{e}"
+    );
     let e = map(&format!(
         "{tracker}[joints]\nunit = \"rad\"\n{JOINTS1}\n[[rows]]\ntool = \"tip\"\nrobto = 2\n"
     ))
     .unwrap_err()
     .to_string();
     assert!(e.contains("unknown key `robto` at [[rows]] entry 1"), "{e}");
-    let e = map(&format!("robot2 = [\"b1\"]\n{tracker}[joints]\nunit = \"rad\"\n{JOINTS1}\n"))
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("unknown key `robot2` at the top") && e.contains("[joints] robot2"), "{e}");
+    let e = map(&format!(
+        "robot2 = [\"b1\"]\n{tracker}[joints]\nunit = \"rad\"\n{JOINTS1}\n"
+    ))
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("unknown key `robot2` at the top") && e.contains("[joints] robot2"),
+        "{e}"
+    );
     // A wrong joint count names the key and both counts.
-    let e = map(&format!("{tracker}[joints]\nunit = \"rad\"\nrobot1 = [\"a\"]\n"))
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("[joints] robot1 names 1 column(s) but needs 7"), "{e}");
+    let e = map(&format!(
+        "{tracker}[joints]\nunit = \"rad\"\nrobot1 = [\"a\"]\n"
+    ))
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("[joints] robot1 names 1 column(s) but needs 7"),
+        "{e}"
+    );
 }

@@ -482,7 +482,9 @@ fn source_ids_round_trip_and_older_files_read_as_before() {
     let text = s.csv_text(&cell);
     let lines: Vec<&str> = text.lines().collect();
     assert!(lines[0].ends_with(",source_id"), "{}", lines[0]);
-    assert!(lines[1].ends_with(",pose 17") && lines[2].ends_with(',') && lines[3].ends_with(",\"a,b\""));
+    assert!(
+        lines[1].ends_with(",pose 17") && lines[2].ends_with(',') && lines[3].ends_with(",\"a,b\"")
+    );
     let back = Session::parse_csv(&text, Path::new("s.csv"), &cell).unwrap();
     assert_eq!(back.source_ids, s.source_ids);
     assert_eq!(back.len(), 3);
