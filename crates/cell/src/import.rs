@@ -27,7 +27,7 @@
 //! robot = 2
 //! ```
 //! A column name may index an array-valued cell (`q[3]`, `markers[0][1]`; numpy's `[0.1 0.2]`
-//! and pandas' `[0.1, 0.2]` are read), see [`columns`].
+//! and pandas' `[0.1, 0.2]` are read), see docs/formats.md.
 //!
 //! Rows: a tracker row with an empty or NaN tracker value is skipped (and counted); an empty or
 //! NaN joint angle is an error naming the file, line and column. The coincident kind's tip
