@@ -403,7 +403,7 @@ fn placement_prior_sigma_is_reported_beside_the_posterior() {
         let text = String::from_utf8_lossy(&out.stdout);
         let line = text
             .lines()
-            .find(|l| l.starts_with("b1_from_b2 posterior σ:"))
+            .find(|l| l.starts_with("b1_from_b2 posterior σ"))
             .unwrap_or_else(|| panic!("no placement σ line in {text}"));
         match prior {
             None => assert_eq!(line.matches("prior: free").count(), 6, "{line}"),

@@ -8,6 +8,7 @@ mod docs;
 mod export;
 mod fk_ik;
 mod import;
+mod import_rows;
 mod input_guard;
 mod inputs;
 mod paper;

@@ -27,8 +27,8 @@ pub use fit_report::{
     FitReport, MountCheckReport, OutliersReport, SoftMountReport, UncertaintyReport,
 };
 pub use kinematics::{
-    rotation_from_zyz, wrap_angle, zyz_canonical, zyz_from_rotation, zyz_nearest,
-    ZYZ_CANONICAL_TILT_RAD,
+    rotation_from_zyz, wrap_angle, zyz_canonical, zyz_canonical_within, zyz_from_rotation,
+    zyz_nearest, ZYZ_CANONICAL_TILT_RAD,
 };
 pub use lm::{LmOptionError, LmOptions, SingularStep};
 pub use metrics::{

@@ -18,7 +18,8 @@ pub struct Args {
     #[arg(long)]
     pub cell: PathBuf,
     /// Mapping file (TOML): which source columns are each robot's joints and in which unit, the
-    /// kind, robot, group, tool, σ and tracker columns (see the README).
+    /// kind, robot, group, tool, σ and tracker columns, the source id column, and `[[rows]]` for
+    /// several session rows per input row (docs/formats.md).
     #[arg(long)]
     pub map: PathBuf,
     /// Source CSV file(s); repeat the flag for several (rows are numbered over all of them).
@@ -53,8 +54,9 @@ struct FileCount {
 struct ImportReport {
     /// Each input, in order.
     files: Vec<FileCount>,
-    /// The observation kind imported (the mapping's `kind`).
-    kind: &'static str,
+    /// The observation kind imported (the mapping's `kind`; the kinds of a map with `[[rows]]`
+    /// of several kinds, joined by `+`).
+    kind: String,
     /// The session CSV written (`--out`).
     out: PathBuf,
     /// Rows in the written session.
@@ -118,7 +120,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Session::read_csv(&args.out, &cell).context("reading back the written session")?;
     let report = ImportReport {
         files: counts,
-        kind: map.kind().name(),
+        kind: map
+            .kinds()
+            .iter()
+            .map(|k| k.name())
+            .collect::<Vec<_>>()
+            .join("+"),
         out: args.out.clone(),
         rows: session.len(),
     };
@@ -148,7 +155,7 @@ mod tests {
                     skipped: 0,
                 },
             ],
-            kind: "tracker",
+            kind: "tracker".into(),
             out: "s.csv".into(),
             rows: 222,
         };

@@ -214,8 +214,13 @@ pub struct KindResidual {
     pub kind: &'static str,
     /// Scalar residual rows.
     pub residual_rows: usize,
-    /// RMS of the fitted residuals, mm.
+    /// RMS of the fitted residuals per scalar residual row, mm: for the 3-D kinds (tracker,
+    /// coincident) the rms per axis (of x, y and z together), `rms_3d_mm / √3`.
     pub rms_mm: f64,
+    /// For the 3-D kinds (tracker, coincident), the rms of the 3-D residual's length ‖r‖ over
+    /// the rows, mm (the figure a tracker's or a handclasp's distance error is compared with);
+    /// `None` (JSON `null`) for the 1-D kinds (contact, plane), whose `rms_mm` is already that.
+    pub rms_3d_mm: Option<f64>,
     /// RMS of the stated σ, mm.
     pub stated_sigma_mm: f64,
     /// `rms_mm / stated_sigma_mm` (1 = as stated).
@@ -227,6 +232,9 @@ pub struct KindResidual {
     /// this kind was held out (its groups are too small to refit their nuisance on half the
     /// rows, see [`crate::cell_diagnosis::MIN_SCORED_GROUP_ROWS`]).
     pub held_out_rms_mm: Option<f64>,
+    /// `held_out_rms_mm` as the rms of the 3-D residual's length, for the 3-D kinds; `None`
+    /// otherwise or when no row of the kind was held out.
+    pub held_out_rms_3d_mm: Option<f64>,
 }
 
 /// A candidate at a selection step.
@@ -416,6 +424,20 @@ impl JointTrend {
     }
 }
 
+/// The rms of the 3-D residual's length over the rows of `kind`, mm; `None` when the kind has
+/// no row or its rows are not 3-D.
+fn kind_rms_3d(rows: &[ScoredRow], kind: &str) -> Option<f64> {
+    let (mut n, mut raw) = (0usize, 0.0);
+    for r in rows.iter().filter(|r| r.kind == kind) {
+        if r.raw_m.len() != 3 {
+            return None;
+        }
+        n += 1;
+        raw += r.raw_m.norm_squared();
+    }
+    (n > 0).then(|| (raw / n as f64).sqrt() * 1e3)
+}
+
 fn kind_rms(rows: &[ScoredRow], kind: &str) -> Option<(usize, f64, f64, f64)> {
     let (mut n, mut raw, mut sig, mut wh) = (0usize, 0.0, 0.0, 0.0);
     for r in rows.iter().filter(|r| r.kind == kind) {
@@ -455,10 +477,12 @@ fn kind_residuals(
                 kind: k.name(),
                 residual_rows: n,
                 rms_mm,
+                rms_3d_mm: kind_rms_3d(fitted, k.name()),
                 stated_sigma_mm,
                 rms_over_sigma: rms_mm / stated_sigma_mm,
                 noise_scale: s,
                 held_out_rms_mm: kind_rms(&held.rows, k.name()).map(|v| v.1),
+                held_out_rms_3d_mm: kind_rms_3d(&held.rows, k.name()),
             })
         })
         .collect()
@@ -743,21 +767,37 @@ pub fn render_cell_text(r: &CellDiagnoseReport) -> String {
         let _ = writeln!(s, "{title}");
         let _ = writeln!(
             s,
-            "  {:<11} {:>6} {:>9} {:>13} {:>9} {:>12} {:>15}",
-            "kind", "rows", "rms_mm", "stated_σ_mm", "rms/σ", "noise_scale", "held_out_rms_mm"
+            "  {:<11} {:>6} {:>9} {:>13} {:>9} {:>12} {:>15} {:>10} {:>18}",
+            "kind",
+            "rows",
+            "rms_mm",
+            "stated_σ_mm",
+            "rms/σ",
+            "noise_scale",
+            "held_out_rms_mm",
+            "rms_3d_mm",
+            "held_out_rms_3d_mm"
         );
+        let opt = |v: Option<f64>| v.map_or_else(|| "–".to_string(), |v| format!("{v:.3}"));
         for k in rows {
             let _ = writeln!(
                 s,
-                "  {:<11} {:>6} {:>9.3} {:>13.3} {:>9.2} {:>12.2} {:>15}",
+                "  {:<11} {:>6} {:>9.3} {:>13.3} {:>9.2} {:>12.2} {:>15} {:>10} {:>18}",
                 k.kind,
                 k.residual_rows,
                 k.rms_mm,
                 k.stated_sigma_mm,
                 k.rms_over_sigma,
                 k.noise_scale,
-                k.held_out_rms_mm
-                    .map_or_else(|| "–".to_string(), |v| format!("{v:.3}"))
+                opt(k.held_out_rms_mm),
+                opt(k.rms_3d_mm),
+                opt(k.held_out_rms_3d_mm)
+            );
+        }
+        if rows.iter().any(|k| k.rms_3d_mm.is_some()) {
+            let _ = writeln!(
+                s,
+                "  (rms_mm is per residual row: per axis for tracker and coincident rows; rms_3d_mm is their 3-D error ‖r‖, √3 × per axis for isotropic errors)"
             );
         }
     };

@@ -31,8 +31,8 @@ pub use coupling::{JointCoupling, LinearCoupling};
 pub use error::{KinematicsError, ModelError, UrdfPatchError};
 pub use error_model::{all_params, all_params_for, ErrorParam, KinematicErrors};
 pub use euler::{
-    rotation_from_zyz, wrap_angle, zyz_canonical, zyz_from_rotation, zyz_nearest,
-    ZYZ_CANONICAL_TILT_RAD,
+    rotation_from_zyz, wrap_angle, zyz_canonical, zyz_canonical_within, zyz_from_rotation,
+    zyz_nearest, ZYZ_CANONICAL_TILT_RAD,
 };
 pub use fk::{
     base_from_flange, base_from_flange_unchecked, base_from_tip, base_from_tip_unchecked,

@@ -11,8 +11,9 @@
 //! 4. `choose_prior_scale`: a refit at every scale of [`PRIOR_SCALES`] from the screened
 //!    estimate, scored by `log_evidence`; the largest evidence wins and gets the error
 //!    covariance under the scale-1 prior.
-//! 5. A placement-only model whose residuals exceed the stated noise: its covariance is scaled
-//!    and the model-error term set (`mean_noise_var`).
+//! 5. A placement-only model whose residuals exceed the stated noise: the data's σ in its
+//!    covariance are scaled (a placement prior's are not: `scaled_data_covariance`) and the
+//!    model-error term set (`mean_noise_var`).
 //! 6. [`CellCalibration::report`] (`report.rs`): the report in file units.
 
 use nalgebra::DMatrix;
@@ -52,7 +53,8 @@ pub struct CellCalibration {
     pub prior_scale: PriorScaleChoice,
     /// The blunder screen's noise scale ([`super::ScreenedFit::noise_scale`]): 1, or for a
     /// placement-only model `sqrt` of its a-posteriori variance factor (then also applied to the
-    /// covariance, and its excess over 1 is the fit's model-error term,
+    /// data's σ in the covariance, not to a placement prior's, and its excess over 1 is the
+    /// fit's model-error term,
     /// [`CellFit::model_error_var_m2`]).
     pub noise_scale: f64,
 }
@@ -171,7 +173,7 @@ pub fn calibrate_cell(
         // covariance by the variance factor (the data's own noise level), and predict
         // the unmodelled part at any configuration pair from its variance at the handclasps.
         let s2 = noise_scale * noise_scale;
-        fit.covariance *= s2;
+        fit.covariance = scaled_data_covariance(problem, &fit, s2);
         fit.model_error_var_m2 = (s2 - 1.0) * mean_noise_var(problem, &fit)?;
     }
     Ok(CellCalibration {
@@ -181,6 +183,38 @@ pub fn calibrate_cell(
         prior_scale,
         noise_scale,
     })
+}
+
+/// The covariance of `fit` with the data's σ multiplied by `sqrt(s2)` and the placement prior
+/// as stated: `(H_data/s² + Λ_p)⁻¹ = s²·(H + (s² − 1)·Λ_p)⁻¹` with `H = Σ⁻¹` the fit's
+/// information and `Λ_p` the placement prior's ([`super::PlacementPrior`], columns 0..6), so a
+/// placement held by a tight prior keeps a σ at most its prior's (scaling the whole covariance
+/// would inflate the prior too). Without a placement prior (or when `Σ` cannot be inverted)
+/// this is `s²·Σ`.
+fn scaled_data_covariance(problem: &CellProblem, fit: &CellFit, s2: f64) -> DMatrix<f64> {
+    let scaled = &fit.covariance * s2;
+    let Some(pp) = &problem.placement_prior else {
+        return scaled;
+    };
+    let (_, rows) = pp.linearise(&fit.estimate.b1_from_b2);
+    let n = fit.covariance.nrows();
+    if rows.is_empty() || n < 6 {
+        return scaled;
+    }
+    let Some(mut h) = fit.covariance.clone().cholesky().map(|c| c.inverse()) else {
+        return scaled;
+    };
+    for row in &rows {
+        for a in 0..6 {
+            for b in 0..6 {
+                h[(a, b)] += (s2 - 1.0) * row[a] * row[b];
+            }
+        }
+    }
+    match h.cholesky() {
+        Some(c) => c.inverse() * s2,
+        None => scaled,
+    }
 }
 
 /// Mean stated noise variance per residual row (m²) over the fit's active observations.

@@ -18,7 +18,7 @@ use super::layout::CellParam;
 use super::observations::CellProblem;
 use super::reduce::{ReductionEntry, ReductionReason};
 
-use crate::{PoseForms, PoseMmDeg, Robot, StopReason};
+use crate::{PoseForms, Robot, StopReason};
 
 /// The unit a report gives a parameter in; serialised as its [`ReportUnit::name`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -350,9 +350,9 @@ pub struct PlaneGroupReport {
 /// A tracker group's frame in its anchor robot's base.
 #[derive(Debug, Clone, Serialize)]
 pub struct TrackerGroupReport {
-    /// `anchor_from_tracker`: the tracker's origin (mm) and canonical ZYZ angles (degrees) in
-    /// the anchor robot's base.
-    pub anchor_from_tracker: PoseMmDeg,
+    /// `anchor_from_tracker`: the tracker's origin (mm) and rotation in the anchor robot's base,
+    /// in every form of [`PoseForms`] (canonical ZYZ degrees, rotation matrix, quaternion).
+    pub anchor_from_tracker: PoseForms,
     /// The robot whose base the tracker frame is expressed against.
     pub anchor_robot: Robot,
     /// The group's name.
@@ -532,16 +532,10 @@ impl CellCalibration {
                 .trackers
                 .iter()
                 .zip(&est.tracker_from_anchor)
-                .map(|(g, tracker_from_anchor)| {
-                    let a = PoseForms::from_isometry(&tracker_from_anchor.inverse());
-                    TrackerGroupReport {
-                        anchor_from_tracker: PoseMmDeg {
-                            xyz_mm: a.xyz_mm,
-                            zyz_deg: a.zyz_deg,
-                        },
-                        anchor_robot: g.anchor,
-                        group: g.name.clone(),
-                    }
+                .map(|(g, tracker_from_anchor)| TrackerGroupReport {
+                    anchor_from_tracker: PoseForms::from_isometry(&tracker_from_anchor.inverse()),
+                    anchor_robot: g.anchor,
+                    group: g.name.clone(),
                 })
                 .collect(),
         }

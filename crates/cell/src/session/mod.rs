@@ -13,11 +13,17 @@
 //! without a `kind` column is all coincident handclasps, read exactly as before. Which kind uses
 //! which column is [`kind_columns`]; `docs/formats.md` has the table and an example.
 //!
+//! An optional `source_id` column ([`SOURCE_ID_COLUMN`], after every other column) carries
+//! each row's id in the source it was imported from ([`Session::source_ids`], by point number;
+//! `handclasp import` fills it from the map's `source_id` key); a file without it reads as before,
+//! and readers that do not know it ignore it like any extra column.
+//!
 //! One job: the session CSV. This file holds the row types; `kinds.rs` each observation kind's
 //! row ([`SessionKind`]: its columns, reader, writer and whole-cell observation), `read.rs` the
 //! reader (header, the columns the kinds share, errors by line and column), `write.rs` the
 //! writer. Sessions are simulated by sim-cell.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use calib_core::whole_cell::Kind;
@@ -38,6 +44,10 @@ pub use kinds::{
     KIND_NAMES,
 };
 pub use read::TIP_CONSISTENCY_MM;
+
+/// The optional column holding each row's id in its source (a pose id of the data set a row was
+/// imported from); written last, only when some row has one.
+pub const SOURCE_ID_COLUMN: &str = "source_id";
 
 /// One teach point as the controllers report it.
 #[derive(Debug, Clone, PartialEq)]
@@ -72,6 +82,9 @@ pub struct Session {
     pub points: Vec<SessionPoint>,
     /// Every other row (other kinds, or other tools), in file order.
     pub observations: Vec<SessionObservation>,
+    /// Each row's id in the source it came from, by point number (the [`SOURCE_ID_COLUMN`]);
+    /// rows without one are absent. Empty for sessions that were not imported.
+    pub source_ids: BTreeMap<usize, String>,
 }
 
 /// One row of a session, in file order ([`Session::rows`]).
@@ -99,6 +112,7 @@ impl Session {
         Session {
             points,
             observations: Vec::new(),
+            source_ids: BTreeMap::new(),
         }
     }
 

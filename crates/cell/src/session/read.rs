@@ -3,6 +3,7 @@
 //! and the fields of its kind (`kinds.rs`). Errors name the line and the column and say what
 //! would work.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use calib_core::whole_cell::Kind;
@@ -12,7 +13,7 @@ use kinematics::input::cap_echo;
 use nalgebra::{Point3, Unit, Vector3};
 
 use super::kinds::{kind_columns, kinds_using, read_row, ReadRow, EXTRA_COLUMNS, KIND_NAMES};
-use super::{Session, SessionObservation, SessionPoint};
+use super::{Session, SessionObservation, SessionPoint, SOURCE_ID_COLUMN};
 use crate::cell::Cell;
 use crate::error::FormatError;
 
@@ -56,7 +57,8 @@ impl Session {
     /// [`super::SessionKind`] (`docs/formats.md` has the table): fields a kind does not use must be empty,
     /// tip columns are required on coincident rows and FK-checked wherever given, tools are named
     /// from the cell (`tip` or `[robotN.tools]`), and the rows of one contact group agree on
-    /// `distance_mm`. Errors name the line and column and say what would work.
+    /// `distance_mm`. An optional [`SOURCE_ID_COLUMN`] fills [`Session::source_ids`] (an empty
+    /// cell: no id). Errors name the line and column and say what would work.
     pub fn parse_csv(text: &str, path: &Path, cell: &Cell) -> Result<Session, FormatError> {
         let err = |message: String| FormatError::Session {
             path: path.to_path_buf(),
@@ -85,6 +87,7 @@ impl Session {
                     .iter()
                     .map(String::as_str)
                     .chain(EXTRA_COLUMNS)
+                    .chain([SOURCE_ID_COLUMN])
                     .collect();
                 let unused: Vec<String> = headers
                     .iter()
@@ -112,6 +115,8 @@ impl Session {
             idx.push(found);
         }
         let extra: Vec<Option<usize>> = EXTRA_COLUMNS.iter().map(|c| col(c)).collect();
+        let source_col = col(SOURCE_ID_COLUMN);
+        let mut source_ids = BTreeMap::new();
         let mut points = Vec::new();
         let mut observations = Vec::new();
         let mut contacts = ContactDistances::default();
@@ -145,6 +150,12 @@ impl Session {
                     cap_echo(row.cell(0))
                 ))
             })?;
+            if let Some(id) = source_col
+                .and_then(|i| record.get(i))
+                .filter(|s| !s.is_empty())
+            {
+                source_ids.insert(point, id.to_string());
+            }
             if !has_kind {
                 let mut v = Vec::with_capacity(want.len() - 1);
                 for k in 1..want.len() {
@@ -193,6 +204,7 @@ impl Session {
         Ok(Session {
             points,
             observations,
+            source_ids,
         })
     }
 }
