@@ -215,7 +215,7 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         None => Vec::new(),
     };
     if json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        crate::json_out::print_pretty(&report)?;
     } else {
         print!("{}", report.text());
         for f in &written {

@@ -15,6 +15,7 @@ mod export_dir;
 mod fk;
 mod ik;
 mod import;
+mod json_out;
 mod paper;
 mod paper_diagnose;
 mod plan;
