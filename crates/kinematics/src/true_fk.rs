@@ -433,6 +433,70 @@ pub fn tip_error_jacobian(
     Ok(jac)
 }
 
+/// [`true_base_from_tip`] and [`tip_error_jacobian`] at the same inputs from one walk of the
+/// true chain (the whole-cell fit wants both at every observation): the same two values, bit for
+/// bit, as the two calls, for a little more than the price of the Jacobian alone.
+///
+/// Two cases still walk the chain twice, so that the pose stays the one
+/// [`true_base_from_tip`] gives: `errors` all zero (the pose is the nominal FK's), and
+/// compliance columns asked for while every compliance is zero (the Jacobian's true angles
+/// then add `0·τ`, whose sign of zero may differ from the pose's).
+///
+/// Errors: as [`tip_error_jacobian`].
+pub fn true_tip_with_error_jacobian(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    flange_from_tip: &Vector3<f64>,
+    g_base: &Vector3<f64>,
+    params: &[ErrorParam],
+) -> Result<(Isometry3<f64>, Matrix3xX<f64>), KinematicsError> {
+    check_inputs(model, errors, q_rep, flange_from_tip, g_base)?;
+    for p in params {
+        p.check_model(model)?;
+    }
+    let need_tau = params
+        .iter()
+        .any(|p| matches!(p, ErrorParam::Compliance { .. }));
+    if errors.is_zero() || (need_tau && all_zero(&errors.compliance)) {
+        let pose = true_base_from_tip_unchecked(model, errors, q_rep, flange_from_tip, g_base);
+        let jac = tip_error_jacobian(model, errors, q_rep, flange_from_tip, g_base, params)?;
+        return Ok((pose, jac));
+    }
+    let n = model.chain_joints().len();
+    let mut jac = Matrix3xX::zeros(params.len());
+    let pose = with_chain_scratch(n, |tau, q_true, frames| {
+        let mut buf = Vec::new();
+        let q_rep_chain = true_joint_angles(
+            model,
+            errors,
+            (q_rep, &mut buf),
+            g_base,
+            need_tau,
+            tau,
+            q_true,
+        );
+        let (flange_r, flange_t) = true_chain(model, errors, q_true, Some(frames));
+        let tip = flange_from_tip + errors.tip;
+        // The pose as `true_tip_general` forms it; the Jacobian's `p` as `tip_error_jacobian`
+        // forms it (the two sum in different orders).
+        let pose = tip_isometry(&flange_r, &flange_t, &tip);
+        let p = flange_t + flange_r * tip;
+        fill_error_columns(
+            errors,
+            q_rep_chain,
+            tau,
+            frames,
+            &flange_r,
+            &p,
+            params,
+            &mut jac,
+        );
+        pose
+    });
+    Ok((pose, jac))
+}
+
 /// The columns of [`tip_error_jacobian`] from the true chain's frames, tip `p` and flange rotation.
 #[allow(clippy::too_many_arguments)]
 fn fill_error_columns(
