@@ -36,6 +36,8 @@ use serde::Serialize;
 
 use cli_support::cell_report::P95_SEED;
 
+use crate::progress::{shown, Progress};
+
 /// The whole-cell path's own arguments of `handclasp calibrate` (`--json` and `--force` are the
 /// command's, [`crate::calibrate::Args`]).
 #[derive(clap::Args, Debug)]
@@ -147,7 +149,12 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
             robot.number(),
         );
     }
+    let progress = Progress::new(shown(json), "reading the session");
     let session = Session::read_csv(session_path, &cell)?;
+    progress.phase(format!(
+        "calibrating on {} rows (start, reduction, blunder screen, prior scale, prediction)",
+        session.len()
+    ));
     let calibrated = calibrate_session(&cell, &session, args.model.cell_model()).map_err(|e| {
         let context = match &e {
             CellCalibrationError::Prediction(_) => String::new(),
@@ -164,6 +171,7 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
             e.context(context)
         }
     })?;
+    progress.finish();
     let report = calibrated.report;
     for w in report.coverage.warnings() {
         eprintln!("warning: {w}");

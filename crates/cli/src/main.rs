@@ -19,6 +19,7 @@ mod json_out;
 mod paper;
 mod paper_diagnose;
 mod plan;
+mod progress;
 mod report_page;
 mod validate;
 

@@ -66,8 +66,9 @@ pub struct CellFit {
     /// its residuals over the stated noise (the robots' unmodelled kinematic error).
     pub model_error_var_m2: f64,
     /// The linearisation at the optimum, kept so that the statistics and fits that start from
-    /// this estimate do not evaluate the robots again (`None` once the estimate or the layout
-    /// is changed by hand is not detected: see [`AtOptimum::matches`]).
+    /// this estimate do not evaluate the robots again. Checked against the fit's estimate,
+    /// layout and active observations before each use: a fit changed by hand is linearised
+    /// again.
     pub(crate) at_optimum: Option<Arc<AtOptimum>>,
 }
 
@@ -79,9 +80,10 @@ pub(crate) struct DataRows {
     pub observations: Vec<usize>,
     /// Row offset of each observation's block.
     pub block_start: Vec<usize>,
-    /// Whitened residuals.
+    /// Whitened residuals (the system's prior rows may follow the data rows: read the blocks
+    /// by their offsets).
     pub r: DVector<f64>,
-    /// Whitened Jacobian (no rows when only the residuals were evaluated).
+    /// Whitened Jacobian, same rows (none when only the residuals were evaluated).
     pub j: DMatrix<f64>,
     /// Whether `j` holds the Jacobian.
     pub jacobian: bool,
@@ -94,6 +96,8 @@ pub(crate) struct AtOptimum {
     estimate: CellEstimate,
     /// The layout's columns it was taken with.
     params: Vec<CellParam>,
+    /// The layout's prior rows `R_p` (part of `information`).
+    prior_sqrt_info: DMatrix<f64>,
     /// The unweighted data rows of the fit's active observations, with the Jacobian.
     pub rows: DataRows,
     /// `JᵀJ` of the unweighted system (data and prior rows) at the optimum, whose inverse is
@@ -115,10 +119,20 @@ impl CellFit {
         match self.at_optimum.as_deref() {
             Some(AtOptimum {
                 information: Some(h),
+                prior_sqrt_info,
                 ..
-            }) if self.at_optimum_matches() => Ok(h.clone()),
+            }) if self.at_optimum_matches() && *prior_sqrt_info == self.layout.prior_sqrt_info => {
+                Ok(h.clone())
+            }
             _ => {
-                let sys = assemble(problem, &self.layout, &self.estimate, &self.active, None, true)?;
+                let sys = assemble(
+                    problem,
+                    &self.layout,
+                    &self.estimate,
+                    &self.active,
+                    None,
+                    true,
+                )?;
                 Ok(sys.j.transpose() * &sys.j)
             }
         }
@@ -138,6 +152,7 @@ impl CellFit {
                 Ok(Arc::new(AtOptimum {
                     estimate: self.estimate.clone(),
                     params: self.layout.params.clone(),
+                    prior_sqrt_info: self.layout.prior_sqrt_info.clone(),
                     rows,
                     information: None,
                 }))
@@ -209,9 +224,31 @@ pub(crate) struct System {
     pub j: DMatrix<f64>,
     /// Number of data rows.
     pub data_rows: usize,
-    /// The data rows before the IRLS weights (the same as the first `data_rows` rows of `r` and
-    /// `j` without weights).
-    pub rows: DataRows,
+    /// The observations of the data rows, in row order.
+    observations: Vec<usize>,
+    /// Row offset of each observation's block.
+    block_start: Vec<usize>,
+    /// The data rows before the IRLS weights (residuals, Jacobian) of a weighted system; `None`
+    /// without weights (they are then the first `data_rows` rows of `r` and `j`).
+    unweighted: Option<(DVector<f64>, DMatrix<f64>)>,
+    /// Whether `j` holds the Jacobian.
+    jacobian: bool,
+}
+
+impl System {
+    /// The unweighted data rows of this system (the prior rows may follow them in `r` and `j`:
+    /// blocks are read by their offsets).
+    fn into_rows(self) -> DataRows {
+        let jacobian = self.jacobian;
+        let (r, j) = self.unweighted.unwrap_or((self.r, self.j));
+        DataRows {
+            observations: self.observations,
+            block_start: self.block_start,
+            r,
+            j,
+            jacobian,
+        }
+    }
 }
 
 /// The unweighted whitened rows of `observations` at `est` (with the Jacobian): each block
@@ -282,8 +319,12 @@ fn linearise_rows_with(
             }
             _ => {
                 // The first error in the order of `observations` (the fresh ones keep it).
-                let l = lins.next().expect("one linearisation per fresh observation")?;
-                rows.r.rows_mut(row, k).copy_from(&(&l.whitening * &l.residual));
+                let l = lins
+                    .next()
+                    .expect("one linearisation per fresh observation")?;
+                rows.r
+                    .rows_mut(row, k)
+                    .copy_from(&(&l.whitening * &l.residual));
                 if want_jac {
                     rows.j
                         .rows_mut(row, k)
@@ -321,7 +362,11 @@ fn stack(
 ) -> System {
     let n = layout.len();
     let want_jac = rows.jacobian;
-    let data_rows = rows.r.len();
+    let data_rows: usize = rows
+        .observations
+        .iter()
+        .map(|&i| problem.observations[i].kind.rows())
+        .sum();
     let p = layout.prior_sqrt_info.nrows();
     let placement = problem
         .placement_prior
@@ -332,20 +377,20 @@ fn stack(
     let mut j = DMatrix::zeros(if want_jac { m } else { 0 }, n);
     match weights {
         None => {
-            r.rows_mut(0, data_rows).copy_from(&rows.r);
+            r.rows_mut(0, data_rows)
+                .copy_from(&rows.r.rows(0, data_rows));
             if want_jac {
-                j.rows_mut(0, data_rows).copy_from(&rows.j);
+                j.rows_mut(0, data_rows)
+                    .copy_from(&rows.j.rows(0, data_rows));
             }
         }
         Some(weights) => {
             for (b, &start) in rows.block_start.iter().enumerate() {
                 let w = weights[b].sqrt();
                 let k = problem.observations[rows.observations[b]].kind.rows();
-                r.rows_mut(start, k)
-                    .copy_from(&(rows.r.rows(start, k) * w));
+                r.rows_mut(start, k).copy_from(&(rows.r.rows(start, k) * w));
                 if want_jac {
-                    j.rows_mut(start, k)
-                        .copy_from(&(rows.j.rows(start, k) * w));
+                    j.rows_mut(start, k).copy_from(&(rows.j.rows(start, k) * w));
                 }
             }
         }
@@ -368,11 +413,15 @@ fn stack(
             }
         }
     }
+    let unweighted = weights.map(|_| (rows.r, rows.j));
     System {
         r,
         j,
         data_rows,
-        rows,
+        observations: rows.observations,
+        block_start: rows.block_start,
+        unweighted,
+        jacobian: want_jac,
     }
 }
 
@@ -594,10 +643,12 @@ fn fit_cell_start(
     let (covariance, singular) = sym_inverse(&h);
     let data_chi2 = sys.r.rows(0, sys.data_rows).norm_squared();
     let prior_chi2 = min.cost - data_chi2;
+    let residual_rows = sys.data_rows;
     let at_optimum = AtOptimum {
         estimate: min.point.clone(),
         params: layout.params.clone(),
-        rows: sys.rows,
+        prior_sqrt_info: layout.prior_sqrt_info.clone(),
+        rows: sys.into_rows(),
         information: weights.is_none().then_some(h),
     };
     Ok(CellFit {
@@ -607,7 +658,7 @@ fn fit_cell_start(
         singular,
         data_chi2,
         prior_chi2,
-        residual_rows: sys.data_rows,
+        residual_rows,
         active: active.to_vec(),
         iterations: min.iterations,
         stopped: min.stopped,
