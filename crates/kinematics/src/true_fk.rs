@@ -397,12 +397,34 @@ pub fn tip_error_jacobian(
     params: &[ErrorParam],
 ) -> Result<Matrix3xX<f64>, KinematicsError> {
     check_inputs(model, errors, q_rep, flange_from_tip, g_base)?;
-    let n = model.chain_joints().len();
     for p in params {
         p.check_model(model)?;
     }
     let mut jac = Matrix3xX::zeros(params.len());
-    with_chain_scratch(n, |tau, q_true, frames| {
+    error_jacobian_walk(
+        model,
+        errors,
+        q_rep,
+        flange_from_tip,
+        g_base,
+        params,
+        &mut jac,
+    );
+    Ok(jac)
+}
+
+/// One walk of the true chain filling `jac` with the columns of [`tip_error_jacobian`]; returns
+/// the flange (rotation, translation). No checks.
+fn error_jacobian_walk(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    flange_from_tip: &Vector3<f64>,
+    g_base: &Vector3<f64>,
+    params: &[ErrorParam],
+    jac: &mut Matrix3xX<f64>,
+) -> (Matrix3<f64>, Vector3<f64>) {
+    with_chain_scratch(model.chain_joints().len(), |tau, q_true, frames| {
         // Compliance columns need τ even when no compliance is set.
         let need_tau = params
             .iter()
@@ -419,18 +441,9 @@ pub fn tip_error_jacobian(
         );
         let (flange_r, flange_t) = true_chain(model, errors, q_true, Some(frames));
         let p = flange_t + flange_r * (flange_from_tip + errors.tip);
-        fill_error_columns(
-            errors,
-            q_rep_chain,
-            tau,
-            frames,
-            &flange_r,
-            &p,
-            params,
-            &mut jac,
-        );
-    });
-    Ok(jac)
+        fill_error_columns(errors, q_rep_chain, tau, frames, &flange_r, &p, params, jac);
+        (flange_r, flange_t)
+    })
 }
 
 /// [`true_base_from_tip`] and [`tip_error_jacobian`] at the same inputs from one walk of the
@@ -463,37 +476,18 @@ pub fn true_tip_with_error_jacobian(
         let jac = tip_error_jacobian(model, errors, q_rep, flange_from_tip, g_base, params)?;
         return Ok((pose, jac));
     }
-    let n = model.chain_joints().len();
     let mut jac = Matrix3xX::zeros(params.len());
-    let pose = with_chain_scratch(n, |tau, q_true, frames| {
-        let mut buf = Vec::new();
-        let q_rep_chain = true_joint_angles(
-            model,
-            errors,
-            (q_rep, &mut buf),
-            g_base,
-            need_tau,
-            tau,
-            q_true,
-        );
-        let (flange_r, flange_t) = true_chain(model, errors, q_true, Some(frames));
-        let tip = flange_from_tip + errors.tip;
-        // The pose as `true_tip_general` forms it; the Jacobian's `p` as `tip_error_jacobian`
-        // forms it (the two sum in different orders).
-        let pose = tip_isometry(&flange_r, &flange_t, &tip);
-        let p = flange_t + flange_r * tip;
-        fill_error_columns(
-            errors,
-            q_rep_chain,
-            tau,
-            frames,
-            &flange_r,
-            &p,
-            params,
-            &mut jac,
-        );
-        pose
-    });
+    let (flange_r, flange_t) = error_jacobian_walk(
+        model,
+        errors,
+        q_rep,
+        flange_from_tip,
+        g_base,
+        params,
+        &mut jac,
+    );
+    // The pose as `true_tip_general` forms it from the same flange.
+    let pose = tip_isometry(&flange_r, &flange_t, &(flange_from_tip + errors.tip));
     Ok((pose, jac))
 }
 
