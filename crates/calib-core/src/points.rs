@@ -236,11 +236,17 @@ pub fn csv_reader(text: &str) -> csv::Reader<&[u8]> {
 /// column, empty / non-numeric / non-finite cell, no data rows, duplicate points, coordinates that look
 /// like metres (all |value| < 5 for a robot), a robot spread ≥ 20× the other's.
 pub fn read_points_csv(path: &Path) -> Result<PointPairs, CalibError> {
-    let text = kinematics::input::read_input_text(path, "points CSV").map_err(|e| match e {
-        kinematics::input::InputError::Io { path, source } => CalibError::Io { path, source },
-        other => CalibError::Input(other),
-    })?;
-    parse_points_csv(&text, path)
+    let pairs = {
+        let text = kinematics::input::read_input_text(path, "points CSV").map_err(|e| match e {
+            kinematics::input::InputError::Io { path, source } => CalibError::Io { path, source },
+            other => CalibError::Input(other),
+        })?;
+        parse_rows(&text, path)?
+        // The file's text goes here, before the checks below sort the points (1e6 rows: 57 MB
+        // of text and 32 MB of sort keys need not be held at once).
+    };
+    pairs.check_consistency(&path.display().to_string())?;
+    Ok(pairs)
 }
 
 /// Parses CSV text as [`read_points_csv`] does; `path` is used in messages only.
@@ -248,6 +254,14 @@ pub fn read_points_csv(path: &Path) -> Result<PointPairs, CalibError> {
 /// The header may start with a UTF-8 BOM, and fields may be separated by commas, semicolons or
 /// tabs (detected from the header line, see [`csv_delimiter`]).
 pub fn parse_points_csv(text: &str, path: &Path) -> Result<PointPairs, CalibError> {
+    let pairs = parse_rows(text, path)?;
+    pairs.check_consistency(&path.display().to_string())?;
+    Ok(pairs)
+}
+
+/// The rows of [`parse_points_csv`] with every per-cell and units check, before the checks of
+/// the points against each other ([`PointPairs::check_consistency`]).
+fn parse_rows(text: &str, path: &Path) -> Result<PointPairs, CalibError> {
     let text = strip_bom(text);
     let delimiter = csv_delimiter(text);
     let mut reader = csv::ReaderBuilder::new()
@@ -277,10 +291,12 @@ pub fn parse_points_csv(text: &str, path: &Path) -> Result<PointPairs, CalibErro
                     ),
                 })?;
     }
+    // At most one data row per line after the header: the vectors are allocated once.
+    let lines = text.bytes().filter(|&b| b == b'\n').count();
     let mut pairs = PointPairs {
-        p_b1: Vec::new(),
-        p_b2: Vec::new(),
-        rows: Vec::new(),
+        p_b1: Vec::with_capacity(lines),
+        p_b2: Vec::with_capacity(lines),
+        rows: Vec::with_capacity(lines),
     };
     for record in reader.records() {
         let record = record.map_err(|e| CalibError::Csv {
@@ -353,7 +369,6 @@ pub fn parse_points_csv(text: &str, path: &Path) -> Result<PointPairs, CalibErro
             });
         }
     }
-    pairs.check_consistency(&path.display().to_string())?;
     Ok(pairs)
 }
 

@@ -192,8 +192,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let method = cfg.methods[0];
         let report = fit_report(&pairs, method, &cfg)
             .with_context(|| format!("{}: method {}", cfg.points.display(), method.name()))?;
+        // The report holds what is printed: the points go before the JSON is written.
+        drop(pairs);
         if cfg.json {
-            println!("{}", serde_json::to_string_pretty(&report)?);
+            crate::json_out::print_pretty(&report)?;
         } else {
             print!("{}", render_text(&report));
         }
@@ -211,8 +213,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         methods.insert(m.name(), outcome);
     }
     let report = AllMethods { methods };
+    drop(pairs);
     if cfg.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        crate::json_out::print_pretty(&report)?;
     } else {
         for outcome in report.methods.values() {
             print!("{}", outcome_text(outcome));

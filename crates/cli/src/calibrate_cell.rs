@@ -37,6 +37,8 @@ use serde::Serialize;
 
 use cli_support::cell_report::P95_SEED;
 
+use crate::progress::{shown, Progress};
+
 /// The whole-cell path's own arguments of `handclasp calibrate` (`--json` and `--force` are the
 /// command's, [`crate::calibrate::Args`]).
 #[derive(clap::Args, Debug)]
@@ -181,7 +183,12 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
             robot.number(),
         );
     }
+    let progress = Progress::new(shown(json), "reading the session");
     let session = Session::read_csv(session_path, &cell)?;
+    progress.phase(format!(
+        "calibrating on {} rows (start, reduction, blunder screen, prior scale, prediction)",
+        session.len()
+    ));
     let calibrated =
         calibrate_session_with(&cell, &session, args.model.cell_model(), args.screen.mode())
             .map_err(|e| {
@@ -200,6 +207,7 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
                     e.context(context)
                 }
             })?;
+    progress.finish();
     let report = calibrated.report;
     for w in report.coverage.warnings() {
         eprintln!("warning: {w}");
@@ -259,7 +267,7 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         None => Vec::new(),
     };
     if json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        crate::json_out::print_pretty(&report)?;
     } else {
         print!("{}", report.text());
         for f in &written {

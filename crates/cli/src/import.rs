@@ -92,7 +92,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .map_err(|e| anyhow::anyhow!("--map {e}"))?;
     let mut session = Session::default();
     let mut counts = Vec::new();
+    let progress = crate::progress::Progress::new(crate::progress::shown(args.json), "importing");
     for input in &args.input {
+        progress.phase(format!("importing {}", input.display()));
         let text = kinematics::input::read_input_text(input, "import input CSV")
             .with_context(|| format!("--input {}", input.display()))?;
         let count = map
@@ -115,9 +117,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             source,
         }
     })?;
+    progress.phase(format!("writing and reading back {}", args.out.display()));
     session.write_csv(&args.out, &cell)?;
     // The written file must read back as a session of this cell (tips, tools, groups).
     Session::read_csv(&args.out, &cell).context("reading back the written session")?;
+    progress.finish();
     let report = ImportReport {
         files: counts,
         kind: map

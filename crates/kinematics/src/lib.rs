@@ -47,6 +47,7 @@ pub use model::{
 pub use true_fk::{
     tip_error_jacobian, tip_joint_jacobian_true, true_base_from_flange,
     true_base_from_flange_unchecked, true_base_from_tip, true_base_from_tip_unchecked,
+    true_tip_with_error_jacobian,
 };
 pub use urdf_patch::{
     patch_urdf_text, split_for_urdf, verify_patched_urdf, PATCH_TOLERANCE_M, VERIFY_CONFIGURATIONS,

@@ -6,7 +6,7 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-use super::solve::{assemble, fit_cell_weighted, fit_cell_with, CellFit, SolveOptions};
+use super::solve::{fit_cell_from, fit_cell_with, CellFit, SolveOptions};
 use super::{CellFitError, CellProblem, ParamLayout};
 
 /// Screening settings. Every default is documented on its field.
@@ -79,7 +79,9 @@ struct BlockStats {
 
 /// Studentised statistic of each active block at a fit: `r̃ᵀ(I − H_ii)⁻¹r̃`.
 fn block_stats(problem: &CellProblem, fit: &CellFit) -> Result<BlockStats, CellFitError> {
-    let sys = assemble(problem, &fit.layout, &fit.estimate, &fit.active, None, true)?;
+    // The fit's own linearisation at its optimum (the unweighted rows of its active blocks).
+    let lin = fit.linearisation(problem)?;
+    let sys = &lin.rows;
     let mut internal = Vec::with_capacity(fit.active.len());
     for (b, &i) in fit.active.iter().enumerate() {
         let rows = problem.observations[i].kind.rows();
@@ -179,9 +181,11 @@ pub fn fit_screened(
             .unwrap_or(2.0)
             * scale2.sqrt()
     };
-    // Robust start: Huber IRLS on the whitened block norms.
+    // Robust start: Huber IRLS on the whitened block norms (each fit's unweighted rows at its
+    // optimum, over `all`).
     for _ in 0..screen.irls_rounds {
-        let sys = assemble(problem, &fit.layout, &fit.estimate, &all, None, false)?;
+        let lin = fit.linearisation(problem)?;
+        let sys = &lin.rows;
         let mut changed = 0.0f64;
         for (b, &i) in all.iter().enumerate() {
             let rows = problem.observations[i].kind.rows();
@@ -191,14 +195,7 @@ pub fn fit_screened(
             changed = changed.max((w - weights[b]).abs());
             weights[b] = w;
         }
-        fit = fit_cell_weighted(
-            problem,
-            layout.clone(),
-            &all,
-            Some(&weights),
-            Some(&fit.estimate),
-            solve,
-        )?;
+        fit = fit_cell_from(problem, layout.clone(), &all, Some(&weights), &fit, solve)?;
         if changed < 1e-3 {
             break;
         }
@@ -206,7 +203,8 @@ pub fn fit_screened(
     // Initial rejection at the robust fit: blocks whose whitened norm² exceeds the threshold
     // (the robust fit has down-weighted them, so its hat matrix understates their leverage;
     // the refits below re-test everything properly).
-    let sys = assemble(problem, &fit.layout, &fit.estimate, &all, None, false)?;
+    let lin = fit.linearisation(problem)?;
+    let sys = &lin.rows;
     let mut active: Vec<usize> = Vec::new();
     let mut rejected: Vec<usize> = Vec::new();
     for (b, &i) in all.iter().enumerate() {
@@ -245,7 +243,7 @@ pub fn fit_screened(
     if let Some(e) = too_few(&active, &rejected) {
         return Err(e);
     }
-    let mut fit = fit_cell_with(problem, layout.clone(), &active, Some(&fit.estimate), solve)?;
+    let mut fit = fit_cell_from(problem, layout.clone(), &active, None, &fit, solve)?;
     for _ in 0..screen.max_rounds {
         let mut changed = false;
         // Re-admit rejected blocks that the current fit explains.
@@ -283,7 +281,7 @@ pub fn fit_screened(
         if let Some(e) = too_few(&active, &rejected) {
             return Err(e);
         }
-        fit = fit_cell_with(problem, layout.clone(), &active, Some(&fit.estimate), solve)?;
+        fit = fit_cell_from(problem, layout.clone(), &active, None, &fit, solve)?;
     }
     rejected.sort_unstable();
     let mut out = Vec::with_capacity(rejected.len());

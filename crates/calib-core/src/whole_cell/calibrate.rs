@@ -21,7 +21,7 @@ use serde::Serialize;
 
 use super::blunders::{fit_screened, RejectedRow, ScreenOptions};
 use super::reduce::{reduce, Reduction};
-use super::solve::{assemble, fit_cell_with, sym_inverse, CellFit, SolveOptions};
+use super::solve::{fit_cell_from, sym_inverse, CellFit, SolveOptions};
 use super::{initial_estimate, CellFitError, CellProblem, ParamLayout};
 
 /// Prior scales `s` [`calibrate_cell`] compares (every prior σ multiplied by `s`): the
@@ -242,8 +242,7 @@ fn scaled_layout(layout: &ParamLayout, scale: f64) -> ParamLayout {
 /// Laplace log evidence of a converged fit (see [`calibrate_cell`]); `None` when `H` or the
 /// prior rows are singular.
 fn log_evidence(problem: &CellProblem, fit: &CellFit) -> Result<Option<f64>, CellFitError> {
-    let sys = assemble(problem, &fit.layout, &fit.estimate, &fit.active, None, true)?;
-    let h = sys.j.transpose() * &sys.j;
+    let h = fit.information(problem)?;
     let logdet = |m: DMatrix<f64>| {
         m.cholesky()
             .map(|c| 2.0 * c.l().diagonal().iter().map(|v| v.ln()).sum::<f64>())
@@ -281,11 +280,12 @@ fn choose_prior_scale(
     let mut log_ev = vec![(1.0, base_evidence)];
     let mut best = (1.0, base_evidence, screened.clone());
     for &s in &PRIOR_SCALES[1..] {
-        let fit = fit_cell_with(
+        let fit = fit_cell_from(
             problem,
             scaled_layout(&base_layout, s),
             &screened.active,
-            Some(&screened.estimate),
+            None,
+            &screened,
             solve,
         )?;
         if let Some(ev) = log_evidence(problem, &fit)? {
@@ -297,8 +297,7 @@ fn choose_prior_scale(
     }
     let (scale, _, mut fit) = best;
     if scale != 1.0 {
-        let sys = assemble(problem, &fit.layout, &fit.estimate, &fit.active, None, true)?;
-        let h = sys.j.transpose() * &sys.j;
+        let h = fit.information(problem)?;
         let rp = &fit.layout.prior_sqrt_info;
         let lambda = rp.transpose() * rp;
         let (h_inv, _) = sym_inverse(&h);
