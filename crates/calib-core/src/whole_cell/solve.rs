@@ -227,7 +227,7 @@ pub(crate) struct System {
     /// The observations of the data rows, in row order.
     observations: Vec<usize>,
     /// Row offset of each observation's block.
-    block_start: Vec<usize>,
+    pub block_start: Vec<usize>,
     /// The data rows before the IRLS weights (residuals, Jacobian) of a weighted system; `None`
     /// without weights (they are then the first `data_rows` rows of `r` and `j`).
     unweighted: Option<(DVector<f64>, DMatrix<f64>)>,
