@@ -12,6 +12,7 @@ mod pose;
 mod registration;
 mod robot;
 mod robust;
+pub mod selection;
 mod soft;
 pub mod stats;
 mod stop;
