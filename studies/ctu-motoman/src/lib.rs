@@ -7,7 +7,7 @@
 //! exporting a calibrated model is [`calibrated`]; the face-contact geometry is [`contact`] and
 //! its report [`contact_report`]; the tracker score table is [`scores`], its spread over random
 //! half splits [`splits`]; the hidden-set proxy is [`proxy`] and its report [`proxy_report`];
-//! the figures are [`plot`]. The binary (`src/main.rs`) is the study's outline: its flags, which
+//! the figures are [`plot`]; the region-held-out protocol (issue 20) is [`region`]. The binary (`src/main.rs`) is the study's outline: its flags, which
 //! model is fitted on which recordings and in what order, which models are scored and compared.
 
 use std::path::{Path, PathBuf};
@@ -19,6 +19,7 @@ pub mod cv;
 pub mod data;
 pub mod plot;
 pub mod proxy;
+pub mod region;
 pub mod proxy_report;
 pub mod scores;
 pub mod splits;

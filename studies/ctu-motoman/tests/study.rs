@@ -838,3 +838,20 @@ fn split_seeds_give_distinct_partitions_and_start_at_the_score_tables_split() {
     assert!(e.contains("only 3 distinct half splits"), "{e}");
     assert!(splits::split_seeds(1, 1).is_err());
 }
+
+#[test]
+fn regions_hold_the_protocols_tracker_poses() {
+    // docs/region-protocol.md, table "Regions": tracker poses per region.
+    use ctu_motoman::region::Region;
+    let Some((recs, _)) = dataset_and_cell() else {
+        return;
+    };
+    let poses = |r: Region| -> usize {
+        recs.iter()
+            .filter(|x| matches!(x.role, data::Role::Tracker | data::Role::TrackerSelfContact))
+            .filter(|x| Region::of(&x.name) == Some(r))
+            .map(|x| x.poses.iter().filter(|p| p.p_tracker.is_some()).count())
+            .sum()
+    };
+    assert_eq!(Region::ALL.map(poses), [212, 208, 64, 48, 46, 50]);
+}
