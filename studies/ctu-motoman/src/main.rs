@@ -40,9 +40,7 @@ use ctu_motoman::data::{
     read_dataset, self_selection_recordings, Recording, Role, SELF_SELECTION_PATTERNS,
 };
 use ctu_motoman::proxy_report::proxy_report;
-use ctu_motoman::region::{
-    print_region, region_protocol, write_region_csv, REGION_MODELS,
-};
+use ctu_motoman::region::{print_region, region_protocol, write_region_csv, REGION_MODELS};
 use ctu_motoman::scores::{
     print_scores, print_selection_split, score_every_candidate, score_models, write_score_files,
     ScoredModel,
@@ -326,13 +324,7 @@ fn region_protocol_report(
                     .iter()
                     .filter(|r| model.roles.contains(&r.role))
                     .collect();
-                let cal = calibrate(
-                    cell,
-                    folder.clone(),
-                    &recs,
-                    outcome.candidates[c],
-                    noise,
-                )?;
+                let cal = calibrate(cell, folder.clone(), &recs, outcome.candidates[c], noise)?;
                 export(
                     cell,
                     &cal,

@@ -188,7 +188,11 @@ pub fn region_score(
             poses += 1;
         }
     }
-    anyhow::ensure!(poses > 0, "region {} has no tracker pose to score", r.name());
+    anyhow::ensure!(
+        poses > 0,
+        "region {} has no tracker pose to score",
+        r.name()
+    );
     Ok(RegionScore {
         rms_mm: (sum2 / poses as f64).sqrt(),
         poses,
@@ -262,9 +266,10 @@ impl RegionOutcome {
             let mut h = held.to_vec();
             h.push(s);
             let key = (training_minus(&self.model, &h), s);
-            let scores = self.scores.get(&key).with_context(|| {
-                format!("no score of {} trained on {:?}", s.name(), key.0)
-            })?;
+            let scores = self
+                .scores
+                .get(&key)
+                .with_context(|| format!("no score of {} trained on {:?}", s.name(), key.0))?;
             for (row, &v) in rows.iter_mut().zip(scores) {
                 row.push(v);
             }
@@ -298,9 +303,7 @@ impl RegionOutcome {
                 let choice = self.choose(&s, &[r])?;
                 let nominal = self.nominal[&r];
                 let rms_mm = match choice.rule.choice {
-                    Some(c) => {
-                        self.scores[&(training_minus(&self.model, &[r]), r)][c]
-                    }
+                    Some(c) => self.scores[&(training_minus(&self.model, &[r]), r)][c],
                     None => nominal.rms_mm,
                 };
                 Ok(NestedFigure {
@@ -341,7 +344,11 @@ pub fn region_protocol(
     let candidates: Vec<ModelSpec> = model
         .sets
         .iter()
-        .flat_map(|&set| grid.values().iter().map(move |&sigma| ModelSpec { set, sigma }))
+        .flat_map(|&set| {
+            grid.values()
+                .iter()
+                .map(move |&sigma| ModelSpec { set, sigma })
+        })
         .collect();
     let zero = KinematicErrors::zero(6);
     let mut nominal = BTreeMap::new();
@@ -580,8 +587,8 @@ pub fn write_region_csv(
             "model,choice,held_out,set,sigma_mrad_or_mm,region,rms_mm,nominal_rms_mm,ratio,mean_ratio,se_ratio,eligible,chosen,withheld"
         )?;
     }
-    let choices = std::iter::once(("export", export))
-        .chain(nested.iter().map(|n| ("nested", &n.choice)));
+    let choices =
+        std::iter::once(("export", export)).chain(nested.iter().map(|n| ("nested", &n.choice)));
     for (what, ch) in choices {
         for (c, spec) in o.candidates.iter().enumerate() {
             for (k, &s) in ch.regions.iter().enumerate() {
@@ -616,7 +623,12 @@ mod tests {
 
     #[test]
     fn every_recording_is_in_the_protocols_region() {
-        let files = |r: Region| RECORDINGS.iter().filter(|x| Region::of(x.0) == Some(r)).count();
+        let files = |r: Region| {
+            RECORDINGS
+                .iter()
+                .filter(|x| Region::of(x.0) == Some(r))
+                .count()
+        };
         // The protocol's table: 1 grid file each, 8 self-contact files, 4 files per table.
         assert_eq!(Region::ALL.map(files), [1, 1, 8, 4, 4, 4]);
         assert_eq!(Region::of("leica_rep_self1"), None);
@@ -629,12 +641,17 @@ mod tests {
         let [s, p, a] = REGION_MODELS;
         assert_eq!((s.name, s.training), ("self", &[Region::SelfZone][..]));
         assert_eq!(p.training.len(), 4);
-        assert!(!p.training.contains(&Region::RightGrid) && !p.training.contains(&Region::LeftGrid));
+        assert!(
+            !p.training.contains(&Region::RightGrid) && !p.training.contains(&Region::LeftGrid)
+        );
         for m in [s, p] {
             assert_eq!(m.evaluation, &NOT_SELF[..]);
             assert_eq!(m.sets, &ParamSet::WITH_MARKER[..]);
         }
-        assert_eq!((a.training, a.evaluation), (&Region::ALL[..], &Region::ALL[..]));
+        assert_eq!(
+            (a.training, a.evaluation),
+            (&Region::ALL[..], &Region::ALL[..])
+        );
         assert_eq!(a.sets, &ParamSet::ALL[..]);
         // Every file a model may use lies in one of its training regions.
         for m in REGION_MODELS {
@@ -648,7 +665,10 @@ mod tests {
     #[test]
     fn training_minus_removes_only_training_regions() {
         let [s, p, _] = REGION_MODELS;
-        assert_eq!(training_minus(&s, &[Region::RightGrid]), vec![Region::SelfZone]);
+        assert_eq!(
+            training_minus(&s, &[Region::RightGrid]),
+            vec![Region::SelfZone]
+        );
         assert_eq!(
             training_minus(&p, &[Region::LowerTable, Region::LeftGrid]),
             vec![Region::SelfZone, Region::HigherTable, Region::WallTable]

@@ -313,10 +313,7 @@ pub fn do_no_harm(
             (var / regions).sqrt()
         })
         .collect();
-    let eligible: Vec<bool> = ratios
-        .iter()
-        .map(|r| r.iter().all(|&v| v <= 1.0))
-        .collect();
+    let eligible: Vec<bool> = ratios.iter().map(|r| r.iter().all(|&v| v <= 1.0)).collect();
     let withheld: Vec<usize> = (0..candidates.len())
         .filter(|&c| !eligible[c] && ratios[c].iter().any(|&v| v < 1.0))
         .collect();

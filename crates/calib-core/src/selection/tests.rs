@@ -98,7 +98,6 @@ fn cv_error_is_the_rms_with_its_delta_method_standard_error() {
     assert!((c.se - 43.0f64.sqrt() / (2.0 * e * 2.0)).abs() < ROUND_OFF_TOL);
 }
 
-
 #[test]
 fn argmin_takes_the_first_of_equal_values_and_none_when_empty() {
     assert_eq!(argmin(&[3.0, 1.0, 1.0, 2.0]), Some(1));
@@ -108,7 +107,12 @@ fn argmin_takes_the_first_of_equal_values_and_none_when_empty() {
 
 #[test]
 fn pooled_one_se_takes_the_simplest_within_one_se_of_the_smallest() {
-    let c = [cv(1.10, 0.01), cv(1.04, 0.02), cv(1.00, 0.05), cv(0.99, 0.06)];
+    let c = [
+        cv(1.10, 0.01),
+        cv(1.04, 0.02),
+        cv(1.00, 0.05),
+        cv(0.99, 0.06),
+    ];
     // Smallest 0.99 + 0.06 = 1.05: the first within it is candidate 1.
     assert_eq!(pooled_one_se(&c), Some(1));
     assert_eq!(pooled_one_se(&[]), None);
@@ -243,7 +247,10 @@ fn do_no_harm_refuses_malformed_tables() {
     let msg = do_no_harm(&[1.0], &[vec![f64::INFINITY]])
         .unwrap_err()
         .to_string();
-    assert!(msg.contains("candidate 0") && msg.contains("region 0"), "{msg}");
+    assert!(
+        msg.contains("candidate 0") && msg.contains("region 0"),
+        "{msg}"
+    );
 }
 
 /// A table of `regions` nominal scores and `candidates` rows, scores in (0.05, 5).
@@ -251,10 +258,7 @@ fn table() -> impl Strategy<Value = (Vec<f64>, Vec<Vec<f64>>)> {
     (1usize..7, 0usize..7).prop_flat_map(|(regions, candidates)| {
         (
             proptest::collection::vec(0.05f64..5.0, regions),
-            proptest::collection::vec(
-                proptest::collection::vec(0.05f64..5.0, regions),
-                candidates,
-            ),
+            proptest::collection::vec(proptest::collection::vec(0.05f64..5.0, regions), candidates),
         )
     })
 }

@@ -51,8 +51,8 @@
 //!    ([`Family::involves`]: rows of its robot, or of its tool; relative, so that one unit of
 //!    many rows or small σ does not decide alone; only those units, so that a tip family is not
 //!    diluted by tracker files of another tool) have a t statistic
-//!    `mean/(sd/√n) ≥ min_gain_t` (default 3; [`calib_core::selection::one_sample_t`]); with fewer than 3 such units every one must gain
-//!    `min_relative_gain`. An effect is thus named only when it helps the held-out groups
+//!    `mean/(sd/√n) ≥ min_gain_t` (default 3; [`calib_core::selection::one_sample_t`]); with
+//!    fewer than 3 such units every one must gain `min_relative_gain`. An effect is thus named only when it helps the held-out groups
 //!    consistently.
 //! 6. **Effects.** Each accepted family: its parameters from the fit of the final model on all
 //!    screened rows, with a 95 % interval `±1.96·σ` (posterior σ times the variance factor
@@ -368,8 +368,7 @@ fn run(
                 .iter()
                 .filter(|r| r.2 || !only_significant)
                 .collect();
-            argmin(&pool.iter().map(|r| r.1.total()).collect::<Vec<_>>())
-                .map(|i| pool[i].clone())
+            argmin(&pool.iter().map(|r| r.1.total()).collect::<Vec<_>>()).map(|i| pool[i].clone())
         };
         let Some((family, held, accepted, t)) = lowest(true).or_else(|| lowest(false)) else {
             break;
