@@ -184,30 +184,9 @@ pub fn cross_validate(
         }
         Ok((e2, fold_fits))
     };
-    // Candidate k goes to thread k % CV_THREADS; the results are put back in candidate order.
-    let mut slots: Vec<Option<anyhow::Result<Evaluated>>> =
-        (0..specs.len()).map(|_| None).collect();
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..CV_THREADS)
-            .map(|t| {
-                let (specs, evaluate) = (&specs, &evaluate);
-                scope.spawn(move || {
-                    (t..specs.len())
-                        .step_by(CV_THREADS)
-                        .map(|k| (k, evaluate(specs[k])))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        for h in handles {
-            for (k, r) in h.join().expect("a CV thread panicked") {
-                slots[k] = Some(r);
-            }
-        }
-    });
-    let rows = slots
+    // Candidate k goes to thread k % CV_THREADS; the results come back in candidate order.
+    let rows = crate::in_job_order(&specs, CV_THREADS, &|spec: &ModelSpec| evaluate(*spec))
         .into_iter()
-        .map(|s| s.context("a CV candidate was not evaluated")?)
         .collect::<anyhow::Result<Vec<_>>>()?;
     let kinds_of = |r: &[(RowKind, f64)]| {
         let mut k: Vec<RowKind> = r.iter().map(|x| x.0).collect();

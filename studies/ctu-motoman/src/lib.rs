@@ -29,3 +29,32 @@ pub mod study;
 pub fn repo_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
+
+/// Runs `run` on every job over `threads` threads (at least one; job k on thread k % threads)
+/// and returns the results in job order, so that they never depend on the thread count. A
+/// panic in a job is resumed in the caller.
+pub fn in_job_order<J: Sync, R: Send>(
+    jobs: &[J],
+    threads: usize,
+    run: &(dyn Fn(&J) -> R + Sync),
+) -> Vec<R> {
+    let threads = threads.max(1);
+    let mut done: Vec<(usize, R)> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..threads)
+            .map(|t| {
+                scope.spawn(move || {
+                    (t..jobs.len())
+                        .step_by(threads)
+                        .map(|k| (k, run(&jobs[k])))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    });
+    done.sort_by_key(|(k, _)| *k);
+    done.into_iter().map(|(_, r)| r).collect()
+}

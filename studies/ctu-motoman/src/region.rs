@@ -397,29 +397,11 @@ pub fn region_protocol(
             .map(|&s| Ok(region_score(cell, recordings, s, (&r, &l))?.rms_mm))
             .collect()
     };
-    // Job k goes to thread k % CV_THREADS; the results are put back in job order.
-    let mut slots: Vec<Option<anyhow::Result<Vec<f64>>>> = (0..jobs.len()).map(|_| None).collect();
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..CV_THREADS)
-            .map(|t| {
-                let (jobs, run) = (&jobs, &run);
-                scope.spawn(move || {
-                    (t..jobs.len())
-                        .step_by(CV_THREADS)
-                        .map(|k| (k, run(jobs[k])))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        for h in handles {
-            for (k, r) in h.join().expect("a region-protocol thread panicked") {
-                slots[k] = Some(r);
-            }
-        }
-    });
+    // Job k goes to thread k % CV_THREADS; the results come back in job order.
+    let results = crate::in_job_order(&jobs, CV_THREADS, &|&job: &(usize, usize)| run(job));
     let mut scores: BTreeMap<(Vec<Region>, Region), Vec<f64>> = BTreeMap::new();
-    for (&(t, _), slot) in jobs.iter().zip(slots) {
-        let got = slot.context("a region-protocol job was not run")??;
+    for (&(t, _), got) in jobs.iter().zip(results) {
+        let got = got?;
         let (train, scored) = trainings[t];
         for (&s, v) in scored.iter().zip(got) {
             scores.entry((train.clone(), s)).or_default().push(v);
