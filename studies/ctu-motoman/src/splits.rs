@@ -157,9 +157,7 @@ pub fn score_splits(
         for _ in models {
             let mut per_split = Vec::with_capacity(k);
             for _ in 0..k {
-                per_split.push(
-                    values.next().context("a split was not scored")??,
-                );
+                per_split.push(values.next().context("a split was not scored")??);
             }
             file.rms_mm.push(per_split);
         }
