@@ -55,9 +55,46 @@ pub enum PointsError {
     #[error(transparent)]
     Fit(#[from] CalibError),
     /// The residuals are far beyond the alignment noise: the message names the likely data
-    /// mistake and the worst rows.
-    #[error("{0}")]
-    Misfit(String),
+    /// mistake and the worst rows; the values behind it are in [`PointsMisfit`].
+    #[error("{}", .0.message)]
+    Misfit(Box<PointsMisfit>),
+}
+
+/// The values behind a refused points fit ([`PointsError::Misfit`]; JSON `misfit` of a
+/// refusal, mm): the median residual against its bound, the likely causes tried that explain
+/// it, the worst rows.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PointsMisfit {
+    /// The expected alignment noise σ per axis, mm (`--expected-noise-mm`).
+    pub expected_noise_mm: f64,
+    /// Each cause whose correction brings the median below the bound, with the median it gives,
+    /// mm, best first ([`calib_core::explain_misfit`]); empty when none does.
+    pub likely_causes: Vec<MisfitCauseReport>,
+    /// The bound of the median ([`calib_core::misfit_threshold_m`]), mm.
+    pub limit_mm: f64,
+    /// The median residual norm, mm.
+    pub median_residual_mm: f64,
+    /// The full message (what the command prints after `error:`).
+    pub message: String,
+    /// The method.
+    pub method: Method,
+    /// Number of points.
+    pub points: usize,
+    /// The residual RMS, mm.
+    pub residual_rms_mm: f64,
+    /// The worst rows (source row, residual norm in mm), largest first.
+    pub worst_rows: Vec<(usize, f64)>,
+}
+
+/// A likely cause of a points misfit and the median residual with it corrected, mm.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct MisfitCauseReport {
+    /// The cause ([`calib_core::MisfitCause`], tagged by `kind`).
+    pub cause: calib_core::MisfitCause,
+    /// In words.
+    pub description: String,
+    /// The median residual norm with it corrected, mm.
+    pub median_residual_mm: f64,
 }
 
 /// A points fit's report and the warnings to show beside it (a misfit kept by `force`).
@@ -203,7 +240,28 @@ fn plausible(
             hints.force
         )));
     }
-    Err(PointsError::Misfit(msg))
+    Err(PointsError::Misfit(Box::new(PointsMisfit {
+        expected_noise_mm: options.expected_noise_m * 1e3,
+        likely_causes: found
+            .iter()
+            .map(|&(cause, med)| MisfitCauseReport {
+                cause,
+                description: cause.to_string(),
+                median_residual_mm: med * 1e3,
+            })
+            .collect(),
+        limit_mm: limit * 1e3,
+        median_residual_mm: median * 1e3,
+        message: msg,
+        method: f.method,
+        points: pairs.len(),
+        residual_rms_mm: f.residual_rms_m() * 1e3,
+        worst_rows: worst
+            .iter()
+            .take(WORST_ROWS)
+            .map(|&(row, r)| (row, r * 1e3))
+            .collect(),
+    })))
 }
 
 /// A length in mm for a message: 3 decimals, scientific notation from 1e6 mm.

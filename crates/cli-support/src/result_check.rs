@@ -569,3 +569,52 @@ pub fn reprediction_difference(
     }
     Ok(worst)
 }
+
+/// The JSON a command prints on stdout with `--json` when it refuses a result (exit code still
+/// non-zero), so that a script can read why: `status` `"refused"`, the `reason` (the text the
+/// command prints after `error:`), and the check values behind it, under the key of the check
+/// that refused (`result_check` for `calibrate --cell` and `diagnose`, `misfit` for
+/// `calibrate POINTS.csv`, `export_reprediction` for a refused export).
+#[derive(Debug, Clone, Serialize)]
+pub struct Refusal<'a> {
+    /// The command that refused (`calibrate --cell`, `diagnose`, `calibrate`).
+    pub command: &'static str,
+    /// The refused export's re-prediction ([`ExportReprediction`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub export_reprediction: Option<ExportReprediction>,
+    /// The points fit's plausibility check ([`crate::points::PointsMisfit`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub misfit: Option<&'a crate::points::PointsMisfit>,
+    /// Why, in words (the error message).
+    pub reason: String,
+    /// The whole-cell result check ([`ResultCheckReport`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub result_check: Option<&'a ResultCheckReport>,
+    /// Always `"refused"` (as [`ResultCheckReport::status`] names it).
+    pub status: &'static str,
+}
+
+impl<'a> Refusal<'a> {
+    /// A refusal by `command` for `reason`, with no check values yet.
+    pub fn new(command: &'static str, reason: String) -> Self {
+        Refusal {
+            command,
+            export_reprediction: None,
+            misfit: None,
+            reason,
+            result_check: None,
+            status: STATUS_REFUSED,
+        }
+    }
+}
+
+/// A refused export's re-prediction check (JSON `export_reprediction` of a [`Refusal`]).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct ExportReprediction {
+    /// The allowed difference, mm ([`EXPORT_REPREDICTION_TOL_MM`]).
+    pub limit_mm: f64,
+    /// The session row of the largest difference.
+    pub row: usize,
+    /// The largest difference between the exported cell's re-prediction and the fit, mm.
+    pub worst_mm: f64,
+}

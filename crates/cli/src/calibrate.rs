@@ -190,8 +190,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let pairs = read_points_csv(&cfg.points)?;
     if !cfg.all {
         let method = cfg.methods[0];
-        let report = fit_report(&pairs, method, &cfg)
-            .with_context(|| format!("{}: method {}", cfg.points.display(), method.name()))?;
+        let report = fit_report(&pairs, method, &cfg).map_err(|e| {
+            let e = anyhow::Error::from(e)
+                .context(format!("{}: method {}", cfg.points.display(), method.name()));
+            refusal_json(e, cfg.json)
+        })?;
         // The report holds what is printed: the points go before the JSON is written.
         drop(pairs);
         if cfg.json {
@@ -223,6 +226,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// With `--json`, a refused fit (a misfit, [`PointsError::Misfit`]) prints its refusal object
+/// on stdout ([`cli_support::result_check::Refusal`], key `misfit`) before the error goes on to
+/// `error:` and exit 1. Returns `e`.
+fn refusal_json(e: anyhow::Error, json: bool) -> anyhow::Error {
+    if json {
+        if let Some(PointsError::Misfit(m)) = e.downcast_ref::<PointsError>() {
+            let mut refusal = cli_support::result_check::Refusal::new(
+                "calibrate",
+                cli_support::error_chain_text(e.as_ref()),
+            );
+            refusal.misfit = Some(m);
+            if let Err(print) = crate::json_out::print_pretty(&refusal) {
+                eprintln!("error: {print:#}");
+            }
+        }
+    }
+    e
 }
 
 /// `calibrate --method all`: each method's report, or why it does not apply, by method name
