@@ -191,8 +191,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !cfg.all {
         let method = cfg.methods[0];
         let report = fit_report(&pairs, method, &cfg).map_err(|e| {
-            let e = anyhow::Error::from(e)
-                .context(format!("{}: method {}", cfg.points.display(), method.name()));
+            let e = anyhow::Error::from(e).context(format!(
+                "{}: method {}",
+                cfg.points.display(),
+                method.name()
+            ));
             refusal_json(e, cfg.json)
         })?;
         // The report holds what is printed: the points go before the JSON is written.
@@ -351,10 +354,10 @@ fn write_text(s: &mut String, r: &FitReport) -> std::fmt::Result {
     };
     for (i, res) in r.residuals_mm.iter().enumerate() {
         let row = r.rows.get(i).copied().unwrap_or(0);
-        let flag = if flagged.contains(&row) {
-            "  <-- suspect handclasp (leave-one-out)"
-        } else {
-            ""
+        let flag = match (flagged.contains(&row), loo.get(i).zip(thresholds.get(i))) {
+            (false, _) => "",
+            (true, Some((l, t))) if l <= t => "  <-- suspect handclasp (robust fit of the others)",
+            (true, _) => "  <-- suspect handclasp (leave-one-out)",
         };
         let loo_txt = loo
             .get(i)
