@@ -216,6 +216,15 @@ impl ResultCheckReport {
     pub fn refused(&self) -> bool {
         self.status == STATUS_REFUSED
     }
+
+    /// The text of a refusal (what `calibrate --cell` prints after `error:`): its messages,
+    /// joined.
+    pub fn refusal_reason(&self) -> String {
+        format!(
+            "the result contradicts what the cell states: {}",
+            self.messages.join("; ")
+        )
+    }
 }
 
 const STATUS_REFUSED: &str = "refused";

@@ -22,10 +22,7 @@ pub fn refuse_or_warn(
     command: &'static str,
 ) -> anyhow::Result<()> {
     if check.refused() && !force {
-        let reason = format!(
-            "the result contradicts what the cell states: {}",
-            check.messages.join("; ")
-        );
+        let reason = check.refusal_reason();
         if json {
             let mut refusal = Refusal::new(command, reason.clone());
             refusal.result_check = Some(check);
