@@ -50,7 +50,8 @@ fn points_thirty_percent_blunders_are_named() {
     let dir = workdir();
     let bad = points_session(dir.path(), "bad.csv", 31, blunders);
     let good = points_session(dir.path(), "good.csv", 31, |_| {});
-    let rows: Vec<u64> = BAD.iter().map(|&i| i as u64 + 1).collect();
+    // Rows are file lines (the header is line 1).
+    let rows: Vec<u64> = BAD.iter().map(|&i| i as u64 + 2).collect();
     for mounts in [&[][..], &["--mounts", "floor-wall"][..]] {
         let mut args = vec!["calibrate", bad.to_str().unwrap(), "--json"];
         args.extend_from_slice(mounts);
@@ -58,8 +59,9 @@ fn points_thirty_percent_blunders_are_named() {
         let err = stderr(&out);
         assert!(out.status.success(), "{err}");
         assert!(
-            err.contains("warning: 6 of 20 rows (30 %) disagree with the rigid fit of the other 14")
-                && err.contains("mask one another")
+            err.contains(
+                "warning: 6 of 20 rows (30 %) disagree with the rigid fit of the other 14"
+            ) && err.contains("mask one another")
                 && err.contains(&format!("{rows:?}")),
             "{mounts:?}: {err}"
         );
@@ -74,7 +76,11 @@ fn points_thirty_percent_blunders_are_named() {
         let mut args = vec!["calibrate", good.to_str().unwrap()];
         args.extend_from_slice(mounts);
         let out = handclasp(&args);
-        assert!(out.status.success() && !stderr(&out).contains("warning:"), "{}", stderr(&out));
+        assert!(
+            out.status.success() && !stderr(&out).contains("warning:"),
+            "{}",
+            stderr(&out)
+        );
     }
 }
 
@@ -121,12 +127,21 @@ fn points_nearly_collinear_warn() {
 fn placement_thirty_percent_blunders_are_named() {
     let dir = workdir();
     let mut s = random_session(&truth(), 40, 33);
-    for (k, i) in (0..40).step_by(10).flat_map(|b| [b + 1, b + 4, b + 8]).enumerate() {
+    for (k, i) in (0..40)
+        .step_by(10)
+        .flat_map(|b| [b + 1, b + 4, b + 8])
+        .enumerate()
+    {
         s.points[i].q2[k % 3] += (1.5 + 0.125 * k as f64).to_radians();
     }
     let reported = shipped_cell("floor-wall");
     let cell = Cell::from_toml_file(&reported).unwrap();
-    let csv = write_session_csv(dir.path(), "blunders.csv", &with_reported_tips(&s, &cell), &cell);
+    let csv = write_session_csv(
+        dir.path(),
+        "blunders.csv",
+        &with_reported_tips(&s, &cell),
+        &cell,
+    );
     let out = handclasp(&cell_session_args(
         "calibrate",
         &reported,
@@ -160,7 +175,12 @@ fn refusals_print_their_json() {
     let ceiling = Cell::from_toml_file(&shipped_cell("floor-ceiling")).unwrap();
     let s = random_session(&ceiling, 20, 16);
     let cell = Cell::from_toml_file(&shipped_cell("floor-wall")).unwrap();
-    let csv = write_session_csv(dir.path(), "ceiling.csv", &with_reported_tips(&s, &cell), &cell);
+    let csv = write_session_csv(
+        dir.path(),
+        "ceiling.csv",
+        &with_reported_tips(&s, &cell),
+        &cell,
+    );
     for (command, extra) in [
         ("calibrate", &["--model", "placement"][..]),
         ("diagnose", &["--trials", "20"][..]),
@@ -178,11 +198,18 @@ fn refusals_print_their_json() {
         let refusal: Value = serde_json::from_slice(&out.stdout).expect("refusal JSON");
         assert_eq!(refusal["status"], "refused", "{command}");
         let reason = refusal["reason"].as_str().unwrap();
-        assert!(reason.contains("another cell, floor-ceiling.toml"), "{reason}");
-        assert!(err.contains(&format!("error: {reason}")), "{command}: {err}");
+        assert!(
+            reason.contains("another cell, floor-ceiling.toml"),
+            "{reason}"
+        );
+        assert!(
+            err.contains(&format!("error: {reason}")),
+            "{command}: {err}"
+        );
         let checks = refusal["result_check"]["checks"].as_array().unwrap();
-        assert!(checks.iter().any(|c| c["name"] == "placement_rotation_deg"
-            && c["value"].as_f64().unwrap() > 80.0));
+        assert!(checks
+            .iter()
+            .any(|c| c["name"] == "placement_rotation_deg" && c["value"].as_f64().unwrap() > 80.0));
     }
     // Points mode: robot 2's rows shifted by one.
     let shifted = points_session(dir.path(), "shifted.csv", 32, |s| {
@@ -223,7 +250,9 @@ fn diagnose_overwrite_is_not_force() {
     let err = stderr(&old);
     assert!(!old.status.success(), "{err}");
     assert!(
-        err.contains("--force keeps a refused result; it no longer overwrites an export (add --overwrite)"),
+        err.contains(
+            "--force keeps a refused result; it no longer overwrites an export (add --overwrite)"
+        ),
         "{err}"
     );
     let new = handclasp(&cell_session_args(
