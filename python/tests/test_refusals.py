@@ -15,7 +15,8 @@ def _refusal(cli, *args):
     rc, out, err = cli(*args, "--json")
     assert rc != 0, "the CLI did not refuse"
     refusal = json.loads(out)
-    assert refusal["status"] == "refused" and err.strip().startswith("error:"), err
+    assert refusal["status"] == "refused", out
+    assert err.strip().splitlines()[-1] == "error: " + refusal["reason"], err
     return refusal
 
 
