@@ -16,6 +16,7 @@ mod paper_diagnose;
 mod plan;
 mod report;
 mod result_check;
+mod silent_cases;
 mod sim;
 mod support;
 mod validate;
