@@ -365,7 +365,12 @@ pub fn draw_kinematic_errors(robot: &mut CellRobot, rng: &mut impl Rng) {
     };
     let t = robot.tolerance;
     for p in wc.fitted_params() {
+        let prismatic = p
+            .joint()
+            .is_some_and(|j| robot.model.joints()[j].kind.is_prismatic());
         let tol = match p {
+            // A prismatic joint's offset is a length, its band the origin tolerance.
+            _ if prismatic => wc.prior_sigma(p) * 3f64.sqrt(),
             ErrorParam::JointOffset { .. } => t.joint_offset_rad,
             ErrorParam::OriginXyz { .. } => t.origin_xyz_m,
             ErrorParam::OriginRpy { .. } => t.origin_rpy_rad,
