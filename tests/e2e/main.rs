@@ -13,6 +13,7 @@ mod input_guard;
 mod inputs;
 mod paper;
 mod paper_diagnose;
+mod one_robot;
 mod plan;
 mod report;
 mod result_check;

@@ -21,15 +21,20 @@ import tempfile
 HERE = os.path.dirname(os.path.abspath(__file__))
 TRAIN = "qualisys_2021-11-30_static_postures.csv"
 # Candidates: name -> ([robot1.tolerance] keys, --screen). The defaults are the cell's
-# (`calib_core::whole_cell::Tolerance::default`); the wider ones are 10x and 100x (a service
-# robot's arm is built to looser tolerances than an industrial one).
+# (`calib_core::whole_cell::Tolerance::default`); the others scale all three by 0.3, 3, 10 and
+# 100 (a service robot's arm may be built to looser tolerances than an industrial one), and the
+# last holds the kinematics at nominal (FIGAROH's "registration only": the mocap frame and the
+# marker positions).
 CANDIDATES = {
     "default tolerances, screen auto": ({}, "auto"),
     "default tolerances, screen off": ({}, "off"),
+    "0.3x tolerances, screen auto": ({"joint_offset_deg": 0.015, "origin_mm": 0.15, "origin_deg": 0.015}, "auto"),
+    "3x tolerances, screen auto": ({"joint_offset_deg": 0.15, "origin_mm": 1.5, "origin_deg": 0.15}, "auto"),
     "10x tolerances, screen auto": ({"joint_offset_deg": 0.5, "origin_mm": 5.0, "origin_deg": 0.5}, "auto"),
     "10x tolerances, screen off": ({"joint_offset_deg": 0.5, "origin_mm": 5.0, "origin_deg": 0.5}, "off"),
     "100x tolerances, screen off": ({"joint_offset_deg": 5.0, "origin_mm": 50.0, "origin_deg": 5.0}, "off"),
-    "placement only (registration and tools)": ({}, "placement"),
+    "registration and tools only (kinematics nominal)": (
+        {"joint_offset_deg": 0.0, "origin_mm": 0.0, "origin_deg": 0.0}, "auto"),
 }
 
 
@@ -85,7 +90,7 @@ def main():
                 run([hc, "import", "--cell", cell, "--map", os.path.join(HERE, m), "--input", src,
                      "--out", files[key]])
             cal = os.path.join(tmp, f"cal{k}")
-            model = ["--model", "placement"] if screen == "placement" else ["--screen", screen]
+            model = ["--screen", screen]
             run([hc, "calibrate", "--cell", cell, "--session", files["fit"], "--force", "--overwrite",
                  "--export", cal] + model)
             v = run([hc, "validate", "--cell", os.path.join(cal, "cell.toml"), "--session", files["test"],
