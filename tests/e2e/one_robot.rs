@@ -257,10 +257,15 @@ fn tiago_prismatic_torso_is_calibrated_as_a_one_robot_cell() {
     // The registration-only comparator (FIGAROH's first row: the mocap frame and the marker
     // positions): the same cell with every kinematic tolerance 0, i.e. held at nominal.
     let registration_cell = dir.path().join("registration.toml");
-    let registration_text = std::fs::read_to_string(&cell).unwrap().replace(
-        "[robot1.tolerance]\n",
-        "[robot1.tolerance]\njoint_offset_deg = 0.0\norigin_mm = 0.0\norigin_deg = 0.0\n",
-    );
+    let registration_text: String = std::fs::read_to_string(&cell)
+        .unwrap()
+        .lines()
+        .map(|l| match l.split(" = ").next() {
+            Some(key @ ("joint_offset_deg" | "origin_mm" | "origin_deg")) => format!("{key} = 0.0\n"),
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    assert!(registration_text.contains("origin_mm = 0.0"), "{registration_text}");
     std::fs::write(&registration_cell, registration_text).unwrap();
     let score = |cell: &Path, name: &str| {
         let cal = dir.path().join(name);

@@ -9,12 +9,13 @@ more than NEW_RAD from every training pose, and whose joints (torso in m, arm in
 the training file's range widened by IN_RANGE_MARGIN. These two values give the published counts
 (16, 17, 16); they were chosen by those counts, not by any score.
 
-Usage: tools/figaroh-tiago/protocol.py [--bin target/debug] [--data ../shared/data/figaroh-tiago]
+Usage: tools/figaroh-tiago/protocol.py [--bin DIR] [--data ../shared/data/figaroh-tiago]
 """
 import argparse
 import csv
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -48,10 +49,12 @@ def q(row):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--bin", default="target/debug")
+    ap.add_argument("--bin", default=None,
+                    help="folder of the handclasp binary (default: the one on PATH, else target/debug)")
     ap.add_argument("--data", default="../shared/data/figaroh-tiago")
     a = ap.parse_args()
-    hc = os.path.join(a.bin, "handclasp")
+    hc = os.path.join(a.bin, "handclasp") if a.bin else (
+        shutil.which("handclasp") or os.path.join("target", "debug", "handclasp"))
     data = os.path.abspath(a.data)
     tmp = tempfile.mkdtemp(prefix="tiago-protocol-")
     cell = os.path.join(tmp, "tiago.toml")
