@@ -66,8 +66,18 @@ fn rail_robot_one_robot_cell_is_calibrated_to_its_noise_on_new_poses() {
     let truth = rail_truth();
     let nominal = Cell::from_toml_file(&rail_cell_path()).expect("rail cell loads");
     assert!(nominal.one_robot && truth.robot1.model.joints()[0].kind.is_prismatic());
-    let train = write_session_csv(dir.path(), "train.csv", &tracker_session(&truth, 60, 21), &nominal);
-    let held = write_session_csv(dir.path(), "held.csv", &tracker_session(&truth, 40, 22), &nominal);
+    let train = write_session_csv(
+        dir.path(),
+        "train.csv",
+        &tracker_session(&truth, 60, 21),
+        &nominal,
+    );
+    let held = write_session_csv(
+        dir.path(),
+        "held.csv",
+        &tracker_session(&truth, 40, 22),
+        &nominal,
+    );
     let header = std::fs::read_to_string(&train).unwrap();
     let header = header.lines().next().unwrap();
     assert!(header.starts_with("point,r1_q1_mm,r1_q2_deg"), "{header}");
@@ -102,7 +112,10 @@ fn rail_robot_one_robot_cell_is_calibrated_to_its_noise_on_new_poses() {
     ]);
     let text = String::from_utf8_lossy(&text.stdout);
     assert!(text.contains("one-robot cell: no placement"), "{text}");
-    assert!(!text.contains("b1_from_b2:") && !text.contains("robot 2 ("), "{text}");
+    assert!(
+        !text.contains("b1_from_b2:") && !text.contains("robot 2 ("),
+        "{text}"
+    );
     assert!(cal.join("robot1.urdf").is_file() && !cal.join("robot2.urdf").exists());
     let exported = std::fs::read_to_string(cal.join("cell.toml")).unwrap();
     // (The file's header comment names the keys of two-robot cells; no table is written.)
@@ -158,7 +171,10 @@ fn one_robot_cell_refuses_what_needs_two_robots() {
         let e = generate_kind_session(&cell, &spec, &kinds, None, &mut trial_rng(1, 0))
             .unwrap_err()
             .to_string();
-        assert!(e.contains("only [robot1]") && e.contains("--kind tracker"), "{e}");
+        assert!(
+            e.contains("only [robot1]") && e.contains("--kind tracker"),
+            "{e}"
+        );
     }
     let cell_arg = arg(&rail_cell_path());
     let e = stderr_of_failure(&[
@@ -170,9 +186,23 @@ fn one_robot_cell_refuses_what_needs_two_robots() {
         "--out",
         &arg(&dir.path().join("plan.csv")),
     ]);
-    assert!(e.contains("only [robot1]") && e.contains("sim-cell session --kind tracker"), "{e}");
-    let e = stderr_of_failure(&["fk", "--cell", &cell_arg, "--robot", "2", "--q-deg", "1000,0,0,0,0,0,0"]);
-    assert!(e.contains("one-robot cell") && e.contains("--robot 1"), "{e}");
+    assert!(
+        e.contains("only [robot1]") && e.contains("sim-cell session --kind tracker"),
+        "{e}"
+    );
+    let e = stderr_of_failure(&[
+        "fk",
+        "--cell",
+        &cell_arg,
+        "--robot",
+        "2",
+        "--q-deg",
+        "1000,0,0,0,0,0,0",
+    ]);
+    assert!(
+        e.contains("one-robot cell") && e.contains("--robot 1"),
+        "{e}"
+    );
     // fk --cell --robot 1 takes the rail's value in mm: 1000 mm along the rail moves the flange
     // 1 m along the rail's axis (turned 0.2 rad about z).
     let at = |rail_mm: &str| {
@@ -252,8 +282,16 @@ fn tiago_prismatic_torso_is_calibrated_as_a_one_robot_cell() {
     };
     let train = dir.path().join("train.csv");
     let held = dir.path().join("validation-bl.csv");
-    import("map.toml", "qualisys_2021-11-30_static_postures.csv", &train);
-    import("map_bl.toml", "qualisys_2021-11-26_static_postures.csv", &held);
+    import(
+        "map.toml",
+        "qualisys_2021-11-30_static_postures.csv",
+        &train,
+    );
+    import(
+        "map_bl.toml",
+        "qualisys_2021-11-26_static_postures.csv",
+        &held,
+    );
     // The registration-only comparator (FIGAROH's first row: the mocap frame and the marker
     // positions): the same cell with every kinematic tolerance 0, i.e. held at nominal.
     let registration_cell = dir.path().join("registration.toml");
@@ -261,11 +299,16 @@ fn tiago_prismatic_torso_is_calibrated_as_a_one_robot_cell() {
         .unwrap()
         .lines()
         .map(|l| match l.split(" = ").next() {
-            Some(key @ ("joint_offset_deg" | "origin_mm" | "origin_deg")) => format!("{key} = 0.0\n"),
+            Some(key @ ("joint_offset_deg" | "origin_mm" | "origin_deg")) => {
+                format!("{key} = 0.0\n")
+            }
             _ => format!("{l}\n"),
         })
         .collect();
-    assert!(registration_text.contains("origin_mm = 0.0"), "{registration_text}");
+    assert!(
+        registration_text.contains("origin_mm = 0.0"),
+        "{registration_text}"
+    );
     std::fs::write(&registration_cell, registration_text).unwrap();
     let score = |cell: &Path, name: &str| {
         let cal = dir.path().join(name);
@@ -279,7 +322,11 @@ fn tiago_prismatic_torso_is_calibrated_as_a_one_robot_cell() {
             "--export",
             &arg(&cal),
         ]);
-        assert!(cal.join("cell.toml").is_file(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert!(
+            cal.join("cell.toml").is_file(),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
         let v = stdout_json(&handclasp(&[
             "validate",
             "--cell",

@@ -441,9 +441,17 @@ fn build_errors(
     let d2r = 1f64.to_radians();
     // Per-joint angle fields hold 0 at a prismatic joint, `joint_offset_mm` 0 at a rotary one:
     // each array has one unit.
-    let prismatic: Vec<bool> = model.joints().iter().map(|j| j.kind.is_prismatic()).collect();
+    let prismatic: Vec<bool> = model
+        .joints()
+        .iter()
+        .map(|j| j.kind.is_prismatic())
+        .collect();
     let kind_only = |field: &str, v: &Option<Vec<f64>>, want_prismatic: bool| {
-        let bad = v.iter().flatten().zip(&prismatic).position(|(x, &p)| *x != 0.0 && p != want_prismatic);
+        let bad = v
+            .iter()
+            .flatten()
+            .zip(&prismatic)
+            .position(|(x, &p)| *x != 0.0 && p != want_prismatic);
         match bad {
             None => Ok(()),
             Some(j) => Err(ctx.err(format!(
@@ -553,7 +561,8 @@ fn errors_file(model: &RobotModel, e: &KinematicErrors) -> Option<ErrorsFile> {
         return None;
     }
     // A prismatic joint's offset (m) goes to `joint_offset_mm`, a rotary one's to `_deg`.
-    let (mut rotary_offset, mut prismatic_offset) = (e.joint_offset.clone(), e.joint_offset.clone());
+    let (mut rotary_offset, mut prismatic_offset) =
+        (e.joint_offset.clone(), e.joint_offset.clone());
     for (j, joint) in model.joints().iter().enumerate().take(e.joint_offset.len()) {
         if joint.kind.is_prismatic() {
             rotary_offset[j] = 0.0;
@@ -854,29 +863,28 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
         })
     };
     let mut robot1 = robot("robot1", &file.robot1)?;
-    let (placement, mut robot2, one_robot) = match (&file.robot2, &file.b1_from_b2) {
-        (Some(r2), Some(placement)) => (placement, robot("robot2", r2)?, false),
-        (None, None) => {
-            // A one-robot cell: robot 2 is a stand-in nothing observes, held at nominal.
-            let mut stand_in = robot1.clone();
-            stand_in.tools.clear();
-            stand_in.errors = KinematicErrors::zero(stand_in.model.dof());
-            stand_in.tolerance = Tolerance::none();
-            (&ONE_ROBOT_PLACEMENT, stand_in, true)
-        }
-        (None, Some(_)) => {
-            return Err(ctx.err(
-                "`[b1_from_b2]` without `[robot2]`: a one-robot cell has no placement; remove \
+    let (placement, mut robot2, one_robot) =
+        match (&file.robot2, &file.b1_from_b2) {
+            (Some(r2), Some(placement)) => (placement, robot("robot2", r2)?, false),
+            (None, None) => {
+                // A one-robot cell: robot 2 is a stand-in nothing observes, held at nominal.
+                let mut stand_in = robot1.clone();
+                stand_in.tools.clear();
+                stand_in.errors = KinematicErrors::zero(stand_in.model.dof());
+                stand_in.tolerance = Tolerance::none();
+                (&ONE_ROBOT_PLACEMENT, stand_in, true)
+            }
+            (None, Some(_)) => {
+                return Err(ctx.err(
+                    "`[b1_from_b2]` without `[robot2]`: a one-robot cell has no placement; remove \
                  [b1_from_b2], or add [robot2] (urdf, mount, tip_mm) for a two-robot cell",
-            ))
-        }
-        (Some(_), None) => {
-            return Err(ctx.err(
+                ))
+            }
+            (Some(_), None) => return Err(ctx.err(
                 "`[robot2]` without `[b1_from_b2]`: a two-robot cell needs robot 2's placement \
                  (xyz_mm, zyz_deg); add [b1_from_b2], or remove [robot2] for a one-robot cell",
-            ))
-        }
-    };
+            )),
+        };
     finite3(&ctx, "b1_from_b2.xyz_mm", placement.xyz_mm)?;
     finite3(&ctx, "b1_from_b2.zyz_deg", placement.zyz_deg)?;
     let b1_from_b2 = PoseMmDeg {

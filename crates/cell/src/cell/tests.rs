@@ -288,9 +288,7 @@ const RAIL: &str = concat!(
 /// A one-robot cell on the rail, with `extra` appended (its errors, tolerance, …).
 fn rail_cell(extra: &str) -> Result<Cell, FormatError> {
     Cell::from_toml_str(
-        &format!(
-            "[robot1]\nurdf = \"{RAIL}\"\nmount = \"floor\"\ntip_mm = [0, 0, 150]\n{extra}"
-        ),
+        &format!("[robot1]\nurdf = \"{RAIL}\"\nmount = \"floor\"\ntip_mm = [0, 0, 150]\n{extra}"),
         Path::new("."),
     )
 }
@@ -321,15 +319,24 @@ fn a_value_in_the_wrong_units_array_is_refused_by_joint() {
     let e = rail_cell("[robot1.errors]\njoint_offset_deg = [0.5, 0, 0, 0, 0, 0, 0]\n")
         .unwrap_err()
         .to_string();
-    assert!(e.contains("joint rail") && e.contains("joint_offset_mm"), "{e}");
+    assert!(
+        e.contains("joint rail") && e.contains("joint_offset_mm"),
+        "{e}"
+    );
     let e = rail_cell("[robot1.errors]\njoint_offset_mm = [0, 2, 0, 0, 0, 0, 0]\n")
         .unwrap_err()
         .to_string();
-    assert!(e.contains("entry 2") && e.contains("joint_offset_deg"), "{e}");
+    assert!(
+        e.contains("entry 2") && e.contains("joint_offset_deg"),
+        "{e}"
+    );
     let e = rail_cell("[robot1.errors]\ncompliance_deg_per_knm = [1, 0, 0, 0, 0, 0, 0]\n")
         .unwrap_err()
         .to_string();
-    assert!(e.contains("compliance_deg_per_knm") && e.contains("prismatic"), "{e}");
+    assert!(
+        e.contains("compliance_deg_per_knm") && e.contains("prismatic"),
+        "{e}"
+    );
 }
 
 /// A coupled (mimic) joint is still refused by name: a session has no column for it.
@@ -362,7 +369,10 @@ fn one_robot_cell_parses_and_round_trips_without_robot2() {
     assert_eq!(cell.b1_from_b2, Isometry3::identity());
     assert_eq!(cell.b1_from_b2_sigma, Some(ONE_ROBOT_PLACEMENT_SIGMA));
     let text = cell.to_toml_string();
-    assert!(!text.contains("robot2") && !text.contains("b1_from_b2"), "{text}");
+    assert!(
+        !text.contains("robot2") && !text.contains("b1_from_b2"),
+        "{text}"
+    );
     let back = Cell::from_toml_str(&text, Path::new(".")).unwrap();
     assert!(back.one_robot);
     assert_cells_equal(&cell, &back);
@@ -376,7 +386,10 @@ fn placement_without_robot2_and_robot2_without_placement_are_refused() {
     let e = rail_cell("[b1_from_b2]\nxyz_mm = [0, 0, 0]\nzyz_deg = [0, 0, 0]\n")
         .unwrap_err()
         .to_string();
-    assert!(e.contains("without `[robot2]`") && e.contains("one-robot cell"), "{e}");
+    assert!(
+        e.contains("without `[robot2]`") && e.contains("one-robot cell"),
+        "{e}"
+    );
     let e = rail_cell(&format!(
         "[robot2]\nurdf = \"{RAIL}\"\nmount = \"floor\"\ntip_mm = [0, 0, 150]\n"
     ))

@@ -218,7 +218,11 @@ mod tests;
 /// in mm) or rotary (degrees), chain order: two entries, the second empty for a one-robot cell.
 pub(crate) fn joint_kinds(cell: &Cell) -> [Vec<bool>; 2] {
     let kinds = |r: &crate::cell::CellRobot| -> Vec<bool> {
-        r.model.joints().iter().map(|j| j.kind.is_prismatic()).collect()
+        r.model
+            .joints()
+            .iter()
+            .map(|j| j.kind.is_prismatic())
+            .collect()
     };
     let two = if cell.has_robot2() {
         kinds(&cell.robot2)

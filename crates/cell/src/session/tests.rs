@@ -576,7 +576,10 @@ fn one_robot_cell_refuses_two_robot_rows() {
     )
     .unwrap_err()
     .to_string();
-    assert!(e.contains("needs two robots") && e.contains("tracker and plane"), "{e}");
+    assert!(
+        e.contains("needs two robots") && e.contains("tracker and plane"),
+        "{e}"
+    );
     let e = Session::parse_csv(
         "point,r1_q1_mm,r1_q2_deg,r1_q3_deg,r1_q4_deg,r1_q5_deg,r1_q6_deg,r1_q7_deg,r1_x_mm,r1_y_mm,r1_z_mm\n1,1000,0,30,0,0,0,0,1,2,3\n",
         p,
