@@ -9,7 +9,8 @@ use handclasp_cell::{Cell, Session};
 use sim_cell::{generate_kind_session, trial_rng, KindSpec, Layout, SessionSpec, SimKind};
 
 use crate::support::{
-    handclasp, shipped_cell, stderr_of_failure, stdout_json, workspace, write_session_csv,
+    handclasp, shared_data_or_skip, shipped_cell, stderr_of_failure, stdout_json, workspace,
+    write_session_csv,
 };
 
 /// The true errors of the simulated rail robot: the rail's zero 1.5 mm off (a prismatic offset,
@@ -251,7 +252,12 @@ fn one_robot_cell_refuses_what_needs_two_robots() {
 /// fit (placement model: the mocap frame and the four marker positions) on the held-out file.
 #[test]
 fn tiago_prismatic_torso_is_calibrated_as_a_one_robot_cell() {
-    let Some(data) = tiago_data_or_skip() else {
+    let Some(data) = shared_data_or_skip(
+        "FIGAROH_TIAGO_DATA",
+        "figaroh-tiago",
+        "tiago_48_schunk.urdf",
+        "FIGAROH's TIAGo data",
+    ) else {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
@@ -350,29 +356,4 @@ fn tiago_prismatic_torso_is_calibrated_as_a_one_robot_cell() {
         kinematic < registration,
         "kinematic {kinematic:.3} mm vs registration only {registration:.3} mm"
     );
-}
-
-/// The TIAGo data folder: the first of `$FIGAROH_TIAGO_DATA`, `../shared/data/figaroh-tiago`
-/// (beside the repository) and `../../shared/data/figaroh-tiago` (a worktree) that holds its
-/// URDF; otherwise prints why the test is skipped and returns `None`.
-fn tiago_data_or_skip() -> Option<PathBuf> {
-    let candidates: Vec<PathBuf> = std::env::var_os("FIGAROH_TIAGO_DATA")
-        .map(PathBuf::from)
-        .into_iter()
-        .chain([
-            workspace("../shared/data/figaroh-tiago"),
-            workspace("../../shared/data/figaroh-tiago"),
-        ])
-        .collect();
-    let found = candidates
-        .iter()
-        .find(|d| d.join("tiago_48_schunk.urdf").is_file())
-        .cloned();
-    if found.is_none() {
-        eprintln!(
-            "skipped: FIGAROH's TIAGo data are not in the repository and none of {candidates:?} \
-             holds them (set $FIGAROH_TIAGO_DATA to their folder)"
-        );
-    }
-    found
 }
