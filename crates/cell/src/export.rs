@@ -173,7 +173,9 @@ pub(crate) fn write_corrected_urdf(
         let reread = std::fs::read_to_string(&tmp).map_err(|e| FormatError::io(&tmp, e))?;
         verify_patched_urdf(&reread, &setup.model, &urdf_part)
             .map_err(|e| bad(format!("verifying {}: {e}", tmp.display())))?;
+        // The couplings the cell declares (not in the URDF) hold for the corrected URDF too.
         let model = RobotModel::from_urdf_file(&tmp, &setup.tool_link)
+            .and_then(|m| m.with_couplings(setup.model.added_couplings()))
             .map_err(|e| bad(format!("re-loading {}: {e}", tmp.display())))?;
         std::fs::rename(&tmp, path).map_err(|e| FormatError::io(path, e))?;
         Ok(model)
@@ -481,7 +483,7 @@ mod tests {
         let mut robot = cell.robot2.clone();
         robot.model = RobotModel::from_urdf_str(&xml, &robot.tool_link).expect("fixture loads");
         robot.urdf_path = fixture;
-        let mut e = KinematicErrors::zero(robot.model.dof());
+        let mut e = KinematicErrors::zero_for(&robot.model);
         e.origin_xyz[0] = Vector3::new(0.0, 0.0, 0.0115);
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("robot2_corrected.urdf");
@@ -518,7 +520,7 @@ mod tests {
         let path = dir.path().join("robot1.urdf");
         std::fs::create_dir(&path).unwrap();
         std::fs::write(path.join("keep"), "").unwrap();
-        let errors = KinematicErrors::zero(cell.robot1.model.dof());
+        let errors = KinematicErrors::zero_for(&cell.robot1.model);
         let e = write_corrected_urdf(Robot::One, &cell.robot1, &errors, &path).unwrap_err();
         assert!(matches!(e, FormatError::Io { .. }), "{e}");
         assert!(e.to_string().contains("robot1.urdf"), "{e}");

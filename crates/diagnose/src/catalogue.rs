@@ -167,9 +167,12 @@ pub fn effects_to_errors(
     cell: &Cell,
     effects: &[EffectReport],
 ) -> (KinematicErrors, KinematicErrors) {
-    let mut e1 = KinematicErrors::zero(cell.robot1.model.dof());
-    let mut e2 = KinematicErrors::zero(cell.robot2.model.dof());
-    let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
+    let mut e1 = KinematicErrors::zero_for(&cell.robot1.model);
+    let mut e2 = KinematicErrors::zero_for(&cell.robot2.model);
+    let cands = catalogue(
+        cell.robot1.model.chain_joints().len(),
+        cell.robot2.model.chain_joints().len(),
+    );
     for eff in effects {
         let hit = cands.iter().find(|c| {
             c.kind() == eff.kind

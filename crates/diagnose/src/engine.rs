@@ -103,7 +103,10 @@ pub fn diagnose_session_with_progress(
         (session.clone(), Vec::new())
     };
     let session = &kept;
-    let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
+    let cands = catalogue(
+        cell.robot1.model.chain_joints().len(),
+        cell.robot2.model.chain_joints().len(),
+    );
     let (q1, q2) = joints(session);
     progress(&format!(
         "{} points: noise model and {} candidate effects",

@@ -74,7 +74,7 @@ impl<'a> SessionModel<'a> {
         candidates: &'a [Candidate],
     ) -> Self {
         let nominal = |robot: &CellRobot, q: &[f64]| {
-            let zero = KinematicErrors::zero(robot.model.dof());
+            let zero = KinematicErrors::zero_for(&robot.model);
             tip_b(robot, &zero, q).ok()
         };
         let nominal_tips = q1
@@ -102,8 +102,8 @@ impl<'a> SessionModel<'a> {
 
     /// The two robots' error sets for parameters `params = values`.
     pub fn errors(&self, params: &[usize], values: &[f64]) -> (KinematicErrors, KinematicErrors) {
-        let mut e1 = KinematicErrors::zero(self.cell.robot1.model.dof());
-        let mut e2 = KinematicErrors::zero(self.cell.robot2.model.dof());
+        let mut e1 = KinematicErrors::zero_for(&self.cell.robot1.model);
+        let mut e2 = KinematicErrors::zero_for(&self.cell.robot2.model);
         for (&p, &v) in params.iter().zip(values) {
             let c = &self.candidates[p];
             match c.robot() {
@@ -333,7 +333,10 @@ mod tests {
         let session = generate_session(&cell, &spec, &mut trial_rng(3, 0)).expect("session");
         let q1: Vec<Vec<f64>> = session.points.iter().map(|p| p.q1.clone()).collect();
         let q2: Vec<Vec<f64>> = session.points.iter().map(|p| p.q2.clone()).collect();
-        let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
+        let cands = catalogue(
+        cell.robot1.model.chain_joints().len(),
+        cell.robot2.model.chain_joints().len(),
+    );
         let model = SessionModel::new(&cell, &q1, &q2, &cands);
         let r1 = (0..cands.len()).find(|&c| cands[c].robot() == Robot::One);
         let r2 = (0..cands.len())
@@ -405,7 +408,10 @@ mod tests {
         let session = generate_session(&cell, &spec, &mut trial_rng(5, 0)).expect("session");
         let q1: Vec<Vec<f64>> = session.points.iter().map(|p| p.q1.clone()).collect();
         let q2: Vec<Vec<f64>> = session.points.iter().map(|p| p.q2.clone()).collect();
-        let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
+        let cands = catalogue(
+        cell.robot1.model.chain_joints().len(),
+        cell.robot2.model.chain_joints().len(),
+    );
         let reversed: Vec<Candidate> = cands.iter().rev().cloned().collect();
         let a = SessionModel::new(&cell, &q1, &q2, &cands);
         let b = SessionModel::new(&cell, &q1, &q2, &reversed);
@@ -437,7 +443,10 @@ mod tests {
         let session = generate_session(&cell, &spec, &mut trial_rng(4, 0)).expect("session");
         let q1: Vec<Vec<f64>> = session.points.iter().map(|p| p.q1.clone()).collect();
         let q2: Vec<Vec<f64>> = session.points.iter().map(|p| p.q2.clone()).collect();
-        let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
+        let cands = catalogue(
+        cell.robot1.model.chain_joints().len(),
+        cell.robot2.model.chain_joints().len(),
+    );
         let model = SessionModel::new(&cell, &q1, &q2, &cands);
         for _repeat in 0..2 {
             let err = model.eval(2, &[0], &[f64::NAN], &[]).unwrap_err();

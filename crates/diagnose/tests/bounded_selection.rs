@@ -77,7 +77,10 @@ fn selection_on_the_slow_session_stops_within_its_work_bound() {
     let cell = cell();
     let session = load_session(&fixture("session.csv"), &cell).unwrap();
     assert_eq!(session.points.len(), 20);
-    let cands = catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
+    let cands = catalogue(
+        cell.robot1.model.chain_joints().len(),
+        cell.robot2.model.chain_joints().len(),
+    );
     let q1: Vec<Vec<f64>> = session.points.iter().map(|p| p.q1.clone()).collect();
     let q2: Vec<Vec<f64>> = session.points.iter().map(|p| p.q2.clone()).collect();
     let r_cell = cell.b1_from_b2.rotation.to_rotation_matrix().into_inner();

@@ -95,7 +95,10 @@ struct Tally {
 /// be reported as such and never fitted.
 fn hidden_trial(seed: u64, t: &mut Tally) {
     let cell = cell_for(seed);
-    let cands = diagnose::catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
+    let cands = diagnose::catalogue(
+        cell.robot1.model.chain_joints().len(),
+        cell.robot2.model.chain_joints().len(),
+    );
     let mut rng = trial_rng(seed, 0);
     // Mount tilts are named from the placement check, not the residuals (their own test).
     let pool: Vec<&Candidate> = cands
@@ -267,7 +270,10 @@ fn a_hidden_effect_is_named_and_covered() {
 }
 
 fn pick(cell: &Cell, robot: Robot, kind: EffectKind, joint: usize) -> Candidate {
-    *diagnose::catalogue(cell.robot1.model.dof(), cell.robot2.model.dof())
+    *diagnose::catalogue(
+        cell.robot1.model.chain_joints().len(),
+        cell.robot2.model.chain_joints().len(),
+    )
         .iter()
         .find(|c| c.robot() == robot && c.kind() == kind && c.joint() == Some(joint))
         .expect("in catalogue")
@@ -371,7 +377,10 @@ fn a_hidden_mount_tilt_is_named_with_robot_axis_and_interval() {
         } else {
             kinematics::Axis::Y
         };
-        let cands = diagnose::catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
+        let cands = diagnose::catalogue(
+        cell.robot1.model.chain_joints().len(),
+        cell.robot2.model.chain_joints().len(),
+    );
         let tilt = *cands
             .iter()
             .find(|c| {
@@ -432,7 +441,10 @@ fn export_reproduces_the_extended_model() {
             0.2f64.to_radians(),
         ),
         (
-            *diagnose::catalogue(cell.robot1.model.dof(), cell.robot2.model.dof())
+            *diagnose::catalogue(
+        cell.robot1.model.chain_joints().len(),
+        cell.robot2.model.chain_joints().len(),
+    )
                 .iter()
                 .find(|c| {
                     c.robot() == Robot::One
@@ -569,7 +581,10 @@ fn random_pairs_study() {
     let (mut eligible, mut both) = (0, 0);
     for seed in 0..100u64 {
         let cell = cell_for(seed);
-        let cands = diagnose::catalogue(cell.robot1.model.dof(), cell.robot2.model.dof());
+        let cands = diagnose::catalogue(
+        cell.robot1.model.chain_joints().len(),
+        cell.robot2.model.chain_joints().len(),
+    );
         let pool: Vec<&Candidate> = cands
             .iter()
             .filter(|c| c.kind() != EffectKind::MountTilt)

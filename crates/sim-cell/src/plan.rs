@@ -122,7 +122,7 @@ pub struct Plan {
 pub fn nominal_cell(cell: &Cell) -> Cell {
     let mut c = cell.clone();
     for r in [&mut c.robot1, &mut c.robot2] {
-        r.errors = KinematicErrors::zero(r.model.dof());
+        r.errors = KinematicErrors::zero_for(&r.model);
     }
     c.noise.alignment_m = Vector3::zeros();
     c.noise.repeatability_m = 0.0;
@@ -400,7 +400,7 @@ pub fn draw_kinematic_errors(robot: &mut CellRobot, rng: &mut impl Rng) {
 /// studies of planned sessions.
 pub fn draw_errors_from_tolerance(truth: &mut Cell, rng: &mut impl Rng) {
     for r in [&mut truth.robot1, &mut truth.robot2] {
-        r.errors = KinematicErrors::zero(r.model.dof());
+        r.errors = KinematicErrors::zero_for(&r.model);
         draw_kinematic_errors(r, rng);
     }
 }

@@ -188,7 +188,8 @@ impl CellRobot {
     /// in this list; mounts are never fitted.
     pub fn fitted_params(&self) -> Vec<ErrorParam> {
         let mut out = Vec::new();
-        for joint in 0..self.model.dof() {
+        // Per chain joint: a coupled joint has its own offset, origin and compliance.
+        for joint in 0..self.model.chain_joints().len() {
             let mut cand = vec![
                 ErrorParam::JointOffset { joint },
                 ErrorParam::JointScale { joint },
@@ -211,7 +212,7 @@ impl CellRobot {
     pub fn prior_sigma(&self, p: ErrorParam) -> f64 {
         let prismatic = p
             .joint()
-            .and_then(|j| self.model.joints().get(j))
+            .and_then(|j| self.model.chain_joints().get(j))
             .is_some_and(|j| j.kind.is_prismatic());
         if !prismatic {
             return self.tolerance.prior_sigma(p);

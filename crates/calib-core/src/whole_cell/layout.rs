@@ -22,7 +22,7 @@ impl RobotCorrection {
     /// No corrections for `robot`.
     pub fn zero(robot: &CellRobot) -> Self {
         Self {
-            errors: KinematicErrors::zero(robot.model.dof()),
+            errors: KinematicErrors::zero_for(&robot.model),
             tool_tip_m: vec![Vector3::zeros(); robot.tools.len()],
         }
     }

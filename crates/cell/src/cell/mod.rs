@@ -11,7 +11,7 @@
 use crate::error::FormatError;
 use calib_core::whole_cell::{Tolerance, Tool};
 use calib_core::{zyz_canonical, Mount, MountPair, PoseMmDeg, Robot};
-use kinematics::{KinematicErrors, RobotModel};
+use kinematics::{JointCoupling, KinematicErrors, RobotModel};
 use nalgebra::{Isometry3, Point3, Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -213,6 +213,31 @@ struct RobotFile {
     errors: Option<ErrorsFile>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     tolerance: Option<ToleranceFile>,
+    /// `[[robotN.couplings]]`: joints whose value follows others' (`q_k = Σ c_i·q_i + c_0`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    couplings: Option<Vec<CouplingFile>>,
+}
+
+/// `[[robotN.couplings]]`: `joint` follows `Σ c·q[term.joint] + offset`, in file units (degrees
+/// for a rotary joint, mm for a prismatic one; `c` in the coupled joint's unit per the driving
+/// joint's).
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CouplingFile {
+    joint: String,
+    terms: Vec<CouplingTermFile>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    offset_deg: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    offset_mm: Option<f64>,
+}
+
+/// One term `{ joint = "name", c = coefficient }` of a [`CouplingFile`].
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CouplingTermFile {
+    joint: String,
+    c: f64,
 }
 
 /// `[robotN.tolerance]`: half-widths of uniform bands (mm, degrees); absent keys take
@@ -405,11 +430,17 @@ fn build_errors(
     model: &RobotModel,
     e: &ErrorsFile,
 ) -> Result<KinematicErrors, FormatError> {
-    let dof = model.dof();
+    // One entry per chain joint, coupled joints included (their own offsets and compliance).
+    let dof = model.chain_joints().len();
     let mut out = KinematicErrors::zero(dof);
+    let coupled_note = if model.has_coupled_joints() {
+        " (coupled joints included: every moving joint of the chain)"
+    } else {
+        ""
+    };
     let len_err = |field: &str, len: usize| {
         ctx.err(format!(
-            "`{key}.errors.{field}` has {len} entries but {} has {dof} joints: give one per joint, in URDF chain order",
+            "`{key}.errors.{field}` has {len} entries but {} has {dof} joints{coupled_note}: give one per joint, in URDF chain order",
             model.name()
         ))
     };
@@ -442,7 +473,7 @@ fn build_errors(
     // Per-joint angle fields hold 0 at a prismatic joint, `joint_offset_mm` 0 at a rotary one:
     // each array has one unit.
     let prismatic: Vec<bool> = model
-        .joints()
+        .chain_joints()
         .iter()
         .map(|j| j.kind.is_prismatic())
         .collect();
@@ -457,9 +488,9 @@ fn build_errors(
             Some(j) => Err(ctx.err(format!(
                 "`{key}.errors.{field}` entry {} (joint {}) is {}, but that joint is {}: {}",
                 j + 1,
-                model.joints()[j].name,
+                model.chain_joints()[j].name,
                 v.as_ref().map_or(0.0, |v| v[j]),
-                model.joints()[j].kind.urdf_name(),
+                model.chain_joints()[j].kind.urdf_name(),
                 if want_prismatic {
                     "joint_offset_mm holds prismatic joints' offsets only; give a rotary joint's in joint_offset_deg (0 here)"
                 } else {
@@ -563,7 +594,12 @@ fn errors_file(model: &RobotModel, e: &KinematicErrors) -> Option<ErrorsFile> {
     // A prismatic joint's offset (m) goes to `joint_offset_mm`, a rotary one's to `_deg`.
     let (mut rotary_offset, mut prismatic_offset) =
         (e.joint_offset.clone(), e.joint_offset.clone());
-    for (j, joint) in model.joints().iter().enumerate().take(e.joint_offset.len()) {
+    for (j, joint) in model
+        .chain_joints()
+        .iter()
+        .enumerate()
+        .take(e.joint_offset.len())
+    {
         if joint.kind.is_prismatic() {
             rotary_offset[j] = 0.0;
         } else {
@@ -600,7 +636,7 @@ fn errors_file(model: &RobotModel, e: &KinematicErrors) -> Option<ErrorsFile> {
 fn shoulder(model: &RobotModel) -> Point3<f64> {
     // At q = 0 the joint rotations are identities: compose the fixed parts only.
     let t = model
-        .joints()
+        .chain_joints()
         .iter()
         .take(2)
         .fold(Isometry3::identity(), |t, j| {
@@ -689,6 +725,7 @@ impl Cell {
             }),
             errors: errors_file(&r.model, &r.errors),
             tolerance: tolerance_file(&r.tolerance),
+            couplings: couplings_file(&r.model),
         };
         let zyz = zyz_canonical(&self.b1_from_b2.rotation.to_rotation_matrix());
         let t = self.b1_from_b2.translation.vector * 1e3;
@@ -796,20 +833,97 @@ fn load_model(
             path.display()
         )));
     }
-    let model = RobotModel::from_urdf_file(path, tool_link)
-        .map_err(|e| ctx.err(format!("`{key}.urdf` = \"{urdf}\": {e}")))?;
-    // A coupled joint has no session column and no entry in `[robotN.errors]`: refused until
-    // the formats describe it (issue 22). Prismatic joints are described (mm at the files).
-    if model.has_coupled_joints() {
-        return Err(ctx.err(format!(
-            "`{key}.urdf` = \"{urdf}\": robot {} has coupled (mimic) joints, which cell and \
-             session files do not describe yet (a coupled joint has no joint column); evaluate \
-             the URDF directly with `handclasp fk --robot {} --tool-link {tool_link}`",
-            model.name(),
-            path.display()
-        )));
+    RobotModel::from_urdf_file(path, tool_link)
+        .map_err(|e| ctx.err(format!("`{key}.urdf` = \"{urdf}\": {e}")))
+}
+
+/// SI units per file unit of a chain joint's value: rad per degree for a rotary joint, m per mm
+/// for a prismatic one (1 for a name the chain does not hold; the model's check names it).
+fn joint_file_unit(model: &RobotModel, name: &str) -> f64 {
+    match model.chain_joints().iter().find(|j| j.name == name) {
+        Some(j) if j.kind.is_prismatic() => 1e-3,
+        _ => 1f64.to_radians(),
     }
-    Ok(model)
+}
+
+/// `model` with the cell's `[[{key}.couplings]]` declared on it (file units converted to SI).
+/// Errors name the entry, the joint and the fix: an unknown joint, a loop, a joint coupled
+/// twice (also by a URDF `<mimic>`), an offset in the other unit.
+fn apply_couplings(
+    ctx: &Ctx,
+    key: &str,
+    model: RobotModel,
+    couplings: &[CouplingFile],
+) -> Result<RobotModel, FormatError> {
+    let mut declared = Vec::with_capacity(couplings.len());
+    for (k, c) in couplings.iter().enumerate() {
+        let at = format!("`{key}.couplings` entry {} (joint `{}`)", k + 1, c.joint);
+        if c.terms.is_empty() {
+            return Err(ctx.err(format!(
+                "{at}: no terms; give terms = [{{ joint = \"name\", c = coefficient }}, …]"
+            )));
+        }
+        let unit_k = joint_file_unit(&model, &c.joint);
+        let prismatic = unit_k == 1e-3;
+        let offset = match (c.offset_deg, c.offset_mm) {
+            (Some(_), Some(_)) => {
+                return Err(ctx.err(format!(
+                    "{at}: both offset_deg and offset_mm; give one (offset_deg for a rotary joint, offset_mm for a prismatic one)"
+                )))
+            }
+            (Some(_), None) if prismatic => {
+                return Err(ctx.err(format!(
+                    "{at}: the joint is prismatic: give its offset in offset_mm, not offset_deg"
+                )))
+            }
+            (None, Some(_)) if !prismatic => {
+                return Err(ctx.err(format!(
+                    "{at}: the joint is rotary: give its offset in offset_deg, not offset_mm"
+                )))
+            }
+            (a, b) => a.or(b).unwrap_or(0.0) * unit_k,
+        };
+        declared.push(JointCoupling {
+            joint: c.joint.clone(),
+            terms: c
+                .terms
+                .iter()
+                .map(|t| (t.joint.clone(), t.c * unit_k / joint_file_unit(&model, &t.joint)))
+                .collect(),
+            offset,
+        });
+    }
+    model
+        .with_couplings(&declared)
+        .map_err(|e| ctx.err(format!("`{key}.couplings`: {e}")))
+}
+
+/// The couplings declared in the cell (not the URDF's `<mimic>`s), in file units.
+fn couplings_file(model: &RobotModel) -> Option<Vec<CouplingFile>> {
+    let added = model.added_couplings();
+    (!added.is_empty()).then(|| {
+        added
+            .iter()
+            .map(|c| {
+                let unit_k = joint_file_unit(model, &c.joint);
+                let offset = c.offset / unit_k;
+                let prismatic = unit_k == 1e-3;
+                CouplingFile {
+                    joint: c.joint.clone(),
+                    terms: c
+                        .terms
+                        .iter()
+                        .map(|(name, x)| CouplingTermFile {
+                            joint: name.clone(),
+                            c: x * joint_file_unit(model, name) / unit_k,
+                        })
+                        .collect(),
+                    offset_deg: (!prismatic).then_some(offset),
+                    offset_mm: prismatic.then_some(offset),
+                }
+            })
+            .collect()
+    })
 }
 
 fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cell, FormatError> {
@@ -820,17 +934,20 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
             .map(|r| format!("line {}: ", text[..r.start.min(text.len())].lines().count().max(1)))
             .unwrap_or_default();
         ctx.err(format!(
-            "{at}{} (keys: [robot1], [robot2] (absent in a one-robot cell) with urdf, mount, tip_mm, tool_link, [robotN.tools] name = [x, y, z], [robotN.errors], [robotN.tolerance] joint_offset_deg, origin_mm, origin_deg, tip_mm; [b1_from_b2] xyz_mm, zyz_deg, sigma_mm, sigma_deg (with [robot2] only); [noise] alignment_mm, repeatability_mm, encoder_resolution_deg; [teach] centre_mm)",
+            "{at}{} (keys: [robot1], [robot2] (absent in a one-robot cell) with urdf, mount, tip_mm, tool_link, [robotN.tools] name = [x, y, z], [robotN.errors], [robotN.tolerance] joint_offset_deg, origin_mm, origin_deg, tip_mm, [[robotN.couplings]] joint, terms = [{{ joint, c }}], offset_deg | offset_mm; [b1_from_b2] xyz_mm, zyz_deg, sigma_mm, sigma_deg (with [robot2] only); [noise] alignment_mm, repeatability_mm, encoder_resolution_deg; [teach] centre_mm)",
             e.message().trim_end()
         ))
     })?;
     let robot = |key: &str, r: &RobotFile| -> Result<CellRobot, FormatError> {
         let tool_link = r.tool_link.clone().unwrap_or_else(|| "tool0".into());
         let urdf_path = base_dir.join(&r.urdf);
-        let model = load_model(&ctx, key, &r.urdf, &urdf_path, &tool_link, embedded)?;
+        let mut model = load_model(&ctx, key, &r.urdf, &urdf_path, &tool_link, embedded)?;
+        if let Some(c) = &r.couplings {
+            model = apply_couplings(&ctx, key, model, c)?;
+        }
         let errors = match &r.errors {
             Some(e) => build_errors(&ctx, key, &model, e)?,
-            None => KinematicErrors::zero(model.dof()),
+            None => KinematicErrors::zero_for(&model),
         };
         let tolerance = match &r.tolerance {
             Some(t) => build_tolerance(&ctx, key, t)?,
@@ -870,7 +987,7 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
                 // A one-robot cell: robot 2 is a stand-in nothing observes, held at nominal.
                 let mut stand_in = robot1.clone();
                 stand_in.tools.clear();
-                stand_in.errors = KinematicErrors::zero(stand_in.model.dof());
+                stand_in.errors = KinematicErrors::zero_for(&stand_in.model);
                 stand_in.tolerance = Tolerance::none();
                 (&ONE_ROBOT_PLACEMENT, stand_in, true)
             }

@@ -232,7 +232,7 @@ pub fn offset_alias(problem: &CellProblem, p: &CellParam) -> bool {
     else {
         return false;
     };
-    let Some(j) = problem.robot(*robot).model.joints().get(*joint) else {
+    let Some(j) = problem.robot(*robot).model.chain_joints().get(*joint) else {
         return false;
     };
     // A step small enough for the linearisation, large enough for round-off (1e-6 rad).
