@@ -339,21 +339,96 @@ fn a_value_in_the_wrong_units_array_is_refused_by_joint() {
     );
 }
 
-/// A coupled (mimic) joint is still refused by name: a session has no column for it.
+const HUMANOID: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../robots/humanoid.urdf");
+
+/// The humanoid's right arm with `extra` appended (e.g. `[[robot1.couplings]]`).
+fn humanoid_cell(extra: &str) -> Result<Cell, crate::FormatError> {
+    Cell::from_toml_str(
+        &format!(
+            "[robot1]\nurdf = \"{HUMANOID}\"\ntool_link = \"right_tool0\"\nmount = \"floor\"\ntip_mm = [0, 0, 50]\n{extra}"
+        ),
+        Path::new("."),
+    )
+}
+
+const TORSO_4: &str = "[[robot1.couplings]]\njoint = \"torso_4\"\nterms = [{ joint = \"torso_1\", c = -1.0 }, { joint = \"torso_2\", c = -1.0 }]\noffset_deg = 0.5\n";
+
+/// A URDF `<mimic>` is accepted: the coupled joint takes no session column, its errors one
+/// entry (chain order).
 #[test]
-fn coupled_robot_refused_until_the_formats_describe_it() {
+fn a_mimic_joint_is_accepted_in_a_cell() {
     let mimic = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../kinematics/tests/fixtures/mimic_on_chain.urdf"
     );
-    let err = Cell::from_toml_str(
-        &format!("[robot1]\nurdf = \"{mimic}\"\nmount = \"floor\"\ntip_mm = [0, 0, 150]\n"),
+    let cell = Cell::from_toml_str(
+        &format!("[robot1]\nurdf = \"{mimic}\"\nmount = \"floor\"\ntip_mm = [0, 0, 150]\n[robot1.errors]\njoint_offset_deg = [0, 0, 0.1]\n"),
         Path::new("."),
     )
-    .unwrap_err()
-    .to_string();
-    assert!(err.contains("coupled (mimic)"), "{err}");
-    assert!(err.contains("handclasp fk --robot"), "{err}");
+    .unwrap();
+    assert_eq!(cell.robot1.model.dof(), 2);
+    assert_eq!(cell.robot1.errors.joint_offset.len(), 3);
+    assert!((cell.robot1.errors.joint_offset[2] - 0.1f64.to_radians()).abs() < 1e-15);
+    // The URDF's mimic is not written into the cell (the URDF keeps it).
+    assert!(!cell.to_toml_string().contains("couplings"));
+}
+
+/// A cell's `[[robotN.couplings]]`: `q_k = Σ c_i·q_i + c_0` in degrees, one session column fewer,
+/// `[robotN.errors]` over every chain joint, written back as declared.
+#[test]
+fn declared_coupling_parses_and_round_trips() {
+    let cell = humanoid_cell(&format!(
+        "{TORSO_4}[robot1.errors]\njoint_offset_deg = [0, 0, 0, 0.08, 0, 0, 0, 0, 0, 0, 0]\n"
+    ))
+    .unwrap();
+    let m = &cell.robot1.model;
+    assert_eq!((m.dof(), m.chain_joints().len()), (10, 11));
+    let chain = m.chain_values(&[0.1, 0.2, 0.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]).unwrap();
+    assert!((chain[3] - (-0.3 + 0.5f64.to_radians())).abs() < 1e-15);
+    assert!((cell.robot1.errors.joint_offset[3] - 0.08f64.to_radians()).abs() < 1e-15);
+    let text = cell.to_toml_string();
+    assert!(text.contains("torso_4"), "{text}");
+    let back = Cell::from_toml_str(&text, Path::new(".")).unwrap();
+    assert_eq!(back.robot1.model.couplings(), m.couplings());
+    assert_cells_equal(&cell, &back);
+    // Errors sized for the independent joints only are refused, saying coupled joints count.
+    let e = humanoid_cell(&format!("{TORSO_4}[robot1.errors]\njoint_scale = [0, 0, 0, 0, 0, 0, 0, 0, 0, 0]\n"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("11 joints") && e.contains("coupled joints included"), "{e}");
+}
+
+/// Malformed couplings are refused naming the entry, the joint and the fix: an unknown joint, a
+/// loop, a joint coupled twice, no terms, an offset in the wrong unit.
+#[test]
+fn malformed_couplings_are_refused_by_name() {
+    let c = |joint: &str, terms: &str| {
+        format!("[[robot1.couplings]]\njoint = \"{joint}\"\nterms = [{terms}]\n")
+    };
+    let cases = [
+        (c("torso_4", "{ joint = \"torso_9\", c = 1.0 }"), vec!["torso_9", "not a moving joint"]),
+        (c("torso_9", "{ joint = \"torso_1\", c = 1.0 }"), vec!["torso_9", "not a moving joint"]),
+        (
+            c("torso_4", "{ joint = \"torso_2\", c = 1.0 }") + &c("torso_2", "{ joint = \"torso_4\", c = 1.0 }"),
+            vec!["loop", "torso_2", "torso_4"],
+        ),
+        (
+            c("torso_4", "{ joint = \"torso_2\", c = 1.0 }") + &c("torso_4", "{ joint = \"torso_1\", c = 1.0 }"),
+            vec!["coupled twice"],
+        ),
+        (c("torso_4", ""), vec!["entry 1", "no terms"]),
+        (
+            c("torso_4", "{ joint = \"torso_2\", c = 1.0 }") + "offset_mm = 1.0\n",
+            vec!["rotary", "offset_deg"],
+        ),
+        (c("torso_4", "{ joint = \"torso_2\", k = 1.0 }"), vec!["unknown field", "k"]),
+    ];
+    for (extra, want) in cases {
+        let e = humanoid_cell(&extra).unwrap_err().to_string();
+        for w in want {
+            assert!(e.contains(w), "{extra}: `{w}` not in: {e}");
+        }
+    }
 }
 
 /// A cell with `[robot1]` only is a one-robot cell: robot 2 is a stand-in held at nominal, the
