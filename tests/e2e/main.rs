@@ -3,6 +3,7 @@
 
 mod calibrate;
 mod calibrate_cell;
+mod coupled;
 mod diagnose;
 mod docs;
 mod export;
