@@ -66,7 +66,7 @@ fn coupled_torso_joint_is_calibrated_to_its_noise_on_new_poses() {
         &arg(&cal),
         "--json",
     ]));
-    assert_eq!(report["one_robot"], false);
+    assert!(report["b1_from_b2"].is_object(), "{report}");
     let exported = std::fs::read_to_string(cal.join("cell.toml")).unwrap();
     assert!(
         exported.contains("[[robot1.couplings]]") && exported.contains("[[robot2.couplings]]"),

@@ -35,8 +35,9 @@ pub enum FitModel {
     Kinematic,
 }
 
-fn robot(r: &CellRobot, model: FitModel) -> WholeCellRobot {
+fn robot(r: &CellRobot, model: FitModel, shared_joints: usize) -> WholeCellRobot {
     WholeCellRobot {
+        shared_joints,
         model: r.model.clone(),
         tools: std::iter::once(Tool {
             name: TIP_TOOL.into(),
@@ -197,8 +198,8 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
         initial: None,
     }));
     CellProblem {
-        robot1: robot(&cell.robot1, model),
-        robot2: robot(&cell.robot2, model),
+        robot1: robot(&cell.robot1, model, 0),
+        robot2: robot(&cell.robot2, model, cell.shared_joints),
         observations,
         trackers,
         planes,

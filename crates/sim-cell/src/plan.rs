@@ -370,12 +370,13 @@ pub fn draw_kinematic_errors(robot: &mut CellRobot, rng: &mut impl Rng) {
         tools: Vec::new(),
         g_base: robot.g_base,
         tolerance: robot.tolerance,
+        shared_joints: 0,
     };
     let t = robot.tolerance;
     for p in wc.fitted_params() {
         let prismatic = p
             .joint()
-            .is_some_and(|j| robot.model.joints()[j].kind.is_prismatic());
+            .is_some_and(|j| robot.model.chain_joints()[j].kind.is_prismatic());
         let tol = match p {
             // A prismatic joint's offset is a length, its band the origin tolerance.
             _ if prismatic => wc.prior_sigma(p) * 3f64.sqrt(),

@@ -111,6 +111,7 @@ pub struct CellCalibration {
 ///     tools: vec![tool.clone()],
 ///     g_base,
 ///     tolerance: Tolerance::default(),
+///     shared_joints: 0,
 /// };
 /// let b1_from_b2 = Isometry3::new(Vector3::new(1.4, 0.0, 0.0), Vector3::new(0.0, 0.0, std::f64::consts::PI));
 /// let g_b1 = Vector3::new(0.0, 0.0, -9.81);

@@ -179,6 +179,11 @@ pub struct CellRobot {
     pub g_base: Vector3<f64>,
     /// Tolerances: the prior, and which parameters are fitted.
     pub tolerance: Tolerance,
+    /// Robot 2 of a shared-trunk cell: its first `shared_joints` chain joints are robot 1's
+    /// (the same physical joints), so their kinematic parameters are robot 1's columns (one set,
+    /// fitted once, with robot 1's tolerances; see [`ParamLayout`](super::ParamLayout)). 0
+    /// otherwise, and always 0 for robot 1.
+    pub shared_joints: usize,
 }
 
 impl CellRobot {

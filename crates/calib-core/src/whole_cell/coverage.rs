@@ -611,6 +611,7 @@ mod tests {
             }],
             g_base: Vector3::new(0.0, 0.0, -9.81),
             tolerance: super::super::Tolerance::default(),
+            shared_joints: 0,
         };
         let seed = 5;
         let mut observations = Vec::new();

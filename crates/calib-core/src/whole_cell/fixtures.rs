@@ -103,6 +103,7 @@ pub fn sim_cell(cell: Cell, tol: Tolerance, second_tool: bool, seed: u64) -> Sim
         tools: tools1,
         g_base: g1,
         tolerance: tol,
+        shared_joints: 0,
     };
     let robot2 = CellRobot {
         model: RobotModel::from_urdf_str(HP20, "tool0").expect("shipped URDF"),
@@ -112,6 +113,7 @@ pub fn sim_cell(cell: Cell, tol: Tolerance, second_tool: bool, seed: u64) -> Sim
         }],
         g_base: x.rotation.inverse() * g1,
         tolerance: tol,
+        shared_joints: 0,
     };
     let problem = CellProblem {
         robot1: robot1.clone(),

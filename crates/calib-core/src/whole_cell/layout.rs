@@ -352,7 +352,20 @@ impl ParamLayout {
         for r in [Robot::One, Robot::Two] {
             let rb = problem.robot(r);
             let mut kin = Vec::new();
+            // Robot 2's shared joints (a shared trunk) have robot 1's parameters: robot 1's
+            // columns, no columns of their own, so the Jacobians add into them and a step moves
+            // both robots' copies alike.
+            let shared = |p: &ErrorParam| {
+                r == Robot::Two && p.joint().is_some_and(|j| j < rb.shared_joints)
+            };
+            if let Some(robot1) = robots.first() {
+                let robot1: &RobotLayout = robot1;
+                kin.extend(robot1.kin.iter().filter(|(p, _)| shared(p)).copied());
+            }
             for p in rb.fitted_params() {
+                if shared(&p) {
+                    continue;
+                }
                 let cp = CellParam::Kinematic { robot: r, param: p };
                 if fixed.contains(&cp) {
                     continue;

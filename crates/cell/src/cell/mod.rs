@@ -152,7 +152,17 @@ pub struct Cell {
     /// tip), `b1_from_b2` the identity held by [`ONE_ROBOT_PLACEMENT_SIGMA`], and the files, the
     /// reports and the export leave robot 2 and the placement out ([`Cell::has_robot2`]).
     pub one_robot: bool,
+    /// A shared trunk (`[robot2] shares = { robot = 1, joints = k }`): robot 2's first `k` chain
+    /// joints are robot 1's (one set of parameters, fitted once; robot 2's errors at them are
+    /// robot 1's), the placement is the identity held by [`SHARED_TRUNK_PLACEMENT_SIGMA`] (both
+    /// chains start at the common base) and a row with both robots has equal shared joint
+    /// values. 0 otherwise.
+    pub shared_joints: usize,
 }
+
+/// The prior σ holding a shared-trunk cell's placement at the identity: both arms' chains start
+/// at the common base, so `b1_from_b2` is known (1 µm, 1 µrad; as [`ONE_ROBOT_PLACEMENT_SIGMA`]).
+pub const SHARED_TRUNK_PLACEMENT_SIGMA: PlacementSigma = ONE_ROBOT_PLACEMENT_SIGMA;
 
 /// The prior σ holding a one-robot cell's stand-in placement at the identity (no observation
 /// reaches it): 1 µm and 1 µrad per component, far below any measurement, far above round-off.
@@ -216,6 +226,21 @@ struct RobotFile {
     /// `[[robotN.couplings]]`: joints whose value follows others' (`q_k = Σ c_i·q_i + c_0`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     couplings: Option<Vec<CouplingFile>>,
+    /// `[robot2] shares = { robot = 1, joints = k }` (or `link = "chest"`): a shared trunk.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    shares: Option<SharesFile>,
+}
+
+/// `shares = { robot = 1, joints = k }` or `{ robot = 1, link = "name" }`: robot 2's first `k`
+/// chain joints (those up to and including the joint whose child is `link`) are robot 1's.
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SharesFile {
+    robot: u8,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    joints: Option<usize>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    link: Option<String>,
 }
 
 /// `[[robotN.couplings]]`: `joint` follows `Σ c·q[term.joint] + offset`, in file units (degrees
@@ -726,6 +751,7 @@ impl Cell {
             errors: errors_file(&r.model, &r.errors),
             tolerance: tolerance_file(&r.tolerance),
             couplings: couplings_file(&r.model),
+            shares: None,
         };
         let zyz = zyz_canonical(&self.b1_from_b2.rotation.to_rotation_matrix());
         let t = self.b1_from_b2.translation.vector * 1e3;
@@ -733,8 +759,16 @@ impl Cell {
         let two = self.has_robot2();
         let file = CellFile {
             robot1: robot(&self.robot1),
-            robot2: two.then(|| robot(&self.robot2)),
-            b1_from_b2: two.then(|| PlacementFile {
+            robot2: two.then(|| {
+                let mut r2 = robot(&self.robot2);
+                r2.shares = (self.shared_joints > 0).then(|| SharesFile {
+                    robot: 1,
+                    joints: Some(self.shared_joints),
+                    link: None,
+                });
+                r2
+            }),
+            b1_from_b2: (two && self.shared_joints == 0).then(|| PlacementFile {
                 xyz_mm: [t.x, t.y, t.z],
                 zyz_deg: zyz.map(f64::to_degrees),
                 sigma_mm: self.b1_from_b2_sigma.map(|s| s.sigma_m * 1e3),
@@ -979,9 +1013,25 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
             tolerance,
         })
     };
+    if file.robot1.shares.is_some() {
+        return Err(ctx.err(
+            "`robot1.shares`: robot 1 defines the trunk; say `shares = { robot = 1, joints = k }` \
+             in [robot2]",
+        ));
+    }
     let mut robot1 = robot("robot1", &file.robot1)?;
     let (placement, mut robot2, one_robot) =
         match (&file.robot2, &file.b1_from_b2) {
+            (Some(r2), _) if r2.shares.is_some() => {
+                if file.b1_from_b2.is_some() {
+                    return Err(ctx.err(
+                        "`[b1_from_b2]` in a shared-trunk cell (`robot2.shares`): the placement between \
+                         the arms is the trunk, not a free b1_from_b2; remove [b1_from_b2] (both \
+                         arms' URDF chains start at the common base)",
+                    ));
+                }
+                (&ONE_ROBOT_PLACEMENT, robot("robot2", r2)?, false)
+            }
             (Some(r2), Some(placement)) => (placement, robot("robot2", r2)?, false),
             (None, None) => {
                 // A one-robot cell: robot 2 is a stand-in nothing observes, held at nominal.
@@ -1002,6 +1052,10 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
                  (xyz_mm, zyz_deg); add [b1_from_b2], or remove [robot2] for a one-robot cell",
             )),
         };
+    let shared_joints = match file.robot2.as_ref().and_then(|r| r.shares.as_ref()) {
+        Some(shares) => shared_trunk(&ctx, shares, &robot1, &mut robot2)?,
+        None => 0,
+    };
     finite3(&ctx, "b1_from_b2.xyz_mm", placement.xyz_mm)?;
     finite3(&ctx, "b1_from_b2.zyz_deg", placement.zyz_deg)?;
     let b1_from_b2 = PoseMmDeg {
@@ -1129,7 +1183,148 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
         noise,
         centre_b1,
         one_robot,
+        shared_joints,
     })
+}
+
+/// The number of shared chain joints of `robot2.shares`, checked: robot 1's trunk, the same
+/// joints at the start of both chains (names, kinds, origins, axes, limits, couplings over
+/// shared joints only), the same mount, no compliance at a shared joint; robot 2's errors at the
+/// shared joints must be 0 or robot 1's, and become robot 1's.
+fn shared_trunk(
+    ctx: &Ctx,
+    shares: &SharesFile,
+    robot1: &CellRobot,
+    robot2: &mut CellRobot,
+) -> Result<usize, FormatError> {
+    if shares.robot != 1 {
+        return Err(ctx.err(format!(
+            "`robot2.shares.robot` = {}: robot 2 can share robot 1's joints only; give robot = 1",
+            shares.robot
+        )));
+    }
+    let (c1, c2) = (robot1.model.chain_joints(), robot2.model.chain_joints());
+    let k = match (&shares.joints, &shares.link) {
+        (Some(k), None) => *k,
+        (None, Some(link)) => match c1.iter().position(|j| j.child_link == *link) {
+            Some(i) => i + 1,
+            None => {
+                return Err(ctx.err(format!(
+                    "`robot2.shares.link` = \"{link}\" is not the child link of a moving joint on \
+                     robot 1's chain ({}); name the link where the arms branch, or give joints = k",
+                    c1.iter().map(|j| j.child_link.as_str()).collect::<Vec<_>>().join(", ")
+                )))
+            }
+        },
+        _ => {
+            return Err(ctx.err(
+                "`robot2.shares` needs one of joints = k (the first k chain joints) or link = \"name\" \
+                 (the branch link), not both",
+            ))
+        }
+    };
+    if k == 0 || k >= c1.len() || k >= c2.len() {
+        return Err(ctx.err(format!(
+            "`robot2.shares.joints` = {k}: give 1 to {} (each arm keeps at least one joint of its own; \
+             robot 1 has {} chain joints, robot 2 {})",
+            c1.len().min(c2.len()).saturating_sub(1),
+            c1.len(),
+            c2.len()
+        )));
+    }
+    for j in 0..k {
+        let (a, b) = (&c1[j], &c2[j]);
+        let what = if a.name != b.name {
+            Some(format!("robot 1's is `{}`, robot 2's `{}`", a.name, b.name))
+        } else if a.is_coupled() != b.is_coupled() || a.coupling != b.coupling {
+            Some(format!(
+                "it is coupled {}: declare the same [[robotN.couplings]] (or <mimic>) in both robots",
+                if a.is_coupled() && !b.is_coupled() {
+                    "in robot 1's chain and not in robot 2's"
+                } else if b.is_coupled() && !a.is_coupled() {
+                    "in robot 2's chain and not in robot 1's"
+                } else {
+                    "differently in the two robots"
+                }
+            ))
+        } else if a != b {
+            Some("its kind, origin, axis or limits differ between the two URDFs".into())
+        } else {
+            None
+        };
+        if let Some(what) = what {
+            return Err(ctx.err(format!(
+                "`robot2.shares`: shared joint {} (`{}`) is not the same joint in both robots: \
+                 {what}; the first {k} chain joints must be the trunk in both chains",
+                j + 1,
+                a.name
+            )));
+        }
+        if let Some(c) = &a.coupling {
+            let shared_q = c1[..k].iter().filter(|j| !j.is_coupled()).count();
+            if c.terms.iter().any(|&(i, _)| i >= shared_q) {
+                return Err(ctx.err(format!(
+                    "`robot2.shares`: shared joint `{}` follows a joint of robot 1's arm; a \
+                     shared joint may follow shared joints only",
+                    a.name
+                )));
+            }
+        }
+    }
+    if robot1.mount != robot2.mount {
+        return Err(ctx.err(format!(
+            "`robot2.mount` = {} differs from robot 1's {}: in a shared-trunk cell both chains \
+             start at the common base; give both the same mount",
+            mount_value(&robot2.mount),
+            mount_value(&robot1.mount)
+        )));
+    }
+    let (e1, e2) = (&robot1.errors, &mut robot2.errors);
+    for j in 0..k {
+        if e1.compliance[j] != 0.0 || e2.compliance[j] != 0.0 {
+            return Err(ctx.err(format!(
+                "`[robotN.errors] compliance_deg_per_knm` at shared joint `{}`: compliance of a \
+                 shared joint (loaded by both arms) is not supported yet; give 0 there",
+                c1[j].name
+            )));
+        }
+        let pairs = [
+            ("joint_offset", e1.joint_offset[j], &mut e2.joint_offset[j]),
+            ("joint_scale", e1.joint_scale[j], &mut e2.joint_scale[j]),
+            ("periodic_sin", e1.periodic_sin[j], &mut e2.periodic_sin[j]),
+            ("periodic_cos", e1.periodic_cos[j], &mut e2.periodic_cos[j]),
+        ];
+        for (field, v1, v2) in pairs {
+            if *v2 != 0.0 && (*v2 - v1).abs() > 1e-12 * v1.abs().max(1e-9) {
+                return Err(ctx.err(format!(
+                    "`robot2.errors.{field}` at shared joint `{}` differs from robot 1's: a shared \
+                     joint has one set of errors; give it in [robot1.errors] (0 or the same value here)",
+                    c1[j].name
+                )));
+            }
+            *v2 = v1;
+        }
+        for (field, v1, v2) in [
+            ("origin_xyz_mm", e1.origin_xyz[j], &mut e2.origin_xyz[j]),
+            ("origin_rpy_deg", e1.origin_rpy[j], &mut e2.origin_rpy[j]),
+        ] {
+            if *v2 != Vector3::zeros() && (*v2 - v1).norm() > 1e-12 * v1.norm().max(1e-9) {
+                return Err(ctx.err(format!(
+                    "`robot2.errors.{field}` at shared joint `{}` differs from robot 1's: a shared \
+                     joint has one set of errors; give it in [robot1.errors] (0 or the same value here)",
+                    c1[j].name
+                )));
+            }
+            *v2 = v1;
+        }
+    }
+    if e1.mount_xyz != e2.mount_xyz || e1.mount_rpy != e2.mount_rpy {
+        return Err(ctx.err(
+            "`[robotN.errors] mount_xyz_mm / mount_rpy_deg` differ between the robots of a \
+             shared-trunk cell: they share one base; give the same mount errors (or none)",
+        ));
+    }
+    Ok(k)
 }
 
 /// The `[b1_from_b2]` a one-robot cell stands in with: the identity, held by
