@@ -251,6 +251,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         crate::export_dir::check_export_folder_overwrite(dir, args.overwrite, args.force)?;
     }
     let cell = Cell::from_toml_file(&args.cell)?;
+    if cell.shared_joints > 0 {
+        bail!(
+            "{}: a shared-trunk cell (`robot2.shares`): diagnose does not tie the trunk's \
+             parameters across the two arms yet, so it would fit the trunk twice; use \
+             `handclasp calibrate --cell` (which fits the trunk once) and `handclasp validate`",
+            args.cell.display()
+        );
+    }
     if args.verbose {
         crate::fk::print_cell_branches(&cell);
     }

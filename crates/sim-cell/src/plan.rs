@@ -198,6 +198,14 @@ pub fn plan_session(
                 .into(),
         ));
     }
+    if cell.shared_joints > 0 {
+        return Err(SimError::InvalidInput(
+            "a shared-trunk cell (`robot2.shares`): planning handclasp poses of two arms that \
+             share a trunk is not supported yet (both arms' poses must agree on the trunk); \
+             record tracker or plane rows of each arm instead"
+                .into(),
+        ));
+    }
     if spec.n == 0 {
         return Err(SimError::InvalidSetting {
             field: "n",

@@ -261,6 +261,14 @@ pub fn generate_kind_session(
             }
         )));
     }
+    if cell.shared_joints > 0 && !matches!(kinds.kind, SimKind::Tracker | SimKind::Plane) {
+        return Err(SimError::InvalidInput(
+            "a shared-trunk cell (`robot2.shares`) is simulated with --kind tracker or --kind \
+             plane (one robot per row) for now: rows with both robots at once need poses that \
+             agree on the trunk, which the simulator does not draw yet"
+                .into(),
+        ));
+    }
     let centre = spec.centre_b1.unwrap_or(cell.centre_b1);
     if kinds.kind == SimKind::Coincident && plan.is_none() {
         let truth = NuisanceTruth {

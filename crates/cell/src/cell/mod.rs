@@ -805,6 +805,20 @@ impl Cell {
         !self.one_robot
     }
 
+    /// The number of independent joints (session columns) among the shared trunk's joints
+    /// ([`Cell::shared_joints`] chain joints; coupled trunk joints take no column): the first
+    /// that many joint columns of robot 1 and robot 2 are the same joints. 0 without a shared
+    /// trunk.
+    pub fn shared_independent_joints(&self) -> usize {
+        self.robot1
+            .model
+            .chain_joints()
+            .iter()
+            .take(self.shared_joints)
+            .filter(|j| !j.is_coupled())
+            .count()
+    }
+
     /// The robots a session of this cell may use: robot 1, and robot 2 unless the cell has one
     /// robot.
     pub fn robots(&self) -> &'static [Robot] {

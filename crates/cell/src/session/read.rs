@@ -233,6 +233,10 @@ impl Session {
 }
 
 /// The robot that is not `r`.
+/// Largest difference between the two robots' columns of a shared joint on one row, in the
+/// file's unit (degrees or mm): half the last written decimal (files carry 6 decimals).
+const SHARED_JOINT_TOL: f64 = 1e-6;
+
 fn other(r: Robot) -> Robot {
     match r {
         Robot::One => Robot::Two,
@@ -501,6 +505,26 @@ impl RowReader<'_> {
             (None, _) => return Err(self.missing(&format!("r1_q1_deg … r1_q{d1}_deg"), &needs)),
             (_, None) => return Err(self.missing(&format!("r2_q1_deg … r2_q{d2}_deg"), &needs)),
         };
+        // A shared trunk's joints are one set of joints: both robots' columns must agree.
+        let shared_q = cell.shared_independent_joints();
+        let [kinds1, _] = super::joint_kinds(cell);
+        for k in 0..shared_q.min(q1.len()).min(q2.len()) {
+            let unit = if kinds1[k] { 1e3 } else { 1f64.to_degrees() };
+            if ((q1[k] - q2[k]) * unit).abs() > SHARED_JOINT_TOL {
+                let (c1, c2) = (
+                    super::joint_column(1, k + 1, kinds1[k]),
+                    super::joint_column(2, k + 1, kinds1[k]),
+                );
+                return Err(self.err(format!(
+                    "columns `{c1}` = {:.6} and `{c2}` = {:.6}: joint {} is shared by the two robots \
+                     (the cell's `robot2.shares`), so a row with both robots gives it one value; \
+                     write robot 1's value in both columns",
+                    q1[k] * unit,
+                    q2[k] * unit,
+                    k + 1
+                )));
+            }
+        }
         let tool1 = self.tool(cell, Robot::One, "tool1")?;
         let tool2 = self.tool(cell, Robot::Two, "tool2")?;
         for (r, q, tool, tip) in [
