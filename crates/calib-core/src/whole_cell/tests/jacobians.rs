@@ -131,3 +131,148 @@ fn face_contact_jacobian_matches_central_differences() {
         }
     }
 }
+
+/// The simulated humanoid (`robots/humanoid.urdf`): torso_4 follows −(torso_1 + torso_2).
+const HUMANOID: &str = include_str!("../../../../../robots/humanoid.urdf");
+
+/// A shared-trunk problem with a coupled torso joint: the humanoid's right arm (robot 1) and
+/// left arm (robot 2, its first 4 chain joints robot 1's), coincident, contact, tracker and
+/// plane rows with equal trunk joints on the two-robot rows, and random errors on every fitted
+/// parameter (the shared joints' copies equal).
+fn shared_trunk(seed: u64) -> (CellProblem, CellEstimate) {
+    let (mut p, _) = every_kind(seed);
+    let coupling = kinematics::JointCoupling {
+        joint: "torso_4".into(),
+        terms: vec![("torso_1".into(), -1.0), ("torso_2".into(), -1.0)],
+        offset: 0.01,
+    };
+    let arm = |tool: &str| {
+        kinematics::RobotModel::from_urdf_str(HUMANOID, tool)
+            .and_then(|m| m.with_couplings(std::slice::from_ref(&coupling)))
+            .expect("humanoid")
+    };
+    p.robot1.model = arm("right_tool0");
+    p.robot2.model = arm("left_tool0");
+    p.robot2.shared_joints = 4;
+    p.robot1.g_base = Vector3::new(0.0, 0.0, -9.81);
+    p.robot2.g_base = p.robot1.g_base;
+    p.robot1.tolerance.compliance_rad_per_nm = None;
+    p.robot2.tolerance.compliance_rad_per_nm = None;
+    p.placement_prior = None;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x7a11);
+    let pair = |rng: &mut ChaCha8Rng| {
+        let q1 = random_q(&p.robot1.model, rng);
+        let mut q2 = random_q(&p.robot2.model, rng);
+        q2[..3].copy_from_slice(&q1[..3]);
+        (q1, q2)
+    };
+    let mut obs = Vec::new();
+    let (q1, q2) = pair(&mut rng);
+    obs.push(ObservationKind::Coincident {
+        q1,
+        q2,
+        tool1: 0,
+        tool2: 0,
+        noise: Noise3::Isotropic { sigma_m: 3e-4 },
+    });
+    let (q1, q2) = pair(&mut rng);
+    obs.push(ObservationKind::Contact {
+        q1,
+        q2,
+        tool1: 1,
+        tool2: 0,
+        group: 0,
+        sigma_m: 2e-4,
+    });
+    for (robot, group) in [(Robot::One, 0usize), (Robot::Two, 0), (Robot::Two, 1)] {
+        obs.push(ObservationKind::Tracker {
+            robot,
+            q: random_q(&p.robot(robot).model, &mut rng),
+            tool: 0,
+            group,
+            p_tracker: Point3::new(0.3, -0.2, 1.1),
+            noise: Noise3::Isotropic { sigma_m: 1e-4 },
+        });
+        obs.push(ObservationKind::Plane {
+            robot,
+            q: random_q(&p.robot(robot).model, &mut rng),
+            tool: 0,
+            group,
+            sigma_m: 1e-4,
+        });
+    }
+    p.observations = obs
+        .into_iter()
+        .enumerate()
+        .map(|(row, kind)| Observation { row: row + 1, kind })
+        .collect();
+    let mut est = CellEstimate::nominal(&p, Isometry3::identity());
+    for r in Robot::BOTH {
+        let rb = p.robot(r).clone();
+        for param in rb.fitted_params() {
+            let v = rng.random_range(-1e-3..1e-3);
+            if r == Robot::One {
+                est.robot1.errors.set(param, v);
+            } else if !param.joint().is_some_and(|j| j < 4) {
+                est.robot2.errors.set(param, v);
+            }
+        }
+    }
+    for param in p.robot1.fitted_params() {
+        if param.joint().is_some_and(|j| j < 4) {
+            est.robot2.errors.set(param, est.robot1.errors.get(param));
+        }
+    }
+    (p, est)
+}
+
+/// Shared trunk and coupled joint: robot 2's shared parameters have no columns of their own
+/// (robot 1's columns hold them), the coupled joint torso_4 (chain joint 4) has its own
+/// offset and origin columns, and every analytic Jacobian column (the tied ones add both arms'
+/// derivatives) matches central differences of the residuals with both copies moved.
+#[test]
+fn shared_trunk_and_coupled_joint_jacobians_match_central_differences() {
+    for seed in [4u64, 5] {
+        let (p, est) = shared_trunk(seed);
+        p.check().expect("valid problem");
+        let layout = ParamLayout::new(&p, &[]);
+        let kin = |r: Robot, joint: usize| {
+            layout.params.iter().any(|c| {
+                matches!(c, CellParam::Kinematic { robot, param } if *robot == r && param.joint() == Some(joint))
+            })
+        };
+        assert!(kin(Robot::One, 3), "torso_4 (chain joint 4) has its own parameters");
+        assert!(!kin(Robot::Two, 0) && !kin(Robot::Two, 3), "the trunk is robot 1's columns");
+        assert!(kin(Robot::Two, 4), "robot 2's arm has its own columns");
+        let ev = Evaluator::new(&p, &layout);
+        for o in &p.observations {
+            let lin = ev.linearise(o, &est, true).unwrap();
+            for (j, param) in layout.params.iter().enumerate() {
+                let h = fd_step(param);
+                let mut d = DVector::zeros(layout.len());
+                d[j] = h;
+                let plus = ev.linearise(o, &layout.apply(&est, &d), false).unwrap();
+                let minus = ev.linearise(o, &layout.apply(&est, &(-d)), false).unwrap();
+                let fd = (plus.residual - minus.residual) / 2.0;
+                let an = lin.jacobian.column(j) * h;
+                let diff = (&fd - &an).norm();
+                assert!(
+                    diff <= FD_TOL_M + FD_TOL_REL * an.norm(),
+                    "seed {seed} row {} ({}) column {}: analytic {:?} fd {:?}",
+                    o.row,
+                    o.kind.name(),
+                    param.describe(&p),
+                    an.as_slice(),
+                    fd.as_slice()
+                );
+            }
+        }
+        // A step moves both copies of a shared parameter alike.
+        let moved = layout.apply(&est, &DVector::from_element(layout.len(), 1e-4));
+        for param in p.robot1.fitted_params() {
+            if param.joint().is_some_and(|j| j < 4) {
+                assert_eq!(moved.robot1.errors.get(param), moved.robot2.errors.get(param));
+            }
+        }
+    }
+}
