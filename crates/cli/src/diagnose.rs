@@ -252,7 +252,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let cell = Cell::from_toml_file(&args.cell)?;
     if cell.shared_joints > 0 {
-        bail!(
+        anyhow::bail!(
             "{}: a shared-trunk cell (`robot2.shares`): diagnose does not tie the trunk's \
              parameters across the two arms yet, so it would fit the trunk twice; use \
              `handclasp calibrate --cell` (which fits the trunk once) and `handclasp validate`",

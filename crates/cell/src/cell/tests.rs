@@ -472,3 +472,81 @@ fn placement_without_robot2_and_robot2_without_placement_are_refused() {
     .to_string();
     assert!(e.contains("without `[b1_from_b2]`"), "{e}");
 }
+
+/// The shipped shared-trunk cell with its `[robot2]` table's `shares` line replaced by `shares`
+/// and `extra` appended.
+fn trunk_cell(shares: &str, extra: &str) -> Result<Cell, crate::FormatError> {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells/humanoid-trunk.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("shares ="))
+        .expect("a shares line");
+    Cell::from_toml_str(
+        &format!("{}{extra}", text.replace(line, shares)),
+        path.parent().unwrap(),
+    )
+}
+
+/// `[robot2] shares`: by joint count or branch link; robot 2's trunk errors become robot 1's,
+/// the placement is the identity held tight, and the cell round-trips without `[b1_from_b2]`.
+#[test]
+fn shared_trunk_parses_and_round_trips() {
+    let by_link = trunk_cell("shares = { robot = 1, link = \"chest\" }", "").unwrap();
+    let by_count = trunk_cell("shares = { robot = 1, joints = 4 }", "").unwrap();
+    assert_eq!((by_link.shared_joints, by_count.shared_joints), (4, 4));
+    assert_eq!(by_link.shared_independent_joints(), 3);
+    assert_eq!(by_link.b1_from_b2, Isometry3::identity());
+    assert_eq!(by_link.b1_from_b2_sigma, Some(SHARED_TRUNK_PLACEMENT_SIGMA));
+    let (e1, e2) = (&by_link.robot1.errors, &by_link.robot2.errors);
+    assert_eq!(e1.joint_offset[..4], e2.joint_offset[..4]);
+    assert_eq!(e1.origin_xyz[..4], e2.origin_xyz[..4]);
+    assert_ne!(e1.joint_offset[5], e2.joint_offset[5]);
+    let text = by_link.to_toml_string();
+    assert!(!text.contains("b1_from_b2") && text.contains("joints = 4"), "{text}");
+    let back = Cell::from_toml_str(&text, &by_link.base_dir).unwrap();
+    assert_eq!(back.shared_joints, 4);
+    assert_cells_equal(&by_link, &back);
+}
+
+/// A shared trunk that is not one is refused naming what differs and the fix.
+#[test]
+fn malformed_shared_trunks_are_refused_by_name() {
+    let placement = "[b1_from_b2]\nxyz_mm = [0, 0, 0]\nzyz_deg = [0, 0, 0]\n";
+    let cases: [(&str, &str, &[&str]); 5] = [
+        ("shares = { robot = 1, joints = 4 }", placement, &["[b1_from_b2]", "trunk", "remove"]),
+        ("shares = { robot = 1, link = \"spine\" }", "", &["spine", "chest"]),
+        ("shares = { robot = 1, joints = 11 }", "", &["1 to 10"]),
+        ("shares = { robot = 2, joints = 4 }", "", &["robot = 1"]),
+        ("shares = { robot = 1, joints = 6 }", "", &["shared joint 5", "right_shoulder_pitch", "left_shoulder_pitch"]),
+    ];
+    for (shares, extra, want) in cases {
+        let e = trunk_cell(shares, extra).unwrap_err().to_string();
+        for w in want {
+            assert!(e.contains(w), "{shares}: `{w}` not in: {e}");
+        }
+    }
+    // Coupling a shared joint in only one arm.
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells/humanoid-trunk.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let r2 = text.find("[[robot2.couplings]]").unwrap();
+    let end = text[r2..].find("offset_deg = 0.0\n").unwrap() + r2 + "offset_deg = 0.0\n".len();
+    let e = Cell::from_toml_str(&format!("{}{}", &text[..r2], &text[end..]), path.parent().unwrap())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("torso_4") && e.contains("in robot 1's chain and not in robot 2's"),
+        "{e}"
+    );
+    // Robot 2's own (different) error at a shared joint.
+    let e = Cell::from_toml_str(
+        &text.replace(
+            "joint_offset_deg = [0.0, 0.0, 0.0, 0.0, 0.0, -0.03",
+            "joint_offset_deg = [0.1, 0.0, 0.0, 0.0, 0.0, -0.03",
+        ),
+        path.parent().unwrap(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("torso_1") && e.contains("differs from robot 1's"), "{e}");
+}
