@@ -48,12 +48,28 @@ fn coupled_torso_joint_is_calibrated_to_its_noise_on_new_poses() {
     let (m1, m2) = (&truth.robot1.model, &truth.robot2.model);
     assert_eq!((m1.dof(), m1.chain_joints().len()), (10, 11));
     assert_eq!((m2.dof(), m2.chain_joints().len()), (10, 11));
-    assert!(truth.robot1.errors.joint_offset[3] != 0.0, "torso_4 has its own offset");
-    let train = write_session_csv(dir.path(), "train.csv", &tracker_session(&truth, 80, 31), &truth);
-    let held = write_session_csv(dir.path(), "held.csv", &tracker_session(&truth, 40, 32), &truth);
+    assert!(
+        truth.robot1.errors.joint_offset[3] != 0.0,
+        "torso_4 has its own offset"
+    );
+    let train = write_session_csv(
+        dir.path(),
+        "train.csv",
+        &tracker_session(&truth, 80, 31),
+        &truth,
+    );
+    let held = write_session_csv(
+        dir.path(),
+        "held.csv",
+        &tracker_session(&truth, 40, 32),
+        &truth,
+    );
     let header = std::fs::read_to_string(&train).unwrap();
     let header = header.lines().next().unwrap();
-    assert!(header.contains("r1_q10_deg") && !header.contains("r1_q11"), "{header}");
+    assert!(
+        header.contains("r1_q10_deg") && !header.contains("r1_q11"),
+        "{header}"
+    );
 
     let cal = dir.path().join("cal");
     let report = stdout_json(&handclasp(&[
@@ -103,9 +119,18 @@ fn coupled_torso_joint_is_calibrated_to_its_noise_on_new_poses() {
     );
 
     let cell = arg(&cal.join("cell.toml"));
-    let fk = |q: &str| ["fk", "--cell", &cell, "--robot", "2", "--q-deg", q, "--json"].map(String::from);
+    let fk = |q: &str| {
+        [
+            "fk", "--cell", &cell, "--robot", "2", "--q-deg", q, "--json",
+        ]
+        .map(String::from)
+    };
     let ok = handclasp(&fk("10,5,20,-30,10,0,-60,0,20,0"));
-    assert!(ok.status.success(), "{}", String::from_utf8_lossy(&ok.stderr));
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
     let e = stderr_of_failure(&fk("10,5,20,0,-30,10,0,-60,0,20,0"));
     assert!(e.contains("torso_4"), "{e}");
 }
@@ -137,9 +162,22 @@ fn names_robot2_trunk_parameter(text: &str) -> bool {
 fn shared_trunk_is_fitted_once_and_calibrated_to_its_noise() {
     let dir = tempfile::tempdir().unwrap();
     let truth = Cell::from_toml_file(&humanoid_trunk()).expect("humanoid-trunk cell");
-    assert_eq!((truth.shared_joints, truth.shared_independent_joints()), (4, 3));
-    let train = write_session_csv(dir.path(), "train.csv", &tracker_session(&truth, 80, 41), &truth);
-    let held = write_session_csv(dir.path(), "held.csv", &tracker_session(&truth, 40, 42), &truth);
+    assert_eq!(
+        (truth.shared_joints, truth.shared_independent_joints()),
+        (4, 3)
+    );
+    let train = write_session_csv(
+        dir.path(),
+        "train.csv",
+        &tracker_session(&truth, 80, 41),
+        &truth,
+    );
+    let held = write_session_csv(
+        dir.path(),
+        "held.csv",
+        &tracker_session(&truth, 40, 42),
+        &truth,
+    );
     let cal = dir.path().join("cal");
     let out = handclasp(&[
         "calibrate",
@@ -151,7 +189,11 @@ fn shared_trunk_is_fitted_once_and_calibrated_to_its_noise() {
         &arg(&cal),
     ]);
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(text.contains("robot 1 origin_xyz joint 4"), "{text}");
     assert!(!names_robot2_trunk_parameter(&text), "{text}");
     let back = Cell::from_toml_file(&cal.join("cell.toml")).expect("the export loads");
@@ -176,15 +218,24 @@ fn shared_trunk_is_fitted_once_and_calibrated_to_its_noise() {
         calibrated < 2.0 * noise_3d_mm,
         "calibrated held-out rms {calibrated:.3} mm vs noise {noise_3d_mm:.3} mm"
     );
-    assert!(nominal_rms > 2.0 * calibrated, "nominal {nominal_rms:.3} mm");
+    assert!(
+        nominal_rms > 2.0 * calibrated,
+        "nominal {nominal_rms:.3} mm"
+    );
 
     // Not supported yet, refused by name: diagnose, plan, two-robot rows in the simulator.
     let cell = arg(&humanoid_trunk());
     let e = stderr_of_failure(&["diagnose", "--cell", &cell, "--session", &arg(&train)]);
-    assert!(e.contains("shared-trunk") && e.contains("calibrate --cell"), "{e}");
+    assert!(
+        e.contains("shared-trunk") && e.contains("calibrate --cell"),
+        "{e}"
+    );
     let plan = arg(&dir.path().join("plan.csv"));
     let e = stderr_of_failure(&["plan", "--cell", &cell, "--n", "6", "--out", &plan]);
-    assert!(e.contains("shared-trunk") && e.contains("not supported yet"), "{e}");
+    assert!(
+        e.contains("shared-trunk") && e.contains("not supported yet"),
+        "{e}"
+    );
     // A two-robot row whose trunk columns disagree.
     let csv = std::fs::read_to_string(&train).unwrap();
     let header = csv.lines().next().unwrap();

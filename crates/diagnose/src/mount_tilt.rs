@@ -384,9 +384,9 @@ mod tests {
         let q1: Vec<Vec<f64>> = session.points.iter().map(|p| p.q1.clone()).collect();
         let q2: Vec<Vec<f64>> = session.points.iter().map(|p| p.q2.clone()).collect();
         let cands = catalogue(
-        cell.robot1.model.chain_joints().len(),
-        cell.robot2.model.chain_joints().len(),
-    );
+            cell.robot1.model.chain_joints().len(),
+            cell.robot2.model.chain_joints().len(),
+        );
         let model = SessionModel::new(cell, &q1, &q2, &cands);
         let fit = identify::fit(&model, &[], None, None, &LmOptions::identify()).expect("fit");
         mount_tilt_test(&fit, cell, 1e-3f64.to_radians())

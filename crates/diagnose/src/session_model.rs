@@ -334,9 +334,9 @@ mod tests {
         let q1: Vec<Vec<f64>> = session.points.iter().map(|p| p.q1.clone()).collect();
         let q2: Vec<Vec<f64>> = session.points.iter().map(|p| p.q2.clone()).collect();
         let cands = catalogue(
-        cell.robot1.model.chain_joints().len(),
-        cell.robot2.model.chain_joints().len(),
-    );
+            cell.robot1.model.chain_joints().len(),
+            cell.robot2.model.chain_joints().len(),
+        );
         let model = SessionModel::new(&cell, &q1, &q2, &cands);
         let r1 = (0..cands.len()).find(|&c| cands[c].robot() == Robot::One);
         let r2 = (0..cands.len())
@@ -409,9 +409,9 @@ mod tests {
         let q1: Vec<Vec<f64>> = session.points.iter().map(|p| p.q1.clone()).collect();
         let q2: Vec<Vec<f64>> = session.points.iter().map(|p| p.q2.clone()).collect();
         let cands = catalogue(
-        cell.robot1.model.chain_joints().len(),
-        cell.robot2.model.chain_joints().len(),
-    );
+            cell.robot1.model.chain_joints().len(),
+            cell.robot2.model.chain_joints().len(),
+        );
         let reversed: Vec<Candidate> = cands.iter().rev().cloned().collect();
         let a = SessionModel::new(&cell, &q1, &q2, &cands);
         let b = SessionModel::new(&cell, &q1, &q2, &reversed);
@@ -444,9 +444,9 @@ mod tests {
         let q1: Vec<Vec<f64>> = session.points.iter().map(|p| p.q1.clone()).collect();
         let q2: Vec<Vec<f64>> = session.points.iter().map(|p| p.q2.clone()).collect();
         let cands = catalogue(
-        cell.robot1.model.chain_joints().len(),
-        cell.robot2.model.chain_joints().len(),
-    );
+            cell.robot1.model.chain_joints().len(),
+            cell.robot2.model.chain_joints().len(),
+        );
         let model = SessionModel::new(&cell, &q1, &q2, &cands);
         for _repeat in 0..2 {
             let err = model.eval(2, &[0], &[f64::NAN], &[]).unwrap_err();

@@ -274,9 +274,9 @@ fn pick(cell: &Cell, robot: Robot, kind: EffectKind, joint: usize) -> Candidate 
         cell.robot1.model.chain_joints().len(),
         cell.robot2.model.chain_joints().len(),
     )
-        .iter()
-        .find(|c| c.robot() == robot && c.kind() == kind && c.joint() == Some(joint))
-        .expect("in catalogue")
+    .iter()
+    .find(|c| c.robot() == robot && c.kind() == kind && c.joint() == Some(joint))
+    .expect("in catalogue")
 }
 
 #[test]
@@ -378,9 +378,9 @@ fn a_hidden_mount_tilt_is_named_with_robot_axis_and_interval() {
             kinematics::Axis::Y
         };
         let cands = diagnose::catalogue(
-        cell.robot1.model.chain_joints().len(),
-        cell.robot2.model.chain_joints().len(),
-    );
+            cell.robot1.model.chain_joints().len(),
+            cell.robot2.model.chain_joints().len(),
+        );
         let tilt = *cands
             .iter()
             .find(|c| {
@@ -442,17 +442,17 @@ fn export_reproduces_the_extended_model() {
         ),
         (
             *diagnose::catalogue(
-        cell.robot1.model.chain_joints().len(),
-        cell.robot2.model.chain_joints().len(),
-    )
-                .iter()
-                .find(|c| {
-                    c.robot() == Robot::One
-                        && c.kind() == EffectKind::LinkLength
-                        && c.joint() == Some(3)
-                        && c.axis() == Some(kinematics::Axis::X)
-                })
-                .expect("in catalogue"),
+                cell.robot1.model.chain_joints().len(),
+                cell.robot2.model.chain_joints().len(),
+            )
+            .iter()
+            .find(|c| {
+                c.robot() == Robot::One
+                    && c.kind() == EffectKind::LinkLength
+                    && c.joint() == Some(3)
+                    && c.axis() == Some(kinematics::Axis::X)
+            })
+            .expect("in catalogue"),
             2e-3,
         ),
     ];
@@ -582,9 +582,9 @@ fn random_pairs_study() {
     for seed in 0..100u64 {
         let cell = cell_for(seed);
         let cands = diagnose::catalogue(
-        cell.robot1.model.chain_joints().len(),
-        cell.robot2.model.chain_joints().len(),
-    );
+            cell.robot1.model.chain_joints().len(),
+            cell.robot2.model.chain_joints().len(),
+        );
         let pool: Vec<&Candidate> = cands
             .iter()
             .filter(|c| c.kind() != EffectKind::MountTilt)

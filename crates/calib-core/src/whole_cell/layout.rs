@@ -355,9 +355,8 @@ impl ParamLayout {
             // Robot 2's shared joints (a shared trunk) have robot 1's parameters: robot 1's
             // columns, no columns of their own, so the Jacobians add into them and a step moves
             // both robots' copies alike.
-            let shared = |p: &ErrorParam| {
-                r == Robot::Two && p.joint().is_some_and(|j| j < rb.shared_joints)
-            };
+            let shared =
+                |p: &ErrorParam| r == Robot::Two && p.joint().is_some_and(|j| j < rb.shared_joints);
             if let Some(robot1) = robots.first() {
                 let robot1: &RobotLayout = robot1;
                 kin.extend(robot1.kin.iter().filter(|(p, _)| shared(p)).copied());

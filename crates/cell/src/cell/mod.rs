@@ -761,7 +761,7 @@ impl Cell {
             robot1: robot(&self.robot1),
             robot2: two.then(|| {
                 let mut r2 = robot(&self.robot2);
-                r2.shares = (self.shared_joints > 0).then(|| SharesFile {
+                r2.shares = (self.shared_joints > 0).then_some(SharesFile {
                     robot: 1,
                     joints: Some(self.shared_joints),
                     link: None,
@@ -936,7 +936,12 @@ fn apply_couplings(
             terms: c
                 .terms
                 .iter()
-                .map(|t| (t.joint.clone(), t.c * unit_k / joint_file_unit(&model, &t.joint)))
+                .map(|t| {
+                    (
+                        t.joint.clone(),
+                        t.c * unit_k / joint_file_unit(&model, &t.joint),
+                    )
+                })
                 .collect(),
             offset,
         });
@@ -1034,38 +1039,39 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
         ));
     }
     let mut robot1 = robot("robot1", &file.robot1)?;
-    let (placement, mut robot2, one_robot) =
-        match (&file.robot2, &file.b1_from_b2) {
-            (Some(r2), _) if r2.shares.is_some() => {
-                if file.b1_from_b2.is_some() {
-                    return Err(ctx.err(
+    let (placement, mut robot2, one_robot) = match (&file.robot2, &file.b1_from_b2) {
+        (Some(r2), _) if r2.shares.is_some() => {
+            if file.b1_from_b2.is_some() {
+                return Err(ctx.err(
                         "`[b1_from_b2]` in a shared-trunk cell (`robot2.shares`): the placement between \
                          the arms is the trunk, not a free b1_from_b2; remove [b1_from_b2] (both \
                          arms' URDF chains start at the common base)",
                     ));
-                }
-                (&ONE_ROBOT_PLACEMENT, robot("robot2", r2)?, false)
             }
-            (Some(r2), Some(placement)) => (placement, robot("robot2", r2)?, false),
-            (None, None) => {
-                // A one-robot cell: robot 2 is a stand-in nothing observes, held at nominal.
-                let mut stand_in = robot1.clone();
-                stand_in.tools.clear();
-                stand_in.errors = KinematicErrors::zero_for(&stand_in.model);
-                stand_in.tolerance = Tolerance::none();
-                (&ONE_ROBOT_PLACEMENT, stand_in, true)
-            }
-            (None, Some(_)) => {
-                return Err(ctx.err(
-                    "`[b1_from_b2]` without `[robot2]`: a one-robot cell has no placement; remove \
+            (&ONE_ROBOT_PLACEMENT, robot("robot2", r2)?, false)
+        }
+        (Some(r2), Some(placement)) => (placement, robot("robot2", r2)?, false),
+        (None, None) => {
+            // A one-robot cell: robot 2 is a stand-in nothing observes, held at nominal.
+            let mut stand_in = robot1.clone();
+            stand_in.tools.clear();
+            stand_in.errors = KinematicErrors::zero_for(&stand_in.model);
+            stand_in.tolerance = Tolerance::none();
+            (&ONE_ROBOT_PLACEMENT, stand_in, true)
+        }
+        (None, Some(_)) => {
+            return Err(ctx.err(
+                "`[b1_from_b2]` without `[robot2]`: a one-robot cell has no placement; remove \
                  [b1_from_b2], or add [robot2] (urdf, mount, tip_mm) for a two-robot cell",
-                ))
-            }
-            (Some(_), None) => return Err(ctx.err(
+            ))
+        }
+        (Some(_), None) => {
+            return Err(ctx.err(
                 "`[robot2]` without `[b1_from_b2]`: a two-robot cell needs robot 2's placement \
                  (xyz_mm, zyz_deg); add [b1_from_b2], or remove [robot2] for a one-robot cell",
-            )),
-        };
+            ))
+        }
+    };
     let shared_joints = match file.robot2.as_ref().and_then(|r| r.shares.as_ref()) {
         Some(shares) => shared_trunk(&ctx, shares, &robot1, &mut robot2)?,
         None => 0,
@@ -1294,6 +1300,7 @@ fn shared_trunk(
         )));
     }
     let (e1, e2) = (&robot1.errors, &mut robot2.errors);
+    #[allow(clippy::needless_range_loop)] // j indexes both robots' errors and robot 1's chain
     for j in 0..k {
         if e1.compliance[j] != 0.0 || e2.compliance[j] != 0.0 {
             return Err(ctx.err(format!(

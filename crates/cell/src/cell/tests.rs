@@ -383,7 +383,9 @@ fn declared_coupling_parses_and_round_trips() {
     .unwrap();
     let m = &cell.robot1.model;
     assert_eq!((m.dof(), m.chain_joints().len()), (10, 11));
-    let chain = m.chain_values(&[0.1, 0.2, 0.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]).unwrap();
+    let chain = m
+        .chain_values(&[0.1, 0.2, 0.3, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+        .unwrap();
     assert!((chain[3] - (-0.3 + 0.5f64.to_radians())).abs() < 1e-15);
     assert!((cell.robot1.errors.joint_offset[3] - 0.08f64.to_radians()).abs() < 1e-15);
     let text = cell.to_toml_string();
@@ -392,10 +394,15 @@ fn declared_coupling_parses_and_round_trips() {
     assert_eq!(back.robot1.model.couplings(), m.couplings());
     assert_cells_equal(&cell, &back);
     // Errors sized for the independent joints only are refused, saying coupled joints count.
-    let e = humanoid_cell(&format!("{TORSO_4}[robot1.errors]\njoint_scale = [0, 0, 0, 0, 0, 0, 0, 0, 0, 0]\n"))
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("11 joints") && e.contains("coupled joints included"), "{e}");
+    let e = humanoid_cell(&format!(
+        "{TORSO_4}[robot1.errors]\njoint_scale = [0, 0, 0, 0, 0, 0, 0, 0, 0, 0]\n"
+    ))
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("11 joints") && e.contains("coupled joints included"),
+        "{e}"
+    );
 }
 
 /// Malformed couplings are refused naming the entry, the joint and the fix: an unknown joint, a
@@ -406,14 +413,22 @@ fn malformed_couplings_are_refused_by_name() {
         format!("[[robot1.couplings]]\njoint = \"{joint}\"\nterms = [{terms}]\n")
     };
     let cases = [
-        (c("torso_4", "{ joint = \"torso_9\", c = 1.0 }"), vec!["torso_9", "not a moving joint"]),
-        (c("torso_9", "{ joint = \"torso_1\", c = 1.0 }"), vec!["torso_9", "not a moving joint"]),
         (
-            c("torso_4", "{ joint = \"torso_2\", c = 1.0 }") + &c("torso_2", "{ joint = \"torso_4\", c = 1.0 }"),
+            c("torso_4", "{ joint = \"torso_9\", c = 1.0 }"),
+            vec!["torso_9", "not a moving joint"],
+        ),
+        (
+            c("torso_9", "{ joint = \"torso_1\", c = 1.0 }"),
+            vec!["torso_9", "not a moving joint"],
+        ),
+        (
+            c("torso_4", "{ joint = \"torso_2\", c = 1.0 }")
+                + &c("torso_2", "{ joint = \"torso_4\", c = 1.0 }"),
             vec!["loop", "torso_2", "torso_4"],
         ),
         (
-            c("torso_4", "{ joint = \"torso_2\", c = 1.0 }") + &c("torso_4", "{ joint = \"torso_1\", c = 1.0 }"),
+            c("torso_4", "{ joint = \"torso_2\", c = 1.0 }")
+                + &c("torso_4", "{ joint = \"torso_1\", c = 1.0 }"),
             vec!["coupled twice"],
         ),
         (c("torso_4", ""), vec!["entry 1", "no terms"]),
@@ -421,7 +436,10 @@ fn malformed_couplings_are_refused_by_name() {
             c("torso_4", "{ joint = \"torso_2\", c = 1.0 }") + "offset_mm = 1.0\n",
             vec!["rotary", "offset_deg"],
         ),
-        (c("torso_4", "{ joint = \"torso_2\", k = 1.0 }"), vec!["unknown field", "k"]),
+        (
+            c("torso_4", "{ joint = \"torso_2\", k = 1.0 }"),
+            vec!["unknown field", "k"],
+        ),
     ];
     for (extra, want) in cases {
         let e = humanoid_cell(&extra).unwrap_err().to_string();
@@ -503,7 +521,10 @@ fn shared_trunk_parses_and_round_trips() {
     assert_eq!(e1.origin_xyz[..4], e2.origin_xyz[..4]);
     assert_ne!(e1.joint_offset[5], e2.joint_offset[5]);
     let text = by_link.to_toml_string();
-    assert!(!text.contains("b1_from_b2") && text.contains("joints = 4"), "{text}");
+    assert!(
+        !text.contains("b1_from_b2") && text.contains("joints = 4"),
+        "{text}"
+    );
     let back = Cell::from_toml_str(&text, &by_link.base_dir).unwrap();
     assert_eq!(back.shared_joints, 4);
     assert_cells_equal(&by_link, &back);
@@ -514,11 +535,27 @@ fn shared_trunk_parses_and_round_trips() {
 fn malformed_shared_trunks_are_refused_by_name() {
     let placement = "[b1_from_b2]\nxyz_mm = [0, 0, 0]\nzyz_deg = [0, 0, 0]\n";
     let cases: [(&str, &str, &[&str]); 5] = [
-        ("shares = { robot = 1, joints = 4 }", placement, &["[b1_from_b2]", "trunk", "remove"]),
-        ("shares = { robot = 1, link = \"spine\" }", "", &["spine", "chest"]),
+        (
+            "shares = { robot = 1, joints = 4 }",
+            placement,
+            &["[b1_from_b2]", "trunk", "remove"],
+        ),
+        (
+            "shares = { robot = 1, link = \"spine\" }",
+            "",
+            &["spine", "chest"],
+        ),
         ("shares = { robot = 1, joints = 11 }", "", &["1 to 10"]),
         ("shares = { robot = 2, joints = 4 }", "", &["robot = 1"]),
-        ("shares = { robot = 1, joints = 6 }", "", &["shared joint 5", "right_shoulder_pitch", "left_shoulder_pitch"]),
+        (
+            "shares = { robot = 1, joints = 6 }",
+            "",
+            &[
+                "shared joint 5",
+                "right_shoulder_pitch",
+                "left_shoulder_pitch",
+            ],
+        ),
     ];
     for (shares, extra, want) in cases {
         let e = trunk_cell(shares, extra).unwrap_err().to_string();
@@ -531,9 +568,12 @@ fn malformed_shared_trunks_are_refused_by_name() {
     let text = std::fs::read_to_string(&path).unwrap();
     let r2 = text.find("[[robot2.couplings]]").unwrap();
     let end = text[r2..].find("offset_deg = 0.0\n").unwrap() + r2 + "offset_deg = 0.0\n".len();
-    let e = Cell::from_toml_str(&format!("{}{}", &text[..r2], &text[end..]), path.parent().unwrap())
-        .unwrap_err()
-        .to_string();
+    let e = Cell::from_toml_str(
+        &format!("{}{}", &text[..r2], &text[end..]),
+        path.parent().unwrap(),
+    )
+    .unwrap_err()
+    .to_string();
     assert!(
         e.contains("torso_4") && e.contains("in robot 1's chain and not in robot 2's"),
         "{e}"
@@ -548,5 +588,8 @@ fn malformed_shared_trunks_are_refused_by_name() {
     )
     .unwrap_err()
     .to_string();
-    assert!(e.contains("torso_1") && e.contains("differs from robot 1's"), "{e}");
+    assert!(
+        e.contains("torso_1") && e.contains("differs from robot 1's"),
+        "{e}"
+    );
 }

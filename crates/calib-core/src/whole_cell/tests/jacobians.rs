@@ -213,7 +213,7 @@ fn shared_trunk(seed: u64) -> (CellProblem, CellEstimate) {
             let v = rng.random_range(-1e-3..1e-3);
             if r == Robot::One {
                 est.robot1.errors.set(param, v);
-            } else if !param.joint().is_some_and(|j| j < 4) {
+            } else if param.joint().is_none_or(|j| j >= 4) {
                 est.robot2.errors.set(param, v);
             }
         }
@@ -241,8 +241,14 @@ fn shared_trunk_and_coupled_joint_jacobians_match_central_differences() {
                 matches!(c, CellParam::Kinematic { robot, param } if *robot == r && param.joint() == Some(joint))
             })
         };
-        assert!(kin(Robot::One, 3), "torso_4 (chain joint 4) has its own parameters");
-        assert!(!kin(Robot::Two, 0) && !kin(Robot::Two, 3), "the trunk is robot 1's columns");
+        assert!(
+            kin(Robot::One, 3),
+            "torso_4 (chain joint 4) has its own parameters"
+        );
+        assert!(
+            !kin(Robot::Two, 0) && !kin(Robot::Two, 3),
+            "the trunk is robot 1's columns"
+        );
         assert!(kin(Robot::Two, 4), "robot 2's arm has its own columns");
         let ev = Evaluator::new(&p, &layout);
         for o in &p.observations {
@@ -271,7 +277,10 @@ fn shared_trunk_and_coupled_joint_jacobians_match_central_differences() {
         let moved = layout.apply(&est, &DVector::from_element(layout.len(), 1e-4));
         for param in p.robot1.fitted_params() {
             if param.joint().is_some_and(|j| j < 4) {
-                assert_eq!(moved.robot1.errors.get(param), moved.robot2.errors.get(param));
+                assert_eq!(
+                    moved.robot1.errors.get(param),
+                    moved.robot2.errors.get(param)
+                );
             }
         }
     }
