@@ -35,6 +35,37 @@ fn arg(p: &Path) -> String {
     p.display().to_string()
 }
 
+/// `handclasp validate` of the calibrated cell in `cal` on the `held` session against `nominal`:
+/// the held-out rms is within twice the camera's 3-D noise (σ·√3; the score adds the tracker
+/// frame refitted on half the rows and the fit's error at new poses), and the nominal cell's is
+/// more than twice the calibrated one's. Prints both.
+fn assert_held_out_near_noise(cal: &Path, held: &Path, nominal: &Path, what: &str) {
+    let v = stdout_json(&handclasp(&[
+        "validate",
+        "--cell",
+        &arg(&cal.join("cell.toml")),
+        "--session",
+        &arg(held),
+        "--nominal",
+        &arg(nominal),
+        "--json",
+    ]));
+    let calibrated = v["all"]["calibrated"]["rms_mm"].as_f64().unwrap();
+    let nominal_rms = v["all"]["nominal"]["rms_mm"].as_f64().unwrap();
+    let noise_3d_mm = TRACKER_SIGMA_M * 3f64.sqrt() * 1e3;
+    eprintln!(
+        "humanoid ({what}), held-out rows: calibrated rms {calibrated:.3} mm, nominal {nominal_rms:.3} mm (noise {noise_3d_mm:.3} mm)"
+    );
+    assert!(
+        calibrated < 2.0 * noise_3d_mm,
+        "{what}: calibrated held-out rms {calibrated:.3} mm vs noise {noise_3d_mm:.3} mm"
+    );
+    assert!(
+        nominal_rms > 2.0 * calibrated,
+        "{what}: nominal {nominal_rms:.3} mm vs calibrated {calibrated:.3} mm"
+    );
+}
+
 /// Recovery with a coupled joint: 80 tracker rows of the humanoid's hands (its errors, torso_4's
 /// own offset and origin included, are the cell's `[robotN.errors]`), calibrated with
 /// `calibrate --cell`, exported (the corrected URDFs and a cell that keeps the couplings), then
@@ -91,32 +122,7 @@ fn coupled_torso_joint_is_calibrated_to_its_noise_on_new_poses() {
     let back = Cell::from_toml_file(&cal.join("cell.toml")).expect("the export loads");
     assert_eq!(back.robot1.model.couplings(), m1.couplings());
 
-    let v = stdout_json(&handclasp(&[
-        "validate",
-        "--cell",
-        &arg(&cal.join("cell.toml")),
-        "--session",
-        &arg(&held),
-        "--nominal",
-        &arg(&humanoid()),
-        "--json",
-    ]));
-    let calibrated = v["all"]["calibrated"]["rms_mm"].as_f64().unwrap();
-    let nominal_rms = v["all"]["nominal"]["rms_mm"].as_f64().unwrap();
-    // The camera's own 3-D rms is σ·√3; the held-out score adds the tracker frame refitted on
-    // half the rows and the fit's error at new poses: within twice the noise is a recovery.
-    let noise_3d_mm = TRACKER_SIGMA_M * 3f64.sqrt() * 1e3;
-    eprintln!(
-        "humanoid (coupled torso_4), 40 held-out rows: calibrated rms {calibrated:.3} mm, nominal {nominal_rms:.3} mm (noise {noise_3d_mm:.3} mm)"
-    );
-    assert!(
-        calibrated < 2.0 * noise_3d_mm,
-        "calibrated held-out rms {calibrated:.3} mm vs noise {noise_3d_mm:.3} mm"
-    );
-    assert!(
-        nominal_rms > 2.0 * calibrated,
-        "nominal {nominal_rms:.3} mm vs calibrated {calibrated:.3} mm"
-    );
+    assert_held_out_near_noise(&cal, &held, &humanoid(), "coupled torso_4");
 
     let cell = arg(&cal.join("cell.toml"));
     let fk = |q: &str| {
@@ -198,30 +204,7 @@ fn shared_trunk_is_fitted_once_and_calibrated_to_its_noise() {
     assert!(!names_robot2_trunk_parameter(&text), "{text}");
     let back = Cell::from_toml_file(&cal.join("cell.toml")).expect("the export loads");
     assert_eq!(back.shared_joints, 4);
-    let v = stdout_json(&handclasp(&[
-        "validate",
-        "--cell",
-        &arg(&cal.join("cell.toml")),
-        "--session",
-        &arg(&held),
-        "--nominal",
-        &arg(&humanoid_trunk()),
-        "--json",
-    ]));
-    let calibrated = v["all"]["calibrated"]["rms_mm"].as_f64().unwrap();
-    let nominal_rms = v["all"]["nominal"]["rms_mm"].as_f64().unwrap();
-    let noise_3d_mm = TRACKER_SIGMA_M * 3f64.sqrt() * 1e3;
-    eprintln!(
-        "humanoid (shared trunk), 40 held-out rows: calibrated rms {calibrated:.3} mm, nominal {nominal_rms:.3} mm (noise {noise_3d_mm:.3} mm)"
-    );
-    assert!(
-        calibrated < 2.0 * noise_3d_mm,
-        "calibrated held-out rms {calibrated:.3} mm vs noise {noise_3d_mm:.3} mm"
-    );
-    assert!(
-        nominal_rms > 2.0 * calibrated,
-        "nominal {nominal_rms:.3} mm"
-    );
+    assert_held_out_near_noise(&cal, &held, &humanoid_trunk(), "shared trunk");
 
     // Not supported yet, refused by name: diagnose, plan, two-robot rows in the simulator.
     let cell = arg(&humanoid_trunk());
@@ -234,6 +217,18 @@ fn shared_trunk_is_fitted_once_and_calibrated_to_its_noise() {
     let e = stderr_of_failure(&["plan", "--cell", &cell, "--n", "6", "--out", &plan]);
     assert!(
         e.contains("shared-trunk") && e.contains("not supported yet"),
+        "{e}"
+    );
+    let kinds = KindSpec {
+        kind: SimKind::Coincident,
+        ..KindSpec::default()
+    };
+    let spec = SessionSpec::new(6, Layout::Random, 0.4);
+    let e = generate_kind_session(&truth, &spec, &kinds, None, &mut trial_rng(1, 0))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("shared-trunk") && e.contains("--kind tracker"),
         "{e}"
     );
     // A two-robot row whose trunk columns disagree.

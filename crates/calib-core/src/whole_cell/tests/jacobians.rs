@@ -23,6 +23,40 @@ const FD_TOL_M: f64 = 1e-12;
 
 const FD_TOL_REL: f64 = 1e-6;
 
+/// Every observation's analytic Jacobian column of `layout` against central differences of its
+/// residual at `est` (within [`FD_TOL_M`] + [`FD_TOL_REL`] relative), naming the seed, row and
+/// column of a mismatch.
+fn assert_rows_match_central_differences(
+    p: &CellProblem,
+    layout: &ParamLayout,
+    ev: &Evaluator,
+    est: &CellEstimate,
+    seed: u64,
+) {
+    for o in &p.observations {
+        let lin = ev.linearise(o, est, true).unwrap();
+        for (j, param) in layout.params.iter().enumerate() {
+            let h = fd_step(param);
+            let mut d = DVector::zeros(layout.len());
+            d[j] = h;
+            let plus = ev.linearise(o, &layout.apply(est, &d), false).unwrap();
+            let minus = ev.linearise(o, &layout.apply(est, &(-d)), false).unwrap();
+            let fd = (plus.residual - minus.residual) / 2.0;
+            let an = lin.jacobian.column(j) * h;
+            let diff = (&fd - &an).norm();
+            assert!(
+                diff <= FD_TOL_M + FD_TOL_REL * an.norm(),
+                "seed {seed} row {} ({}) column {}: analytic {:?} fd {:?}",
+                o.row,
+                o.kind.name(),
+                param.describe(p),
+                an.as_slice(),
+                fd.as_slice()
+            );
+        }
+    }
+}
+
 #[test]
 fn every_jacobian_matches_central_differences() {
     for seed in [1u64, 2, 3] {
@@ -30,28 +64,7 @@ fn every_jacobian_matches_central_differences() {
         p.check().expect("valid problem");
         let layout = ParamLayout::new(&p, &[]);
         let ev = Evaluator::new(&p, &layout);
-        for o in &p.observations {
-            let lin = ev.linearise(o, &est, true).unwrap();
-            for (j, param) in layout.params.iter().enumerate() {
-                let h = fd_step(param);
-                let mut d = DVector::zeros(layout.len());
-                d[j] = h;
-                let plus = ev.linearise(o, &layout.apply(&est, &d), false).unwrap();
-                let minus = ev.linearise(o, &layout.apply(&est, &(-d)), false).unwrap();
-                let fd = (plus.residual - minus.residual) / 2.0;
-                let an = lin.jacobian.column(j) * h;
-                let diff = (&fd - &an).norm();
-                assert!(
-                    diff <= FD_TOL_M + FD_TOL_REL * an.norm(),
-                    "seed {seed} row {} ({}) column {}: analytic {:?} fd {:?}",
-                    o.row,
-                    o.kind.name(),
-                    param.describe(&p),
-                    an.as_slice(),
-                    fd.as_slice()
-                );
-            }
-        }
+        assert_rows_match_central_differences(&p, &layout, &ev, &est, seed);
         // The cooperative vector's Jacobian as well.
         let pair = ConfigPair {
             q1: random_q(&p.robot1.model, &mut ChaCha8Rng::seed_from_u64(seed)),
@@ -251,28 +264,7 @@ fn shared_trunk_and_coupled_joint_jacobians_match_central_differences() {
         );
         assert!(kin(Robot::Two, 4), "robot 2's arm has its own columns");
         let ev = Evaluator::new(&p, &layout);
-        for o in &p.observations {
-            let lin = ev.linearise(o, &est, true).unwrap();
-            for (j, param) in layout.params.iter().enumerate() {
-                let h = fd_step(param);
-                let mut d = DVector::zeros(layout.len());
-                d[j] = h;
-                let plus = ev.linearise(o, &layout.apply(&est, &d), false).unwrap();
-                let minus = ev.linearise(o, &layout.apply(&est, &(-d)), false).unwrap();
-                let fd = (plus.residual - minus.residual) / 2.0;
-                let an = lin.jacobian.column(j) * h;
-                let diff = (&fd - &an).norm();
-                assert!(
-                    diff <= FD_TOL_M + FD_TOL_REL * an.norm(),
-                    "seed {seed} row {} ({}) column {}: analytic {:?} fd {:?}",
-                    o.row,
-                    o.kind.name(),
-                    param.describe(&p),
-                    an.as_slice(),
-                    fd.as_slice()
-                );
-            }
-        }
+        assert_rows_match_central_differences(&p, &layout, &ev, &est, seed);
         // A step moves both copies of a shared parameter alike.
         let moved = layout.apply(&est, &DVector::from_element(layout.len(), 1e-4));
         for param in p.robot1.fitted_params() {
