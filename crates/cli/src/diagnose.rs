@@ -209,10 +209,7 @@ fn run_whole_cell(
     if let Some(dir) = &args.export {
         let files = crate::export_dir::locked(dir, args.overwrite, "--export", || {
             Ok(diagnose::export_cell_diagnosis_with(
-                cell,
-                &report,
-                dir,
-                args.force,
+                cell, &report, dir, args.force,
             )?)
         })
         .context("--export")?;

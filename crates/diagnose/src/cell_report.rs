@@ -691,7 +691,10 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
             if do_no_harm.exported_families.is_empty() {
                 "the placement only".to_string()
             } else {
-                format!("the placement and {}", do_no_harm.exported_families.join(", "))
+                format!(
+                    "the placement and {}",
+                    do_no_harm.exported_families.join(", ")
+                )
             }
         ));
     }

@@ -204,10 +204,18 @@ pub(crate) fn write_text(s: &mut String, folds: &FoldsReport, harm: &DoNoHarmRep
             let _ = write!(line, " ({} rows kept in training)", f.kept_in_training);
         }
         if !f.robot1_mean_q_deg.is_empty() {
-            let _ = write!(line, "; robot 1 mean q [{}] deg", mean(&f.robot1_mean_q_deg));
+            let _ = write!(
+                line,
+                "; robot 1 mean q [{}] deg",
+                mean(&f.robot1_mean_q_deg)
+            );
         }
         if !f.robot2_mean_q_deg.is_empty() {
-            let _ = write!(line, "; robot 2 mean q [{}] deg", mean(&f.robot2_mean_q_deg));
+            let _ = write!(
+                line,
+                "; robot 2 mean q [{}] deg",
+                mean(&f.robot2_mean_q_deg)
+            );
         }
         let _ = writeln!(s, "{line}");
     }

@@ -45,8 +45,8 @@ pub use cell_diagnosis::{
 pub use cell_report::{render_cell_text, CellDiagnoseReport, RejectedFamilyReport};
 pub use engine::{diagnose_session, diagnose_session_with_progress, DiagnoseOptions};
 pub use export::{
-    export_cell_diagnosis, export_cell_diagnosis_with, export_corrected, CELL_DIAGNOSIS_EXPORT_NAMES,
-    CORRECTED_EXPORT_NAMES,
+    export_cell_diagnosis, export_cell_diagnosis_with, export_corrected,
+    CELL_DIAGNOSIS_EXPORT_NAMES, CORRECTED_EXPORT_NAMES,
 };
 pub use input::{check_session, load_session, FK_TOLERANCE_M};
 pub use mount_tilt::{

@@ -588,7 +588,9 @@ fn clustered_session(truth: &Cell, per_cluster: usize, seed: u64) -> Session {
 /// small regions. Joint offsets fitted in some regions absorb the sag there and mispredict the
 /// others; the region-held-out criterion must pick the physical term, or the do-no-harm rule
 /// must withhold the offsets. Either way what `--export` writes is no worse than nominal on
-/// fresh poses of the whole teach cube.
+/// fresh poses of the whole teach cube. (Measured: the regions pick robot 1's compliance, 0.27–
+/// 0.75 of nominal's held-out rms in each of the 3 regions; `--cv-folds groups` picks it too on
+/// this session.)
 #[test]
 fn region_limited_compliance_truth_exports_no_offsets_that_extrapolate_badly() {
     let mut truth = Cell::default_floor_wall();
@@ -603,11 +605,7 @@ fn region_limited_compliance_truth_exports_no_offsets_that_extrapolate_badly() {
     let r = diagnose_cell_session(&nominal, &s, &CellDiagnoseOptions::default(), &|_| {})
         .expect("diagnosis");
     let text = diagnose::render_cell_text(&r);
-    assert_eq!(
-        r.folds.design,
-        diagnose::FoldDesign::JointRegions,
-        "{text}"
-    );
+    assert_eq!(r.folds.design, diagnose::FoldDesign::JointRegions, "{text}");
     let exported = &r.do_no_harm.exported_families;
     let withheld: Vec<&str> = r
         .do_no_harm

@@ -135,7 +135,11 @@ pub fn joint_regions(
     let dims = features.first().map_or(0, Vec::len);
     let means: Vec<f64> = (0..dims)
         .map(|d| {
-            let v: Vec<f64> = features.iter().map(|f| f[d]).filter(|v| v.is_finite()).collect();
+            let v: Vec<f64> = features
+                .iter()
+                .map(|f| f[d])
+                .filter(|v| v.is_finite())
+                .collect();
             if v.is_empty() {
                 0.0
             } else {
@@ -249,7 +253,10 @@ mod tests {
         let r = joint_regions(&x, 20, MAX_REGIONS, 7).expect("regions");
         assert_eq!(r.sizes, vec![20, 20, 20]);
         for (a, b) in r.labels.iter().zip(&truth) {
-            assert_eq!(a, b, "region labels follow the blobs (numbered by first row)");
+            assert_eq!(
+                a, b,
+                "region labels follow the blobs (numbered by first row)"
+            );
         }
         // At ≥ 10 rows, up to 6 regions, each with ≥ 10 rows, every blob split not merged.
         let r = joint_regions(&x, 10, MAX_REGIONS, 7).expect("regions");
@@ -270,7 +277,10 @@ mod tests {
     #[test]
     fn same_seed_same_regions_and_too_few_rows_give_none() {
         let (x, _) = blobs(4);
-        assert_eq!(joint_regions(&x, 8, MAX_REGIONS, 11), joint_regions(&x, 8, MAX_REGIONS, 11));
+        assert_eq!(
+            joint_regions(&x, 8, MAX_REGIONS, 11),
+            joint_regions(&x, 8, MAX_REGIONS, 11)
+        );
         assert_eq!(joint_regions(&x[..20], 8, MAX_REGIONS, 11), None);
         assert_eq!(region_count(100, 12), 6);
         assert_eq!(region_count(40, 12), 3);

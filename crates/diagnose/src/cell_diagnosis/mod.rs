@@ -74,8 +74,8 @@ mod noise_scale;
 mod problem;
 
 pub use families::{candidate_families, offset_alias, Family, FamilyKind, ALIAS_TOL};
-pub(crate) use held_out::{residuals_at, HeldOut, ScoredRow};
 pub(crate) use held_out::FoldInfo;
+pub(crate) use held_out::{residuals_at, HeldOut, ScoredRow};
 pub use held_out::{
     COINCIDENT_UNITS, MIN_GROUP_BLOCK_ROWS, MIN_REGION_ROWS, MIN_SCORED_GROUP_ROWS, MIN_UNIT_ROWS,
 };
@@ -84,7 +84,6 @@ pub use problem::diagnosis_problem;
 use problem::placement_observed;
 
 use calib_core::selection::{argmin, region_harm, RegionHarm, HARM_T};
-use serde::Serialize;
 use calib_core::whole_cell::{
     classify_rejections, fit_screened, CellFit, CellFitError, CellProblem, RejectionPattern,
     ScreenOptions, SolveOptions,
@@ -92,6 +91,7 @@ use calib_core::whole_cell::{
 use handclasp_cell::Cell;
 use handclasp_cell::Session;
 use rayon::prelude::*;
+use serde::Serialize;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::cell_report::{self, CellDiagnoseReport};
