@@ -47,6 +47,12 @@ fn session_of(truth: &Cell, n: usize, seed: u64) -> Session {
     };
     let (mut s, _) = generate_kind_session(truth, &spec, &kinds, None, &mut trial_rng(seed, 0))
         .expect("session");
+    spread_groups(&mut s);
+    s
+}
+
+/// Spreads each kind's rows over [`GROUPS_PER_KIND`] groups in turn (module documentation).
+fn spread_groups(s: &mut Session) {
     let mut count = [0usize; 3];
     for o in &mut s.observations {
         let (k, group) = match &mut o.kind {
@@ -60,7 +66,6 @@ fn session_of(truth: &Cell, n: usize, seed: u64) -> Session {
         group.push_str(&format!("_{}", (count[k] / 2) % GROUPS_PER_KIND));
         count[k] += 1;
     }
-    s
 }
 
 fn diagnose(truth: &Cell, seed: u64) -> CellDiagnoseReport {
@@ -570,17 +575,7 @@ fn clustered_session(truth: &Cell, per_cluster: usize, seed: u64) -> Session {
     };
     let (mut s, _) = generate_kind_session(truth, &spec, &kinds, None, &mut trial_rng(seed, 0))
         .expect("clustered session");
-    let mut count = [0usize; 3];
-    for o in &mut s.observations {
-        let (k, group) = match &mut o.kind {
-            SessionKind::Contact { group, .. } => (0, group),
-            SessionKind::Tracker { group, .. } => (1, group),
-            SessionKind::Plane { group, .. } => (2, group),
-            _ => continue,
-        };
-        group.push_str(&format!("_{}", (count[k] / 2) % GROUPS_PER_KIND));
-        count[k] += 1;
-    }
+    spread_groups(&mut s);
     s
 }
 
