@@ -69,12 +69,13 @@ pub struct Args {
     /// the report says when the selection stopped here while still accepting families.
     #[arg(long, default_value_t = 8)]
     pub max_steps: usize,
-    /// Sessions with contact, tracker or plane rows: how the held-out folds are made. regions:
-    /// clusters of the rows' joint vectors (seeded k-means++, at least 12 rows each), so the
-    /// choice measures extrapolation to postures the fit did not see (a session too small for 3
-    /// regions falls back to groups, and the report says so); groups: the session's own groups
-    /// (tracker files, planes, contact groups) and blocks of coincident rows.
-    #[arg(long, value_enum, default_value = "regions")]
+    /// Sessions with contact, tracker or plane rows: how the held-out folds are made. groups
+    /// (default): the session's own groups (tracker files, planes, contact groups) and blocks of
+    /// coincident rows; regions: clusters of the rows' joint vectors (seeded k-means++, at least
+    /// 12 rows each), so the choice and the do-no-harm rule measure extrapolation to postures
+    /// the fit did not see (a session too small for 3 regions falls back to groups, and the
+    /// report says so).
+    #[arg(long, value_enum, default_value = "groups")]
     pub cv_folds: CvFoldsArg,
     /// The blunder screen. auto: reject blunders, but keep every row and report a model misfit
     /// when the rejected rows are more than a few percent or cluster in joint space or time;

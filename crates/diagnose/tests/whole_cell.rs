@@ -597,8 +597,11 @@ fn region_limited_compliance_truth_exports_no_offsets_that_extrapolate_badly() {
     }
     let nominal = Cell::default_floor_wall();
     let s = clustered_session(&truth, 18, 7);
-    let r = diagnose_cell_session(&nominal, &s, &CellDiagnoseOptions::default(), &|_| {})
-        .expect("diagnosis");
+    let options = CellDiagnoseOptions {
+        folds: diagnose::FoldDesign::JointRegions,
+        ..CellDiagnoseOptions::default()
+    };
+    let r = diagnose_cell_session(&nominal, &s, &options, &|_| {}).expect("diagnosis");
     let text = diagnose::render_cell_text(&r);
     assert_eq!(r.folds.design, diagnose::FoldDesign::JointRegions, "{text}");
     let exported = &r.do_no_harm.exported_families;

@@ -306,8 +306,21 @@ pub(super) fn region_design(
                 }
             }
         }
+        // A piece is held out when its half can refit the nuisance and the group's rows left
+        // in training are none or enough to start the training fit's nuisance (half the
+        // scored minimum: 3 for a tracker frame or a plane).
+        let rest = |key: (GroupKind, usize), piece: usize| {
+            used.iter()
+                .filter(|&&i| problem.observations[i].kind.group() == Some(key))
+                .count()
+                - piece
+        };
         let (scored, kept): (Vec<_>, Vec<_>) = units.into_iter().zip(&keys).partition(|(u, k)| {
-            k.is_none_or(|(kind, _)| u.len() >= MIN_SCORED_GROUP_ROWS[kind.index()])
+            k.is_none_or(|key| {
+                let min = MIN_SCORED_GROUP_ROWS[key.0.index()];
+                let rest = rest(key, u.len());
+                u.len() >= min && (rest == 0 || rest >= min.div_ceil(2))
+            })
         });
         if scored.is_empty() {
             continue;

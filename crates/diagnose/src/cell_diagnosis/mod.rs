@@ -111,13 +111,13 @@ pub const Z95: f64 = 1.959_963_984_540_054;
 #[serde(rename_all = "snake_case")]
 #[non_exhaustive]
 pub enum FoldDesign {
-    /// Regions of joint space (default): seeded k-means++ clusters of the rows' joint vectors
+    /// Regions of joint space (`--cv-folds regions`): seeded k-means++ clusters of the rows' joint vectors
     /// normalised by the joint limits ([`calib_core::selection::regions`]), at least
     /// [`MIN_REGION_ROWS`] rows each, one fold per region, so a fold measures extrapolation to
     /// postures the fit did not see. A session too small for 3 regions falls back to
     /// [`FoldDesign::Groups`], and the report says so.
     JointRegions,
-    /// The session's own groups: each named group (tracker file, plane, contact group) a unit,
+    /// The session's own groups (default): each named group (tracker file, plane, contact group) a unit,
     /// the coincident rows cut into blocks, units dealt round-robin into folds.
     Groups,
 }
@@ -128,7 +128,8 @@ pub const REGION_SEED: u64 = 20;
 /// Options of [`diagnose_cell_session`] (defaults in parentheses).
 #[derive(Debug, Clone)]
 pub struct CellDiagnoseOptions {
-    /// How the folds are made ([`FoldDesign::JointRegions`]).
+    /// How the folds are made ([`FoldDesign::Groups`]; [`FoldDesign::JointRegions`] is
+    /// `--cv-folds regions`).
     pub folds: FoldDesign,
     /// Every tolerance of the cell is multiplied by this to form the diagnosis prior (default 10).
     pub prior_widening: f64,
@@ -157,7 +158,7 @@ pub struct CellDiagnoseOptions {
 impl Default for CellDiagnoseOptions {
     fn default() -> Self {
         Self {
-            folds: FoldDesign::JointRegions,
+            folds: FoldDesign::Groups,
             prior_widening: 10.0,
             max_folds: 6,
             min_relative_gain: 0.01,
