@@ -252,7 +252,8 @@ pub(crate) fn held_out_units(problem: &CellProblem, rows: &[usize]) -> Vec<Vec<u
     units
 }
 
-/// Fewest rows of a joint-space region ([`region_design`]).
+/// Fewest rows of a joint-space region of the `--cv-folds regions` design
+/// ([`super::FoldDesign::JointRegions`]).
 pub const MIN_REGION_ROWS: usize = 12;
 
 /// One fold of a design, as the report names it.
