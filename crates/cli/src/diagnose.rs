@@ -39,8 +39,9 @@ pub struct Args {
     pub overwrite: bool,
     /// Diagnose a session the result check refuses (a likely data mistake explains the
     /// placement fit: rows shifted, joints swapped, radians, another cell…); its findings then
-    /// print as `warning: kept by --force: …`. To write --export into a non-empty folder, use
-    /// --overwrite.
+    /// print as `warning: kept by --force: …`. Whole-cell sessions: with --export, also write
+    /// the full model, families the do-no-harm rule withholds included. To write --export into
+    /// a non-empty folder, use --overwrite.
     #[arg(long)]
     pub force: bool,
     /// Truth of the b1_from_b2 translation (e.g. from a CMM), mm: x,y,z. Needs --truth-zyz-deg.
@@ -68,6 +69,14 @@ pub struct Args {
     /// the report says when the selection stopped here while still accepting families.
     #[arg(long, default_value_t = 8)]
     pub max_steps: usize,
+    /// Sessions with contact, tracker or plane rows: how the held-out folds are made. groups
+    /// (default): the session's own groups (tracker files, planes, contact groups) and blocks of
+    /// coincident rows; regions: clusters of the rows' joint vectors (seeded k-means++, at least
+    /// 12 rows each), so the choice and the do-no-harm rule measure extrapolation to postures
+    /// the fit did not see (a session too small for 3 regions falls back to groups, and the
+    /// report says so).
+    #[arg(long, value_enum, default_value = "groups")]
+    pub cv_folds: CvFoldsArg,
     /// The blunder screen. auto: reject blunders, but keep every row and report a model misfit
     /// when the rejected rows are more than a few percent or cluster in joint space or time;
     /// strict: reject whatever the screen rejects; off: no screen (sessions with contact,
@@ -175,6 +184,7 @@ fn run_whole_cell(
     }
     let screen = args.screen.mode();
     let options = diagnose::CellDiagnoseOptions {
+        folds: args.cv_folds.design(),
         prior_widening: args.prior_widening,
         max_steps: args.max_steps,
         screen_blunders: screen != ScreenMode::Off,
@@ -199,9 +209,37 @@ fn run_whole_cell(
     }
     if let Some(dir) = &args.export {
         let files = crate::export_dir::locked(dir, args.overwrite, "--export", || {
-            Ok(diagnose::export_cell_diagnosis(cell, &report, dir)?)
+            Ok(diagnose::export_cell_diagnosis_with(
+                cell, &report, dir, args.force,
+            )?)
         })
         .context("--export")?;
+        if report.do_no_harm.withholds() {
+            if args.force {
+                eprintln!(
+                    "warning: kept by --force: {} wrote the full model, families the do-no-harm \
+                     rule withholds included",
+                    dir.display()
+                );
+            } else {
+                eprintln!(
+                    "note: {} holds the placement{} only; withheld: {}",
+                    dir.display(),
+                    if report.do_no_harm.exported_families.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" and {}", report.do_no_harm.exported_families.join(", "))
+                    },
+                    report
+                        .do_no_harm
+                        .withheld
+                        .iter()
+                        .map(|w| w.family.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
+            }
+        }
         if !args.json {
             for f in &files {
                 println!("wrote {}", f.display());
@@ -357,4 +395,22 @@ fn print_and_write_page(
         }
     }
     Ok(())
+}
+
+/// `--cv-folds`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CvFoldsArg {
+    /// Regions of joint space (k-means++ on the joint vectors).
+    Regions,
+    /// The session's groups and coincident blocks.
+    Groups,
+}
+
+impl CvFoldsArg {
+    fn design(self) -> diagnose::FoldDesign {
+        match self {
+            CvFoldsArg::Regions => diagnose::FoldDesign::JointRegions,
+            CvFoldsArg::Groups => diagnose::FoldDesign::Groups,
+        }
+    }
 }

@@ -94,6 +94,17 @@ pub struct CellDiagnoseReport {
     /// What the caller prints after `note:`: the recording-only terms selected (tracker scale,
     /// drift) and what the export does with them.
     pub notes: Vec<String>,
+    /// How the held-out folds were made (joint-space regions or the session's groups), and
+    /// each fold.
+    pub folds: crate::do_no_harm::FoldsReport,
+    /// The do-no-harm export rule: each accepted step's model against nominal per fold, and
+    /// the families the export keeps and withholds.
+    pub do_no_harm: crate::do_no_harm::DoNoHarmReport,
+    /// The estimate `--export` writes: the fit of the families the rule keeps (the placement
+    /// only when it keeps none), SI; `final_estimate` when nothing is withheld (not
+    /// serialised).
+    #[serde(skip)]
+    pub export_estimate: CellEstimate,
 }
 
 /// A laser tracker's largest credible scale error, ppm. Leica's AT960 states a maximum
@@ -658,8 +669,39 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
     let step_cap_hit = d.steps.len() >= options.max_steps
         && d.steps.last().is_some_and(|s| s.accepted)
         && accepted < d.candidates.len();
-    let (warnings, notes) = findings(d, &effects, options, step_cap_hit);
+    let (mut warnings, notes) = findings(d, &effects, options, step_cap_hit);
+    let folds = crate::do_no_harm::folds_report(d);
+    let do_no_harm = crate::do_no_harm::do_no_harm_report(d, &folds);
+    if do_no_harm.withholds() {
+        warnings.push(format!(
+            "do no harm: --export withholds {} (the model with them is worse than nominal on \
+             held-out {}s; see \"Do no harm\" in the report) and exports {}; --force exports \
+             the full model",
+            do_no_harm
+                .withheld
+                .iter()
+                .map(|w| w.family.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+            if d.fold_design.0 == crate::cell_diagnosis::FoldDesign::JointRegions {
+                "region"
+            } else {
+                "fold"
+            },
+            if do_no_harm.exported_families.is_empty() {
+                "the placement only".to_string()
+            } else {
+                format!(
+                    "the placement and {}",
+                    do_no_harm.exported_families.join(", ")
+                )
+            }
+        ));
+    }
     CellDiagnoseReport {
+        folds,
+        do_no_harm,
+        export_estimate: d.safe_fit.1.estimate.clone(),
         mode: "whole_cell",
         rows_by_kind: KINDS
             .iter()
@@ -904,6 +946,7 @@ pub fn render_cell_text(r: &CellDiagnoseReport) -> String {
             param_line(&mut s, p);
         }
     }
+    crate::do_no_harm::write_text(&mut s, &r.folds, &r.do_no_harm);
     table(&mut s, "Final model:", &r.final_residuals);
     let _ = writeln!(
         s,

@@ -57,16 +57,39 @@ pub const CELL_DIAGNOSIS_EXPORT_NAMES: ExportNames<'static> = ExportNames {
 /// Returns the files written, in that order. Errors: an estimate of the wrong shape for `cell`
 /// (a report of another cell), a URDF that cannot be read or corrected, a file that cannot be
 /// written or does not read back.
+///
+/// **Do no harm.** The cell written holds the families the report's do-no-harm rule keeps
+/// ([`CellDiagnoseReport::export_estimate`]: the placement, and the named families up to the
+/// first whose model is worse than nominal in a held-out fold); the withheld ones are in
+/// `report.json` (`do_no_harm.withheld`) and `report.txt`. [`export_cell_diagnosis_with`]
+/// with `keep_withheld` writes the full model (`diagnose --export --force`).
 pub fn export_cell_diagnosis(
     cell: &Cell,
     report: &CellDiagnoseReport,
     dir: &Path,
 ) -> Result<Vec<PathBuf>, DiagnoseError> {
+    export_cell_diagnosis_with(cell, report, dir, false)
+}
+
+/// [`export_cell_diagnosis`], writing the full model (every named family, the do-no-harm rule
+/// overridden) when `keep_withheld`.
+///
+/// Errors: as [`export_cell_diagnosis`].
+pub fn export_cell_diagnosis_with(
+    cell: &Cell,
+    report: &CellDiagnoseReport,
+    dir: &Path,
+    keep_withheld: bool,
+) -> Result<Vec<PathBuf>, DiagnoseError> {
     std::fs::create_dir_all(dir).map_err(|source| DiagnoseError::ExportFolder {
         path: dir.to_path_buf(),
         source,
     })?;
-    let mut estimate = report.final_estimate.clone();
+    let mut estimate = if keep_withheld {
+        report.final_estimate.clone()
+    } else {
+        report.export_estimate.clone()
+    };
     if !report.placement_fitted {
         estimate.b1_from_b2 = cell.b1_from_b2;
     }

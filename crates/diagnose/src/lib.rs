@@ -27,6 +27,7 @@ use std::path::PathBuf;
 pub mod catalogue;
 pub mod cell_diagnosis;
 pub mod cell_report;
+pub mod do_no_harm;
 pub mod engine;
 pub mod export;
 pub mod input;
@@ -39,12 +40,13 @@ pub mod session_model;
 pub use catalogue::{catalogue, effects_to_errors, Candidate, EffectKind};
 pub use cell_diagnosis::{
     candidate_families, diagnose_cell_session, diagnosis_problem, CellDiagnoseOptions, Family,
-    FamilyKind,
+    FamilyKind, FoldDesign,
 };
 pub use cell_report::{render_cell_text, CellDiagnoseReport, RejectedFamilyReport};
 pub use engine::{diagnose_session, diagnose_session_with_progress, DiagnoseOptions};
 pub use export::{
-    export_cell_diagnosis, export_corrected, CELL_DIAGNOSIS_EXPORT_NAMES, CORRECTED_EXPORT_NAMES,
+    export_cell_diagnosis, export_cell_diagnosis_with, export_corrected,
+    CELL_DIAGNOSIS_EXPORT_NAMES, CORRECTED_EXPORT_NAMES,
 };
 pub use input::{check_session, load_session, FK_TOLERANCE_M};
 pub use mount_tilt::{

@@ -6,8 +6,10 @@
 //! cargo run --release -p ctu-motoman -- --data ../shared/data/ctu-motoman --out DIR
 //! ```
 //!
-//! Writes `DIR/{self,planes,all}/` (cell.toml, right_arm.urdf, left_arm.urdf, parameters.csv,
-//! cv.csv; the cross-validated choice), `DIR/{self,planes,all}+c/` (the choice among the
+//! Writes `DIR/{self,planes,all}/` (cell.toml, right_arm.urdf, left_arm.urdf, parameters.csv;
+//! the region-held-out do-no-harm choice, docs/region-protocol.md), `DIR/file-cv/{self,planes,all}/`
+//! (the same files and cv.csv: the file-held-out CV / tracker-selection choice, which
+//! `--skip-region-protocol` leaves in `DIR/{self,planes,all}/`), `DIR/{self,planes,all}+c/` (the choice among the
 //! candidates with L/U gravity compliance, same files but cv.csv), `DIR/{self,planes}+m/` (the
 //! choice among the candidates with the marker centres), `DIR/scores.csv`,
 //! `DIR/scores_per_file.svg`, `DIR/residual_vs_joint.svg`, `DIR/contact_pairs.{csv,svg}` (the
@@ -121,7 +123,8 @@ struct Args {
           value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     splits: usize,
     /// Skip the region-held-out protocol (docs/region-protocol.md; `DIR/region_held_out.csv`,
-    /// `DIR/region_candidates.csv`, `DIR/region/NAME/`), which fits every candidate of each
+    /// `DIR/region_candidates.csv`; without it `DIR/NAME/` keeps the file-held-out choice and
+    /// nothing is moved to `DIR/file-cv/`), which fits every candidate of each
     /// model once per training set it needs (several hundred fits, about ten minutes on two
     /// cores). The other outputs do not depend on it.
     #[arg(long)]
@@ -302,9 +305,12 @@ fn face_contact_rows(cell: &Cell, recordings: &mut [Recording]) -> anyhow::Resul
 
 /// The region-held-out protocol (docs/region-protocol.md) for `self`, `planes` and `all`: per
 /// model the export choice and the nested figure per region, printed and appended to
-/// `DIR/region_held_out.csv` / `DIR/region_candidates.csv` as each model finishes; the export
-/// choice refitted on all the model's files and exported as `DIR/region/NAME/` (nothing when
-/// the choice is nominal).
+/// `DIR/region_held_out.csv` / `DIR/region_candidates.csv` as each model finishes. The export
+/// choice is the model's default export (README, "Which model each folder holds"): the old
+/// choice's `DIR/NAME/` moves to `DIR/file-cv/NAME/`, and the do-no-harm choice, refitted on
+/// all the model's files, is exported as `DIR/NAME/`; when the choice is nominal, `DIR/NAME/`
+/// holds only `NOMINAL.txt`, which says so and why (the nominal cell is
+/// `cells/ctu-motoman.toml`).
 fn region_protocol_report(
     cell: &Cell,
     recordings: &[Recording],
@@ -317,7 +323,22 @@ fn region_protocol_report(
         let nested = outcome.nested()?;
         print_region(&outcome, &export_choice, &nested);
         write_region_csv(&args.out, &outcome, &export_choice, &nested, k == 0)?;
-        let folder = format!("region/{}", model.name);
+        let folder = model.name.to_string();
+        let old = args.out.join(model.name);
+        if old.is_dir() {
+            let kept = args.out.join("file-cv").join(model.name);
+            std::fs::create_dir_all(args.out.join("file-cv"))?;
+            if kept.exists() {
+                std::fs::remove_dir_all(&kept)
+                    .with_context(|| format!("removing {}", kept.display()))?;
+            }
+            std::fs::rename(&old, &kept)
+                .with_context(|| format!("moving {} to {}", old.display(), kept.display()))?;
+            println!(
+                "  {}/ (the file-held-out CV / tracker-selection choice) moved to file-cv/{}/",
+                model.name, model.name
+            );
+        }
         match export_choice.rule.choice {
             Some(c) => {
                 let recs: Vec<&Recording> = recordings
@@ -339,10 +360,27 @@ fn region_protocol_report(
                     ),
                 )?;
             }
-            None => println!(
-                "  {folder}: the choice is nominal; nothing exported (the nominal cell is \
-                 cells/ctu-motoman.toml)"
-            ),
+            None => {
+                let dir = args.out.join(&folder);
+                std::fs::create_dir_all(&dir)?;
+                let note = dir.join("NOMINAL.txt");
+                std::fs::write(
+                    &note,
+                    format!(
+                        "The region-held-out do-no-harm rule (docs/region-protocol.md) chose the nominal \
+                         model for `{}`: no candidate is better than nominal in every held-out region \
+                         (or none is better by more than one SE). Use cells/ctu-motoman.toml; the \
+                         per-region ratios are in ../region_candidates.csv.\n",
+                        model.name
+                    ),
+                )
+                .with_context(|| format!("{}", note.display()))?;
+                println!(
+                    "  {folder}: the choice is nominal; wrote {} (the nominal cell is \
+                     cells/ctu-motoman.toml)",
+                    note.display()
+                );
+            }
         }
     }
     Ok(())
@@ -670,9 +708,17 @@ fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     print_effects(&cal_all.chosen);
+    let old_folder = |f: &str| {
+        if args.skip_region_protocol {
+            f.to_string()
+        } else {
+            format!("file-cv/{f}")
+        }
+    };
     for (folder, c) in [("self", &cal_self.chosen), ("planes", &cal_planes.chosen)] {
+        let folder = old_folder(folder);
         println!(
-            "{folder} (exported): {} σ {} (σ grid {}) — see {folder}/parameters.csv",
+            "{folder} (the file-held-out choice): {} σ {} (σ grid {}) — see {folder}/parameters.csv",
             c.spec.set.name(),
             c.spec.sigma,
             args.sigma_grid,

@@ -9,12 +9,17 @@
 //! 3. **Significance of a consistent gain**: [`one_sample_t`], the t statistic of per-unit gains.
 //! 4. **The do-no-harm rule** over held-out *regions*: [`do_no_harm`], from a table of per-region
 //!    scores of each candidate and of the nominal model (the rule of
-//!    `studies/ctu-motoman/docs/region-protocol.md`).
+//!    `studies/ctu-motoman/docs/region-protocol.md`); [`region_harm`], its one-sided paired test
+//!    of one region (a candidate is harmful there when it is worse than nominal with
+//!    significance), which `diagnose --export` applies to every held-out region.
+//! 5. **The folds of region-held-out CV**: [`regions`], seeded k-means++ clusters of the
+//!    session's joint vectors.
 //!
 //! Every rule takes candidates in the caller's order of simplicity (simplest first) and breaks
 //! ties towards the simpler candidate. Nothing here fits a model: the callers hold the folds,
 //! the fits and the scores.
 
+pub mod regions;
 #[cfg(test)]
 mod tests;
 
@@ -338,5 +343,87 @@ pub fn do_no_harm(
         threshold,
         choice,
         withheld,
+    })
+}
+
+/// The one-sided t value below which a region's paired held-out losses count as significant
+/// harm in [`region_harm`] (about 2.5 % one-sided under normal errors).
+pub const HARM_T: f64 = 2.0;
+
+/// One region's verdict of [`region_harm`].
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct RegionHarm {
+    /// The candidate's held-out rms over nominal's in the region, `sqrt(Σe²_c / Σe²_nominal)`.
+    pub ratio: f64,
+    /// The t statistic ([`one_sample_t`]) of the paired per-row gains `e²_nominal − e²_c`:
+    /// negative when the candidate is worse (NaN with fewer than two rows).
+    pub t: f64,
+    /// Harmful: the ratio exceeds 1 and `t ≤ −t_harm` (worse than nominal with significance).
+    pub harmful: bool,
+}
+
+/// The do-no-harm test of one held-out region: `nominal_e2[i]` and `candidate_e2[i]` are the
+/// squared held-out errors (e.g. whitened residual norms²) of the same row `i` of the region
+/// under the nominal model and the candidate, each fitted without the region. The candidate is
+/// **harmful** in the region when its rms is above nominal's and the one-sided paired t of the
+/// gains is `≤ −t_harm` ([`HARM_T`] is the workspace's value). A region of fewer than two rows
+/// is never judged harmful (no variance to judge by).
+///
+/// # Errors
+/// [`SelectionError::RegionCount`] when the two slices differ in length (candidate 0),
+/// [`SelectionError::NoRegions`] when they are empty, [`SelectionError::CandidateScore`] when a
+/// value is not finite and ≥ 0 (region 0, candidate 0 for the candidate, 1 for nominal).
+///
+/// # Examples
+/// ```
+/// use calib_core::selection::{region_harm, HARM_T};
+/// let nominal = [1.0, 1.2, 0.9, 1.1, 1.0, 0.8];
+/// let worse: Vec<f64> = nominal.iter().map(|e| 2.0 * e + 0.1).collect();
+/// assert!(region_harm(&nominal, &worse, HARM_T).unwrap().harmful);
+/// let better: Vec<f64> = nominal.iter().map(|e| 0.5 * e).collect();
+/// assert!(!region_harm(&nominal, &better, HARM_T).unwrap().harmful);
+/// ```
+pub fn region_harm(
+    nominal_e2: &[f64],
+    candidate_e2: &[f64],
+    t_harm: f64,
+) -> Result<RegionHarm, SelectionError> {
+    if nominal_e2.is_empty() {
+        return Err(SelectionError::NoRegions);
+    }
+    if candidate_e2.len() != nominal_e2.len() {
+        return Err(SelectionError::RegionCount {
+            candidate: 0,
+            got: candidate_e2.len(),
+            expected: nominal_e2.len(),
+        });
+    }
+    for (candidate, values) in [candidate_e2, nominal_e2].iter().enumerate() {
+        if let Some(&value) = values.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+            return Err(SelectionError::CandidateScore {
+                candidate,
+                region: 0,
+                value,
+            });
+        }
+    }
+    let (n, c): (f64, f64) = (nominal_e2.iter().sum(), candidate_e2.iter().sum());
+    let ratio = if n > 0.0 {
+        (c / n).sqrt()
+    } else if c > 0.0 {
+        f64::INFINITY
+    } else {
+        1.0
+    };
+    let gains: Vec<f64> = nominal_e2
+        .iter()
+        .zip(candidate_e2)
+        .map(|(a, b)| a - b)
+        .collect();
+    let t = one_sample_t(&gains);
+    Ok(RegionHarm {
+        ratio,
+        t,
+        harmful: ratio > 1.0 && t <= -t_harm,
     })
 }

@@ -252,11 +252,127 @@ pub(crate) fn held_out_units(problem: &CellProblem, rows: &[usize]) -> Vec<Vec<u
     units
 }
 
+/// Fewest rows of a joint-space region of the `--cv-folds regions` design
+/// ([`super::FoldDesign::JointRegions`]).
+pub const MIN_REGION_ROWS: usize = 12;
+
+/// One fold of a design, as the report names it.
+#[derive(Debug, Clone)]
+pub(crate) struct FoldInfo {
+    /// Rows of the fold (held out together).
+    pub(crate) rows: usize,
+    /// Held-out units of the fold (its rows split by nuisance group).
+    pub(crate) units: usize,
+    /// Rows of the fold that stay in training: pieces of a group too small to refit its
+    /// nuisance on half of them.
+    pub(crate) kept_in_training: usize,
+    /// Mean joint vector of each robot over the fold's rows that use it, rad (empty: none).
+    pub(crate) mean_q: [Vec<f64>; 2],
+}
+
+/// The region-held-out design of the rows `used`: seeded k-means++ regions of the rows' joint
+/// vectors ([`calib_core::selection::regions::joint_regions`], at least [`MIN_REGION_ROWS`]
+/// rows each, at most `max_folds`), one fold per region; a region's rows are split into units by
+/// nuisance group (the coincident and other group-free rows form one unit), and a unit of a
+/// group with fewer than its kind's [`MIN_SCORED_GROUP_ROWS`] rows is not held out (it trains
+/// every fold). `None` when fewer than [`calib_core::selection::regions::MIN_REGIONS`] regions
+/// with a scored unit remain.
+pub(super) fn region_design(
+    problem: &CellProblem,
+    used: &[usize],
+    max_folds: usize,
+    seed: u64,
+) -> Option<(Folds, Vec<FoldInfo>)> {
+    use calib_core::selection::regions::{joint_features, joint_regions, MIN_REGIONS};
+    let features = joint_features(problem, used);
+    let regions = joint_regions(&features, MIN_REGION_ROWS, max_folds, seed)?;
+    let mut folds = Vec::new();
+    let mut info = Vec::new();
+    for region in 0..regions.sizes.len() {
+        let rows: Vec<usize> = used
+            .iter()
+            .zip(&regions.labels)
+            .filter(|(_, &l)| l == region)
+            .map(|(&i, _)| i)
+            .collect();
+        let mut keys: Vec<Option<(GroupKind, usize)>> = Vec::new();
+        let mut units: Vec<Vec<usize>> = Vec::new();
+        for &i in &rows {
+            let key = problem.observations[i].kind.group();
+            match keys.iter().position(|k| *k == key) {
+                Some(u) => units[u].push(i),
+                None => {
+                    keys.push(key);
+                    units.push(vec![i]);
+                }
+            }
+        }
+        // A piece is held out when its half can refit the nuisance and the group's rows left
+        // in training are none or enough to start the training fit's nuisance (half the
+        // scored minimum: 3 for a tracker frame or a plane).
+        let rest = |key: (GroupKind, usize), piece: usize| {
+            used.iter()
+                .filter(|&&i| problem.observations[i].kind.group() == Some(key))
+                .count()
+                - piece
+        };
+        let (scored, kept): (Vec<_>, Vec<_>) = units.into_iter().zip(&keys).partition(|(u, k)| {
+            k.is_none_or(|key| {
+                let min = MIN_SCORED_GROUP_ROWS[key.0.index()];
+                let rest = rest(key, u.len());
+                u.len() >= min && (rest == 0 || rest >= min.div_ceil(2))
+            })
+        });
+        if scored.is_empty() {
+            continue;
+        }
+        let mut mean_q: [Vec<f64>; 2] = [Vec::new(), Vec::new()];
+        for (r, robot) in [calib_core::Robot::One, calib_core::Robot::Two]
+            .into_iter()
+            .enumerate()
+        {
+            let qs: Vec<&[f64]> = rows
+                .iter()
+                .flat_map(|&i| problem.observations[i].kind.joints())
+                .filter(|(rb, _)| *rb == robot)
+                .map(|(_, q)| q)
+                .collect();
+            if let Some(first) = qs.first() {
+                mean_q[r] = (0..first.len())
+                    .map(|j| qs.iter().map(|q| q[j]).sum::<f64>() / qs.len() as f64)
+                    .collect();
+            }
+        }
+        info.push(FoldInfo {
+            rows: rows.len(),
+            units: scored.len(),
+            kept_in_training: kept.iter().map(|(u, _)| u.len()).sum(),
+            mean_q,
+        });
+        folds.push(scored.into_iter().map(|(u, _)| u).collect::<Vec<_>>());
+    }
+    if folds.len() < MIN_REGIONS {
+        return None;
+    }
+    let n_units = folds.iter().map(Vec::len).sum();
+    Some((
+        Folds {
+            used: used.to_vec(),
+            folds,
+            n_units,
+        },
+        info,
+    ))
+}
+
 /// The held-out result of one model.
 #[derive(Debug, Clone)]
 pub(crate) struct HeldOut {
     /// Held-out χ² of each unit (whitened residual sum of squares).
     pub(crate) unit_chi2: Vec<f64>,
+    /// Each unit's scored rows' whitened χ² (one value per observation), in scoring order (the
+    /// same order for every model of one design, so two models' values pair row by row).
+    pub(crate) unit_e2: Vec<Vec<f64>>,
     /// Scored residual blocks.
     pub(crate) rows: Vec<ScoredRow>,
 }
@@ -364,14 +480,20 @@ pub(super) fn cross_validate_all(
     let mut out = Vec::with_capacity(models.len());
     for _ in models {
         let mut unit_chi2 = Vec::with_capacity(design.n_units);
+        let mut unit_e2 = Vec::with_capacity(design.n_units);
         let mut rows = Vec::new();
         for fold in results.by_ref().take(n_folds) {
             for (chi2, scored) in fold? {
                 unit_chi2.push(chi2);
+                unit_e2.push(scored.iter().map(|r| r.whitened.norm_squared()).collect());
                 rows.extend(scored);
             }
         }
-        out.push(HeldOut { unit_chi2, rows });
+        out.push(HeldOut {
+            unit_chi2,
+            unit_e2,
+            rows,
+        });
     }
     Ok(out)
 }

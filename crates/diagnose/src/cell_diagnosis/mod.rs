@@ -74,13 +74,16 @@ mod noise_scale;
 mod problem;
 
 pub use families::{candidate_families, offset_alias, Family, FamilyKind, ALIAS_TOL};
+pub(crate) use held_out::FoldInfo;
 pub(crate) use held_out::{residuals_at, HeldOut, ScoredRow};
-pub use held_out::{COINCIDENT_UNITS, MIN_GROUP_BLOCK_ROWS, MIN_SCORED_GROUP_ROWS, MIN_UNIT_ROWS};
+pub use held_out::{
+    COINCIDENT_UNITS, MIN_GROUP_BLOCK_ROWS, MIN_REGION_ROWS, MIN_SCORED_GROUP_ROWS, MIN_UNIT_ROWS,
+};
 pub use noise_scale::KINDS;
 pub use problem::diagnosis_problem;
 use problem::placement_observed;
 
-use calib_core::selection::argmin;
+use calib_core::selection::{argmin, region_harm, RegionHarm, HARM_T};
 use calib_core::whole_cell::{
     classify_rejections, fit_screened, CellFit, CellFitError, CellProblem, RejectionPattern,
     ScreenOptions, SolveOptions,
@@ -88,22 +91,46 @@ use calib_core::whole_cell::{
 use handclasp_cell::Cell;
 use handclasp_cell::Session;
 use rayon::prelude::*;
+use serde::Serialize;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::cell_report::{self, CellDiagnoseReport};
 use crate::DiagnoseError;
 use families::{model_layout, model_problem};
 use held_out::{
-    coincident_count, cross_validate_all, fit_model, held_out_units, significant, Folds,
+    coincident_count, cross_validate_all, fit_model, held_out_units, region_design, significant,
+    Folds,
 };
 use noise_scale::{noise_scales, scaled_noise};
 
 /// The 95 % two-sided normal quantile.
 pub const Z95: f64 = 1.959_963_984_540_054;
 
+/// How the held-out criterion's folds are made (`diagnose --cv-folds`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum FoldDesign {
+    /// Regions of joint space (`--cv-folds regions`): seeded k-means++ clusters of the rows' joint vectors
+    /// normalised by the joint limits ([`calib_core::selection::regions`]), at least
+    /// [`MIN_REGION_ROWS`] rows each, one fold per region, so a fold measures extrapolation to
+    /// postures the fit did not see. A session too small for 3 regions falls back to
+    /// [`FoldDesign::Groups`], and the report says so.
+    JointRegions,
+    /// The session's own groups (default): each named group (tracker file, plane, contact group) a unit,
+    /// the coincident rows cut into blocks, units dealt round-robin into folds.
+    Groups,
+}
+
+/// Seed of the k-means++ draw of [`FoldDesign::JointRegions`].
+pub const REGION_SEED: u64 = 20;
+
 /// Options of [`diagnose_cell_session`] (defaults in parentheses).
 #[derive(Debug, Clone)]
 pub struct CellDiagnoseOptions {
+    /// How the folds are made ([`FoldDesign::Groups`]; [`FoldDesign::JointRegions`] is
+    /// `--cv-folds regions`).
+    pub folds: FoldDesign,
     /// Every tolerance of the cell is multiplied by this to form the diagnosis prior (default 10).
     pub prior_widening: f64,
     /// Most folds of the held-out criterion (default 6).
@@ -131,6 +158,7 @@ pub struct CellDiagnoseOptions {
 impl Default for CellDiagnoseOptions {
     fn default() -> Self {
         Self {
+            folds: FoldDesign::Groups,
             prior_widening: 10.0,
             max_folds: 6,
             min_relative_gain: 0.01,
@@ -193,6 +221,17 @@ pub(crate) struct CellDiagnosis {
     pub(crate) placement_fitted: bool,
     /// The screen's rejections classified as a model misfit (every row then kept).
     pub(crate) screen_misfit: Option<RejectionPattern>,
+    /// The design the folds were made by (after any fallback) and why.
+    pub(crate) fold_design: (FoldDesign, String),
+    /// Each fold as the report names it.
+    pub(crate) fold_info: Vec<FoldInfo>,
+    /// The do-no-harm test per accepted step (the model of steps 1..=j) and fold, against the
+    /// baseline (nominal kinematics), both held out on the same folds.
+    pub(crate) harm: Vec<Vec<RegionHarm>>,
+    /// The largest j whose model harms no fold: the export keeps steps 1..=j.
+    pub(crate) safe_steps: usize,
+    /// The fit of that model on all rows used (the baseline when j = 0).
+    pub(crate) safe_fit: (CellProblem, CellFit),
 }
 
 /// Diagnoses a session with non-coincident rows on its cell (see the module documentation).
@@ -269,21 +308,37 @@ fn run(
     } else {
         (all.clone(), Vec::new(), None)
     };
-    let units = held_out_units(&problem, &used);
-    let n_units = units.len();
-    let n_folds = n_units.min(options.max_folds.max(2));
-    let mut folds: Vec<Vec<Vec<usize>>> = vec![Vec::new(); n_folds];
-    for (u, unit) in units.into_iter().enumerate() {
-        folds[u % n_folds].push(unit);
-    }
-    // Units in fold order (the order `cross_validate_all` scores them).
+    let regions = match options.folds {
+        FoldDesign::JointRegions => region_design(&problem, &used, options.max_folds, REGION_SEED),
+        FoldDesign::Groups => None,
+    };
+    let (design, fold_info, fold_design) = match regions {
+        Some((design, info)) => {
+            let why = format!(
+                "{} regions of joint space: seeded k-means++ (seed {REGION_SEED}) on the rows' \
+                 joint vectors normalised by the joint limits, at least {MIN_REGION_ROWS} rows each",
+                info.len()
+            );
+            (design, info, (FoldDesign::JointRegions, why))
+        }
+        None => {
+            let why = match options.folds {
+                FoldDesign::Groups => "the session's groups (--cv-folds groups)".to_string(),
+                _ => format!(
+                    "the session's groups: {} rows are too few for 3 joint-space regions of at \
+                     least {MIN_REGION_ROWS} rows with a scored unit each (the held-out error \
+                     measures interpolation, not extrapolation)",
+                    used.len()
+                ),
+            };
+            let (design, info) = group_design(&problem, &used, options);
+            (design, info, (FoldDesign::Groups, why))
+        }
+    };
+    let n_units = design.n_units;
+    let n_folds = design.folds.len();
     progress("baseline: nominal kinematics, nuisances fitted");
     let baseline = fit_model(&problem, &[], &used, None, options, x0)?;
-    let design = Folds {
-        used: used.clone(),
-        folds,
-        n_units,
-    };
     let baseline_held_out = cross_validate_all(
         &problem,
         &[Vec::new()],
@@ -427,7 +482,52 @@ fn run(
         });
     }
     let placement_fitted = placement_observed(&problem, &used);
+    // The do-no-harm rule: each accepted model against the baseline, fold by fold.
+    let fold_e2 = |h: &HeldOut| -> Vec<Vec<f64>> {
+        let mut e2 = h.unit_e2.iter();
+        design
+            .folds
+            .iter()
+            .map(|f| e2.by_ref().take(f.len()).flatten().copied().collect())
+            .collect()
+    };
+    let nominal_e2 = fold_e2(&baseline_held_out);
+    let mut harm = Vec::new();
+    for s in steps.iter().filter(|s| s.accepted) {
+        let model_e2 = fold_e2(&s.after);
+        let row: Vec<RegionHarm> = nominal_e2
+            .iter()
+            .zip(&model_e2)
+            .map(|(n, m)| {
+                region_harm(n, m, HARM_T).unwrap_or(RegionHarm {
+                    ratio: f64::NAN,
+                    t: f64::NAN,
+                    harmful: false,
+                })
+            })
+            .collect();
+        harm.push(row);
+    }
+    let safe_steps = (0..=harm.len())
+        .rev()
+        .find(|&j| j == 0 || harm[j - 1].iter().all(|h| !h.harmful))
+        .unwrap_or(0);
+    let safe_fit = if safe_steps == 0 {
+        baseline.clone()
+    } else {
+        steps
+            .iter()
+            .filter(|s| s.accepted)
+            .nth(safe_steps - 1)
+            .and_then(|s| s.fit_after.clone())
+            .unwrap_or_else(|| current.clone())
+    };
     Ok(CellDiagnosis {
+        fold_design,
+        fold_info,
+        harm,
+        safe_steps,
+        safe_fit,
         problem,
         candidates,
         rejected,
@@ -443,6 +543,39 @@ fn run(
         placement_fitted,
         screen_misfit,
     })
+}
+
+/// The groups design: the held-out units of `used` ([`held_out_units`]) dealt round-robin
+/// into `min(units, max_folds)` folds (at least 2).
+fn group_design(
+    problem: &CellProblem,
+    used: &[usize],
+    options: &CellDiagnoseOptions,
+) -> (Folds, Vec<FoldInfo>) {
+    let units = held_out_units(problem, used);
+    let n_units = units.len();
+    let n_folds = n_units.min(options.max_folds.max(2));
+    let mut folds: Vec<Vec<Vec<usize>>> = vec![Vec::new(); n_folds];
+    for (u, unit) in units.into_iter().enumerate() {
+        folds[u % n_folds].push(unit);
+    }
+    let info = folds
+        .iter()
+        .map(|f| FoldInfo {
+            rows: f.iter().map(Vec::len).sum(),
+            units: f.len(),
+            kept_in_training: 0,
+            mean_q: [Vec::new(), Vec::new()],
+        })
+        .collect();
+    (
+        Folds {
+            used: used.to_vec(),
+            folds,
+            n_units,
+        },
+        info,
+    )
 }
 
 /// The screened rows of the session (every family free): `(used, rejected, misfit)`. With

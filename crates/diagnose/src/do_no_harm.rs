@@ -1,0 +1,285 @@
+//! The whole-cell diagnosis's folds and its do-no-harm export rule, as the report gives them
+//! (issue 20).
+//!
+//! **Folds** ([`FoldsReport`]): how the held-out criterion's folds were made (joint-space
+//! regions, or the session's groups when the session is too small for regions, or on request),
+//! and each fold: its rows, its held-out units and its mean joint vector per robot.
+//!
+//! **The rule** ([`DoNoHarmReport`]): the model of each accepted step `j` (families `1..=j`) is
+//! compared with the nominal model (nuisances and placement fitted, kinematics nominal) in every
+//! fold, both held out on the same folds, by [`calib_core::selection::region_harm`]: harmful in
+//! a fold when its held-out rms is above nominal's and the paired one-sided t of the per-row
+//! gains is `≤ −HARM_T`. The export keeps the largest `j` whose model harms no fold (`j = 0`:
+//! the placement only); the families after it are **withheld**, each with the folds where the
+//! model with it does harm. `diagnose --export --force` exports the full model.
+
+use std::fmt::Write as _;
+
+use calib_core::selection::{RegionHarm, HARM_T};
+use serde::Serialize;
+
+use crate::cell_diagnosis::{CellDiagnosis, FoldDesign};
+
+/// How the folds were made, and each fold.
+#[derive(Debug, Clone, Serialize)]
+pub struct FoldsReport {
+    /// The design used (after any fallback).
+    pub design: FoldDesign,
+    /// How the folds were made, in words (and why, on a fallback).
+    pub how: String,
+    /// Each fold, in fold order.
+    pub folds: Vec<FoldReport>,
+}
+
+/// One fold of the held-out criterion.
+#[derive(Debug, Clone, Serialize)]
+pub struct FoldReport {
+    /// Its name in the report (`region 1`, … or `fold 1`, …).
+    pub name: String,
+    /// Rows of the fold.
+    pub rows: usize,
+    /// Its held-out units (its rows split by nuisance group).
+    pub units: usize,
+    /// Rows of the fold that stay in training (pieces of a group too small to refit its
+    /// nuisance on half of them).
+    pub kept_in_training: usize,
+    /// Mean joint vector of robot 1 over the fold's rows, degrees (empty: no row of robot 1, or
+    /// a groups design).
+    pub robot1_mean_q_deg: Vec<f64>,
+    /// The same for robot 2.
+    pub robot2_mean_q_deg: Vec<f64>,
+}
+
+/// The do-no-harm test of one accepted model in one fold.
+#[derive(Debug, Clone, Serialize)]
+pub struct FoldHarm {
+    /// The fold's name.
+    pub fold: String,
+    /// The model's held-out rms over nominal's in the fold.
+    pub ratio: f64,
+    /// The paired t of the per-row gains (negative: worse than nominal).
+    pub t: f64,
+    /// Worse than nominal with significance.
+    pub harmful: bool,
+}
+
+/// The model of steps `1..=step` against nominal, fold by fold.
+#[derive(Debug, Clone, Serialize)]
+pub struct StepHarm {
+    /// The step (1-based) and the family it added.
+    pub step: usize,
+    /// The family's name.
+    pub family: String,
+    /// Per fold.
+    pub folds: Vec<FoldHarm>,
+}
+
+/// A family the export withholds, and why.
+#[derive(Debug, Clone, Serialize)]
+pub struct WithheldFamily {
+    /// The family's name.
+    pub family: String,
+    /// Its step.
+    pub step: usize,
+    /// The folds where the model with it (steps `1..=step`) is worse than nominal with
+    /// significance.
+    pub harmful_in: Vec<FoldHarm>,
+}
+
+/// The do-no-harm export rule's verdict.
+#[derive(Debug, Clone, Serialize)]
+pub struct DoNoHarmReport {
+    /// The one-sided t below which a loss is significant.
+    pub harm_t: f64,
+    /// Each accepted step's model against nominal, per fold.
+    pub steps: Vec<StepHarm>,
+    /// The families the export keeps (steps `1..=safe_steps`), in order.
+    pub exported_families: Vec<String>,
+    /// The families the export withholds, with why.
+    pub withheld: Vec<WithheldFamily>,
+}
+
+impl DoNoHarmReport {
+    /// Whether the rule withholds anything.
+    pub fn withholds(&self) -> bool {
+        !self.withheld.is_empty()
+    }
+}
+
+fn deg(q: &[f64]) -> Vec<f64> {
+    q.iter().map(|v| v.to_degrees()).collect()
+}
+
+/// The folds' report of a diagnosis.
+pub(crate) fn folds_report(d: &CellDiagnosis) -> FoldsReport {
+    let (design, how) = &d.fold_design;
+    let prefix = match design {
+        FoldDesign::JointRegions => "region",
+        _ => "fold",
+    };
+    FoldsReport {
+        design: *design,
+        how: how.clone(),
+        folds: d
+            .fold_info
+            .iter()
+            .enumerate()
+            .map(|(i, f)| FoldReport {
+                name: format!("{prefix} {}", i + 1),
+                rows: f.rows,
+                units: f.units,
+                kept_in_training: f.kept_in_training,
+                robot1_mean_q_deg: deg(&f.mean_q[0]),
+                robot2_mean_q_deg: deg(&f.mean_q[1]),
+            })
+            .collect(),
+    }
+}
+
+fn fold_harm(name: &str, h: &RegionHarm) -> FoldHarm {
+    FoldHarm {
+        fold: name.to_string(),
+        ratio: h.ratio,
+        t: h.t,
+        harmful: h.harmful,
+    }
+}
+
+/// The rule's report of a diagnosis, fold names from `folds`.
+pub(crate) fn do_no_harm_report(d: &CellDiagnosis, folds: &FoldsReport) -> DoNoHarmReport {
+    let accepted: Vec<&str> = d
+        .steps
+        .iter()
+        .filter(|s| s.accepted)
+        .map(|s| s.family.name.as_str())
+        .collect();
+    let steps: Vec<StepHarm> = d
+        .harm
+        .iter()
+        .zip(&accepted)
+        .enumerate()
+        .map(|(j, (row, family))| StepHarm {
+            step: j + 1,
+            family: (*family).to_string(),
+            folds: row
+                .iter()
+                .zip(&folds.folds)
+                .map(|(h, f)| fold_harm(&f.name, h))
+                .collect(),
+        })
+        .collect();
+    let withheld = steps
+        .iter()
+        .skip(d.safe_steps)
+        .map(|s| WithheldFamily {
+            family: s.family.clone(),
+            step: s.step,
+            harmful_in: s.folds.iter().filter(|f| f.harmful).cloned().collect(),
+        })
+        .collect();
+    DoNoHarmReport {
+        harm_t: HARM_T,
+        exported_families: accepted
+            .iter()
+            .take(d.safe_steps)
+            .map(|f| (*f).to_string())
+            .collect(),
+        steps,
+        withheld,
+    }
+}
+
+/// The text of the folds and the rule (the whole-cell report's section).
+pub(crate) fn write_text(s: &mut String, folds: &FoldsReport, harm: &DoNoHarmReport) {
+    let _ = writeln!(s, "Folds: {}", folds.how);
+    for f in &folds.folds {
+        let mean = |q: &[f64]| {
+            q.iter()
+                .map(|v| format!("{v:.0}"))
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
+        let mut line = format!("  {}: {} rows, {} units", f.name, f.rows, f.units);
+        if f.kept_in_training > 0 {
+            let _ = write!(line, " ({} rows kept in training)", f.kept_in_training);
+        }
+        if !f.robot1_mean_q_deg.is_empty() {
+            let _ = write!(
+                line,
+                "; robot 1 mean q [{}] deg",
+                mean(&f.robot1_mean_q_deg)
+            );
+        }
+        if !f.robot2_mean_q_deg.is_empty() {
+            let _ = write!(
+                line,
+                "; robot 2 mean q [{}] deg",
+                mean(&f.robot2_mean_q_deg)
+            );
+        }
+        let _ = writeln!(s, "{line}");
+    }
+    if harm.steps.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "Do no harm (each step's model against nominal, held out fold by fold; harmful = worse with t ≤ −{}):",
+        harm.harm_t
+    );
+    for st in &harm.steps {
+        let cells: Vec<String> = st
+            .folds
+            .iter()
+            .map(|f| {
+                format!(
+                    "{} {:.3}{}",
+                    f.fold,
+                    f.ratio,
+                    if f.harmful {
+                        format!(" (t {:.1}) HARMFUL", f.t)
+                    } else {
+                        String::new()
+                    }
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "  step {} (+ {}): {}",
+            st.step,
+            st.family,
+            cells.join(", ")
+        );
+    }
+    if harm.withholds() {
+        let _ = writeln!(
+            s,
+            "Export (--export): the placement{} — WITHHELD (--force exports them):",
+            if harm.exported_families.is_empty() {
+                String::new()
+            } else {
+                format!(" and {}", harm.exported_families.join(", "))
+            }
+        );
+        for w in &harm.withheld {
+            let why: Vec<String> = w
+                .harmful_in
+                .iter()
+                .map(|f| format!("{} ratio {:.3} (t {:.1})", f.fold, f.ratio, f.t))
+                .collect();
+            let _ = writeln!(
+                s,
+                "  {} (step {}): the model with it is worse than nominal in {}",
+                w.family,
+                w.step,
+                why.join(", ")
+            );
+        }
+    } else {
+        let _ = writeln!(
+            s,
+            "Export (--export): every named family (none is worse than nominal in any fold)"
+        );
+    }
+}
