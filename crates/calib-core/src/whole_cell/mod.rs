@@ -148,8 +148,9 @@ pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
 pub use calibrate::{calibrate_cell, CellCalibration, PriorScaleChoice, PRIOR_SCALES};
 pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool};
 pub use check::{
-    coincident_pairs, layout_shape, placement_distance, robust_noise_scale, CheckThresholds,
-    LayoutShape, PlacementDistance,
+    coincident_pairs, layout_shape, placement_distance, robust_noise_scale,
+    robust_noise_scale_with_tolerances, CheckThresholds, LayoutShape, PlacementDistance,
+    LEVERAGE_FLOOR,
 };
 pub use coverage::{
     session_coverage, CoverageReport, JointCoverage, JointCoverageReport, PointRegion,

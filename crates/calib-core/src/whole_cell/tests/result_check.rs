@@ -17,7 +17,7 @@ fn robust_noise_scale_reads_the_stated_noise() {
     let mut p = sc.problem();
     p.observations = sc.coincident(40, 3e-4, 0.7, 62);
     let fit = fit_cell(&p, &SolveOptions::default()).unwrap();
-    let s = robust_noise_scale(&p, &fit, 1.0).unwrap();
+    let s = robust_noise_scale(&p, &fit).unwrap();
     assert!((s - 1.0).abs() < NOISE_SCALE_TOL, "noise scale {s}");
     let mut noisy = sc.problem();
     noisy.observations = sc.coincident(40, 3e-3, 0.7, 62);
@@ -25,7 +25,7 @@ fn robust_noise_scale_reads_the_stated_noise() {
         o.kind.scale_noise(0.1);
     }
     let fit = fit_cell(&noisy, &SolveOptions::default()).unwrap();
-    let s = robust_noise_scale(&noisy, &fit, 1.0).unwrap();
+    let s = robust_noise_scale(&noisy, &fit).unwrap();
     assert!((s / 10.0 - 1.0).abs() < NOISE_SCALE_TOL, "noise scale {s}");
 }
 
