@@ -126,22 +126,8 @@ fn points_nearly_collinear_warn() {
 #[test]
 fn placement_thirty_percent_blunders_are_named() {
     let dir = workdir();
-    let mut s = random_session(&truth(), 40, 33);
-    for (k, i) in (0..40)
-        .step_by(10)
-        .flat_map(|b| [b + 1, b + 4, b + 8])
-        .enumerate()
-    {
-        s.points[i].q2[k % 3] += (1.5 + 0.125 * k as f64).to_radians();
-    }
+    let (csv, _) = thirty_percent_blunders(dir.path(), &truth(), 33);
     let reported = shipped_cell("floor-wall");
-    let cell = Cell::from_toml_file(&reported).unwrap();
-    let csv = write_session_csv(
-        dir.path(),
-        "blunders.csv",
-        &with_reported_tips(&s, &cell),
-        &cell,
-    );
     let out = handclasp(&cell_session_args(
         "calibrate",
         &reported,
@@ -165,6 +151,49 @@ fn placement_thirty_percent_blunders_are_named() {
         .find(|c| c["name"] == "masked_blunders")
         .expect("the masked_blunders check");
     assert!(masked["value"].as_f64().unwrap() >= 4.0, "{masked}");
+}
+
+/// A 40-row session simulated on `truth` (seeded) with 30 % blunders: 12 rows (3 in every 10),
+/// robot 2's joints 1–3 off by 1.5–3°, written with the shipped floor-wall cell's tips; its
+/// path and the blundered session rows (1-based).
+fn thirty_percent_blunders(dir: &Path, truth: &Cell, seed: u64) -> (PathBuf, Vec<u64>) {
+    let mut s = random_session(truth, 40, seed);
+    let bad: Vec<usize> = (0..40)
+        .step_by(10)
+        .flat_map(|b| [b + 1, b + 4, b + 8])
+        .collect();
+    for (k, &i) in bad.iter().enumerate() {
+        s.points[i].q2[k % 3] += (1.5 + 0.125 * k as f64).to_radians();
+    }
+    let cell = Cell::from_toml_file(&shipped_cell("floor-wall")).unwrap();
+    let csv = write_session_csv(dir, "blunders.csv", &with_reported_tips(&s, &cell), &cell);
+    (csv, bad.iter().map(|&i| i as u64 + 1).collect())
+}
+
+/// `calibrate --cell --model kinematic` with 30 % blunders (the session of
+/// [`placement_thirty_percent_blunders_are_named`]): the rows left fit at the stated noise, so
+/// the rejected rows are blunders, named and rejected, not a model misfit.
+#[test]
+fn kinematic_thirty_percent_blunders_are_blunders() {
+    let dir = workdir();
+    let (csv, bad) = thirty_percent_blunders(dir.path(), &truth(), 33);
+    let out = handclasp(&cell_session_args(
+        "calibrate",
+        &shipped_cell("floor-wall"),
+        &csv,
+        &["--model", "kinematic", "--json"],
+    ));
+    let err = stderr(&out);
+    eprintln!("{err}");
+    let json: Value = serde_json::from_slice(&out.stdout).unwrap();
+    eprintln!("{}", json["result_check"]);
+    let rejected: Vec<u64> = json["rejected_points"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["row"].as_u64().unwrap())
+        .collect();
+    eprintln!("rejected {rejected:?} bad {bad:?}");
 }
 
 /// `--json` on a refusal prints the refusal object on stdout (status, reason, check values),

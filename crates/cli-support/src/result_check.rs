@@ -19,9 +19,10 @@
 use std::path::Path;
 
 use calib_core::whole_cell::{
-    candidate_mistakes, classify_rejections, coincident_pairs, layout_shape, placement_distance,
+    candidate_mistakes, classify_rejections, coincident_pairs, fitted_rows_noise_scale,
+    layout_shape, placement_distance,
     robust_noise_scale, robust_noise_scale_with_tolerances, try_problem, CellCalibration, CellFitError, CellProblem, CheckThresholds,
-    PlacementDistance, RejectionPattern, Trial,
+    PlacementDistance, RejectionPattern, Trial, MISFIT_SHARE_ALONE, REST_FITS_SCALE,
 };
 use handclasp_cell::problem::{cell_problem, FitModel};
 use handclasp_cell::{Cell, Session};
@@ -72,7 +73,10 @@ pub struct ScreenReport {
 }
 
 /// The screen's outcome after a fit in `mode`: with `auto` and rows rejected, their
-/// classification. The caller refits without rejection when `rows_kept`.
+/// classification, judged with the robust noise scale of the rows kept (for a placement-only
+/// fit, against the stated noise plus the robots' tolerances of `toleranced`, the session's
+/// problem with them: `FitModel::Kinematic`'s). The caller refits without rejection when
+/// `rows_kept`.
 ///
 /// # Errors
 /// The residuals cannot be evaluated.
@@ -80,6 +84,7 @@ pub fn screen_outcome(
     problem: &CellProblem,
     cal: &CellCalibration,
     mode: ScreenMode,
+    toleranced: Option<&CellProblem>,
 ) -> Result<ScreenReport, CellFitError> {
     if mode == ScreenMode::Off || cal.rejected.is_empty() {
         return Ok(ScreenReport {
@@ -95,7 +100,7 @@ pub fn screen_outcome(
         .filter(|(_, o)| cal.rejected.iter().any(|r| r.row == o.row))
         .map(|(i, _)| i)
         .collect();
-    let pattern = classify_with_noise(problem, cal, &rejected)?;
+    let pattern = classify_with_noise(problem, cal, &rejected, toleranced)?;
     let rows_kept = mode == ScreenMode::Auto && pattern.misfit;
     Ok(ScreenReport {
         mode,
@@ -115,6 +120,7 @@ pub fn misfit_outcome(
     cal: &CellCalibration,
     rejected_rows: &[usize],
     mode: ScreenMode,
+    toleranced: Option<&CellProblem>,
 ) -> Result<ScreenReport, CellFitError> {
     let rejected: Vec<usize> = problem
         .observations
@@ -123,7 +129,7 @@ pub fn misfit_outcome(
         .filter(|(_, o)| rejected_rows.contains(&o.row))
         .map(|(i, _)| i)
         .collect();
-    let mut pattern = classify_with_noise(problem, cal, &rejected)?;
+    let mut pattern = classify_with_noise(problem, cal, &rejected, toleranced)?;
     pattern.misfit = true;
     Ok(ScreenReport {
         mode,
@@ -132,19 +138,22 @@ pub fn misfit_outcome(
     })
 }
 
-/// [`classify_rejections`] with the fit's robust noise scale and the check's
-/// [`CheckThresholds::noise_high`].
+/// [`classify_rejections`] with the robust noise scale of the rows `cal` kept (against the
+/// stated noise plus the robots' tolerances of `toleranced` for a placement-only fit) and the
+/// check's [`CheckThresholds::noise_high`].
 fn classify_with_noise(
     problem: &CellProblem,
     cal: &CellCalibration,
     rejected: &[usize],
+    toleranced: Option<&CellProblem>,
 ) -> Result<RejectionPattern, CellFitError> {
-    let noise = robust_noise_scale(problem, &cal.fit)?;
+    let placement_only = cal.fit.layout.prior_sqrt_info.nrows() == 0;
+    let rest = fitted_rows_noise_scale(problem, &cal.fit, toleranced.filter(|_| placement_only))?;
     classify_rejections(
         problem,
         &cal.fit,
         rejected,
-        noise,
+        Some(rest),
         CheckThresholds::default().noise_high,
     )
 }
@@ -518,6 +527,23 @@ pub fn check_result(
         ));
     }
     messages.extend(degenerate);
+    if let Some(p) = screen
+        .pattern
+        .as_ref()
+        .filter(|p| !p.misfit && p.share > MISFIT_SHARE_ALONE)
+    {
+        let rows: Vec<usize> = cal.rejected.iter().map(|r| r.row).collect();
+        messages.push(format!(
+            "{} of {} rows ({:.0} %) rejected as blunders: the rows left fit at the stated noise \
+             (robust noise scale {:.2}, at most {REST_FITS_SCALE}), so these rows disagree with \
+             any model, not the model with them: rows {rows:?}; re-record them, or remove them \
+             and re-run",
+            p.rejected_rows,
+            p.rows,
+            100.0 * p.share,
+            p.rest_noise_scale.unwrap_or(f64::NAN),
+        ));
+    }
     if let Some(p) = screen.pattern.as_ref().filter(|p| p.misfit) {
         messages.push(if screen.rows_kept {
             format!(

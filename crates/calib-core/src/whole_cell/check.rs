@@ -98,7 +98,22 @@ pub const LEVERAGE_FLOOR: f64 = 0.05;
 /// # Errors
 /// The residuals cannot be evaluated (a model failure at a row).
 pub fn robust_noise_scale(problem: &CellProblem, fit: &CellFit) -> Result<f64, CellFitError> {
-    noise_scale_of(problem, fit, None)
+    noise_scale_of(problem, fit, None, false)
+}
+
+/// [`robust_noise_scale`] over the rows `fit` used only (a screened fit: the rows it kept), with
+/// the robots' tolerances added to each row's predicted covariance when `toleranced` is given
+/// ([`robust_noise_scale_with_tolerances`]): whether the rows left after a screen fit at the
+/// stated noise (blunders) or not (misfit, [`super::classify_rejections`]).
+///
+/// # Errors
+/// As [`robust_noise_scale_with_tolerances`].
+pub fn fitted_rows_noise_scale(
+    problem: &CellProblem,
+    fit: &CellFit,
+    toleranced: Option<&CellProblem>,
+) -> Result<f64, CellFitError> {
+    noise_scale_of(problem, fit, toleranced, true)
 }
 
 /// [`robust_noise_scale`] of a placement-only `fit` against the stated noise **plus** the
@@ -119,13 +134,16 @@ pub fn robust_noise_scale_with_tolerances(
     fit: &CellFit,
     toleranced: &CellProblem,
 ) -> Result<f64, CellFitError> {
-    noise_scale_of(problem, fit, Some(toleranced))
+    noise_scale_of(problem, fit, Some(toleranced), false)
 }
 
+/// [`robust_noise_scale_with_tolerances`] (`toleranced` given) or [`robust_noise_scale`], over
+/// the rows the fit used only when `fitted_only`.
 fn noise_scale_of(
     problem: &CellProblem,
     fit: &CellFit,
     toleranced: Option<&CellProblem>,
+    fitted_only: bool,
 ) -> Result<f64, CellFitError> {
     let n = problem.observations.len();
     if n == 0 {
@@ -156,6 +174,9 @@ fn noise_scale_of(
     };
     let mut ratios = Vec::with_capacity(n);
     for (b, &i) in all.iter().enumerate() {
+        if fitted_only && !active[i] {
+            continue;
+        }
         let dim = problem.observations[i].kind.rows();
         let start = rows.block_start[b];
         let j = rows.j.rows(start, dim);
