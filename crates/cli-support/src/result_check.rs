@@ -20,9 +20,9 @@ use std::path::Path;
 
 use calib_core::whole_cell::{
     candidate_mistakes, classify_rejections, coincident_pairs, fitted_rows_noise_scale,
-    layout_shape, placement_distance,
-    robust_noise_scale, robust_noise_scale_with_tolerances, try_problem, CellCalibration, CellFitError, CellProblem, CheckThresholds,
-    PlacementDistance, RejectionPattern, Trial, MISFIT_SHARE_ALONE, REST_FITS_SCALE,
+    layout_shape, placement_distance, robust_noise_scale, robust_noise_scale_with_tolerances,
+    try_problem, CellCalibration, CellFitError, CellProblem, CheckThresholds, PlacementDistance,
+    RejectionPattern, Trial, MISFIT_SHARE_ALONE, REST_FITS_SCALE,
 };
 use handclasp_cell::problem::{cell_problem, FitModel};
 use handclasp_cell::{Cell, Session};

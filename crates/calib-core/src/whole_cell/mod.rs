@@ -149,8 +149,8 @@ pub use calibrate::{calibrate_cell, CellCalibration, PriorScaleChoice, PRIOR_SCA
 pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool};
 pub use check::{
     coincident_pairs, fitted_rows_noise_scale, layout_shape, placement_distance,
-    robust_noise_scale, robust_noise_scale_with_tolerances, CheckThresholds, LayoutShape, PlacementDistance,
-    LEVERAGE_FLOOR,
+    robust_noise_scale, robust_noise_scale_with_tolerances, CheckThresholds, LayoutShape,
+    PlacementDistance, LEVERAGE_FLOOR,
 };
 pub use coverage::{
     session_coverage, CoverageReport, JointCoverage, JointCoverageReport, PointRegion,

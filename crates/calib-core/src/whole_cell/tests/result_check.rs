@@ -198,13 +198,19 @@ fn small_kinematic_sessions_read_the_stated_noise() {
             p.observations = sc.coincident(n, 3e-4, 0.7, 80 + seed);
             let cal =
                 calibrate_cell(&p, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
-            assert!(cal.fit.layout.prior_sqrt_info.nrows() > 0, "a kinematic fit");
+            assert!(
+                cal.fit.layout.prior_sqrt_info.nrows() > 0,
+                "a kinematic fit"
+            );
             scales.push(robust_noise_scale(&p, &cal.fit).unwrap());
         }
         scales.sort_by(f64::total_cmp);
         let median = 0.5 * (scales[2] + scales[3]);
         eprintln!("{n} rows: {scales:.2?}");
-        assert!((median - 1.0).abs() < SCALE_MEDIAN_TOL, "{n} rows: {scales:?}");
+        assert!(
+            (median - 1.0).abs() < SCALE_MEDIAN_TOL,
+            "{n} rows: {scales:?}"
+        );
         assert!(scales.iter().all(|&s| s < high), "{n} rows: {scales:?}");
     }
 }
@@ -246,7 +252,9 @@ fn placement_scale_with_tolerances_reads_the_robots_error() {
 #[test]
 fn thirty_percent_blunders_are_blunders_when_the_rest_fits() {
     let sc = sim_cell(Cell::Wall, realistic(), false, 95);
-    let bad: Vec<(usize, f64)> = (0..12).map(|k| (3 * k + 2, 0.01 + 0.001 * k as f64)).collect();
+    let bad: Vec<(usize, f64)> = (0..12)
+        .map(|k| (3 * k + 2, 0.01 + 0.001 * k as f64))
+        .collect();
     for (understated, misfit) in [(false, false), (true, true)] {
         let mut p = sc.problem();
         p.observations = sc.coincident_with_blunders(40, 3e-4, 0.7, 96, &bad);
