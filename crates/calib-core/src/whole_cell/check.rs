@@ -180,7 +180,7 @@ fn noise_scale_of(
         let dim = problem.observations[i].kind.rows();
         let start = rows.block_start[b];
         let j = rows.j.rows(start, dim);
-        let h = &j * &h_inv * j.transpose();
+        let h = j * &h_inv * j.transpose();
         let mut s = if active[i] {
             DMatrix::identity(dim, dim) - h
         } else {
@@ -188,7 +188,7 @@ fn noise_scale_of(
         };
         if let Some((m, var)) = &extra {
             let mi = m.rows(start, dim);
-            s += &mi * DMatrix::from_diagonal(var) * mi.transpose();
+            s += mi * DMatrix::from_diagonal(var) * mi.transpose();
         }
         let eig = nalgebra::SymmetricEigen::new(s);
         let r = rows.r.rows(start, dim);
