@@ -143,8 +143,12 @@ pub fn calibrate_session_with(
         // the cell's own b1_from_b2.
         solve.initial_b1_from_b2 = Some(cell.b1_from_b2);
     }
-    let (cal, screen_report) =
-        fit_with_screen(&problem, &solve, screen).map_err(CellCalibrationError::Fit)?;
+    // A placement fit's screen judges the rows it keeps against the stated noise plus the
+    // robots' tolerances (their own error is in every row).
+    let toleranced = (model.fit_model() == FitModel::Placement)
+        .then(|| cell_problem(cell, session, FitModel::Kinematic));
+    let (cal, screen_report) = fit_with_screen(&problem, &solve, screen, toleranced.as_ref())
+        .map_err(CellCalibrationError::Fit)?;
     let pairs = session_meeting_pairs(session);
     let cooperative = if pairs.is_empty() {
         None
@@ -186,6 +190,7 @@ fn fit_with_screen(
     problem: &CellProblem,
     solve: &SolveOptions,
     mode: ScreenMode,
+    toleranced: Option<&CellProblem>,
 ) -> Result<(CellCalibration, ScreenReport), CellFitError> {
     let keep_all = ScreenOptions {
         reject: false,
@@ -200,12 +205,12 @@ fn fit_with_screen(
         // model is wrong; auto keeps them all and reports the misfit.
         Err(CellFitError::TooFewRows { rejected_rows, .. }) if mode == ScreenMode::Auto => {
             let cal = calibrate_cell(problem, solve, &keep_all)?;
-            let screen = misfit_outcome(problem, &cal, &rejected_rows, mode)?;
+            let screen = misfit_outcome(problem, &cal, &rejected_rows, mode, toleranced)?;
             return Ok((cal, screen));
         }
         other => other?,
     };
-    let screen = screen_outcome(problem, &cal, mode)?;
+    let screen = screen_outcome(problem, &cal, mode, toleranced)?;
     if screen.rows_kept {
         return Ok((calibrate_cell(problem, solve, &keep_all)?, screen));
     }

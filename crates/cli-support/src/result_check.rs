@@ -19,9 +19,10 @@
 use std::path::Path;
 
 use calib_core::whole_cell::{
-    candidate_mistakes, classify_rejections, coincident_pairs, layout_shape, placement_distance,
-    robust_noise_scale, try_problem, CellCalibration, CellFitError, CellProblem, CheckThresholds,
-    PlacementDistance, RejectionPattern, Trial,
+    candidate_mistakes, classify_rejections, coincident_pairs, fitted_rows_noise_scale,
+    layout_shape, placement_distance, robust_noise_scale, robust_noise_scale_with_tolerances,
+    try_problem, CellCalibration, CellFitError, CellProblem, CheckThresholds, PlacementDistance,
+    RejectionPattern, Trial, MISFIT_SHARE_ALONE, REST_FITS_SCALE,
 };
 use handclasp_cell::problem::{cell_problem, FitModel};
 use handclasp_cell::{Cell, Session};
@@ -72,7 +73,10 @@ pub struct ScreenReport {
 }
 
 /// The screen's outcome after a fit in `mode`: with `auto` and rows rejected, their
-/// classification. The caller refits without rejection when `rows_kept`.
+/// classification, judged with the robust noise scale of the rows kept (for a placement-only
+/// fit, against the stated noise plus the robots' tolerances of `toleranced`, the session's
+/// problem with them: `FitModel::Kinematic`'s). The caller refits without rejection when
+/// `rows_kept`.
 ///
 /// # Errors
 /// The residuals cannot be evaluated.
@@ -80,6 +84,7 @@ pub fn screen_outcome(
     problem: &CellProblem,
     cal: &CellCalibration,
     mode: ScreenMode,
+    toleranced: Option<&CellProblem>,
 ) -> Result<ScreenReport, CellFitError> {
     if mode == ScreenMode::Off || cal.rejected.is_empty() {
         return Ok(ScreenReport {
@@ -95,7 +100,7 @@ pub fn screen_outcome(
         .filter(|(_, o)| cal.rejected.iter().any(|r| r.row == o.row))
         .map(|(i, _)| i)
         .collect();
-    let pattern = classify_with_noise(problem, cal, &rejected)?;
+    let pattern = classify_with_noise(problem, cal, &rejected, toleranced)?;
     let rows_kept = mode == ScreenMode::Auto && pattern.misfit;
     Ok(ScreenReport {
         mode,
@@ -115,6 +120,7 @@ pub fn misfit_outcome(
     cal: &CellCalibration,
     rejected_rows: &[usize],
     mode: ScreenMode,
+    toleranced: Option<&CellProblem>,
 ) -> Result<ScreenReport, CellFitError> {
     let rejected: Vec<usize> = problem
         .observations
@@ -123,7 +129,7 @@ pub fn misfit_outcome(
         .filter(|(_, o)| rejected_rows.contains(&o.row))
         .map(|(i, _)| i)
         .collect();
-    let mut pattern = classify_with_noise(problem, cal, &rejected)?;
+    let mut pattern = classify_with_noise(problem, cal, &rejected, toleranced)?;
     pattern.misfit = true;
     Ok(ScreenReport {
         mode,
@@ -132,31 +138,24 @@ pub fn misfit_outcome(
     })
 }
 
-/// [`classify_rejections`] with the fit's robust noise scale and the check's
-/// [`CheckThresholds::noise_high`].
+/// [`classify_rejections`] with the robust noise scale of the rows `cal` kept (against the
+/// stated noise plus the robots' tolerances of `toleranced` for a placement-only fit) and the
+/// check's [`CheckThresholds::noise_high`].
 fn classify_with_noise(
     problem: &CellProblem,
     cal: &CellCalibration,
     rejected: &[usize],
+    toleranced: Option<&CellProblem>,
 ) -> Result<RejectionPattern, CellFitError> {
-    let noise = robust_noise_scale(problem, &cal.fit, cov_scale(cal))?;
+    let placement_only = cal.fit.layout.prior_sqrt_info.nrows() == 0;
+    let rest = fitted_rows_noise_scale(problem, &cal.fit, toleranced.filter(|_| placement_only))?;
     classify_rejections(
         problem,
         &cal.fit,
         rejected,
-        noise,
+        Some(rest),
         CheckThresholds::default().noise_high,
     )
-}
-
-/// What divides a fit's covariance back to the stated noise: a placement-only fit's
-/// covariance is scaled by its screen's noise scale (`calibrate_cell`), a kinematic one's not.
-fn cov_scale(cal: &CellCalibration) -> f64 {
-    if cal.fit.layout.prior_sqrt_info.nrows() == 0 {
-        cal.noise_scale
-    } else {
-        1.0
-    }
 }
 
 /// One check: its value against its limits (JSON `result_check.checks[]`).
@@ -299,7 +298,20 @@ pub fn check_result(
     screen: ScreenReport,
 ) -> Result<ResultCheckReport, CellFitError> {
     let th = CheckThresholds::default();
-    let noise = robust_noise_scale(problem, &cal.fit, cov_scale(cal))?;
+    let noise = robust_noise_scale(problem, &cal.fit)?;
+    // A placement fit's residuals carry the nominal robots' own error: the refusal judges them
+    // against the stated noise plus the variance the robots' tolerances allow.
+    let noise_tol = if cal.fit.layout.prior_sqrt_info.nrows() == 0 {
+        let toleranced = cell_problem(cell, session, FitModel::Kinematic);
+        Some(robust_noise_scale_with_tolerances(
+            problem,
+            &cal.fit,
+            &toleranced,
+        )?)
+    } else {
+        None
+    };
+    let judged = noise_tol.unwrap_or(noise);
     let dist = placement_distance(&cal.fit.estimate.b1_from_b2, &cell.b1_from_b2);
     let (allow_mm, allow_deg, allow_source) = allowance(cell, &th);
     let mut checks = Vec::new();
@@ -320,6 +332,22 @@ pub fn check_result(
         thresholds: vec![th.noise_low, th.noise_high, th.noise_refuse],
         value: noise,
     });
+    if let Some(value) = noise_tol {
+        checks.push(CheckItem {
+            detail: "robust noise scale of a placement fit's residuals against the stated noise \
+                     plus the variance the robots' tolerances put in each row (the nominal \
+                     robots' own error): what a refusal judges"
+                .into(),
+            name: "noise_scale_with_tolerances",
+            status: if value > th.noise_refuse {
+                "high"
+            } else {
+                "ok"
+            },
+            thresholds: vec![th.noise_refuse],
+            value,
+        });
+    }
     let placement_far = !within(&dist, allow_mm, allow_deg);
     for (name, value, allowed) in [
         ("placement_translation_mm", dist.translation_mm, allow_mm),
@@ -446,22 +474,33 @@ pub fn check_result(
              / {:.2}° from the stated one ({now}); correct it and re-run (--force keeps this fit)",
             m.mistake, m.noise_scale, m.placement_mm, m.placement_deg
         ));
-    } else if noise > th.noise_refuse {
+    } else if judged > th.noise_refuse {
         refused = true;
         messages.push(format!(
-            "model misfit: the residuals are {noise:.1}× the stated noise (refused above {}), and \
-             none of {tried_count} likely mistakes tried (rows shifted, robots or joints swapped, \
-             a joint's sign, radians, tips, the other cells beside this one) explains it: check \
-             the robots' URDFs and tips; `handclasp diagnose` names what the model misses \
-             (--force keeps this fit)",
+            "model misfit: the residuals are {noise:.1}× the stated noise{} (refused above {}), \
+             and none of {tried_count} likely mistakes tried (rows shifted, robots or joints \
+             swapped, a joint's sign, radians, tips, the other cells beside this one) explains \
+             it: check the robots' URDFs and tips; `handclasp diagnose` names what the model \
+             misses (--force keeps this fit)",
+            with_tolerances(noise_tol),
             th.noise_refuse
         ));
     } else {
-        if noise_high {
+        if noise_high && noise_tol.is_some_and(|t| t <= th.noise_high) {
             messages.push(format!(
-                "the residuals are {noise:.1}× the stated noise (warning above {}): the model \
+                "the residuals are {noise:.1}× the stated noise (warning above {}){}: within what \
+                 the robots' tolerances allow, so this is the nominal robots' own error, larger \
+                 than the session's noise; the placement model leaves it in every row \
+                 (`--model kinematic` fits it); none of {tried_count} likely mistakes explains it",
+                th.noise_high,
+                with_tolerances(noise_tol),
+            ));
+        } else if noise_high {
+            messages.push(format!(
+                "the residuals are {noise:.1}× the stated noise{} (warning above {}): the model \
                  misfits or the cell's [noise] is understated; none of {tried_count} likely \
                  mistakes explains it; `handclasp diagnose` names what the model misses",
+                with_tolerances(noise_tol),
                 th.noise_high
             ));
         }
@@ -488,6 +527,23 @@ pub fn check_result(
         ));
     }
     messages.extend(degenerate);
+    if let Some(p) = screen
+        .pattern
+        .as_ref()
+        .filter(|p| !p.misfit && p.share > MISFIT_SHARE_ALONE)
+    {
+        let rows: Vec<usize> = cal.rejected.iter().map(|r| r.row).collect();
+        messages.push(format!(
+            "{} of {} rows ({:.0} %) rejected as blunders: the rows left fit at the stated noise \
+             (robust noise scale {:.2}, at most {REST_FITS_SCALE}), so these rows disagree with \
+             any model, not the model with them: rows {rows:?}; re-record them, or remove them \
+             and re-run",
+            p.rejected_rows,
+            p.rows,
+            100.0 * p.share,
+            p.rest_noise_scale.unwrap_or(f64::NAN),
+        ));
+    }
     if let Some(p) = screen.pattern.as_ref().filter(|p| p.misfit) {
         messages.push(if screen.rows_kept {
             format!(
@@ -577,6 +633,14 @@ fn masked_blunders_check(
         moved.rotation_deg,
     );
     Some((item, Some(message)))
+}
+
+/// The words for a placement fit's noise scale with the robots' tolerances (empty without
+/// one).
+fn with_tolerances(noise_tol: Option<f64>) -> String {
+    noise_tol.map_or_else(String::new, |t| {
+        format!(" ({t:.2}× the stated noise plus what the robots' tolerances allow)")
+    })
 }
 
 fn trial_report(

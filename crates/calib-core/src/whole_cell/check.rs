@@ -2,9 +2,11 @@
 //! stated. No I/O; SI units inside, mm and degrees in the report.
 //!
 //! 1. [`robust_noise_scale`]: the residuals' robust noise scale against the stated σ (the
-//!    median of each block's whitened χ² over the median of `χ²_dim`, corrected for the
-//!    degrees of freedom the fit used, the hat matrix's trace). Far above 1: the model misfits
-//!    (or σ is understated); far below: σ is overstated.
+//!    median of each block's whitened χ², each corrected for its leverage, over the median of
+//!    `χ²_dim`). Far above 1: the model misfits (or σ is understated); far below: σ is
+//!    overstated. [`robust_noise_scale_with_tolerances`]: a placement-only fit's scale against
+//!    the stated σ plus the variance the robots' tolerances put in each row (its residuals
+//!    carry the nominal robots' own error).
 //! 2. [`placement_distance`]: the fitted `b1_from_b2` against the cell's stated placement
 //!    (its translation in mm, its rotation angle in degrees), judged against the cell's stated
 //!    σ times [`CheckThresholds::placement_k_sigma`], or the default
@@ -18,12 +20,12 @@
 //! When a check is off, `mistakes.rs` tries the likely data mistakes and `cli-support` frames
 //! the outcome (refusal or `warning:`).
 
-use nalgebra::{Isometry3, Matrix3, Vector3};
+use nalgebra::{DMatrix, DVector, Isometry3, Matrix3, Vector3};
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-use super::solve::{assemble, CellFit};
-use super::{CellFitError, CellProblem, ObservationKind};
+use super::solve::{linearise_rows, sym_inverse, CellFit, DataRows};
+use super::{CellFitError, CellParam, CellProblem, ObservationKind, ParamLayout};
 
 /// The thresholds of the result check; every default is documented on its field (and in the
 /// guide's "when the tool warns" page).
@@ -75,30 +77,131 @@ impl Default for CheckThresholds {
     }
 }
 
+/// Directions of a row's residual whose predicted variance (in units of the stated noise) is
+/// below this are left out of its χ²: a row the fit reproduces almost exactly (leverage above
+/// `1 − LEVERAGE_FLOOR`) says nothing about the noise, and dividing its tiny residual by a tiny
+/// variance would amplify the fit's nonlinearity. 0.05: leverage up to 0.95 is corrected.
+pub const LEVERAGE_FLOOR: f64 = 0.05;
+
 /// The robust noise scale of `fit` over **every** observation of `problem` (rejected ones
 /// included, so that a screen cannot hide a misfit), relative to the stated noise:
-/// `sqrt(median_i(t_i/m_dim) · N/(N − p))`, `t_i` the block's whitened χ², `m_dim` the median of
-/// `χ²_dim`, `N` the residual rows and `p` the degrees of freedom the fit used (the trace of
-/// its hat matrix over the active rows, the layout's width at most; `cov_scale²` divides the
-/// covariance back to the stated noise, as `calibrate_cell` scales a placement-only fit's).
-/// A blunder moves the median by one rank only.
+/// `sqrt(median_i(t_i/m_i))`, `t_i = r_iᵀ·S_i⁻¹·r_i` the block's whitened residual `r_i` against
+/// its predicted covariance under the stated noise, `m_i` the median of `χ²` with the block's
+/// degrees of freedom. Each row is corrected for its leverage: `S_i = I − H_ii` for a row the
+/// fit used and `I + H_ii` for one it did not (rejected), `H_ii = J_i·H⁻¹·J_iᵀ`, `H` the fit's
+/// information (data and prior rows) at the optimum. A fit with nearly as many unknowns as
+/// rows leaves small residuals; corrected row by row they read the stated noise again (a global
+/// `N/(N − p)` correction blows up there). Directions with `S_i` below [`LEVERAGE_FLOOR`] are
+/// left out of `t_i`, and a row with none left out of the median (1 when none is left). A
+/// blunder moves the median by one rank only.
 ///
 /// # Errors
 /// The residuals cannot be evaluated (a model failure at a row).
-pub fn robust_noise_scale(
+pub fn robust_noise_scale(problem: &CellProblem, fit: &CellFit) -> Result<f64, CellFitError> {
+    noise_scale_of(problem, fit, None, false)
+}
+
+/// [`robust_noise_scale`] over the rows `fit` used only (a screened fit: the rows it kept), with
+/// the robots' tolerances added to each row's predicted covariance when `toleranced` is given
+/// ([`robust_noise_scale_with_tolerances`]): whether the rows left after a screen fit at the
+/// stated noise (blunders) or not (misfit, [`super::classify_rejections`]).
+///
+/// # Errors
+/// As [`robust_noise_scale_with_tolerances`].
+pub fn fitted_rows_noise_scale(
     problem: &CellProblem,
     fit: &CellFit,
-    cov_scale: f64,
+    toleranced: Option<&CellProblem>,
 ) -> Result<f64, CellFitError> {
-    let all: Vec<usize> = (0..problem.observations.len()).collect();
-    let sys = assemble(problem, &fit.layout, &fit.estimate, &all, None, false)?;
-    let mut ratios = Vec::with_capacity(all.len());
-    let mut rows = 0usize;
+    noise_scale_of(problem, fit, toleranced, true)
+}
+
+/// [`robust_noise_scale`] of a placement-only `fit` against the stated noise **plus** the
+/// variance the robots' tolerances put in each row: `toleranced` is the same session's problem
+/// with the robots' tolerances (`FitModel::Kinematic`'s); each row's predicted covariance gets
+/// `M_i·Σ_tol·M_iᵀ`, `M = (I − J·H⁻¹·J_aᵀ)·J_k` the Jacobian `J_k` of the robots' kinematic and
+/// tip parameters at the fit (nominal robots) after the fit has absorbed what its own unknowns
+/// (placement, tracker frames, planes) can of it, `Σ_tol` their prior (`(tol/√3)²`, uniform
+/// within ±tol). A placement fit's residuals carry the nominal robots' own error; against
+/// this variance a session whose robots are within their tolerances reads at most about 1,
+/// whatever the sensor's precision (a laser tracker's µm against the robots' mm).
+///
+/// # Errors
+/// The residuals cannot be evaluated, or `toleranced` is not `problem` with tolerances (its
+/// observations, tools or groups differ).
+pub fn robust_noise_scale_with_tolerances(
+    problem: &CellProblem,
+    fit: &CellFit,
+    toleranced: &CellProblem,
+) -> Result<f64, CellFitError> {
+    noise_scale_of(problem, fit, Some(toleranced), false)
+}
+
+/// [`robust_noise_scale_with_tolerances`] (`toleranced` given) or [`robust_noise_scale`], over
+/// the rows the fit used only when `fitted_only`.
+fn noise_scale_of(
+    problem: &CellProblem,
+    fit: &CellFit,
+    toleranced: Option<&CellProblem>,
+    fitted_only: bool,
+) -> Result<f64, CellFitError> {
+    let n = problem.observations.len();
+    if n == 0 {
+        return Ok(1.0);
+    }
+    let all: Vec<usize> = (0..n).collect();
+    let at_optimum = fit.linearisation(problem)?;
+    let rows = linearise_rows(
+        problem,
+        &fit.layout,
+        &fit.estimate,
+        &all,
+        Some(&at_optimum.rows),
+    )?;
+    let (h_inv, _) = sym_inverse(&fit.information(problem)?);
+    let active = {
+        let mut a = vec![false; n];
+        for &i in &fit.active {
+            if let Some(slot) = a.get_mut(i) {
+                *slot = true;
+            }
+        }
+        a
+    };
+    let extra = match toleranced {
+        Some(t) => Some(tolerance_part(t, fit, &rows, &h_inv, &active)?),
+        None => None,
+    };
+    let mut ratios = Vec::with_capacity(n);
     for (b, &i) in all.iter().enumerate() {
+        if fitted_only && !active[i] {
+            continue;
+        }
         let dim = problem.observations[i].kind.rows();
-        rows += dim;
-        let t = sys.r.rows(sys.block_start[b], dim).norm_squared();
-        ratios.push(t / chi2_median(dim));
+        let start = rows.block_start[b];
+        let j = rows.j.rows(start, dim);
+        let h = j * &h_inv * j.transpose();
+        let mut s = if active[i] {
+            DMatrix::identity(dim, dim) - h
+        } else {
+            DMatrix::identity(dim, dim) + h
+        };
+        if let Some((m, var)) = &extra {
+            let mi = m.rows(start, dim);
+            s += mi * DMatrix::from_diagonal(var) * mi.transpose();
+        }
+        let eig = nalgebra::SymmetricEigen::new(s);
+        let r = rows.r.rows(start, dim);
+        let (mut t, mut kept) = (0.0, 0usize);
+        for (k, &lambda) in eig.eigenvalues.iter().enumerate() {
+            if lambda >= LEVERAGE_FLOOR {
+                t += eig.eigenvectors.column(k).dot(&r).powi(2) / lambda;
+                kept += 1;
+            }
+        }
+        if kept > 0 {
+            ratios.push(t / chi2_median(kept));
+        }
     }
     if ratios.is_empty() {
         return Ok(1.0);
@@ -110,9 +213,52 @@ pub fn robust_noise_scale(
     } else {
         0.5 * (ratios[mid - 1] + ratios[mid])
     };
-    let p = hat_trace(problem, fit, cov_scale)?.min(fit.layout.len() as f64);
-    let dof = (rows as f64 - p).max(1.0);
-    Ok((median * rows as f64 / dof).sqrt())
+    Ok(median.sqrt())
+}
+
+/// `(M, var)` of [`robust_noise_scale_with_tolerances`]: `M` (rows as `rows`, one column per
+/// toleranced robot parameter) and each parameter's prior variance.
+fn tolerance_part(
+    toleranced: &CellProblem,
+    fit: &CellFit,
+    rows: &DataRows,
+    h_inv: &DMatrix<f64>,
+    active: &[bool],
+) -> Result<(DMatrix<f64>, DVector<f64>), CellFitError> {
+    if toleranced.observations.len() != rows.block_start.len() {
+        return Err(CellFitError::InvalidInput(format!(
+            "the toleranced problem has {} observations, the fitted one {}",
+            toleranced.observations.len(),
+            rows.block_start.len()
+        )));
+    }
+    fit.estimate.check(toleranced)?;
+    let layout = ParamLayout::new(toleranced, &[]);
+    let cols: Vec<usize> = (0..layout.len())
+        .filter(|&c| {
+            matches!(
+                layout.params[c],
+                CellParam::Kinematic { .. } | CellParam::ToolTip { .. }
+            ) && layout.prior_sigma(c) > 0.0
+        })
+        .collect();
+    let var = DVector::from_iterator(
+        cols.len(),
+        cols.iter().map(|&c| layout.prior_sigma(c).powi(2)),
+    );
+    let all: Vec<usize> = (0..toleranced.observations.len()).collect();
+    let k_rows = linearise_rows(toleranced, &layout, &fit.estimate, &all, None)?;
+    let jk = k_rows.j.select_columns(cols.iter());
+    // J_aᵀ·J_k,a over the rows the fit used.
+    let mut c = DMatrix::zeros(rows.j.ncols(), cols.len());
+    for (b, &start) in rows.block_start.iter().enumerate() {
+        if active[rows.observations[b]] {
+            let dim = toleranced.observations[rows.observations[b]].kind.rows();
+            c += rows.j.rows(start, dim).transpose() * jk.rows(start, dim);
+        }
+    }
+    let m = &jk - &rows.j * (h_inv * c);
+    Ok((m, var))
 }
 
 /// Median of `χ²_dim`.
@@ -120,19 +266,6 @@ fn chi2_median(dim: usize) -> f64 {
     ChiSquared::new(dim as f64)
         .map(|d| d.inverse_cdf(0.5))
         .unwrap_or(dim as f64)
-}
-
-/// `trace(J·Σ·Jᵀ)/cov_scale²` over the fit's active data rows: the degrees of freedom the fit
-/// spent.
-fn hat_trace(problem: &CellProblem, fit: &CellFit, cov_scale: f64) -> Result<f64, CellFitError> {
-    if fit.layout.is_empty() || fit.active.is_empty() {
-        return Ok(0.0);
-    }
-    let sys = assemble(problem, &fit.layout, &fit.estimate, &fit.active, None, true)?;
-    let j = sys.j.rows(0, sys.data_rows);
-    let h = j * &fit.covariance * j.transpose();
-    let s2 = (cov_scale * cov_scale).max(f64::MIN_POSITIVE);
-    Ok(h.trace() / s2)
 }
 
 /// How far a fitted placement lies from a stated one.

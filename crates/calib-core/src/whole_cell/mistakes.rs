@@ -307,7 +307,7 @@ pub fn try_problem(problem: &CellProblem, start: &Isometry3<f64>) -> Result<Tria
     let layout = ParamLayout::new(&p, &[]);
     let fit = fit_cell_with(&p, layout, &all, None, &solve)?;
     Ok(Trial {
-        noise_scale: robust_noise_scale(&p, &fit, 1.0)?,
+        noise_scale: robust_noise_scale(&p, &fit)?,
         b1_from_b2: fit.estimate.b1_from_b2,
     })
 }

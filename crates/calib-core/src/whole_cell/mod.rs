@@ -148,8 +148,9 @@ pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
 pub use calibrate::{calibrate_cell, CellCalibration, PriorScaleChoice, PRIOR_SCALES};
 pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool};
 pub use check::{
-    coincident_pairs, layout_shape, placement_distance, robust_noise_scale, CheckThresholds,
-    LayoutShape, PlacementDistance,
+    coincident_pairs, fitted_rows_noise_scale, layout_shape, placement_distance,
+    robust_noise_scale, robust_noise_scale_with_tolerances, CheckThresholds, LayoutShape,
+    PlacementDistance, LEVERAGE_FLOOR,
 };
 pub use coverage::{
     session_coverage, CoverageReport, JointCoverage, JointCoverageReport, PointRegion,
@@ -165,7 +166,8 @@ pub use layout::{
 };
 pub use misfit::{
     classify_rejections, JointCluster, RejectionPattern, ResidualPattern, CLUSTER_MIN_ROWS,
-    JOINT_TAIL, MISFIT_MIN_ROWS, MISFIT_SHARE, MISFIT_SHARE_ALONE, TIME_WINDOW,
+    JOINT_TAIL, MISFIT_MIN_ROWS, MISFIT_SHARE, MISFIT_SHARE_ALONE, MISFIT_SHARE_MAJORITY,
+    REST_FITS_SCALE, TIME_WINDOW,
 };
 pub use mistakes::{candidate_mistakes, try_problem, Mistake, Trial};
 pub use observations::{

@@ -610,7 +610,7 @@ fn screen(
         Ok(screened) => {
             if options.keep_misfit && !screened.rejected.is_empty() {
                 let rows: Vec<usize> = screened.rejected.iter().map(|r| r.row).collect();
-                let pattern = classify_rejections(&p, &screened.fit, &index_of(&rows), 1.0, 1.0)?;
+                let pattern = classify_rejections(&p, &screened.fit, &index_of(&rows), None, 1.0)?;
                 if pattern.misfit {
                     return Ok((all.to_vec(), Vec::new(), Some(pattern)));
                 }
@@ -619,7 +619,7 @@ fn screen(
         }
         Err(CellFitError::TooFewRows { rejected_rows, .. }) if options.keep_misfit => {
             let fit = calib_core::whole_cell::fit_cell_with(&p, layout, all, None, &options.solve)?;
-            let mut pattern = classify_rejections(&p, &fit, &index_of(&rejected_rows), 1.0, 1.0)?;
+            let mut pattern = classify_rejections(&p, &fit, &index_of(&rejected_rows), None, 1.0)?;
             pattern.misfit = true;
             Ok((all.to_vec(), Vec::new(), Some(pattern)))
         }
