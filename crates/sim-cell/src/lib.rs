@@ -4,6 +4,7 @@ mod error;
 pub mod layout;
 pub mod paper;
 pub mod placement;
+pub mod honest;
 pub mod plan;
 pub mod plot;
 pub mod session_kinds;

@@ -218,7 +218,7 @@ fn scaled_data_covariance(problem: &CellProblem, fit: &CellFit, s2: f64) -> DMat
 }
 
 /// Mean stated noise variance per residual row (m²) over the fit's active observations.
-fn mean_noise_var(problem: &CellProblem, fit: &CellFit) -> Result<f64, CellFitError> {
+pub(super) fn mean_noise_var(problem: &CellProblem, fit: &CellFit) -> Result<f64, CellFitError> {
     let ev = super::Evaluator::new(problem, &fit.layout);
     let (mut sum, mut rows) = (0.0, 0usize);
     for &i in &fit.active {

@@ -1,0 +1,449 @@
+//! The predicted cooperative error: one definition for `calibrate --cell`, `plan` and the report
+//! page, over a named set of configuration pairs, split into what the data determined, what the
+//! prior asserts and what the model misses.
+//!
+//! 1. [`PredictionSplit`]: the error covariance of the estimate in two parts whose sum is the
+//!    fit's (or the design's) error covariance `Σ`, plus a model-error variance:
+//!    - a calibration ([`PredictionSplit::of_calibration`]): the estimator with prior
+//!      information `Λ_s` (the tolerances at the evidence's scale `s`, `Λ_s = Λ/s²`) has
+//!      information `H = H_d + Λ_s` and, for a truth drawn from the tolerance prior, error
+//!      covariance `Σ = H⁻¹·H_d·H⁻¹ + H⁻¹·(Λ_s/s²)·H⁻¹`. The first term is the **data part**
+//!      (the noise the data leave); the second is the **prior part** (the truth's spread along
+//!      the directions the data do not determine, and what the shrinkage to the prior leaves:
+//!      right only if the robots really are as far off as their tolerances). The prior part is
+//!      taken as `Σ − data part`, so the parts sum to the fit's own covariance whatever its
+//!      scale (a placement-only fit whose residuals exceed the noise: its data part is scaled
+//!      with it).
+//!    - a design ([`super::design_split`]): the same at nominal, for a chosen prior scale.
+//! 2. The **model-error term** ([`ModelError`]): the placement-only fit's residual variance
+//!    factor when it set one; else from the held-out residuals of the fit's rows, each left out
+//!    in turn (linearised): `t_i² = r̃ᵀ(I − H_ii)⁻¹r̃ ~ χ²_dim` under the model; when their sum is
+//!    significantly above its degrees of freedom (χ² upper tail below
+//!    [`MODEL_ERROR_ALPHA`]), the excess `(Σt²/Σdim − 1)·σ̄²` (σ̄² the mean stated noise
+//!    variance per residual row) is the variance per b1 axis the model does not represent.
+//!    A design has none (it assumes the model).
+//! 3. [`predict_error`]: over pairs `(q1, q2)` of a [`PairSet`], the cooperative vector
+//!    `v = f1(q1) − b1_from_b2·f2(q2)` (m, b1 axes) has error covariance
+//!    `J_v·(D + P)·J_vᵀ + m·I` (`D`, `P` the parts, `m` the model-error variance); the rms of
+//!    each part is `sqrt(mean_k trace)`, and `rms² = data² + prior² + model²` exactly. The p95
+//!    of ‖δv‖ and its interval come from [`summarise_covariances`]; the 95 % bound of the rms
+//!    over the pairs ([`PredictedError::rms_bound95_m`]) from [`BOUND_DRAWS`] seeded draws of
+//!    one parameter error (shared by every pair, as a calibration's error is) and the
+//!    model-error term per pair.
+//! 4. [`workspace_pairs`]: seeded reachable handclasps over the whole common workspace (robot 1
+//!    drawn within its joint limits, robot 2 meeting its tip head-on by inverse kinematics).
+
+use kinematics::{base_from_tip, ik_tip_position, IkOptions};
+use nalgebra::{DMatrix, Isometry3, Point3, Unit};
+use rand::Rng;
+use rand_distr::{Distribution, StandardNormal};
+use serde::Serialize;
+
+use super::accuracy::{summarise_covariances, ConfigPair};
+use super::calibrate::CellCalibration;
+use super::solve::sym_inverse;
+use super::{CellEstimate, CellFitError, CellProblem, Evaluator, ParamLayout};
+use crate::stats::{chi2_sf, quantile, trial_rng};
+
+/// Significance of the held-out residuals' excess over the stated noise below which a
+/// model-error term is added (χ² upper tail of `Σ t_i²` on `Σ dim_i` degrees of freedom).
+pub const MODEL_ERROR_ALPHA: f64 = 0.05;
+
+/// Seeded draws of the parameter error behind [`PredictedError::rms_bound95_m`].
+pub const BOUND_DRAWS: usize = 400;
+
+/// Reachable handclasps over the whole workspace that `calibrate --cell` and `plan` predict
+/// over ([`workspace_pairs`]).
+pub const WORKSPACE_POSES: usize = 100;
+
+/// Draws of robot 1's joints per wanted workspace pose before giving up.
+pub const WORKSPACE_ATTEMPTS_PER_POSE: usize = 10;
+
+/// Seed of the workspace poses of `calibrate --cell` and `plan` (the same poses for both).
+pub const WORKSPACE_SEED: u64 = 1;
+
+/// Which configuration pairs a prediction is over; serialised snake_case.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum PairSet {
+    /// The session's own meeting pairs (coincident and contact rows): where the data are.
+    MeetingPairs,
+    /// Handclasps at the user's work points.
+    WorkPoints,
+    /// Seeded reachable handclasps over the whole common workspace ([`workspace_pairs`]).
+    Workspace,
+    /// Held-out reachable handclasps in the cube the session's (or the plan's) poses were drawn
+    /// in: `plan`'s evaluation set, and the honest-predictions check's.
+    HeldOutHandclasps,
+}
+
+impl PairSet {
+    /// What the set is, for people.
+    pub fn describe(self) -> &'static str {
+        match self {
+            PairSet::MeetingPairs => {
+                "the session's meeting pairs (q1_i, q2_i) of its coincident and contact rows"
+            }
+            PairSet::WorkPoints => "handclasps placed head-on at the work points",
+            PairSet::Workspace => {
+                "seeded reachable handclasps over the whole common workspace (robot 1 within its \
+                 joint limits, robot 2 meeting it head-on)"
+            }
+            PairSet::HeldOutHandclasps => {
+                "held-out reachable handclasps in the cube the poses were drawn in"
+            }
+        }
+    }
+}
+
+/// Where the model-error term comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "source")]
+#[non_exhaustive]
+pub enum ModelError {
+    /// None assumed (a design, or a fit with no residual to hold out).
+    Assumed,
+    /// The placement-only fit's residual variance factor ([`super::CellFit::model_error_var_m2`]).
+    PlacementResiduals {
+        /// Variance per b1 axis, m².
+        var_m2: f64,
+    },
+    /// The held-out (leave-one-out) residuals of the fit's rows.
+    HeldOut {
+        /// `Σ t_i² / Σ dim_i`: 1 when the residuals are as the stated noise and the posterior
+        /// predict.
+        ratio: f64,
+        /// χ² upper-tail probability of `Σ t_i²`.
+        p_value: f64,
+        /// Variance per b1 axis added (0 unless `p_value` < [`MODEL_ERROR_ALPHA`]), m².
+        var_m2: f64,
+    },
+}
+
+impl ModelError {
+    /// The variance per b1 axis it adds, m².
+    pub fn var_m2(&self) -> f64 {
+        match *self {
+            ModelError::Assumed => 0.0,
+            ModelError::PlacementResiduals { var_m2 } | ModelError::HeldOut { var_m2, .. } => {
+                var_m2
+            }
+        }
+    }
+}
+
+/// The error covariance of an estimate in parts (see the module documentation), over the
+/// layout's columns, SI units.
+#[derive(Debug, Clone)]
+pub struct PredictionSplit {
+    /// The part the data determined (the noise they leave).
+    pub data: DMatrix<f64>,
+    /// The part the prior asserts (tolerances of what the data do not determine).
+    pub prior: DMatrix<f64>,
+    /// The model-error term.
+    pub model_error: ModelError,
+}
+
+impl PredictionSplit {
+    /// The split of a calibration of `problem` (see the module documentation).
+    ///
+    /// Errors: the models reject an observation of the fit.
+    pub fn of_calibration(
+        problem: &CellProblem,
+        cal: &CellCalibration,
+    ) -> Result<Self, CellFitError> {
+        let fit = &cal.fit;
+        let h = fit.information(problem)?;
+        let lin = fit.linearisation(problem)?;
+        let rows = &lin.rows;
+        let data_rows: usize = fit
+            .active
+            .iter()
+            .map(|&i| problem.observations[i].kind.rows())
+            .sum();
+        let jd = rows.j.rows(0, data_rows.min(rows.j.nrows()));
+        let hd = jd.transpose() * jd;
+        let (h_inv, _) = sym_inverse(&h);
+        let placement_only = fit.layout.prior_sqrt_info.nrows() == 0;
+        let noise2 = if placement_only && cal.noise_scale > 1.0 {
+            cal.noise_scale * cal.noise_scale
+        } else {
+            1.0
+        };
+        let data = sym(&(&h_inv * hd * &h_inv * noise2));
+        let prior = sym(&(&fit.covariance - &data));
+        let model_error = if fit.model_error_var_m2 > 0.0 {
+            ModelError::PlacementResiduals {
+                var_m2: fit.model_error_var_m2,
+            }
+        } else {
+            held_out_model_error(problem, cal, &h_inv)?
+        };
+        Ok(PredictionSplit {
+            data,
+            prior,
+            model_error,
+        })
+    }
+
+    /// The split of a design's posterior: information `hd` from the data (with the weak
+    /// prior of the unpenalised columns), `lambda` the tolerance prior's, estimated at prior
+    /// scale `scale` (see the module documentation). No model error.
+    pub(crate) fn of_information(hd: &DMatrix<f64>, lambda: &DMatrix<f64>, scale: f64) -> Self {
+        let s2 = scale * scale;
+        let h = hd + lambda / s2;
+        let (h_inv, _) = sym_inverse(&h);
+        PredictionSplit {
+            data: sym(&(&h_inv * hd * &h_inv)),
+            prior: sym(&(&h_inv * (lambda / (s2 * s2)) * &h_inv)),
+            model_error: ModelError::Assumed,
+        }
+    }
+}
+
+/// `(m + mᵀ)/2`.
+fn sym(m: &DMatrix<f64>) -> DMatrix<f64> {
+    (m + m.transpose()) * 0.5
+}
+
+/// The model-error term from the fit's held-out residuals (see the module documentation);
+/// `h_inv` the estimator's own posterior `H⁻¹`.
+fn held_out_model_error(
+    problem: &CellProblem,
+    cal: &CellCalibration,
+    h_inv: &DMatrix<f64>,
+) -> Result<ModelError, CellFitError> {
+    let fit = &cal.fit;
+    let lin = fit.linearisation(problem)?;
+    let sys = &lin.rows;
+    let (mut t2_sum, mut dof) = (0.0, 0usize);
+    for (b, &i) in fit.active.iter().enumerate() {
+        let rows = problem.observations[i].kind.rows();
+        let s = sys.block_start[b];
+        let j = sys.j.rows(s, rows);
+        let r = sys.r.rows(s, rows).into_owned();
+        let m = DMatrix::identity(rows, rows) - j * h_inv * j.transpose();
+        if let Some(c) = m.cholesky() {
+            t2_sum += r.dot(&c.solve(&r));
+            dof += rows;
+        }
+    }
+    if dof == 0 {
+        return Ok(ModelError::Assumed);
+    }
+    let ratio = t2_sum / dof as f64;
+    let p_value = chi2_sf(t2_sum, dof);
+    let var_m2 = if p_value < MODEL_ERROR_ALPHA && ratio > 1.0 {
+        (ratio - 1.0) * super::calibrate::mean_noise_var(problem, fit)?
+    } else {
+        0.0
+    };
+    Ok(ModelError::HeldOut {
+        ratio,
+        p_value,
+        var_m2,
+    })
+}
+
+/// The predicted cooperative error over a [`PairSet`] (m): its rms split into parts, its p95
+/// and the 95 % bound of its rms.
+#[derive(Debug, Clone, Serialize)]
+pub struct PredictedError {
+    /// Which pairs.
+    pub pair_set: PairSet,
+    /// How many.
+    pub pairs: usize,
+    /// Predicted rms of ‖δv‖ over the pairs, m: `sqrt(data² + prior² + model²)`.
+    pub rms_m: f64,
+    /// The part the data determined, m.
+    pub data_rms_m: f64,
+    /// The part the prior asserts, m.
+    pub prior_rms_m: f64,
+    /// The model-error part, m.
+    pub model_error_rms_m: f64,
+    /// The model-error term's source.
+    pub model_error: ModelError,
+    /// Predicted p95 of ‖δv‖ over the pairs, m.
+    pub p95_m: f64,
+    /// Its distribution-free 95 % interval from the seeded draws, m.
+    pub p95_ci_m: [f64; 2],
+    /// 95 % upper bound of the rms over these pairs (one parameter error shared by the pairs:
+    /// the 95th percentile over [`BOUND_DRAWS`] seeded draws), m.
+    pub rms_bound95_m: f64,
+    /// `sqrt(trace)` of each pair's total covariance, m.
+    pub per_pair_rms_m: Vec<f64>,
+}
+
+/// The predicted cooperative error over `pairs` (of `pair_set`), linearised at `estimate`
+/// with `layout`'s columns (those of `split`): see the module documentation. `seed` seeds the
+/// p95 and the bound's draws (identical on any machine and thread count).
+///
+/// Errors: no pairs, a split whose size is not the layout's, or a pair the models reject.
+pub fn predict_error(
+    problem: &CellProblem,
+    layout: &ParamLayout,
+    estimate: &CellEstimate,
+    split: &PredictionSplit,
+    pairs: &[ConfigPair],
+    pair_set: PairSet,
+    seed: u64,
+) -> Result<PredictedError, CellFitError> {
+    let n = layout.len();
+    if pairs.is_empty() {
+        return Err(CellFitError::InvalidInput(format!(
+            "predicted error over {}: no configuration pair",
+            pair_set.describe()
+        )));
+    }
+    if split.data.nrows() != n || split.prior.nrows() != n {
+        return Err(CellFitError::InvalidInput(format!(
+            "predicted error: the covariance has {} columns, the layout {n}",
+            split.data.nrows()
+        )));
+    }
+    let ev = Evaluator::new(problem, layout);
+    let total = &split.data + &split.prior;
+    let m = split.model_error.var_m2();
+    let mut jacobians = Vec::with_capacity(pairs.len());
+    let (mut data_ms, mut prior_ms) = (0.0, 0.0);
+    let mut covs = Vec::with_capacity(pairs.len());
+    for pair in pairs {
+        let (_, j) = ev.cooperative_vector(estimate, pair, true)?;
+        data_ms += (&j * &split.data * j.transpose()).trace().max(0.0);
+        prior_ms += (&j * &split.prior * j.transpose()).trace().max(0.0);
+        let c = &j * &total * j.transpose();
+        covs.push(
+            nalgebra::Matrix3::from_fn(|a, b| c[(a, b)]) + nalgebra::Matrix3::identity() * m,
+        );
+        jacobians.push(j);
+    }
+    let k = pairs.len() as f64;
+    let summary = summarise_covariances(&covs, seed);
+    let rms_bound95_m = rms_bound(&jacobians, &total, m, seed);
+    Ok(PredictedError {
+        pair_set,
+        pairs: pairs.len(),
+        rms_m: summary.predicted_rms_m,
+        data_rms_m: (data_ms / k).sqrt(),
+        prior_rms_m: (prior_ms / k).sqrt(),
+        model_error_rms_m: (3.0 * m).sqrt(),
+        model_error: split.model_error,
+        p95_m: summary.predicted_p95_m,
+        p95_ci_m: summary.predicted_p95_ci_m,
+        rms_bound95_m,
+        per_pair_rms_m: summary.per_pair_rms_m,
+    })
+}
+
+/// The 95th percentile over [`BOUND_DRAWS`] draws (generator `trial_rng(seed, draw)`) of the
+/// rms over the pairs of `J_k·δθ + ε_k`, `δθ ~ N(0, cov)` shared by the pairs and
+/// `ε_k ~ N(0, model_var·I)` per pair.
+fn rms_bound(jacobians: &[DMatrix<f64>], cov: &DMatrix<f64>, model_var: f64, seed: u64) -> f64 {
+    let n = cov.nrows();
+    let eig = cov.clone().symmetric_eigen();
+    let root = &eig.eigenvectors
+        * DMatrix::from_diagonal(&eig.eigenvalues.map(|e| e.max(0.0).sqrt()));
+    // Every pair's Jacobian stacked (3·pairs × n), times the root: one product per draw.
+    let mut stacked = DMatrix::zeros(3 * jacobians.len(), n);
+    for (k, j) in jacobians.iter().enumerate() {
+        stacked.rows_mut(3 * k, 3).copy_from(j);
+    }
+    let mapped = stacked * root;
+    let model_sd = model_var.max(0.0).sqrt();
+    let mut rms: Vec<f64> = (0..BOUND_DRAWS)
+        .map(|d| {
+            let mut rng = trial_rng(seed, d as u64);
+            let z = nalgebra::DVector::from_fn(n, |_, _| StandardNormal.sample(&mut rng));
+            let e = &mapped * z;
+            let ms = e
+                .iter()
+                .map(|v| {
+                    let noise: f64 = StandardNormal.sample(&mut rng);
+                    (v + model_sd * noise).powi(2)
+                })
+                .sum::<f64>()
+                / jacobians.len() as f64;
+            ms.sqrt()
+        })
+        .collect();
+    rms.sort_by(f64::total_cmp);
+    quantile(&rms, 0.95)
+}
+
+/// A reachable handclasp over the workspace: its pair and robot 1's tip in b1 (m).
+#[derive(Debug, Clone, PartialEq)]
+pub struct WorkspacePose {
+    /// The configuration pair (tool 0 of each robot).
+    pub pair: ConfigPair,
+    /// Robot 1's nominal tip, m, b1.
+    pub p_b1: Point3<f64>,
+}
+
+/// Up to `count` seeded reachable handclasps over the whole common workspace of `problem`'s
+/// nominal robots with the placement `b1_from_b2`: draw `a` (generator `trial_rng(seed, a)`,
+/// so each can be replayed alone) draws robot 1's joints uniformly within its limits
+/// (continuous joints ±π); robot 2 meets robot 1's tool-0 tip head-on with its tool 0
+/// (position, and its flange z axis opposite robot 1's) by inverse kinematics within its
+/// limits; draws robot 2 does not reach are skipped, at most
+/// [`WORKSPACE_ATTEMPTS_PER_POSE`]`·count` are drawn.
+pub fn workspace_pairs(
+    problem: &CellProblem,
+    b1_from_b2: &Isometry3<f64>,
+    count: usize,
+    seed: u64,
+) -> Vec<WorkspacePose> {
+    let r1 = &problem.robot1;
+    let r2 = &problem.robot2;
+    let (Some(tool1), Some(tool2)) = (r1.tools.first(), r2.tools.first()) else {
+        return Vec::new();
+    };
+    let limits: Vec<(f64, f64)> = r1
+        .model
+        .joints()
+        .iter()
+        .map(|j| {
+            if j.lower.is_finite() && j.upper.is_finite() {
+                (j.lower, j.upper)
+            } else {
+                (-std::f64::consts::PI, std::f64::consts::PI)
+            }
+        })
+        .collect();
+    let b2_from_b1 = b1_from_b2.inverse();
+    let mut out = Vec::with_capacity(count);
+    for a in 0..WORKSPACE_ATTEMPTS_PER_POSE * count {
+        if out.len() == count {
+            break;
+        }
+        let mut rng = trial_rng(seed, a as u64);
+        let q1: Vec<f64> = limits
+            .iter()
+            .map(|&(lo, hi)| rng.random_range(lo..=hi))
+            .collect();
+        let Ok(b1_from_tip1) = base_from_tip(&r1.model, &q1, &tool1.flange_from_tip) else {
+            continue;
+        };
+        let p_b1 = Point3::from(b1_from_tip1.translation.vector);
+        let z1 = b1_from_tip1.rotation * nalgebra::Vector3::z();
+        let options = IkOptions {
+            tool_axis_base: Some(Unit::new_normalize(b2_from_b1.rotation * -z1)),
+            restarts: 4,
+            ..IkOptions::default()
+        };
+        let p_b2 = b2_from_b1 * p_b1;
+        match ik_tip_position(&r2.model, &p_b2, &tool2.flange_from_tip, &options) {
+            Ok(sol) if sol.reachable() => out.push(WorkspacePose {
+                pair: ConfigPair {
+                    q1,
+                    q2: sol.q,
+                    tool1: 0,
+                    tool2: 0,
+                },
+                p_b1,
+            }),
+            _ => {}
+        }
+    }
+    out
+}
