@@ -20,11 +20,12 @@
 use std::fmt::Write as _;
 
 use calib_core::whole_cell::{
-    calibrate_cell, predict_cooperative_accuracy, session_coverage, CalibrationReport,
-    CellCalibration, CellFitError, CellProblem, CooperativePrediction, CoverageReport, DropReason,
-    FittedPlacementReport, GroupsReport, Kind, NuisanceReport, ParameterReport,
-    PlacementSigmaReport, PriorScaleReport, RejectedRowReport, ScreenOptions, SolveOptions,
-    UnidentifiableReport,
+    calibrate_cell, predict_error, session_coverage, workspace_pairs, CalibrationReport,
+    CellCalibration, CellFitError, CellProblem, ConfigPair, CoverageReport, DropReason,
+    FittedPlacementReport, GroupsReport, Kind, NuisanceReport, PairSet, ParameterReport,
+    PlacementSigmaReport, PredictedErrorReport, PredictionSplit, PriorScaleReport,
+    RejectedRowReport, ScreenOptions, SolveOptions, UnidentifiableReport, WORKSPACE_POSES,
+    WORKSPACE_SEED,
 };
 use calib_core::{PoseForms, StopReason};
 use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
@@ -146,12 +147,29 @@ pub fn calibrate_session_with(
     let (cal, screen_report) =
         fit_with_screen(&problem, &solve, screen).map_err(CellCalibrationError::Fit)?;
     let pairs = session_meeting_pairs(session);
-    let cooperative = if pairs.is_empty() {
-        None
+    let (cooperative, workspace) = if pairs.is_empty() {
+        (None, None)
     } else {
-        let prediction = predict_cooperative_accuracy(&problem, &cal.fit, &pairs, P95_SEED)
+        let split = PredictionSplit::of_calibration(&problem, &cal)
             .map_err(CellCalibrationError::Prediction)?;
-        Some(CooperativeAccuracyReport::new(&prediction, pairs.len()))
+        let meeting = predict_over(&problem, &cal, &split, &pairs, PairSet::MeetingPairs)
+            .map_err(CellCalibrationError::Prediction)?;
+        let poses = workspace_pairs(
+            &problem,
+            &cal.fit.estimate.b1_from_b2,
+            WORKSPACE_POSES,
+            WORKSPACE_SEED,
+        );
+        let over: Vec<ConfigPair> = poses.into_iter().map(|p| p.pair).collect();
+        let workspace = if over.is_empty() {
+            None
+        } else {
+            Some(
+                predict_over(&problem, &cal, &split, &over, PairSet::Workspace)
+                    .map_err(CellCalibrationError::Prediction)?,
+            )
+        };
+        (Some(meeting), workspace)
     };
     let coverage = CoverageReport::from(
         &session_coverage(&problem, COVERAGE_SEED).map_err(CellCalibrationError::Coverage)?,
@@ -166,6 +184,7 @@ pub fn calibrate_session_with(
         cooperative,
         coverage,
     );
+    report.workspace_accuracy_mm = workspace;
     report.result_check = Some(
         check_result(cell, session, &problem, &cal, screen_report)
             .map_err(CellCalibrationError::Fit)?,
@@ -196,7 +215,11 @@ fn fit_with_screen(
     let cal = match calibrate_cell(problem, solve, &options) {
         // The screen would leave too few rows: when most rows disagree with the model, the
         // model is wrong; auto keeps them all and reports the misfit.
-        Err(CellFitError::TooFewRows { rejected_rows, .. }) if mode == ScreenMode::Auto => {
+        // A session too small for its unknowns (nothing rejected) is refused, as `plan`
+        // refuses such a design.
+        Err(CellFitError::TooFewRows { rejected_rows, .. })
+            if mode == ScreenMode::Auto && !rejected_rows.is_empty() =>
+        {
             let cal = calibrate_cell(problem, solve, &keep_all)?;
             let screen = misfit_outcome(problem, &cal, &rejected_rows, mode)?;
             return Ok((cal, screen));
@@ -208,6 +231,31 @@ fn fit_with_screen(
         return Ok((calibrate_cell(problem, solve, &keep_all)?, screen));
     }
     Ok((cal, screen))
+}
+
+/// The predicted error of calibration `cal` of `problem` over `pairs` (of `pair_set`), in mm
+/// ([`predict_error`] with the calibration's split, seed [`P95_SEED`]): the one definition
+/// `calibrate --cell`, `plan` and the report page share.
+///
+/// # Errors
+/// A pair the models reject.
+pub fn predict_over(
+    problem: &CellProblem,
+    cal: &CellCalibration,
+    split: &PredictionSplit,
+    pairs: &[ConfigPair],
+    pair_set: PairSet,
+) -> Result<PredictedErrorReport, CellFitError> {
+    let p = predict_error(
+        problem,
+        &cal.fit.layout,
+        &cal.fit.estimate,
+        split,
+        pairs,
+        pair_set,
+        P95_SEED,
+    )?;
+    Ok(PredictedErrorReport::from(&p))
 }
 
 /// The coverage report of `session` of `cell` (seed [`COVERAGE_SEED`]): each joint's covered
@@ -232,34 +280,9 @@ pub fn session_coverage_report(
 /// needs 3 points not on a line).
 const MIN_COINCIDENT_FOR_START: usize = 3;
 
-/// [`CooperativeAccuracyReport::pair_set`].
-const MEETING_PAIR_SET: &str =
-    "meeting pairs (q1_i, q2_i) of the session's coincident and contact rows";
-
-/// The predicted cooperative accuracy over the session's meeting pairs, mm.
-#[derive(Debug, Clone, Serialize)]
-pub struct CooperativeAccuracyReport {
-    /// Which configuration pairs the prediction is over.
-    pub pair_set: &'static str,
-    /// Their number.
-    pub pairs: usize,
-    /// Predicted 95th percentile of the cooperative error, mm.
-    pub predicted_p95: f64,
-    /// Predicted rms of the cooperative error, mm.
-    pub predicted_rms: f64,
-}
-
-impl CooperativeAccuracyReport {
-    /// From the prediction `p` over `pairs` meeting pairs (m → mm).
-    pub fn new(p: &CooperativePrediction, pairs: usize) -> Self {
-        CooperativeAccuracyReport {
-            pair_set: MEETING_PAIR_SET,
-            pairs,
-            predicted_p95: p.predicted_p95_m * 1e3,
-            predicted_rms: p.predicted_rms_m * 1e3,
-        }
-    }
-}
+/// The predicted cooperative accuracy over the session's meeting pairs (or the workspace), mm:
+/// calib-core's [`PredictedErrorReport`].
+pub type CooperativeAccuracyReport = PredictedErrorReport;
 
 /// A session's rows by observation kind, in [`Kind::ALL`]'s order inside; serialised as an
 /// object keyed by [`Kind::name`] in alphabetical order (the JSON key order of every report).
@@ -346,6 +369,10 @@ pub struct CellReport {
     pub stopped: StopReason,
     /// Parameters the session cannot determine, and why.
     pub unidentifiable: Vec<UnidentifiableReport>,
+    /// The predicted cooperative accuracy over the whole common workspace
+    /// ([`calib_core::whole_cell::workspace_pairs`], [`WORKSPACE_POSES`] poses, seed
+    /// [`WORKSPACE_SEED`]); `None` without meeting pairs or when no workspace pose is reachable.
+    pub workspace_accuracy_mm: Option<CooperativeAccuracyReport>,
 }
 
 impl CellReport {
@@ -399,6 +426,7 @@ impl CellReport {
             rows_used,
             stopped,
             unidentifiable,
+            workspace_accuracy_mm: None,
         }
     }
 }
@@ -575,11 +603,31 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
             s,
             "predicted cooperative accuracy: none (no coincident or contact row: no meeting pair)"
         )?,
-        Some(c) => writeln!(
+        Some(c) => {
+            writeln!(
+                s,
+                "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the {} meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms {:.3} mm, p95 {:.3} mm",
+                c.pairs, c.predicted_rms, c.predicted_p95
+            )?;
+            writeln!(s, "  {}", c.parts_line())?;
+        }
+    }
+    if let Some(w) = &r.workspace_accuracy_mm {
+        writeln!(
             s,
-            "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the {} meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms {:.3} mm, p95 {:.3} mm",
-            c.pairs, c.predicted_rms, c.predicted_p95
-        )?,
+            "predicted cooperative accuracy over the whole workspace ({} seeded reachable handclasps: robot 1 within its joint limits, robot 2 meeting it head-on): rms {:.3} mm, p95 {:.3} mm",
+            w.pairs, w.predicted_rms, w.predicted_p95
+        )?;
+        writeln!(s, "  {}", w.parts_line())?;
+    }
+    if let Some(c) = &r.cooperative_accuracy_mm {
+        if !params.is_empty() && r.prior_scale.chosen < 1.0 && c.prior_part_rms > c.data_part_rms {
+            writeln!(
+                s,
+                "  why the prior part: the evidence chose prior scale {}, so the kinematic corrections are held within {} × their tolerances and the rest of the tolerances stays in the prediction; `plan` predicts at scale 1 (the data correct what they see) and gives less: its 'placement-only limit' line is this case",
+                r.prior_scale.chosen, r.prior_scale.chosen
+            )?;
+        }
     }
     for line in r.coverage.text_lines() {
         writeln!(s, "{line}")?;
@@ -777,15 +825,19 @@ mod tests {
                 xyz_mm: [1303.25, -102.5, 1386.125],
                 zyz_deg: [180.0, 89.874, -179.997],
             },
-            cooperative_accuracy_mm: Some(CooperativeAccuracyReport::new(
-                &CooperativePrediction {
-                    predicted_rms_m: 1.5e-3,
-                    predicted_p95_m: 2.75e-3,
-                    predicted_p95_ci_m: [2.5e-3, 3.0e-3],
-                    per_pair_rms_m: vec![],
-                },
-                14,
-            )),
+            cooperative_accuracy_mm: Some(CooperativeAccuracyReport {
+                data_part_rms: 0.9,
+                held_out_ratio: Some(1.04),
+                model_error_rms: 0.0,
+                model_error_source: "held_out_residuals",
+                pair_set: PairSet::MeetingPairs.describe(),
+                pair_set_kind: PairSet::MeetingPairs,
+                pairs: 14,
+                predicted_p95: 2.75,
+                predicted_rms: 1.5,
+                prior_part_rms: 1.2,
+                rms_bound95: 2.0,
+            }),
             coverage: CoverageReport {
                 reach_samples: 4000,
                 robots: vec![],
@@ -840,6 +892,7 @@ mod tests {
             }],
             residual_rows: 80,
             result_check: None,
+            workspace_accuracy_mm: None,
             rows: 41,
             rows_by_kind: Some(RowsByKind::from_counts([7, 8, 13, 13, 0])),
             rows_used: 40,
@@ -892,6 +945,8 @@ mod tests {
             "  plane group \"table\": normal (0.00000, 0.60000, -0.80000), offset -971.326 mm (base of robot 2)",
             "  tracker group \"leica\": origin (-1226.996, 1146.293, 1295.316) mm, rotation φ 0.0000°  θ 0.0000°  ψ 90.0000° (ZYZ), quaternion (w, x, y, z) (0.707107, 0.000000, 0.000000, 0.707107), in the base of robot 1",
             "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the 14 meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms 1.500 mm, p95 2.750 mm",
+            "  of which: data-determined 0.900 mm, prior-asserted 1.200 mm (the tolerances of the terms the data do not determine: right only if the robots are that far off), model error none (held-out residuals 1.04× the stated noise's variance: not significantly above); 95 % bound of the rms 2.000 mm",
+            "  why the prior part: the evidence chose prior scale 0.0625, so the kinematic corrections are held within 0.0625 × their tolerances and the rest of the tolerances stays in the prediction; `plan` predicts at scale 1 (the data correct what they see) and gives less: its 'placement-only limit' line is this case",
             "coverage (the session against the joint limits and the reach sampled at 4000 joint vectors within them; a calibration is extrapolated outside it):",
             "prior scale chosen by the evidence: 0.0625 (prior σ = scale × tolerance/√3; 1e-3 = placement-only limit); blunder-screen noise scale 1.000",
             "solver: converged after 4 iterations (data χ² 62.5 over 80 residual rows)",

@@ -20,7 +20,7 @@ use std::path::Path;
 
 use calib_core::whole_cell::{
     candidate_mistakes, classify_rejections, layout_shape, placement_distance, robust_noise_scale,
-    try_problem, CellCalibration, CellFitError, CellProblem, CheckThresholds, PlacementDistance,
+    try_problem, CellCalibration, CellFitError, CellProblem, CheckThresholds, LayoutShape, PlacementDistance,
     RejectionPattern, Trial,
 };
 use handclasp_cell::problem::{cell_problem, FitModel};
@@ -277,6 +277,56 @@ fn file_name(p: &Path) -> String {
         .unwrap_or_default()
 }
 
+/// The layout's line and plane ratios `(name, value, limit, warning when below the limit)`:
+/// the degeneracy check `calibrate --cell` runs on its fit and `plan` on its design.
+fn layout_ratios(
+    shape: &LayoutShape,
+    th: &CheckThresholds,
+) -> [(&'static str, f64, f64, Option<String>); 2] {
+    let item = |name: &'static str, value: f64, limit: f64, what: &str, off: &str| {
+        let message = (value < limit).then(|| {
+            format!(
+                "robot 1's tool points of the {} two-robot rows are {what} (principal spread \
+                 {:.1}, {:.1}, {:.1} mm; {name} {value:.4} below {limit}): add rows off that {off}",
+                shape.points, shape.spread_mm[0], shape.spread_mm[1], shape.spread_mm[2],
+            )
+        });
+        (name, value, limit, message)
+    };
+    [
+        item(
+            "layout_line_ratio",
+            shape.line_ratio(),
+            th.collinear_ratio,
+            "nearly collinear: the rotation about their line is poorly determined",
+            "line",
+        ),
+        item(
+            "layout_plane_ratio",
+            shape.plane_ratio(),
+            th.coplanar_ratio,
+            "nearly coplanar: a kinematic fit cannot separate the errors that move the tips out \
+             of that plane",
+            "plane",
+        ),
+    ]
+}
+
+/// The degenerate-layout warnings of `problem`'s two-robot rows (nearly collinear or coplanar
+/// tool points), worded as `calibrate --cell`'s result check words them; empty when the layout
+/// is sound or has too few points to judge.
+pub fn layout_warnings(problem: &CellProblem) -> Vec<String> {
+    let th = CheckThresholds::default();
+    layout_shape(problem)
+        .map(|shape| {
+            layout_ratios(&shape, &th)
+                .into_iter()
+                .filter_map(|(_, _, _, m)| m)
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
 /// The result check of `cal`, the fit of `problem` (built from `cell` and `session`), after
 /// the screen `screen` (module documentation, steps 2–4).
 ///
@@ -329,38 +379,9 @@ pub fn check_result(
     let shape = layout_shape(problem);
     let mut degenerate = Vec::new();
     if let Some(shape) = &shape {
-        for (name, value, limit, what) in [
-            (
-                "layout_line_ratio",
-                shape.line_ratio(),
-                th.collinear_ratio,
-                "nearly collinear: the rotation about their line is poorly determined",
-            ),
-            (
-                "layout_plane_ratio",
-                shape.plane_ratio(),
-                th.coplanar_ratio,
-                "nearly coplanar: a kinematic fit cannot separate the errors that move the tips \
-                 out of that plane",
-            ),
-        ] {
-            let bad = value < limit;
-            if bad {
-                degenerate.push(format!(
-                    "robot 1's tool points of the {} two-robot rows are {what} (principal spread \
-                     {:.1}, {:.1}, {:.1} mm; {name} {value:.4} below {limit}): add rows off that \
-                     {}",
-                    shape.points,
-                    shape.spread_mm[0],
-                    shape.spread_mm[1],
-                    shape.spread_mm[2],
-                    if name == "layout_line_ratio" {
-                        "line"
-                    } else {
-                        "plane"
-                    },
-                ));
-            }
+        for (name, value, limit, message) in layout_ratios(shape, &th) {
+            let bad = message.is_some();
+            degenerate.extend(message);
             checks.push(CheckItem {
                 detail: "second (line) or third (plane) over the first principal spread of \
                          robot 1's tool points of the two-robot rows"

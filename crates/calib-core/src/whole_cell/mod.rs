@@ -190,7 +190,8 @@ pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, PRIOR_INFO_
 pub use report::{
     CalibrationReport, ContactGroupReport, DesignPredictionReport, DropReason,
     FittedPlacementReport, GroupsReport, LogEvidenceReport, MergePartner, NuisanceReport,
-    ParamIdentity, ParameterReport, PlacementSigmaReport, PlaneGroupReport, PriorScaleReport,
+    ParamIdentity, ParameterReport, PlacementSigmaReport, PlaneGroupReport, PredictedErrorReport,
+    PriorScaleReport,
     RejectedRowReport, ReportUnit, TrackerGroupReport, UnidentifiableReport,
 };
 pub use residuals::{Evaluator, ObservationLinearisation, MIN_FACE_NORMAL_SUM};

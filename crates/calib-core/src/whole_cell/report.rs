@@ -14,6 +14,7 @@ use serde::Serialize;
 
 use super::calibrate::CellCalibration;
 use super::design::DesignPrediction;
+use super::prediction::{ModelError, PairSet, PredictedError};
 use super::layout::CellParam;
 use super::observations::CellProblem;
 use super::reduce::{ReductionEntry, ReductionReason};
@@ -539,6 +540,87 @@ impl CellCalibration {
                 })
                 .collect(),
         }
+    }
+}
+
+/// A predicted cooperative error ([`PredictedError`]) in mm: the figures `calibrate --cell`,
+/// `plan` and the report page print, with the pair set it is over and its parts. Keys without a
+/// unit suffix: the parent key names the unit (`…_mm`).
+#[derive(Debug, Clone, Serialize)]
+pub struct PredictedErrorReport {
+    /// The part the data determined (the noise the data leave), mm.
+    pub data_part_rms: f64,
+    /// For a model-error term from held-out residuals: `Σ t² / Σ dim` (1: as the stated noise).
+    pub held_out_ratio: Option<f64>,
+    /// The model-error part, mm.
+    pub model_error_rms: f64,
+    /// Where the model-error term comes from: `assumed_none`, `placement_residuals` or
+    /// `held_out_residuals`.
+    pub model_error_source: &'static str,
+    /// Which configuration pairs the prediction is over, for people.
+    pub pair_set: &'static str,
+    /// The same as an identifier ([`PairSet`], snake_case).
+    pub pair_set_kind: PairSet,
+    /// Their number.
+    pub pairs: usize,
+    /// Predicted 95th percentile of the cooperative error, mm.
+    pub predicted_p95: f64,
+    /// Predicted rms of the cooperative error, mm: `sqrt(data² + prior² + model²)` of the parts.
+    pub predicted_rms: f64,
+    /// The part the prior asserts (the tolerances of what the data do not determine), mm.
+    pub prior_part_rms: f64,
+    /// 95 % upper bound of the rms over these pairs, mm.
+    pub rms_bound95: f64,
+}
+
+impl From<&PredictedError> for PredictedErrorReport {
+    fn from(p: &PredictedError) -> Self {
+        let (source, ratio) = match p.model_error {
+            ModelError::PlacementResiduals { .. } => ("placement_residuals", None),
+            ModelError::HeldOut { ratio, .. } => ("held_out_residuals", Some(ratio)),
+            _ => ("assumed_none", None),
+        };
+        PredictedErrorReport {
+            data_part_rms: p.data_rms_m * 1e3,
+            held_out_ratio: ratio,
+            model_error_rms: p.model_error_rms_m * 1e3,
+            model_error_source: source,
+            pair_set: p.pair_set.describe(),
+            pair_set_kind: p.pair_set,
+            pairs: p.pairs,
+            predicted_p95: p.p95_m * 1e3,
+            predicted_rms: p.rms_m * 1e3,
+            prior_part_rms: p.prior_rms_m * 1e3,
+            rms_bound95: p.rms_bound95_m * 1e3,
+        }
+    }
+}
+
+impl PredictedErrorReport {
+    /// One line of its parts and bound, for the text reports: what the data determined, what
+    /// the prior asserts, the model error and where it comes from, the 95 % bound.
+    pub fn parts_line(&self) -> String {
+        let model = match (self.model_error_source, self.held_out_ratio) {
+            ("placement_residuals", _) => format!(
+                "model error {:.3} mm (the placement-only fit's residuals above the stated noise)",
+                self.model_error_rms
+            ),
+            ("held_out_residuals", Some(r)) if self.model_error_rms > 0.0 => format!(
+                "model error {:.3} mm (held-out residuals {r:.2}× the stated noise's variance)",
+                self.model_error_rms
+            ),
+            ("held_out_residuals", Some(r)) => format!(
+                "model error none (held-out residuals {r:.2}× the stated noise's variance: not \
+                 significantly above)"
+            ),
+            _ => "model error none assumed".to_string(),
+        };
+        format!(
+            "of which: data-determined {:.3} mm, prior-asserted {:.3} mm (the tolerances of the \
+             terms the data do not determine: right only if the robots are that far off), {model}; \
+             95 % bound of the rms {:.3} mm",
+            self.data_part_rms, self.prior_part_rms, self.rms_bound95
+        )
     }
 }
 
