@@ -30,7 +30,7 @@ use cli_support::cell_report::{
 use cli_support::result_check::ScreenMode;
 use handclasp_cell::{export_calibrated_cell, Cell, Session, CALIBRATE_EXPORT_NAMES};
 use report::{
-    calibration_page, joint_coverage, predict_work_site, read_work_points, row_residuals,
+    calibration_page, joint_coverage, predict_work_site, read_work_points, row_residuals, workspace_map,
     Acceptance, CalibrationPage, MeetingPairsAccuracy, WorkSiteReport,
 };
 use serde::Serialize;
@@ -297,6 +297,8 @@ fn write_report_page(
     };
     let residuals = row_residuals(problem, cal).context("--report: the rows' residuals")?;
     let coverage = joint_coverage(cell, &residuals);
+    // The map's failure is said on the page in its place, not a refused report.
+    let workspace = workspace_map(problem, cal, P95_SEED).ok();
     let json = serde_json::to_string_pretty(report)?;
     let display = |p: &Option<PathBuf>| {
         p.as_ref()
@@ -320,6 +322,7 @@ fn write_report_page(
         }),
         residuals: &residuals,
         coverage: &coverage,
+        workspace: workspace.as_ref(),
         dof: [cell.robot1.model.dof(), cell.robot2.model.dof()],
         json: &json,
         invocation: &invocation,

@@ -447,3 +447,105 @@ pub fn workspace_pairs(
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::fixtures::{sim_cell, Cell};
+    use super::super::{
+        calibrate_cell, design_prediction, design_split, predict_cooperative_accuracy,
+        Observation, ScreenOptions, SolveOptions, Tolerance,
+    };
+    use super::*;
+
+    /// Two evaluations of the same covariance through different products: round-off only.
+    const SAME_REL: f64 = 1e-9;
+
+    /// The calibration's parts sum to its covariance; with no model error, the predicted rms
+    /// is `predict_cooperative_accuracy`'s, and `rms² = data² + prior² + model²`; the bound is
+    /// at least the rms (the rms of one shared draw is below its 95th percentile on average).
+    #[test]
+    fn calibration_parts_sum_to_the_fit() {
+        let sc = sim_cell(Cell::Wall, Tolerance::default(), false, 3);
+        let mut p = sc.problem();
+        p.observations = sc.coincident(30, 3e-4, 0.8, 4);
+        let cal = calibrate_cell(&p, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
+        let split = PredictionSplit::of_calibration(&p, &cal).unwrap();
+        let sum = &split.data + &split.prior;
+        assert!((&sum - &cal.fit.covariance).amax() <= SAME_REL * cal.fit.covariance.amax());
+        let pairs = sc.eval_pairs(20, 0.8, 5);
+        let e = predict_error(
+            &p,
+            &cal.fit.layout,
+            &cal.fit.estimate,
+            &split,
+            &pairs,
+            PairSet::HeldOutHandclasps,
+            1,
+        )
+        .unwrap();
+        let parts =
+            (e.data_rms_m.powi(2) + e.prior_rms_m.powi(2) + e.model_error_rms_m.powi(2)).sqrt();
+        assert!((parts - e.rms_m).abs() <= SAME_REL * e.rms_m);
+        if split.model_error.var_m2() == 0.0 {
+            let old = predict_cooperative_accuracy(&p, &cal.fit, &pairs, 1).unwrap();
+            assert!((old.predicted_rms_m - e.rms_m).abs() <= SAME_REL * e.rms_m);
+        }
+        assert!(e.rms_bound95_m >= e.rms_m, "{e:?}");
+        assert!(matches!(split.model_error, ModelError::HeldOut { .. }));
+        let err = predict_error(
+            &p,
+            &cal.fit.layout,
+            &cal.fit.estimate,
+            &split,
+            &[],
+            PairSet::Workspace,
+            1,
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("no configuration pair"), "{err}");
+    }
+
+    /// A design's split at scale 1 gives the design's own predicted rms; at the placement-only
+    /// limit the prior part grows (the corrections are not estimated).
+    #[test]
+    fn design_split_at_scale_one_is_the_design_prediction() {
+        let sc = sim_cell(Cell::Wall, Tolerance::default(), false, 3);
+        let p = sc.problem();
+        let cands: Vec<Observation> = sc.coincident(24, 3e-4, 0.8, 6);
+        let eval = sc.eval_pairs(20, 0.8, 7);
+        let layout = ParamLayout::new(&p, &[]);
+        let at = CellEstimate::nominal(&p, sc.truth.b1_from_b2);
+        let chosen: Vec<usize> = (0..24).collect();
+        let d = design_prediction(&p, &layout, &at, &cands, &chosen, &eval, 1).unwrap();
+        let split = design_split(&p, &layout, &at, &cands, &chosen, 1.0).unwrap();
+        let e = predict_error(&p, &layout, &at, &split, &eval, PairSet::HeldOutHandclasps, 1)
+            .unwrap();
+        assert!((e.rms_m - d.cooperative_rms_m).abs() <= SAME_REL * d.cooperative_rms_m);
+        let limit = design_split(&p, &layout, &at, &cands, &chosen, 1e-3).unwrap();
+        let l = predict_error(&p, &layout, &at, &limit, &eval, PairSet::HeldOutHandclasps, 1)
+            .unwrap();
+        assert!(l.prior_rms_m > e.prior_rms_m, "{l:?} {e:?}");
+        assert!(design_split(&p, &layout, &at, &cands, &chosen, 0.0).is_err());
+    }
+
+    /// Workspace pairs meet at the nominal cell (the cooperative vector is ~0: IK tolerance),
+    /// and the same seed gives the same poses.
+    #[test]
+    fn workspace_pairs_meet_and_replay() {
+        /// IK position tolerance 1e-10 m per robot, with margin.
+        const MEET_TOL_M: f64 = 1e-6;
+        let sc = sim_cell(Cell::Wall, Tolerance::default(), false, 3);
+        let p = sc.problem();
+        let x = sc.truth.b1_from_b2;
+        let poses = workspace_pairs(&p, &x, 8, 2);
+        assert!(poses.len() >= 4, "{}", poses.len());
+        let layout = ParamLayout::new(&p, &[]);
+        let ev = Evaluator::new(&p, &layout);
+        let nominal = CellEstimate::nominal(&p, x);
+        for pose in &poses {
+            let (v, _) = ev.cooperative_vector(&nominal, &pose.pair, false).unwrap();
+            assert!(v.norm() < MEET_TOL_M, "{v:?}");
+        }
+        assert_eq!(poses, workspace_pairs(&p, &x, 8, 2));
+    }
+}
