@@ -20,8 +20,8 @@ use std::path::Path;
 
 use calib_core::whole_cell::{
     candidate_mistakes, classify_rejections, layout_shape, placement_distance, robust_noise_scale,
-    try_problem, CellCalibration, CellFitError, CellProblem, CheckThresholds, LayoutShape, PlacementDistance,
-    RejectionPattern, Trial,
+    try_problem, CellCalibration, CellFitError, CellProblem, CheckThresholds, LayoutShape,
+    PlacementDistance, RejectionPattern, Trial,
 };
 use handclasp_cell::problem::{cell_problem, FitModel};
 use handclasp_cell::{Cell, Session};

@@ -30,8 +30,8 @@ use cli_support::cell_report::{
 use cli_support::result_check::ScreenMode;
 use handclasp_cell::{export_calibrated_cell, Cell, Session, CALIBRATE_EXPORT_NAMES};
 use report::{
-    calibration_page, joint_coverage, predict_work_site, read_work_points, row_residuals, workspace_map,
-    Acceptance, CalibrationPage, MeetingPairsAccuracy, WorkSiteReport,
+    calibration_page, joint_coverage, predict_work_site, read_work_points, row_residuals,
+    workspace_map, Acceptance, CalibrationPage, MeetingPairsAccuracy, WorkSiteReport,
 };
 use serde::Serialize;
 

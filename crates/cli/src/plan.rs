@@ -272,7 +272,11 @@ impl PlanReport {
             predicted_error_mm: PlanPredictedError {
                 held_out: PredictedErrorReport::from(&plan.parts.held_out),
                 placement_only_limit: PredictedErrorReport::from(&plan.parts.placement_only_limit),
-                workspace: plan.parts.workspace.as_ref().map(PredictedErrorReport::from),
+                workspace: plan
+                    .parts
+                    .workspace
+                    .as_ref()
+                    .map(PredictedErrorReport::from),
             },
             random_draws: plan.random.len(),
             seed: args.seed,

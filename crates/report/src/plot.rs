@@ -377,7 +377,8 @@ fn heat(v: f64, lo: f64, hi: f64) -> RGBColor {
     } else {
         0.0
     };
-    let mix = |a: u8, b: u8, f: f64| (f64::from(a) + (f64::from(b) - f64::from(a)) * f).round() as u8;
+    let mix =
+        |a: u8, b: u8, f: f64| (f64::from(a) + (f64::from(b) - f64::from(a)) * f).round() as u8;
     let (c0, c1, f) = if t < 0.5 {
         (USED, RGBColor(255, 170, 0), 2.0 * t)
     } else {
@@ -400,7 +401,9 @@ pub fn workspace_map(
     }
     let (lo, hi) = rms_mm
         .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
     svg((WIDTH, 440), |root| {
         let root = root
             .titled(
@@ -409,13 +412,20 @@ pub fn workspace_map(
             )
             .map_err(|e| e.to_string())?;
         let panels = root.split_evenly((1, 2));
-        for (k, (axis, name)) in [(1usize, "y, mm"), (2usize, "z, mm")].into_iter().enumerate() {
+        for (k, (axis, name)) in [(1usize, "y, mm"), (2usize, "z, mm")]
+            .into_iter()
+            .enumerate()
+        {
             let all = points_mm.iter().chain(session_mm);
             let (x0, x1) = padded(all.clone().map(|p| p[0]));
             let (y0, y1) = padded(all.map(|p| p[axis]));
             let mut chart = ChartBuilder::on(&panels[k])
                 .caption(
-                    if k == 0 { "from above (x, y)" } else { "from the side (x, z)" },
+                    if k == 0 {
+                        "from above (x, y)"
+                    } else {
+                        "from the side (x, z)"
+                    },
                     ("sans-serif", FONT),
                 )
                 .margin(8)

@@ -217,11 +217,16 @@ fn calibration_page_is_self_contained_and_shows_the_verdict_first() {
     );
     let map = workspace_map(&problem, &cal, 1).unwrap();
     assert_eq!(map.points_mm.len(), map.rms_mm.len());
-    assert!(map.points_mm.len() >= WORKSPACE_MIN_POSES, "{}", map.points_mm.len());
+    assert!(
+        map.points_mm.len() >= WORKSPACE_MIN_POSES,
+        "{}",
+        map.points_mm.len()
+    );
     assert_eq!(map.session_mm.len(), session.len());
     // The work site's parts and total agree: rms² = data² + prior² + model² (round-off only).
     let parts = &w.parts_mm;
-    let sum = (parts.data_part_rms.powi(2) + parts.prior_part_rms.powi(2)
+    let sum = (parts.data_part_rms.powi(2)
+        + parts.prior_part_rms.powi(2)
         + parts.model_error_rms.powi(2))
     .sqrt();
     assert!((sum - w.predicted_rms_mm).abs() <= 1e-9 * w.predicted_rms_mm);

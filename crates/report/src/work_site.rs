@@ -23,8 +23,8 @@ use calib_core::whole_cell::{
     ConfigPair, ObservationKind, PairSet, PredictedErrorReport, PredictionSplit, WORKSPACE_POSES,
     WORKSPACE_SEED,
 };
-use kinematics::base_from_tip;
 use handclasp_cell::Cell;
+use kinematics::base_from_tip;
 use kinematics::Axis;
 use nalgebra::{Matrix3, Point3};
 use serde::{Deserialize, Serialize};

@@ -1,10 +1,10 @@
 #![doc = include_str!("../README.md")]
 
 mod error;
+pub mod honest;
 pub mod layout;
 pub mod paper;
 pub mod placement;
-pub mod honest;
 pub mod plan;
 pub mod plot;
 pub mod session_kinds;

@@ -165,8 +165,8 @@ pub use coverage::{
     NARROW_JOINT_FRACTION, NARROW_REACH_FRACTION,
 };
 pub use design::{
-    design_criterion, design_prediction, design_split, greedy_design, DesignCriterion, DesignPrediction,
-    DesignResult, PLACEMENT_DRAWS, WEAK_PRIOR_SIGMA,
+    design_criterion, design_prediction, design_split, greedy_design, DesignCriterion,
+    DesignPrediction, DesignResult, PLACEMENT_DRAWS, WEAK_PRIOR_SIGMA,
 };
 pub use layout::{
     tangent_basis, CellEstimate, CellParam, ParamLayout, PlaneEstimate, RobotCorrection,
@@ -191,8 +191,7 @@ pub use report::{
     CalibrationReport, ContactGroupReport, DesignPredictionReport, DropReason,
     FittedPlacementReport, GroupsReport, LogEvidenceReport, MergePartner, NuisanceReport,
     ParamIdentity, ParameterReport, PlacementSigmaReport, PlaneGroupReport, PredictedErrorReport,
-    PriorScaleReport,
-    RejectedRowReport, ReportUnit, TrackerGroupReport, UnidentifiableReport,
+    PriorScaleReport, RejectedRowReport, ReportUnit, TrackerGroupReport, UnidentifiableReport,
 };
 pub use residuals::{Evaluator, ObservationLinearisation, MIN_FACE_NORMAL_SUM};
 pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions};

@@ -313,9 +313,7 @@ pub fn predict_error(
         data_ms += (&j * &split.data * j.transpose()).trace().max(0.0);
         prior_ms += (&j * &split.prior * j.transpose()).trace().max(0.0);
         let c = &j * &total * j.transpose();
-        covs.push(
-            nalgebra::Matrix3::from_fn(|a, b| c[(a, b)]) + nalgebra::Matrix3::identity() * m,
-        );
+        covs.push(nalgebra::Matrix3::from_fn(|a, b| c[(a, b)]) + nalgebra::Matrix3::identity() * m);
         jacobians.push(j);
     }
     let k = pairs.len() as f64;
@@ -342,8 +340,8 @@ pub fn predict_error(
 fn rms_bound(jacobians: &[DMatrix<f64>], cov: &DMatrix<f64>, model_var: f64, seed: u64) -> f64 {
     let n = cov.nrows();
     let eig = cov.clone().symmetric_eigen();
-    let root = &eig.eigenvectors
-        * DMatrix::from_diagonal(&eig.eigenvalues.map(|e| e.max(0.0).sqrt()));
+    let root =
+        &eig.eigenvectors * DMatrix::from_diagonal(&eig.eigenvalues.map(|e| e.max(0.0).sqrt()));
     // Every pair's Jacobian stacked (3·pairs × n), times the root: one product per draw.
     let mut stacked = DMatrix::zeros(3 * jacobians.len(), n);
     for (k, j) in jacobians.iter().enumerate() {
@@ -452,8 +450,8 @@ pub fn workspace_pairs(
 mod tests {
     use super::super::fixtures::{sim_cell, Cell};
     use super::super::{
-        calibrate_cell, design_prediction, design_split, predict_cooperative_accuracy,
-        Observation, ScreenOptions, SolveOptions, Tolerance,
+        calibrate_cell, design_prediction, design_split, predict_cooperative_accuracy, Observation,
+        ScreenOptions, SolveOptions, Tolerance,
     };
     use super::*;
 
@@ -518,12 +516,28 @@ mod tests {
         let chosen: Vec<usize> = (0..24).collect();
         let d = design_prediction(&p, &layout, &at, &cands, &chosen, &eval, 1).unwrap();
         let split = design_split(&p, &layout, &at, &cands, &chosen, 1.0).unwrap();
-        let e = predict_error(&p, &layout, &at, &split, &eval, PairSet::HeldOutHandclasps, 1)
-            .unwrap();
+        let e = predict_error(
+            &p,
+            &layout,
+            &at,
+            &split,
+            &eval,
+            PairSet::HeldOutHandclasps,
+            1,
+        )
+        .unwrap();
         assert!((e.rms_m - d.cooperative_rms_m).abs() <= SAME_REL * d.cooperative_rms_m);
         let limit = design_split(&p, &layout, &at, &cands, &chosen, 1e-3).unwrap();
-        let l = predict_error(&p, &layout, &at, &limit, &eval, PairSet::HeldOutHandclasps, 1)
-            .unwrap();
+        let l = predict_error(
+            &p,
+            &layout,
+            &at,
+            &limit,
+            &eval,
+            PairSet::HeldOutHandclasps,
+            1,
+        )
+        .unwrap();
         assert!(l.prior_rms_m > e.prior_rms_m, "{l:?} {e:?}");
         assert!(design_split(&p, &layout, &at, &cands, &chosen, 0.0).is_err());
     }

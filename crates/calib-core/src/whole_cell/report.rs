@@ -14,9 +14,9 @@ use serde::Serialize;
 
 use super::calibrate::CellCalibration;
 use super::design::DesignPrediction;
-use super::prediction::{ModelError, PairSet, PredictedError};
 use super::layout::CellParam;
 use super::observations::CellProblem;
+use super::prediction::{ModelError, PairSet, PredictedError};
 use super::reduce::{ReductionEntry, ReductionReason};
 
 use crate::{PoseForms, Robot, StopReason};

@@ -55,10 +55,13 @@ fn predictions_are_honest_on_drawn_truths() {
     let t = trials(&["floor-wall", "floor-ceiling"], 1..4);
     assert_eq!(t.len(), 6, "every trial runs");
     for x in &t {
-        let parts = (x.data_rms_m.powi(2) + x.prior_rms_m.powi(2) + x.model_error_rms_m.powi(2))
-            .sqrt();
+        let parts =
+            (x.data_rms_m.powi(2) + x.prior_rms_m.powi(2) + x.model_error_rms_m.powi(2)).sqrt();
         // rms² = data² + prior² + model² exactly; round-off of the traces only.
-        assert!((parts - x.predicted_rms_m).abs() <= 1e-9 * x.predicted_rms_m, "{x:?}");
+        assert!(
+            (parts - x.predicted_rms_m).abs() <= 1e-9 * x.predicted_rms_m,
+            "{x:?}"
+        );
     }
     let s = HonestSummary::of(&t).unwrap();
     println!("{s:?}");
@@ -76,7 +79,10 @@ fn benchmark() {
         .and_then(|v| v.parse().ok())
         .unwrap_or(10);
     println!("{HEADER}");
-    let t = trials(&["floor-floor", "floor-wall", "floor-ceiling"], 1..seeds + 1);
+    let t = trials(
+        &["floor-floor", "floor-wall", "floor-ceiling"],
+        1..seeds + 1,
+    );
     let s = HonestSummary::of(&t).unwrap();
     println!(
         "cells {}: median predicted / actual {:.2} (range {:.2}–{:.2}), 95 % bound covers {:.0} % ; honest: {}",
