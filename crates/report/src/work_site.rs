@@ -355,17 +355,7 @@ pub fn predict_work_site(
         });
     }
     let config: Vec<ConfigPair> = pairs.iter().map(|(_, p)| p.clone()).collect();
-    let split = PredictionSplit::of_calibration(problem, cal).map_err(ReportError::Prediction)?;
-    let prediction = predict_error(
-        problem,
-        &cal.fit.layout,
-        &cal.fit.estimate,
-        &split,
-        &config,
-        PairSet::WorkPoints,
-        seed,
-    )
-    .map_err(ReportError::Prediction)?;
+    let prediction = predict_over(problem, cal, &config, PairSet::WorkPoints, seed)?;
     let mm = |p: &Point3<f64>| [p.x * 1e3, p.y * 1e3, p.z * 1e3];
     let points = pairs
         .iter()
@@ -412,6 +402,28 @@ pub fn predict_work_site(
     Ok(report)
 }
 
+/// The predicted error of `cal` over `pairs` of `pair_set` (calib-core's one definition,
+/// [`predict_error`], with the calibration's split).
+fn predict_over(
+    problem: &CellProblem,
+    cal: &CellCalibration,
+    pairs: &[ConfigPair],
+    pair_set: PairSet,
+    seed: u64,
+) -> Result<calib_core::whole_cell::PredictedError, ReportError> {
+    let split = PredictionSplit::of_calibration(problem, cal).map_err(ReportError::Prediction)?;
+    predict_error(
+        problem,
+        &cal.fit.layout,
+        &cal.fit.estimate,
+        &split,
+        pairs,
+        pair_set,
+        seed,
+    )
+    .map_err(ReportError::Prediction)
+}
+
 /// The predicted error over the whole workspace, pose by pose, for the page's map.
 #[derive(Debug, Clone)]
 pub struct WorkspaceMap {
@@ -443,17 +455,7 @@ pub fn workspace_map(
         WORKSPACE_SEED,
     );
     let pairs: Vec<ConfigPair> = poses.iter().map(|p| p.pair.clone()).collect();
-    let split = PredictionSplit::of_calibration(problem, cal).map_err(ReportError::Prediction)?;
-    let prediction = predict_error(
-        problem,
-        &cal.fit.layout,
-        &cal.fit.estimate,
-        &split,
-        &pairs,
-        PairSet::Workspace,
-        seed,
-    )
-    .map_err(ReportError::Prediction)?;
+    let prediction = predict_over(problem, cal, &pairs, PairSet::Workspace, seed)?;
     let mm = |p: &Point3<f64>| [p.x * 1e3, p.y * 1e3, p.z * 1e3];
     let r1 = &problem.robot1;
     let session_mm = problem
