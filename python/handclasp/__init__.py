@@ -13,6 +13,8 @@ Entry points (each mirrors a CLI command; ``.to_dict()`` equals its ``--json`` o
 - ``import_session(cell, map, inputs)``: ``handclasp import`` (a dataset's CSVs → a session)
 - ``calibrate_cell(cell, session, model="kinematic")``: ``handclasp calibrate --cell``
 - ``diagnose(cell, session)``: ``handclasp diagnose``
+- ``export_controllers(cell, to, formats=None)``: ``handclasp export`` (ABB, KUKA, Fanuc, Yaskawa,
+  ROS 2 files of the cell's ``b1_from_b2``)
 - ``simulate_session(cell, n, seed)``, ``plan(cell, n)``: ``sim-cell session``, ``handclasp plan``
 - ``sweep(cell, ...)``: a seeded Monte Carlo of the whole-cell calibration over session sizes
 
@@ -36,6 +38,7 @@ from ._handclasp import (
     Session,
     calibrate_cell,
     diagnose,
+    export_controllers,
     fk,
     import_session,
     plan,
@@ -55,6 +58,7 @@ __all__ = [
     "calibrate_cell",
     "calibrate_points",
     "diagnose",
+    "export_controllers",
     "fk",
     "frame",
     "import_session",

@@ -206,3 +206,11 @@ def sweep(
 ) -> Dict[str, Union[_F64, List[str]]]: ...
 def import_session(cell: Cell, map: _Path, inputs: Sequence[_Path]) -> Session:
     """A dataset's CSV files as a session of `cell`, as a mapping file says (handclasp import)."""
+def export_controllers(
+    cell: Cell,
+    to: _Path,
+    formats: Optional[Sequence[str]] = None,
+    force: bool = False,
+) -> Dict[str, Any]:
+    """The cell's b1_from_b2 for ABB, KUKA, Fanuc, Yaskawa and ROS 2 written into `to`, each file
+    read back and checked (handclasp export); returns its --json report as a dict."""

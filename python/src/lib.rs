@@ -8,7 +8,8 @@
 //!
 //! Modules: `errors` (the mapping), `arrays` (numpy in and out), `points`
 //! (`calibrate_points`), `robot` (`Robot`, `fk`), `cell` (`Cell`, `Session`),
-//! `calibrate` (`calibrate_cell`, `diagnose`), `sim` (`simulate_session`, `plan`, `sweep`).
+//! `calibrate` (`calibrate_cell`, `diagnose`), `sim` (`simulate_session`, `plan`, `sweep`),
+//! `outputs` (`export_controllers`).
 
 use pyo3::prelude::*;
 
@@ -16,6 +17,7 @@ mod arrays;
 mod calibrate;
 mod cell;
 mod errors;
+mod outputs;
 mod points;
 mod robot;
 mod sim;
@@ -43,5 +45,6 @@ fn _handclasp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sim::plan, m)?)?;
     m.add_function(wrap_pyfunction!(sim::sweep, m)?)?;
     m.add_function(wrap_pyfunction!(cell::import_session, m)?)?;
+    m.add_function(wrap_pyfunction!(outputs::export_controllers, m)?)?;
     Ok(())
 }

@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 
 pub mod cell_report;
+pub mod controllers;
 pub mod export_dir;
 pub mod points;
 pub mod result_check;

@@ -2,16 +2,15 @@
 //! [--force]`: the cell's placement `b1_from_b2` (robot 2's base frame in robot 1's base frame)
 //! in each controller's and ROS 2's own convention and file, each file read back and checked
 //! before the command succeeds (`handclasp_cell::export_formats`). The JSON and the text table come
-//! from one typed report, [`ExportReport`].
+//! from one typed report, [`cli_support::controllers::ExportReport`] (shared with the Python
+//! package's `export_controllers`).
 
 use std::path::PathBuf;
 
 use anyhow::Context;
-use handclasp_cell::export_formats::{
-    export_placement, ControllerFormat, PlacementFormats, READ_BACK_TOL_M, READ_BACK_TOL_RAD,
-};
+use cli_support::controllers::{export_controllers, render_text};
+use handclasp_cell::export_formats::ControllerFormat;
 use handclasp_cell::Cell;
-use serde::Serialize;
 
 /// `--format` values.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -64,61 +63,20 @@ pub struct Args {
     pub force: bool,
 }
 
-/// One written file in the report.
-#[derive(Debug, Serialize)]
-pub struct FileReport {
-    /// The file.
-    pub path: String,
-    /// Its target (`abb`, …).
-    pub format: &'static str,
-    /// Translation difference when read back, µm.
-    pub read_back_um: f64,
-    /// Rotation difference when read back, µrad.
-    pub read_back_urad: f64,
-}
-
-/// What `handclasp export` did: one struct, printed as JSON (`--json`) or as a table.
-#[derive(Debug, Serialize)]
-pub struct ExportReport {
-    /// The cell file.
-    pub cell: String,
-    /// The output folder.
-    pub to: String,
-    /// b1_from_b2 in each target's convention.
-    pub formats: PlacementFormats,
-    /// The files written, each read back within 1 µm and 1 µrad.
-    pub files: Vec<FileReport>,
-    /// What the files cannot carry (also printed on stderr as `warning:` lines).
-    pub warnings: Vec<String>,
-}
-
 pub fn run(args: Args) -> anyhow::Result<()> {
     crate::export_dir::check_output_folder(&args.to, args.force, "--to")?;
-    let mut formats: Vec<ControllerFormat> = args.format.iter().flat_map(|f| f.formats()).collect();
-    formats.sort();
-    formats.dedup();
+    let formats: Vec<ControllerFormat> = args.format.iter().flat_map(|f| f.formats()).collect();
     let cell = Cell::from_toml_file(&args.cell)?;
     let source = args.cell.display().to_string();
-    let out = crate::export_dir::locked(&args.to, args.force, "--to", || {
-        Ok(export_placement(&cell, &source, &args.to, &formats)?)
-    })
+    let report = export_controllers(
+        &cell,
+        &source,
+        &args.to,
+        &formats,
+        args.force,
+        ("--to", "--force"),
+    )
     .with_context(|| format!("exporting {} to {}", source, args.to.display()))?;
-    let report = ExportReport {
-        cell: source,
-        to: args.to.display().to_string(),
-        formats: out.formats,
-        files: out
-            .files
-            .iter()
-            .map(|f| FileReport {
-                path: f.path.display().to_string(),
-                format: f.format.name(),
-                read_back_um: f.translation_error_m * 1e6,
-                read_back_urad: f.rotation_error_rad * 1e6,
-            })
-            .collect(),
-        warnings: out.warnings,
-    };
     for w in &report.warnings {
         eprintln!("warning: {w}");
     }
@@ -128,71 +86,4 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         print!("{}", render_text(&report));
     }
     Ok(())
-}
-
-/// The readable table of `report`.
-fn render_text(report: &ExportReport) -> String {
-    let mut s = format!(
-        "b1_from_b2 (robot 2's base in robot 1's base) of {}, written to {}:\n",
-        report.cell, report.to
-    );
-    let f = &report.formats;
-    let row = |name: &str, a: String, b: String| format!("  {name:<8} {a}   {b}\n");
-    if let Some(v) = f.abb {
-        s += &row(
-            "ABB",
-            format!("x y z (m)  {:.9} {:.9} {:.9}", v.x_m, v.y_m, v.z_m),
-            format!(
-                "q1 q2 q3 q4  {:.12} {:.12} {:.12} {:.12}",
-                v.q1, v.q2, v.q3, v.q4
-            ),
-        );
-    }
-    if let Some(v) = f.kuka {
-        s += &row(
-            "KUKA",
-            format!("X Y Z (mm)  {:.6} {:.6} {:.6}", v.x_mm, v.y_mm, v.z_mm),
-            format!("A B C (deg)  {:.9} {:.9} {:.9}", v.a_deg, v.b_deg, v.c_deg),
-        );
-    }
-    if let Some(v) = f.fanuc {
-        s += &row(
-            "Fanuc",
-            format!("X Y Z (mm)  {:.6} {:.6} {:.6}", v.x_mm, v.y_mm, v.z_mm),
-            format!("W P R (deg)  {:.9} {:.9} {:.9}", v.w_deg, v.p_deg, v.r_deg),
-        );
-    }
-    if let Some(v) = f.yaskawa {
-        s += &row(
-            "Yaskawa",
-            format!("X Y Z (mm)  {:.6} {:.6} {:.6}", v.x_mm, v.y_mm, v.z_mm),
-            format!(
-                "Rx Ry Rz (deg)  {:.9} {:.9} {:.9}",
-                v.rx_deg, v.ry_deg, v.rz_deg
-            ),
-        );
-    }
-    if let Some(v) = f.ros2 {
-        s += &row(
-            "ROS 2",
-            format!("x y z (m)  {:.9} {:.9} {:.9}", v.x_m, v.y_m, v.z_m),
-            format!(
-                "qx qy qz qw  {:.12} {:.12} {:.12} {:.12}",
-                v.qx, v.qy, v.qz, v.qw
-            ),
-        );
-    }
-    s += &format!(
-        "files (each parsed back and within {} µm / {} µrad of the placement before it was kept):\n",
-        READ_BACK_TOL_M * 1e6,
-        READ_BACK_TOL_RAD * 1e6
-    );
-    for file in &report.files {
-        s += &format!(
-            "  {:<8} {}   read back {:.2e} µm {:.2e} µrad\n",
-            file.format, file.path, file.read_back_um, file.read_back_urad
-        );
-    }
-    s += "what to type where: docs/guide/export.md\n";
-    s
 }
