@@ -20,11 +20,11 @@
 use std::fmt::Write as _;
 
 use calib_core::whole_cell::{
-    calibrate_cell, predict_cooperative_accuracy, session_coverage, CalibrationReport,
+    calibrate_cell_with, format_scale, predict_cooperative_accuracy, session_coverage, CalibrationReport,
     CellCalibration, CellFitError, CellProblem, CooperativePrediction, CoverageReport, DropReason,
     FittedPlacementReport, GroupsReport, Kind, NuisanceReport, ParameterReport,
-    PlacementSigmaReport, PriorScaleReport, RejectedRowReport, ScreenOptions, SolveOptions,
-    UnidentifiableReport,
+    PlacementSigmaReport, PriorScaleReport, RejectedRowReport, ScaleMethod, ScreenOptions,
+    SolveOptions, UnidentifiableReport,
 };
 use calib_core::StopReason;
 use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
@@ -115,6 +115,18 @@ pub fn calibrate_session(
     session: &Session,
     model: CellModel,
 ) -> Result<SessionCalibration, CellCalibrationError> {
+    calibrate_session_with(cell, session, model, None)
+}
+
+/// [`calibrate_session`] with the prior scale fixed at `tolerance_scale` (`calibrate --cell
+/// --tolerance-scale X`: every tolerance × X, 1e-3 … 100) instead of the evidence's choice;
+/// `None` is [`calibrate_session`].
+pub fn calibrate_session_with(
+    cell: &Cell,
+    session: &Session,
+    model: CellModel,
+    tolerance_scale: Option<f64>,
+) -> Result<SessionCalibration, CellCalibrationError> {
     let problem = cell_problem(cell, session, model.fit_model());
     let mut solve = SolveOptions::default();
     if session.points.len() < MIN_COINCIDENT_FOR_START {
@@ -122,8 +134,13 @@ pub fn calibrate_session(
         // the cell's own b1_from_b2.
         solve.initial_b1_from_b2 = Some(cell.b1_from_b2);
     }
-    let cal = calibrate_cell(&problem, &solve, &ScreenOptions::default())
-        .map_err(CellCalibrationError::Fit)?;
+    let cal = calibrate_cell_with(
+        &problem,
+        &solve,
+        &ScreenOptions::default(),
+        tolerance_scale,
+    )
+    .map_err(CellCalibrationError::Fit)?;
     let pairs = session_meeting_pairs(session);
     let cooperative = if pairs.is_empty() {
         None
@@ -496,9 +513,11 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
     } else {
         writeln!(
             s,
-            "prior scale chosen by the evidence: {} (prior σ = scale × tolerance/√3; 1e-3 = placement-only limit); blunder-screen noise scale {:.3}",
-            r.prior_scale.chosen, r.noise_scale
+            "{} (prior σ = scale × tolerance/√3; scales 1e-3 … 100, 1e-3 = placement-only limit); blunder-screen noise scale {:.3}",
+            prior_scale_phrase(&r.prior_scale),
+            r.noise_scale
         )?;
+        writeln!(s, "  why: {}", r.prior_scale.why)?;
     }
     writeln!(
         s,
@@ -508,6 +527,40 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
         r.data_chi2,
         r.residual_rows
     )
+}
+
+/// The first part of the text report's prior-scale line: how the scales were set and their
+/// values (one for every family, or each family's).
+fn prior_scale_phrase(p: &PriorScaleReport) -> String {
+    let families = || {
+        p.families
+            .iter()
+            .map(|f| format!("{} ×{}", f.family, format_scale(f.scale)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match p.method {
+        ScaleMethod::EvidencePerFamily => {
+            format!("prior scales chosen by the evidence, per family: {}", families())
+        }
+        ScaleMethod::Fixed => format!(
+            "prior scale fixed by --tolerance-scale: {} for every family",
+            format_scale(p.chosen)
+        ),
+        _ => format!(
+            "prior scale chosen by the evidence: {} for every family",
+            format_scale(p.chosen)
+        ),
+    }
+}
+
+/// The warnings for fitted corrections beyond their stated tolerances, one per parameter
+/// (the caller prints them, `warning: ` first).
+pub fn tolerance_warnings(r: &CellReport) -> Vec<String> {
+    r.parameters
+        .iter()
+        .filter_map(ParameterReport::tolerance_warning)
+        .collect()
 }
 
 /// The placement's posterior σ per axis, each with its prior σ (`free` without a prior).
@@ -571,8 +624,8 @@ fn dropped_line(d: &UnidentifiableReport) -> String {
 mod tests {
     use super::*;
     use calib_core::whole_cell::{
-        ContactGroupReport, LogEvidenceReport, MergePartner, ParamIdentity, PlaneGroupReport,
-        ReportUnit, TrackerGroupReport,
+        ContactGroupReport, FamilyScaleReport, LogEvidenceReport, MergePartner, ParamIdentity,
+        PlaneGroupReport, ReportUnit, TrackerGroupReport,
     };
     use calib_core::{PoseMmDeg, Robot};
 
@@ -617,8 +670,10 @@ mod tests {
                 robot: Robot::One,
             },
             name: name.into(),
+            prior_scale: 1.0,
             prior_sigma,
             sigma: 0.01,
+            tolerance: prior_sigma * 3f64.sqrt(),
             unit: ReportUnit::Deg,
             value,
         };
@@ -681,10 +736,18 @@ mod tests {
             prior_dominated_directions: 1,
             prior_scale: PriorScaleReport {
                 chosen: 0.0625,
+                families: vec![FamilyScaleReport {
+                    family: "joint_offset".into(),
+                    parameters: 2,
+                    scale: 0.0625,
+                }],
+                family_log_evidence: None,
                 log_evidence: vec![LogEvidenceReport {
                     log_evidence: -3.5,
                     scale: 0.0625,
                 }],
+                method: ScaleMethod::EvidenceCommon,
+                why: "common scale 0.0625 has the largest log evidence (-3.5)".into(),
             },
             rejected_points: vec![RejectedRowReport {
                 residual_mm: 7.1234,
@@ -745,7 +808,8 @@ mod tests {
             "  tracker group \"leica\": origin (-1226.996, 1146.293, 1295.316) mm in the base of robot 1",
             "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the 14 meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms 1.500 mm, p95 2.750 mm",
             "coverage (the session against the joint limits and the reach sampled at 4000 joint vectors within them; a calibration is extrapolated outside it):",
-            "prior scale chosen by the evidence: 0.0625 (prior σ = scale × tolerance/√3; 1e-3 = placement-only limit); blunder-screen noise scale 1.000",
+            "prior scale chosen by the evidence: 0.0625 for every family (prior σ = scale × tolerance/√3; scales 1e-3 … 100, 1e-3 = placement-only limit); blunder-screen noise scale 1.000",
+            "  why: common scale 0.0625 has the largest log evidence (-3.5)",
             "solver: converged after 4 iterations (data χ² 62.5 over 80 residual rows)",
         ];
         assert_eq!(text.lines().collect::<Vec<_>>(), expected);

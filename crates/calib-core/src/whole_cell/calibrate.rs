@@ -8,36 +8,19 @@
 //! 2. [`reduce`] (`reduce.rs`): the unknowns the data can determine at the start (the layout).
 //! 3. [`fit_screened`] (`blunders.rs`): a Huber IRLS start, then the studentised screen that
 //!    drops the worst blunder and refits, one at a time.
-//! 4. `choose_prior_scale`: a refit at every scale of [`PRIOR_SCALES`] from the screened
-//!    estimate, scored by `log_evidence`; the largest evidence wins and gets the error
-//!    covariance under the scale-1 prior.
+//! 4. `choose_prior_scale` (`evidence.rs`): the prior scales (one common scale or one per
+//!    family, 1e-3 … ×100, or the caller's fixed scale) from the evidence of the MAP problem
+//!    linearised at the screened estimate, a refit at those scales (relinearised once), and
+//!    the error covariance under the reference prior `max(scale, 1)`.
 //! 5. A placement-only model whose residuals exceed the stated noise: its covariance is scaled
 //!    and the model-error term set (`mean_noise_var`).
 //! 6. [`CellCalibration::report`] (`report.rs`): the report in file units.
 
-use nalgebra::DMatrix;
-use serde::Serialize;
-
 use super::blunders::{fit_screened, RejectedRow, ScreenOptions};
+use super::evidence::{self, LinearModel, PriorScaleChoice, MAX_PRIOR_SCALE, PRIOR_SCALES};
 use super::reduce::{reduce, Reduction};
-use super::solve::{assemble, fit_cell_with, sym_inverse, CellFit, SolveOptions};
-use super::{initial_estimate, CellFitError, CellProblem, ParamLayout};
-
-/// Prior scales `s` [`calibrate_cell`] compares (every prior σ multiplied by `s`): the
-/// tolerances as given (1), halved down to 1/16, and 1e-3, the placement-only limit (the
-/// kinematic parameters held at their nominal values by a prior 1000 times tighter than the
-/// tolerances; the same columns, so the evidence and the error covariance stay comparable).
-pub const PRIOR_SCALES: [f64; 6] = [1.0, 0.5, 0.25, 0.125, 0.0625, 1e-3];
-
-/// The prior scale [`calibrate_cell`] chose and why.
-#[derive(Debug, Clone, Serialize)]
-pub struct PriorScaleChoice {
-    /// The chosen scale `s` (prior σ = `s`·tolerance/√3).
-    pub scale: f64,
-    /// `(s, log evidence)` for every scale of [`PRIOR_SCALES`] that fitted (natural log, up to
-    /// a constant common to all scales).
-    pub log_evidence: Vec<(f64, f64)>,
-}
+use super::solve::{fit_cell_with, CellFit, SolveOptions};
+use super::{initial_estimate, CellFitError, CellProblem};
 
 /// Result of [`calibrate_cell`].
 #[derive(Debug, Clone)]
@@ -48,7 +31,7 @@ pub struct CellCalibration {
     pub reduction: Reduction,
     /// Rejected blunders.
     pub rejected: Vec<RejectedRow>,
-    /// The prior scale chosen from the session's own evidence.
+    /// The prior scales applied (the session's own evidence's choice, or the caller's) and why.
     pub prior_scale: PriorScaleChoice,
     /// The blunder screen's noise scale ([`super::ScreenedFit::noise_scale`]): 1, or for a
     /// placement-only model `sqrt` of its a-posteriori variance factor (then also applied to the
@@ -62,17 +45,22 @@ pub struct CellCalibration {
 /// unknowns, then the prior scale chosen from the session's own data.
 ///
 /// **Prior scale.** The tolerances bound the errors; how much of them a session can resolve
-/// depends on its noise and geometry. On the screened rows the fit is repeated with every prior
-/// σ multiplied by each `s` of [`PRIOR_SCALES`], and the scale of largest Laplace evidence
-/// (type-II maximum likelihood; the linearised marginal likelihood of the data)
-/// `log Z(s) = −C(s)/2 − log det H(s)/2 + log det(R_p,s·R_p,sᵀ)/2` is kept (`C` the MAP cost,
-/// `H = JᵀJ` over data and prior rows at the optimum, `R_p,s = R_p/s`; the unpenalised
-/// unknowns' flat prior adds the same constant to every `s`). When the data cannot support the
-/// kinematic parameters, the evidence prefers the smallest scale, whose fit is the placement-only
-/// fit to within 1e-6 of the tolerances. The reported covariance is then the error covariance of
-/// the chosen estimator under the tolerance prior (`s = 1`):
-/// `H⁻¹·(H − Λ_s + Λ_s/s²)·H⁻¹`, `Λ_s = R_p,sᵀR_p,s` (equal to `H⁻¹` at `s = 1`), so the
-/// predicted cooperative accuracy includes the kinematic error the shrunk fit leaves.
+/// depends on its noise and geometry, and a cell's stated tolerances may be too wide or too
+/// narrow for its robots. On the screened rows the prior σ of every kinematic family is
+/// multiplied by a scale from [`PRIOR_SCALES`] (1e-3, the placement-only limit, … 1 … ×100):
+/// the common scale of largest Laplace evidence (type-II maximum likelihood; the marginal
+/// likelihood of the data, of the MAP problem linearised at the screened fit), then one scale
+/// per family (joint offsets, origin xyz, origin rpy, tool tips, other terms) where the
+/// evidence separates them by a margin ([`super::FAMILY_EVIDENCE_MARGIN`] nats per family);
+/// the formulas are in `evidence.rs` ([`PriorScaleChoice`]). When the data cannot support the
+/// kinematic parameters, the evidence prefers the smallest scale, whose fit is the
+/// placement-only fit to within 1e-6 of the tolerances; when the robots are further off than
+/// their tolerances, it widens them. The fit is then redone at the chosen scales from the
+/// screened estimate (and the choice repeated once at that fit). The reported covariance is the
+/// error covariance of the chosen estimator under the reference prior `max(scale, 1)` per
+/// family: under the stated tolerances where the evidence shrank them (so the predicted
+/// cooperative accuracy includes the kinematic error the shrunk fit leaves), under the widened
+/// prior where it widened them. [`calibrate_cell_with`] fixes the scale instead.
 ///
 /// Errors: invalid input, no starting placement, model failures, or too few rows after
 /// rejecting blunders (naming the rows to re-record).
@@ -158,13 +146,37 @@ pub fn calibrate_cell(
     solve: &SolveOptions,
     screen: &ScreenOptions,
 ) -> Result<CellCalibration, CellFitError> {
+    calibrate_cell_with(problem, solve, screen, None)
+}
+
+/// [`calibrate_cell`] with the prior scale fixed at `tolerance_scale` (every prior σ of every
+/// family multiplied by it: `calibrate --cell --tolerance-scale X`) instead of the evidence's
+/// choice; `None` is [`calibrate_cell`]. The covariance is the fit's error covariance under
+/// the reference prior `max(scale, 1)`, as there.
+///
+/// Errors: those of [`calibrate_cell`], and a scale that is not finite or outside
+/// `[1e-3, 100]` ([`PRIOR_SCALES`]' range), named with the accepted range.
+pub fn calibrate_cell_with(
+    problem: &CellProblem,
+    solve: &SolveOptions,
+    screen: &ScreenOptions,
+    tolerance_scale: Option<f64>,
+) -> Result<CellCalibration, CellFitError> {
+    if let Some(s) = tolerance_scale {
+        if !(s.is_finite() && (MIN_PRIOR_SCALE..=MAX_PRIOR_SCALE).contains(&s)) {
+            return Err(CellFitError::InvalidInput(format!(
+                "tolerance scale {s}: give a number from {MIN_PRIOR_SCALE} (the placement-only \
+                 limit) to {MAX_PRIOR_SCALE} (the tolerances ×100); 1 keeps the stated tolerances"
+            )));
+        }
+    }
     problem.check()?;
     let all: Vec<usize> = (0..problem.observations.len()).collect();
     let start = initial_estimate(problem, solve.initial_b1_from_b2, &all)?;
     let reduction = reduce(problem, &start, &all)?;
     let screened = fit_screened(problem, Some(reduction.layout.clone()), solve, screen)?;
     let noise_scale = screened.noise_scale;
-    let (mut fit, prior_scale) = choose_prior_scale(problem, screened.fit, solve)?;
+    let (mut fit, prior_scale) = choose_prior_scale(problem, screened.fit, solve, tolerance_scale)?;
     let placement_only = fit.layout.prior_sqrt_info.nrows() == 0;
     if placement_only && noise_scale > 1.0 {
         // The residuals carry error the model does not represent: scale the placement's
@@ -198,84 +210,71 @@ fn mean_noise_var(problem: &CellProblem, fit: &CellFit) -> Result<f64, CellFitEr
     Ok(if rows == 0 { 0.0 } else { sum / rows as f64 })
 }
 
-/// The layout with every prior σ multiplied by `scale`.
-fn scaled_layout(layout: &ParamLayout, scale: f64) -> ParamLayout {
-    let mut l = layout.clone();
-    l.prior_sqrt_info /= scale;
-    l
-}
+/// The smallest prior scale (the placement-only limit), the last of [`PRIOR_SCALES`].
+const MIN_PRIOR_SCALE: f64 = PRIOR_SCALES[PRIOR_SCALES.len() - 1];
 
-/// Laplace log evidence of a converged fit (see [`calibrate_cell`]); `None` when `H` or the
-/// prior rows are singular.
-fn log_evidence(problem: &CellProblem, fit: &CellFit) -> Result<Option<f64>, CellFitError> {
-    let sys = assemble(problem, &fit.layout, &fit.estimate, &fit.active, None, true)?;
-    let h = sys.j.transpose() * &sys.j;
-    let logdet = |m: DMatrix<f64>| {
-        m.cholesky()
-            .map(|c| 2.0 * c.l().diagonal().iter().map(|v| v.ln()).sum::<f64>())
-    };
-    let rp = &fit.layout.prior_sqrt_info;
-    let prior = if rp.nrows() == 0 {
-        Some(0.0)
-    } else {
-        logdet(rp * rp.transpose())
-    };
-    Ok(match (logdet(h), prior) {
-        (Some(lh), Some(lp)) => Some(-0.5 * (fit.data_chi2 + fit.prior_chi2) - 0.5 * lh + 0.5 * lp),
-        _ => None,
-    })
-}
-
-/// Refits `screened` (a fit at scale 1) at every scale of [`PRIOR_SCALES`] on its rows, keeps
-/// the one of largest evidence and gives it the error covariance under the scale-1 prior.
+/// The prior scales of `screened` (a fit at scale 1): the evidence's choice (or `fixed`) at the
+/// screened estimate, a refit there, the choice repeated once at the refit (refitted again if it
+/// changed), and the error covariance under the reference prior (see [`calibrate_cell`]).
 fn choose_prior_scale(
     problem: &CellProblem,
     screened: CellFit,
     solve: &SolveOptions,
+    fixed: Option<f64>,
 ) -> Result<(CellFit, PriorScaleChoice), CellFitError> {
-    let penalised = screened.layout.prior_sqrt_info.nrows() > 0;
-    let Some(base_evidence) = log_evidence(problem, &screened)?.filter(|_| penalised) else {
-        return Ok((
-            screened,
-            PriorScaleChoice {
-                scale: 1.0,
-                log_evidence: Vec::new(),
-            },
-        ));
+    if screened.layout.prior_sqrt_info.nrows() == 0 {
+        return Ok((screened, PriorScaleChoice::none()));
+    }
+    let base = screened.layout.clone();
+    let choose = |fit: &CellFit| -> Result<Option<PriorScaleChoice>, CellFitError> {
+        let model = LinearModel::new(problem, &base, &fit.estimate, &fit.active)?;
+        Ok(match fixed {
+            Some(s) => Some(evidence::fixed(&model, s)),
+            None => evidence::choose(&model),
+        })
     };
-    let base_layout = screened.layout.clone();
-    let mut log_ev = vec![(1.0, base_evidence)];
-    let mut best = (1.0, base_evidence, screened.clone());
-    for &s in &PRIOR_SCALES[1..] {
-        let fit = fit_cell_with(
+    let Some(mut choice) = choose(&screened)? else {
+        return Ok((screened, PriorScaleChoice::none()));
+    };
+    let column_scales = |c: &PriorScaleChoice| {
+        nalgebra::DVector::from_iterator(
+            base.len(),
+            base.params
+                .iter()
+                .map(|p| evidence::prior_family(p).map_or(1.0, |f| c.family_scale(f))),
+        )
+    };
+    let mut s = column_scales(&choice);
+    let refit = |s: &nalgebra::DVector<f64>| {
+        fit_cell_with(
             problem,
-            scaled_layout(&base_layout, s),
+            evidence::scaled_layout(&base, s),
             &screened.active,
             Some(&screened.estimate),
             solve,
-        )?;
-        if let Some(ev) = log_evidence(problem, &fit)? {
-            log_ev.push((s, ev));
-            if ev > best.1 {
-                best = (s, ev, fit);
+        )
+    };
+    let mut fit = if s.iter().all(|&v| v == 1.0) {
+        screened.clone()
+    } else {
+        refit(&s)?
+    };
+    if fixed.is_none() && s.iter().any(|&v| v != 1.0) {
+        // Relinearise at the fit of the chosen scales (widening moves the estimate by more than
+        // the scale-1 fit did) and choose again; refit if the choice changed.
+        if let Some(again) = choose(&fit)? {
+            let s2 = column_scales(&again);
+            if s2 != s {
+                fit = if s2.iter().all(|&v| v == 1.0) {
+                    screened.clone()
+                } else {
+                    refit(&s2)?
+                };
+                s = s2;
             }
+            choice = again;
         }
     }
-    let (scale, _, mut fit) = best;
-    if scale != 1.0 {
-        let sys = assemble(problem, &fit.layout, &fit.estimate, &fit.active, None, true)?;
-        let h = sys.j.transpose() * &sys.j;
-        let rp = &fit.layout.prior_sqrt_info;
-        let lambda = rp.transpose() * rp;
-        let (h_inv, _) = sym_inverse(&h);
-        let middle = &h - &lambda + lambda / (scale * scale);
-        fit.covariance = &h_inv * middle * &h_inv;
-    }
-    Ok((
-        fit,
-        PriorScaleChoice {
-            scale,
-            log_evidence: log_ev,
-        },
-    ))
+    fit.covariance = evidence::reference_covariance(problem, &fit, &s)?;
+    Ok((fit, choice))
 }

@@ -109,7 +109,7 @@
 //! nuisance groups, [`CellProblem`] and its checks) ← `layout` (estimates, columns, prior,
 //! manifold updates) ← `residuals` (residuals and analytic Jacobians, [`Evaluator`]) ← `start`
 //! (starting values) ← `solve` (Levenberg–Marquardt) ← `reduce` ← `blunders` ← `accuracy` ←
-//! `design`, `calibrate` (the one call) ← `report` (its file-unit report); beside them, `coverage`
+//! `design`, `evidence` (the prior scales from the evidence), `calibrate` (the one call) ← `report` (its file-unit report); beside them, `coverage`
 //! (the joint ranges and tool-point region a session covers against the limits and the reach)
 //! and `validate` (a held cell scored on observations it was not fitted to, nuisances given or
 //! split-refitted). `fixtures` (simulated cells) and `tests` sit on top.
@@ -120,6 +120,7 @@ mod calibrate;
 mod cell;
 mod coverage;
 mod design;
+mod evidence;
 mod layout;
 mod observations;
 mod placement_prior;
@@ -141,7 +142,7 @@ pub use accuracy::{
     summarise_covariances, ConfigPair, CooperativeError, CooperativePrediction, P95_DRAWS_PER_PAIR,
 };
 pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
-pub use calibrate::{calibrate_cell, CellCalibration, PriorScaleChoice, PRIOR_SCALES};
+pub use calibrate::{calibrate_cell, calibrate_cell_with, CellCalibration};
 pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool};
 pub use coverage::{
     session_coverage, CoverageReport, JointCoverage, JointCoverageReport, PointRegion,
@@ -151,6 +152,10 @@ pub use coverage::{
 pub use design::{
     design_criterion, design_prediction, greedy_design, DesignCriterion, DesignPrediction,
     DesignResult, PLACEMENT_DRAWS, WEAK_PRIOR_SIGMA,
+};
+pub use evidence::{
+    format_scale, prior_family, FamilyScale, PriorScaleChoice, ScaleMethod, FAMILY_EVIDENCE_MARGIN,
+    FAMILY_SWEEPS, MAX_PRIOR_SCALE, PRIOR_SCALES,
 };
 pub use layout::{
     tangent_basis, CellEstimate, CellParam, ParamLayout, PlaneEstimate, RobotCorrection,
@@ -162,7 +167,7 @@ pub use observations::{
 pub use placement_prior::PlacementPrior;
 pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, PRIOR_INFO_TOL, RANK_TOL};
 pub use report::{
-    CalibrationReport, ContactGroupReport, DesignPredictionReport, DropReason,
+    CalibrationReport, ContactGroupReport, DesignPredictionReport, DropReason, FamilyScaleReport,
     FittedPlacementReport, GroupsReport, LogEvidenceReport, MergePartner, NuisanceReport,
     ParamIdentity, ParameterReport, PlacementSigmaReport, PlaneGroupReport, PriorScaleReport,
     RejectedRowReport, ReportUnit, TrackerGroupReport, UnidentifiableReport,
