@@ -20,11 +20,11 @@
 use std::fmt::Write as _;
 
 use calib_core::whole_cell::{
-    calibrate_cell_with, format_scale, predict_cooperative_accuracy, session_coverage, CalibrationReport,
-    CellCalibration, CellFitError, CellProblem, CooperativePrediction, CoverageReport, DropReason,
-    FittedPlacementReport, GroupsReport, Kind, NuisanceReport, ParameterReport,
-    PlacementSigmaReport, PriorScaleReport, RejectedRowReport, ScaleMethod, ScreenOptions,
-    SolveOptions, UnidentifiableReport,
+    calibrate_cell_with, format_scale, predict_cooperative_accuracy, session_coverage,
+    CalibrationReport, CellCalibration, CellFitError, CellProblem, CooperativePrediction,
+    CoverageReport, DropReason, FittedPlacementReport, GroupsReport, Kind, NuisanceReport,
+    ParameterReport, PlacementSigmaReport, PriorScaleReport, RejectedRowReport, ScaleMethod,
+    ScreenOptions, SolveOptions, UnidentifiableReport,
 };
 use calib_core::StopReason;
 use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
@@ -134,13 +134,8 @@ pub fn calibrate_session_with(
         // the cell's own b1_from_b2.
         solve.initial_b1_from_b2 = Some(cell.b1_from_b2);
     }
-    let cal = calibrate_cell_with(
-        &problem,
-        &solve,
-        &ScreenOptions::default(),
-        tolerance_scale,
-    )
-    .map_err(CellCalibrationError::Fit)?;
+    let cal = calibrate_cell_with(&problem, &solve, &ScreenOptions::default(), tolerance_scale)
+        .map_err(CellCalibrationError::Fit)?;
     let pairs = session_meeting_pairs(session);
     let cooperative = if pairs.is_empty() {
         None
@@ -541,7 +536,10 @@ fn prior_scale_phrase(p: &PriorScaleReport) -> String {
     };
     match p.method {
         ScaleMethod::EvidencePerFamily => {
-            format!("prior scales chosen by the evidence, per family: {}", families())
+            format!(
+                "prior scales chosen by the evidence, per family: {}",
+                families()
+            )
         }
         ScaleMethod::Fixed => format!(
             "prior scale fixed by --tolerance-scale: {} for every family",

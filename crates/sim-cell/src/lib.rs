@@ -2,6 +2,7 @@
 
 mod error;
 pub mod layout;
+pub mod oracle;
 pub mod paper;
 pub mod placement;
 pub mod plan;

@@ -734,7 +734,10 @@ mod tests {
             warning.starts_with("robot 1 tool `tip` tip z: fitted correction +1.0000 mm exceeds its stated tolerance ±0.7500 mm (1.3× it; prior scale applied ×2)"),
             "{warning}"
         );
-        let within = ParameterReport { value: 0.7, ..p.clone() };
+        let within = ParameterReport {
+            value: 0.7,
+            ..p.clone()
+        };
         assert!(within.tolerance_warning().is_none());
         assert_eq!(json, sorted(&json));
         let compliance = CellParam::Kinematic {
