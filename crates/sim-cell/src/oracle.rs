@@ -240,7 +240,7 @@ pub fn render_table(cells: &[OracleCell], o: &OracleOptions) -> String {
     s.push_str("| cell | trials | evidence/oracle median | worst | evidence mm (median) | oracle mm | held (scale 1) mm | placement mm | evidence > 1.05 × placement | scales chosen |\n");
     s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
     let mut all: Vec<&OracleTrial> = Vec::new();
-    let mut row = |name: &str, t: &[&OracleTrial], scales: String| {
+    let row = |name: &str, t: &[&OracleTrial], scales: String| {
         let mut ratio: Vec<f64> = t.iter().map(|x| x.evidence_m / x.oracle_m).collect();
         let worst = ratio.iter().cloned().fold(0.0, f64::max);
         let worse = t

@@ -16,8 +16,10 @@
 //!    and the model-error term set (`mean_noise_var`).
 //! 6. [`CellCalibration::report`] (`report.rs`): the report in file units.
 
-use super::blunders::{fit_screened, RejectedRow, ScreenOptions};
-use super::evidence::{self, LinearModel, PriorScaleChoice, MAX_PRIOR_SCALE, PRIOR_SCALES};
+use super::blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
+use super::evidence::{
+    self, format_scale, LinearModel, PriorScaleChoice, ScaleMethod, MAX_PRIOR_SCALE, PRIOR_SCALES,
+};
 use super::reduce::{reduce, Reduction};
 use super::solve::{fit_cell_with, CellFit, SolveOptions};
 use super::{initial_estimate, CellFitError, CellProblem};
@@ -171,12 +173,53 @@ pub fn calibrate_cell_with(
         }
     }
     problem.check()?;
-    let all: Vec<usize> = (0..problem.observations.len()).collect();
-    let start = initial_estimate(problem, solve.initial_b1_from_b2, &all)?;
-    let reduction = reduce(problem, &start, &all)?;
-    let screened = fit_screened(problem, Some(reduction.layout.clone()), solve, screen)?;
+    let ones = FamilyFactors::ones();
+    let (reduction, screened, mut fit, prior_scale) = match tolerance_scale {
+        // A fixed widening: reduce, screen and fit at the widened tolerances.
+        Some(x) if x > 1.0 => {
+            let wide = FamilyFactors::all(x);
+            let (red, scr, fit, mut choice) =
+                one_pass(&wide.apply(problem), solve, screen, Some(1.0), &wide)?;
+            choice.rescale(&wide);
+            choice.scale = x;
+            for c in &mut choice.log_evidence {
+                c.0 *= x;
+            }
+            choice.why = format!(
+                "fixed at {} by the caller (--tolerance-scale): reduction, blunder screen and fit \
+                 at the tolerances ×{}",
+                format_scale(x),
+                format_scale(x)
+            );
+            (red, scr, fit, choice)
+        }
+        Some(x) => one_pass(problem, solve, screen, Some(x), &ones)?,
+        None => {
+            let first = one_pass(problem, solve, screen, None, &ones)?;
+            let wide = FamilyFactors::widening(&first.3);
+            if wide.is_ones() {
+                first
+            } else {
+                // The evidence widened some family: the reduction and the blunder screen of the
+                // first pass were made at tolerances too narrow (rows the robots' real errors
+                // move were screened as blunders, parameters the data see were dropped as
+                // decided by the prior). Redo both at the widened tolerances and choose again.
+                let (red, scr, fit, mut again) =
+                    one_pass(&wide.apply(problem), solve, screen, None, &wide)?;
+                again.rescale(&wide);
+                again.log_evidence = first.3.log_evidence.clone();
+                again.why = format!(
+                    "{}; refitted at the widened tolerances ({}; reduction and blunder screen \
+                     redone), where {}",
+                    first.3.why,
+                    wide.describe(&first.3),
+                    again.why
+                );
+                (red, scr, fit, again)
+            }
+        }
+    };
     let noise_scale = screened.noise_scale;
-    let (mut fit, prior_scale) = choose_prior_scale(problem, screened.fit, solve, tolerance_scale)?;
     let placement_only = fit.layout.prior_sqrt_info.nrows() == 0;
     if placement_only && noise_scale > 1.0 {
         // The residuals carry error the model does not represent: scale the placement's
@@ -221,6 +264,7 @@ fn choose_prior_scale(
     screened: CellFit,
     solve: &SolveOptions,
     fixed: Option<f64>,
+    widened: &FamilyFactors,
 ) -> Result<(CellFit, PriorScaleChoice), CellFitError> {
     if screened.layout.prior_sqrt_info.nrows() == 0 {
         return Ok((screened, PriorScaleChoice::none()));
@@ -275,6 +319,131 @@ fn choose_prior_scale(
             choice = again;
         }
     }
-    fit.covariance = evidence::reference_covariance(problem, &fit, &s)?;
+    let floor = nalgebra::DVector::from_iterator(
+        base.len(),
+        base.params
+            .iter()
+            .map(|p| evidence::prior_family(p).map_or(1.0, |f| 1.0 / widened.get(f))),
+    );
+    fit.covariance = evidence::reference_covariance(problem, &fit, &s, &floor)?;
     Ok((fit, choice))
+}
+
+/// One pass of the calibration at `problem`'s tolerances: start, reduction, blunder screen,
+/// then the prior scales (`widened`: the factors the tolerances already carry, for the
+/// reference covariance).
+fn one_pass(
+    problem: &CellProblem,
+    solve: &SolveOptions,
+    screen: &ScreenOptions,
+    fixed: Option<f64>,
+    widened: &FamilyFactors,
+) -> Result<(Reduction, ScreenedFit, CellFit, PriorScaleChoice), CellFitError> {
+    let all: Vec<usize> = (0..problem.observations.len()).collect();
+    let start = initial_estimate(problem, solve.initial_b1_from_b2, &all)?;
+    let reduction = reduce(problem, &start, &all)?;
+    let screened = fit_screened(problem, Some(reduction.layout.clone()), solve, screen)?;
+    let (fit, choice) = choose_prior_scale(problem, screened.fit.clone(), solve, fixed, widened)?;
+    Ok((reduction, screened, fit, choice))
+}
+
+/// A factor per parameter family (1 for a family not named), applied to the tolerances.
+#[derive(Debug, Clone, PartialEq)]
+struct FamilyFactors(Vec<(&'static str, f64)>);
+
+impl FamilyFactors {
+    fn ones() -> Self {
+        FamilyFactors(Vec::new())
+    }
+
+    /// `x` for every family.
+    fn all(x: f64) -> Self {
+        FamilyFactors(
+            [
+                "joint_offset",
+                "origin_xyz",
+                "origin_rpy",
+                "tip",
+                "joint_scale",
+                "compliance",
+                "periodic",
+            ]
+            .iter()
+            .map(|f| (*f, x))
+            .collect(),
+        )
+    }
+
+    /// The families `choice` widened (scale > 1), with their scales.
+    fn widening(choice: &PriorScaleChoice) -> Self {
+        FamilyFactors(
+            choice
+                .families
+                .iter()
+                .filter(|f| f.scale > 1.0)
+                .map(|f| (f.family, f.scale))
+                .collect(),
+        )
+    }
+
+    fn is_ones(&self) -> bool {
+        self.0.iter().all(|(_, x)| *x == 1.0)
+    }
+
+    fn get(&self, family: &str) -> f64 {
+        self.0
+            .iter()
+            .find(|(f, _)| *f == family)
+            .map_or(1.0, |(_, x)| *x)
+    }
+
+    /// `problem` with each robot's tolerance of each family × its factor.
+    fn apply(&self, problem: &CellProblem) -> CellProblem {
+        let mut p = problem.clone();
+        for t in [&mut p.robot1.tolerance, &mut p.robot2.tolerance] {
+            t.joint_offset_rad *= self.get("joint_offset");
+            t.origin_xyz_m *= self.get("origin_xyz");
+            t.origin_rpy_rad *= self.get("origin_rpy");
+            t.tip_m *= self.get("tip");
+            t.joint_scale = t.joint_scale.map(|v| v * self.get("joint_scale"));
+            t.compliance_rad_per_nm = t.compliance_rad_per_nm.map(|v| v * self.get("compliance"));
+            t.periodic_rad = t.periodic_rad.map(|v| v * self.get("periodic"));
+        }
+        p
+    }
+
+    /// `joint_offset ×8, tip ×8` (the families `choice` lists that carry a factor).
+    fn describe(&self, choice: &PriorScaleChoice) -> String {
+        choice
+            .families
+            .iter()
+            .filter(|f| self.get(f.family) != 1.0)
+            .map(|f| format!("{} ×{}", f.family, format_scale(self.get(f.family))))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}
+
+impl PriorScaleChoice {
+    /// Scales relative to tolerances widened by `w` → relative to the stated tolerances.
+    fn rescale(&mut self, w: &FamilyFactors) {
+        for f in &mut self.families {
+            f.scale *= w.get(f.family);
+        }
+        let first = self.families.first().map(|f| f.scale);
+        let common = first.filter(|s| self.families.iter().all(|f| f.scale == *s));
+        match common {
+            Some(c) => {
+                self.scale = c;
+                if self.method == ScaleMethod::EvidencePerFamily {
+                    self.method = ScaleMethod::EvidenceCommon;
+                }
+            }
+            None => {
+                if self.method == ScaleMethod::EvidenceCommon {
+                    self.method = ScaleMethod::EvidencePerFamily;
+                }
+            }
+        }
+    }
 }

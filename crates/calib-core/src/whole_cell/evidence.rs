@@ -400,13 +400,15 @@ fn family_scales(model: &LinearModel, scales: &[f64]) -> Vec<FamilyScale> {
 }
 
 /// The error covariance of `fit` (fitted at column scales `s`) under the reference prior
-/// `max(s, 1)` per column (see the module docs).
+/// `max(s, floor)` per column (see the module docs; `floor` is 1 on columns whose tolerances are
+/// as stated, `1/w` where the layout's tolerances were already widened by `w`).
 pub(crate) fn reference_covariance(
     problem: &CellProblem,
     fit: &CellFit,
     s: &DVector<f64>,
+    floor: &DVector<f64>,
 ) -> Result<DMatrix<f64>, CellFitError> {
-    let s_ref = s.map(|v| v.max(1.0));
+    let s_ref = s.zip_map(floor, |v, f| v.max(f));
     if s == &s_ref {
         return Ok(fit.covariance.clone());
     }
