@@ -196,27 +196,38 @@ pub fn calibrate_cell_with(
         Some(x) => one_pass(problem, solve, screen, Some(x), &ones)?,
         None => {
             let first = one_pass(problem, solve, screen, None, &ones)?;
-            let wide = FamilyFactors::widening(&first.3);
-            if wide.is_ones() {
-                first
-            } else {
-                // The evidence widened some family: the reduction and the blunder screen of the
-                // first pass were made at tolerances too narrow (rows the robots' real errors
-                // move were screened as blunders, parameters the data see were dropped as
-                // decided by the prior). Redo both at the widened tolerances and choose again.
+            let curve = first.3.log_evidence.clone();
+            let mut why = first.3.why.clone();
+            let mut wide = FamilyFactors::widening(&first.3);
+            let mut current = first;
+            // The evidence widened some family: the reduction and the blunder screen of the
+            // pass were made at tolerances too narrow (rows the robots' real errors move were
+            // screened as blunders, parameters the data see were dropped as decided by the
+            // prior). Redo both at the widened tolerances and choose again, until the choice
+            // widens no further (at most WIDENING_PASSES passes).
+            for _ in 1..WIDENING_PASSES {
+                if wide.is_ones() {
+                    break;
+                }
                 let (red, scr, fit, mut again) =
                     one_pass(&wide.apply(problem), solve, screen, None, &wide)?;
+                let further = FamilyFactors::widening(&again);
                 again.rescale(&wide);
-                again.log_evidence = first.3.log_evidence.clone();
-                again.why = format!(
-                    "{}; refitted at the widened tolerances ({}; reduction and blunder screen \
-                     redone), where {}",
-                    first.3.why,
-                    wide.describe(&first.3),
+                why = format!(
+                    "{why}; refitted at the widened tolerances ({}; reduction and blunder \
+                     screen redone), where, relative to those, {}",
+                    wide.describe(&again),
                     again.why
                 );
-                (red, scr, fit, again)
+                wide = wide.times(&further);
+                current = (red, scr, fit, again);
+                if further.is_ones() {
+                    break;
+                }
             }
+            current.3.log_evidence = curve;
+            current.3.why = why;
+            current
         }
     };
     let noise_scale = screened.noise_scale;
@@ -252,6 +263,10 @@ fn mean_noise_var(problem: &CellProblem, fit: &CellFit) -> Result<f64, CellFitEr
     }
     Ok(if rows == 0 { 0.0 } else { sum / rows as f64 })
 }
+
+/// Passes of the calibration at most, the first at the stated tolerances and each further one
+/// at the tolerances the evidence widened in the pass before.
+const WIDENING_PASSES: usize = 4;
 
 /// The smallest prior scale (the placement-only limit), the last of [`PRIOR_SCALES`].
 const MIN_PRIOR_SCALE: f64 = PRIOR_SCALES[PRIOR_SCALES.len() - 1];
@@ -384,6 +399,18 @@ impl FamilyFactors {
                 .map(|f| (f.family, f.scale))
                 .collect(),
         )
+    }
+
+    /// The product of two factor sets, family by family.
+    fn times(&self, other: &FamilyFactors) -> Self {
+        let mut out = self.clone();
+        for &(f, x) in &other.0 {
+            match out.0.iter_mut().find(|(g, _)| *g == f) {
+                Some(e) => e.1 *= x,
+                None => out.0.push((f, x)),
+            }
+        }
+        out
     }
 
     fn is_ones(&self) -> bool {
