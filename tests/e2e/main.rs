@@ -12,6 +12,7 @@ mod inputs;
 mod paper;
 mod paper_diagnose;
 mod plan;
+mod prior_scale;
 mod report;
 mod sim;
 mod support;

@@ -184,16 +184,7 @@ pub fn run_cell(name: &str, cell: &Cell, o: &OracleOptions) -> Result<OracleCell
             };
         let run = || -> Result<OracleTrial, SimError> {
             let (evidence_m, cal) = fit(None, FitModel::Kinematic)?;
-            let (oracle_m, oc) = fit(Some(o.truth_factor), FitModel::Kinematic)?;
-            if std::env::var("ORACLE_DEBUG").is_ok() {
-                let (e8, c8) = fit(Some(8.0), FitModel::Kinematic)?;
-                eprintln!(
-                    "DEBUG {name} {t}: evidence rej {} it {} {:?} chi2 {:.1} | oracle rej {} it {} {:?} chi2 {:.1} | fixed8 {:.3} rej {} chi2 {:.1} | why {}",
-                    cal.rejected.len(), cal.fit.iterations, cal.fit.stopped, cal.fit.data_chi2,
-                    oc.rejected.len(), oc.fit.iterations, oc.fit.stopped, oc.fit.data_chi2,
-                    e8 * 1e3, c8.rejected.len(), c8.fit.data_chi2, cal.prior_scale.why
-                );
-            }
+            let (oracle_m, _) = fit(Some(o.truth_factor), FitModel::Kinematic)?;
             let (held_m, _) = fit(Some(1.0), FitModel::Kinematic)?;
             let (placement_m, _) = fit(None, FitModel::Placement)?;
             let c = &cal.prior_scale;

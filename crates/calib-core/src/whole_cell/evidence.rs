@@ -318,10 +318,7 @@ pub(crate) fn choose(model: &LinearModel) -> Option<PriorScaleChoice> {
     };
     let z1 = curve.iter().find(|(s, _)| *s == 1.0).map(|c| c.1);
     let vs_one = match z1 {
-        Some(z1) if common != 1.0 => format!(
-            " ({:+.1} nats over scale 1)",
-            common_z - z1
-        ),
+        Some(z1) if common != 1.0 => format!(" ({:+.1} nats over scale 1)", common_z - z1),
         _ => String::new(),
     };
     let why = if differing == 0 {

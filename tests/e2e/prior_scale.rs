@@ -1,0 +1,150 @@
+//! End-to-end tests for the prior scale of `handclasp calibrate --cell` (issue 20, item 4): a
+//! session whose robots are ten times further off than the cell's stated tolerances — the
+//! evidence widens the prior, the corrections beyond the tolerances are named in `warning:`
+//! lines — and `--tolerance-scale X`, which fixes the scale (and is checked).
+
+use handclasp_cell::Cell;
+use serde_json::Value;
+
+use crate::support::{
+    assert_success, cell_session_args, handclasp, random_session, shipped_cell, stdout_json,
+    write_session_csv,
+};
+
+/// True errors ten times the default tolerances (0.05°, 0.5 mm): joint offsets of ±0.3…0.5°
+/// and origin xyz errors of ±3…5 mm, alternating in sign, on every joint of both robots.
+fn ten_times_off(cell: &mut Cell) {
+    for (r, robot) in [&mut cell.robot1, &mut cell.robot2].into_iter().enumerate() {
+        let dof = robot.errors.dof();
+        for j in 0..dof {
+            let sign = if (j + r) % 2 == 0 { 1.0 } else { -1.0 };
+            let k = (j % 3) as f64;
+            robot.errors.joint_offset[j] = sign * (0.3 + 0.1 * k).to_radians();
+            robot.errors.origin_xyz[j] =
+                nalgebra::Vector3::new(3.0 + k, -4.0 + k, 5.0 - k) * sign * 1e-3;
+        }
+    }
+}
+
+fn calibrate(
+    cell: &std::path::Path,
+    session: &std::path::Path,
+    extra: &[&str],
+) -> std::process::Output {
+    let mut args = cell_session_args("calibrate", cell, session, extra);
+    args.push("--json".into());
+    handclasp(&args)
+}
+
+/// The evidence widens a prior ten times too narrow, says which scale it chose and why, and
+/// warns of each correction beyond its stated tolerance; `--tolerance-scale 1` holds the
+/// stated tolerances (no widening) and is reported as fixed; `--tolerance-scale 10` applies
+/// ×10 to every family.
+#[test]
+fn evidence_widens_and_the_flag_fixes_the_scale() {
+    let dir = tempfile::tempdir().unwrap();
+    let cell_path = shipped_cell("floor-floor");
+    let reported = Cell::from_toml_file(&cell_path).unwrap();
+    let mut truth = reported.clone();
+    ten_times_off(&mut truth);
+    let s = random_session(&truth, 40, 2031);
+    let session = write_session_csv(dir.path(), "session.csv", &s, &reported);
+
+    let out = calibrate(&cell_path, &session, &[]);
+    assert_success(&out);
+    let v: Value = stdout_json(&out);
+    let ps = &v["prior_scale"];
+    let method = ps["method"].as_str().unwrap();
+    assert!(method.starts_with("evidence_"), "{ps}");
+    let families = ps["families"].as_array().unwrap();
+    let widest = families
+        .iter()
+        .map(|f| f["scale"].as_f64().unwrap())
+        .fold(0.0, f64::max);
+    assert!(widest >= 4.0, "the evidence did not widen: {ps}");
+    assert!(ps["why"].as_str().unwrap().contains("widened"), "{ps}");
+    let params = v["parameters"].as_array().unwrap();
+    let exceeding: Vec<&Value> = params
+        .iter()
+        .filter(|p| p["exceeds_tolerance"].as_bool().unwrap())
+        .collect();
+    assert!(!exceeding.is_empty());
+    for p in params {
+        let (value, tol) = (
+            p["value"].as_f64().unwrap(),
+            p["tolerance"].as_f64().unwrap(),
+        );
+        assert_eq!(
+            p["exceeds_tolerance"].as_bool().unwrap(),
+            value.abs() > tol,
+            "{p}"
+        );
+    }
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let warnings: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.starts_with("warning: ") && l.contains("exceeds its stated tolerance"))
+        .collect();
+    assert_eq!(warnings.len(), exceeding.len(), "{stderr}");
+    let first = exceeding[0]["name"].as_str().unwrap();
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.starts_with(&format!("warning: {first}: fitted correction"))),
+        "{stderr}"
+    );
+
+    // Held at the stated tolerances: fixed, scale 1 everywhere, a worse data fit.
+    let held = calibrate(&cell_path, &session, &["--tolerance-scale", "1"]);
+    assert_success(&held);
+    let h: Value = stdout_json(&held);
+    assert_eq!(h["prior_scale"]["method"], "fixed");
+    assert_eq!(h["prior_scale"]["chosen"].as_f64(), Some(1.0));
+    assert!(h["prior_scale"]["families"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|f| f["scale"].as_f64() == Some(1.0)));
+    assert!(h["data_chi2"].as_f64().unwrap() > v["data_chi2"].as_f64().unwrap());
+
+    // ×10 on every family; every parameter reports it.
+    let ten = calibrate(&cell_path, &session, &["--tolerance-scale", "10"]);
+    assert_success(&ten);
+    let t: Value = stdout_json(&ten);
+    assert_eq!(t["prior_scale"]["method"], "fixed");
+    assert!(t["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|p| p["prior_scale"].as_f64() == Some(10.0)));
+
+    // The text says it too.
+    let text = handclasp(&cell_session_args(
+        "calibrate",
+        &cell_path,
+        &session,
+        &["--tolerance-scale", "10"],
+    ));
+    assert_success(&text);
+    let stdout = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        stdout.contains("prior scale fixed by --tolerance-scale: 10 for every family"),
+        "{stdout}"
+    );
+}
+
+/// A scale outside 1e-3 … 100 is refused, naming the range.
+#[test]
+fn tolerance_scale_out_of_range_names_the_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let cell_path = shipped_cell("floor-floor");
+    let cell = Cell::from_toml_file(&cell_path).unwrap();
+    let s = random_session(&cell, 12, 2032);
+    let session = write_session_csv(dir.path(), "session.csv", &s, &cell);
+    for bad in ["1000", "0", "-2"] {
+        let out = calibrate(&cell_path, &session, &["--tolerance-scale", bad]);
+        assert!(!out.status.success(), "--tolerance-scale {bad} accepted");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("0.001") && err.contains("100"), "{bad}: {err}");
+    }
+}
