@@ -141,7 +141,7 @@ fn tolerance_scale_out_of_range_names_the_range() {
     let cell = Cell::from_toml_file(&cell_path).unwrap();
     let s = random_session(&cell, 12, 2032);
     let session = write_session_csv(dir.path(), "session.csv", &s, &cell);
-    for bad in ["1000", "0", "-2"] {
+    for bad in ["1000", "0", "0.0001"] {
         let out = calibrate(&cell_path, &session, &["--tolerance-scale", bad]);
         assert!(!out.status.success(), "--tolerance-scale {bad} accepted");
         let err = String::from_utf8_lossy(&out.stderr);
