@@ -272,7 +272,7 @@ pub fn render_table(cells: &[OracleCell], o: &OracleOptions) -> String {
                 None => counts.push((x.scales.clone(), 1)),
             }
         }
-        counts.sort_by(|a, b| b.1.cmp(&a.1));
+        counts.sort_by_key(|c| std::cmp::Reverse(c.1));
         let scales = counts
             .iter()
             .map(|(k, n)| format!("{k} ({n})"))
