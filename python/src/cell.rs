@@ -477,8 +477,12 @@ pub fn import_session(
     let c = Arc::clone(&cell.cell);
     let session = py.detach(|| -> PyResult<handclasp_cell::Session> {
         let read = |p: &Path, flag: &str| {
-            std::fs::read_to_string(p).map_err(|e| {
-                crate::errors::os_error(e.kind(), format!("{flag} {}: {e}", p.display()))
+            kinematics::input::read_input_text(p, flag).map_err(|e| match e {
+                kinematics::input::InputError::Io { source, .. } => crate::errors::os_error(
+                    source.kind(),
+                    format!("{flag} {}: {source}", p.display()),
+                ),
+                other => value_error(format!("{flag} {other}")),
             })
         };
         let text = read(&map, "map")?;
@@ -497,6 +501,8 @@ pub fn import_session(
                 inputs.len()
             )));
         }
+        handclasp_cell::check_session_inputs(&session)
+            .map_err(|e| value_error(format!("the imported session: {e}")))?;
         Ok(session)
     })?;
     Ok(Session {

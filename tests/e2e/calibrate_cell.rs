@@ -199,12 +199,23 @@ fn kinematic_model_beats_placement_and_exports_verified_urdfs() {
     assert!(!refused.status.success());
     let err = String::from_utf8_lossy(&refused.stderr);
     assert!(
-        err.contains("the folder is not empty") && err.contains("--force"),
+        err.contains("the folder is not empty") && err.contains("--overwrite"),
         "{err}"
     );
-    // …and --force overwrites the files of the same names with the same calibration.
+    // …--force alone keeps a refused fit, it does not overwrite (issue 21: one flag, one
+    // meaning), and says which flag does…
+    let mut forced_only = again.clone();
+    forced_only.push("--force".into());
+    let refused = handclasp(&forced_only);
+    assert!(!refused.status.success());
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        err.contains("does not overwrite an export (add --overwrite)"),
+        "{err}"
+    );
+    // …and --overwrite overwrites the files of the same names with the same calibration.
     let before = std::fs::read_to_string(out_k.join("cell.toml")).unwrap();
-    again.push("--force".into());
+    again.push("--overwrite".into());
     let forced = handclasp(&again);
     let forced_err = String::from_utf8_lossy(&forced.stderr);
     assert!(forced.status.success(), "{forced_err}");
@@ -392,7 +403,7 @@ fn placement_prior_sigma_is_reported_beside_the_posterior() {
         let text = String::from_utf8_lossy(&out.stdout);
         let line = text
             .lines()
-            .find(|l| l.starts_with("b1_from_b2 posterior σ:"))
+            .find(|l| l.starts_with("b1_from_b2 posterior σ"))
             .unwrap_or_else(|| panic!("no placement σ line in {text}"));
         match prior {
             None => assert_eq!(line.matches("prior: free").count(), 6, "{line}"),

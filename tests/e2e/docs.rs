@@ -447,6 +447,7 @@ page_tests! {
     guide_real_data => "docs/guide/real-data.md",
     guide_validate => "docs/guide/validate.md",
     guide_python => "docs/guide/python.md",
+    guide_warnings => "docs/guide/warnings.md",
 }
 
 #[test]

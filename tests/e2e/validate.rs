@@ -40,6 +40,7 @@ fn mixed_sessions(dir: &Path, truth: &Cell, n: usize, seed: u64) -> [PathBuf; 2]
             .filter(|o| (o.point <= n) == first)
             .cloned()
             .collect(),
+        ..Session::default()
     };
     [
         write_session_csv(dir, "train.csv", &part(true), truth),

@@ -8,6 +8,11 @@
 //! - `fit_cell`: the plain MAP fit on the full layout (no reduction, no screening).
 //!
 //! The data (inverse kinematics of the true robots) are built once per case, outside the timing.
+//!
+//! `whole_cell/rows`: `calibrate_cell` on floor–ceiling (seed 41) at 20, 200 and 2,000
+//! coincident points, the cost against rows that `handclasp calibrate --cell --model kinematic`
+//! pays (BENCHMARKS.md gives the command's own figures up to 20,000 rows). Only this group:
+//! `cargo bench -p calib-core --bench whole_cell -- whole_cell/rows --warm-up-time 1 --measurement-time 5`
 
 // criterion_main! generates an undocumented `main`.
 #![allow(missing_docs)]
@@ -77,5 +82,28 @@ fn bench_whole_cell(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, bench_whole_cell);
+/// `calibrate_cell` against the number of rows (see the module doc).
+fn bench_rows(c: &mut Criterion) {
+    let solve = SolveOptions::default();
+    let screen = ScreenOptions::default();
+    let mut group = c.benchmark_group("whole_cell/rows");
+    group.sample_size(10);
+    for n in [20usize, 200, 2000] {
+        let p = problem(Cell::Ceiling, n, 41);
+        let cal = calibrate_cell(&p, &solve, &screen).expect("valid problem");
+        assert_eq!(cal.fit.stopped, StopReason::Converged, "rows n={n}");
+        eprintln!(
+            "floor_ceiling, {n} points: {} residual rows, {} unknowns, {} rejected",
+            cal.fit.residual_rows,
+            cal.fit.layout.len(),
+            cal.rejected.len()
+        );
+        group.bench_with_input(BenchmarkId::new("calibrate_cell", n), &p, |b, p| {
+            b.iter(|| calibrate_cell(black_box(p), &solve, &screen).expect("valid problem"))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_whole_cell, bench_rows);
 criterion_main!(benches);

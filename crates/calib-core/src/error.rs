@@ -16,6 +16,9 @@ pub enum CalibError {
         #[source]
         source: std::io::Error,
     },
+    /// The file is over the input limit, binary or not UTF-8 (`kinematics::input`).
+    #[error(transparent)]
+    Input(#[from] kinematics::input::InputError),
     /// The CSV is malformed at a line (wrong number of fields, bad quoting, …).
     #[error("{path}, line {line}: malformed CSV: {message}. Fix: every line needs the same columns as the header")]
     Csv {

@@ -27,8 +27,8 @@ pub use fit_report::{
     FitReport, MountCheckReport, OutliersReport, SoftMountReport, UncertaintyReport,
 };
 pub use kinematics::{
-    rotation_from_zyz, wrap_angle, zyz_canonical, zyz_from_rotation, zyz_nearest,
-    ZYZ_CANONICAL_TILT_RAD,
+    rotation_from_zyz, wrap_angle, zyz_canonical, zyz_canonical_within, zyz_from_rotation,
+    zyz_nearest, ZYZ_CANONICAL_TILT_RAD,
 };
 pub use lm::{LmOptionError, LmOptions, SingularStep};
 pub use metrics::{
@@ -51,8 +51,8 @@ pub use registration::{
 pub use robot::Robot;
 pub use robust::{
     explain_misfit, leave_one_out, leave_one_out_four_point, leave_one_out_linearised,
-    median_residual_m, MisfitCause, OutlierReport, DEFAULT_EXPECTED_NOISE_M, EXACT_LOO_MAX_POINTS,
-    OUTLIER_FACTOR, OUTLIER_MIN_M,
+    median_residual_m, misfit_threshold_m, MisfitCause, OutlierReport, DEFAULT_EXPECTED_NOISE_M,
+    EXACT_LOO_MAX_POINTS, MISFIT_FALSE_ALARM, OUTLIER_FACTOR, OUTLIER_MIN_M,
 };
 pub use soft::{constrained_soft, SoftFit};
 pub use stop::StopReason;

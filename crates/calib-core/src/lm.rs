@@ -338,6 +338,9 @@ pub(crate) struct Minimum<X, S> {
     pub iterations: usize,
     /// Why the solver stopped.
     pub stopped: StopReason,
+    /// `JᵀJ` of `system` when the last iteration formed it (a stop on the predicted decrease),
+    /// so that the caller need not form it again.
+    pub information: Option<DMatrix<f64>>,
 }
 
 /// Minimises `‖r(x)‖²` from `start` by Levenberg–Marquardt (the steps in the module doc).
@@ -353,6 +356,7 @@ pub(crate) fn minimize<P: LeastSquaresProblem>(
     let mut lambda = options.initial_damping;
     let mut iterations = 0;
     let mut stopped = StopReason::IterationCap;
+    let mut information = None;
     while iterations < options.max_iterations {
         iterations += 1;
         let jt = system.jacobian().transpose();
@@ -366,6 +370,7 @@ pub(crate) fn minimize<P: LeastSquaresProblem>(
             };
             if predicted.is_finite() && predicted < options.cost_tolerance * cost.max(COST_FLOOR) {
                 stopped = StopReason::Converged;
+                information = Some(h);
                 break;
             }
         }
@@ -439,6 +444,7 @@ pub(crate) fn minimize<P: LeastSquaresProblem>(
         cost,
         iterations,
         stopped,
+        information,
     })
 }
 

@@ -81,8 +81,8 @@ impl PointPairs {
     /// robot. The error ([`CalibError::Duplicate`]) names the first such pair in row order (by the
     /// first row, then the second, then robot 1 before robot 2) with its [`PointPairs::row`]s.
     ///
-    /// O(n log n) for spread-out points: the points are sorted along a fixed oblique direction and
-    /// only neighbours within the distance along it are compared.
+    /// O(n) expected time in every case, identical points included (a grid of cubes of the
+    /// distance's size, see the private `first_close_pair`).
     pub fn check_duplicates(&self) -> Result<(), CalibError> {
         let mut first: Option<(usize, usize, u8, f64)> = None;
         for (robot, pts) in [(1u8, &self.p_b1), (2u8, &self.p_b2)] {
@@ -125,32 +125,56 @@ impl PointPairs {
     }
 }
 
-/// The pair `(i, j)`, `i < j`, of points closer than `limit` (m) that comes first in index order,
-/// with its distance. Points are sorted by their projection on an oblique unit direction (no
-/// layout plane of a cell is perpendicular to it); two points within `limit` are within `limit`
-/// along it, so each point is compared only with its neighbours in that order.
+/// The pair `(i, j)`, `i < j`, of points closer than `limit` (m) that comes first in index order
+/// (smallest `i`, then smallest `j`), with its distance.
+///
+/// O(n) expected time and memory in every case, identical points included: the points are hashed
+/// into a grid of cubes of side `limit / 1.75` (below `limit / √3`, so two points of one cube are
+/// always closer than `limit`, and a point's partners lie within two cubes along each axis).
+/// The first index of the answer is then the smallest index of its cube (else that cube's
+/// smallest index would pair with it first), so only each cube's smallest index is tried, against
+/// the ≤ 125 cubes around it: each cube is read by at most 125 such tries. The second index is one
+/// scan of the points after the first.
 fn first_close_pair(points: &[Point3<f64>], limit: f64) -> Option<(usize, usize, f64)> {
-    let dir = nalgebra::Vector3::new(1.0, 2f64.sqrt(), 3f64.sqrt()).normalize();
-    let mut order: Vec<(f64, usize)> = points
-        .iter()
-        .enumerate()
-        .map(|(k, p)| (p.coords.dot(&dir), k))
-        .collect();
-    order.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-    let mut best: Option<(usize, usize, f64)> = None;
-    for (a, &(s_a, i_a)) in order.iter().enumerate() {
-        for &(s_b, i_b) in &order[a + 1..] {
-            if s_b - s_a >= limit {
-                break;
-            }
-            let d = (points[i_a] - points[i_b]).norm();
-            let (i, j) = (i_a.min(i_b), i_a.max(i_b));
-            if d < limit && best.is_none_or(|(bi, bj, _)| (i, j) < (bi, bj)) {
-                best = Some((i, j, d));
-            }
-        }
+    if points.len() < 2 || limit.is_nan() || limit <= 0.0 {
+        return None;
     }
-    best
+    let side = limit / 1.75;
+    // Saturating casts: absurd coordinates (beyond ~1e14 m) share the edge cubes, which only
+    // costs time; distances are always checked.
+    let key = |p: &Point3<f64>| -> [i64; 3] {
+        [
+            (p.x / side).floor() as i64,
+            (p.y / side).floor() as i64,
+            (p.z / side).floor() as i64,
+        ]
+    };
+    let mut grid: std::collections::HashMap<[i64; 3], Vec<usize>> =
+        std::collections::HashMap::with_capacity(points.len());
+    for (k, p) in points.iter().enumerate() {
+        grid.entry(key(p)).or_default().push(k); // indices ascending within each cube
+    }
+    let mut firsts: Vec<usize> = grid.values().map(|v| v[0]).collect();
+    firsts.sort_unstable();
+    let close = |a: usize, b: usize| (points[a] - points[b]).norm() < limit;
+    let first = firsts.into_iter().find(|&i| {
+        let c = key(&points[i]);
+        (-2i64..=2).any(|dx| {
+            (-2i64..=2).any(|dy| {
+                (-2i64..=2).any(|dz| {
+                    let n = [
+                        c[0].saturating_add(dx),
+                        c[1].saturating_add(dy),
+                        c[2].saturating_add(dz),
+                    ];
+                    grid.get(&n)
+                        .is_some_and(|v| v.iter().any(|&j| j > i && close(i, j)))
+                })
+            })
+        })
+    })?;
+    let j = (first + 1..points.len()).find(|&j| close(first, j))?;
+    Some((first, j, (points[first] - points[j]).norm()))
 }
 
 fn rms_spread(points: &[Point3<f64>]) -> f64 {
@@ -212,11 +236,17 @@ pub fn csv_reader(text: &str) -> csv::Reader<&[u8]> {
 /// column, empty / non-numeric / non-finite cell, no data rows, duplicate points, coordinates that look
 /// like metres (all |value| < 5 for a robot), a robot spread ≥ 20× the other's.
 pub fn read_points_csv(path: &Path) -> Result<PointPairs, CalibError> {
-    let text = std::fs::read_to_string(path).map_err(|source| CalibError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
-    parse_points_csv(&text, path)
+    let pairs = {
+        let text = kinematics::input::read_input_text(path, "points CSV").map_err(|e| match e {
+            kinematics::input::InputError::Io { path, source } => CalibError::Io { path, source },
+            other => CalibError::Input(other),
+        })?;
+        parse_rows(&text, path)?
+        // The file's text goes here, before the checks below sort the points (1e6 rows: 57 MB
+        // of text and 32 MB of sort keys need not be held at once).
+    };
+    pairs.check_consistency(&path.display().to_string())?;
+    Ok(pairs)
 }
 
 /// Parses CSV text as [`read_points_csv`] does; `path` is used in messages only.
@@ -224,6 +254,14 @@ pub fn read_points_csv(path: &Path) -> Result<PointPairs, CalibError> {
 /// The header may start with a UTF-8 BOM, and fields may be separated by commas, semicolons or
 /// tabs (detected from the header line, see [`csv_delimiter`]).
 pub fn parse_points_csv(text: &str, path: &Path) -> Result<PointPairs, CalibError> {
+    let pairs = parse_rows(text, path)?;
+    pairs.check_consistency(&path.display().to_string())?;
+    Ok(pairs)
+}
+
+/// The rows of [`parse_points_csv`] with every per-cell and units check, before the checks of
+/// the points against each other ([`PointPairs::check_consistency`]).
+fn parse_rows(text: &str, path: &Path) -> Result<PointPairs, CalibError> {
     let text = strip_bom(text);
     let delimiter = csv_delimiter(text);
     let mut reader = csv::ReaderBuilder::new()
@@ -248,13 +286,17 @@ pub fn parse_points_csv(text: &str, path: &Path) -> Result<PointPairs, CalibErro
                 .ok_or_else(|| CalibError::MissingColumn {
                     path: path.to_path_buf(),
                     column: col.to_string(),
-                    found: headers.iter().collect::<Vec<_>>().join(","),
+                    found: kinematics::input::cap_echo(
+                        &headers.iter().collect::<Vec<_>>().join(","),
+                    ),
                 })?;
     }
+    // At most one data row per line after the header: the vectors are allocated once.
+    let lines = text.bytes().filter(|&b| b == b'\n').count();
     let mut pairs = PointPairs {
-        p_b1: Vec::new(),
-        p_b2: Vec::new(),
-        rows: Vec::new(),
+        p_b1: Vec::with_capacity(lines),
+        p_b2: Vec::with_capacity(lines),
+        rows: Vec::with_capacity(lines),
     };
     for record in reader.records() {
         let record = record.map_err(|e| CalibError::Csv {
@@ -273,7 +315,7 @@ pub fn parse_points_csv(text: &str, path: &Path) -> Result<PointPairs, CalibErro
                 path: path.to_path_buf(),
                 line,
                 column: COLUMNS[k].into(),
-                value: cell.into(),
+                value: kinematics::input::cap_echo(cell),
                 problem,
                 fix,
             };
@@ -327,7 +369,6 @@ pub fn parse_points_csv(text: &str, path: &Path) -> Result<PointPairs, CalibErro
             });
         }
     }
-    pairs.check_consistency(&path.display().to_string())?;
     Ok(pairs)
 }
 
@@ -506,5 +547,67 @@ mod tests {
     fn no_rows() {
         let e = parse("r1_x_mm,r1_y_mm,r1_z_mm,r2_x_mm,r2_y_mm,r2_z_mm\n").unwrap_err();
         assert!(matches!(e, CalibError::TooFewPoints { got: 0, .. }));
+    }
+}
+
+#[cfg(test)]
+mod close_pair_tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The first close pair in index order by comparing every pair (the definition).
+    fn brute_force(points: &[Point3<f64>], limit: f64) -> Option<(usize, usize)> {
+        (0..points.len())
+            .flat_map(|i| (i + 1..points.len()).map(move |j| (i, j)))
+            .find(|&(i, j)| (points[i] - points[j]).norm() < limit)
+    }
+
+    proptest! {
+        /// The grid search names the same pair as the pairwise definition, on clustered points
+        /// (many close pairs, coincident ones included) at the duplicate distance.
+        #[test]
+        fn grid_search_matches_every_pair(
+            raw in proptest::collection::vec((0u8..6, 0u8..6, 0u8..6, 0u8..3), 0..60)
+        ) {
+            let step = DUPLICATE_DISTANCE_M * 0.45;
+            let points: Vec<Point3<f64>> = raw
+                .iter()
+                .map(|&(x, y, z, j)| {
+                    Point3::new(
+                        x as f64 * step + j as f64 * 1e-6,
+                        y as f64 * step,
+                        z as f64 * step - 0.5,
+                    )
+                })
+                .collect();
+            let got = first_close_pair(&points, DUPLICATE_DISTANCE_M).map(|(i, j, _)| (i, j));
+            prop_assert_eq!(got, brute_force(&points, DUPLICATE_DISTANCE_M));
+        }
+    }
+
+    /// 200 000 identical points (the case that was quadratic: 100 000 rows took > 120 s) and
+    /// 200 000 points jittered within the distance: linear time, the first pair named. The
+    /// bound is loose for a debug build on a shared machine; a quadratic scan takes hours.
+    #[test]
+    fn identical_and_clustered_points_are_linear() {
+        const N: usize = 200_000;
+        const TIME_LIMIT_S: f64 = 20.0;
+        let same = vec![Point3::new(0.3, -0.2, 1.1); N];
+        let jittered: Vec<Point3<f64>> = (0..N)
+            .map(|k| {
+                Point3::new(
+                    0.3 + (k % 97) as f64 * 1e-7,
+                    -0.2,
+                    1.1 + (k % 89) as f64 * 1e-7,
+                )
+            })
+            .collect();
+        for points in [same, jittered] {
+            let start = std::time::Instant::now();
+            let (i, j, _) = first_close_pair(&points, DUPLICATE_DISTANCE_M).unwrap();
+            assert_eq!((i, j), (0, 1));
+            let secs = start.elapsed().as_secs_f64();
+            assert!(secs < TIME_LIMIT_S, "{secs} s for {N} points");
+        }
     }
 }

@@ -1,7 +1,7 @@
 //! A pose as files and robot controllers write it: x, y, z in mm and ZYZ angles in degrees,
 //! `R = Rz(φ)·Ry(θ)·Rz(ψ)`. Code works in m and rad ([`Isometry3`]); this is the file edge.
 
-use kinematics::euler::{rotation_from_zyz, zyz_canonical, zyz_nearest};
+use kinematics::euler::{rotation_from_zyz, zyz_canonical, zyz_canonical_within, zyz_nearest};
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 
@@ -80,6 +80,15 @@ impl PoseForms {
             xyz_mm: [t.x, t.y, t.z],
             zyz_deg: zyz_canonical(&r).map(f64::to_degrees),
         }
+    }
+
+    /// The ZYZ angles (degrees) of this pose's `rotation` with a tilt within `band_deg` of
+    /// θ = 0° or 180° written as a pure yaw ([`zyz_canonical_within`]): what a text report
+    /// prints when the tilt is below its resolution or its σ.
+    pub fn zyz_deg_within(&self, band_deg: f64) -> [f64; 3] {
+        let m = nalgebra::Matrix3::from_fn(|i, j| self.rotation[i][j]);
+        let r = nalgebra::Rotation3::from_matrix_unchecked(m);
+        zyz_canonical_within(&r, band_deg.to_radians()).map(f64::to_degrees)
     }
 }
 

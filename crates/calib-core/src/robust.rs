@@ -291,6 +291,41 @@ pub fn leave_one_out_four_point(
 /// uncalibrated kinematics). The CLI's `--expected-noise-mm` overrides it.
 pub const DEFAULT_EXPECTED_NOISE_M: f64 = 5e-3;
 
+/// One-sided false-alarm rate of [`misfit_threshold_m`]: a healthy session is refused about once
+/// in 1000.
+pub const MISFIT_FALSE_ALARM: f64 = 1e-3;
+
+/// The largest median residual norm (m) a fit of `n_points` handclasps by `method` reaches at
+/// alignment noise `sigma_m` per axis, but for a chance of [`MISFIT_FALSE_ALARM`]: the bound the
+/// points-mode plausibility check compares [`median_residual_m`] with.
+///
+/// Derivation: with isotropic Gaussian noise σ per axis on each residual, |r|²/σ² is χ² with 3
+/// degrees of freedom, shrunk on average by the fit's parameters to (3n − p)/(3n) of it (p = 6 for
+/// a rigid fit, 12 for `generic-affine`, 4 for `constrained`: the mounts fix two rotations). The
+/// sample median of n such norms sits at the χ²₃ quantile `P = ½ + z·½/√n` with probability
+/// `1 − α` (the normal approximation of the median's rank, z = Φ⁻¹(1 − α)), so the bound is
+/// `σ·√(χ²₃⁻¹(P))·√((3n − p)/(3n))`. At σ = 4.4 mm (the paper's noise) and 20 points the median
+/// is ~6.4 mm and the bound 9.6 mm; a shifted row, swapped axes or a unit slip moves the
+/// residuals by the layout's spread (hundreds of mm). NaN for a σ that is not finite and > 0.
+pub fn misfit_threshold_m(n_points: usize, method: Method, sigma_m: f64) -> f64 {
+    if !(sigma_m.is_finite() && sigma_m > 0.0) {
+        return f64::NAN;
+    }
+    let n = n_points.max(1) as f64;
+    let params = match method {
+        Method::GenericAffine => 12.0,
+        Method::Constrained => 4.0,
+        Method::Generic | Method::Paper | Method::Lsq => 6.0,
+    };
+    let z = crate::stats::normal_quantile(1.0 - MISFIT_FALSE_ALARM);
+    let p = (0.5 + z * 0.5 / n.sqrt()).min(1.0 - MISFIT_FALSE_ALARM);
+    let chi2 = statrs::distribution::ChiSquared::new(3.0)
+        .map(|d| statrs::distribution::ContinuousCDF::inverse_cdf(&d, p))
+        .unwrap_or(f64::NAN);
+    let shrink = ((3.0 * n - params).max(1.0) / (3.0 * n)).sqrt();
+    sigma_m * chi2.sqrt() * shrink
+}
+
 /// Median of the residual norms of a fit, m (robust to a few bad handclasps, which
 /// [`leave_one_out`] finds; a gross data mistake moves every residual).
 pub fn median_residual_m(fit: &Fit) -> f64 {
@@ -706,5 +741,49 @@ mod tests {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod misfit_threshold_tests {
+    use super::*;
+
+    /// The bound against a seeded simulation of its own definition: the median of n residual
+    /// norms of χ₃·σ·shrink exceeds it in about [`MISFIT_FALSE_ALARM`] of the draws (here: at
+    /// most 5× that in 4000 draws), and the paper's noise (σ 4.4 mm, 20 points, lsq) stays below
+    /// the default bound.
+    #[test]
+    fn bound_holds_its_false_alarm_rate() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, StandardNormal};
+        const DRAWS: usize = 4000;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        for n in [6usize, 20, 100] {
+            let sigma = 1e-3;
+            let limit = misfit_threshold_m(n, Method::Lsq, sigma);
+            let shrink = ((3.0 * n as f64 - 6.0) / (3.0 * n as f64)).sqrt();
+            let mut over = 0;
+            for _ in 0..DRAWS {
+                let mut norms: Vec<f64> = (0..n)
+                    .map(|_| {
+                        let v: [f64; 3] = std::array::from_fn(|_| StandardNormal.sample(&mut rng));
+                        sigma * shrink * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+                    })
+                    .collect();
+                norms.sort_by(f64::total_cmp);
+                let median = if n % 2 == 1 {
+                    norms[n / 2]
+                } else {
+                    0.5 * (norms[n / 2 - 1] + norms[n / 2])
+                };
+                over += usize::from(median > limit);
+            }
+            let rate = over as f64 / DRAWS as f64;
+            assert!(rate <= 5.0 * MISFIT_FALSE_ALARM, "n {n}: {rate}");
+        }
+        let paper = misfit_threshold_m(20, Method::Lsq, 4.4e-3);
+        assert!((paper - 9.6e-3).abs() < 0.2e-3, "{paper}");
+        assert!(misfit_threshold_m(20, Method::Lsq, DEFAULT_EXPECTED_NOISE_M) > 6.8e-3);
+        assert!(misfit_threshold_m(20, Method::Lsq, f64::NAN).is_nan());
     }
 }

@@ -23,6 +23,16 @@ pub enum FormatError {
         /// What is wrong, naming the row or column, and what would work.
         message: String,
     },
+    /// A session that reads but fails the input checks every command shares
+    /// ([`crate::session::check_session_inputs`]).
+    #[error("session {path}: {source}")]
+    SessionCheck {
+        /// The session file (`<session>` for one in memory).
+        path: PathBuf,
+        /// What is wrong and the fix.
+        #[source]
+        source: crate::session::SessionCheckError,
+    },
     /// An import mapping file is invalid; `message` names the key and the fix.
     #[error("{path}: {message}")]
     Map {
@@ -48,6 +58,18 @@ pub enum FormatError {
         /// What reading it back found.
         message: String,
     },
+    /// An input file is over the input limit, binary or not UTF-8 (`kinematics::input`).
+    #[error(transparent)]
+    InputFile(#[from] kinematics::input::InputError),
+    /// An export folder is locked by another export, or not empty under the lock
+    /// ([`crate::output::with_export_lock`]).
+    #[error("{path}: {message}")]
+    OutputFolder {
+        /// The folder.
+        path: PathBuf,
+        /// What is wrong and the fix.
+        message: String,
+    },
     /// A file could not be read or written.
     #[error("{path}: {source}")]
     Io {
@@ -60,6 +82,15 @@ pub enum FormatError {
 }
 
 impl FormatError {
+    /// An input file read within the toolkit's bounds ([`kinematics::input::read_input_text`]):
+    /// an I/O failure is [`FormatError::Io`], the others [`FormatError::Input`].
+    pub(crate) fn input(e: kinematics::input::InputError) -> Self {
+        match e {
+            kinematics::input::InputError::Io { path, source } => FormatError::Io { path, source },
+            other => FormatError::InputFile(other),
+        }
+    }
+
     /// Shorthand for [`FormatError::Io`].
     pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
         FormatError::Io {

@@ -60,7 +60,8 @@ pub const CALIBRATE_EXPORT_NAMES: ExportNames<'static> = ExportNames {
 /// Writes the calibrated `cell` into `dir` (created if missing): each robot's URDF corrected by
 /// the URDF-expressible part of `estimate`'s corrections ([`split_for_urdf`]), and the cell file
 /// with `estimate.b1_from_b2`, the tips corrected by tool 0's tip error (tool 0 = the cell's tip,
-/// as [`crate::problem::cell_problem`] builds it), the rest of each robot's errors (joint
+/// as [`crate::problem::cell_problem`] builds it) and each named tool (`[robotN.tools]`, tools
+/// 1.. in the cell's order) by its own, the rest of each robot's errors (joint
 /// scale, compliance) as `[robotN.errors]`, robot 2's gravity rotated by the fitted placement, and
 /// the cell's placement σ (if any) unchanged, now centred on the fitted placement (see the
 /// module documentation for why). The placement's angles are written by
@@ -122,6 +123,11 @@ pub fn export_calibrated_cell(
         r.urdf = file.to_string();
         r.urdf_path = path;
         r.flange_from_tip = setup.flange_from_tip + tip_error;
+        // The named tools ([robotN.tools], tools 1.. of the problem) carry their fitted tip
+        // errors too.
+        for (tool, error) in r.tools.iter_mut().zip(correction.tool_tip_m.iter().skip(1)) {
+            tool.flange_from_tip += error;
+        }
         // What a URDF cannot hold (scale, compliance; tips are in tip_mm, mounts are never fitted).
         r.errors = split_for_urdf(&correction.errors).1;
     }
@@ -129,9 +135,7 @@ pub fn export_calibrated_cell(
     out.robot2.g_base = out.b1_from_b2.rotation.inverse() * out.robot1.g_base;
     let cell_path = dir.join(names.cell);
     let text = format!("{}{}", names.header, out.to_toml_string());
-    let tmp = cell_path.with_extension("tmp");
-    std::fs::write(&tmp, text).map_err(|e| FormatError::io(&tmp, e))?;
-    std::fs::rename(&tmp, &cell_path).map_err(|e| FormatError::io(&cell_path, e))?;
+    crate::output::write_atomically(&cell_path, text.as_bytes())?;
     Cell::from_toml_file(&cell_path)?;
     written.push(cell_path);
     Ok(written)
@@ -158,8 +162,8 @@ pub(crate) fn write_corrected_urdf(
         message: format!("{robot}: {message}"),
     };
     let (urdf_part, _) = split_for_urdf(errors);
-    let xml = std::fs::read_to_string(&setup.urdf_path)
-        .map_err(|e| FormatError::io(&setup.urdf_path, e))?;
+    let xml =
+        kinematics::input::read_input_text(&setup.urdf_path, "URDF").map_err(FormatError::input)?;
     let patched = patch_urdf_text(&xml, &setup.model, &urdf_part)
         .map_err(|e| bad(format!("cannot write the corrected URDF: {e}")))?;
     let tmp = path.with_extension("urdf.tmp");

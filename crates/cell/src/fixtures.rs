@@ -152,5 +152,6 @@ pub(crate) fn face_session(cell: &Cell, n: usize) -> Session {
     Session {
         points: Vec::new(),
         observations,
+        ..Session::default()
     }
 }

@@ -7,6 +7,7 @@ pub mod export_formats;
 #[cfg(test)]
 mod fixtures;
 pub mod import;
+pub mod output;
 pub mod problem;
 pub mod session;
 
@@ -16,4 +17,7 @@ pub use export::{export_calibrated_cell, ExportNames, CALIBRATE_EXPORT_NAMES};
 pub use export_formats::{export_placement, ControllerFormat, PlacementExport, PlacementFormats};
 pub use import::{ImportCount, ImportMap};
 pub use problem::{cell_problem, FitModel};
-pub use session::{Session, SessionKind, SessionObservation, SessionPoint, SessionRow};
+pub use session::{
+    check_session_inputs, Session, SessionCheckError, SessionKind, SessionObservation,
+    SessionPoint, SessionRow,
+};

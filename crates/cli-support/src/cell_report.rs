@@ -20,16 +20,20 @@
 use std::fmt::Write as _;
 
 use calib_core::whole_cell::{
-    calibrate_cell_with, format_scale, predict_cooperative_accuracy, session_coverage,
+    calibrate_cell_with, format_scale, predict_cooperative_accuracy, session_coverage, widen_prior,
     CalibrationReport, CellCalibration, CellFitError, CellProblem, CooperativePrediction,
     CoverageReport, DropReason, FittedPlacementReport, GroupsReport, Kind, NuisanceReport,
     ParameterReport, PlacementSigmaReport, PriorScaleReport, RejectedRowReport, ScaleMethod,
     ScreenOptions, SolveOptions, UnidentifiableReport,
 };
-use calib_core::StopReason;
+use calib_core::{PoseForms, StopReason};
 use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
 use handclasp_cell::{Cell, Session};
 use serde::Serialize;
+
+use crate::result_check::{
+    check_result, misfit_outcome, screen_outcome, ResultCheckReport, ScreenMode, ScreenReport,
+};
 
 /// Seed of the predicted p95's Monte Carlo draw.
 pub const P95_SEED: u64 = 1;
@@ -85,6 +89,10 @@ impl CellModel {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum CellCalibrationError {
+    /// The session fails the input checks every command shares
+    /// ([`handclasp_cell::check_session_inputs`]: no rows, radians, metres, duplicates).
+    #[error(transparent)]
+    Session(#[from] handclasp_cell::SessionCheckError),
     /// The fit failed (the problem is invalid, or the solver met a non-finite value).
     #[error(transparent)]
     Fit(CellFitError),
@@ -109,24 +117,31 @@ pub struct SessionCalibration {
 
 /// Calibrates `session` of `cell` with `model`: the MAP fit with blunder screening, and the
 /// predicted cooperative accuracy over the session's meeting pairs (none without coincident or
-/// contact rows).
+/// contact rows). The session first passes the input checks every command shares
+/// ([`handclasp_cell::check_session_inputs`]), so a header-only session is refused, not fitted.
 pub fn calibrate_session(
     cell: &Cell,
     session: &Session,
     model: CellModel,
 ) -> Result<SessionCalibration, CellCalibrationError> {
-    calibrate_session_with(cell, session, model, None)
+    calibrate_session_with(cell, session, model, ScreenMode::Auto, None)
 }
 
-/// [`calibrate_session`] with the prior scale fixed at `tolerance_scale` (`calibrate --cell
-/// --tolerance-scale X`: every tolerance × X, 1e-3 … 100) instead of the evidence's choice;
-/// `None` is [`calibrate_session`].
+/// [`calibrate_session`] with the blunder screen's mode (`--screen`) and the prior scale fixed
+/// at `tolerance_scale` (`calibrate --cell --tolerance-scale X`: every tolerance × X, 1e-3 …
+/// 100; `None`: the evidence's choice): the fit at the stated tolerances, the result check
+/// ([`crate::result_check`]) on it, and only when the check does not refuse it, the widening
+/// the evidence asks for (or the caller's scale above 1); the report's
+/// [`CellReport::result_check`] is the check of the fit returned (with the stated fit's
+/// findings when the tolerances were widened).
 pub fn calibrate_session_with(
     cell: &Cell,
     session: &Session,
     model: CellModel,
+    screen: ScreenMode,
     tolerance_scale: Option<f64>,
 ) -> Result<SessionCalibration, CellCalibrationError> {
+    handclasp_cell::check_session_inputs(session)?;
     let problem = cell_problem(cell, session, model.fit_model());
     let mut solve = SolveOptions::default();
     if session.points.len() < MIN_COINCIDENT_FOR_START {
@@ -134,8 +149,7 @@ pub fn calibrate_session_with(
         // the cell's own b1_from_b2.
         solve.initial_b1_from_b2 = Some(cell.b1_from_b2);
     }
-    let cal = calibrate_cell_with(&problem, &solve, &ScreenOptions::default(), tolerance_scale)
-        .map_err(CellCalibrationError::Fit)?;
+    let (cal, check) = fit_and_check(cell, session, &problem, &solve, screen, tolerance_scale)?;
     let pairs = session_meeting_pairs(session);
     let cooperative = if pairs.is_empty() {
         None
@@ -149,7 +163,7 @@ pub fn calibrate_session_with(
     );
     let rows_by_kind =
         (!session.is_handclasp_only()).then(|| RowsByKind::from_counts(session.kind_counts()));
-    let report = CellReport::new(
+    let mut report = CellReport::new(
         cal.report(&problem),
         model,
         session.len(),
@@ -157,11 +171,89 @@ pub fn calibrate_session_with(
         cooperative,
         coverage,
     );
+    report.result_check = Some(check);
     Ok(SessionCalibration {
         report,
         problem,
         calibration: cal,
     })
+}
+
+/// The fit and its result check: the fit at the stated tolerances ([`fit_with_screen`], or the
+/// caller's scale when it is 1 or less), checked; then, only when that check found no likely
+/// mistake and did not refuse, the widening (`calib_core::whole_cell::widen_prior`, or the
+/// caller's scale above 1), checked again. A wrong model looks to the evidence like robots
+/// further off than stated, and a widened prior lets the kinematic terms absorb it, so the
+/// check must see the fit before any widening. The check returned is the final fit's, with the
+/// stated fit's findings it does not repeat (said as such).
+fn fit_and_check(
+    cell: &Cell,
+    session: &Session,
+    problem: &CellProblem,
+    solve: &SolveOptions,
+    screen: ScreenMode,
+    tolerance_scale: Option<f64>,
+) -> Result<(CellCalibration, ResultCheckReport), CellCalibrationError> {
+    let fit_err = CellCalibrationError::Fit;
+    let widen_to = tolerance_scale.filter(|&x| x > 1.0);
+    let stated_scale = tolerance_scale.filter(|&x| x <= 1.0);
+    let (cal, screen_report, options) =
+        fit_with_screen(problem, solve, screen, stated_scale).map_err(fit_err)?;
+    let check =
+        check_result(cell, session, problem, &cal, screen_report.clone()).map_err(fit_err)?;
+    if check.refused() || check.likely_mistake.is_some() {
+        return Ok((cal, check));
+    }
+    let widened = match (widen_to, tolerance_scale) {
+        (Some(x), _) => {
+            Some(calibrate_cell_with(problem, solve, &options, Some(x)).map_err(fit_err)?)
+        }
+        (None, None) => widen_prior(problem, &cal, solve, &options).map_err(fit_err)?,
+        (None, Some(_)) => None,
+    };
+    let Some(wide) = widened else {
+        return Ok((cal, check));
+    };
+    let mut wide_check =
+        check_result(cell, session, problem, &wide, screen_report).map_err(fit_err)?;
+    wide_check.add_stated_findings(&check);
+    Ok((wide, wide_check))
+}
+
+/// The screened fit in `mode` ([`ScreenMode`]) at the prior scale `tolerance_scale` (`None`:
+/// the evidence's, at most 1): `strict` rejects as the screen says, `off` rejects nothing,
+/// `auto` refits without rejection when the rejected rows are a model misfit
+/// ([`screen_outcome`]). Also gives the screen options of the fit returned.
+fn fit_with_screen(
+    problem: &CellProblem,
+    solve: &SolveOptions,
+    mode: ScreenMode,
+    tolerance_scale: Option<f64>,
+) -> Result<(CellCalibration, ScreenReport, ScreenOptions), CellFitError> {
+    let keep_all = ScreenOptions {
+        reject: false,
+        ..ScreenOptions::default()
+    };
+    let options = match mode {
+        ScreenMode::Off => keep_all.clone(),
+        ScreenMode::Auto | ScreenMode::Strict => ScreenOptions::default(),
+    };
+    let fit = |o: &ScreenOptions| calibrate_cell_with(problem, solve, o, tolerance_scale);
+    let cal = match fit(&options) {
+        // The screen would leave too few rows: when most rows disagree with the model, the
+        // model is wrong; auto keeps them all and reports the misfit.
+        Err(CellFitError::TooFewRows { rejected_rows, .. }) if mode == ScreenMode::Auto => {
+            let cal = fit(&keep_all)?;
+            let screen = misfit_outcome(problem, &cal, &rejected_rows, mode)?;
+            return Ok((cal, screen, keep_all));
+        }
+        other => other?,
+    };
+    let screen = screen_outcome(problem, &cal, mode)?;
+    if screen.rows_kept {
+        return Ok((fit(&keep_all)?, screen, keep_all));
+    }
+    Ok((cal, screen, options))
 }
 
 /// The coverage report of `session` of `cell` (seed [`COVERAGE_SEED`]): each joint's covered
@@ -284,6 +376,11 @@ pub struct CellReport {
     pub rejected_points: Vec<RejectedRowReport>,
     /// Residual rows of the final fit.
     pub residual_rows: usize,
+    /// The result check ([`crate::result_check`]): the fit against what was stated, the likely
+    /// mistakes tried, what the screen did. `None` only for a report built without a session
+    /// check ([`CellReport::new`]); [`calibrate_session`] always sets it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub result_check: Option<ResultCheckReport>,
     /// The session's rows of all kinds.
     pub rows: usize,
     /// Only for a session with rows other than plain handclasps (with `groups`).
@@ -342,6 +439,7 @@ impl CellReport {
             prior_scale,
             rejected_points,
             residual_rows,
+            result_check: None,
             rows,
             rows_by_kind,
             rows_used,
@@ -373,13 +471,36 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
         r.rows
     )?;
     let b = &r.b1_from_b2;
-    let (xyz, zyz) = (b.xyz_mm, b.zyz_deg);
+    let xyz = b.xyz_mm;
+    // Near θ = 0° or 180° φ and ψ alone mean nothing: a tilt below the printed resolution, or
+    // for a placement held by a rotation prior below its posterior σ, is printed as a pure yaw
+    // (the JSON keeps the exact angles). A freely fitted placement's tilt is printed unless it
+    // is below the resolution: its σ may be large, and a tilt within it is still the estimate.
+    let tilt_sigma_deg = b
+        .sigma
+        .iter()
+        .filter(|p| p.name.ends_with("rotation x") || p.name.ends_with("rotation y"))
+        .filter(|p| p.prior_sigma.is_some())
+        .map(|p| p.sigma)
+        .fold(f64::INFINITY, f64::min);
+    let band_deg = if tilt_sigma_deg.is_finite() {
+        tilt_sigma_deg.max(PRINTED_TILT_DEG)
+    } else {
+        PRINTED_TILT_DEG
+    };
+    let pose = PoseForms {
+        quaternion_wxyz: b.quaternion_wxyz,
+        rotation: b.rotation,
+        xyz_mm: b.xyz_mm,
+        zyz_deg: b.zyz_deg,
+    };
+    let (zyz, note) = printed_zyz(&pose, band_deg);
     writeln!(
         s,
-        "b1_from_b2:  x {:.3} mm  y {:.3} mm  z {:.3} mm   φ {:.4}°  θ {:.4}°  ψ {:.4}°  (ZYZ, R = Rz(φ)·Ry(θ)·Rz(ψ))",
+        "b1_from_b2:  x {:.3} mm  y {:.3} mm  z {:.3} mm   φ {:.4}°  θ {:.4}°  ψ {:.4}°  (ZYZ, R = Rz(φ)·Ry(θ)·Rz(ψ)){note}",
         xyz[0], xyz[1], xyz[2], zyz[0], zyz[1], zyz[2]
     )?;
-    writeln!(s, "{}", placement_sigma_line(&b.sigma))?;
+    writeln!(s, "{}", placement_sigma_line(&b.sigma, r.noise_scale))?;
     let params = &r.parameters;
     if params.is_empty() {
         writeln!(s, "kinematic parameters: none fitted (both robots nominal)")?;
@@ -473,14 +594,24 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
             )?;
         }
         for t in &g.tracker {
-            let xyz = t.anchor_from_tracker.xyz_mm;
+            let a = &t.anchor_from_tracker;
+            let xyz = a.xyz_mm;
+            let (zyz, note) = printed_zyz(a, PRINTED_TILT_DEG);
+            let q = a.quaternion_wxyz;
             writeln!(
                 s,
-                "  tracker group {}: origin ({:.3}, {:.3}, {:.3}) mm in the base of robot {}",
+                "  tracker group {}: origin ({:.3}, {:.3}, {:.3}) mm, rotation φ {:.4}°  θ {:.4}°  ψ {:.4}° (ZYZ){note}, quaternion (w, x, y, z) ({:.6}, {:.6}, {:.6}, {:.6}), in the base of robot {}",
                 quoted(&t.group),
                 xyz[0],
                 xyz[1],
                 xyz[2],
+                zyz[0],
+                zyz[1],
+                zyz[2],
+                q[0],
+                q[1],
+                q[2],
+                q[3],
                 t.anchor_robot.number()
             )?;
         }
@@ -502,15 +633,17 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
     if params.is_empty() {
         writeln!(
             s,
-            "prior scale: none (no kinematic parameter fitted); blunder-screen noise scale {:.3}",
-            r.noise_scale
+            "prior scale: none (no kinematic parameter fitted); blunder-screen noise scale {:.3}{}",
+            r.noise_scale,
+            noise_scale_note(r.noise_scale)
         )?;
     } else {
         writeln!(
             s,
-            "{} (prior σ = scale × tolerance/√3; scales 1e-3 … 100, 1e-3 = placement-only limit); blunder-screen noise scale {:.3}",
+            "{} (prior σ = scale × tolerance/√3; scales 1e-3 … 100, 1e-3 = placement-only limit); blunder-screen noise scale {:.3}{}",
             prior_scale_phrase(&r.prior_scale),
-            r.noise_scale
+            r.noise_scale,
+            noise_scale_note(r.noise_scale)
         )?;
         writeln!(s, "  why: {}", r.prior_scale.why)?;
     }
@@ -561,8 +694,10 @@ pub fn tolerance_warnings(r: &CellReport) -> Vec<String> {
         .collect()
 }
 
-/// The placement's posterior σ per axis, each with its prior σ (`free` without a prior).
-fn placement_sigma_line(sigma: &[PlacementSigmaReport]) -> String {
+/// The placement's posterior σ per axis, each with its prior σ (`free` without a prior); with a
+/// noise scale above 1, which σ this is (the data's stated σ times the scale, a prior's as
+/// stated).
+fn placement_sigma_line(sigma: &[PlacementSigmaReport], noise_scale: f64) -> String {
     let parts: Vec<String> = sigma
         .iter()
         .map(|p| {
@@ -578,7 +713,48 @@ fn placement_sigma_line(sigma: &[PlacementSigmaReport]) -> String {
             )
         })
         .collect();
-    format!("b1_from_b2 posterior σ: {}", parts.join(", "))
+    let which = if noise_scale > 1.0 {
+        format!(
+            " (as fitted, with the data's stated σ × the noise scale {noise_scale:.3} and the prior σ as stated)"
+        )
+    } else {
+        String::new()
+    };
+    format!("b1_from_b2 posterior σ{which}: {}", parts.join(", "))
+}
+
+/// Half the text's angle resolution (4 decimals of a degree): a tilt below it prints as 0.
+const PRINTED_TILT_DEG: f64 = 5e-5;
+
+/// The ZYZ angles (deg) a text report prints for `pose`: a tilt within `band_deg` of θ = 0°
+/// or 180° as a pure yaw ([`PoseForms::zyz_deg_within`]), with a note naming the tilt dropped
+/// when it would have shown at the printed resolution; otherwise its exact `zyz_deg`.
+fn printed_zyz(pose: &PoseForms, band_deg: f64) -> ([f64; 3], String) {
+    let theta = pose.zyz_deg[1];
+    let tilt_deg = theta.abs().min((180.0 - theta.abs()).abs());
+    if tilt_deg >= band_deg {
+        return (pose.zyz_deg, String::new());
+    }
+    let z = pose.zyz_deg_within(band_deg);
+    let note = if tilt_deg >= PRINTED_TILT_DEG {
+        format!(
+            " [θ {theta:.4}° is within its σ of {:.0}°, where φ and ψ alone are undefined: printed as the pure yaw φ + ψ; the JSON has the exact angles]",
+            z[1]
+        )
+    } else {
+        String::new()
+    };
+    (z, note)
+}
+
+/// What a noise scale above 1 means (empty at 1).
+fn noise_scale_note(noise_scale: f64) -> &'static str {
+    if noise_scale > 1.0 {
+        " (the residuals are this many times the stated σ, √(χ²/dof) of the placement model: its \
+         blunder screen, its posterior σ and its predicted accuracy take the data's σ times it)"
+    } else {
+        ""
+    }
 }
 
 /// One readable line per dropped parameter: why, and for a merge its largest partners.
@@ -625,7 +801,8 @@ mod tests {
         ContactGroupReport, FamilyScaleReport, LogEvidenceReport, MergePartner, ParamIdentity,
         PlaneGroupReport, ReportUnit, TrackerGroupReport,
     };
-    use calib_core::{PoseMmDeg, Robot};
+    use calib_core::Robot;
+    use std::f64::consts::FRAC_1_SQRT_2;
 
     fn sigma(name: &str, unit: ReportUnit, prior: Option<f64>) -> PlacementSigmaReport {
         PlacementSigmaReport {
@@ -715,9 +892,12 @@ mod tests {
                     offset_mm: -971.3256,
                 }],
                 tracker: vec![TrackerGroupReport {
-                    anchor_from_tracker: PoseMmDeg {
+                    // A turn of 90° about z, a tilt of 2e-5° (below the printed resolution).
+                    anchor_from_tracker: PoseForms {
+                        quaternion_wxyz: [FRAC_1_SQRT_2, 0.0, 0.0, FRAC_1_SQRT_2],
+                        rotation: [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
                         xyz_mm: [-1226.9961, 1146.2934, 1295.3159],
-                        zyz_deg: [0.0; 3],
+                        zyz_deg: [30.0, 2e-5, 60.0],
                     },
                     anchor_robot: Robot::One,
                     group: "leica".into(),
@@ -753,6 +933,7 @@ mod tests {
                 size_sigma: 21.04,
             }],
             residual_rows: 80,
+            result_check: None,
             rows: 41,
             rows_by_kind: Some(RowsByKind::from_counts([7, 8, 13, 13, 0])),
             rows_used: 40,
@@ -803,7 +984,7 @@ mod tests {
             "rows by kind: 7 coincident, 8 contact, 13 tracker, 13 plane",
             "  contact group \"pins \\\"a\\\"\": distance 100.021 mm (fitted)",
             "  plane group \"table\": normal (0.00000, 0.60000, -0.80000), offset -971.326 mm (base of robot 2)",
-            "  tracker group \"leica\": origin (-1226.996, 1146.293, 1295.316) mm in the base of robot 1",
+            "  tracker group \"leica\": origin (-1226.996, 1146.293, 1295.316) mm, rotation φ 0.0000°  θ 0.0000°  ψ 90.0000° (ZYZ), quaternion (w, x, y, z) (0.707107, 0.000000, 0.000000, 0.707107), in the base of robot 1",
             "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the 14 meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms 1.500 mm, p95 2.750 mm",
             "coverage (the session against the joint limits and the reach sampled at 4000 joint vectors within them; a calibration is extrapolated outside it):",
             "prior scale chosen by the evidence: 0.0625 for every family (prior σ = scale × tolerance/√3; scales 1e-3 … 100, 1e-3 = placement-only limit); blunder-screen noise scale 1.000",
@@ -847,6 +1028,57 @@ mod tests {
         }
         assert!(json.contains("\"cooperative_accuracy_mm\":null"));
         assert!(json.contains("\"model\":\"placement\""));
+    }
+
+    /// A placement near the identity held by a prior (σ 0.001°) with a tilt of 0.0008°: the
+    /// text prints the pure yaw φ + ψ and names the dropped tilt, the JSON keeps the exact
+    /// angles; without the prior the tilt is printed; a noise scale above 1 says which σ is
+    /// printed and what the scale is.
+    #[test]
+    fn near_identity_prints_canonical_angles_and_the_noise_scale_is_explained() {
+        let mut r = mixed_report();
+        let pose = calib_core::PoseMmDeg {
+            xyz_mm: [0.0; 3],
+            zyz_deg: [48.3, 0.0008, -48.2],
+        };
+        let forms = PoseForms::from_isometry(&pose.to_isometry());
+        r.b1_from_b2.rotation = forms.rotation;
+        r.b1_from_b2.quaternion_wxyz = forms.quaternion_wxyz;
+        r.b1_from_b2.xyz_mm = forms.xyz_mm;
+        r.b1_from_b2.zyz_deg = forms.zyz_deg;
+        r.b1_from_b2.sigma = vec![
+            sigma("rotation x", ReportUnit::Deg, Some(0.001)),
+            sigma("rotation y", ReportUnit::Deg, Some(0.001)),
+        ];
+        r.b1_from_b2.sigma.iter_mut().for_each(|p| p.sigma = 0.001);
+        r.noise_scale = 2.5;
+        let text = render_text(&r);
+        let line = text.lines().nth(1).unwrap();
+        assert!(
+            line.contains("φ 0.0000°  θ 0.0000°  ψ 0.1000°")
+                && line.contains("[θ 0.0008° is within its σ of 0°"),
+            "{line}"
+        );
+        assert!(
+            (forms.zyz_deg[0] - 48.3).abs() < 1e-6,
+            "{:?}",
+            forms.zyz_deg
+        );
+        let mut free = r.clone();
+        free.b1_from_b2
+            .sigma
+            .iter_mut()
+            .for_each(|p| p.prior_sigma = None);
+        let free_text = render_text(&free);
+        let line = free_text.lines().nth(1).unwrap();
+        assert!(
+            line.contains("φ 48.3000°  θ 0.0008°  ψ -48.2000°") && !line.contains('['),
+            "{line}"
+        );
+        assert!(text.contains("posterior σ (as fitted, with the data's stated σ × the noise scale 2.500 and the prior σ as stated)"));
+        assert!(text.contains(
+            "blunder-screen noise scale 2.500 (the residuals are this many times the stated σ"
+        ));
     }
 
     /// The JSON's keys stand in alphabetical order at every level (the order of the

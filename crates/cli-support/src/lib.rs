@@ -3,6 +3,7 @@
 pub mod cell_report;
 pub mod export_dir;
 pub mod points;
+pub mod result_check;
 
 /// Ends the process quietly with exit 0 when printing fails because stdout was closed early
 /// (`handclasp … | head`, `sim-cell … | head`): the reader has what it wanted, so no broken-pipe

@@ -38,7 +38,8 @@ pub struct Args {
     #[arg(long, display_order = 100)]
     pub json: bool,
     /// Keep a fit whose residuals exceed --expected-noise-mm (a warning is printed on stderr);
-    /// with --cell --export, write into a non-empty folder.
+    /// with --cell, keep a fit the result check refuses (its findings become `warning:` lines).
+    /// To write a --cell --export into a non-empty folder, use --overwrite.
     #[arg(long, display_order = 102)]
     pub force: bool,
 }
@@ -70,9 +71,11 @@ pub struct PointsArgs {
     /// Point noise σ per coordinate for the soft mount, mm.
     #[arg(long, default_value_t = 0.5)]
     pub point_sigma_mm: f64,
-    /// Expected handclasp alignment noise, mm: a fit whose median residual norm exceeds it fails
-    /// with the likely data mistake (rows out of order, swapped axes, wrong units, wrong robot
-    /// order) and the worst rows, unless --force is given.
+    /// Expected handclasp alignment noise σ per axis, mm: a fit whose median residual norm exceeds
+    /// the bound this σ allows for its number of points and method (calib_core::misfit_threshold_m,
+    /// 0.1 % false alarms; ~2.2σ at 20 points) fails with the likely data mistake (rows out of
+    /// order, swapped axes, wrong units, wrong robot order) and the worst rows, unless --force is
+    /// given. With every --mounts setting: when only the mounts disagree, a warning says so.
     #[arg(long, default_value_t = calib_core::DEFAULT_EXPECTED_NOISE_M * 1e3, display_order = 101)]
     pub expected_noise_mm: f64,
 }
@@ -189,8 +192,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let method = cfg.methods[0];
         let report = fit_report(&pairs, method, &cfg)
             .with_context(|| format!("{}: method {}", cfg.points.display(), method.name()))?;
+        // The report holds what is printed: the points go before the JSON is written.
+        drop(pairs);
         if cfg.json {
-            println!("{}", serde_json::to_string_pretty(&report)?);
+            crate::json_out::print_pretty(&report)?;
         } else {
             print!("{}", render_text(&report));
         }
@@ -208,8 +213,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         methods.insert(m.name(), outcome);
     }
     let report = AllMethods { methods };
+    drop(pairs);
     if cfg.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        crate::json_out::print_pretty(&report)?;
     } else {
         for outcome in report.methods.values() {
             print!("{}", outcome_text(outcome));

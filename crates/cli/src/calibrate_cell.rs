@@ -28,6 +28,7 @@ use cli_support::cell_report::{
     calibrate_session_with, render_text, tolerance_warnings, CellCalibrationError, CellModel,
     CellReport,
 };
+use cli_support::result_check::ScreenMode;
 use handclasp_cell::{export_calibrated_cell, Cell, Session, CALIBRATE_EXPORT_NAMES};
 use report::{
     calibration_page, joint_coverage, predict_work_site, read_work_points, row_residuals,
@@ -36,6 +37,8 @@ use report::{
 use serde::Serialize;
 
 use cli_support::cell_report::P95_SEED;
+
+use crate::progress::{shown, Progress};
 
 /// The whole-cell path's own arguments of `handclasp calibrate` (`--json` and `--force` are the
 /// command's, [`crate::calibrate::Args`]).
@@ -52,9 +55,20 @@ pub struct CellArgs {
     #[arg(long, requires = "cell", value_enum, default_value = "kinematic")]
     pub model: ModelArg,
     /// With --cell: write DIR/cell.toml, DIR/robot1.urdf and DIR/robot2.urdf (the calibrated cell).
-    /// DIR must be new or empty, unless --force (files of the same names are overwritten).
+    /// DIR must be new or empty, unless --overwrite (files of the same names are overwritten).
+    /// The export is re-predicted on the session's rows before it is reported.
     #[arg(long, requires = "cell")]
     pub export: Option<PathBuf>,
+    /// With --cell --export: write into a folder that is not empty, overwriting files of the
+    /// same names (--force keeps a refused fit; it no longer overwrites).
+    #[arg(long, requires = "export")]
+    pub overwrite: bool,
+    /// With --cell: the blunder screen. auto: reject blunders, but keep every row and report a
+    /// model misfit when more than 5 % of the rows (at least 3) would go or the rejected rows
+    /// cluster in joint space or time; strict: reject whatever the screen rejects; off: no
+    /// screen.
+    #[arg(long, requires = "cell", value_enum, default_value = "auto")]
+    pub screen: ScreenArg,
     /// With --cell: also list (on stderr) each URDF's joints and links outside the
     /// base-to-flange chain, which are ignored.
     #[arg(long, requires = "cell", display_order = 103)]
@@ -93,6 +107,28 @@ pub enum ModelArg {
     Placement,
 }
 
+/// `--screen`; the report names it as [`ScreenMode::name`] does.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ScreenArg {
+    /// Reject blunders unless the rejections are a model misfit (then keep the rows, warn).
+    Auto,
+    /// No screen: every row is fitted.
+    Off,
+    /// Reject every row the screen rejects (misfit or not).
+    Strict,
+}
+
+impl ScreenArg {
+    /// The mode.
+    pub fn mode(self) -> ScreenMode {
+        match self {
+            ScreenArg::Auto => ScreenMode::Auto,
+            ScreenArg::Off => ScreenMode::Off,
+            ScreenArg::Strict => ScreenMode::Strict,
+        }
+    }
+}
+
 impl ModelArg {
     fn cell_model(self) -> CellModel {
         match self {
@@ -128,7 +164,7 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         bail!("--cell CELL needs --session SESSION (the session CSV of that cell)");
     };
     if let Some(dir) = &args.export {
-        crate::export_dir::check_export_folder(dir, force)?;
+        crate::export_dir::check_export_folder_overwrite(dir, args.overwrite, force)?;
     }
     let acceptance =
         Acceptance::new(args.accept_mm, args.accept_deg).context("--accept-mm / --accept-deg")?;
@@ -153,11 +189,17 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
             robot.number(),
         );
     }
+    let progress = Progress::new(shown(json), "reading the session");
     let session = Session::read_csv(session_path, &cell)?;
+    progress.phase(format!(
+        "calibrating on {} rows (start, reduction, blunder screen, prior scale, prediction)",
+        session.len()
+    ));
     let calibrated = calibrate_session_with(
         &cell,
         &session,
         args.model.cell_model(),
+        args.screen.mode(),
         args.tolerance_scale,
     )
     .map_err(|e| {
@@ -176,9 +218,13 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
             e.context(context)
         }
     })?;
+    progress.finish();
     let report = calibrated.report;
     for w in report.coverage.warnings() {
         eprintln!("warning: {w}");
+    }
+    if let Some(check) = &report.result_check {
+        crate::result_check::refuse_or_warn(check, force)?;
     }
     for w in tolerance_warnings(&report) {
         eprintln!("warning: {w}");
@@ -225,12 +271,17 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         write_report_page(path, &args, &cell, &problem, &cal, &report)?;
     }
     let written = match &args.export {
-        Some(dir) => export_calibrated_cell(&cell, &cal.fit.estimate, dir, &CALIBRATE_EXPORT_NAMES)
-            .with_context(|| format!("--export {}", dir.display()))?,
+        Some(dir) => crate::export_dir::locked(dir, args.overwrite, "--export", || {
+            let written =
+                export_calibrated_cell(&cell, &cal.fit.estimate, dir, &CALIBRATE_EXPORT_NAMES)?;
+            crate::result_check::check_export(dir, &session, &problem, &cal, force)?;
+            Ok(written)
+        })
+        .with_context(|| format!("--export {}", dir.display()))?,
         None => Vec::new(),
     };
     if json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        crate::json_out::print_pretty(&report)?;
     } else {
         print!("{}", report.text());
         for f in &written {

@@ -8,6 +8,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
+use cli_support::result_check::ScreenMode;
 use diagnose::DiagnoseOptions;
 use handclasp_cell::Cell;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -57,6 +58,16 @@ pub struct Args {
     /// which are ignored.
     #[arg(long)]
     pub verbose: bool,
+    /// Sessions with contact, tracker or plane rows: the most selection steps (families named);
+    /// the report says when the selection stopped here while still accepting families.
+    #[arg(long, default_value_t = 8)]
+    pub max_steps: usize,
+    /// The blunder screen. auto: reject blunders, but keep every row and report a model misfit
+    /// when the rejected rows are more than a few percent or cluster in joint space or time;
+    /// strict: reject whatever the screen rejects; off: no screen (sessions with contact,
+    /// tracker or plane rows; the result check before the diagnosis uses it too).
+    #[arg(long, value_enum, default_value = "auto")]
+    pub screen: crate::calibrate_cell::ScreenArg,
     /// Write a self-contained HTML page here (the named causes with their gain, before and
     /// after, held out; the rejected families; plots), to open in a browser.
     #[arg(long, value_name = "FILE.html")]
@@ -85,6 +96,32 @@ fn coverage(
     Ok(c)
 }
 
+/// The result check of `calibrate --cell --model placement` on the session
+/// ([`cli_support::result_check`]), before the diagnosis: its findings as `warning:` lines (a
+/// likely data mistake first; the diagnosis would otherwise name effects that a mistake
+/// made). A misfit is what the diagnosis is for, so nothing is refused here. A check that
+/// cannot run says so and the diagnosis goes on (it reports its own failure).
+fn result_precheck(cell: &Cell, session: &handclasp_cell::Session, screen: ScreenMode) {
+    let check = cli_support::cell_report::calibrate_session_with(
+        cell,
+        session,
+        cli_support::cell_report::CellModel::Placement,
+        screen,
+        None,
+    );
+    match check {
+        Ok(c) => {
+            for m in c.report.result_check.iter().flat_map(|r| &r.messages) {
+                eprintln!("warning: result check (placement fit): {m}");
+            }
+        }
+        Err(e) => eprintln!(
+            "note: the result check (placement fit) could not run: {}",
+            cli_support::error_chain_text(&e)
+        ),
+    }
+}
+
 /// The whole-cell diagnosis of a session with contact, tracker or plane rows.
 fn run_whole_cell(
     args: &Args,
@@ -99,8 +136,15 @@ fn run_whole_cell(
             args.session.display()
         );
     }
+    if args.max_steps == 0 {
+        anyhow::bail!("--max-steps 0 selects nothing: give at least 1 (default 8)");
+    }
+    let screen = args.screen.mode();
     let options = diagnose::CellDiagnoseOptions {
         prior_widening: args.prior_widening,
+        max_steps: args.max_steps,
+        screen_blunders: screen != ScreenMode::Off,
+        keep_misfit: screen == ScreenMode::Auto,
         ..diagnose::CellDiagnoseOptions::default()
     };
     let show = std::io::IsTerminal::is_terminal(&std::io::stderr())
@@ -113,8 +157,17 @@ fn run_whole_cell(
     })
     .with_context(|| format!("diagnosing {}", args.session.display()))?;
     report.coverage = Some(coverage(cell, session)?);
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
+    }
+    for n in &report.notes {
+        eprintln!("note: {n}");
+    }
     if let Some(dir) = &args.export {
-        let files = diagnose::export_cell_diagnosis(cell, &report, dir).context("--export")?;
+        let files = crate::export_dir::locked(dir, args.force, "--export", || {
+            Ok(diagnose::export_cell_diagnosis(cell, &report, dir)?)
+        })
+        .context("--export")?;
         if !args.json {
             for f in &files {
                 println!("wrote {}", f.display());
@@ -169,7 +222,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let cell_session = handclasp_cell::Session::read_csv(&args.session, &cell).ok();
     if let Some(session) = &cell_session {
+        result_precheck(&cell, session, args.screen.mode());
+    }
+    if let Some(session) = &cell_session {
         if !session.is_handclasp_only() {
+            handclasp_cell::check_session_inputs(session).map_err(|source| {
+                handclasp_cell::FormatError::SessionCheck {
+                    path: args.session.clone(),
+                    source,
+                }
+            })?;
             // Contact, tracker or plane rows (or other tools): the whole-cell diagnosis.
             return run_whole_cell(&args, &cell, session, truth.is_some());
         }
@@ -201,8 +263,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(dir) = &args.export {
         let calibrated = report.b1_from_b2.to_isometry();
-        let files =
-            diagnose::export_corrected(&cell, &report, &calibrated, dir).context("--export")?;
+        let files = crate::export_dir::locked(dir, args.force, "--export", || {
+            Ok(diagnose::export_corrected(
+                &cell,
+                &report,
+                &calibrated,
+                dir,
+            )?)
+        })
+        .context("--export")?;
         if !args.json {
             for f in &files {
                 println!("wrote {}", f.display());

@@ -99,8 +99,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     formats.dedup();
     let cell = Cell::from_toml_file(&args.cell)?;
     let source = args.cell.display().to_string();
-    let out = export_placement(&cell, &source, &args.to, &formats)
-        .with_context(|| format!("exporting {} to {}", source, args.to.display()))?;
+    let out = crate::export_dir::locked(&args.to, args.force, "--to", || {
+        Ok(export_placement(&cell, &source, &args.to, &formats)?)
+    })
+    .with_context(|| format!("exporting {} to {}", source, args.to.display()))?;
     let report = ExportReport {
         cell: source,
         to: args.to.display().to_string(),

@@ -21,6 +21,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use calib_core::{PoseForms, Robot};
+use kinematics::input::cap_echo;
 use kinematics::{base_from_tip, true_base_from_flange, KinematicErrors, ModelError, RobotModel};
 use nalgebra::{Isometry3, Translation3, Vector3};
 use serde::Serialize;
@@ -488,7 +489,8 @@ fn run_batch(
     out: Option<&Path>,
 ) -> anyhow::Result<()> {
     let name = q_csv.display().to_string();
-    let raw = std::fs::read_to_string(q_csv).with_context(|| format!("--q-csv {name}"))?;
+    let raw = kinematics::input::read_input_text(q_csv, "joint CSV")
+        .with_context(|| format!("--q-csv {name}"))?;
     let text = calib_core::strip_bom(&raw);
     let mut reader = csv::ReaderBuilder::new()
         .delimiter(calib_core::csv_delimiter(text))
@@ -509,7 +511,7 @@ fn run_batch(
             Some(i) => q_cols.push(i),
             None => bail!(
                 "{name}: missing column `{col}` (header has: {}); {} has {dof} joints: give q1_deg … q{dof}_deg in chain order",
-                header.join(","),
+                cap_echo(&header.join(",")),
                 model.name()
             ),
         }
@@ -525,7 +527,8 @@ fn run_batch(
         .collect();
     if let Some(col) = extra_q.first() {
         bail!(
-            "{name}: column `{col}` but {} has {dof} joints (q1_deg … q{dof}_deg); is this the other robot's file?",
+            "{name}: column `{}` but {} has {dof} joints (q1_deg … q{dof}_deg); is this the other robot's file?",
+            cap_echo(col),
             model.name()
         );
     }
@@ -534,7 +537,7 @@ fn run_batch(
         Some(id) => Some(header.iter().position(|h| h == id).with_context(|| {
             format!(
                 "{name}: no column `{id}` for --id-column (header has: {})",
-                header.join(",")
+                cap_echo(&header.join(","))
             )
         })?),
     };
@@ -547,7 +550,7 @@ fn run_batch(
     if !ignored.is_empty() {
         eprintln!(
             "note: {name}: ignoring column(s) {} (give one with --id-column to copy it to the output)",
-            ignored.join(", ")
+            cap_echo(&ignored.join(", "))
         );
     }
 
@@ -560,7 +563,7 @@ fn run_batch(
             let cell = record.get(c).unwrap_or("");
             let col = &header[c];
             let v: f64 = cell.parse().map_err(|_| {
-                anyhow::anyhow!("{name}, line {line}, column `{col}`: `{cell}` is not a number; give the angle in degrees")
+                anyhow::anyhow!("{name}, line {line}, column `{col}`: `{}` is not a number; give the angle in degrees", cap_echo(cell))
             })?;
             if !v.is_finite() {
                 bail!("{name}, line {line}, column `{col}`: {cell} is not a finite angle");
@@ -594,10 +597,11 @@ fn run_batch(
         );
     }
 
-    let sink: Box<dyn Write> = match out {
-        Some(path) => Box::new(
-            std::fs::File::create(path).with_context(|| format!("--out {}", path.display()))?,
-        ),
+    // A file is built in memory and written atomically (never a truncated CSV under --out's
+    // name); stdout is streamed.
+    let mut buffer: Vec<u8> = Vec::new();
+    let sink: Box<dyn Write + '_> = match out {
+        Some(_) => Box::new(&mut buffer),
         None => Box::new(std::io::stdout().lock()),
     };
     let mut writer = csv::Writer::from_writer(std::io::BufWriter::new(sink));
@@ -627,7 +631,10 @@ fn run_batch(
         writer.write_record(&record)?;
     }
     writer.flush()?;
+    drop(writer);
     if let Some(path) = out {
+        handclasp_cell::output::write_atomically(path, &buffer)
+            .with_context(|| format!("--out {}", path.display()))?;
         eprintln!("wrote {} poses to {}", rows.len(), path.display());
     }
     Ok(())

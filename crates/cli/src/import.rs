@@ -18,7 +18,8 @@ pub struct Args {
     #[arg(long)]
     pub cell: PathBuf,
     /// Mapping file (TOML): which source columns are each robot's joints and in which unit, the
-    /// kind, robot, group, tool, σ and tracker columns (see the README).
+    /// kind, robot, group, tool, σ and tracker columns, the source id column, and `[[rows]]` for
+    /// several session rows per input row (docs/formats.md).
     #[arg(long)]
     pub map: PathBuf,
     /// Source CSV file(s); repeat the flag for several (rows are numbered over all of them).
@@ -53,8 +54,9 @@ struct FileCount {
 struct ImportReport {
     /// Each input, in order.
     files: Vec<FileCount>,
-    /// The observation kind imported (the mapping's `kind`).
-    kind: &'static str,
+    /// The observation kind imported (the mapping's `kind`; the kinds of a map with `[[rows]]`
+    /// of several kinds, joined by `+`).
+    kind: String,
     /// The session CSV written (`--out`).
     out: PathBuf,
     /// Rows in the written session.
@@ -84,14 +86,16 @@ fn render_text(r: &ImportReport) -> String {
 /// Runs `handclasp import`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let cell = Cell::from_toml_file(&args.cell)?;
-    let text = std::fs::read_to_string(&args.map)
+    let text = kinematics::input::read_input_text(&args.map, "import map TOML")
         .with_context(|| format!("--map {}", args.map.display()))?;
     let map = ImportMap::from_toml_str(&text, &args.map, &cell)
         .map_err(|e| anyhow::anyhow!("--map {e}"))?;
     let mut session = Session::default();
     let mut counts = Vec::new();
+    let progress = crate::progress::Progress::new(crate::progress::shown(args.json), "importing");
     for input in &args.input {
-        let text = std::fs::read_to_string(input)
+        progress.phase(format!("importing {}", input.display()));
+        let text = kinematics::input::read_input_text(input, "import input CSV")
             .with_context(|| format!("--input {}", input.display()))?;
         let count = map
             .read_rows(&text, input, &cell, &mut session)
@@ -105,12 +109,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if session.is_empty() {
         bail!("no row imported from {} file(s)", args.input.len());
     }
+    // The input checks every command runs on a session (radians, metres, duplicates), before
+    // a session that calibrate --cell and diagnose would refuse is written.
+    handclasp_cell::check_session_inputs(&session).map_err(|source| {
+        handclasp_cell::FormatError::SessionCheck {
+            path: args.out.clone(),
+            source,
+        }
+    })?;
+    progress.phase(format!("writing and reading back {}", args.out.display()));
     session.write_csv(&args.out, &cell)?;
     // The written file must read back as a session of this cell (tips, tools, groups).
     Session::read_csv(&args.out, &cell).context("reading back the written session")?;
+    progress.finish();
     let report = ImportReport {
         files: counts,
-        kind: map.kind().name(),
+        kind: map
+            .kinds()
+            .iter()
+            .map(|k| k.name())
+            .collect::<Vec<_>>()
+            .join("+"),
         out: args.out.clone(),
         rows: session.len(),
     };
@@ -140,7 +159,7 @@ mod tests {
                     skipped: 0,
                 },
             ],
-            kind: "tracker",
+            kind: "tracker".into(),
             out: "s.csv".into(),
             rows: 222,
         };

@@ -15,10 +15,13 @@ mod export_dir;
 mod fk;
 mod ik;
 mod import;
+mod json_out;
 mod paper;
 mod paper_diagnose;
 mod plan;
+mod progress;
 mod report_page;
+mod result_check;
 mod validate;
 
 /// Test support shared by the subcommands' unit tests.

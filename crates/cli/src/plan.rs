@@ -16,6 +16,8 @@ use calib_core::whole_cell::{DesignCriterion, DesignPredictionReport};
 use handclasp_cell::Cell;
 use nalgebra::Point3;
 use serde::Serialize;
+
+use crate::progress::Progress;
 use sim_cell::plan::{plan_session, Plan, PlanSpec, DEFAULT_RANDOM_DRAWS, EVAL_POSES};
 
 /// `--criterion`; serialised as `"a"` or `"d"`.
@@ -98,15 +100,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Progress on stderr only when it is a terminal (scripts and captures see the report alone).
     let tty = std::io::IsTerminal::is_terminal(&std::io::stderr());
     let wanted = args.candidates;
+    let mut design: Option<Progress> = None;
     let plan = plan_session(&cell, &spec, &mut |found, drawn| {
         if tty {
             eprint!("\rcandidates: {found}/{wanted} reachable of {drawn} drawn");
+            if found == wanted && design.is_none() {
+                // The greedy design and the random picks' predictions come next.
+                eprintln!();
+                design = Some(Progress::new(
+                    true,
+                    format!("choosing {} poses of {wanted} candidates", args.n),
+                ));
+            }
         }
     });
-    if tty {
-        eprintln!();
+    match &design {
+        Some(p) => p.finish(),
+        None if tty => eprintln!(),
+        None => {}
     }
     let plan = plan.with_context(|| format!("planning on {}", args.cell.display()))?;
+    // The input checks every command runs on a session: the plan is one (a planner defect
+    // otherwise; never written).
+    handclasp_cell::check_session_inputs(&plan.session).map_err(|source| {
+        handclasp_cell::FormatError::SessionCheck {
+            path: args.out.clone(),
+            source,
+        }
+    })?;
     plan.session
         .write_csv(&args.out, &cell)
         .with_context(|| format!("--out {}", args.out.display()))?;

@@ -24,7 +24,7 @@ pub fn invocation() -> Invocation {
 
 /// Writes `html` to `path` (`--report`), replacing a file of that name.
 pub fn write(path: &Path, html: &str) -> anyhow::Result<()> {
-    std::fs::write(path, html).with_context(|| {
+    handclasp_cell::output::write_atomically(path, html.as_bytes()).with_context(|| {
         format!(
             "--report {}: cannot write the page (check that its folder exists and is writable)",
             path.display()

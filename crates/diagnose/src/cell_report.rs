@@ -3,15 +3,15 @@
 
 use std::fmt::Write as _;
 
-use calib_core::whole_cell::{CellEstimate, CellFit, CellParam, CellProblem};
+use calib_core::whole_cell::{CellEstimate, CellFit, CellParam, CellProblem, Noise3};
 use calib_core::Robot;
 use kinematics::ErrorParam;
 use serde::ser::SerializeMap;
 use serde::{Serialize, Serializer};
 
 use crate::cell_diagnosis::{
-    residuals_at, CellDiagnoseOptions, CellDiagnosis, Family, HeldOut, NotSelected, ScoredRow,
-    KINDS, Z95,
+    residuals_at, CellDiagnoseOptions, CellDiagnosis, Family, FamilyKind, HeldOut, NotSelected,
+    ScoredRow, KINDS, Z95,
 };
 
 /// Number of bins of the residual-against-joint table (quartiles of the joint's values).
@@ -80,6 +80,109 @@ pub struct CellDiagnoseReport {
     /// CLI); `None`, and left out of the JSON, otherwise.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coverage: Option<calib_core::whole_cell::CoverageReport>,
+    /// The selection's step cap (`--max-steps`).
+    pub max_steps: usize,
+    /// True when the selection stopped at [`Self::max_steps`] while still accepting families
+    /// (more may be missing).
+    pub step_cap_hit: bool,
+    /// The blunder screen's rejections classified as a model misfit (every row then kept);
+    /// `null` when the screen found blunders only, or none.
+    pub screen_misfit: Option<calib_core::whole_cell::RejectionPattern>,
+    /// What the caller prints after `warning:`: the step cap hit, a tracker scale beyond any
+    /// device of its class, a screen misfit.
+    pub warnings: Vec<String>,
+    /// What the caller prints after `note:`: the recording-only terms selected (tracker scale,
+    /// drift) and what the export does with them.
+    pub notes: Vec<String>,
+}
+
+/// A laser tracker's largest credible scale error, ppm. Leica's AT960 states a maximum
+/// permissible error of ±(15 µm + 6 µm/m) (ISO 10360-10): 6 ppm of length, so ±50 ppm is
+/// several times what a working laser tracker shows.
+pub const LASER_TRACKER_SCALE_PPM: f64 = 50.0;
+/// A motion-capture system's largest credible scale error, ppm (±0.2 %): a wand calibration
+/// (OptiTrack, Vicon) leaves a mean 3-D error of a few tenths of a mm over a volume of metres,
+/// ~0.01–0.1 % of length.
+pub const MOTION_CAPTURE_SCALE_PPM: f64 = 2000.0;
+/// Tracker rows with a stated σ at most this (m) are taken as a laser tracker's; above, as
+/// motion capture's (0.1 mm).
+pub const LASER_TRACKER_MAX_SIGMA_M: f64 = 1e-4;
+
+/// The warnings and notes of a diagnosis (see [`CellDiagnoseReport::warnings`] and
+/// [`CellDiagnoseReport::notes`]).
+fn findings(
+    d: &CellDiagnosis,
+    effects: &[CellEffectReport],
+    options: &CellDiagnoseOptions,
+    step_cap_hit: bool,
+) -> (Vec<String>, Vec<String>) {
+    let mut warnings = Vec::new();
+    let mut notes = Vec::new();
+    if step_cap_hit {
+        warnings.push(format!(
+            "the selection stopped at its step cap ({} steps, --max-steps) while still              accepting families: more effects may be missing; re-run with a higher --max-steps",
+            options.max_steps
+        ));
+    }
+    let mut sigmas: Vec<f64> = d
+        .problem
+        .observations
+        .iter()
+        .filter_map(|o| match &o.kind {
+            calib_core::whole_cell::ObservationKind::Tracker { noise, .. } => Some(match noise {
+                Noise3::Isotropic { sigma_m } => *sigma_m,
+                Noise3::Covariance { cov_m2 } => (cov_m2.trace() / 3.0).sqrt(),
+                _ => f64::INFINITY,
+            }),
+            _ => None,
+        })
+        .collect();
+    sigmas.sort_by(f64::total_cmp);
+    let laser = sigmas
+        .get(sigmas.len() / 2)
+        .is_some_and(|s| *s <= LASER_TRACKER_MAX_SIGMA_M);
+    let (bound, device) = if laser {
+        (
+            LASER_TRACKER_SCALE_PPM,
+            "a laser tracker (its rows' σ ≤ 0.1 mm)",
+        )
+    } else {
+        (
+            MOTION_CAPTURE_SCALE_PPM,
+            "motion capture (its rows' σ > 0.1 mm)",
+        )
+    };
+    let mut recording = Vec::new();
+    for e in effects {
+        match e.family.kind {
+            FamilyKind::TrackerScale => {
+                recording.push(e.family.name.clone());
+                for p in &e.parameters {
+                    if p.value.abs() > bound {
+                        warnings.push(format!(
+                            "{}: {:+.0} ppm is beyond what {device} can have (±{bound:.0} ppm;                              laser trackers ±{LASER_TRACKER_SCALE_PPM:.0} ppm from Leica AT960's                              MPE ±(15 µm + 6 µm/m), motion capture ±0.2 % from OptiTrack/Vicon                              wand-calibration accuracy): a likely stand-in for an unmodelled                              effect (e.g. gravity sag); look at the other families before                              trusting it",
+                            p.name, p.value
+                        ));
+                    }
+                }
+            }
+            FamilyKind::TrackerDrift => recording.push(e.family.name.clone()),
+            _ => {}
+        }
+    }
+    if !recording.is_empty() {
+        notes.push(format!(
+            "recording-only terms selected ({}): they describe this recording, not the cell.              They are kept in the fit the export comes from (the exported robots were fitted              with them in the model); the exported cell does not carry them, so a session              scored without them sees larger residuals than this report's",
+            recording.join(", ")
+        ));
+    }
+    if let Some(p) = &d.screen_misfit {
+        warnings.push(format!(
+            "model misfit, not blunders: {}; every row kept (--screen auto; --screen strict              rejects them)",
+            p.describe()
+        ));
+    }
+    (warnings, notes)
 }
 
 /// Rows of one kind.
@@ -111,8 +214,13 @@ pub struct KindResidual {
     pub kind: &'static str,
     /// Scalar residual rows.
     pub residual_rows: usize,
-    /// RMS of the fitted residuals, mm.
+    /// RMS of the fitted residuals per scalar residual row, mm: for the 3-D kinds (tracker,
+    /// coincident) the rms per axis (of x, y and z together), `rms_3d_mm / √3`.
     pub rms_mm: f64,
+    /// For the 3-D kinds (tracker, coincident), the rms of the 3-D residual's length ‖r‖ over
+    /// the rows, mm (the figure a tracker's or a handclasp's distance error is compared with);
+    /// `None` (JSON `null`) for the 1-D kinds (contact, plane), whose `rms_mm` is already that.
+    pub rms_3d_mm: Option<f64>,
     /// RMS of the stated σ, mm.
     pub stated_sigma_mm: f64,
     /// `rms_mm / stated_sigma_mm` (1 = as stated).
@@ -124,6 +232,9 @@ pub struct KindResidual {
     /// this kind was held out (its groups are too small to refit their nuisance on half the
     /// rows, see [`crate::cell_diagnosis::MIN_SCORED_GROUP_ROWS`]).
     pub held_out_rms_mm: Option<f64>,
+    /// `held_out_rms_mm` as the rms of the 3-D residual's length, for the 3-D kinds; `None`
+    /// otherwise or when no row of the kind was held out.
+    pub held_out_rms_3d_mm: Option<f64>,
 }
 
 /// A candidate at a selection step.
@@ -313,6 +424,20 @@ impl JointTrend {
     }
 }
 
+/// The rms of the 3-D residual's length over the rows of `kind`, mm; `None` when the kind has
+/// no row or its rows are not 3-D.
+fn kind_rms_3d(rows: &[ScoredRow], kind: &str) -> Option<f64> {
+    let (mut n, mut raw) = (0usize, 0.0);
+    for r in rows.iter().filter(|r| r.kind == kind) {
+        if r.raw_m.len() != 3 {
+            return None;
+        }
+        n += 1;
+        raw += r.raw_m.norm_squared();
+    }
+    (n > 0).then(|| (raw / n as f64).sqrt() * 1e3)
+}
+
 fn kind_rms(rows: &[ScoredRow], kind: &str) -> Option<(usize, f64, f64, f64)> {
     let (mut n, mut raw, mut sig, mut wh) = (0usize, 0.0, 0.0, 0.0);
     for r in rows.iter().filter(|r| r.kind == kind) {
@@ -352,10 +477,12 @@ fn kind_residuals(
                 kind: k.name(),
                 residual_rows: n,
                 rms_mm,
+                rms_3d_mm: kind_rms_3d(fitted, k.name()),
                 stated_sigma_mm,
                 rms_over_sigma: rms_mm / stated_sigma_mm,
                 noise_scale: s,
                 held_out_rms_mm: kind_rms(&held.rows, k.name()).map(|v| v.1),
+                held_out_rms_3d_mm: kind_rms_3d(&held.rows, k.name()),
             })
         })
         .collect()
@@ -509,7 +636,7 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
         .rev()
         .find(|s| s.accepted)
         .map_or(&d.baseline_held_out, |s| &s.after);
-    let effects = d
+    let effects: Vec<CellEffectReport> = d
         .steps
         .iter()
         .enumerate()
@@ -527,6 +654,11 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
             }
         })
         .collect();
+    let accepted = d.steps.iter().filter(|s| s.accepted).count();
+    let step_cap_hit = d.steps.len() >= options.max_steps
+        && d.steps.last().is_some_and(|s| s.accepted)
+        && accepted < d.candidates.len();
+    let (warnings, notes) = findings(d, &effects, options, step_cap_hit);
     CellDiagnoseReport {
         mode: "whole_cell",
         rows_by_kind: KINDS
@@ -576,6 +708,11 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
         final_fit_stopped: format!("{} after {} iterations", ff.stopped.name(), ff.iterations),
         final_estimate: ff.estimate.clone(),
         coverage: None,
+        max_steps: options.max_steps,
+        step_cap_hit,
+        screen_misfit: d.screen_misfit.clone(),
+        warnings,
+        notes,
     }
 }
 
@@ -630,21 +767,37 @@ pub fn render_cell_text(r: &CellDiagnoseReport) -> String {
         let _ = writeln!(s, "{title}");
         let _ = writeln!(
             s,
-            "  {:<11} {:>6} {:>9} {:>13} {:>9} {:>12} {:>15}",
-            "kind", "rows", "rms_mm", "stated_σ_mm", "rms/σ", "noise_scale", "held_out_rms_mm"
+            "  {:<11} {:>6} {:>9} {:>13} {:>9} {:>12} {:>15} {:>10} {:>18}",
+            "kind",
+            "rows",
+            "rms_mm",
+            "stated_σ_mm",
+            "rms/σ",
+            "noise_scale",
+            "held_out_rms_mm",
+            "rms_3d_mm",
+            "held_out_rms_3d_mm"
         );
+        let opt = |v: Option<f64>| v.map_or_else(|| "–".to_string(), |v| format!("{v:.3}"));
         for k in rows {
             let _ = writeln!(
                 s,
-                "  {:<11} {:>6} {:>9.3} {:>13.3} {:>9.2} {:>12.2} {:>15}",
+                "  {:<11} {:>6} {:>9.3} {:>13.3} {:>9.2} {:>12.2} {:>15} {:>10} {:>18}",
                 k.kind,
                 k.residual_rows,
                 k.rms_mm,
                 k.stated_sigma_mm,
                 k.rms_over_sigma,
                 k.noise_scale,
-                k.held_out_rms_mm
-                    .map_or_else(|| "–".to_string(), |v| format!("{v:.3}"))
+                opt(k.held_out_rms_mm),
+                opt(k.rms_3d_mm),
+                opt(k.held_out_rms_3d_mm)
+            );
+        }
+        if rows.iter().any(|k| k.rms_3d_mm.is_some()) {
+            let _ = writeln!(
+                s,
+                "  (rms_mm is per residual row: per axis for tracker and coincident rows; rms_3d_mm is their 3-D error ‖r‖, √3 × per axis for isotropic errors)"
             );
         }
     };

@@ -38,6 +38,14 @@ pub fn check_session(cell: &Cell, s: &Session, path: &Path) -> Result<(), Diagno
             )));
         }
     }
+    // The input checks every command shares (no rows, radians, metres, duplicates), with the
+    // same words as calibrate --cell and import.
+    handclasp_cell::check_session_inputs(s).map_err(|source| {
+        handclasp_cell::FormatError::SessionCheck {
+            path: path.to_path_buf(),
+            source,
+        }
+    })?;
     let n = s.points.len();
     let needed = identify::min_points(1);
     if n < needed {
@@ -45,49 +53,6 @@ pub fn check_session(cell: &Cell, s: &Session, path: &Path) -> Result<(), Diagno
             "{n} handclasp point(s): too few to identify anything; fitting b1_from_b2 (6 unknowns) and one error \
              parameter with a meaningful test needs at least {needed} points, and the full catalogue 20–60 \
              (40 recommended)"
-        )));
-    }
-    // The same duplicate rule as calibrate (calib-core's DUPLICATE_DISTANCE_M), so that a file
-    // one command refuses is not accepted by the other.
-    let (p_b1, p_b2) = s.tips();
-    let pairs = calib_core::PointPairs::new(p_b1, p_b2).map_err(|e| serr(e.to_string()))?;
-    if let Err(calib_core::CalibError::Duplicate {
-        row_a,
-        row_b,
-        robot,
-        distance_mm,
-    }) = pairs.check_duplicates()
-    {
-        // `PointPairs::new` numbers the rows 1..=n: data rows, in file order.
-        let point = |row: usize| s.points[row - 1].point;
-        return Err(serr(format!(
-            "data rows {row_a} and {row_b} (`point` {} and {}): duplicate handclasp point (robot {robot}'s tips are {distance_mm:.4} mm apart, \
-             closer than {} mm; `handclasp calibrate` refuses the same file): delete one of the two rows, or record a new point at least 100 mm away",
-            point(row_a),
-            point(row_b),
-            calib_core::DUPLICATE_DISTANCE_M * 1e3
-        )));
-    }
-    let max_q = s
-        .points
-        .iter()
-        .flat_map(|p| p.q1.iter().chain(&p.q2))
-        .fold(0.0f64, |a, v| a.max(v.abs()));
-    if max_q.to_degrees() <= std::f64::consts::PI + 1e-9 {
-        return Err(serr(format!(
-            "every joint angle is within ±{:.3} degrees — these look like radians written as degrees: convert them to degrees",
-            max_q.to_degrees()
-        )));
-    }
-    let max_p = s
-        .points
-        .iter()
-        .flat_map(|p| [p.p_b1, p.p_b2])
-        .fold(0.0f64, |a, p| a.max(p.coords.amax()));
-    if max_p < 0.01 {
-        return Err(serr(format!(
-            "every tip coordinate is below {:.4} mm — these look like metres written as millimetres: convert them to millimetres",
-            max_p * 1000.0
         )));
     }
     for p in &s.points {
@@ -131,21 +96,31 @@ fn fmt3(v: &Vector3<f64>) -> String {
 /// ([`DiagnoseError::Format`], or [`DiagnoseError::SessionUnits`] when a unit mistake explains
 /// it); the units or the session do not fit the cell ([`DiagnoseError::Session`]).
 pub fn load_session(path: &Path, cell: &Cell) -> Result<Session, DiagnoseError> {
-    let text = std::fs::read_to_string(path).map_err(|e| DiagnoseError::io(path, e))?;
+    let text = kinematics::input::read_input_text(path, "session CSV").map_err(|e| match e {
+        kinematics::input::InputError::Io { source, .. } => DiagnoseError::io(path, source),
+        other => handclasp_cell::FormatError::InputFile(other).into(),
+    })?;
     let serr = |message: String| DiagnoseError::Session {
         path: path.to_path_buf(),
         message,
     };
+    // Before sim-cell's reader, whose FK check would refuse a unit slip without naming it; the
+    // words are the shared checks' (handclasp_cell::check_session_inputs).
     let (max_deg, max_mm, rows) = unit_ranges(&text);
-    if rows > 0 && max_deg > 0.0 && max_deg <= std::f64::consts::PI + 1e-9 {
-        return Err(serr(format!(
-            "every joint angle is within ±{max_deg:.3} — these look like radians, but the columns are *_deg: convert them to degrees"
-        )));
-    }
-    if rows > 0 && max_mm > 0.0 && max_mm < 10.0 {
-        return Err(serr(format!(
-            "every tip coordinate is within ±{max_mm:.4} — these look like metres, but the columns are *_mm: convert them to millimetres"
-        )));
+    let unit_error =
+        if rows > 0 && max_deg > 0.0 && max_deg <= handclasp_cell::session::RADIANS_LIMIT_DEG {
+            Some(handclasp_cell::SessionCheckError::RadiansAsDegrees { max_deg })
+        } else if rows > 0 && max_mm > 0.0 && max_mm < handclasp_cell::session::METRES_LIMIT_MM {
+            Some(handclasp_cell::SessionCheckError::MetresAsMillimetres { max_mm })
+        } else {
+            None
+        };
+    if let Some(source) = unit_error {
+        return Err(handclasp_cell::FormatError::SessionCheck {
+            path: path.to_path_buf(),
+            source,
+        }
+        .into());
     }
     let session = match Session::parse_csv(&text, path, cell) {
         Ok(s) => s,
@@ -363,7 +338,17 @@ mod tests {
         std::fs::write(&path, bad).unwrap();
         let err = load_session(&path, &cell).unwrap_err();
         let text = err.to_string();
-        assert!(matches!(err, DiagnoseError::Session { .. }), "{text}");
+        // The shared session check's typed error (handclasp_cell::check_session_inputs's words).
+        assert!(
+            matches!(
+                err,
+                DiagnoseError::Format(handclasp_cell::FormatError::SessionCheck {
+                    source: handclasp_cell::SessionCheckError::RadiansAsDegrees { .. },
+                    ..
+                })
+            ),
+            "{text}"
+        );
         assert!(
             text.contains("radians") && text.contains("radians.csv"),
             "{text}"

@@ -15,6 +15,9 @@ pub enum ModelError {
         /// The I/O error.
         source: std::io::Error,
     },
+    /// The URDF file is over the input limit, binary or not UTF-8 ([`crate::input`]).
+    #[error(transparent)]
+    Input(#[from] crate::input::InputError),
     /// The text is not a URDF the parser understands.
     #[error("{source_name}: not a valid URDF: {message}; fix the XML (every <joint> needs <parent>, <child> and, for revolute joints, <limit>)")]
     Parse {

@@ -134,13 +134,16 @@ impl KinematicErrors {
     /// to `vec![0.0; dof]`.)
     pub fn check(&self, model: &RobotModel) -> Result<(), KinematicsError> {
         let n = model.chain_joints().len();
-        let joints_text = if model.has_coupled_joints() {
-            format!(
-                "{n} chain joints ({} independent, the coupled ones included)",
-                model.dof()
-            )
-        } else {
-            format!("{n} joints")
+        // Formed only for a message: this check runs at every evaluation of the fits.
+        let joints_text = || {
+            if model.has_coupled_joints() {
+                format!(
+                    "{n} chain joints ({} independent, the coupled ones included)",
+                    model.dof()
+                )
+            } else {
+                format!("{n} joints")
+            }
         };
         let lens = [
             ("joint_offset", self.joint_offset.len()),
@@ -154,9 +157,10 @@ impl KinematicErrors {
         for (field, len) in lens {
             if len != n {
                 return Err(KinematicsError::InvalidInput(format!(
-                    "kinematic errors: `{field}` has {len} entries but {} has {joints_text}; give \
+                    "kinematic errors: `{field}` has {len} entries but {} has {}; give \
                      one value per joint (KinematicErrors::zero({n}) has the right shape)",
-                    model.name()
+                    model.name(),
+                    joints_text()
                 )));
             }
         }

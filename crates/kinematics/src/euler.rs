@@ -80,11 +80,29 @@ pub const ZYZ_CANONICAL_TILT_RAD: f64 = 1e-8;
 /// below [`ZYZ_CANONICAL_TILT_RAD`]; elsewhere the result is exactly [`zyz_from_rotation`]'s.
 /// Never panics; a non-finite matrix gives NaN angles.
 pub fn zyz_canonical(r: &Rotation3<f64>) -> [f64; 3] {
+    zyz_canonical_within(r, ZYZ_CANONICAL_TILT_RAD)
+}
+
+/// [`zyz_canonical`] with a wider singular band: a tilt within `tilt_rad` (rad; never narrower
+/// than [`ZYZ_CANONICAL_TILT_RAD`]) of θ = 0 or θ = π is written as a pure yaw `[0, 0, φ + ψ]`
+/// (resp. `[0, π, ψ − φ]`). What a text report prints: a tilt below the printed resolution,
+/// or below its posterior σ, leaves φ and ψ each meaningless (a near-identity printed as
+/// `[48.3°, 0.0008°, −48.3°]`), while their combination is well defined.
+///
+/// The triple reproduces `r` to within the dropped tilt (a rotation angle below
+/// `max(tilt_rad, ZYZ_CANONICAL_TILT_RAD)`, plus round-off); outside the band it is exactly
+/// [`zyz_from_rotation`]'s. Never panics; a non-finite matrix gives NaN angles.
+pub fn zyz_canonical_within(r: &Rotation3<f64>, tilt_rad: f64) -> [f64; 3] {
+    let band = if tilt_rad.is_finite() {
+        tilt_rad.max(ZYZ_CANONICAL_TILT_RAD)
+    } else {
+        ZYZ_CANONICAL_TILT_RAD
+    };
     let [phi, theta, psi] = zyz_from_rotation(r);
-    if theta < ZYZ_CANONICAL_TILT_RAD {
+    if theta < band {
         // Rz(φ)·Ry(θ)·Rz(ψ) → Rz(φ + ψ) as θ → 0.
         [0.0, 0.0, wrap_angle(phi + psi)]
-    } else if PI - theta < ZYZ_CANONICAL_TILT_RAD {
+    } else if PI - theta < band {
         // Rz(φ)·Ry(π)·Rz(ψ) = Ry(π)·Rz(ψ − φ), since Rz(φ)·Ry(π) = Ry(π)·Rz(−φ).
         [0.0, PI, wrap_angle(psi - phi)]
     } else {
@@ -290,6 +308,34 @@ mod tests {
     }
 
     proptest::proptest! {
+        /// With a wider band the canonical triple is still the same rotation to within the
+        /// dropped tilt (below the band), and exactly eq 32's outside it; φ = 0 on the band.
+        #[test]
+        fn canonical_within_a_band_gives_the_same_rotation(
+            phi in -4.0..4.0f64, psi in -4.0..4.0f64,
+            band in 1e-8..1e-2f64,
+            theta in proptest::prop_oneof![
+                -2e-2..2e-2f64,
+                0.0..std::f64::consts::PI,
+                (std::f64::consts::PI - 2e-2)..(std::f64::consts::PI + 2e-2),
+            ],
+        ) {
+            let r = rotation_from_zyz([phi, theta, psi]);
+            let z = zyz_canonical_within(&r, band);
+            // Round-off of the matrix products and of the extraction on unit matrices.
+            const ROUND_OFF_RAD: f64 = 1e-12;
+            let d = angle_between(&rotation_from_zyz(z), &r);
+            let tilt = zyz_from_rotation(&r)[1];
+            if tilt < band || PI - tilt < band {
+                proptest::prop_assert_eq!(z[0], 0.0);
+                proptest::prop_assert!(z[1] == 0.0 || z[1] == PI);
+                proptest::prop_assert!(d <= tilt.min(PI - tilt) + ROUND_OFF_RAD, "{z:?}: {d}");
+            } else {
+                proptest::prop_assert_eq!(z, zyz_from_rotation(&r));
+                proptest::prop_assert!(d <= ROUND_OFF_RAD, "{z:?}: {d}");
+            }
+        }
+
         /// The canonical triple is the same rotation: within the dropped tilt (< 1e-8 rad) in the
         /// singular band, within round-off elsewhere; φ = 0 whenever θ is 0 or π; θ ∈ [0, π].
         #[test]

@@ -9,6 +9,7 @@ pub mod euler;
 mod fk;
 mod gravity;
 mod ik;
+pub mod input;
 mod jacobian;
 mod model;
 #[cfg(test)]
@@ -30,8 +31,8 @@ pub use coupling::{JointCoupling, LinearCoupling};
 pub use error::{KinematicsError, ModelError, UrdfPatchError};
 pub use error_model::{all_params, all_params_for, ErrorParam, KinematicErrors};
 pub use euler::{
-    rotation_from_zyz, wrap_angle, zyz_canonical, zyz_from_rotation, zyz_nearest,
-    ZYZ_CANONICAL_TILT_RAD,
+    rotation_from_zyz, wrap_angle, zyz_canonical, zyz_canonical_within, zyz_from_rotation,
+    zyz_nearest, ZYZ_CANONICAL_TILT_RAD,
 };
 pub use fk::{
     base_from_flange, base_from_flange_unchecked, base_from_tip, base_from_tip_unchecked,
@@ -46,6 +47,7 @@ pub use model::{
 pub use true_fk::{
     tip_error_jacobian, tip_joint_jacobian_true, true_base_from_flange,
     true_base_from_flange_unchecked, true_base_from_tip, true_base_from_tip_unchecked,
+    true_tip_with_error_jacobian,
 };
 pub use urdf_patch::{
     patch_urdf_text, split_for_urdf, verify_patched_urdf, PATCH_TOLERANCE_M, VERIFY_CONFIGURATIONS,

@@ -397,12 +397,34 @@ pub fn tip_error_jacobian(
     params: &[ErrorParam],
 ) -> Result<Matrix3xX<f64>, KinematicsError> {
     check_inputs(model, errors, q_rep, flange_from_tip, g_base)?;
-    let n = model.chain_joints().len();
     for p in params {
         p.check_model(model)?;
     }
     let mut jac = Matrix3xX::zeros(params.len());
-    with_chain_scratch(n, |tau, q_true, frames| {
+    error_jacobian_walk(
+        model,
+        errors,
+        q_rep,
+        flange_from_tip,
+        g_base,
+        params,
+        &mut jac,
+    );
+    Ok(jac)
+}
+
+/// One walk of the true chain filling `jac` with the columns of [`tip_error_jacobian`]; returns
+/// the flange (rotation, translation). No checks.
+fn error_jacobian_walk(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    flange_from_tip: &Vector3<f64>,
+    g_base: &Vector3<f64>,
+    params: &[ErrorParam],
+    jac: &mut Matrix3xX<f64>,
+) -> (Matrix3<f64>, Vector3<f64>) {
+    with_chain_scratch(model.chain_joints().len(), |tau, q_true, frames| {
         // Compliance columns need τ even when no compliance is set.
         let need_tau = params
             .iter()
@@ -419,18 +441,54 @@ pub fn tip_error_jacobian(
         );
         let (flange_r, flange_t) = true_chain(model, errors, q_true, Some(frames));
         let p = flange_t + flange_r * (flange_from_tip + errors.tip);
-        fill_error_columns(
-            errors,
-            q_rep_chain,
-            tau,
-            frames,
-            &flange_r,
-            &p,
-            params,
-            &mut jac,
-        );
-    });
-    Ok(jac)
+        fill_error_columns(errors, q_rep_chain, tau, frames, &flange_r, &p, params, jac);
+        (flange_r, flange_t)
+    })
+}
+
+/// [`true_base_from_tip`] and [`tip_error_jacobian`] at the same inputs from one walk of the
+/// true chain (the whole-cell fit wants both at every observation): the same two values, bit for
+/// bit, as the two calls, for a little more than the price of the Jacobian alone.
+///
+/// Two cases still walk the chain twice, so that the pose stays the one
+/// [`true_base_from_tip`] gives: `errors` all zero (the pose is the nominal FK's), and
+/// compliance columns asked for while every compliance is zero (the Jacobian's true angles
+/// then add `0·τ`, whose sign of zero may differ from the pose's).
+///
+/// Errors: as [`tip_error_jacobian`].
+pub fn true_tip_with_error_jacobian(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    flange_from_tip: &Vector3<f64>,
+    g_base: &Vector3<f64>,
+    params: &[ErrorParam],
+) -> Result<(Isometry3<f64>, Matrix3xX<f64>), KinematicsError> {
+    check_inputs(model, errors, q_rep, flange_from_tip, g_base)?;
+    for p in params {
+        p.check_model(model)?;
+    }
+    let need_tau = params
+        .iter()
+        .any(|p| matches!(p, ErrorParam::Compliance { .. }));
+    if errors.is_zero() || (need_tau && all_zero(&errors.compliance)) {
+        let pose = true_base_from_tip_unchecked(model, errors, q_rep, flange_from_tip, g_base);
+        let jac = tip_error_jacobian(model, errors, q_rep, flange_from_tip, g_base, params)?;
+        return Ok((pose, jac));
+    }
+    let mut jac = Matrix3xX::zeros(params.len());
+    let (flange_r, flange_t) = error_jacobian_walk(
+        model,
+        errors,
+        q_rep,
+        flange_from_tip,
+        g_base,
+        params,
+        &mut jac,
+    );
+    // The pose as `true_tip_general` forms it from the same flange.
+    let pose = tip_isometry(&flange_r, &flange_t, &(flange_from_tip + errors.tip));
+    Ok((pose, jac))
 }
 
 /// The columns of [`tip_error_jacobian`] from the true chain's frames, tip `p` and flange rotation.

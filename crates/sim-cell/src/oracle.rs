@@ -8,7 +8,9 @@
 //! random handclasps (spread cube around the cell's teach centre, alignment σ `noise_mm`) is
 //! simulated; four fits of it are scored by their cooperative rms over `EVAL_PAIRS` held-out
 //! pairs drawn on the nominal cell (the same for every seed of a cell):
-//! - `evidence`: `calibrate_cell` (the evidence chooses the scales, 1e-3 … 100);
+//! - `evidence`: `calibrate_cell` then `widen_prior` (the evidence chooses the scales,
+//!   1e-3 … 100; what `calibrate --cell` does on a session its result check does not refuse —
+//!   the check itself is not run here: the sessions are simulated from the cell's own model);
 //! - `oracle`: `calibrate_cell_with` the scale fixed at `truth_factor` (the true prior: the
 //!   truth is drawn from exactly the tolerances × that factor);
 //! - `held`: the scale fixed at 1 (the stated tolerances held);
@@ -16,8 +18,8 @@
 //!   the same rows, weighted by the same σ).
 
 use calib_core::whole_cell::{
-    calibrate_cell_with, measure_cooperative_error, CellCalibration, ConfigPair, ScaleMethod,
-    ScreenOptions, SolveOptions, Tolerance,
+    calibrate_cell_with, measure_cooperative_error, widen_prior, CellCalibration, ConfigPair,
+    ScaleMethod, ScreenOptions, SolveOptions, Tolerance,
 };
 use handclasp_cell::cell::Cell;
 use handclasp_cell::problem::{cell_problem, truth_estimate, FitModel};
@@ -171,13 +173,16 @@ pub fn run_cell(name: &str, cell: &Cell, o: &OracleOptions) -> Result<OracleCell
         let fit =
             |scale: Option<f64>, model: FitModel| -> Result<(f64, CellCalibration), SimError> {
                 let p = cell_problem(&truth, &session, model);
-                let cal = calibrate_cell_with(
-                    &p,
-                    &SolveOptions::default(),
-                    &ScreenOptions::default(),
-                    scale,
-                )
-                .map_err(|e| fit_error(name, e))?;
+                let (solve, screen) = (SolveOptions::default(), ScreenOptions::default());
+                let mut cal = calibrate_cell_with(&p, &solve, &screen, scale)
+                    .map_err(|e| fit_error(name, e))?;
+                if scale.is_none() {
+                    if let Some(wide) =
+                        widen_prior(&p, &cal, &solve, &screen).map_err(|e| fit_error(name, e))?
+                    {
+                        cal = wide;
+                    }
+                }
                 let e = measure_cooperative_error(&problem, &cal.fit.estimate, &truth_est, &pairs)
                     .map_err(|e| fit_error(name, e))?;
                 Ok((e.rms_m, cal))

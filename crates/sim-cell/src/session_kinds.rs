@@ -605,7 +605,10 @@ impl Sim<'_> {
 /// Errors name the line and column: a missing column, a value that is not a finite number, no
 /// point at all.
 pub fn read_points_b1_csv(path: &std::path::Path) -> Result<Vec<Point3<f64>>, SimError> {
-    let text = std::fs::read_to_string(path).map_err(|e| SimError::io(path, e))?;
+    let text = kinematics::input::read_input_text(path, "points CSV").map_err(|e| match e {
+        kinematics::input::InputError::Io { source, .. } => SimError::io(path, source),
+        other => SimError::Format(handclasp_cell::FormatError::InputFile(other)),
+    })?;
     parse_points_b1_csv(&text, path)
 }
 

@@ -432,6 +432,7 @@ pub fn recordings_session(
     let session = Session {
         points: Vec::new(),
         observations,
+        ..Session::default()
     };
     (session, origin)
 }

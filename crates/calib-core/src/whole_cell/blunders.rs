@@ -6,7 +6,7 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 
-use super::solve::{assemble, fit_cell_weighted, fit_cell_with, CellFit, SolveOptions};
+use super::solve::{fit_cell_from, fit_cell_with, CellFit, SolveOptions};
 use super::{CellFitError, CellProblem, ParamLayout};
 
 /// Screening settings. Every default is documented on its field.
@@ -22,6 +22,10 @@ pub struct ScreenOptions {
     /// Residual rows that must remain beyond the unpenalised unknowns (default 6); fewer is
     /// [`CellFitError::TooFewRows`].
     pub min_redundancy: usize,
+    /// Reject rows at all (default true). False keeps every row: the fit on all of them, no
+    /// rejection (`calibrate --cell --screen off`, and `auto` when the rejections are a model
+    /// misfit, [`super::classify_rejections`]).
+    pub reject: bool,
 }
 
 impl Default for ScreenOptions {
@@ -31,6 +35,7 @@ impl Default for ScreenOptions {
             irls_rounds: 8,
             max_rounds: 20,
             min_redundancy: 6,
+            reject: true,
         }
     }
 }
@@ -74,7 +79,9 @@ struct BlockStats {
 
 /// Studentised statistic of each active block at a fit: `r̃ᵀ(I − H_ii)⁻¹r̃`.
 fn block_stats(problem: &CellProblem, fit: &CellFit) -> Result<BlockStats, CellFitError> {
-    let sys = assemble(problem, &fit.layout, &fit.estimate, &fit.active, None, true)?;
+    // The fit's own linearisation at its optimum (the unweighted rows of its active blocks).
+    let lin = fit.linearisation(problem)?;
+    let sys = &lin.rows;
     let mut internal = Vec::with_capacity(fit.active.len());
     for (b, &i) in fit.active.iter().enumerate() {
         let rows = problem.observations[i].kind.rows();
@@ -151,6 +158,15 @@ pub fn fit_screened(
         1.0
     };
     let thr = [quant(1) * scale2, quant(3) * scale2];
+    if !screen.reject {
+        return Ok(ScreenedFit {
+            fit,
+            rejected: Vec::new(),
+            threshold_sigma_3: (thr[1] / scale2).sqrt(),
+            threshold_sigma_1: (thr[0] / scale2).sqrt(),
+            noise_scale: scale2.sqrt(),
+        });
+    }
     let thr_of = |i: usize| {
         if problem.observations[i].kind.rows() == 3 {
             thr[1]
@@ -165,9 +181,11 @@ pub fn fit_screened(
             .unwrap_or(2.0)
             * scale2.sqrt()
     };
-    // Robust start: Huber IRLS on the whitened block norms.
+    // Robust start: Huber IRLS on the whitened block norms (each fit's unweighted rows at its
+    // optimum, over `all`).
     for _ in 0..screen.irls_rounds {
-        let sys = assemble(problem, &fit.layout, &fit.estimate, &all, None, false)?;
+        let lin = fit.linearisation(problem)?;
+        let sys = &lin.rows;
         let mut changed = 0.0f64;
         for (b, &i) in all.iter().enumerate() {
             let rows = problem.observations[i].kind.rows();
@@ -177,14 +195,7 @@ pub fn fit_screened(
             changed = changed.max((w - weights[b]).abs());
             weights[b] = w;
         }
-        fit = fit_cell_weighted(
-            problem,
-            layout.clone(),
-            &all,
-            Some(&weights),
-            Some(&fit.estimate),
-            solve,
-        )?;
+        fit = fit_cell_from(problem, layout.clone(), &all, Some(&weights), &fit, solve)?;
         if changed < 1e-3 {
             break;
         }
@@ -192,7 +203,8 @@ pub fn fit_screened(
     // Initial rejection at the robust fit: blocks whose whitened norm² exceeds the threshold
     // (the robust fit has down-weighted them, so its hat matrix understates their leverage;
     // the refits below re-test everything properly).
-    let sys = assemble(problem, &fit.layout, &fit.estimate, &all, None, false)?;
+    let lin = fit.linearisation(problem)?;
+    let sys = &lin.rows;
     let mut active: Vec<usize> = Vec::new();
     let mut rejected: Vec<usize> = Vec::new();
     for (b, &i) in all.iter().enumerate() {
@@ -231,7 +243,7 @@ pub fn fit_screened(
     if let Some(e) = too_few(&active, &rejected) {
         return Err(e);
     }
-    let mut fit = fit_cell_with(problem, layout.clone(), &active, Some(&fit.estimate), solve)?;
+    let mut fit = fit_cell_from(problem, layout.clone(), &active, None, &fit, solve)?;
     for _ in 0..screen.max_rounds {
         let mut changed = false;
         // Re-admit rejected blocks that the current fit explains.
@@ -269,7 +281,7 @@ pub fn fit_screened(
         if let Some(e) = too_few(&active, &rejected) {
             return Err(e);
         }
-        fit = fit_cell_with(problem, layout.clone(), &active, Some(&fit.estimate), solve)?;
+        fit = fit_cell_from(problem, layout.clone(), &active, None, &fit, solve)?;
     }
     rejected.sort_unstable();
     let mut out = Vec::with_capacity(rejected.len());

@@ -9,19 +9,24 @@
 //! 3. [`fit_screened`] (`blunders.rs`): a Huber IRLS start, then the studentised screen that
 //!    drops the worst blunder and refits, one at a time.
 //! 4. `choose_prior_scale` (`evidence.rs`): the prior scales (one common scale or one per
-//!    family, 1e-3 … ×100, or the caller's fixed scale) from the evidence of the MAP problem
-//!    linearised at the screened estimate, a refit at those scales (relinearised once), and
-//!    the error covariance under the reference prior `max(scale, 1)`.
-//! 5. A placement-only model whose residuals exceed the stated noise: its covariance is scaled
-//!    and the model-error term set (`mean_noise_var`).
+//!    family, 1e-3 … 1 at the stated tolerances, or the caller's fixed scale) from the evidence
+//!    of the MAP problem linearised at the screened estimate, a refit at those scales
+//!    (relinearised once), and the error covariance under the reference prior `max(scale, 1)`.
+//!    [`widen_prior`] (a separate call, after the caller's result check) redoes steps 1–4 at
+//!    tolerances the evidence widened (up to ×100 in all).
+//! 5. A placement-only model whose residuals exceed the stated noise: the data's σ in its
+//!    covariance are scaled (a placement prior's are not: `scaled_data_covariance`) and the
+//!    model-error term set (`mean_noise_var`).
 //! 6. [`CellCalibration::report`] (`report.rs`): the report in file units.
+
+use nalgebra::DMatrix;
 
 use super::blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
 use super::evidence::{
     self, format_scale, LinearModel, PriorScaleChoice, ScaleMethod, MAX_PRIOR_SCALE, PRIOR_SCALES,
 };
 use super::reduce::{reduce, Reduction};
-use super::solve::{fit_cell_with, CellFit, SolveOptions};
+use super::solve::{fit_cell_from, CellFit, SolveOptions};
 use super::{initial_estimate, CellFitError, CellProblem};
 
 /// Result of [`calibrate_cell`].
@@ -37,7 +42,8 @@ pub struct CellCalibration {
     pub prior_scale: PriorScaleChoice,
     /// The blunder screen's noise scale ([`super::ScreenedFit::noise_scale`]): 1, or for a
     /// placement-only model `sqrt` of its a-posteriori variance factor (then also applied to the
-    /// covariance, and its excess over 1 is the fit's model-error term,
+    /// data's σ in the covariance, not to a placement prior's, and its excess over 1 is the
+    /// fit's model-error term,
     /// [`CellFit::model_error_var_m2`]).
     pub noise_scale: f64,
 }
@@ -47,22 +53,21 @@ pub struct CellCalibration {
 /// unknowns, then the prior scale chosen from the session's own data.
 ///
 /// **Prior scale.** The tolerances bound the errors; how much of them a session can resolve
-/// depends on its noise and geometry, and a cell's stated tolerances may be too wide or too
-/// narrow for its robots. On the screened rows the prior σ of every kinematic family is
-/// multiplied by a scale from [`PRIOR_SCALES`] (1e-3, the placement-only limit, … 1 … ×100):
-/// the common scale of largest Laplace evidence (type-II maximum likelihood; the marginal
-/// likelihood of the data, of the MAP problem linearised at the screened fit), then one scale
-/// per family (joint offsets, origin xyz, origin rpy, tool tips, other terms) where the
-/// evidence separates them by a margin ([`super::FAMILY_EVIDENCE_MARGIN`] nats per family);
-/// the formulas are in `evidence.rs` ([`PriorScaleChoice`]). When the data cannot support the
-/// kinematic parameters, the evidence prefers the smallest scale, whose fit is the
-/// placement-only fit to within 1e-6 of the tolerances; when the robots are further off than
-/// their tolerances, it widens them. The fit is then redone at the chosen scales from the
-/// screened estimate (and the choice repeated once at that fit). The reported covariance is the
-/// error covariance of the chosen estimator under the reference prior `max(scale, 1)` per
-/// family: under the stated tolerances where the evidence shrank them (so the predicted
-/// cooperative accuracy includes the kinematic error the shrunk fit leaves), under the widened
-/// prior where it widened them. [`calibrate_cell_with`] fixes the scale instead.
+/// depends on its noise and geometry. On the screened rows the prior σ of every kinematic
+/// family is multiplied by a scale from [`PRIOR_SCALES`] of at most 1 (1e-3, the
+/// placement-only limit, … 1): the common scale of largest Laplace evidence (type-II maximum
+/// likelihood; the marginal likelihood of the data, of the MAP problem linearised at the
+/// screened fit), then one scale per family (joint offsets, origin xyz, origin rpy, tool tips,
+/// other terms) where the evidence separates them by a margin
+/// ([`super::FAMILY_EVIDENCE_MARGIN`] nats per family); the formulas are in `evidence.rs`
+/// ([`PriorScaleChoice`]). When the data cannot support the kinematic parameters, the evidence
+/// prefers the smallest scale, whose fit is the placement-only fit to within 1e-6 of the
+/// tolerances. The fit is then redone at the chosen scales from the screened estimate (and the
+/// choice repeated once at that fit). The reported covariance is the error covariance of the
+/// chosen estimator under the stated tolerances (so the predicted cooperative accuracy includes
+/// the kinematic error the shrunk fit leaves). Tolerances the robots exceed are widened by
+/// [`widen_prior`], after the caller's check of this fit; [`calibrate_cell_with`] fixes the
+/// scale instead.
 ///
 /// Errors: invalid input, no starting placement, model failures, or too few rows after
 /// rejecting blunders (naming the rows to re-record).
@@ -174,12 +179,18 @@ pub fn calibrate_cell_with(
     }
     problem.check()?;
     let ones = FamilyFactors::ones();
-    let (reduction, screened, mut fit, prior_scale) = match tolerance_scale {
+    let (reduction, screened, fit, prior_scale) = match tolerance_scale {
         // A fixed widening: reduce, screen and fit at the widened tolerances.
         Some(x) if x > 1.0 => {
             let wide = FamilyFactors::all(x);
-            let (red, scr, fit, mut choice) =
-                one_pass(&wide.apply(problem), solve, screen, Some(1.0), &wide)?;
+            let (red, scr, fit, mut choice) = one_pass(
+                &wide.apply(problem),
+                solve,
+                screen,
+                Some(1.0),
+                &wide,
+                &|_| 1.0,
+            )?;
             choice.rescale(&wide);
             choice.scale = x;
             for c in &mut choice.log_evidence {
@@ -193,43 +204,106 @@ pub fn calibrate_cell_with(
             );
             (red, scr, fit, choice)
         }
-        Some(x) => one_pass(problem, solve, screen, Some(x), &ones)?,
-        None => {
-            let first = one_pass(problem, solve, screen, None, &ones)?;
-            let curve = first.3.log_evidence.clone();
-            let mut why = first.3.why.clone();
-            let mut wide = FamilyFactors::widening(&first.3);
-            let mut current = first;
-            // The evidence widened some family: the reduction and the blunder screen of the
-            // pass were made at tolerances too narrow (rows the robots' real errors move were
-            // screened as blunders, parameters the data see were dropped as decided by the
-            // prior). Redo both at the widened tolerances and choose again, until the choice
-            // widens no further (at most WIDENING_PASSES passes).
-            for _ in 1..WIDENING_PASSES {
-                if wide.is_ones() {
-                    break;
-                }
-                let (red, scr, fit, mut again) =
-                    one_pass(&wide.apply(problem), solve, screen, None, &wide)?;
-                let further = FamilyFactors::widening(&again);
-                again.rescale(&wide);
-                why = format!(
-                    "{why}; refitted at the widened tolerances ({}; reduction and blunder \
-                     screen redone), where, relative to those, {}",
-                    wide.describe(&again),
-                    again.why
-                );
-                wide = wide.times(&further);
-                current = (red, scr, fit, again);
-                if further.is_ones() {
-                    break;
-                }
-            }
-            current.3.log_evidence = curve;
-            current.3.why = why;
-            current
-        }
+        Some(x) => one_pass(problem, solve, screen, Some(x), &ones, &|_| 1.0)?,
+        // The stated tolerances: the evidence may shrink them, not widen them.
+        None => one_pass(problem, solve, screen, None, &ones, &|_| 1.0)?,
     };
+    finish(problem, reduction, screened, fit, prior_scale)
+}
+
+/// The widening of a calibration at the stated tolerances (`stated`, from [`calibrate_cell`]
+/// with the same `problem`, `solve` and `screen`): `None` when the evidence, linearised at the
+/// stated fit over the whole range of [`PRIOR_SCALES`] (up to ×[`MAX_PRIOR_SCALE`]), widens no
+/// family, or when `stated`'s scale was fixed or it has no prior.
+///
+/// Otherwise the families the evidence widened get their tolerances × its scales, and the
+/// calibration is redone at them (reduction, blunder screen, the evidence's choice relative to
+/// the widened tolerances, the refit): the reduction and the screen of the stated pass were made
+/// at tolerances too narrow (rows the robots' real errors move were screened as blunders,
+/// parameters the data see were dropped as decided by the prior). A family the new choice
+/// widens again is widened again, for at most `WIDENING_PASSES − 1` passes. The product of all
+/// the scale changes of a family never exceeds ×[`MAX_PRIOR_SCALE`] (each choice is capped at
+/// what is left of it). The covariance is the error covariance under the widened prior
+/// ([`calibrate_cell`]).
+///
+/// **Widen only a fit that stands.** A wrong model (a joint's sign flipped, a tip's sign, two
+/// joints swapped) also looks like "the robots are further off than stated", and a prior wide
+/// enough lets the kinematic terms absorb it: call this only after the result check of `stated`
+/// has found no likely mistake and no refusal (`cli_support::cell_report` does).
+///
+/// Errors: those of [`calibrate_cell`].
+pub fn widen_prior(
+    problem: &CellProblem,
+    stated: &CellCalibration,
+    solve: &SolveOptions,
+    screen: &ScreenOptions,
+) -> Result<Option<CellCalibration>, CellFitError> {
+    let c = &stated.prior_scale;
+    if !matches!(
+        c.method,
+        ScaleMethod::EvidenceCommon | ScaleMethod::EvidencePerFamily
+    ) {
+        return Ok(None);
+    }
+    let fit = &stated.fit;
+    let unscale = nalgebra::DVector::from_iterator(
+        fit.layout.len(),
+        fit.layout
+            .params
+            .iter()
+            .map(|p| evidence::prior_family(p).map_or(1.0, |f| 1.0 / c.family_scale(f))),
+    );
+    let base = evidence::scaled_layout(&fit.layout, &unscale);
+    let model = LinearModel::new(problem, &base, &fit.estimate, &fit.active)?;
+    let Some(first) = evidence::choose(&model, &|_| MAX_PRIOR_SCALE) else {
+        return Ok(None);
+    };
+    let mut further = FamilyFactors::widening(&first);
+    if further.is_ones() {
+        return Ok(None);
+    }
+    let curve = first.log_evidence.clone();
+    let mut why = format!(
+        "at the stated tolerances, {}; over the whole range (up to ×{MAX_PRIOR_SCALE}), {}",
+        c.why, first.why
+    );
+    let mut wide = FamilyFactors::ones();
+    let mut current = None;
+    for _ in 1..WIDENING_PASSES {
+        wide = wide.times(&further).capped(MAX_PRIOR_SCALE);
+        let cap = |f: &str| MAX_PRIOR_SCALE / wide.get(f);
+        let (red, scr, fit, mut again) =
+            one_pass(&wide.apply(problem), solve, screen, None, &wide, &cap)?;
+        further = FamilyFactors::widening(&again);
+        again.rescale(&wide);
+        why = format!(
+            "{why}; refitted at the widened tolerances ({}; reduction and blunder screen \
+             redone), where, relative to those, {}",
+            wide.describe(&again),
+            again.why
+        );
+        current = Some((red, scr, fit, again));
+        if further.is_ones() {
+            break;
+        }
+    }
+    let Some((reduction, screened, fit, mut choice)) = current else {
+        return Ok(None);
+    };
+    choice.log_evidence = curve;
+    choice.why = why;
+    finish(problem, reduction, screened, fit, choice).map(Some)
+}
+
+/// The calibration from its last pass: a placement-only model whose residuals exceed the
+/// stated noise gets its data's σ scaled and the model-error term (module docs, step 5).
+fn finish(
+    problem: &CellProblem,
+    reduction: Reduction,
+    screened: ScreenedFit,
+    mut fit: CellFit,
+    prior_scale: PriorScaleChoice,
+) -> Result<CellCalibration, CellFitError> {
     let noise_scale = screened.noise_scale;
     let placement_only = fit.layout.prior_sqrt_info.nrows() == 0;
     if placement_only && noise_scale > 1.0 {
@@ -237,7 +311,7 @@ pub fn calibrate_cell_with(
         // covariance by the variance factor (the data's own noise level), and predict
         // the unmodelled part at any configuration pair from its variance at the handclasps.
         let s2 = noise_scale * noise_scale;
-        fit.covariance *= s2;
+        fit.covariance = scaled_data_covariance(problem, &fit, s2);
         fit.model_error_var_m2 = (s2 - 1.0) * mean_noise_var(problem, &fit)?;
     }
     Ok(CellCalibration {
@@ -247,6 +321,38 @@ pub fn calibrate_cell_with(
         prior_scale,
         noise_scale,
     })
+}
+
+/// The covariance of `fit` with the data's σ multiplied by `sqrt(s2)` and the placement prior
+/// as stated: `(H_data/s² + Λ_p)⁻¹ = s²·(H + (s² − 1)·Λ_p)⁻¹` with `H = Σ⁻¹` the fit's
+/// information and `Λ_p` the placement prior's ([`super::PlacementPrior`], columns 0..6), so a
+/// placement held by a tight prior keeps a σ at most its prior's (scaling the whole covariance
+/// would inflate the prior too). Without a placement prior (or when `Σ` cannot be inverted)
+/// this is `s²·Σ`.
+fn scaled_data_covariance(problem: &CellProblem, fit: &CellFit, s2: f64) -> DMatrix<f64> {
+    let scaled = &fit.covariance * s2;
+    let Some(pp) = &problem.placement_prior else {
+        return scaled;
+    };
+    let (_, rows) = pp.linearise(&fit.estimate.b1_from_b2);
+    let n = fit.covariance.nrows();
+    if rows.is_empty() || n < 6 {
+        return scaled;
+    }
+    let Some(mut h) = fit.covariance.clone().cholesky().map(|c| c.inverse()) else {
+        return scaled;
+    };
+    for row in &rows {
+        for a in 0..6 {
+            for b in 0..6 {
+                h[(a, b)] += (s2 - 1.0) * row[a] * row[b];
+            }
+        }
+    }
+    match h.cholesky() {
+        Some(c) => c.inverse() * s2,
+        None => scaled,
+    }
 }
 
 /// Mean stated noise variance per residual row (m²) over the fit's active observations.
@@ -280,6 +386,7 @@ fn choose_prior_scale(
     solve: &SolveOptions,
     fixed: Option<f64>,
     widened: &FamilyFactors,
+    cap: &dyn Fn(&str) -> f64,
 ) -> Result<(CellFit, PriorScaleChoice), CellFitError> {
     if screened.layout.prior_sqrt_info.nrows() == 0 {
         return Ok((screened, PriorScaleChoice::none()));
@@ -289,7 +396,7 @@ fn choose_prior_scale(
         let model = LinearModel::new(problem, &base, &fit.estimate, &fit.active)?;
         Ok(match fixed {
             Some(s) => Some(evidence::fixed(&model, s)),
-            None => evidence::choose(&model),
+            None => evidence::choose(&model, cap),
         })
     };
     let Some(mut choice) = choose(&screened)? else {
@@ -305,11 +412,12 @@ fn choose_prior_scale(
     };
     let mut s = column_scales(&choice);
     let refit = |s: &nalgebra::DVector<f64>| {
-        fit_cell_with(
+        fit_cell_from(
             problem,
             evidence::scaled_layout(&base, s),
             &screened.active,
-            Some(&screened.estimate),
+            None,
+            &screened,
             solve,
         )
     };
@@ -353,12 +461,14 @@ fn one_pass(
     screen: &ScreenOptions,
     fixed: Option<f64>,
     widened: &FamilyFactors,
+    cap: &dyn Fn(&str) -> f64,
 ) -> Result<(Reduction, ScreenedFit, CellFit, PriorScaleChoice), CellFitError> {
     let all: Vec<usize> = (0..problem.observations.len()).collect();
     let start = initial_estimate(problem, solve.initial_b1_from_b2, &all)?;
     let reduction = reduce(problem, &start, &all)?;
     let screened = fit_screened(problem, Some(reduction.layout.clone()), solve, screen)?;
-    let (fit, choice) = choose_prior_scale(problem, screened.fit.clone(), solve, fixed, widened)?;
+    let (fit, choice) =
+        choose_prior_scale(problem, screened.fit.clone(), solve, fixed, widened, cap)?;
     Ok((reduction, screened, fit, choice))
 }
 
@@ -411,6 +521,14 @@ impl FamilyFactors {
             }
         }
         out
+    }
+
+    /// Each factor at most `max`.
+    fn capped(mut self, max: f64) -> Self {
+        for e in &mut self.0 {
+            e.1 = e.1.min(max);
+        }
+        self
     }
 
     fn is_ones(&self) -> bool {

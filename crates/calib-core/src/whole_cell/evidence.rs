@@ -266,22 +266,32 @@ pub fn format_scale(s: f64) -> String {
     }
 }
 
-/// The evidence's choice at `model` (see the module docs): the per-family scales and the
-/// choice's record. `None` when no candidate has a finite evidence.
-pub(crate) fn choose(model: &LinearModel) -> Option<PriorScaleChoice> {
+/// The evidence's choice at `model` (see the module docs), each family's scale at most
+/// `cap(family)` (1 everywhere: the stated tolerances, shrunk or held; `MAX_PRIOR_SCALE / w`
+/// for tolerances already widened by `w`, so that the product of all scale changes stays within
+/// ×[`MAX_PRIOR_SCALE`]): the per-family scales and the choice's record. `None` when no
+/// candidate has a finite evidence.
+pub(crate) fn choose(model: &LinearModel, cap: &dyn Fn(&str) -> f64) -> Option<PriorScaleChoice> {
     let nf = model.families.len();
+    let caps: Vec<f64> = model.families.iter().map(|(f, _)| cap(f)).collect();
+    let allowed = |f: usize, s: f64| s <= caps[f] * (1.0 + 1e-12);
+    let widest = caps.iter().copied().fold(0.0, f64::max);
+    // A common scale s applies min(s, cap) to each family.
+    let common_scales = |s: f64| -> Vec<f64> { caps.iter().map(|&c| s.min(c)).collect() };
     let curve: Vec<(f64, f64)> = PRIOR_SCALES
         .iter()
-        .filter_map(|&s| model.log_evidence(&vec![s; nf]).map(|z| (s, z)))
+        .filter(|&&s| s <= widest * (1.0 + 1e-12))
+        .filter_map(|&s| model.log_evidence(&common_scales(s)).map(|z| (s, z)))
         .collect();
     let &(common, common_z) = curve.iter().max_by(|a, b| a.1.total_cmp(&b.1))?;
-    let mut scales = vec![common; nf];
+    let common_applied = common_scales(common);
+    let mut scales = common_applied.clone();
     let mut best_z = common_z;
     for _ in 0..FAMILY_SWEEPS {
         let mut changed = false;
         for f in 0..nf {
             for &s in &PRIOR_SCALES {
-                if s == scales[f] {
+                if s == scales[f] || !allowed(f, s) {
                     continue;
                 }
                 let mut trial = scales.clone();
@@ -299,13 +309,17 @@ pub(crate) fn choose(model: &LinearModel) -> Option<PriorScaleChoice> {
             break;
         }
     }
-    let differing = scales.iter().filter(|&&s| s != common).count();
+    let differing = scales
+        .iter()
+        .zip(&common_applied)
+        .filter(|(s, c)| s != c)
+        .count();
     let gain = best_z - common_z;
     let per_family = differing > 0 && gain > FAMILY_EVIDENCE_MARGIN * differing as f64;
     let applied = if per_family {
         scales.clone()
     } else {
-        vec![common; nf]
+        common_applied.clone()
     };
     let listed = |sc: &[f64]| {
         model
@@ -409,8 +423,7 @@ pub(crate) fn reference_covariance(
     if s == &s_ref {
         return Ok(fit.covariance.clone());
     }
-    let sys = assemble(problem, &fit.layout, &fit.estimate, &fit.active, None, true)?;
-    let h = sys.j.transpose() * &sys.j;
+    let h = fit.information(problem)?;
     let r_s = &fit.layout.prior_sqrt_info;
     let lambda = r_s.transpose() * r_s;
     let penalised: Vec<usize> = (0..r_s.ncols())

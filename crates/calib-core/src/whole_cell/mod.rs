@@ -109,19 +109,24 @@
 //! nuisance groups, [`CellProblem`] and its checks) ← `layout` (estimates, columns, prior,
 //! manifold updates) ← `residuals` (residuals and analytic Jacobians, [`Evaluator`]) ← `start`
 //! (starting values) ← `solve` (Levenberg–Marquardt) ← `reduce` ← `blunders` ← `accuracy` ←
-//! `design`, `evidence` (the prior scales from the evidence), `calibrate` (the one call) ← `report` (its file-unit report); beside them, `coverage`
-//! (the joint ranges and tool-point region a session covers against the limits and the reach)
-//! and `validate` (a held cell scored on observations it was not fitted to, nuisances given or
-//! split-refitted). `fixtures` (simulated cells) and `tests` sit on top.
+//! `design`, `evidence` (the prior scales from the evidence), `calibrate` (the one call) ←
+//! `report` (its file-unit report); beside them, `coverage` (the joint ranges and tool-point
+//! region a session covers against the limits and the reach), the result check (`check`: noise
+//! scale, placement against the stated one, layout shape; `mistakes`: likely data mistakes
+//! tried; `misfit`: blunders or model misfit) and `validate` (a held cell scored on observations
+//! it was not fitted to, nuisances given or split-refitted). `fixtures` (simulated cells) and `tests` sit on top.
 
 mod accuracy;
 mod blunders;
 mod calibrate;
 mod cell;
+mod check;
 mod coverage;
 mod design;
 mod evidence;
 mod layout;
+mod misfit;
+mod mistakes;
 mod observations;
 mod placement_prior;
 mod reduce;
@@ -142,8 +147,12 @@ pub use accuracy::{
     summarise_covariances, ConfigPair, CooperativeError, CooperativePrediction, P95_DRAWS_PER_PAIR,
 };
 pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
-pub use calibrate::{calibrate_cell, calibrate_cell_with, CellCalibration};
+pub use calibrate::{calibrate_cell, calibrate_cell_with, widen_prior, CellCalibration};
 pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool};
+pub use check::{
+    layout_shape, placement_distance, robust_noise_scale, CheckThresholds, LayoutShape,
+    PlacementDistance,
+};
 pub use coverage::{
     session_coverage, CoverageReport, JointCoverage, JointCoverageReport, PointRegion,
     PointRegionReport, RobotCoverage, RobotCoverageReport, SessionCoverage, ENVELOPE_SAMPLES,
@@ -160,6 +169,11 @@ pub use evidence::{
 pub use layout::{
     tangent_basis, CellEstimate, CellParam, ParamLayout, PlaneEstimate, RobotCorrection,
 };
+pub use misfit::{
+    classify_rejections, JointCluster, RejectionPattern, ResidualPattern, CLUSTER_MIN_ROWS,
+    JOINT_TAIL, MISFIT_MIN_ROWS, MISFIT_SHARE, MISFIT_SHARE_ALONE, TIME_WINDOW,
+};
+pub use mistakes::{candidate_mistakes, try_problem, Mistake, Trial};
 pub use observations::{
     CellProblem, ContactGroup, GroupKind, Kind, Observation, ObservationKind, PlaneGroup,
     TrackerGroup, UNIT_NORMAL_TOL,
@@ -171,6 +185,7 @@ pub use report::{
     FittedPlacementReport, GroupsReport, LogEvidenceReport, MergePartner, NuisanceReport,
     ParamIdentity, ParameterReport, PlacementSigmaReport, PlaneGroupReport, PriorScaleReport,
     RejectedRowReport, ReportUnit, TrackerGroupReport, UnidentifiableReport,
+    TOLERANCE_WARNING_SIGMAS,
 };
 pub use residuals::{Evaluator, ObservationLinearisation, MIN_FACE_NORMAL_SUM};
 pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions};

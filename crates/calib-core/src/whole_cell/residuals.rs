@@ -2,7 +2,8 @@
 //! is in the module documentation of [`crate::whole_cell`].
 
 use kinematics::{
-    tip_error_jacobian, true_base_from_tip, Axis, ErrorParam, KinematicErrors, KinematicsError,
+    tip_error_jacobian, true_base_from_tip, true_tip_with_error_jacobian, Axis, ErrorParam,
+    KinematicErrors, KinematicsError,
 };
 use nalgebra::{DMatrix, DVector, Point3, Unit, Vector3};
 
@@ -94,36 +95,38 @@ impl<'a> Evaluator<'a> {
         let slot = robot_slot(robot);
         let (rb, tool_def, errors) = self.tool_context(est, robot, tool, row)?;
         let kin_err = kinematics_error(robot, row);
+        let lay = &self.layout.robots[slot];
+        let tip_col = lay.tip_col[tool];
+        let mut cols = Cols3::new();
+        if want_jac && (!lay.kin.is_empty() || tip_col.iter().any(Option::is_some)) {
+            // Always the kinematic columns and all three tip axes; unfitted axes are skipped.
+            // The tip and its Jacobian from one walk of the chain (the same values as
+            // `true_base_from_tip` and `tip_error_jacobian`).
+            let (pose, j) = true_tip_with_error_jacobian(
+                &rb.model,
+                &errors,
+                q,
+                &tool_def.flange_from_tip,
+                &rb.g_base,
+                &self.jac_params[slot],
+            )
+            .map_err(kin_err)?;
+            cols.reserve(lay.kin.len() + 3);
+            for (k, &(_, c)) in lay.kin.iter().enumerate() {
+                cols.push((c, j.column(k).into_owned()));
+            }
+            let k0 = lay.kin.len();
+            for (a, c) in tip_col.iter().enumerate() {
+                if let Some(c) = c {
+                    cols.push((*c, j.column(k0 + a).into_owned()));
+                }
+            }
+            return Ok((pose.translation.vector, cols));
+        }
         let p = true_base_from_tip(&rb.model, &errors, q, &tool_def.flange_from_tip, &rb.g_base)
             .map_err(kin_err)?
             .translation
             .vector;
-        let mut cols = Cols3::new();
-        if want_jac {
-            let lay = &self.layout.robots[slot];
-            let tip_col = lay.tip_col[tool];
-            if !lay.kin.is_empty() || tip_col.iter().any(Option::is_some) {
-                // Always the kinematic columns and all three tip axes; unfitted axes are skipped.
-                let j = tip_error_jacobian(
-                    &rb.model,
-                    &errors,
-                    q,
-                    &tool_def.flange_from_tip,
-                    &rb.g_base,
-                    &self.jac_params[slot],
-                )
-                .map_err(kin_err)?;
-                for (k, &(_, c)) in lay.kin.iter().enumerate() {
-                    cols.push((c, j.column(k).into_owned()));
-                }
-                let k0 = lay.kin.len();
-                for (a, c) in tip_col.iter().enumerate() {
-                    if let Some(c) = c {
-                        cols.push((*c, j.column(k0 + a).into_owned()));
-                    }
-                }
-            }
-        }
         Ok((p, cols))
     }
 

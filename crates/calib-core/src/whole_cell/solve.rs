@@ -2,7 +2,10 @@
 //! ([`assemble`]), minimised by the crate's one Levenberg–Marquardt solver
 //! ([`crate::LmOptions`], schedule [`LmOptions::whole_cell`]).
 
+use std::sync::Arc;
+
 use nalgebra::{DMatrix, DVector, Isometry3};
+use rayon::prelude::*;
 use serde::Serialize;
 
 use super::{
@@ -15,6 +18,10 @@ use crate::{LmOptions, StopReason};
 /// Eigenvalues of the Jacobi-scaled `JᵀJ` at or below this fraction of the largest are dropped
 /// from the posterior covariance (pseudo-inverse) and flag the fit [`CellFit::singular`].
 const COVARIANCE_REL_EIGEN_TOL: f64 = 1e-14;
+
+/// Observations per rayon task when [`assemble`] linearises in parallel (tens of µs each with
+/// the Jacobian: a task of ~0.5 ms, far above rayon's scheduling cost).
+const OBSERVATIONS_PER_TASK: usize = 16;
 
 /// Solver settings. Every default is documented on its field.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -58,6 +65,110 @@ pub struct CellFit {
     /// solver; set by [`super::calibrate_cell`] for a placement-only model from the excess of
     /// its residuals over the stated noise (the robots' unmodelled kinematic error).
     pub model_error_var_m2: f64,
+    /// The linearisation at the optimum, kept so that the statistics and fits that start from
+    /// this estimate do not evaluate the robots again. Checked against the fit's estimate,
+    /// layout and active observations before each use: a fit changed by hand is linearised
+    /// again.
+    pub(crate) at_optimum: Option<Arc<AtOptimum>>,
+}
+
+/// The whitened data rows (unweighted, `W_i·r_i` and `W_i·J_i`) of some observations at one
+/// estimate and layout: what [`assemble`] scales by the IRLS weights and stacks over the prior.
+#[derive(Debug)]
+pub(crate) struct DataRows {
+    /// The observations (indices into the problem's), in row order.
+    pub observations: Vec<usize>,
+    /// Row offset of each observation's block.
+    pub block_start: Vec<usize>,
+    /// Whitened residuals (the system's prior rows may follow the data rows: read the blocks
+    /// by their offsets).
+    pub r: DVector<f64>,
+    /// Whitened Jacobian, same rows (none when only the residuals were evaluated).
+    pub j: DMatrix<f64>,
+    /// Whether `j` holds the Jacobian.
+    pub jacobian: bool,
+}
+
+/// A fit's linearisation at its optimum ([`CellFit::at_optimum`]).
+#[derive(Debug)]
+pub(crate) struct AtOptimum {
+    /// The estimate it was taken at.
+    estimate: CellEstimate,
+    /// The layout's columns it was taken with.
+    params: Vec<CellParam>,
+    /// The layout's prior rows `R_p` (part of `information`).
+    prior_sqrt_info: DMatrix<f64>,
+    /// The unweighted data rows of the fit's active observations, with the Jacobian.
+    pub rows: DataRows,
+    /// `JᵀJ` of the unweighted system (data and prior rows) at the optimum, whose inverse is
+    /// the fit's covariance; `None` for an IRLS-weighted fit (its system was another).
+    information: Option<DMatrix<f64>>,
+}
+
+impl AtOptimum {
+    /// Whether these rows are the ones a linearisation at `est` with `layout`'s columns gives.
+    pub fn matches(&self, layout: &ParamLayout, est: &CellEstimate) -> bool {
+        self.params == layout.params && self.estimate == *est
+    }
+}
+
+impl CellFit {
+    /// The unweighted `JᵀJ` at the optimum (data and prior rows, as [`assemble`] with no weights
+    /// stacks them), from the fit's own linearisation when it has one.
+    pub(crate) fn information(&self, problem: &CellProblem) -> Result<DMatrix<f64>, CellFitError> {
+        match self.at_optimum.as_deref() {
+            Some(AtOptimum {
+                information: Some(h),
+                prior_sqrt_info,
+                ..
+            }) if self.at_optimum_matches() && *prior_sqrt_info == self.layout.prior_sqrt_info => {
+                Ok(h.clone())
+            }
+            _ => {
+                let sys = assemble(
+                    problem,
+                    &self.layout,
+                    &self.estimate,
+                    &self.active,
+                    None,
+                    true,
+                )?;
+                Ok(sys.j.transpose() * &sys.j)
+            }
+        }
+    }
+
+    /// The fit's linearisation at its optimum: its own when it has one, else the unweighted
+    /// data rows of its active observations evaluated now (with the Jacobian).
+    pub(crate) fn linearisation(
+        &self,
+        problem: &CellProblem,
+    ) -> Result<Arc<AtOptimum>, CellFitError> {
+        match &self.at_optimum {
+            Some(a) if self.at_optimum_matches() => Ok(Arc::clone(a)),
+            _ => {
+                let rows =
+                    linearise_rows(problem, &self.layout, &self.estimate, &self.active, None)?;
+                Ok(Arc::new(AtOptimum {
+                    estimate: self.estimate.clone(),
+                    params: self.layout.params.clone(),
+                    prior_sqrt_info: self.layout.prior_sqrt_info.clone(),
+                    rows,
+                    information: None,
+                }))
+            }
+        }
+    }
+
+    /// Whether [`CellFit::at_optimum`] is still the linearisation at this fit's estimate and
+    /// layout (a caller may have changed them).
+    fn at_optimum_matches(&self) -> bool {
+        self.at_optimum.as_ref().is_some_and(|a| {
+            a.matches(&self.layout, &self.estimate)
+                && a.rows.observations == self.active
+                && a.rows.jacobian
+        })
+    }
 }
 
 impl CellFit {
@@ -113,8 +224,117 @@ pub(crate) struct System {
     pub j: DMatrix<f64>,
     /// Number of data rows.
     pub data_rows: usize,
-    /// Row offset of each active observation's block.
+    /// The observations of the data rows, in row order.
+    observations: Vec<usize>,
+    /// Row offset of each observation's block.
     pub block_start: Vec<usize>,
+    /// The data rows before the IRLS weights (residuals, Jacobian) of a weighted system; `None`
+    /// without weights (they are then the first `data_rows` rows of `r` and `j`).
+    unweighted: Option<(DVector<f64>, DMatrix<f64>)>,
+    /// Whether `j` holds the Jacobian.
+    jacobian: bool,
+}
+
+impl System {
+    /// The unweighted data rows of this system (the prior rows may follow them in `r` and `j`:
+    /// blocks are read by their offsets).
+    fn into_rows(self) -> DataRows {
+        let jacobian = self.jacobian;
+        let (r, j) = self.unweighted.unwrap_or((self.r, self.j));
+        DataRows {
+            observations: self.observations,
+            block_start: self.block_start,
+            r,
+            j,
+            jacobian,
+        }
+    }
+}
+
+/// The unweighted whitened rows of `observations` at `est` (with the Jacobian): each block
+/// copied from `reuse` when it holds that observation (taken at the same estimate and layout
+/// columns: the caller's promise), else linearised, in parallel on rayon's current pool.
+/// Errors: the first in the order of `observations`, as a sequential loop would return it.
+pub(crate) fn linearise_rows(
+    problem: &CellProblem,
+    layout: &ParamLayout,
+    est: &CellEstimate,
+    observations: &[usize],
+    reuse: Option<&DataRows>,
+) -> Result<DataRows, CellFitError> {
+    linearise_rows_with(problem, layout, est, observations, reuse, true)
+}
+
+/// [`linearise_rows`], with the Jacobian or without (`want_jac`; `reuse` is then ignored).
+fn linearise_rows_with(
+    problem: &CellProblem,
+    layout: &ParamLayout,
+    est: &CellEstimate,
+    observations: &[usize],
+    reuse: Option<&DataRows>,
+    want_jac: bool,
+) -> Result<DataRows, CellFitError> {
+    let ev = Evaluator::new(problem, layout);
+    let n = layout.len();
+    // Where each observation's block is in `reuse` (indexed by observation).
+    let mut reused: Vec<Option<usize>> = Vec::new();
+    if let Some(old) = reuse.filter(|old| want_jac && old.jacobian) {
+        reused = vec![None; problem.observations.len()];
+        for (b, &i) in old.observations.iter().enumerate() {
+            if let Some(slot) = reused.get_mut(i) {
+                *slot = Some(old.block_start[b]);
+            }
+        }
+    }
+    let fresh: Vec<usize> = observations
+        .iter()
+        .copied()
+        .filter(|&i| reused.get(i).copied().flatten().is_none())
+        .collect();
+    let lins: Vec<Result<ObservationLinearisation, CellFitError>> = fresh
+        .par_iter()
+        .with_min_len(OBSERVATIONS_PER_TASK)
+        .map(|&i| ev.linearise(&problem.observations[i], est, want_jac))
+        .collect();
+    let mut lins = lins.into_iter();
+    let total: usize = observations
+        .iter()
+        .map(|&i| problem.observations[i].kind.rows())
+        .sum();
+    let mut rows = DataRows {
+        observations: observations.to_vec(),
+        block_start: Vec::with_capacity(observations.len()),
+        r: DVector::zeros(total),
+        j: DMatrix::zeros(if want_jac { total } else { 0 }, n),
+        jacobian: want_jac,
+    };
+    let mut row = 0;
+    for &i in observations {
+        let k = problem.observations[i].kind.rows();
+        rows.block_start.push(row);
+        match (reuse, reused.get(i).copied().flatten()) {
+            (Some(old), Some(at)) => {
+                rows.r.rows_mut(row, k).copy_from(&old.r.rows(at, k));
+                rows.j.rows_mut(row, k).copy_from(&old.j.rows(at, k));
+            }
+            _ => {
+                // The first error in the order of `observations` (the fresh ones keep it).
+                let l = lins
+                    .next()
+                    .expect("one linearisation per fresh observation")?;
+                rows.r
+                    .rows_mut(row, k)
+                    .copy_from(&(&l.whitening * &l.residual));
+                if want_jac {
+                    rows.j
+                        .rows_mut(row, k)
+                        .copy_from(&(&l.whitening * &l.jacobian));
+                }
+            }
+        }
+        row += k;
+    }
+    Ok(rows)
 }
 
 /// Linearises every active observation (rows scaled by `sqrt(weight)`) and appends the prior.
@@ -126,13 +346,27 @@ pub(crate) fn assemble(
     weights: Option<&[f64]>,
     want_jac: bool,
 ) -> Result<System, CellFitError> {
-    let ev = Evaluator::new(problem, layout);
+    let rows = linearise_rows_with(problem, layout, est, active, None, want_jac)?;
+    Ok(stack(problem, layout, est, rows, weights))
+}
+
+/// The system of [`assemble`] from the unweighted data rows at `est`: each block scaled by
+/// `sqrt(weight)` (`weights` one per block of `rows`), then the layout's prior rows and the
+/// placement prior's.
+fn stack(
+    problem: &CellProblem,
+    layout: &ParamLayout,
+    est: &CellEstimate,
+    rows: DataRows,
+    weights: Option<&[f64]>,
+) -> System {
     let n = layout.len();
-    let lins: Vec<ObservationLinearisation> = active
+    let want_jac = rows.jacobian;
+    let data_rows: usize = rows
+        .observations
         .iter()
-        .map(|&i| ev.linearise(&problem.observations[i], est, want_jac))
-        .collect::<Result<_, _>>()?;
-    let data_rows: usize = lins.iter().map(|l| l.residual.len()).sum();
+        .map(|&i| problem.observations[i].kind.rows())
+        .sum();
     let p = layout.prior_sqrt_info.nrows();
     let placement = problem
         .placement_prior
@@ -141,19 +375,25 @@ pub(crate) fn assemble(
     let m = data_rows + p + pl_rows;
     let mut r = DVector::zeros(m);
     let mut j = DMatrix::zeros(if want_jac { m } else { 0 }, n);
-    let mut block_start = Vec::with_capacity(active.len());
-    let mut row = 0;
-    for (k, l) in lins.iter().enumerate() {
-        let w = weights.map_or(1.0, |w| w[k]).sqrt();
-        let rows = l.residual.len();
-        block_start.push(row);
-        r.rows_mut(row, rows)
-            .copy_from(&(&l.whitening * &l.residual * w));
-        if want_jac {
-            j.rows_mut(row, rows)
-                .copy_from(&(&l.whitening * &l.jacobian * w));
+    match weights {
+        None => {
+            r.rows_mut(0, data_rows)
+                .copy_from(&rows.r.rows(0, data_rows));
+            if want_jac {
+                j.rows_mut(0, data_rows)
+                    .copy_from(&rows.j.rows(0, data_rows));
+            }
         }
-        row += rows;
+        Some(weights) => {
+            for (b, &start) in rows.block_start.iter().enumerate() {
+                let w = weights[b].sqrt();
+                let k = problem.observations[rows.observations[b]].kind.rows();
+                r.rows_mut(start, k).copy_from(&(rows.r.rows(start, k) * w));
+                if want_jac {
+                    j.rows_mut(start, k).copy_from(&(rows.j.rows(start, k) * w));
+                }
+            }
+        }
     }
     let theta = layout.values(est);
     r.rows_mut(data_rows, p)
@@ -173,12 +413,16 @@ pub(crate) fn assemble(
             }
         }
     }
-    Ok(System {
+    let unweighted = weights.map(|_| (rows.r, rows.j));
+    System {
         r,
         j,
         data_rows,
-        block_start,
-    })
+        observations: rows.observations,
+        block_start: rows.block_start,
+        unweighted,
+        jacobian: want_jac,
+    }
 }
 
 /// Inverse of a symmetric positive semi-definite matrix by a Jacobi-scaled eigen-decomposition;
@@ -237,6 +481,9 @@ struct MapProblem<'a> {
     layout: &'a ParamLayout,
     active: &'a [usize],
     weights: Option<&'a [f64]>,
+    /// A linearisation at the start (another fit's optimum): its rows are reused where it has
+    /// the observation and it was taken at the start with these columns.
+    start_rows: Option<&'a AtOptimum>,
 }
 
 impl MapProblem<'_> {
@@ -252,8 +499,22 @@ impl LeastSquaresProblem for MapProblem<'_> {
     type System = System;
     type Error = CellFitError;
 
+    /// At the start: the rows of [`MapProblem::start_rows`] where they apply (the same values
+    /// a new linearisation gives), the others linearised.
     fn linearise(&self, at: &CellEstimate) -> Result<System, CellFitError> {
-        self.at(at, true)
+        match self.start_rows.filter(|s| s.matches(self.layout, at)) {
+            Some(start) => {
+                let rows = linearise_rows(
+                    self.problem,
+                    self.layout,
+                    at,
+                    self.active,
+                    Some(&start.rows),
+                )?;
+                Ok(stack(self.problem, self.layout, at, rows, self.weights))
+            }
+            None => self.at(at, true),
+        }
     }
 
     /// A non-finite residual or a kinematics failure at a trial estimate means the step
@@ -268,7 +529,7 @@ impl LeastSquaresProblem for MapProblem<'_> {
     }
 
     fn relinearise(&self, at: &CellEstimate, _evaluated: System) -> Result<System, CellFitError> {
-        self.linearise(at)
+        self.at(at, true)
     }
 
     fn retract(&self, at: &CellEstimate, step: &DVector<f64>) -> CellEstimate {
@@ -314,6 +575,42 @@ pub(crate) fn fit_cell_weighted(
     start: Option<&CellEstimate>,
     options: &SolveOptions,
 ) -> Result<CellFit, CellFitError> {
+    fit_cell_start(problem, layout, active, weights, start, None, options)
+}
+
+/// [`fit_cell_weighted`] from another fit's optimum (`from.estimate`): its linearisation there
+/// is reused for the start (the observations it holds, when `layout` has its columns), so the
+/// fit does not evaluate the robots again where `from` already did.
+pub(crate) fn fit_cell_from(
+    problem: &CellProblem,
+    layout: ParamLayout,
+    active: &[usize],
+    weights: Option<&[f64]>,
+    from: &CellFit,
+    options: &SolveOptions,
+) -> Result<CellFit, CellFitError> {
+    let start_rows = from.at_optimum.as_deref();
+    fit_cell_start(
+        problem,
+        layout,
+        active,
+        weights,
+        Some(&from.estimate),
+        start_rows,
+        options,
+    )
+}
+
+/// The fits' one body: [`fit_cell_weighted`] with a linearisation at the start to reuse.
+fn fit_cell_start(
+    problem: &CellProblem,
+    layout: ParamLayout,
+    active: &[usize],
+    weights: Option<&[f64]>,
+    start: Option<&CellEstimate>,
+    start_rows: Option<&AtOptimum>,
+    options: &SolveOptions,
+) -> Result<CellFit, CellFitError> {
     problem.check()?;
     if let Some(w) = weights {
         if w.len() != active.len() || !w.iter().all(|v| v.is_finite() && *v >= 0.0) {
@@ -334,13 +631,26 @@ pub(crate) fn fit_cell_weighted(
         layout: &layout,
         active,
         weights,
+        start_rows,
     };
     let min = minimize(&map, est, &options.lm)?;
     let sys = min.system;
-    let h = sys.j.transpose() * &sys.j;
+    // `JᵀJ` of the final system: the solver's own when its last iteration formed it there.
+    let h = match min.information {
+        Some(h) => h,
+        None => sys.j.transpose() * &sys.j,
+    };
     let (covariance, singular) = sym_inverse(&h);
     let data_chi2 = sys.r.rows(0, sys.data_rows).norm_squared();
     let prior_chi2 = min.cost - data_chi2;
+    let residual_rows = sys.data_rows;
+    let at_optimum = AtOptimum {
+        estimate: min.point.clone(),
+        params: layout.params.clone(),
+        prior_sqrt_info: layout.prior_sqrt_info.clone(),
+        rows: sys.into_rows(),
+        information: weights.is_none().then_some(h),
+    };
     Ok(CellFit {
         estimate: min.point,
         layout,
@@ -348,10 +658,11 @@ pub(crate) fn fit_cell_weighted(
         singular,
         data_chi2,
         prior_chi2,
-        residual_rows: sys.data_rows,
+        residual_rows,
         active: active.to_vec(),
         iterations: min.iterations,
         stopped: min.stopped,
         model_error_var_m2: 0.0,
+        at_optimum: Some(Arc::new(at_optimum)),
     })
 }

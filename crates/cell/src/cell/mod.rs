@@ -543,9 +543,12 @@ fn shoulder(model: &RobotModel) -> Point3<f64> {
 impl Cell {
     /// Reads a cell TOML file (paths in it relative to the file's directory).
     pub fn from_toml_file(path: &Path) -> Result<Cell, FormatError> {
-        let text = std::fs::read_to_string(path).map_err(|e| FormatError::Cell {
-            path: path.to_path_buf(),
-            message: format!("cannot read the cell file: {e}"),
+        let text = kinematics::input::read_input_text(path, "cell TOML").map_err(|e| match e {
+            kinematics::input::InputError::Io { source, .. } => FormatError::Cell {
+                path: path.to_path_buf(),
+                message: format!("cannot read the cell file: {source}"),
+            },
+            other => FormatError::InputFile(other),
         })?;
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         parse(&text, &dir, path, false)

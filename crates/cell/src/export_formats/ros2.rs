@@ -139,8 +139,8 @@ pub(crate) fn cell_urdf(cell: &Cell, header: &Header<'_>) -> Result<String, Form
             path: setup.urdf_path.clone(),
             message: format!("{which}: building the cell URDF: {message}"),
         };
-        let xml = std::fs::read_to_string(&setup.urdf_path)
-            .map_err(|e| FormatError::io(&setup.urdf_path, e))?;
+        let xml = kinematics::input::read_input_text(&setup.urdf_path, "URDF")
+            .map_err(FormatError::input)?;
         let mut robot = urdf_rs::read_from_string(&xml).map_err(|e| bad(e.to_string()))?;
         let urdf_dir = setup
             .urdf_path

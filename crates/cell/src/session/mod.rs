@@ -13,11 +13,17 @@
 //! without a `kind` column is all coincident handclasps, read exactly as before. Which kind uses
 //! which column is [`kind_columns`]; `docs/formats.md` has the table and an example.
 //!
+//! An optional `source_id` column ([`SOURCE_ID_COLUMN`], after every other column) carries
+//! each row's id in the source it was imported from ([`Session::source_ids`], by point number;
+//! `handclasp import` fills it from the map's `source_id` key); a file without it reads as before,
+//! and readers that do not know it ignore it like any extra column.
+//!
 //! One job: the session CSV. This file holds the row types; `kinds.rs` each observation kind's
 //! row ([`SessionKind`]: its columns, reader, writer and whole-cell observation), `read.rs` the
 //! reader (header, the columns the kinds share, errors by line and column), `write.rs` the
 //! writer. Sessions are simulated by sim-cell.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use calib_core::whole_cell::Kind;
@@ -27,15 +33,21 @@ use nalgebra::Point3;
 use crate::cell::Cell;
 use crate::error::FormatError;
 
+mod checks;
 mod kinds;
 mod read;
 mod write;
 
+pub use checks::{check_session_inputs, SessionCheckError, METRES_LIMIT_MM, RADIANS_LIMIT_DEG};
 pub use kinds::{
     kind_columns, FaceNormals, SessionKind, ToolPair, ALWAYS_WRITTEN, EXTRA_COLUMNS, FACE_COLUMNS,
     KIND_NAMES,
 };
 pub use read::TIP_CONSISTENCY_MM;
+
+/// The optional column holding each row's id in its source (a pose id of the data set a row was
+/// imported from); written last, only when some row has one.
+pub const SOURCE_ID_COLUMN: &str = "source_id";
 
 /// One teach point as the controllers report it.
 #[derive(Debug, Clone, PartialEq)]
@@ -70,6 +82,9 @@ pub struct Session {
     pub points: Vec<SessionPoint>,
     /// Every other row (other kinds, or other tools), in file order.
     pub observations: Vec<SessionObservation>,
+    /// Each row's id in the source it came from, by point number (the [`SOURCE_ID_COLUMN`]);
+    /// rows without one are absent. Empty for sessions that were not imported.
+    pub source_ids: BTreeMap<usize, String>,
 }
 
 /// One row of a session, in file order ([`Session::rows`]).
@@ -97,6 +112,7 @@ impl Session {
         Session {
             points,
             observations: Vec::new(),
+            source_ids: BTreeMap::new(),
         }
     }
 
@@ -188,12 +204,13 @@ impl Session {
 
     /// Writes the session CSV for `cell`'s robots ([`Session::csv_text`]).
     pub fn write_csv(&self, path: &Path, cell: &Cell) -> Result<(), FormatError> {
-        std::fs::write(path, self.csv_text(cell)).map_err(|e| FormatError::io(path, e))
+        crate::output::write_atomically(path, self.csv_text(cell).as_bytes())
     }
 
     /// Reads a session CSV for `cell` (see [`Session::parse_csv`]).
     pub fn read_csv(path: &Path, cell: &Cell) -> Result<Session, FormatError> {
-        let text = std::fs::read_to_string(path).map_err(|e| FormatError::io(path, e))?;
+        let text =
+            kinematics::input::read_input_text(path, "session CSV").map_err(FormatError::input)?;
         Session::parse_csv(&text, path, cell)
     }
 }

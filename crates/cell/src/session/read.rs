@@ -3,15 +3,17 @@
 //! and the fields of its kind (`kinds.rs`). Errors name the line and the column and say what
 //! would work.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use calib_core::whole_cell::Kind;
 use calib_core::Robot;
 use kinematics::base_from_tip;
+use kinematics::input::cap_echo;
 use nalgebra::{Point3, Unit, Vector3};
 
 use super::kinds::{kind_columns, kinds_using, read_row, ReadRow, EXTRA_COLUMNS, KIND_NAMES};
-use super::{Session, SessionObservation, SessionPoint};
+use super::{Session, SessionObservation, SessionPoint, SOURCE_ID_COLUMN};
 use crate::cell::Cell;
 use crate::error::FormatError;
 
@@ -55,7 +57,8 @@ impl Session {
     /// [`super::SessionKind`] (`docs/formats.md` has the table): fields a kind does not use must be empty,
     /// tip columns are required on coincident rows and FK-checked wherever given, tools are named
     /// from the cell (`tip` or `[robotN.tools]`), and the rows of one contact group agree on
-    /// `distance_mm`. Errors name the line and column and say what would work.
+    /// `distance_mm`. An optional [`SOURCE_ID_COLUMN`] fills [`Session::source_ids`] (an empty
+    /// cell: no id). Errors name the line and column and say what would work.
     pub fn parse_csv(text: &str, path: &Path, cell: &Cell) -> Result<Session, FormatError> {
         let err = |message: String| FormatError::Session {
             path: path.to_path_buf(),
@@ -84,6 +87,7 @@ impl Session {
                     .iter()
                     .map(String::as_str)
                     .chain(EXTRA_COLUMNS)
+                    .chain([SOURCE_ID_COLUMN])
                     .collect();
                 let unused: Vec<String> = headers
                     .iter()
@@ -95,10 +99,10 @@ impl Session {
                 } else if headers.len() == 1 {
                     format!(
                         " (the header reads as the single column {}: separate the fields by commas, semicolons or tabs)",
-                        unused.join(", ")
+                        cap_echo(&unused.join(", "))
                     )
                 } else {
-                    format!(" (columns not used: {})", unused.join(", "))
+                    format!(" (columns not used: {})", cap_echo(&unused.join(", ")))
                 };
                 return Err(err(format!(
                     "line 1: the header has no column `{name}`{unused}, which this cell ({} with {d1} joints, {} with {d2}) needs; \
@@ -111,6 +115,8 @@ impl Session {
             idx.push(found);
         }
         let extra: Vec<Option<usize>> = EXTRA_COLUMNS.iter().map(|c| col(c)).collect();
+        let source_col = col(SOURCE_ID_COLUMN);
+        let mut source_ids = BTreeMap::new();
         let mut points = Vec::new();
         let mut observations = Vec::new();
         let mut contacts = ContactDistances::default();
@@ -141,9 +147,15 @@ impl Session {
             let point: usize = row.cell(0).parse().map_err(|_| {
                 err(format!(
                     "line {line_no}, column `point`: `{}` is not a point number (1, 2, …)",
-                    row.cell(0)
+                    cap_echo(row.cell(0))
                 ))
             })?;
+            if let Some(id) = source_col
+                .and_then(|i| record.get(i))
+                .filter(|s| !s.is_empty())
+            {
+                source_ids.insert(point, id.to_string());
+            }
             if !has_kind {
                 let mut v = Vec::with_capacity(want.len() - 1);
                 for k in 1..want.len() {
@@ -171,7 +183,8 @@ impl Session {
                 .to_ascii_lowercase();
             let Some(kind) = Kind::from_name(&kind_text) else {
                 return Err(err(format!(
-                    "line {line_no}, column `kind`: `{kind_text}` is not an observation kind; use one of {} (empty = coincident)",
+                    "line {line_no}, column `kind`: `{}` is not an observation kind; use one of {} (empty = coincident)",
+                    cap_echo(&kind_text),
                     KIND_NAMES.join(", ")
                 )));
             };
@@ -191,6 +204,7 @@ impl Session {
         Ok(Session {
             points,
             observations,
+            source_ids,
         })
     }
 }
@@ -279,8 +293,9 @@ impl RowReader<'_> {
             .filter(|x: &f64| x.is_finite())
             .ok_or_else(|| {
                 self.err(format!(
-                    "column `{}`: `{c}` is not a finite number",
-                    self.want[k]
+                    "column `{}`: `{}` is not a finite number",
+                    self.want[k],
+                    cap_echo(c)
                 ))
             })
     }
@@ -301,7 +316,12 @@ impl RowReader<'_> {
                 .ok()
                 .filter(|x: &f64| x.is_finite())
                 .map(Some)
-                .ok_or_else(|| self.err(format!("column `{name}`: `{c}` is not a finite number"))),
+                .ok_or_else(|| {
+                    self.err(format!(
+                        "column `{name}`: `{}` is not a finite number",
+                        cap_echo(c)
+                    ))
+                }),
         }
     }
 
@@ -425,7 +445,8 @@ impl RowReader<'_> {
             if !used.contains(name) {
                 if let Some(v) = self.extra(name) {
                     return Err(self.err(format!(
-                        "column `{name}` = `{v}`: a {} row does not use it (it belongs to {} rows); leave it empty",
+                        "column `{name}` = `{}`: a {} row does not use it (it belongs to {} rows); leave it empty",
+                        cap_echo(v),
                         kind.name(),
                         kinds_using(name).join("/")
                     )));

@@ -467,3 +467,37 @@ fn kind_names_and_column_owners_are_the_former_tables() {
         assert_eq!(super::kinds::kinds_using(column), kinds, "{column}");
     }
 }
+
+/// The optional `source_id` column: written last when a row has an id (quoted where CSV needs
+/// it), read back by point number into `source_ids` (an empty cell: no id), absent from files
+/// without ids, whose text is unchanged.
+#[test]
+fn source_ids_round_trip_and_older_files_read_as_before() {
+    let cell = Cell::default_floor_wall();
+    let mut s = coincident_session(&cell, 3);
+    let plain = s.csv_text(&cell);
+    assert!(!plain.contains(crate::session::SOURCE_ID_COLUMN));
+    s.source_ids.insert(1, "pose 17".into());
+    s.source_ids.insert(3, "a,b".into());
+    let text = s.csv_text(&cell);
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(lines[0].ends_with(",source_id"), "{}", lines[0]);
+    assert!(
+        lines[1].ends_with(",pose 17") && lines[2].ends_with(',') && lines[3].ends_with(",\"a,b\"")
+    );
+    let back = Session::parse_csv(&text, Path::new("s.csv"), &cell).unwrap();
+    assert_eq!(back.source_ids, s.source_ids);
+    assert_eq!(back.len(), 3);
+    // A mixed session carries it after the kind columns.
+    let mut m = mixed_session(&cell_both_reflectors(), 4);
+    let first = m.rows()[0].point();
+    m.source_ids.insert(first, "id-0".into());
+    let back = Session::parse_csv(
+        &m.csv_text(&cell_both_reflectors()),
+        Path::new("m.csv"),
+        &cell_both_reflectors(),
+    )
+    .unwrap();
+    assert_eq!(back.source_ids, m.source_ids);
+    assert_eq!(back.kind_counts(), m.kind_counts());
+}

@@ -7,14 +7,15 @@ use calib_core::Robot;
 use nalgebra::Point3;
 
 use super::kinds::{kind_columns, ALWAYS_WRITTEN, EXTRA_COLUMNS};
-use super::{Session, SessionRow};
+use super::{Session, SessionRow, SOURCE_ID_COLUMN};
 use crate::cell::Cell;
 
 impl Session {
     /// The CSV text (see the module docs) for joint counts `dof1`, `dof2`: today's columns for a
     /// handclasp-only session, plus [`EXTRA_COLUMNS`] when it has rows of other kinds. Without
     /// the cell, a tool other than the tip is written by its index (`#1`, …), which
-    /// [`Session::parse_csv`] refuses: write such sessions with [`Session::csv_text`].
+    /// [`Session::parse_csv`] refuses: write such sessions with [`Session::csv_text`]. The
+    /// [`SOURCE_ID_COLUMN`] comes last, when [`Session::source_ids`] is not empty.
     pub fn to_csv_string(&self, dof1: usize, dof2: usize) -> String {
         self.write_text(dof1, dof2, &|_, k| {
             if k == 0 {
@@ -61,6 +62,11 @@ impl Session {
         if mixed {
             header.extend(columns.iter().map(|c| c.to_string()));
         }
+        // The source ids, last, only when a row has one (older files are written as before).
+        let with_ids = !self.source_ids.is_empty();
+        if with_ids {
+            header.push(SOURCE_ID_COLUMN.to_string());
+        }
         // Writing to memory cannot fail, and every field is plain ASCII.
         let _ = out.write_record(&header);
         for row in self.rows() {
@@ -92,6 +98,14 @@ impl Session {
             record.extend(t2);
             if mixed {
                 record.extend(w.extra);
+            }
+            if with_ids {
+                record.push(
+                    self.source_ids
+                        .get(&row.point())
+                        .cloned()
+                        .unwrap_or_default(),
+                );
             }
             let _ = out.write_record(&record);
         }

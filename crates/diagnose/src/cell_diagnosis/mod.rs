@@ -20,7 +20,10 @@
 //!    The report gives the residuals against the stated σ and `s_k`.
 //! 3. **Screen.** The blunder screen of the whole-cell fit ([`fit_screened`]) with every family
 //!    free (in a session too small for them, less the tracker drifts and scales:
-//!    [`ScreenOptions::min_redundancy`]); rejected rows are left out of everything after.
+//!    [`ScreenOptions::min_redundancy`]); rejected rows are left out of everything after,
+//!    unless they are a model misfit ([`CellDiagnoseOptions::keep_misfit`]: more than a few
+//!    percent, clustered, or too many to fit without): then every row is kept and the misfit
+//!    reported.
 //! 4. **Baseline.** Nominal kinematics with the nuisances fitted (tracker frames, planes, fitted
 //!    contact distances, the placement); the residual rms of each kind against its stated σ.
 //! 5. **Selection.** Candidates are [`Family`] entries (a robot's joint offsets, origin
@@ -78,7 +81,8 @@ pub use problem::diagnosis_problem;
 use problem::placement_observed;
 
 use calib_core::whole_cell::{
-    fit_screened, CellFit, CellFitError, CellProblem, ScreenOptions, SolveOptions,
+    classify_rejections, fit_screened, CellFit, CellFitError, CellProblem, RejectionPattern,
+    ScreenOptions, SolveOptions,
 };
 use handclasp_cell::Cell;
 use handclasp_cell::Session;
@@ -107,10 +111,17 @@ pub struct CellDiagnoseOptions {
     pub min_relative_gain: f64,
     /// Smallest t statistic of the per-unit relative held-out gains that accepts a family (default 3).
     pub min_gain_t: f64,
-    /// Most selection steps (default 8).
+    /// Most selection steps (default 8; `--max-steps`). The report says when the selection
+    /// stopped here while still accepting families (`step_cap_hit`).
     pub max_steps: usize,
     /// Screen blunders first (default true).
     pub screen_blunders: bool,
+    /// With the screen on: when the rows it rejects are a model misfit (more than a few
+    /// percent, or clustered in joint space or time:
+    /// [`calib_core::whole_cell::classify_rejections`]), or so many that too few would remain,
+    /// keep every row and report the misfit instead (default true: `--screen auto`; false is
+    /// `--screen strict`).
+    pub keep_misfit: bool,
     /// Solver settings (the starting placement is set from the cell when the session has fewer
     /// than 3 coincident rows).
     pub solve: SolveOptions,
@@ -125,6 +136,7 @@ impl Default for CellDiagnoseOptions {
             min_gain_t: 3.0,
             max_steps: 8,
             screen_blunders: true,
+            keep_misfit: true,
             solve: SolveOptions::default(),
         }
     }
@@ -178,6 +190,8 @@ pub(crate) struct CellDiagnosis {
     pub(crate) not_selected: Vec<NotSelected>,
     /// Whether the used rows determine `b1_from_b2` ([`placement_observed`]).
     pub(crate) placement_fitted: bool,
+    /// The screen's rejections classified as a model misfit (every row then kept).
+    pub(crate) screen_misfit: Option<RejectionPattern>,
 }
 
 /// Diagnoses a session with non-coincident rows on its cell (see the module documentation).
@@ -248,14 +262,11 @@ fn run(
     progress("noise level per kind (every family free)");
     let noise_scale = noise_scales(&problem, &free, &all, options, x0)?;
     let problem = scaled_noise(&problem, &noise_scale);
-    let (used, rejected) = if options.screen_blunders {
+    let (used, rejected, screen_misfit) = if options.screen_blunders {
         progress("screening blunders (every family free)");
-        let p = model_problem(&problem, &free);
-        let layout = model_layout(&p, &free);
-        let screened = fit_screened(&p, Some(layout), &options.solve, &ScreenOptions::default())?;
-        (screened.fit.active.clone(), screened.rejected)
+        screen(&problem, &free, &all, options)?
     } else {
-        (all.clone(), Vec::new())
+        (all.clone(), Vec::new(), None)
     };
     let units = held_out_units(&problem, &used);
     let n_units = units.len();
@@ -429,7 +440,57 @@ fn run(
         final_fit: current,
         not_selected,
         placement_fitted,
+        screen_misfit,
     })
+}
+
+/// The screened rows of the session (every family free): `(used, rejected, misfit)`. With
+/// [`CellDiagnoseOptions::keep_misfit`], rejections that are a model misfit (or that would
+/// leave too few rows) keep every row and come back as the misfit's pattern. The rows' noise
+/// is already scaled per kind (step 2), so the share rule runs at noise scale 1.
+type Screened = (
+    Vec<usize>,
+    Vec<calib_core::whole_cell::RejectedRow>,
+    Option<RejectionPattern>,
+);
+
+fn screen(
+    problem: &CellProblem,
+    free: &[Family],
+    all: &[usize],
+    options: &CellDiagnoseOptions,
+) -> Result<Screened, CellFitError> {
+    let p = model_problem(problem, free);
+    let layout = model_layout(&p, free);
+    let index_of = |rows: &[usize]| -> Vec<usize> {
+        (0..p.observations.len())
+            .filter(|&i| rows.contains(&p.observations[i].row))
+            .collect()
+    };
+    match fit_screened(
+        &p,
+        Some(layout.clone()),
+        &options.solve,
+        &ScreenOptions::default(),
+    ) {
+        Ok(screened) => {
+            if options.keep_misfit && !screened.rejected.is_empty() {
+                let rows: Vec<usize> = screened.rejected.iter().map(|r| r.row).collect();
+                let pattern = classify_rejections(&p, &screened.fit, &index_of(&rows), 1.0, 1.0)?;
+                if pattern.misfit {
+                    return Ok((all.to_vec(), Vec::new(), Some(pattern)));
+                }
+            }
+            Ok((screened.fit.active.clone(), screened.rejected, None))
+        }
+        Err(CellFitError::TooFewRows { rejected_rows, .. }) if options.keep_misfit => {
+            let fit = calib_core::whole_cell::fit_cell_with(&p, layout, all, None, &options.solve)?;
+            let mut pattern = classify_rejections(&p, &fit, &index_of(&rejected_rows), 1.0, 1.0)?;
+            pattern.misfit = true;
+            Ok((all.to_vec(), Vec::new(), Some(pattern)))
+        }
+        Err(e) => Err(e),
+    }
 }
 
 #[cfg(test)]

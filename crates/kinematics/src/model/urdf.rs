@@ -104,9 +104,9 @@ impl RobotModel {
                 source_name: path.display().to_string(),
             });
         }
-        let xml = std::fs::read_to_string(path).map_err(|source| ModelError::Io {
-            path: path.to_path_buf(),
-            source,
+        let xml = crate::input::read_input_text(path, "URDF").map_err(|e| match e {
+            crate::input::InputError::Io { path, source } => ModelError::Io { path, source },
+            other => ModelError::Input(other),
         })?;
         Self::build(&xml, tool_link, &path.display().to_string())
     }

@@ -89,6 +89,40 @@ proptest! {
         }
     }
 
+    /// The one-walk pose and Jacobian equal the two separate calls bit for bit: random errors
+    /// (every kind, compliance included), zero errors (the nominal shortcut), and compliance
+    /// columns asked for with every compliance zero; every parameter column, and the joint
+    /// offsets alone.
+    #[test]
+    fn tip_with_error_jacobian_equals_the_two_calls(seed in any::<u64>()) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        for m in robots() {
+            let q = random_q(&m, &mut rng);
+            let tip = random_tip(&mut rng);
+            let g = random_g(&mut rng);
+            let random = random_errors(&m, &mut rng);
+            let mut no_compliance = random.clone();
+            no_compliance.compliance.iter_mut().for_each(|c| *c = 0.0);
+            let all = all_params_for(&m);
+            let offsets: Vec<ErrorParam> = all
+                .iter()
+                .copied()
+                .filter(|p| matches!(p, ErrorParam::JointOffset { .. }))
+                .collect();
+            for errors in [random, no_compliance, KinematicErrors::zero_for(&m)] {
+                for params in [&all, &offsets] {
+                    let (pose, jac) =
+                        true_tip_with_error_jacobian(&m, &errors, &q, &tip, &g, params).unwrap();
+                    prop_assert_eq!(pose, true_base_from_tip(&m, &errors, &q, &tip, &g).unwrap());
+                    prop_assert_eq!(
+                        jac,
+                        tip_error_jacobian(&m, &errors, &q, &tip, &g, params).unwrap()
+                    );
+                }
+            }
+        }
+    }
+
     #[test]
     fn zero_errors_reproduce_nominal_fk_exactly(seed in any::<u64>()) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);

@@ -163,7 +163,7 @@ fn scale_trial(cell: Cell, seed: u64, n: usize, sigma: f64, truth_fraction: f64)
     p.robot2.tolerance = tol;
     let pairs = sc.eval_pairs(200, 0.7, seed + 2000);
     let start = Instant::now();
-    let cal = calibrate_cell(&p, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
+    let cal = evidence_calibration(&p);
     let seconds = start.elapsed().as_secs_f64();
     let chosen = measure_cooperative_error(&p, &cal.fit.estimate, &sc.truth, &pairs).unwrap();
     let all: Vec<usize> = (0..n).collect();
@@ -228,6 +228,16 @@ fn prior_scale_monte_carlo() {
                 .join(" ")
         );
     }
+}
+
+/// What `calibrate --cell` does on a session that passes its result check: the calibration at
+/// the stated tolerances, then its widening when the evidence asks for one.
+fn evidence_calibration(p: &CellProblem) -> CellCalibration {
+    let (solve, screen) = (SolveOptions::default(), ScreenOptions::default());
+    let stated = calibrate_cell(p, &solve, &screen).unwrap();
+    widen_prior(p, &stated, &solve, &screen)
+        .unwrap()
+        .unwrap_or(stated)
 }
 
 /// The evidence-chosen scale 1e-3 shrinks the kinematic corrections to ~1e-6 of their
@@ -305,7 +315,10 @@ fn oracle_trial(cell: Cell, seed: u64, truth_fraction: f64) -> OracleTrial {
         let e = measure_cooperative_error(&p, &cal.fit.estimate, &sc.truth, &pairs).unwrap();
         (e.rms_m, cal)
     };
-    let (evidence_rms, cal) = rms(None);
+    let cal = evidence_calibration(&p);
+    let evidence_rms = measure_cooperative_error(&p, &cal.fit.estimate, &sc.truth, &pairs)
+        .unwrap()
+        .rms_m;
     OracleTrial {
         evidence_rms,
         oracle_rms: rms(Some(truth_fraction)).0,
@@ -370,6 +383,48 @@ fn evidence_does_not_widen_right_tolerances() {
                 t.choice
             );
         }
+    }
+}
+
+/// Tolerances stated 1000× too narrow (truth drawn from the realistic tolerances, the problem's
+/// tolerances a thousandth of them): the evidence would widen beyond ×100, but the product of
+/// every widening of a family stays within [`MAX_PRIOR_SCALE`] (the passes multiply: before the
+/// cap a family reached ×400), and `calibrate_cell` alone never widens.
+#[test]
+fn widening_is_capped_at_max_prior_scale_in_all() {
+    let sc = sim_cell(Cell::Wall, realistic(), false, 761);
+    let mut p = coincident_problem(&sc, 40, 3e-4, 762);
+    let narrow = |t: Tolerance| Tolerance {
+        joint_offset_rad: t.joint_offset_rad * 1e-3,
+        origin_xyz_m: t.origin_xyz_m * 1e-3,
+        tip_m: t.tip_m * 1e-3,
+        ..t
+    };
+    p.robot1.tolerance = narrow(realistic());
+    p.robot2.tolerance = narrow(realistic());
+    let (solve, screen) = (SolveOptions::default(), ScreenOptions::default());
+    let stated = calibrate_cell(&p, &solve, &screen).unwrap();
+    assert!(stated.prior_scale.families.iter().all(|f| f.scale <= 1.0));
+    let wide = widen_prior(&p, &stated, &solve, &screen)
+        .unwrap()
+        .expect("the evidence widens tolerances 1000× too narrow");
+    let widest = wide
+        .prior_scale
+        .families
+        .iter()
+        .map(|f| f.scale)
+        .fold(0.0, f64::max);
+    assert!(
+        widest > 8.0 && widest <= MAX_PRIOR_SCALE * (1.0 + 1e-12),
+        "{:?}",
+        wide.prior_scale
+    );
+    for q in &wide.report(&p).parameters {
+        assert!(
+            q.prior_scale <= MAX_PRIOR_SCALE * (1.0 + 1e-12),
+            "{}",
+            q.name
+        );
     }
 }
 

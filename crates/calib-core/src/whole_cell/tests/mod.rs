@@ -22,6 +22,7 @@ mod design;
 mod face_contact;
 mod jacobians;
 mod reduce;
+mod result_check;
 mod solve;
 mod terms;
 

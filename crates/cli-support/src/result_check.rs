@@ -1,0 +1,589 @@
+//! The result check of a whole-cell fit (`calibrate --cell`, both models, the Python package's
+//! `calibrate_cell`; `diagnose` runs its [`ScreenMode`] rule), run after the fit by
+//! [`crate::cell_report::calibrate_session_with`]. Its thresholds and why are in
+//! `docs/guide/warnings.md`.
+//!
+//! 1. [`screen_outcome`]: with `--screen auto`, the rows the blunder screen rejected are
+//!    classified (`calib_core::whole_cell::classify_rejections`); a model misfit keeps every row
+//!    (the caller refits without rejection) and says so.
+//! 2. [`check_result`]: the robust noise scale against the stated σ, the fitted `b1_from_b2`
+//!    against the cell's (its stated σ, or a default, named), the layout's shape;
+//! 3. when the noise scale is high or the placement far, the likely mistakes
+//!    (`calib_core::whole_cell::candidate_mistakes`) and the other cells in the cell's folder
+//!    ([`sibling_cells`]) are tried placement-only, each reported with its noise scale and
+//!    placement distance; one that explains the contradiction is the likely mistake;
+//! 4. the status: `refused` (a likely mistake, or a noise scale above the refusal limit),
+//!    `warning`, or `ok`, with one message per finding (the CLI prints them after `warning:`,
+//!    or refuses with them unless `--force`).
+
+use std::path::Path;
+
+use calib_core::whole_cell::{
+    candidate_mistakes, classify_rejections, layout_shape, placement_distance, robust_noise_scale,
+    try_problem, CellCalibration, CellFitError, CellProblem, CheckThresholds, PlacementDistance,
+    RejectionPattern, Trial,
+};
+use handclasp_cell::problem::{cell_problem, FitModel};
+use handclasp_cell::{Cell, Session};
+use serde::Serialize;
+
+/// How the blunder screen treats rows that disagree with the fit (`--screen`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum ScreenMode {
+    /// Reject blunders, unless the rejections are a model misfit (more than a few percent of
+    /// the rows, or clustered in joint space or time): then keep every row and say so.
+    #[default]
+    Auto,
+    /// No screen: every row is fitted.
+    Off,
+    /// Reject every row above the screen's limit, misfit or not (the behaviour before the
+    /// result check).
+    Strict,
+}
+
+impl ScreenMode {
+    /// `auto`, `off` or `strict`.
+    pub fn name(self) -> &'static str {
+        match self {
+            ScreenMode::Auto => "auto",
+            ScreenMode::Off => "off",
+            ScreenMode::Strict => "strict",
+        }
+    }
+
+    /// From [`ScreenMode::name`]; `None` for any other text.
+    pub fn from_name(name: &str) -> Option<ScreenMode> {
+        [ScreenMode::Auto, ScreenMode::Off, ScreenMode::Strict]
+            .into_iter()
+            .find(|m| m.name() == name)
+    }
+}
+
+/// What the screen did (JSON `result_check.screen`).
+#[derive(Debug, Clone, Serialize)]
+pub struct ScreenReport {
+    /// The mode.
+    pub mode: ScreenMode,
+    /// The rejections classified (`None` when the screen rejected nothing or is off).
+    pub pattern: Option<RejectionPattern>,
+    /// True when every row was kept because the rejections were a model misfit.
+    pub rows_kept: bool,
+}
+
+/// The screen's outcome after a fit in `mode`: with `auto` and rows rejected, their
+/// classification. The caller refits without rejection when `rows_kept`.
+///
+/// # Errors
+/// The residuals cannot be evaluated.
+pub fn screen_outcome(
+    problem: &CellProblem,
+    cal: &CellCalibration,
+    mode: ScreenMode,
+) -> Result<ScreenReport, CellFitError> {
+    if mode == ScreenMode::Off || cal.rejected.is_empty() {
+        return Ok(ScreenReport {
+            mode,
+            pattern: None,
+            rows_kept: false,
+        });
+    }
+    let rejected: Vec<usize> = problem
+        .observations
+        .iter()
+        .enumerate()
+        .filter(|(_, o)| cal.rejected.iter().any(|r| r.row == o.row))
+        .map(|(i, _)| i)
+        .collect();
+    let pattern = classify_with_noise(problem, cal, &rejected)?;
+    let rows_kept = mode == ScreenMode::Auto && pattern.misfit;
+    Ok(ScreenReport {
+        mode,
+        pattern: Some(pattern),
+        rows_kept,
+    })
+}
+
+/// The screen's outcome when rejecting the source rows `rejected_rows` would leave too few
+/// rows to fit (`CellFitError::TooFewRows`): a model misfit by definition, every row kept
+/// (`cal` is the fit on all of them).
+///
+/// # Errors
+/// The residuals cannot be evaluated.
+pub fn misfit_outcome(
+    problem: &CellProblem,
+    cal: &CellCalibration,
+    rejected_rows: &[usize],
+    mode: ScreenMode,
+) -> Result<ScreenReport, CellFitError> {
+    let rejected: Vec<usize> = problem
+        .observations
+        .iter()
+        .enumerate()
+        .filter(|(_, o)| rejected_rows.contains(&o.row))
+        .map(|(i, _)| i)
+        .collect();
+    let mut pattern = classify_with_noise(problem, cal, &rejected)?;
+    pattern.misfit = true;
+    Ok(ScreenReport {
+        mode,
+        pattern: Some(pattern),
+        rows_kept: true,
+    })
+}
+
+/// [`classify_rejections`] with the fit's robust noise scale and the check's
+/// [`CheckThresholds::noise_high`].
+fn classify_with_noise(
+    problem: &CellProblem,
+    cal: &CellCalibration,
+    rejected: &[usize],
+) -> Result<RejectionPattern, CellFitError> {
+    let noise = robust_noise_scale(problem, &cal.fit, cov_scale(cal))?;
+    classify_rejections(
+        problem,
+        &cal.fit,
+        rejected,
+        noise,
+        CheckThresholds::default().noise_high,
+    )
+}
+
+/// What divides a fit's covariance back to the stated noise: a placement-only fit's
+/// covariance is scaled by its screen's noise scale (`calibrate_cell`), a kinematic one's not.
+fn cov_scale(cal: &CellCalibration) -> f64 {
+    if cal.fit.layout.prior_sqrt_info.nrows() == 0 {
+        cal.noise_scale
+    } else {
+        1.0
+    }
+}
+
+/// One check: its value against its limits (JSON `result_check.checks[]`).
+#[derive(Debug, Clone, Serialize)]
+pub struct CheckItem {
+    /// What the value means and where the limits come from.
+    pub detail: String,
+    /// `noise_scale`, `placement_translation_mm`, `placement_rotation_deg`, `layout_line_ratio`
+    /// or `layout_plane_ratio`.
+    pub name: &'static str,
+    /// `ok`, `high`, `low`, `far` or `degenerate`.
+    pub status: &'static str,
+    /// The limits: `[low, high, refusal]` for the noise scale, `[allowed]` for the placement,
+    /// `[limit]` for the layout ratios.
+    pub thresholds: Vec<f64>,
+    /// The value.
+    pub value: f64,
+}
+
+/// A mistake tried (JSON `result_check.mistakes_tried[]`, `likely_mistake`).
+#[derive(Debug, Clone, Serialize)]
+pub struct MistakeTrialReport {
+    /// True when it explains the contradiction.
+    pub explains: bool,
+    /// The mistake, in words.
+    pub mistake: String,
+    /// The robust noise scale with the mistake undone (placement-only fit).
+    pub noise_scale: f64,
+    /// Its placement's rotation from the cell's stated one (or, for another cell, from that
+    /// cell's), degrees.
+    pub placement_deg: f64,
+    /// Its placement's distance from the stated one, mm.
+    pub placement_mm: f64,
+}
+
+/// The result check (JSON `result_check`).
+#[derive(Debug, Clone, Serialize)]
+pub struct ResultCheckReport {
+    /// Each check with its value and limits.
+    pub checks: Vec<CheckItem>,
+    /// The mistake that explains the contradiction, if one does.
+    pub likely_mistake: Option<MistakeTrialReport>,
+    /// One line per finding (the CLI prints each after `warning:`, or refuses with them).
+    pub messages: Vec<String>,
+    /// The placement-only fit as given (the baseline the mistakes are compared with), then
+    /// every mistake tried (empty when every check passed).
+    pub mistakes_tried: Vec<MistakeTrialReport>,
+    /// What the blunder screen did.
+    pub screen: ScreenReport,
+    /// `ok`, `warning` or `refused`.
+    pub status: &'static str,
+}
+
+impl ResultCheckReport {
+    /// True when the result contradicts what was stated and a caller should refuse it
+    /// (unless forced).
+    pub fn refused(&self) -> bool {
+        self.status == STATUS_REFUSED
+    }
+
+    /// Adds the findings of `stated`, the check of the fit at the stated tolerances, that this
+    /// check (of the fit at widened tolerances) does not repeat, each said as such: a widened
+    /// prior can absorb what the stated fit showed (σ understated, a model misfit), and the user
+    /// must still hear it. The status becomes `warning` when a finding was added (`refused`
+    /// stays).
+    pub fn add_stated_findings(&mut self, stated: &ResultCheckReport) {
+        for m in &stated.messages {
+            if !self.messages.contains(m) {
+                self.messages.push(format!(
+                    "at the stated tolerances, before the evidence widened them: {m}"
+                ));
+            }
+        }
+        if !self.messages.is_empty() && self.status == "ok" {
+            self.status = "warning";
+        }
+    }
+}
+
+const STATUS_REFUSED: &str = "refused";
+
+/// The placement allowance: `(mm, deg, where it comes from)`.
+fn allowance(cell: &Cell, th: &CheckThresholds) -> (f64, f64, String) {
+    match cell.b1_from_b2_sigma {
+        Some(s) if s.sigma_m > 0.0 && s.sigma_rad > 0.0 => (
+            th.placement_k_sigma * s.sigma_m * 1e3,
+            th.placement_k_sigma * s.sigma_rad.to_degrees(),
+            format!(
+                "{} × the cell's [b1_from_b2] sigma_mm/sigma_deg",
+                th.placement_k_sigma
+            ),
+        ),
+        _ => (
+            th.default_placement_mm,
+            th.default_placement_deg,
+            "the default: the cell states no [b1_from_b2] sigma_mm/sigma_deg".into(),
+        ),
+    }
+}
+
+fn within(d: &PlacementDistance, mm: f64, deg: f64) -> bool {
+    d.translation_mm <= mm && d.rotation_deg <= deg
+}
+
+/// The other cell files in `cell`'s folder (its `base_dir`) that read as cells with the same
+/// joint counts, without the cell itself (same URDFs and placement): `(file name, cell)`, in
+/// file-name order. Unreadable files are skipped.
+pub fn sibling_cells(cell: &Cell) -> Vec<(String, Cell)> {
+    let Ok(entries) = std::fs::read_dir(&cell.base_dir) else {
+        return Vec::new();
+    };
+    let mut paths: Vec<std::path::PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    paths.sort();
+    paths
+        .into_iter()
+        .filter_map(|p| {
+            let other = Cell::from_toml_file(&p).ok()?;
+            let same_robots = other.robot1.model.dof() == cell.robot1.model.dof()
+                && other.robot2.model.dof() == cell.robot2.model.dof();
+            let d = placement_distance(&other.b1_from_b2, &cell.b1_from_b2);
+            let itself = d.translation_mm < 1e-3
+                && d.rotation_deg < 1e-6
+                && other.robot1.urdf_path == cell.robot1.urdf_path
+                && other.robot2.urdf_path == cell.robot2.urdf_path;
+            (same_robots && !itself).then(|| (file_name(&p), other))
+        })
+        .collect()
+}
+
+fn file_name(p: &Path) -> String {
+    p.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// The result check of `cal`, the fit of `problem` (built from `cell` and `session`), after
+/// the screen `screen` (module documentation, steps 2–4).
+///
+/// # Errors
+/// The fit's residuals cannot be evaluated.
+pub fn check_result(
+    cell: &Cell,
+    session: &Session,
+    problem: &CellProblem,
+    cal: &CellCalibration,
+    screen: ScreenReport,
+) -> Result<ResultCheckReport, CellFitError> {
+    let th = CheckThresholds::default();
+    let noise = robust_noise_scale(problem, &cal.fit, cov_scale(cal))?;
+    let dist = placement_distance(&cal.fit.estimate.b1_from_b2, &cell.b1_from_b2);
+    let (allow_mm, allow_deg, allow_source) = allowance(cell, &th);
+    let mut checks = Vec::new();
+    let noise_status = if noise > th.noise_high {
+        "high"
+    } else if noise < th.noise_low {
+        "low"
+    } else {
+        "ok"
+    };
+    checks.push(CheckItem {
+        detail: "robust noise scale of the residuals (median of each row's χ² over its median \
+                 under the stated noise, every row): far above 1, the model misfits or σ is \
+                 understated; far below, σ is overstated"
+            .into(),
+        name: "noise_scale",
+        status: noise_status,
+        thresholds: vec![th.noise_low, th.noise_high, th.noise_refuse],
+        value: noise,
+    });
+    let placement_far = !within(&dist, allow_mm, allow_deg);
+    for (name, value, allowed) in [
+        ("placement_translation_mm", dist.translation_mm, allow_mm),
+        ("placement_rotation_deg", dist.rotation_deg, allow_deg),
+    ] {
+        checks.push(CheckItem {
+            detail: format!(
+                "the fitted b1_from_b2 against the cell's stated one; allowed: {allow_source}"
+            ),
+            name,
+            status: if value > allowed { "far" } else { "ok" },
+            thresholds: vec![allowed],
+            value,
+        });
+    }
+    let shape = layout_shape(problem);
+    let mut degenerate = Vec::new();
+    if let Some(shape) = &shape {
+        for (name, value, limit, what) in [
+            (
+                "layout_line_ratio",
+                shape.line_ratio(),
+                th.collinear_ratio,
+                "nearly collinear: the rotation about their line is poorly determined",
+            ),
+            (
+                "layout_plane_ratio",
+                shape.plane_ratio(),
+                th.coplanar_ratio,
+                "nearly coplanar: a kinematic fit cannot separate the errors that move the tips \
+                 out of that plane",
+            ),
+        ] {
+            let bad = value < limit;
+            if bad {
+                degenerate.push(format!(
+                    "robot 1's tool points of the {} two-robot rows are {what} (principal spread \
+                     {:.1}, {:.1}, {:.1} mm; {name} {value:.4} below {limit}): add rows off that \
+                     {}",
+                    shape.points,
+                    shape.spread_mm[0],
+                    shape.spread_mm[1],
+                    shape.spread_mm[2],
+                    if name == "layout_line_ratio" {
+                        "line"
+                    } else {
+                        "plane"
+                    },
+                ));
+            }
+            checks.push(CheckItem {
+                detail: "second (line) or third (plane) over the first principal spread of \
+                         robot 1's tool points of the two-robot rows"
+                    .into(),
+                name,
+                status: if bad { "degenerate" } else { "ok" },
+                thresholds: vec![limit],
+                value,
+            });
+        }
+    }
+    let noise_high = noise > th.noise_high;
+    let mut tried = Vec::new();
+    let mut likely: Option<MistakeTrialReport> = None;
+    if noise_high || placement_far {
+        if let Ok(base) = try_problem(problem, &cell.b1_from_b2) {
+            let bd = base.distance(&cell.b1_from_b2);
+            tried.push(trial_report("none (the data as given)", &base, &bd, false));
+            let explains = |t: &Trial, d: &PlacementDistance, mm: f64, deg: f64| {
+                let ok_here = within(d, mm, deg);
+                if noise_high {
+                    t.noise_scale * th.mistake_gain <= base.noise_scale
+                        && (ok_here || !placement_far)
+                } else {
+                    ok_here && t.noise_scale <= (1.5 * base.noise_scale).max(th.noise_high)
+                }
+            };
+            for m in candidate_mistakes(problem) {
+                let Some(p) = m.apply(problem) else { continue };
+                let Ok(t) = try_problem(&p, &cell.b1_from_b2) else {
+                    continue;
+                };
+                let d = t.distance(&cell.b1_from_b2);
+                let e = explains(&t, &d, allow_mm, allow_deg);
+                tried.push(trial_report(&m.describe(), &t, &d, e));
+            }
+            for (name, other) in sibling_cells(cell) {
+                let p = cell_problem(&other, session, FitModel::Placement);
+                let Ok(t) = try_problem(&p, &other.b1_from_b2) else {
+                    continue;
+                };
+                let d = t.distance(&other.b1_from_b2);
+                let (mm, deg, _) = allowance(&other, &th);
+                let e = explains(&t, &d, mm, deg);
+                let what = format!("the session recorded in another cell, {name} (its robots, mounts and placement)");
+                tried.push(trial_report(&what, &t, &d, e));
+            }
+            likely = tried
+                .iter()
+                .filter(|t| t.explains)
+                .min_by(|a, b| {
+                    a.noise_scale
+                        .total_cmp(&b.noise_scale)
+                        .then(a.placement_mm.total_cmp(&b.placement_mm))
+                })
+                .cloned();
+        }
+    }
+    let mut messages = Vec::new();
+    let mut refused = false;
+    let now = format!(
+        "now {noise:.2} and {:.1} mm / {:.2}°",
+        dist.translation_mm, dist.rotation_deg
+    );
+    let tried_count = tried.len().saturating_sub(1);
+    if let Some(m) = &likely {
+        refused = true;
+        messages.push(format!(
+            "likely mistake: {}: undone, the noise scale would be {:.2} and the placement {:.1} mm \
+             / {:.2}° from the stated one ({now}); correct it and re-run (--force keeps this fit)",
+            m.mistake, m.noise_scale, m.placement_mm, m.placement_deg
+        ));
+    } else if noise > th.noise_refuse {
+        refused = true;
+        messages.push(format!(
+            "model misfit: the residuals are {noise:.1}× the stated noise (refused above {}), and \
+             none of {tried_count} likely mistakes tried (rows shifted, robots or joints swapped, \
+             a joint's sign, radians, tips, the other cells beside this one) explains it: check \
+             the robots' URDFs and tips; `handclasp diagnose` names what the model misses \
+             (--force keeps this fit)",
+            th.noise_refuse
+        ));
+    } else {
+        if noise_high {
+            messages.push(format!(
+                "the residuals are {noise:.1}× the stated noise (warning above {}): the model \
+                 misfits or the cell's [noise] is understated; none of {tried_count} likely \
+                 mistakes explains it; `handclasp diagnose` names what the model misses",
+                th.noise_high
+            ));
+        }
+        if placement_far {
+            messages.push(format!(
+                "the fitted b1_from_b2 is {:.1} mm / {:.2}° from the cell's (allowed {allow_mm:.1} \
+                 mm / {allow_deg:.2}°, {allow_source}); none of {tried_count} likely mistakes \
+                 explains it: check the cell's placement, mounts and tips",
+                dist.translation_mm, dist.rotation_deg
+            ));
+        }
+    }
+    if noise < th.noise_low {
+        messages.push(format!(
+            "the residuals are {noise:.2}× the stated noise (warning below {}): the cell's \
+             [noise] looks overstated, so the kinematic prior and the blunder screen trust the \
+             data too little; state the session's real noise",
+            th.noise_low
+        ));
+    }
+    messages.extend(degenerate);
+    if let Some(p) = screen.pattern.as_ref().filter(|p| p.misfit) {
+        messages.push(if screen.rows_kept {
+            format!(
+                "model misfit, not blunders: {}; every row kept (--screen auto); `handclasp \
+                 diagnose` names what the model misses (--screen strict rejects them)",
+                p.describe()
+            )
+        } else {
+            format!(
+                "the rejected rows look like a model misfit, not blunders: {}; rejected anyway \
+                 (--screen strict); `handclasp diagnose` names what the model misses",
+                p.describe()
+            )
+        });
+    }
+    let status = if refused {
+        STATUS_REFUSED
+    } else if messages.is_empty() {
+        "ok"
+    } else {
+        "warning"
+    };
+    Ok(ResultCheckReport {
+        checks,
+        likely_mistake: likely,
+        messages,
+        mistakes_tried: tried,
+        screen,
+        status,
+    })
+}
+
+fn trial_report(
+    what: &str,
+    t: &Trial,
+    d: &PlacementDistance,
+    explains: bool,
+) -> MistakeTrialReport {
+    MistakeTrialReport {
+        explains,
+        mistake: what.to_string(),
+        noise_scale: t.noise_scale,
+        placement_deg: d.rotation_deg,
+        placement_mm: d.translation_mm,
+    }
+}
+
+/// The largest difference allowed between a row's residual re-predicted from an exported cell
+/// and the fit's own, mm: the URDF patch's tolerance (`kinematics::PATCH_TOLERANCE_M`) and the
+/// cell file's rounding are far below it; a fitted quantity the export lost is far above it
+/// (a named tool moved by millimetres).
+pub const EXPORT_REPREDICTION_TOL_MM: f64 = 0.01;
+
+/// The largest difference, mm, between each training row's residual re-predicted from
+/// `exported` (the cell an export wrote, read back; its `[robotN.errors]` applied, the fit's
+/// nuisances — tracker frames, planes, contact distances — carried over, as they are not cell
+/// properties) and the residual of the fit `cal` of `problem`, with the row of the largest.
+///
+/// # Errors
+/// A residual cannot be evaluated, or the exported cell's estimate does not fit the session
+/// (joint counts, tools).
+pub fn reprediction_difference(
+    exported: &Cell,
+    session: &Session,
+    problem: &CellProblem,
+    cal: &CellCalibration,
+) -> Result<(f64, usize), CellFitError> {
+    use calib_core::whole_cell::{CellEstimate, Evaluator, ParamLayout};
+    use calib_core::Robot;
+    let p = cell_problem(exported, session, FitModel::Placement);
+    let mut est = CellEstimate::nominal(&p, exported.b1_from_b2);
+    for robot in Robot::BOTH {
+        let errors = exported.robot(robot).errors.clone();
+        match robot {
+            Robot::One => est.robot1.errors = errors,
+            Robot::Two => est.robot2.errors = errors,
+        }
+    }
+    let fitted = &cal.fit.estimate;
+    est.tracker_from_anchor = fitted.tracker_from_anchor.clone();
+    est.tracker_scale = fitted.tracker_scale.clone();
+    est.tracker_drift_m = fitted.tracker_drift_m.clone();
+    est.planes = fitted.planes.clone();
+    est.contact_distance_m = fitted.contact_distance_m.clone();
+    est.check(&p)?;
+    let layout_exported = ParamLayout::new(&p, &[]);
+    let ev_exported = Evaluator::new(&p, &layout_exported);
+    let ev_fit = Evaluator::new(problem, &cal.fit.layout);
+    let mut worst = (0.0f64, 0usize);
+    for (a, b) in problem.observations.iter().zip(&p.observations) {
+        let ra = ev_fit.linearise(a, fitted, false)?.residual;
+        let rb = ev_exported.linearise(b, &est, false)?.residual;
+        let d = (ra - rb).norm() * 1e3;
+        if d > worst.0 {
+            worst = (d, a.row);
+        }
+    }
+    Ok(worst)
+}
