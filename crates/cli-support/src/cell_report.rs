@@ -182,10 +182,10 @@ pub fn calibrate_session_with(
 /// The fit and its result check: the fit at the stated tolerances ([`fit_with_screen`], or the
 /// caller's scale when it is 1 or less), checked; then, only when that check found no likely
 /// mistake and did not refuse, the widening (`calib_core::whole_cell::widen_prior`, or the
-/// caller's scale above 1), checked again. A wrong model looks to the evidence like robots
-/// further off than stated, and a widened prior lets the kinematic terms absorb it, so the
-/// check must see the fit before any widening. The check returned is the final fit's, with the
-/// stated fit's findings it does not repeat (said as such).
+/// caller's scale above 1) with the screen in the same mode, checked again. A wrong model looks
+/// to the evidence like robots further off than stated, and a widened prior lets the kinematic
+/// terms absorb it, so the check must see the fit before any widening. The check returned is
+/// the final fit's, with the stated fit's findings it does not repeat (said as such).
 fn fit_and_check(
     cell: &Cell,
     session: &Session,
@@ -195,40 +195,53 @@ fn fit_and_check(
     tolerance_scale: Option<f64>,
 ) -> Result<(CellCalibration, ResultCheckReport), CellCalibrationError> {
     let fit_err = CellCalibrationError::Fit;
-    let widen_to = tolerance_scale.filter(|&x| x > 1.0);
     let stated_scale = tolerance_scale.filter(|&x| x <= 1.0);
-    let (cal, screen_report, options) =
-        fit_with_screen(problem, solve, screen, stated_scale).map_err(fit_err)?;
-    let check =
-        check_result(cell, session, problem, &cal, screen_report.clone()).map_err(fit_err)?;
-    if check.refused() || check.likely_mistake.is_some() {
-        return Ok((cal, check));
+    let (stated, screen_report, stated_options) = fit_with_screen(problem, screen, &|o| {
+        calibrate_cell_with(problem, solve, o, stated_scale)
+    })
+    .map_err(fit_err)?;
+    let check = check_result(cell, session, problem, &stated, screen_report).map_err(fit_err)?;
+    if check.refused() || check.likely_mistake.is_some() || stated_scale.is_some() {
+        return Ok((stated, check));
     }
-    let widened = match (widen_to, tolerance_scale) {
-        (Some(x), _) => {
-            Some(calibrate_cell_with(problem, solve, &options, Some(x)).map_err(fit_err)?)
+    // The widened fit at screen options `o`: from the stated fit when it was made at `o`.
+    let widen = |o: &ScreenOptions| -> Result<Option<CellCalibration>, CellFitError> {
+        if let Some(x) = tolerance_scale {
+            return calibrate_cell_with(problem, solve, o, Some(x)).map(Some);
         }
-        (None, None) => widen_prior(problem, &cal, solve, &options).map_err(fit_err)?,
-        (None, Some(_)) => None,
+        if *o == stated_options {
+            widen_prior(problem, &stated, solve, o)
+        } else {
+            let at_o = calibrate_cell_with(problem, solve, o, None)?;
+            widen_prior(problem, &at_o, solve, o)
+        }
     };
-    let Some(wide) = widened else {
-        return Ok((cal, check));
+    // Would the evidence widen at all? (Cheap: no refit unless it does.)
+    let Some(first) = widen(&stated_options).map_err(fit_err)? else {
+        return Ok((stated, check));
     };
+    let (wide, wide_screen, _) = fit_with_screen(problem, screen, &|o| {
+        if *o == stated_options {
+            Ok(first.clone())
+        } else {
+            widen(o).map(|w| w.unwrap_or_else(|| first.clone()))
+        }
+    })
+    .map_err(fit_err)?;
     let mut wide_check =
-        check_result(cell, session, problem, &wide, screen_report).map_err(fit_err)?;
+        check_result(cell, session, problem, &wide, wide_screen).map_err(fit_err)?;
     wide_check.add_stated_findings(&check);
     Ok((wide, wide_check))
 }
 
-/// The screened fit in `mode` ([`ScreenMode`]) at the prior scale `tolerance_scale` (`None`:
-/// the evidence's, at most 1): `strict` rejects as the screen says, `off` rejects nothing,
-/// `auto` refits without rejection when the rejected rows are a model misfit
-/// ([`screen_outcome`]). Also gives the screen options of the fit returned.
+/// The screened fit in `mode` ([`ScreenMode`]), each fit made by `fit` with the screen options
+/// it is given: `strict` rejects as the screen says, `off` rejects nothing, `auto` refits
+/// without rejection when the rejected rows are a model misfit ([`screen_outcome`]). Also gives
+/// the screen options of the fit returned.
 fn fit_with_screen(
     problem: &CellProblem,
-    solve: &SolveOptions,
     mode: ScreenMode,
-    tolerance_scale: Option<f64>,
+    fit: &dyn Fn(&ScreenOptions) -> Result<CellCalibration, CellFitError>,
 ) -> Result<(CellCalibration, ScreenReport, ScreenOptions), CellFitError> {
     let keep_all = ScreenOptions {
         reject: false,
@@ -238,7 +251,6 @@ fn fit_with_screen(
         ScreenMode::Off => keep_all.clone(),
         ScreenMode::Auto | ScreenMode::Strict => ScreenOptions::default(),
     };
-    let fit = |o: &ScreenOptions| calibrate_cell_with(problem, solve, o, tolerance_scale);
     let cal = match fit(&options) {
         // The screen would leave too few rows: when most rows disagree with the model, the
         // model is wrong; auto keeps them all and reports the misfit.
@@ -685,12 +697,23 @@ fn prior_scale_phrase(p: &PriorScaleReport) -> String {
     }
 }
 
-/// The warnings for fitted corrections beyond their stated tolerances, one per parameter
-/// (the caller prints them, `warning: ` first).
+/// The lines for fitted corrections beyond their stated tolerances by more than
+/// `TOLERANCE_WARNING_SIGMAS` posterior σ, one per parameter, each with its prefix for the
+/// caller to print: `warning: ` when the evidence widened the parameter's family (the fit
+/// departed from the stated tolerances), `note: ` when the fit kept them (the prior already
+/// pulled the correction towards them; one parameter beyond its band does not contradict the
+/// family's tolerances, as the evidence said).
 pub fn tolerance_warnings(r: &CellReport) -> Vec<String> {
     r.parameters
         .iter()
-        .filter_map(ParameterReport::tolerance_warning)
+        .filter_map(|p| {
+            let level = if p.prior_scale > 1.0 {
+                "warning"
+            } else {
+                "note"
+            };
+            p.tolerance_warning().map(|w| format!("{level}: {w}"))
+        })
         .collect()
 }
 

@@ -226,8 +226,8 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
     if let Some(check) = &report.result_check {
         crate::result_check::refuse_or_warn(check, force)?;
     }
-    for w in tolerance_warnings(&report) {
-        eprintln!("warning: {w}");
+    for line in tolerance_warnings(&report) {
+        eprintln!("{line}");
     }
     let cal = calibrated.calibration;
     let problem = calibrated.problem;
