@@ -11,7 +11,8 @@
 //! 4. `choose_prior_scale` (`evidence.rs`): the prior scales (one common scale or one per
 //!    family, 1e-3 … 1 at the stated tolerances, or the caller's fixed scale) from the evidence
 //!    of the MAP problem linearised at the screened estimate, a refit at those scales
-//!    (relinearised once), and the error covariance under the reference prior `max(scale, 1)`.
+//!    (relinearised once), and the error covariance under the reference prior (up to the
+//!    stated tolerances, as far as the evidence does not reject them).
 //!    [`widen_prior`] (a separate call, after the caller's result check) redoes steps 1–4 at
 //!    tolerances the evidence widened (up to ×100 in all).
 //! 5. A placement-only model whose residuals exceed the stated noise: the data's σ in its
@@ -64,8 +65,10 @@ pub struct CellCalibration {
 /// prefers the smallest scale, whose fit is the placement-only fit to within 1e-6 of the
 /// tolerances. The fit is then redone at the chosen scales from the screened estimate (and the
 /// choice repeated once at that fit). The reported covariance is the error covariance of the
-/// chosen estimator under the stated tolerances (so the predicted cooperative accuracy includes
-/// the kinematic error the shrunk fit leaves). Tolerances the robots exceed are widened by
+/// chosen estimator under a reference prior: the stated tolerances where the data cannot tell
+/// (so the predicted cooperative accuracy includes the kinematic error the shrunk fit may
+/// leave), narrower where the evidence rejects them by more than
+/// [`super::REFERENCE_EVIDENCE_MARGIN`] nats (`evidence.rs`). Tolerances the robots exceed are widened by
 /// [`widen_prior`], after the caller's check of this fit; [`calibrate_cell_with`] fixes the
 /// scale instead.
 ///
@@ -442,14 +445,44 @@ fn choose_prior_scale(
             choice = again;
         }
     }
-    let floor = nalgebra::DVector::from_iterator(
-        base.len(),
-        base.params
+    // The reference prior: the stated tolerances (`1 / widened` relative to this layout) where
+    // the scales shrank them; for the evidence's choice, only as far up as the evidence does not
+    // reject (a family the data show near nominal keeps a reference near its scale).
+    let upper = |f: &str| choice.family_scale(f).max(1.0 / widened.get(f));
+    let s_ref = if s
+        .iter()
+        .zip(base.params.iter())
+        .all(|(v, p)| evidence::prior_family(p).is_none_or(|f| *v >= upper(f)))
+    {
+        s.clone()
+    } else if fixed.is_some() {
+        column_scales_of(&base, &upper)
+    } else {
+        let model = LinearModel::new(problem, &base, &fit.estimate, &fit.active)?;
+        let chosen: Vec<f64> = model
+            .families
             .iter()
-            .map(|p| evidence::prior_family(p).map_or(1.0, |f| 1.0 / widened.get(f))),
-    );
-    fit.covariance = evidence::reference_covariance(problem, &fit, &s, &floor)?;
+            .map(|(f, _)| choice.family_scale(f))
+            .collect();
+        let uppers: Vec<f64> = model.families.iter().map(|(f, _)| upper(f)).collect();
+        model.column_scales(&evidence::reference_scales(&model, &chosen, &uppers))
+    };
+    fit.covariance = evidence::reference_covariance(problem, &fit, &s, &s_ref)?;
     Ok((fit, choice))
+}
+
+/// Per-column scales of `layout` from a scale per family (1 on unpenalised columns).
+fn column_scales_of(
+    layout: &super::ParamLayout,
+    family: &dyn Fn(&str) -> f64,
+) -> nalgebra::DVector<f64> {
+    nalgebra::DVector::from_iterator(
+        layout.len(),
+        layout
+            .params
+            .iter()
+            .map(|p| evidence::prior_family(p).map_or(1.0, family)),
+    )
 }
 
 /// One pass of the calibration at `problem`'s tolerances: start, reduction, blunder screen,

@@ -21,10 +21,15 @@
 //! noise, separate scales that the evidence barely prefers are not stable, and the common scale
 //! is kept. The report gives both evidences and the decision.
 //!
-//! **The covariance** of the chosen estimator is its error covariance under the reference prior
-//! `S_ref = max(S, 1)` per column: the stated tolerances where the evidence shrank them (so the
-//! prediction keeps the kinematic error a shrunk fit leaves), the widened prior where it widened
-//! them (the data said the robots are further off than stated):
+//! **The covariance** of the chosen estimator is its error covariance under a reference prior
+//! `S_ref` per column: where the evidence widened a family, the widened prior (the data said
+//! the robots are further off than stated); where it shrank one, the widest scale up to the
+//! stated tolerances that the evidence does not reject by more than
+//! [`REFERENCE_EVIDENCE_MARGIN`] nats ([`reference_scales`]): the stated tolerances when the
+//! data cannot tell (so the prediction keeps the kinematic error a shrunk fit may leave), less
+//! when the data show the family near nominal (a prediction that assumed tolerance-sized errors
+//! there would be several times the error measured: 0.96 against 0.35 mm on sim-cell's mixed
+//! session). A scale the caller fixed keeps `max(S, 1)`. The formula:
 //! `H⁻¹·(J_FᵀJ_F + R_sᵀ·M·Mᵀ·R_s)·H⁻¹`, `M = R_kk·S⁻¹·S_ref·R_kk⁻¹` on the penalised block
 //! (`M = I`: the posterior `H⁻¹`).
 
@@ -410,17 +415,59 @@ fn family_scales(model: &LinearModel, scales: &[f64]) -> Vec<FamilyScale> {
         .collect()
 }
 
+/// Log evidence a reference scale may lose against the chosen scales before it is rejected as
+/// the reference of the prediction ([`reference_scales`]): the per-family margin
+/// [`FAMILY_EVIDENCE_MARGIN`].
+pub const REFERENCE_EVIDENCE_MARGIN: f64 = FAMILY_EVIDENCE_MARGIN;
+
+/// The reference scale of each family for the prediction (see the module docs): the largest
+/// scale from `chosen[f]` up to `upper[f]` (the stated tolerances, or the chosen scale where it
+/// widened them) whose log evidence, with the other families at their chosen scales, is within
+/// [`REFERENCE_EVIDENCE_MARGIN`] nats of the chosen scales'. Where the data cannot tell the
+/// scales apart (high noise, a family the session barely sees), that is the stated tolerances,
+/// so the prediction keeps the error a shrunk fit may leave; where the data show a family near
+/// nominal (the evidence prefers a small scale by more than the margin), the prediction does
+/// not assume the tolerance-sized errors the data rule out.
+pub(crate) fn reference_scales(model: &LinearModel, chosen: &[f64], upper: &[f64]) -> Vec<f64> {
+    let Some(best) = model.log_evidence(chosen) else {
+        return upper.to_vec();
+    };
+    let mut out = chosen.to_vec();
+    for f in 0..chosen.len() {
+        if upper[f] <= chosen[f] {
+            continue;
+        }
+        let mut candidates: Vec<f64> = PRIOR_SCALES
+            .iter()
+            .copied()
+            .filter(|&c| c > chosen[f] && c < upper[f])
+            .collect();
+        candidates.push(upper[f]);
+        candidates.sort_by(|a, b| b.total_cmp(a));
+        for c in candidates {
+            let mut trial = chosen.to_vec();
+            trial[f] = c;
+            if model
+                .log_evidence(&trial)
+                .is_some_and(|z| z >= best - REFERENCE_EVIDENCE_MARGIN)
+            {
+                out[f] = c;
+                break;
+            }
+        }
+    }
+    out
+}
+
 /// The error covariance of `fit` (fitted at column scales `s`) under the reference prior
-/// `max(s, floor)` per column (see the module docs; `floor` is 1 on columns whose tolerances are
-/// as stated, `1/w` where the layout's tolerances were already widened by `w`).
+/// `s_ref` per column ([`reference_scales`]; see the module docs).
 pub(crate) fn reference_covariance(
     problem: &CellProblem,
     fit: &CellFit,
     s: &DVector<f64>,
-    floor: &DVector<f64>,
+    s_ref: &DVector<f64>,
 ) -> Result<DMatrix<f64>, CellFitError> {
-    let s_ref = s.zip_map(floor, |v, f| v.max(f));
-    if s == &s_ref {
+    if s == s_ref {
         return Ok(fit.covariance.clone());
     }
     let h = fit.information(problem)?;

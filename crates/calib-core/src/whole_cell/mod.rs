@@ -164,7 +164,7 @@ pub use design::{
 };
 pub use evidence::{
     format_scale, prior_family, FamilyScale, PriorScaleChoice, ScaleMethod, FAMILY_EVIDENCE_MARGIN,
-    FAMILY_SWEEPS, MAX_PRIOR_SCALE, PRIOR_SCALES,
+    FAMILY_SWEEPS, MAX_PRIOR_SCALE, PRIOR_SCALES, REFERENCE_EVIDENCE_MARGIN,
 };
 pub use layout::{
     tangent_basis, CellEstimate, CellParam, ParamLayout, PlaneEstimate, RobotCorrection,
