@@ -44,6 +44,17 @@ fn ctu_maps_import_and_self_contact_calibrates() {
     assert!(text.contains("wrote 184 rows"), "{text}");
     let body = std::fs::read_to_string(&pl).unwrap();
     assert!(body.contains(",plane,1,no_leica_wall_table1_5x5_dataset,"));
+    // The maps keep the source file's pose number (`source_id = "pose"`): the last column, the
+    // file's `pose` column (1, 2, … in each file).
+    let header = body.lines().find(|l| !l.starts_with('#')).unwrap();
+    assert!(header.ends_with(",source_id"), "{header}");
+    let last_ids: Vec<&str> = body
+        .lines()
+        .filter(|l| l.contains(",plane,1,no_leica_lower_table1_5x5_dataset,"))
+        .map(|l| l.rsplit(',').next().unwrap())
+        .collect();
+    let want: Vec<String> = (1..=last_ids.len()).map(|k| k.to_string()).collect();
+    assert!(last_ids.len() > 1 && last_ids == want, "{last_ids:?}");
     // Self-contact (two 16-pose tracker-session files: the test stays quick in a debug build;
     // the 502 no-tracker poses import the same way).
     let sc = dir.path().join("self.csv");

@@ -57,7 +57,8 @@ impl PoseMmDeg {
 /// Fields in alphabetical order, which is the JSON key order of every report that prints one.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct PoseForms {
-    /// Unit quaternion `[w, x, y, z]`.
+    /// Unit quaternion `[w, x, y, z]`, sign chosen so that `w ≥ 0` (q and −q are one rotation;
+    /// one sign keeps reports comparable).
     pub quaternion_wxyz: [f64; 4],
     /// Rotation matrix, row-major.
     pub rotation: [[f64; 3]; 3],
@@ -74,8 +75,14 @@ impl PoseForms {
         let t = a_from_b.translation.vector * 1e3;
         let r = a_from_b.rotation.to_rotation_matrix();
         let q = a_from_b.rotation;
+        // The stored quaternion's own digits, with the sign of `kinematics::quaternion_wxyz`:
+        // w > 0, or at w = 0 the first non-zero of x, y, z positive.
+        let mut wxyz = [q.w, q.i, q.j, q.k];
+        if wxyz.iter().copied().find(|c| *c != 0.0).unwrap_or(1.0) < 0.0 {
+            wxyz = wxyz.map(|c| -c);
+        }
         PoseForms {
-            quaternion_wxyz: [q.w, q.i, q.j, q.k],
+            quaternion_wxyz: wxyz,
             rotation: [0, 1, 2].map(|i| [0, 1, 2].map(|j| r[(i, j)])),
             xyz_mm: [t.x, t.y, t.z],
             zyz_deg: zyz_canonical(&r).map(f64::to_degrees),
@@ -147,6 +154,23 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("zyz_degs"), "{e}");
+    }
+
+    /// A quaternion stored with w < 0 is reported with w > 0, same rotation, same digits up to
+    /// the sign (stop 28: a tracker frame in the calibrate-cell guide printed w = −0.828226).
+    #[test]
+    fn pose_forms_quaternion_has_w_positive() {
+        let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(
+            -0.828226, -0.016141, -0.000309, -0.560161,
+        ));
+        let a_from_b = Isometry3::from_parts(Translation3::new(0.1, 0.2, 0.3), q);
+        let f = PoseForms::from_isometry(&a_from_b);
+        assert_eq!(f.quaternion_wxyz, [-q.w, -q.i, -q.j, -q.k]);
+        assert!(f.quaternion_wxyz[0] > 0.0);
+        // At w = 0 (a half turn) the first non-zero component is positive.
+        let half = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(0.0, 0.0, -1.0, 0.0));
+        let f = PoseForms::from_isometry(&Isometry3::from_parts(Translation3::identity(), half));
+        assert_eq!(f.quaternion_wxyz, [0.0, 0.0, 1.0, 0.0]);
     }
 
     /// The four forms of one pose: a 90° turn about z (columns of the matrix are b's axes in a)

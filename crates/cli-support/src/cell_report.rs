@@ -747,12 +747,13 @@ fn placement_sigma_line(sigma: &[PlacementSigmaReport], noise_scale: f64) -> Str
 }
 
 /// Half the text's angle resolution (4 decimals of a degree): a tilt below it prints as 0.
-const PRINTED_TILT_DEG: f64 = 5e-5;
+pub const PRINTED_TILT_DEG: f64 = 5e-5;
 
 /// The ZYZ angles (deg) a text report prints for `pose`: a tilt within `band_deg` of θ = 0°
 /// or 180° as a pure yaw ([`PoseForms::zyz_deg_within`]), with a note naming the tilt dropped
-/// when it would have shown at the printed resolution; otherwise its exact `zyz_deg`.
-fn printed_zyz(pose: &PoseForms, band_deg: f64) -> ([f64; 3], String) {
+/// when it would have shown at the printed resolution; otherwise its exact `zyz_deg`. Used by
+/// every text report that prints a pose's ZYZ angles (the whole-cell and points reports).
+pub fn printed_zyz(pose: &PoseForms, band_deg: f64) -> ([f64; 3], String) {
     let theta = pose.zyz_deg[1];
     let tilt_deg = theta.abs().min((180.0 - theta.abs()).abs());
     if tilt_deg >= band_deg {

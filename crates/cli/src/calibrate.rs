@@ -15,6 +15,7 @@ use anyhow::{bail, Context};
 use calib_core::{
     read_points_csv, FitReport, Method, Mount, MountCheckReport, MountPair, PointPairs,
 };
+use cli_support::cell_report::{printed_zyz, PRINTED_TILT_DEG};
 use cli_support::points::{points_report, PointsError, PointsOptions, CLI_HINTS};
 use serde::Serialize;
 
@@ -303,7 +304,10 @@ fn write_text(s: &mut String, r: &FitReport) -> std::fmt::Result {
         r.points
     )?;
     let b = &r.b1_from_b2;
-    let (xyz, zyz) = (b.xyz_mm, b.zyz_deg);
+    // A tilt that prints as θ 0.0000° (or 180.0000°) leaves φ and ψ undefined apart: printed as
+    // the pure yaw (the JSON keeps the exact angles).
+    let (zyz, _) = printed_zyz(b, PRINTED_TILT_DEG);
+    let xyz = b.xyz_mm;
     writeln!(
         s,
         "b1_from_b2:  x {:.3} mm  y {:.3} mm  z {:.3} mm   φ {:.4}°  θ {:.4}°  ψ {:.4}°  (ZYZ, R = Rz(φ)·Ry(θ)·Rz(ψ))",
@@ -404,6 +408,7 @@ fn write_text(s: &mut String, r: &FitReport) -> std::fmt::Result {
 mod tests {
     use super::*;
     use calib_core::{OutliersReport, PoseForms, SoftMountReport, UncertaintyReport};
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
     /// A constrained fit of three points, the second flagged, with every optional part.
     fn report() -> FitReport {
@@ -482,6 +487,26 @@ mod tests {
             "outliers: rows [3] look like bad handclasps; re-record them",
         ];
         assert_eq!(text.lines().collect::<Vec<_>>(), expected);
+    }
+
+    /// A placement with no tilt at the printed resolution (two floor robots: θ ≈ 0) prints as the
+    /// pure yaw, not as a pair of large φ and −ψ (stop 28: points mode printed the raw ZYZ, e.g.
+    /// φ 48.3° θ 0.0000° ψ −48.3°, where the whole-cell report already printed the yaw alone).
+    #[test]
+    fn text_of_an_untilted_placement_is_the_pure_yaw() {
+        let mut r = report();
+        let yaw = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.3)
+            * UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 1e-7);
+        r.b1_from_b2 = PoseForms::from_isometry(&Isometry3::from_parts(
+            Translation3::new(1.0, 2.0, 0.0),
+            yaw,
+        ));
+        let line = render_text(&r).lines().nth(1).unwrap().to_string();
+        let want = format!(
+            "b1_from_b2:  x 1000.000 mm  y 2000.000 mm  z 0.000 mm   φ 0.0000°  θ 0.0000°  ψ {:.4}°  (ZYZ, R = Rz(φ)·Ry(θ)·Rz(ψ))",
+            0.3f64.to_degrees()
+        );
+        assert_eq!(line, want);
     }
 
     /// A 4-point projection fit: no uncertainty, no leave-one-out, mounts agreeing; and a

@@ -44,7 +44,7 @@ pub enum ModelError {
         /// The offending link.
         link: String,
     },
-    /// A xacro file (by its `.xacro` extension or its `xmlns:xacro` namespace) was given.
+    /// A xacro file (by its `.xacro` extension, or `<xacro:…>` elements / `${…}` substitutions in its text) was given.
     #[error("{source_name}: this is a xacro file, not a URDF; expand it first: `xacro {source_name} > robot.urdf` (ROS 2: `ros2 run xacro xacro …`, ROS 1: `rosrun xacro xacro …`) and load robot.urdf")]
     Xacro {
         /// File path or `"<string>"`.

@@ -182,7 +182,7 @@ fn linear_track() {
     assert_eq!((m.base_link(), m.dof()), ("carriage", 1));
 }
 
-/// fixtures/arm.urdf.xacro: refused by its extension, and by its namespace when given as text,
+/// fixtures/arm.urdf.xacro: refused by its extension, and by its `<xacro:…>` markup when given as text,
 /// with the command to expand it.
 #[test]
 fn arm_urdf_xacro() {
@@ -192,6 +192,30 @@ fn arm_urdf_xacro() {
     assert!(e.to_string().contains("xacro") && e.to_string().contains("arm.urdf.xacro"));
     let xml = std::fs::read_to_string(&path).unwrap();
     let e = RobotModel::from_urdf_str(&xml, "tool0").unwrap_err();
+    assert!(matches!(e, ModelError::Xacro { .. }), "{e}");
+}
+
+/// A URDF written by `xacro` keeps `xmlns:xacro` on `<robot>` with no xacro markup left: it is
+/// plain URDF and loads. (Noticed at stop 28: the loader refused such files as xacro.) The same
+/// text with a `${…}` substitution left in it is refused.
+#[test]
+fn expanded_xacro_output_with_leftover_namespace() {
+    let xml = std::fs::read_to_string(fixture_path("comment_first.urdf")).unwrap();
+    let expanded = xml.replacen(
+        "<robot name=\"hp20\">",
+        "<robot name=\"hp20\" xmlns:xacro=\"http://www.ros.org/wiki/xacro\">",
+        1,
+    );
+    assert_ne!(expanded, xml, "the fixture's <robot> tag changed");
+    let m = RobotModel::from_urdf_str(&expanded, "tool0").unwrap();
+    assert_same_fk(&m, &hp20());
+    let unexpanded = expanded.replacen(
+        "<link name=\"base_link\"",
+        "<link name=\"${prefix}base_link\"",
+        1,
+    );
+    assert_ne!(unexpanded, expanded, "the fixture has no base_link");
+    let e = RobotModel::from_urdf_str(&unexpanded, "tool0").unwrap_err();
     assert!(matches!(e, ModelError::Xacro { .. }), "{e}");
 }
 

@@ -266,17 +266,30 @@ pub fn read_dataset(dir: &Path) -> anyhow::Result<Vec<Recording>> {
         .collect()
 }
 
-/// The dataset folder as CI and the worktrees have it: `../shared/data/ctu-motoman` (or
-/// `../../shared/…`) from the repository root (`repo`), or `$CTU_MOTOMAN_DATA`; `None` if absent.
+/// The dataset folder: the first of `$CTU_MOTOMAN_DATA`, `../shared/data/ctu-motoman` and
+/// `../../shared/data/ctu-motoman` from the repository root (`repo`) that holds the dataset's
+/// `README.md` (the same rule as the end-to-end tests' `ctu_data_or_skip`); `None` if none does.
+/// A `$CTU_MOTOMAN_DATA` that points elsewhere is named on stderr and passed over, so the data
+/// tests skip (or find the shared copy) instead of failing on a missing file.
 pub fn locate_dataset(repo: &Path) -> Option<PathBuf> {
-    if let Some(p) = std::env::var_os("CTU_MOTOMAN_DATA") {
-        return Some(PathBuf::from(p));
+    let from_env = std::env::var_os("CTU_MOTOMAN_DATA").map(PathBuf::from);
+    if let Some(p) = &from_env {
+        if !p.join("README.md").is_file() {
+            eprintln!(
+                "CTU_MOTOMAN_DATA={}: no README.md there, not the ctu-motoman dataset; ignored",
+                p.display()
+            );
+        }
     }
-    [
-        "../shared/data/ctu-motoman",
-        "../../shared/data/ctu-motoman",
-    ]
-    .iter()
-    .map(|rel| repo.join(rel))
-    .find(|p| p.join("README.md").is_file())
+    from_env
+        .into_iter()
+        .chain(
+            [
+                "../shared/data/ctu-motoman",
+                "../../shared/data/ctu-motoman",
+            ]
+            .iter()
+            .map(|rel| repo.join(rel)),
+        )
+        .find(|p| p.join("README.md").is_file())
 }

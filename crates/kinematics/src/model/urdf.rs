@@ -85,6 +85,15 @@ fn check_limits(
     Ok(())
 }
 
+/// True when `xml` still holds xacro markup: a `<xacro:…>` element, or `${…}` / `$(…)`
+/// substitutions in a file that declares the xacro namespace. A leftover `xmlns:xacro`
+/// attribute alone is not xacro: `xacro` keeps it on `<robot>` in the URDFs it writes, and those
+/// are plain URDF.
+fn is_unexpanded_xacro(xml: &str) -> bool {
+    xml.contains("<xacro:")
+        || (xml.contains("xmlns:xacro") && (xml.contains("${") || xml.contains("$(")))
+}
+
 impl RobotModel {
     /// Loads a URDF file; `tool_link` is the flange link (usually `tool0`). The chain's moving
     /// joints may be revolute, continuous or prismatic; a `<mimic>` joint on the chain is a
@@ -117,7 +126,7 @@ impl RobotModel {
     }
 
     fn build(xml: &str, tool_link: &str, src: &str) -> Result<RobotModel, ModelError> {
-        if xml.contains("xmlns:xacro") {
+        if is_unexpanded_xacro(xml) {
             return Err(ModelError::Xacro {
                 source_name: src.to_string(),
             });
