@@ -416,7 +416,7 @@ fn family_scales(model: &LinearModel, scales: &[f64]) -> Vec<FamilyScale> {
 }
 
 /// Log evidence a reference scale may lose against the chosen scales before it is rejected as
-/// the reference of the prediction ([`reference_scales`]): the per-family margin
+/// the reference of the prediction (`reference_scales`, in `evidence.rs`): the per-family margin
 /// [`FAMILY_EVIDENCE_MARGIN`].
 pub const REFERENCE_EVIDENCE_MARGIN: f64 = FAMILY_EVIDENCE_MARGIN;
 
