@@ -14,6 +14,7 @@ mod inputs;
 mod paper;
 mod paper_diagnose;
 mod plan;
+mod prior_scale;
 mod report;
 mod result_check;
 mod sim;

@@ -20,12 +20,12 @@
 use std::fmt::Write as _;
 
 use calib_core::whole_cell::{
-    calibrate_cell, predict_error, session_coverage, workspace_pairs, CalibrationReport,
-    CellCalibration, CellFitError, CellProblem, ConfigPair, CoverageReport, DropReason,
-    FittedPlacementReport, GroupsReport, Kind, NuisanceReport, PairSet, ParameterReport,
-    PlacementSigmaReport, PredictedErrorReport, PredictionSplit, PriorScaleReport,
-    RejectedRowReport, ScreenOptions, SolveOptions, UnidentifiableReport, WORKSPACE_POSES,
-    WORKSPACE_SEED,
+    calibrate_cell_with, format_scale, predict_error, session_coverage, widen_prior,
+    workspace_pairs, CalibrationReport, CellCalibration, CellFitError, CellProblem, ConfigPair,
+    CoverageReport, DropReason, FittedPlacementReport, GroupsReport, Kind, NuisanceReport,
+    PairSet, ParameterReport, PlacementSigmaReport, PredictedErrorReport, PredictionSplit,
+    PriorScaleReport, RejectedRowReport, ScaleMethod, ScreenOptions, SolveOptions,
+    UnidentifiableReport, WORKSPACE_POSES, WORKSPACE_SEED,
 };
 use calib_core::{PoseForms, StopReason};
 use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
@@ -125,16 +125,22 @@ pub fn calibrate_session(
     session: &Session,
     model: CellModel,
 ) -> Result<SessionCalibration, CellCalibrationError> {
-    calibrate_session_with(cell, session, model, ScreenMode::Auto)
+    calibrate_session_with(cell, session, model, ScreenMode::Auto, None)
 }
 
-/// [`calibrate_session`] with the blunder screen's mode (`--screen`): the fit, then the result
-/// check ([`crate::result_check`]), whose report is [`CellReport::result_check`].
+/// [`calibrate_session`] with the blunder screen's mode (`--screen`) and the prior scale fixed
+/// at `tolerance_scale` (`calibrate --cell --tolerance-scale X`: every tolerance × X, 1e-3 …
+/// 100; `None`: the evidence's choice): the fit at the stated tolerances, the result check
+/// ([`crate::result_check`]) on it, and only when the check does not refuse it, the widening
+/// the evidence asks for (or the caller's scale above 1); the report's
+/// [`CellReport::result_check`] is the check of the fit returned (with the stated fit's
+/// findings when the tolerances were widened).
 pub fn calibrate_session_with(
     cell: &Cell,
     session: &Session,
     model: CellModel,
     screen: ScreenMode,
+    tolerance_scale: Option<f64>,
 ) -> Result<SessionCalibration, CellCalibrationError> {
     handclasp_cell::check_session_inputs(session)?;
     let problem = cell_problem(cell, session, model.fit_model());
@@ -144,8 +150,7 @@ pub fn calibrate_session_with(
         // the cell's own b1_from_b2.
         solve.initial_b1_from_b2 = Some(cell.b1_from_b2);
     }
-    let (cal, screen_report) =
-        fit_with_screen(&problem, &solve, screen).map_err(CellCalibrationError::Fit)?;
+    let (cal, check) = fit_and_check(cell, session, &problem, &solve, screen, tolerance_scale)?;
     let pairs = session_meeting_pairs(session);
     let (cooperative, workspace) = if pairs.is_empty() {
         (None, None)
@@ -185,10 +190,7 @@ pub fn calibrate_session_with(
         coverage,
     );
     report.workspace_accuracy_mm = workspace;
-    report.result_check = Some(
-        check_result(cell, session, &problem, &cal, screen_report)
-            .map_err(CellCalibrationError::Fit)?,
-    );
+    report.result_check = Some(check);
     Ok(SessionCalibration {
         report,
         problem,
@@ -196,14 +198,70 @@ pub fn calibrate_session_with(
     })
 }
 
-/// The screened fit in `mode` ([`ScreenMode`]): `strict` rejects as the screen says, `off`
-/// rejects nothing, `auto` refits without rejection when the rejected rows are a model misfit
-/// ([`screen_outcome`]).
-fn fit_with_screen(
+/// The fit and its result check: the fit at the stated tolerances ([`fit_with_screen`], or the
+/// caller's scale when it is 1 or less), checked; then, only when that check found no likely
+/// mistake and did not refuse, the widening (`calib_core::whole_cell::widen_prior`, or the
+/// caller's scale above 1) with the screen in the same mode, checked again. A wrong model looks
+/// to the evidence like robots further off than stated, and a widened prior lets the kinematic
+/// terms absorb it, so the check must see the fit before any widening. The check returned is
+/// the final fit's, with the stated fit's findings it does not repeat (said as such).
+fn fit_and_check(
+    cell: &Cell,
+    session: &Session,
     problem: &CellProblem,
     solve: &SolveOptions,
+    screen: ScreenMode,
+    tolerance_scale: Option<f64>,
+) -> Result<(CellCalibration, ResultCheckReport), CellCalibrationError> {
+    let fit_err = CellCalibrationError::Fit;
+    let stated_scale = tolerance_scale.filter(|&x| x <= 1.0);
+    let (stated, screen_report, stated_options) = fit_with_screen(problem, screen, &|o| {
+        calibrate_cell_with(problem, solve, o, stated_scale)
+    })
+    .map_err(fit_err)?;
+    let check = check_result(cell, session, problem, &stated, screen_report).map_err(fit_err)?;
+    if check.refused() || check.likely_mistake.is_some() || stated_scale.is_some() {
+        return Ok((stated, check));
+    }
+    // The widened fit at screen options `o`: from the stated fit when it was made at `o`.
+    let widen = |o: &ScreenOptions| -> Result<Option<CellCalibration>, CellFitError> {
+        if let Some(x) = tolerance_scale {
+            return calibrate_cell_with(problem, solve, o, Some(x)).map(Some);
+        }
+        if *o == stated_options {
+            widen_prior(problem, &stated, solve, o)
+        } else {
+            let at_o = calibrate_cell_with(problem, solve, o, None)?;
+            widen_prior(problem, &at_o, solve, o)
+        }
+    };
+    // Would the evidence widen at all? (Cheap: no refit unless it does.)
+    let Some(first) = widen(&stated_options).map_err(fit_err)? else {
+        return Ok((stated, check));
+    };
+    let (wide, wide_screen, _) = fit_with_screen(problem, screen, &|o| {
+        if *o == stated_options {
+            Ok(first.clone())
+        } else {
+            widen(o).map(|w| w.unwrap_or_else(|| first.clone()))
+        }
+    })
+    .map_err(fit_err)?;
+    let mut wide_check =
+        check_result(cell, session, problem, &wide, wide_screen).map_err(fit_err)?;
+    wide_check.add_stated_findings(&check);
+    Ok((wide, wide_check))
+}
+
+/// The screened fit in `mode` ([`ScreenMode`]), each fit made by `fit` with the screen options
+/// it is given: `strict` rejects as the screen says, `off` rejects nothing, `auto` refits
+/// without rejection when the rejected rows are a model misfit ([`screen_outcome`]). Also gives
+/// the screen options of the fit returned.
+fn fit_with_screen(
+    problem: &CellProblem,
     mode: ScreenMode,
-) -> Result<(CellCalibration, ScreenReport), CellFitError> {
+    fit: &dyn Fn(&ScreenOptions) -> Result<CellCalibration, CellFitError>,
+) -> Result<(CellCalibration, ScreenReport, ScreenOptions), CellFitError> {
     let keep_all = ScreenOptions {
         reject: false,
         ..ScreenOptions::default()
@@ -212,7 +270,7 @@ fn fit_with_screen(
         ScreenMode::Off => keep_all.clone(),
         ScreenMode::Auto | ScreenMode::Strict => ScreenOptions::default(),
     };
-    let cal = match calibrate_cell(problem, solve, &options) {
+    let cal = match fit(&options) {
         // The screen would leave too few rows: when most rows disagree with the model, the
         // model is wrong; auto keeps them all and reports the misfit.
         // A session too small for its unknowns (nothing rejected) is refused, as `plan`
@@ -220,17 +278,17 @@ fn fit_with_screen(
         Err(CellFitError::TooFewRows { rejected_rows, .. })
             if mode == ScreenMode::Auto && !rejected_rows.is_empty() =>
         {
-            let cal = calibrate_cell(problem, solve, &keep_all)?;
+            let cal = fit(&keep_all)?;
             let screen = misfit_outcome(problem, &cal, &rejected_rows, mode)?;
-            return Ok((cal, screen));
+            return Ok((cal, screen, keep_all));
         }
         other => other?,
     };
     let screen = screen_outcome(problem, &cal, mode)?;
     if screen.rows_kept {
-        return Ok((calibrate_cell(problem, solve, &keep_all)?, screen));
+        return Ok((fit(&keep_all)?, screen, keep_all));
     }
-    Ok((cal, screen))
+    Ok((cal, screen, options))
 }
 
 /// The predicted error of calibration `cal` of `problem` over `pairs` (of `pair_set`), in mm
@@ -642,11 +700,12 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
     } else {
         writeln!(
             s,
-            "prior scale chosen by the evidence: {} (prior σ = scale × tolerance/√3; 1e-3 = placement-only limit); blunder-screen noise scale {:.3}{}",
-            r.prior_scale.chosen,
+            "{} (prior σ = scale × tolerance/√3; scales 1e-3 … 100, 1e-3 = placement-only limit); blunder-screen noise scale {:.3}{}",
+            prior_scale_phrase(&r.prior_scale),
             r.noise_scale,
             noise_scale_note(r.noise_scale)
         )?;
+        writeln!(s, "  why: {}", r.prior_scale.why)?;
     }
     writeln!(
         s,
@@ -656,6 +715,54 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
         r.data_chi2,
         r.residual_rows
     )
+}
+
+/// The first part of the text report's prior-scale line: how the scales were set and their
+/// values (one for every family, or each family's).
+fn prior_scale_phrase(p: &PriorScaleReport) -> String {
+    let families = || {
+        p.families
+            .iter()
+            .map(|f| format!("{} ×{}", f.family, format_scale(f.scale)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match p.method {
+        ScaleMethod::EvidencePerFamily => {
+            format!(
+                "prior scales chosen by the evidence, per family: {}",
+                families()
+            )
+        }
+        ScaleMethod::Fixed => format!(
+            "prior scale fixed by --tolerance-scale: {} for every family",
+            format_scale(p.chosen)
+        ),
+        _ => format!(
+            "prior scale chosen by the evidence: {} for every family",
+            format_scale(p.chosen)
+        ),
+    }
+}
+
+/// The lines for fitted corrections beyond their stated tolerances by more than
+/// `TOLERANCE_WARNING_SIGMAS` posterior σ, one per parameter, each with its prefix for the
+/// caller to print: `warning: ` when the evidence widened the parameter's family (the fit
+/// departed from the stated tolerances), `note: ` when the fit kept them (the prior already
+/// pulled the correction towards them; one parameter beyond its band does not contradict the
+/// family's tolerances, as the evidence said).
+pub fn tolerance_warnings(r: &CellReport) -> Vec<String> {
+    r.parameters
+        .iter()
+        .filter_map(|p| {
+            let level = if p.prior_scale > 1.0 {
+                "warning"
+            } else {
+                "note"
+            };
+            p.tolerance_warning().map(|w| format!("{level}: {w}"))
+        })
+        .collect()
 }
 
 /// The placement's posterior σ per axis, each with its prior σ (`free` without a prior); with a
@@ -763,8 +870,8 @@ fn dropped_line(d: &UnidentifiableReport) -> String {
 mod tests {
     use super::*;
     use calib_core::whole_cell::{
-        ContactGroupReport, LogEvidenceReport, MergePartner, ParamIdentity, PlaneGroupReport,
-        ReportUnit, TrackerGroupReport,
+        ContactGroupReport, FamilyScaleReport, LogEvidenceReport, MergePartner, ParamIdentity,
+        PlaneGroupReport, ReportUnit, TrackerGroupReport,
     };
     use calib_core::Robot;
     use std::f64::consts::FRAC_1_SQRT_2;
@@ -810,8 +917,10 @@ mod tests {
                 robot: Robot::One,
             },
             name: name.into(),
+            prior_scale: 1.0,
             prior_sigma,
             sigma: 0.01,
+            tolerance: prior_sigma * 3f64.sqrt(),
             unit: ReportUnit::Deg,
             value,
         };
@@ -881,10 +990,18 @@ mod tests {
             prior_dominated_directions: 1,
             prior_scale: PriorScaleReport {
                 chosen: 0.0625,
+                families: vec![FamilyScaleReport {
+                    family: "joint_offset".into(),
+                    parameters: 2,
+                    scale: 0.0625,
+                }],
+                family_log_evidence: None,
                 log_evidence: vec![LogEvidenceReport {
                     log_evidence: -3.5,
                     scale: 0.0625,
                 }],
+                method: ScaleMethod::EvidenceCommon,
+                why: "common scale 0.0625 has the largest log evidence (-3.5)".into(),
             },
             rejected_points: vec![RejectedRowReport {
                 residual_mm: 7.1234,
@@ -949,7 +1066,8 @@ mod tests {
             "  of which: data-determined 0.900 mm, prior-asserted 1.200 mm (the tolerances of the terms the data do not determine: right only if the robots are that far off), model error none (held-out residuals 1.04× the stated noise's variance: not significantly above); 95 % bound of the rms 2.000 mm",
             "  why the prior part: the evidence chose prior scale 0.0625, so the kinematic corrections are held within 0.0625 × their tolerances and the rest of the tolerances stays in the prediction; `plan` predicts at scale 1 (the data correct what they see) and gives less: its 'placement-only limit' line is this case",
             "coverage (the session against the joint limits and the reach sampled at 4000 joint vectors within them; a calibration is extrapolated outside it):",
-            "prior scale chosen by the evidence: 0.0625 (prior σ = scale × tolerance/√3; 1e-3 = placement-only limit); blunder-screen noise scale 1.000",
+            "prior scale chosen by the evidence: 0.0625 for every family (prior σ = scale × tolerance/√3; scales 1e-3 … 100, 1e-3 = placement-only limit); blunder-screen noise scale 1.000",
+            "  why: common scale 0.0625 has the largest log evidence (-3.5)",
             "solver: converged after 4 iterations (data χ² 62.5 over 80 residual rows)",
         ];
         assert_eq!(text.lines().collect::<Vec<_>>(), expected);

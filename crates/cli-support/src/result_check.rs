@@ -216,6 +216,24 @@ impl ResultCheckReport {
     pub fn refused(&self) -> bool {
         self.status == STATUS_REFUSED
     }
+
+    /// Adds the findings of `stated`, the check of the fit at the stated tolerances, that this
+    /// check (of the fit at widened tolerances) does not repeat, each said as such: a widened
+    /// prior can absorb what the stated fit showed (σ understated, a model misfit), and the user
+    /// must still hear it. The status becomes `warning` when a finding was added (`refused`
+    /// stays).
+    pub fn add_stated_findings(&mut self, stated: &ResultCheckReport) {
+        for m in &stated.messages {
+            if !self.messages.contains(m) {
+                self.messages.push(format!(
+                    "at the stated tolerances, before the evidence widened them: {m}"
+                ));
+            }
+        }
+        if !self.messages.is_empty() && self.status == "ok" {
+            self.status = "warning";
+        }
+    }
 }
 
 const STATUS_REFUSED: &str = "refused";

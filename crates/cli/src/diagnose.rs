@@ -107,6 +107,7 @@ fn result_precheck(cell: &Cell, session: &handclasp_cell::Session, screen: Scree
         session,
         cli_support::cell_report::CellModel::Placement,
         screen,
+        None,
     );
     match check {
         Ok(c) => {

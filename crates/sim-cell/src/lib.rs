@@ -3,6 +3,7 @@
 mod error;
 pub mod honest;
 pub mod layout;
+pub mod oracle;
 pub mod paper;
 pub mod placement;
 pub mod plan;

@@ -116,11 +116,12 @@
 //! nuisance groups, [`CellProblem`] and its checks) ← `layout` (estimates, columns, prior,
 //! manifold updates) ← `residuals` (residuals and analytic Jacobians, [`Evaluator`]) ← `start`
 //! (starting values) ← `solve` (Levenberg–Marquardt) ← `reduce` ← `blunders` ← `accuracy` ←
-//! `design`, `calibrate` (the one call) ← `prediction` (the predicted error) ← `report` (its file-unit report); beside them, `coverage`
-//! (the joint ranges and tool-point region a session covers against the limits and the reach),
-//! the result check (`check`: noise scale, placement against the stated one, layout shape;
-//! `mistakes`: likely data mistakes tried; `misfit`: blunders or model misfit) and `validate` (a held cell scored on observations it was not fitted to, nuisances given or
-//! split-refitted). `fixtures` (simulated cells) and `tests` sit on top.
+//! `design`, `evidence` (the prior scales from the evidence), `calibrate` (the one call) ←
+//! `prediction` (the predicted error) ← `report` (its file-unit report); beside them, `coverage` (the joint ranges and tool-point
+//! region a session covers against the limits and the reach), the result check (`check`: noise
+//! scale, placement against the stated one, layout shape; `mistakes`: likely data mistakes
+//! tried; `misfit`: blunders or model misfit) and `validate` (a held cell scored on observations
+//! it was not fitted to, nuisances given or split-refitted). `fixtures` (simulated cells) and `tests` sit on top.
 
 mod accuracy;
 mod blunders;
@@ -129,6 +130,7 @@ mod cell;
 mod check;
 mod coverage;
 mod design;
+mod evidence;
 mod layout;
 mod misfit;
 mod mistakes;
@@ -153,7 +155,7 @@ pub use accuracy::{
     summarise_covariances, ConfigPair, CooperativeError, CooperativePrediction, P95_DRAWS_PER_PAIR,
 };
 pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
-pub use calibrate::{calibrate_cell, CellCalibration, PriorScaleChoice, PRIOR_SCALES};
+pub use calibrate::{calibrate_cell, calibrate_cell_with, widen_prior, CellCalibration};
 pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool};
 pub use check::{
     layout_shape, placement_distance, robust_noise_scale, CheckThresholds, LayoutShape,
@@ -167,6 +169,10 @@ pub use coverage::{
 pub use design::{
     design_criterion, design_prediction, design_split, greedy_design, DesignCriterion,
     DesignPrediction, DesignResult, PLACEMENT_DRAWS, WEAK_PRIOR_SIGMA,
+};
+pub use evidence::{
+    format_scale, prior_family, FamilyScale, PriorScaleChoice, ScaleMethod, FAMILY_EVIDENCE_MARGIN,
+    FAMILY_SWEEPS, MAX_PRIOR_SCALE, PRIOR_SCALES, REFERENCE_EVIDENCE_MARGIN,
 };
 pub use layout::{
     tangent_basis, CellEstimate, CellParam, ParamLayout, PlaneEstimate, RobotCorrection,
@@ -188,10 +194,11 @@ pub use prediction::{
 };
 pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, PRIOR_INFO_TOL, RANK_TOL};
 pub use report::{
-    CalibrationReport, ContactGroupReport, DesignPredictionReport, DropReason,
+    CalibrationReport, ContactGroupReport, DesignPredictionReport, DropReason, FamilyScaleReport,
     FittedPlacementReport, GroupsReport, LogEvidenceReport, MergePartner, NuisanceReport,
     ParamIdentity, ParameterReport, PlacementSigmaReport, PlaneGroupReport, PredictedErrorReport,
     PriorScaleReport, RejectedRowReport, ReportUnit, TrackerGroupReport, UnidentifiableReport,
+    TOLERANCE_WARNING_SIGMAS,
 };
 pub use residuals::{Evaluator, ObservationLinearisation, MIN_FACE_NORMAL_SUM};
 pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions};
