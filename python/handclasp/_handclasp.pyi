@@ -13,7 +13,15 @@ _F64 = npt.NDArray[np.float64]
 __version__: str
 
 class CalibrationError(Exception):
-    """A calibration or diagnosis failed; the message names the cause and the fix."""
+    """A calibration or diagnosis failed; the message names the cause and the fix. A result a
+    check refused carries the CLI's --json refusal: status ("refused"), reason, refusal (the
+    whole object), result_check (whole-cell) or misfit (points; the other is None). Set on
+    refusals only."""
+    status: Optional[str]
+    reason: Optional[str]
+    refusal: Optional[Dict[str, Any]]
+    result_check: Optional[Dict[str, Any]]
+    misfit: Optional[Dict[str, Any]]
 
 class Robot:
     """A URDF robot model: the chain from the base link to the flange link. Immutable."""
@@ -126,8 +134,9 @@ class CellResult:
         """Columns name, value, sigma, prior_sigma, unit."""
     @property
     def cooperative_accuracy_mm(self) -> Optional[Dict[str, Any]]: ...
-    def export(self, dir: _Path, force: bool = False) -> List[str]:
-        """Write cell.toml, robot1.urdf, robot2.urdf (calibrate --cell --export)."""
+    def export(self, dir: _Path, overwrite: bool = False, force: bool = False) -> List[str]:
+        """Write cell.toml, robot1.urdf, robot2.urdf (calibrate --cell --export), under the
+        CLI's export lock; a non-empty folder needs overwrite=True (force=True is refused)."""
     def text(self) -> str: ...
     def to_json(self) -> str: ...
     def to_dict(self) -> Dict[str, Any]:
@@ -140,8 +149,9 @@ class DiagnoseResult:
         """"coincident" or "whole_cell"."""
     @property
     def b1_from_b2(self) -> _F64: ...
-    def export(self, dir: _Path, force: bool = False) -> List[str]:
-        """Write the corrected model (diagnose --export)."""
+    def export(self, dir: _Path, overwrite: bool = False, force: bool = False) -> List[str]:
+        """Write the corrected model (diagnose --export), under the CLI's export lock; a
+        non-empty folder needs overwrite=True (force=True is refused)."""
     def text(self) -> str: ...
     def to_json(self) -> str: ...
     def to_dict(self) -> Dict[str, Any]:
@@ -165,7 +175,10 @@ def fk(
     tip: Union[None, _Array, str] = None,
 ) -> _F64:
     """base_from_tip, (n, 4, 4) (or (4, 4) for one joint vector), translation in mm."""
-def calibrate_cell(cell: Cell, session: Session, model: str = "kinematic") -> CellResult: ...
+def calibrate_cell(
+    cell: Cell, session: Session, model: str = "kinematic", force: bool = False
+) -> CellResult:
+    """A refused result raises CalibrationError (its .result_check, .refusal) unless force=True."""
 def diagnose(
     cell: Cell,
     session: Session,

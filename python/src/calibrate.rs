@@ -16,14 +16,67 @@ use crate::arrays::{json_to_py, pose_array, vector};
 use crate::cell::{Cell, Session};
 use crate::errors::{to_py, value_error, Otherwise};
 
-/// Refuses a non-empty export folder unless `force` (the CLI's rule), as `OSError`/`ValueError`.
-fn check_folder(dir: &std::path::Path, force: bool) -> PyResult<()> {
-    check_output_folder(dir, force, "export", "force=True").map_err(|e| match e {
+/// Refuses a non-empty export folder unless `overwrite` (the CLI's rule, `--overwrite`), as
+/// `OSError`/`ValueError`; `force=True` (the old way to overwrite) is refused with the new one.
+fn check_folder(dir: &std::path::Path, overwrite: bool, force: bool) -> PyResult<()> {
+    if force {
+        return Err(value_error(
+            "export(force=True) no longer overwrites an export: use overwrite=True (as the CLI's \
+             --overwrite; calibrate_cell(force=True) keeps a refused result)",
+        ));
+    }
+    check_output_folder(dir, overwrite, "export", "overwrite=True").map_err(|e| match e {
         cli_support::export_dir::OutputFolderError::NotEmpty { .. } => {
             crate::errors::os_error(std::io::ErrorKind::AlreadyExists, e.to_string())
         }
         e => to_py(&e, "", Otherwise::Value),
     })
+}
+
+/// An export's error inside the folder's lock ([`handclasp_cell::output::with_export_lock`]):
+/// the lock's own refusals and the writer's, as Python exceptions.
+struct LockedExportError(PyErr);
+
+impl From<handclasp_cell::FormatError> for LockedExportError {
+    fn from(e: handclasp_cell::FormatError) -> Self {
+        let refused_folder = matches!(e, handclasp_cell::FormatError::OutputFolder { .. });
+        if refused_folder {
+            // Another export holds the lock, or the folder filled meanwhile.
+            LockedExportError(crate::errors::os_error(
+                std::io::ErrorKind::AlreadyExists,
+                e.to_string(),
+            ))
+        } else {
+            LockedExportError(to_py(&e, "export", Otherwise::Value))
+        }
+    }
+}
+
+/// Runs `write` into `dir` under the CLI's export lock, with the CLI's overwrite rule
+/// (`overwrite`, checked before and again under the lock): a concurrent export into the same
+/// folder is refused, and a failed export leaves none of its files. Releases the GIL.
+fn locked_export<E: std::error::Error + 'static>(
+    py: Python<'_>,
+    dir: &std::path::Path,
+    overwrite: bool,
+    force: bool,
+    write: impl FnOnce() -> Result<Vec<PathBuf>, E> + Send,
+) -> PyResult<Vec<String>> {
+    check_folder(dir, overwrite, force)?;
+    let files = py
+        .detach(|| {
+            handclasp_cell::output::with_export_lock(dir, overwrite, "export", || {
+                write().map_err(|e| {
+                    LockedExportError(to_py(
+                        &e,
+                        &format!("export {}", dir.display()),
+                        Otherwise::Value,
+                    ))
+                })
+            })
+        })
+        .map_err(|e| e.0)?;
+    Ok(paths(files))
 }
 
 /// The written files as strings.
@@ -89,22 +142,25 @@ impl CellResult {
     }
 
     /// Writes the calibrated cell into `dir` (`cell.toml`, `robot1.urdf`, `robot2.urdf`), as
-    /// `calibrate --cell --export DIR`; a non-empty folder raises `FileExistsError` unless
-    /// `force`. Returns the files written.
-    #[pyo3(signature = (dir, force=false))]
-    fn export(&self, py: Python<'_>, dir: PathBuf, force: bool) -> PyResult<Vec<String>> {
-        check_folder(&dir, force)?;
-        let files = py
-            .detach(|| {
-                handclasp_cell::export_calibrated_cell(
-                    &self.cell,
-                    &self.estimate,
-                    &dir,
-                    &handclasp_cell::CALIBRATE_EXPORT_NAMES,
-                )
-            })
-            .map_err(|e| to_py(&e, &format!("export {}", dir.display()), Otherwise::Value))?;
-        Ok(paths(files))
+    /// `calibrate --cell --export DIR`, under the same folder lock: a non-empty folder raises
+    /// `FileExistsError` unless `overwrite` (`--overwrite`), as does a concurrent export into
+    /// it; `force=True` no longer overwrites (`ValueError`). Returns the files written.
+    #[pyo3(signature = (dir, overwrite=false, force=false))]
+    fn export(
+        &self,
+        py: Python<'_>,
+        dir: PathBuf,
+        overwrite: bool,
+        force: bool,
+    ) -> PyResult<Vec<String>> {
+        locked_export(py, &dir, overwrite, force, || {
+            handclasp_cell::export_calibrated_cell(
+                &self.cell,
+                &self.estimate,
+                &dir,
+                &handclasp_cell::CALIBRATE_EXPORT_NAMES,
+            )
+        })
     }
 
     /// The CLI's text report.
@@ -140,15 +196,20 @@ impl CellResult {
 ///
 /// `model`: `kinematic` (b1_from_b2 and every identifiable kinematic parameter of both robots,
 /// MAP with the cell's tolerances as the prior) or `placement` (b1_from_b2 alone). Runs with the
-/// GIL released. Errors: `ValueError` for a session of another cell or an unknown model,
-/// `CalibrationError` when the fit fails.
+/// GIL released. The result check runs as in the CLI: a refused result raises
+/// `CalibrationError` carrying `status`, `reason`, `result_check` (the check values) and
+/// `refusal` (the CLI's `--json` refusal object), unless `force=True` (`--force`), which keeps
+/// it; the check's findings are issued as `UserWarning`s (`kept by force=True: …` when kept).
+/// Errors: `ValueError` for a session of another cell or an unknown model, `CalibrationError`
+/// when the fit fails or is refused.
 #[pyfunction]
-#[pyo3(signature = (cell, session, model="kinematic"))]
+#[pyo3(signature = (cell, session, model="kinematic", force=false))]
 pub fn calibrate_cell(
     py: Python<'_>,
     cell: &Cell,
     session: &Session,
     model: &str,
+    force: bool,
 ) -> PyResult<CellResult> {
     let Some(model) = CellModel::from_name(model) else {
         return Err(value_error(format!(
@@ -172,6 +233,31 @@ pub fn calibrate_cell(
             };
             to_py(&e, &context, Otherwise::Calibration)
         })?;
+    if let Some(check) = &calibrated.report.result_check {
+        if check.refused() && !force {
+            let mut refusal = cli_support::result_check::Refusal::new(
+                "calibrate_cell",
+                check.refusal_reason().replace("--force", "force=True"),
+            );
+            refusal.result_check = Some(check);
+            return Err(crate::errors::refusal_error(py, &refusal));
+        }
+        let kept = if check.refused() {
+            "kept by force=True: "
+        } else {
+            ""
+        };
+        for m in &check.messages {
+            let text = std::ffi::CString::new(format!("{kept}{m}").replace('\0', " "))
+                .map_err(|e| value_error(e.to_string()))?;
+            PyErr::warn(
+                py,
+                &py.get_type::<pyo3::exceptions::PyUserWarning>(),
+                &text,
+                1,
+            )?;
+        }
+    }
     let json = serde_json::to_string_pretty(&calibrated.report)
         .map_err(|e| value_error(format!("serialising the report: {e}")))?;
     Ok(CellResult {
@@ -218,20 +304,24 @@ impl DiagnoseResult {
         }
     }
 
-    /// Writes the corrected model into `dir`, as `diagnose --export DIR`; a non-empty folder
-    /// raises `FileExistsError` unless `force`. Returns the files written.
-    #[pyo3(signature = (dir, force=false))]
-    fn export(&self, py: Python<'_>, dir: PathBuf, force: bool) -> PyResult<Vec<String>> {
-        check_folder(&dir, force)?;
-        let files = py
-            .detach(|| match &self.diagnosis {
-                Diagnosis::Coincident(r) => {
-                    ::diagnose::export_corrected(&self.cell, r, &r.b1_from_b2.to_isometry(), &dir)
-                }
-                Diagnosis::WholeCell(r) => ::diagnose::export_cell_diagnosis(&self.cell, r, &dir),
-            })
-            .map_err(|e| to_py(&e, "export", Otherwise::Value))?;
-        Ok(paths(files))
+    /// Writes the corrected model into `dir`, as `diagnose --export DIR`, under the same
+    /// folder lock: a non-empty folder raises `FileExistsError` unless `overwrite`
+    /// (`--overwrite`); `force=True` no longer overwrites (`ValueError`). Returns the files
+    /// written.
+    #[pyo3(signature = (dir, overwrite=false, force=false))]
+    fn export(
+        &self,
+        py: Python<'_>,
+        dir: PathBuf,
+        overwrite: bool,
+        force: bool,
+    ) -> PyResult<Vec<String>> {
+        locked_export(py, &dir, overwrite, force, || match &self.diagnosis {
+            Diagnosis::Coincident(r) => {
+                ::diagnose::export_corrected(&self.cell, r, &r.b1_from_b2.to_isometry(), &dir)
+            }
+            Diagnosis::WholeCell(r) => ::diagnose::export_cell_diagnosis(&self.cell, r, &dir),
+        })
     }
 
     /// The CLI's text report.

@@ -501,8 +501,15 @@ pub fn import_session(
                 inputs.len()
             )));
         }
-        handclasp_cell::check_session_inputs(&session)
-            .map_err(|e| value_error(format!("the imported session: {e}")))?;
+        // The input checks every command shares, with `import`'s message (the session in
+        // memory named `<session>` where the CLI names its --out file).
+        handclasp_cell::check_session_inputs(&session).map_err(|source| {
+            let e = handclasp_cell::FormatError::SessionCheck {
+                path: PathBuf::from("<session>"),
+                source,
+            };
+            to_py(&e, "", Otherwise::Value)
+        })?;
         Ok(session)
     })?;
     Ok(Session {

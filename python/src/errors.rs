@@ -76,6 +76,34 @@ pub fn to_py(
     }
 }
 
+/// `CalibrationError(reason)` for a result a check refused, as the CLI's `--json` refusal
+/// object says it: the exception carries `status` (`"refused"`), `reason` (the message),
+/// `refusal` (the CLI's refusal object as a dict, [`cli_support::result_check::Refusal`]) and
+/// `result_check` / `misfit` (the check values behind it, or `None`).
+pub fn refusal_error(
+    py: pyo3::Python<'_>,
+    refusal: &cli_support::result_check::Refusal<'_>,
+) -> PyErr {
+    let err = CalibrationError::new_err(refusal.reason.clone());
+    let attach = || -> pyo3::PyResult<()> {
+        use pyo3::types::PyAnyMethods;
+        let value = err.value(py);
+        let json = serde_json::to_string(refusal)
+            .map_err(|e| PyValueError::new_err(format!("serialising the refusal: {e}")))?;
+        let dict = crate::arrays::json_to_py(py, &json)?;
+        value.setattr("status", refusal.status)?;
+        value.setattr("reason", &refusal.reason)?;
+        value.setattr("result_check", dict.get_item("result_check").ok())?;
+        value.setattr("misfit", dict.get_item("misfit").ok())?;
+        value.setattr("refusal", dict)?;
+        Ok(())
+    };
+    match attach() {
+        Ok(()) => err,
+        Err(e) => e,
+    }
+}
+
 /// `ValueError(message)`.
 pub fn value_error(message: impl Into<String>) -> PyErr {
     PyValueError::new_err(message.into())

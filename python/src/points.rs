@@ -278,6 +278,14 @@ pub fn calibrate_points(
             PointsError::Fit(calib_core::CalibError::InvalidOption { .. }) => {
                 to_py(&e, &context, Otherwise::Value)
             }
+            PointsError::Misfit(ref m) => {
+                let mut refusal = cli_support::result_check::Refusal::new(
+                    "calibrate_points",
+                    format!("{context}: {}", m.message),
+                );
+                refusal.misfit = Some(m);
+                crate::errors::refusal_error(py, &refusal)
+            }
             e => to_py(&e, &context, Otherwise::Calibration),
         }
     })?;

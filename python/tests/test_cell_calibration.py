@@ -42,7 +42,7 @@ def test_calibrate_cell_result(cell, cell_path, data, cli, tmp_path):
         assert py_text == cli_text, n
     with pytest.raises(FileExistsError, match="not empty"):
         r.export(tmp_path / "py")
-    r.export(tmp_path / "py", force=True)
+    r.export(tmp_path / "py", overwrite=True)
 
 
 def test_calibrate_cell_errors(cell, data, cell_path):

@@ -210,7 +210,7 @@ fn kinematic_model_beats_placement_and_exports_verified_urdfs() {
     assert!(!refused.status.success());
     let err = String::from_utf8_lossy(&refused.stderr);
     assert!(
-        err.contains("does not overwrite an export (add --overwrite)"),
+        err.contains("no longer overwrites an export (add --overwrite)"),
         "{err}"
     );
     // …and --overwrite overwrites the files of the same names with the same calibration.

@@ -206,7 +206,7 @@ fn diagnose_text_and_export() {
     assert!(!again.status.success());
     let err = String::from_utf8_lossy(&again.stderr);
     assert!(
-        err.contains("the folder is not empty") && err.contains("--force"),
+        err.contains("the folder is not empty") && err.contains("--overwrite"),
         "{err}"
     );
     // The exported cell is valid input: diagnosing the same session with it finds nothing.
@@ -445,13 +445,13 @@ fn diagnose_mixed_session_runs_the_whole_cell_diagnosis() {
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("the folder is not empty") && err.contains("--force"),
+        err.contains("the folder is not empty") && err.contains("--overwrite"),
         "{err}"
     );
-    // …and done with --force (the same report: the diagnosis is deterministic).
+    // …and done with --overwrite (the same report: the diagnosis is deterministic).
     let again = stdout_json(&handclasp(&diagnose_args(
         &path,
-        &["--json", "--export", export_arg, "--force"],
+        &["--json", "--export", export_arg, "--overwrite"],
     )));
     assert_eq!(again, r);
     let written: serde_json::Value =

@@ -438,6 +438,7 @@ page_tests! {
     guide_models => "docs/guide/models.md",
     guide_calibrate_points => "docs/guide/calibrate-points.md",
     guide_calibrate_cell => "docs/guide/calibrate-cell.md",
+    guide_one_robot => "docs/guide/one-robot.md",
     guide_plan => "docs/guide/plan.md",
     guide_diagnose => "docs/guide/diagnose.md",
     guide_import => "docs/guide/import.md",

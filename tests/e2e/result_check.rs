@@ -22,7 +22,7 @@ use crate::support::{
 
 /// A temporary folder for one test; kept (its path printed) when `RESULT_CHECK_KEEP` is set,
 /// so that the sessions can be given to another build (the table before/after).
-fn workdir() -> tempfile::TempDir {
+pub(crate) fn workdir() -> tempfile::TempDir {
     let mut dir = tempfile::tempdir().unwrap();
     if std::env::var_os("RESULT_CHECK_KEEP").is_some() {
         dir.disable_cleanup(true);
@@ -36,7 +36,7 @@ const N: usize = 40;
 
 /// The example truth (docs/examples/truth.toml: the floor-wall cell with tolerance-sized
 /// errors and robot 2's joint 2 zero 0.15° off).
-fn truth() -> Cell {
+pub(crate) fn truth() -> Cell {
     Cell::from_toml_file(&workspace("docs/examples/truth.toml")).expect("truth cell")
 }
 
@@ -53,7 +53,7 @@ fn cell_variant(dir: &Path, shipped: &str, name: &str, edit: impl Fn(String) -> 
 
 /// `session` with each point's tips recomputed from its (possibly altered) joints by
 /// `reported`'s nominal models: what the controllers would report.
-fn with_reported_tips(session: &Session, reported: &Cell) -> Session {
+pub(crate) fn with_reported_tips(session: &Session, reported: &Cell) -> Session {
     let mut s = session.clone();
     let tip = |r: &handclasp_cell::CellRobot, q: &[f64]| {
         Point3::from(
@@ -492,8 +492,9 @@ fn screen_modes_strict_auto_off() {
     assert_eq!(json["rows_used"], N as u64);
 }
 
-/// `diagnose` runs the same result check first: a likely data mistake is named on stderr
-/// before the diagnosis (which would otherwise name effects the mistake made).
+/// `diagnose` runs the same result check first: a likely data mistake refuses the diagnosis
+/// (which would otherwise name effects the mistake made), naming it, with the refusal's JSON
+/// on stdout; `--force` diagnoses anyway, the finding a `warning: kept by --force:` line.
 #[test]
 fn diagnose_names_a_likely_mistake_first() {
     let dir = workdir();
@@ -516,9 +517,31 @@ fn diagnose_names_a_likely_mistake_first() {
         &["--json", "--trials", "20"],
     ));
     let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
     assert!(
         stderr.contains(
-            "warning: result check (placement fit): likely mistake: robot 2's joints 4 and 6 swapped"
+            "error: result check (placement fit): the session contradicts what the cell states: \
+             likely mistake: robot 2's joints 4 and 6 swapped"
+        ),
+        "{stderr}"
+    );
+    let refusal: Value = serde_json::from_slice(&out.stdout).expect("the refusal's JSON");
+    assert_eq!(refusal["status"], "refused");
+    assert_eq!(refusal["command"], "diagnose");
+    assert!(!refusal["result_check"]["likely_mistake"].is_null());
+    let forced = handclasp(&cell_session_args(
+        "diagnose",
+        &reported,
+        &csv,
+        &["--json", "--trials", "20", "--force"],
+    ));
+    // The diagnosis then runs (on this session its own blunder screen gives up: the mistake
+    // moves every row), the finding kept as a warning.
+    let stderr = String::from_utf8_lossy(&forced.stderr);
+    assert!(
+        stderr.contains(
+            "warning: kept by --force: result check (placement fit): likely mistake: robot 2's \
+             joints 4 and 6 swapped"
         ),
         "{stderr}"
     );

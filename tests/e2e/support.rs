@@ -135,22 +135,41 @@ pub fn write_session_csv(dir: &Path, name: &str, session: &Session, reported: &C
 /// `data::locate_dataset`). When none does, prints why the calling test is skipped (the dataset
 /// is not in the repository) and returns `None`: the caller returns.
 pub fn ctu_data_or_skip() -> Option<PathBuf> {
-    let candidates: Vec<PathBuf> = std::env::var_os("CTU_MOTOMAN_DATA")
+    shared_data_or_skip(
+        "CTU_MOTOMAN_DATA",
+        "ctu-motoman",
+        "README.md",
+        "the CTU dataset",
+    )
+}
+
+/// A data set's folder under the shared data, the first of `$env_var`,
+/// `../shared/data/{folder}` beside the repository (CI's clone) and `../../shared/data/{folder}`
+/// (a worktree one level further down) that holds `marker`. When none does, prints why the
+/// calling test is skipped (`what` is not in the repository) and returns `None`: the caller
+/// returns.
+pub fn shared_data_or_skip(
+    env_var: &str,
+    folder: &str,
+    marker: &str,
+    what: &str,
+) -> Option<PathBuf> {
+    let candidates: Vec<PathBuf> = std::env::var_os(env_var)
         .map(PathBuf::from)
         .into_iter()
         .chain([
-            workspace("../shared/data/ctu-motoman"),
-            workspace("../../shared/data/ctu-motoman"),
+            workspace(&format!("../shared/data/{folder}")),
+            workspace(&format!("../../shared/data/{folder}")),
         ])
         .collect();
     let found = candidates
         .iter()
-        .find(|d| d.join("README.md").is_file())
+        .find(|d| d.join(marker).is_file())
         .cloned();
     if found.is_none() {
         eprintln!(
-            "skipped: the CTU dataset is not in the repository and none of {candidates:?} holds it \
-             (set $CTU_MOTOMAN_DATA to its folder)"
+            "skipped: {what} is not in the repository and none of {candidates:?} holds it \
+             (set ${env_var} to its folder)"
         );
     }
     found

@@ -4,6 +4,7 @@ mod error;
 mod fit_report;
 pub mod identify;
 mod lm;
+mod masking;
 mod metrics;
 mod mount_check;
 pub mod paper;
@@ -12,6 +13,7 @@ mod pose;
 mod registration;
 mod robot;
 mod robust;
+pub mod selection;
 mod soft;
 pub mod stats;
 mod stop;
@@ -31,6 +33,9 @@ pub use kinematics::{
     zyz_nearest, ZYZ_CANONICAL_TILT_RAD,
 };
 pub use lm::{LmOptionError, LmOptions, SingularStep};
+pub use masking::{
+    masked_blunders, MaskedBlunders, CONCENTRATION_STEPS, ROBUST_CANDIDATES, ROBUST_SEED,
+};
 pub use metrics::{
     e_rot, e_rot_fast, e_rot_raw, e_rot_zyz, e_tran, geodesic_angle, ErotTruth, TrialErrors,
     ZYZ_SINGULAR_BAND_RAD,

@@ -69,7 +69,7 @@ pub const CALIBRATE_EXPORT_NAMES: ExportNames<'static> = ExportNames {
 /// Each URDF is written to a temporary file, re-loaded, verified against the fitted model
 /// ([`verify_patched_urdf`], flange within [`kinematics::PATCH_TOLERANCE_M`]) and renamed into
 /// place; the cell file is written the same way and re-loaded. Returns the files written (the two
-/// URDFs, then the cell).
+/// URDFs, or robot 1's alone for a one-robot cell, then the cell).
 ///
 /// Exactness: without compliance the exported cell reproduces the estimate's tips to
 /// [`kinematics::PATCH_TOLERANCE_M`]. With compliance AND geometry corrections on the same robot
@@ -94,7 +94,8 @@ pub fn export_calibrated_cell(
     out.base_dir = dir.to_path_buf();
     out.b1_from_b2 = estimate.b1_from_b2;
     let mut written = Vec::new();
-    for robot in [Robot::One, Robot::Two] {
+    // A one-robot cell writes robot 1's URDF only (its robot 2 is a stand-in, not written).
+    for &robot in cell.robots() {
         let setup = cell.robot(robot);
         let correction = estimate.robot(robot);
         let bad = |message: String| FormatError::Cell {

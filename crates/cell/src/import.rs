@@ -136,6 +136,9 @@ struct MapFile {
 #[serde(deny_unknown_fields)]
 struct JointsMap {
     unit: String,
+    /// The unit of a prismatic joint's column: `m` or `mm` (default `mm`).
+    #[serde(default)]
+    prismatic_unit: Option<String>,
     #[serde(default)]
     robot1: Option<ColumnList>,
     #[serde(default)]
@@ -193,6 +196,10 @@ impl RowSpec {
 pub struct ImportMap {
     rows: Vec<RowSpec>,
     deg_per_unit: f64,
+    /// Metres per file unit of a prismatic joint's column (`[joints] prismatic_unit`).
+    m_per_prismatic_unit: f64,
+    /// Per robot, whether each joint is prismatic (chain order).
+    prismatic: [Vec<bool>; 2],
     joints: [Option<Vec<ColumnRef>>; 2],
     source_id: Option<String>,
 }
@@ -209,7 +216,7 @@ pub struct ImportCount {
 
 /// The keys a map may hold, for messages.
 const KEYS_HELP: &str = "keys: kind, robot, group, tool, tool1, tool2, sigma_mm, distance_mm, \
-    source_id, [joints] unit, robot1, robot2, [tracker] columns, unit, sigma_column, [[rows]] \
+    source_id, [joints] unit, prismatic_unit, robot1, robot2, [tracker] columns, unit, sigma_column, [[rows]] \
     (each with the row keys kind … distance_mm and [rows.tracker])";
 
 /// Refuses a key of `table` that is neither a row key nor (`top`) a map key, naming it (`at`
@@ -313,6 +320,16 @@ impl ImportMap {
                 )))
             }
         };
+        let m_per_prismatic_unit = match map.joints.prismatic_unit.as_deref().unwrap_or("mm") {
+            "m" => 1.0,
+            "mm" => 1e-3,
+            u => {
+                return Err(at(format!(
+                    "[joints] prismatic_unit = \"{u}\": write \"m\" or \"mm\" (the unit of a prismatic joint's column)"
+                )))
+            }
+        };
+        let prismatic = crate::session::joint_kinds(cell);
         let dofs = [cell.robot1.model.dof(), cell.robot2.model.dof()];
         let lists = [&map.joints.robot1, &map.joints.robot2];
         let mut joints: [Option<Vec<ColumnRef>>; 2] = [None, None];
@@ -357,6 +374,8 @@ impl ImportMap {
         Ok(ImportMap {
             rows,
             deg_per_unit,
+            m_per_prismatic_unit,
+            prismatic,
             joints,
             source_id: map.source_id,
         })
@@ -478,7 +497,12 @@ impl ImportMap {
                                 kinematics::input::cap_echo(record.get(c.position()).unwrap_or(""))
                             ))
                         })?;
-                        v.push((x * self.deg_per_unit).to_radians());
+                        let prismatic = self.prismatic[k].get(v.len()).copied().unwrap_or(false);
+                        v.push(if prismatic {
+                            x * self.m_per_prismatic_unit
+                        } else {
+                            (x * self.deg_per_unit).to_radians()
+                        });
                     }
                     q[k] = Some(v);
                 }

@@ -22,10 +22,10 @@ use std::fmt::Write as _;
 use calib_core::whole_cell::{
     calibrate_cell_with, format_scale, predict_error, session_coverage, widen_prior,
     workspace_pairs, CalibrationReport, CellCalibration, CellFitError, CellProblem, ConfigPair,
-    CoverageReport, DropReason, FittedPlacementReport, GroupsReport, Kind, NuisanceReport,
-    PairSet, ParameterReport, PlacementSigmaReport, PredictedErrorReport, PredictionSplit,
-    PriorScaleReport, RejectedRowReport, ScaleMethod, ScreenOptions, SolveOptions,
-    UnidentifiableReport, WORKSPACE_POSES, WORKSPACE_SEED,
+    CoverageReport, DropReason, FittedPlacementReport, GroupsReport, Kind, NuisanceReport, PairSet,
+    ParameterReport, PlacementSigmaReport, PredictedErrorReport, PredictionSplit, PriorScaleReport,
+    RejectedRowReport, ScaleMethod, ScreenOptions, SolveOptions, UnidentifiableReport,
+    WORKSPACE_POSES, WORKSPACE_SEED,
 };
 use calib_core::{PoseForms, StopReason};
 use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
@@ -190,6 +190,8 @@ pub fn calibrate_session_with(
         coverage,
     );
     report.workspace_accuracy_mm = workspace;
+    report.one_robot = cell.one_robot;
+    keep_cell_robots(cell, &mut report.coverage);
     report.result_check = Some(check);
     Ok(SessionCalibration {
         report,
@@ -328,10 +330,14 @@ pub fn session_coverage_report(
     session: &Session,
 ) -> Result<CoverageReport, CellFitError> {
     let problem = cell_problem(cell, session, FitModel::Placement);
-    Ok(CoverageReport::from(&session_coverage(
-        &problem,
-        COVERAGE_SEED,
-    )?))
+    let mut report = CoverageReport::from(&session_coverage(&problem, COVERAGE_SEED)?);
+    keep_cell_robots(cell, &mut report);
+    Ok(report)
+}
+
+/// Drops a one-robot cell's stand-in robot 2 from `report` (a two-robot cell's is kept).
+fn keep_cell_robots(cell: &Cell, report: &mut CoverageReport) {
+    report.robots.retain(|c| cell.robots().contains(&c.robot));
 }
 
 /// Fewer coincident rows than this: the fit starts from the cell's `b1_from_b2` (a rigid start
@@ -396,6 +402,10 @@ pub struct CellReport {
     pub iterations: usize,
     /// The model fitted.
     pub model: CellModel,
+    /// A one-robot cell (`[robot1]` only): `b1_from_b2` is the stand-in identity, not printed,
+    /// and the coverage holds robot 1 alone. Omitted from the JSON when false.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub one_robot: bool,
     /// The blunder screen's noise scale (residuals' variance factor).
     pub noise_scale: f64,
     /// The session's nuisance parameters (tracker frames, scales, planes, contact distances).
@@ -471,6 +481,7 @@ impl CellReport {
             groups: rows_by_kind.is_some().then_some(groups),
             iterations,
             model,
+            one_robot: false,
             noise_scale,
             nuisance_parameters,
             parameters,
@@ -535,12 +546,16 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
         zyz_deg: b.zyz_deg,
     };
     let (zyz, note) = printed_zyz(&pose, band_deg);
-    writeln!(
-        s,
-        "b1_from_b2:  x {:.3} mm  y {:.3} mm  z {:.3} mm   φ {:.4}°  θ {:.4}°  ψ {:.4}°  (ZYZ, R = Rz(φ)·Ry(θ)·Rz(ψ)){note}",
-        xyz[0], xyz[1], xyz[2], zyz[0], zyz[1], zyz[2]
-    )?;
-    writeln!(s, "{}", placement_sigma_line(&b.sigma, r.noise_scale))?;
+    if r.one_robot {
+        writeln!(s, "one-robot cell: no placement (robot 1's own base frame)")?;
+    } else {
+        writeln!(
+            s,
+            "b1_from_b2:  x {:.3} mm  y {:.3} mm  z {:.3} mm   φ {:.4}°  θ {:.4}°  ψ {:.4}°  (ZYZ, R = Rz(φ)·Ry(θ)·Rz(ψ)){note}",
+            xyz[0], xyz[1], xyz[2], zyz[0], zyz[1], zyz[2]
+        )?;
+        writeln!(s, "{}", placement_sigma_line(&b.sigma, r.noise_scale))?;
+    }
     let params = &r.parameters;
     if params.is_empty() {
         writeln!(s, "kinematic parameters: none fitted (both robots nominal)")?;
@@ -981,6 +996,7 @@ mod tests {
             }),
             iterations: 4,
             model: CellModel::Kinematic,
+            one_robot: false,
             noise_scale: 1.0,
             nuisance_parameters: vec![],
             parameters: vec![

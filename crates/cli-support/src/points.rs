@@ -55,9 +55,46 @@ pub enum PointsError {
     #[error(transparent)]
     Fit(#[from] CalibError),
     /// The residuals are far beyond the alignment noise: the message names the likely data
-    /// mistake and the worst rows.
-    #[error("{0}")]
-    Misfit(String),
+    /// mistake and the worst rows; the values behind it are in [`PointsMisfit`].
+    #[error("{}", .0.message)]
+    Misfit(Box<PointsMisfit>),
+}
+
+/// The values behind a refused points fit ([`PointsError::Misfit`]; JSON `misfit` of a
+/// refusal, mm): the median residual against its bound, the likely causes tried that explain
+/// it, the worst rows.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct PointsMisfit {
+    /// The expected alignment noise σ per axis, mm (`--expected-noise-mm`).
+    pub expected_noise_mm: f64,
+    /// Each cause whose correction brings the median below the bound, with the median it gives,
+    /// mm, best first ([`calib_core::explain_misfit`]); empty when none does.
+    pub likely_causes: Vec<MisfitCauseReport>,
+    /// The bound of the median ([`calib_core::misfit_threshold_m`]), mm.
+    pub limit_mm: f64,
+    /// The median residual norm, mm.
+    pub median_residual_mm: f64,
+    /// The full message (what the command prints after `error:`).
+    pub message: String,
+    /// The method.
+    pub method: Method,
+    /// Number of points.
+    pub points: usize,
+    /// The residual RMS, mm.
+    pub residual_rms_mm: f64,
+    /// The worst rows (source row, residual norm in mm), largest first.
+    pub worst_rows: Vec<(usize, f64)>,
+}
+
+/// A likely cause of a points misfit and the median residual with it corrected, mm.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct MisfitCauseReport {
+    /// The cause ([`calib_core::MisfitCause`], tagged by `kind`).
+    pub cause: calib_core::MisfitCause,
+    /// In words.
+    pub description: String,
+    /// The median residual norm with it corrected, mm.
+    pub median_residual_mm: f64,
 }
 
 /// A points fit's report and the warnings to show beside it (a misfit kept by `force`).
@@ -96,6 +133,8 @@ pub fn points_report(
             warnings.extend(plausible(pairs, &f, &mounts, options, hints)?);
             (FitReport::new(pairs, &f, options.mounts.as_ref()), f)
         };
+    warnings.extend(layout_warning(pairs, &f));
+    warnings.extend(masked_warning(pairs, &f, &mounts, &mut report));
     if matches!(method, Method::Paper | Method::Constrained) && options.mounts.is_some() {
         // Fewer than 3 usable points already failed the fit above; anything else is reported.
         if let Ok(c) = mount_check(pairs, &mounts) {
@@ -107,6 +146,120 @@ pub fn points_report(
         fit: f,
         warnings,
     })
+}
+
+/// A `warning:` when the points are nearly collinear (second over first principal spread of
+/// robot 1's points below the result check's
+/// [`calib_core::whole_cell::CheckThresholds::collinear_ratio`], 5 %: the rotation about their
+/// line is then poorly determined; the registration refuses exact lines, below
+/// [`calib_core::COLLINEAR_REL`]), or, for the 4-point methods, nearly coplanar (third over
+/// first below [`calib_core::whole_cell::CheckThresholds::coplanar_ratio`]).
+fn layout_warning(pairs: &PointPairs, f: &Fit) -> Option<String> {
+    let th = calib_core::whole_cell::CheckThresholds::default();
+    let sv = calib_core::spread_singular_values(&pairs.p_b1);
+    let ratio = |a: f64| if sv[0] > 0.0 { a / sv[0] } else { 0.0 };
+    let spread = format!(
+        "principal spread {:.1}, {:.1}, {:.1} mm",
+        sv[0] * 1e3,
+        sv[1] * 1e3,
+        sv[2] * 1e3
+    );
+    let rotation = f
+        .uncertainty
+        .as_ref()
+        .map(|u| {
+            format!(
+                "; the fit's predicted rotation error is {:.3}° (1σ)",
+                u.e_rot_1sigma_rad.to_degrees()
+            )
+        })
+        .unwrap_or_default();
+    if ratio(sv[1]) < th.collinear_ratio {
+        return Some(format!(
+            "warning: the {} points are nearly collinear ({spread}; second over first {:.4}, \
+             below {}): the rotation about their line is poorly determined{rotation}; add points \
+             off that line",
+            pairs.len(),
+            ratio(sv[1]),
+            th.collinear_ratio
+        ));
+    }
+    if f.method.min_points() == 4 && ratio(sv[2]) < th.coplanar_ratio {
+        return Some(format!(
+            "warning: the {} points are nearly coplanar ({spread}; third over first {:.4}, below \
+             {}): method {} fits an affine map, which a plane leaves poorly determined; add \
+             points off that plane, or use lsq",
+            pairs.len(),
+            ratio(sv[2]),
+            th.coplanar_ratio,
+            f.method.name()
+        ));
+    }
+    None
+}
+
+/// Blunders that mask one another in the leave-one-out test ([`calib_core::masked_blunders`]):
+/// the rows that disagree with the rigid fit of the majority but that leave-one-out did not
+/// flag are added to `report`'s flagged rows, and a `warning:` names them with how far the
+/// fit moves without them (the fit printed still uses every row).
+fn masked_warning(
+    pairs: &PointPairs,
+    f: &Fit,
+    mounts: &MountPair,
+    report: &mut FitReport,
+) -> Option<String> {
+    let m = calib_core::masked_blunders(pairs)?;
+    let outliers = report.outliers.as_mut()?;
+    let masked: Vec<usize> = m
+        .flagged
+        .iter()
+        .map(|&i| pairs.row(i))
+        .filter(|r| !outliers.flagged_rows.contains(r))
+        .collect();
+    if masked.is_empty() {
+        return None;
+    }
+    outliers.flagged_rows.extend(&masked);
+    outliers.flagged_rows.sort_unstable();
+    let bad: Vec<f64> = m.flagged.iter().map(|&i| m.residuals_m[i] * 1e3).collect();
+    let (lo, hi) = bad
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
+    let keep: Vec<usize> = (0..pairs.len())
+        .filter(|i| !m.flagged.contains(i))
+        .collect();
+    let clean = PointPairs {
+        p_b1: keep.iter().map(|&i| pairs.p_b1[i]).collect(),
+        p_b2: keep.iter().map(|&i| pairs.p_b2[i]).collect(),
+        rows: keep.iter().map(|&i| pairs.row(i)).collect(),
+    };
+    let moved = match fit(&clean, f.method, mounts) {
+        Ok(c) => {
+            let d = c.b1_from_b2 * f.b1_from_b2.inverse();
+            format!(
+                "without them the {} fit moves by {} mm / {:.3}°",
+                f.method.name(),
+                mm_text(d.translation.vector.norm() * 1e3),
+                d.rotation.angle().to_degrees()
+            )
+        }
+        Err(e) => format!("without them the {} fit fails ({e})", f.method.name()),
+    };
+    let rows: Vec<usize> = m.flagged.iter().map(|&i| pairs.row(i)).collect();
+    Some(format!(
+        "warning: {} of {} rows ({:.0} %) disagree with the rigid fit of the other {} by {}–{} \
+         mm (limit {} mm, {} × their residual scale) and mask one another in the leave-one-out \
+         test: bad handclasps at rows {rows:?}; {moved}; the fit printed uses every row: \
+         re-record them, or remove them and re-run",
+        rows.len(),
+        pairs.len(),
+        100.0 * rows.len() as f64 / pairs.len() as f64,
+        pairs.len() - rows.len(),
+        mm_text(lo),
+        mm_text(hi),
+        mm_text(m.limit_m * 1e3),
+        calib_core::OUTLIER_FACTOR,
+    ))
 }
 
 /// Rows listed as the worst in a misfit error.
@@ -203,7 +356,28 @@ fn plausible(
             hints.force
         )));
     }
-    Err(PointsError::Misfit(msg))
+    Err(PointsError::Misfit(Box::new(PointsMisfit {
+        expected_noise_mm: options.expected_noise_m * 1e3,
+        likely_causes: found
+            .iter()
+            .map(|&(cause, med)| MisfitCauseReport {
+                cause,
+                description: cause.to_string(),
+                median_residual_mm: med * 1e3,
+            })
+            .collect(),
+        limit_mm: limit * 1e3,
+        median_residual_mm: median * 1e3,
+        message: msg,
+        method: f.method,
+        points: pairs.len(),
+        residual_rms_mm: f.residual_rms_m() * 1e3,
+        worst_rows: worst
+            .iter()
+            .take(WORST_ROWS)
+            .map(|&(row, r)| (row, r * 1e3))
+            .collect(),
+    })))
 }
 
 /// A length in mm for a message: 3 decimals, scientific notation from 1e6 mm.

@@ -19,9 +19,9 @@
 use std::path::Path;
 
 use calib_core::whole_cell::{
-    candidate_mistakes, classify_rejections, layout_shape, placement_distance, robust_noise_scale,
-    try_problem, CellCalibration, CellFitError, CellProblem, CheckThresholds, LayoutShape,
-    PlacementDistance, RejectionPattern, Trial,
+    candidate_mistakes, classify_rejections, coincident_pairs, layout_shape, placement_distance,
+    robust_noise_scale, try_problem, CellCalibration, CellFitError, CellProblem, CheckThresholds,
+    LayoutShape, PlacementDistance, RejectionPattern, Trial,
 };
 use handclasp_cell::problem::{cell_problem, FitModel};
 use handclasp_cell::{Cell, Session};
@@ -234,6 +234,15 @@ impl ResultCheckReport {
             self.status = "warning";
         }
     }
+
+    /// The text of a refusal (what `calibrate --cell` prints after `error:`): its messages,
+    /// joined.
+    pub fn refusal_reason(&self) -> String {
+        format!(
+            "the result contradicts what the cell states: {}",
+            self.messages.join("; ")
+        )
+    }
 }
 
 const STATUS_REFUSED: &str = "refused";
@@ -411,6 +420,10 @@ pub fn check_result(
             });
         }
     }
+    let masked = masked_blunders_check(problem, cal);
+    if let Some((item, _)) = &masked {
+        checks.push(item.clone());
+    }
     let noise_high = noise > th.noise_high;
     let mut tried = Vec::new();
     let mut likely: Option<MistakeTrialReport> = None;
@@ -500,6 +513,11 @@ pub fn check_result(
             ));
         }
     }
+    if let Some((_, Some(m))) = &masked {
+        if !refused {
+            messages.push(m.clone());
+        }
+    }
     if noise < th.noise_low {
         messages.push(format!(
             "the residuals are {noise:.2}× the stated noise (warning below {}): the cell's \
@@ -539,6 +557,65 @@ pub fn check_result(
         screen,
         status,
     })
+}
+
+/// Blunders that mask one another in a placement-only fit: the coincident rows that disagree
+/// with the rigid fit of the majority of them ([`calib_core::masked_blunders`] on the nominal
+/// tips, [`coincident_pairs`]) and that the blunder screen kept (its noise scale, √(χ²/dof),
+/// is inflated by them). The check item (`masked_blunders`: how many such rows) and, when
+/// there are any, the message. `None` for a kinematic fit (nominal tips are not its model: a
+/// kinematic error would look like blunders) or fewer than 6 coincident rows.
+fn masked_blunders_check(
+    problem: &CellProblem,
+    cal: &CellCalibration,
+) -> Option<(CheckItem, Option<String>)> {
+    if cal.fit.layout.prior_sqrt_info.nrows() != 0 {
+        return None;
+    }
+    let pairs = coincident_pairs(problem)?;
+    let m = calib_core::masked_blunders(&pairs)?;
+    let rows: Vec<usize> = m.flagged.iter().map(|&i| pairs.row(i)).collect();
+    let kept: Vec<usize> = rows
+        .iter()
+        .copied()
+        .filter(|r| !cal.rejected.iter().any(|x| x.row == *r))
+        .collect();
+    let item = CheckItem {
+        detail: format!(
+            "coincident rows farther from the rigid fit of the majority (nominal robots) than \
+             {} × its residual scale that the blunder screen kept: blunders that mask one \
+             another",
+            calib_core::OUTLIER_FACTOR
+        ),
+        name: "masked_blunders",
+        status: if kept.is_empty() { "ok" } else { "high" },
+        thresholds: vec![0.0],
+        value: kept.len() as f64,
+    };
+    if kept.is_empty() {
+        return Some((item, None));
+    }
+    let far: Vec<f64> = m.flagged.iter().map(|&i| m.residuals_m[i] * 1e3).collect();
+    let (lo, hi) = far
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
+    let moved = placement_distance(&m.b1_from_b2, &cal.fit.estimate.b1_from_b2);
+    let message = format!(
+        "{} of {} coincident rows ({:.0} %) disagree with the rigid fit of the other {} by \
+         {lo:.1}–{hi:.1} mm (limit {:.1} mm, {} × their residual scale): blunders that mask one \
+         another, of which the blunder screen rejected {}: rows {rows:?}; the majority's fit is \
+         {:.1} mm / {:.2}° from this one; re-record them, or remove them and re-run",
+        rows.len(),
+        pairs.len(),
+        100.0 * rows.len() as f64 / pairs.len() as f64,
+        pairs.len() - rows.len(),
+        m.limit_m * 1e3,
+        calib_core::OUTLIER_FACTOR,
+        rows.len() - kept.len(),
+        moved.translation_mm,
+        moved.rotation_deg,
+    );
+    Some((item, Some(message)))
 }
 
 fn trial_report(
@@ -607,4 +684,53 @@ pub fn reprediction_difference(
         }
     }
     Ok(worst)
+}
+
+/// The JSON a command prints on stdout with `--json` when it refuses a result (exit code still
+/// non-zero), so that a script can read why: `status` `"refused"`, the `reason` (the text the
+/// command prints after `error:`), and the check values behind it, under the key of the check
+/// that refused (`result_check` for `calibrate --cell` and `diagnose`, `misfit` for
+/// `calibrate POINTS.csv`, `export_reprediction` for a refused export).
+#[derive(Debug, Clone, Serialize)]
+pub struct Refusal<'a> {
+    /// The command that refused (`calibrate --cell`, `diagnose`, `calibrate`).
+    pub command: &'static str,
+    /// The refused export's re-prediction ([`ExportReprediction`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub export_reprediction: Option<ExportReprediction>,
+    /// The points fit's plausibility check ([`crate::points::PointsMisfit`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub misfit: Option<&'a crate::points::PointsMisfit>,
+    /// Why, in words (the error message).
+    pub reason: String,
+    /// The whole-cell result check ([`ResultCheckReport`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub result_check: Option<&'a ResultCheckReport>,
+    /// Always `"refused"` (as [`ResultCheckReport::status`] names it).
+    pub status: &'static str,
+}
+
+impl<'a> Refusal<'a> {
+    /// A refusal by `command` for `reason`, with no check values yet.
+    pub fn new(command: &'static str, reason: String) -> Self {
+        Refusal {
+            command,
+            export_reprediction: None,
+            misfit: None,
+            reason,
+            result_check: None,
+            status: STATUS_REFUSED,
+        }
+    }
+}
+
+/// A refused export's re-prediction check (JSON `export_reprediction` of a [`Refusal`]).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct ExportReprediction {
+    /// The allowed difference, mm ([`EXPORT_REPREDICTION_TOL_MM`]).
+    pub limit_mm: f64,
+    /// The session row of the largest difference.
+    pub row: usize,
+    /// The largest difference between the exported cell's re-prediction and the fit, mm.
+    pub worst_mm: f64,
 }

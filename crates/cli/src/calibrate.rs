@@ -191,8 +191,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let pairs = read_points_csv(&cfg.points)?;
     if !cfg.all {
         let method = cfg.methods[0];
-        let report = fit_report(&pairs, method, &cfg)
-            .with_context(|| format!("{}: method {}", cfg.points.display(), method.name()))?;
+        let report = fit_report(&pairs, method, &cfg).map_err(|e| {
+            let e = anyhow::Error::from(e).context(format!(
+                "{}: method {}",
+                cfg.points.display(),
+                method.name()
+            ));
+            refusal_json(e, cfg.json)
+        })?;
         // The report holds what is printed: the points go before the JSON is written.
         drop(pairs);
         if cfg.json {
@@ -224,6 +230,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// With `--json`, a refused fit (a misfit, [`PointsError::Misfit`]) prints its refusal object
+/// on stdout ([`cli_support::result_check::Refusal`], key `misfit`) before the error goes on to
+/// `error:` and exit 1. Returns `e`.
+fn refusal_json(e: anyhow::Error, json: bool) -> anyhow::Error {
+    if json {
+        if let Some(PointsError::Misfit(m)) = e.downcast_ref::<PointsError>() {
+            let mut refusal = cli_support::result_check::Refusal::new(
+                "calibrate",
+                cli_support::error_chain_text(e.as_ref()),
+            );
+            refusal.misfit = Some(m);
+            if let Err(print) = crate::json_out::print_pretty(&refusal) {
+                eprintln!("error: {print:#}");
+            }
+        }
+    }
+    e
 }
 
 /// `calibrate --method all`: each method's report, or why it does not apply, by method name
@@ -333,10 +358,10 @@ fn write_text(s: &mut String, r: &FitReport) -> std::fmt::Result {
     };
     for (i, res) in r.residuals_mm.iter().enumerate() {
         let row = r.rows.get(i).copied().unwrap_or(0);
-        let flag = if flagged.contains(&row) {
-            "  <-- suspect handclasp (leave-one-out)"
-        } else {
-            ""
+        let flag = match (flagged.contains(&row), loo.get(i).zip(thresholds.get(i))) {
+            (false, _) => "",
+            (true, Some((l, t))) if l <= t => "  <-- suspect handclasp (robust fit of the others)",
+            (true, _) => "  <-- suspect handclasp (leave-one-out)",
         };
         let loo_txt = loo
             .get(i)

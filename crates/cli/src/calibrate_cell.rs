@@ -224,7 +224,7 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         eprintln!("warning: {w}");
     }
     if let Some(check) = &report.result_check {
-        crate::result_check::refuse_or_warn(check, force)?;
+        crate::result_check::refuse_or_warn(check, force, json, "calibrate --cell")?;
     }
     for line in tolerance_warnings(&report) {
         eprintln!("{line}");
@@ -274,7 +274,7 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         Some(dir) => crate::export_dir::locked(dir, args.overwrite, "--export", || {
             let written =
                 export_calibrated_cell(&cell, &cal.fit.estimate, dir, &CALIBRATE_EXPORT_NAMES)?;
-            crate::result_check::check_export(dir, &session, &problem, &cal, force)?;
+            crate::result_check::check_export(dir, &session, &problem, &cal, force, json)?;
             Ok(written)
         })
         .with_context(|| format!("--export {}", dir.display()))?,

@@ -26,7 +26,7 @@ pub struct Args {
     #[arg(long)]
     pub json: bool,
     /// Write the corrected model into this folder (created if missing; refused if it is not
-    /// empty, unless --force): robot1_corrected.urdf, robot2_corrected.urdf, cell_corrected.toml
+    /// empty, unless --overwrite): robot1_corrected.urdf, robot2_corrected.urdf, cell_corrected.toml
     /// (load it with fk/calibrate/diagnose --cell) and effects.json; a session with contact,
     /// tracker or plane rows also gets report.json and report.txt. Session nuisances (tracker
     /// frames, scales, drifts, planes, contact distances) are not cell properties and stay in
@@ -34,8 +34,14 @@ pub struct Args {
     #[arg(long)]
     pub export: Option<PathBuf>,
     /// With --export: write into a folder that is not empty, overwriting files of the same names
-    /// (other files are left as they are).
+    /// (other files are left as they are). (--force no longer overwrites.)
     #[arg(long, requires = "export")]
+    pub overwrite: bool,
+    /// Diagnose a session the result check refuses (a likely data mistake explains the
+    /// placement fit: rows shifted, joints swapped, radians, another cell…); its findings then
+    /// print as `warning: kept by --force: …`. To write --export into a non-empty folder, use
+    /// --overwrite.
+    #[arg(long)]
     pub force: bool,
     /// Truth of the b1_from_b2 translation (e.g. from a CMM), mm: x,y,z. Needs --truth-zyz-deg.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
@@ -97,22 +103,50 @@ fn coverage(
 }
 
 /// The result check of `calibrate --cell --model placement` on the session
-/// ([`cli_support::result_check`]), before the diagnosis: its findings as `warning:` lines (a
-/// likely data mistake first; the diagnosis would otherwise name effects that a mistake
-/// made). A misfit is what the diagnosis is for, so nothing is refused here. A check that
-/// cannot run says so and the diagnosis goes on (it reports its own failure).
-fn result_precheck(cell: &Cell, session: &handclasp_cell::Session, screen: ScreenMode) {
+/// ([`cli_support::result_check`]), before the diagnosis. A likely data mistake that explains
+/// the fit refuses the diagnosis (it would otherwise name effects that the mistake made)
+/// unless `args.force`; with `--json` the refusal's object (key `result_check`) is printed on
+/// stdout first. A misfit no mistake explains is what the diagnosis is for: its findings are
+/// `warning:` lines. A check that cannot run says so and the diagnosis goes on (it reports its
+/// own failure).
+fn result_precheck(
+    args: &Args,
+    cell: &Cell,
+    session: &handclasp_cell::Session,
+) -> anyhow::Result<()> {
     let check = cli_support::cell_report::calibrate_session_with(
         cell,
         session,
         cli_support::cell_report::CellModel::Placement,
-        screen,
+        args.screen.mode(),
         None,
     );
     match check {
         Ok(c) => {
-            for m in c.report.result_check.iter().flat_map(|r| &r.messages) {
-                eprintln!("warning: result check (placement fit): {m}");
+            let Some(r) = &c.report.result_check else {
+                return Ok(());
+            };
+            if r.likely_mistake.is_some() && !args.force {
+                let reason = format!(
+                    "result check (placement fit): the session contradicts what the cell \
+                     states: {}",
+                    r.messages.join("; ")
+                );
+                if args.json {
+                    let mut refusal =
+                        cli_support::result_check::Refusal::new("diagnose", reason.clone());
+                    refusal.result_check = Some(r);
+                    crate::json_out::print_pretty(&refusal)?;
+                }
+                anyhow::bail!("{reason}");
+            }
+            let kept = if r.likely_mistake.is_some() {
+                "kept by --force: "
+            } else {
+                ""
+            };
+            for m in &r.messages {
+                eprintln!("warning: {kept}result check (placement fit): {m}");
             }
         }
         Err(e) => eprintln!(
@@ -120,6 +154,7 @@ fn result_precheck(cell: &Cell, session: &handclasp_cell::Session, screen: Scree
             cli_support::error_chain_text(&e)
         ),
     }
+    Ok(())
 }
 
 /// The whole-cell diagnosis of a session with contact, tracker or plane rows.
@@ -164,7 +199,7 @@ fn run_whole_cell(
         eprintln!("note: {n}");
     }
     if let Some(dir) = &args.export {
-        let files = crate::export_dir::locked(dir, args.force, "--export", || {
+        let files = crate::export_dir::locked(dir, args.overwrite, "--export", || {
             Ok(diagnose::export_cell_diagnosis(cell, &report, dir)?)
         })
         .context("--export")?;
@@ -214,7 +249,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     if let Some(dir) = &args.export {
-        crate::export_dir::check_export_folder(dir, args.force)?;
+        crate::export_dir::check_export_folder_overwrite(dir, args.overwrite, args.force)?;
     }
     let cell = Cell::from_toml_file(&args.cell)?;
     if args.verbose {
@@ -222,7 +257,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let cell_session = handclasp_cell::Session::read_csv(&args.session, &cell).ok();
     if let Some(session) = &cell_session {
-        result_precheck(&cell, session, args.screen.mode());
+        result_precheck(&args, &cell, session)?;
     }
     if let Some(session) = &cell_session {
         if !session.is_handclasp_only() {
@@ -263,7 +298,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(dir) = &args.export {
         let calibrated = report.b1_from_b2.to_isometry();
-        let files = crate::export_dir::locked(dir, args.force, "--export", || {
+        let files = crate::export_dir::locked(dir, args.overwrite, "--export", || {
             Ok(diagnose::export_corrected(
                 &cell,
                 &report,

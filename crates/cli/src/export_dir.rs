@@ -3,13 +3,8 @@
 
 use std::path::Path;
 
-/// Refuses an `--export` folder that exists and is not empty, unless `--force`
-/// ([`cli_support::export_dir::check_output_folder`]).
-pub fn check_export_folder(dir: &Path, force: bool) -> anyhow::Result<()> {
-    check_output_folder(dir, force, "--export")
-}
-
-/// [`check_export_folder`] for a folder given by `flag` (e.g. `--to`): the messages name it.
+/// Refuses an output folder given by `flag` (`export --to`) that exists and is not empty,
+/// unless `--force` ([`cli_support::export_dir::check_output_folder`]).
 pub fn check_output_folder(dir: &Path, force: bool, flag: &str) -> anyhow::Result<()> {
     Ok(cli_support::export_dir::check_output_folder(
         dir, force, flag, "--force",
@@ -29,9 +24,10 @@ pub fn locked<T>(
     handclasp_cell::output::with_export_lock(dir, force, flag, write)
 }
 
-/// [`check_export_folder`] for `calibrate --cell --export`, whose overwrite flag is
-/// `--overwrite` (its `--force` keeps a refused fit): a non-empty folder without `--overwrite`
-/// is refused, and the message says that `--force` alone no longer overwrites.
+/// The `--export` folder rule of `calibrate --cell` and `diagnose`, whose overwrite flag is
+/// `--overwrite` (their `--force` keeps a refused result): a non-empty folder without
+/// `--overwrite` is refused, and with `--force` (the old usage) the message says that `--force`
+/// alone no longer overwrites.
 pub fn check_export_folder_overwrite(
     dir: &Path,
     overwrite: bool,
@@ -41,7 +37,7 @@ pub fn check_export_folder_overwrite(
         cli_support::export_dir::check_output_folder(dir, overwrite, "--export", "--overwrite");
     match checked {
         Err(e) if force => Err(anyhow::Error::from(e).context(
-            "--force keeps a refused fit; it does not overwrite an export (add --overwrite)",
+            "--force keeps a refused result; it no longer overwrites an export (add --overwrite)",
         )),
         other => Ok(other?),
     }

@@ -104,8 +104,9 @@ pub(crate) fn ignored_branches_text(model: &RobotModel, what: &str) -> String {
 
 /// Prints (stderr) [`ignored_branches_text`] for both robots of a cell (for `--verbose`).
 pub(crate) fn print_cell_branches(cell: &handclasp_cell::Cell) {
-    for (label, robot) in [("robot 1", &cell.robot1), ("robot 2", &cell.robot2)] {
-        eprintln!("{}", ignored_branches_text(&robot.model, label));
+    for &r in cell.robots() {
+        let label = format!("robot {}", r.number());
+        eprintln!("{}", ignored_branches_text(&cell.robot(r).model, &label));
     }
 }
 
@@ -403,6 +404,12 @@ fn load_fk_robot(args: &Args) -> anyhow::Result<FkRobot> {
     };
     let cell = handclasp_cell::Cell::from_toml_file(cell_path)
         .with_context(|| format!("--cell {}", cell_path.display()))?;
+    if which == Robot::Two && !cell.has_robot2() {
+        bail!(
+            "--robot 2: {} is a one-robot cell ([robot1] only); use --robot 1",
+            cell_path.display()
+        );
+    }
     let robot = cell.robot(which);
     let flange_from_tip = if args.cell_tip {
         robot.flange_from_tip + robot.errors.tip

@@ -42,7 +42,7 @@ pub use ik::{ik_tip_position, IkOptions, IkSolution, IkStatus, IkStopReason};
 pub use jacobian::{geometric_jacobian, tip_position_jacobian, JacobianFrame};
 pub use model::{
     origin_isometry, rotation_from_rpy, Joint, JointKind, LumpedInertial, RobotModel,
-    MAX_CHAIN_LENGTH_M, MAX_PRISMATIC_TRAVEL_M, WORLD_LINK,
+    MAX_CHAIN_LENGTH_M, MAX_PRISMATIC_TRAVEL_M, PRISMATIC_READING_SLACK_M, WORLD_LINK,
 };
 pub use true_fk::{
     tip_error_jacobian, tip_joint_jacobian_true, true_base_from_flange,

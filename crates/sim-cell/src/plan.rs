@@ -203,7 +203,7 @@ fn plan_error(e: CellFitError) -> SimError {
 /// Plans a session on `cell` (see the module documentation); `progress(found, drawn)` reports
 /// the candidate search (the long part for large `k`).
 ///
-/// Errors: `n` = 0, `n` > `k`, no random draws, a non-positive spread; fewer than `n`
+/// Errors: a one-robot cell (it has no handclasp poses), `n` = 0, `n` > `k`, no random draws, a non-positive spread; fewer than `n`
 /// reachable candidates (naming how many were found and what to change); a cell none of whose
 /// drawn points both robots reach.
 pub fn plan_session(
@@ -211,6 +211,14 @@ pub fn plan_session(
     spec: &PlanSpec,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Plan, SimError> {
+    if cell.one_robot {
+        return Err(SimError::InvalidInput(
+            "the cell has only [robot1]: a plan chooses handclasp poses that both robots reach, \
+             so a one-robot cell has none; simulate its tracker or plane session with \
+             `sim-cell session --kind tracker` (or plane) instead"
+                .into(),
+        ));
+    }
     if spec.n == 0 {
         return Err(SimError::InvalidSetting {
             field: "n",
@@ -449,7 +457,12 @@ pub fn draw_kinematic_errors(robot: &mut CellRobot, rng: &mut impl Rng) {
     };
     let t = robot.tolerance;
     for p in wc.fitted_params() {
+        let prismatic = p
+            .joint()
+            .is_some_and(|j| robot.model.joints()[j].kind.is_prismatic());
         let tol = match p {
+            // A prismatic joint's offset is a length, its band the origin tolerance.
+            _ if prismatic => wc.prior_sigma(p) * 3f64.sqrt(),
             ErrorParam::JointOffset { .. } => t.joint_offset_rad,
             ErrorParam::OriginXyz { .. } => t.origin_xyz_m,
             ErrorParam::OriginRpy { .. } => t.origin_rpy_rad,

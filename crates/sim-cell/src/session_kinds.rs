@@ -159,9 +159,10 @@ fn check_spec(k: &KindSpec) -> Result<(), SimError> {
     Ok(())
 }
 
-/// The kind of teach point `i` (0-based) and, for one-robot kinds, its robot.
-fn kind_of(kind: SimKind, i: usize) -> (SimKind, Robot) {
-    let alternate = if i.is_multiple_of(2) {
+/// The kind of teach point `i` (0-based) and, for one-robot kinds, its robot (always robot 1
+/// in a one-robot cell, `one_robot`).
+fn kind_of(kind: SimKind, i: usize, one_robot: bool) -> (SimKind, Robot) {
+    let alternate = if one_robot || i.is_multiple_of(2) {
         Robot::One
     } else {
         Robot::Two
@@ -248,6 +249,18 @@ pub fn generate_kind_session(
     rng: &mut impl Rng,
 ) -> Result<(Session, NuisanceTruth), SimError> {
     check_spec(kinds)?;
+    if cell.one_robot && !matches!(kinds.kind, SimKind::Tracker | SimKind::Plane) {
+        return Err(SimError::InvalidInput(format!(
+            "--kind {}: this kind needs two robots, but the cell has only [robot1]; a one-robot \
+             cell is simulated with --kind tracker or --kind plane",
+            match kinds.kind {
+                SimKind::Coincident => "coincident",
+                SimKind::Contact => "contact",
+                SimKind::FaceContact => "face_contact",
+                _ => "mixed",
+            }
+        )));
+    }
     let centre = spec.centre_b1.unwrap_or(cell.centre_b1);
     if kinds.kind == SimKind::Coincident && plan.is_none() {
         let truth = NuisanceTruth {
@@ -260,7 +273,7 @@ pub fn generate_kind_session(
     let tracker_tools =
         [Robot::One, Robot::Two].map(|r| cell.robot(r).tool_index(&kinds.tracker_tool));
     if matches!(kinds.kind, SimKind::Tracker | SimKind::Mixed) {
-        for (r, t) in [Robot::One, Robot::Two].iter().zip(&tracker_tools) {
+        for (r, t) in cell.robots().iter().zip(&tracker_tools) {
             if t.is_none() {
                 return Err(SimError::InvalidInput(format!(
                     "--tracker-tool `{}`: {r} has no such tool; its tools are {} (add it to [robot{}.tools] of the cell)",
@@ -356,7 +369,7 @@ impl Sim<'_> {
         rng: &mut impl Rng,
     ) -> Result<(), PointFailure> {
         let label = i + 1;
-        let (kind, robot) = kind_of(self.kinds.kind, i);
+        let (kind, robot) = kind_of(self.kinds.kind, i, self.cell.one_robot);
         match kind {
             SimKind::Coincident => {
                 let eps = gauss3(rng, &self.cell.noise.alignment_m);

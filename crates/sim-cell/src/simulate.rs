@@ -161,9 +161,14 @@ pub(crate) fn solve_true_tool(
     None
 }
 
+/// Rounds each rotary joint of `q` (rad) to a multiple of the encoder `resolution` (rad) within
+/// its limits; a prismatic joint (m) is left as it is (an angular resolution has no length).
 pub(crate) fn quantise(robot: &CellRobot, q: &mut [f64], resolution: f64) {
     if resolution > 0.0 {
         for (qi, jt) in q.iter_mut().zip(robot.model.joints()) {
+            if jt.kind.is_prismatic() {
+                continue;
+            }
             let mut v = (*qi / resolution).round() * resolution;
             if v > jt.upper {
                 v -= resolution;

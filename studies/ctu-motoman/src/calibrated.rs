@@ -143,7 +143,7 @@ fn compliance_text(f: &CellFit) -> String {
 /// arms): with compliance, the fit takes gravity torques from the NOMINAL geometry and the
 /// exported cell from the corrected URDF (`handclasp_cell::export_calibrated_cell`'s caveat).
 /// Returns (rms, max) of that departure, m.
-fn export(
+pub fn export(
     cell: &Cell,
     c: &Calibrated,
     folder: &str,

@@ -10,11 +10,15 @@
 //! `e_k(c) ≤ e_k(best_k) + SE_k(best_k)` for every k; the choice is the simplest qualifying
 //! candidate (table order), or, when none qualifies, the one minimising
 //! `max_k (e_k(c) − e_k(best_k)) / SE_k(best_k)`. With one kind this is the one-SE rule.
+//! The rules themselves are the library's ([`calib_core::selection`]); this module holds the
+//! study's folds, fits and tables.
 
 use std::io::Write;
 use std::path::Path;
 
 use anyhow::Context;
+use calib_core::selection::argmin;
+pub use calib_core::selection::{per_kind_one_se, pooled_one_se, CvError, PerKindPick};
 use calib_core::StopReason;
 use handclasp_cell::Cell;
 use kinematics::KinematicErrors;
@@ -60,29 +64,6 @@ pub type HeldOutScore<'a> = dyn Fn(&[&Recording], (&KinematicErrors, &KinematicE
 /// Threads over which the CV candidates are spread (each candidate is independent and the table
 /// keeps the candidate order, so the result does not depend on this number).
 pub const CV_THREADS: usize = 2;
-
-/// A CV error: the held-out rms `e` (σ units, or mm for tracker scores) and its standard error.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CvError {
-    /// Held-out rms, `sqrt(mean e²)`.
-    pub e: f64,
-    /// Its standard error, `sd(e²) / (2·e·sqrt(n))` (delta method).
-    pub se: f64,
-}
-
-impl CvError {
-    /// The CV error of held-out squared errors `e2` (one per row or point).
-    pub fn from_squares(e2: &[f64]) -> CvError {
-        let n = e2.len().max(1) as f64;
-        let mean = e2.iter().sum::<f64>() / n;
-        let var = e2.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
-        let c = mean.sqrt();
-        CvError {
-            e: c,
-            se: var.sqrt() / (2.0 * c * n.sqrt()),
-        }
-    }
-}
 
 /// How one training fit of a CV fold ended (printed when it did not converge, so that a
 /// candidate whose fits misbehave is seen, not hidden behind its CV error).
@@ -145,88 +126,6 @@ pub struct Choice {
     pub table: Vec<CvRow>,
 }
 
-/// The per-kind one-SE rule's pick among candidates listed simplest first.
-#[derive(Debug, Clone, PartialEq)]
-pub struct PerKindPick {
-    /// Index of the chosen candidate.
-    pub index: usize,
-    /// Whether each candidate qualifies (within one SE of each kind's best, on every kind).
-    pub qualifies: Vec<bool>,
-    /// Per kind, the index of the candidate with the smallest error (the first on a tie).
-    pub best: Vec<usize>,
-    /// `None` when the choice qualifies; else its largest shortfall in SEs (the fallback).
-    pub shortfall: Option<f64>,
-}
-
-/// The per-kind one-SE rule on `errors[c][k]` (candidate c, simplest first; kind k): `best_k`
-/// = argmin_c e_k(c); c qualifies when `e_k(c) ≤ e_k(best_k) + SE_k(best_k)` for every k; the
-/// pick is the first qualifying candidate, or, when none qualifies, the one minimising
-/// `max_k (e_k(c) − e_k(best_k)) / SE_k(best_k)` (the first on a tie; a zero SE counts a
-/// positive difference as infinitely many SEs). `None` without candidates or kinds, or when the
-/// candidates disagree on the number of kinds.
-pub fn per_kind_one_se(errors: &[Vec<CvError>]) -> Option<PerKindPick> {
-    let kinds = errors.first()?.len();
-    if kinds == 0 || errors.iter().any(|c| c.len() != kinds) {
-        return None;
-    }
-    let best: Vec<usize> = (0..kinds)
-        .map(|k| {
-            (0..errors.len())
-                .min_by(|&a, &b| errors[a][k].e.total_cmp(&errors[b][k].e))
-                .unwrap_or(0)
-        })
-        .collect();
-    let qualifies: Vec<bool> = errors
-        .iter()
-        .map(|c| {
-            (0..kinds).all(|k| {
-                let b = errors[best[k]][k];
-                c[k].e <= b.e + b.se
-            })
-        })
-        .collect();
-    if let Some(index) = qualifies.iter().position(|&q| q) {
-        return Some(PerKindPick {
-            index,
-            qualifies,
-            best,
-            shortfall: None,
-        });
-    }
-    let shortfall = |c: &[CvError]| -> f64 {
-        (0..kinds)
-            .map(|k| {
-                let b = errors[best[k]][k];
-                let d = c[k].e - b.e;
-                if b.se > 0.0 {
-                    d / b.se
-                } else if d > 0.0 {
-                    f64::INFINITY
-                } else {
-                    0.0
-                }
-            })
-            .fold(f64::NEG_INFINITY, f64::max)
-    };
-    let index = (0..errors.len())
-        .min_by(|&a, &b| shortfall(&errors[a]).total_cmp(&shortfall(&errors[b])))?;
-    Some(PerKindPick {
-        index,
-        shortfall: Some(shortfall(&errors[index])),
-        qualifies,
-        best,
-    })
-}
-
-/// Stop 13's one-SE rule on one (pooled) CV error per candidate, simplest first: the first
-/// candidate with `e ≤ e_min + SE_min`. `None` without candidates.
-pub fn pooled_one_se(pooled: &[CvError]) -> Option<usize> {
-    let min = (0..pooled.len()).min_by(|&a, &b| pooled[a].e.total_cmp(&pooled[b].e))?;
-    pooled
-        .iter()
-        .position(|c| c.e <= pooled[min].e + pooled[min].se)
-}
-
 /// One CV candidate's held-out rows and the training fit of each fold.
 type Evaluated = (HeldOutRows, Vec<FoldFit>);
 
@@ -285,30 +184,9 @@ pub fn cross_validate(
         }
         Ok((e2, fold_fits))
     };
-    // Candidate k goes to thread k % CV_THREADS; the results are put back in candidate order.
-    let mut slots: Vec<Option<anyhow::Result<Evaluated>>> =
-        (0..specs.len()).map(|_| None).collect();
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..CV_THREADS)
-            .map(|t| {
-                let (specs, evaluate) = (&specs, &evaluate);
-                scope.spawn(move || {
-                    (t..specs.len())
-                        .step_by(CV_THREADS)
-                        .map(|k| (k, evaluate(specs[k])))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        for h in handles {
-            for (k, r) in h.join().expect("a CV thread panicked") {
-                slots[k] = Some(r);
-            }
-        }
-    });
-    let rows = slots
+    // Candidate k goes to thread k % CV_THREADS; the results come back in candidate order.
+    let rows = crate::in_job_order(&specs, CV_THREADS, &|spec: &ModelSpec| evaluate(*spec))
         .into_iter()
-        .map(|s| s.context("a CV candidate was not evaluated")?)
         .collect::<anyhow::Result<Vec<_>>>()?;
     let kinds_of = |r: &[(RowKind, f64)]| {
         let mut k: Vec<RowKind> = r.iter().map(|x| x.0).collect();
@@ -354,8 +232,7 @@ pub fn cross_validate(
         let index = match rule {
             CvRule::OneSe => per_kind.index,
             CvRule::PooledOneSe => pooled_one_se(&pooled).context("no CV candidate")?,
-            CvRule::Min => (0..pooled.len())
-                .min_by(|&a, &b| pooled[a].e.total_cmp(&pooled[b].e))
+            CvRule::Min => argmin(&pooled.iter().map(|c| c.e).collect::<Vec<_>>())
                 .context("no CV candidate")?,
         };
         Ok((sub[index].spec, per_kind))
@@ -369,10 +246,8 @@ pub fn cross_validate(
     } else {
         None
     };
-    let min_row = table
-        .iter()
-        .min_by(|a, b| a.pooled.e.total_cmp(&b.pooled.e))
-        .context("no CV candidate")?;
+    let min_row = &table[argmin(&table.iter().map(|t| t.pooled.e).collect::<Vec<_>>())
+        .context("no CV candidate")?];
     let (min_spec, min_se) = (min_row.spec, min_row.pooled.se);
     let best = per_kind
         .best

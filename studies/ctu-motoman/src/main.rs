@@ -32,7 +32,7 @@ use kinematics::KinematicErrors;
 use ctu_motoman::{contact, splits};
 
 use ctu_motoman::calibrated::{
-    calibrate, calibrate_all, contact_rms, print_effects, Calibrated, Calibrations,
+    calibrate, calibrate_all, contact_rms, export, print_effects, Calibrated, Calibrations,
 };
 use ctu_motoman::contact_report::{contact_model_comparison, contact_report, marker_at_report};
 use ctu_motoman::cv::{cross_validate, print_cv, write_cv, Choice, CvRule, HeldOutScore};
@@ -40,6 +40,7 @@ use ctu_motoman::data::{
     read_dataset, self_selection_recordings, Recording, Role, SELF_SELECTION_PATTERNS,
 };
 use ctu_motoman::proxy_report::proxy_report;
+use ctu_motoman::region::{print_region, region_protocol, write_region_csv, REGION_MODELS};
 use ctu_motoman::scores::{
     print_scores, print_selection_split, score_every_candidate, score_models, write_score_files,
     ScoredModel,
@@ -119,6 +120,12 @@ struct Args {
     #[arg(long, default_value_t = splits::DEFAULT_SPLITS,
           value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     splits: usize,
+    /// Skip the region-held-out protocol (docs/region-protocol.md; `DIR/region_held_out.csv`,
+    /// `DIR/region_candidates.csv`, `DIR/region/NAME/`), which fits every candidate of each
+    /// model once per training set it needs (several hundred fits, about ten minutes on two
+    /// cores). The other outputs do not depend on it.
+    #[arg(long)]
+    skip_region_protocol: bool,
 }
 
 /// `--contact-model`.
@@ -289,6 +296,54 @@ fn face_contact_rows(cell: &Cell, recordings: &mut [Recording]) -> anyhow::Resul
             },
             contact::slide_summary(&c)
         );
+    }
+    Ok(())
+}
+
+/// The region-held-out protocol (docs/region-protocol.md) for `self`, `planes` and `all`: per
+/// model the export choice and the nested figure per region, printed and appended to
+/// `DIR/region_held_out.csv` / `DIR/region_candidates.csv` as each model finishes; the export
+/// choice refitted on all the model's files and exported as `DIR/region/NAME/` (nothing when
+/// the choice is nominal).
+fn region_protocol_report(
+    cell: &Cell,
+    recordings: &[Recording],
+    noise: &NoiseLevels,
+    args: &Args,
+) -> anyhow::Result<()> {
+    for (k, model) in REGION_MODELS.iter().enumerate() {
+        let outcome = region_protocol(cell, recordings, model, &args.sigma_grid, noise)?;
+        let export_choice = outcome.export()?;
+        let nested = outcome.nested()?;
+        print_region(&outcome, &export_choice, &nested);
+        write_region_csv(&args.out, &outcome, &export_choice, &nested, k == 0)?;
+        let folder = format!("region/{}", model.name);
+        match export_choice.rule.choice {
+            Some(c) => {
+                let recs: Vec<&Recording> = recordings
+                    .iter()
+                    .filter(|r| model.roles.contains(&r.role))
+                    .collect();
+                let cal = calibrate(cell, folder.clone(), &recs, outcome.candidates[c], noise)?;
+                export(
+                    cell,
+                    &cal,
+                    &folder,
+                    &recs,
+                    &args.out,
+                    &format!(
+                        "the {} model's files, the set and prior σ chosen by the region-held-out\n\
+                         # do-no-harm rule (docs/region-protocol.md){}",
+                        model.name,
+                        grid_clause(&args.sigma_grid)
+                    ),
+                )?;
+            }
+            None => println!(
+                "  {folder}: the choice is nominal; nothing exported (the nominal cell is \
+                 cells/ctu-motoman.toml)"
+            ),
+        }
     }
     Ok(())
 }
@@ -607,6 +662,13 @@ fn run(args: Args) -> anyhow::Result<()> {
     }
     compared.push((cal_all.with.name.clone(), corrections(&cal_all.with.fit).0));
     proxy_report(&cell, &recordings, &reference, &compared, &args.out)?;
+    if !args.skip_region_protocol {
+        region_protocol_report(&cell, &recordings, &noise, &args)?;
+        println!(
+            "region protocol done at {:.1} s",
+            t0.elapsed().as_secs_f64()
+        );
+    }
     print_effects(&cal_all.chosen);
     for (folder, c) in [("self", &cal_self.chosen), ("planes", &cal_planes.chosen)] {
         println!(

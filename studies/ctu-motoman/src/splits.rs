@@ -151,37 +151,13 @@ pub fn score_splits(
         let errors: Vec<f64> = scored.iter().map(|p| p.error_m).collect();
         Ok(summarise(&errors).rms_mm)
     };
-    let threads = threads.max(1);
-    let mut slots: Vec<Option<anyhow::Result<f64>>> = jobs.iter().map(|_| None).collect();
-    std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..threads)
-            .map(|t| {
-                let (jobs, score) = (&jobs, &score);
-                scope.spawn(move || {
-                    (t..jobs.len())
-                        .step_by(threads)
-                        .map(|j| (j, score(&jobs[j])))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        for h in handles {
-            for (j, r) in h.join().expect("a split-scoring thread panicked") {
-                slots[j] = Some(r);
-            }
-        }
-    });
+    let slots = crate::in_job_order(&jobs, threads, &score);
     let mut values = slots.into_iter();
     for file in &mut files {
         for _ in models {
             let mut per_split = Vec::with_capacity(k);
             for _ in 0..k {
-                per_split.push(
-                    values
-                        .next()
-                        .flatten()
-                        .context("a split was not scored")??,
-                );
+                per_split.push(values.next().context("a split was not scored")??);
             }
             file.rms_mm.push(per_split);
         }

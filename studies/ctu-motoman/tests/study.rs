@@ -744,101 +744,6 @@ fn cv_candidates_are_the_sets_times_the_given_sigma_grid() {
     }
 }
 
-/// A made-up CV error (rms, its standard error).
-fn cv(e: f64, se: f64) -> cv::CvError {
-    cv::CvError { e, se }
-}
-
-#[test]
-fn per_kind_rule_refuses_a_candidate_that_buys_contact_fit_with_plane_fit() {
-    // Candidates simplest first; kinds (contact, plane). The flexible c2 wins the contact rows
-    // by a lot and the pooled error with them, but is worse than one SE on the planes.
-    let per_kind = [
-        vec![cv(1.00, 0.03), cv(0.95, 0.02)], // c0: offsets
-        vec![cv(0.16, 0.02), cv(0.90, 0.02)], // c1: within one SE of the best of both kinds
-        vec![cv(0.15, 0.02), cv(0.97, 0.03)], // c2: best contact, plane 0.97 > 0.90 + 0.02
-    ];
-    let pooled = [cv(0.97, 0.02), cv(0.47, 0.02), cv(0.43, 0.02)];
-    assert_eq!(
-        cv::pooled_one_se(&pooled),
-        Some(2),
-        "pooled: 0.47 > 0.43 + 0.02"
-    );
-    let pick = cv::per_kind_one_se(&per_kind).unwrap();
-    assert_eq!(
-        pick.best,
-        vec![2, 1],
-        "smallest contact: c2; smallest plane: c1"
-    );
-    assert_eq!(pick.qualifies, vec![false, true, false]);
-    assert_eq!((pick.index, pick.shortfall), (1, None));
-}
-
-#[test]
-fn per_kind_rule_takes_the_simplest_qualifying_candidate() {
-    // c1 and c2 both qualify on both kinds: the simpler (first) is chosen, not the smaller.
-    let per_kind = [
-        vec![cv(0.50, 0.01), cv(0.50, 0.01)],
-        vec![cv(0.21, 0.02), cv(0.31, 0.02)],
-        vec![cv(0.20, 0.02), cv(0.30, 0.02)],
-    ];
-    let pick = cv::per_kind_one_se(&per_kind).unwrap();
-    assert_eq!(pick.qualifies, vec![false, true, true]);
-    assert_eq!((pick.index, pick.shortfall), (1, None));
-}
-
-#[test]
-fn per_kind_rule_falls_back_to_the_smallest_largest_shortfall_when_none_qualifies() {
-    // No candidate is within one SE of the best on both kinds; shortfalls in SEs of each
-    // kind's best (contact best c2 0.15 ± 0.02, plane best c1 0.90 ± 0.02):
-    // c0: max(42.5, 2.5); c1: max(2.5, 0); c2: max(0, 3.5). c1 has the smallest maximum.
-    let per_kind = [
-        vec![cv(1.00, 0.03), cv(0.95, 0.02)],
-        vec![cv(0.20, 0.02), cv(0.90, 0.02)],
-        vec![cv(0.15, 0.02), cv(0.97, 0.03)],
-    ];
-    let pick = cv::per_kind_one_se(&per_kind).unwrap();
-    assert_eq!(pick.qualifies, vec![false, false, false]);
-    assert_eq!(pick.index, 1);
-    let shortfall = pick.shortfall.unwrap();
-    assert!((shortfall - 2.5).abs() < ROUND_OFF_TOL, "{shortfall}");
-}
-
-/// Round-off of the rule's arithmetic on made-up two-decimal errors.
-const ROUND_OFF_TOL: f64 = 1e-9;
-
-#[test]
-fn per_kind_rule_with_one_kind_is_the_pooled_one_se_rule() {
-    // With one kind the per-kind rule must pick what the one-SE rule picks (the `self` CV has
-    // only contact rows): several tables, including one where the pick is not the minimum
-    // and one where the minimum is the first candidate.
-    let tables: [&[(f64, f64)]; 4] = [
-        &[(0.99, 0.01), (0.98, 0.01), (0.13, 0.03), (0.12, 0.03)],
-        &[(0.30, 0.01), (0.40, 0.05), (0.50, 0.02)],
-        &[(0.50, 0.01), (0.45, 0.01), (0.42, 0.01), (0.41, 0.01)],
-        &[(0.2, 0.0), (0.2, 0.0)],
-    ];
-    let want = [2, 0, 2, 0];
-    for (t, want) in tables.iter().zip(want) {
-        let pooled: Vec<cv::CvError> = t.iter().map(|&(e, se)| cv(e, se)).collect();
-        let per_kind: Vec<Vec<cv::CvError>> = pooled.iter().map(|&c| vec![c]).collect();
-        let pick = cv::per_kind_one_se(&per_kind).unwrap();
-        assert_eq!(cv::pooled_one_se(&pooled), Some(want), "{t:?}");
-        assert_eq!((pick.index, pick.shortfall), (want, None), "{t:?}");
-    }
-    assert_eq!(cv::per_kind_one_se(&[]), None);
-    assert_eq!(cv::per_kind_one_se(&[vec![cv(1.0, 0.1)], vec![]]), None);
-}
-
-#[test]
-fn cv_error_is_the_rms_with_its_delta_method_standard_error() {
-    // e² = 1, 4, 9, 16: mean 7.5, sample variance of e² (42.25 + 12.25 + 2.25 + 72.25) / 3 = 43.
-    let c = cv::CvError::from_squares(&[1.0, 4.0, 9.0, 16.0]);
-    let e = 7.5f64.sqrt();
-    assert!((c.e - e).abs() < ROUND_OFF_TOL);
-    assert!((c.se - 43.0f64.sqrt() / (2.0 * e * 2.0)).abs() < ROUND_OFF_TOL);
-}
-
 // --- How much one split decides (`splits.rs`): the exported models over K half splits.
 
 /// The tracker files of the split tests: the smallest (16 rows, 6435 partitions) and an odd one
@@ -932,4 +837,21 @@ fn split_seeds_give_distinct_partitions_and_start_at_the_score_tables_split() {
     let e = splits::split_seeds(4, 4).unwrap_err().to_string();
     assert!(e.contains("only 3 distinct half splits"), "{e}");
     assert!(splits::split_seeds(1, 1).is_err());
+}
+
+#[test]
+fn regions_hold_the_protocols_tracker_poses() {
+    // docs/region-protocol.md, table "Regions": tracker poses per region.
+    use ctu_motoman::region::Region;
+    let Some((recs, _)) = dataset_and_cell() else {
+        return;
+    };
+    let poses = |r: Region| -> usize {
+        recs.iter()
+            .filter(|x| matches!(x.role, data::Role::Tracker | data::Role::TrackerSelfContact))
+            .filter(|x| Region::of(&x.name) == Some(r))
+            .map(|x| x.poses.iter().filter(|p| p.p_tracker.is_some()).count())
+            .sum()
+    };
+    assert_eq!(Region::ALL.map(poses), [212, 208, 64, 48, 46, 50]);
 }

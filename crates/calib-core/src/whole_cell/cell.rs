@@ -198,12 +198,31 @@ impl CellRobot {
             cand.push(ErrorParam::Compliance { joint });
             cand.push(ErrorParam::PeriodicSin { joint });
             cand.push(ErrorParam::PeriodicCos { joint });
-            out.extend(
-                cand.into_iter()
-                    .filter(|&p| self.tolerance.prior_sigma(p) > 0.0),
-            );
+            out.extend(cand.into_iter().filter(|&p| self.prior_sigma(p) > 0.0));
         }
         out
+    }
+
+    /// Prior standard deviation of kinematic parameter `p` of this robot (0: not fitted):
+    /// [`Tolerance::prior_sigma`], except at a prismatic joint, whose zero offset is a length
+    /// (m: its prior is the origin tolerance `origin_xyz_m/√3`, the same length band), whose
+    /// scale is an encoder scale (the ratio `joint_scale`), and which has no gravity compliance
+    /// or once-per-turn term in this model (0: not fitted).
+    pub fn prior_sigma(&self, p: ErrorParam) -> f64 {
+        let prismatic = p
+            .joint()
+            .and_then(|j| self.model.joints().get(j))
+            .is_some_and(|j| j.kind.is_prismatic());
+        if !prismatic {
+            return self.tolerance.prior_sigma(p);
+        }
+        match p {
+            ErrorParam::JointOffset { .. } => self.tolerance.origin_xyz_m / 3f64.sqrt(),
+            ErrorParam::Compliance { .. }
+            | ErrorParam::PeriodicSin { .. }
+            | ErrorParam::PeriodicCos { .. } => 0.0,
+            _ => self.tolerance.prior_sigma(p),
+        }
     }
 }
 

@@ -221,6 +221,34 @@ pub fn layout_shape(problem: &CellProblem) -> Option<LayoutShape> {
     })
 }
 
+/// Both robots' nominal tool points (each in its own base, at the reported joints) of the
+/// coincident rows of `problem`, as point pairs with the rows' source rows: the points problem
+/// a placement-only fit of those rows solves (for [`crate::masked_blunders`]). `None` with
+/// fewer than 3 such rows or a model failure.
+pub fn coincident_pairs(problem: &CellProblem) -> Option<crate::PointPairs> {
+    let (mut p_b1, mut p_b2, mut rows) = (Vec::new(), Vec::new(), Vec::new());
+    for o in &problem.observations {
+        let ObservationKind::Coincident {
+            q1,
+            q2,
+            tool1,
+            tool2,
+            ..
+        } = &o.kind
+        else {
+            continue;
+        };
+        let t1 = problem.robot1.tools.get(*tool1)?;
+        let t2 = problem.robot2.tools.get(*tool2)?;
+        let a = kinematics::base_from_tip(&problem.robot1.model, q1, &t1.flange_from_tip).ok()?;
+        let b = kinematics::base_from_tip(&problem.robot2.model, q2, &t2.flange_from_tip).ok()?;
+        p_b1.push(nalgebra::Point3::from(a.translation.vector));
+        p_b2.push(nalgebra::Point3::from(b.translation.vector));
+        rows.push(o.row);
+    }
+    (rows.len() >= 3).then_some(crate::PointPairs { p_b1, p_b2, rows })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

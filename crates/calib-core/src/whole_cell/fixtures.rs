@@ -133,7 +133,7 @@ pub fn sim_cell(cell: Cell, tol: Tolerance, second_tool: bool, seed: u64) -> Sim
             &mut truth.robot2
         };
         for p in params {
-            let tol = rb.tolerance.prior_sigma(p) * 3f64.sqrt();
+            let tol = rb.prior_sigma(p) * 3f64.sqrt();
             corr.errors.set(p, rng.random_range(-tol..=tol));
         }
         for t in &mut corr.tool_tip_m {

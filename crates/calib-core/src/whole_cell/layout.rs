@@ -359,7 +359,7 @@ impl ParamLayout {
                 }
                 kin.push((p, params.len()));
                 params.push(cp);
-                sigmas.push(rb.tolerance.prior_sigma(p));
+                sigmas.push(rb.prior_sigma(p));
             }
             let mut tip_col = Vec::new();
             for tool in 0..rb.tools.len() {

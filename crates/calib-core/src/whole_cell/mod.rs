@@ -158,8 +158,8 @@ pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
 pub use calibrate::{calibrate_cell, calibrate_cell_with, widen_prior, CellCalibration};
 pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool};
 pub use check::{
-    layout_shape, placement_distance, robust_noise_scale, CheckThresholds, LayoutShape,
-    PlacementDistance,
+    coincident_pairs, layout_shape, placement_distance, robust_noise_scale, CheckThresholds,
+    LayoutShape, PlacementDistance,
 };
 pub use coverage::{
     session_coverage, CoverageReport, JointCoverage, JointCoverageReport, PointRegion,

@@ -1,4 +1,4 @@
-//! A two-robot cell: two robots, their mounts, tip offsets and tools, kinematic errors (a
+//! A cell: two robots (or one: a file with `[robot1]` only, [`Cell::one_robot`]), their mounts, tip offsets and tools, kinematic errors (a
 //! simulation's hidden truth, or what an earlier calibration left beside the URDFs), the
 //! placement `b1_from_b2` and the noise of a handclasp session. Read from TOML (mm, degrees,
 //! paths relative to the file); every key is documented in `docs/formats.md`.
@@ -147,7 +147,19 @@ pub struct Cell {
     /// Centre of the teach points, m, b1 frame (`[teach] centre_mm`; default: the midpoint of the
     /// two shoulders, i.e. of joint 2's origins at q = 0).
     pub centre_b1: Point3<f64>,
+    /// True for a one-robot cell (a file with `[robot1]` only): then `robot2` is a stand-in
+    /// that no observation may use (robot 1's model with [`Tolerance::none`], no tools but the
+    /// tip), `b1_from_b2` the identity held by [`ONE_ROBOT_PLACEMENT_SIGMA`], and the files, the
+    /// reports and the export leave robot 2 and the placement out ([`Cell::has_robot2`]).
+    pub one_robot: bool,
 }
+
+/// The prior σ holding a one-robot cell's stand-in placement at the identity (no observation
+/// reaches it): 1 µm and 1 µrad per component, far below any measurement, far above round-off.
+pub const ONE_ROBOT_PLACEMENT_SIGMA: PlacementSigma = PlacementSigma {
+    sigma_m: 1e-6,
+    sigma_rad: 1e-6,
+};
 
 /// The stated uncertainty of a cell's `b1_from_b2` (per component, SI).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -164,8 +176,11 @@ pub struct PlacementSigma {
 #[serde(deny_unknown_fields)]
 struct CellFile {
     robot1: RobotFile,
-    robot2: RobotFile,
-    b1_from_b2: PlacementFile,
+    /// Absent in a one-robot cell (then `b1_from_b2` is absent too).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    robot2: Option<RobotFile>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    b1_from_b2: Option<PlacementFile>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     noise: Option<NoiseFile>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -238,6 +253,9 @@ struct TeachFile {
 struct ErrorsFile {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     joint_offset_deg: Option<Vec<f64>>,
+    /// Prismatic joints' zero offsets, mm (one entry per joint; 0 at rotary joints).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    joint_offset_mm: Option<Vec<f64>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     joint_scale: Option<Vec<f64>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -421,8 +439,47 @@ fn build_errors(
         }
     };
     let d2r = 1f64.to_radians();
+    // Per-joint angle fields hold 0 at a prismatic joint, `joint_offset_mm` 0 at a rotary one:
+    // each array has one unit.
+    let prismatic: Vec<bool> = model
+        .joints()
+        .iter()
+        .map(|j| j.kind.is_prismatic())
+        .collect();
+    let kind_only = |field: &str, v: &Option<Vec<f64>>, want_prismatic: bool| {
+        let bad = v
+            .iter()
+            .flatten()
+            .zip(&prismatic)
+            .position(|(x, &p)| *x != 0.0 && p != want_prismatic);
+        match bad {
+            None => Ok(()),
+            Some(j) => Err(ctx.err(format!(
+                "`{key}.errors.{field}` entry {} (joint {}) is {}, but that joint is {}: {}",
+                j + 1,
+                model.joints()[j].name,
+                v.as_ref().map_or(0.0, |v| v[j]),
+                model.joints()[j].kind.urdf_name(),
+                if want_prismatic {
+                    "joint_offset_mm holds prismatic joints' offsets only; give a rotary joint's in joint_offset_deg (0 here)"
+                } else {
+                    "a prismatic joint's zero offset is a length: give it in joint_offset_mm (0 here); compliance, periodic terms are for rotary joints"
+                }
+            ))),
+        }
+    };
+    kind_only("joint_offset_deg", &e.joint_offset_deg, false)?;
+    kind_only("compliance_deg_per_knm", &e.compliance_deg_per_knm, false)?;
+    kind_only("joint_offset_mm", &e.joint_offset_mm, true)?;
     if let Some(v) = per_joint("joint_offset_deg", &e.joint_offset_deg, d2r)? {
         out.joint_offset = v;
+    }
+    if let Some(v) = per_joint("joint_offset_mm", &e.joint_offset_mm, 1e-3)? {
+        for (j, x) in v.into_iter().enumerate() {
+            if prismatic[j] {
+                out.joint_offset[j] = x;
+            }
+        }
     }
     if let Some(v) = per_joint("joint_scale", &e.joint_scale, 1.0)? {
         out.joint_scale = v;
@@ -499,17 +556,29 @@ fn tolerance_file(t: &Tolerance) -> Option<ToleranceFile> {
     })
 }
 
-fn errors_file(e: &KinematicErrors) -> Option<ErrorsFile> {
+fn errors_file(model: &RobotModel, e: &KinematicErrors) -> Option<ErrorsFile> {
     if e.is_zero() {
         return None;
+    }
+    // A prismatic joint's offset (m) goes to `joint_offset_mm`, a rotary one's to `_deg`.
+    let (mut rotary_offset, mut prismatic_offset) =
+        (e.joint_offset.clone(), e.joint_offset.clone());
+    for (j, joint) in model.joints().iter().enumerate().take(e.joint_offset.len()) {
+        if joint.kind.is_prismatic() {
+            rotary_offset[j] = 0.0;
+        } else {
+            prismatic_offset[j] = 0.0;
+        }
     }
     let nz = |v: &[f64]| v.iter().any(|x| *x != 0.0);
     let nz3 = |v: &[Vector3<f64>]| v.iter().any(|x| x.iter().any(|c| *c != 0.0));
     let a3 = |v: &Vector3<f64>, s: f64| [v.x * s, v.y * s, v.z * s];
     let r2d = 1f64.to_degrees();
     Some(ErrorsFile {
-        joint_offset_deg: nz(&e.joint_offset)
-            .then(|| e.joint_offset.iter().map(|x| x * r2d).collect()),
+        joint_offset_deg: nz(&rotary_offset)
+            .then(|| rotary_offset.iter().map(|x| x * r2d).collect()),
+        joint_offset_mm: nz(&prismatic_offset)
+            .then(|| prismatic_offset.iter().map(|x| x * 1e3).collect()),
         joint_scale: nz(&e.joint_scale).then(|| e.joint_scale.clone()),
         origin_xyz_mm: nz3(&e.origin_xyz)
             .then(|| e.origin_xyz.iter().map(|v| a3(v, 1e3)).collect()),
@@ -618,21 +687,22 @@ impl Cell {
                     })
                     .collect()
             }),
-            errors: errors_file(&r.errors),
+            errors: errors_file(&r.model, &r.errors),
             tolerance: tolerance_file(&r.tolerance),
         };
         let zyz = zyz_canonical(&self.b1_from_b2.rotation.to_rotation_matrix());
         let t = self.b1_from_b2.translation.vector * 1e3;
         let a = self.noise.alignment_m * 1e3;
+        let two = self.has_robot2();
         let file = CellFile {
             robot1: robot(&self.robot1),
-            robot2: robot(&self.robot2),
-            b1_from_b2: PlacementFile {
+            robot2: two.then(|| robot(&self.robot2)),
+            b1_from_b2: two.then(|| PlacementFile {
                 xyz_mm: [t.x, t.y, t.z],
                 zyz_deg: zyz.map(f64::to_degrees),
                 sigma_mm: self.b1_from_b2_sigma.map(|s| s.sigma_m * 1e3),
                 sigma_deg: self.b1_from_b2_sigma.map(|s| s.sigma_rad.to_degrees()),
-            },
+            }),
             noise: Some(NoiseFile {
                 alignment_mm: Some(if a.x == a.y && a.y == a.z {
                     toml::Value::Float(a.x)
@@ -656,6 +726,22 @@ impl Cell {
         };
         tidy_floats(&mut value);
         toml::to_string(&value).unwrap_or_else(|e| format!("# cannot serialise the cell: {e}\n"))
+    }
+
+    /// False for a one-robot cell ([`Cell::one_robot`]): robot 2 is then a stand-in that no
+    /// row may use.
+    pub fn has_robot2(&self) -> bool {
+        !self.one_robot
+    }
+
+    /// The robots a session of this cell may use: robot 1, and robot 2 unless the cell has one
+    /// robot.
+    pub fn robots(&self) -> &'static [Robot] {
+        if self.one_robot {
+            &[Robot::One]
+        } else {
+            &[Robot::One, Robot::Two]
+        }
     }
 
     /// The cell's robot `which` (robot 1 or robot 2).
@@ -712,15 +798,13 @@ fn load_model(
     }
     let model = RobotModel::from_urdf_file(path, tool_link)
         .map_err(|e| ctx.err(format!("`{key}.urdf` = \"{urdf}\": {e}")))?;
-    // The session's joint columns and `[robotN.errors]` are per joint in degrees: a prismatic
-    // joint's value would be read as degrees and used as metres, and a coupled joint has no
-    // column. Refused until the formats describe them (issue 22).
-    if model.has_prismatic_joints() || model.has_coupled_joints() {
+    // A coupled joint has no session column and no entry in `[robotN.errors]`: refused until
+    // the formats describe it (issue 22). Prismatic joints are described (mm at the files).
+    if model.has_coupled_joints() {
         return Err(ctx.err(format!(
-            "`{key}.urdf` = \"{urdf}\": robot {} has prismatic or coupled (mimic) joints, which \
-             cell and session files do not describe yet (their joint columns and errors are per \
-             joint in degrees); evaluate the URDF directly with `handclasp fk --robot {} \
-             --tool-link {tool_link}` (prismatic values in mm)",
+            "`{key}.urdf` = \"{urdf}\": robot {} has coupled (mimic) joints, which cell and \
+             session files do not describe yet (a coupled joint has no joint column); evaluate \
+             the URDF directly with `handclasp fk --robot {} --tool-link {tool_link}`",
             model.name(),
             path.display()
         )));
@@ -736,7 +820,7 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
             .map(|r| format!("line {}: ", text[..r.start.min(text.len())].lines().count().max(1)))
             .unwrap_or_default();
         ctx.err(format!(
-            "{at}{} (keys: [robot1], [robot2] with urdf, mount, tip_mm, tool_link, [robotN.tools] name = [x, y, z], [robotN.errors], [robotN.tolerance] joint_offset_deg, origin_mm, origin_deg, tip_mm; [b1_from_b2] xyz_mm, zyz_deg, sigma_mm, sigma_deg; [noise] alignment_mm, repeatability_mm, encoder_resolution_deg; [teach] centre_mm)",
+            "{at}{} (keys: [robot1], [robot2] (absent in a one-robot cell) with urdf, mount, tip_mm, tool_link, [robotN.tools] name = [x, y, z], [robotN.errors], [robotN.tolerance] joint_offset_deg, origin_mm, origin_deg, tip_mm; [b1_from_b2] xyz_mm, zyz_deg, sigma_mm, sigma_deg (with [robot2] only); [noise] alignment_mm, repeatability_mm, encoder_resolution_deg; [teach] centre_mm)",
             e.message().trim_end()
         ))
     })?;
@@ -779,15 +863,36 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
         })
     };
     let mut robot1 = robot("robot1", &file.robot1)?;
-    let mut robot2 = robot("robot2", &file.robot2)?;
-    finite3(&ctx, "b1_from_b2.xyz_mm", file.b1_from_b2.xyz_mm)?;
-    finite3(&ctx, "b1_from_b2.zyz_deg", file.b1_from_b2.zyz_deg)?;
+    let (placement, mut robot2, one_robot) =
+        match (&file.robot2, &file.b1_from_b2) {
+            (Some(r2), Some(placement)) => (placement, robot("robot2", r2)?, false),
+            (None, None) => {
+                // A one-robot cell: robot 2 is a stand-in nothing observes, held at nominal.
+                let mut stand_in = robot1.clone();
+                stand_in.tools.clear();
+                stand_in.errors = KinematicErrors::zero(stand_in.model.dof());
+                stand_in.tolerance = Tolerance::none();
+                (&ONE_ROBOT_PLACEMENT, stand_in, true)
+            }
+            (None, Some(_)) => {
+                return Err(ctx.err(
+                    "`[b1_from_b2]` without `[robot2]`: a one-robot cell has no placement; remove \
+                 [b1_from_b2], or add [robot2] (urdf, mount, tip_mm) for a two-robot cell",
+                ))
+            }
+            (Some(_), None) => return Err(ctx.err(
+                "`[robot2]` without `[b1_from_b2]`: a two-robot cell needs robot 2's placement \
+                 (xyz_mm, zyz_deg); add [b1_from_b2], or remove [robot2] for a one-robot cell",
+            )),
+        };
+    finite3(&ctx, "b1_from_b2.xyz_mm", placement.xyz_mm)?;
+    finite3(&ctx, "b1_from_b2.zyz_deg", placement.zyz_deg)?;
     let b1_from_b2 = PoseMmDeg {
-        xyz_mm: file.b1_from_b2.xyz_mm,
-        zyz_deg: file.b1_from_b2.zyz_deg,
+        xyz_mm: placement.xyz_mm,
+        zyz_deg: placement.zyz_deg,
     }
     .to_isometry();
-    let b1_from_b2_sigma = match (file.b1_from_b2.sigma_mm, file.b1_from_b2.sigma_deg) {
+    let b1_from_b2_sigma = match (placement.sigma_mm, placement.sigma_deg) {
         (None, None) => None,
         (Some(mm), Some(deg)) => {
             for (key, v) in [("sigma_mm", mm), ("sigma_deg", deg)] {
@@ -833,7 +938,7 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
             "`robot2.mount` = {} is impossible with [b1_from_b2] zyz_deg = {:?}: that placement puts robot 2's \
              up direction at ({:.3}, {:.3}, {:.3}) in its base frame; use mount = {} or change zyz_deg",
             mount_value(&robot2.mount),
-            file.b1_from_b2.zyz_deg,
+            placement.zyz_deg,
             up_b2.x,
             up_b2.y,
             up_b2.z,
@@ -906,8 +1011,18 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
         b1_from_b2_sigma,
         noise,
         centre_b1,
+        one_robot,
     })
 }
+
+/// The `[b1_from_b2]` a one-robot cell stands in with: the identity, held by
+/// [`ONE_ROBOT_PLACEMENT_SIGMA`].
+const ONE_ROBOT_PLACEMENT: PlacementFile = PlacementFile {
+    xyz_mm: [0.0; 3],
+    zyz_deg: [0.0; 3],
+    sigma_mm: Some(ONE_ROBOT_PLACEMENT_SIGMA.sigma_m * 1e3),
+    sigma_deg: Some(1e-6 * 180.0 / std::f64::consts::PI),
+};
 
 /// Rotation of the level frame relative to base 1 (for callers that need it): `level_from_b1`.
 pub fn level_from_b1(cell: &Cell) -> Option<Rotation3<f64>> {

@@ -279,22 +279,121 @@ mod tolerance_tests {
     }
 }
 
-/// A cell whose robot has a prismatic joint is refused by name until the cell and session files
-/// describe prismatic values (merge of the `prismatic` branch, issue 22: before, the session's
-/// degree column would have been used as metres without a word).
+/// The rail fixture: the hp20 on a 4 m track, a prismatic first joint.
+const RAIL: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../kinematics/tests/fixtures/rail_6r.urdf"
+);
+
+/// A one-robot cell on the rail, with `extra` appended (its errors, tolerance, …).
+fn rail_cell(extra: &str) -> Result<Cell, FormatError> {
+    Cell::from_toml_str(
+        &format!("[robot1]\nurdf = \"{RAIL}\"\nmount = \"floor\"\ntip_mm = [0, 0, 150]\n{extra}"),
+        Path::new("."),
+    )
+}
+
+/// A robot with a prismatic joint loads (issue 22; before, it was refused until the files
+/// described prismatic values): its offset is written in `joint_offset_mm` (mm), a rotary
+/// joint's in `joint_offset_deg`, and both round-trip through the TOML.
 #[test]
-fn prismatic_robot_refused_until_the_formats_describe_it() {
-    let dir = tempfile::tempdir().unwrap();
-    let rail = concat!(
+fn prismatic_offsets_round_trip_in_millimetres() {
+    let cell = rail_cell(
+        "[robot1.errors]\njoint_offset_deg = [0, 0.02, 0, 0, 0, 0, -0.01]\njoint_offset_mm = [1.5, 0, 0, 0, 0, 0, 0]\n",
+    )
+    .unwrap();
+    assert!(cell.robot1.model.joints()[0].kind.is_prismatic());
+    assert!((cell.robot1.errors.joint_offset[0] - 1.5e-3).abs() < ROUND_TRIP_TOL);
+    assert!((cell.robot1.errors.joint_offset[1] - 0.02f64.to_radians()).abs() < ROUND_TRIP_TOL);
+    let text = cell.to_toml_string();
+    assert!(text.contains("joint_offset_mm = [1.5, 0.0"), "{text}");
+    assert!(text.contains("joint_offset_deg = [0.0, 0.02"), "{text}");
+    let back = Cell::from_toml_str(&text, Path::new(".")).unwrap();
+    assert_cells_equal(&cell, &back);
+}
+
+/// Each per-joint array has one unit: an angle given at a prismatic joint, or a length at a
+/// rotary one, is refused naming the joint and the key to use.
+#[test]
+fn a_value_in_the_wrong_units_array_is_refused_by_joint() {
+    let e = rail_cell("[robot1.errors]\njoint_offset_deg = [0.5, 0, 0, 0, 0, 0, 0]\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("joint rail") && e.contains("joint_offset_mm"),
+        "{e}"
+    );
+    let e = rail_cell("[robot1.errors]\njoint_offset_mm = [0, 2, 0, 0, 0, 0, 0]\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("entry 2") && e.contains("joint_offset_deg"),
+        "{e}"
+    );
+    let e = rail_cell("[robot1.errors]\ncompliance_deg_per_knm = [1, 0, 0, 0, 0, 0, 0]\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("compliance_deg_per_knm") && e.contains("prismatic"),
+        "{e}"
+    );
+}
+
+/// A coupled (mimic) joint is still refused by name: a session has no column for it.
+#[test]
+fn coupled_robot_refused_until_the_formats_describe_it() {
+    let mimic = concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/../kinematics/tests/fixtures/rail_6r.urdf"
+        "/../kinematics/tests/fixtures/mimic_on_chain.urdf"
     );
-    let toml = format!(
-        "[robot1]\nurdf = \"{rail}\"\nmount = \"floor\"\ntip_mm = [0, 0, 150]\n[robot2]\nurdf = \"{rail}\"\nmount = \"floor\"\ntip_mm = [0, 0, 150]\n[b1_from_b2]\nxyz_mm = [2000, 0, 0]\nzyz_deg = [180, 0, 0]\n"
-    );
-    let path = dir.path().join("cell.toml");
-    std::fs::write(&path, toml).unwrap();
-    let err = Cell::from_toml_file(&path).unwrap_err().to_string();
-    assert!(err.contains("prismatic or coupled"), "{err}");
+    let err = Cell::from_toml_str(
+        &format!("[robot1]\nurdf = \"{mimic}\"\nmount = \"floor\"\ntip_mm = [0, 0, 150]\n"),
+        Path::new("."),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("coupled (mimic)"), "{err}");
     assert!(err.contains("handclasp fk --robot"), "{err}");
+}
+
+/// A cell with `[robot1]` only is a one-robot cell: robot 2 is a stand-in held at nominal, the
+/// placement the identity under a tight prior, and the TOML written back has no `[robot2]` or
+/// `[b1_from_b2]`.
+#[test]
+fn one_robot_cell_parses_and_round_trips_without_robot2() {
+    let cell = rail_cell("[robot1.tools]\nreflector = [0, 60, 80]\n").unwrap();
+    assert!(cell.one_robot && !cell.has_robot2());
+    assert_eq!(cell.robots(), &[Robot::One]);
+    assert_eq!(cell.robot2.tolerance, Tolerance::none());
+    assert!(cell.robot2.tools.is_empty());
+    assert_eq!(cell.b1_from_b2, Isometry3::identity());
+    assert_eq!(cell.b1_from_b2_sigma, Some(ONE_ROBOT_PLACEMENT_SIGMA));
+    let text = cell.to_toml_string();
+    assert!(
+        !text.contains("robot2") && !text.contains("b1_from_b2"),
+        "{text}"
+    );
+    let back = Cell::from_toml_str(&text, Path::new(".")).unwrap();
+    assert!(back.one_robot);
+    assert_cells_equal(&cell, &back);
+    // Two-robot cells are unchanged.
+    assert!(Cell::default_floor_wall().has_robot2());
+}
+
+/// Half a cell is refused saying which half is missing.
+#[test]
+fn placement_without_robot2_and_robot2_without_placement_are_refused() {
+    let e = rail_cell("[b1_from_b2]\nxyz_mm = [0, 0, 0]\nzyz_deg = [0, 0, 0]\n")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("without `[robot2]`") && e.contains("one-robot cell"),
+        "{e}"
+    );
+    let e = rail_cell(&format!(
+        "[robot2]\nurdf = \"{RAIL}\"\nmount = \"floor\"\ntip_mm = [0, 0, 150]\n"
+    ))
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("without `[b1_from_b2]`"), "{e}");
 }

@@ -185,21 +185,17 @@ impl Session {
         }
     }
 
-    /// The CSV columns (see the module docs) for joint counts `dof1`, `dof2`.
+    /// The CSV columns (see the module docs) for joint counts `dof1`, `dof2` of two robots whose
+    /// joints are all rotary (`rK_qJ_deg`). [`Session::csv_header_for`] names a cell's columns.
     pub fn csv_header(dof1: usize, dof2: usize) -> Vec<String> {
-        let mut header = vec!["point".to_string()];
-        for (r, d) in [(1, dof1), (2, dof2)] {
-            for k in 1..=d {
-                header.push(format!("r{r}_q{k}_deg"));
-            }
-        }
-        header.extend(
-            [
-                "r1_x_mm", "r1_y_mm", "r1_z_mm", "r2_x_mm", "r2_y_mm", "r2_z_mm",
-            ]
-            .map(String::from),
-        );
-        header
+        header_of(&[vec![false; dof1], vec![false; dof2]])
+    }
+
+    /// The CSV columns for `cell`'s robots: a prismatic joint's column is `rK_qJ_mm`
+    /// (millimetres), a rotary one's `rK_qJ_deg`; a one-robot cell ([`Cell::has_robot2`] false)
+    /// has no `r2_*` columns.
+    pub fn csv_header_for(cell: &Cell) -> Vec<String> {
+        header_of(&joint_kinds(cell))
     }
 
     /// Writes the session CSV for `cell`'s robots ([`Session::csv_text`]).
@@ -217,3 +213,61 @@ impl Session {
 
 #[cfg(test)]
 mod tests;
+
+/// Per robot of `cell` that the session describes, whether each joint is prismatic (its column
+/// in mm) or rotary (degrees), chain order: two entries, the second empty for a one-robot cell.
+pub(crate) fn joint_kinds(cell: &Cell) -> [Vec<bool>; 2] {
+    let kinds = |r: &crate::cell::CellRobot| -> Vec<bool> {
+        r.model
+            .joints()
+            .iter()
+            .map(|j| j.kind.is_prismatic())
+            .collect()
+    };
+    let two = if cell.has_robot2() {
+        kinds(&cell.robot2)
+    } else {
+        Vec::new()
+    };
+    [kinds(&cell.robot1), two]
+}
+
+/// The joint column of joint `k` (1-based) of robot `robot` (1 or 2): `rR_qK_mm` for a
+/// prismatic joint, `rR_qK_deg` otherwise.
+pub fn joint_column(robot: u8, k: usize, prismatic: bool) -> String {
+    format!("r{robot}_q{k}_{}", if prismatic { "mm" } else { "deg" })
+}
+
+/// A joint value in its file unit (degrees, mm for a prismatic joint) from SI (rad, m).
+pub(crate) fn joint_to_file(q: f64, prismatic: bool) -> f64 {
+    if prismatic {
+        q * 1e3
+    } else {
+        q.to_degrees()
+    }
+}
+
+/// A joint value in SI (rad, m) from its file unit (degrees, mm for a prismatic joint).
+pub(crate) fn joint_from_file(v: f64, prismatic: bool) -> f64 {
+    if prismatic {
+        v * 1e-3
+    } else {
+        v.to_radians()
+    }
+}
+
+/// The standard columns for the joint kinds `kinds` ([`joint_kinds`]): robot 2's tip columns
+/// only when it has joints.
+fn header_of(kinds: &[Vec<bool>; 2]) -> Vec<String> {
+    let mut header = vec!["point".to_string()];
+    for (r, k) in [(1u8, &kinds[0]), (2, &kinds[1])] {
+        for (j, &p) in k.iter().enumerate() {
+            header.push(joint_column(r, j + 1, p));
+        }
+    }
+    header.extend(["r1_x_mm", "r1_y_mm", "r1_z_mm"].map(String::from));
+    if !kinds[1].is_empty() {
+        header.extend(["r2_x_mm", "r2_y_mm", "r2_z_mm"].map(String::from));
+    }
+    header
+}

@@ -13,7 +13,9 @@ use kinematics::input::cap_echo;
 use nalgebra::{Point3, Unit, Vector3};
 
 use super::kinds::{kind_columns, kinds_using, read_row, ReadRow, EXTRA_COLUMNS, KIND_NAMES};
-use super::{Session, SessionObservation, SessionPoint, SOURCE_ID_COLUMN};
+use super::{
+    joint_from_file, joint_kinds, Session, SessionObservation, SessionPoint, SOURCE_ID_COLUMN,
+};
 use crate::cell::Cell;
 use crate::error::FormatError;
 
@@ -64,8 +66,9 @@ impl Session {
             path: path.to_path_buf(),
             message,
         };
-        let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
-        let want = Session::csv_header(d1, d2);
+        let kinds = joint_kinds(cell);
+        let (d1, d2) = (kinds[0].len(), kinds[1].len());
+        let want = Session::csv_header_for(cell);
         let mut reader = calib_core::csv_reader(text);
         let headers = reader
             .headers()
@@ -104,11 +107,19 @@ impl Session {
                 } else {
                     format!(" (columns not used: {})", cap_echo(&unused.join(", ")))
                 };
+                let robots = if cell.has_robot2() {
+                    format!(
+                        "{} with {d1} joints, {} with {d2}",
+                        cell.robot1.model.name(),
+                        cell.robot2.model.name()
+                    )
+                } else {
+                    format!("one robot, {} with {d1} joints", cell.robot1.model.name())
+                };
                 return Err(err(format!(
-                    "line 1: the header has no column `{name}`{unused}, which this cell ({} with {d1} joints, {} with {d2}) needs; \
-                     the header must hold these columns (any order, extra columns ignored): {}",
-                    cell.robot1.model.name(),
-                    cell.robot2.model.name(),
+                    "line 1: the header has no column `{name}`{unused}, which this cell ({robots}) needs; \
+                     the header must hold these columns (any order, extra columns ignored; joints in degrees, \
+                     a prismatic joint's `_mm` column in millimetres): {}",
                     want[..required].join(","),
                 )));
             }
@@ -157,12 +168,24 @@ impl Session {
                 source_ids.insert(point, id.to_string());
             }
             if !has_kind {
+                if !cell.has_robot2() {
+                    return Err(err(format!(
+                        "line {line_no}: a session without a `kind` column is all coincident handclasps, which need two robots; \
+                         this cell has only [robot1]: add a `kind` column with tracker or plane rows"
+                    )));
+                }
                 let mut v = Vec::with_capacity(want.len() - 1);
                 for k in 1..want.len() {
                     v.push(row.number(k)?);
                 }
-                let q1: Vec<f64> = v[..d1].iter().map(|x| x.to_radians()).collect();
-                let q2: Vec<f64> = v[d1..d1 + d2].iter().map(|x| x.to_radians()).collect();
+                let si = |vals: &[f64], k: &[bool]| -> Vec<f64> {
+                    vals.iter()
+                        .zip(k)
+                        .map(|(x, &p)| joint_from_file(*x, p))
+                        .collect()
+                };
+                let q1 = si(&v[..d1], &kinds[0]);
+                let q2 = si(&v[d1..d1 + d2], &kinds[1]);
                 let t = &v[d1 + d2..];
                 let p_b1 = Point3::new(t[0], t[1], t[2]) * 1e-3;
                 let p_b2 = Point3::new(t[3], t[4], t[5]) * 1e-3;
@@ -384,23 +407,24 @@ impl RowReader<'_> {
 
     /// The joint angles of robot `r` (rad): `None` if all its joint cells are empty.
     fn joints(&self, cell: &Cell, r: Robot) -> Result<Option<Vec<f64>>, FormatError> {
-        let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
-        let range = match r {
-            Robot::One => 1..1 + d1,
-            Robot::Two => 1 + d1..1 + d1 + d2,
+        let kinds = joint_kinds(cell);
+        let (d1, d2) = (kinds[0].len(), kinds[1].len());
+        let (range, kinds) = match r {
+            Robot::One => (1..1 + d1, &kinds[0]),
+            Robot::Two => (1 + d1..1 + d1 + d2, &kinds[1]),
         };
         if range.clone().all(|k| self.cell(k).is_empty()) {
             return Ok(None);
         }
         let mut q = Vec::with_capacity(range.len());
-        for k in range {
+        for (j, k) in range.enumerate() {
             if self.cell(k).is_empty() {
                 return Err(self.missing(
                     &self.want[k],
-                    &format!("give all of {r}'s joint angles (degrees) or none"),
+                    &format!("give all of {r}'s joint values (degrees, mm for a prismatic joint) or none"),
                 ));
             }
-            q.push(self.number(k)?.to_radians());
+            q.push(joint_from_file(self.number(k)?, kinds[j]));
         }
         Ok(Some(q))
     }
@@ -408,7 +432,8 @@ impl RowReader<'_> {
     /// The reported tip of robot `r` (m): `None` if its three tip cells are empty.
     fn tip(&self, r: Robot, d1: usize, d2: usize) -> Result<Option<Point3<f64>>, FormatError> {
         let k0 = 1 + d1 + d2 + 3 * usize::from(r.number() - 1);
-        if (k0..k0 + 3).all(|k| self.cell(k).is_empty()) {
+        // A one-robot cell's session has no robot 2 tip columns.
+        if k0 + 3 > self.want.len() || (k0..k0 + 3).all(|k| self.cell(k).is_empty()) {
             return Ok(None);
         }
         let mut p = [0.0; 3];
@@ -459,6 +484,13 @@ impl RowReader<'_> {
     /// Both robots' joints (required), tools (`tool1`, `tool2`; empty = `tip`) and tips
     /// (optional, FK-checked) of a two-robot row of `kind`.
     pub(super) fn pair(&self, cell: &Cell, kind: Kind, v: RowValues) -> Result<Pair, FormatError> {
+        if !cell.has_robot2() {
+            return Err(self.err(format!(
+                "column `kind`: a {} row needs two robots, but this cell has only [robot1]; \
+                 a one-robot cell takes tracker and plane rows (`robot` = 1)",
+                kind.name()
+            )));
+        }
         let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
         let needs = format!(
             "a {} row needs both robots' joint angles (degrees)",
@@ -499,6 +531,11 @@ impl RowReader<'_> {
     ) -> Result<(Robot, Vec<f64>, usize), FormatError> {
         let kind = kind.name();
         let robot = self.robot()?;
+        if robot == Robot::Two && !cell.has_robot2() {
+            return Err(self.err(format!(
+                "column `robot`: this {kind} row is for robot 2, but this cell has only [robot1]; write 1"
+            )));
+        }
         let (q, other_given) = match robot {
             Robot::One => (v.q1, v.q2.is_some()),
             Robot::Two => (v.q2, v.q1.is_some()),

@@ -501,3 +501,98 @@ fn source_ids_round_trip_and_older_files_read_as_before() {
     assert_eq!(back.source_ids, m.source_ids);
     assert_eq!(back.kind_counts(), m.kind_counts());
 }
+
+/// A one-robot cell on the rail (a prismatic first joint) with a reflector tool.
+fn rail_cell() -> Cell {
+    let rail = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../kinematics/tests/fixtures/rail_6r.urdf"
+    );
+    Cell::from_toml_str(
+        &format!(
+            "[robot1]\nurdf = \"{rail}\"\nmount = \"floor\"\ntip_mm = [0, 0, 150]\n[robot1.tools]\nreflector = [0, 60, 80]\n"
+        ),
+        Path::new("."),
+    )
+    .unwrap()
+}
+
+/// A one-robot session of a robot with a prismatic joint: the header has robot 1's columns only,
+/// the prismatic joint's named `r1_q1_mm` and written in millimetres (metres inside), and the
+/// session reads back to the same values.
+#[test]
+fn one_robot_prismatic_session_round_trips_in_millimetres() {
+    let cell = rail_cell();
+    let q = vec![1.2345, 0.1, -0.2, 0.3, 0.0, 0.4, -0.5];
+    let session = Session {
+        observations: vec![crate::SessionObservation {
+            point: 1,
+            kind: SessionKind::Tracker {
+                robot: calib_core::Robot::One,
+                q: q.clone(),
+                tool: 1,
+                group: "tracker".into(),
+                p_tracker: nalgebra::Point3::new(1.0, 2.0, 3.0),
+                sigma_m: 5e-5,
+            },
+        }],
+        ..Session::default()
+    };
+    let text = session.csv_text(&cell);
+    let header = text.lines().next().unwrap();
+    assert!(header.starts_with("point,r1_q1_mm,r1_q2_deg,"), "{header}");
+    assert!(!header.contains("r2_"), "{header}");
+    assert!(text.contains(",1234.500000,"), "{text}");
+    let back = Session::parse_csv(&text, Path::new("s.csv"), &cell).unwrap();
+    let (robot, q_back, tool) = back.observations[0].kind.single().unwrap();
+    assert_eq!((robot, tool), (calib_core::Robot::One, 1));
+    // 6 decimals of mm (the rail) and of degrees.
+    assert!((q_back[0] - q[0]).abs() < CSV_TOL * 1e-3);
+    for (a, b) in q_back[1..].iter().zip(&q[1..]) {
+        assert!((a - b).abs() < CSV_TOL.to_radians());
+    }
+    assert_eq!(Session::csv_header_for(&cell)[1], "r1_q1_mm");
+}
+
+/// A one-robot cell refuses, by line and column, rows that need two robots and rows of robot 2.
+#[test]
+fn one_robot_cell_refuses_two_robot_rows() {
+    let cell = rail_cell();
+    let joints = "1000,0,30,0,0,0,0";
+    let head = "point,r1_q1_mm,r1_q2_deg,r1_q3_deg,r1_q4_deg,r1_q5_deg,r1_q6_deg,r1_q7_deg,r1_x_mm,r1_y_mm,r1_z_mm,kind,robot,group,tool,sigma_mm,tracker_x_mm,tracker_y_mm,tracker_z_mm";
+    let p = Path::new("s.csv");
+    let e = Session::parse_csv(
+        &format!("{head}\n1,{joints},,,,tracker,2,t,reflector,0.05,1,2,3\n"),
+        p,
+        &cell,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("line 2") && e.contains("only [robot1]"), "{e}");
+    let e = Session::parse_csv(
+        &format!("{head}\n1,{joints},,,,coincident,,,,,,,\n"),
+        p,
+        &cell,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("needs two robots") && e.contains("tracker and plane"),
+        "{e}"
+    );
+    let e = Session::parse_csv(
+        "point,r1_q1_mm,r1_q2_deg,r1_q3_deg,r1_q4_deg,r1_q5_deg,r1_q6_deg,r1_q7_deg,r1_x_mm,r1_y_mm,r1_z_mm\n1,1000,0,30,0,0,0,0,1,2,3\n",
+        p,
+        &cell,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("`kind` column"), "{e}");
+    // The same tracker row for robot 1 reads.
+    Session::parse_csv(
+        &format!("{head}\n1,{joints},,,,tracker,1,t,reflector,0.05,1,2,3\n"),
+        p,
+        &cell,
+    )
+    .unwrap();
+}

@@ -7,7 +7,7 @@ use calib_core::Robot;
 use nalgebra::Point3;
 
 use super::kinds::{kind_columns, ALWAYS_WRITTEN, EXTRA_COLUMNS};
-use super::{Session, SessionRow, SOURCE_ID_COLUMN};
+use super::{header_of, joint_kinds, joint_to_file, Session, SessionRow, SOURCE_ID_COLUMN};
 use crate::cell::Cell;
 
 impl Session {
@@ -17,7 +17,7 @@ impl Session {
     /// [`Session::parse_csv`] refuses: write such sessions with [`Session::csv_text`]. The
     /// [`SOURCE_ID_COLUMN`] comes last, when [`Session::source_ids`] is not empty.
     pub fn to_csv_string(&self, dof1: usize, dof2: usize) -> String {
-        self.write_text(dof1, dof2, &|_, k| {
+        self.write_text([vec![false; dof1], vec![false; dof2]], &|_, k| {
             if k == 0 {
                 crate::cell::TIP_TOOL.to_string()
             } else {
@@ -26,10 +26,10 @@ impl Session {
         })
     }
 
-    /// The CSV text for `cell` (tools by their names in the cell); see
-    /// [`Session::to_csv_string`].
+    /// The CSV text for `cell` (tools by their names in the cell; a prismatic joint's column in
+    /// mm, [`Session::csv_header_for`]); see [`Session::to_csv_string`].
     pub fn csv_text(&self, cell: &Cell) -> String {
-        self.write_text(cell.robot1.model.dof(), cell.robot2.model.dof(), &|r, k| {
+        self.write_text(joint_kinds(cell), &|r, k| {
             cell.robot(r)
                 .tool_name(k)
                 .map_or_else(|| format!("#{k}"), str::to_string)
@@ -38,8 +38,7 @@ impl Session {
 
     fn write_text(
         &self,
-        dof1: usize,
-        dof2: usize,
+        prismatic: [Vec<bool>; 2],
         tool_name: &dyn Fn(Robot, usize) -> String,
     ) -> String {
         let mixed = !self.is_handclasp_only();
@@ -58,7 +57,8 @@ impl Session {
             .map(|(_, c)| *c)
             .collect();
         let mut out = csv::Writer::from_writer(Vec::new());
-        let mut header = Session::csv_header(dof1, dof2);
+        let mut header = header_of(&prismatic);
+        let two_robots = !prismatic[1].is_empty();
         if mixed {
             header.extend(columns.iter().map(|c| c.to_string()));
         }
@@ -74,8 +74,9 @@ impl Session {
                 columns: &columns,
                 extra: vec![String::new(); columns.len()],
                 tool_name,
-                q1: vec![String::new(); dof1],
-                q2: vec![String::new(); dof2],
+                prismatic: &prismatic,
+                q1: vec![String::new(); prismatic[0].len()],
+                q2: vec![String::new(); prismatic[1].len()],
                 tips: [vec![String::new(); 3], vec![String::new(); 3]],
             };
             match row {
@@ -95,7 +96,9 @@ impl Session {
             record.extend(w.q2);
             let [t1, t2] = w.tips;
             record.extend(t1);
-            record.extend(t2);
+            if two_robots {
+                record.extend(t2);
+            }
             if mixed {
                 record.extend(w.extra);
             }
@@ -114,12 +117,14 @@ impl Session {
     }
 }
 
-/// One data row being written: the standard columns (joints in degrees, tips in mm, 6
+/// One data row being written: the standard columns (joints in degrees or mm, tips in mm, 6
 /// decimals; empty until set) and the extra columns the session writes.
 pub(super) struct RowWriter<'a> {
     columns: &'a [&'static str],
     extra: Vec<String>,
     tool_name: &'a dyn Fn(Robot, usize) -> String,
+    /// Per robot, whether each joint is prismatic (written in mm, not degrees).
+    prismatic: &'a [Vec<bool>; 2],
     q1: Vec<String>,
     q2: Vec<String>,
     tips: [Vec<String>; 2],
@@ -138,9 +143,17 @@ impl RowWriter<'_> {
         }
     }
 
-    /// Robot `r`'s joint columns from `q`, rad.
+    /// Robot `r`'s joint columns from `q`, rad (m for a prismatic joint).
     fn joints(&mut self, r: Robot, q: &[f64]) {
-        let deg = q.iter().map(|x| format!("{:.6}", x.to_degrees())).collect();
+        let kinds = &self.prismatic[usize::from(r.number() - 1)];
+        let deg = q
+            .iter()
+            .enumerate()
+            .map(|(j, x)| {
+                let prismatic = kinds.get(j).copied().unwrap_or(false);
+                format!("{:.6}", joint_to_file(*x, prismatic))
+            })
+            .collect();
         match r {
             Robot::One => self.q1 = deg,
             Robot::Two => self.q2 = deg,

@@ -2,6 +2,7 @@
 //! training rows, each held-out unit's score (its own nuisance refitted on half its rows), the
 //! cross-validation of the candidates in parallel, and the test that a gain is significant.
 
+use calib_core::selection::one_sample_t;
 use calib_core::whole_cell::{
     fit_cell_with, initial_estimate, CellEstimate, CellFit, CellFitError, CellProblem, Evaluator,
     GroupKind, ObservationKind, ParamLayout, PlacementPrior, Tolerance,
@@ -398,7 +399,6 @@ pub(super) fn significant(
     } else {
         0.0
     };
-    let n = rel.len() as f64;
     let t = if rel.len() < 3 {
         if rel.iter().all(|r| *r >= options.min_relative_gain) {
             f64::INFINITY
@@ -406,15 +406,7 @@ pub(super) fn significant(
             0.0
         }
     } else {
-        let mean = rel.iter().sum::<f64>() / n;
-        let var = rel.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
-        if var > 0.0 {
-            mean / (var / n).sqrt()
-        } else if mean > 0.0 {
-            f64::INFINITY
-        } else {
-            0.0
-        }
+        one_sample_t(&rel)
     };
     (
         relative >= options.min_relative_gain && t >= options.min_gain_t,

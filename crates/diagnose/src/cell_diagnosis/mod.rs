@@ -51,8 +51,8 @@
 //!    ([`Family::involves`]: rows of its robot, or of its tool; relative, so that one unit of
 //!    many rows or small σ does not decide alone; only those units, so that a tip family is not
 //!    diluted by tracker files of another tool) have a t statistic
-//!    `mean/(sd/√n) ≥ min_gain_t` (default 3); with fewer than 3 such units every one must gain
-//!    `min_relative_gain`. An effect is thus named only when it helps the held-out groups
+//!    `mean/(sd/√n) ≥ min_gain_t` (default 3; [`calib_core::selection::one_sample_t`]); with
+//!    fewer than 3 such units every one must gain `min_relative_gain`. An effect is thus named only when it helps the held-out groups
 //!    consistently.
 //! 6. **Effects.** Each accepted family: its parameters from the fit of the final model on all
 //!    screened rows, with a 95 % interval `±1.96·σ` (posterior σ times the variance factor
@@ -80,6 +80,7 @@ pub use noise_scale::KINDS;
 pub use problem::diagnosis_problem;
 use problem::placement_observed;
 
+use calib_core::selection::argmin;
 use calib_core::whole_cell::{
     classify_rejections, fit_screened, CellFit, CellFitError, CellProblem, RejectionPattern,
     ScreenOptions, SolveOptions,
@@ -363,11 +364,11 @@ fn run(
             results.push(((*cand).clone(), held, ok, t));
         }
         let lowest = |only_significant: bool| {
-            results
+            let pool: Vec<&(Family, HeldOut, bool, f64)> = results
                 .iter()
                 .filter(|r| r.2 || !only_significant)
-                .min_by(|a, b| a.1.total().total_cmp(&b.1.total()))
-                .cloned()
+                .collect();
+            argmin(&pool.iter().map(|r| r.1.total()).collect::<Vec<_>>()).map(|i| pool[i].clone())
         };
         let Some((family, held, accepted, t)) = lowest(true).or_else(|| lowest(false)) else {
             break;

@@ -291,7 +291,7 @@ pub struct RobotModel {
     pub(crate) steps: Vec<Step>,
     /// Some chain joint is prismatic (the hot loops take their prismatic-free variant if not).
     pub(crate) prismatic: bool,
-    /// `(lower − CHECK_SLACK, upper + CHECK_SLACK)` per independent joint, rad or m: the fast
+    /// `(lower − slack, upper + slack)` ([`check_slack`]) per independent joint, rad or m: the fast
     /// path of `check_q`.
     limits: Vec<(f64, f64)>,
 }
@@ -302,6 +302,22 @@ pub struct RobotModel {
 /// and with 1e-9 its plans were refused by the session reader (regression test
 /// `check_q_accepts_a_limit_written_with_six_decimals_of_a_degree`).
 const CHECK_SLACK: f64 = 1e-8;
+
+/// A prismatic joint's reading within this many metres past a limit is accepted as a reading
+/// (encoder overshoot at a soft limit), not refused as out of range: FIGAROH's TIAGo reports its
+/// torso lift at up to 0.350181 m against the URDF's upper limit of 0.35 m, in every one of its
+/// four recordings. Half a millimetre is far below any unit mistake (mm read as m is ×1000).
+pub const PRISMATIC_READING_SLACK_M: f64 = 0.5e-3;
+
+/// The slack past joint `j`'s limits that [`RobotModel::check_q`] accepts: [`CHECK_SLACK`], or
+/// [`PRISMATIC_READING_SLACK_M`] for a prismatic joint.
+fn check_slack(j: &Joint) -> f64 {
+    if j.kind.is_prismatic() {
+        PRISMATIC_READING_SLACK_M
+    } else {
+        CHECK_SLACK
+    }
+}
 
 /// A prismatic joint whose limits reach beyond this many metres is refused as written in
 /// millimetres ([`ModelError::LimitsLookLikeMillimetres`]): the longest robot tracks are tens of
@@ -442,7 +458,7 @@ impl RobotModel {
         }
         self.limits = joints
             .iter()
-            .map(|j| (j.lower - CHECK_SLACK, j.upper + CHECK_SLACK))
+            .map(|j| (j.lower - check_slack(j), j.upper + check_slack(j)))
             .collect();
         self.joints = joints;
         self.sources = coupled.then_some(sources);
@@ -687,7 +703,7 @@ impl RobotModel {
                     value: v,
                 });
             }
-            let outside = v < j.lower - CHECK_SLACK || v > j.upper + CHECK_SLACK;
+            let outside = v < j.lower - check_slack(j) || v > j.upper + check_slack(j);
             if outside && j.kind.is_prismatic() {
                 let (lower_mm, upper_mm) = (j.lower * 1e3, j.upper * 1e3);
                 let as_m = v * 1e-3;

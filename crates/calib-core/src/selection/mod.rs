@@ -1,0 +1,342 @@
+//! Choosing a model from held-out scores: the workspace's one home of the selection rules that
+//! the studies and `diagnose` apply to cross-validation results.
+//!
+//! 1. **CV error of a candidate**: [`CvError::from_squares`], the held-out rms of squared errors
+//!    and its delta-method standard error.
+//! 2. **One-standard-error rules** over candidates listed simplest first: [`pooled_one_se`] (one
+//!    error per candidate) and [`per_kind_one_se`] (one error per observation kind, every kind
+//!    at once, with a fallback when none qualifies).
+//! 3. **Significance of a consistent gain**: [`one_sample_t`], the t statistic of per-unit gains.
+//! 4. **The do-no-harm rule** over held-out *regions*: [`do_no_harm`], from a table of per-region
+//!    scores of each candidate and of the nominal model (the rule of
+//!    `studies/ctu-motoman/docs/region-protocol.md`).
+//!
+//! Every rule takes candidates in the caller's order of simplicity (simplest first) and breaks
+//! ties towards the simpler candidate. Nothing here fits a model: the callers hold the folds,
+//! the fits and the scores.
+
+#[cfg(test)]
+mod tests;
+
+/// A CV error: the held-out rms `e` of a candidate (in the units of its scores: σ units, mm, …)
+/// and its standard error.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CvError {
+    /// Held-out rms, `sqrt(mean e²)`.
+    pub e: f64,
+    /// Its standard error, `sd(e²) / (2·e·sqrt(n))` (delta method).
+    pub se: f64,
+}
+
+impl CvError {
+    /// The CV error of held-out squared errors `e2` (one per row or point). The sample standard
+    /// deviation divides by `n − 1` (by 1 with a single value, whose SE is then 0). Empty `e2`:
+    /// `e = 0` and `se = NaN`; a zero rms gives `se = NaN` too (0/0), which no rule reads as a
+    /// gain.
+    pub fn from_squares(e2: &[f64]) -> CvError {
+        let n = e2.len().max(1) as f64;
+        let mean = e2.iter().sum::<f64>() / n;
+        let var = e2.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
+        let c = mean.sqrt();
+        CvError {
+            e: c,
+            se: var.sqrt() / (2.0 * c * n.sqrt()),
+        }
+    }
+}
+
+/// The index of the smallest value (the first on a tie, in `f64::total_cmp` order, so a NaN
+/// is never the smallest unless every value is NaN). `None` for an empty slice.
+pub fn argmin(values: &[f64]) -> Option<usize> {
+    (0..values.len()).min_by(|&a, &b| values[a].total_cmp(&values[b]))
+}
+
+/// The one-SE rule on one (pooled) CV error per candidate, simplest first: the first candidate
+/// with `e ≤ e_min + SE_min`, where `e_min` is the smallest error ([`argmin`]) and `SE_min`
+/// its standard error. `None` without candidates.
+pub fn pooled_one_se(pooled: &[CvError]) -> Option<usize> {
+    let e: Vec<f64> = pooled.iter().map(|c| c.e).collect();
+    let min = argmin(&e)?;
+    pooled
+        .iter()
+        .position(|c| c.e <= pooled[min].e + pooled[min].se)
+}
+
+/// The per-kind one-SE rule's pick among candidates listed simplest first.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PerKindPick {
+    /// Index of the chosen candidate.
+    pub index: usize,
+    /// Whether each candidate qualifies (within one SE of each kind's best, on every kind).
+    pub qualifies: Vec<bool>,
+    /// Per kind, the index of the candidate with the smallest error (the first on a tie).
+    pub best: Vec<usize>,
+    /// `None` when the choice qualifies; else its largest shortfall in SEs (the fallback).
+    pub shortfall: Option<f64>,
+}
+
+/// The per-kind one-SE rule on `errors[c][k]` (candidate c, simplest first; observation kind
+/// k): `best_k` = argmin_c e_k(c); c qualifies when `e_k(c) ≤ e_k(best_k) + SE_k(best_k)` for
+/// every k; the pick is the first qualifying candidate, or, when none qualifies, the one
+/// minimising `max_k (e_k(c) − e_k(best_k)) / SE_k(best_k)` (the first on a tie; a zero SE
+/// counts a positive difference as infinitely many SEs). With one kind this is
+/// [`pooled_one_se`]. `None` without candidates or kinds, or when the candidates disagree on
+/// the number of kinds.
+pub fn per_kind_one_se(errors: &[Vec<CvError>]) -> Option<PerKindPick> {
+    let kinds = errors.first()?.len();
+    if kinds == 0 || errors.iter().any(|c| c.len() != kinds) {
+        return None;
+    }
+    let best: Vec<usize> = (0..kinds)
+        .map(|k| {
+            let e: Vec<f64> = errors.iter().map(|c| c[k].e).collect();
+            argmin(&e).unwrap_or(0)
+        })
+        .collect();
+    let qualifies: Vec<bool> = errors
+        .iter()
+        .map(|c| {
+            (0..kinds).all(|k| {
+                let b = errors[best[k]][k];
+                c[k].e <= b.e + b.se
+            })
+        })
+        .collect();
+    if let Some(index) = qualifies.iter().position(|&q| q) {
+        return Some(PerKindPick {
+            index,
+            qualifies,
+            best,
+            shortfall: None,
+        });
+    }
+    let shortfall = |c: &[CvError]| -> f64 {
+        (0..kinds)
+            .map(|k| {
+                let b = errors[best[k]][k];
+                let d = c[k].e - b.e;
+                if b.se > 0.0 {
+                    d / b.se
+                } else if d > 0.0 {
+                    f64::INFINITY
+                } else {
+                    0.0
+                }
+            })
+            .fold(f64::NEG_INFINITY, f64::max)
+    };
+    let shortfalls: Vec<f64> = errors.iter().map(|c| shortfall(c)).collect();
+    let index = argmin(&shortfalls)?;
+    Some(PerKindPick {
+        index,
+        shortfall: Some(shortfalls[index]),
+        qualifies,
+        best,
+    })
+}
+
+/// The one-sample t statistic of `values` (e.g. the relative held-out gains of the units a
+/// candidate touches): `mean / sqrt(var / n)`, the sample variance dividing by `n − 1`. A zero
+/// variance gives `+∞` when the mean is positive, else 0 (a constant gain is certain; a constant
+/// loss or no change is no evidence of a gain). Fewer than two values: NaN (no variance to judge
+/// by; the caller decides what a gain of one unit is worth).
+pub fn one_sample_t(values: &[f64]) -> f64 {
+    if values.len() < 2 {
+        return f64::NAN;
+    }
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    if var > 0.0 {
+        mean / (var / n).sqrt()
+    } else if mean > 0.0 {
+        f64::INFINITY
+    } else {
+        0.0
+    }
+}
+
+/// Invalid input to [`do_no_harm`]. Each names the region or candidate (0-based, in the order
+/// given) and what a valid table holds.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SelectionError {
+    /// No region to judge on.
+    #[error(
+        "no region scores: the do-no-harm rule needs the nominal model's score in at least one \
+         held-out region"
+    )]
+    NoRegions,
+    /// A candidate's row has another length than the nominal row.
+    #[error(
+        "candidate {candidate} has {got} region scores but the nominal model has {expected}: \
+         give every candidate a score in every region, in the same region order"
+    )]
+    RegionCount {
+        /// The candidate (0-based).
+        candidate: usize,
+        /// Its number of scores.
+        got: usize,
+        /// The nominal model's number of scores.
+        expected: usize,
+    },
+    /// The nominal model's score of a region is not a positive finite number.
+    #[error(
+        "the nominal model's score in region {region} is {value}: it must be finite and > 0 \
+         (a region whose nominal error is 0 cannot show harm; leave it out)"
+    )]
+    NominalScore {
+        /// The region (0-based).
+        region: usize,
+        /// The score given.
+        value: f64,
+    },
+    /// A candidate's score of a region is not a finite number ≥ 0.
+    #[error(
+        "candidate {candidate}'s score in region {region} is {value}: scores are held-out errors, \
+         finite and ≥ 0 (score a failed fit as such, or leave the candidate out)"
+    )]
+    CandidateScore {
+        /// The candidate (0-based).
+        candidate: usize,
+        /// The region (0-based).
+        region: usize,
+        /// The score given.
+        value: f64,
+    },
+}
+
+/// What [`do_no_harm`] decided, with the numbers it decided on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DoNoHarmChoice {
+    /// `ratios[c][s]`: candidate c's held-out score in region s over the nominal model's.
+    pub ratios: Vec<Vec<f64>>,
+    /// Each candidate's mean ratio over the regions.
+    pub mean_ratio: Vec<f64>,
+    /// Each candidate's standard error of its mean ratio: the sample standard deviation of its
+    /// ratios (dividing by `|S| − 1`, by 1 with one region) over `sqrt(|S|)`.
+    pub se_ratio: Vec<f64>,
+    /// Whether each candidate is eligible: its ratio is ≤ 1 in every region.
+    pub eligible: Vec<bool>,
+    /// The eligible candidate with the smallest mean ratio (the first on a tie); `None` when no
+    /// candidate is eligible.
+    pub best: Option<usize>,
+    /// The one-SE threshold, `mean_ratio[best] + se_ratio[best]`; `None` without `best`.
+    pub threshold: Option<f64>,
+    /// The choice: `Some(c)`, or `None` for the nominal model (no candidate is eligible, or the
+    /// nominal model, simplest of all with mean ratio 1, is within the threshold).
+    pub choice: Option<usize>,
+    /// The candidates withheld for harm: ineligible ones that are better than nominal (ratio
+    /// < 1) in at least one region. Ascending.
+    pub withheld: Vec<usize>,
+}
+
+/// The do-no-harm choice among candidates from their held-out scores per region.
+///
+/// `nominal[s]` is the nominal model's score (an error: smaller is better, e.g. a held-out rms
+/// in mm) in held-out region s; `candidates[c][s]` is candidate c's score in region s, fitted
+/// without region s (the caller's folds). Candidates are listed simplest first; the nominal
+/// model is a candidate too, simpler than all of them, with ratio 1 in every region.
+///
+/// 1. `ratio(c, s) = candidates[c][s] / nominal[s]`.
+/// 2. c is **eligible** when `ratio(c, s) ≤ 1` for every region s: it does no harm in any
+///    region it was not trained on.
+/// 3. `best` = the eligible candidate of smallest mean ratio; the **one-SE rule** then takes the
+///    simplest eligible candidate (the nominal model first) whose mean ratio is ≤ `mean(best) +
+///    SE(best)`, SE = sd of best's ratios / `sqrt(|S|)`.
+/// 4. No eligible candidate: the nominal model.
+///
+/// # Errors
+/// [`SelectionError`] when there is no region, when a candidate's row is not as long as
+/// `nominal`, when a nominal score is not finite and > 0, or a candidate score not finite and
+/// ≥ 0.
+///
+/// # Examples
+/// ```
+/// use calib_core::selection::do_no_harm;
+/// // Nominal's held-out rms (mm) in three regions, and two candidates, simplest first.
+/// let nominal = [0.40, 0.50, 0.60];
+/// let offsets = vec![0.30, 0.55, 0.30]; // better on average, but worse in region 1
+/// let physical = vec![0.36, 0.45, 0.50]; // better everywhere
+/// let c = do_no_harm(&nominal, &[offsets, physical]).unwrap();
+/// assert_eq!(c.eligible, vec![false, true]);
+/// assert_eq!(c.choice, Some(1));
+/// assert_eq!(c.withheld, vec![0]);
+/// ```
+pub fn do_no_harm(
+    nominal: &[f64],
+    candidates: &[Vec<f64>],
+) -> Result<DoNoHarmChoice, SelectionError> {
+    if nominal.is_empty() {
+        return Err(SelectionError::NoRegions);
+    }
+    if let Some((region, &value)) = nominal
+        .iter()
+        .enumerate()
+        .find(|(_, v)| !(v.is_finite() && **v > 0.0))
+    {
+        return Err(SelectionError::NominalScore { region, value });
+    }
+    for (candidate, row) in candidates.iter().enumerate() {
+        if row.len() != nominal.len() {
+            return Err(SelectionError::RegionCount {
+                candidate,
+                got: row.len(),
+                expected: nominal.len(),
+            });
+        }
+        if let Some((region, &value)) = row
+            .iter()
+            .enumerate()
+            .find(|(_, v)| !(v.is_finite() && **v >= 0.0))
+        {
+            return Err(SelectionError::CandidateScore {
+                candidate,
+                region,
+                value,
+            });
+        }
+    }
+    let regions = nominal.len() as f64;
+    let ratios: Vec<Vec<f64>> = candidates
+        .iter()
+        .map(|row| row.iter().zip(nominal).map(|(c, n)| c / n).collect())
+        .collect();
+    let mean_ratio: Vec<f64> = ratios
+        .iter()
+        .map(|r| r.iter().sum::<f64>() / regions)
+        .collect();
+    let se_ratio: Vec<f64> = ratios
+        .iter()
+        .zip(&mean_ratio)
+        .map(|(r, m)| {
+            let var = r.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (regions - 1.0).max(1.0);
+            (var / regions).sqrt()
+        })
+        .collect();
+    let eligible: Vec<bool> = ratios.iter().map(|r| r.iter().all(|&v| v <= 1.0)).collect();
+    let withheld: Vec<usize> = (0..candidates.len())
+        .filter(|&c| !eligible[c] && ratios[c].iter().any(|&v| v < 1.0))
+        .collect();
+    let eligible_means: Vec<f64> = mean_ratio
+        .iter()
+        .zip(&eligible)
+        .map(|(&m, &e)| if e { m } else { f64::INFINITY })
+        .collect();
+    let best = argmin(&eligible_means).filter(|&b| eligible[b]);
+    let threshold = best.map(|b| mean_ratio[b] + se_ratio[b]);
+    // The nominal model (mean ratio 1, the simplest) first, then the candidates in order.
+    let choice = match threshold {
+        Some(t) if 1.0 > t => (0..candidates.len()).find(|&c| eligible[c] && mean_ratio[c] <= t),
+        _ => None,
+    };
+    Ok(DoNoHarmChoice {
+        ratios,
+        mean_ratio,
+        se_ratio,
+        eligible,
+        best,
+        threshold,
+        choice,
+        withheld,
+    })
+}
