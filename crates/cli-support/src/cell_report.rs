@@ -953,6 +953,8 @@ mod tests {
             cooperative_accuracy_mm: Some(CooperativeAccuracyReport {
                 data_part_rms: 0.9,
                 held_out_ratio: Some(1.04),
+                held_out_p_value: Some(0.31),
+                held_out_regions: Some(5),
                 model_error_rms: 0.0,
                 model_error_source: "held_out_residuals",
                 pair_set: PairSet::MeetingPairs.describe(),
@@ -1079,7 +1081,7 @@ mod tests {
             "  plane group \"table\": normal (0.00000, 0.60000, -0.80000), offset -971.326 mm (base of robot 2)",
             "  tracker group \"leica\": origin (-1226.996, 1146.293, 1295.316) mm, rotation φ 0.0000°  θ 0.0000°  ψ 90.0000° (ZYZ), quaternion (w, x, y, z) (0.707107, 0.000000, 0.000000, 0.707107), in the base of robot 1",
             "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the 14 meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms 1.500 mm, p95 2.750 mm",
-            "  of which: data-determined 0.900 mm, prior-asserted 1.200 mm (the tolerances of the terms the data do not determine: right only if the robots are that far off), model error none (held-out residuals 1.04× the stated noise's variance: not significantly above); 95 % bound of the rms 2.000 mm",
+            "  of which: data-determined 0.900 mm, prior-asserted 1.200 mm (the tolerances of the terms the data do not determine: right only if the robots are that far off), model error none (held-out residuals of 5 joint-space regions 1.04× what the fit predicts, p 0.31: not significantly above); 95 % bound of the rms 2.000 mm",
             "  why the prior part: the evidence chose prior scale 0.0625, so the kinematic corrections are held within 0.0625 × their tolerances and the rest of the tolerances stays in the prediction; `plan` predicts at scale 1 (the data correct what they see) and gives less: its 'placement-only limit' line is this case",
             "coverage (the session against the joint limits and the reach sampled at 4000 joint vectors within them; a calibration is extrapolated outside it):",
             "prior scale chosen by the evidence: 0.0625 for every family (prior σ = scale × tolerance/√3; scales 1e-3 … 100, 1e-3 = placement-only limit); blunder-screen noise scale 1.000",

@@ -412,6 +412,8 @@ mod tests {
         PredictedErrorReport {
             data_part_rms: 0.3,
             held_out_ratio: None,
+            held_out_p_value: None,
+            held_out_regions: None,
             model_error_rms: 0.0,
             model_error_source: "assumed_none",
             pair_set: set.describe(),

@@ -24,6 +24,8 @@ fn work_site(p95: f64, ci: [f64; 2], rot_ci: [f64; 2]) -> WorkSiteReport {
         parts_mm: calib_core::whole_cell::PredictedErrorReport {
             data_part_rms: p95 / 4.0,
             held_out_ratio: None,
+            held_out_p_value: None,
+            held_out_regions: None,
             model_error_rms: 0.0,
             model_error_source: "assumed_none",
             pair_set: PairSet::WorkPoints.describe(),

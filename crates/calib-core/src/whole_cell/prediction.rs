@@ -16,12 +16,19 @@
 //!      with it).
 //!    - a design ([`super::design_split`]): the same at nominal, for a chosen prior scale.
 //! 2. The **model-error term** ([`ModelError`]): the placement-only fit's residual variance
-//!    factor when it set one; else from the held-out residuals of the fit's rows, each left out
-//!    in turn (linearised): `t_i² = r̃ᵀ(I − H_ii)⁻¹r̃ ~ χ²_dim` under the model; when their sum is
-//!    significantly above its degrees of freedom (χ² upper tail below
-//!    [`MODEL_ERROR_ALPHA`]), the excess `(Σt²/Σdim − 1)·σ̄²` (σ̄² the mean stated noise
-//!    variance per residual row) is the variance per b1 axis the model does not represent.
-//!    A design has none (it assumes the model).
+//!    factor when it set one; else from the **region-held-out** residuals of the fit's rows
+//!    (linearised): the rows are clustered into regions in joint space ([`region_labels`]) and
+//!    each region `c` is held out in turn. Its residuals `r_c` (whitened) have, under the model
+//!    and the fit's own prior, covariance `M_cc = I − J_c·H⁻¹·J_cᵀ` (the block of
+//!    `M = (I + J·Λ⁻¹·Jᵀ)⁻¹`), so `t_c² = r_cᵀ·M_cc⁺·r_c` (the held-out prediction error
+//!    against what the rest of the data and the posterior predict) has mean `rank(M_cc)`. The
+//!    regions' `t_c²` are correlated (they share one fit), so `Σ t_c²` is tested against its own
+//!    mean and variance under the model (`2·tr((D·M)²)`, `D = blockdiag(M_cc⁺)`), not against a
+//!    χ² with `Σ dim` degrees of freedom (which fires far more often than its level when the
+//!    model is right). When its upper tail is below [`MODEL_ERROR_ALPHA`], the excess
+//!    `(Σt² − E)/Σ tr(M_cc) · σ̄²` (σ̄² the mean stated noise variance per residual row) is the
+//!    variance per b1 axis the model does not represent; otherwise none. A design has none (it
+//!    assumes the model).
 //! 3. [`predict_error`]: over pairs `(q1, q2)` of a [`PairSet`], the cooperative vector
 //!    `v = f1(q1) − b1_from_b2·f2(q2)` (m, b1 axes) has error covariance
 //!    `J_v·(D + P)·J_vᵀ + m·I` (`D`, `P` the parts, `m` the model-error variance); the rms of
@@ -43,11 +50,26 @@ use super::accuracy::{summarise_covariances, ConfigPair};
 use super::calibrate::CellCalibration;
 use super::solve::sym_inverse;
 use super::{CellEstimate, CellFitError, CellProblem, Evaluator, ParamLayout};
-use crate::stats::{chi2_sf, quantile, trial_rng};
+use crate::stats::{chi2_sf_real, quantile, trial_rng};
 
-/// Significance of the held-out residuals' excess over the stated noise below which a
-/// model-error term is added (χ² upper tail of `Σ t_i²` on `Σ dim_i` degrees of freedom).
+/// Significance of the region-held-out residuals' excess over what the fit predicts below
+/// which a model-error term is added (upper tail of `Σ_c t_c²` under the model).
 pub const MODEL_ERROR_ALPHA: f64 = 0.05;
+
+/// Regions the model-error test holds out in turn ([`region_labels`]): clusters in joint space,
+/// as issue 20's region-held-out cross-validation holds them out.
+pub const HELD_OUT_REGIONS: usize = 5;
+
+/// Observations per held-out region at the least on average; a session with fewer than two
+/// regions' worth holds out each observation alone.
+pub const MIN_OBSERVATIONS_PER_REGION: usize = 4;
+
+/// Lloyd iterations of the regions' k-means at the most.
+const KMEANS_ITERATIONS: usize = 50;
+
+/// Relative eigenvalue of a held-out region's `M_cc` below which its direction is not
+/// predicted by the rest of the data (dropped from the test; round-off level).
+const HELD_OUT_EIGEN_FLOOR: f64 = 1e-9;
 
 /// Seeded draws of the parameter error behind [`PredictedError::rms_bound95_m`].
 pub const BOUND_DRAWS: usize = 400;
@@ -109,13 +131,16 @@ pub enum ModelError {
         /// Variance per b1 axis, m².
         var_m2: f64,
     },
-    /// The held-out (leave-one-out) residuals of the fit's rows.
+    /// The region-held-out residuals of the fit's rows.
     HeldOut {
-        /// `Σ t_i² / Σ dim_i`: 1 when the residuals are as the stated noise and the posterior
-        /// predict.
+        /// `Σ_c t_c² / E[Σ_c t_c²]`: 1 when the held-out residuals are as the stated noise and
+        /// the posterior predict.
         ratio: f64,
-        /// χ² upper-tail probability of `Σ t_i²`.
+        /// Upper-tail probability of `Σ_c t_c²` under the model (two-moment approximation of
+        /// its exact distribution).
         p_value: f64,
+        /// How many regions were held out in turn.
+        regions: usize,
         /// Variance per b1 axis added (0 unless `p_value` < [`MODEL_ERROR_ALPHA`]), m².
         var_m2: f64,
     },
@@ -207,8 +232,8 @@ fn sym(m: &DMatrix<f64>) -> DMatrix<f64> {
     (m + m.transpose()) * 0.5
 }
 
-/// The model-error term from the fit's held-out residuals (see the module documentation);
-/// `h_inv` the estimator's own posterior `H⁻¹`.
+/// The model-error term from the fit's region-held-out residuals (see the module
+/// documentation); `h_inv` the estimator's own posterior `H⁻¹`.
 fn held_out_model_error(
     problem: &CellProblem,
     cal: &CellCalibration,
@@ -217,33 +242,207 @@ fn held_out_model_error(
     let fit = &cal.fit;
     let lin = fit.linearisation(problem)?;
     let sys = &lin.rows;
-    let (mut t2_sum, mut dof) = (0.0, 0usize);
-    for (b, &i) in fit.active.iter().enumerate() {
-        let rows = problem.observations[i].kind.rows();
-        let s = sys.block_start[b];
-        let j = sys.j.rows(s, rows);
-        let r = sys.r.rows(s, rows).into_owned();
-        let m = DMatrix::identity(rows, rows) - j * h_inv * j.transpose();
-        if let Some(c) = m.cholesky() {
-            t2_sum += r.dot(&c.solve(&r));
-            dof += rows;
+    let labels = region_labels(problem, &fit.active);
+    let regions = labels.iter().copied().max().map_or(0, |m| m + 1);
+    let n = h_inv.nrows();
+    let mut q = HeldOutStatistic::default();
+    let mut k_total = DMatrix::zeros(n, n);
+    for c in 0..regions {
+        // The region's rows of the data system, in block order.
+        let mut idx = Vec::new();
+        for (b, &i) in fit.active.iter().enumerate() {
+            if labels[b] == c {
+                let s = sys.block_start[b];
+                idx.extend(s..s + problem.observations[i].kind.rows());
+            }
         }
+        if idx.is_empty() {
+            continue;
+        }
+        let j = sys.j.select_rows(&idx);
+        let r = sys.r.select_rows(&idx);
+        let m = sym(&(DMatrix::identity(idx.len(), idx.len()) - &j * h_inv * j.transpose()));
+        // `M_cc⁺` on the directions the rest of the data predict (eigenvalues above the floor).
+        let trace_m = m.trace();
+        let eig = m.symmetric_eigen();
+        let top = eig.eigenvalues.amax();
+        let mut d = DMatrix::zeros(idx.len(), idx.len());
+        let mut rank = 0usize;
+        for (k, &l) in eig.eigenvalues.iter().enumerate() {
+            if l > HELD_OUT_EIGEN_FLOOR * top.max(1.0) {
+                let v = eig.eigenvectors.column(k);
+                d += v * v.transpose() / l;
+                rank += 1;
+            }
+        }
+        q.t2 += r.dot(&(&d * &r));
+        q.mean += rank as f64;
+        q.trace_m += trace_m;
+        let kc = j.transpose() * &d * &j;
+        let a = h_inv * &kc;
+        q.own_sq += (&a * &a).trace();
+        k_total += kc;
     }
-    if dof == 0 {
+    if q.mean == 0.0 {
         return Ok(ModelError::Assumed);
     }
-    let ratio = t2_sum / dof as f64;
-    let p_value = chi2_sf(t2_sum, dof);
-    let var_m2 = if p_value < MODEL_ERROR_ALPHA && ratio > 1.0 {
-        (ratio - 1.0) * super::calibrate::mean_noise_var(problem, fit)?
+    let a = h_inv * k_total;
+    // Var[rᵀDr] = 2·tr((D·M)²) for r ~ N(0, M): the blocks' own terms give their ranks, the
+    // cross terms `tr((H⁻¹K)²) − Σ_c tr((H⁻¹K_c)²)`.
+    let var = 2.0 * (q.mean + ((&a * &a).trace() - q.own_sq).max(0.0));
+    let ratio = q.t2 / q.mean;
+    let p_value = quadratic_form_sf(q.t2, q.mean, var);
+    let var_m2 = if p_value < MODEL_ERROR_ALPHA && q.t2 > q.mean && q.trace_m > 0.0 {
+        (q.t2 - q.mean) / q.trace_m * super::calibrate::mean_noise_var(problem, fit)?
     } else {
         0.0
     };
     Ok(ModelError::HeldOut {
         ratio,
         p_value,
+        regions,
         var_m2,
     })
+}
+
+/// Sums of the region-held-out test over the regions.
+#[derive(Default)]
+struct HeldOutStatistic {
+    /// `Σ_c r_cᵀ·M_cc⁺·r_c`.
+    t2: f64,
+    /// Its mean under the model, `Σ_c rank(M_cc)`.
+    mean: f64,
+    /// `Σ_c tr(M_cc)`: how much of a model error in the held-out rows their residuals carry.
+    trace_m: f64,
+    /// `Σ_c tr((H⁻¹K_c)²)`, `K_c = J_cᵀ·M_cc⁺·J_c`.
+    own_sq: f64,
+}
+
+/// Upper tail `P(T > t)` of a positive quadratic form `T` of a Gaussian vector with mean
+/// `mean` and variance `var`, by Satterthwaite's two-moment approximation `T ≈ g·χ²_h`
+/// (`g = var/(2·mean)`, `h = 2·mean²/var`): exact when the form is a χ², and the usual test of
+/// a sum of correlated χ² terms. 1 when undefined.
+fn quadratic_form_sf(t: f64, mean: f64, var: f64) -> f64 {
+    if !(mean > 0.0 && var > 0.0 && t.is_finite()) {
+        return 1.0;
+    }
+    let g = var / (2.0 * mean);
+    let h = 2.0 * mean * mean / var;
+    chi2_sf_real(t / g, h)
+}
+
+/// The region of each of `active`'s observations (in `active`'s order), `0..k`: the observations
+/// clustered by k-means in joint space (each joint over its limits' span, so every joint
+/// counts alike; a joint without limits over 2π; an observation of one robot takes the other
+/// robot's mean joints), `k` = [`HELD_OUT_REGIONS`] or fewer so that a region holds
+/// [`MIN_OBSERVATIONS_PER_REGION`] observations on average; with fewer than two regions'
+/// worth, each observation is its own region (leave-one-out). Deterministic: the first centre
+/// is the observation nearest the mean, each next one the farthest from the centres so far.
+pub(crate) fn region_labels(problem: &CellProblem, active: &[usize]) -> Vec<usize> {
+    let n = active.len();
+    let k = HELD_OUT_REGIONS.min(n / MIN_OBSERVATIONS_PER_REGION);
+    if k < 2 {
+        return (0..n).collect();
+    }
+    let spans = |r: &super::CellRobot| -> Vec<f64> {
+        r.model
+            .joints()
+            .iter()
+            .map(|j| {
+                if j.lower.is_finite() && j.upper.is_finite() && j.upper > j.lower {
+                    j.upper - j.lower
+                } else {
+                    std::f64::consts::TAU
+                }
+            })
+            .collect()
+    };
+    let (s1, s2) = (spans(&problem.robot1), spans(&problem.robot2));
+    let dim = s1.len() + s2.len();
+    let mut x: Vec<Vec<Option<f64>>> = Vec::with_capacity(n);
+    for &i in active {
+        let mut v = vec![None; dim];
+        for (robot, q) in problem.observations[i].kind.joints() {
+            let (off, sp) = match robot {
+                crate::Robot::One => (0, &s1),
+                crate::Robot::Two => (s1.len(), &s2),
+            };
+            for (j, (&qj, &s)) in q.iter().zip(sp.iter()).enumerate() {
+                v[off + j] = Some(qj / s);
+            }
+        }
+        x.push(v);
+    }
+    let means: Vec<f64> = (0..dim)
+        .map(|d| {
+            let vals: Vec<f64> = x.iter().filter_map(|v| v[d]).collect();
+            if vals.is_empty() {
+                0.0
+            } else {
+                vals.iter().sum::<f64>() / vals.len() as f64
+            }
+        })
+        .collect();
+    let pts: Vec<Vec<f64>> = x
+        .iter()
+        .map(|v| v.iter().zip(&means).map(|(a, m)| a.unwrap_or(*m)).collect())
+        .collect();
+    let d2 = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(p, q)| (p - q).powi(2)).sum::<f64>();
+    let nearest = |p: &[f64], centres: &[Vec<f64>]| -> (usize, f64) {
+        centres
+            .iter()
+            .enumerate()
+            .map(|(c, m)| (c, d2(p, m)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap_or((0, 0.0))
+    };
+    let first = (0..n)
+        .min_by(|&a, &b| d2(&pts[a], &means).total_cmp(&d2(&pts[b], &means)))
+        .unwrap_or(0);
+    let mut centres = vec![pts[first].clone()];
+    while centres.len() < k {
+        let far = (0..n)
+            .max_by(|&a, &b| {
+                nearest(&pts[a], &centres)
+                    .1
+                    .total_cmp(&nearest(&pts[b], &centres).1)
+            })
+            .unwrap_or(0);
+        centres.push(pts[far].clone());
+    }
+    let mut labels = vec![0; n];
+    for _ in 0..KMEANS_ITERATIONS {
+        let new: Vec<usize> = pts.iter().map(|p| nearest(p, &centres).0).collect();
+        let changed = new != labels;
+        labels = new;
+        for (c, centre) in centres.iter_mut().enumerate() {
+            let members: Vec<&Vec<f64>> = pts
+                .iter()
+                .zip(&labels)
+                .filter(|(_, &l)| l == c)
+                .map(|(p, _)| p)
+                .collect();
+            if !members.is_empty() {
+                for (d, v) in centre.iter_mut().enumerate() {
+                    *v = members.iter().map(|p| p[d]).sum::<f64>() / members.len() as f64;
+                }
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    // Number the regions that hold observations 0.. in order of first appearance.
+    let mut map = vec![usize::MAX; k];
+    let mut next = 0;
+    for l in &mut labels {
+        if map[*l] == usize::MAX {
+            map[*l] = next;
+            next += 1;
+        }
+        *l = map[*l];
+    }
+    labels
 }
 
 /// The predicted cooperative error over a [`PairSet`] (m): its rms split into parts, its p95

@@ -648,8 +648,13 @@ impl CellCalibration {
 pub struct PredictedErrorReport {
     /// The part the data determined (the noise the data leave), mm.
     pub data_part_rms: f64,
-    /// For a model-error term from held-out residuals: `Σ t² / Σ dim` (1: as the stated noise).
+    /// For a model-error term from region-held-out residuals: `Σ t² / E[Σ t²]` (1: as the
+    /// stated noise and the posterior predict).
     pub held_out_ratio: Option<f64>,
+    /// Its upper-tail probability under the model (the term is added below 0.05).
+    pub held_out_p_value: Option<f64>,
+    /// How many joint-space regions were held out in turn.
+    pub held_out_regions: Option<usize>,
     /// The model-error part, mm.
     pub model_error_rms: f64,
     /// Where the model-error term comes from: `assumed_none`, `placement_residuals` or
@@ -673,14 +678,21 @@ pub struct PredictedErrorReport {
 
 impl From<&PredictedError> for PredictedErrorReport {
     fn from(p: &PredictedError) -> Self {
-        let (source, ratio) = match p.model_error {
+        let (source, held) = match p.model_error {
             ModelError::PlacementResiduals { .. } => ("placement_residuals", None),
-            ModelError::HeldOut { ratio, .. } => ("held_out_residuals", Some(ratio)),
+            ModelError::HeldOut {
+                ratio,
+                p_value,
+                regions,
+                ..
+            } => ("held_out_residuals", Some((ratio, p_value, regions))),
             _ => ("assumed_none", None),
         };
         PredictedErrorReport {
             data_part_rms: p.data_rms_m * 1e3,
-            held_out_ratio: ratio,
+            held_out_ratio: held.map(|h| h.0),
+            held_out_p_value: held.map(|h| h.1),
+            held_out_regions: held.map(|h| h.2),
             model_error_rms: p.model_error_rms_m * 1e3,
             model_error_source: source,
             pair_set: p.pair_set.describe(),
@@ -698,18 +710,24 @@ impl PredictedErrorReport {
     /// One line of its parts and bound, for the text reports: what the data determined, what
     /// the prior asserts, the model error and where it comes from, the 95 % bound.
     pub fn parts_line(&self) -> String {
+        let regions = self
+            .held_out_regions
+            .map_or(String::new(), |k| format!(" of {k} joint-space regions"));
+        let p = self
+            .held_out_p_value
+            .map_or(String::new(), |p| format!(", p {p:.2}"));
         let model = match (self.model_error_source, self.held_out_ratio) {
             ("placement_residuals", _) => format!(
                 "model error {:.3} mm (the placement-only fit's residuals above the stated noise)",
                 self.model_error_rms
             ),
             ("held_out_residuals", Some(r)) if self.model_error_rms > 0.0 => format!(
-                "model error {:.3} mm (held-out residuals {r:.2}× the stated noise's variance)",
+                "model error {:.3} mm (held-out residuals{regions} {r:.2}× what the fit predicts{p})",
                 self.model_error_rms
             ),
             ("held_out_residuals", Some(r)) => format!(
-                "model error none (held-out residuals {r:.2}× the stated noise's variance: not \
-                 significantly above)"
+                "model error none (held-out residuals{regions} {r:.2}× what the fit predicts{p}: \
+                 not significantly above)"
             ),
             _ => "model error none assumed".to_string(),
         };

@@ -84,13 +84,15 @@ fn benchmark() {
         1..seeds + 1,
     );
     let s = HonestSummary::of(&t).unwrap();
+    let fired = t.iter().filter(|x| x.model_error_rms_m > 0.0).count();
     println!(
-        "cells {}: median predicted / actual {:.2} (range {:.2}–{:.2}), 95 % bound covers {:.0} % ; honest: {}",
+        "cells {}: median predicted / actual {:.2} (range {:.2}–{:.2}), 95 % bound covers {:.0} % ; honest: {}; model-error term added in {fired} of {} cells",
         s.cells,
         s.median_ratio,
         s.ratio_range[0],
         s.ratio_range[1],
         s.coverage * 100.0,
-        s.honest()
+        s.honest(),
+        s.cells
     );
 }
