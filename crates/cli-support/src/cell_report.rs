@@ -761,22 +761,16 @@ fn prior_scale_phrase(p: &PriorScaleReport) -> String {
 }
 
 /// The lines for fitted corrections beyond their stated tolerances by more than
-/// `TOLERANCE_WARNING_SIGMAS` posterior σ, one per parameter, each with its prefix for the
-/// caller to print: `warning: ` when the evidence widened the parameter's family (the fit
-/// departed from the stated tolerances), `note: ` when the fit kept them (the prior already
-/// pulled the correction towards them; one parameter beyond its band does not contradict the
-/// family's tolerances, as the evidence said).
+/// `TOLERANCE_WARNING_SIGMAS` posterior σ, one per parameter, each a `warning: ` for the caller
+/// to print, whether or not the evidence widened the parameter's family: either way the data
+/// say this robot is further off than the cell's `[robotN.tolerance]` states, and everything
+/// that later trusts those tolerances (`plan`, the predicted accuracy, the next calibration's
+/// prior) is optimistic until the integrator corrects the tolerance or finds the session's
+/// fault. The line says the prior scale applied, so a widened family is told from a kept one.
 pub fn tolerance_warnings(r: &CellReport) -> Vec<String> {
     r.parameters
         .iter()
-        .filter_map(|p| {
-            let level = if p.prior_scale > 1.0 {
-                "warning"
-            } else {
-                "note"
-            };
-            p.tolerance_warning().map(|w| format!("{level}: {w}"))
-        })
+        .filter_map(|p| p.tolerance_warning().map(|w| format!("warning: {w}")))
         .collect()
 }
 

@@ -96,24 +96,3 @@ fn benchmark() {
         s.cells
     );
 }
-
-#[test]
-#[ignore = "debug"]
-fn debug_model_error() {
-    use calib_core::whole_cell::ReductionReason;
-    let cell = shipped("floor-wall");
-    for seed in 1..31u64 {
-        let mut truth = cell.clone();
-        truth.noise.alignment_m = Vector3::repeat(SIGMA_M);
-        if std::env::var("NO_ERR").is_err() {
-            draw_errors_from_tolerance(&mut truth, &mut trial_rng(seed, 0));
-        }
-        let spec = SessionSpec::new(POSES, Layout::Random, SPREAD_M);
-        let session = generate_session(&truth, &spec, &mut trial_rng(seed, 1)).unwrap();
-        let problem = cell_problem(&truth, &session, FitModel::Kinematic);
-        let cal = calibrate_cell(&problem, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
-        let split = PredictionSplit::of_calibration(&problem, &cal).unwrap();
-        let prior_decided = cal.reduction.dropped.iter().filter(|d| matches!(d.reason, ReductionReason::PriorDecided)).count();
-        println!("seed {seed}: {:?} active {} rejected {} dropped {} prior-decided {} chi2 {:.1} scale {:?}", split.model_error, cal.fit.active.len(), cal.rejected.len(), cal.reduction.dropped.len(), prior_decided, cal.fit.data_chi2, cal.prior_scale.families.iter().map(|f| format!("{}:{}", f.family, f.scale)).collect::<Vec<_>>());
-    }
-}
