@@ -697,8 +697,9 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
         if !params.is_empty() && r.prior_scale.chosen < 1.0 && c.prior_part_rms > c.data_part_rms {
             writeln!(
                 s,
-                "  why the prior part: the evidence chose prior scale {}, so the kinematic corrections are held within {} × their tolerances and the rest of the tolerances stays in the prediction; `plan` predicts at scale 1 (the data correct what they see) and gives less: its 'placement-only limit' line is this case",
-                r.prior_scale.chosen, r.prior_scale.chosen
+                "  why the prior part: the evidence chose prior scale {}, so the kinematic corrections are held within {} × their tolerances; the prediction keeps of the tolerances what the evidence does not reject (the reference prior: the stated tolerances where the data cannot tell), the error the data cannot rule out; `plan` predicts at scale 1 (the data correct what they see): its 'placement-only limit' line is this case",
+                format_scale(r.prior_scale.chosen),
+                format_scale(r.prior_scale.chosen)
             )?;
         }
     }
@@ -1076,7 +1077,7 @@ mod tests {
             "  tracker group \"leica\": origin (-1226.996, 1146.293, 1295.316) mm, rotation φ 0.0000°  θ 0.0000°  ψ 90.0000° (ZYZ), quaternion (w, x, y, z) (0.707107, 0.000000, 0.000000, 0.707107), in the base of robot 1",
             "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the 14 meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms 1.500 mm, p95 2.750 mm",
             "  of which: data-determined 0.900 mm, prior-asserted 1.200 mm (the tolerances of the terms the data do not determine: right only if the robots are that far off), model error none (held-out residuals of 5 joint-space regions 1.04× what the fit predicts, p 0.31: not significantly above); 95 % bound of the rms 2.000 mm",
-            "  why the prior part: the evidence chose prior scale 0.0625, so the kinematic corrections are held within 0.0625 × their tolerances and the rest of the tolerances stays in the prediction; `plan` predicts at scale 1 (the data correct what they see) and gives less: its 'placement-only limit' line is this case",
+            "  why the prior part: the evidence chose prior scale 0.0625, so the kinematic corrections are held within 0.0625 × their tolerances; the prediction keeps of the tolerances what the evidence does not reject (the reference prior: the stated tolerances where the data cannot tell), the error the data cannot rule out; `plan` predicts at scale 1 (the data correct what they see): its 'placement-only limit' line is this case",
             "coverage (the session against the joint limits and the reach sampled at 4000 joint vectors within them; a calibration is extrapolated outside it):",
             "prior scale chosen by the evidence: 0.0625 for every family (prior σ = scale × tolerance/√3; scales 1e-3 … 100, 1e-3 = placement-only limit); blunder-screen noise scale 1.000",
             "  why: common scale 0.0625 has the largest log evidence (-3.5)",
