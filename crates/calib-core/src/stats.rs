@@ -43,7 +43,7 @@ pub fn chi2_sf(x: f64, dof: usize) -> f64 {
 /// Upper tail probability `P(χ²(dof) > x)` for a real `dof > 0` (a scaled-χ² approximation's
 /// fractional degrees of freedom). NaN for `dof ≤ 0` or NaN `x`; 1 for `x ≤ 0`.
 pub fn chi2_sf_real(x: f64, dof: f64) -> f64 {
-    if !(dof > 0.0) || x.is_nan() {
+    if dof.is_nan() || dof <= 0.0 || x.is_nan() {
         return f64::NAN;
     }
     if x <= 0.0 {

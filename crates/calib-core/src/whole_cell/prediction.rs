@@ -808,8 +808,8 @@ mod tests {
         let (h_inv, _) = sym_inverse(&fit.information(&p).unwrap());
         let m = sym(&(DMatrix::identity(rows, rows) - &j * &h_inv * j.transpose()));
         let eig = m.clone().symmetric_eigen();
-        let root = &eig.eigenvectors
-            * DMatrix::from_diagonal(&eig.eigenvalues.map(|e| e.max(0.0).sqrt()));
+        let root =
+            &eig.eigenvectors * DMatrix::from_diagonal(&eig.eigenvalues.map(|e| e.max(0.0).sqrt()));
         let (mut sum, mut sum2, mut fired) = (0.0, 0.0, 0usize);
         let mut q0 = None;
         for d in 0..DRAWS {
@@ -828,8 +828,14 @@ mod tests {
         let n = DRAWS as f64;
         let mean = sum / n;
         let var = sum2 / n - mean * mean;
-        assert!((mean / q0.mean - 1.0).abs() < MOMENT_REL_TOL, "{mean} {q0:?}");
-        assert!((var / q0.var - 1.0).abs() < 2.0 * MOMENT_REL_TOL, "{var} {q0:?}");
+        assert!(
+            (mean / q0.mean - 1.0).abs() < MOMENT_REL_TOL,
+            "{mean} {q0:?}"
+        );
+        assert!(
+            (var / q0.var - 1.0).abs() < 2.0 * MOMENT_REL_TOL,
+            "{var} {q0:?}"
+        );
         let rate = fired as f64 / n;
         assert!((rate - MODEL_ERROR_ALPHA).abs() < RATE_TOL, "{rate}");
     }
