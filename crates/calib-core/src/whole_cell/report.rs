@@ -648,11 +648,11 @@ impl CellCalibration {
 pub struct PredictedErrorReport {
     /// The part the data determined (the noise the data leave), mm.
     pub data_part_rms: f64,
-    /// For a model-error term from region-held-out residuals: `Σ t² / E[Σ t²]` (1: as the
-    /// stated noise and the posterior predict).
-    pub held_out_ratio: Option<f64>,
-    /// Its upper-tail probability under the model (the term is added below 0.05).
+    /// For a model-error term from region-held-out residuals: the upper-tail probability of
+    /// their statistic under the model (the term is added below 0.05).
     pub held_out_p_value: Option<f64>,
+    /// The same: `Σ t² / E[Σ t²]` (1: as the stated noise and the posterior predict).
+    pub held_out_ratio: Option<f64>,
     /// How many joint-space regions were held out in turn.
     pub held_out_regions: Option<usize>,
     /// The model-error part, mm.
