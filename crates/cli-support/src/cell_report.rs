@@ -762,16 +762,23 @@ fn prior_scale_phrase(p: &PriorScaleReport) -> String {
 }
 
 /// The lines for fitted corrections beyond their stated tolerances by more than
-/// `TOLERANCE_WARNING_SIGMAS` posterior σ, one per parameter, each a `warning: ` for the caller
-/// to print, whether or not the evidence widened the parameter's family: either way the data
-/// say this robot is further off than the cell's `[robotN.tolerance]` states, and everything
-/// that later trusts those tolerances (`plan`, the predicted accuracy, the next calibration's
-/// prior) is optimistic until the integrator corrects the tolerance or finds the session's
-/// fault. The line says the prior scale applied, so a widened family is told from a kept one.
+/// `TOLERANCE_WARNING_SIGMAS` posterior σ, one per parameter, each with its prefix for the
+/// caller to print: `warning: ` when the evidence widened the parameter's family (the family's
+/// stated tolerances are wrong: the integrator should correct them), `note: ` when the fit kept
+/// them (one parameter beyond its band, which the evidence did not find enough to reject the
+/// family's tolerances; a correct session of the shipped examples shows one, and a warning
+/// there would teach integrators to ignore warnings).
 pub fn tolerance_warnings(r: &CellReport) -> Vec<String> {
     r.parameters
         .iter()
-        .filter_map(|p| p.tolerance_warning().map(|w| format!("warning: {w}")))
+        .filter_map(|p| {
+            let level = if p.prior_scale > 1.0 {
+                "warning"
+            } else {
+                "note"
+            };
+            p.tolerance_warning().map(|w| format!("{level}: {w}"))
+        })
         .collect()
 }
 
