@@ -16,6 +16,7 @@ mod one_robot;
 mod paper;
 mod paper_diagnose;
 mod plan;
+mod prior_scale;
 mod report;
 mod result_check;
 mod silent_cases;

@@ -47,6 +47,23 @@ fn plan_json_keys_and_csv_read_back() {
             < v["predicted"]["random"]["cooperative_rms_mm"].as_f64()
     );
     assert_eq!(v["random_draws"], 5);
+    // The prediction in parts, with the same definition as calibrate --cell: at scale 1 its
+    // total is the design's figure; the placement-only limit leaves more to the prior.
+    let parts = &v["predicted_error_mm"];
+    let held = &parts["held_out"];
+    assert_eq!(held["pair_set_kind"], "held_out_handclasps", "{v}");
+    let rms = held["predicted_rms"].as_f64().unwrap();
+    let design = v["predicted"]["plan"]["cooperative_rms_mm"]
+        .as_f64()
+        .unwrap();
+    // The same posterior through two products: round-off only.
+    assert!((rms - design).abs() <= 1e-9 * design, "{rms} vs {design}");
+    let limit = &parts["placement_only_limit"];
+    assert!(
+        limit["prior_part_rms"].as_f64().unwrap() > held["prior_part_rms"].as_f64().unwrap(),
+        "{v}"
+    );
+    assert_eq!(parts["workspace"]["pair_set_kind"], "workspace", "{v}");
     assert_eq!(v["poses"].as_array().unwrap().len(), 6);
     let c = Cell::from_toml_file(&cell).unwrap();
     let s = Session::read_csv(&out, &c).expect("plan.csv is a session CSV of its cell");
@@ -94,4 +111,44 @@ fn plan_errors_say_what_to_change() {
         "{e}"
     );
     assert!(!out.exists(), "no plan written on error");
+}
+
+/// A plan that calibrate --cell would refuse (3 handclasps: 9 residual rows for 6 placement
+/// unknowns and the screen's 6 of redundancy) is refused with calibrate --cell's words, no
+/// accuracy predicted and no plan written; calibrate --cell refuses such a session alike.
+#[test]
+fn plan_refuses_a_session_calibrate_refuses() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("plan.csv");
+    let cell_path = shipped_cell("floor-wall");
+    let o = plan(&[
+        "--cell",
+        cell_path.to_str().unwrap(),
+        "--n",
+        "3",
+        "--candidates",
+        "12",
+        "--random-draws",
+        "2",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    let words = "the session gives only 9 residual rows, but the fit needs at least 12";
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        e.contains(words) && e.contains("no accuracy is predicted"),
+        "{e}"
+    );
+    assert!(!out.exists(), "no plan written");
+    let cell = Cell::from_toml_file(&cell_path).unwrap();
+    let session = crate::support::random_session(&cell, 3, 1);
+    let csv = crate::support::write_session_csv(dir.path(), "s3.csv", &session, &cell);
+    let e = crate::support::stderr_of_failure(&crate::support::cell_session_args(
+        "calibrate",
+        &cell_path,
+        &csv,
+        &[],
+    ));
+    assert!(e.contains(words), "{e}");
 }

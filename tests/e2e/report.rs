@@ -146,8 +146,9 @@ fn check_in_browser(chromium: &Path, page: &Path, name: &str, min_plots: usize, 
 }
 
 /// `calibrate --cell … --report` on a simulated session with two work points and an
-/// acceptance: the page renders in Chromium with its five plots (residual per row, against each
-/// robot's joints, coverage, per work point) and the verdict the text and JSON give.
+/// acceptance: the page renders in Chromium with its six plots (residual per row, against each
+/// robot's joints, coverage, per work point, the predicted-error map over the workspace) and
+/// the verdict the text and JSON give; the map is one of the plots the browser drew.
 #[test]
 fn calibration_report_renders_in_chromium() {
     let Some(chromium) = chromium_or_skip() else {
@@ -197,14 +198,32 @@ fn calibration_report_renders_in_chromium() {
     );
     let html = std::fs::read_to_string(&page).unwrap();
     assert!(!html.contains("src=\"http") && !html.contains("href=\"http"));
-    check_in_browser(&chromium, &page, "calibration", 5, "PASS");
+    check_in_browser(&chromium, &page, "calibration", 6, "PASS");
+    let dom = dump_dom(&chromium, &page);
+    let map = dom
+        .find("id=\"workspace-map\"")
+        .map(|at| &dom[at..])
+        .expect("the page has the workspace map");
+    assert!(
+        map.starts_with("id=\"workspace-map\"><figure class=\"plot\"><svg"),
+        "the workspace map is a drawn plot, not a note: {}",
+        &map[..map.len().min(300)]
+    );
 
     // The same run's JSON carries the verdict beside the report's fields; with an acceptance
     // far below the prediction it is FAIL, and the page says so.
     let v = stdout_json(&handclasp(&args("0.001", &["--json"])));
     assert_eq!(v["work_site"]["verdict"], "fail", "{v}");
     assert_eq!(v["work_site"]["points"].as_array().unwrap().len(), 2);
-    check_in_browser(&chromium, &page, "calibration-fail", 5, "FAIL");
+    check_in_browser(&chromium, &page, "calibration-fail", 6, "FAIL");
+    // The JSON predicts over the whole workspace too, split into its parts.
+    let ws = &v["workspace_accuracy_mm"];
+    assert_eq!(ws["pair_set_kind"], "workspace", "{v}");
+    assert!(ws["pairs"].as_u64().unwrap() > 0 && ws["predicted_rms"].as_f64().unwrap() > 0.0);
+    assert_eq!(
+        v["work_site"]["parts_mm"]["pair_set_kind"], "work_points",
+        "{v}"
+    );
 }
 
 /// `diagnose … --report` on a mixed session (the whole-cell diagnosis): the page renders with

@@ -40,6 +40,28 @@ pub fn chi2_sf(x: f64, dof: usize) -> f64 {
         .unwrap_or(f64::NAN)
 }
 
+/// Upper tail probability `P(χ²(dof) > x)` for a real `dof > 0` (a scaled-χ² approximation's
+/// fractional degrees of freedom). NaN for `dof ≤ 0` or NaN `x`; 1 for `x ≤ 0`.
+pub fn chi2_sf_real(x: f64, dof: f64) -> f64 {
+    if dof.is_nan() || dof <= 0.0 || x.is_nan() {
+        return f64::NAN;
+    }
+    if x <= 0.0 {
+        return 1.0;
+    }
+    ChiSquared::new(dof).map(|d| d.sf(x)).unwrap_or(f64::NAN)
+}
+
+/// Quantile `p ∈ (0, 1)` of χ² with a real `dof > 0`. NaN outside those ranges.
+pub fn chi2_quantile_real(p: f64, dof: f64) -> f64 {
+    if !(dof > 0.0 && p > 0.0 && p < 1.0) {
+        return f64::NAN;
+    }
+    ChiSquared::new(dof)
+        .map(|d| d.inverse_cdf(p))
+        .unwrap_or(f64::NAN)
+}
+
 /// Quantile `p ∈ (0, 1)` of Student's t with `dof` degrees of freedom. NaN for `dof = 0`.
 pub fn t_quantile(p: f64, dof: usize) -> f64 {
     if dof == 0 {
@@ -327,6 +349,10 @@ mod tests {
         assert!((chi2_sf(5.991_464_547_107_979, 2) - 0.05).abs() < TABLE_TOL);
         assert!((chi2_sf(11.070_497_693_516_35, 5) - 0.05).abs() < TABLE_TOL);
         assert_eq!(chi2_sf(0.0, 3), 1.0);
+        assert!((chi2_sf_real(11.070_497_693_516_35, 5.0) - 0.05).abs() < TABLE_TOL);
+        assert!(chi2_sf_real(1.0, 0.0).is_nan());
+        assert!((chi2_quantile_real(0.95, 5.0) - 11.070_497_693_516_35).abs() < 1e-6);
+        assert!(chi2_quantile_real(0.95, 0.0).is_nan());
         assert_eq!(chi2_sf(f64::INFINITY, 3), 0.0);
         assert!((t_quantile(0.975, 10) - 2.228_138_851_986_274).abs() < TABLE_TOL);
         assert!((t_two_sided_p(2.228_138_851_986_274, 10) - 0.05).abs() < TABLE_TOL);

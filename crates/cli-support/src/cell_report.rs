@@ -20,11 +20,12 @@
 use std::fmt::Write as _;
 
 use calib_core::whole_cell::{
-    calibrate_cell, predict_cooperative_accuracy, session_coverage, CalibrationReport,
-    CellCalibration, CellFitError, CellProblem, CooperativePrediction, CoverageReport, DropReason,
-    FittedPlacementReport, GroupsReport, Kind, NuisanceReport, ParameterReport,
-    PlacementSigmaReport, PriorScaleReport, RejectedRowReport, ScreenOptions, SolveOptions,
-    UnidentifiableReport,
+    calibrate_cell_with, format_scale, predict_error, session_coverage, widen_prior,
+    workspace_pairs, CalibrationReport, CellCalibration, CellFitError, CellProblem, ConfigPair,
+    CoverageReport, DropReason, FittedPlacementReport, GroupsReport, Kind, NuisanceReport, PairSet,
+    ParameterReport, PlacementSigmaReport, PredictedErrorReport, PredictionSplit, PriorScaleReport,
+    RejectedRowReport, ScaleMethod, ScreenOptions, SolveOptions, UnidentifiableReport,
+    WORKSPACE_POSES, WORKSPACE_SEED,
 };
 use calib_core::{PoseForms, StopReason};
 use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
@@ -124,16 +125,22 @@ pub fn calibrate_session(
     session: &Session,
     model: CellModel,
 ) -> Result<SessionCalibration, CellCalibrationError> {
-    calibrate_session_with(cell, session, model, ScreenMode::Auto)
+    calibrate_session_with(cell, session, model, ScreenMode::Auto, None)
 }
 
-/// [`calibrate_session`] with the blunder screen's mode (`--screen`): the fit, then the result
-/// check ([`crate::result_check`]), whose report is [`CellReport::result_check`].
+/// [`calibrate_session`] with the blunder screen's mode (`--screen`) and the prior scale fixed
+/// at `tolerance_scale` (`calibrate --cell --tolerance-scale X`: every tolerance × X, 1e-3 …
+/// 100; `None`: the evidence's choice): the fit at the stated tolerances, the result check
+/// ([`crate::result_check`]) on it, and only when the check does not refuse it, the widening
+/// the evidence asks for (or the caller's scale above 1); the report's
+/// [`CellReport::result_check`] is the check of the fit returned (with the stated fit's
+/// findings when the tolerances were widened).
 pub fn calibrate_session_with(
     cell: &Cell,
     session: &Session,
     model: CellModel,
     screen: ScreenMode,
+    tolerance_scale: Option<f64>,
 ) -> Result<SessionCalibration, CellCalibrationError> {
     handclasp_cell::check_session_inputs(session)?;
     let problem = cell_problem(cell, session, model.fit_model());
@@ -147,15 +154,39 @@ pub fn calibrate_session_with(
     // robots' tolerances (their own error is in every row).
     let toleranced = (model.fit_model() == FitModel::Placement)
         .then(|| cell_problem(cell, session, FitModel::Kinematic));
-    let (cal, screen_report) = fit_with_screen(&problem, &solve, screen, toleranced.as_ref())
-        .map_err(CellCalibrationError::Fit)?;
+    let (cal, check) = fit_and_check(
+        cell,
+        session,
+        &problem,
+        &solve,
+        screen,
+        tolerance_scale,
+        toleranced.as_ref(),
+    )?;
     let pairs = session_meeting_pairs(session);
-    let cooperative = if pairs.is_empty() {
-        None
+    let (cooperative, workspace) = if pairs.is_empty() {
+        (None, None)
     } else {
-        let prediction = predict_cooperative_accuracy(&problem, &cal.fit, &pairs, P95_SEED)
+        let split = PredictionSplit::of_calibration(&problem, &cal)
             .map_err(CellCalibrationError::Prediction)?;
-        Some(CooperativeAccuracyReport::new(&prediction, pairs.len()))
+        let meeting = predict_over(&problem, &cal, &split, &pairs, PairSet::MeetingPairs)
+            .map_err(CellCalibrationError::Prediction)?;
+        let poses = workspace_pairs(
+            &problem,
+            &cal.fit.estimate.b1_from_b2,
+            WORKSPACE_POSES,
+            WORKSPACE_SEED,
+        );
+        let over: Vec<ConfigPair> = poses.into_iter().map(|p| p.pair).collect();
+        let workspace = if over.is_empty() {
+            None
+        } else {
+            Some(
+                predict_over(&problem, &cal, &split, &over, PairSet::Workspace)
+                    .map_err(CellCalibrationError::Prediction)?,
+            )
+        };
+        (Some(meeting), workspace)
     };
     let coverage = CoverageReport::from(
         &session_coverage(&problem, COVERAGE_SEED).map_err(CellCalibrationError::Coverage)?,
@@ -170,12 +201,10 @@ pub fn calibrate_session_with(
         cooperative,
         coverage,
     );
+    report.workspace_accuracy_mm = workspace;
     report.one_robot = cell.one_robot;
     keep_cell_robots(cell, &mut report.coverage);
-    report.result_check = Some(
-        check_result(cell, session, &problem, &cal, screen_report)
-            .map_err(CellCalibrationError::Fit)?,
-    );
+    report.result_check = Some(check);
     Ok(SessionCalibration {
         report,
         problem,
@@ -183,15 +212,80 @@ pub fn calibrate_session_with(
     })
 }
 
-/// The screened fit in `mode` ([`ScreenMode`]): `strict` rejects as the screen says, `off`
-/// rejects nothing, `auto` refits without rejection when the rejected rows are a model misfit
-/// ([`screen_outcome`]).
-fn fit_with_screen(
+/// The fit and its result check: the fit at the stated tolerances ([`fit_with_screen`], or the
+/// caller's scale when it is 1 or less), checked; then, only when that check found no likely
+/// mistake and did not refuse, the widening (`calib_core::whole_cell::widen_prior`, or the
+/// caller's scale above 1) with the screen in the same mode, checked again. A wrong model looks
+/// to the evidence like robots further off than stated, and a widened prior lets the kinematic
+/// terms absorb it, so the check must see the fit before any widening. The check returned is
+/// the final fit's, with the stated fit's findings it does not repeat (said as such).
+fn fit_and_check(
+    cell: &Cell,
+    session: &Session,
     problem: &CellProblem,
     solve: &SolveOptions,
-    mode: ScreenMode,
+    screen: ScreenMode,
+    tolerance_scale: Option<f64>,
     toleranced: Option<&CellProblem>,
-) -> Result<(CellCalibration, ScreenReport), CellFitError> {
+) -> Result<(CellCalibration, ResultCheckReport), CellCalibrationError> {
+    let fit_err = CellCalibrationError::Fit;
+    let stated_scale = tolerance_scale.filter(|&x| x <= 1.0);
+    let (stated, screen_report, stated_options) = fit_with_screen(
+        problem,
+        screen,
+        &|o| calibrate_cell_with(problem, solve, o, stated_scale),
+        toleranced,
+    )
+    .map_err(fit_err)?;
+    let check = check_result(cell, session, problem, &stated, screen_report).map_err(fit_err)?;
+    if check.refused() || check.likely_mistake.is_some() || stated_scale.is_some() {
+        return Ok((stated, check));
+    }
+    // The widened fit at screen options `o`: from the stated fit when it was made at `o`.
+    let widen = |o: &ScreenOptions| -> Result<Option<CellCalibration>, CellFitError> {
+        if let Some(x) = tolerance_scale {
+            return calibrate_cell_with(problem, solve, o, Some(x)).map(Some);
+        }
+        if *o == stated_options {
+            widen_prior(problem, &stated, solve, o)
+        } else {
+            let at_o = calibrate_cell_with(problem, solve, o, None)?;
+            widen_prior(problem, &at_o, solve, o)
+        }
+    };
+    // Would the evidence widen at all? (Cheap: no refit unless it does.)
+    let Some(first) = widen(&stated_options).map_err(fit_err)? else {
+        return Ok((stated, check));
+    };
+    let (wide, wide_screen, _) = fit_with_screen(
+        problem,
+        screen,
+        &|o| {
+            if *o == stated_options {
+                Ok(first.clone())
+            } else {
+                widen(o).map(|w| w.unwrap_or_else(|| first.clone()))
+            }
+        },
+        toleranced,
+    )
+    .map_err(fit_err)?;
+    let mut wide_check =
+        check_result(cell, session, problem, &wide, wide_screen).map_err(fit_err)?;
+    wide_check.add_stated_findings(&check);
+    Ok((wide, wide_check))
+}
+
+/// The screened fit in `mode` ([`ScreenMode`]), each fit made by `fit` with the screen options
+/// it is given: `strict` rejects as the screen says, `off` rejects nothing, `auto` refits
+/// without rejection when the rejected rows are a model misfit ([`screen_outcome`]). Also gives
+/// the screen options of the fit returned.
+fn fit_with_screen(
+    problem: &CellProblem,
+    mode: ScreenMode,
+    fit: &dyn Fn(&ScreenOptions) -> Result<CellCalibration, CellFitError>,
+    toleranced: Option<&CellProblem>,
+) -> Result<(CellCalibration, ScreenReport, ScreenOptions), CellFitError> {
     let keep_all = ScreenOptions {
         reject: false,
         ..ScreenOptions::default()
@@ -200,21 +294,50 @@ fn fit_with_screen(
         ScreenMode::Off => keep_all.clone(),
         ScreenMode::Auto | ScreenMode::Strict => ScreenOptions::default(),
     };
-    let cal = match calibrate_cell(problem, solve, &options) {
+    let cal = match fit(&options) {
         // The screen would leave too few rows: when most rows disagree with the model, the
         // model is wrong; auto keeps them all and reports the misfit.
-        Err(CellFitError::TooFewRows { rejected_rows, .. }) if mode == ScreenMode::Auto => {
-            let cal = calibrate_cell(problem, solve, &keep_all)?;
+        // A session too small for its unknowns (nothing rejected) is refused, as `plan`
+        // refuses such a design.
+        Err(CellFitError::TooFewRows { rejected_rows, .. })
+            if mode == ScreenMode::Auto && !rejected_rows.is_empty() =>
+        {
+            let cal = fit(&keep_all)?;
             let screen = misfit_outcome(problem, &cal, &rejected_rows, mode, toleranced)?;
-            return Ok((cal, screen));
+            return Ok((cal, screen, keep_all));
         }
         other => other?,
     };
     let screen = screen_outcome(problem, &cal, mode, toleranced)?;
     if screen.rows_kept {
-        return Ok((calibrate_cell(problem, solve, &keep_all)?, screen));
+        return Ok((fit(&keep_all)?, screen, keep_all));
     }
-    Ok((cal, screen))
+    Ok((cal, screen, options))
+}
+
+/// The predicted error of calibration `cal` of `problem` over `pairs` (of `pair_set`), in mm
+/// ([`predict_error`] with the calibration's split, seed [`P95_SEED`]): the one definition
+/// `calibrate --cell`, `plan` and the report page share.
+///
+/// # Errors
+/// A pair the models reject.
+pub fn predict_over(
+    problem: &CellProblem,
+    cal: &CellCalibration,
+    split: &PredictionSplit,
+    pairs: &[ConfigPair],
+    pair_set: PairSet,
+) -> Result<PredictedErrorReport, CellFitError> {
+    let p = predict_error(
+        problem,
+        &cal.fit.layout,
+        &cal.fit.estimate,
+        split,
+        pairs,
+        pair_set,
+        P95_SEED,
+    )?;
+    Ok(PredictedErrorReport::from(&p))
 }
 
 /// The coverage report of `session` of `cell` (seed [`COVERAGE_SEED`]): each joint's covered
@@ -243,34 +366,9 @@ fn keep_cell_robots(cell: &Cell, report: &mut CoverageReport) {
 /// needs 3 points not on a line).
 const MIN_COINCIDENT_FOR_START: usize = 3;
 
-/// [`CooperativeAccuracyReport::pair_set`].
-const MEETING_PAIR_SET: &str =
-    "meeting pairs (q1_i, q2_i) of the session's coincident and contact rows";
-
-/// The predicted cooperative accuracy over the session's meeting pairs, mm.
-#[derive(Debug, Clone, Serialize)]
-pub struct CooperativeAccuracyReport {
-    /// Which configuration pairs the prediction is over.
-    pub pair_set: &'static str,
-    /// Their number.
-    pub pairs: usize,
-    /// Predicted 95th percentile of the cooperative error, mm.
-    pub predicted_p95: f64,
-    /// Predicted rms of the cooperative error, mm.
-    pub predicted_rms: f64,
-}
-
-impl CooperativeAccuracyReport {
-    /// From the prediction `p` over `pairs` meeting pairs (m → mm).
-    pub fn new(p: &CooperativePrediction, pairs: usize) -> Self {
-        CooperativeAccuracyReport {
-            pair_set: MEETING_PAIR_SET,
-            pairs,
-            predicted_p95: p.predicted_p95_m * 1e3,
-            predicted_rms: p.predicted_rms_m * 1e3,
-        }
-    }
-}
+/// The predicted cooperative accuracy over the session's meeting pairs (or the workspace), mm:
+/// calib-core's [`PredictedErrorReport`].
+pub type CooperativeAccuracyReport = PredictedErrorReport;
 
 /// A session's rows by observation kind, in [`Kind::ALL`]'s order inside; serialised as an
 /// object keyed by [`Kind::name`] in alphabetical order (the JSON key order of every report).
@@ -361,6 +459,10 @@ pub struct CellReport {
     pub stopped: StopReason,
     /// Parameters the session cannot determine, and why.
     pub unidentifiable: Vec<UnidentifiableReport>,
+    /// The predicted cooperative accuracy over the whole common workspace
+    /// ([`calib_core::whole_cell::workspace_pairs`], [`WORKSPACE_POSES`] poses, seed
+    /// [`WORKSPACE_SEED`]); `None` without meeting pairs or when no workspace pose is reachable.
+    pub workspace_accuracy_mm: Option<CooperativeAccuracyReport>,
 }
 
 impl CellReport {
@@ -415,6 +517,7 @@ impl CellReport {
             rows_used,
             stopped,
             unidentifiable,
+            workspace_accuracy_mm: None,
         }
     }
 }
@@ -595,11 +698,32 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
             s,
             "predicted cooperative accuracy: none (no coincident or contact row: no meeting pair)"
         )?,
-        Some(c) => writeln!(
+        Some(c) => {
+            writeln!(
+                s,
+                "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the {} meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms {:.3} mm, p95 {:.3} mm",
+                c.pairs, c.predicted_rms, c.predicted_p95
+            )?;
+            writeln!(s, "  {}", c.parts_line())?;
+        }
+    }
+    if let Some(w) = &r.workspace_accuracy_mm {
+        writeln!(
             s,
-            "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the {} meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms {:.3} mm, p95 {:.3} mm",
-            c.pairs, c.predicted_rms, c.predicted_p95
-        )?,
+            "predicted cooperative accuracy over the whole workspace ({} seeded reachable handclasps: robot 1 within its joint limits, robot 2 meeting it head-on): rms {:.3} mm, p95 {:.3} mm",
+            w.pairs, w.predicted_rms, w.predicted_p95
+        )?;
+        writeln!(s, "  {}", w.parts_line())?;
+    }
+    if let Some(c) = &r.cooperative_accuracy_mm {
+        if !params.is_empty() && r.prior_scale.chosen < 1.0 && c.prior_part_rms > c.data_part_rms {
+            writeln!(
+                s,
+                "  why the prior part: the evidence chose prior scale {}, so the kinematic corrections are held within {} × their tolerances; the prediction keeps of the tolerances what the evidence does not reject (the reference prior: the stated tolerances where the data cannot tell), the error the data cannot rule out; `plan` predicts at scale 1 (the data correct what they see): its 'placement-only limit' line is this case",
+                format_scale(r.prior_scale.chosen),
+                format_scale(r.prior_scale.chosen)
+            )?;
+        }
     }
     for line in r.coverage.text_lines() {
         writeln!(s, "{line}")?;
@@ -614,11 +738,12 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
     } else {
         writeln!(
             s,
-            "prior scale chosen by the evidence: {} (prior σ = scale × tolerance/√3; 1e-3 = placement-only limit); blunder-screen noise scale {:.3}{}",
-            r.prior_scale.chosen,
+            "{} (prior σ = scale × tolerance/√3; scales 1e-3 … 100, 1e-3 = placement-only limit); blunder-screen noise scale {:.3}{}",
+            prior_scale_phrase(&r.prior_scale),
             r.noise_scale,
             noise_scale_note(r.noise_scale)
         )?;
+        writeln!(s, "  why: {}", r.prior_scale.why)?;
     }
     writeln!(
         s,
@@ -628,6 +753,55 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
         r.data_chi2,
         r.residual_rows
     )
+}
+
+/// The first part of the text report's prior-scale line: how the scales were set and their
+/// values (one for every family, or each family's).
+fn prior_scale_phrase(p: &PriorScaleReport) -> String {
+    let families = || {
+        p.families
+            .iter()
+            .map(|f| format!("{} ×{}", f.family, format_scale(f.scale)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    match p.method {
+        ScaleMethod::EvidencePerFamily => {
+            format!(
+                "prior scales chosen by the evidence, per family: {}",
+                families()
+            )
+        }
+        ScaleMethod::Fixed => format!(
+            "prior scale fixed by --tolerance-scale: {} for every family",
+            format_scale(p.chosen)
+        ),
+        _ => format!(
+            "prior scale chosen by the evidence: {} for every family",
+            format_scale(p.chosen)
+        ),
+    }
+}
+
+/// The lines for fitted corrections beyond their stated tolerances by more than
+/// `TOLERANCE_WARNING_SIGMAS` posterior σ, one per parameter, each with its prefix for the
+/// caller to print: `warning: ` when the evidence widened the parameter's family (the family's
+/// stated tolerances are wrong: the integrator should correct them), `note: ` when the fit kept
+/// them (one parameter beyond its band, which the evidence did not find enough to reject the
+/// family's tolerances; a correct session of the shipped examples shows one, and a warning
+/// there would teach integrators to ignore warnings).
+pub fn tolerance_warnings(r: &CellReport) -> Vec<String> {
+    r.parameters
+        .iter()
+        .filter_map(|p| {
+            let level = if p.prior_scale > 1.0 {
+                "warning"
+            } else {
+                "note"
+            };
+            p.tolerance_warning().map(|w| format!("{level}: {w}"))
+        })
+        .collect()
 }
 
 /// The placement's posterior σ per axis, each with its prior σ (`free` without a prior); with a
@@ -735,8 +909,8 @@ fn dropped_line(d: &UnidentifiableReport) -> String {
 mod tests {
     use super::*;
     use calib_core::whole_cell::{
-        ContactGroupReport, LogEvidenceReport, MergePartner, ParamIdentity, PlaneGroupReport,
-        ReportUnit, TrackerGroupReport,
+        ContactGroupReport, FamilyScaleReport, LogEvidenceReport, MergePartner, ParamIdentity,
+        PlaneGroupReport, ReportUnit, TrackerGroupReport,
     };
     use calib_core::Robot;
     use std::f64::consts::FRAC_1_SQRT_2;
@@ -782,8 +956,10 @@ mod tests {
                 robot: Robot::One,
             },
             name: name.into(),
+            prior_scale: 1.0,
             prior_sigma,
             sigma: 0.01,
+            tolerance: prior_sigma * 3f64.sqrt(),
             unit: ReportUnit::Deg,
             value,
         };
@@ -798,15 +974,21 @@ mod tests {
                 xyz_mm: [1303.25, -102.5, 1386.125],
                 zyz_deg: [180.0, 89.874, -179.997],
             },
-            cooperative_accuracy_mm: Some(CooperativeAccuracyReport::new(
-                &CooperativePrediction {
-                    predicted_rms_m: 1.5e-3,
-                    predicted_p95_m: 2.75e-3,
-                    predicted_p95_ci_m: [2.5e-3, 3.0e-3],
-                    per_pair_rms_m: vec![],
-                },
-                14,
-            )),
+            cooperative_accuracy_mm: Some(CooperativeAccuracyReport {
+                data_part_rms: 0.9,
+                held_out_ratio: Some(1.04),
+                held_out_p_value: Some(0.31),
+                held_out_regions: Some(5),
+                model_error_rms: 0.0,
+                model_error_source: "held_out_residuals",
+                pair_set: PairSet::MeetingPairs.describe(),
+                pair_set_kind: PairSet::MeetingPairs,
+                pairs: 14,
+                predicted_p95: 2.75,
+                predicted_rms: 1.5,
+                prior_part_rms: 1.2,
+                rms_bound95: 2.0,
+            }),
             coverage: CoverageReport {
                 reach_samples: 4000,
                 robots: vec![],
@@ -850,10 +1032,18 @@ mod tests {
             prior_dominated_directions: 1,
             prior_scale: PriorScaleReport {
                 chosen: 0.0625,
+                families: vec![FamilyScaleReport {
+                    family: "joint_offset".into(),
+                    parameters: 2,
+                    scale: 0.0625,
+                }],
+                family_log_evidence: None,
                 log_evidence: vec![LogEvidenceReport {
                     log_evidence: -3.5,
                     scale: 0.0625,
                 }],
+                method: ScaleMethod::EvidenceCommon,
+                why: "common scale 0.0625 has the largest log evidence (-3.5)".into(),
             },
             rejected_points: vec![RejectedRowReport {
                 residual_mm: 7.1234,
@@ -862,6 +1052,7 @@ mod tests {
             }],
             residual_rows: 80,
             result_check: None,
+            workspace_accuracy_mm: None,
             rows: 41,
             rows_by_kind: Some(RowsByKind::from_counts([7, 8, 13, 13, 0])),
             rows_used: 40,
@@ -914,8 +1105,11 @@ mod tests {
             "  plane group \"table\": normal (0.00000, 0.60000, -0.80000), offset -971.326 mm (base of robot 2)",
             "  tracker group \"leica\": origin (-1226.996, 1146.293, 1295.316) mm, rotation φ 0.0000°  θ 0.0000°  ψ 90.0000° (ZYZ), quaternion (w, x, y, z) (0.707107, 0.000000, 0.000000, 0.707107), in the base of robot 1",
             "predicted cooperative accuracy (tip 2 → tip 1 in b1, over the 14 meeting pairs (q1_i, q2_i) of this session's coincident and contact rows): rms 1.500 mm, p95 2.750 mm",
+            "  of which: data-determined 0.900 mm, prior-asserted 1.200 mm (the tolerances of the terms the data do not determine: right only if the robots are that far off), model error none (held-out residuals of 5 joint-space regions 1.04× what the fit predicts, p 0.31: not significantly above); 95 % bound of the rms 2.000 mm",
+            "  why the prior part: the evidence chose prior scale 0.0625, so the kinematic corrections are held within 0.0625 × their tolerances; the prediction keeps of the tolerances what the evidence does not reject (the reference prior: the stated tolerances where the data cannot tell), the error the data cannot rule out; `plan` predicts at scale 1 (the data correct what they see): its 'placement-only limit' line is this case",
             "coverage (the session against the joint limits and the reach sampled at 4000 joint vectors within them; a calibration is extrapolated outside it):",
-            "prior scale chosen by the evidence: 0.0625 (prior σ = scale × tolerance/√3; 1e-3 = placement-only limit); blunder-screen noise scale 1.000",
+            "prior scale chosen by the evidence: 0.0625 for every family (prior σ = scale × tolerance/√3; scales 1e-3 … 100, 1e-3 = placement-only limit); blunder-screen noise scale 1.000",
+            "  why: common scale 0.0625 has the largest log evidence (-3.5)",
             "solver: converged after 4 iterations (data χ² 62.5 over 80 residual rows)",
         ];
         assert_eq!(text.lines().collect::<Vec<_>>(), expected);

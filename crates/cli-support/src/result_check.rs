@@ -21,8 +21,8 @@ use std::path::Path;
 use calib_core::whole_cell::{
     candidate_mistakes, classify_rejections, coincident_pairs, fitted_rows_noise_scale,
     layout_shape, placement_distance, robust_noise_scale, robust_noise_scale_with_tolerances,
-    try_problem, CellCalibration, CellFitError, CellProblem, CheckThresholds, PlacementDistance,
-    RejectionPattern, Trial, MISFIT_SHARE_ALONE, REST_FITS_SCALE,
+    try_problem, CellCalibration, CellFitError, CellProblem, CheckThresholds, LayoutShape,
+    PlacementDistance, RejectionPattern, Trial, MISFIT_SHARE_ALONE, REST_FITS_SCALE,
 };
 use handclasp_cell::problem::{cell_problem, FitModel};
 use handclasp_cell::{Cell, Session};
@@ -216,6 +216,24 @@ impl ResultCheckReport {
         self.status == STATUS_REFUSED
     }
 
+    /// Adds the findings of `stated`, the check of the fit at the stated tolerances, that this
+    /// check (of the fit at widened tolerances) does not repeat, each said as such: a widened
+    /// prior can absorb what the stated fit showed (σ understated, a model misfit), and the user
+    /// must still hear it. The status becomes `warning` when a finding was added (`refused`
+    /// stays).
+    pub fn add_stated_findings(&mut self, stated: &ResultCheckReport) {
+        for m in &stated.messages {
+            if !self.messages.contains(m) {
+                self.messages.push(format!(
+                    "at the stated tolerances, before the evidence widened them: {m}"
+                ));
+            }
+        }
+        if !self.messages.is_empty() && self.status == "ok" {
+            self.status = "warning";
+        }
+    }
+
     /// The text of a refusal (what `calibrate --cell` prints after `error:`): its messages,
     /// joined.
     pub fn refusal_reason(&self) -> String {
@@ -282,6 +300,56 @@ pub fn sibling_cells(cell: &Cell) -> Vec<(String, Cell)> {
 fn file_name(p: &Path) -> String {
     p.file_name()
         .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// The layout's line and plane ratios `(name, value, limit, warning when below the limit)`:
+/// the degeneracy check `calibrate --cell` runs on its fit and `plan` on its design.
+fn layout_ratios(
+    shape: &LayoutShape,
+    th: &CheckThresholds,
+) -> [(&'static str, f64, f64, Option<String>); 2] {
+    let item = |name: &'static str, value: f64, limit: f64, what: &str, off: &str| {
+        let message = (value < limit).then(|| {
+            format!(
+                "robot 1's tool points of the {} two-robot rows are {what} (principal spread \
+                 {:.1}, {:.1}, {:.1} mm; {name} {value:.4} below {limit}): add rows off that {off}",
+                shape.points, shape.spread_mm[0], shape.spread_mm[1], shape.spread_mm[2],
+            )
+        });
+        (name, value, limit, message)
+    };
+    [
+        item(
+            "layout_line_ratio",
+            shape.line_ratio(),
+            th.collinear_ratio,
+            "nearly collinear: the rotation about their line is poorly determined",
+            "line",
+        ),
+        item(
+            "layout_plane_ratio",
+            shape.plane_ratio(),
+            th.coplanar_ratio,
+            "nearly coplanar: a kinematic fit cannot separate the errors that move the tips out \
+             of that plane",
+            "plane",
+        ),
+    ]
+}
+
+/// The degenerate-layout warnings of `problem`'s two-robot rows (nearly collinear or coplanar
+/// tool points), worded as `calibrate --cell`'s result check words them; empty when the layout
+/// is sound or has too few points to judge.
+pub fn layout_warnings(problem: &CellProblem) -> Vec<String> {
+    let th = CheckThresholds::default();
+    layout_shape(problem)
+        .map(|shape| {
+            layout_ratios(&shape, &th)
+                .into_iter()
+                .filter_map(|(_, _, _, m)| m)
+                .collect()
+        })
         .unwrap_or_default()
 }
 
@@ -366,38 +434,9 @@ pub fn check_result(
     let shape = layout_shape(problem);
     let mut degenerate = Vec::new();
     if let Some(shape) = &shape {
-        for (name, value, limit, what) in [
-            (
-                "layout_line_ratio",
-                shape.line_ratio(),
-                th.collinear_ratio,
-                "nearly collinear: the rotation about their line is poorly determined",
-            ),
-            (
-                "layout_plane_ratio",
-                shape.plane_ratio(),
-                th.coplanar_ratio,
-                "nearly coplanar: a kinematic fit cannot separate the errors that move the tips \
-                 out of that plane",
-            ),
-        ] {
-            let bad = value < limit;
-            if bad {
-                degenerate.push(format!(
-                    "robot 1's tool points of the {} two-robot rows are {what} (principal spread \
-                     {:.1}, {:.1}, {:.1} mm; {name} {value:.4} below {limit}): add rows off that \
-                     {}",
-                    shape.points,
-                    shape.spread_mm[0],
-                    shape.spread_mm[1],
-                    shape.spread_mm[2],
-                    if name == "layout_line_ratio" {
-                        "line"
-                    } else {
-                        "plane"
-                    },
-                ));
-            }
+        for (name, value, limit, message) in layout_ratios(shape, &th) {
+            let bad = message.is_some();
+            degenerate.extend(message);
             checks.push(CheckItem {
                 detail: "second (line) or third (plane) over the first principal spread of \
                          robot 1's tool points of the two-robot rows"

@@ -1,5 +1,5 @@
 //! `handclasp calibrate --cell CELL --session SESSION --model kinematic|placement [--export DIR]
-//! [--json]`: the whole-cell calibration (`calib_core::whole_cell`) of a measured session.
+//! [--tolerance-scale X] [--json]`: the whole-cell calibration (`calib_core::whole_cell`) of a measured session.
 //!
 //! `kinematic` fits `b1_from_b2` jointly with every identifiable kinematic parameter of both
 //! robots (joint offsets, joint origin xyz/rpy, tip offsets), a maximum a posteriori fit with the
@@ -25,13 +25,14 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use cli_support::cell_report::{
-    calibrate_session_with, render_text, CellCalibrationError, CellModel, CellReport,
+    calibrate_session_with, render_text, tolerance_warnings, CellCalibrationError, CellModel,
+    CellReport,
 };
 use cli_support::result_check::ScreenMode;
 use handclasp_cell::{export_calibrated_cell, Cell, Session, CALIBRATE_EXPORT_NAMES};
 use report::{
     calibration_page, joint_coverage, predict_work_site, read_work_points, row_residuals,
-    Acceptance, CalibrationPage, MeetingPairsAccuracy, WorkSiteReport,
+    workspace_map, Acceptance, CalibrationPage, MeetingPairsAccuracy, WorkSiteReport,
 };
 use serde::Serialize;
 
@@ -89,6 +90,11 @@ pub struct CellArgs {
     /// when the predicted p95's 95 % interval lies below it).
     #[arg(long, requires = "cell", value_name = "DEG")]
     pub accept_deg: Option<f64>,
+    /// With --cell: fix the prior scale instead of letting the session's evidence choose it:
+    /// every [robotN.tolerance] × X (0.001 = the placement-only limit … 100). Default: the
+    /// evidence chooses (one scale, or one per family of parameters) from 0.001 to 100.
+    #[arg(long, requires = "cell", value_name = "X")]
+    pub tolerance_scale: Option<f64>,
 }
 
 /// `--model`; the report names it as [`CellModel::name`] does.
@@ -189,24 +195,29 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         "calibrating on {} rows (start, reduction, blunder screen, prior scale, prediction)",
         session.len()
     ));
-    let calibrated =
-        calibrate_session_with(&cell, &session, args.model.cell_model(), args.screen.mode())
-            .map_err(|e| {
-                let context = match &e {
-                    CellCalibrationError::Prediction(_) => String::new(),
-                    _ => format!(
-                        "calibrating {} with cell {}",
-                        session_path.display(),
-                        cell_path.display()
-                    ),
-                };
-                let e = anyhow::Error::from(e);
-                if context.is_empty() {
-                    e
-                } else {
-                    e.context(context)
-                }
-            })?;
+    let calibrated = calibrate_session_with(
+        &cell,
+        &session,
+        args.model.cell_model(),
+        args.screen.mode(),
+        args.tolerance_scale,
+    )
+    .map_err(|e| {
+        let context = match &e {
+            CellCalibrationError::Prediction(_) => String::new(),
+            _ => format!(
+                "calibrating {} with cell {}",
+                session_path.display(),
+                cell_path.display()
+            ),
+        };
+        let e = anyhow::Error::from(e);
+        if context.is_empty() {
+            e
+        } else {
+            e.context(context)
+        }
+    })?;
     progress.finish();
     let report = calibrated.report;
     for w in report.coverage.warnings() {
@@ -214,6 +225,9 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
     }
     if let Some(check) = &report.result_check {
         crate::result_check::refuse_or_warn(check, force, json, "calibrate --cell")?;
+    }
+    for line in tolerance_warnings(&report) {
+        eprintln!("{line}");
     }
     let cal = calibrated.calibration;
     let problem = calibrated.problem;
@@ -297,6 +311,8 @@ fn write_report_page(
     };
     let residuals = row_residuals(problem, cal).context("--report: the rows' residuals")?;
     let coverage = joint_coverage(cell, &residuals);
+    // The map's failure is said on the page in its place, not a refused report.
+    let workspace = workspace_map(problem, cal, P95_SEED).ok();
     let json = serde_json::to_string_pretty(report)?;
     let display = |p: &Option<PathBuf>| {
         p.as_ref()
@@ -320,6 +336,7 @@ fn write_report_page(
         }),
         residuals: &residuals,
         coverage: &coverage,
+        workspace: workspace.as_ref(),
         dof: [cell.robot1.model.dof(), cell.robot2.model.dof()],
         json: &json,
         invocation: &invocation,

@@ -128,6 +128,7 @@ fn result_precheck(
         session,
         cli_support::cell_report::CellModel::Placement,
         args.screen.mode(),
+        None,
     );
     match check {
         Ok(c) => {

@@ -12,7 +12,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
-use calib_core::whole_cell::{DesignCriterion, DesignPredictionReport};
+use calib_core::whole_cell::{DesignCriterion, DesignPredictionReport, PredictedErrorReport};
 use handclasp_cell::Cell;
 use nalgebra::Point3;
 use serde::Serialize;
@@ -128,6 +128,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             source,
         }
     })?;
+    // The degeneracy check calibrate --cell runs on a session, in its words.
+    let planned = handclasp_cell::problem::cell_problem(
+        &cell,
+        &plan.session,
+        handclasp_cell::problem::FitModel::Kinematic,
+    );
+    for w in cli_support::result_check::layout_warnings(&planned) {
+        eprintln!("warning: {w}");
+    }
     plan.session
         .write_csv(&args.out, &cell)
         .with_context(|| format!("--out {}", args.out.display()))?;
@@ -170,6 +179,8 @@ struct PlanReport {
     poses: Vec<PlannedPose>,
     /// The plan's prediction and the random picks' mean.
     predicted: Predicted,
+    /// The plan's predicted error in parts, over its held-out pairs and the whole workspace.
+    predicted_error_mm: PlanPredictedError,
     /// Random picks compared with.
     random_draws: usize,
     /// `--seed`.
@@ -193,6 +204,17 @@ struct CandidateCounts {
 struct Predicted {
     plan: DesignPredictionReport,
     random: DesignPredictionReport,
+}
+
+/// The plan's predicted error in parts ([`sim_cell::plan::PlanParts`]), mm.
+#[derive(Debug, Clone, Serialize)]
+struct PlanPredictedError {
+    /// Over the held-out pairs at the tolerances (prior scale 1, as the design assumes).
+    held_out: PredictedErrorReport,
+    /// Over the same pairs at the placement-only limit (prior scale 0.001).
+    placement_only_limit: PredictedErrorReport,
+    /// Over the whole workspace (the poses `calibrate --cell` predicts over), prior scale 1.
+    workspace: Option<PredictedErrorReport>,
 }
 
 /// One chosen pose: joints (deg) and nominal tips (mm, each in its robot's base).
@@ -246,6 +268,15 @@ impl PlanReport {
             predicted: Predicted {
                 plan: DesignPredictionReport::from(&plan.predicted),
                 random: DesignPredictionReport::from(&plan.random_mean),
+            },
+            predicted_error_mm: PlanPredictedError {
+                held_out: PredictedErrorReport::from(&plan.parts.held_out),
+                placement_only_limit: PredictedErrorReport::from(&plan.parts.placement_only_limit),
+                workspace: plan
+                    .parts
+                    .workspace
+                    .as_ref()
+                    .map(PredictedErrorReport::from),
             },
             random_draws: plan.random.len(),
             seed: args.seed,
@@ -332,6 +363,26 @@ fn write_text(s: &mut String, r: &PlanReport) -> std::fmt::Result {
         "  the plan's cooperative rms is {:.0} % below the random picks' mean",
         r.cooperative_gain_over_random_percent
     )?;
+    let p = &r.predicted_error_mm;
+    writeln!(s, "  plan, {}", p.held_out.parts_line())?;
+    if let Some(w) = &p.workspace {
+        writeln!(
+            s,
+            "  plan over the whole workspace ({} seeded reachable handclasps: robot 1 within its joint limits, robot 2 meeting it head-on; the poses calibrate --cell predicts over): rms {:.3} mm, p95 {:.3} mm",
+            w.pairs, w.predicted_rms, w.predicted_p95
+        )?;
+        writeln!(s, "    {}", w.parts_line())?;
+    }
+    let l = &p.placement_only_limit;
+    writeln!(
+        s,
+        "  plan at the placement-only limit (prior scale 0.001: the kinematic corrections held at nominal, as calibrate --cell's evidence chooses when the robots look closer to nominal than their tolerances or the data are few or noisy): rms {:.3} mm over the held-out pairs, of which prior-asserted {:.3} mm",
+        l.predicted_rms, l.prior_part_rms
+    )?;
+    writeln!(
+        s,
+        "  (calibrate --cell predicts with the same definition over its session's own meeting pairs and the whole workspace, at the prior scale its evidence chooses: near the figures at scale 1 above when it chooses 1, near the placement-only limit when it chooses 0.001)"
+    )?;
     writeln!(
         s,
         "  (e_tran/e_rot of b1_from_b2 carry the kinematic errors no handclasp can tell from the placement, \
@@ -354,6 +405,24 @@ mod tests {
             e_rot_deg: 0.01234,
             e_tran_mm: 0.25,
             log_det_information: 12.5,
+        }
+    }
+
+    fn parts(rms: f64, set: PairSet) -> PredictedErrorReport {
+        PredictedErrorReport {
+            data_part_rms: 0.3,
+            held_out_ratio: None,
+            held_out_p_value: None,
+            held_out_regions: None,
+            model_error_rms: 0.0,
+            model_error_source: "assumed_none",
+            pair_set: set.describe(),
+            pair_set_kind: set,
+            pairs: 200,
+            predicted_p95: 2.0 * rms,
+            predicted_rms: rms,
+            prior_part_rms: 0.4,
+            rms_bound95: 1.2 * rms,
         }
     }
 
@@ -384,12 +453,19 @@ mod tests {
                 plan: prediction(0.5),
                 random: prediction(0.85),
             },
+            predicted_error_mm: PlanPredictedError {
+                held_out: parts(0.5, PairSet::HeldOutHandclasps),
+                placement_only_limit: parts(1.5, PairSet::HeldOutHandclasps),
+                workspace: Some(parts(0.75, PairSet::Workspace)),
+            },
             random_draws: 20,
             seed: 1,
             spread_mm: 1000.0,
             tip_collision_checked: false,
         }
     }
+
+    use calib_core::whole_cell::PairSet;
 
     #[test]
     fn text_of_a_plan() {
@@ -410,6 +486,8 @@ mod tests {
             "  plan                                               cooperative rms 0.500 mm   e_tran 0.250 mm   e_rot 0.0123°",
             "  random (mean of 20 picks of the same candidates)   cooperative rms 0.850 mm   e_tran 0.250 mm   e_rot 0.0123°",
             "  the plan's cooperative rms is 42 % below the random picks' mean",
+            "  plan, of which: data-determined 0.300 mm, prior-asserted 0.400 mm (the tolerances of the terms the data do not determine: right only if the robots are that far off), model error none assumed; 95 % bound of the rms 0.600 mm",
+            "  plan at the placement-only limit (prior scale 0.001: the kinematic corrections held at nominal, as calibrate --cell's evidence chooses when the robots look closer to nominal than their tolerances or the data are few or noisy): rms 1.500 mm over the held-out pairs, of which prior-asserted 0.400 mm",
             "wrote plan.csv",
         ] {
             assert!(lines.contains(&line), "{line:?} missing in\n{text}");

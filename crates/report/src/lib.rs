@@ -13,8 +13,8 @@ pub use page::{
     MeetingPairsAccuracy,
 };
 pub use work_site::{
-    predict_work_site, read_work_points, Acceptance, RotationPredictionReport, UnreachableReport,
-    Verdict, WorkPointReport, WorkSiteReport,
+    predict_work_site, read_work_points, workspace_map, Acceptance, RotationPredictionReport,
+    UnreachableReport, Verdict, WorkPointReport, WorkSiteReport, WorkspaceMap,
 };
 
 #[cfg(test)]

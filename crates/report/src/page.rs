@@ -13,7 +13,7 @@ use maud::{html, Markup, PreEscaped, DOCTYPE};
 
 use crate::fit_data::{JointCoverage, RowResidual};
 use crate::plot;
-use crate::work_site::{Verdict, WorkSiteReport};
+use crate::work_site::{Verdict, WorkSiteReport, WorkspaceMap};
 use calib_core::Robot;
 
 /// How the page was made: the command line and the program's version.
@@ -58,6 +58,9 @@ pub struct CalibrationPage<'a> {
     pub residuals: &'a [RowResidual],
     /// Each joint's coverage ([`crate::joint_coverage`]).
     pub coverage: &'a [JointCoverage],
+    /// The predicted error over the whole workspace, pose by pose ([`crate::workspace_map`]);
+    /// `None` when it could not be predicted (the page says so).
+    pub workspace: Option<&'a WorkspaceMap>,
     /// Each robot's number of joints.
     pub dof: [usize; 2],
     /// The command's JSON report, embedded as it is.
@@ -240,7 +243,8 @@ pub fn calibration_page(p: &CalibrationPage) -> String {
         p class="note" {
             "The prediction is the posterior error of the vector from tip 2 to tip 1 (base 1) where both tips meet head-on at each work point, "
             "from every unknown's posterior (the prior-regularised ones and those not identifiable included); the p95 and its interval come from a seeded draw (seed " (w.seed) "). "
-            "The rotation figure is the placement's (b1_from_b2), not the tools' orientation at the work site."
+            "The rotation figure is the placement's (b1_from_b2), not the tools' orientation at the work site. "
+            "At the work points, " (w.parts_mm.parts_line()) "."
         }
         h2 { "Placement b1_from_b2 (robot 2's base in robot 1's base)" }
         table id="placement" {
@@ -310,9 +314,18 @@ pub fn calibration_page(p: &CalibrationPage) -> String {
             (figure(plot::residual_against_joints(p.residuals, robot, dof), &format!("Residual (mm) against each of robot {}'s joints (deg): a trend along a joint is an error the model does not carry.", robot.number())))
         }
         (figure(plot::coverage(p.coverage), "Each joint's travel between its limits (grey) and the range this session covered (green), with the covered fraction: away from the green the calibration extrapolates."))
-        @match work_point_plot {
-            Some(svg) => (figure(svg, "Predicted cooperative rms at each work point, mm.")),
-            None => p class="note" id="workspace-map" { "Predicted error over the workspace: not shown. This version predicts at the work points only (" (w.points.len()) " here); give several with a work-points file to see the error per point." },
+        @if let Some(svg) = work_point_plot {
+            (figure(svg, "Predicted cooperative rms at each work point, mm."))
+        }
+        @match p.workspace {
+            Some(m) => {
+                div id="workspace-map" {
+                    (figure(plot::workspace_map(&m.points_mm, &m.rms_mm, &m.session_mm), &format!(
+                        "Predicted cooperative rms over the whole workspace: {} seeded reachable handclasps (robot 1 within its joint limits, robot 2 meeting it head-on), each at its meeting point in base 1, coloured by its predicted rms; black crosses: this session's meeting points. Over all of them: rms {:.3} mm, p95 {:.3} mm; {}.",
+                        m.report.pairs, m.report.predicted_rms, m.report.predicted_p95, m.report.parts_line())))
+                }
+            }
+            None => p class="note" id="workspace-map" { "Predicted error over the workspace: not shown (no workspace pose both robots reach head-on was found)." },
         }
         h2 { "Solver" }
         ul {

@@ -369,3 +369,111 @@ pub fn before_after_lines(
         legend(&mut chart)
     })
 }
+
+/// Colour of a predicted rms in `[lo, hi]`: blue (small) through amber to red (large).
+fn heat(v: f64, lo: f64, hi: f64) -> RGBColor {
+    let t = if hi > lo {
+        ((v - lo) / (hi - lo)).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let mix =
+        |a: u8, b: u8, f: f64| (f64::from(a) + (f64::from(b) - f64::from(a)) * f).round() as u8;
+    let (c0, c1, f) = if t < 0.5 {
+        (USED, RGBColor(255, 170, 0), 2.0 * t)
+    } else {
+        (RGBColor(255, 170, 0), REJECTED, 2.0 * t - 1.0)
+    };
+    RGBColor(mix(c0.0, c1.0, f), mix(c0.1, c1.1, f), mix(c0.2, c1.2, f))
+}
+
+/// The predicted error over the workspace: each workspace pose's meeting point (robot 1's tip in
+/// base 1, mm) seen from above (x, y) and from the side (x, z), coloured by its predicted
+/// cooperative rms (mm; blue small, red large; the legend gives the colour of the smallest,
+/// middle and largest value); the session's meeting points (`session_mm`) as black crosses.
+pub fn workspace_map(
+    points_mm: &[[f64; 3]],
+    rms_mm: &[f64],
+    session_mm: &[[f64; 3]],
+) -> Result<String, String> {
+    if points_mm.is_empty() || points_mm.len() != rms_mm.len() {
+        return Err("no workspace pose was predicted".into());
+    }
+    let (lo, hi) = rms_mm
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    svg((WIDTH, 440), |root| {
+        let root = root
+            .titled(
+                "predicted cooperative rms over the workspace (meeting points in base 1)",
+                ("sans-serif", FONT + 2),
+            )
+            .map_err(|e| e.to_string())?;
+        let panels = root.split_evenly((1, 2));
+        for (k, (axis, name)) in [(1usize, "y, mm"), (2usize, "z, mm")]
+            .into_iter()
+            .enumerate()
+        {
+            let all = points_mm.iter().chain(session_mm);
+            let (x0, x1) = padded(all.clone().map(|p| p[0]));
+            let (y0, y1) = padded(all.map(|p| p[axis]));
+            let mut chart = ChartBuilder::on(&panels[k])
+                .caption(
+                    if k == 0 {
+                        "from above (x, y)"
+                    } else {
+                        "from the side (x, z)"
+                    },
+                    ("sans-serif", FONT),
+                )
+                .margin(8)
+                .x_label_area_size(34)
+                .y_label_area_size(54)
+                .build_cartesian_2d(x0..x1, y0..y1)
+                .map_err(|e| e.to_string())?;
+            chart
+                .configure_mesh()
+                .x_desc("x, mm")
+                .y_desc(name)
+                .x_labels(5)
+                .y_labels(5)
+                .light_line_style(LIGHT)
+                .draw()
+                .map_err(|e| e.to_string())?;
+            chart
+                .draw_series(
+                    points_mm
+                        .iter()
+                        .zip(rms_mm)
+                        .map(|(p, v)| Circle::new((p[0], p[axis]), 4, heat(*v, lo, hi).filled())),
+                )
+                .map_err(|e| e.to_string())?;
+            chart
+                .draw_series(
+                    session_mm
+                        .iter()
+                        .map(|p| Cross::new((p[0], p[axis]), 4, BLACK.stroke_width(1))),
+                )
+                .map_err(|e| e.to_string())?;
+            if k == 0 {
+                for v in [lo, 0.5 * (lo + hi), hi] {
+                    let c = heat(v, lo, hi);
+                    chart
+                        .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
+                        .map_err(|e| e.to_string())?
+                        .label(format!("{v:.3} mm"))
+                        .legend(move |(x, y)| Circle::new((x + 8, y), 4, c.filled()));
+                }
+                chart
+                    .draw_series(std::iter::empty::<Cross<(f64, f64), i32>>())
+                    .map_err(|e| e.to_string())?
+                    .label("session's meeting points")
+                    .legend(|(x, y)| Cross::new((x + 8, y), 4, BLACK.stroke_width(1)));
+                legend(&mut chart)?;
+            }
+        }
+        Ok(())
+    })
+}

@@ -3,7 +3,7 @@
 
 use std::io::Write as _;
 
-use calib_core::whole_cell::{calibrate_cell, ScreenOptions, SolveOptions};
+use calib_core::whole_cell::{calibrate_cell, PairSet, ScreenOptions, SolveOptions};
 use handclasp_cell::problem::{cell_problem, FitModel};
 use handclasp_cell::Cell;
 use kinematics::ErrorParam;
@@ -11,12 +11,31 @@ use nalgebra::Point3;
 use sim_cell::{generate_session, trial_rng, Layout, SessionSpec};
 
 use crate::work_site::{RotationPredictionReport, UnreachableReport};
+
+/// Fewest workspace poses the map needs on a shipped cell (of `WORKSPACE_POSES`, 100): the
+/// whole-workspace draw keeps those robot 2 reaches head-on.
+const WORKSPACE_MIN_POSES: usize = 20;
 use crate::*;
 
 /// A work-site report with the given p95 and interval (mm) and rotation p95 interval (deg).
 fn work_site(p95: f64, ci: [f64; 2], rot_ci: [f64; 2]) -> WorkSiteReport {
     WorkSiteReport {
         acceptance: Acceptance::default(),
+        parts_mm: calib_core::whole_cell::PredictedErrorReport {
+            data_part_rms: p95 / 4.0,
+            held_out_ratio: None,
+            held_out_p_value: None,
+            held_out_regions: None,
+            model_error_rms: 0.0,
+            model_error_source: "assumed_none",
+            pair_set: PairSet::WorkPoints.describe(),
+            pair_set_kind: PairSet::WorkPoints,
+            pairs: 1,
+            predicted_p95: p95,
+            predicted_rms: p95 / 2.0,
+            prior_part_rms: p95 / 3.0,
+            rms_bound95: p95,
+        },
         placement_rotation: Some(RotationPredictionReport {
             p95_ci_deg: rot_ci,
             p95_deg: (rot_ci[0] + rot_ci[1]) / 2.0,
@@ -198,6 +217,21 @@ fn calibration_page_is_self_contained_and_shows_the_verdict_first() {
         serde_json::to_string(&serde_json::to_value(&w).unwrap()).unwrap(),
         "keys out of order"
     );
+    let map = workspace_map(&problem, &cal, 1).unwrap();
+    assert_eq!(map.points_mm.len(), map.rms_mm.len());
+    assert!(
+        map.points_mm.len() >= WORKSPACE_MIN_POSES,
+        "{}",
+        map.points_mm.len()
+    );
+    assert_eq!(map.session_mm.len(), session.len());
+    // The work site's parts and total agree: rms² = data² + prior² + model² (round-off only).
+    let parts = &w.parts_mm;
+    let sum = (parts.data_part_rms.powi(2)
+        + parts.prior_part_rms.powi(2)
+        + parts.model_error_rms.powi(2))
+    .sqrt();
+    assert!((sum - w.predicted_rms_mm).abs() <= 1e-9 * w.predicted_rms_mm);
     let report = cal.report(&problem);
     let json = serde_json::json!({"work_site": &w, "probe": "</script><script>alert(1)</script>"})
         .to_string();
@@ -215,15 +249,17 @@ fn calibration_page_is_self_contained_and_shows_the_verdict_first() {
         meeting_pairs: None,
         residuals: &residuals,
         coverage: &coverage,
+        workspace: Some(&map),
         dof: [cell.robot1.model.dof(), cell.robot2.model.dof()],
         json: &json,
         invocation: &invocation,
     });
     assert_eq!(fetches(&html), Vec::<&str>::new());
-    // Four plots: residual per row, against each robot's joints, coverage (one work point: no
-    // per-point chart, and the page says so).
-    assert_eq!(html.matches("<figure class=\"plot\"><svg").count(), 4);
-    assert!(html.contains("id=\"workspace-map\""));
+    // Five plots: residual per row, against each robot's joints, coverage, the workspace map
+    // (one work point: no per-point chart).
+    assert_eq!(html.matches("<figure class=\"plot\"><svg").count(), 5);
+    let at = html.find("id=\"workspace-map\"").unwrap();
+    assert!(html[at..].contains("<svg"), "the workspace map is drawn");
     // The verdict comes before the placement, and says FAIL with its reason.
     let verdict = html.find("id=\"verdict\"").unwrap();
     assert!(verdict < html.find("id=\"placement\"").unwrap());

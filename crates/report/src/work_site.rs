@@ -5,20 +5,26 @@
 //! 2. [`predict_work_site`]: each point becomes a meeting pair `(q1, q2)` where both robots'
 //!    tips meet head-on (`sim_cell::generate_session` on the cell's nominal robots with the
 //!    fitted `b1_from_b2`, no noise: the generator `handclasp plan` uses for its candidates),
-//!    and calib-core's [`predict_cooperative_accuracy`] gives the rms and the p95 (with its
-//!    interval) of the error of the cooperative vector over those pairs; the placement's
+//!    and calib-core's [`predict_error`] (the one definition `calibrate --cell` and `plan` use)
+//!    gives the rms, its parts and the p95 (with its interval) of the error of the cooperative
+//!    vector over those pairs; the placement's
 //!    rotation error comes from its 3×3 posterior block ([`summarise_covariances`]).
-//! 3. [`Acceptance::verdict`]: PASS when the upper end of each predicted p95's interval is
+//! 3. [`workspace_map`]: the same prediction over the whole workspace
+//!    ([`calib_core::whole_cell::workspace_pairs`], the poses `calibrate --cell` reports), with
+//!    each pose's meeting point, for the page's map.
+//! 4. [`Acceptance::verdict`]: PASS when the upper end of each predicted p95's interval is
 //!    within the accepted error, and every work point was predicted.
 
 use std::path::Path;
 
 use calib_core::stats::trial_rng;
 use calib_core::whole_cell::{
-    predict_cooperative_accuracy, summarise_covariances, CellCalibration, CellParam, CellProblem,
-    ConfigPair,
+    predict_error, summarise_covariances, workspace_pairs, CellCalibration, CellParam, CellProblem,
+    ConfigPair, ObservationKind, PairSet, PredictedErrorReport, PredictionSplit, WORKSPACE_POSES,
+    WORKSPACE_SEED,
 };
 use handclasp_cell::Cell;
+use kinematics::base_from_tip;
 use kinematics::Axis;
 use nalgebra::{Matrix3, Point3};
 use serde::{Deserialize, Serialize};
@@ -238,6 +244,9 @@ pub struct RotationPredictionReport {
 pub struct WorkSiteReport {
     /// What the user accepts.
     pub acceptance: Acceptance,
+    /// The prediction at the work points in parts (data-determined, prior-asserted, model
+    /// error) with its 95 % bound, mm.
+    pub parts_mm: PredictedErrorReport,
     /// The predicted rotation error of `b1_from_b2`; `None` when the fit did not estimate it.
     pub placement_rotation: Option<RotationPredictionReport>,
     /// The predicted points.
@@ -346,8 +355,7 @@ pub fn predict_work_site(
         });
     }
     let config: Vec<ConfigPair> = pairs.iter().map(|(_, p)| p.clone()).collect();
-    let prediction = predict_cooperative_accuracy(problem, &cal.fit, &config, seed)
-        .map_err(ReportError::Prediction)?;
+    let prediction = predict_over(problem, cal, &config, PairSet::WorkPoints, seed)?;
     let mm = |p: &Point3<f64>| [p.x * 1e3, p.y * 1e3, p.z * 1e3];
     let points = pairs
         .iter()
@@ -376,11 +384,12 @@ pub fn predict_work_site(
     });
     let mut report = WorkSiteReport {
         acceptance,
+        parts_mm: PredictedErrorReport::from(&prediction),
         placement_rotation,
         points,
-        predicted_p95_ci_mm: prediction.predicted_p95_ci_m.map(|v| v * 1e3),
-        predicted_p95_mm: prediction.predicted_p95_m * 1e3,
-        predicted_rms_mm: prediction.predicted_rms_m * 1e3,
+        predicted_p95_ci_mm: prediction.p95_ci_m.map(|v| v * 1e3),
+        predicted_p95_mm: prediction.p95_m * 1e3,
+        predicted_rms_mm: prediction.rms_m * 1e3,
         seed,
         source: source.to_string(),
         unreachable,
@@ -391,4 +400,82 @@ pub fn predict_work_site(
     report.verdict = verdict;
     report.why = why;
     Ok(report)
+}
+
+/// The predicted error of `cal` over `pairs` of `pair_set` (calib-core's one definition,
+/// [`predict_error`], with the calibration's split).
+fn predict_over(
+    problem: &CellProblem,
+    cal: &CellCalibration,
+    pairs: &[ConfigPair],
+    pair_set: PairSet,
+    seed: u64,
+) -> Result<calib_core::whole_cell::PredictedError, ReportError> {
+    let split = PredictionSplit::of_calibration(problem, cal).map_err(ReportError::Prediction)?;
+    predict_error(
+        problem,
+        &cal.fit.layout,
+        &cal.fit.estimate,
+        &split,
+        pairs,
+        pair_set,
+        seed,
+    )
+    .map_err(ReportError::Prediction)
+}
+
+/// The predicted error over the whole workspace, pose by pose, for the page's map.
+#[derive(Debug, Clone)]
+pub struct WorkspaceMap {
+    /// Each pose's meeting point (robot 1's nominal tip in base 1), mm.
+    pub points_mm: Vec<[f64; 3]>,
+    /// Each pose's predicted cooperative rms, mm.
+    pub rms_mm: Vec<f64>,
+    /// The session's meeting points (robot 1's tip of each coincident or contact row), mm.
+    pub session_mm: Vec<[f64; 3]>,
+    /// The prediction over all of them (the JSON's `workspace_accuracy_mm`).
+    pub report: PredictedErrorReport,
+}
+
+/// The predicted error of `cal` over the whole workspace of `problem`
+/// ([`workspace_pairs`] at the fitted placement, [`WORKSPACE_POSES`] poses, seed
+/// [`WORKSPACE_SEED`]: the poses `calibrate --cell` reports), pose by pose; `seed` seeds the
+/// p95's draws.
+///
+/// Errors: no workspace pose is reachable, or the models reject a pose.
+pub fn workspace_map(
+    problem: &CellProblem,
+    cal: &CellCalibration,
+    seed: u64,
+) -> Result<WorkspaceMap, ReportError> {
+    let poses = workspace_pairs(
+        problem,
+        &cal.fit.estimate.b1_from_b2,
+        WORKSPACE_POSES,
+        WORKSPACE_SEED,
+    );
+    let pairs: Vec<ConfigPair> = poses.iter().map(|p| p.pair.clone()).collect();
+    let prediction = predict_over(problem, cal, &pairs, PairSet::Workspace, seed)?;
+    let mm = |p: &Point3<f64>| [p.x * 1e3, p.y * 1e3, p.z * 1e3];
+    let r1 = &problem.robot1;
+    let session_mm = problem
+        .observations
+        .iter()
+        .filter_map(|o| match &o.kind {
+            ObservationKind::Coincident { q1, tool1, .. }
+            | ObservationKind::Contact { q1, tool1, .. } => {
+                let tool = r1.tools.get(*tool1)?;
+                base_from_tip(&r1.model, q1, &tool.flange_from_tip)
+                    .ok()
+                    .map(|t| mm(&Point3::from(t.translation.vector)))
+            }
+            _ => None,
+        })
+        .collect();
+    Ok(WorkspaceMap {
+        points_mm: poses.iter().map(|p| mm(&p.p_b1)).collect(),
+        rms_mm: prediction.per_pair_rms_m.iter().map(|v| v * 1e3).collect(),
+        session_mm,
+        report: PredictedErrorReport::from(&prediction),
+    })
 }

@@ -1,7 +1,9 @@
 #![doc = include_str!("../README.md")]
 
 mod error;
+pub mod honest;
 pub mod layout;
+pub mod oracle;
 pub mod paper;
 pub mod placement;
 pub mod plan;

@@ -39,6 +39,47 @@ enum Command {
     /// errors per method and mount, where simulation and measurements agree and where they do not
     /// (the same study as `handclasp paper diagnose`).
     Paper(PaperArgs),
+    /// The prior-scale benchmark (issue 20): the whole-cell fit's evidence-chosen prior scales
+    /// against a MAP fit that knows the true prior (the oracle), the stated tolerances held
+    /// (scale 1) and the placement-only fit, by held-out cooperative rms; prints a table.
+    Oracle(OracleArgs),
+}
+
+#[derive(clap::Args)]
+struct OracleArgs {
+    /// Cell TOMLs (their robots, placement, teach centre and noise; the tolerances are set
+    /// from --joint-deg and --origin-mm). Default: cells/floor-floor, floor-wall and
+    /// floor-ceiling.toml.
+    #[arg(long = "cell", value_name = "CELL.toml")]
+    cells: Vec<PathBuf>,
+    /// Seeds (sessions) per cell.
+    #[arg(long, default_value_t = 20)]
+    seeds: usize,
+    /// Master seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Handclasps per session.
+    #[arg(long, default_value_t = 40)]
+    points: usize,
+    /// Alignment σ per axis, mm.
+    #[arg(long, default_value_t = 0.3)]
+    noise_mm: f64,
+    /// Side of the teach cube around the cell's teach centre, mm.
+    #[arg(long, default_value_t = 700.0)]
+    spread_mm: f64,
+    /// Stated joint-offset tolerance, degrees.
+    #[arg(long, default_value_t = 0.05)]
+    joint_deg: f64,
+    /// Stated origin-xyz and tip tolerance, mm.
+    #[arg(long, default_value_t = 0.5)]
+    origin_mm: f64,
+    /// The truth is drawn from U(±F·tolerance): 1 = the stated tolerances are right, 10 = the
+    /// robots are 10× further off than stated.
+    #[arg(long, default_value_t = 1.0, value_name = "F")]
+    truth_factor: f64,
+    /// Also print one line per trial.
+    #[arg(long)]
+    trials: bool,
 }
 
 #[derive(clap::Args)]
@@ -278,7 +319,56 @@ fn run(cli: Cli) -> Result<()> {
         Command::Session(a) => session(a),
         Command::Sweep(a) => sweep_cmd(a),
         Command::Paper(a) => paper_cmd(a),
+        Command::Oracle(a) => oracle_cmd(a),
     }
+}
+
+fn oracle_cmd(a: OracleArgs) -> Result<()> {
+    let o = sim_cell::oracle::OracleOptions {
+        seeds: a.seeds,
+        seed: a.seed,
+        points: a.points,
+        noise_mm: a.noise_mm,
+        spread_mm: a.spread_mm,
+        joint_deg: a.joint_deg,
+        origin_mm: a.origin_mm,
+        truth_factor: a.truth_factor,
+    };
+    let cells = if a.cells.is_empty() {
+        ["floor-floor", "floor-wall", "floor-ceiling"]
+            .iter()
+            .map(|n| PathBuf::from(format!("cells/{n}.toml")))
+            .collect()
+    } else {
+        a.cells
+    };
+    let mut results = Vec::new();
+    for path in &cells {
+        let cell = Cell::from_toml_file(path)?;
+        let name = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let r = sim_cell::oracle::run_cell(&name, &cell, &o)
+            .with_context(|| format!("sim-cell oracle --cell {}", path.display()))?;
+        if a.trials {
+            for t in &r.trials {
+                println!(
+                    "{name} trial {}: evidence {:.3} mm, oracle {:.3} mm (ratio {:.3}), held {:.3} mm, placement {:.3} mm; scales {}",
+                    t.trial,
+                    t.evidence_m * 1e3,
+                    t.oracle_m * 1e3,
+                    t.evidence_m / t.oracle_m,
+                    t.held_m * 1e3,
+                    t.placement_m * 1e3,
+                    t.scales
+                );
+            }
+        }
+        results.push(r);
+    }
+    print!("{}", sim_cell::oracle::render_table(&results, &o));
+    Ok(())
 }
 
 fn paper_cmd(a: PaperArgs) -> Result<()> {

@@ -28,8 +28,9 @@
 //! gives their mean.
 
 use calib_core::whole_cell::{
-    design_prediction, greedy_design, CellEstimate, CellFitError, ConfigPair, DesignCriterion,
-    DesignPrediction, ParamLayout,
+    design_prediction, design_split, greedy_design, predict_error, workspace_pairs, CellEstimate,
+    CellFitError, ConfigPair, DesignCriterion, DesignPrediction, PairSet, ParamLayout,
+    PredictedError, ScreenOptions, PRIOR_SCALES, WORKSPACE_POSES, WORKSPACE_SEED,
 };
 use kinematics::{ErrorParam, KinematicErrors};
 use nalgebra::{Point3, Vector3};
@@ -115,6 +116,26 @@ pub struct Plan {
     pub random_mean: DesignPrediction,
     /// Each random pick's prediction.
     pub random: Vec<DesignPrediction>,
+    /// The plan's predicted error in parts (the one definition `calibrate --cell` uses:
+    /// [`calib_core::whole_cell::predict_error`]).
+    pub parts: PlanParts,
+}
+
+/// The plan's predicted error in parts, over its held-out pairs and the whole workspace, at
+/// the tolerances (prior scale 1, as the design assumes) and at the placement-only limit.
+#[derive(Debug, Clone)]
+pub struct PlanParts {
+    /// Over the held-out evaluation pairs, prior scale 1: its rms is
+    /// [`DesignPrediction::cooperative_rms_m`].
+    pub held_out: PredictedError,
+    /// Over the same pairs at the smallest prior scale `calibrate --cell`'s evidence may choose
+    /// ([`PRIOR_SCALES`]' last, the placement-only limit): the kinematic corrections held at
+    /// nominal, their tolerances left in the prediction.
+    pub placement_only_limit: PredictedError,
+    /// Over the whole workspace ([`workspace_pairs`], [`WORKSPACE_POSES`] poses, seed
+    /// [`WORKSPACE_SEED`]: the poses `calibrate --cell` predicts over), prior scale 1; `None`
+    /// when none is reachable.
+    pub workspace: Option<PredictedError>,
 }
 
 /// The cell with nominal robots (no `[robotN.errors]`) and no noise: where candidates are
@@ -304,6 +325,7 @@ pub fn plan_session(
     );
     problem.check().map_err(plan_error)?;
     let layout = ParamLayout::new(&problem, &[]);
+    refuse_unfittable(&problem, &layout, spec.n)?;
     let at = CellEstimate::nominal(&problem, cell.b1_from_b2);
     let obs = &problem.observations;
     let design = greedy_design(
@@ -345,6 +367,7 @@ pub fn plan_session(
         e_rot_rad: mean(&|p| p.e_rot_rad),
         log_det_info: mean(&|p| p.log_det_info),
     };
+    let parts = plan_parts(&problem, &layout, &at, &design.chosen, &eval_pairs, cell)?;
     let points = design
         .chosen
         .iter()
@@ -363,6 +386,67 @@ pub fn plan_session(
         predicted,
         random_mean,
         random,
+        parts,
+    })
+}
+
+/// Refuses a plan of `n` handclasps that `calibrate --cell` would refuse to fit, with its
+/// words ([`CellFitError::TooFewRows`]): fewer residual rows (3 a handclasp) than the
+/// unpenalised unknowns plus the blunder screen's redundancy ([`ScreenOptions::min_redundancy`]).
+fn refuse_unfittable(
+    problem: &calib_core::whole_cell::CellProblem,
+    layout: &ParamLayout,
+    n: usize,
+) -> Result<(), SimError> {
+    let unpenalised = (0..layout.len())
+        .filter(|&j| layout.prior_sigma(j) == 0.0)
+        .count();
+    let needed = unpenalised + ScreenOptions::default().min_redundancy;
+    let per_row = problem.observations.first().map_or(3, |o| o.kind.rows());
+    let remaining = n * per_row;
+    if remaining < needed {
+        let why = CellFitError::TooFewRows {
+            remaining,
+            needed,
+            rejected_rows: Vec::new(),
+        };
+        return Err(SimError::InvalidInput(format!(
+            "a session of {n} handclasps cannot be calibrated, so no accuracy is predicted: \
+             calibrate --cell would refuse it: {why} (plan at least {} poses)",
+            needed.div_ceil(per_row)
+        )));
+    }
+    Ok(())
+}
+
+/// The plan's predicted error in parts ([`PlanParts`]).
+fn plan_parts(
+    problem: &calib_core::whole_cell::CellProblem,
+    layout: &ParamLayout,
+    at: &CellEstimate,
+    chosen: &[usize],
+    eval_pairs: &[ConfigPair],
+    cell: &Cell,
+) -> Result<PlanParts, SimError> {
+    let obs = &problem.observations;
+    let at_scale = |scale: f64, pairs: &[ConfigPair], set: PairSet| {
+        let split = design_split(problem, layout, at, obs, chosen, scale).map_err(plan_error)?;
+        predict_error(problem, layout, at, &split, pairs, set, PREDICTION_SEED).map_err(plan_error)
+    };
+    let limit = PRIOR_SCALES[PRIOR_SCALES.len() - 1];
+    let workspace: Vec<ConfigPair> =
+        workspace_pairs(problem, &cell.b1_from_b2, WORKSPACE_POSES, WORKSPACE_SEED)
+            .into_iter()
+            .map(|p| p.pair)
+            .collect();
+    Ok(PlanParts {
+        held_out: at_scale(1.0, eval_pairs, PairSet::HeldOutHandclasps)?,
+        placement_only_limit: at_scale(limit, eval_pairs, PairSet::HeldOutHandclasps)?,
+        workspace: if workspace.is_empty() {
+            None
+        } else {
+            Some(at_scale(1.0, &workspace, PairSet::Workspace)?)
+        },
     })
 }
 

@@ -236,6 +236,43 @@ fn subset_posterior(
     Ok((s, info, sigma))
 }
 
+/// The error covariance of a design's calibration in parts ([`super::PredictionSplit`]): the
+/// chosen subset `chosen` of `candidates` linearised at `at`, estimated with the tolerance prior
+/// scaled by `prior_scale` (1: the tolerances, as the design criterion assumes; a smaller scale
+/// as `calibrate --cell`'s evidence may choose, [`super::PRIOR_SCALES`]) for a truth drawn from
+/// the tolerances. At scale 1 the parts sum to the design's posterior `A⁻¹`.
+///
+/// Errors: an index out of range, a non-positive scale, or as [`greedy_design`].
+pub fn design_split(
+    problem: &CellProblem,
+    layout: &ParamLayout,
+    at: &CellEstimate,
+    candidates: &[Observation],
+    chosen: &[usize],
+    prior_scale: f64,
+) -> Result<super::PredictionSplit, CellFitError> {
+    if let Some(&bad) = chosen.iter().find(|&&c| c >= candidates.len()) {
+        return Err(CellFitError::InvalidInput(format!(
+            "design: candidate index {bad} is out of range ({} candidates)",
+            candidates.len()
+        )));
+    }
+    if !(prior_scale.is_finite() && prior_scale > 0.0) {
+        return Err(CellFitError::InvalidInput(format!(
+            "design: prior scale {prior_scale} must be positive"
+        )));
+    }
+    let (_, info, _) = subset_posterior(problem, layout, at, candidates, chosen, &[])?;
+    let lambda = layout.prior_sqrt_info.transpose() * &layout.prior_sqrt_info;
+    // The data's information with the weak prior of the unpenalised columns.
+    let hd = &info - &lambda;
+    Ok(super::PredictionSplit::of_information(
+        &hd,
+        &lambda,
+        prior_scale,
+    ))
+}
+
 /// What a design predicts for the calibration of its observations (linearised at the design's
 /// estimate, the posterior covariance `Σ = A⁻¹` of the module documentation).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]

@@ -90,6 +90,13 @@
 //! seeded draw of [`P95_DRAWS_PER_PAIR`] Gaussian errors per pair. [`measure_cooperative_error`]
 //! gives the actual `‖v_fit − v_true‖` against a known truth.
 //!
+//! # The predicted error ([`predict_error`])
+//! One definition for `calibrate --cell`, `plan` and the report page (`prediction.rs`): the
+//! error covariance split into the part the data determined and the part the prior asserts
+//! ([`PredictionSplit`]), a model-error term from held-out residuals ([`ModelError`]), propagated
+//! to a named [`PairSet`] (the session's meeting pairs, work points, or the whole workspace:
+//! [`workspace_pairs`]), with a 95 % bound of the rms.
+//!
 //! # Design ([`greedy_design`])
 //! At nominal, the information is `A₀ = R_pᵀR_p + ε·I` on the unpenalised columns (a weak
 //! prior: σ = [`WEAK_PRIOR_SIGMA`] so that `A₀` is invertible) and each candidate `c` adds its
@@ -109,11 +116,12 @@
 //! nuisance groups, [`CellProblem`] and its checks) ← `layout` (estimates, columns, prior,
 //! manifold updates) ← `residuals` (residuals and analytic Jacobians, [`Evaluator`]) ← `start`
 //! (starting values) ← `solve` (Levenberg–Marquardt) ← `reduce` ← `blunders` ← `accuracy` ←
-//! `design`, `calibrate` (the one call) ← `report` (its file-unit report); beside them, `coverage`
-//! (the joint ranges and tool-point region a session covers against the limits and the reach),
-//! the result check (`check`: noise scale, placement against the stated one, layout shape;
-//! `mistakes`: likely data mistakes tried; `misfit`: blunders or model misfit) and `validate` (a held cell scored on observations it was not fitted to, nuisances given or
-//! split-refitted). `fixtures` (simulated cells) and `tests` sit on top.
+//! `design`, `evidence` (the prior scales from the evidence), `calibrate` (the one call) ←
+//! `prediction` (the predicted error) ← `report` (its file-unit report); beside them, `coverage` (the joint ranges and tool-point
+//! region a session covers against the limits and the reach), the result check (`check`: noise
+//! scale, placement against the stated one, layout shape; `mistakes`: likely data mistakes
+//! tried; `misfit`: blunders or model misfit) and `validate` (a held cell scored on observations
+//! it was not fitted to, nuisances given or split-refitted). `fixtures` (simulated cells) and `tests` sit on top.
 
 mod accuracy;
 mod blunders;
@@ -122,11 +130,13 @@ mod cell;
 mod check;
 mod coverage;
 mod design;
+mod evidence;
 mod layout;
 mod misfit;
 mod mistakes;
 mod observations;
 mod placement_prior;
+mod prediction;
 mod reduce;
 mod report;
 mod residuals;
@@ -145,7 +155,7 @@ pub use accuracy::{
     summarise_covariances, ConfigPair, CooperativeError, CooperativePrediction, P95_DRAWS_PER_PAIR,
 };
 pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
-pub use calibrate::{calibrate_cell, CellCalibration, PriorScaleChoice, PRIOR_SCALES};
+pub use calibrate::{calibrate_cell, calibrate_cell_with, widen_prior, CellCalibration};
 pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool};
 pub use check::{
     coincident_pairs, fitted_rows_noise_scale, layout_shape, placement_distance,
@@ -158,8 +168,12 @@ pub use coverage::{
     NARROW_JOINT_FRACTION, NARROW_REACH_FRACTION,
 };
 pub use design::{
-    design_criterion, design_prediction, greedy_design, DesignCriterion, DesignPrediction,
-    DesignResult, PLACEMENT_DRAWS, WEAK_PRIOR_SIGMA,
+    design_criterion, design_prediction, design_split, greedy_design, DesignCriterion,
+    DesignPrediction, DesignResult, PLACEMENT_DRAWS, WEAK_PRIOR_SIGMA,
+};
+pub use evidence::{
+    format_scale, prior_family, FamilyScale, PriorScaleChoice, ScaleMethod, FAMILY_EVIDENCE_MARGIN,
+    FAMILY_SWEEPS, MAX_PRIOR_SCALE, PRIOR_SCALES, REFERENCE_EVIDENCE_MARGIN,
 };
 pub use layout::{
     tangent_basis, CellEstimate, CellParam, ParamLayout, PlaneEstimate, RobotCorrection,
@@ -175,12 +189,18 @@ pub use observations::{
     TrackerGroup, UNIT_NORMAL_TOL,
 };
 pub use placement_prior::PlacementPrior;
+pub use prediction::{
+    predict_error, workspace_pairs, ModelError, PairSet, PredictedError, PredictionSplit,
+    WorkspacePose, BOUND_DRAWS, MODEL_ERROR_ALPHA, WORKSPACE_ATTEMPTS_PER_POSE, WORKSPACE_POSES,
+    WORKSPACE_SEED,
+};
 pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, PRIOR_INFO_TOL, RANK_TOL};
 pub use report::{
-    CalibrationReport, ContactGroupReport, DesignPredictionReport, DropReason,
+    CalibrationReport, ContactGroupReport, DesignPredictionReport, DropReason, FamilyScaleReport,
     FittedPlacementReport, GroupsReport, LogEvidenceReport, MergePartner, NuisanceReport,
-    ParamIdentity, ParameterReport, PlacementSigmaReport, PlaneGroupReport, PriorScaleReport,
-    RejectedRowReport, ReportUnit, TrackerGroupReport, UnidentifiableReport,
+    ParamIdentity, ParameterReport, PlacementSigmaReport, PlaneGroupReport, PredictedErrorReport,
+    PriorScaleReport, RejectedRowReport, ReportUnit, TrackerGroupReport, UnidentifiableReport,
+    TOLERANCE_WARNING_SIGMAS,
 };
 pub use residuals::{Evaluator, ObservationLinearisation, MIN_FACE_NORMAL_SUM};
 pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions};

@@ -16,6 +16,7 @@ use super::calibrate::CellCalibration;
 use super::design::DesignPrediction;
 use super::layout::CellParam;
 use super::observations::CellProblem;
+use super::prediction::{ModelError, PairSet, PredictedError};
 use super::reduce::{ReductionEntry, ReductionReason};
 
 use crate::{PoseForms, Robot, StopReason};
@@ -117,35 +118,92 @@ impl ParamIdentity {
     }
 }
 
-/// A fitted kinematic parameter (or tool tip) in its [`ReportUnit`]. JSON: `axis`, `joint`,
-/// `kind`, `name`, `prior_sigma`, `robot`, `sigma`, `unit`, `value`.
+/// A fitted kinematic parameter (or tool tip) in its [`ReportUnit`]. JSON: `axis`,
+/// `exceeds_tolerance`, `exceeds_tolerance_beyond_noise`, `joint`, `kind`, `name`, `prior_scale`, `prior_sigma`, `robot`, `sigma`,
+/// `tolerance`, `unit`, `value`.
 #[derive(Debug, Clone)]
 pub struct ParameterReport {
     /// Robot, kind, joint and axis.
     pub identity: ParamIdentity,
     /// Readable name, e.g. `robot 2 origin_xyz joint 3 x`.
     pub name: String,
-    /// Prior σ (the chosen prior scale is not applied).
+    /// The prior scale applied to its family ([`super::PriorScaleChoice`]): the fit's prior σ
+    /// is `prior_scale × prior_sigma`.
+    pub prior_scale: f64,
+    /// Prior σ from the stated tolerance (the chosen prior scale is not applied; a merged
+    /// parameter's includes its partners' prior).
     pub prior_sigma: f64,
     /// Posterior σ.
     pub sigma: f64,
-    /// The unit of `value`, `sigma` and `prior_sigma`.
+    /// The stated tolerance, `√3 × prior_sigma` (the half-width of the uniform band the prior
+    /// stands for).
+    pub tolerance: f64,
+    /// The unit of `value`, `sigma`, `prior_sigma` and `tolerance`.
     pub unit: ReportUnit,
     /// The fitted correction.
     pub value: f64,
 }
 
+/// Posterior σ a fitted correction must exceed its stated tolerance by before
+/// [`ParameterReport::tolerance_warning`] warns: a correction within `tolerance + 2σ` is
+/// consistent with a true error inside the tolerance plus the fit's own noise (a correct
+/// session's corrections land just beyond the band about one time in twenty per parameter
+/// without it).
+pub const TOLERANCE_WARNING_SIGMAS: f64 = 2.0;
+
+impl ParameterReport {
+    /// Whether the fitted correction is larger than the stated tolerance (`|value| > tolerance`).
+    pub fn exceeds_tolerance(&self) -> bool {
+        self.value.abs() > self.tolerance
+    }
+
+    /// Whether the fitted correction is beyond the stated tolerance by more than the fit's noise
+    /// (`|value| > tolerance + TOLERANCE_WARNING_SIGMAS × sigma`): the data say the robot is
+    /// further off than stated.
+    pub fn exceeds_tolerance_beyond_noise(&self) -> bool {
+        self.value.abs() > self.tolerance + TOLERANCE_WARNING_SIGMAS * self.sigma
+    }
+
+    /// The warning for a correction beyond its stated tolerance by more than
+    /// [`TOLERANCE_WARNING_SIGMAS`] posterior σ (`None` otherwise): names the parameter, its
+    /// value and σ, its tolerance and the prior scale applied.
+    pub fn tolerance_warning(&self) -> Option<String> {
+        let unit = self.unit.name();
+        self.exceeds_tolerance_beyond_noise().then(|| {
+            format!(
+                "{}: fitted correction {:+.4} ± {:.4} {unit} (1σ) exceeds its stated tolerance \
+                 ±{:.4} {unit} by more than {TOLERANCE_WARNING_SIGMAS}σ ({:.1}× it; prior scale \
+                 applied ×{}): the robot is further off than the cell's [robotN.tolerance] says; \
+                 check the tolerance or the session",
+                self.name,
+                self.value,
+                self.sigma,
+                self.tolerance,
+                self.value.abs() / self.tolerance,
+                super::format_scale(self.prior_scale)
+            )
+        })
+    }
+}
+
 impl Serialize for ParameterReport {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         let id = &self.identity;
-        let mut m = s.serialize_map(Some(9))?;
+        let mut m = s.serialize_map(Some(13))?;
         m.serialize_entry("axis", &id.axis)?;
+        m.serialize_entry("exceeds_tolerance", &self.exceeds_tolerance())?;
+        m.serialize_entry(
+            "exceeds_tolerance_beyond_noise",
+            &self.exceeds_tolerance_beyond_noise(),
+        )?;
         m.serialize_entry("joint", &id.joint)?;
         m.serialize_entry("kind", id.kind)?;
         m.serialize_entry("name", &self.name)?;
+        m.serialize_entry("prior_scale", &self.prior_scale)?;
         m.serialize_entry("prior_sigma", &self.prior_sigma)?;
         m.serialize_entry("robot", &id.robot)?;
         m.serialize_entry("sigma", &self.sigma)?;
+        m.serialize_entry("tolerance", &self.tolerance)?;
         m.serialize_entry("unit", &self.unit)?;
         m.serialize_entry("value", &self.value)?;
         m.end()
@@ -314,13 +372,34 @@ pub struct LogEvidenceReport {
     pub scale: f64,
 }
 
-/// The prior scale chosen by the evidence ([`super::PriorScaleChoice`]).
+/// The scale applied to one family of parameters ([`super::FamilyScale`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct FamilyScaleReport {
+    /// The family (the parameters' kind: `joint_offset`, `origin_xyz`, `origin_rpy`, `tip`, …).
+    pub family: String,
+    /// Its fitted parameters.
+    pub parameters: usize,
+    /// The scale applied (prior σ = scale × tolerance/√3).
+    pub scale: f64,
+}
+
+/// The prior scales applied and why ([`super::PriorScaleChoice`]).
 #[derive(Debug, Clone, Serialize)]
 pub struct PriorScaleReport {
-    /// The chosen scale.
+    /// The common scale of largest evidence (or the fixed scale): every family's scale unless
+    /// `method` is `evidence_per_family`.
     pub chosen: f64,
-    /// Every scale that fitted, with its log evidence.
+    /// The scale applied to each family.
+    pub families: Vec<FamilyScaleReport>,
+    /// Log evidence of the best per-family scales (`null` when no family gained by its own).
+    pub family_log_evidence: Option<f64>,
+    /// Every common scale, with its log evidence.
     pub log_evidence: Vec<LogEvidenceReport>,
+    /// How the scales were set: `evidence_common`, `evidence_per_family`, `fixed` (the
+    /// `--tolerance-scale` flag) or `no_prior`.
+    pub method: super::ScaleMethod,
+    /// Which scales and why, with the evidence values.
+    pub why: String,
 }
 
 /// A contact group's distance.
@@ -417,14 +496,21 @@ impl CellCalibration {
             let unit = ReportUnit::of(&p.param);
             let k = unit.per_si();
             match ParamIdentity::of(&p.param) {
-                Some(identity) => parameters.push(ParameterReport {
-                    identity,
-                    name: p.name.clone(),
-                    prior_sigma: p.prior_sigma * k,
-                    sigma: p.posterior_sigma * k,
-                    unit,
-                    value: p.value * k,
-                }),
+                Some(identity) => {
+                    let prior_scale = super::prior_family(&p.param)
+                        .map_or(1.0, |f| self.prior_scale.family_scale(f));
+                    let prior_sigma = p.prior_sigma / prior_scale * k;
+                    parameters.push(ParameterReport {
+                        identity,
+                        name: p.name.clone(),
+                        prior_scale,
+                        prior_sigma,
+                        sigma: p.posterior_sigma * k,
+                        tolerance: prior_sigma * 3f64.sqrt(),
+                        unit,
+                        value: p.value * k,
+                    })
+                }
                 None if matches!(
                     p.param,
                     CellParam::PlacementTranslation { .. } | CellParam::PlacementRotation { .. }
@@ -471,6 +557,19 @@ impl CellCalibration {
             prior_dominated_directions: self.reduction.prior_dominated,
             prior_scale: PriorScaleReport {
                 chosen: self.prior_scale.scale,
+                families: self
+                    .prior_scale
+                    .families
+                    .iter()
+                    .map(|f| FamilyScaleReport {
+                        family: f.family.to_string(),
+                        parameters: f.parameters,
+                        scale: f.scale,
+                    })
+                    .collect(),
+                family_log_evidence: self.prior_scale.family_log_evidence,
+                method: self.prior_scale.method,
+                why: self.prior_scale.why.clone(),
                 log_evidence: self
                     .prior_scale
                     .log_evidence
@@ -539,6 +638,105 @@ impl CellCalibration {
                 })
                 .collect(),
         }
+    }
+}
+
+/// A predicted cooperative error ([`PredictedError`]) in mm: the figures `calibrate --cell`,
+/// `plan` and the report page print, with the pair set it is over and its parts. Keys without a
+/// unit suffix: the parent key names the unit (`…_mm`).
+#[derive(Debug, Clone, Serialize)]
+pub struct PredictedErrorReport {
+    /// The part the data determined (the noise the data leave), mm.
+    pub data_part_rms: f64,
+    /// For a model-error term from region-held-out residuals: the upper-tail probability of
+    /// their statistic under the model (the term is added below 0.05).
+    pub held_out_p_value: Option<f64>,
+    /// The same: `Σ t² / E[Σ t²]` (1: as the stated noise and the posterior predict).
+    pub held_out_ratio: Option<f64>,
+    /// How many joint-space regions were held out in turn.
+    pub held_out_regions: Option<usize>,
+    /// The model-error part, mm.
+    pub model_error_rms: f64,
+    /// Where the model-error term comes from: `assumed_none`, `placement_residuals` or
+    /// `held_out_residuals`.
+    pub model_error_source: &'static str,
+    /// Which configuration pairs the prediction is over, for people.
+    pub pair_set: &'static str,
+    /// The same as an identifier ([`PairSet`], snake_case).
+    pub pair_set_kind: PairSet,
+    /// Their number.
+    pub pairs: usize,
+    /// Predicted 95th percentile of the cooperative error, mm.
+    pub predicted_p95: f64,
+    /// Predicted rms of the cooperative error, mm: `sqrt(data² + prior² + model²)` of the parts.
+    pub predicted_rms: f64,
+    /// The part the prior asserts (the tolerances of what the data do not determine), mm.
+    pub prior_part_rms: f64,
+    /// 95 % upper bound of the rms over these pairs, mm.
+    pub rms_bound95: f64,
+}
+
+impl From<&PredictedError> for PredictedErrorReport {
+    fn from(p: &PredictedError) -> Self {
+        let (source, held) = match p.model_error {
+            ModelError::PlacementResiduals { .. } => ("placement_residuals", None),
+            ModelError::HeldOut {
+                ratio,
+                p_value,
+                regions,
+                ..
+            } => ("held_out_residuals", Some((ratio, p_value, regions))),
+            _ => ("assumed_none", None),
+        };
+        PredictedErrorReport {
+            data_part_rms: p.data_rms_m * 1e3,
+            held_out_ratio: held.map(|h| h.0),
+            held_out_p_value: held.map(|h| h.1),
+            held_out_regions: held.map(|h| h.2),
+            model_error_rms: p.model_error_rms_m * 1e3,
+            model_error_source: source,
+            pair_set: p.pair_set.describe(),
+            pair_set_kind: p.pair_set,
+            pairs: p.pairs,
+            predicted_p95: p.p95_m * 1e3,
+            predicted_rms: p.rms_m * 1e3,
+            prior_part_rms: p.prior_rms_m * 1e3,
+            rms_bound95: p.rms_bound95_m * 1e3,
+        }
+    }
+}
+
+impl PredictedErrorReport {
+    /// One line of its parts and bound, for the text reports: what the data determined, what
+    /// the prior asserts, the model error and where it comes from, the 95 % bound.
+    pub fn parts_line(&self) -> String {
+        let regions = self
+            .held_out_regions
+            .map_or(String::new(), |k| format!(" of {k} joint-space regions"));
+        let p = self
+            .held_out_p_value
+            .map_or(String::new(), |p| format!(", p {p:.2}"));
+        let model = match (self.model_error_source, self.held_out_ratio) {
+            ("placement_residuals", _) => format!(
+                "model error {:.3} mm (the placement-only fit's residuals above the stated noise)",
+                self.model_error_rms
+            ),
+            ("held_out_residuals", Some(r)) if self.model_error_rms > 0.0 => format!(
+                "model error {:.3} mm (held-out residuals{regions} {r:.2}× what the fit predicts{p})",
+                self.model_error_rms
+            ),
+            ("held_out_residuals", Some(r)) => format!(
+                "model error none (held-out residuals{regions} {r:.2}× what the fit predicts{p}: \
+                 not significantly above)"
+            ),
+            _ => "model error none assumed".to_string(),
+        };
+        format!(
+            "of which: data-determined {:.3} mm, prior-asserted {:.3} mm (the tolerances of the \
+             terms the data do not determine: right only if the robots are that far off), {model}; \
+             95 % bound of the rms {:.3} mm",
+            self.data_part_rms, self.prior_part_rms, self.rms_bound95
+        )
     }
 }
 
@@ -634,16 +832,44 @@ mod tests {
         let p = ParameterReport {
             identity: ParamIdentity::of(&tip).unwrap(),
             name: "robot 1 tool `tip` tip z".into(),
+            prior_scale: 2.0,
             prior_sigma: 0.5,
-            sigma: 0.25,
+            sigma: 0.1,
+            tolerance: 0.75,
             unit,
             value: 1e-3 * unit.per_si(),
         };
         let json = serde_json::to_string(&p).unwrap();
         assert_eq!(
             json,
-            r#"{"axis":"z","joint":null,"kind":"tip","name":"robot 1 tool `tip` tip z","prior_sigma":0.5,"robot":1,"sigma":0.25,"unit":"mm","value":1.0}"#
+            r#"{"axis":"z","exceeds_tolerance":true,"exceeds_tolerance_beyond_noise":true,"joint":null,"kind":"tip","name":"robot 1 tool `tip` tip z","prior_scale":2.0,"prior_sigma":0.5,"robot":1,"sigma":0.1,"tolerance":0.75,"unit":"mm","value":1.0}"#
         );
+        // 1.0 mm against ±0.75 mm + 2 × 0.1 mm: beyond the noise margin, a warning.
+        let warning = p.tolerance_warning().unwrap();
+        assert!(
+            warning.starts_with("robot 1 tool `tip` tip z: fitted correction +1.0000 ± 0.1000 mm (1σ) exceeds its stated tolerance ±0.7500 mm by more than 2σ (1.3× it; prior scale applied ×2)"),
+            "{warning}"
+        );
+        // Just beyond the tolerance but within 2σ of it (the 0.5028 mm against ±0.5 mm a
+        // correct session gave): beyond the tolerance, no warning.
+        let just_beyond = ParameterReport {
+            value: 0.75 + 1.9 * 0.1,
+            ..p.clone()
+        };
+        assert!(just_beyond.exceeds_tolerance());
+        assert!(!just_beyond.exceeds_tolerance_beyond_noise());
+        assert!(just_beyond.tolerance_warning().is_none());
+        let past_margin = ParameterReport {
+            value: -(0.75 + 2.1 * 0.1),
+            ..p.clone()
+        };
+        assert!(past_margin.tolerance_warning().is_some());
+        let within = ParameterReport {
+            value: 0.7,
+            ..p.clone()
+        };
+        assert!(!within.exceeds_tolerance());
+        assert!(within.tolerance_warning().is_none());
         assert_eq!(json, sorted(&json));
         let compliance = CellParam::Kinematic {
             robot: Robot::One,

@@ -99,9 +99,12 @@ fn mixed_session_round_trips_through_the_csv() {
 /// Tolerance of the placement check: the fit's posterior σ per axis times this.
 const SIGMA_FACTOR: f64 = 4.0;
 
-/// A seeded mixed session (6 kinds in turn, 48 rows) calibrated with `--model kinematic`
-/// recovers b1_from_b2 within 4 posterior σ per axis, every nuisance near its truth, and its
-/// measured cooperative error is within a factor 2 of the prediction.
+/// A seeded mixed session (6 kinds in turn, 48 rows) calibrated with `--model kinematic` (the
+/// fit at the stated tolerances, then the widening the evidence asks for, as `calibrate
+/// --cell` runs them) recovers b1_from_b2 within 4 posterior σ per axis, every nuisance near
+/// its truth, and its measured cooperative error is within a factor 2 of the prediction. (The
+/// evidence shrinks the tips to the placement-only limit; with the stated tip tolerances kept
+/// in the prediction's reference prior it predicted 0.96 mm against 0.35 mm measured.)
 #[test]
 fn calibrating_a_mixed_session_recovers_the_truth() {
     let cell = cell_both_reflectors();
@@ -124,12 +127,11 @@ fn calibrating_a_mixed_session_recovers_the_truth() {
         ),
         (1, 1, 1)
     );
-    let cal = calibrate_cell(
-        &problem,
-        &SolveOptions::default(),
-        &ScreenOptions::default(),
-    )
-    .unwrap();
+    let (solve, screen) = (SolveOptions::default(), ScreenOptions::default());
+    let stated = calibrate_cell(&problem, &solve, &screen).unwrap();
+    let cal = calib_core::whole_cell::widen_prior(&problem, &stated, &solve, &screen)
+        .unwrap()
+        .unwrap_or(stated);
     let est = &cal.fit.estimate;
     let params = cal.fit.parameters(&problem);
     for axis in Axis::ALL {
@@ -162,6 +164,11 @@ fn calibrating_a_mixed_session_recovers_the_truth() {
     let measured =
         measure_cooperative_error(&problem, est, &truth_estimate(&cell, &problem), &pairs).unwrap();
     let ratio = measured.rms_m / predicted.predicted_rms_m;
+    eprintln!(
+        "measured {:.4} mm, predicted {:.4} mm",
+        measured.rms_m * 1e3,
+        predicted.predicted_rms_m * 1e3
+    );
     assert!(
         (0.5..2.0).contains(&ratio),
         "measured {} vs predicted {} m",

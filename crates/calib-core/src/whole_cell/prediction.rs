@@ -1,0 +1,863 @@
+//! The predicted cooperative error: one definition for `calibrate --cell`, `plan` and the report
+//! page, over a named set of configuration pairs, split into what the data determined, what the
+//! prior asserts and what the model misses.
+//!
+//! 1. [`PredictionSplit`]: the error covariance of the estimate in two parts whose sum is the
+//!    fit's (or the design's) error covariance `Σ`, plus a model-error variance:
+//!    - a calibration ([`PredictionSplit::of_calibration`]): the estimator with prior
+//!      information `Λ_s` (the tolerances at the evidence's scale `s`, `Λ_s = Λ/s²`) has
+//!      information `H = H_d + Λ_s` and, for a truth drawn from the tolerance prior, error
+//!      covariance `Σ = H⁻¹·H_d·H⁻¹ + H⁻¹·(Λ_s/s²)·H⁻¹`. The first term is the **data part**
+//!      (the noise the data leave); the second is the **prior part** (the truth's spread along
+//!      the directions the data do not determine, and what the shrinkage to the prior leaves:
+//!      right only if the robots really are as far off as their tolerances). The prior part is
+//!      taken as `Σ − data part`, so the parts sum to the fit's own covariance whatever its
+//!      scale (a placement-only fit whose residuals exceed the noise: its data part is scaled
+//!      with it).
+//!    - a design ([`super::design_split`]): the same at nominal, for a chosen prior scale.
+//! 2. The **model-error term** ([`ModelError`]): the placement-only fit's residual variance
+//!    factor when it set one; else from the **region-held-out** residuals of the fit's rows
+//!    (linearised): the rows are clustered into regions in joint space ([`region_labels`]) and
+//!    each region `c` is held out in turn. Its residuals `r_c` (whitened) have, under the model
+//!    and the fit's own prior, covariance `M_cc = I − J_c·H⁻¹·J_cᵀ` (the block of
+//!    `M = (I + J·Λ⁻¹·Jᵀ)⁻¹`), so `t_c² = r_cᵀ·M_cc⁺·r_c` (the held-out prediction error
+//!    against what the rest of the data and the posterior predict) has mean `rank(M_cc)`. The
+//!    regions' `t_c²` are correlated (they share one fit), so `Σ t_c²` is tested against its own
+//!    mean and variance under the model (`2·tr((D·M)²)`, `D = blockdiag(M_cc⁺)`), not against a
+//!    χ² with `Σ dim` degrees of freedom (which fires far more often than its level when the
+//!    model is right). When its upper tail is below [`MODEL_ERROR_ALPHA`], the excess over the
+//!    test's critical value `c` (its `1 − α` quantile under the model),
+//!    `(Σt² − c)/Σ tr(M_cc) · σ̄²` (σ̄² the mean stated noise variance per residual row), is the
+//!    variance per b1 axis the model does not represent: the smallest the held-out residuals
+//!    prove, so the term is 0 whenever the test does not fire and small when it barely does. A design has none (it
+//!    assumes the model).
+//! 3. [`predict_error`]: over pairs `(q1, q2)` of a [`PairSet`], the cooperative vector
+//!    `v = f1(q1) − b1_from_b2·f2(q2)` (m, b1 axes) has error covariance
+//!    `J_v·(D + P)·J_vᵀ + m·I` (`D`, `P` the parts, `m` the model-error variance); the rms of
+//!    each part is `sqrt(mean_k trace)`, and `rms² = data² + prior² + model²` exactly. The p95
+//!    of ‖δv‖ and its interval come from [`summarise_covariances`]; the 95 % bound of the rms
+//!    over the pairs ([`PredictedError::rms_bound95_m`]) from [`BOUND_DRAWS`] seeded draws of
+//!    one parameter error (shared by every pair, as a calibration's error is) and the
+//!    model-error term per pair.
+//! 4. [`workspace_pairs`]: seeded reachable handclasps over the whole common workspace (robot 1
+//!    drawn within its joint limits, robot 2 meeting its tip head-on by inverse kinematics).
+
+use kinematics::{base_from_tip, ik_tip_position, IkOptions};
+use nalgebra::{DMatrix, Isometry3, Point3, Unit};
+use rand::Rng;
+use rand_distr::{Distribution, StandardNormal};
+use serde::Serialize;
+
+use super::accuracy::{summarise_covariances, ConfigPair};
+use super::calibrate::CellCalibration;
+use super::solve::sym_inverse;
+use super::{CellEstimate, CellFitError, CellProblem, Evaluator, ParamLayout};
+use crate::stats::{chi2_quantile_real, chi2_sf_real, quantile, trial_rng};
+
+/// Significance of the region-held-out residuals' excess over what the fit predicts below
+/// which a model-error term is added (upper tail of `Σ_c t_c²` under the model).
+pub const MODEL_ERROR_ALPHA: f64 = 0.05;
+
+/// Regions the model-error test holds out in turn ([`region_labels`]): clusters in joint space,
+/// as issue 20's region-held-out cross-validation holds them out.
+pub const HELD_OUT_REGIONS: usize = 5;
+
+/// Observations per held-out region at the least on average; a session with fewer than two
+/// regions' worth holds out each observation alone.
+pub const MIN_OBSERVATIONS_PER_REGION: usize = 4;
+
+/// Lloyd iterations of the regions' k-means at the most.
+const KMEANS_ITERATIONS: usize = 50;
+
+/// Relative eigenvalue of a held-out region's `M_cc` below which its direction is not
+/// predicted by the rest of the data (dropped from the test; round-off level).
+const HELD_OUT_EIGEN_FLOOR: f64 = 1e-9;
+
+/// Seeded draws of the parameter error behind [`PredictedError::rms_bound95_m`].
+pub const BOUND_DRAWS: usize = 400;
+
+/// Reachable handclasps over the whole workspace that `calibrate --cell` and `plan` predict
+/// over ([`workspace_pairs`]).
+pub const WORKSPACE_POSES: usize = 100;
+
+/// Draws of robot 1's joints per wanted workspace pose before giving up.
+pub const WORKSPACE_ATTEMPTS_PER_POSE: usize = 10;
+
+/// Seed of the workspace poses of `calibrate --cell` and `plan` (the same poses for both).
+pub const WORKSPACE_SEED: u64 = 1;
+
+/// Which configuration pairs a prediction is over; serialised snake_case.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum PairSet {
+    /// The session's own meeting pairs (coincident and contact rows): where the data are.
+    MeetingPairs,
+    /// Handclasps at the user's work points.
+    WorkPoints,
+    /// Seeded reachable handclasps over the whole common workspace ([`workspace_pairs`]).
+    Workspace,
+    /// Held-out reachable handclasps in the cube the session's (or the plan's) poses were drawn
+    /// in: `plan`'s evaluation set, and the honest-predictions check's.
+    HeldOutHandclasps,
+}
+
+impl PairSet {
+    /// What the set is, for people.
+    pub fn describe(self) -> &'static str {
+        match self {
+            PairSet::MeetingPairs => {
+                "the session's meeting pairs (q1_i, q2_i) of its coincident and contact rows"
+            }
+            PairSet::WorkPoints => "handclasps placed head-on at the work points",
+            PairSet::Workspace => {
+                "seeded reachable handclasps over the whole common workspace (robot 1 within its \
+                 joint limits, robot 2 meeting it head-on)"
+            }
+            PairSet::HeldOutHandclasps => {
+                "held-out reachable handclasps in the cube the poses were drawn in"
+            }
+        }
+    }
+}
+
+/// Where the model-error term comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "source")]
+#[non_exhaustive]
+pub enum ModelError {
+    /// None assumed (a design, or a fit with no residual to hold out).
+    Assumed,
+    /// The placement-only fit's residual variance factor ([`super::CellFit::model_error_var_m2`]).
+    PlacementResiduals {
+        /// Variance per b1 axis, m².
+        var_m2: f64,
+    },
+    /// The region-held-out residuals of the fit's rows.
+    HeldOut {
+        /// `Σ_c t_c² / E[Σ_c t_c²]`: 1 when the held-out residuals are as the stated noise and
+        /// the posterior predict.
+        ratio: f64,
+        /// Upper-tail probability of `Σ_c t_c²` under the model (two-moment approximation of
+        /// its exact distribution).
+        p_value: f64,
+        /// How many regions were held out in turn.
+        regions: usize,
+        /// Variance per b1 axis added (0 unless `p_value` < [`MODEL_ERROR_ALPHA`]; the excess
+        /// beyond the test's critical value), m².
+        var_m2: f64,
+    },
+}
+
+impl ModelError {
+    /// The variance per b1 axis it adds, m².
+    pub fn var_m2(&self) -> f64 {
+        match *self {
+            ModelError::Assumed => 0.0,
+            ModelError::PlacementResiduals { var_m2 } | ModelError::HeldOut { var_m2, .. } => {
+                var_m2
+            }
+        }
+    }
+}
+
+/// The error covariance of an estimate in parts (see the module documentation), over the
+/// layout's columns, SI units.
+#[derive(Debug, Clone)]
+pub struct PredictionSplit {
+    /// The part the data determined (the noise they leave).
+    pub data: DMatrix<f64>,
+    /// The part the prior asserts (tolerances of what the data do not determine).
+    pub prior: DMatrix<f64>,
+    /// The model-error term.
+    pub model_error: ModelError,
+}
+
+impl PredictionSplit {
+    /// The split of a calibration of `problem` (see the module documentation).
+    ///
+    /// Errors: the models reject an observation of the fit.
+    pub fn of_calibration(
+        problem: &CellProblem,
+        cal: &CellCalibration,
+    ) -> Result<Self, CellFitError> {
+        let fit = &cal.fit;
+        let h = fit.information(problem)?;
+        let lin = fit.linearisation(problem)?;
+        let rows = &lin.rows;
+        let data_rows: usize = fit
+            .active
+            .iter()
+            .map(|&i| problem.observations[i].kind.rows())
+            .sum();
+        let jd = rows.j.rows(0, data_rows.min(rows.j.nrows()));
+        let hd = jd.transpose() * jd;
+        let (h_inv, _) = sym_inverse(&h);
+        let placement_only = fit.layout.prior_sqrt_info.nrows() == 0;
+        let noise2 = if placement_only && cal.noise_scale > 1.0 {
+            cal.noise_scale * cal.noise_scale
+        } else {
+            1.0
+        };
+        let data = sym(&(&h_inv * hd * &h_inv * noise2));
+        let prior = sym(&(&fit.covariance - &data));
+        let model_error = if fit.model_error_var_m2 > 0.0 {
+            ModelError::PlacementResiduals {
+                var_m2: fit.model_error_var_m2,
+            }
+        } else {
+            held_out_model_error(problem, cal, &h_inv)?
+        };
+        Ok(PredictionSplit {
+            data,
+            prior,
+            model_error,
+        })
+    }
+
+    /// The split of a design's posterior: information `hd` from the data (with the weak
+    /// prior of the unpenalised columns), `lambda` the tolerance prior's, estimated at prior
+    /// scale `scale` (see the module documentation). No model error.
+    pub(crate) fn of_information(hd: &DMatrix<f64>, lambda: &DMatrix<f64>, scale: f64) -> Self {
+        let s2 = scale * scale;
+        let h = hd + lambda / s2;
+        let (h_inv, _) = sym_inverse(&h);
+        PredictionSplit {
+            data: sym(&(&h_inv * hd * &h_inv)),
+            prior: sym(&(&h_inv * (lambda / (s2 * s2)) * &h_inv)),
+            model_error: ModelError::Assumed,
+        }
+    }
+}
+
+/// `(m + mᵀ)/2`.
+fn sym(m: &DMatrix<f64>) -> DMatrix<f64> {
+    (m + m.transpose()) * 0.5
+}
+
+/// The model-error term from the fit's region-held-out residuals (see the module
+/// documentation); `h_inv` the estimator's own posterior `H⁻¹`.
+fn held_out_model_error(
+    problem: &CellProblem,
+    cal: &CellCalibration,
+    h_inv: &DMatrix<f64>,
+) -> Result<ModelError, CellFitError> {
+    let fit = &cal.fit;
+    let lin = fit.linearisation(problem)?;
+    let sys = &lin.rows;
+    let labels = region_labels(problem, &fit.active);
+    // Each region's rows of the data system, in block order.
+    let regions = labels.iter().copied().max().map_or(0, |m| m + 1);
+    let mut blocks: Vec<Vec<usize>> = vec![Vec::new(); regions];
+    for (b, &i) in fit.active.iter().enumerate() {
+        let s = sys.block_start[b];
+        blocks[labels[b]].extend(s..s + problem.observations[i].kind.rows());
+    }
+    let data_rows: usize = blocks.iter().map(Vec::len).sum();
+    let q = held_out_statistic(
+        &sys.j.rows(0, data_rows).into_owned(),
+        &sys.r.rows(0, data_rows).into_owned(),
+        h_inv,
+        &blocks,
+    );
+    if q.mean == 0.0 {
+        return Ok(ModelError::Assumed);
+    }
+    let ratio = q.t2 / q.mean;
+    let p_value = quadratic_form_sf(q.t2, q.mean, q.var);
+    // Only the excess beyond the test's critical value: the smallest model error the held-out
+    // residuals prove at level MODEL_ERROR_ALPHA (0 whenever the test does not fire).
+    let critical = quadratic_form_quantile(1.0 - MODEL_ERROR_ALPHA, q.mean, q.var);
+    let var_m2 = if q.t2 > critical && q.trace_m > 0.0 {
+        (q.t2 - critical) / q.trace_m * super::calibrate::mean_noise_var(problem, fit)?
+    } else {
+        0.0
+    };
+    Ok(ModelError::HeldOut {
+        ratio,
+        p_value,
+        regions,
+        var_m2,
+    })
+}
+
+/// The region-held-out statistic of whitened data residuals `r` (Jacobian `j`, the posterior
+/// `h_inv`), `blocks` the rows of each region: `Σ_c r_cᵀ·M_cc⁺·r_c` with its mean and variance
+/// under the model (see the module documentation).
+fn held_out_statistic(
+    j: &DMatrix<f64>,
+    r: &nalgebra::DVector<f64>,
+    h_inv: &DMatrix<f64>,
+    blocks: &[Vec<usize>],
+) -> HeldOutStatistic {
+    let n = h_inv.nrows();
+    let mut q = HeldOutStatistic::default();
+    let mut k_total = DMatrix::zeros(n, n);
+    let mut own_sq = 0.0;
+    for idx in blocks.iter().filter(|b| !b.is_empty()) {
+        let jc = j.select_rows(idx);
+        let rc = r.select_rows(idx);
+        let m = sym(&(DMatrix::identity(idx.len(), idx.len()) - &jc * h_inv * jc.transpose()));
+        let trace_m = m.trace();
+        // `M_cc⁺` on the directions the rest of the data predict (eigenvalues above the floor).
+        let eig = m.symmetric_eigen();
+        let top = eig.eigenvalues.amax();
+        let mut d = DMatrix::zeros(idx.len(), idx.len());
+        let mut rank = 0usize;
+        for (k, &l) in eig.eigenvalues.iter().enumerate() {
+            if l > HELD_OUT_EIGEN_FLOOR * top.max(1.0) {
+                let v = eig.eigenvectors.column(k);
+                d += v * v.transpose() / l;
+                rank += 1;
+            }
+        }
+        q.t2 += rc.dot(&(&d * &rc));
+        q.mean += rank as f64;
+        q.trace_m += trace_m;
+        let kc = jc.transpose() * &d * &jc;
+        let a = h_inv * &kc;
+        own_sq += (&a * &a).trace();
+        k_total += kc;
+    }
+    let a = h_inv * k_total;
+    // Var[rᵀDr] = 2·tr((D·M)²) for r ~ N(0, M): the blocks' own terms give their ranks, the
+    // cross terms `tr((H⁻¹K)²) − Σ_c tr((H⁻¹K_c)²)`.
+    q.var = 2.0 * (q.mean + ((&a * &a).trace() - own_sq).max(0.0));
+    q
+}
+
+/// The region-held-out test's sums over the regions.
+#[derive(Debug, Default)]
+struct HeldOutStatistic {
+    /// `Σ_c r_cᵀ·M_cc⁺·r_c`.
+    t2: f64,
+    /// Its mean under the model, `Σ_c rank(M_cc)`.
+    mean: f64,
+    /// `Σ_c tr(M_cc)`: how much of a model error in the held-out rows their residuals carry.
+    trace_m: f64,
+    /// The variance of `t2` under the model, `2·tr((D·M)²)`.
+    var: f64,
+}
+
+/// Upper tail `P(T > t)` of a positive quadratic form `T` of a Gaussian vector with mean
+/// `mean` and variance `var`, by Satterthwaite's two-moment approximation `T ≈ g·χ²_h`
+/// (`g = var/(2·mean)`, `h = 2·mean²/var`): exact when the form is a χ², and the usual test of
+/// a sum of correlated χ² terms. 1 when undefined.
+fn quadratic_form_sf(t: f64, mean: f64, var: f64) -> f64 {
+    if !(mean > 0.0 && var > 0.0 && t.is_finite()) {
+        return 1.0;
+    }
+    let g = var / (2.0 * mean);
+    let h = 2.0 * mean * mean / var;
+    chi2_sf_real(t / g, h)
+}
+
+/// Quantile `p` of the quadratic form of [`quadratic_form_sf`] (the same approximation); +∞
+/// when undefined (nothing exceeds it).
+fn quadratic_form_quantile(p: f64, mean: f64, var: f64) -> f64 {
+    if !(mean > 0.0 && var > 0.0) {
+        return f64::INFINITY;
+    }
+    let g = var / (2.0 * mean);
+    let h = 2.0 * mean * mean / var;
+    let x = g * chi2_quantile_real(p, h);
+    if x.is_nan() {
+        f64::INFINITY
+    } else {
+        x
+    }
+}
+
+/// The region of each of `active`'s observations (in `active`'s order), `0..k`: the observations
+/// clustered by k-means in joint space (each joint over its limits' span, so every joint
+/// counts alike; a joint without limits over 2π; an observation of one robot takes the other
+/// robot's mean joints), `k` = [`HELD_OUT_REGIONS`] or fewer so that a region holds
+/// [`MIN_OBSERVATIONS_PER_REGION`] observations on average; with fewer than two regions'
+/// worth, each observation is its own region (leave-one-out). Deterministic: the first centre
+/// is the observation nearest the mean, each next one the farthest from the centres so far.
+pub(crate) fn region_labels(problem: &CellProblem, active: &[usize]) -> Vec<usize> {
+    let n = active.len();
+    let k = HELD_OUT_REGIONS.min(n / MIN_OBSERVATIONS_PER_REGION);
+    if k < 2 {
+        return (0..n).collect();
+    }
+    let spans = |r: &super::CellRobot| -> Vec<f64> {
+        r.model
+            .joints()
+            .iter()
+            .map(|j| {
+                if j.lower.is_finite() && j.upper.is_finite() && j.upper > j.lower {
+                    j.upper - j.lower
+                } else {
+                    std::f64::consts::TAU
+                }
+            })
+            .collect()
+    };
+    let (s1, s2) = (spans(&problem.robot1), spans(&problem.robot2));
+    let dim = s1.len() + s2.len();
+    let mut x: Vec<Vec<Option<f64>>> = Vec::with_capacity(n);
+    for &i in active {
+        let mut v = vec![None; dim];
+        for (robot, q) in problem.observations[i].kind.joints() {
+            let (off, sp) = match robot {
+                crate::Robot::One => (0, &s1),
+                crate::Robot::Two => (s1.len(), &s2),
+            };
+            for (j, (&qj, &s)) in q.iter().zip(sp.iter()).enumerate() {
+                v[off + j] = Some(qj / s);
+            }
+        }
+        x.push(v);
+    }
+    let means: Vec<f64> = (0..dim)
+        .map(|d| {
+            let vals: Vec<f64> = x.iter().filter_map(|v| v[d]).collect();
+            if vals.is_empty() {
+                0.0
+            } else {
+                vals.iter().sum::<f64>() / vals.len() as f64
+            }
+        })
+        .collect();
+    let pts: Vec<Vec<f64>> = x
+        .iter()
+        .map(|v| v.iter().zip(&means).map(|(a, m)| a.unwrap_or(*m)).collect())
+        .collect();
+    let d2 = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(p, q)| (p - q).powi(2)).sum::<f64>();
+    let nearest = |p: &[f64], centres: &[Vec<f64>]| -> (usize, f64) {
+        centres
+            .iter()
+            .enumerate()
+            .map(|(c, m)| (c, d2(p, m)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap_or((0, 0.0))
+    };
+    let first = (0..n)
+        .min_by(|&a, &b| d2(&pts[a], &means).total_cmp(&d2(&pts[b], &means)))
+        .unwrap_or(0);
+    let mut centres = vec![pts[first].clone()];
+    while centres.len() < k {
+        let far = (0..n)
+            .max_by(|&a, &b| {
+                nearest(&pts[a], &centres)
+                    .1
+                    .total_cmp(&nearest(&pts[b], &centres).1)
+            })
+            .unwrap_or(0);
+        centres.push(pts[far].clone());
+    }
+    let mut labels = vec![0; n];
+    for _ in 0..KMEANS_ITERATIONS {
+        let new: Vec<usize> = pts.iter().map(|p| nearest(p, &centres).0).collect();
+        let changed = new != labels;
+        labels = new;
+        for (c, centre) in centres.iter_mut().enumerate() {
+            let members: Vec<&Vec<f64>> = pts
+                .iter()
+                .zip(&labels)
+                .filter(|(_, &l)| l == c)
+                .map(|(p, _)| p)
+                .collect();
+            if !members.is_empty() {
+                for (d, v) in centre.iter_mut().enumerate() {
+                    *v = members.iter().map(|p| p[d]).sum::<f64>() / members.len() as f64;
+                }
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    // Number the regions that hold observations 0.. in order of first appearance.
+    let mut map = vec![usize::MAX; k];
+    let mut next = 0;
+    for l in &mut labels {
+        if map[*l] == usize::MAX {
+            map[*l] = next;
+            next += 1;
+        }
+        *l = map[*l];
+    }
+    labels
+}
+
+/// The predicted cooperative error over a [`PairSet`] (m): its rms split into parts, its p95
+/// and the 95 % bound of its rms.
+#[derive(Debug, Clone, Serialize)]
+pub struct PredictedError {
+    /// Which pairs.
+    pub pair_set: PairSet,
+    /// How many.
+    pub pairs: usize,
+    /// Predicted rms of ‖δv‖ over the pairs, m: `sqrt(data² + prior² + model²)`.
+    pub rms_m: f64,
+    /// The part the data determined, m.
+    pub data_rms_m: f64,
+    /// The part the prior asserts, m.
+    pub prior_rms_m: f64,
+    /// The model-error part, m.
+    pub model_error_rms_m: f64,
+    /// The model-error term's source.
+    pub model_error: ModelError,
+    /// Predicted p95 of ‖δv‖ over the pairs, m.
+    pub p95_m: f64,
+    /// Its distribution-free 95 % interval from the seeded draws, m.
+    pub p95_ci_m: [f64; 2],
+    /// 95 % upper bound of the rms over these pairs (one parameter error shared by the pairs:
+    /// the 95th percentile over [`BOUND_DRAWS`] seeded draws), m.
+    pub rms_bound95_m: f64,
+    /// `sqrt(trace)` of each pair's total covariance, m.
+    pub per_pair_rms_m: Vec<f64>,
+}
+
+/// The predicted cooperative error over `pairs` (of `pair_set`), linearised at `estimate`
+/// with `layout`'s columns (those of `split`): see the module documentation. `seed` seeds the
+/// p95 and the bound's draws (identical on any machine and thread count).
+///
+/// Errors: no pairs, a split whose size is not the layout's, or a pair the models reject.
+pub fn predict_error(
+    problem: &CellProblem,
+    layout: &ParamLayout,
+    estimate: &CellEstimate,
+    split: &PredictionSplit,
+    pairs: &[ConfigPair],
+    pair_set: PairSet,
+    seed: u64,
+) -> Result<PredictedError, CellFitError> {
+    let n = layout.len();
+    if pairs.is_empty() {
+        return Err(CellFitError::InvalidInput(format!(
+            "predicted error over {}: no configuration pair",
+            pair_set.describe()
+        )));
+    }
+    if split.data.nrows() != n || split.prior.nrows() != n {
+        return Err(CellFitError::InvalidInput(format!(
+            "predicted error: the covariance has {} columns, the layout {n}",
+            split.data.nrows()
+        )));
+    }
+    let ev = Evaluator::new(problem, layout);
+    let total = &split.data + &split.prior;
+    let m = split.model_error.var_m2();
+    let mut jacobians = Vec::with_capacity(pairs.len());
+    let (mut data_ms, mut prior_ms) = (0.0, 0.0);
+    let mut covs = Vec::with_capacity(pairs.len());
+    for pair in pairs {
+        let (_, j) = ev.cooperative_vector(estimate, pair, true)?;
+        data_ms += (&j * &split.data * j.transpose()).trace().max(0.0);
+        prior_ms += (&j * &split.prior * j.transpose()).trace().max(0.0);
+        let c = &j * &total * j.transpose();
+        covs.push(nalgebra::Matrix3::from_fn(|a, b| c[(a, b)]) + nalgebra::Matrix3::identity() * m);
+        jacobians.push(j);
+    }
+    let k = pairs.len() as f64;
+    let summary = summarise_covariances(&covs, seed);
+    let rms_bound95_m = rms_bound(&jacobians, &total, m, seed);
+    Ok(PredictedError {
+        pair_set,
+        pairs: pairs.len(),
+        rms_m: summary.predicted_rms_m,
+        data_rms_m: (data_ms / k).sqrt(),
+        prior_rms_m: (prior_ms / k).sqrt(),
+        model_error_rms_m: (3.0 * m).sqrt(),
+        model_error: split.model_error,
+        p95_m: summary.predicted_p95_m,
+        p95_ci_m: summary.predicted_p95_ci_m,
+        rms_bound95_m,
+        per_pair_rms_m: summary.per_pair_rms_m,
+    })
+}
+
+/// The 95th percentile over [`BOUND_DRAWS`] draws (generator `trial_rng(seed, draw)`) of the
+/// rms over the pairs of `J_k·δθ + ε_k`, `δθ ~ N(0, cov)` shared by the pairs and
+/// `ε_k ~ N(0, model_var·I)` per pair.
+fn rms_bound(jacobians: &[DMatrix<f64>], cov: &DMatrix<f64>, model_var: f64, seed: u64) -> f64 {
+    let n = cov.nrows();
+    let eig = cov.clone().symmetric_eigen();
+    let root =
+        &eig.eigenvectors * DMatrix::from_diagonal(&eig.eigenvalues.map(|e| e.max(0.0).sqrt()));
+    // Every pair's Jacobian stacked (3·pairs × n), times the root: one product per draw.
+    let mut stacked = DMatrix::zeros(3 * jacobians.len(), n);
+    for (k, j) in jacobians.iter().enumerate() {
+        stacked.rows_mut(3 * k, 3).copy_from(j);
+    }
+    let mapped = stacked * root;
+    let model_sd = model_var.max(0.0).sqrt();
+    let mut rms: Vec<f64> = (0..BOUND_DRAWS)
+        .map(|d| {
+            let mut rng = trial_rng(seed, d as u64);
+            let z = nalgebra::DVector::from_fn(n, |_, _| StandardNormal.sample(&mut rng));
+            let e = &mapped * z;
+            let ms = e
+                .iter()
+                .map(|v| {
+                    let noise: f64 = StandardNormal.sample(&mut rng);
+                    (v + model_sd * noise).powi(2)
+                })
+                .sum::<f64>()
+                / jacobians.len() as f64;
+            ms.sqrt()
+        })
+        .collect();
+    rms.sort_by(f64::total_cmp);
+    quantile(&rms, 0.95)
+}
+
+/// A reachable handclasp over the workspace: its pair and robot 1's tip in b1 (m).
+#[derive(Debug, Clone, PartialEq)]
+pub struct WorkspacePose {
+    /// The configuration pair (tool 0 of each robot).
+    pub pair: ConfigPair,
+    /// Robot 1's nominal tip, m, b1.
+    pub p_b1: Point3<f64>,
+}
+
+/// Up to `count` seeded reachable handclasps over the whole common workspace of `problem`'s
+/// nominal robots with the placement `b1_from_b2`: draw `a` (generator `trial_rng(seed, a)`,
+/// so each can be replayed alone) draws robot 1's joints uniformly within its limits
+/// (continuous joints ±π); robot 2 meets robot 1's tool-0 tip head-on with its tool 0
+/// (position, and its flange z axis opposite robot 1's) by inverse kinematics within its
+/// limits; draws robot 2 does not reach are skipped, at most
+/// [`WORKSPACE_ATTEMPTS_PER_POSE`]`·count` are drawn.
+pub fn workspace_pairs(
+    problem: &CellProblem,
+    b1_from_b2: &Isometry3<f64>,
+    count: usize,
+    seed: u64,
+) -> Vec<WorkspacePose> {
+    let r1 = &problem.robot1;
+    let r2 = &problem.robot2;
+    let (Some(tool1), Some(tool2)) = (r1.tools.first(), r2.tools.first()) else {
+        return Vec::new();
+    };
+    let limits: Vec<(f64, f64)> = r1
+        .model
+        .joints()
+        .iter()
+        .map(|j| {
+            if j.lower.is_finite() && j.upper.is_finite() {
+                (j.lower, j.upper)
+            } else {
+                (-std::f64::consts::PI, std::f64::consts::PI)
+            }
+        })
+        .collect();
+    let b2_from_b1 = b1_from_b2.inverse();
+    let mut out = Vec::with_capacity(count);
+    for a in 0..WORKSPACE_ATTEMPTS_PER_POSE * count {
+        if out.len() == count {
+            break;
+        }
+        let mut rng = trial_rng(seed, a as u64);
+        let q1: Vec<f64> = limits
+            .iter()
+            .map(|&(lo, hi)| rng.random_range(lo..=hi))
+            .collect();
+        let Ok(b1_from_tip1) = base_from_tip(&r1.model, &q1, &tool1.flange_from_tip) else {
+            continue;
+        };
+        let p_b1 = Point3::from(b1_from_tip1.translation.vector);
+        let z1 = b1_from_tip1.rotation * nalgebra::Vector3::z();
+        let options = IkOptions {
+            tool_axis_base: Some(Unit::new_normalize(b2_from_b1.rotation * -z1)),
+            restarts: 4,
+            ..IkOptions::default()
+        };
+        let p_b2 = b2_from_b1 * p_b1;
+        match ik_tip_position(&r2.model, &p_b2, &tool2.flange_from_tip, &options) {
+            Ok(sol) if sol.reachable() => out.push(WorkspacePose {
+                pair: ConfigPair {
+                    q1,
+                    q2: sol.q,
+                    tool1: 0,
+                    tool2: 0,
+                },
+                p_b1,
+            }),
+            _ => {}
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::fixtures::{sim_cell, Cell};
+    use super::super::{
+        calibrate_cell, design_prediction, design_split, predict_cooperative_accuracy, Observation,
+        ScreenOptions, SolveOptions, Tolerance,
+    };
+    use super::*;
+
+    /// Two evaluations of the same covariance through different products: round-off only.
+    const SAME_REL: f64 = 1e-9;
+
+    /// The calibration's parts sum to its covariance; with no model error, the predicted rms
+    /// is `predict_cooperative_accuracy`'s, and `rms² = data² + prior² + model²`; the bound is
+    /// at least the rms (the rms of one shared draw is below its 95th percentile on average).
+    #[test]
+    fn calibration_parts_sum_to_the_fit() {
+        let sc = sim_cell(Cell::Wall, Tolerance::default(), false, 3);
+        let mut p = sc.problem();
+        p.observations = sc.coincident(30, 3e-4, 0.8, 4);
+        let cal = calibrate_cell(&p, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
+        let split = PredictionSplit::of_calibration(&p, &cal).unwrap();
+        let sum = &split.data + &split.prior;
+        assert!((&sum - &cal.fit.covariance).amax() <= SAME_REL * cal.fit.covariance.amax());
+        let pairs = sc.eval_pairs(20, 0.8, 5);
+        let e = predict_error(
+            &p,
+            &cal.fit.layout,
+            &cal.fit.estimate,
+            &split,
+            &pairs,
+            PairSet::HeldOutHandclasps,
+            1,
+        )
+        .unwrap();
+        let parts =
+            (e.data_rms_m.powi(2) + e.prior_rms_m.powi(2) + e.model_error_rms_m.powi(2)).sqrt();
+        assert!((parts - e.rms_m).abs() <= SAME_REL * e.rms_m);
+        if split.model_error.var_m2() == 0.0 {
+            let old = predict_cooperative_accuracy(&p, &cal.fit, &pairs, 1).unwrap();
+            assert!((old.predicted_rms_m - e.rms_m).abs() <= SAME_REL * e.rms_m);
+        }
+        assert!(e.rms_bound95_m >= e.rms_m, "{e:?}");
+        assert!(matches!(split.model_error, ModelError::HeldOut { .. }));
+        let err = predict_error(
+            &p,
+            &cal.fit.layout,
+            &cal.fit.estimate,
+            &split,
+            &[],
+            PairSet::Workspace,
+            1,
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains("no configuration pair"), "{err}");
+    }
+
+    /// A design's split at scale 1 gives the design's own predicted rms; at the placement-only
+    /// limit the prior part grows (the corrections are not estimated).
+    #[test]
+    fn design_split_at_scale_one_is_the_design_prediction() {
+        let sc = sim_cell(Cell::Wall, Tolerance::default(), false, 3);
+        let p = sc.problem();
+        let cands: Vec<Observation> = sc.coincident(24, 3e-4, 0.8, 6);
+        let eval = sc.eval_pairs(20, 0.8, 7);
+        let layout = ParamLayout::new(&p, &[]);
+        let at = CellEstimate::nominal(&p, sc.truth.b1_from_b2);
+        let chosen: Vec<usize> = (0..24).collect();
+        let d = design_prediction(&p, &layout, &at, &cands, &chosen, &eval, 1).unwrap();
+        let split = design_split(&p, &layout, &at, &cands, &chosen, 1.0).unwrap();
+        let e = predict_error(
+            &p,
+            &layout,
+            &at,
+            &split,
+            &eval,
+            PairSet::HeldOutHandclasps,
+            1,
+        )
+        .unwrap();
+        assert!((e.rms_m - d.cooperative_rms_m).abs() <= SAME_REL * d.cooperative_rms_m);
+        let limit = design_split(&p, &layout, &at, &cands, &chosen, 1e-3).unwrap();
+        let l = predict_error(
+            &p,
+            &layout,
+            &at,
+            &limit,
+            &eval,
+            PairSet::HeldOutHandclasps,
+            1,
+        )
+        .unwrap();
+        assert!(l.prior_rms_m > e.prior_rms_m, "{l:?} {e:?}");
+        assert!(design_split(&p, &layout, &at, &cands, &chosen, 0.0).is_err());
+    }
+
+    /// Under the model (whitened residuals `r ~ N(0, M)`, `M = I − J·H⁻¹·Jᵀ` of a real fit), the
+    /// region-held-out statistic has the mean and variance the test assumes, and the test fires
+    /// at about its level: seeded draws.
+    #[test]
+    fn held_out_test_is_calibrated_under_the_model() {
+        /// Draws of the residual vector.
+        const DRAWS: usize = 1500;
+        /// Binomial 3σ of a 5 % rate over the draws, and the moments' sampling error.
+        const RATE_TOL: f64 = 0.017;
+        const MOMENT_REL_TOL: f64 = 0.12;
+        let sc = sim_cell(Cell::Wall, Tolerance::default(), false, 3);
+        let mut p = sc.problem();
+        p.observations = sc.coincident(40, 3e-4, 0.8, 4);
+        let cal = calibrate_cell(&p, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
+        let fit = &cal.fit;
+        let lin = fit.linearisation(&p).unwrap();
+        let sys = &lin.rows;
+        let labels = region_labels(&p, &fit.active);
+        let k = labels.iter().copied().max().unwrap() + 1;
+        assert_eq!(k, HELD_OUT_REGIONS);
+        let mut blocks = vec![Vec::new(); k];
+        for (b, &i) in fit.active.iter().enumerate() {
+            let s = sys.block_start[b];
+            blocks[labels[b]].extend(s..s + p.observations[i].kind.rows());
+        }
+        let rows: usize = blocks.iter().map(Vec::len).sum();
+        let j = sys.j.rows(0, rows).into_owned();
+        let (h_inv, _) = sym_inverse(&fit.information(&p).unwrap());
+        let m = sym(&(DMatrix::identity(rows, rows) - &j * &h_inv * j.transpose()));
+        let eig = m.clone().symmetric_eigen();
+        let root =
+            &eig.eigenvectors * DMatrix::from_diagonal(&eig.eigenvalues.map(|e| e.max(0.0).sqrt()));
+        let (mut sum, mut sum2, mut fired) = (0.0, 0.0, 0usize);
+        let mut q0 = None;
+        for d in 0..DRAWS {
+            let mut rng = trial_rng(11, d as u64);
+            let z = nalgebra::DVector::from_fn(rows, |_, _| StandardNormal.sample(&mut rng));
+            let r = &root * z;
+            let q = held_out_statistic(&j, &r, &h_inv, &blocks);
+            sum += q.t2;
+            sum2 += q.t2 * q.t2;
+            if quadratic_form_sf(q.t2, q.mean, q.var) < MODEL_ERROR_ALPHA {
+                fired += 1;
+            }
+            q0.get_or_insert(q);
+        }
+        let q0 = q0.unwrap();
+        let n = DRAWS as f64;
+        let mean = sum / n;
+        let var = sum2 / n - mean * mean;
+        assert!(
+            (mean / q0.mean - 1.0).abs() < MOMENT_REL_TOL,
+            "{mean} {q0:?}"
+        );
+        assert!(
+            (var / q0.var - 1.0).abs() < 2.0 * MOMENT_REL_TOL,
+            "{var} {q0:?}"
+        );
+        let rate = fired as f64 / n;
+        assert!((rate - MODEL_ERROR_ALPHA).abs() < RATE_TOL, "{rate}");
+    }
+
+    /// Workspace pairs meet at the nominal cell (the cooperative vector is ~0: IK tolerance),
+    /// and the same seed gives the same poses.
+    #[test]
+    fn workspace_pairs_meet_and_replay() {
+        /// IK position tolerance 1e-10 m per robot, with margin.
+        const MEET_TOL_M: f64 = 1e-6;
+        let sc = sim_cell(Cell::Wall, Tolerance::default(), false, 3);
+        let p = sc.problem();
+        let x = sc.truth.b1_from_b2;
+        let poses = workspace_pairs(&p, &x, 8, 2);
+        assert!(poses.len() >= 4, "{}", poses.len());
+        let layout = ParamLayout::new(&p, &[]);
+        let ev = Evaluator::new(&p, &layout);
+        let nominal = CellEstimate::nominal(&p, x);
+        for pose in &poses {
+            let (v, _) = ev.cooperative_vector(&nominal, &pose.pair, false).unwrap();
+            assert!(v.norm() < MEET_TOL_M, "{v:?}");
+        }
+        assert_eq!(poses, workspace_pairs(&p, &x, 8, 2));
+    }
+}
