@@ -773,6 +773,7 @@ mod tests {
             identity: ParamIdentity {
                 axis: None,
                 joint: Some(2),
+                link: None,
                 kind: "joint_offset",
                 robot: Robot::One,
             },
