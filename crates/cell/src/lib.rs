@@ -6,6 +6,7 @@ pub mod export;
 pub mod export_formats;
 #[cfg(test)]
 mod fixtures;
+mod lumped_file;
 pub mod import;
 pub mod output;
 pub mod problem;

@@ -56,6 +56,9 @@ pub enum CellModel {
     Kinematic,
     /// b1_from_b2 only, both robots nominal.
     Placement,
+    /// [`CellModel::Kinematic`] plus each robot's lumped gravity compliance (compliance × mass
+    /// moment, no masses needed).
+    KinematicCompliance,
 }
 
 impl CellModel {
@@ -64,14 +67,16 @@ impl CellModel {
         match self {
             CellModel::Kinematic => FitModel::Kinematic,
             CellModel::Placement => FitModel::Placement,
+            CellModel::KinematicCompliance => FitModel::KinematicCompliance,
         }
     }
 
-    /// `kinematic` or `placement`.
+    /// `kinematic`, `placement` or `kinematic+compliance`.
     pub fn name(self) -> &'static str {
         match self {
             CellModel::Kinematic => "kinematic",
             CellModel::Placement => "placement",
+            CellModel::KinematicCompliance => "kinematic+compliance",
         }
     }
 
@@ -80,6 +85,7 @@ impl CellModel {
         match name {
             "kinematic" => Some(CellModel::Kinematic),
             "placement" => Some(CellModel::Placement),
+            "kinematic+compliance" => Some(CellModel::KinematicCompliance),
             _ => None,
         }
     }
