@@ -154,6 +154,14 @@ fn unused_error_terms(cell: &Cell) -> Vec<(calib_core::Robot, Vec<&'static str>)
                     kinds.push(p.kind_name());
                 }
             }
+            if errors
+                .lumped_compliance
+                .iter()
+                .flatten()
+                .any(|c| c.norm() > 0.0)
+            {
+                kinds.push("lumped_compliance");
+            }
             (!kinds.is_empty()).then_some((robot, kinds))
         })
         .collect()

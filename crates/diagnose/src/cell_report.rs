@@ -390,7 +390,8 @@ impl ParamUnit {
                 ErrorParam::JointOffset { .. }
                 | ErrorParam::OriginRpy { .. }
                 | ErrorParam::PeriodicSin { .. }
-                | ErrorParam::PeriodicCos { .. } => ParamUnit::Mrad,
+                | ErrorParam::PeriodicCos { .. }
+                | ErrorParam::LumpedCompliance { .. } => ParamUnit::Mrad,
                 ErrorParam::Compliance { .. } => ParamUnit::UradPerNm,
                 ErrorParam::JointScale { .. } => ParamUnit::Ppm,
                 _ => ParamUnit::Mm,
