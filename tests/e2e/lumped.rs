@@ -111,7 +111,11 @@ fn lumped_compliance_fits_the_sag_without_masses_and_round_trips() {
         );
         args.extend(["--export".to_string(), out.display().to_string()]);
         let v = stdout_json(&handclasp(&args));
-        (v, Cell::from_toml_file(&out.join("cell.toml")).unwrap(), out)
+        (
+            v,
+            Cell::from_toml_file(&out.join("cell.toml")).unwrap(),
+            out,
+        )
     };
     let (lumped_json, lumped, lumped_dir) = fit("kinematic+compliance");
     let (_, kinematic, _) = fit("kinematic");
@@ -148,14 +152,20 @@ fn lumped_compliance_fits_the_sag_without_masses_and_round_trips() {
          {held_kinematic:.3} mm), training {train_lumped:.3} mm, noise σ {noise_mm:.3} mm"
     );
     assert!(held_lumped < 1.5 * noise_mm, "{held_lumped} mm");
-    assert!(held_lumped < 0.6 * held_kinematic, "{held_lumped} vs {held_kinematic} mm");
+    assert!(
+        held_lumped < 0.6 * held_kinematic,
+        "{held_lumped} vs {held_kinematic} mm"
+    );
     assert!(train_lumped < 1.5 * noise_mm, "{train_lumped} mm");
 
     // fk --cell applies the exported coefficients: robot 1 at the training rows.
     let q_csv = dir.path().join("q.csv");
     let mut q_text = String::from("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,q7_deg\n");
     for p in &train.points {
-        let row: Vec<String> = p.q1.iter().map(|q| format!("{:.17}", q.to_degrees())).collect();
+        let row: Vec<String> =
+            p.q1.iter()
+                .map(|q| format!("{:.17}", q.to_degrees()))
+                .collect();
         q_text += &(row.join(",") + "\n");
     }
     std::fs::write(&q_csv, q_text).unwrap();

@@ -6,8 +6,8 @@ pub mod export;
 pub mod export_formats;
 #[cfg(test)]
 mod fixtures;
-mod lumped_file;
 pub mod import;
+mod lumped_file;
 pub mod output;
 pub mod problem;
 pub mod session;

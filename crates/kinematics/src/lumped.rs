@@ -486,7 +486,10 @@ mod tests {
         let mut lumped = lumped_zero(m.chain_joints().len());
         lumped[0][1].x = 1e-3;
         let err = check_lumped(&m, &lumped).unwrap_err().to_string();
-        assert!(err.contains("joint 1") && err.contains("prismatic"), "{err}");
+        assert!(
+            err.contains("joint 1") && err.contains("prismatic"),
+            "{err}"
+        );
         assert!(lumped_params(&m)
             .iter()
             .all(|p| matches!(p, ErrorParam::LumpedCompliance { joint, .. } if *joint >= 1)));
@@ -515,8 +518,17 @@ mod tests {
     const FD_TOL_M: f64 = 1e-14;
     const FD_TOL_REL: f64 = 1e-7;
 
-    fn tip_at(m: &RobotModel, e: &crate::KinematicErrors, q: &[f64], tip: &Vector3<f64>, g: &Vector3<f64>) -> Vector3<f64> {
-        crate::true_base_from_tip(m, e, q, tip, g).unwrap().translation.vector
+    fn tip_at(
+        m: &RobotModel,
+        e: &crate::KinematicErrors,
+        q: &[f64],
+        tip: &Vector3<f64>,
+        g: &Vector3<f64>,
+    ) -> Vector3<f64> {
+        crate::true_base_from_tip(m, e, q, tip, g)
+            .unwrap()
+            .translation
+            .vector
     }
 
     /// The lumped columns of `tip_error_jacobian` and the lumped part of

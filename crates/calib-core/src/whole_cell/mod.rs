@@ -146,9 +146,7 @@ pub use accuracy::{
 };
 pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
 pub use calibrate::{calibrate_cell, CellCalibration, PriorScaleChoice, PRIOR_SCALES};
-pub use cell::{
-    CellFitError, CellRobot, Noise3, Tolerance, Tool, LUMPED_COMPLIANCE_TOLERANCE_RAD,
-};
+pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool, LUMPED_COMPLIANCE_TOLERANCE_RAD};
 pub use check::{
     coincident_pairs, layout_shape, placement_distance, robust_noise_scale, CheckThresholds,
     LayoutShape, PlacementDistance,

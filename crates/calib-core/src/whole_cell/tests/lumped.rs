@@ -38,8 +38,8 @@ fn compliant_cell(seed: u64, lumped: bool) -> (SimCell, CellProblem) {
 /// simulator's), the fit knows no mass and estimates the lumped coefficients
 /// (`c_{j,i} = k_j·g₀·μ̃_i`, in the minimal set of [`kinematics::lumped_canonical`]). On a
 /// seeded session (seed 201) every coefficient lies within [`RECOVERY_SIGMAS`] (4) posterior σ of the
-/// truth, their standardised errors have an rms in [`Z_RMS_BAND`], some are determined by the
-/// data (σ below a tenth of the prior's), and the cooperative error on 100 held-out pairs is
+/// truth, at least 10 are determined by the data (σ below a tenth of the prior's) and those
+/// have standardised errors with an rms in [`Z_RMS_BAND`], and the cooperative error on 100 held-out pairs is
 /// within twice the fit's own predicted accuracy and below 0.8× the kinematic-only fit's
 /// (which absorbs part of the sag into the geometry; measured while writing this test:
 /// 0.082 mm against 0.118 mm, predicted 0.093 mm, 59 of 98 coefficients determined).
@@ -54,7 +54,8 @@ fn lumped_compliance_is_recovered_without_masses() {
         assert_eq!(fit.stopped, StopReason::Converged, "{:?}", fit.stopped);
         let truth = [Robot::One, Robot::Two].map(|r| {
             let m = &p.robot(r).model;
-            let masses = kinematics::lumped_compliance_from_masses(m, &COMPLIANCE[..m.dof()]).unwrap();
+            let masses =
+                kinematics::lumped_compliance_from_masses(m, &COMPLIANCE[..m.dof()]).unwrap();
             kinematics::lumped_canonical(m, &masses)
         });
         let cols: Vec<usize> = (0..fit.layout.len())
@@ -86,8 +87,21 @@ fn lumped_compliance_is_recovered_without_masses() {
             .iter()
             .filter(|&&c| fit.std_error(c) < 0.1 * fit.layout.prior_sigma(c))
             .count();
-        assert!(determined >= 10, "only {determined} coefficients determined");
-        assert_within_interval(&fit, &p, &cols, truth_of, "lumped", &mut zs);
+        assert!(
+            determined >= 10,
+            "only {determined} coefficients determined"
+        );
+        let mut all = Vec::new();
+        assert_within_interval(&fit, &p, &cols, truth_of, "lumped", &mut all);
+        // The rms band is for the determined coefficients: an undetermined one stays near its
+        // prior's 0 with σ ≈ the prior's, far above the truth (which is not drawn from the
+        // prior here), so its z ≈ 0 says nothing about the σ's honesty.
+        zs.extend(
+            cols.iter()
+                .zip(&all)
+                .filter(|(&c, _)| fit.std_error(c) < 0.1 * fit.layout.prior_sigma(c))
+                .map(|(_, z)| *z),
+        );
         // Held out: the cooperative error against the truth.
         let pairs = sc.eval_pairs(100, 0.7, seed + 2);
         let with = measure_cooperative_error(&p, &fit.estimate, &sc.truth, &pairs).unwrap();
