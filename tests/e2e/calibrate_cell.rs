@@ -84,7 +84,7 @@ fn calibrate_json(cell: &Path, session: &Path, model: &str, export: Option<&Path
 }
 
 /// Tip of robot `r` of `cell` at reported joints `q` in its base frame, with the cell's errors.
-fn tip(cell: &Cell, r: Robot, q: &[f64]) -> Vector3<f64> {
+pub(crate) fn tip(cell: &Cell, r: Robot, q: &[f64]) -> Vector3<f64> {
     let rb = cell.robot(r);
     true_base_from_tip(&rb.model, &rb.errors, q, &rb.flange_from_tip, &rb.g_base)
         .unwrap()

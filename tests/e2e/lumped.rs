@@ -8,9 +8,9 @@ use std::path::{Path, PathBuf};
 
 use calib_core::Robot;
 use handclasp_cell::{Cell, Session};
-use kinematics::true_base_from_tip;
 use nalgebra::{Point3, Vector3};
 
+use crate::calibrate_cell::tip;
 use crate::support::{
     assert_success, cell_session_args, handclasp, random_session, shipped_cell, stdout_json,
     workspace, write_session_csv,
@@ -45,15 +45,6 @@ fn massless_urdfs(dir: &Path) -> PathBuf {
         std::fs::write(out.join(name), text).unwrap();
     }
     out
-}
-
-/// Tip of robot `r` of `cell` at reported joints `q` (rad), its base frame, m.
-fn tip(cell: &Cell, r: Robot, q: &[f64]) -> Vector3<f64> {
-    let rb = cell.robot(r);
-    true_base_from_tip(&rb.model, &rb.errors, q, &rb.flange_from_tip, &rb.g_base)
-        .unwrap()
-        .translation
-        .vector
 }
 
 /// rms per axis of the coincident residual `p1 − b1_from_b2·p2` of `cell` over `s`'s rows, mm.
