@@ -98,7 +98,7 @@ fn cooperative(cell: &Cell, q1: &[f64], q2: &[f64]) -> Vector3<f64> {
 }
 
 /// rms over every pair `(q1_i, q2_j)` of `held_out` of ‖v_calibrated − v_true‖, mm.
-fn cooperative_rms_mm(calibrated: &Cell, truth: &Cell, held_out: &Session) -> f64 {
+pub(crate) fn cooperative_rms_mm(calibrated: &Cell, truth: &Cell, held_out: &Session) -> f64 {
     let mut sum = 0.0;
     let mut n = 0usize;
     for a in &held_out.points {

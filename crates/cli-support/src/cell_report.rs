@@ -58,6 +58,7 @@ pub enum CellModel {
     Placement,
     /// [`CellModel::Kinematic`] plus each robot's lumped gravity compliance (compliance × mass
     /// moment, no masses needed).
+    #[serde(rename = "kinematic+compliance")]
     KinematicCompliance,
 }
 
