@@ -139,14 +139,22 @@ fn lumped_compliance_fits_the_sag_without_masses_and_round_trips() {
     let held_lumped = coincident_rms_mm(&lumped, &held_out);
     let held_kinematic = coincident_rms_mm(&kinematic, &held_out);
     let train_lumped = coincident_rms_mm(&lumped, &train);
+    let truth_lumped = cooperative_rms_mm(&lumped, &truth, &held_out);
+    let truth_kinematic = cooperative_rms_mm(&kinematic, &truth, &held_out);
     eprintln!(
         "lumped e2e: held-out rms per axis {held_lumped:.3} mm (kinematic-only \
-         {held_kinematic:.3} mm), training {train_lumped:.3} mm, noise σ {noise_mm:.3} mm"
+         {held_kinematic:.3} mm), training {train_lumped:.3} mm, noise σ {noise_mm:.3} mm; \
+         cooperative error against the truth {truth_lumped:.3} mm (kinematic-only \
+         {truth_kinematic:.3} mm)"
     );
     assert!(held_lumped < 1.5 * noise_mm, "{held_lumped} mm");
     assert!(
-        held_lumped < 0.6 * held_kinematic,
+        held_lumped < held_kinematic,
         "{held_lumped} vs {held_kinematic} mm"
+    );
+    assert!(
+        truth_lumped < truth_kinematic,
+        "{truth_lumped} vs {truth_kinematic} mm"
     );
     assert!(train_lumped < 1.5 * noise_mm, "{train_lumped} mm");
 
