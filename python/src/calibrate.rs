@@ -195,7 +195,9 @@ impl CellResult {
 /// SESSION --model MODEL` does (the same fit, blunder screen, prediction and report).
 ///
 /// `model`: `kinematic` (b1_from_b2 and every identifiable kinematic parameter of both robots,
-/// MAP with the cell's tolerances as the prior) or `placement` (b1_from_b2 alone). Runs with the
+/// MAP with the cell's tolerances as the prior), `placement` (b1_from_b2 alone) or
+/// `kinematic+compliance` (kinematic plus gravity compliance as lumped coefficients, which need
+/// no URDF masses). Runs with the
 /// GIL released. The result check runs as in the CLI: a refused result raises
 /// `CalibrationError` carrying `status`, `reason`, `result_check` (the check values) and
 /// `refusal` (the CLI's `--json` refusal object), unless `force=True` (`--force`), which keeps
@@ -213,7 +215,7 @@ pub fn calibrate_cell(
 ) -> PyResult<CellResult> {
     let Some(model) = CellModel::from_name(model) else {
         return Err(value_error(format!(
-            "model={model:?}: use \"kinematic\" or \"placement\""
+            "model={model:?}: use \"kinematic\", \"placement\" or \"kinematic+compliance\""
         )));
     };
     if !Arc::ptr_eq(&cell.cell, &session.cell) {

@@ -84,7 +84,7 @@ fn calibrate_json(cell: &Path, session: &Path, model: &str, export: Option<&Path
 }
 
 /// Tip of robot `r` of `cell` at reported joints `q` in its base frame, with the cell's errors.
-fn tip(cell: &Cell, r: Robot, q: &[f64]) -> Vector3<f64> {
+pub(crate) fn tip(cell: &Cell, r: Robot, q: &[f64]) -> Vector3<f64> {
     let rb = cell.robot(r);
     true_base_from_tip(&rb.model, &rb.errors, q, &rb.flange_from_tip, &rb.g_base)
         .unwrap()
@@ -98,7 +98,7 @@ fn cooperative(cell: &Cell, q1: &[f64], q2: &[f64]) -> Vector3<f64> {
 }
 
 /// rms over every pair `(q1_i, q2_j)` of `held_out` of ‖v_calibrated − v_true‖, mm.
-fn cooperative_rms_mm(calibrated: &Cell, truth: &Cell, held_out: &Session) -> f64 {
+pub(crate) fn cooperative_rms_mm(calibrated: &Cell, truth: &Cell, held_out: &Session) -> f64 {
     let mut sum = 0.0;
     let mut n = 0usize;
     for a in &held_out.points {

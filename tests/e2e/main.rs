@@ -12,6 +12,7 @@ mod import;
 mod import_rows;
 mod input_guard;
 mod inputs;
+mod lumped;
 mod one_robot;
 mod paper;
 mod paper_diagnose;

@@ -7,6 +7,7 @@ pub mod export_formats;
 #[cfg(test)]
 mod fixtures;
 pub mod import;
+mod lumped_file;
 pub mod output;
 pub mod problem;
 pub mod session;

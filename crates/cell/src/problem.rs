@@ -33,6 +33,11 @@ pub enum FitModel {
     Placement,
     /// `b1_from_b2` with every kinematic parameter the robots' tolerances select (MAP).
     Kinematic,
+    /// [`FitModel::Kinematic`] plus each robot's lumped gravity compliance (compliance × mass
+    /// moment, no masses needed: `kinematics::lumped`), each coefficient with the tolerance
+    /// `calib_core::whole_cell::LUMPED_COMPLIANCE_TOLERANCE_RAD` (0.5°), on the joints that can
+    /// have them.
+    KinematicCompliance,
 }
 
 fn robot(r: &CellRobot, model: FitModel, shared_joints: usize) -> WholeCellRobot {
@@ -49,6 +54,12 @@ fn robot(r: &CellRobot, model: FitModel, shared_joints: usize) -> WholeCellRobot
         tolerance: match model {
             FitModel::Placement => Tolerance::none(),
             FitModel::Kinematic => r.tolerance,
+            FitModel::KinematicCompliance => Tolerance {
+                lumped_compliance_rad: Some(
+                    calib_core::whole_cell::LUMPED_COMPLIANCE_TOLERANCE_RAD,
+                ),
+                ..r.tolerance
+            },
         },
     }
 }

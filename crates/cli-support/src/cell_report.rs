@@ -57,6 +57,10 @@ pub enum CellModel {
     Kinematic,
     /// b1_from_b2 only, both robots nominal.
     Placement,
+    /// [`CellModel::Kinematic`] plus each robot's lumped gravity compliance (compliance × mass
+    /// moment, no masses needed).
+    #[serde(rename = "kinematic+compliance")]
+    KinematicCompliance,
 }
 
 impl CellModel {
@@ -65,14 +69,16 @@ impl CellModel {
         match self {
             CellModel::Kinematic => FitModel::Kinematic,
             CellModel::Placement => FitModel::Placement,
+            CellModel::KinematicCompliance => FitModel::KinematicCompliance,
         }
     }
 
-    /// `kinematic` or `placement`.
+    /// `kinematic`, `placement` or `kinematic+compliance`.
     pub fn name(self) -> &'static str {
         match self {
             CellModel::Kinematic => "kinematic",
             CellModel::Placement => "placement",
+            CellModel::KinematicCompliance => "kinematic+compliance",
         }
     }
 
@@ -81,6 +87,7 @@ impl CellModel {
         match name {
             "kinematic" => Some(CellModel::Kinematic),
             "placement" => Some(CellModel::Placement),
+            "kinematic+compliance" => Some(CellModel::KinematicCompliance),
             _ => None,
         }
     }
@@ -952,6 +959,7 @@ mod tests {
             identity: ParamIdentity {
                 axis: None,
                 joint: Some(2),
+                link: None,
                 kind: "joint_offset",
                 robot: Robot::One,
             },

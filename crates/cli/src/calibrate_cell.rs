@@ -1,4 +1,4 @@
-//! `handclasp calibrate --cell CELL --session SESSION --model kinematic|placement [--export DIR]
+//! `handclasp calibrate --cell CELL --session SESSION --model kinematic|placement|kinematic+compliance [--export DIR]
 //! [--tolerance-scale X] [--json]`: the whole-cell calibration (`calib_core::whole_cell`) of a measured session.
 //!
 //! `kinematic` fits `b1_from_b2` jointly with every identifiable kinematic parameter of both
@@ -51,7 +51,9 @@ pub struct CellArgs {
     #[arg(long, requires = "cell")]
     pub session: Option<PathBuf>,
     /// With --cell: kinematic (b1_from_b2 and every identifiable kinematic parameter of both
-    /// robots, MAP with the cell's tolerances) or placement (b1_from_b2 only).
+    /// robots, MAP with the cell's tolerances), placement (b1_from_b2 only) or
+    /// kinematic+compliance (kinematic plus gravity compliance as lumped coefficients, joint
+    /// compliance × mass moment: no URDF masses needed; exported to [robotN.errors]).
     #[arg(long, requires = "cell", value_enum, default_value = "kinematic")]
     pub model: ModelArg,
     /// With --cell: write DIR/cell.toml, DIR/robot1.urdf and DIR/robot2.urdf (the calibrated cell).
@@ -105,6 +107,11 @@ pub enum ModelArg {
     Kinematic,
     /// b1_from_b2 only, both robots nominal.
     Placement,
+    /// kinematic, plus each robot's gravity compliance as lumped coefficients (joint
+    /// compliance × mass moment: no URDF masses needed), each within ±0.5°.
+    #[value(name = "kinematic+compliance")]
+    #[serde(rename = "kinematic+compliance")]
+    KinematicCompliance,
 }
 
 /// `--screen`; the report names it as [`ScreenMode::name`] does.
@@ -134,6 +141,7 @@ impl ModelArg {
         match self {
             ModelArg::Kinematic => CellModel::Kinematic,
             ModelArg::Placement => CellModel::Placement,
+            ModelArg::KinematicCompliance => CellModel::KinematicCompliance,
         }
     }
 }
@@ -151,6 +159,14 @@ fn unused_error_terms(cell: &Cell) -> Vec<(calib_core::Robot, Vec<&'static str>)
                 if errors.get(p) != 0.0 && !kinds.contains(&p.kind_name()) {
                     kinds.push(p.kind_name());
                 }
+            }
+            if errors
+                .lumped_compliance
+                .iter()
+                .flatten()
+                .any(|c| c.norm() > 0.0)
+            {
+                kinds.push("lumped_compliance");
             }
             (!kinds.is_empty()).then_some((robot, kinds))
         })

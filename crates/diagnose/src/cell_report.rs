@@ -187,6 +187,7 @@ fn findings(
             recording.join(", ")
         ));
     }
+    notes.extend(compliance_notes(&d.problem, &d.candidates));
     if let Some(p) = &d.screen_misfit {
         warnings.push(format!(
             "model misfit, not blunders: {}; every row kept (--screen auto; --screen strict              rejects them)",
@@ -194,6 +195,51 @@ fn findings(
         ));
     }
     (warnings, notes)
+}
+
+/// What the report says about each robot's gravity compliance when its URDF has no masses:
+/// tested as lumped coefficients, or not tested and why ("compliance not tested: …").
+fn compliance_notes(
+    problem: &calib_core::whole_cell::CellProblem,
+    candidates: &[crate::cell_diagnosis::Family],
+) -> Vec<String> {
+    let mut notes = Vec::new();
+    for r in [calib_core::Robot::One, calib_core::Robot::Two] {
+        let rb = problem.robot(r);
+        let used = problem
+            .observations
+            .iter()
+            .any(|o| o.kind.tools().iter().any(|(rr, _)| *rr == r));
+        let has = |k: FamilyKind| {
+            candidates
+                .iter()
+                .any(|f| f.robot == Some(r.number()) && f.kind == k)
+        };
+        if !used || has(FamilyKind::Compliance) {
+            continue;
+        }
+        if has(FamilyKind::LumpedCompliance) {
+            notes.push(format!(
+                "{r}: its URDF has no inertials (masses), so joint compliance was tested as \
+                 lumped coefficients (compliance × mass moment, which need no masses; \
+                 calibrate --cell --model kinematic+compliance fits them)"
+            ));
+            continue;
+        }
+        let why = if rb.tolerance.joint_offset_rad == 0.0 {
+            "its joint offsets are held (tolerance 0), and the compliance prior is scaled from \
+             them"
+                .to_string()
+        } else if kinematics::lumped_params(&rb.model).is_empty() {
+            "its URDF has no inertials and no rotary joint carries only rotary joints (the \
+             lumped coefficients' scope)"
+                .to_string()
+        } else {
+            "its URDF's masses give no gravity torque at the session's postures".to_string()
+        };
+        notes.push(format!("{r} compliance not tested: {why}"));
+    }
+    notes
 }
 
 /// Rows of one kind.
@@ -355,7 +401,8 @@ impl ParamUnit {
                 ErrorParam::JointOffset { .. }
                 | ErrorParam::OriginRpy { .. }
                 | ErrorParam::PeriodicSin { .. }
-                | ErrorParam::PeriodicCos { .. } => ParamUnit::Mrad,
+                | ErrorParam::PeriodicCos { .. }
+                | ErrorParam::LumpedCompliance { .. } => ParamUnit::Mrad,
                 ErrorParam::Compliance { .. } => ParamUnit::UradPerNm,
                 ErrorParam::JointScale { .. } => ParamUnit::Ppm,
                 _ => ParamUnit::Mm,

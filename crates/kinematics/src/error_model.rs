@@ -76,6 +76,14 @@ pub struct KinematicErrors {
     /// serialised form when all zero.
     #[serde(default, skip_serializing_if = "all_zero")]
     pub periodic_cos: Vec<f64>,
+    /// Lumped gravity compliance (compliance × mass moment, no masses needed; see
+    /// [`crate::lumped`]): `lumped_compliance[j][i − j]`, rad, a vector in link `i`'s frame for
+    /// each rotary chain joint `j` and each chain link `i ≥ j` it carries. Joint `j` deflects by
+    /// `Σ_{i≥j} lumped_compliance[j][i−j] · R_iᵀ·(g/g₀ × z_j)` at the reported posture
+    /// ([`crate::lumped_deflections`]). Empty (the default, omitted when serialised) is none;
+    /// else one inner vector per chain joint with `n − j` entries.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub lumped_compliance: Vec<Vec<Vector3<f64>>>,
 }
 
 /// True if every entry is exactly zero (serde's skip test of the periodic terms).
@@ -98,6 +106,7 @@ impl KinematicErrors {
             compliance: vec![0.0; dof],
             periodic_sin: vec![0.0; dof],
             periodic_cos: vec![0.0; dof],
+            lumped_compliance: Vec::new(),
         }
     }
 
@@ -125,6 +134,11 @@ impl KinematicErrors {
             && z(&self.compliance)
             && z(&self.periodic_sin)
             && z(&self.periodic_cos)
+            && self
+                .lumped_compliance
+                .iter()
+                .flatten()
+                .all(|c| c.iter().all(|&x| x == 0.0))
     }
 
     /// Checks the errors against a model: every per-joint vector has one entry per chain joint
@@ -210,6 +224,7 @@ impl KinematicErrors {
                 }
             }
         }
+        crate::lumped::check_lumped(model, &self.lumped_compliance)?;
         for (field, v) in [
             ("tip", &self.tip),
             ("mount_xyz", &self.mount_xyz),
@@ -238,6 +253,11 @@ impl KinematicErrors {
             ErrorParam::Compliance { joint } => self.compliance[joint],
             ErrorParam::PeriodicSin { joint } => self.periodic_sin[joint],
             ErrorParam::PeriodicCos { joint } => self.periodic_cos[joint],
+            ErrorParam::LumpedCompliance { joint, link, axis } => self
+                .lumped_compliance
+                .get(joint)
+                .and_then(|row| row.get(link.wrapping_sub(joint)))
+                .map_or(0.0, |c| c[axis.index()]),
         }
     }
 
@@ -282,6 +302,12 @@ impl KinematicErrors {
             ErrorParam::Compliance { joint } => &mut self.compliance[joint],
             ErrorParam::PeriodicSin { joint } => &mut self.periodic_sin[joint],
             ErrorParam::PeriodicCos { joint } => &mut self.periodic_cos[joint],
+            ErrorParam::LumpedCompliance { joint, link, axis } => {
+                if self.lumped_compliance.is_empty() {
+                    self.lumped_compliance = crate::lumped::lumped_zero(self.dof());
+                }
+                &mut self.lumped_compliance[joint][link - joint][axis.index()]
+            }
         }
     }
 
@@ -352,6 +378,17 @@ pub enum ErrorParam {
         /// 0-based joint index.
         joint: usize,
     },
+    /// `lumped_compliance[joint][link − joint][axis]`, rad: the lumped gravity compliance of
+    /// rotary chain joint `joint` from the mass carried at and beyond chain link `link ≥ joint`,
+    /// component `axis` of link `link`'s frame ([`crate::lumped`]).
+    LumpedCompliance {
+        /// 0-based index of the deflecting (rotary) chain joint.
+        joint: usize,
+        /// 0-based index of the carried chain link (the child link of chain joint `link`).
+        link: usize,
+        /// Component, in that link's frame.
+        axis: Axis,
+    },
 }
 
 impl ErrorParam {
@@ -369,6 +406,7 @@ impl ErrorParam {
             ErrorParam::Compliance { .. } => "compliance",
             ErrorParam::PeriodicSin { .. } => "periodic_sin",
             ErrorParam::PeriodicCos { .. } => "periodic_cos",
+            ErrorParam::LumpedCompliance { .. } => "lumped_compliance",
         }
     }
 
@@ -380,7 +418,8 @@ impl ErrorParam {
             | ErrorParam::OriginRpy { .. }
             | ErrorParam::MountRpy { .. }
             | ErrorParam::PeriodicSin { .. }
-            | ErrorParam::PeriodicCos { .. } => "rad",
+            | ErrorParam::PeriodicCos { .. }
+            | ErrorParam::LumpedCompliance { .. } => "rad",
             ErrorParam::JointScale { .. } => "ratio",
             ErrorParam::OriginXyz { .. } | ErrorParam::Tip { .. } | ErrorParam::MountXyz { .. } => {
                 "m"
@@ -398,7 +437,8 @@ impl ErrorParam {
             | ErrorParam::OriginRpy { joint, .. }
             | ErrorParam::Compliance { joint }
             | ErrorParam::PeriodicSin { joint }
-            | ErrorParam::PeriodicCos { joint } => Some(joint),
+            | ErrorParam::PeriodicCos { joint }
+            | ErrorParam::LumpedCompliance { joint, .. } => Some(joint),
             ErrorParam::Tip { .. } | ErrorParam::MountXyz { .. } | ErrorParam::MountRpy { .. } => {
                 None
             }
@@ -412,7 +452,8 @@ impl ErrorParam {
             | ErrorParam::OriginRpy { axis, .. }
             | ErrorParam::Tip { axis }
             | ErrorParam::MountXyz { axis }
-            | ErrorParam::MountRpy { axis } => Some(axis),
+            | ErrorParam::MountRpy { axis }
+            | ErrorParam::LumpedCompliance { axis, .. } => Some(axis),
             _ => None,
         }
     }
@@ -438,6 +479,9 @@ impl ErrorParam {
     /// Errors: either is violated (the message names the joint and the fix).
     pub fn check_model(self, model: &RobotModel) -> Result<(), KinematicsError> {
         self.check_dof(model.chain_joints().len())?;
+        if let ErrorParam::LumpedCompliance { joint, link, axis } = self {
+            crate::lumped::check_lumped_param(model, joint, link, axis)?;
+        }
         if let ErrorParam::PeriodicSin { joint } | ErrorParam::PeriodicCos { joint } = self {
             let j = &model.chain_joints()[joint];
             if j.kind.is_prismatic() {
@@ -457,6 +501,17 @@ impl ErrorParam {
     ///
     /// Errors: the joint index is `≥ dof`.
     pub fn check_dof(self, dof: usize) -> Result<(), KinematicsError> {
+        if let ErrorParam::LumpedCompliance { joint, link, .. } = self {
+            if link < joint || link >= dof {
+                return Err(KinematicsError::InvalidInput(format!(
+                    "error parameter {self}: link {} is not a link joint {} carries in a chain \
+                     of {dof} joints; give a link from {} to {dof}",
+                    link + 1,
+                    joint + 1,
+                    joint + 1
+                )));
+            }
+        }
         match self.joint() {
             Some(j) if j >= dof => Err(KinematicsError::InvalidInput(format!(
                 "error parameter {self} refers to joint {} but the robot has {dof} joints; use a \
@@ -474,6 +529,9 @@ impl fmt::Display for ErrorParam {
         f.write_str(self.kind_name())?;
         if let Some(j) = self.joint() {
             write!(f, " joint {}", j + 1)?;
+        }
+        if let ErrorParam::LumpedCompliance { link, .. } = self {
+            write!(f, " link {}", link + 1)?;
         }
         if let Some(a) = self.axis() {
             write!(f, " {a}")?;

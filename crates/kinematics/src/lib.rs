@@ -11,6 +11,7 @@ mod gravity;
 mod ik;
 pub mod input;
 mod jacobian;
+pub mod lumped;
 mod model;
 #[cfg(test)]
 mod test_fixtures;
@@ -40,6 +41,10 @@ pub use fk::{
 pub use gravity::{gravity_torque_jacobian, gravity_torques};
 pub use ik::{ik_tip_position, IkOptions, IkSolution, IkStatus, IkStopReason};
 pub use jacobian::{geometric_jacobian, tip_position_jacobian, JacobianFrame};
+pub use lumped::{
+    lumped_canonical, lumped_compliance_from_masses, lumped_deflections, lumped_params,
+    LUMPED_G_REF,
+};
 pub use model::{
     origin_isometry, rotation_from_rpy, Joint, JointKind, LumpedInertial, RobotModel,
     MAX_CHAIN_LENGTH_M, MAX_PRISMATIC_TRAVEL_M, PRISMATIC_READING_SLACK_M, WORLD_LINK,

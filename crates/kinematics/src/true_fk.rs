@@ -23,7 +23,7 @@ use crate::model::{rotation_from_rpy, RobotModel, Step, PRISMATIC};
 
 /// Per-joint frame data of the true chain, nominal base frame.
 #[derive(Debug, Clone, Copy)]
-struct TrueJointFrame {
+pub(crate) struct TrueJointFrame {
     /// Rotation `nominal_base_from_parent` (the joint's URDF parent link frame).
     parent_rotation: Matrix3<f64>,
     /// The joint origin's true rpy (nominal + error), rad: [`rpy_derivative_axes`] of it and
@@ -43,7 +43,7 @@ impl TrueJointFrame {
     /// `∂p/∂q_true` of this joint for the tip at `p`: `z × (p − o)` (rotary, per rad) or `z`
     /// (prismatic, per m).
     #[inline]
-    fn joint_column(&self, p: &Vector3<f64>) -> Vector3<f64> {
+    pub(crate) fn joint_column(&self, p: &Vector3<f64>) -> Vector3<f64> {
         if self.prismatic {
             self.z
         } else {
@@ -99,6 +99,23 @@ fn true_joint_angles<'a>(
         gravity_torques_into(model, q_rep, g_base, tau);
     } else {
         tau.iter_mut().for_each(|t| *t = 0.0);
+    }
+    if !errors.lumped_compliance.is_empty() {
+        // Before the chain values borrow `buf`: the lumped walk forms its own.
+        let mut lumped = vec![0.0; q_true.len()];
+        crate::lumped::add_lumped_deflections(
+            model,
+            &errors.lumped_compliance,
+            q_rep,
+            g_base,
+            &mut lumped,
+        );
+        let q_rep_chain = model.chain_q(q_rep, buf);
+        true_angles_of_chain(errors, q_rep_chain, tau, q_true);
+        for (q, d) in q_true.iter_mut().zip(lumped) {
+            *q += d;
+        }
+        return q_rep_chain;
     }
     let q_rep_chain = model.chain_q(q_rep, buf);
     true_angles_of_chain(errors, q_rep_chain, tau, q_true);
@@ -442,6 +459,7 @@ fn error_jacobian_walk(
         let (flange_r, flange_t) = true_chain(model, errors, q_true, Some(frames));
         let p = flange_t + flange_r * (flange_from_tip + errors.tip);
         fill_error_columns(errors, q_rep_chain, tau, frames, &flange_r, &p, params, jac);
+        crate::lumped::fill_lumped_columns(model, q_rep, g_base, frames, &p, params, jac);
         (flange_r, flange_t)
     })
 }
@@ -523,6 +541,8 @@ fn fill_error_columns(
             ErrorParam::MountRpy { axis } => {
                 mount_axes[axis.index()].cross(&(p - errors.mount_xyz))
             }
+            // Filled by `lumped::fill_lumped_columns` (it needs the nominal link frames).
+            ErrorParam::LumpedCompliance { .. } => continue,
         };
         jac.set_column(c, &col);
     }
@@ -607,6 +627,14 @@ pub fn tip_joint_jacobian_true(
             }
             jac.set_column(i, &col);
         }
+    }
+    if !errors.lumped_compliance.is_empty() {
+        let nominal = crate::lumped::NominalFrames::at(model, q_rep);
+        let mut d = nominal.deflection_jacobian(model, &errors.lumped_compliance, g_base);
+        if model.has_coupled_joints() {
+            d *= model.coupling_matrix();
+        }
+        jac += &j_true * d;
     }
     Ok(jac)
 }

@@ -87,7 +87,17 @@ pub struct Tolerance {
     /// Joint-angle-periodic error, first harmonic: each of the `sin` and `cos` amplitudes, rad
     /// ([`kinematics::KinematicErrors::periodic_sin`]). Default `None` (not fitted).
     pub periodic_rad: Option<f64>,
+    /// Lumped gravity compliance (joint compliance × reduced first moment, no masses needed;
+    /// [`kinematics::lumped`]): each coefficient, rad. Default `None` (not fitted); `calibrate
+    /// --cell --model kinematic+compliance` sets [`LUMPED_COMPLIANCE_TOLERANCE_RAD`].
+    pub lumped_compliance_rad: Option<f64>,
 }
+
+/// The tolerance of each lumped-compliance coefficient when the model asks for them and the
+/// cell says nothing: 0.5° (8.7e-3 rad), the deflection of a joint of 100 µrad/(N·m) under
+/// ~9 kg·m of carried first moment, wide enough for a humanoid's torso and an industrial
+/// arm's shoulder alike (a weak prior: the data decide).
+pub const LUMPED_COMPLIANCE_TOLERANCE_RAD: f64 = 0.5 * std::f64::consts::PI / 180.0;
 
 impl Default for Tolerance {
     fn default() -> Self {
@@ -99,6 +109,7 @@ impl Default for Tolerance {
             joint_scale: None,
             compliance_rad_per_nm: None,
             periodic_rad: None,
+            lumped_compliance_rad: None,
         }
     }
 }
@@ -114,6 +125,7 @@ impl Tolerance {
             joint_scale: None,
             compliance_rad_per_nm: None,
             periodic_rad: None,
+            lumped_compliance_rad: None,
         }
     }
 
@@ -130,6 +142,7 @@ impl Tolerance {
             ErrorParam::PeriodicSin { .. } | ErrorParam::PeriodicCos { .. } => {
                 self.periodic_rad.unwrap_or(0.0)
             }
+            ErrorParam::LumpedCompliance { .. } => self.lumped_compliance_rad.unwrap_or(0.0),
             ErrorParam::MountXyz { .. } | ErrorParam::MountRpy { .. } => 0.0,
         };
         tol / 3f64.sqrt()
@@ -147,6 +160,10 @@ impl Tolerance {
                 self.compliance_rad_per_nm.unwrap_or(0.0),
             ),
             ("periodic_rad", self.periodic_rad.unwrap_or(0.0)),
+            (
+                "lumped_compliance_rad",
+                self.lumped_compliance_rad.unwrap_or(0.0),
+            ),
         ];
         for (field, v) in fields {
             if !(v.is_finite() && v >= 0.0) {
@@ -188,9 +205,9 @@ pub struct CellRobot {
 
 impl CellRobot {
     /// The kinematic parameters fitted for this robot (tolerance > 0), in catalogue order: per
-    /// joint offset, scale, origin xyz, origin rpy, compliance, periodic sin, periodic cos. Tip
-    /// offsets are per tool and not
-    /// in this list; mounts are never fitted.
+    /// joint offset, scale, origin xyz, origin rpy, compliance, periodic sin, periodic cos, then
+    /// the lumped-compliance coefficients ([`kinematics::lumped_params`]). Tip offsets are per
+    /// tool and not in this list; mounts are never fitted.
     pub fn fitted_params(&self) -> Vec<ErrorParam> {
         let mut out = Vec::new();
         // Per chain joint: a coupled joint has its own offset, origin and compliance.
@@ -205,6 +222,9 @@ impl CellRobot {
             cand.push(ErrorParam::PeriodicSin { joint });
             cand.push(ErrorParam::PeriodicCos { joint });
             out.extend(cand.into_iter().filter(|&p| self.prior_sigma(p) > 0.0));
+        }
+        if self.tolerance.lumped_compliance_rad.unwrap_or(0.0) > 0.0 {
+            out.extend(kinematics::lumped_params(&self.model));
         }
         out
     }
@@ -226,7 +246,8 @@ impl CellRobot {
             ErrorParam::JointOffset { .. } => self.tolerance.origin_xyz_m / 3f64.sqrt(),
             ErrorParam::Compliance { .. }
             | ErrorParam::PeriodicSin { .. }
-            | ErrorParam::PeriodicCos { .. } => 0.0,
+            | ErrorParam::PeriodicCos { .. }
+            | ErrorParam::LumpedCompliance { .. } => 0.0,
             _ => self.tolerance.prior_sigma(p),
         }
     }

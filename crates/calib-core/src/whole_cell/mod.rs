@@ -156,7 +156,7 @@ pub use accuracy::{
 };
 pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
 pub use calibrate::{calibrate_cell, calibrate_cell_with, widen_prior, CellCalibration};
-pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool};
+pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool, LUMPED_COMPLIANCE_TOLERANCE_RAD};
 pub use check::{
     coincident_pairs, fitted_rows_noise_scale, layout_shape, placement_distance,
     robust_noise_scale, robust_noise_scale_with_tolerances, CheckThresholds, LayoutShape,

@@ -49,7 +49,8 @@ impl ReportUnit {
             CellParam::Kinematic { param, .. } => match param {
                 ErrorParam::JointOffset { .. }
                 | ErrorParam::OriginRpy { .. }
-                | ErrorParam::MountRpy { .. } => ReportUnit::Deg,
+                | ErrorParam::MountRpy { .. }
+                | ErrorParam::LumpedCompliance { .. } => ReportUnit::Deg,
                 ErrorParam::JointScale { .. } => ReportUnit::Ratio,
                 ErrorParam::Compliance { .. } => ReportUnit::DegPerKnm,
                 _ => ReportUnit::Mm,
@@ -90,6 +91,9 @@ pub struct ParamIdentity {
     pub axis: Option<String>,
     /// The joint, 1-based, `None` for a parameter of no joint (tip, mount).
     pub joint: Option<usize>,
+    /// The carried link of a lumped-compliance coefficient, 1-based (JSON `link`, present only
+    /// then); `None` otherwise.
+    pub link: Option<usize>,
     /// The parameter's kind (`joint_offset`, `origin_xyz`, …, `tip` for a tool tip).
     pub kind: &'static str,
     /// The robot.
@@ -104,12 +108,17 @@ impl ParamIdentity {
             CellParam::Kinematic { robot, param } => Some(ParamIdentity {
                 axis: param.axis().map(|a| a.to_string()),
                 joint: param.joint().map(|j| j + 1),
+                link: match param {
+                    ErrorParam::LumpedCompliance { link, .. } => Some(link + 1),
+                    _ => None,
+                },
                 kind: param.kind_name(),
                 robot: *robot,
             }),
             CellParam::ToolTip { robot, axis, .. } => Some(ParamIdentity {
                 axis: Some(axis.to_string()),
                 joint: None,
+                link: None,
                 kind: "tip",
                 robot: *robot,
             }),
@@ -189,7 +198,7 @@ impl ParameterReport {
 impl Serialize for ParameterReport {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         let id = &self.identity;
-        let mut m = s.serialize_map(Some(13))?;
+        let mut m = s.serialize_map(Some(13 + usize::from(id.link.is_some())))?;
         m.serialize_entry("axis", &id.axis)?;
         m.serialize_entry("exceeds_tolerance", &self.exceeds_tolerance())?;
         m.serialize_entry(
@@ -198,6 +207,9 @@ impl Serialize for ParameterReport {
         )?;
         m.serialize_entry("joint", &id.joint)?;
         m.serialize_entry("kind", id.kind)?;
+        if let Some(link) = id.link {
+            m.serialize_entry("link", &link)?;
+        }
         m.serialize_entry("name", &self.name)?;
         m.serialize_entry("prior_scale", &self.prior_scale)?;
         m.serialize_entry("prior_sigma", &self.prior_sigma)?;
@@ -332,7 +344,9 @@ impl UnidentifiableReport {
 impl Serialize for UnidentifiableReport {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         let id = self.identity.as_ref();
-        let mut m = s.serialize_map(Some(if id.is_some() { 9 } else { 5 }))?;
+        let link = id.and_then(|id| id.link);
+        let keys = if id.is_some() { 9 } else { 5 } + usize::from(link.is_some());
+        let mut m = s.serialize_map(Some(keys))?;
         if let Some(id) = id {
             m.serialize_entry("axis", &id.axis)?;
         }
@@ -340,6 +354,9 @@ impl Serialize for UnidentifiableReport {
         if let Some(id) = id {
             m.serialize_entry("joint", &id.joint)?;
             m.serialize_entry("kind", id.kind)?;
+        }
+        if let Some(link) = link {
+            m.serialize_entry("link", &link)?;
         }
         m.serialize_entry("merged_into", &self.merged_into)?;
         m.serialize_entry("name", &self.name)?;

@@ -324,9 +324,18 @@ struct ErrorsFile {
     periodic_sin_deg: Option<Vec<f64>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     periodic_cos_deg: Option<Vec<f64>>,
+    /// Lumped gravity compliance, deg: per chain joint, one `[x, y, z]` per link it carries
+    /// (`kinematics::KinematicErrors::lumped_compliance`); an empty list is all zero.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    lumped_compliance_deg: Option<Vec<Vec<[f64; 3]>>>,
 }
 
 // ---- parsing -----------------------------------------------------------------------------
+
+/// A message-to-error closure naming the cell file (for parsers in other files).
+fn ctx_err<'a>(ctx: &'a Ctx<'a>) -> impl Fn(String) -> FormatError + 'a {
+    move |m| ctx.err(m)
+}
 
 struct Ctx<'a> {
     path: &'a Path,
@@ -554,6 +563,9 @@ fn build_errors(
     if let Some(v) = per_joint("periodic_cos_deg", &e.periodic_cos_deg, d2r)? {
         out.periodic_cos = v;
     }
+    if let Some(v) = &e.lumped_compliance_deg {
+        out.lumped_compliance = crate::lumped_file::parse_lumped(ctx_err(ctx), key, model, v)?;
+    }
     if let Some(v) = per_joint3("origin_xyz_mm", &e.origin_xyz_mm, 1e-3)? {
         out.origin_xyz = v;
     }
@@ -654,6 +666,7 @@ fn errors_file(model: &RobotModel, e: &KinematicErrors) -> Option<ErrorsFile> {
             .then(|| e.periodic_sin.iter().map(|x| x * r2d).collect()),
         periodic_cos_deg: nz(&e.periodic_cos)
             .then(|| e.periodic_cos.iter().map(|x| x * r2d).collect()),
+        lumped_compliance_deg: crate::lumped_file::write_lumped(&e.lumped_compliance),
     })
 }
 

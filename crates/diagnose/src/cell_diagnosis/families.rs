@@ -25,6 +25,9 @@ pub enum FamilyKind {
     OriginRpy,
     /// Joint compliance under gravity, every joint of the robot.
     Compliance,
+    /// Joint compliance under gravity as lumped coefficients (compliance × mass moment,
+    /// [`ErrorParam::LumpedCompliance`]): the candidate when the URDF has no inertials.
+    LumpedCompliance,
     /// One tool's tip offset (end-effector geometry), 3 components.
     ToolTip {
         /// Tool index (0 = the cell's tip, then `[robotN.tools]`).
@@ -63,6 +66,7 @@ impl Family {
             FamilyKind::OriginXyz => "joint origin positions".to_string(),
             FamilyKind::OriginRpy => "joint origin angles".to_string(),
             FamilyKind::Compliance => "joint compliance".to_string(),
+            FamilyKind::LumpedCompliance => "joint compliance (lumped, no masses)".to_string(),
             FamilyKind::ToolTip { tool } => {
                 let r = robot.expect("a tool tip family has a robot");
                 format!("tool `{}` tip", problem.robot(r).tools[tool].name)
@@ -122,6 +126,10 @@ impl Family {
                             | (FamilyKind::OriginRpy, ErrorParam::OriginRpy { .. })
                             | (FamilyKind::Compliance, ErrorParam::Compliance { .. })
                             | (
+                                FamilyKind::LumpedCompliance,
+                                ErrorParam::LumpedCompliance { .. }
+                            )
+                            | (
                                 FamilyKind::JointPeriodic,
                                 ErrorParam::PeriodicSin { .. } | ErrorParam::PeriodicCos { .. }
                             )
@@ -148,6 +156,10 @@ pub fn candidate_families(problem: &CellProblem) -> Vec<Family> {
             (
                 FamilyKind::Compliance,
                 tol.compliance_rad_per_nm.unwrap_or(0.0) > 0.0,
+            ),
+            (
+                FamilyKind::LumpedCompliance,
+                tol.lumped_compliance_rad.unwrap_or(0.0) > 0.0,
             ),
             (
                 FamilyKind::JointPeriodic,

@@ -82,9 +82,27 @@ pub fn diagnosis_problem(
                 None if offset > 0.0 => Some(offset),
                 None => None,
             },
+            // Without masses the compliance is tested as lumped coefficients (compliance × mass
+            // moment, kinematics::lumped), which need none.
+            lumped_compliance_rad: match t.lumped_compliance_rad {
+                Some(c) => Some(c * w),
+                None if max_tau == 0.0
+                    && offset > 0.0
+                    && massless(&rb.model)
+                    && !kinematics::lumped_params(&rb.model).is_empty() =>
+                {
+                    Some(calib_core::whole_cell::LUMPED_COMPLIANCE_TOLERANCE_RAD)
+                }
+                None => None,
+            },
         };
     }
     Ok(problem)
+}
+
+/// True if the model carries no mass (its URDF has no inertials, or only massless ones).
+pub(crate) fn massless(model: &kinematics::RobotModel) -> bool {
+    model.inertials().iter().all(|i| i.mass == 0.0)
 }
 
 /// Largest |gravity torque| (N·m) of robot `r` over the problem's postures; 0 without inertials.

@@ -21,6 +21,7 @@ mod checks;
 mod design;
 mod face_contact;
 mod jacobians;
+mod lumped;
 mod reduce;
 mod result_check;
 mod solve;

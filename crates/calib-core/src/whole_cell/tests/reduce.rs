@@ -79,6 +79,7 @@ fn reduction_without_kinematic_unknowns_is_empty() {
         joint_scale: None,
         compliance_rad_per_nm: None,
         periodic_rad: None,
+        lumped_compliance_rad: None,
     };
     let sc = sim_cell(Cell::Floor, none, false, 31);
     let p = coincident_problem(&sc, 12, 3e-4, 32);
