@@ -206,8 +206,22 @@ fn shared_trunk_is_fitted_once_and_calibrated_to_its_noise() {
     assert_eq!(back.shared_joints, 4);
     assert_held_out_near_noise(&cal, &held, &humanoid_trunk(), "shared trunk");
 
-    // Not supported yet, refused by name: diagnose, plan, two-robot rows in the simulator.
+    // Not supported yet, refused by name: diagnose, plan, lumped compliance (the trunk carries
+    // both arms; each chain's coefficients would see one), two-robot rows in the simulator.
     let cell = arg(&humanoid_trunk());
+    let e = stderr_of_failure(&[
+        "calibrate",
+        "--cell",
+        &cell,
+        "--session",
+        &arg(&train),
+        "--model",
+        "kinematic+compliance",
+    ]);
+    assert!(
+        e.contains("shared-trunk") && e.contains("--model kinematic"),
+        "{e}"
+    );
     let e = stderr_of_failure(&["diagnose", "--cell", &cell, "--session", &arg(&train)]);
     assert!(
         e.contains("shared-trunk") && e.contains("calibrate --cell"),

@@ -110,6 +110,18 @@ pub enum CellCalibrationError {
     /// The coverage report (joint ranges and reach) failed.
     #[error("the session's coverage of the robots' joint ranges and reach")]
     Coverage(#[source] CellFitError),
+    /// The model cannot be fitted to this cell yet: `kinematic+compliance` on a shared-trunk
+    /// cell (the trunk's gravity load comes from both arms, which two chains' lumped
+    /// coefficients cannot say).
+    #[error(
+        "--model kinematic+compliance is not supported yet on a shared-trunk cell (robot 2 shares \
+         {shared_joints} joints with robot 1): the trunk carries both arms, and each chain's lumped \
+         coefficients would see one; use --model kinematic"
+    )]
+    UnsupportedModel {
+        /// Robot 2's joints shared with robot 1.
+        shared_joints: usize,
+    },
 }
 
 /// A whole-cell calibration: its report, the problem and the fit it came from (for the export).
@@ -150,6 +162,11 @@ pub fn calibrate_session_with(
     tolerance_scale: Option<f64>,
 ) -> Result<SessionCalibration, CellCalibrationError> {
     handclasp_cell::check_session_inputs(session)?;
+    if model == CellModel::KinematicCompliance && cell.shared_joints > 0 {
+        return Err(CellCalibrationError::UnsupportedModel {
+            shared_joints: cell.shared_joints,
+        });
+    }
     let problem = cell_problem(cell, session, model.fit_model());
     let mut solve = SolveOptions::default();
     if session.points.len() < MIN_COINCIDENT_FOR_START {
