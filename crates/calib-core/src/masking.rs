@@ -114,8 +114,11 @@ pub fn masked_blunders(pairs: &PointPairs) -> Option<MaskedBlunders> {
     let h = n / 2 + 2;
     let mut half: Vec<usize> = Vec::new();
     for _ in 0..CONCENTRATION_STEPS {
+        // The h points closest to the fit, ties to the lower index: each residual computed
+        // once, and a selection (O(n)) instead of a sort.
+        let r: Vec<f64> = (0..n).map(|i| residual(&x, i)).collect();
         let mut order: Vec<usize> = (0..n).collect();
-        order.sort_by(|&a, &b| residual(&x, a).total_cmp(&residual(&x, b)));
+        order.select_nth_unstable_by(h - 1, |&a, &b| r[a].total_cmp(&r[b]).then(a.cmp(&b)));
         let mut next = order[..h].to_vec();
         next.sort_unstable();
         if next == half {

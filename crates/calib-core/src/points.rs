@@ -149,8 +149,10 @@ fn first_close_pair(points: &[Point3<f64>], limit: f64) -> Option<(usize, usize,
             (p.z / side).floor() as i64,
         ]
     };
-    let mut grid: std::collections::HashMap<[i64; 3], Vec<usize>> =
-        std::collections::HashMap::with_capacity(points.len());
+    // FxHash: the keys are our own cube indices (no untrusted hashing concern), and each point
+    // probes up to 125 cubes, so SipHash's cost dominated at 1e6 points.
+    let mut grid: rustc_hash::FxHashMap<[i64; 3], Vec<usize>> =
+        rustc_hash::FxHashMap::with_capacity_and_hasher(points.len(), Default::default());
     for (k, p) in points.iter().enumerate() {
         grid.entry(key(p)).or_default().push(k); // indices ascending within each cube
     }

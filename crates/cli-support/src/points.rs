@@ -210,11 +210,14 @@ fn masked_warning(
 ) -> Option<String> {
     let m = calib_core::masked_blunders(pairs)?;
     let outliers = report.outliers.as_mut()?;
+    // Sorted lookups: with many flagged rows at 1e6 rows, `contains` would be quadratic.
+    let mut already = outliers.flagged_rows.clone();
+    already.sort_unstable();
     let masked: Vec<usize> = m
         .flagged
         .iter()
         .map(|&i| pairs.row(i))
-        .filter(|r| !outliers.flagged_rows.contains(r))
+        .filter(|r| already.binary_search(r).is_err())
         .collect();
     if masked.is_empty() {
         return None;
@@ -226,7 +229,7 @@ fn masked_warning(
         .iter()
         .fold((f64::INFINITY, 0.0f64), |(a, b), &v| (a.min(v), b.max(v)));
     let keep: Vec<usize> = (0..pairs.len())
-        .filter(|i| !m.flagged.contains(i))
+        .filter(|i| m.flagged.binary_search(i).is_err()) // ascending
         .collect();
     let clean = PointPairs {
         p_b1: keep.iter().map(|&i| pairs.p_b1[i]).collect(),
