@@ -292,7 +292,7 @@ pub fn calibrate_points(
     let json = serde_json::to_string_pretty(&fitted.report)
         .map_err(|e| value_error(format!("serialising the report: {e}")))?;
     Ok(PointsResult {
-        b1_from_b2: fitted.fit.b1_from_b2,
+        b1_from_b2: fitted.b1_from_b2,
         report: fitted.report,
         json,
         warnings: fitted.warnings,

@@ -81,7 +81,7 @@ impl PointPairs {
     /// robot. The error ([`CalibError::Duplicate`]) names the first such pair in row order (by the
     /// first row, then the second, then robot 1 before robot 2) with its [`PointPairs::row`]s.
     ///
-    /// O(n) expected time in every case, identical points included (a grid of cubes of the
+    /// O(n log n) time in every case, identical points included (a sorted grid of cubes of the
     /// distance's size, see the private `first_close_pair`).
     pub fn check_duplicates(&self) -> Result<(), CalibError> {
         let mut first: Option<(usize, usize, u8, f64)> = None;
@@ -128,17 +128,139 @@ impl PointPairs {
 /// The pair `(i, j)`, `i < j`, of points closer than `limit` (m) that comes first in index order
 /// (smallest `i`, then smallest `j`), with its distance.
 ///
-/// O(n) expected time and memory in every case, identical points included: the points are hashed
-/// into a grid of cubes of side `limit / 1.75` (below `limit / √3`, so two points of one cube are
-/// always closer than `limit`, and a point's partners lie within two cubes along each axis).
-/// The first index of the answer is then the smallest index of its cube (else that cube's
-/// smallest index would pair with it first), so only each cube's smallest index is tried, against
-/// the ≤ 125 cubes around it: each cube is read by at most 125 such tries. The second index is one
-/// scan of the points after the first.
+/// The points are sorted into a grid of cubes of side `limit / 1.75` (below `limit / √3`, so two
+/// points of one cube are always closer than `limit`, and a point's partners lie within two cubes
+/// along each axis). The first index of the answer is then the smallest index of its cube (else
+/// that cube's smallest index would pair with it first), so only each cube's smallest index is
+/// tried, against the ≤ 125 cubes around it: each cube is read by at most 125 such tries, in every
+/// case, identical points included. The second index is one scan of the points after the first.
+///
+/// The grid is a sorted array of packed cube keys (16 bytes a point: at 1e6 points 16 MB, where a
+/// hash map of cubes took ~135 MB and was the command's memory peak): the five cubes along z of
+/// one (x, y) column are one key range, found by binary search. O(n log n) time. Points whose
+/// cubes do not fit the packing (a spread beyond ~2 million cubes along an axis, a non-finite
+/// coordinate, more than `u32::MAX` points) take [`first_close_pair_hashed`], the same search over
+/// a hash map.
 fn first_close_pair(points: &[Point3<f64>], limit: f64) -> Option<(usize, usize, f64)> {
     if points.len() < 2 || limit.is_nan() || limit <= 0.0 {
         return None;
     }
+    let side = limit / 1.75;
+    let Some(grid) = SortedGrid::new(points, side) else {
+        return first_close_pair_hashed(points, limit);
+    };
+    let close = |a: usize, b: usize| (points[a] - points[b]).norm() < limit;
+    let first = grid.firsts().into_iter().find(|&i| {
+        let c = grid.cube(&points[i]);
+        (-2i64..=2).any(|dx| {
+            (-2i64..=2).any(|dy| {
+                grid.column(c[0] + dx, c[1] + dy, c[2] - 2, c[2] + 2)
+                    .any(|j| j > i && close(i, j))
+            })
+        })
+    })?;
+    let j = (first + 1..points.len()).find(|&j| close(first, j))?;
+    Some((first, j, (points[first] - points[j]).norm()))
+}
+
+/// Bits per axis of a packed cube key ([`SortedGrid`]).
+const CUBE_BITS: u32 = 21;
+
+/// The points' cubes as a sorted array of `(packed key, point index)`: key `x·2⁴² + y·2²¹ + z` of
+/// the cube's coordinates counted from two cubes below the points' lowest cube (so the ±2
+/// neighbours of every occupied cube are non-negative and fit the 21 bits).
+struct SortedGrid {
+    /// `(key, index)` ascending: the points of one cube are a run, lowest index first.
+    entries: Vec<(u64, u32)>,
+    /// Cube side, m.
+    side: f64,
+    /// The lowest cube's coordinates minus 2.
+    origin: [i64; 3],
+}
+
+impl SortedGrid {
+    /// The grid of `points` with cubes of side `side` (m), or `None` when it cannot be packed
+    /// (a non-finite coordinate, a spread beyond `2²¹ − 5` cubes along an axis, or more than
+    /// `u32::MAX` points).
+    fn new(points: &[Point3<f64>], side: f64) -> Option<Self> {
+        if points.len() > u32::MAX as usize {
+            return None;
+        }
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in points {
+            for a in 0..3 {
+                if !p[a].is_finite() {
+                    return None;
+                }
+                lo[a] = lo[a].min(p[a]);
+                hi[a] = hi[a].max(p[a]);
+            }
+        }
+        let span_limit = ((1u64 << CUBE_BITS) - 5) as f64;
+        let mut origin = [0i64; 3];
+        for a in 0..3 {
+            let (l, h) = ((lo[a] / side).floor(), (hi[a] / side).floor());
+            if !(h - l < span_limit) || l.abs() > 1e15 || h.abs() > 1e15 {
+                return None;
+            }
+            origin[a] = l as i64 - 2;
+        }
+        let mut grid = SortedGrid {
+            entries: Vec::new(),
+            side,
+            origin,
+        };
+        let mut entries: Vec<(u64, u32)> = points
+            .iter()
+            .enumerate()
+            .map(|(k, p)| {
+                let c = grid.cube(p);
+                (Self::key(c[0], c[1], c[2]), k as u32)
+            })
+            .collect();
+        entries.sort_unstable();
+        grid.entries = entries;
+        Some(grid)
+    }
+
+    /// The cube coordinates of `p`, counted from `origin` (each in `2..2²¹ − 2`).
+    fn cube(&self, p: &Point3<f64>) -> [i64; 3] {
+        [0, 1, 2].map(|a| (p[a] / self.side).floor() as i64 - self.origin[a])
+    }
+
+    /// The packed key of cube `(x, y, z)`, each in `0..2²¹`.
+    fn key(x: i64, y: i64, z: i64) -> u64 {
+        ((x as u64) << (2 * CUBE_BITS)) | ((y as u64) << CUBE_BITS) | z as u64
+    }
+
+    /// Each occupied cube's smallest point index, ascending.
+    fn firsts(&self) -> Vec<usize> {
+        let mut firsts: Vec<usize> = self
+            .entries
+            .iter()
+            .enumerate()
+            .filter(|(k, e)| *k == 0 || self.entries[k - 1].0 != e.0)
+            .map(|(_, e)| e.1 as usize)
+            .collect();
+        firsts.sort_unstable();
+        firsts
+    }
+
+    /// The indices of the points in cubes `(x, y, z_lo..=z_hi)` (one key range).
+    fn column(&self, x: i64, y: i64, z_lo: i64, z_hi: i64) -> impl Iterator<Item = usize> + '_ {
+        let (lo, hi) = (Self::key(x, y, z_lo), Self::key(x, y, z_hi));
+        let start = self.entries.partition_point(|e| e.0 < lo);
+        self.entries[start..]
+            .iter()
+            .take_while(move |e| e.0 <= hi)
+            .map(|e| e.1 as usize)
+    }
+}
+
+/// [`first_close_pair`] over a hash map of cubes: the fallback for points the sorted grid cannot
+/// pack. O(n) expected time; ~135 bytes a point.
+fn first_close_pair_hashed(points: &[Point3<f64>], limit: f64) -> Option<(usize, usize, f64)> {
     let side = limit / 1.75;
     // Saturating casts: absurd coordinates (beyond ~1e14 m) share the edge cubes, which only
     // costs time; distances are always checked.
@@ -582,9 +704,37 @@ mod close_pair_tests {
                     )
                 })
                 .collect();
+            let want = brute_force(&points, DUPLICATE_DISTANCE_M);
             let got = first_close_pair(&points, DUPLICATE_DISTANCE_M).map(|(i, j, _)| (i, j));
-            prop_assert_eq!(got, brute_force(&points, DUPLICATE_DISTANCE_M));
+            prop_assert_eq!(got, want);
+            let hashed =
+                first_close_pair_hashed(&points, DUPLICATE_DISTANCE_M).map(|(i, j, _)| (i, j));
+            prop_assert_eq!(hashed, want);
         }
+    }
+
+    /// Points the sorted grid cannot pack (a spread of 1,000 km, beyond 2²¹ cubes of 57 µm; a
+    /// NaN coordinate) take the hash map and still name the first close pair.
+    #[test]
+    fn unpackable_points_take_the_hash_map() {
+        let mut far: Vec<Point3<f64>> = (0..50)
+            .map(|k| Point3::new(k as f64 * 1e-3, 0.0, 0.0))
+            .collect();
+        far.push(Point3::new(1e6, 0.0, 0.0));
+        far.push(far[7] + nalgebra::Vector3::new(0.0, 3e-5, 0.0));
+        assert!(SortedGrid::new(&far, DUPLICATE_DISTANCE_M / 1.75).is_none());
+        assert_eq!(
+            first_close_pair(&far, DUPLICATE_DISTANCE_M).map(|(i, j, _)| (i, j)),
+            Some((7, 51))
+        );
+        let mut nan = far[..50].to_vec();
+        nan[3] = Point3::new(f64::NAN, 0.0, 0.0);
+        nan.push(nan[20]);
+        assert!(SortedGrid::new(&nan, DUPLICATE_DISTANCE_M / 1.75).is_none());
+        assert_eq!(
+            first_close_pair(&nan, DUPLICATE_DISTANCE_M).map(|(i, j, _)| (i, j)),
+            Some((20, 50))
+        );
     }
 
     /// 200 000 identical points (the case that was quadratic: 100 000 rows took > 120 s) and

@@ -8,6 +8,7 @@
 //!    mistake ([`calib_core::explain_misfit`]) and the worst rows (or only warns when forced);
 //! 3. the methods that impose the mounts get [`calib_core::mount_check`]'s F-test.
 
+use calib_core::nalgebra::Isometry3;
 use calib_core::{
     constrained_soft, explain_misfit, fit, median_residual_m, misfit_threshold_m, mount_check,
     CalibError, Fit, FitReport, Method, MountCheckReport, MountPair, PointPairs, SoftMountReport,
@@ -102,8 +103,9 @@ pub struct MisfitCauseReport {
 pub struct PointsFit {
     /// The report (the CLI's JSON).
     pub report: FitReport,
-    /// The fitted model, SI units.
-    pub fit: Fit,
+    /// The fitted `b1_from_b2` (`p_b1 = b1_from_b2·p_b2`), SI units, unrounded (the report's
+    /// pose forms are rounded for printing). The residuals are the report's.
+    pub b1_from_b2: Isometry3<f64>,
     /// Warnings for stderr, each starting `WARNING (method, kept by …)`.
     pub warnings: Vec<String>,
 }
@@ -121,7 +123,10 @@ pub fn points_report(
     let method = options.method;
     let mounts = options.mounts.unwrap_or_else(MountPair::floor_floor);
     let mut warnings = Vec::new();
-    let (mut report, f) =
+    // Before the fit and its report: the robust fit's working vectors (~28 MB at 1e6 rows) are
+    // freed before the report's per-point vectors exist, which lowers the command's peak memory.
+    let masked = calib_core::masked_blunders(pairs);
+    let (mut report, mut f) =
         if let (Method::Constrained, Some((tilt_sigma, point_sigma))) = (method, options.soft) {
             let soft = constrained_soft(pairs, &mounts, tilt_sigma, point_sigma)?;
             warnings.extend(plausible(pairs, &soft.fit, &mounts, options, hints)?);
@@ -133,8 +138,10 @@ pub fn points_report(
             warnings.extend(plausible(pairs, &f, &mounts, options, hints)?);
             (FitReport::new(pairs, &f, options.mounts.as_ref()), f)
         };
+    // The report holds the residuals (in mm); the fit's own copy (24 MB at 1e6 rows) goes.
+    f.residuals = Vec::new();
     warnings.extend(layout_warning(pairs, &f));
-    warnings.extend(masked_warning(pairs, &f, &mounts, &mut report));
+    warnings.extend(masked.and_then(|m| masked_warning(pairs, &f, &mounts, m, &mut report)));
     if matches!(method, Method::Paper | Method::Constrained) && options.mounts.is_some() {
         // Fewer than 3 usable points already failed the fit above; anything else is reported.
         if let Ok(c) = mount_check(pairs, &mounts) {
@@ -143,7 +150,7 @@ pub fn points_report(
     }
     Ok(PointsFit {
         report,
-        fit: f,
+        b1_from_b2: f.b1_from_b2,
         warnings,
     })
 }
@@ -198,17 +205,17 @@ fn layout_warning(pairs: &PointPairs, f: &Fit) -> Option<String> {
     None
 }
 
-/// Blunders that mask one another in the leave-one-out test ([`calib_core::masked_blunders`]):
-/// the rows that disagree with the rigid fit of the majority but that leave-one-out did not
-/// flag are added to `report`'s flagged rows, and a `warning:` names them with how far the
-/// fit moves without them (the fit printed still uses every row).
+/// Blunders that mask one another in the leave-one-out test (`m`, from
+/// [`calib_core::masked_blunders`]): the rows that disagree with the rigid fit of the majority but
+/// that leave-one-out did not flag are added to `report`'s flagged rows, and a `warning:` names
+/// them with how far the fit moves without them (the fit printed still uses every row).
 fn masked_warning(
     pairs: &PointPairs,
     f: &Fit,
     mounts: &MountPair,
+    m: calib_core::MaskedBlunders,
     report: &mut FitReport,
 ) -> Option<String> {
-    let m = calib_core::masked_blunders(pairs)?;
     let outliers = report.outliers.as_mut()?;
     // Sorted lookups: with many flagged rows at 1e6 rows, `contains` would be quadratic.
     let mut already = outliers.flagged_rows.clone();

@@ -15,17 +15,28 @@ fn centroids_and_cross(
     p_b1: &[Point3<f64>],
     p_b2: &[Point3<f64>],
 ) -> (Vector3<f64>, Vector3<f64>, Matrix3<f64>) {
-    let n = p_b1.len() as f64;
+    centroids_and_cross_of(p_b1.iter().zip(p_b2))
+}
+
+/// [`centroids_and_cross`] over pairs given by an iterator (walked twice, in the same order, so
+/// the sums are those of the same pairs gathered into slices, bit for bit).
+fn centroids_and_cross_of<'a, I>(pairs: I) -> (Vector3<f64>, Vector3<f64>, Matrix3<f64>)
+where
+    I: Iterator<Item = (&'a Point3<f64>, &'a Point3<f64>)> + Clone,
+{
+    let mut n = 0usize;
     let mut c1 = Vector3::zeros();
     let mut c2 = Vector3::zeros();
-    for (a, b) in p_b1.iter().zip(p_b2) {
+    for (a, b) in pairs.clone() {
         c1 += a.coords;
         c2 += b.coords;
+        n += 1;
     }
+    let n = n as f64;
     c1 /= n;
     c2 /= n;
     let mut m = Matrix3::zeros();
-    for (a, b) in p_b1.iter().zip(p_b2) {
+    for (a, b) in pairs {
         m += (a.coords - c1) * (b.coords - c2).transpose();
     }
     (c1, c2, m)
@@ -50,6 +61,24 @@ pub fn rigid_fit_fast(p_b1: &[Point3<f64>], p_b2: &[Point3<f64>]) -> Option<Isom
         return None;
     }
     let (c1, c2, m) = centroids_and_cross(p_b1, p_b2);
+    let q = rotation_maximizing_trace(&m)?;
+    let t = c1 - q * c2;
+    finite(Isometry3::from_parts(Translation3::from(t), q))
+}
+
+/// [`rigid_fit_fast`] of the pairs `(p_b1[i], p_b2[i])` for `i` in `idx`, without gathering them:
+/// bit-identical to `rigid_fit_fast` of the gathered slices (the same sums in the same order), so
+/// a robust fit over subsets of a million points allocates nothing per subset. `None` as
+/// [`rigid_fit_fast`], or when an index is out of range.
+pub(crate) fn rigid_fit_fast_indexed(
+    p_b1: &[Point3<f64>],
+    p_b2: &[Point3<f64>],
+    idx: &[usize],
+) -> Option<Isometry3<f64>> {
+    if p_b1.len() != p_b2.len() || idx.len() < 3 || idx.iter().any(|&i| i >= p_b1.len()) {
+        return None;
+    }
+    let (c1, c2, m) = centroids_and_cross_of(idx.iter().map(|&i| (&p_b1[i], &p_b2[i])));
     let q = rotation_maximizing_trace(&m)?;
     let t = c1 - q * c2;
     finite(Isometry3::from_parts(Translation3::from(t), q))

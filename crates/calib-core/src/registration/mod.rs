@@ -40,6 +40,7 @@ mod tests;
 pub use checks::{spread_singular_values, COLLINEAR_REL, COPLANAR_REL};
 pub(crate) use family::family_axes;
 pub use family::{project_rotation_family, wall_family_angles, wall_rotation};
+pub(crate) use fast::rigid_fit_fast_indexed;
 pub use fast::{
     affine_lsq_fast, constrained_fast, fit_fast, generic_fast, paper_fast, rigid_fit_fast,
 };

@@ -734,3 +734,25 @@ fn fit_serialises_in_si_units() {
     assert_eq!(mounts["robot1"], "floor");
     assert_eq!(mounts["robot2"]["tilt"]["ry"].as_f64().unwrap(), -0.2);
 }
+
+/// `rigid_fit_fast_indexed` equals `rigid_fit_fast` of the gathered points bit for bit (the
+/// masked-blunder check's subsets rely on it: its JSON was byte-identical before and after), and
+/// an index out of range or fewer than 3 indices gives `None`.
+#[test]
+fn indexed_rigid_fit_equals_the_gathered_fit() {
+    let mut rng = ChaCha8Rng::seed_from_u64(31);
+    let x = Isometry3::new(Vector3::new(0.4, -0.2, 0.1), Vector3::new(0.3, -0.5, 1.1));
+    let p_b2: Vec<Point3<f64>> = (0..200)
+        .map(|_| Point3::new(rng.random(), rng.random(), rng.random()))
+        .collect();
+    let pairs = pairs_for(&x, &p_b2);
+    let idx: Vec<usize> = (0..200).filter(|i| i % 3 != 1).collect();
+    let p1: Vec<Point3<f64>> = idx.iter().map(|&i| pairs.p_b1[i]).collect();
+    let p2: Vec<Point3<f64>> = idx.iter().map(|&i| pairs.p_b2[i]).collect();
+    let gathered = rigid_fit_fast(&p1, &p2).unwrap();
+    let indexed = rigid_fit_fast_indexed(&pairs.p_b1, &pairs.p_b2, &idx).unwrap();
+    assert_eq!(gathered.translation.vector, indexed.translation.vector);
+    assert_eq!(gathered.rotation.coords, indexed.rotation.coords);
+    assert!(rigid_fit_fast_indexed(&pairs.p_b1, &pairs.p_b2, &[0, 1, 200]).is_none());
+    assert!(rigid_fit_fast_indexed(&pairs.p_b1, &pairs.p_b2, &[0, 1]).is_none());
+}
