@@ -201,7 +201,9 @@ impl SortedGrid {
         let mut origin = [0i64; 3];
         for a in 0..3 {
             let (l, h) = ((lo[a] / side).floor(), (hi[a] / side).floor());
-            if !(h - l < span_limit) || l.abs() > 1e15 || h.abs() > 1e15 {
+            // Written so that a NaN (an overflowing quotient) fails the test.
+            let packable = h - l < span_limit && l.abs() <= 1e15 && h.abs() <= 1e15;
+            if !packable {
                 return None;
             }
             origin[a] = l as i64 - 2;
