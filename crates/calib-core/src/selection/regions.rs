@@ -21,6 +21,10 @@ use crate::Robot;
 pub const MAX_REGIONS: usize = 6;
 /// Fewest regions a region-held-out design needs (below, the caller falls back to its groups).
 pub const MIN_REGIONS: usize = 3;
+/// Seed of the k-means++ draw of every region-held-out design in the workspace (`diagnose
+/// --cv-folds regions`, `calibrate --cell`'s do-no-harm check, the prediction's model-error
+/// term): one seed, so one session gets the same regions from every command.
+pub const REGION_SEED: u64 = 20;
 /// Lloyd iterations of [`joint_regions`] at most (it stops earlier when no label changes).
 const LLOYD_ITERATIONS: usize = 100;
 
