@@ -130,8 +130,8 @@ pub fn messages(r: &DoNoHarmReport, model: CellModel) -> Vec<String> {
             .collect();
         if r.forced {
             out.push(format!(
-                "warning: do no harm: the {} model is worse than the nominal model (placement \
-                 only) where it was not fitted: {}; --force exports it anyway",
+                "warning: kept by --force: do no harm: the {} model is worse than the nominal \
+                 model (placement only) where it was not fitted: {}; the full model is exported",
                 model.name(),
                 why.join(", ")
             ));

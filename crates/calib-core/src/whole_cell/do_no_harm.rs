@@ -7,8 +7,8 @@
 //!    tracker, plane or contact group's rows always train: scoring them held out would need
 //!    their nuisance refitted on half of them, as `diagnose` does.
 //! 2. **Folds** ([`HarmDesign`]): regions of joint space ([`joint_regions`] on
-//!    [`joint_features`], at least [`MIN_REGION_ROWS`] rows each, seed [`REGION_SEED`], the
-//!    regions `diagnose --cv-folds regions` holds out); a session too small for
+//!    [`joint_features`], at least [`MIN_HARM_REGION_ROWS`] rows each, seed [`REGION_SEED`], the
+//!    clustering `diagnose --cv-folds regions` uses); a session too small for
 //!    [`MIN_REGIONS`] regions falls back to blocks of rows in row order (at most
 //!    [`FALLBACK_BLOCKS`] of at least [`MIN_BLOCK_ROWS`], as `diagnose` cuts its coincident
 //!    rows), which measure interpolation, and says so; fewer than two blocks: not checked.
@@ -27,10 +27,16 @@ use super::{
     fit_cell_with, initial_estimate, CellCalibration, CellFitError, CellProblem, Evaluator,
     ParamLayout, SolveOptions, Tolerance,
 };
-use crate::selection::regions::{
-    joint_features, joint_regions, MAX_REGIONS, MIN_REGIONS, MIN_REGION_ROWS, REGION_SEED,
-};
+use crate::selection::regions::{joint_features, joint_regions, MAX_REGIONS, MIN_REGIONS, REGION_SEED};
 use crate::selection::{region_harm, FoldHarm, HARM_T};
+
+/// Fewest handclasp rows of a held-out region. `diagnose`'s regions need
+/// [`crate::selection::regions::MIN_REGION_ROWS`] (12) because a region's piece of a tracker
+/// or plane group must refit its frame on half of it; a handclasp has no nuisance to refit, so
+/// a region needs only enough rows for the paired t of [`region_harm`]: eight handclasps, 24
+/// residuals (with 12, a 40-row session seldom yields three regions and the check falls back to
+/// row-order blocks, which measure interpolation).
+pub const MIN_HARM_REGION_ROWS: usize = 8;
 
 /// Most blocks of the row-order fallback (as `diagnose` cuts its coincident rows into at most
 /// four units).
@@ -112,7 +118,7 @@ pub fn region_harm_check(
         .partition(|&&i| problem.observations[i].kind.group().is_none());
     let features = joint_features(problem, &scorable);
     let (design, how, folds): (HarmDesign, String, Vec<Vec<usize>>) =
-        match joint_regions(&features, MIN_REGION_ROWS, MAX_REGIONS, REGION_SEED) {
+        match joint_regions(&features, MIN_HARM_REGION_ROWS, MAX_REGIONS, REGION_SEED) {
             Some(regions) => {
                 let folds = (0..regions.sizes.len())
                     .map(|c| {
@@ -127,7 +133,7 @@ pub fn region_harm_check(
                 let how = format!(
                     "{} regions of joint space (seeded k-means++, seed {REGION_SEED}, on the \
                      handclasps' joint vectors normalised by the joint limits, at least \
-                     {MIN_REGION_ROWS} rows each), each held out in turn",
+                     {MIN_HARM_REGION_ROWS} rows each), each held out in turn",
                     folds.len()
                 );
                 (HarmDesign::JointRegions, how, folds)
@@ -137,7 +143,7 @@ pub fn region_harm_check(
                 if parts < 2 {
                     let how = format!(
                         "not checked: {} handclasp rows are too few for {MIN_REGIONS} joint-space \
-                         regions of {MIN_REGION_ROWS} rows or 2 blocks of {MIN_BLOCK_ROWS}",
+                         regions of {MIN_HARM_REGION_ROWS} rows or 2 blocks of {MIN_BLOCK_ROWS}",
                         scorable.len()
                     );
                     return Ok(Some(HarmCheck {
@@ -152,9 +158,9 @@ pub fn region_harm_check(
                 let folds: Vec<Vec<usize>> =
                     scorable.chunks(size).map(<[usize]>::to_vec).collect();
                 let how = format!(
-                    "{} blocks of rows in row order: {} handclasp rows are too few for \
-                     {MIN_REGIONS} joint-space regions of at least {MIN_REGION_ROWS} rows (the \
-                     check measures interpolation, not extrapolation)",
+                    "{} blocks of rows in row order: {} handclasp rows do not cut into \
+                     {MIN_REGIONS} joint-space regions of at least {MIN_HARM_REGION_ROWS} rows \
+                     (the check measures interpolation, not extrapolation)",
                     folds.len(),
                     scorable.len()
                 );
@@ -256,12 +262,13 @@ mod tests {
     fn a_small_session_falls_back_to_blocks_then_to_no_check() {
         let sc = sim_cell(Cell::Wall, Tolerance::default(), false, 3);
         let mut p = sc.problem();
-        p.observations = sc.coincident(24, 3e-4, 0.8, 5);
+        // 20 rows afford 2 regions of 8 (fewer than MIN_REGIONS): 3 blocks of at least 6.
+        p.observations = sc.coincident(20, 3e-4, 0.8, 5);
         let solve = SolveOptions::default();
         let cal = calibrate_cell(&p, &solve, &ScreenOptions::default()).unwrap();
         let check = region_harm_check(&p, &cal, &solve).unwrap().unwrap();
         assert_eq!(check.design, HarmDesign::RowBlocks, "{}", check.how);
-        assert_eq!(check.folds.len(), FALLBACK_BLOCKS);
+        assert_eq!(check.folds.len(), 20 / MIN_BLOCK_ROWS);
         assert!(check.how.contains("interpolation"), "{}", check.how);
         p.observations = sc.coincident(11, 3e-4, 0.8, 6);
         let cal = calibrate_cell(&p, &solve, &ScreenOptions::default()).unwrap();

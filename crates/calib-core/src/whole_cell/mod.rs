@@ -181,6 +181,7 @@ pub use design::{
 };
 pub use do_no_harm::{
     region_harm_check, HarmCheck, HarmDesign, HarmFold, FALLBACK_BLOCKS, MIN_BLOCK_ROWS,
+    MIN_HARM_REGION_ROWS,
 };
 pub use evidence::{
     format_scale, prior_family, FamilyScale, PriorScaleChoice, ScaleMethod, FAMILY_EVIDENCE_MARGIN,
