@@ -510,6 +510,10 @@ mod tests {
         assert_eq!(final_folder("all+c", true), "all+c");
         let missing = vec![("all".to_string(), "all".to_string())];
         let e = exported_rows(dir.path(), &missing, true).unwrap_err();
-        assert!(e.to_string().contains("row all is listed as exported to all/"), "{e}");
+        assert!(
+            e.to_string()
+                .contains("row all is listed as exported to all/"),
+            "{e}"
+        );
     }
 }

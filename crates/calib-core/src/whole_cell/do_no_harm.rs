@@ -7,8 +7,9 @@
 //!    tracker, plane or contact group's rows always train: scoring them held out would need
 //!    their nuisance refitted on half of them, as `diagnose` does.
 //! 2. **Folds** ([`HarmDesign`]): regions of joint space ([`joint_regions`] on
-//!    [`joint_features`], at least [`MIN_HARM_REGION_ROWS`] rows each, seed [`REGION_SEED`], the
-//!    clustering `diagnose --cv-folds regions` uses); a session too small for
+//!    [`joint_features`], at least [`MIN_HARM_REGION_ROWS`] rows each, at most one region per
+//!    `2·MIN_HARM_REGION_ROWS` rows (3 to 6), seed [`REGION_SEED`], the clustering `diagnose
+//!    --cv-folds regions` uses); a session too small for
 //!    [`MIN_REGIONS`] regions falls back to blocks of rows in row order (at most
 //!    [`FALLBACK_BLOCKS`] of at least [`MIN_BLOCK_ROWS`], as `diagnose` cuts its coincident
 //!    rows), which measure interpolation, and says so; fewer than two blocks: not checked.
@@ -27,7 +28,9 @@ use super::{
     fit_cell_with, initial_estimate, CellCalibration, CellFitError, CellProblem, Evaluator,
     ParamLayout, SolveOptions, Tolerance,
 };
-use crate::selection::regions::{joint_features, joint_regions, MAX_REGIONS, MIN_REGIONS, REGION_SEED};
+use crate::selection::regions::{
+    joint_features, joint_regions, MAX_REGIONS, MIN_REGIONS, REGION_SEED,
+};
 use crate::selection::{region_harm, FoldHarm, HARM_T};
 
 /// Fewest handclasp rows of a held-out region. `diagnose`'s regions need
@@ -117,8 +120,12 @@ pub fn region_harm_check(
         .iter()
         .partition(|&&i| problem.observations[i].kind.group().is_none());
     let features = joint_features(problem, &scorable);
+    // At most one region per 2·MIN_HARM_REGION_ROWS rows: k-means clusters are uneven, and
+    // asking for regions of the minimum size on average drops the small ones one after another
+    // until fewer than MIN_REGIONS remain (a 40-row session asked for 5 regions seldom keeps 3).
+    let max_regions = (scorable.len() / (2 * MIN_HARM_REGION_ROWS)).clamp(MIN_REGIONS, MAX_REGIONS);
     let (design, how, folds): (HarmDesign, String, Vec<Vec<usize>>) =
-        match joint_regions(&features, MIN_HARM_REGION_ROWS, MAX_REGIONS, REGION_SEED) {
+        match joint_regions(&features, MIN_HARM_REGION_ROWS, max_regions, REGION_SEED) {
             Some(regions) => {
                 let folds = (0..regions.sizes.len())
                     .map(|c| {
@@ -155,8 +162,7 @@ pub fn region_harm_check(
                     }));
                 }
                 let size = scorable.len().div_ceil(parts);
-                let folds: Vec<Vec<usize>> =
-                    scorable.chunks(size).map(<[usize]>::to_vec).collect();
+                let folds: Vec<Vec<usize>> = scorable.chunks(size).map(<[usize]>::to_vec).collect();
                 let how = format!(
                     "{} blocks of rows in row order: {} handclasp rows do not cut into \
                      {MIN_REGIONS} joint-space regions of at least {MIN_HARM_REGION_ROWS} rows \
