@@ -5,6 +5,7 @@ mod calibrate;
 mod calibrate_cell;
 mod coupled;
 mod diagnose;
+mod do_no_harm;
 mod docs;
 mod export;
 mod fk_ik;

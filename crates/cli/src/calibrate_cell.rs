@@ -234,7 +234,31 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
             e.context(context)
         }
     })?;
+    let do_no_harm = match &args.export {
+        Some(_) => {
+            progress.phase("do no harm: the model against nominal, region by region held out");
+            crate::do_no_harm::check(
+                &cell,
+                &session,
+                &calibrated,
+                args.model.cell_model(),
+                args.screen.mode(),
+                force,
+            )
+            .context("the do-no-harm check before --export")?
+        }
+        None => None,
+    };
     progress.finish();
+    let (do_no_harm, safe) = match do_no_harm {
+        Some((r, safe)) => (Some(r), safe),
+        None => (None, None),
+    };
+    if let Some(r) = &do_no_harm {
+        for line in crate::do_no_harm::messages(r, args.model.cell_model()) {
+            eprintln!("{line}");
+        }
+    }
     let report = calibrated.report;
     for w in report.coverage.warnings() {
         eprintln!("warning: {w}");
@@ -282,15 +306,24 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
     } else {
         None
     };
-    let report = CellReportWithSite { report, work_site };
+    let report = CellReportWithSite {
+        report,
+        work_site,
+        do_no_harm,
+    };
     if let Some(path) = &args.report {
         write_report_page(path, &args, &cell, &problem, &cal, &report)?;
     }
     let written = match &args.export {
         Some(dir) => crate::export_dir::locked(dir, args.overwrite, "--export", || {
+            // The safe model when the do-no-harm rule withholds the kinematics.
+            let (problem, cal) = match &safe {
+                Some(s) => (&s.problem, &s.calibration),
+                None => (&problem, &cal),
+            };
             let written =
                 export_calibrated_cell(&cell, &cal.fit.estimate, dir, &CALIBRATE_EXPORT_NAMES)?;
-            crate::result_check::check_export(dir, &session, &problem, &cal, force, json)?;
+            crate::result_check::check_export(dir, &session, problem, cal, force, json)?;
             Ok(written)
         })
         .with_context(|| format!("--export {}", dir.display()))?,
@@ -369,6 +402,9 @@ struct CellReportWithSite {
     report: CellReport,
     #[serde(skip_serializing_if = "Option::is_none")]
     work_site: Option<WorkSiteReport>,
+    /// With --export: the do-no-harm rule's verdict (absent for --model placement).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    do_no_harm: Option<crate::do_no_harm::DoNoHarmReport>,
 }
 
 impl CellReportWithSite {
@@ -385,6 +421,9 @@ impl CellReportWithSite {
                 w.predicted_p95_ci_mm[1]
             ));
             s.push_str(&format!("verdict: {}: {}\n", w.verdict.headline(), w.why));
+        }
+        if let Some(r) = &self.do_no_harm {
+            s.push_str(&crate::do_no_harm::text(r));
         }
         s
     }

@@ -50,18 +50,9 @@ pub struct FoldReport {
     pub robot2_mean_q_deg: Vec<f64>,
 }
 
-/// The do-no-harm test of one accepted model in one fold.
-#[derive(Debug, Clone, Serialize)]
-pub struct FoldHarm {
-    /// The fold's name.
-    pub fold: String,
-    /// The model's held-out rms over nominal's in the fold.
-    pub ratio: f64,
-    /// The paired t of the per-row gains (negative: worse than nominal).
-    pub t: f64,
-    /// Worse than nominal with significance.
-    pub harmful: bool,
-}
+/// The do-no-harm test of one accepted model in one fold (calib-core's, shared with
+/// `calibrate --cell --export`).
+pub use calib_core::selection::FoldHarm;
 
 /// The model of steps `1..=step` against nominal, fold by fold.
 #[derive(Debug, Clone, Serialize)]
@@ -137,12 +128,7 @@ pub(crate) fn folds_report(d: &CellDiagnosis) -> FoldsReport {
 }
 
 fn fold_harm(name: &str, h: &RegionHarm) -> FoldHarm {
-    FoldHarm {
-        fold: name.to_string(),
-        ratio: h.ratio,
-        t: h.t,
-        harmful: h.harmful,
-    }
+    FoldHarm::new(name, h)
 }
 
 /// The rule's report of a diagnosis, fold names from `folds`.

@@ -398,6 +398,10 @@ fn main() -> std::process::ExitCode {
 
 fn run(args: Args) -> anyhow::Result<()> {
     let t0 = Instant::now();
+    // The old (file-held-out CV) choices' folders as they are when the run ends: the region
+    // protocol moves `self/`, `planes/`, `all/` to `file-cv/`, so every table labels them so.
+    let region_protocol = !args.skip_region_protocol;
+    let final_folder = |f: &str| splits::final_folder(f, region_protocol);
     if !args.data.is_dir() {
         bail!(
             "--data {}: no such folder; give the ctu-motoman dataset folder, e.g. \
@@ -525,6 +529,7 @@ fn run(args: Args) -> anyhow::Result<()> {
     )?;
     println!("self done at {:.1} s", t0.elapsed().as_secs_f64());
     let cal_self = &self_model.cal;
+    let self_exported = format!("self (exported to {}/)", final_folder("self"));
     let leica_self = by_role(&[Role::TrackerSelfContact]);
     contact_report(&cell, &self_recs, &leica_self, cal_self, &noise, &args.out)?;
     if args.contact_model == ContactModel::Face {
@@ -532,7 +537,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             &cell,
             &self_recs,
             &[
-                ("self (exported)", cal_self.chosen.spec),
+                (&self_exported, cal_self.chosen.spec),
                 (&self_model.other.name, self_model.other.spec),
                 // face_contact.py's pattern-CV choice (same set and σ, like for like).
                 (
@@ -646,6 +651,7 @@ fn run(args: Args) -> anyhow::Result<()> {
             ("planes", cal_planes),
             ("all", &cal_all),
         ],
+        region_protocol,
     )?;
     splits::print_exported(&exported);
     print_selection_split(
@@ -686,9 +692,9 @@ fn run(args: Args) -> anyhow::Result<()> {
     );
     let reference = corrections(&cal_all.chosen.fit).0;
     let mut compared: Vec<(String, KinematicErrors)> = vec![("nominal".into(), zero.clone())];
-    for c in [cal_self, cal_planes] {
+    for (folder, c) in [("self", cal_self), ("planes", cal_planes)] {
         compared.push((
-            format!("{} (exported)", c.chosen.name),
+            format!("{} (exported to {}/)", c.chosen.name, final_folder(folder)),
             corrections(&c.chosen.fit).0,
         ));
         if let Some(m) = c.marker.as_ref().filter(|m| m.name != c.chosen.name) {
@@ -699,7 +705,15 @@ fn run(args: Args) -> anyhow::Result<()> {
         compared.push((m.other.name.clone(), corrections(&m.other.fit).0));
     }
     compared.push((cal_all.with.name.clone(), corrections(&cal_all.with.fit).0));
-    proxy_report(&cell, &recordings, &reference, &compared, &args.out)?;
+    let reference_label = format!("{} ({}/)", cal_all.chosen.name, final_folder("all"));
+    proxy_report(
+        &cell,
+        &recordings,
+        &reference,
+        &reference_label,
+        &compared,
+        &args.out,
+    )?;
     if !args.skip_region_protocol {
         region_protocol_report(&cell, &recordings, &noise, &args)?;
         println!(
@@ -708,15 +722,8 @@ fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     print_effects(&cal_all.chosen);
-    let old_folder = |f: &str| {
-        if args.skip_region_protocol {
-            f.to_string()
-        } else {
-            format!("file-cv/{f}")
-        }
-    };
     for (folder, c) in [("self", &cal_self.chosen), ("planes", &cal_planes.chosen)] {
-        let folder = old_folder(folder);
+        let folder = final_folder(folder);
         println!(
             "{folder} (the file-held-out choice): {} σ {} (σ grid {}) — see {folder}/parameters.csv",
             c.spec.set.name(),

@@ -229,36 +229,66 @@ impl SplitTable {
     }
 }
 
+/// Where the folder `folder/` of an old (file-held-out CV) choice is when the run ends: the
+/// region-held-out protocol (`region_protocol` true: the study without
+/// `--skip-region-protocol`) moves `self/`, `planes/` and `all/` ([`crate::region::REGION_MODELS`])
+/// to `file-cv/NAME/` and writes its own choice in their place, so a row of the old choice is
+/// labelled `file-cv/NAME`; every other folder (`self+c/`, `planes+m/`, …) stays where it is.
+pub fn final_folder(folder: &str, region_protocol: bool) -> String {
+    if region_protocol
+        && crate::region::REGION_MODELS
+            .iter()
+            .any(|m| m.name == folder)
+    {
+        format!("file-cv/{folder}")
+    } else {
+        folder.to_string()
+    }
+}
+
 /// The folders of `out` that score-table rows were exported to, as `calibrate_all` writes them:
 /// for each `(name, calibrations)`, the chosen model to `name/`, the compliance choice to
-/// `name+c/`, the marker choice to `name+m/`. One entry per exported row (a row can own two
-/// folders: `self+c` is `self/` and `self+c/` when the rule chose it), rows and folders in that
-/// order. Fails when a folder holds no `cell.toml` (this list and the export would disagree).
+/// `name+c/`, the marker choice to `name+m/` ([`exported_rows`]).
 pub fn exported_folders(
     out: &Path,
     calibrations: &[(&str, &Calibrations)],
+    region_protocol: bool,
 ) -> anyhow::Result<Vec<(String, Vec<String>)>> {
-    let mut rows: Vec<(String, Vec<String>)> = Vec::new();
+    let mut pairs: Vec<(String, String)> = Vec::new();
     for (name, c) in calibrations {
-        let mut pairs = vec![
-            (c.chosen.name.clone(), name.to_string()),
-            (c.with.name.clone(), format!("{name}+c")),
-        ];
+        pairs.push((c.chosen.name.clone(), name.to_string()));
+        pairs.push((c.with.name.clone(), format!("{name}+c")));
         if let Some(m) = &c.marker {
             pairs.push((m.name.clone(), format!("{name}+m")));
         }
-        for (row, folder) in pairs {
-            let cell = out.join(&folder).join("cell.toml");
-            if !cell.is_file() {
-                bail!(
-                    "{}: missing, but row {row} is listed as exported to {folder}/",
-                    cell.display()
-                );
-            }
-            match rows.iter_mut().find(|r| r.0 == row) {
-                Some(r) => r.1.push(folder),
-                None => rows.push((row, vec![folder])),
-            }
+    }
+    exported_rows(out, &pairs, region_protocol)
+}
+
+/// The exported folders of score-table rows: `pairs` holds `(row, folder)` as written now (a
+/// `cell.toml` in `out/folder/`); each folder is labelled where it is when the run ends
+/// ([`final_folder`]: `file-cv/self` for the old `self/` when the region protocol runs). One
+/// entry per exported row (a row can own two folders: `self+c` is `self/` and `self+c/` when the
+/// rule chose it), rows and folders in `pairs`' order. Fails when a folder holds no
+/// `cell.toml` (this list and the export would disagree).
+pub fn exported_rows(
+    out: &Path,
+    pairs: &[(String, String)],
+    region_protocol: bool,
+) -> anyhow::Result<Vec<(String, Vec<String>)>> {
+    let mut rows: Vec<(String, Vec<String>)> = Vec::new();
+    for (row, folder) in pairs {
+        let cell = out.join(folder).join("cell.toml");
+        if !cell.is_file() {
+            bail!(
+                "{}: missing, but row {row} is listed as exported to {folder}/",
+                cell.display()
+            );
+        }
+        let label = final_folder(folder, region_protocol);
+        match rows.iter_mut().find(|r| &r.0 == row) {
+            Some(r) => r.1.push(label),
+            None => rows.push((row.clone(), vec![label])),
         }
     }
     Ok(rows)
@@ -292,8 +322,8 @@ pub fn print_exported(exported: &[(String, Vec<String>)]) {
         .flat_map(|(row, folders)| folders.iter().map(move |f| format!("{f}/ = {row}")))
         .collect();
     println!(
-        "  exported: {} (scores.csv column `exported` holds each row's first folder; the other \
-         columns were not exported)",
+        "  exported: {} (scores.csv column `exported` holds each row's first folder, where it is \
+         when the run ends; the other rows were not exported)",
         list.join(", ")
     );
 }
@@ -437,4 +467,53 @@ fn write_robustness(
     }
     println!("wrote {}, {}", path.display(), per_split.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// With the region protocol, the old choices' folders are labelled where the protocol moves
+    /// them (`file-cv/NAME`); the `+c`/`+m` folders, and every folder without the protocol, keep
+    /// their names; a folder without `cell.toml` is refused.
+    #[test]
+    fn old_choices_are_labelled_by_the_folder_they_end_in() {
+        let dir = tempfile::tempdir().unwrap();
+        for f in ["self", "self+c", "planes"] {
+            std::fs::create_dir_all(dir.path().join(f)).unwrap();
+            std::fs::write(dir.path().join(f).join("cell.toml"), "").unwrap();
+        }
+        let pairs: Vec<(String, String)> = [
+            ("self+c", "self"),
+            ("self+c", "self+c"),
+            ("planes", "planes"),
+        ]
+        .iter()
+        .map(|(r, f)| (r.to_string(), f.to_string()))
+        .collect();
+        let moved = exported_rows(dir.path(), &pairs, true).unwrap();
+        assert_eq!(
+            moved,
+            vec![
+                (
+                    "self+c".to_string(),
+                    vec!["file-cv/self".to_string(), "self+c".to_string()]
+                ),
+                ("planes".to_string(), vec!["file-cv/planes".to_string()]),
+            ]
+        );
+        assert_eq!(exported_column(&moved, "self+c"), "file-cv/self");
+        assert_eq!(exported_column(&moved, "planes+m"), "");
+        let kept = exported_rows(dir.path(), &pairs, false).unwrap();
+        assert_eq!(exported_column(&kept, "self+c"), "self");
+        assert_eq!(final_folder("all", true), "file-cv/all");
+        assert_eq!(final_folder("all+c", true), "all+c");
+        let missing = vec![("all".to_string(), "all".to_string())];
+        let e = exported_rows(dir.path(), &missing, true).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("row all is listed as exported to all/"),
+            "{e}"
+        );
+    }
 }

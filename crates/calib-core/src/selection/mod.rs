@@ -362,6 +362,32 @@ pub struct RegionHarm {
     pub harmful: bool,
 }
 
+/// The do-no-harm test of one model in one named fold, as the reports give it (`diagnose`'s
+/// `do_no_harm.steps[].folds[]`, `calibrate --cell --export`'s `do_no_harm.folds[]`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct FoldHarm {
+    /// The fold's name (`region 1`, `fold 2`, `block 3`, …).
+    pub fold: String,
+    /// The model's held-out rms over nominal's in the fold.
+    pub ratio: f64,
+    /// The paired t of the per-row gains (negative: worse than nominal).
+    pub t: f64,
+    /// Worse than nominal with significance.
+    pub harmful: bool,
+}
+
+impl FoldHarm {
+    /// The verdict `harm` of [`region_harm`] in the fold named `fold`.
+    pub fn new(fold: &str, harm: &RegionHarm) -> Self {
+        FoldHarm {
+            fold: fold.to_string(),
+            ratio: harm.ratio,
+            t: harm.t,
+            harmful: harm.harmful,
+        }
+    }
+}
+
 /// The do-no-harm test of one held-out region: `nominal_e2[i]` and `candidate_e2[i]` are the
 /// squared held-out errors (e.g. whitened residual norms²) of the same row `i` of the region
 /// under the nominal model and the candidate, each fitted without the region. The candidate is

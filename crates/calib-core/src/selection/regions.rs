@@ -21,6 +21,15 @@ use crate::Robot;
 pub const MAX_REGIONS: usize = 6;
 /// Fewest regions a region-held-out design needs (below, the caller falls back to its groups).
 pub const MIN_REGIONS: usize = 3;
+/// Fewest rows (observations) of a joint-space region of a region-held-out design
+/// (`diagnose --cv-folds regions`, `calibrate --cell`'s do-no-harm check): twelve rows are
+/// enough for the paired t of [`super::region_harm`] and, in `diagnose`, to refit a tracker
+/// frame or a plane on half of a region's piece of a group.
+pub const MIN_REGION_ROWS: usize = 12;
+/// Seed of the k-means++ draw of every region-held-out design in the workspace (`diagnose
+/// --cv-folds regions`, `calibrate --cell`'s do-no-harm check, the prediction's model-error
+/// term): one seed, so one session gets the same regions from every command.
+pub const REGION_SEED: u64 = 20;
 /// Lloyd iterations of [`joint_regions`] at most (it stops earlier when no label changes).
 const LLOYD_ITERATIONS: usize = 100;
 

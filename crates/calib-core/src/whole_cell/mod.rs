@@ -97,6 +97,12 @@
 //! to a named [`PairSet`] (the session's meeting pairs, work points, or the whole workspace:
 //! [`workspace_pairs`]), with a 95 % bound of the rms.
 //!
+//! # Do no harm ([`region_harm_check`])
+//! Before `calibrate --cell` exports, the fitted model and the nominal model (placement and
+//! nuisances only) are both fitted without each joint-space region of the session's
+//! handclasps and scored on it (`do_no_harm.rs`); a model worse than nominal with significance
+//! in any region is withheld by the caller ([`HarmCheck::harmful`]).
+//!
 //! # Design ([`greedy_design`])
 //! At nominal, the information is `A₀ = R_pᵀR_p + ε·I` on the unpenalised columns (a weak
 //! prior: σ = [`WEAK_PRIOR_SIGMA`] so that `A₀` is invertible) and each candidate `c` adds its
@@ -117,7 +123,8 @@
 //! manifold updates) ← `residuals` (residuals and analytic Jacobians, [`Evaluator`]) ← `start`
 //! (starting values) ← `solve` (Levenberg–Marquardt) ← `reduce` ← `blunders` ← `accuracy` ←
 //! `design`, `evidence` (the prior scales from the evidence), `calibrate` (the one call) ←
-//! `prediction` (the predicted error) ← `report` (its file-unit report); beside them, `coverage` (the joint ranges and tool-point
+//! `prediction` (the predicted error), `do_no_harm` (the region-held-out check against nominal) ←
+//! `report` (its file-unit report); beside them, `coverage` (the joint ranges and tool-point
 //! region a session covers against the limits and the reach), the result check (`check`: noise
 //! scale, placement against the stated one, layout shape; `mistakes`: likely data mistakes
 //! tried; `misfit`: blunders or model misfit) and `validate` (a held cell scored on observations
@@ -130,6 +137,7 @@ mod cell;
 mod check;
 mod coverage;
 mod design;
+mod do_no_harm;
 mod evidence;
 mod layout;
 mod misfit;
@@ -170,6 +178,10 @@ pub use coverage::{
 pub use design::{
     design_criterion, design_prediction, design_split, greedy_design, DesignCriterion,
     DesignPrediction, DesignResult, PLACEMENT_DRAWS, WEAK_PRIOR_SIGMA,
+};
+pub use do_no_harm::{
+    region_harm_check, HarmCheck, HarmDesign, HarmFold, FALLBACK_BLOCKS, MIN_BLOCK_ROWS,
+    MIN_HARM_REGION_ROWS,
 };
 pub use evidence::{
     format_scale, prior_family, FamilyScale, PriorScaleChoice, ScaleMethod, FAMILY_EVIDENCE_MARGIN,

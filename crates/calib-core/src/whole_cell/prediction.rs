@@ -52,22 +52,27 @@ use super::accuracy::{summarise_covariances, ConfigPair};
 use super::calibrate::CellCalibration;
 use super::solve::sym_inverse;
 use super::{CellEstimate, CellFitError, CellProblem, Evaluator, ParamLayout};
+use crate::selection::regions::{joint_features, joint_regions, REGION_SEED};
 use crate::stats::{chi2_quantile_real, chi2_sf_real, quantile, trial_rng};
 
 /// Significance of the region-held-out residuals' excess over what the fit predicts below
 /// which a model-error term is added (upper tail of `Σ_c t_c²` under the model).
 pub const MODEL_ERROR_ALPHA: f64 = 0.05;
 
-/// Regions the model-error test holds out in turn ([`region_labels`]): clusters in joint space,
-/// as issue 20's region-held-out cross-validation holds them out.
+/// Regions the model-error test holds out in turn at most ([`region_labels`]): clusters in
+/// joint space, as issue 20's region-held-out cross-validation holds them out. Five: the
+/// README's 40-row session gives five regions of about eight observations, each far enough
+/// from the rest that holding it out measures extrapolation, while each still leaves four
+/// fifths of the data to predict it (more regions tend to leave-one-out, which measures
+/// interpolation; fewer leave blocks whose prediction rests on too little data).
 pub const HELD_OUT_REGIONS: usize = 5;
 
-/// Observations per held-out region at the least on average; a session with fewer than two
-/// regions' worth holds out each observation alone.
+/// Fewest observations in a held-out region ([`joint_regions`]' minimum size): four
+/// observations are at least 12 residual rows (a coincident row has 3), enough for the
+/// region's `M_cc` to carry several directions the rest of the data predict; a session with
+/// fewer than [`crate::selection::regions::MIN_REGIONS`] such regions holds out each
+/// observation alone.
 pub const MIN_OBSERVATIONS_PER_REGION: usize = 4;
-
-/// Lloyd iterations of the regions' k-means at the most.
-const KMEANS_ITERATIONS: usize = 50;
 
 /// Relative eigenvalue of a held-out region's `M_cc` below which its direction is not
 /// predicted by the rest of the data (dropped from the test; round-off level).
@@ -368,118 +373,23 @@ fn quadratic_form_quantile(p: f64, mean: f64, var: f64) -> f64 {
     }
 }
 
-/// The region of each of `active`'s observations (in `active`'s order), `0..k`: the observations
-/// clustered by k-means in joint space (each joint over its limits' span, so every joint
-/// counts alike; a joint without limits over 2π; an observation of one robot takes the other
-/// robot's mean joints), `k` = [`HELD_OUT_REGIONS`] or fewer so that a region holds
-/// [`MIN_OBSERVATIONS_PER_REGION`] observations on average; with fewer than two regions'
-/// worth, each observation is its own region (leave-one-out). Deterministic: the first centre
-/// is the observation nearest the mean, each next one the farthest from the centres so far.
+/// The region of each of `active`'s observations (in `active`'s order), `0..k`: the regions of
+/// region-held-out cross-validation ([`joint_regions`] on [`joint_features`], the one
+/// clustering `diagnose --cv-folds regions` uses), at most [`HELD_OUT_REGIONS`] of at least
+/// [`MIN_OBSERVATIONS_PER_REGION`] observations each, seed [`REGION_SEED`]. A session too
+/// small (or too alike) for [`crate::selection::regions::MIN_REGIONS`] such regions holds out
+/// each observation alone (leave-one-out).
 pub(crate) fn region_labels(problem: &CellProblem, active: &[usize]) -> Vec<usize> {
-    let n = active.len();
-    let k = HELD_OUT_REGIONS.min(n / MIN_OBSERVATIONS_PER_REGION);
-    if k < 2 {
-        return (0..n).collect();
+    let features = joint_features(problem, active);
+    match joint_regions(
+        &features,
+        MIN_OBSERVATIONS_PER_REGION,
+        HELD_OUT_REGIONS,
+        REGION_SEED,
+    ) {
+        Some(regions) => regions.labels,
+        None => (0..active.len()).collect(),
     }
-    let spans = |r: &super::CellRobot| -> Vec<f64> {
-        r.model
-            .joints()
-            .iter()
-            .map(|j| {
-                if j.lower.is_finite() && j.upper.is_finite() && j.upper > j.lower {
-                    j.upper - j.lower
-                } else {
-                    std::f64::consts::TAU
-                }
-            })
-            .collect()
-    };
-    let (s1, s2) = (spans(&problem.robot1), spans(&problem.robot2));
-    let dim = s1.len() + s2.len();
-    let mut x: Vec<Vec<Option<f64>>> = Vec::with_capacity(n);
-    for &i in active {
-        let mut v = vec![None; dim];
-        for (robot, q) in problem.observations[i].kind.joints() {
-            let (off, sp) = match robot {
-                crate::Robot::One => (0, &s1),
-                crate::Robot::Two => (s1.len(), &s2),
-            };
-            for (j, (&qj, &s)) in q.iter().zip(sp.iter()).enumerate() {
-                v[off + j] = Some(qj / s);
-            }
-        }
-        x.push(v);
-    }
-    let means: Vec<f64> = (0..dim)
-        .map(|d| {
-            let vals: Vec<f64> = x.iter().filter_map(|v| v[d]).collect();
-            if vals.is_empty() {
-                0.0
-            } else {
-                vals.iter().sum::<f64>() / vals.len() as f64
-            }
-        })
-        .collect();
-    let pts: Vec<Vec<f64>> = x
-        .iter()
-        .map(|v| v.iter().zip(&means).map(|(a, m)| a.unwrap_or(*m)).collect())
-        .collect();
-    let d2 = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(p, q)| (p - q).powi(2)).sum::<f64>();
-    let nearest = |p: &[f64], centres: &[Vec<f64>]| -> (usize, f64) {
-        centres
-            .iter()
-            .enumerate()
-            .map(|(c, m)| (c, d2(p, m)))
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .unwrap_or((0, 0.0))
-    };
-    let first = (0..n)
-        .min_by(|&a, &b| d2(&pts[a], &means).total_cmp(&d2(&pts[b], &means)))
-        .unwrap_or(0);
-    let mut centres = vec![pts[first].clone()];
-    while centres.len() < k {
-        let far = (0..n)
-            .max_by(|&a, &b| {
-                nearest(&pts[a], &centres)
-                    .1
-                    .total_cmp(&nearest(&pts[b], &centres).1)
-            })
-            .unwrap_or(0);
-        centres.push(pts[far].clone());
-    }
-    let mut labels = vec![0; n];
-    for _ in 0..KMEANS_ITERATIONS {
-        let new: Vec<usize> = pts.iter().map(|p| nearest(p, &centres).0).collect();
-        let changed = new != labels;
-        labels = new;
-        for (c, centre) in centres.iter_mut().enumerate() {
-            let members: Vec<&Vec<f64>> = pts
-                .iter()
-                .zip(&labels)
-                .filter(|(_, &l)| l == c)
-                .map(|(p, _)| p)
-                .collect();
-            if !members.is_empty() {
-                for (d, v) in centre.iter_mut().enumerate() {
-                    *v = members.iter().map(|p| p[d]).sum::<f64>() / members.len() as f64;
-                }
-            }
-        }
-        if !changed {
-            break;
-        }
-    }
-    // Number the regions that hold observations 0.. in order of first appearance.
-    let mut map = vec![usize::MAX; k];
-    let mut next = 0;
-    for l in &mut labels {
-        if map[*l] == usize::MAX {
-            map[*l] = next;
-            next += 1;
-        }
-        *l = map[*l];
-    }
-    labels
 }
 
 /// The predicted cooperative error over a [`PairSet`] (m): its rms split into parts, its p95

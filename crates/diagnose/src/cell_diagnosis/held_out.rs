@@ -253,8 +253,8 @@ pub(crate) fn held_out_units(problem: &CellProblem, rows: &[usize]) -> Vec<Vec<u
 }
 
 /// Fewest rows of a joint-space region of the `--cv-folds regions` design
-/// ([`super::FoldDesign::JointRegions`]).
-pub const MIN_REGION_ROWS: usize = 12;
+/// ([`super::FoldDesign::JointRegions`]): the workspace's one value.
+pub use calib_core::selection::regions::MIN_REGION_ROWS;
 
 /// One fold of a design, as the report names it.
 #[derive(Debug, Clone)]

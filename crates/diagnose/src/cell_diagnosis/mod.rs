@@ -122,8 +122,8 @@ pub enum FoldDesign {
     Groups,
 }
 
-/// Seed of the k-means++ draw of [`FoldDesign::JointRegions`].
-pub const REGION_SEED: u64 = 20;
+/// Seed of the k-means++ draw of [`FoldDesign::JointRegions`] (the workspace's one region seed).
+pub use calib_core::selection::regions::REGION_SEED;
 
 /// Options of [`diagnose_cell_session`] (defaults in parentheses).
 #[derive(Debug, Clone)]
