@@ -105,6 +105,25 @@ pub struct CellDiagnoseReport {
     /// serialised).
     #[serde(skip)]
     pub export_estimate: CellEstimate,
+    /// The fit `export_estimate` comes from, with its problem (the diagnosis's: tolerances ×
+    /// [`Self::prior_widening`], each kind's σ scaled by its noise level, the rows used): what
+    /// the verdict at the work site of the exported model is predicted from (not serialised).
+    #[serde(skip)]
+    pub export_model: FittedModel,
+    /// The same for the full model (`final_estimate`: every named family, what
+    /// `diagnose --export --force` writes; not serialised).
+    #[serde(skip)]
+    pub full_model: FittedModel,
+}
+
+/// One model of the diagnosis fitted on the rows used: its problem (the diagnosis's,
+/// restricted to the rows used, with the model's families free) and its fit, SI.
+#[derive(Debug, Clone)]
+pub struct FittedModel {
+    /// The problem the fit is of (its observations are the rows used, renumbered).
+    pub problem: CellProblem,
+    /// The fit, with its posterior covariance.
+    pub fit: CellFit,
 }
 
 /// A laser tracker's largest credible scale error, ppm. Leica's AT960 states a maximum
@@ -749,6 +768,14 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
         folds,
         do_no_harm,
         export_estimate: d.safe_fit.1.estimate.clone(),
+        export_model: FittedModel {
+            problem: d.safe_fit.0.clone(),
+            fit: d.safe_fit.1.clone(),
+        },
+        full_model: FittedModel {
+            problem: d.final_fit.0.clone(),
+            fit: d.final_fit.1.clone(),
+        },
         mode: "whole_cell",
         rows_by_kind: KINDS
             .iter()
