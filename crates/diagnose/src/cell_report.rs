@@ -116,6 +116,21 @@ pub struct CellDiagnoseReport {
     pub full_model: FittedModel,
 }
 
+impl CellDiagnoseReport {
+    /// The do-no-harm warning the CLI prints after `warning:` when the rule withholds families
+    /// ([`crate::do_no_harm::DoNoHarmReport::warning`], the folds named as this report's
+    /// design names them), `keep` the way to export the full model (`--force` in the CLI);
+    /// `None` when nothing is withheld.
+    pub fn do_no_harm_warning(&self, keep: &str) -> Option<String> {
+        let fold_word = if self.folds.design == crate::cell_diagnosis::FoldDesign::JointRegions {
+            "region"
+        } else {
+            "fold"
+        };
+        self.do_no_harm.warning(fold_word, keep)
+    }
+}
+
 /// One model of the diagnosis fitted on the rows used: its problem (the diagnosis's,
 /// restricted to the rows used, with the model's families free) and its fit, SI.
 #[derive(Debug, Clone)]
@@ -738,32 +753,12 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
     let (mut warnings, notes) = findings(d, &effects, options, step_cap_hit);
     let folds = crate::do_no_harm::folds_report(d);
     let do_no_harm = crate::do_no_harm::do_no_harm_report(d, &folds);
-    if do_no_harm.withholds() {
-        warnings.push(format!(
-            "do no harm: --export withholds {} (the model with them is worse than nominal on \
-             held-out {}s; see \"Do no harm\" in the report) and exports {}; --force exports \
-             the full model",
-            do_no_harm
-                .withheld
-                .iter()
-                .map(|w| w.family.as_str())
-                .collect::<Vec<_>>()
-                .join(", "),
-            if d.fold_design.0 == crate::cell_diagnosis::FoldDesign::JointRegions {
-                "region"
-            } else {
-                "fold"
-            },
-            if do_no_harm.exported_families.is_empty() {
-                "the placement only".to_string()
-            } else {
-                format!(
-                    "the placement and {}",
-                    do_no_harm.exported_families.join(", ")
-                )
-            }
-        ));
-    }
+    let fold_word = if d.fold_design.0 == crate::cell_diagnosis::FoldDesign::JointRegions {
+        "region"
+    } else {
+        "fold"
+    };
+    warnings.extend(do_no_harm.warning(fold_word, "--force"));
     CellDiagnoseReport {
         folds,
         do_no_harm,
