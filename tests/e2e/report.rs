@@ -145,6 +145,27 @@ fn check_in_browser(chromium: &Path, page: &Path, name: &str, min_plots: usize, 
     );
 }
 
+/// Two work points of `cell` written as `dir/work.csv`: its teach centre, and 100 mm from it
+/// along x and −z.
+fn write_work_points(dir: &Path, cell: &Cell) -> PathBuf {
+    let c = cell.centre_b1 * 1e3;
+    let work = dir.join("work.csv");
+    std::fs::write(
+        &work,
+        format!(
+            "x_mm,y_mm,z_mm\n{},{},{}\n{},{},{}\n",
+            c.x,
+            c.y,
+            c.z,
+            c.x + 100.0,
+            c.y,
+            c.z - 100.0
+        ),
+    )
+    .unwrap();
+    work
+}
+
 /// `calibrate --cell … --report` on a simulated session with two work points and an
 /// acceptance: the page renders in Chromium with its six plots (residual per row, against each
 /// robot's joints, coverage, per work point, the predicted-error map over the workspace) and
@@ -159,21 +180,7 @@ fn calibration_report_renders_in_chromium() {
     let cell = Cell::from_toml_file(&cell_path).expect("cell loads");
     let session = random_session(&cell, 20, 41);
     let session_path = write_session_csv(dir.path(), "session.csv", &session, &cell);
-    let c = cell.centre_b1 * 1e3;
-    let work = dir.path().join("work.csv");
-    std::fs::write(
-        &work,
-        format!(
-            "x_mm,y_mm,z_mm\n{},{},{}\n{},{},{}\n",
-            c.x,
-            c.y,
-            c.z,
-            c.x + 100.0,
-            c.y,
-            c.z - 100.0
-        ),
-    )
-    .unwrap();
+    let work = write_work_points(dir.path(), &cell);
     let page = dir.path().join("report.html");
     let args = |accept_mm: &str, extra: &[&str]| {
         let mut a = vec![
@@ -252,21 +259,7 @@ fn diagnosis_report_renders_in_chromium() {
     )
     .expect("session");
     let session_path = write_session_csv(dir.path(), "mixed.csv", &s, &cell);
-    let c = cell.centre_b1 * 1e3;
-    let work = dir.path().join("work.csv");
-    std::fs::write(
-        &work,
-        format!(
-            "x_mm,y_mm,z_mm\n{},{},{}\n{},{},{}\n",
-            c.x,
-            c.y,
-            c.z,
-            c.x + 100.0,
-            c.y,
-            c.z - 100.0
-        ),
-    )
-    .unwrap();
+    let work = write_work_points(dir.path(), &cell);
     let page = dir.path().join("diagnosis.html");
     let run = |accept_mm: &str| {
         let out = handclasp(&cell_session_args(
