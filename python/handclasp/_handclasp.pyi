@@ -149,9 +149,20 @@ class DiagnoseResult:
         """"coincident" or "whole_cell"."""
     @property
     def b1_from_b2(self) -> _F64: ...
-    def export(self, dir: _Path, overwrite: bool = False, force: bool = False) -> List[str]:
+    def export(
+        self,
+        dir: _Path,
+        overwrite: bool = False,
+        force: bool = False,
+        keep_withheld: bool = False,
+    ) -> List[str]:
         """Write the corrected model (diagnose --export), under the CLI's export lock; a
-        non-empty folder needs overwrite=True (force=True is refused)."""
+        non-empty folder needs overwrite=True (force=True is refused).
+
+        Whole-cell diagnoses write the do-no-harm rule's model and, when the rule withholds
+        families, issue a UserWarning naming each and why (the CLI's `warning: do no harm: ...`);
+        keep_withheld=True writes the full model (the CLI's --export --force) and warns that it
+        did. Coincident diagnoses have no such rule (keep_withheld changes nothing)."""
     def text(self) -> str: ...
     def to_json(self) -> str: ...
     def to_dict(self) -> Dict[str, Any]:

@@ -250,14 +250,7 @@ pub fn calibrate_cell(
             ""
         };
         for m in &check.messages {
-            let text = std::ffi::CString::new(format!("{kept}{m}").replace('\0', " "))
-                .map_err(|e| value_error(e.to_string()))?;
-            PyErr::warn(
-                py,
-                &py.get_type::<pyo3::exceptions::PyUserWarning>(),
-                &text,
-                1,
-            )?;
+            crate::errors::user_warning(py, &format!("{kept}{m}"))?;
         }
     }
     let json = serde_json::to_string_pretty(&calibrated.report)
@@ -310,20 +303,47 @@ impl DiagnoseResult {
     /// folder lock: a non-empty folder raises `FileExistsError` unless `overwrite`
     /// (`--overwrite`); `force=True` no longer overwrites (`ValueError`). Returns the files
     /// written.
-    #[pyo3(signature = (dir, overwrite=false, force=false))]
+    ///
+    /// Whole-cell diagnoses: the do-no-harm rule's model, as the CLI writes it; when the rule
+    /// withholds families, a `UserWarning` says which and why (the CLI's `warning: do no harm:
+    /// …` line, then one line per withheld family with the held-out folds where the model
+    /// with it is worse than nominal). `keep_withheld=True` writes the full model, the
+    /// withheld families included (the CLI's `--export --force`), and warns that it did.
+    /// Coincident diagnoses have no such rule: `keep_withheld` changes nothing.
+    #[pyo3(signature = (dir, overwrite=false, force=false, keep_withheld=false))]
     fn export(
         &self,
         py: Python<'_>,
         dir: PathBuf,
         overwrite: bool,
         force: bool,
+        keep_withheld: bool,
     ) -> PyResult<Vec<String>> {
-        locked_export(py, &dir, overwrite, force, || match &self.diagnosis {
+        let files = locked_export(py, &dir, overwrite, force, || match &self.diagnosis {
             Diagnosis::Coincident(r) => {
                 ::diagnose::export_corrected(&self.cell, r, &r.b1_from_b2.to_isometry(), &dir)
             }
-            Diagnosis::WholeCell(r) => ::diagnose::export_cell_diagnosis(&self.cell, r, &dir),
-        })
+            Diagnosis::WholeCell(r) => {
+                ::diagnose::export_cell_diagnosis_with(&self.cell, r, &dir, keep_withheld)
+            }
+        })?;
+        if let Diagnosis::WholeCell(r) = &self.diagnosis {
+            if let Some(warning) = r.do_no_harm_warning("keep_withheld=True") {
+                let text = if keep_withheld {
+                    format!(
+                        "kept by keep_withheld=True: {} holds the full model, families the \
+                         do-no-harm rule withholds included ({warning})",
+                        dir.display()
+                    )
+                } else {
+                    let mut lines = vec![warning];
+                    lines.extend(r.do_no_harm.withheld_lines());
+                    lines.join("\n  ")
+                };
+                crate::errors::user_warning(py, &text)?;
+            }
+        }
+        Ok(files)
     }
 
     /// The CLI's text report.

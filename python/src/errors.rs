@@ -9,7 +9,7 @@ use pyo3::exceptions::{
     PyException, PyFileExistsError, PyFileNotFoundError, PyIsADirectoryError, PyOSError,
     PyPermissionError, PyValueError,
 };
-use pyo3::PyErr;
+use pyo3::{PyErr, PyResult, Python};
 
 create_exception!(
     handclasp,
@@ -107,4 +107,19 @@ pub fn refusal_error(
 /// `ValueError(message)`.
 pub fn value_error(message: impl Into<String>) -> PyErr {
     PyValueError::new_err(message.into())
+}
+
+/// Issues `message` as a Python `UserWarning` (a NUL in it becomes a space), attributed to
+/// the caller's line.
+///
+/// Errors: the warning filter turned it into an exception (`-W error`).
+pub fn user_warning(py: Python<'_>, message: &str) -> PyResult<()> {
+    let text = std::ffi::CString::new(message.replace('\0', " "))
+        .map_err(|e| value_error(e.to_string()))?;
+    PyErr::warn(
+        py,
+        &py.get_type::<pyo3::exceptions::PyUserWarning>(),
+        &text,
+        1,
+    )
 }

@@ -66,3 +66,53 @@ def test_diagnose_same_report_as_the_cli(cell, cell_path, data, cli_json, cli, n
     files = d.export(tmp_path / "diag")
     assert files and all(os.path.exists(f) for f in files)
     assert d.b1_from_b2.shape == (4, 4)
+
+
+def test_diagnosis_export_says_what_it_withholds_and_keeps_it_on_request(
+    cell, cell_path, data, cli_json, cli, tmp_path
+):
+    """Diagnosis.export writes the do-no-harm model as `diagnose --export` does and warns of
+    every withheld family in the CLI's words; keep_withheld=True writes what `--export --force`
+    writes (the full model), file for file."""
+    import warnings
+
+    path = data / "mixed.csv"
+    d = hc.diagnose(cell, hc.Session.load(path, cell))
+    withheld = [w["family"] for w in d.to_dict()["do_no_harm"]["withheld"]]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        safe = d.export(tmp_path / "safe")
+    said = [str(w.message) for w in caught if issubclass(w.category, UserWarning)]
+    no_harm = [m for m in said if m.startswith("do no harm: --export withholds")]
+    if withheld:
+        assert len(no_harm) == 1, said
+        assert all(f in no_harm[0] for f in withheld), no_harm
+        assert "keep_withheld=True exports the full model" in no_harm[0]
+    else:
+        assert no_harm == [], said
+    rc, _, err = cli(
+        "diagnose", "--cell", cell_path, "--session", path, "--export", tmp_path / "cli-safe"
+    )
+    assert rc == 0, err
+    if withheld:
+        assert "warning: do no harm: --export withholds" in err
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        full = d.export(tmp_path / "full", keep_withheld=True)
+    kept = [str(w.message) for w in caught if "kept by keep_withheld=True" in str(w.message)]
+    assert len(kept) == (1 if withheld else 0), [str(w.message) for w in caught]
+    rc, _, err = cli(
+        "diagnose", "--cell", cell_path, "--session", path, "--export", tmp_path / "cli-full",
+        "--force",
+    )
+    assert rc == 0, err
+    for ours, cli_dir in [(safe, "cli-safe"), (full, "cli-full")]:
+        names = sorted(os.path.basename(f) for f in ours)
+        assert names == sorted(os.listdir(tmp_path / cli_dir))
+        for f in ours:
+            if f.endswith(".toml"):
+                continue  # names its own folder's URDFs
+            with open(f, encoding="utf-8") as a, open(
+                tmp_path / cli_dir / os.path.basename(f), encoding="utf-8"
+            ) as b:
+                assert a.read() == b.read(), f

@@ -226,6 +226,32 @@ fn diagnose_text_and_export() {
     );
 }
 
+/// The verdict at the work site needs the whole-cell diagnosis (its exported model has a
+/// posterior): on a session of coincident handclasps `--accept-mm`, `--accept-deg` and
+/// `--work-points` are refused naming why and what gives the verdict, and a bad acceptance is
+/// refused before anything runs.
+#[test]
+fn diagnose_refuses_a_verdict_on_a_coincident_session() {
+    let dir = tempfile::tempdir().unwrap();
+    let session = write_session(dir.path(), 0.0, 20, 17);
+    for extra in [&["--accept-mm", "1"][..], &["--accept-deg", "0.1"]] {
+        let out = handclasp(&diagnose_args(&session, extra));
+        assert!(!out.status.success(), "{extra:?} must be refused");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("coincident rows only") && err.contains("calibrate --cell"),
+            "{err}"
+        );
+    }
+    let out = handclasp(&diagnose_args(&session, &["--accept-mm", "0"]));
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("--accept-mm"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 #[test]
 fn diagnose_rejects_bad_sessions_with_the_fix() {
     let dir = tempfile::tempdir().unwrap();

@@ -145,6 +145,27 @@ fn check_in_browser(chromium: &Path, page: &Path, name: &str, min_plots: usize, 
     );
 }
 
+/// Two work points of `cell` written as `dir/work.csv`: its teach centre, and 100 mm from it
+/// along x and −z.
+fn write_work_points(dir: &Path, cell: &Cell) -> PathBuf {
+    let c = cell.centre_b1 * 1e3;
+    let work = dir.join("work.csv");
+    std::fs::write(
+        &work,
+        format!(
+            "x_mm,y_mm,z_mm\n{},{},{}\n{},{},{}\n",
+            c.x,
+            c.y,
+            c.z,
+            c.x + 100.0,
+            c.y,
+            c.z - 100.0
+        ),
+    )
+    .unwrap();
+    work
+}
+
 /// `calibrate --cell … --report` on a simulated session with two work points and an
 /// acceptance: the page renders in Chromium with its six plots (residual per row, against each
 /// robot's joints, coverage, per work point, the predicted-error map over the workspace) and
@@ -159,21 +180,7 @@ fn calibration_report_renders_in_chromium() {
     let cell = Cell::from_toml_file(&cell_path).expect("cell loads");
     let session = random_session(&cell, 20, 41);
     let session_path = write_session_csv(dir.path(), "session.csv", &session, &cell);
-    let c = cell.centre_b1 * 1e3;
-    let work = dir.path().join("work.csv");
-    std::fs::write(
-        &work,
-        format!(
-            "x_mm,y_mm,z_mm\n{},{},{}\n{},{},{}\n",
-            c.x,
-            c.y,
-            c.z,
-            c.x + 100.0,
-            c.y,
-            c.z - 100.0
-        ),
-    )
-    .unwrap();
+    let work = write_work_points(dir.path(), &cell);
     let page = dir.path().join("report.html");
     let args = |accept_mm: &str, extra: &[&str]| {
         let mut a = vec![
@@ -226,8 +233,11 @@ fn calibration_report_renders_in_chromium() {
     );
 }
 
-/// `diagnose … --report` on a mixed session (the whole-cell diagnosis): the page renders with
-/// its plots and the diagnosis's headline.
+/// `diagnose … --report` on a mixed session (the whole-cell diagnosis) with two work points
+/// and an acceptance: the page renders with its plots, the verdict at the work site first (for
+/// the model `--export` writes, named on the page), then the diagnosis's own box; the JSON
+/// carries the same verdict (`work_site`) and model (`work_site_model`); an acceptance far
+/// below the prediction is FAIL on the page and in the JSON.
 #[test]
 fn diagnosis_report_renders_in_chromium() {
     let Some(chromium) = chromium_or_skip() else {
@@ -249,20 +259,61 @@ fn diagnosis_report_renders_in_chromium() {
     )
     .expect("session");
     let session_path = write_session_csv(dir.path(), "mixed.csv", &s, &cell);
+    let work = write_work_points(dir.path(), &cell);
     let page = dir.path().join("diagnosis.html");
-    let out = handclasp(&cell_session_args(
-        "diagnose",
-        &cell_path,
-        &session_path,
-        &["--report", page.to_str().unwrap(), "--json"],
-    ));
-    assert_success(&out);
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let run = |accept_mm: &str| {
+        let out = handclasp(&cell_session_args(
+            "diagnose",
+            &cell_path,
+            &session_path,
+            &[
+                "--report",
+                page.to_str().unwrap(),
+                "--work-points",
+                work.to_str().unwrap(),
+                "--accept-mm",
+                accept_mm,
+                "--json",
+            ],
+        ));
+        assert_success(&out);
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        v
+    };
+    let v = run("50");
+    // A 24-row session of this cell predicts well under a millimetre: 50 mm passes.
+    assert_eq!(v["work_site"]["verdict"], "pass", "{v}");
+    assert_eq!(v["work_site"]["points"].as_array().unwrap().len(), 2);
+    let model = v["work_site_model"]["model"].as_str().unwrap().to_string();
+    let withholds = !v["do_no_harm"]["withheld"].as_array().unwrap().is_empty();
+    assert_eq!(model, if withholds { "do_no_harm" } else { "full" }, "{v}");
+    assert_eq!(
+        v["work_site_model"]["families"], v["do_no_harm"]["exported_families"],
+        "the verdict is for the families the export keeps: {v}"
+    );
     let named = v["effects"].as_array().unwrap().len();
     let headline = match named {
         0 => "NO CAUSE NAMED".to_string(),
         1 => "1 CAUSE NAMED".to_string(),
         n => format!("{n} CAUSES NAMED"),
     };
-    check_in_browser(&chromium, &page, "diagnosis", 1, &headline);
+    // Plots: the before/after bars and the two work points' bars at least.
+    check_in_browser(&chromium, &page, "diagnosis", 2, "PASS");
+    let dom = dump_dom(&chromium, &page);
+    let verdict_at = dom.find("id=\"verdict\"").expect("the verdict box");
+    let diagnosis_at = dom
+        .find(&format!("data-diagnosis=\"{headline}\""))
+        .expect("the diagnosis's own box, with its headline");
+    assert!(
+        verdict_at < diagnosis_at,
+        "the verdict comes first on the page"
+    );
+    assert!(
+        dom.contains(&format!("data-model=\"{model}\"")),
+        "the page says which model the verdict is for"
+    );
+
+    let v = run("0.001");
+    assert_eq!(v["work_site"]["verdict"], "fail", "{v}");
+    check_in_browser(&chromium, &page, "diagnosis-fail", 2, "FAIL");
 }

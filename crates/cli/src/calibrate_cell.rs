@@ -32,7 +32,8 @@ use cli_support::result_check::ScreenMode;
 use handclasp_cell::{export_calibrated_cell, Cell, Session, CALIBRATE_EXPORT_NAMES};
 use report::{
     calibration_page, joint_coverage, predict_work_site, read_work_points, row_residuals,
-    workspace_map, Acceptance, CalibrationPage, MeetingPairsAccuracy, WorkSiteReport,
+    work_site_points, workspace_map, Acceptance, CalibrationPage, MeetingPairsAccuracy,
+    WorkSiteReport,
 };
 use serde::Serialize;
 
@@ -276,32 +277,13 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         || args.accept_mm.is_some()
         || args.accept_deg.is_some();
     let work_site = if wants_work_site {
-        let (points, source) = match (&work_points, &args.work_points) {
-            (Some(points), Some(path)) => (
-                points.clone(),
-                format!("{} points of {}", points.len(), path.display()),
-            ),
-            _ => {
-                let c = cell.centre_b1 * 1e3;
-                (
-                    vec![cell.centre_b1],
-                    format!(
-                        "the cell's teach centre ({:.1}, {:.1}, {:.1}) mm in base 1",
-                        c.x, c.y, c.z
-                    ),
-                )
-            }
-        };
+        let file = args.work_points.as_deref().zip(work_points.as_deref());
+        let (points, source) = work_site_points(&cell, file);
         let w = predict_work_site(
             &cell, &problem, &cal, &points, &source, acceptance, P95_SEED,
         )
         .context("the verdict at the work site")?;
-        for u in &w.unreachable {
-            eprintln!(
-                "warning: work point row {} ({:.1}, {:.1}, {:.1} mm) is not predicted: {}",
-                u.row, u.p_b1_mm[0], u.p_b1_mm[1], u.p_b1_mm[2], u.why
-            );
-        }
+        crate::report_page::warn_unreachable(&w);
         Some(w)
     } else {
         None
@@ -412,15 +394,7 @@ impl CellReportWithSite {
     fn text(&self) -> String {
         let mut s = render_text(&self.report);
         if let Some(w) = &self.work_site {
-            s.push_str(&format!(
-                "predicted cooperative accuracy at the work site ({}): rms {:.3} mm, p95 {:.3} mm (95 % interval {:.3}–{:.3} mm)\n",
-                w.source,
-                w.predicted_rms_mm,
-                w.predicted_p95_mm,
-                w.predicted_p95_ci_mm[0],
-                w.predicted_p95_ci_mm[1]
-            ));
-            s.push_str(&format!("verdict: {}: {}\n", w.verdict.headline(), w.why));
+            s.push_str(&crate::report_page::work_site_text(w));
         }
         if let Some(r) = &self.do_no_harm {
             s.push_str(&crate::do_no_harm::text(r));

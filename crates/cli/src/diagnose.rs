@@ -12,6 +12,11 @@ use cli_support::result_check::ScreenMode;
 use diagnose::DiagnoseOptions;
 use handclasp_cell::Cell;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use report::{
+    diagnosis_work_site, read_work_points, work_site_points, Acceptance, VerdictModel,
+    WorkSiteReport,
+};
+use serde::Serialize;
 
 /// Arguments of `handclasp diagnose`.
 #[derive(clap::Args, Debug)]
@@ -83,10 +88,70 @@ pub struct Args {
     /// tracker or plane rows; the result check before the diagnosis uses it too).
     #[arg(long, value_enum, default_value = "auto")]
     pub screen: crate::calibrate_cell::ScreenArg,
-    /// Write a self-contained HTML page here (the named causes with their gain, before and
-    /// after, held out; the rejected families; plots), to open in a browser.
+    /// Write a self-contained HTML page here (sessions with contact, tracker or plane rows:
+    /// the verdict at the work site first; the named causes with their gain, before and after,
+    /// held out; the rejected families; plots), to open in a browser.
     #[arg(long, value_name = "FILE.html")]
     pub report: Option<PathBuf>,
+    /// Sessions with contact, tracker or plane rows: the work site, a CSV of tool positions in
+    /// base 1 (header x_mm,y_mm,z_mm) where the robots will work together; the verdict
+    /// predicts the accuracy of the model --export writes there (default: the cell's `[teach]`
+    /// centre).
+    #[arg(long, value_name = "FILE.csv")]
+    pub work_points: Option<PathBuf>,
+    /// Sessions with contact, tracker or plane rows: the largest cooperative position error the
+    /// job accepts at the work site, mm (PASS when the predicted p95's 95 % interval lies below
+    /// it), for the model --export writes.
+    #[arg(long, value_name = "MM")]
+    pub accept_mm: Option<f64>,
+    /// Sessions with contact, tracker or plane rows: the largest rotation error of b1_from_b2
+    /// the job accepts, degrees (PASS when the predicted p95's 95 % interval lies below it).
+    #[arg(long, value_name = "DEG")]
+    pub accept_deg: Option<f64>,
+}
+
+impl Args {
+    /// Whether the verdict at the work site is asked for (`--report`, `--work-points`,
+    /// `--accept-mm` or `--accept-deg`).
+    fn wants_work_site(&self) -> bool {
+        self.report.is_some()
+            || self.work_points.is_some()
+            || self.accept_mm.is_some()
+            || self.accept_deg.is_some()
+    }
+}
+
+/// The verdict options, read and checked before the diagnosis runs: the acceptance and the
+/// work points (m, base 1) of `--work-points`.
+struct WorkSiteInputs {
+    acceptance: Acceptance,
+    points: Option<Vec<nalgebra::Point3<f64>>>,
+}
+
+impl WorkSiteInputs {
+    fn read(args: &Args) -> anyhow::Result<Self> {
+        let acceptance = Acceptance::new(args.accept_mm, args.accept_deg)
+            .context("--accept-mm / --accept-deg")?;
+        let points = args
+            .work_points
+            .as_ref()
+            .map(|path| read_work_points(path).context("--work-points"))
+            .transpose()?;
+        Ok(WorkSiteInputs { acceptance, points })
+    }
+}
+
+/// The whole-cell diagnosis's JSON: its report with, when asked for, the verdict at the work
+/// site (`work_site`, as `calibrate --cell` gives it) and which model it is for
+/// (`work_site_model`), after the report's own keys.
+#[derive(Serialize)]
+struct CellDiagnosisWithSite<'a> {
+    #[serde(flatten)]
+    report: &'a diagnose::CellDiagnoseReport,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    work_site: Option<&'a WorkSiteReport>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    work_site_model: Option<&'a VerdictModel>,
 }
 
 /// Sessions of at least this many points print progress on stderr even when it is not a
@@ -172,6 +237,7 @@ fn run_whole_cell(
     cell: &Cell,
     session: &handclasp_cell::Session,
     truth: bool,
+    site: &WorkSiteInputs,
 ) -> anyhow::Result<()> {
     if truth {
         anyhow::bail!(
@@ -247,15 +313,47 @@ fn run_whole_cell(
             }
         }
     }
-    let json = serde_json::to_string(&report)?;
-    print_and_write_page(
-        args,
-        &json,
-        &diagnose::render_cell_text(&report),
-        |cell, session, json, invocation| {
-            report::cell_diagnosis_page(&report, cell, session, json, invocation)
-        },
-    )
+    let verdict = if args.wants_work_site() {
+        let file = args.work_points.as_deref().zip(site.points.as_deref());
+        let (points, source) = work_site_points(cell, file);
+        let (w, model) = diagnosis_work_site(
+            cell,
+            &report,
+            args.force,
+            &points,
+            &source,
+            site.acceptance,
+            cli_support::cell_report::P95_SEED,
+        )
+        .context("the verdict at the work site")?;
+        crate::report_page::warn_unreachable(&w);
+        Some((w, model))
+    } else {
+        None
+    };
+    let json = serde_json::to_string(&CellDiagnosisWithSite {
+        report: &report,
+        work_site: verdict.as_ref().map(|v| &v.0),
+        work_site_model: verdict.as_ref().map(|v| &v.1),
+    })?;
+    let mut text = diagnose::render_cell_text(&report);
+    if let Some((w, model)) = &verdict {
+        text.push_str(&format!(
+            "work site: the verdict is for {}\n",
+            model.description
+        ));
+        text.push_str(&crate::report_page::work_site_text(w));
+    }
+    print_and_write_page(args, &json, &text, |cell, session, json, invocation| {
+        report::cell_diagnosis_page(
+            &report,
+            verdict.as_ref().map(|(w, m)| (w, m)),
+            cell,
+            session,
+            json,
+            invocation,
+        )
+    })
 }
 
 /// Runs `handclasp diagnose`.
@@ -289,6 +387,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(dir) = &args.export {
         crate::export_dir::check_export_folder_overwrite(dir, args.overwrite, args.force)?;
     }
+    let site = WorkSiteInputs::read(&args)?;
     let cell = Cell::from_toml_file(&args.cell)?;
     if cell.shared_joints > 0 {
         anyhow::bail!(
@@ -314,8 +413,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 }
             })?;
             // Contact, tracker or plane rows (or other tools): the whole-cell diagnosis.
-            return run_whole_cell(&args, &cell, session, truth.is_some());
+            return run_whole_cell(&args, &cell, session, truth.is_some(), &site);
         }
+    }
+    if args.work_points.is_some() || args.accept_mm.is_some() || args.accept_deg.is_some() {
+        anyhow::bail!(
+            "{}: --work-points, --accept-mm and --accept-deg need a session with contact, \
+             tracker or plane rows (the whole-cell diagnosis, whose exported model has a \
+             posterior to predict from); this session has coincident rows only: drop them, or \
+             get the verdict from `handclasp calibrate --cell … --report FILE.html` with them",
+            args.session.display()
+        );
     }
     let session = diagnose::load_session(&args.session, &cell).context("--session")?;
     let options = DiagnoseOptions {

@@ -105,6 +105,40 @@ pub struct CellDiagnoseReport {
     /// serialised).
     #[serde(skip)]
     pub export_estimate: CellEstimate,
+    /// The fit `export_estimate` comes from, with its problem (the diagnosis's: tolerances ×
+    /// [`Self::prior_widening`], each kind's σ scaled by its noise level, the rows used): what
+    /// the verdict at the work site of the exported model is predicted from (not serialised).
+    #[serde(skip)]
+    pub export_model: FittedModel,
+    /// The same for the full model (`final_estimate`: every named family, what
+    /// `diagnose --export --force` writes; not serialised).
+    #[serde(skip)]
+    pub full_model: FittedModel,
+}
+
+impl CellDiagnoseReport {
+    /// The do-no-harm warning the CLI prints after `warning:` when the rule withholds families
+    /// ([`crate::do_no_harm::DoNoHarmReport::warning`], the folds named as this report's
+    /// design names them), `keep` the way to export the full model (`--force` in the CLI);
+    /// `None` when nothing is withheld.
+    pub fn do_no_harm_warning(&self, keep: &str) -> Option<String> {
+        let fold_word = if self.folds.design == crate::cell_diagnosis::FoldDesign::JointRegions {
+            "region"
+        } else {
+            "fold"
+        };
+        self.do_no_harm.warning(fold_word, keep)
+    }
+}
+
+/// One model of the diagnosis fitted on the rows used: its problem (the diagnosis's,
+/// restricted to the rows used, with the model's families free) and its fit, SI.
+#[derive(Debug, Clone)]
+pub struct FittedModel {
+    /// The problem the fit is of (its observations are the rows used, renumbered).
+    pub problem: CellProblem,
+    /// The fit, with its posterior covariance.
+    pub fit: CellFit,
 }
 
 /// A laser tracker's largest credible scale error, ppm. Leica's AT960 states a maximum
@@ -719,36 +753,24 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
     let (mut warnings, notes) = findings(d, &effects, options, step_cap_hit);
     let folds = crate::do_no_harm::folds_report(d);
     let do_no_harm = crate::do_no_harm::do_no_harm_report(d, &folds);
-    if do_no_harm.withholds() {
-        warnings.push(format!(
-            "do no harm: --export withholds {} (the model with them is worse than nominal on \
-             held-out {}s; see \"Do no harm\" in the report) and exports {}; --force exports \
-             the full model",
-            do_no_harm
-                .withheld
-                .iter()
-                .map(|w| w.family.as_str())
-                .collect::<Vec<_>>()
-                .join(", "),
-            if d.fold_design.0 == crate::cell_diagnosis::FoldDesign::JointRegions {
-                "region"
-            } else {
-                "fold"
-            },
-            if do_no_harm.exported_families.is_empty() {
-                "the placement only".to_string()
-            } else {
-                format!(
-                    "the placement and {}",
-                    do_no_harm.exported_families.join(", ")
-                )
-            }
-        ));
-    }
+    let fold_word = if d.fold_design.0 == crate::cell_diagnosis::FoldDesign::JointRegions {
+        "region"
+    } else {
+        "fold"
+    };
+    warnings.extend(do_no_harm.warning(fold_word, "--force"));
     CellDiagnoseReport {
         folds,
         do_no_harm,
         export_estimate: d.safe_fit.1.estimate.clone(),
+        export_model: FittedModel {
+            problem: d.safe_fit.0.clone(),
+            fit: d.safe_fit.1.clone(),
+        },
+        full_model: FittedModel {
+            problem: d.final_fit.0.clone(),
+            fit: d.final_fit.1.clone(),
+        },
         mode: "whole_cell",
         rows_by_kind: KINDS
             .iter()

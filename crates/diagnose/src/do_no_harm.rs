@@ -95,6 +95,51 @@ impl DoNoHarmReport {
     pub fn withholds(&self) -> bool {
         !self.withheld.is_empty()
     }
+
+    /// One line per withheld family and why: `FAMILY (step N): the model with it is worse
+    /// than nominal in FOLD ratio R (t T), …` (the text report's lines, without indent).
+    pub fn withheld_lines(&self) -> Vec<String> {
+        self.withheld
+            .iter()
+            .map(|w| {
+                let why: Vec<String> = w
+                    .harmful_in
+                    .iter()
+                    .map(|f| format!("{} ratio {:.3} (t {:.1})", f.fold, f.ratio, f.t))
+                    .collect();
+                format!(
+                    "{} (step {}): the model with it is worse than nominal in {}",
+                    w.family,
+                    w.step,
+                    why.join(", ")
+                )
+            })
+            .collect()
+    }
+
+    /// The warning when the rule withholds anything (`None` otherwise): which families the
+    /// export withholds and keeps, the folds being `fold_word`s (`region` or `fold`), and
+    /// `keep` the way to export the full model (`--force` in the CLI).
+    pub fn warning(&self, fold_word: &str, keep: &str) -> Option<String> {
+        if !self.withholds() {
+            return None;
+        }
+        Some(format!(
+            "do no harm: --export withholds {} (the model with them is worse than nominal on \
+             held-out {fold_word}s; see \"Do no harm\" in the report) and exports {}; {keep} \
+             exports the full model",
+            self.withheld
+                .iter()
+                .map(|w| w.family.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+            if self.exported_families.is_empty() {
+                "the placement only".to_string()
+            } else {
+                format!("the placement and {}", self.exported_families.join(", "))
+            }
+        ))
+    }
 }
 
 fn deg(q: &[f64]) -> Vec<f64> {
@@ -248,24 +293,70 @@ pub(crate) fn write_text(s: &mut String, folds: &FoldsReport, harm: &DoNoHarmRep
                 format!(" and {}", harm.exported_families.join(", "))
             }
         );
-        for w in &harm.withheld {
-            let why: Vec<String> = w
-                .harmful_in
-                .iter()
-                .map(|f| format!("{} ratio {:.3} (t {:.1})", f.fold, f.ratio, f.t))
-                .collect();
-            let _ = writeln!(
-                s,
-                "  {} (step {}): the model with it is worse than nominal in {}",
-                w.family,
-                w.step,
-                why.join(", ")
-            );
+        for line in harm.withheld_lines() {
+            let _ = writeln!(s, "  {line}");
         }
     } else {
         let _ = writeln!(
             s,
             "Export (--export): every named family (none is worse than nominal in any fold)"
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A rule's report that keeps `kept` and withholds one family harmful in one fold.
+    fn withholding(kept: &[&str]) -> DoNoHarmReport {
+        let harmful = FoldHarm {
+            fold: "region 2".into(),
+            ratio: 1.234,
+            t: -3.21,
+            harmful: true,
+        };
+        DoNoHarmReport {
+            harm_t: HARM_T,
+            steps: Vec::new(),
+            exported_families: kept.iter().map(|f| f.to_string()).collect(),
+            withheld: vec![WithheldFamily {
+                family: "robot 1 joint offsets".into(),
+                step: kept.len() + 1,
+                harmful_in: vec![harmful],
+            }],
+        }
+    }
+
+    #[test]
+    fn the_warning_names_each_withheld_family_what_is_kept_and_how_to_keep_all() {
+        let r = withholding(&["robot 2 joint compliance"]);
+        let w = r
+            .warning("region", "keep_withheld=True")
+            .expect("withholds");
+        assert!(
+            w.starts_with("do no harm: --export withholds robot 1 joint offsets "),
+            "{w}"
+        );
+        assert!(w.contains("held-out regions"), "{w}");
+        assert!(
+            w.contains("exports the placement and robot 2 joint compliance; keep_withheld=True exports the full model"),
+            "{w}"
+        );
+        assert_eq!(
+            r.withheld_lines(),
+            ["robot 1 joint offsets (step 2): the model with it is worse than nominal in region 2 ratio 1.234 (t -3.2)"]
+        );
+        let placement_only = withholding(&[]);
+        assert!(placement_only
+            .warning("fold", "--force")
+            .unwrap()
+            .contains("exports the placement only; --force"));
+        let nothing = DoNoHarmReport {
+            withheld: Vec::new(),
+            ..placement_only
+        };
+        assert_eq!(nothing.warning("fold", "--force"), None);
+        assert!(nothing.withheld_lines().is_empty());
     }
 }

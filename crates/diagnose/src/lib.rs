@@ -42,7 +42,7 @@ pub use cell_diagnosis::{
     candidate_families, diagnose_cell_session, diagnosis_problem, CellDiagnoseOptions, Family,
     FamilyKind, FoldDesign,
 };
-pub use cell_report::{render_cell_text, CellDiagnoseReport, RejectedFamilyReport};
+pub use cell_report::{render_cell_text, CellDiagnoseReport, FittedModel, RejectedFamilyReport};
 pub use engine::{diagnose_session, diagnose_session_with_progress, DiagnoseOptions};
 pub use export::{
     export_cell_diagnosis, export_cell_diagnosis_with, export_corrected,

@@ -152,6 +152,20 @@ fn hidden_joint_offset_of_robot_1_is_the_one_effect_named_and_covered() {
             "seed {seed}: {}",
             diagnose::render_cell_text(&r)
         );
+        // The fits behind the exported and the full model are the ones their estimates come
+        // from (what the verdict at the work site is predicted from).
+        assert_eq!(
+            r.export_model.fit.estimate.b1_from_b2,
+            r.export_estimate.b1_from_b2
+        );
+        assert_eq!(
+            r.full_model.fit.estimate.b1_from_b2,
+            r.final_estimate.b1_from_b2
+        );
+        assert_eq!(
+            r.full_model.fit.layout.len(),
+            r.full_model.fit.covariance.nrows()
+        );
         let (v, [lo, hi]) = param(&r, "robot 1 joint_offset joint 2");
         assert!(
             lo <= truth_mrad && truth_mrad <= hi,

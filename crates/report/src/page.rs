@@ -13,7 +13,7 @@ use maud::{html, Markup, PreEscaped, DOCTYPE};
 
 use crate::fit_data::{JointCoverage, RowResidual};
 use crate::plot;
-use crate::work_site::{Verdict, WorkSiteReport, WorkspaceMap};
+use crate::work_site::{Verdict, VerdictModel, WorkSiteReport, WorkspaceMap};
 use calib_core::Robot;
 
 /// How the page was made: the command line and the program's version.
@@ -202,6 +202,39 @@ fn verdict_box(w: &WorkSiteReport) -> Markup {
     }
 }
 
+/// The bars of the predicted rms at each work point, when there are at least two.
+fn work_point_plot(w: &WorkSiteReport) -> Option<Result<String, String>> {
+    (w.points.len() >= 2).then(|| {
+        let labels: Vec<String> = w.points.iter().map(|q| format!("row {}", q.row)).collect();
+        plot::bars(
+            "predicted cooperative rms at each work point",
+            &labels,
+            &[(
+                "predicted rms",
+                w.points.iter().map(|q| q.predicted_rms_mm).collect(),
+            )],
+            "predicted rms, mm",
+        )
+    })
+}
+
+/// Under the verdict box: the work points not predicted, and what the prediction is (from
+/// `posterior`, in words).
+fn work_site_details(w: &WorkSiteReport, posterior: &str) -> Markup {
+    html! {
+        @if !w.unreachable.is_empty() {
+            p { "Work points not predicted (both robots do not reach them head-on):" }
+            ul { @for u in &w.unreachable { li { "row " (u.row) " (" (format!("{:.1}, {:.1}, {:.1}", u.p_b1_mm[0], u.p_b1_mm[1], u.p_b1_mm[2])) " mm): " (u.why) } } }
+        }
+        p class="note" {
+            "The prediction is the posterior error of the vector from tip 2 to tip 1 (base 1) where both tips meet head-on at each work point, "
+            "from " (posterior) "; the p95 and its interval come from a seeded draw (seed " (w.seed) "). "
+            "The rotation figure is the placement's (b1_from_b2), not the tools' orientation at the work site. "
+            "At the work points, " (w.parts_mm.parts_line()) "."
+        }
+    }
+}
+
 /// The readable reason a parameter was not identified.
 fn drop_reason(reason: DropReason) -> &'static str {
     match reason {
@@ -220,32 +253,12 @@ pub fn calibration_page(p: &CalibrationPage) -> String {
     let r = p.report;
     let w = p.work_site;
     let b = &r.b1_from_b2;
-    let work_point_plot = (w.points.len() >= 2).then(|| {
-        let labels: Vec<String> = w.points.iter().map(|q| format!("row {}", q.row)).collect();
-        plot::bars(
-            "predicted cooperative rms at each work point",
-            &labels,
-            &[(
-                "predicted rms",
-                w.points.iter().map(|q| q.predicted_rms_mm).collect(),
-            )],
-            "predicted rms, mm",
-        )
-    });
+    let work_point_plot = work_point_plot(w);
     let body = html! {
         h1 { "handclasp calibration report" }
         p class="sub" { "Cell " code { (p.cell) } ", session " code { (p.session) } " (" (p.rows) " rows), model " (p.model) "." }
         (verdict_box(w))
-        @if !w.unreachable.is_empty() {
-            p { "Work points not predicted (both robots do not reach them head-on):" }
-            ul { @for u in &w.unreachable { li { "row " (u.row) " (" (format!("{:.1}, {:.1}, {:.1}", u.p_b1_mm[0], u.p_b1_mm[1], u.p_b1_mm[2])) " mm): " (u.why) } } }
-        }
-        p class="note" {
-            "The prediction is the posterior error of the vector from tip 2 to tip 1 (base 1) where both tips meet head-on at each work point, "
-            "from every unknown's posterior (the prior-regularised ones and those not identifiable included); the p95 and its interval come from a seeded draw (seed " (w.seed) "). "
-            "The rotation figure is the placement's (b1_from_b2), not the tools' orientation at the work site. "
-            "At the work points, " (w.parts_mm.parts_line()) "."
-        }
+        (work_site_details(w, "every unknown's posterior (the prior-regularised ones and those not identifiable included)"))
         h2 { "Placement b1_from_b2 (robot 2's base in robot 1's base)" }
         table id="placement" {
             tr { th { "x" } th { "y" } th { "z" } th { "φ" } th { "θ" } th { "ψ" } }
@@ -339,8 +352,10 @@ pub fn calibration_page(p: &CalibrationPage) -> String {
     page("handclasp calibration report", body, p.json, p.invocation)
 }
 
-/// The summary box of a diagnosis (there is no acceptance for a diagnosis: it names causes).
-fn diagnosis_box(named: usize, before: f64, after: f64, what: &str) -> Markup {
+/// The summary box of a diagnosis. Without a verdict at the work site (`with_verdict` false:
+/// the coincident diagnosis) it is the page's headline box (`id="verdict"`) and says where a
+/// verdict comes from; with one, it follows the verdict (`id="diagnosis"`).
+fn diagnosis_box(named: usize, before: f64, after: f64, what: &str, with_verdict: bool) -> Markup {
     let (class, headline) = if named == 0 {
         ("verdict none", "NO CAUSE NAMED".to_string())
     } else {
@@ -349,11 +364,23 @@ fn diagnosis_box(named: usize, before: f64, after: f64, what: &str) -> Markup {
             format!("{named} CAUSE{} NAMED", if named == 1 { "" } else { "S" }),
         )
     };
-    html! {
-        section class=(class) id="verdict" data-verdict=(headline) {
-            div class="headline" { (headline) }
-            div class="figures" { (what) ": " strong { (format!("{before:.3} mm before → {after:.3} mm after")) } "." }
-            div class="why" { "A diagnosis names what the nominal models get wrong; for PASS or FAIL at a work site, run calibrate --cell … --report with --accept-mm." }
+    let figures = html! {
+        div class="headline" { (headline) }
+        div class="figures" { (what) ": " strong { (format!("{before:.3} mm before → {after:.3} mm after")) } "." }
+    };
+    if with_verdict {
+        html! {
+            section class=(class) id="diagnosis" data-diagnosis=(headline) {
+                (figures)
+                div class="why" { "What the nominal models get wrong, named by the held-out fit; the verdict above is for the model the export writes." }
+            }
+        }
+    } else {
+        html! {
+            section class=(class) id="verdict" data-verdict=(headline) {
+                (figures)
+                div class="why" { "A diagnosis of coincident handclasps names what the nominal models get wrong; for PASS or FAIL at a work site, run calibrate --cell … --report with --accept-mm (or diagnose a session with contact, tracker or plane rows)." }
+            }
         }
     }
 }
@@ -369,7 +396,7 @@ pub fn coincident_diagnosis_page(
     let body = html! {
         h1 { "handclasp diagnosis report" }
         p class="sub" { "Cell " code { (cell) } ", session " code { (session) } " (" (r.n_points) " points)." }
-        (diagnosis_box(r.effects.len(), r.heldout_rms_before_mm, r.heldout_rms_after_mm, "held-out rms (cross-validated)"))
+        (diagnosis_box(r.effects.len(), r.heldout_rms_before_mm, r.heldout_rms_after_mm, "held-out rms (cross-validated)", false))
         h2 { "Named causes (" (r.effects.len()) ")" }
         @if r.effects.is_empty() {
             p { "None: the residuals are explained by the stated noise." }
@@ -415,9 +442,12 @@ pub fn coincident_diagnosis_page(
 }
 
 /// The page of `diagnose` on a session with contact, tracker or plane rows (the whole-cell
-/// diagnosis): the causes with their held-out gain, before/after by kind, the rejected families.
+/// diagnosis): the verdict at the work site first (`work_site`, with the model it is for:
+/// [`crate::diagnosis_work_site`]), then the causes with their held-out gain, before/after by
+/// kind, the rejected families.
 pub fn cell_diagnosis_page(
     r: &CellDiagnoseReport,
+    work_site: Option<(&WorkSiteReport, &VerdictModel)>,
     cell: &str,
     session: &str,
     json: &str,
@@ -445,7 +475,15 @@ pub fn cell_diagnosis_page(
     let body = html! {
         h1 { "handclasp diagnosis report (whole cell)" }
         p class="sub" { "Cell " code { (cell) } ", session " code { (session) } " (" (r.rows_used) " rows used)." }
-        (diagnosis_box(r.effects.len(), rms(&before), rms(&after), "held-out rms over the kinds (mean square of each kind's)"))
+        @if let Some((w, model)) = work_site {
+            (verdict_box(w))
+            p class="note" id="verdict-model" data-model=(model.model) { "The verdict is for " (model.description) "." }
+            (work_site_details(w, "that model's posterior"))
+            @if let Some(svg) = work_point_plot(w) {
+                (figure(svg, "Predicted cooperative rms of the exported model at each work point, mm."))
+            }
+        }
+        (diagnosis_box(r.effects.len(), rms(&before), rms(&after), "held-out rms over the kinds (mean square of each kind's)", work_site.is_some()))
         h2 { "Named causes (" (r.effects.len()) ")" }
         @if r.effects.is_empty() {
             p { "None: no family of errors improved the held-out fit enough." }

@@ -19,9 +19,9 @@ use std::path::Path;
 
 use calib_core::stats::trial_rng;
 use calib_core::whole_cell::{
-    predict_error, summarise_covariances, workspace_pairs, CellCalibration, CellParam, CellProblem,
-    ConfigPair, ObservationKind, PairSet, PredictedErrorReport, PredictionSplit, WORKSPACE_POSES,
-    WORKSPACE_SEED,
+    predict_error, summarise_covariances, workspace_pairs, CellCalibration, CellFit, CellParam,
+    CellProblem, ConfigPair, ObservationKind, PairSet, PredictedErrorReport, PredictionSplit,
+    WORKSPACE_POSES, WORKSPACE_SEED,
 };
 use handclasp_cell::Cell;
 use kinematics::base_from_tip;
@@ -319,18 +319,12 @@ fn work_site_pairs(
 
 /// The rotation block of the fit's posterior, rad² (b1 axes); `None` when the layout does not
 /// fit the placement's rotation.
-fn placement_rotation_covariance(cal: &CellCalibration) -> Option<Matrix3<f64>> {
+fn placement_rotation_covariance(fit: &CellFit) -> Option<Matrix3<f64>> {
     let cols: Vec<usize> = Axis::ALL
         .into_iter()
-        .map(|axis| {
-            cal.fit
-                .layout
-                .column(&CellParam::PlacementRotation { axis })
-        })
+        .map(|axis| fit.layout.column(&CellParam::PlacementRotation { axis }))
         .collect::<Option<_>>()?;
-    Some(Matrix3::from_fn(|a, b| {
-        cal.fit.covariance[(cols[a], cols[b])]
-    }))
+    Some(Matrix3::from_fn(|a, b| fit.covariance[(cols[a], cols[b])]))
 }
 
 /// The verdict at the work site `points_b1` (m, base 1; described by `source`) of the
@@ -347,7 +341,36 @@ pub fn predict_work_site(
     acceptance: Acceptance,
     seed: u64,
 ) -> Result<WorkSiteReport, ReportError> {
-    let (pairs, failed) = work_site_pairs(cell, cal.fit.estimate.b1_from_b2, points_b1, seed);
+    predict_work_site_of_fit(
+        cell,
+        problem,
+        &cal.fit,
+        cal.noise_scale,
+        points_b1,
+        source,
+        acceptance,
+        seed,
+    )
+}
+
+/// [`predict_work_site`] for a fit of `problem` that is not a [`CellCalibration`] (one model
+/// of a diagnosis: the model `diagnose --export` writes), through
+/// [`PredictionSplit::of_fit`] with `noise_scale` (1 when the problem's σ are already the
+/// ones to trust).
+///
+/// Errors: as [`predict_work_site`].
+#[allow(clippy::too_many_arguments)]
+pub fn predict_work_site_of_fit(
+    cell: &Cell,
+    problem: &CellProblem,
+    fit: &CellFit,
+    noise_scale: f64,
+    points_b1: &[Point3<f64>],
+    source: &str,
+    acceptance: Acceptance,
+    seed: u64,
+) -> Result<WorkSiteReport, ReportError> {
+    let (pairs, failed) = work_site_pairs(cell, fit.estimate.b1_from_b2, points_b1, seed);
     if pairs.is_empty() {
         return Err(ReportError::NoReachableWorkPoint {
             points: points_b1.len(),
@@ -355,7 +378,9 @@ pub fn predict_work_site(
         });
     }
     let config: Vec<ConfigPair> = pairs.iter().map(|(_, p)| p.clone()).collect();
-    let prediction = predict_over(problem, cal, &config, PairSet::WorkPoints, seed)?;
+    let split =
+        PredictionSplit::of_fit(problem, fit, noise_scale).map_err(ReportError::Prediction)?;
+    let prediction = predict_with(problem, fit, &split, &config, PairSet::WorkPoints, seed)?;
     let mm = |p: &Point3<f64>| [p.x * 1e3, p.y * 1e3, p.z * 1e3];
     let points = pairs
         .iter()
@@ -374,7 +399,7 @@ pub fn predict_work_site(
             why,
         })
         .collect();
-    let placement_rotation = placement_rotation_covariance(cal).map(|c| {
+    let placement_rotation = placement_rotation_covariance(fit).map(|c| {
         let r = summarise_covariances(&[c], seed);
         RotationPredictionReport {
             p95_ci_deg: r.predicted_p95_ci_m.map(f64::to_degrees),
@@ -412,11 +437,23 @@ fn predict_over(
     seed: u64,
 ) -> Result<calib_core::whole_cell::PredictedError, ReportError> {
     let split = PredictionSplit::of_calibration(problem, cal).map_err(ReportError::Prediction)?;
+    predict_with(problem, &cal.fit, &split, pairs, pair_set, seed)
+}
+
+/// The predicted error of `fit` over `pairs` with its `split` ([`predict_error`]).
+fn predict_with(
+    problem: &CellProblem,
+    fit: &CellFit,
+    split: &PredictionSplit,
+    pairs: &[ConfigPair],
+    pair_set: PairSet,
+    seed: u64,
+) -> Result<calib_core::whole_cell::PredictedError, ReportError> {
     predict_error(
         problem,
-        &cal.fit.layout,
-        &cal.fit.estimate,
-        &split,
+        &fit.layout,
+        &fit.estimate,
+        split,
         pairs,
         pair_set,
         seed,
@@ -478,4 +515,130 @@ pub fn workspace_map(
         session_mm,
         report: PredictedErrorReport::from(&prediction),
     })
+}
+
+/// The work site's points and where they come from: `file`'s points (m, base 1, as
+/// [`read_work_points`] read them) or, without a file, the cell's `[teach]` centre.
+pub fn work_site_points(
+    cell: &Cell,
+    file: Option<(&Path, &[Point3<f64>])>,
+) -> (Vec<Point3<f64>>, String) {
+    match file {
+        Some((path, points)) => (
+            points.to_vec(),
+            format!("{} points of {}", points.len(), path.display()),
+        ),
+        None => {
+            let c = cell.centre_b1 * 1e3;
+            (
+                vec![cell.centre_b1],
+                format!(
+                    "the cell's teach centre ({:.1}, {:.1}, {:.1}) mm in base 1",
+                    c.x, c.y, c.z
+                ),
+            )
+        }
+    }
+}
+
+/// Which model of a whole-cell diagnosis a verdict at the work site is for.
+#[derive(Debug, Clone, Serialize)]
+pub struct VerdictModel {
+    /// In words: which model, what it holds, what the prediction assumes.
+    pub description: String,
+    /// The named families in it (besides the placement and the session's nuisances), in
+    /// selection order.
+    pub families: Vec<String>,
+    /// `do_no_harm` (what `diagnose --export` writes) or `full` (every named family: what
+    /// `diagnose --export --force` writes).
+    pub model: &'static str,
+    /// The named families it leaves out (the do-no-harm rule's withheld ones; empty for
+    /// `full`).
+    pub withheld: Vec<String>,
+}
+
+/// The verdict at the work site `points_b1` (m, base 1; described by `source`) of the model a
+/// whole-cell diagnosis `report` of a session on `cell` exports: the do-no-harm rule's
+/// ([`diagnose::CellDiagnoseReport::export_model`]), or the full model when `full` (what
+/// `--export --force` writes). Predicted by [`predict_work_site_of_fit`] from that model's fit
+/// on the rows used, with the diagnosis's prior (the tolerances × its prior widening) and each
+/// kind's σ scaled to its noise level; families the model does not hold are at nominal, and
+/// their tolerances are not in the prediction.
+///
+/// Errors: as [`predict_work_site`].
+pub fn diagnosis_work_site(
+    cell: &Cell,
+    report: &diagnose::CellDiagnoseReport,
+    full: bool,
+    points_b1: &[Point3<f64>],
+    source: &str,
+    acceptance: Acceptance,
+    seed: u64,
+) -> Result<(WorkSiteReport, VerdictModel), ReportError> {
+    let all: Vec<String> = report
+        .effects
+        .iter()
+        .map(|e| e.family.name.clone())
+        .collect();
+    let (model, families, withheld, fitted) = if full || !report.do_no_harm.withholds() {
+        ("full", all, Vec::new(), &report.full_model)
+    } else {
+        (
+            "do_no_harm",
+            report.do_no_harm.exported_families.clone(),
+            report
+                .do_no_harm
+                .withheld
+                .iter()
+                .map(|w| w.family.clone())
+                .collect(),
+            &report.export_model,
+        )
+    };
+    let holds = if families.is_empty() {
+        "the placement only (both robots nominal)".to_string()
+    } else {
+        format!("the placement and {}", families.join(", "))
+    };
+    let which = if model == "do_no_harm" {
+        format!(
+            "the model `diagnose --export` writes, the do-no-harm rule's: {holds}; withheld: {} \
+             (`--export --force` writes them)",
+            withheld.join(", ")
+        )
+    } else if report.do_no_harm.withholds() {
+        format!(
+            "the full model `diagnose --export --force` writes: {holds}, the families the \
+             do-no-harm rule withholds included"
+        )
+    } else {
+        format!(
+            "the model `diagnose --export` writes (the do-no-harm rule withholds nothing): {holds}"
+        )
+    };
+    let description = format!(
+        "{which}. Predicted from its fit on the {} rows used, with the diagnosis's prior (the \
+         cell's tolerances × {}) and each kind's σ scaled to its noise level; the families it \
+         does not hold are at nominal, and their tolerances are not in the prediction",
+        report.rows_used, report.prior_widening
+    );
+    let w = predict_work_site_of_fit(
+        cell,
+        &fitted.problem,
+        &fitted.fit,
+        1.0,
+        points_b1,
+        source,
+        acceptance,
+        seed,
+    )?;
+    Ok((
+        w,
+        VerdictModel {
+            description,
+            families,
+            model,
+            withheld,
+        },
+    ))
 }

@@ -186,7 +186,20 @@ impl PredictionSplit {
         problem: &CellProblem,
         cal: &CellCalibration,
     ) -> Result<Self, CellFitError> {
-        let fit = &cal.fit;
+        Self::of_fit(problem, &cal.fit, cal.noise_scale)
+    }
+
+    /// The split of a fit of `problem` that is not a [`CellCalibration`] (e.g. one model of
+    /// a diagnosis): as [`PredictionSplit::of_calibration`], `noise_scale` the blunder
+    /// screen's noise scale of a placement-only fit ([`CellCalibration::noise_scale`]; 1 when
+    /// the problem's σ are already the ones to trust).
+    ///
+    /// Errors: the models reject an observation of the fit.
+    pub fn of_fit(
+        problem: &CellProblem,
+        fit: &super::CellFit,
+        noise_scale: f64,
+    ) -> Result<Self, CellFitError> {
         let h = fit.information(problem)?;
         let lin = fit.linearisation(problem)?;
         let rows = &lin.rows;
@@ -199,8 +212,8 @@ impl PredictionSplit {
         let hd = jd.transpose() * jd;
         let (h_inv, _) = sym_inverse(&h);
         let placement_only = fit.layout.prior_sqrt_info.nrows() == 0;
-        let noise2 = if placement_only && cal.noise_scale > 1.0 {
-            cal.noise_scale * cal.noise_scale
+        let noise2 = if placement_only && noise_scale > 1.0 {
+            noise_scale * noise_scale
         } else {
             1.0
         };
@@ -211,7 +224,7 @@ impl PredictionSplit {
                 var_m2: fit.model_error_var_m2,
             }
         } else {
-            held_out_model_error(problem, cal, &h_inv)?
+            held_out_model_error(problem, fit, &h_inv)?
         };
         Ok(PredictionSplit {
             data,
@@ -244,10 +257,9 @@ fn sym(m: &DMatrix<f64>) -> DMatrix<f64> {
 /// documentation); `h_inv` the estimator's own posterior `H⁻¹`.
 fn held_out_model_error(
     problem: &CellProblem,
-    cal: &CellCalibration,
+    fit: &super::CellFit,
     h_inv: &DMatrix<f64>,
 ) -> Result<ModelError, CellFitError> {
-    let fit = &cal.fit;
     let lin = fit.linearisation(problem)?;
     let sys = &lin.rows;
     let labels = region_labels(problem, &fit.active);
