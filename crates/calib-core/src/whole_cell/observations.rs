@@ -1,6 +1,8 @@
 //! What was observed: the observation kinds, the nuisance groups (tracker frames, planes,
 //! contact distances), the [`CellProblem`] that holds them with both robots, and its checks.
 
+use std::collections::BTreeMap;
+
 use nalgebra::{Isometry3, Point3, Unit, Vector3};
 
 use super::cell::{CellFitError, CellRobot, Noise3};
@@ -381,6 +383,13 @@ pub struct CellProblem {
     /// Optional prior on `b1_from_b2` around a known nominal (e.g. two arms on one base);
     /// `None`: the placement is fitted unpenalised.
     pub placement_prior: Option<PlacementPrior>,
+    /// A shared-trunk cell ([`CellRobot::shared_joints`] > 0): the other arm's joints (its
+    /// independent joints, rad or m, agreeing with the row's on the trunk) at the 1-based source
+    /// row of each one-robot observation (tracker, plane) that gives them. The other arm's weight
+    /// loads the trunk joints ([`kinematics::trunk`]): with its posture the trunk's gravity
+    /// deflection carries both arms; without it, the measured arm's alone. Two-robot rows carry
+    /// both arms' joints already. Empty otherwise.
+    pub other_arm_q: BTreeMap<usize, Vec<f64>>,
 }
 
 impl CellProblem {
