@@ -75,6 +75,19 @@ fn check_trunk(
     Ok(())
 }
 
+/// Checks the other arm's inputs of the `branch_*` functions: its joints, the gravity, and a
+/// trunk shorter than its chain.
+fn check_other_arm(
+    other: &RobotModel,
+    q_other: &[f64],
+    g_base: &Vector3<f64>,
+    trunk_joints: usize,
+) -> Result<(), KinematicsError> {
+    other.check_q(q_other)?;
+    check_gravity(g_base)?;
+    check_trunk(other, other, trunk_joints)
+}
+
 /// The gravity torques (N·m) about the first `trunk_joints` chain joints from the other arm of a
 /// shared trunk: `τ_j^other = z_j · (S' − M'·o_j) × g_base` with `S' = Σ_{i≥k} m'_i·c'_i` and
 /// `M' = Σ_{i≥k} m'_i` over `other`'s chain links after the trunk (its URDF inertials,
@@ -91,9 +104,7 @@ pub fn branch_torques(
     g_base: &Vector3<f64>,
     trunk_joints: usize,
 ) -> Result<Vec<f64>, KinematicsError> {
-    other.check_q(q_other)?;
-    check_gravity(g_base)?;
-    check_trunk(other, other, trunk_joints)?;
+    check_other_arm(other, q_other, g_base, trunk_joints)?;
     let mut entries = vec![GravityEntry::default(); other.chain_joints().len()];
     gravity_entries(other, q_other, &mut entries);
     let (s, m) = entries[trunk_joints..]
@@ -134,9 +145,7 @@ pub fn branch_deflections(
     g_base: &Vector3<f64>,
     trunk_joints: usize,
 ) -> Result<Vec<f64>, KinematicsError> {
-    other.check_q(q_other)?;
-    check_gravity(g_base)?;
-    check_trunk(other, other, trunk_joints)?;
+    check_other_arm(other, q_other, g_base, trunk_joints)?;
     crate::lumped::check_lumped(other, other_lumped)?;
     if other_lumped.is_empty() {
         return Ok(vec![0.0; trunk_joints]);
@@ -170,9 +179,7 @@ pub fn branch_regressor(
     trunk_joints: usize,
     params: &[ErrorParam],
 ) -> Result<Vec<(usize, f64)>, KinematicsError> {
-    other.check_q(q_other)?;
-    check_gravity(g_base)?;
-    check_trunk(other, other, trunk_joints)?;
+    check_other_arm(other, q_other, g_base, trunk_joints)?;
     for p in params {
         p.check_model(other)?;
     }
@@ -299,7 +306,10 @@ mod tests {
         for j in 0..TRUNK {
             for i in j..TRUNK {
                 let (a, b) = (lumped[0][j][i - j], lumped[1][j][i - j]);
-                assert!((a - b).norm() <= 1e-15, "trunk joint {j} link {i}: {a} vs {b}");
+                assert!(
+                    (a - b).norm() <= 1e-15,
+                    "trunk joint {j} link {i}: {a} vs {b}"
+                );
             }
         }
         for _ in 0..20 {
@@ -314,15 +324,18 @@ mod tests {
             for j in 0..TRUNK {
                 let total = tau1[j] + tau2[j] - tau_torso[j];
                 let scale = total.abs().max(1.0);
-                assert!((tau1[j] + other_of_1[j] - total).abs() <= REL_TOL * scale, "{j}");
-                assert!((tau2[j] + other_of_2[j] - total).abs() <= REL_TOL * scale, "{j}");
+                assert!(
+                    (tau1[j] + other_of_1[j] - total).abs() <= REL_TOL * scale,
+                    "{j}"
+                );
+                assert!(
+                    (tau2[j] + other_of_2[j] - total).abs() <= REL_TOL * scale,
+                    "{j}"
+                );
             }
-            for (r, (q, q_other, k, tau)) in [
-                (&q1, &q2, &k1, &tau1),
-                (&q2, &q1, &k2, &tau2),
-            ]
-            .into_iter()
-            .enumerate()
+            for (r, (q, q_other, k, tau)) in [(&q1, &q2, &k1, &tau1), (&q2, &q1, &k2, &tau2)]
+                .into_iter()
+                .enumerate()
             {
                 let own = crate::lumped_deflections(&m[r], &lumped[r], q, &g).unwrap();
                 let branch =
@@ -408,7 +421,12 @@ mod tests {
                 );
             };
             for (p, &(joint, factor)) in params.iter().zip(&reg) {
-                let ErrorParam::LumpedCompliance { joint: pj, link, axis } = *p else {
+                let ErrorParam::LumpedCompliance {
+                    joint: pj,
+                    link,
+                    axis,
+                } = *p
+                else {
                     unreachable!("branch params are lumped")
                 };
                 assert_eq!(joint, pj);

@@ -28,6 +28,9 @@ fn kinematics_error(robot: Robot, row: usize) -> impl Fn(KinematicsError) -> Cel
 /// Sparse 3-row Jacobian: (column, ∂/∂column).
 type Cols3 = Vec<(usize, Vector3<f64>)>;
 
+/// Robot 1's and robot 2's tips in b1 with their Jacobian columns.
+type TwoTips = ((Vector3<f64>, Cols3), (Vector3<f64>, Cols3));
+
 /// The other arm's load on a shared trunk at one observation ([`kinematics::trunk`]): the
 /// deflection it adds to each trunk joint (rad, added to the joint's zero offset), its gravity
 /// torques (N·m, for the trunk joints' physical compliance columns) and, with the Jacobian, the
@@ -115,9 +118,14 @@ impl<'a> Evaluator<'a> {
         let orb = self.problem.robot(other);
         let other_errors = &est.robot(other).errors;
         let kin_err = kinematics_error(other, row);
-        let mut deflection =
-            branch_deflections(&orb.model, &other_errors.lumped_compliance, q_other, &orb.g_base, k)
-                .map_err(kin_err)?;
+        let mut deflection = branch_deflections(
+            &orb.model,
+            &other_errors.lumped_compliance,
+            q_other,
+            &orb.g_base,
+            k,
+        )
+        .map_err(kin_err)?;
         let compliant = errors.compliance[..k].iter().any(|&c| c != 0.0);
         let wants_torque = want_jac
             && self.layout.robots[robot_slot(robot)]
@@ -192,7 +200,9 @@ impl<'a> Evaluator<'a> {
             let params = match &load {
                 Some(load) => {
                     let mut v = self.jac_params[slot].clone();
-                    v.extend((0..load.deflection.len()).map(|joint| ErrorParam::JointOffset { joint }));
+                    v.extend(
+                        (0..load.deflection.len()).map(|joint| ErrorParam::JointOffset { joint }),
+                    );
                     loaded_params = v;
                     &loaded_params
                 }
@@ -276,6 +286,39 @@ impl<'a> Evaluator<'a> {
         }
     }
 
+    /// Both robots' tips of a two-robot row in b1 and their Jacobian columns
+    /// ([`Evaluator::tip_in_anchor`]), each arm loading a shared trunk for the other.
+    fn both_tips_in_b1(
+        &self,
+        est: &CellEstimate,
+        [q1, q2]: [&[f64]; 2],
+        [tool1, tool2]: [usize; 2],
+        want_jac: bool,
+        row: usize,
+    ) -> Result<TwoTips, CellFitError> {
+        let one = self.tip_in_anchor(
+            est,
+            Robot::One,
+            tool1,
+            q1,
+            Some(q2),
+            Robot::One,
+            want_jac,
+            row,
+        )?;
+        let two = self.tip_in_anchor(
+            est,
+            Robot::Two,
+            tool2,
+            q2,
+            Some(q1),
+            Robot::One,
+            want_jac,
+            row,
+        )?;
+        Ok((one, two))
+    }
+
     /// A unit vector fixed in `robot`'s tip frame (`n_tip`, e.g. a face normal), rotated into
     /// b1 (`R(b1_from_tip)·n_tip`; for robot 2 `R(b1_from_b2)·R(b2_from_tip)·n_tip`), and its
     /// Jacobian columns: the kinematic parameters (and a shared trunk's load from the other arm
@@ -318,7 +361,9 @@ impl<'a> Evaluator<'a> {
             let mut params = self.jac_params[slot][..lay.kin.len()].to_vec();
             let k0 = params.len();
             if let Some(load) = &load {
-                params.extend((0..load.deflection.len()).map(|joint| ErrorParam::JointOffset { joint }));
+                params.extend(
+                    (0..load.deflection.len()).map(|joint| ErrorParam::JointOffset { joint }),
+                );
             }
             let shifted = t + n_tip.into_inner();
             let j_t = tip_error_jacobian(&rb.model, &errors, q, &t, &rb.g_base, &params)
@@ -329,8 +374,7 @@ impl<'a> Evaluator<'a> {
                 cols.push((c, j_n.column(k) - j_t.column(k)));
             }
             if let Some(load) = &load {
-                let offset_col =
-                    |joint: usize| j_n.column(k0 + joint) - j_t.column(k0 + joint);
+                let offset_col = |joint: usize| j_n.column(k0 + joint) - j_t.column(k0 + joint);
                 push_load_columns(&mut cols, lay.kin.iter().map(|k| k.0), load, offset_col);
             }
         }
@@ -379,10 +423,8 @@ impl<'a> Evaluator<'a> {
                 tool2,
                 noise,
             } => {
-                let (p1, c1) =
-                    self.tip_in_anchor(est, Robot::One, *tool1, q1, Some(q2), Robot::One, want_jac, row)?;
-                let (g2, c2) =
-                    self.tip_in_anchor(est, Robot::Two, *tool2, q2, Some(q1), Robot::One, want_jac, row)?;
+                let ((p1, c1), (g2, c2)) =
+                    self.both_tips_in_b1(est, [q1, q2], [*tool1, *tool2], want_jac, row)?;
                 if want_jac {
                     put3(&mut jac, &c1, 1.0);
                     put3(&mut jac, &c2, -1.0);
@@ -401,10 +443,8 @@ impl<'a> Evaluator<'a> {
                 group,
                 sigma_m,
             } => {
-                let (p1, c1) =
-                    self.tip_in_anchor(est, Robot::One, *tool1, q1, Some(q2), Robot::One, want_jac, row)?;
-                let (g2, c2) =
-                    self.tip_in_anchor(est, Robot::Two, *tool2, q2, Some(q1), Robot::One, want_jac, row)?;
+                let ((p1, c1), (g2, c2)) =
+                    self.both_tips_in_b1(est, [q1, q2], [*tool1, *tool2], want_jac, row)?;
                 let e = p1 - g2;
                 let dist = e.norm();
                 let u = if dist > 0.0 { e / dist } else { Vector3::x() };
@@ -430,14 +470,28 @@ impl<'a> Evaluator<'a> {
                 group,
                 sigma_m,
             } => {
-                let (p1, c1) =
-                    self.tip_in_anchor(est, Robot::One, *tool1, q1, Some(q2), Robot::One, want_jac, row)?;
-                let (g2, c2) =
-                    self.tip_in_anchor(est, Robot::Two, *tool2, q2, Some(q1), Robot::One, want_jac, row)?;
-                let (n1, cn1) =
-                    self.normal_in_b1(est, Robot::One, *tool1, q1, Some(q2), n1_tip, want_jac, row)?;
-                let (n2, cn2) =
-                    self.normal_in_b1(est, Robot::Two, *tool2, q2, Some(q1), n2_tip, want_jac, row)?;
+                let ((p1, c1), (g2, c2)) =
+                    self.both_tips_in_b1(est, [q1, q2], [*tool1, *tool2], want_jac, row)?;
+                let (n1, cn1) = self.normal_in_b1(
+                    est,
+                    Robot::One,
+                    *tool1,
+                    q1,
+                    Some(q2),
+                    n1_tip,
+                    want_jac,
+                    row,
+                )?;
+                let (n2, cn2) = self.normal_in_b1(
+                    est,
+                    Robot::Two,
+                    *tool2,
+                    q2,
+                    Some(q1),
+                    n2_tip,
+                    want_jac,
+                    row,
+                )?;
                 // n̄ = m/‖m‖, m = n1 − n2; ∂(n̄·e) = n̄·∂e + wᵀ·∂m, w = (I − n̄n̄ᵀ)·e/‖m‖.
                 let m = n1 - n2;
                 let m_len = m.norm();
@@ -569,23 +623,10 @@ impl<'a> Evaluator<'a> {
         pair: &super::ConfigPair,
         want_jac: bool,
     ) -> Result<(Vector3<f64>, DMatrix<f64>), CellFitError> {
-        let (p1, c1) = self.tip_in_anchor(
+        let ((p1, c1), (g2, c2)) = self.both_tips_in_b1(
             est,
-            Robot::One,
-            pair.tool1,
-            &pair.q1,
-            Some(&pair.q2),
-            Robot::One,
-            want_jac,
-            0,
-        )?;
-        let (g2, c2) = self.tip_in_anchor(
-            est,
-            Robot::Two,
-            pair.tool2,
-            &pair.q2,
-            Some(&pair.q1),
-            Robot::One,
+            [&pair.q1, &pair.q2],
+            [pair.tool1, pair.tool2],
             want_jac,
             0,
         )?;

@@ -36,10 +36,12 @@ pub fn initial_estimate(
                 } = &o.kind
                 {
                     a.push(Point3::from(
-                        ev.robot_tip(&est, Robot::One, *tool1, q1, Some(q2), false, o.row)?.0,
+                        ev.robot_tip(&est, Robot::One, *tool1, q1, Some(q2), false, o.row)?
+                            .0,
                     ));
                     b.push(Point3::from(
-                        ev.robot_tip(&est, Robot::Two, *tool2, q2, Some(q1), false, o.row)?.0,
+                        ev.robot_tip(&est, Robot::Two, *tool2, q2, Some(q1), false, o.row)?
+                            .0,
                     ));
                 }
             }
@@ -110,8 +112,10 @@ pub fn initial_estimate(
                 if *group == g {
                     let q_other = problem.other_arm_q.get(&o.row).map(Vec::as_slice);
                     pts.push(
-                        ev.tip_in_anchor(&est, *robot, *tool, q, q_other, grp.anchor, false, o.row)?
-                            .0,
+                        ev.tip_in_anchor(
+                            &est, *robot, *tool, q, q_other, grp.anchor, false, o.row,
+                        )?
+                        .0,
                     );
                 }
             }

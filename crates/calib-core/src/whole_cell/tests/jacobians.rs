@@ -340,8 +340,14 @@ fn shared_trunk_compliance_jacobians_match_central_differences() {
                     if *robot == r && *joint < k && kinematics::is_branch_param(param, k) == branch)
             })
         };
-        assert!(has(Robot::Two, true), "robot 2's arm on the trunk: its own columns");
-        assert!(!has(Robot::Two, false), "the trunk links: robot 1's columns");
+        assert!(
+            has(Robot::Two, true),
+            "robot 2's arm on the trunk: its own columns"
+        );
+        assert!(
+            !has(Robot::Two, false),
+            "the trunk links: robot 1's columns"
+        );
         assert!(has(Robot::One, true) && has(Robot::One, false));
         let ev = Evaluator::new(&p, &layout);
         assert_rows_match_central_differences(&p, &layout, &ev, &est, seed);

@@ -135,10 +135,7 @@ fn humanoid_problem(xml: &str, tolerance: Tolerance) -> CellProblem {
 /// `b.compliance` on every joint (the deflection from the URDF masses, both arms on the
 /// torso), a camera 2.5 m in front of the pelvis looking back at it; and the generator that
 /// then draws the poses.
-fn humanoid_truth(
-    b: &Humanoid,
-    truth_problem: &CellProblem,
-) -> (CellEstimate, ChaCha8Rng) {
+fn humanoid_truth(b: &Humanoid, truth_problem: &CellProblem) -> (CellEstimate, ChaCha8Rng) {
     let mut rng = ChaCha8Rng::seed_from_u64(b.seed);
     let mut truth = CellEstimate::nominal(truth_problem, Isometry3::identity());
     let tol = Tolerance::default();
@@ -222,7 +219,15 @@ fn run_humanoid(b: &Humanoid) -> Figures {
     let train_poses = pose_pairs(&truth_problem, b.train, &mut rng);
     let held_poses = pose_pairs(&truth_problem, b.held_out, &mut rng);
     let mut held = humanoid_problem(&massless, Tolerance::default());
-    tracker_rows(&mut held, &truth_problem, &truth, &held_poses, b.sigma_m, 0.0, &mut rng);
+    tracker_rows(
+        &mut held,
+        &truth_problem,
+        &truth,
+        &held_poses,
+        b.sigma_m,
+        0.0,
+        &mut rng,
+    );
     let solve = SolveOptions {
         initial_b1_from_b2: Some(Isometry3::identity()),
         ..SolveOptions::default()
@@ -236,7 +241,15 @@ fn run_humanoid(b: &Humanoid) -> Figures {
     };
     let fit = |tolerance: Tolerance, noise_m: f64, rng: &mut ChaCha8Rng| {
         let mut p = humanoid_problem(&massless, tolerance);
-        tracker_rows(&mut p, &truth_problem, &truth, &train_poses, b.sigma_m, noise_m, rng);
+        tracker_rows(
+            &mut p,
+            &truth_problem,
+            &truth,
+            &train_poses,
+            b.sigma_m,
+            noise_m,
+            rng,
+        );
         let started = Instant::now();
         let cal = calibrate_cell(&p, &solve, &screen).expect("fit");
         eprintln!(
@@ -293,12 +306,19 @@ fn humanoid_benchmark() {
         seed: 22,
     };
     let f = run_humanoid(&b);
-    let mm = |(mean, rms): (f64, f64)| format!("mean {:.2} mm, rms {:.2} mm", mean * 1e3, rms * 1e3);
+    let mm =
+        |(mean, rms): (f64, f64)| format!("mean {:.2} mm, rms {:.2} mm", mean * 1e3, rms * 1e3);
     eprintln!("humanoid benchmark {b:?}");
     eprintln!("  nominal (camera registered):       {}", mm(f.nominal));
     eprintln!("  whole-cell kinematic fit:          {}", mm(f.kinematic));
-    eprintln!("  kinematic-only oracle (no noise):  {}", mm(f.oracle_kinematic));
-    eprintln!("  true geometry, compliance left out: {}", mm(f.geometry_known));
+    eprintln!(
+        "  kinematic-only oracle (no noise):  {}",
+        mm(f.oracle_kinematic)
+    );
+    eprintln!(
+        "  true geometry, compliance left out: {}",
+        mm(f.geometry_known)
+    );
     eprintln!("  kinematic+compliance (lumped):     {}", mm(f.compliance));
     eprintln!("  noise scales {:?}", f.truth_noise_scale);
     assert!(f.kinematic.0 <= GEOMETRIC_LIMIT_MARGIN * f.oracle_kinematic.0);
@@ -353,7 +373,15 @@ fn other_arm_joints_are_checked() {
     let (truth, mut rng) = humanoid_truth(&b, &truth_problem);
     let poses = pose_pairs(&truth_problem, b.train, &mut rng);
     let mut p = truth_problem.clone();
-    tracker_rows(&mut p, &truth_problem, &truth, &poses, b.sigma_m, 0.0, &mut rng);
+    tracker_rows(
+        &mut p,
+        &truth_problem,
+        &truth,
+        &poses,
+        b.sigma_m,
+        0.0,
+        &mut rng,
+    );
     p.check().expect("valid");
     let refused = |change: &dyn Fn(&mut CellProblem), needle: &str| {
         let mut q = p.clone();
