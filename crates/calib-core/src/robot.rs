@@ -25,6 +25,14 @@ impl Robot {
         }
     }
 
+    /// The other robot of the cell.
+    pub fn other(self) -> Robot {
+        match self {
+            Robot::One => Robot::Two,
+            Robot::Two => Robot::One,
+        }
+    }
+
     /// The robot with number 1 or 2; `None` for any other number.
     pub fn from_number(number: u8) -> Option<Robot> {
         match number {

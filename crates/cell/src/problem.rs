@@ -220,6 +220,7 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
             sigma_m: s.sigma_m,
             sigma_rad: s.sigma_rad,
         }),
+        other_arm_q: Default::default(),
     }
 }
 

@@ -16,6 +16,7 @@ mod model;
 #[cfg(test)]
 mod test_fixtures;
 mod true_fk;
+pub mod trunk;
 mod urdf_patch;
 
 /// The nalgebra this crate's API is written in (`Isometry3`, `Point3`, `Vector3`, `DVector`, …).
@@ -53,6 +54,10 @@ pub use true_fk::{
     tip_error_jacobian, tip_joint_jacobian_true, true_base_from_flange,
     true_base_from_flange_unchecked, true_base_from_tip, true_base_from_tip_unchecked,
     true_tip_with_error_jacobian,
+};
+pub use trunk::{
+    branch_deflections, branch_regressor, branch_torques, is_branch_param,
+    shared_trunk_lumped_from_masses, TRUNK_MATCH_TOL,
 };
 pub use urdf_patch::{
     patch_urdf_text, split_for_urdf, verify_patched_urdf, PATCH_TOLERANCE_M, VERIFY_CONFIGURATIONS,

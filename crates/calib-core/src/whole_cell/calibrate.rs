@@ -140,6 +140,7 @@ pub struct CellCalibration {
 ///     planes: vec![],
 ///     contacts: vec![],
 ///     placement_prior: None,
+///     other_arm_q: Default::default(),
 /// };
 ///
 /// let cal = calibrate_cell(&problem, &SolveOptions::default(), &ScreenOptions::default())?;

@@ -665,6 +665,7 @@ mod tests {
             }],
             contacts: vec![],
             placement_prior: None,
+            other_arm_q: Default::default(),
         };
         let c = session_coverage(&problem, seed).unwrap();
         let [one, two] = &c.robots;

@@ -123,6 +123,7 @@ pub fn sim_cell(cell: Cell, tol: Tolerance, second_tool: bool, seed: u64) -> Sim
         planes: vec![],
         contacts: vec![],
         placement_prior: None,
+        other_arm_q: Default::default(),
     };
     let mut truth = CellEstimate::nominal(&problem, x);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -162,6 +163,7 @@ impl SimCell {
             planes: vec![],
             contacts: vec![],
             placement_prior: None,
+            other_arm_q: Default::default(),
         }
     }
 

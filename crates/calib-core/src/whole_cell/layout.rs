@@ -354,9 +354,13 @@ impl ParamLayout {
             let mut kin = Vec::new();
             // Robot 2's shared joints (a shared trunk) have robot 1's parameters: robot 1's
             // columns, no columns of their own, so the Jacobians add into them and a step moves
-            // both robots' copies alike.
-            let shared =
-                |p: &ErrorParam| r == Robot::Two && p.joint().is_some_and(|j| j < rb.shared_joints);
+            // both robots' copies alike. Robot 2's arm links' lumped coefficients on the trunk
+            // joints are its own (each arm's weight on the trunk, `kinematics::trunk`).
+            let shared = |p: &ErrorParam| {
+                r == Robot::Two
+                    && p.joint().is_some_and(|j| j < rb.shared_joints)
+                    && !kinematics::is_branch_param(p, rb.shared_joints)
+            };
             if let Some(robot1) = robots.first() {
                 let robot1: &RobotLayout = robot1;
                 kin.extend(robot1.kin.iter().filter(|(p, _)| shared(p)).copied());

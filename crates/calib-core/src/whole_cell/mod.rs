@@ -198,7 +198,7 @@ pub use misfit::{
 pub use mistakes::{candidate_mistakes, try_problem, Mistake, Trial};
 pub use observations::{
     CellProblem, ContactGroup, GroupKind, Kind, Observation, ObservationKind, PlaneGroup,
-    TrackerGroup, UNIT_NORMAL_TOL,
+    TrackerGroup, OTHER_ARM_TRUNK_TOL, UNIT_NORMAL_TOL,
 };
 pub use placement_prior::PlacementPrior;
 pub use prediction::{

@@ -1,6 +1,8 @@
 //! What was observed: the observation kinds, the nuisance groups (tracker frames, planes,
 //! contact distances), the [`CellProblem`] that holds them with both robots, and its checks.
 
+use std::collections::BTreeMap;
+
 use nalgebra::{Isometry3, Point3, Unit, Vector3};
 
 use super::cell::{CellFitError, CellRobot, Noise3};
@@ -304,6 +306,11 @@ impl ObservationKind {
 /// vectors wrapped with `new_unchecked`).
 pub const UNIT_NORMAL_TOL: f64 = 1e-9;
 
+/// Largest difference, rad (or m), between a one-robot row's trunk joints and the other arm's
+/// trunk joints given for it ([`CellProblem::other_arm_q`]): 1e-9, round-off of one value
+/// written twice.
+pub const OTHER_ARM_TRUNK_TOL: f64 = 1e-9;
+
 /// One observation with its 1-based source row (used in every message and report).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Observation {
@@ -381,9 +388,78 @@ pub struct CellProblem {
     /// Optional prior on `b1_from_b2` around a known nominal (e.g. two arms on one base);
     /// `None`: the placement is fitted unpenalised.
     pub placement_prior: Option<PlacementPrior>,
+    /// A shared-trunk cell ([`CellRobot::shared_joints`] > 0): the other arm's joints (its
+    /// independent joints, rad or m, agreeing with the row's on the trunk) at the 1-based source
+    /// row of each one-robot observation (tracker, plane) that gives them. The other arm's weight
+    /// loads the trunk joints ([`kinematics::trunk`]): with its posture the trunk's gravity
+    /// deflection carries both arms; without it, the measured arm's alone. Two-robot rows carry
+    /// both arms' joints already. Empty otherwise.
+    pub other_arm_q: BTreeMap<usize, Vec<f64>>,
 }
 
 impl CellProblem {
+    /// Checks [`CellProblem::other_arm_q`]: only on a shared-trunk cell, each entry at the row of
+    /// a one-robot observation (tracker or plane), as many values as the other arm's
+    /// independent joints, all finite, and the trunk's independent joints equal to the row's
+    /// (within [`OTHER_ARM_TRUNK_TOL`]: one trunk has one posture).
+    fn check_other_arm_q(&self) -> Result<(), CellFitError> {
+        if self.other_arm_q.is_empty() {
+            return Ok(());
+        }
+        let k = self.robot2.shared_joints;
+        if k == 0 {
+            return Err(CellFitError::InvalidInput(
+                "the other arm's joints are given for one-robot rows, but the cell has no shared \
+                 trunk (robot 2's shared_joints is 0); give them only on a shared-trunk cell"
+                    .into(),
+            ));
+        }
+        let trunk_independent = self
+            .robot1
+            .model
+            .chain_joints()
+            .iter()
+            .take(k)
+            .filter(|j| !j.is_coupled())
+            .count();
+        for (&row, q_other) in &self.other_arm_q {
+            let obs = self.observations.iter().find(|o| o.row == row);
+            let (robot, q) = match obs.map(|o| &o.kind) {
+                Some(ObservationKind::Tracker { robot, q, .. })
+                | Some(ObservationKind::Plane { robot, q, .. }) => (*robot, q),
+                _ => {
+                    return Err(CellFitError::InvalidInput(format!(
+                        "observation row {row}: the other arm's joints are given, but row {row} \
+                         is not a tracker or plane row (two-robot rows carry both arms' joints); \
+                         give them only for one-robot rows"
+                    )))
+                }
+            };
+            let other = robot.other();
+            let dof = self.robot(other).model.dof();
+            if q_other.len() != dof || !q_other.iter().all(|v| v.is_finite()) {
+                return Err(CellFitError::InvalidInput(format!(
+                    "observation row {row}: the other arm ({other}) has {dof} joints, but {} \
+                     values are given (or some are not finite); give its {dof} joint values",
+                    q_other.len()
+                )));
+            }
+            for j in 0..trunk_independent.min(q.len()) {
+                if (q[j] - q_other[j]).abs() > OTHER_ARM_TRUNK_TOL {
+                    return Err(CellFitError::InvalidInput(format!(
+                        "observation row {row}: trunk joint {} is {} rad for {robot} but {} rad \
+                         in the other arm's joints; one trunk has one posture, give the row's \
+                         value in both",
+                        j + 1,
+                        q[j],
+                        q_other[j]
+                    )));
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// The normalised recording order `u ∈ [−½, ½]` of a tracker observation of `group` at
     /// source row `row` (see [`TrackerGroup`]): `(row − first)/(last − first) − ½` over the
     /// group's tracker observations, 0 when the group has one row (or none).
@@ -439,6 +515,7 @@ impl CellProblem {
                 )));
             }
         }
+        self.check_other_arm_q()?;
         let tool_ok = |robot: Robot, tool: usize, row: usize| {
             let n = self.robot(robot).tools.len();
             if tool >= n {

@@ -2,8 +2,9 @@
 //! is in the module documentation of [`crate::whole_cell`].
 
 use kinematics::{
-    tip_error_jacobian, true_base_from_tip, true_tip_with_error_jacobian, Axis, ErrorParam,
-    KinematicErrors, KinematicsError,
+    branch_deflections, branch_regressor, branch_torques, is_branch_param, tip_error_jacobian,
+    true_base_from_tip, true_tip_with_error_jacobian, Axis, ErrorParam, KinematicErrors,
+    KinematicsError,
 };
 use nalgebra::{DMatrix, DVector, Point3, Unit, Vector3};
 
@@ -26,6 +27,20 @@ fn kinematics_error(robot: Robot, row: usize) -> impl Fn(KinematicsError) -> Cel
 
 /// Sparse 3-row Jacobian: (column, ∂/∂column).
 type Cols3 = Vec<(usize, Vector3<f64>)>;
+
+/// Robot 1's and robot 2's tips in b1 with their Jacobian columns.
+type TwoTips = ((Vector3<f64>, Cols3), (Vector3<f64>, Cols3));
+
+/// The other arm's load on a shared trunk at one observation ([`kinematics::trunk`]): the
+/// deflection it adds to each trunk joint (rad, added to the joint's zero offset), its gravity
+/// torques (N·m, for the trunk joints' physical compliance columns) and, with the Jacobian, the
+/// other arm's branch coefficients' columns as (layout column, trunk joint, factor): the tip's
+/// column is the trunk joint's offset column times the factor.
+struct TrunkLoad {
+    deflection: Vec<f64>,
+    torque: Vec<f64>,
+    branch: Vec<(usize, usize, f64)>,
+}
 
 /// A linearised observation: residuals and Jacobian rows (unwhitened and the whitening).
 #[derive(Debug, Clone)]
@@ -82,33 +97,124 @@ impl<'a> Evaluator<'a> {
         Ok((rb, tool_def, est.robot(robot).errors_for_tool(tool)))
     }
 
-    /// Tip of `robot`'s `tool` at `q` in its own base frame, m, and its Jacobian columns.
+    /// The other arm's load on the trunk when `robot`'s tip is evaluated with the other arm at
+    /// `q_other` (`None`: not a shared-trunk cell, or the row does not give the other arm's
+    /// joints), with the branch columns when `want_jac`. The other arm's physical compliance
+    /// part uses the trunk joints' compliance of `errors` (`robot`'s copy of the shared values).
+    fn trunk_load(
+        &self,
+        est: &CellEstimate,
+        robot: Robot,
+        errors: &KinematicErrors,
+        q_other: Option<&[f64]>,
+        want_jac: bool,
+        row: usize,
+    ) -> Result<Option<TrunkLoad>, CellFitError> {
+        let k = self.problem.robot2.shared_joints;
+        let Some(q_other) = q_other.filter(|_| k > 0) else {
+            return Ok(None);
+        };
+        let other = robot.other();
+        let orb = self.problem.robot(other);
+        let other_errors = &est.robot(other).errors;
+        let kin_err = kinematics_error(other, row);
+        let mut deflection = branch_deflections(
+            &orb.model,
+            &other_errors.lumped_compliance,
+            q_other,
+            &orb.g_base,
+            k,
+        )
+        .map_err(kin_err)?;
+        let compliant = errors.compliance[..k].iter().any(|&c| c != 0.0);
+        let wants_torque = want_jac
+            && self.layout.robots[robot_slot(robot)]
+                .kin
+                .iter()
+                .any(|(p, _)| matches!(p, ErrorParam::Compliance { joint } if *joint < k));
+        let torque = if compliant || wants_torque {
+            branch_torques(&orb.model, q_other, &orb.g_base, k).map_err(kin_err)?
+        } else {
+            vec![0.0; k]
+        };
+        for (j, d) in deflection.iter_mut().enumerate() {
+            *d += errors.compliance[j] * torque[j];
+        }
+        let mut branch = Vec::new();
+        if want_jac {
+            let lay = &self.layout.robots[robot_slot(other)];
+            let (params, cols): (Vec<ErrorParam>, Vec<usize>) = lay
+                .kin
+                .iter()
+                .filter(|(p, _)| is_branch_param(p, k))
+                .copied()
+                .unzip();
+            if !params.is_empty() {
+                let reg = branch_regressor(&orb.model, q_other, &orb.g_base, k, &params)
+                    .map_err(kin_err)?;
+                branch = cols
+                    .into_iter()
+                    .zip(reg)
+                    .map(|(c, (joint, factor))| (c, joint, factor))
+                    .collect();
+            }
+        }
+        Ok(Some(TrunkLoad {
+            deflection,
+            torque,
+            branch,
+        }))
+    }
+
+    /// Tip of `robot`'s `tool` at `q` in its own base frame, m, and its Jacobian columns; on a
+    /// shared trunk with the other arm at `q_other`, the trunk carries the other arm too.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn robot_tip(
         &self,
         est: &CellEstimate,
         robot: Robot,
         tool: usize,
         q: &[f64],
+        q_other: Option<&[f64]>,
         want_jac: bool,
         row: usize,
     ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
         let slot = robot_slot(robot);
-        let (rb, tool_def, errors) = self.tool_context(est, robot, tool, row)?;
+        let (rb, tool_def, mut errors) = self.tool_context(est, robot, tool, row)?;
         let kin_err = kinematics_error(robot, row);
         let lay = &self.layout.robots[slot];
         let tip_col = lay.tip_col[tool];
+        let load = self.trunk_load(est, robot, &errors, q_other, want_jac, row)?;
+        if let Some(load) = &load {
+            for (o, d) in errors.joint_offset.iter_mut().zip(&load.deflection) {
+                *o += d;
+            }
+        }
         let mut cols = Cols3::new();
         if want_jac && (!lay.kin.is_empty() || tip_col.iter().any(Option::is_some)) {
             // Always the kinematic columns and all three tip axes; unfitted axes are skipped.
             // The tip and its Jacobian from one walk of the chain (the same values as
-            // `true_base_from_tip` and `tip_error_jacobian`).
+            // `true_base_from_tip` and `tip_error_jacobian`). Under a trunk load, the trunk
+            // joints' offset columns too (the branch columns are multiples of them).
+            let loaded_params;
+            let params = match &load {
+                Some(load) => {
+                    let mut v = self.jac_params[slot].clone();
+                    v.extend(
+                        (0..load.deflection.len()).map(|joint| ErrorParam::JointOffset { joint }),
+                    );
+                    loaded_params = v;
+                    &loaded_params
+                }
+                None => &self.jac_params[slot],
+            };
             let (pose, j) = true_tip_with_error_jacobian(
                 &rb.model,
                 &errors,
                 q,
                 &tool_def.flange_from_tip,
                 &rb.g_base,
-                &self.jac_params[slot],
+                params,
             )
             .map_err(kin_err)?;
             cols.reserve(lay.kin.len() + 3);
@@ -121,6 +227,10 @@ impl<'a> Evaluator<'a> {
                     cols.push((*c, j.column(k0 + a).into_owned()));
                 }
             }
+            if let Some(load) = &load {
+                let offset_col = |joint: usize| j.column(k0 + 3 + joint).into_owned();
+                push_load_columns(&mut cols, lay.kin.iter().map(|k| k.0), load, offset_col);
+            }
             return Ok((pose.translation.vector, cols));
         }
         let p = true_base_from_tip(&rb.model, &errors, q, &tool_def.flange_from_tip, &rb.g_base)
@@ -131,7 +241,7 @@ impl<'a> Evaluator<'a> {
     }
 
     /// Tip of `robot`'s tool in base `anchor`'s frame and its Jacobian columns (including the
-    /// placement's when the frames differ).
+    /// placement's when the frames differ); `q_other` as [`Evaluator::robot_tip`].
     #[allow(clippy::too_many_arguments)]
     pub(super) fn tip_in_anchor(
         &self,
@@ -139,11 +249,12 @@ impl<'a> Evaluator<'a> {
         robot: Robot,
         tool: usize,
         q: &[f64],
+        q_other: Option<&[f64]>,
         anchor: Robot,
         want_jac: bool,
         row: usize,
     ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
-        let (f, cols) = self.robot_tip(est, robot, tool, q, want_jac, row)?;
+        let (f, cols) = self.robot_tip(est, robot, tool, q, q_other, want_jac, row)?;
         if robot == anchor {
             return Ok((f, cols));
         }
@@ -175,9 +286,43 @@ impl<'a> Evaluator<'a> {
         }
     }
 
+    /// Both robots' tips of a two-robot row in b1 and their Jacobian columns
+    /// ([`Evaluator::tip_in_anchor`]), each arm loading a shared trunk for the other.
+    fn both_tips_in_b1(
+        &self,
+        est: &CellEstimate,
+        [q1, q2]: [&[f64]; 2],
+        [tool1, tool2]: [usize; 2],
+        want_jac: bool,
+        row: usize,
+    ) -> Result<TwoTips, CellFitError> {
+        let one = self.tip_in_anchor(
+            est,
+            Robot::One,
+            tool1,
+            q1,
+            Some(q2),
+            Robot::One,
+            want_jac,
+            row,
+        )?;
+        let two = self.tip_in_anchor(
+            est,
+            Robot::Two,
+            tool2,
+            q2,
+            Some(q1),
+            Robot::One,
+            want_jac,
+            row,
+        )?;
+        Ok((one, two))
+    }
+
     /// A unit vector fixed in `robot`'s tip frame (`n_tip`, e.g. a face normal), rotated into
     /// b1 (`R(b1_from_tip)·n_tip`; for robot 2 `R(b1_from_b2)·R(b2_from_tip)·n_tip`), and its
-    /// Jacobian columns: the kinematic parameters and, for robot 2, the placement rotation
+    /// Jacobian columns: the kinematic parameters (and a shared trunk's load from the other arm
+    /// at `q_other`, as [`Evaluator::robot_tip`]) and, for robot 2, the placement rotation
     /// (`∂/∂φ_i = e_i × n_b1`; translations and tip offsets do not rotate it).
     ///
     /// The kinematic columns are exact without a rotation Jacobian: the tip is affine in the
@@ -191,28 +336,46 @@ impl<'a> Evaluator<'a> {
         robot: Robot,
         tool: usize,
         q: &[f64],
+        q_other: Option<&[f64]>,
         n_tip: &Unit<Vector3<f64>>,
         want_jac: bool,
         row: usize,
     ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
         let slot = robot_slot(robot);
-        let (rb, tool_def, errors) = self.tool_context(est, robot, tool, row)?;
+        let (rb, tool_def, mut errors) = self.tool_context(est, robot, tool, row)?;
         let kin_err = kinematics_error(robot, row);
+        let lay = &self.layout.robots[slot];
+        let load = self.trunk_load(est, robot, &errors, q_other, want_jac, row)?;
+        if let Some(load) = &load {
+            for (o, d) in errors.joint_offset.iter_mut().zip(&load.deflection) {
+                *o += d;
+            }
+        }
         let t = tool_def.flange_from_tip;
         let base_from_tip =
             true_base_from_tip(&rb.model, &errors, q, &t, &rb.g_base).map_err(kin_err)?;
         let n_base = base_from_tip.rotation * n_tip.into_inner();
         let mut cols = Cols3::new();
-        let lay = &self.layout.robots[slot];
-        if want_jac && !lay.kin.is_empty() {
-            let params = &self.jac_params[slot][..lay.kin.len()];
+        let has_branch = load.as_ref().is_some_and(|l| !l.branch.is_empty());
+        if want_jac && (!lay.kin.is_empty() || has_branch) {
+            let mut params = self.jac_params[slot][..lay.kin.len()].to_vec();
+            let k0 = params.len();
+            if let Some(load) = &load {
+                params.extend(
+                    (0..load.deflection.len()).map(|joint| ErrorParam::JointOffset { joint }),
+                );
+            }
             let shifted = t + n_tip.into_inner();
-            let j_t = tip_error_jacobian(&rb.model, &errors, q, &t, &rb.g_base, params)
+            let j_t = tip_error_jacobian(&rb.model, &errors, q, &t, &rb.g_base, &params)
                 .map_err(kin_err)?;
-            let j_n = tip_error_jacobian(&rb.model, &errors, q, &shifted, &rb.g_base, params)
+            let j_n = tip_error_jacobian(&rb.model, &errors, q, &shifted, &rb.g_base, &params)
                 .map_err(kin_err)?;
             for (k, &(_, c)) in lay.kin.iter().enumerate() {
                 cols.push((c, j_n.column(k) - j_t.column(k)));
+            }
+            if let Some(load) = &load {
+                let offset_col = |joint: usize| j_n.column(k0 + joint) - j_t.column(k0 + joint);
+                push_load_columns(&mut cols, lay.kin.iter().map(|k| k.0), load, offset_col);
             }
         }
         if robot == Robot::One {
@@ -260,10 +423,8 @@ impl<'a> Evaluator<'a> {
                 tool2,
                 noise,
             } => {
-                let (p1, c1) =
-                    self.tip_in_anchor(est, Robot::One, *tool1, q1, Robot::One, want_jac, row)?;
-                let (g2, c2) =
-                    self.tip_in_anchor(est, Robot::Two, *tool2, q2, Robot::One, want_jac, row)?;
+                let ((p1, c1), (g2, c2)) =
+                    self.both_tips_in_b1(est, [q1, q2], [*tool1, *tool2], want_jac, row)?;
                 if want_jac {
                     put3(&mut jac, &c1, 1.0);
                     put3(&mut jac, &c2, -1.0);
@@ -282,10 +443,8 @@ impl<'a> Evaluator<'a> {
                 group,
                 sigma_m,
             } => {
-                let (p1, c1) =
-                    self.tip_in_anchor(est, Robot::One, *tool1, q1, Robot::One, want_jac, row)?;
-                let (g2, c2) =
-                    self.tip_in_anchor(est, Robot::Two, *tool2, q2, Robot::One, want_jac, row)?;
+                let ((p1, c1), (g2, c2)) =
+                    self.both_tips_in_b1(est, [q1, q2], [*tool1, *tool2], want_jac, row)?;
                 let e = p1 - g2;
                 let dist = e.norm();
                 let u = if dist > 0.0 { e / dist } else { Vector3::x() };
@@ -311,14 +470,28 @@ impl<'a> Evaluator<'a> {
                 group,
                 sigma_m,
             } => {
-                let (p1, c1) =
-                    self.tip_in_anchor(est, Robot::One, *tool1, q1, Robot::One, want_jac, row)?;
-                let (g2, c2) =
-                    self.tip_in_anchor(est, Robot::Two, *tool2, q2, Robot::One, want_jac, row)?;
-                let (n1, cn1) =
-                    self.normal_in_b1(est, Robot::One, *tool1, q1, n1_tip, want_jac, row)?;
-                let (n2, cn2) =
-                    self.normal_in_b1(est, Robot::Two, *tool2, q2, n2_tip, want_jac, row)?;
+                let ((p1, c1), (g2, c2)) =
+                    self.both_tips_in_b1(est, [q1, q2], [*tool1, *tool2], want_jac, row)?;
+                let (n1, cn1) = self.normal_in_b1(
+                    est,
+                    Robot::One,
+                    *tool1,
+                    q1,
+                    Some(q2),
+                    n1_tip,
+                    want_jac,
+                    row,
+                )?;
+                let (n2, cn2) = self.normal_in_b1(
+                    est,
+                    Robot::Two,
+                    *tool2,
+                    q2,
+                    Some(q1),
+                    n2_tip,
+                    want_jac,
+                    row,
+                )?;
                 // n̄ = m/‖m‖, m = n1 − n2; ∂(n̄·e) = n̄·∂e + wᵀ·∂m, w = (I − n̄n̄ᵀ)·e/‖m‖.
                 let m = n1 - n2;
                 let m_len = m.norm();
@@ -356,7 +529,9 @@ impl<'a> Evaluator<'a> {
                 noise,
             } => {
                 let anchor = self.problem.trackers[*group].anchor;
-                let (g, cols) = self.tip_in_anchor(est, *robot, *tool, q, anchor, want_jac, row)?;
+                let q_other = self.problem.other_arm_q.get(&row).map(Vec::as_slice);
+                let (g, cols) =
+                    self.tip_in_anchor(est, *robot, *tool, q, q_other, anchor, want_jac, row)?;
                 let t = &est.tracker_from_anchor[*group];
                 let tg = (t * Point3::from(g)).coords;
                 // Scale and drift (see TrackerGroup): m = (1 + s)·(T·g + u·δ); `k = 1 + s`.
@@ -411,7 +586,9 @@ impl<'a> Evaluator<'a> {
                 sigma_m,
             } => {
                 let anchor = self.problem.planes[*group].anchor;
-                let (g, cols) = self.tip_in_anchor(est, *robot, *tool, q, anchor, want_jac, row)?;
+                let q_other = self.problem.other_arm_q.get(&row).map(Vec::as_slice);
+                let (g, cols) =
+                    self.tip_in_anchor(est, *robot, *tool, q, q_other, anchor, want_jac, row)?;
                 let plane = &est.planes[*group];
                 let nrm = plane.normal_anchor.into_inner();
                 if want_jac {
@@ -446,21 +623,10 @@ impl<'a> Evaluator<'a> {
         pair: &super::ConfigPair,
         want_jac: bool,
     ) -> Result<(Vector3<f64>, DMatrix<f64>), CellFitError> {
-        let (p1, c1) = self.tip_in_anchor(
+        let ((p1, c1), (g2, c2)) = self.both_tips_in_b1(
             est,
-            Robot::One,
-            pair.tool1,
-            &pair.q1,
-            Robot::One,
-            want_jac,
-            0,
-        )?;
-        let (g2, c2) = self.tip_in_anchor(
-            est,
-            Robot::Two,
-            pair.tool2,
-            &pair.q2,
-            Robot::One,
+            [&pair.q1, &pair.q2],
+            [pair.tool1, pair.tool2],
             want_jac,
             0,
         )?;
@@ -479,4 +645,31 @@ impl<'a> Evaluator<'a> {
         }
         Ok((p1 - g2, jac))
     }
+}
+
+/// The trunk load's columns ([`TrunkLoad`]): each branch coefficient of the other arm, and the
+/// other arm's part of each trunk joint's physical compliance column (its torque), as multiples
+/// of the trunk joints' offset columns `offset_col`; `kin` the robot's kinematic parameters in
+/// layout order (their columns are `cols`' first entries).
+fn push_load_columns(
+    cols: &mut Cols3,
+    kin: impl Iterator<Item = ErrorParam>,
+    load: &TrunkLoad,
+    offset_col: impl Fn(usize) -> Vector3<f64>,
+) {
+    let extra: Cols3 = kin
+        .zip(cols.iter())
+        .filter_map(|(p, &(c, _))| match p {
+            ErrorParam::Compliance { joint } if joint < load.torque.len() => {
+                Some((c, offset_col(joint) * load.torque[joint]))
+            }
+            _ => None,
+        })
+        .collect();
+    cols.extend(extra);
+    cols.extend(
+        load.branch
+            .iter()
+            .map(|&(c, joint, factor)| (c, offset_col(joint) * factor)),
+    );
 }

@@ -36,10 +36,12 @@ pub fn initial_estimate(
                 } = &o.kind
                 {
                     a.push(Point3::from(
-                        ev.robot_tip(&est, Robot::One, *tool1, q1, false, o.row)?.0,
+                        ev.robot_tip(&est, Robot::One, *tool1, q1, Some(q2), false, o.row)?
+                            .0,
                     ));
                     b.push(Point3::from(
-                        ev.robot_tip(&est, Robot::Two, *tool2, q2, false, o.row)?.0,
+                        ev.robot_tip(&est, Robot::Two, *tool2, q2, Some(q1), false, o.row)?
+                            .0,
                     ));
                 }
             }
@@ -71,8 +73,9 @@ pub fn initial_estimate(
             } = &o.kind
             {
                 if *group == g {
-                    let (p, _) =
-                        ev.tip_in_anchor(&est, *robot, *tool, q, grp.anchor, false, o.row)?;
+                    let q_other = problem.other_arm_q.get(&o.row).map(Vec::as_slice);
+                    let (p, _) = ev
+                        .tip_in_anchor(&est, *robot, *tool, q, q_other, grp.anchor, false, o.row)?;
                     meas.push(*p_tracker);
                     model.push(Point3::from(p));
                 }
@@ -107,9 +110,12 @@ pub fn initial_estimate(
             } = &o.kind
             {
                 if *group == g {
+                    let q_other = problem.other_arm_q.get(&o.row).map(Vec::as_slice);
                     pts.push(
-                        ev.tip_in_anchor(&est, *robot, *tool, q, grp.anchor, false, o.row)?
-                            .0,
+                        ev.tip_in_anchor(
+                            &est, *robot, *tool, q, q_other, grp.anchor, false, o.row,
+                        )?
+                        .0,
                     );
                 }
             }

@@ -277,3 +277,94 @@ fn shared_trunk_and_coupled_joint_jacobians_match_central_differences() {
         }
     }
 }
+
+/// [`shared_trunk`] with gravity compliance on the trunk carrying both arms
+/// ([`kinematics::trunk`]): lumped coefficients fitted on both robots (robot 2's arm links on
+/// the trunk joints its own columns, its trunk links robot 1's), physical compliance fitted
+/// too (the URDF has masses), the other arm's joints given for every tracker and plane row
+/// (`other_arm_q`), and random values of every fitted parameter (the shared copies equal).
+fn shared_trunk_compliant(seed: u64) -> (CellProblem, CellEstimate) {
+    let (mut p, _) = shared_trunk(seed);
+    for rb in [&mut p.robot1, &mut p.robot2] {
+        rb.tolerance.lumped_compliance_rad = Some(LUMPED_COMPLIANCE_TOLERANCE_RAD);
+        rb.tolerance.compliance_rad_per_nm = Some(1e-4);
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0xb7a1);
+    for o in &p.observations {
+        if let ObservationKind::Tracker { robot, q, .. } | ObservationKind::Plane { robot, q, .. } =
+            &o.kind
+        {
+            let mut q_other = random_q(&p.robot(robot.other()).model, &mut rng);
+            q_other[..3].copy_from_slice(&q[..3]);
+            p.other_arm_q.insert(o.row, q_other);
+        }
+    }
+    let mut est = CellEstimate::nominal(&p, Isometry3::identity());
+    let k = p.robot2.shared_joints;
+    let value = |param: ErrorParam, rng: &mut ChaCha8Rng| match param {
+        ErrorParam::Compliance { .. } => rng.random_range(0.0..2e-4),
+        ErrorParam::LumpedCompliance { .. } => rng.random_range(-5e-3..5e-3),
+        _ => rng.random_range(-1e-3..1e-3),
+    };
+    for param in p.robot1.fitted_params() {
+        est.robot1.errors.set(param, value(param, &mut rng));
+    }
+    for param in p.robot2.fitted_params() {
+        let shared =
+            param.joint().is_some_and(|j| j < k) && !kinematics::is_branch_param(&param, k);
+        let v = if shared {
+            est.robot1.errors.get(param)
+        } else {
+            value(param, &mut rng)
+        };
+        est.robot2.errors.set(param, v);
+    }
+    (p, est)
+}
+
+/// Compliance on a shared trunk (issue 22): robot 2's arm links' lumped coefficients on the
+/// trunk joints have columns of their own, its trunk links' do not; every analytic column
+/// (with the other arm's branch coefficients and its share of each trunk joint's physical
+/// compliance) matches central differences of every residual kind; and the other arm's
+/// posture changes a one-robot row's residual (the trunk carries both arms).
+#[test]
+fn shared_trunk_compliance_jacobians_match_central_differences() {
+    for seed in [6u64, 7] {
+        let (p, est) = shared_trunk_compliant(seed);
+        p.check().expect("valid problem");
+        let layout = ParamLayout::new(&p, &[]);
+        let k = p.robot2.shared_joints;
+        let has = |r: Robot, branch: bool| {
+            layout.params.iter().any(|c| {
+                matches!(c, CellParam::Kinematic { robot, param: param @ ErrorParam::LumpedCompliance { joint, .. } }
+                    if *robot == r && *joint < k && kinematics::is_branch_param(param, k) == branch)
+            })
+        };
+        assert!(
+            has(Robot::Two, true),
+            "robot 2's arm on the trunk: its own columns"
+        );
+        assert!(
+            !has(Robot::Two, false),
+            "the trunk links: robot 1's columns"
+        );
+        assert!(has(Robot::One, true) && has(Robot::One, false));
+        let ev = Evaluator::new(&p, &layout);
+        assert_rows_match_central_differences(&p, &layout, &ev, &est, seed);
+        let tracker = p
+            .observations
+            .iter()
+            .find(|o| o.kind.name() == "tracker")
+            .expect("a tracker row");
+        let mut moved = p.clone();
+        let q_other = moved.other_arm_q.get_mut(&tracker.row).expect("given");
+        q_other[5] += 0.3;
+        let ev_moved = Evaluator::new(&moved, &layout);
+        let a = ev.linearise(tracker, &est, false).unwrap().residual;
+        let b = ev_moved.linearise(tracker, &est, false).unwrap().residual;
+        assert!(
+            (a - b).norm() > 1e-7,
+            "the other arm's elbow moves the trunk's deflection"
+        );
+    }
+}

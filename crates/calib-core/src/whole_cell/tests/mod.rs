@@ -26,6 +26,7 @@ mod reduce;
 mod result_check;
 mod solve;
 mod terms;
+mod trunk;
 
 /// The test's tolerance draw: offsets ±0.05°, origins ±0.5 mm, tips ±0.5 mm, origin rpy not
 /// drawn and not fitted (issue 11's "realistic errors").
