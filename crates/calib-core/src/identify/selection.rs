@@ -408,6 +408,29 @@ pub fn partial_f_tests(
         .collect()
 }
 
+/// Whether the Wald prediction of every partial F test, less its error bound, already rejects
+/// dropping the parameter at `level`: dropping parameter `i` (fixing it at 0, the others
+/// refitted) raises the RSS by `v_i²/[(JᵀJ)⁻¹]_ii = v_i²·σ̂²/Σ_ii` to first order (one
+/// Gauss–Newton step; the rank-1 downdate of the normal equations). When even the lower end of
+/// that prediction ([`PREDICTION_SLACK_SIGMA2`], [`PREDICTION_SLACK_REL`]) gives `p < level` for
+/// every parameter, the backward elimination's refits would drop nothing and are skipped.
+/// `false` for a singular fit (its covariance is a pseudo-inverse).
+fn none_can_be_dropped(current: &IdentFit, level: f64) -> bool {
+    if current.singular || current.dof == 0 {
+        return false;
+    }
+    let s2 = current.rss / current.dof as f64;
+    current.values.iter().enumerate().all(|(i, v)| {
+        let var = current.covariance[(6 + i, 6 + i)];
+        if !(var > 0.0 && s2 > 0.0) {
+            return false;
+        }
+        let predicted = v * v * s2 / var;
+        let low = predicted - (PREDICTION_SLACK_SIGMA2 * s2 + PREDICTION_SLACK_REL * predicted);
+        low > 0.0 && f_test_p_value(low / s2, current.dof) < level
+    })
+}
+
 /// Backward elimination: drops, one at a time, the selected parameter with the largest F-test
 /// p-value while that p-value is ≥ `level`. Returns whether anything was dropped.
 fn backward_eliminate(
@@ -420,6 +443,9 @@ fn backward_eliminate(
 ) -> Result<bool, IdentifyError> {
     let mut dropped = false;
     while !current.params.is_empty() {
+        if !options.refit_every_ranked && none_can_be_dropped(current, level) {
+            break;
+        }
         // The reduced fits in parallel, compared in parameter order.
         let reduced_fits: Vec<Result<IdentFit, IdentifyError>> = (0..current.params.len())
             .into_par_iter()
@@ -652,6 +678,9 @@ pub fn forward_select_with_progress(
         pool.retain(|&p| p != param);
         groups.push(group);
         current = new_fit;
+        // Whether the re-screen or the backward elimination changed the model: if not, its
+        // held-out RMS is `new_cv` (the same fits from the same start).
+        let mut changed = false;
         // Greedy forward selection can pick a proxy of a true effect first (a correlated
         // column that explains most of it); re-screen each selected parameter against the
         // others and swap it for a better one when that lowers the RSS.
@@ -666,20 +695,25 @@ pub fn forward_select_with_progress(
                     pool.push(old);
                     current = better;
                     swapped = true;
+                    changed = true;
                 }
             }
             if !swapped {
                 break;
             }
         }
-        backward_eliminate(model, &mut current, &mut groups, &mut pool, level, options)?;
-        current_cv = kfold_rms(
-            model,
-            &current.params,
-            options.folds,
-            Some(&current),
-            &options.fit,
-        )?;
+        changed |= backward_eliminate(model, &mut current, &mut groups, &mut pool, level, options)?;
+        current_cv = if changed {
+            kfold_rms(
+                model,
+                &current.params,
+                options.folds,
+                Some(&current),
+                &options.fit,
+            )?
+        } else {
+            new_cv
+        };
         let mut set = current.params.clone();
         set.sort_unstable();
         if visited.contains(&set) {
