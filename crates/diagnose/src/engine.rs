@@ -545,4 +545,107 @@ mod tests {
         assert_eq!(json1, json2);
         assert_eq!(lines1, lines2);
     }
+
+    /// A shipped cell (`cells/NAME.toml`).
+    fn shipped(name: &str) -> Cell {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../cells")
+            .join(format!("{name}.toml"));
+        Cell::from_toml_file(&path).expect("shipped cell")
+    }
+
+    /// The selection's score-test pruning (`SelectionOptions::refit_every_ranked = false`: only
+    /// the candidates the score cannot rule out are refitted, the backward elimination is
+    /// skipped when the Wald predictions keep every parameter, the held-out RMS of an unchanged
+    /// model is reused) gives the byte-identical report of refitting every ranked candidate, on
+    /// the hidden-effect sessions of `tests/e2e/diagnose.rs` (floor–floor cell, random layout,
+    /// 0.8 m: robot 2's joint-3 offset 0.2° with seeds 11 and 12, robot 1's mount tilted −0.12°
+    /// about y with seed 21, noise only with seed 14; 40 points each), the two-effect session of
+    /// the thread-count test above, and a floor–ceiling session with an error on every joint of
+    /// both robots (joint offsets and origin positions, as the slow-diagnose benchmark cell).
+    #[test]
+    fn pruned_refits_choose_what_refitting_every_candidate_chooses() {
+        let floor_floor = shipped("floor-floor");
+        let hidden = |robot: u8, param: ErrorParam, value: f64, seed: u64| {
+            let mut truth = floor_floor.clone();
+            let errors = if robot == 1 {
+                &mut truth.robot1.errors
+            } else {
+                &mut truth.robot2.errors
+            };
+            errors.set(param, value);
+            let spec = SessionSpec::new(40, Layout::Random, 0.8);
+            let s = generate_session(&truth, &spec, &mut trial_rng(seed, 0)).expect("session");
+            (floor_floor.clone(), s)
+        };
+        let offset = ErrorParam::JointOffset { joint: 2 };
+        let tilt = ErrorParam::MountRpy {
+            axis: kinematics::Axis::Y,
+        };
+        let mut sessions = vec![
+            hidden(2, offset, 0.2f64.to_radians(), 11),
+            hidden(2, offset, 0.2f64.to_radians(), 12),
+            hidden(1, tilt, (-0.12f64).to_radians(), 21),
+            hidden(2, offset, 0.0, 14),
+        ];
+        let floor_wall = Cell::default_floor_wall();
+        let mut truth = floor_wall.clone();
+        truth
+            .robot2
+            .errors
+            .set(ErrorParam::JointOffset { joint: 2 }, 0.2f64.to_radians());
+        truth
+            .robot1
+            .errors
+            .set(ErrorParam::JointOffset { joint: 1 }, 0.1f64.to_radians());
+        let spec = SessionSpec::new(40, Layout::Random, 0.8);
+        sessions.push((
+            floor_wall,
+            generate_session(&truth, &spec, &mut trial_rng(11, 0)).expect("session"),
+        ));
+        // Every joint of both robots: offsets up to ±0.04°, origin positions up to ±0.5 mm
+        // (seeded, as in the slow-diagnose cell).
+        let floor_ceiling = shipped("floor-ceiling");
+        let mut truth = floor_ceiling.clone();
+        let mut rng = trial_rng(7, 0);
+        for errors in [&mut truth.robot1.errors, &mut truth.robot2.errors] {
+            for joint in 0..errors.joint_offset.len() {
+                let v: f64 = rand::Rng::random_range(&mut rng, -0.04..0.04);
+                errors.set(ErrorParam::JointOffset { joint }, v.to_radians());
+                for axis in kinematics::Axis::ALL {
+                    let v: f64 = rand::Rng::random_range(&mut rng, -0.5e-3..0.5e-3);
+                    errors.set(ErrorParam::OriginXyz { joint, axis }, v);
+                }
+            }
+        }
+        let spec = SessionSpec::new(150, Layout::Tetrahedron, 1.0);
+        sessions.push((
+            floor_ceiling,
+            generate_session(&truth, &spec, &mut trial_rng(11, 0)).expect("session"),
+        ));
+        let mut named = 0;
+        for (k, (cell, session)) in sessions.iter().enumerate() {
+            let run = |every: bool| {
+                let mut options = DiagnoseOptions {
+                    trials: 40,
+                    ..DiagnoseOptions::default()
+                };
+                options.selection.refit_every_ranked = every;
+                let report = diagnose_session(cell, session, &options).expect("diagnosis");
+                (serde_json::to_string(&report).expect("json"), report)
+            };
+            let (pruned, report) = run(false);
+            let (every, _) = run(true);
+            assert_eq!(
+                pruned,
+                every,
+                "session {k}: {}",
+                report::render_text(&report)
+            );
+            named += report.effects.len();
+        }
+        // The sessions exercise accepted steps (re-screens, backward eliminations), not only
+        // the first rejected one.
+        assert!(named >= 5, "{named} effects named in all");
+    }
 }

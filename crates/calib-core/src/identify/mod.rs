@@ -45,7 +45,12 @@
 //!   ([`RESCREEN_REFITS`] refits with the others kept) whose RSS is within `χ²₁(0.95)·σ̂²` of its
 //!   own (a likelihood-ratio confidence set for "which one").
 //! - **Search**: each forward step refits the [`FORWARD_REFITS`] best-scoring candidates and keeps
-//!   the one with the smallest RSS (the score is only a one-step linear prediction).
+//!   the one with the smallest RSS (the score is only a one-step linear prediction). A refit
+//!   whose outcome the score already decides is skipped ([`refit_is_needed`]: the score predicts
+//!   the refit's RSS within [`PREDICTION_SLACK_SIGMA2`]`·σ̂²` plus [`PREDICTION_SLACK_REL`] of the
+//!   predicted change), in the forward step, the re-screen and the backward elimination (Wald
+//!   predictions of the partial F tests); [`SelectionOptions::refit_every_ranked`] refits them
+//!   all, with the same selection whenever the bound holds.
 //! - **Detectability** ([`min_detectable`]): the smallest |value| of each candidate the design
 //!   detects with 80 % power, `(z_{1−α/2m} + z_{0.8})·σ/‖p_j‖`.
 //! - **Intervals**: `θ̂ ± t_{0.975, dof}·se`, `se` from the covariance.

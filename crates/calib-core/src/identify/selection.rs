@@ -82,6 +82,13 @@ pub struct SelectionOptions {
     pub group_cos: f64,
     /// Levenberg–Marquardt settings of every fit (default [`LmOptions::identify`]).
     pub fit: LmOptions,
+    /// Refit every ranked candidate of a step and of a re-screen (`true`), or only those whose
+    /// score-test prediction of the refit's RSS is close enough to decide anything (default
+    /// `false`; see [`refit_is_needed`]). Both give the same selection whenever the score
+    /// predicts each refit's RSS within [`PREDICTION_SLACK_SIGMA2`]` σ̂² +
+    /// `[`PREDICTION_SLACK_REL`]` ·|predicted change|`; `true` is the reference the tests compare
+    /// against.
+    pub refit_every_ranked: bool,
 }
 
 impl Default for SelectionOptions {
@@ -93,6 +100,7 @@ impl Default for SelectionOptions {
             max_steps: 20,
             group_cos: 0.999,
             fit: LmOptions::identify(),
+            refit_every_ranked: false,
         }
     }
 }
@@ -264,9 +272,20 @@ fn rescreen(
     let mut ranked = scores.clone();
     ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
     // The refits in parallel, decided in rank order below (as one at a time would).
+    // A replacement whose refit RSS is above `current.rss + χ²₁(0.95)·σ̂²` neither swaps (that
+    // needs an RSS below `current.rss`) nor joins the "which one" set (within `χ²₁(0.95)·σ̂²`
+    // of the chosen fit, whose RSS is at most `current.rss` and whose σ̂² at most the current
+    // one: the same number of parameters): those the score test puts well above are not
+    // refitted ([`refit_is_needed`]). The score is the RSS decrease from the reduced fit.
+    let s2_current = current.rss / current.dof.max(1) as f64;
+    let keep_bar = current.rss + CHI2_1_95 * s2_current;
     let to_refit: Vec<usize> = ranked
         .iter()
         .take(RESCREEN_REFITS)
+        .filter(|&&(_, sc)| {
+            options.refit_every_ranked
+                || refit_is_needed(lin.rss - sc, current.rss, keep_bar, s2_current)
+        })
         .map(|&(cand, _)| cand)
         .filter(|&cand| cand != old && !parallel_of(cand).contains(&old))
         .collect();
@@ -331,6 +350,32 @@ fn rescreen(
 /// Best-scoring candidates refitted at each forward step.
 pub const FORWARD_REFITS: usize = 5;
 
+/// Absolute part of the bound on the score test's error in predicting a refit's RSS, in units
+/// of `σ̂² = RSS/dof` of the current fit. The score `(pᵀr)²/‖p‖²` is the RSS decrease of one
+/// Gauss–Newton step from the current solution with the candidate's column bordered onto the
+/// normal equations (a rank-1 update); the refit (LM to its cost tolerance) differs from it by
+/// the model's curvature and the refit's own stopping point. Measured on the 2,000-row
+/// slow-diagnose session (errors on every joint of both robots, 371 refits): at most 1.8 σ̂²
+/// (1.0 σ̂² the other way); this bound is 5× that.
+pub const PREDICTION_SLACK_SIGMA2: f64 = 10.0;
+
+/// Relative part of that bound, as a fraction of the predicted RSS change `|RSS_pred −
+/// RSS_ref|`: the curvature error grows with the size of the step. Measured on the same
+/// refits: at most 0.4 % for predicted changes above 50 σ̂², 1.8 % above 10 σ̂²; this bound is
+/// 10 %.
+pub const PREDICTION_SLACK_REL: f64 = 0.1;
+
+/// Whether a candidate whose refit RSS the score test predicts as `predicted` must be refitted
+/// to decide a comparison whose outcome changes only for a refit RSS at or below `bar`
+/// (both m², whitened): `predicted − e ≤ bar`, `e = PREDICTION_SLACK_SIGMA2·σ̂² +
+/// PREDICTION_SLACK_REL·|predicted − reference|`. A candidate that fails this test would, if
+/// the bound holds, be refitted to an RSS above `bar`, so leaving it out changes no choice.
+pub fn refit_is_needed(predicted: f64, reference: f64, bar: f64, sigma2: f64) -> bool {
+    let slack =
+        PREDICTION_SLACK_SIGMA2 * sigma2 + PREDICTION_SLACK_REL * (predicted - reference).abs();
+    predicted - slack <= bar
+}
+
 /// Candidates refitted per selected parameter when re-screening (swap and "which one" set).
 pub const RESCREEN_REFITS: usize = 10;
 
@@ -363,6 +408,29 @@ pub fn partial_f_tests(
         .collect()
 }
 
+/// Whether the Wald prediction of every partial F test, less its error bound, already rejects
+/// dropping the parameter at `level`: dropping parameter `i` (fixing it at 0, the others
+/// refitted) raises the RSS by `v_i²/[(JᵀJ)⁻¹]_ii = v_i²·σ̂²/Σ_ii` to first order (one
+/// Gauss–Newton step; the rank-1 downdate of the normal equations). When even the lower end of
+/// that prediction ([`PREDICTION_SLACK_SIGMA2`], [`PREDICTION_SLACK_REL`]) gives `p < level` for
+/// every parameter, the backward elimination's refits would drop nothing and are skipped.
+/// `false` for a singular fit (its covariance is a pseudo-inverse).
+fn none_can_be_dropped(current: &IdentFit, level: f64) -> bool {
+    if current.singular || current.dof == 0 {
+        return false;
+    }
+    let s2 = current.rss / current.dof as f64;
+    current.values.iter().enumerate().all(|(i, v)| {
+        let var = current.covariance[(6 + i, 6 + i)];
+        if !(var > 0.0 && s2 > 0.0) {
+            return false;
+        }
+        let predicted = v * v * s2 / var;
+        let low = predicted - (PREDICTION_SLACK_SIGMA2 * s2 + PREDICTION_SLACK_REL * predicted);
+        low > 0.0 && f_test_p_value(low / s2, current.dof) < level
+    })
+}
+
 /// Backward elimination: drops, one at a time, the selected parameter with the largest F-test
 /// p-value while that p-value is ≥ `level`. Returns whether anything was dropped.
 fn backward_eliminate(
@@ -375,6 +443,9 @@ fn backward_eliminate(
 ) -> Result<bool, IdentifyError> {
     let mut dropped = false;
     while !current.params.is_empty() {
+        if !options.refit_every_ranked && none_can_be_dropped(current, level) {
+            break;
+        }
         // The reduced fits in parallel, compared in parameter order.
         let reduced_fits: Vec<Result<IdentFit, IdentifyError>> = (0..current.params.len())
             .into_par_iter()
@@ -519,7 +590,24 @@ pub fn forward_select_with_progress(
             )
         };
         // The refits in parallel, compared in rank order.
-        let top: Vec<(usize, f64)> = ranked.iter().take(FORWARD_REFITS).copied().collect();
+        // Only those that can have the smallest refit RSS: a candidate whose predicted RSS
+        // (`current.rss − score`), less its error bound, is above the best prediction plus its
+        // bound is not refitted ([`refit_is_needed`]).
+        let s2_current = current.rss / current.dof.max(1) as f64;
+        let slack =
+            |sc: f64| PREDICTION_SLACK_SIGMA2 * s2_current + PREDICTION_SLACK_REL * sc.abs();
+        let best_bar = ranked
+            .first()
+            .map_or(f64::INFINITY, |&(_, sc)| current.rss - sc + slack(sc));
+        let top: Vec<(usize, f64)> = ranked
+            .iter()
+            .take(FORWARD_REFITS)
+            .filter(|&&(_, sc)| {
+                options.refit_every_ranked
+                    || refit_is_needed(current.rss - sc, current.rss, best_bar, s2_current)
+            })
+            .copied()
+            .collect();
         let trials: Vec<Result<IdentFit, IdentifyError>> =
             top.par_iter().map(|&(cand, _)| refit_with(cand)).collect();
         let mut best: Option<(usize, f64, IdentFit)> = None;
@@ -590,6 +678,9 @@ pub fn forward_select_with_progress(
         pool.retain(|&p| p != param);
         groups.push(group);
         current = new_fit;
+        // Whether the re-screen or the backward elimination changed the model: if not, its
+        // held-out RMS is `new_cv` (the same fits from the same start).
+        let mut changed = false;
         // Greedy forward selection can pick a proxy of a true effect first (a correlated
         // column that explains most of it); re-screen each selected parameter against the
         // others and swap it for a better one when that lowers the RSS.
@@ -604,20 +695,25 @@ pub fn forward_select_with_progress(
                     pool.push(old);
                     current = better;
                     swapped = true;
+                    changed = true;
                 }
             }
             if !swapped {
                 break;
             }
         }
-        backward_eliminate(model, &mut current, &mut groups, &mut pool, level, options)?;
-        current_cv = kfold_rms(
-            model,
-            &current.params,
-            options.folds,
-            Some(&current),
-            &options.fit,
-        )?;
+        changed |= backward_eliminate(model, &mut current, &mut groups, &mut pool, level, options)?;
+        current_cv = if changed {
+            kfold_rms(
+                model,
+                &current.params,
+                options.folds,
+                Some(&current),
+                &options.fit,
+            )?
+        } else {
+            new_cv
+        };
         let mut set = current.params.clone();
         set.sort_unstable();
         if visited.contains(&set) {
