@@ -10,10 +10,12 @@ candidate. Reads the data in place; writes only under a temporary folder.
 Usage: tools/figaroh-tiago/cv.py [--bin target/debug] [--data ../shared/data/figaroh-tiago] [--folds 5]
 """
 import argparse
+import atexit
 import csv
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -40,6 +42,15 @@ CANDIDATES = {
         dict(BASE, joint_scale=0.01), ["--model", "kinematic+compliance"], "map.toml"),
     "3x, marker 1 alone fitted": (BASE, [], "map_bl.toml"),
     "3x + joint_scale 1 %, marker 1 alone fitted": (dict(BASE, joint_scale=0.01), [], "map_bl.toml"),
+    "3x + joint_scale 1 %, marker 1 alone fitted, kinematic+compliance": (
+        dict(BASE, joint_scale=0.01), ["--model", "kinematic+compliance"], "map_bl.toml"),
+    "default tolerances + joint_scale 1 %, marker 1 alone fitted": (
+        {"joint_scale": 0.01}, [], "map_bl.toml"),
+    "10x tolerances + joint_scale 1 %, marker 1 alone fitted": (
+        {"joint_offset_deg": 0.5, "origin_mm": 5.0, "origin_deg": 0.5, "joint_scale": 0.01}, [],
+        "map_bl.toml"),
+    "3x + joint_scale 1 %, marker 1 alone fitted, screen off": (
+        dict(BASE, joint_scale=0.01), ["--screen", "off"], "map_bl.toml"),
     "default tolerances": ({}, [], "map.toml"),
     "default tolerances, screen off": ({}, ["--screen", "off"], "map.toml"),
     "0.3x tolerances": ({"joint_offset_deg": 0.015, "origin_mm": 0.15, "origin_deg": 0.015}, [],
@@ -82,14 +93,16 @@ def main():
     ap.add_argument("--data", default="../shared/data/figaroh-tiago")
     ap.add_argument("--folds", type=int, default=5,
                     help="folds (pose i in fold i mod folds); 37 = leave one pose out")
-    ap.add_argument("--only", default=None, help="run the candidates whose name holds this text")
+    ap.add_argument("--only", action="append", default=[],
+                    help="run only the candidates whose name is this (repeatable)")
     a = ap.parse_args()
     hc = os.path.join(a.bin, "handclasp")
     data = os.path.abspath(a.data)
     rows = list(csv.DictReader(open(os.path.join(data, TRAIN))))
     header = list(rows[0].keys())
     tmp = tempfile.mkdtemp(prefix="tiago-cv-")
-    names = list(CANDIDATES) if not a.only else [n for n in CANDIDATES if a.only in n]
+    atexit.register(shutil.rmtree, tmp, True)  # leave nothing behind
+    names = [n for n in CANDIDATES if not a.only or n in a.only]
     for name in names:
         tolerance, extra, fit_map = CANDIDATES[name]
         cell = os.path.join(tmp, "cell.toml")
