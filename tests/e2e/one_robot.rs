@@ -52,6 +52,18 @@ fn tracker_session(truth: &Cell, n: usize, seed: u64) -> Session {
         .0
 }
 
+/// A training session of 60 rows and a held-out one of 40 of `truth`'s robot (seeds `seed` and
+/// `seed + 1`), written as `train.csv` and `held.csv` in `dir` for the `nominal` cell.
+fn train_and_held(dir: &Path, truth: &Cell, nominal: &Cell, seed: u64) -> (PathBuf, PathBuf) {
+    let write = |name: &str, n: usize, s: u64| {
+        write_session_csv(dir, name, &tracker_session(truth, n, s), nominal)
+    };
+    (
+        write("train.csv", 60, seed),
+        write("held.csv", 40, seed + 1),
+    )
+}
+
 fn arg(p: &Path) -> String {
     p.display().to_string()
 }
@@ -67,18 +79,7 @@ fn rail_robot_one_robot_cell_is_calibrated_to_its_noise_on_new_poses() {
     let truth = rail_truth();
     let nominal = Cell::from_toml_file(&rail_cell_path()).expect("rail cell loads");
     assert!(nominal.one_robot && truth.robot1.model.joints()[0].kind.is_prismatic());
-    let train = write_session_csv(
-        dir.path(),
-        "train.csv",
-        &tracker_session(&truth, 60, 21),
-        &nominal,
-    );
-    let held = write_session_csv(
-        dir.path(),
-        "held.csv",
-        &tracker_session(&truth, 40, 22),
-        &nominal,
-    );
+    let (train, held) = train_and_held(dir.path(), &truth, &nominal, 21);
     let header = std::fs::read_to_string(&train).unwrap();
     let header = header.lines().next().unwrap();
     assert!(header.starts_with("point,r1_q1_mm,r1_q2_deg"), "{header}");
@@ -180,18 +181,7 @@ fn rail_scale_is_fitted_exported_and_applied_when_its_tolerance_is_given() {
     )
     .expect("truth");
     let nominal = Cell::from_toml_file(&rail_cell_path()).expect("rail cell loads");
-    let train = write_session_csv(
-        dir.path(),
-        "train.csv",
-        &tracker_session(&truth, 60, 31),
-        &nominal,
-    );
-    let held = write_session_csv(
-        dir.path(),
-        "held.csv",
-        &tracker_session(&truth, 40, 32),
-        &nominal,
-    );
+    let (train, held) = train_and_held(dir.path(), &truth, &nominal, 31);
     // The nominal cell with the scale family fitted (its URDF named absolutely: the file moves).
     let urdf = workspace("crates/kinematics/tests/fixtures/rail_6r.urdf");
     let with_scale = dir.path().join("rail-scale.toml");
