@@ -52,6 +52,18 @@ fn tracker_session(truth: &Cell, n: usize, seed: u64) -> Session {
         .0
 }
 
+/// A training session of 60 rows and a held-out one of 40 of `truth`'s robot (seeds `seed` and
+/// `seed + 1`), written as `train.csv` and `held.csv` in `dir` for the `nominal` cell.
+fn train_and_held(dir: &Path, truth: &Cell, nominal: &Cell, seed: u64) -> (PathBuf, PathBuf) {
+    let write = |name: &str, n: usize, s: u64| {
+        write_session_csv(dir, name, &tracker_session(truth, n, s), nominal)
+    };
+    (
+        write("train.csv", 60, seed),
+        write("held.csv", 40, seed + 1),
+    )
+}
+
 fn arg(p: &Path) -> String {
     p.display().to_string()
 }
@@ -67,18 +79,7 @@ fn rail_robot_one_robot_cell_is_calibrated_to_its_noise_on_new_poses() {
     let truth = rail_truth();
     let nominal = Cell::from_toml_file(&rail_cell_path()).expect("rail cell loads");
     assert!(nominal.one_robot && truth.robot1.model.joints()[0].kind.is_prismatic());
-    let train = write_session_csv(
-        dir.path(),
-        "train.csv",
-        &tracker_session(&truth, 60, 21),
-        &nominal,
-    );
-    let held = write_session_csv(
-        dir.path(),
-        "held.csv",
-        &tracker_session(&truth, 40, 22),
-        &nominal,
-    );
+    let (train, held) = train_and_held(dir.path(), &truth, &nominal, 21);
     let header = std::fs::read_to_string(&train).unwrap();
     let header = header.lines().next().unwrap();
     assert!(header.starts_with("point,r1_q1_mm,r1_q2_deg"), "{header}");
@@ -154,6 +155,106 @@ fn rail_robot_one_robot_cell_is_calibrated_to_its_noise_on_new_poses() {
     assert!(
         nominal_rms > 3.0 * calibrated,
         "nominal {nominal_rms:.3} mm vs calibrated {calibrated:.3} mm"
+    );
+}
+
+/// The rail reading's scale in the simulation's truth (0.2 %: 2 mm per metre of travel).
+const RAIL_TRUE_SCALE: f64 = 0.002;
+
+/// How far the fitted scale may sit from the truth, in posterior σ.
+const SCALE_RECOVERY_SIGMAS: f64 = 3.0;
+
+/// An encoder scale as a fitted family (`[robotN.tolerance] joint_scale`): the rail robot with a
+/// 0.2 % rail scale on top of [`RAIL_TRUTH_ERRORS`], calibrated from 60 tracker rows with and
+/// without the `joint_scale` tolerance. With it, the rail's fitted scale is within 3 posterior σ
+/// of the truth and determined by the data, it is exported as `[robot1.errors] joint_scale`, and
+/// the exported cell scores 40 new poses near the tracker's noise; without it, the same fit
+/// cannot reach the noise.
+#[test]
+fn rail_scale_is_fitted_exported_and_applied_when_its_tolerance_is_given() {
+    let dir = tempfile::tempdir().unwrap();
+    let scale_line = format!("joint_scale = [{RAIL_TRUE_SCALE}, 0, 0, 0, 0, 0, 0]\n");
+    let text = std::fs::read_to_string(rail_cell_path()).expect("rail cell");
+    let truth = Cell::from_toml_str(
+        &format!("{text}{RAIL_TRUTH_ERRORS}{scale_line}"),
+        &workspace("cells"),
+    )
+    .expect("truth");
+    let nominal = Cell::from_toml_file(&rail_cell_path()).expect("rail cell loads");
+    let (train, held) = train_and_held(dir.path(), &truth, &nominal, 31);
+    // The nominal cell with the scale family fitted (its URDF named absolutely: the file moves).
+    let urdf = workspace("crates/kinematics/tests/fixtures/rail_6r.urdf");
+    let with_scale = dir.path().join("rail-scale.toml");
+    let scaled_text = text.replace(
+        "../crates/kinematics/tests/fixtures/rail_6r.urdf",
+        &arg(&urdf),
+    ) + "\n[robot1.tolerance]\njoint_scale = 0.005\n";
+    std::fs::write(&with_scale, scaled_text).unwrap();
+    let calibrate = |cell: &Path, name: &str| {
+        let cal = dir.path().join(name);
+        let report = stdout_json(&handclasp(&[
+            "calibrate",
+            "--cell",
+            &arg(cell),
+            "--session",
+            &arg(&train),
+            "--export",
+            &arg(&cal),
+            "--json",
+        ]));
+        let v = stdout_json(&handclasp(&[
+            "validate",
+            "--cell",
+            &arg(&cal.join("cell.toml")),
+            "--session",
+            &arg(&held),
+            "--json",
+        ]));
+        (
+            report,
+            cal,
+            v["all"]["calibrated"]["rms_mm"].as_f64().unwrap(),
+        )
+    };
+    let (report, cal, scaled_rms) = calibrate(&with_scale, "cal-scale");
+    let (_, _, plain_rms) = calibrate(&rail_cell_path(), "cal-plain");
+    let rail_scale = report["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == "robot 1 joint_scale joint 1")
+        .expect("the rail's scale is fitted");
+    let (value, sigma) = (
+        rail_scale["value"].as_f64().unwrap(),
+        rail_scale["sigma"].as_f64().unwrap(),
+    );
+    assert!(
+        (value - RAIL_TRUE_SCALE).abs() < SCALE_RECOVERY_SIGMAS * sigma,
+        "fitted rail scale {value:.6} ± {sigma:.6}, truth {RAIL_TRUE_SCALE}"
+    );
+    assert!(
+        sigma < 0.1 * RAIL_TRUE_SCALE,
+        "σ {sigma} is not determined by the data"
+    );
+    let exported = Cell::from_toml_file(&cal.join("cell.toml")).expect("exported cell loads");
+    // The file keeps 10 decimals.
+    assert!(
+        (exported.robot1.errors.joint_scale[0] - value).abs() < 1e-9,
+        "exported {} vs fitted {value}",
+        exported.robot1.errors.joint_scale[0]
+    );
+    let noise_3d_mm = TRACKER_SIGMA_M * 3f64.sqrt() * 1e3;
+    eprintln!(
+        "rail scale {value:.6} ± {sigma:.6} (truth {RAIL_TRUE_SCALE}); 40 held-out rows: with the \
+         scale family {scaled_rms:.3} mm, without {plain_rms:.3} mm (noise {noise_3d_mm:.3} mm)"
+    );
+    assert!(
+        scaled_rms < 2.0 * noise_3d_mm,
+        "with the scale family: {scaled_rms:.3} mm vs noise {noise_3d_mm:.3} mm"
+    );
+    assert!(
+        plain_rms > 2.0 * noise_3d_mm,
+        "without the scale family: {plain_rms:.3} mm vs noise {noise_3d_mm:.3} mm"
     );
 }
 
@@ -244,10 +345,10 @@ fn one_robot_cell_refuses_what_needs_two_robots() {
 }
 
 /// FIGAROH's TIAGo data (`../shared/data/figaroh-tiago/`, read in place): the URDF as shipped
-/// (a prismatic torso lift), the training file imported with `tools/figaroh-tiago/map.toml` (four
-/// markers as four tools, one mocap frame), calibrated as the one-robot cell
-/// `tools/figaroh-tiago/tiago.toml` (its tolerances chosen by `tools/figaroh-tiago/cv.py` on the
-/// training file alone), and the validation file's marker 1 scored with the training
+/// (a prismatic torso lift), the training file's marker 1 imported with
+/// `tools/figaroh-tiago/map_bl.toml` (one mocap frame), calibrated as the one-robot cell
+/// `tools/figaroh-tiago/tiago.toml` (its tolerances, the torso's encoder scale among them, and
+/// the rows fitted chosen by `tools/figaroh-tiago/cv.py` on the training file alone), and the validation file's marker 1 scored with the training
 /// registration (`validate --nuisance fixed`). The kinematic fit must beat a registration-only
 /// fit (placement model: the mocap frame and the four marker positions) on the held-out file.
 #[test]
@@ -288,8 +389,9 @@ fn tiago_prismatic_torso_is_calibrated_as_a_one_robot_cell() {
     };
     let train = dir.path().join("train.csv");
     let held = dir.path().join("validation-bl.csv");
+    // Marker 1's rows are fitted, as the protocol (tools/figaroh-tiago/protocol.py) fits them.
     import(
-        "map.toml",
+        "map_bl.toml",
         "qualisys_2021-11-30_static_postures.csv",
         &train,
     );
@@ -301,13 +403,20 @@ fn tiago_prismatic_torso_is_calibrated_as_a_one_robot_cell() {
     // The registration-only comparator (FIGAROH's first row: the mocap frame and the marker
     // positions): the same cell with every kinematic tolerance 0, i.e. held at nominal.
     let registration_cell = dir.path().join("registration.toml");
+    // (Every kinematic tolerance key of the cell dropped, then each family given as 0.)
     let registration_text: String = std::fs::read_to_string(&cell)
         .unwrap()
         .lines()
-        .map(|l| match l.split(" = ").next() {
-            Some(key @ ("joint_offset_deg" | "origin_mm" | "origin_deg")) => {
-                format!("{key} = 0.0\n")
-            }
+        .filter(|l| {
+            !matches!(
+                l.split(" = ").next(),
+                Some("joint_offset_deg" | "origin_mm" | "origin_deg" | "joint_scale")
+            )
+        })
+        .map(|l| match l {
+            "[robot1.tolerance]" => format!(
+                "{l}\njoint_offset_deg = 0.0\norigin_mm = 0.0\norigin_deg = 0.0\njoint_scale = 0.0\n"
+            ),
             _ => format!("{l}\n"),
         })
         .collect();

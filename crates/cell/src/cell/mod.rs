@@ -278,6 +278,14 @@ struct ToleranceFile {
     origin_deg: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     tip_mm: Option<f64>,
+    /// Encoder scale of every chain joint, a ratio (revolute: gear ratio; prismatic: the
+    /// reading's scale); absent or 0: not fitted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    joint_scale: Option<f64>,
+    /// Each once-per-turn amplitude (sin and cos) of every rotary chain joint, degrees; absent
+    /// or 0: not fitted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    periodic_deg: Option<f64>,
 }
 
 #[derive(Debug, Serialize, Deserialize)]
@@ -606,6 +614,9 @@ fn build_tolerance(ctx: &Ctx, key: &str, t: &ToleranceFile) -> Result<Tolerance,
         origin_xyz_m: field("origin_mm", t.origin_mm, d.origin_xyz_m, 1e-3)?,
         origin_rpy_rad: field("origin_deg", t.origin_deg, d.origin_rpy_rad, d2r)?,
         tip_m: field("tip_mm", t.tip_mm, d.tip_m, 1e-3)?,
+        // Optional families: 0 (like absent) is "not fitted".
+        joint_scale: Some(field("joint_scale", t.joint_scale, 0.0, 1.0)?).filter(|v| *v > 0.0),
+        periodic_rad: Some(field("periodic_deg", t.periodic_deg, 0.0, d2r)?).filter(|v| *v > 0.0),
         ..d
     })
 }
@@ -621,6 +632,8 @@ fn tolerance_file(t: &Tolerance) -> Option<ToleranceFile> {
         origin_mm: Some(t.origin_xyz_m * 1e3),
         origin_deg: Some(t.origin_rpy_rad.to_degrees()),
         tip_mm: Some(t.tip_m * 1e3),
+        joint_scale: t.joint_scale.filter(|v| *v > 0.0),
+        periodic_deg: t.periodic_rad.filter(|v| *v > 0.0).map(f64::to_degrees),
     })
 }
 
@@ -1000,7 +1013,7 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
             .map(|r| format!("line {}: ", text[..r.start.min(text.len())].lines().count().max(1)))
             .unwrap_or_default();
         ctx.err(format!(
-            "{at}{} (keys: [robot1], [robot2] (absent in a one-robot cell) with urdf, mount, tip_mm, tool_link, [robotN.tools] name = [x, y, z], [robotN.errors], [robotN.tolerance] joint_offset_deg, origin_mm, origin_deg, tip_mm, [[robotN.couplings]] joint, terms = [{{ joint, c }}], offset_deg | offset_mm; [b1_from_b2] xyz_mm, zyz_deg, sigma_mm, sigma_deg (with [robot2] only); [noise] alignment_mm, repeatability_mm, encoder_resolution_deg; [teach] centre_mm)",
+            "{at}{} (keys: [robot1], [robot2] (absent in a one-robot cell) with urdf, mount, tip_mm, tool_link, [robotN.tools] name = [x, y, z], [robotN.errors], [robotN.tolerance] joint_offset_deg, origin_mm, origin_deg, tip_mm, joint_scale, periodic_deg, [[robotN.couplings]] joint, terms = [{{ joint, c }}], offset_deg | offset_mm; [b1_from_b2] xyz_mm, zyz_deg, sigma_mm, sigma_deg (with [robot2] only); [noise] alignment_mm, repeatability_mm, encoder_resolution_deg; [teach] centre_mm)",
             e.message().trim_end()
         ))
     })?;

@@ -229,12 +229,43 @@ mod tolerance_tests {
         let bad_key = FLOOR_FLOOR_TOML.to_string() + "\n[robot1.tolerance]\noffset_deg = 0.1\n";
         let e = err_text(&bad_key);
         assert!(e.contains("offset_deg"), "{e}");
-        for valid in ["joint_offset_deg", "origin_mm", "origin_deg", "tip_mm"] {
+        for valid in [
+            "joint_offset_deg",
+            "origin_mm",
+            "origin_deg",
+            "tip_mm",
+            "joint_scale",
+            "periodic_deg",
+        ] {
             assert!(e.contains(valid), "{e}");
         }
         let negative = FLOOR_FLOOR_TOML.to_string() + "\n[robot2.tolerance]\norigin_mm = -1.0\n";
         let e = err_text(&negative);
         assert!(e.contains("robot2.tolerance.origin_mm"), "{e}");
+        let negative = FLOOR_FLOOR_TOML.to_string() + "\n[robot1.tolerance]\njoint_scale = -0.01\n";
+        let e = err_text(&negative);
+        assert!(e.contains("robot1.tolerance.joint_scale"), "{e}");
+    }
+
+    /// The optional families: `joint_scale` (a ratio) and `periodic_deg` are fitted when given
+    /// and > 0, not fitted (`None`) when absent or 0, and round-trip through the cell text.
+    #[test]
+    fn joint_scale_and_periodic_tolerances_parse_and_round_trip() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells");
+        let text = FLOOR_FLOOR_TOML.to_string()
+            + "\n[robot1.tolerance]\njoint_scale = 0.002\nperiodic_deg = 0.03\n\
+               [robot2.tolerance]\njoint_scale = 0\n";
+        let cell = Cell::from_toml_str(&text, &dir).unwrap();
+        let t = cell.robot1.tolerance;
+        assert_eq!(t.joint_scale, Some(0.002));
+        assert!((t.periodic_rad.unwrap() - 0.03f64.to_radians()).abs() < TOLERANCE_TOL);
+        assert_eq!(t.joint_offset_rad, Tolerance::default().joint_offset_rad);
+        assert_eq!(cell.robot2.tolerance, Tolerance::default());
+        let back = Cell::from_toml_str(&cell.to_toml_string(), &dir).unwrap();
+        let b = back.robot1.tolerance;
+        assert!((b.joint_scale.unwrap() - 0.002).abs() < TOLERANCE_TOL);
+        assert!((b.periodic_rad.unwrap() - t.periodic_rad.unwrap()).abs() < TOLERANCE_TOL);
+        assert_eq!(back.robot2.tolerance, Tolerance::default());
     }
 
     /// `FLOOR_FLOOR_TOML` with `lines` added to its `[b1_from_b2]` table.

@@ -18,6 +18,10 @@ use super::problem::uses_robot;
 pub enum FamilyKind {
     /// Every joint zero offset of the robot.
     JointOffsets,
+    /// Every joint's encoder scale of the robot ([`ErrorParam::JointScale`]: a revolute
+    /// joint's gear ratio, a prismatic joint's reading scale): a candidate when the cell's
+    /// `[robotN.tolerance] joint_scale` is given.
+    JointScales,
     /// Every joint origin position (link lengths and offsets) of the robot.
     OriginXyz,
     /// Every joint origin angle of the robot, except the one about the joint's own axis (that
@@ -63,6 +67,7 @@ impl Family {
     fn new(robot: Option<Robot>, kind: FamilyKind, problem: &CellProblem) -> Self {
         let what = match kind {
             FamilyKind::JointOffsets => "joint offsets".to_string(),
+            FamilyKind::JointScales => "joint scales".to_string(),
             FamilyKind::OriginXyz => "joint origin positions".to_string(),
             FamilyKind::OriginRpy => "joint origin angles".to_string(),
             FamilyKind::Compliance => "joint compliance".to_string(),
@@ -122,6 +127,7 @@ impl Family {
                     && matches!(
                         (kind, param),
                         (FamilyKind::JointOffsets, ErrorParam::JointOffset { .. })
+                            | (FamilyKind::JointScales, ErrorParam::JointScale { .. })
                             | (FamilyKind::OriginXyz, ErrorParam::OriginXyz { .. })
                             | (FamilyKind::OriginRpy, ErrorParam::OriginRpy { .. })
                             | (FamilyKind::Compliance, ErrorParam::Compliance { .. })
@@ -151,6 +157,10 @@ pub fn candidate_families(problem: &CellProblem) -> Vec<Family> {
         let tol = &rb.tolerance;
         let joint_families = [
             (FamilyKind::JointOffsets, tol.joint_offset_rad > 0.0),
+            (
+                FamilyKind::JointScales,
+                tol.joint_scale.unwrap_or(0.0) > 0.0,
+            ),
             (FamilyKind::OriginXyz, tol.origin_xyz_m > 0.0),
             (FamilyKind::OriginRpy, tol.origin_rpy_rad > 0.0),
             (
@@ -295,5 +305,40 @@ mod tests {
             .params
             .iter()
             .all(|c| !c.is_kinematic()));
+    }
+
+    /// With `[robot1.tolerance] joint_scale` given, robot 1's joint scales are a candidate
+    /// family of their own, and every fitted parameter is still in exactly one family.
+    #[test]
+    fn joint_scales_are_a_family_when_their_tolerance_is_given() {
+        let mut cell = Cell::default_floor_wall();
+        cell.robot1.tolerance.joint_scale = Some(1e-3);
+        let session = mixed_session(&cell, 24, 4);
+        let p = diagnosis_problem(&cell, &session, &CellDiagnoseOptions::default()).unwrap();
+        let fams = candidate_families(&p);
+        let scales: Vec<&Family> = fams
+            .iter()
+            .filter(|f| f.kind == FamilyKind::JointScales)
+            .collect();
+        assert_eq!(scales.len(), 1, "{fams:?}");
+        assert_eq!(scales[0].name, "robot 1 joint scales");
+        let layout = ParamLayout::new(&p, &[]);
+        let mut n_scales = 0;
+        for param in layout.params.iter().filter(|c| c.is_kinematic()) {
+            let n = fams.iter().filter(|f| f.contains(param)).count();
+            let is_scale = matches!(
+                param,
+                CellParam::Kinematic {
+                    param: ErrorParam::JointScale { .. },
+                    ..
+                }
+            );
+            n_scales += usize::from(is_scale);
+            if is_scale {
+                assert_eq!(n, 1, "{param:?} in {n} families");
+                assert!(scales[0].contains(param));
+            }
+        }
+        assert_eq!(n_scales, p.robot1.model.dof());
     }
 }
