@@ -175,17 +175,18 @@ pub fn cap_echo(text: &str) -> String {
 mod tests {
     use super::*;
 
-    fn temp_file(name: &str, bytes: &[u8]) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("kinematics-input-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join(name);
+    /// `bytes` written to `name` in a fresh temporary folder, removed when the returned guard
+    /// drops (a fixed folder under the system's temp dir was left behind by every run).
+    fn temp_file(name: &str, bytes: &[u8]) -> (tempfile::TempDir, PathBuf) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(name);
         std::fs::write(&path, bytes).unwrap();
-        path
+        (dir, path)
     }
 
     #[test]
     fn reads_text_within_the_limit() {
-        let path = temp_file("ok.csv", b"a,b\n1,2\n");
+        let (_dir, path) = temp_file("ok.csv", b"a,b\n1,2\n");
         assert_eq!(
             read_input_text_within(&path, "points CSV", 1).unwrap(),
             "a,b\n1,2\n"
@@ -195,7 +196,7 @@ mod tests {
     /// A file over the limit is refused from its size, naming the limit, the size and the fix.
     #[test]
     fn oversized_file_is_refused_naming_limit_size_and_variable() {
-        let path = temp_file("big.csv", &vec![b'1'; 1_500_000]);
+        let (_dir, path) = temp_file("big.csv", &vec![b'1'; 1_500_000]);
         let msg = read_input_text_within(&path, "points CSV", 1)
             .unwrap_err()
             .to_string();
@@ -206,11 +207,11 @@ mod tests {
 
     #[test]
     fn binary_and_non_utf8_files_are_refused() {
-        let path = temp_file("zeros.csv", &[b'a', 0, 0, 0]);
+        let (_dir, path) = temp_file("zeros.csv", &[b'a', 0, 0, 0]);
         let e = read_input_text_within(&path, "session CSV", 1).unwrap_err();
         assert!(matches!(e, InputError::Binary { offset: 1, .. }), "{e}");
         assert!(e.to_string().contains("session CSV"), "{e}");
-        let path = temp_file("latin1.csv", &[b'a', 0xe9, b'\n']);
+        let (_dir, path) = temp_file("latin1.csv", &[b'a', 0xe9, b'\n']);
         let e = read_input_text_within(&path, "points CSV", 1).unwrap_err();
         assert!(matches!(e, InputError::NotUtf8 { offset: 1, .. }), "{e}");
     }
