@@ -22,6 +22,9 @@ const ROWS: usize = 40;
 /// Side of the layouts, m (cluster distance for the clustered one, cube side for the random).
 const SPREAD_M: f64 = 0.6;
 
+/// `--accept-mm` of the JSON runs: any value asks for the verdict at the work site.
+const ACCEPT_MM: &str = "1000";
+
 /// The shipped floor–wall cell (URDF paths absolute), with the sag as its hidden truth when
 /// `sag`, written to `dir/name`.
 fn write_cell(dir: &Path, name: &str, sag: bool) -> PathBuf {
@@ -45,7 +48,15 @@ fn write_cell(dir: &Path, name: &str, sag: bool) -> PathBuf {
 /// `--force`): the JSON report.
 fn export(cell: &Path, session: &Path, dir: &Path, force: bool) -> serde_json::Value {
     let dir = dir.display().to_string();
-    let mut extra = vec!["--model", "kinematic", "--export", &dir, "--json"];
+    let mut extra = vec![
+        "--model",
+        "kinematic",
+        "--export",
+        &dir,
+        "--json",
+        "--accept-mm",
+        ACCEPT_MM,
+    ];
     if force {
         extra.push("--force");
     }
@@ -115,9 +126,17 @@ fn a_clustered_session_with_unmodelled_sag_exports_the_placement_and_force_keeps
             "--export",
             &placement_dir.display().to_string(),
             "--json",
+            "--accept-mm",
+            ACCEPT_MM,
         ],
     )));
     assert!(p.get("do_no_harm").is_none(), "placement is not checked");
+    // The verdict is the exported model's (found by the lead's final read: it was the withheld
+    // kinematic fit's, a PASS for a model the export did not write).
+    assert_eq!(
+        r["work_site"], p["work_site"],
+        "the verdict at the work site is the exported (placement-only) model's"
+    );
     for f in ["robot1.urdf", "robot2.urdf", "cell.toml"] {
         assert_eq!(
             std::fs::read_to_string(json_dir.join(f)).unwrap(),

@@ -276,25 +276,57 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         || work_points.is_some()
         || args.accept_mm.is_some()
         || args.accept_deg.is_some();
-    let work_site = if wants_work_site {
+    let mut report = CellReportWithSite {
+        report,
+        work_site: None,
+        do_no_harm,
+    };
+    // The verdict and the page describe the model the export writes: the safe (placement-only)
+    // calibration when the do-no-harm rule withholds the kinematics, not the withheld fit.
+    let exported = match &safe {
+        Some(s) => Exported {
+            problem: &s.problem,
+            cal: &s.calibration,
+            report: &s.report,
+            model: CellModel::Placement.name(),
+        },
+        None => Exported {
+            problem: &problem,
+            cal: &cal,
+            report: &report.report,
+            model: args.model.cell_model().name(),
+        },
+    };
+    if safe.is_some() && wants_work_site {
+        eprintln!(
+            "note: do no harm: the verdict at the work site{} is for the exported model \
+             (placement only), not for the withheld {} fit",
+            if args.report.is_some() {
+                " and the --report page"
+            } else {
+                ""
+            },
+            args.model.cell_model().name()
+        );
+    }
+    if wants_work_site {
         let file = args.work_points.as_deref().zip(work_points.as_deref());
         let (points, source) = work_site_points(&cell, file);
         let w = predict_work_site(
-            &cell, &problem, &cal, &points, &source, acceptance, P95_SEED,
+            &cell,
+            exported.problem,
+            exported.cal,
+            &points,
+            &source,
+            acceptance,
+            P95_SEED,
         )
         .context("the verdict at the work site")?;
         crate::report_page::warn_unreachable(&w);
-        Some(w)
-    } else {
-        None
-    };
-    let report = CellReportWithSite {
-        report,
-        work_site,
-        do_no_harm,
-    };
+        report.work_site = Some(w);
+    }
     if let Some(path) = &args.report {
-        write_report_page(path, &args, &cell, &problem, &cal, &report)?;
+        write_report_page(path, &args, &cell, &exported, &report)?;
     }
     let written = match &args.export {
         Some(dir) => crate::export_dir::locked(dir, args.overwrite, "--export", || {
@@ -332,10 +364,10 @@ fn write_report_page(
     path: &std::path::Path,
     args: &CellArgs,
     cell: &Cell,
-    problem: &calib_core::whole_cell::CellProblem,
-    cal: &calib_core::whole_cell::CellCalibration,
+    exported: &Exported<'_>,
     report: &CellReportWithSite,
 ) -> anyhow::Result<()> {
+    let (problem, cal) = (exported.problem, exported.cal);
     let calibration = &cal.report(problem);
     let Some(work_site) = &report.work_site else {
         bail!("internal: the report page needs the work-site verdict");
@@ -354,11 +386,11 @@ fn write_report_page(
     let html = calibration_page(&CalibrationPage {
         cell: &display(&args.cell),
         session: &display(&args.session),
-        model: args.model.cell_model().name(),
-        rows: report.report.rows,
+        model: exported.model,
+        rows: exported.report.rows,
         report: calibration,
         work_site,
-        meeting_pairs: report.report.cooperative_accuracy_mm.as_ref().map(|c| {
+        meeting_pairs: exported.report.cooperative_accuracy_mm.as_ref().map(|c| {
             MeetingPairsAccuracy {
                 pairs: c.pairs,
                 rms_mm: c.predicted_rms,
@@ -373,6 +405,17 @@ fn write_report_page(
         invocation: &invocation,
     });
     crate::report_page::write(path, &html)
+}
+
+/// The calibration `--export` writes (the fit, or the do-no-harm rule's safe model), which the
+/// verdict at the work site and the `--report` page describe.
+struct Exported<'a> {
+    problem: &'a calib_core::whole_cell::CellProblem,
+    cal: &'a calib_core::whole_cell::CellCalibration,
+    /// Its report (rows, the prediction over the meeting pairs).
+    report: &'a CellReport,
+    /// Its model's name (`kinematic`, `kinematic+compliance`, `placement`).
+    model: &'static str,
 }
 
 /// `calibrate --cell`'s report ([`CellReport`]) with the verdict at the work site when
