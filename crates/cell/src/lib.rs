@@ -19,6 +19,6 @@ pub use export_formats::{export_placement, ControllerFormat, PlacementExport, Pl
 pub use import::{ImportCount, ImportMap};
 pub use problem::{cell_problem, FitModel};
 pub use session::{
-    check_session_inputs, Session, SessionCheckError, SessionKind, SessionObservation,
-    SessionPoint, SessionRow,
+    check_session_inputs, joint_column, Session, SessionCheckError, SessionKind,
+    SessionObservation, SessionPoint, SessionRow,
 };

@@ -109,7 +109,9 @@ fn contact_group(
 /// the mean nominal distance of its rows (along the mean face normal for face contacts). Tool `k` of a robot is the cell
 /// robot's tool `k` (0 = `tip_mm`). `model` selects the unknowns ([`FitModel`]). The session
 /// must have been read for this cell ([`Session::read_csv`] checks joint counts and tool
-/// names); [`CellProblem::check`] reports anything else by row. The cell's
+/// names); [`CellProblem::check`] reports anything else by row. On a shared-trunk cell the
+/// other arm's joints of one-robot rows ([`Session::other_arm_q`]) become
+/// [`CellProblem::other_arm_q`]. The cell's
 /// `b1_from_b2_sigma`, if any, becomes a placement prior around `cell.b1_from_b2`.
 pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProblem {
     let cov_m2 = handclasp_covariance(cell);
@@ -220,8 +222,30 @@ pub fn cell_problem(cell: &Cell, session: &Session, model: FitModel) -> CellProb
             sigma_m: s.sigma_m,
             sigma_rad: s.sigma_rad,
         }),
-        other_arm_q: Default::default(),
+        other_arm_q: other_arm_q(cell, session),
     }
+}
+
+/// The other arm's joints of each one-robot row that gives them ([`Session::other_arm_q`]), by
+/// row, on a shared-trunk cell (empty on any other): the trunk's independent joints are the
+/// row's own values (the reader checked they agree to the file's 6 decimals; one trunk has one
+/// posture, so the fit sees exactly one).
+fn other_arm_q(cell: &Cell, session: &Session) -> std::collections::BTreeMap<usize, Vec<f64>> {
+    if cell.shared_joints == 0 {
+        return Default::default();
+    }
+    let trunk = cell.shared_independent_joints();
+    session
+        .observations
+        .iter()
+        .filter_map(|o| {
+            let (_, q, _) = o.kind.single()?;
+            let mut q_other = session.other_arm_q.get(&o.point)?.clone();
+            let n = trunk.min(q.len()).min(q_other.len());
+            q_other[..n].copy_from_slice(&q[..n]);
+            Some((o.point, q_other))
+        })
+        .collect()
 }
 
 /// Distance between the two tools' nominal points at `(q1, q2)` with the cell's `b1_from_b2`, m:

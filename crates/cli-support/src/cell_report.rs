@@ -110,18 +110,85 @@ pub enum CellCalibrationError {
     /// The coverage report (joint ranges and reach) failed.
     #[error("the session's coverage of the robots' joint ranges and reach")]
     Coverage(#[source] CellFitError),
-    /// The model cannot be fitted to this cell yet: `kinematic+compliance` on a shared-trunk
-    /// cell (the trunk's gravity load comes from both arms, which two chains' lumped
-    /// coefficients cannot say).
+    /// `kinematic+compliance` on a shared-trunk cell with one-robot rows (tracker, plane) that
+    /// do not give the other arm's joints: the other arm's weight loads the trunk, so its
+    /// posture is needed at every row ([`Session::other_arm_q`]).
     #[error(
-        "--model kinematic+compliance is not supported yet on a shared-trunk cell (robot 2 shares \
-         {shared_joints} joints with robot 1): the trunk carries both arms, and each chain's lumped \
-         coefficients would see one; use --model kinematic"
+        "--model kinematic+compliance on a shared-trunk cell (robot 2 shares {shared_joints} joints \
+         with robot 1): the other arm's weight loads the trunk, so every tracker or plane row needs \
+         the other arm's joints, but {} row(s) leave them empty (points {}); fill the other \
+         robot's joint columns of those rows ({columns}) with the other arm's posture at that \
+         moment (its trunk columns equal to the row's), or use --model kinematic",
+        points.len(),
+        crate::cell_report::list_points(points)
     )]
-    UnsupportedModel {
+    OtherArmJointsMissing {
         /// Robot 2's joints shared with robot 1.
         shared_joints: usize,
+        /// The point numbers of the one-robot rows without the other arm's joints.
+        points: Vec<usize>,
+        /// The columns to fill, e.g. `r2_q1_deg … r2_q10_deg` (both robots' when rows of both
+        /// lack them).
+        columns: String,
     },
+}
+
+/// Up to 8 point numbers, then "…" and the count left.
+fn list_points(points: &[usize]) -> String {
+    let shown: Vec<String> = points.iter().take(8).map(usize::to_string).collect();
+    if points.len() > 8 {
+        format!("{}, … ({} more)", shown.join(", "), points.len() - 8)
+    } else {
+        shown.join(", ")
+    }
+}
+
+/// On a shared-trunk cell fitted with `kinematic+compliance`, the one-robot rows of `session`
+/// without the other arm's joints, refused with the columns to fill; `Ok` otherwise.
+fn check_other_arm_joints(
+    cell: &Cell,
+    session: &Session,
+    model: CellModel,
+) -> Result<(), CellCalibrationError> {
+    if model != CellModel::KinematicCompliance || cell.shared_joints == 0 {
+        return Ok(());
+    }
+    let mut points = Vec::new();
+    let mut robots = Vec::new();
+    for o in &session.observations {
+        if let Some((robot, _, _)) = o.kind.single() {
+            if !session.other_arm_q.contains_key(&o.point) {
+                points.push(o.point);
+                if !robots.contains(&robot.other()) {
+                    robots.push(robot.other());
+                }
+            }
+        }
+    }
+    if points.is_empty() {
+        return Ok(());
+    }
+    robots.sort_by_key(|r| r.number());
+    let columns = robots
+        .iter()
+        .map(|&r| {
+            let c = cell.robot(r);
+            let kinds: Vec<bool> = c.model.joints().iter().map(|j| j.kind.is_prismatic()).collect();
+            let n = r.number();
+            format!(
+                "`{}` … `{}` on robot {}'s rows",
+                handclasp_cell::joint_column(n, 1, kinds.first().copied().unwrap_or(false)),
+                handclasp_cell::joint_column(n, kinds.len(), kinds.last().copied().unwrap_or(false)),
+                r.other().number()
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ");
+    Err(CellCalibrationError::OtherArmJointsMissing {
+        shared_joints: cell.shared_joints,
+        points,
+        columns,
+    })
 }
 
 /// A whole-cell calibration: its report, the problem and the fit it came from (for the export).
@@ -162,11 +229,7 @@ pub fn calibrate_session_with(
     tolerance_scale: Option<f64>,
 ) -> Result<SessionCalibration, CellCalibrationError> {
     handclasp_cell::check_session_inputs(session)?;
-    if model == CellModel::KinematicCompliance && cell.shared_joints > 0 {
-        return Err(CellCalibrationError::UnsupportedModel {
-            shared_joints: cell.shared_joints,
-        });
-    }
+    check_other_arm_joints(cell, session, model)?;
     let problem = cell_problem(cell, session, model.fit_model());
     let mut solve = SolveOptions::default();
     if session.points.len() < MIN_COINCIDENT_FOR_START {

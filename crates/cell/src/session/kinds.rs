@@ -458,8 +458,8 @@ impl SessionKind {
 pub(super) enum ReadRow {
     /// A coincident handclasp at both robots' default tips.
     Point(SessionPoint),
-    /// Any other row.
-    Observation(SessionKind),
+    /// Any other row, with the other arm's joints of a one-robot row on a shared trunk (rad).
+    Observation(SessionKind, Option<Vec<f64>>),
 }
 
 /// Reads the fields of a row of `kind` numbered `point` (its joint and tip columns in `values`,
@@ -499,7 +499,7 @@ pub(super) fn read_row(
                     tool2: p.tool2,
                     p_b1,
                     p_b2,
-                })
+                }, None)
             }
         }
         Kind::Contact | Kind::FaceContact => {
@@ -527,10 +527,10 @@ pub(super) fn read_row(
                     distance_m,
                     sigma_m,
                 }
-            })
+            }, None)
         }
         Kind::Tracker => {
-            let (robot, q, tool) = row.single(cell, kind, values)?;
+            let (robot, q, tool, q_other) = row.single(cell, kind, values)?;
             let group = row.required_text(
                 "group",
                 "name the tracker frame (one unknown frame per group), e.g. the file it came from",
@@ -555,10 +555,10 @@ pub(super) fn read_row(
                 group,
                 p_tracker: Point3::from(p),
                 sigma_m,
-            })
+            }, q_other)
         }
         Kind::Plane => {
-            let (robot, q, tool) = row.single(cell, kind, values)?;
+            let (robot, q, tool, q_other) = row.single(cell, kind, values)?;
             let group = row.required_text(
                 "group",
                 "name the plane (one unknown plane per group), e.g. table",
@@ -570,7 +570,7 @@ pub(super) fn read_row(
                 tool,
                 group,
                 sigma_m,
-            })
+            }, q_other)
         }
     })
 }

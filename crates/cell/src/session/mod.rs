@@ -18,6 +18,11 @@
 //! `handclasp import` fills it from the map's `source_id` key); a file without it reads as before,
 //! and readers that do not know it ignore it like any extra column.
 //!
+//! On a shared-trunk cell (`[robot2] shares`) a one-robot row (tracker, plane) may also fill the
+//! other robot's joint columns: the other arm's posture at that row ([`Session::other_arm_q`]),
+//! which loads the trunk; its trunk columns must equal the row's. On any other cell they stay
+//! empty.
+//!
 //! One job: the session CSV. This file holds the row types; `kinds.rs` each observation kind's
 //! row ([`SessionKind`]: its columns, reader, writer and whole-cell observation), `read.rs` the
 //! reader (header, the columns the kinds share, errors by line and column), `write.rs` the
@@ -85,6 +90,13 @@ pub struct Session {
     /// Each row's id in the source it came from, by point number (the [`SOURCE_ID_COLUMN`]);
     /// rows without one are absent. Empty for sessions that were not imported.
     pub source_ids: BTreeMap<usize, String>,
+    /// A shared-trunk cell (`[robot2] shares`): the other arm's joints (rad, m for a prismatic
+    /// joint; its independent joints, chain order, the trunk's equal to the row's) of each
+    /// one-robot row (tracker, plane) that gives them, by point number. In the file they are the
+    /// other robot's joint columns of that row (`r2_q*_deg` on a `robot = 1` row, `r1_q*_deg` on
+    /// a `robot = 2` row): the other arm's weight loads the trunk, so a
+    /// `kinematic+compliance` fit needs its posture. Empty on any other cell.
+    pub other_arm_q: BTreeMap<usize, Vec<f64>>,
 }
 
 /// One row of a session, in file order ([`Session::rows`]).
@@ -113,6 +125,7 @@ impl Session {
             points,
             observations: Vec::new(),
             source_ids: BTreeMap::new(),
+            other_arm_q: BTreeMap::new(),
         }
     }
 

@@ -41,6 +41,10 @@ pub(super) struct Pair {
     pub(super) tips: [Option<Point3<f64>>; 2],
 }
 
+/// A one-robot row as [`RowReader::single`] reads it: the robot, its joints (rad), its tool and
+/// the other arm's joints (rad; shared-trunk cells only, `None` when not given).
+pub(super) type SingleRow = (Robot, Vec<f64>, usize, Option<Vec<f64>>);
+
 /// The distance of each contact group read so far: `(group, distance m, first line)`.
 #[derive(Default)]
 pub(super) struct ContactDistances(Vec<(String, Option<f64>, u64)>);
@@ -131,6 +135,7 @@ impl Session {
         let mut points = Vec::new();
         let mut observations = Vec::new();
         let mut contacts = ContactDistances::default();
+        let mut other_arm_q = BTreeMap::new();
         for record in reader.records() {
             let record = record.map_err(|e| {
                 let line = e.position().map_or(0, |p| p.line());
@@ -219,7 +224,10 @@ impl Session {
             };
             match read_row(kind, &row, values, cell, point, &mut contacts)? {
                 ReadRow::Point(p) => points.push(p),
-                ReadRow::Observation(kind) => {
+                ReadRow::Observation(kind, q_other) => {
+                    if let Some(q) = q_other {
+                        other_arm_q.insert(point, q);
+                    }
                     observations.push(SessionObservation { point, kind });
                 }
             }
@@ -228,6 +236,7 @@ impl Session {
             points,
             observations,
             source_ids,
+            other_arm_q,
         })
     }
 }
@@ -485,6 +494,30 @@ impl RowReader<'_> {
         Ok(())
     }
 
+    /// Fails unless robot 1's and robot 2's columns of every shared trunk joint agree within
+    /// [`SHARED_JOINT_TOL`] (one trunk has one posture); `why` says what the row gives.
+    fn same_trunk(&self, cell: &Cell, q1: &[f64], q2: &[f64], why: &str) -> Result<(), FormatError> {
+        let shared_q = cell.shared_independent_joints();
+        let [kinds1, _] = super::joint_kinds(cell);
+        for k in 0..shared_q.min(q1.len()).min(q2.len()) {
+            let unit = if kinds1[k] { 1e3 } else { 1f64.to_degrees() };
+            if ((q1[k] - q2[k]) * unit).abs() > SHARED_JOINT_TOL {
+                let (c1, c2) = (
+                    super::joint_column(1, k + 1, kinds1[k]),
+                    super::joint_column(2, k + 1, kinds1[k]),
+                );
+                return Err(self.err(format!(
+                    "columns `{c1}` = {:.6} and `{c2}` = {:.6}: joint {} is shared by the two robots \
+                     (the cell's `robot2.shares`), and {why}; write the same value in both columns",
+                    q1[k] * unit,
+                    q2[k] * unit,
+                    k + 1
+                )));
+            }
+        }
+        Ok(())
+    }
+
     /// Both robots' joints (required), tools (`tool1`, `tool2`; empty = `tip`) and tips
     /// (optional, FK-checked) of a two-robot row of `kind`.
     pub(super) fn pair(&self, cell: &Cell, kind: Kind, v: RowValues) -> Result<Pair, FormatError> {
@@ -505,26 +538,7 @@ impl RowReader<'_> {
             (None, _) => return Err(self.missing(&format!("r1_q1_deg … r1_q{d1}_deg"), &needs)),
             (_, None) => return Err(self.missing(&format!("r2_q1_deg … r2_q{d2}_deg"), &needs)),
         };
-        // A shared trunk's joints are one set of joints: both robots' columns must agree.
-        let shared_q = cell.shared_independent_joints();
-        let [kinds1, _] = super::joint_kinds(cell);
-        for k in 0..shared_q.min(q1.len()).min(q2.len()) {
-            let unit = if kinds1[k] { 1e3 } else { 1f64.to_degrees() };
-            if ((q1[k] - q2[k]) * unit).abs() > SHARED_JOINT_TOL {
-                let (c1, c2) = (
-                    super::joint_column(1, k + 1, kinds1[k]),
-                    super::joint_column(2, k + 1, kinds1[k]),
-                );
-                return Err(self.err(format!(
-                    "columns `{c1}` = {:.6} and `{c2}` = {:.6}: joint {} is shared by the two robots \
-                     (the cell's `robot2.shares`), so a row with both robots gives it one value; \
-                     write robot 1's value in both columns",
-                    q1[k] * unit,
-                    q2[k] * unit,
-                    k + 1
-                )));
-            }
-        }
+        self.same_trunk(cell, &q1, &q2, "a row with both robots gives it one value")?;
         let tool1 = self.tool(cell, Robot::One, "tool1")?;
         let tool2 = self.tool(cell, Robot::Two, "tool2")?;
         for (r, q, tool, tip) in [
@@ -544,15 +558,17 @@ impl RowReader<'_> {
         })
     }
 
-    /// The robot (`robot`), its joints (required; the other robot's joints and tip must be
-    /// empty) and its tool (`tool`; empty = `tip`) of a one-robot row of `kind`; its tip, if
-    /// given, is FK-checked.
+    /// The robot (`robot`), its joints (required), its tool (`tool`; empty = `tip`) and, on a
+    /// shared-trunk cell, the other arm's joints if given, of a one-robot row of `kind`. The
+    /// other robot's tip must be empty, and so must its joints unless the cell has a shared
+    /// trunk (then they are the other arm's posture, its trunk columns equal to the row's). The
+    /// row's tip, if given, is FK-checked.
     pub(super) fn single(
         &self,
         cell: &Cell,
         kind: Kind,
         v: RowValues,
-    ) -> Result<(Robot, Vec<f64>, usize), FormatError> {
+    ) -> Result<SingleRow, FormatError> {
         let kind = kind.name();
         let robot = self.robot()?;
         if robot == Robot::Two && !cell.has_robot2() {
@@ -560,15 +576,16 @@ impl RowReader<'_> {
                 "column `robot`: this {kind} row is for robot 2, but this cell has only [robot1]; write 1"
             )));
         }
-        let (q, other_given) = match robot {
-            Robot::One => (v.q1, v.q2.is_some()),
-            Robot::Two => (v.q2, v.q1.is_some()),
+        let (q, q_other) = match robot {
+            Robot::One => (v.q1, v.q2),
+            Robot::Two => (v.q2, v.q1),
         };
         let other_robot = other(robot);
-        if other_given {
+        if q_other.is_some() && cell.shared_joints == 0 {
             return Err(self.err(format!(
                 "columns `r{}_q*_deg`: joints given for {other_robot}, but this {kind} row is for {robot} (column `robot`); \
-                 leave the other robot's joint cells empty or set `robot` to {}",
+                 leave the other robot's joint cells empty or set `robot` to {} (the other arm's \
+                 joints belong on a one-robot row only on a shared-trunk cell, `robot2.shares`)",
                 other_robot.number(),
                 other_robot.number()
             )));
@@ -587,11 +604,18 @@ impl RowReader<'_> {
                 &format!("a {kind} row for {robot} needs its joint angles (degrees)"),
             )
         })?;
+        if let Some(q_other) = &q_other {
+            let (q1, q2) = match robot {
+                Robot::One => (&q, q_other),
+                Robot::Two => (q_other, &q),
+            };
+            self.same_trunk(cell, q1, q2, &format!("a {kind} row of {robot} on a shared trunk gives the other arm's posture"))?;
+        }
         let tool = self.tool(cell, robot, "tool")?;
         if let Some(p) = &v.tips[usize::from(n - 1)] {
             check_tip(cell, robot, tool, &q, p, self.line_no, self.path)?;
         }
-        Ok((robot, q, tool))
+        Ok((robot, q, tool, q_other))
     }
 
     /// A contact or face-contact row's group (required), distance (`distance_mm`, optional,

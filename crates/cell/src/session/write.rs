@@ -15,7 +15,8 @@ impl Session {
     /// handclasp-only session, plus [`EXTRA_COLUMNS`] when it has rows of other kinds. Without
     /// the cell, a tool other than the tip is written by its index (`#1`, …), which
     /// [`Session::parse_csv`] refuses: write such sessions with [`Session::csv_text`]. The
-    /// [`SOURCE_ID_COLUMN`] comes last, when [`Session::source_ids`] is not empty.
+    /// [`SOURCE_ID_COLUMN`] comes last, when [`Session::source_ids`] is not empty. A one-robot
+    /// row with [`Session::other_arm_q`] fills the other robot's joint columns with them.
     pub fn to_csv_string(&self, dof1: usize, dof2: usize) -> String {
         self.write_text([vec![false; dof1], vec![false; dof2]], &|_, k| {
             if k == 0 {
@@ -89,6 +90,12 @@ impl Session {
                 SessionRow::Observation(o) => {
                     w.set("kind", o.kind.name().into());
                     o.kind.write(&mut w);
+                    // The other arm's posture on a shared trunk: the other robot's columns.
+                    if let (Some((robot, _, _)), Some(q)) =
+                        (o.kind.single(), self.other_arm_q.get(&o.point))
+                    {
+                        w.joints(robot.other(), q);
+                    }
                 }
             }
             let mut record = vec![row.point().to_string()];
@@ -169,7 +176,7 @@ impl RowWriter<'_> {
     }
 
     /// The robot (`robot`), its tool (`tool`) and its joints of a one-robot row; the other
-    /// robot's joints stay empty.
+    /// robot's joints stay empty unless [`Session::other_arm_q`] gives them.
     pub(super) fn single(&mut self, robot: Robot, q: &[f64], tool: usize) {
         self.set("robot", robot.number().to_string());
         self.set("tool", (self.tool_name)(robot, tool));
