@@ -173,12 +173,21 @@ fn check_other_arm_joints(
         .iter()
         .map(|&r| {
             let c = cell.robot(r);
-            let kinds: Vec<bool> = c.model.joints().iter().map(|j| j.kind.is_prismatic()).collect();
+            let kinds: Vec<bool> = c
+                .model
+                .joints()
+                .iter()
+                .map(|j| j.kind.is_prismatic())
+                .collect();
             let n = r.number();
             format!(
                 "`{}` … `{}` on robot {}'s rows",
                 handclasp_cell::joint_column(n, 1, kinds.first().copied().unwrap_or(false)),
-                handclasp_cell::joint_column(n, kinds.len(), kinds.last().copied().unwrap_or(false)),
+                handclasp_cell::joint_column(
+                    n,
+                    kinds.len(),
+                    kinds.last().copied().unwrap_or(false)
+                ),
                 r.other().number()
             )
         })

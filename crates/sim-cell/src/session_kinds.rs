@@ -473,7 +473,10 @@ impl Sim<'_> {
             }
             SimKind::Tracker => {
                 let tool = self.tracker_tools[usize::from(robot.number() - 1)];
-                let (q, p_true_b1) = self.one(robot, tool, &t.p_b1, None, t, rng)?;
+                let (q, p_true_b1, q_other) = self.one(robot, tool, &t.p_b1, None, t, rng)?;
+                if let Some(q_other) = q_other {
+                    session.other_arm_q.insert(label, q_other);
+                }
                 let noise = gauss3(rng, &Vector3::repeat(self.kinds.tracker_sigma_m));
                 session.observations.push(SessionObservation {
                     point: label,
@@ -492,7 +495,10 @@ impl Sim<'_> {
                 let nu: f64 = rng.sample(StandardNormal);
                 let on_plane = t.p_b1 - n.into_inner() * (n.dot(&t.p_b1.coords) - d);
                 let target = on_plane + n.into_inner() * (self.kinds.plane_sigma_m * nu);
-                let (q, _) = self.one(robot, 0, &target, Some(-n), t, rng)?;
+                let (q, _, q_other) = self.one(robot, 0, &target, Some(-n), t, rng)?;
+                if let Some(q_other) = q_other {
+                    session.other_arm_q.insert(label, q_other);
+                }
                 session.observations.push(SessionObservation {
                     point: label,
                     kind: SessionKind::Plane {
@@ -569,7 +575,11 @@ impl Sim<'_> {
 
     /// One robot's reported joints with its true tool point at `target_b1` (+ repeatability),
     /// approached along `axis_b1` if reachable, else along the handclasp directions, else in any
-    /// orientation; returns them with the true tool point after quantisation (b1).
+    /// orientation; returns them with the true tool point after quantisation (b1) and, on a
+    /// shared-trunk cell, the other arm's posture ([`Sim::other_arm`]), whose weight deflects
+    /// the trunk joints by their compliance ([`Sim::branch_offsets`]): the inverse kinematics
+    /// is redone [`TRUNK_LOAD_PASSES`] times with that deflection at the last solution's trunk.
+    #[allow(clippy::type_complexity)] // (joints, true tool point, the other arm's joints)
     fn one(
         &self,
         robot: Robot,
@@ -578,7 +588,7 @@ impl Sim<'_> {
         axis_b1: Option<Unit<Vector3<f64>>>,
         t: &Teach,
         rng: &mut impl Rng,
-    ) -> Result<(Vec<f64>, Point3<f64>), PointFailure> {
+    ) -> Result<(Vec<f64>, Point3<f64>, Option<Vec<f64>>), PointFailure> {
         let cell = self.cell;
         let c = cell.robot(robot);
         let rep = gauss3(rng, &Vector3::repeat(cell.noise.repeatability_m));
@@ -591,6 +601,7 @@ impl Sim<'_> {
             Robot::One => a.as_slice(),
             Robot::Two => b.as_slice(),
         });
+        let mut q_other = (cell.shared_joints > 0).then(|| self.other_arm(robot, rng));
         let mut axes: Vec<Option<Unit<Vector3<f64>>>> = axis_b1.into_iter().map(Some).collect();
         axes.extend(approach_directions(cell, target_b1).into_iter().map(|d| {
             // Robot 2 approaches from the other side in a handclasp.
@@ -598,26 +609,107 @@ impl Sim<'_> {
             Some(d)
         }));
         axes.push(None);
+        // The robot as it is at this row: its errors, plus the trunk's deflection under the
+        // other arm at `q` (the trunk's joints taken from `q`).
+        let loaded = |q: &[f64], q_other: &mut Vec<f64>| -> Result<_, PointFailure> {
+            let trunk = cell.shared_independent_joints().min(q.len());
+            q_other[..trunk].copy_from_slice(&q[..trunk]);
+            let mut r = c.clone();
+            for (o, d) in r
+                .errors
+                .joint_offset
+                .iter_mut()
+                .zip(self.branch_offsets(robot, q_other)?)
+            {
+                *o += d;
+            }
+            Ok(r)
+        };
         for axis in axes {
             let axis_b = axis.map(|a| Unit::new_normalize(b_from_b1.rotation * a.into_inner()));
-            if let Some(mut q) = solve_true_tool(c, tool, &target, axis_b, seed) {
-                quantise(c, &mut q, cell.noise.encoder_resolution_rad);
-                let flange_from_tool = c.flange_from_tool(tool).unwrap_or(c.flange_from_tip);
-                let tip = true_base_from_tip(
-                    &c.model,
-                    &tool_errors(c, tool),
-                    &q,
-                    &flange_from_tool,
-                    &c.g_base,
-                )
-                .map_err(|e| (robot, e.to_string()))?;
-                let p_b1 = b_from_b1.inverse() * Point3::from(tip.translation.vector);
-                return Ok((q, p_b1));
+            let Some(mut q) = solve_true_tool(c, tool, &target, axis_b, seed) else {
+                continue;
+            };
+            let mut true_robot = c.clone();
+            if let Some(q_other) = q_other.as_mut() {
+                for _ in 0..TRUNK_LOAD_PASSES {
+                    true_robot = loaded(&q, q_other)?;
+                    match solve_true_tool(&true_robot, tool, &target, axis_b, Some(&q)) {
+                        Some(again) => q = again,
+                        None => break,
+                    }
+                }
             }
+            quantise(c, &mut q, cell.noise.encoder_resolution_rad);
+            if let Some(q_other) = q_other.as_mut() {
+                true_robot = loaded(&q, q_other)?;
+            }
+            let flange_from_tool = c.flange_from_tool(tool).unwrap_or(c.flange_from_tip);
+            let tip = true_base_from_tip(
+                &true_robot.model,
+                &tool_errors(&true_robot, tool),
+                &q,
+                &flange_from_tool,
+                &true_robot.g_base,
+            )
+            .map_err(|e| (robot, e.to_string()))?;
+            let p_b1 = b_from_b1.inverse() * Point3::from(tip.translation.vector);
+            return Ok((q, p_b1, q_other));
         }
         Err((robot, format!("{robot} cannot reach it")))
     }
+
+    /// The other arm's posture at a one-robot row of `robot` on a shared-trunk cell: each of
+    /// its independent joints uniform in the middle 80 % of its limits (clipped to ±3 rad or
+    /// m); the trunk's are overwritten with the measured arm's ([`Sim::one`]).
+    fn other_arm(&self, robot: Robot, rng: &mut impl Rng) -> Vec<f64> {
+        self.cell
+            .robot(robot.other())
+            .model
+            .joints()
+            .iter()
+            .map(|j| {
+                let (lo, hi) = (j.lower.max(-3.0), j.upper.min(3.0));
+                let margin = 0.1 * (hi - lo);
+                rng.random_range(lo + margin..=hi - margin)
+            })
+            .collect()
+    }
+
+    /// The deflection (rad, m for a prismatic joint; one entry per chain joint of `robot`, zero
+    /// beyond the trunk) of the trunk joints under the other arm at `q_other` (its independent
+    /// joints, the trunk's equal to the row's): each trunk joint's compliance (the cell's
+    /// `compliance_deg_per_knm`) times the other arm's gravity torque on it
+    /// ([`kinematics::trunk::branch_torques`], from the other URDF's masses), plus the
+    /// deflection of the other arm's lumped coefficients on the trunk joints
+    /// ([`kinematics::trunk::branch_deflections`]).
+    fn branch_offsets(&self, robot: Robot, q_other: &[f64]) -> Result<Vec<f64>, PointFailure> {
+        let cell = self.cell;
+        let (me, other) = (cell.robot(robot), cell.robot(robot.other()));
+        let k = cell.shared_joints;
+        let fail = |e: kinematics::KinematicsError| (robot, format!("the trunk's load: {e}"));
+        let torques = kinematics::trunk::branch_torques(&other.model, q_other, &other.g_base, k)
+            .map_err(fail)?;
+        let lumped = kinematics::trunk::branch_deflections(
+            &other.model,
+            &other.errors.lumped_compliance,
+            q_other,
+            &other.g_base,
+            k,
+        )
+        .map_err(fail)?;
+        let mut out = vec![0.0; me.errors.joint_offset.len()];
+        for j in 0..k.min(out.len()) {
+            out[j] = me.errors.compliance.get(j).copied().unwrap_or(0.0) * torques[j] + lumped[j];
+        }
+        Ok(out)
+    }
 }
+
+/// How many times [`Sim::one`] redoes a shared-trunk row's inverse kinematics with the trunk's
+/// deflection under the other arm at the last solution: 2 (the deflection moves the trunk by
+/// µrad, and its change with that move is second order).
+const TRUNK_LOAD_PASSES: usize = 2;
 
 /// Reads teach points (`sim-cell session --points-csv`): a CSV with columns `x_mm,y_mm,z_mm`
 /// (robot 1's tip, base 1, mm; found by name, any order, extra columns ignored; comma,

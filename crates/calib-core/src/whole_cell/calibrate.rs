@@ -527,6 +527,7 @@ impl FamilyFactors {
                 "joint_scale",
                 "compliance",
                 "periodic",
+                "lumped_compliance",
             ]
             .iter()
             .map(|f| (*f, x))
@@ -588,6 +589,9 @@ impl FamilyFactors {
             t.joint_scale = t.joint_scale.map(|v| v * self.get("joint_scale"));
             t.compliance_rad_per_nm = t.compliance_rad_per_nm.map(|v| v * self.get("compliance"));
             t.periodic_rad = t.periodic_rad.map(|v| v * self.get("periodic"));
+            t.lumped_compliance_rad = t
+                .lumped_compliance_rad
+                .map(|v| v * self.get("lumped_compliance"));
         }
         p
     }

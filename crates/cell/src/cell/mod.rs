@@ -1235,8 +1235,8 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
 
 /// The number of shared chain joints of `robot2.shares`, checked: robot 1's trunk, the same
 /// joints at the start of both chains (names, kinds, origins, axes, limits, couplings over
-/// shared joints only), the same mount, no compliance at a shared joint; robot 2's errors at the
-/// shared joints must be 0 or robot 1's, and become robot 1's.
+/// shared joints only), the same mount; robot 2's errors at the shared joints (compliance
+/// included: one joint, loaded by both arms) must be 0 or robot 1's, and become robot 1's.
 fn shared_trunk(
     ctx: &Ctx,
     shares: &SharesFile,
@@ -1328,18 +1328,16 @@ fn shared_trunk(
     let (e1, e2) = (&robot1.errors, &mut robot2.errors);
     #[allow(clippy::needless_range_loop)] // j indexes both robots' errors and robot 1's chain
     for j in 0..k {
-        if e1.compliance[j] != 0.0 || e2.compliance[j] != 0.0 {
-            return Err(ctx.err(format!(
-                "`[robotN.errors] compliance_deg_per_knm` at shared joint `{}`: compliance of a \
-                 shared joint (loaded by both arms) is not supported yet; give 0 there",
-                c1[j].name
-            )));
-        }
         let pairs = [
             ("joint_offset", e1.joint_offset[j], &mut e2.joint_offset[j]),
             ("joint_scale", e1.joint_scale[j], &mut e2.joint_scale[j]),
             ("periodic_sin", e1.periodic_sin[j], &mut e2.periodic_sin[j]),
             ("periodic_cos", e1.periodic_cos[j], &mut e2.periodic_cos[j]),
+            (
+                "compliance_deg_per_knm",
+                e1.compliance[j],
+                &mut e2.compliance[j],
+            ),
         ];
         for (field, v1, v2) in pairs {
             if *v2 != 0.0 && (*v2 - v1).abs() > 1e-12 * v1.abs().max(1e-9) {

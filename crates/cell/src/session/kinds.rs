@@ -492,42 +492,48 @@ pub(super) fn read_row(
                     p_b2,
                 })
             } else {
-                ReadRow::Observation(SessionKind::Coincident {
-                    q1: p.q1,
-                    q2: p.q2,
-                    tool1: p.tool1,
-                    tool2: p.tool2,
-                    p_b1,
-                    p_b2,
-                }, None)
+                ReadRow::Observation(
+                    SessionKind::Coincident {
+                        q1: p.q1,
+                        q2: p.q2,
+                        tool1: p.tool1,
+                        tool2: p.tool2,
+                        p_b1,
+                        p_b2,
+                    },
+                    None,
+                )
             }
         }
         Kind::Contact | Kind::FaceContact => {
             let p = row.pair(cell, kind, values)?;
             let (group, distance_m, sigma_m) = row.contact(contacts)?;
-            ReadRow::Observation(if kind == Kind::Contact {
-                SessionKind::Contact {
-                    q1: p.q1,
-                    q2: p.q2,
-                    tool1: p.tool1,
-                    tool2: p.tool2,
-                    group,
-                    distance_m,
-                    sigma_m,
-                }
-            } else {
-                SessionKind::FaceContact {
-                    q1: p.q1,
-                    q2: p.q2,
-                    tool1: p.tool1,
-                    tool2: p.tool2,
-                    n1_tip: row.normal(1)?,
-                    n2_tip: row.normal(2)?,
-                    group,
-                    distance_m,
-                    sigma_m,
-                }
-            }, None)
+            ReadRow::Observation(
+                if kind == Kind::Contact {
+                    SessionKind::Contact {
+                        q1: p.q1,
+                        q2: p.q2,
+                        tool1: p.tool1,
+                        tool2: p.tool2,
+                        group,
+                        distance_m,
+                        sigma_m,
+                    }
+                } else {
+                    SessionKind::FaceContact {
+                        q1: p.q1,
+                        q2: p.q2,
+                        tool1: p.tool1,
+                        tool2: p.tool2,
+                        n1_tip: row.normal(1)?,
+                        n2_tip: row.normal(2)?,
+                        group,
+                        distance_m,
+                        sigma_m,
+                    }
+                },
+                None,
+            )
         }
         Kind::Tracker => {
             let (robot, q, tool, q_other) = row.single(cell, kind, values)?;
@@ -548,14 +554,17 @@ pub(super) fn read_row(
                     )
                 })? * 1e-3;
             }
-            ReadRow::Observation(SessionKind::Tracker {
-                robot,
-                q,
-                tool,
-                group,
-                p_tracker: Point3::from(p),
-                sigma_m,
-            }, q_other)
+            ReadRow::Observation(
+                SessionKind::Tracker {
+                    robot,
+                    q,
+                    tool,
+                    group,
+                    p_tracker: Point3::from(p),
+                    sigma_m,
+                },
+                q_other,
+            )
         }
         Kind::Plane => {
             let (robot, q, tool, q_other) = row.single(cell, kind, values)?;
@@ -564,13 +573,16 @@ pub(super) fn read_row(
                 "name the plane (one unknown plane per group), e.g. table",
             )?;
             let sigma_m = row.sigma()?;
-            ReadRow::Observation(SessionKind::Plane {
-                robot,
-                q,
-                tool,
-                group,
-                sigma_m,
-            }, q_other)
+            ReadRow::Observation(
+                SessionKind::Plane {
+                    robot,
+                    q,
+                    tool,
+                    group,
+                    sigma_m,
+                },
+                q_other,
+            )
         }
     })
 }

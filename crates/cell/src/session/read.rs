@@ -496,7 +496,13 @@ impl RowReader<'_> {
 
     /// Fails unless robot 1's and robot 2's columns of every shared trunk joint agree within
     /// [`SHARED_JOINT_TOL`] (one trunk has one posture); `why` says what the row gives.
-    fn same_trunk(&self, cell: &Cell, q1: &[f64], q2: &[f64], why: &str) -> Result<(), FormatError> {
+    fn same_trunk(
+        &self,
+        cell: &Cell,
+        q1: &[f64],
+        q2: &[f64],
+        why: &str,
+    ) -> Result<(), FormatError> {
         let shared_q = cell.shared_independent_joints();
         let [kinds1, _] = super::joint_kinds(cell);
         for k in 0..shared_q.min(q1.len()).min(q2.len()) {
@@ -609,7 +615,12 @@ impl RowReader<'_> {
                 Robot::One => (&q, q_other),
                 Robot::Two => (q_other, &q),
             };
-            self.same_trunk(cell, q1, q2, &format!("a {kind} row of {robot} on a shared trunk gives the other arm's posture"))?;
+            self.same_trunk(
+                cell,
+                q1,
+                q2,
+                &format!("a {kind} row of {robot} on a shared trunk gives the other arm's posture"),
+            )?;
         }
         let tool = self.tool(cell, robot, "tool")?;
         if let Some(p) = &v.tips[usize::from(n - 1)] {
