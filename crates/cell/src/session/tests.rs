@@ -596,3 +596,98 @@ fn one_robot_cell_refuses_two_robot_rows() {
     )
     .unwrap();
 }
+
+/// The shipped shared-trunk humanoid (`cells/humanoid-trunk.toml`).
+fn humanoid_trunk() -> Cell {
+    Cell::from_toml_file(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells/humanoid-trunk.toml"),
+    )
+    .unwrap()
+}
+
+/// On a shared-trunk cell, a tracker or plane row of one arm carries the other arm's posture in
+/// the other robot's joint columns: written, read back to the file's 6 decimals, and given to
+/// the whole-cell problem with the trunk's values the row's own; a row without them reads as
+/// before (none given). A trunk column that disagrees with the row's is refused naming both
+/// columns; the same columns on a cell without a shared trunk are refused naming the fix.
+#[test]
+fn other_arm_joints_on_a_shared_trunk_round_trip_and_are_checked() {
+    let cell = humanoid_trunk();
+    let trunk = cell.shared_independent_joints();
+    let q1: Vec<f64> = (0..10).map(|j| 0.05 * j as f64 - 0.2).collect();
+    let mut q2: Vec<f64> = (0..10).map(|j| 0.3 - 0.04 * j as f64).collect();
+    q2[..trunk].copy_from_slice(&q1[..trunk]);
+    let tracker = |robot, q: &Vec<f64>| SessionKind::Tracker {
+        robot,
+        q: q.clone(),
+        tool: 0,
+        group: "camera".into(),
+        p_tracker: nalgebra::Point3::new(1.0, 2.0, 3.0),
+        sigma_m: 1e-4,
+    };
+    let mut session = Session {
+        observations: vec![
+            crate::SessionObservation {
+                point: 1,
+                kind: tracker(calib_core::Robot::One, &q1),
+            },
+            crate::SessionObservation {
+                point: 2,
+                kind: tracker(calib_core::Robot::Two, &q2),
+            },
+            crate::SessionObservation {
+                point: 3,
+                kind: SessionKind::Plane {
+                    robot: calib_core::Robot::One,
+                    q: q1.clone(),
+                    tool: 0,
+                    group: "table".into(),
+                    sigma_m: 1e-4,
+                },
+            },
+        ],
+        ..Session::default()
+    };
+    session.other_arm_q.insert(1, q2.clone());
+    session.other_arm_q.insert(2, q1.clone());
+    let text = session.csv_text(&cell);
+    let back = Session::parse_csv(&text, Path::new("s.csv"), &cell).unwrap();
+    assert_eq!(back.other_arm_q.len(), 2, "{text}");
+    for (point, want) in [(1, &q2), (2, &q1)] {
+        for (a, b) in back.other_arm_q[&point].iter().zip(want) {
+            assert!((a - b).abs() < CSV_TOL.to_radians(), "point {point}");
+        }
+    }
+    let problem = cell_problem(&cell, &back, FitModel::KinematicCompliance);
+    assert_eq!(problem.other_arm_q.len(), 2);
+    let (_, q_row, _) = back.observations[0].kind.single().unwrap();
+    assert_eq!(problem.other_arm_q[&1][..trunk], q_row[..trunk]);
+    problem.check().unwrap();
+
+    // Robot 2's trunk column on robot 1's row disagrees with the row's.
+    let line = text.lines().nth(1).unwrap();
+    let cols: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let k = cols.iter().position(|c| *c == "r2_q2_deg").unwrap();
+    let mut cells: Vec<String> = line.split(',').map(str::to_string).collect();
+    cells[k] = "7.5".into();
+    let bad = text.replace(line, &cells.join(","));
+    let e = Session::parse_csv(&bad, Path::new("s.csv"), &cell)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("line 2") && e.contains("`r1_q2_deg`") && e.contains("`r2_q2_deg` = 7.500000"),
+        "{e}"
+    );
+    // The same columns on a cell without a shared trunk.
+    let mut plain = cell.clone();
+    plain.shared_joints = 0;
+    let e = Session::parse_csv(&text, Path::new("s.csv"), &plain)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("line 2")
+            && e.contains("joints given for robot 2")
+            && e.contains("shared-trunk"),
+        "{e}"
+    );
+}
