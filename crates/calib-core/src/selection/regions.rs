@@ -354,7 +354,12 @@ mod tests {
                 let x = uniform(40, 12, seed);
                 let r = joint_regions(&x, min, max, REGION_SEED)
                     .unwrap_or_else(|| panic!("min {min} max {max} seed {seed}: no regions"));
-                assert_eq!(r.sizes.len(), k, "min {min} max {max} seed {seed}: {:?}", r.sizes);
+                assert_eq!(
+                    r.sizes.len(),
+                    k,
+                    "min {min} max {max} seed {seed}: {:?}",
+                    r.sizes
+                );
                 assert!(r.sizes.iter().all(|&s| s >= min), "{:?}", r.sizes);
                 assert_eq!(r.sizes.iter().sum::<usize>(), 40);
             }
@@ -394,4 +399,3 @@ mod tests {
         }
     }
 }
-
