@@ -673,7 +673,7 @@ fn take_candidate_lists(report: &mut serde_json::Value) -> Vec<(ChiList, ChiList
 type ChiList = Vec<(String, f64)>;
 
 /// The linearised held-out criterion (`CellDiagnoseOptions::refit_every_candidate = false`: a
-/// candidate is cross-validated only when one Gauss–Newton step per fold from the current
+/// candidate is cross-validated only when a few Gauss–Newton steps per fold from the current
 /// model's fold fits cannot rule it out) gives the report of cross-validating every candidate,
 /// on the hidden-effect sessions of this file (a joint offset, seeds 1 and 2; a tool tip; a
 /// joint-periodic error; a tracker scale; a tracker drift; noise only, seeds 1 and 5) and the
