@@ -740,8 +740,15 @@ fn predicted_candidates_choose_what_cross_validating_every_candidate_chooses() {
         for (effect, ((tried, ruled), (all, none))) in
             lists.zip(take_candidate_lists(&mut every)).enumerate()
         {
-            assert!(none.is_empty(), "{name}: nothing is ruled out when every candidate is cross-validated");
-            assert_eq!(tried.len() + ruled.len(), all.len(), "{name}, effect {effect}");
+            assert!(
+                none.is_empty(),
+                "{name}: nothing is ruled out when every candidate is cross-validated"
+            );
+            assert_eq!(
+                tried.len() + ruled.len(),
+                all.len(),
+                "{name}, effect {effect}"
+            );
             let chosen = report.effects[effect].gain.held_out_chi2_after;
             let full = |f: &str| all.iter().find(|a| a.0 == f).map(|a| a.1);
             for (f, chi2) in &tried {
@@ -756,9 +763,17 @@ fn predicted_candidates_choose_what_cross_validating_every_candidate_chooses() {
             }
             ruled_out += ruled.len();
         }
-        assert_eq!(pruned, every, "{name}: {}", diagnose::render_cell_text(&report));
+        assert_eq!(
+            pruned,
+            every,
+            "{name}: {}",
+            diagnose::render_cell_text(&report)
+        );
         named += report.effects.len();
     }
     // The sessions exercise accepted steps, and the prediction rules candidates out there.
-    assert!(named >= 6 && ruled_out > 0, "{named} effects named, {ruled_out} candidates ruled out");
+    assert!(
+        named >= 6 && ruled_out > 0,
+        "{named} effects named, {ruled_out} candidates ruled out"
+    );
 }

@@ -501,7 +501,11 @@ fn run(
                 .iter()
                 .map(|&p| p + held_out_prediction_slack(now, p))
                 .fold(f64::INFINITY, f64::min);
-            let close: Vec<usize> = every.iter().copied().filter(|&c| low[c] <= best_high).collect();
+            let close: Vec<usize> = every
+                .iter()
+                .copied()
+                .filter(|&c| low[c] <= best_high)
+                .collect();
             for (c, h) in close.iter().zip(cross_validate(&close)?) {
                 held[*c] = Some(h);
             }
