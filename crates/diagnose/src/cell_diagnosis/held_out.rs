@@ -433,7 +433,7 @@ fn predict_fit(
     let all: Vec<usize> = (0..sub.observations.len()).collect();
     let mut solve = options.solve.clone();
     // PREDICTION_ITERATIONS ≥ 1 is always a valid iteration count.
-    if let Ok(lm) = solve.lm.clone().with_max_iterations(PREDICTION_ITERATIONS) {
+    if let Ok(lm) = solve.lm.with_max_iterations(PREDICTION_ITERATIONS) {
         solve.lm = lm;
     }
     Ok(fit_cell_with(&sub, layout, &all, Some(start), &solve)?.estimate)
