@@ -402,8 +402,9 @@ pub(crate) struct Folds {
 type FoldHeldOut = (CellEstimate, Vec<(f64, Vec<ScoredRow>)>);
 
 /// Levenberg–Marquardt iterations of a training fit of the linearised held-out prediction
-/// (the prediction of `CellDiagnoseOptions::refit_every_candidate = false`): damped Gauss–Newton steps from the current model's fold optimum,
-/// the first with the candidate's columns (at zero) bordered onto its normal equations. One
+/// (`CellDiagnoseOptions::refit_every_candidate = false`): damped Gauss–Newton steps from the
+/// current model's fold optimum, the first with the candidate's columns (at zero) bordered onto
+/// its normal equations. One
 /// step mispredicted the held-out χ² by up to 12.7 % of the current χ² on the hidden-effect
 /// sessions, three by at most 2.1 % (`HELD_OUT_SLACK_ABS` in `cell_diagnosis`).
 pub const PREDICTION_ITERATIONS: usize = 3;
