@@ -358,8 +358,15 @@ pub struct CellEffectReport {
     pub parameters: Vec<ParamValue>,
     /// Whitened residual rms against each joint before and after this step.
     pub residual_vs_joint: Vec<JointTrend>,
-    /// Held-out χ² of every candidate tried at this step.
+    /// Held-out χ² of every candidate cross-validated at this step (every candidate with
+    /// [`CellDiagnoseOptions::refit_every_candidate`]; else those the linearised prediction did
+    /// not rule out).
     pub candidates_held_out_chi2: Vec<(String, f64)>,
+    /// Each candidate the linearised prediction ruled out at this step (not cross-validated),
+    /// with the lower end of its predicted held-out χ² (the prediction less
+    /// [`crate::cell_diagnosis::held_out_prediction_slack`]), above this family's held-out χ².
+    /// Empty with [`CellDiagnoseOptions::refit_every_candidate`].
+    pub candidates_ruled_out: Vec<(String, f64)>,
 }
 
 /// A candidate family that was not named: tried at the step that stopped the selection, it
@@ -743,6 +750,7 @@ pub(crate) fn build(d: &CellDiagnosis, options: &CellDiagnoseOptions) -> CellDia
                 parameters: family_parameters(&d.final_fit, &s.family, vf),
                 residual_vs_joint: trends(&s.fit_before, after),
                 candidates_held_out_chi2: s.tried.clone(),
+                candidates_ruled_out: s.ruled_out.clone(),
             }
         })
         .collect();

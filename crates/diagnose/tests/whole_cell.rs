@@ -649,3 +649,131 @@ fn region_limited_compliance_truth_exports_no_offsets_that_extrapolate_badly() {
         after * 1e3
     );
 }
+
+/// Every effect's candidate list without the two fields that differ by design between the
+/// linearised prediction and cross-validating every candidate: `(cross-validated, ruled out)`.
+fn take_candidate_lists(report: &mut serde_json::Value) -> Vec<(ChiList, ChiList)> {
+    let list = |v: serde_json::Value| -> ChiList {
+        serde_json::from_value(v).expect("a list of (family, χ²) pairs")
+    };
+    report["effects"]
+        .as_array_mut()
+        .expect("effects")
+        .iter_mut()
+        .map(|e| {
+            let e = e.as_object_mut().expect("an effect");
+            let tried = list(e.remove("candidates_held_out_chi2").expect("tried"));
+            let ruled = list(e.remove("candidates_ruled_out").expect("ruled out"));
+            (tried, ruled)
+        })
+        .collect()
+}
+
+/// `(family, held-out χ²)` pairs of a report's candidate lists.
+type ChiList = Vec<(String, f64)>;
+
+/// The linearised held-out criterion (`CellDiagnoseOptions::refit_every_candidate = false`: a
+/// candidate is cross-validated only when a few Gauss–Newton steps per fold from the current
+/// model's fold fits cannot rule it out) gives the report of cross-validating every candidate,
+/// on the hidden-effect sessions of this file (a joint offset, seeds 1 and 2; a tool tip; a
+/// joint-periodic error; a tracker scale; a tracker drift; noise only, seeds 1 and 5) and the
+/// 84-row mixed session of the example truth (`sim-cell session --cell docs/examples/truth.toml
+/// --kind mixed --n 84 --seed 4`, its groups spread): byte-identical JSON except each named
+/// effect's candidate lists, where the pruned run lists a subset of the candidates with the
+/// same held-out χ², and each candidate it ruled out has a cross-validated χ² at or above the
+/// lower end of its prediction and above the chosen family's.
+#[test]
+fn predicted_candidates_choose_what_cross_validating_every_candidate_chooses() {
+    let floor_wall = Cell::default_floor_wall();
+    let with = |robot: u8, param: ErrorParam, value: f64| {
+        let mut truth = floor_wall.clone();
+        let errors = if robot == 1 {
+            &mut truth.robot1.errors
+        } else {
+            &mut truth.robot2.errors
+        };
+        errors.set(param, value);
+        truth
+    };
+    let offset = with(1, ErrorParam::JointOffset { joint: 1 }, 2e-3);
+    let mut scale = session_of(&floor_wall, N_TRACKER_ROWS, 5);
+    hide_tracker_nuisance(&mut scale, 300e-6, Vector3::zeros());
+    let mut drift = session_of(&floor_wall, N_TRACKER_ROWS, 6);
+    hide_tracker_nuisance(&mut drift, 0.0, Vector3::new(0.5e-3, 0.0, 0.0));
+    let example_truth = Cell::from_toml_file(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/examples/truth.toml"),
+    )
+    .expect("the example truth");
+    let sessions = [
+        ("joint offset, seed 1", session(&offset, 1)),
+        ("joint offset, seed 2", session(&offset, 2)),
+        (
+            "tool tip",
+            session(&with(2, ErrorParam::Tip { axis: Axis::X }, 1.5e-3), 3),
+        ),
+        (
+            "joint-periodic",
+            session(&with(1, ErrorParam::PeriodicSin { joint: 1 }, 2e-3), 1),
+        ),
+        ("tracker scale", scale),
+        ("tracker drift", drift),
+        ("noise only, seed 1", session(&floor_wall, 1)),
+        (
+            "noise only, tracker rows",
+            session_of(&floor_wall, N_TRACKER_ROWS, 5),
+        ),
+        ("example truth, 84 rows", session_of(&example_truth, 84, 4)),
+    ];
+    let mut ruled_out = 0;
+    let mut named = 0;
+    for (name, s) in &sessions {
+        let run = |every: bool| {
+            let options = CellDiagnoseOptions {
+                refit_every_candidate: every,
+                ..CellDiagnoseOptions::default()
+            };
+            let r = diagnose_cell_session(&floor_wall, s, &options, &|_| {}).expect("diagnosis");
+            (serde_json::to_value(&r).expect("json"), r)
+        };
+        let ((mut pruned, report), (mut every, _)) = (run(false), run(true));
+        let lists = take_candidate_lists(&mut pruned).into_iter();
+        for (effect, ((tried, ruled), (all, none))) in
+            lists.zip(take_candidate_lists(&mut every)).enumerate()
+        {
+            assert!(
+                none.is_empty(),
+                "{name}: nothing is ruled out when every candidate is cross-validated"
+            );
+            assert_eq!(
+                tried.len() + ruled.len(),
+                all.len(),
+                "{name}, effect {effect}"
+            );
+            let chosen = report.effects[effect].gain.held_out_chi2_after;
+            let full = |f: &str| all.iter().find(|a| a.0 == f).map(|a| a.1);
+            for (f, chi2) in &tried {
+                assert_eq!(full(f), Some(*chi2), "{name}, effect {effect}: {f}");
+            }
+            for (f, low) in &ruled {
+                let chi2 = full(f).expect("every candidate is listed");
+                assert!(
+                    chi2 >= *low && chi2 > chosen,
+                    "{name}, effect {effect}: {f} ruled out at ≥ {low}, cross-validated {chi2}, chosen {chosen}"
+                );
+            }
+            ruled_out += ruled.len();
+        }
+        assert_eq!(
+            pruned,
+            every,
+            "{name}: {}",
+            diagnose::render_cell_text(&report)
+        );
+        named += report.effects.len();
+    }
+    // The sessions exercise accepted steps, and the prediction rules candidates out there.
+    assert!(
+        named >= 6 && ruled_out > 0,
+        "{named} effects named, {ruled_out} candidates ruled out"
+    );
+}

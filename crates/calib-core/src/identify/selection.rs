@@ -371,9 +371,15 @@ pub const PREDICTION_SLACK_REL: f64 = 0.1;
 /// PREDICTION_SLACK_REL·|predicted − reference|`. A candidate that fails this test would, if
 /// the bound holds, be refitted to an RSS above `bar`, so leaving it out changes no choice.
 pub fn refit_is_needed(predicted: f64, reference: f64, bar: f64, sigma2: f64) -> bool {
-    let slack =
-        PREDICTION_SLACK_SIGMA2 * sigma2 + PREDICTION_SLACK_REL * (predicted - reference).abs();
-    predicted - slack <= bar
+    predicted - prediction_slack(sigma2, predicted - reference) <= bar
+}
+
+/// The bound on the score test's (or the Wald test's) error in predicting a refit's RSS:
+/// `PREDICTION_SLACK_SIGMA2·σ̂² + PREDICTION_SLACK_REL·|change|`, where `σ̂²` is the current
+/// fit's `RSS/dof` and `change` the predicted RSS change (both m², whitened). The one formula
+/// of [`refit_is_needed`], the forward step's best bar and the backward elimination's skip.
+pub fn prediction_slack(sigma2: f64, change: f64) -> f64 {
+    PREDICTION_SLACK_SIGMA2 * sigma2 + PREDICTION_SLACK_REL * change.abs()
 }
 
 /// Candidates refitted per selected parameter when re-screening (swap and "which one" set).
@@ -426,7 +432,7 @@ fn none_can_be_dropped(current: &IdentFit, level: f64) -> bool {
             return false;
         }
         let predicted = v * v * s2 / var;
-        let low = predicted - (PREDICTION_SLACK_SIGMA2 * s2 + PREDICTION_SLACK_REL * predicted);
+        let low = predicted - prediction_slack(s2, predicted);
         low > 0.0 && f_test_p_value(low / s2, current.dof) < level
     })
 }
@@ -594,11 +600,9 @@ pub fn forward_select_with_progress(
         // (`current.rss − score`), less its error bound, is above the best prediction plus its
         // bound is not refitted ([`refit_is_needed`]).
         let s2_current = current.rss / current.dof.max(1) as f64;
-        let slack =
-            |sc: f64| PREDICTION_SLACK_SIGMA2 * s2_current + PREDICTION_SLACK_REL * sc.abs();
-        let best_bar = ranked
-            .first()
-            .map_or(f64::INFINITY, |&(_, sc)| current.rss - sc + slack(sc));
+        let best_bar = ranked.first().map_or(f64::INFINITY, |&(_, sc)| {
+            current.rss - sc + prediction_slack(s2_current, sc)
+        });
         let top: Vec<(usize, f64)> = ranked
             .iter()
             .take(FORWARD_REFITS)
