@@ -22,9 +22,9 @@ use std::path::Path;
 
 use calib_core::stats::trial_rng;
 use calib_core::whole_cell::{
-    placement_rotation_posterior, predict_error, summarise_covariances, workspace_pairs, CellCalibration, CellFit,
-    CellProblem, ConfigPair, ObservationKind, PairSet, PredictedErrorReport, PredictionSplit,
-    WORKSPACE_POSES, WORKSPACE_SEED,
+    placement_rotation_posterior, predict_error, summarise_covariances, workspace_pairs,
+    CellCalibration, CellFit, CellProblem, ConfigPair, ObservationKind, PairSet,
+    PredictedErrorReport, PredictionSplit, WORKSPACE_POSES, WORKSPACE_SEED,
 };
 use handclasp_cell::Cell;
 use kinematics::base_from_tip;

@@ -210,7 +210,9 @@ pub use prediction::{
     WorkspacePose, BOUND_DRAWS, MODEL_ERROR_ALPHA, WORKSPACE_ATTEMPTS_PER_POSE, WORKSPACE_POSES,
     WORKSPACE_SEED,
 };
-pub use reduce::{reduce, reduce_layout, Reduction, ReductionEntry, ReductionReason, PRIOR_INFO_TOL, RANK_TOL};
+pub use reduce::{
+    reduce, reduce_layout, Reduction, ReductionEntry, ReductionReason, PRIOR_INFO_TOL, RANK_TOL,
+};
 pub use report::{
     CalibrationReport, ContactGroupReport, DesignPredictionReport, DropReason, FamilyScaleReport,
     FittedPlacementReport, GroupsReport, LogEvidenceReport, MergePartner, NuisanceReport,

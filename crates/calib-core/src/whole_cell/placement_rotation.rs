@@ -52,7 +52,7 @@ impl PlacementRotationPosterior {
         } else {
             format!(
                 "conditional on {} direction{} the data do not determine, held at the exported \
-                 values (the joint zeros a controller keeps): {}",
+                 values (as a controller keeps them, e.g. its joint zeros): {}",
                 self.held.len(),
                 if self.held.len() == 1 { "" } else { "s" },
                 self.held
@@ -120,4 +120,124 @@ pub fn placement_rotation_posterior(
         marginal,
         held,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::robot::Robot;
+    use crate::whole_cell::fixtures::{sim_cell, Cell};
+    use crate::whole_cell::{
+        fit_cell_with, initial_estimate, reduce, ParamLayout, SolveOptions, Tolerance,
+    };
+    use kinematics::ErrorParam;
+
+    /// Largest difference between the two fits' exported placements for them to be the same
+    /// model: 1 µm and 1 µrad (the export's own read-back tolerance).
+    const SAME_MODEL_M: f64 = 1e-6;
+    const SAME_MODEL_RAD: f64 = 1e-6;
+    /// Relative agreement of the two fits' conditional rotation rms: the conditional of the fit
+    /// that keeps the undetermined offsets is, to first order, the covariance of the fit that
+    /// holds them (the same information without those columns); what is left is the two
+    /// linearisation points' difference, well under 1 %.
+    const SAME_MODEL_ROTATION_RTOL: f64 = 1e-2;
+    /// The marginal of the fit that keeps them must carry their prior: at least this many times
+    /// the conditional (robot 2's joint-1 offset at a 0.5° tolerance against a placement yaw
+    /// the data fix to hundredths of a degree).
+    const MARGINAL_CARRIES_PRIOR: f64 = 3.0;
+
+    /// The same coincident session fitted twice with joint offsets only: as `calibrate --cell`
+    /// does (base-parameter reduction: the offsets confounded with the placement or moving no
+    /// tip held at nominal) and as a diagnosis does (every offset of the family kept at its
+    /// widened prior). The exported models are the same; the conditional rotation figures agree;
+    /// the diagnosis-style marginal carries the prior of robot 2's joint-1 offset (the figure
+    /// the diagnose page showed before, 15× `calibrate --cell`'s on the README's mixed session).
+    #[test]
+    fn conditional_rotation_is_the_same_for_the_same_exported_model() {
+        let tol = Tolerance {
+            joint_offset_rad: 10.0 * Tolerance::default().joint_offset_rad,
+            origin_xyz_m: 0.0,
+            origin_rpy_rad: 0.0,
+            tip_m: 0.0,
+            ..Tolerance::none()
+        };
+        let sc = sim_cell(Cell::Wall, tol, false, 23);
+        let mut p = sc.problem();
+        p.observations = sc.coincident(40, 3e-4, 0.7, 123);
+        let active: Vec<usize> = (0..p.observations.len()).collect();
+        let init = initial_estimate(&p, None, &active).unwrap();
+        let opts = SolveOptions::default();
+        let red = reduce(&p, &init, &active).unwrap();
+        let held_by_reduce = red.dropped.len();
+        let reduced = fit_cell_with(&p, red.layout, &active, Some(&init), &opts).unwrap();
+        let kept =
+            fit_cell_with(&p, ParamLayout::new(&p, &[]), &active, Some(&init), &opts).unwrap();
+
+        // The same exported model: placement and every joint offset.
+        let d = reduced.estimate.b1_from_b2.inverse() * kept.estimate.b1_from_b2;
+        assert!(d.translation.vector.norm() < SAME_MODEL_M, "{d}");
+        assert!(d.rotation.angle() < SAME_MODEL_RAD, "{d}");
+        for r in [Robot::One, Robot::Two] {
+            for j in 0..6 {
+                let e = ErrorParam::JointOffset { joint: j };
+                let (a, b) = (
+                    reduced.estimate.robot(r).errors.get(e),
+                    kept.estimate.robot(r).errors.get(e),
+                );
+                assert!(
+                    (a - b).abs() < SAME_MODEL_RAD,
+                    "{r:?} joint {j}: {a} vs {b}"
+                );
+            }
+        }
+
+        let of_reduced = placement_rotation_posterior(&p, &reduced).unwrap().unwrap();
+        let of_kept = placement_rotation_posterior(&p, &kept).unwrap().unwrap();
+        // The reduced fit holds nothing more; the kept one conditions on what reduce held.
+        assert!(of_reduced.held.is_empty(), "{:?}", of_reduced.held);
+        assert_eq!(of_reduced.conditional, of_reduced.marginal);
+        assert_eq!(of_kept.held.len(), held_by_reduce, "{:?}", of_kept.held);
+        assert!(
+            of_kept
+                .held
+                .iter()
+                .any(|e| e.name == "robot 2 joint_offset joint 1"),
+            "{}",
+            of_kept.basis()
+        );
+        let rms = |c: &Matrix3<f64>| c.trace().sqrt();
+        let (want, got) = (rms(&of_reduced.conditional), rms(&of_kept.conditional));
+        assert!(
+            (got - want).abs() <= SAME_MODEL_ROTATION_RTOL * want,
+            "conditional rotation rms {got:.3e} rad vs calibrate-style {want:.3e} rad"
+        );
+        let marginal = rms(&of_kept.marginal);
+        assert!(
+            marginal >= MARGINAL_CARRIES_PRIOR * want,
+            "marginal {marginal:.3e} rad vs conditional {want:.3e} rad"
+        );
+    }
+
+    /// A placement-only fit has nothing to condition on.
+    #[test]
+    fn placement_only_fit_is_its_own_conditional() {
+        let sc = sim_cell(Cell::Floor, Tolerance::none(), false, 5);
+        let mut p = sc.problem();
+        p.observations = sc.coincident(12, 3e-4, 0.7, 6);
+        let active: Vec<usize> = (0..p.observations.len()).collect();
+        let fit = fit_cell_with(
+            &p,
+            ParamLayout::new(&p, &[]),
+            &active,
+            None,
+            &SolveOptions::default(),
+        )
+        .unwrap();
+        let post = placement_rotation_posterior(&p, &fit).unwrap().unwrap();
+        assert!(post.held.is_empty());
+        assert_eq!(post.conditional, post.marginal);
+        assert!(post
+            .basis()
+            .starts_with("the data determine every fitted unknown"));
+    }
 }
