@@ -318,11 +318,12 @@ fn diagnosis_report_renders_in_chromium() {
     check_in_browser(&chromium, &page, "diagnosis-fail", 2, "FAIL");
 }
 
-/// How far apart the two commands' predicted p95 rotation errors of `b1_from_b2` on one
-/// session may be (a factor either way): `calibrate --cell` fits every identifiable kinematic
-/// parameter at its evidence-chosen prior, the diagnosis only its named families at the widened
-/// prior, so their conditional figures differ by the models (0.70× on the guide's mixed
-/// session), while a figure carrying a prior the data do not determine was 18× there.
+/// How much larger than `calibrate --cell`'s the diagnosis's predicted p95 rotation error of
+/// `b1_from_b2` on one session may be: the diagnosis's exported model holds fewer unknowns (its
+/// named families, not every identifiable parameter), so its figure conditional on what the data
+/// do not determine is at most comparable (measured 0.36× on this test's session, 0.70× on the
+/// guide's mixed session); a figure that carries the prior of an undetermined direction was 18×
+/// on the guide's session, and the test requires its session to show such a marginal too.
 const SAME_SESSION_ROTATION_RATIO: f64 = 2.0;
 
 /// The same mixed session (the guide's truth `docs/examples/truth.toml`, its robot 2 joint
@@ -390,15 +391,15 @@ fn both_verdicts_report_the_rotation_a_controller_uses() {
         "{d}"
     );
     let p95 = d["p95_deg"].as_f64().unwrap();
-    assert!(
-        p95 <= SAME_SESSION_ROTATION_RATIO * cal_p95
-            && p95 >= cal_p95 / SAME_SESSION_ROTATION_RATIO,
-        "diagnose's rotation p95 {p95:.4}° vs calibrate --cell's {cal_p95:.4}°"
-    );
     let marginal = d["marginal"]["p95_deg"].as_f64().unwrap();
     assert!(
-        marginal > p95,
-        "marginal {marginal:.4}° vs conditional {p95:.4}°"
+        p95 <= SAME_SESSION_ROTATION_RATIO * cal_p95,
+        "diagnose's rotation p95 {p95:.4}° vs calibrate --cell's {cal_p95:.4}°"
+    );
+    assert!(
+        marginal > SAME_SESSION_ROTATION_RATIO * cal_p95,
+        "the session should show a marginal that carries an undetermined prior: marginal \
+         {marginal:.4}° vs calibrate --cell's {cal_p95:.4}°"
     );
     assert_eq!(
         diag["work_site"]["verdict"], "pass",
