@@ -267,3 +267,157 @@ fn shipped_cells_agree_with_scipy() {
     let cells: Vec<PathBuf> = SHIPPED.iter().map(|n| shipped_cell(n)).collect();
     check_independently(&cells);
 }
+
+/// Largest difference between a rotation matrix rebuilt by hand from an exported file's numbers
+/// and the cell's (1e-9, far below the files' 1 µrad read-back tolerance: the files carry 1e-9°
+/// and 1e-12 quaternion components).
+const HAND_ROTATION_TOL: f64 = 1e-9;
+
+/// `Rz(a)·Ry(b)·Rx(c)` with the elementary matrices written out (angles in degrees): a second
+/// formula, not the kinematics crate's.
+fn rz_ry_rx(a_deg: f64, b_deg: f64, c_deg: f64) -> [[f64; 3]; 3] {
+    let (a, b, c) = (a_deg.to_radians(), b_deg.to_radians(), c_deg.to_radians());
+    let rz = [
+        [a.cos(), -a.sin(), 0.0],
+        [a.sin(), a.cos(), 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    let ry = [
+        [b.cos(), 0.0, b.sin()],
+        [0.0, 1.0, 0.0],
+        [-b.sin(), 0.0, b.cos()],
+    ];
+    let rx = [
+        [1.0, 0.0, 0.0],
+        [0.0, c.cos(), -c.sin()],
+        [0.0, c.sin(), c.cos()],
+    ];
+    let mul = |p: [[f64; 3]; 3], q: [[f64; 3]; 3]| {
+        let mut m = [[0.0; 3]; 3];
+        for (i, row) in m.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = (0..3).map(|k| p[i][k] * q[k][j]).sum();
+            }
+        }
+        m
+    };
+    mul(mul(rz, ry), rx)
+}
+
+/// The rotation matrix of a unit quaternion (w, x, y, z), the textbook closed form.
+fn quaternion_matrix(w: f64, x: f64, y: f64, z: f64) -> [[f64; 3]; 3] {
+    [
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - w * z),
+            2.0 * (x * z + w * y),
+        ],
+        [
+            2.0 * (x * y + w * z),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - w * x),
+        ],
+        [
+            2.0 * (x * z - w * y),
+            2.0 * (y * z + w * x),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
+    ]
+}
+
+/// Every two-robot shipped cell (the coupled humanoid and its shared-trunk variant included)
+/// exports, and each format's numbers rebuild the cell's `b1_from_b2` by a second, hand-written
+/// formula (no SciPy needed): KUKA A B C as Rz·Ry·Rx, Fanuc W P R and Yaskawa Rx Ry Rz as the
+/// same product about fixed axes, ABB's and ROS 2's quaternions by the closed-form matrix, the
+/// translations in mm and m. A one-robot cell is refused, naming why and what to use.
+#[test]
+fn every_shipped_cell_agrees_with_a_hand_written_conversion() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in [
+        "floor-wall",
+        "floor-floor",
+        "floor-ceiling",
+        "ctu-motoman",
+        "humanoid",
+        "humanoid-trunk",
+    ] {
+        let path = shipped_cell(name);
+        let cell = Cell::from_toml_file(&path).unwrap();
+        let v = export_json(&path, &dir.path().join(name));
+        let f = &v["formats"];
+        let n = |o: &Value, k: &str| o[k].as_f64().unwrap_or_else(|| panic!("{name}: {k}: {o}"));
+        let want = cell.b1_from_b2.rotation.to_rotation_matrix();
+        let t = cell.b1_from_b2.translation.vector;
+        let (k, fa, y, a, r) = (
+            &f["kuka"],
+            &f["fanuc"],
+            &f["yaskawa"],
+            &f["abb"],
+            &f["ros2"],
+        );
+        let matrices = [
+            (
+                "kuka",
+                rz_ry_rx(n(k, "a_deg"), n(k, "b_deg"), n(k, "c_deg")),
+            ),
+            (
+                "fanuc",
+                rz_ry_rx(n(fa, "r_deg"), n(fa, "p_deg"), n(fa, "w_deg")),
+            ),
+            (
+                "yaskawa",
+                rz_ry_rx(n(y, "rz_deg"), n(y, "ry_deg"), n(y, "rx_deg")),
+            ),
+            (
+                "abb",
+                quaternion_matrix(n(a, "q1"), n(a, "q2"), n(a, "q3"), n(a, "q4")),
+            ),
+            (
+                "ros2",
+                quaternion_matrix(n(r, "qw"), n(r, "qx"), n(r, "qy"), n(r, "qz")),
+            ),
+        ];
+        for (format, m) in matrices {
+            for (i, row) in m.iter().enumerate() {
+                for (j, got) in row.iter().enumerate() {
+                    assert!(
+                        (got - want[(i, j)]).abs() < HAND_ROTATION_TOL,
+                        "{name} {format}: R[{i}][{j}] {got} vs {}",
+                        want[(i, j)]
+                    );
+                }
+            }
+        }
+        assert!(n(a, "q1") >= 0.0, "{name}: ABB q1 ≥ 0");
+        for (format, o, keys, per_m) in [
+            ("kuka", k, ["x_mm", "y_mm", "z_mm"], 1e3),
+            ("fanuc", fa, ["x_mm", "y_mm", "z_mm"], 1e3),
+            ("yaskawa", y, ["x_mm", "y_mm", "z_mm"], 1e3),
+            ("abb", a, ["x_m", "y_m", "z_m"], 1.0),
+            ("ros2", r, ["x_m", "y_m", "z_m"], 1.0),
+        ] {
+            for (axis, key) in keys.iter().enumerate() {
+                // 1 nm: the files' last decimal.
+                assert!(
+                    (n(o, key) / per_m - t[axis]).abs() < 1e-9,
+                    "{name} {format}: {key}"
+                );
+            }
+        }
+    }
+    let e = stderr_of_failure(&[
+        "export",
+        "--cell",
+        shipped_cell("rail-tracker").to_str().unwrap(),
+        "--to",
+        dir.path().join("rail").to_str().unwrap(),
+    ]);
+    assert!(
+        e.contains("one-robot cell") && e.contains("robot1.urdf"),
+        "{e}"
+    );
+    let written = std::fs::read_dir(dir.path().join("rail"))
+        .map(|d| d.count())
+        .unwrap_or(0);
+    assert_eq!(written, 0, "no file written: {e}");
+}

@@ -13,9 +13,10 @@ pub use page::{
     MeetingPairsAccuracy,
 };
 pub use work_site::{
-    diagnosis_work_site, predict_work_site, predict_work_site_of_fit, read_work_points,
-    work_site_points, workspace_map, Acceptance, RotationPredictionReport, UnreachableReport,
-    Verdict, VerdictModel, WorkPointReport, WorkSiteReport, WorkspaceMap,
+    diagnosis_work_site, placement_rotation_report, predict_work_site, predict_work_site_of_fit,
+    read_work_points, work_site_points, workspace_map, Acceptance, RotationFigures,
+    RotationPredictionReport, UnreachableReport, Verdict, VerdictModel, WorkPointReport,
+    WorkSiteReport, WorkspaceMap,
 };
 
 #[cfg(test)]

@@ -86,6 +86,7 @@ h2 { font-size: 1.2em; border-bottom: 1px solid #ccc; padding-bottom: 0.2em; mar
 .verdict.fail .headline { color: #b01e1e; }
 .verdict.none { border-color: #888; background: #f4f4f4; }
 .verdict .why { margin-top: 0.4em; }
+.verdict .rotation-basis { margin-top: 0.3em; font-size: 0.9em; }
 .figures { font-size: 1.1em; }
 table { border-collapse: collapse; margin: 0.5em 0; font-size: 0.92em; }
 th, td { border-bottom: 1px solid #e3e3e3; padding: 0.25em 0.7em; text-align: left; }
@@ -185,6 +186,16 @@ fn verdict_box(w: &WorkSiteReport) -> Markup {
                     "; placement rotation error rms " (format!("{:.4}", r.rms_deg)) "°, p95 " (format!("{:.4}", r.p95_deg)) "° (95 % interval " (format!("{:.4}–{:.4}", r.p95_ci_deg[0], r.p95_ci_deg[1])) "°)"
                 }
                 "."
+            }
+            @if let Some(r) = &w.placement_rotation {
+                div class="rotation-basis" id="rotation-basis" {
+                    "Placement rotation: " (r.basis)
+                    @if !r.conditional_on.is_empty() {
+                        ". Marginal (their prior included: the physical base frame, which the session cannot tell): rms "
+                        (format!("{:.4}", r.marginal.rms_deg)) "°, p95 " (format!("{:.4}", r.marginal.p95_deg)) "°"
+                    }
+                    "."
+                }
             }
             div class="acceptance" {
                 "Accepted: "

@@ -10,7 +10,7 @@ use kinematics::ErrorParam;
 use nalgebra::Point3;
 use sim_cell::{generate_session, trial_rng, Layout, SessionSpec};
 
-use crate::work_site::{RotationPredictionReport, UnreachableReport};
+use crate::work_site::{RotationFigures, RotationPredictionReport, UnreachableReport};
 
 /// Fewest workspace poses the map needs on a shipped cell (of `WORKSPACE_POSES`, 100): the
 /// whole-workspace draw keeps those robot 2 reaches head-on.
@@ -37,6 +37,13 @@ fn work_site(p95: f64, ci: [f64; 2], rot_ci: [f64; 2]) -> WorkSiteReport {
             rms_bound95: p95,
         },
         placement_rotation: Some(RotationPredictionReport {
+            basis: "test basis".into(),
+            conditional_on: vec![],
+            marginal: RotationFigures {
+                p95_ci_deg: rot_ci,
+                p95_deg: (rot_ci[0] + rot_ci[1]) / 2.0,
+                rms_deg: rot_ci[0] / 2.0,
+            },
             p95_ci_deg: rot_ci,
             p95_deg: (rot_ci[0] + rot_ci[1]) / 2.0,
             rms_deg: rot_ci[0] / 2.0,

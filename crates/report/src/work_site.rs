@@ -8,7 +8,10 @@
 //!    and calib-core's [`predict_error`] (the one definition `calibrate --cell` and `plan` use)
 //!    gives the rms, its parts and the p95 (with its interval) of the error of the cooperative
 //!    vector over those pairs; the placement's
-//!    rotation error comes from its 3×3 posterior block ([`summarise_covariances`]).
+//!    rotation error comes from its 3×3 posterior block ([`summarise_covariances`]),
+//!    conditional on the fit's unknowns the data do not determine (the joint zeros a
+//!    controller keeps: calib-core's [`placement_rotation_posterior`], the one definition both
+//!    commands use), with the marginal block's figures beside it.
 //! 3. [`workspace_map`]: the same prediction over the whole workspace
 //!    ([`calib_core::whole_cell::workspace_pairs`], the poses `calibrate --cell` reports), with
 //!    each pose's meeting point, for the page's map.
@@ -19,13 +22,12 @@ use std::path::Path;
 
 use calib_core::stats::trial_rng;
 use calib_core::whole_cell::{
-    predict_error, summarise_covariances, workspace_pairs, CellCalibration, CellFit, CellParam,
-    CellProblem, ConfigPair, ObservationKind, PairSet, PredictedErrorReport, PredictionSplit,
-    WORKSPACE_POSES, WORKSPACE_SEED,
+    placement_rotation_posterior, predict_error, summarise_covariances, workspace_pairs,
+    CellCalibration, CellFit, CellProblem, ConfigPair, ObservationKind, PairSet,
+    PredictedErrorReport, PredictionSplit, WORKSPACE_POSES, WORKSPACE_SEED,
 };
 use handclasp_cell::Cell;
 use kinematics::base_from_tip;
-use kinematics::Axis;
 use nalgebra::{Matrix3, Point3};
 use serde::{Deserialize, Serialize};
 use sim_cell::plan::nominal_cell;
@@ -149,8 +151,13 @@ impl Acceptance {
                     let [lo, hi] = r.p95_ci_deg;
                     let ok = hi <= a;
                     pass &= ok;
+                    let basis = if r.conditional_on.is_empty() {
+                        ""
+                    } else {
+                        " (with the exported joint zeros)"
+                    };
                     why.push(format!(
-                        "the placement's predicted p95 rotation error {:.4}° (95 % interval {lo:.4}–{hi:.4}) {} the accepted {a:.4}°",
+                        "the placement's predicted p95 rotation error{basis} {:.4}° (95 % interval {lo:.4}–{hi:.4}) {} the accepted {a:.4}°",
                         r.p95_deg,
                         if ok { "is within" } else if r.p95_deg > a { "exceeds" } else { "is not shown to be within" }
                     ));
@@ -226,15 +233,51 @@ pub struct UnreachableReport {
     pub why: String,
 }
 
-/// The predicted rotation error of `b1_from_b2` (the norm of its rotation-vector error), deg.
+/// The predicted rotation error of `b1_from_b2` (the norm of its rotation-vector error), deg:
+/// conditional on the fit's unknowns the data do not determine (the figure a controller that
+/// keeps the exported joint zeros uses; see [`placement_rotation_posterior`]), with the marginal
+/// figures beside it.
 #[derive(Debug, Clone, Serialize)]
 pub struct RotationPredictionReport {
+    /// Which figure this is, in words: conditional on which undetermined directions, or the
+    /// plain posterior when the data determine every fitted unknown.
+    pub basis: String,
+    /// The fitted unknowns the data do not determine (readable names), held at their exported
+    /// values for the figures; empty when there are none.
+    pub conditional_on: Vec<String>,
+    /// The marginal figures (every fitted unknown free, the prior of the undetermined ones
+    /// included): the physical base frame's uncertainty, which the session cannot tell.
+    pub marginal: RotationFigures,
     /// Distribution-free 95 % interval of the p95 from the seeded draws, degrees.
     pub p95_ci_deg: [f64; 2],
     /// Predicted 95th percentile, degrees.
     pub p95_deg: f64,
     /// Predicted rms, degrees.
     pub rms_deg: f64,
+}
+
+/// rms and p95 (with its interval) of a rotation error, degrees.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct RotationFigures {
+    /// Distribution-free 95 % interval of the p95 from the seeded draws, degrees.
+    pub p95_ci_deg: [f64; 2],
+    /// Predicted 95th percentile, degrees.
+    pub p95_deg: f64,
+    /// Predicted rms, degrees.
+    pub rms_deg: f64,
+}
+
+impl RotationFigures {
+    /// The figures of a rotation-vector error with covariance `c` (rad²), the p95 from draws
+    /// seeded by `seed` ([`summarise_covariances`]).
+    fn of(c: Matrix3<f64>, seed: u64) -> Self {
+        let r = summarise_covariances(&[c], seed);
+        RotationFigures {
+            p95_ci_deg: r.predicted_p95_ci_m.map(f64::to_degrees),
+            p95_deg: r.predicted_p95_m.to_degrees(),
+            rms_deg: r.predicted_rms_m.to_degrees(),
+        }
+    }
 }
 
 /// The verdict at the work site: the predicted cooperative accuracy there (mm), the
@@ -317,14 +360,29 @@ fn work_site_pairs(
     (pairs, failed)
 }
 
-/// The rotation block of the fit's posterior, rad² (b1 axes); `None` when the layout does not
-/// fit the placement's rotation.
-fn placement_rotation_covariance(fit: &CellFit) -> Option<Matrix3<f64>> {
-    let cols: Vec<usize> = Axis::ALL
-        .into_iter()
-        .map(|axis| fit.layout.column(&CellParam::PlacementRotation { axis }))
-        .collect::<Option<_>>()?;
-    Some(Matrix3::from_fn(|a, b| fit.covariance[(cols[a], cols[b])]))
+/// The predicted rotation error of the placement of `fit` (of `problem`): conditional on the
+/// fit's undetermined unknowns, with the marginal beside it; `None` when the layout does not fit
+/// the placement's rotation.
+///
+/// Errors: the linearisation at the fit's estimate fails.
+pub fn placement_rotation_report(
+    problem: &CellProblem,
+    fit: &CellFit,
+    seed: u64,
+) -> Result<Option<RotationPredictionReport>, ReportError> {
+    let Some(post) = placement_rotation_posterior(problem, fit).map_err(ReportError::Prediction)?
+    else {
+        return Ok(None);
+    };
+    let conditional = RotationFigures::of(post.conditional, seed);
+    Ok(Some(RotationPredictionReport {
+        basis: post.basis(),
+        conditional_on: post.held.iter().map(|e| e.name.clone()).collect(),
+        marginal: RotationFigures::of(post.marginal, seed),
+        p95_ci_deg: conditional.p95_ci_deg,
+        p95_deg: conditional.p95_deg,
+        rms_deg: conditional.rms_deg,
+    }))
 }
 
 /// The verdict at the work site `points_b1` (m, base 1; described by `source`) of the
@@ -399,14 +457,7 @@ pub fn predict_work_site_of_fit(
             why,
         })
         .collect();
-    let placement_rotation = placement_rotation_covariance(fit).map(|c| {
-        let r = summarise_covariances(&[c], seed);
-        RotationPredictionReport {
-            p95_ci_deg: r.predicted_p95_ci_m.map(f64::to_degrees),
-            p95_deg: r.predicted_p95_m.to_degrees(),
-            rms_deg: r.predicted_rms_m.to_degrees(),
-        }
-    });
+    let placement_rotation = placement_rotation_report(problem, fit, seed)?;
     let mut report = WorkSiteReport {
         acceptance,
         parts_mm: PredictedErrorReport::from(&prediction),

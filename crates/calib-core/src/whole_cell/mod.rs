@@ -144,6 +144,7 @@ mod misfit;
 mod mistakes;
 mod observations;
 mod placement_prior;
+mod placement_rotation;
 mod prediction;
 mod reduce;
 mod report;
@@ -201,12 +202,17 @@ pub use observations::{
     TrackerGroup, OTHER_ARM_TRUNK_TOL, UNIT_NORMAL_TOL,
 };
 pub use placement_prior::PlacementPrior;
+pub use placement_rotation::{
+    placement_rotation_posterior, PlacementRotationPosterior, CONDITIONING_RCOND,
+};
 pub use prediction::{
     predict_error, workspace_pairs, ModelError, PairSet, PredictedError, PredictionSplit,
     WorkspacePose, BOUND_DRAWS, MODEL_ERROR_ALPHA, WORKSPACE_ATTEMPTS_PER_POSE, WORKSPACE_POSES,
     WORKSPACE_SEED,
 };
-pub use reduce::{reduce, Reduction, ReductionEntry, ReductionReason, PRIOR_INFO_TOL, RANK_TOL};
+pub use reduce::{
+    reduce, reduce_layout, Reduction, ReductionEntry, ReductionReason, PRIOR_INFO_TOL, RANK_TOL,
+};
 pub use report::{
     CalibrationReport, ContactGroupReport, DesignPredictionReport, DropReason, FamilyScaleReport,
     FittedPlacementReport, GroupsReport, LogEvidenceReport, MergePartner, NuisanceReport,

@@ -105,8 +105,24 @@ pub fn reduce(
     estimate: &CellEstimate,
     active: &[usize],
 ) -> Result<Reduction, CellFitError> {
-    let full = ParamLayout::new(problem, &[]);
-    let sys = assemble(problem, &full, estimate, active, None, true)?;
+    reduce_layout(problem, &ParamLayout::new(problem, &[]), estimate, active)
+}
+
+/// [`reduce`] within the unknowns of `full` (a fit's layout: the parameters it does not hold
+/// stay held): which of its penalised columns the observations `active`, linearised at
+/// `estimate`, cannot determine. The rank test reads each column's prior σ off the diagonal of
+/// `full`'s prior information ([`ParamLayout::prior_sigma`]), so the returned layout's merged
+/// prior is built from those σ (a non-diagonal prior of `full` is not carried over); `dropped`
+/// is what callers of a fitted layout use ([`super::placement_rotation_posterior`]).
+///
+/// Errors: as [`reduce`].
+pub fn reduce_layout(
+    problem: &CellProblem,
+    full: &ParamLayout,
+    estimate: &CellEstimate,
+    active: &[usize],
+) -> Result<Reduction, CellFitError> {
+    let sys = assemble(problem, full, estimate, active, None, true)?;
     let jd = sys.j.rows(0, sys.data_rows).into_owned();
     let n = full.len();
     let sig: Vec<f64> = (0..n).map(|j| full.prior_sigma(j)).collect();
@@ -161,7 +177,12 @@ pub fn reduce(
     // and nalgebra's SVD of a matrix without columns would panic.
     let ls = (!kept_order.is_empty()).then(|| a_keep.clone().svd(true, true));
     let mut dropped = Vec::new();
-    let mut fixed = Vec::new();
+    // The parameters `full` holds stay held in the reduced layout.
+    let mut fixed: Vec<CellParam> = ParamLayout::new(problem, &[])
+        .params
+        .into_iter()
+        .filter(|p| full.column(p).is_none())
+        .collect();
     // Merged prior covariance over the kept columns, prior-σ units (starts at I).
     let kk = kept_order.len();
     let mut prior_cov = DMatrix::<f64>::identity(kk, kk);

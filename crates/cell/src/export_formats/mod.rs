@@ -456,8 +456,9 @@ impl Deviation {
 /// only then renamed to `NAME`. On any failure the temporary file is removed and nothing of that
 /// file is left in place.
 ///
-/// Errors: a file that cannot be written ([`FormatError::Io`]); a robot URDF the cell URDF cannot be
-/// built from ([`FormatError::Cell`]); a file that does not read back to the placement
+/// Errors: a one-robot cell ([`FormatError::Cell`]: it has no `b1_from_b2`; its calibrated robot
+/// is the corrected URDF `calibrate --cell --export` writes); a file that cannot be written
+/// ([`FormatError::Io`]); a robot URDF the cell URDF cannot be built from ([`FormatError::Cell`]); a file that does not read back to the placement
 /// ([`FormatError::Export`]: a defect of this crate, never expected).
 pub fn export_placement(
     cell: &Cell,
@@ -465,6 +466,16 @@ pub fn export_placement(
     dir: &Path,
     formats: &[ControllerFormat],
 ) -> Result<PlacementExport, FormatError> {
+    if cell.one_robot {
+        return Err(FormatError::Cell {
+            path: PathBuf::from(source),
+            message: "a one-robot cell (no [robot2]) has no b1_from_b2 (robot 2's base in robot \
+                      1's) to export: its calibrated robot is the corrected URDF that \
+                      `calibrate --cell … --export DIR` writes (DIR/robot1.urdf); export a \
+                      two-robot cell"
+                .into(),
+        });
+    }
     std::fs::create_dir_all(dir).map_err(|e| FormatError::io(dir, e))?;
     let b1_from_b2 = cell.b1_from_b2;
     let values = PlacementFormats::new(&b1_from_b2, formats);

@@ -264,7 +264,24 @@ pub(crate) fn check_cell_urdf(text: &str, cell: &Cell) -> Result<Deviation, Stri
         let setup = cell.robot(which);
         let p = prefix(which);
         let tool = format!("{p}{}", setup.tool_link);
+        // The couplings the cell declares (not in the URDF) hold for the cell URDF too, its
+        // joints named with the robot's prefix.
+        let couplings: Vec<kinematics::JointCoupling> = setup
+            .model
+            .added_couplings()
+            .iter()
+            .map(|c| kinematics::JointCoupling {
+                joint: format!("{p}{}", c.joint),
+                terms: c
+                    .terms
+                    .iter()
+                    .map(|(j, k)| (format!("{p}{j}"), *k))
+                    .collect(),
+                offset: c.offset,
+            })
+            .collect();
         let loaded = RobotModel::from_urdf_str(text, &tool)
+            .and_then(|m| m.with_couplings(&couplings))
             .map_err(|e| format!("{which}'s chain to {tool}: {e}"))?;
         if loaded.root_link() != WORLD_LINK {
             return Err(format!(
