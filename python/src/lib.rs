@@ -9,7 +9,7 @@
 //! Modules: `errors` (the mapping), `arrays` (numpy in and out), `points`
 //! (`calibrate_points`), `robot` (`Robot`, `fk`), `cell` (`Cell`, `Session`),
 //! `calibrate` (`calibrate_cell`, `diagnose`), `sim` (`simulate_session`, `plan`, `sweep`),
-//! `outputs` (`export_controllers`).
+//! `outputs` (`export_controllers`), `work_site` (the verdict's inputs and the page's invocation).
 
 use pyo3::prelude::*;
 
@@ -21,6 +21,7 @@ mod outputs;
 mod points;
 mod robot;
 mod sim;
+mod work_site;
 
 /// The native module: classes, functions and `CalibrationError`.
 #[pymodule]

@@ -34,24 +34,7 @@ pub fn write(path: &Path, html: &str) -> anyhow::Result<()> {
 
 /// Prints a `warning:` line on stderr for each work point of `w` that was not predicted.
 pub fn warn_unreachable(w: &report::WorkSiteReport) {
-    for u in &w.unreachable {
-        eprintln!(
-            "warning: work point row {} ({:.1}, {:.1}, {:.1} mm) is not predicted: {}",
-            u.row, u.p_b1_mm[0], u.p_b1_mm[1], u.p_b1_mm[2], u.why
-        );
+    for line in report::unreachable_lines(w) {
+        eprintln!("warning: {line}");
     }
-}
-
-/// The text lines of a verdict at the work site: the prediction, then `verdict: …`.
-pub fn work_site_text(w: &report::WorkSiteReport) -> String {
-    format!(
-        "predicted cooperative accuracy at the work site ({}): rms {:.3} mm, p95 {:.3} mm (95 % interval {:.3}–{:.3} mm)\nverdict: {}: {}\n",
-        w.source,
-        w.predicted_rms_mm,
-        w.predicted_p95_mm,
-        w.predicted_p95_ci_mm[0],
-        w.predicted_p95_ci_mm[1],
-        w.verdict.headline(),
-        w.why
-    )
 }
