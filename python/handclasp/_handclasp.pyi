@@ -134,6 +134,22 @@ class CellResult:
         """Columns name, value, sigma, prior_sigma, unit."""
     @property
     def cooperative_accuracy_mm(self) -> Optional[Dict[str, Any]]: ...
+    @property
+    def work_site(self) -> Optional[Dict[str, Any]]:
+        """The verdict at the work site (the CLI's JSON `work_site`: predicted cooperative
+        accuracy there in mm, the placement's rotation error in deg, PASS/FAIL and why), or
+        None when calibrate_cell was given no work_points, accept_mm or accept_deg."""
+    def report(
+        self,
+        path: _Path,
+        work_points: Optional[Union[_Array, _Path]] = None,
+        accept_mm: Optional[float] = None,
+        accept_deg: Optional[float] = None,
+    ) -> str:
+        """Write the HTML page of `calibrate --cell ... --report PATH` (the CLI's function);
+        the verdict from these arguments when any is given, else calibrate_cell's, else at the
+        cell's [teach] centre. work_points: (n, 3) tool positions in base 1, mm, or a CSV path
+        (x_mm,y_mm,z_mm). Returns the path written."""
     def export(self, dir: _Path, overwrite: bool = False, force: bool = False) -> List[str]:
         """Write cell.toml, robot1.urdf, robot2.urdf (calibrate --cell --export), under the
         CLI's export lock; a non-empty folder needs overwrite=True (force=True is refused)."""
@@ -149,6 +165,22 @@ class DiagnoseResult:
         """"coincident" or "whole_cell"."""
     @property
     def b1_from_b2(self) -> _F64: ...
+    @property
+    def work_site(self) -> Optional[Dict[str, Any]]:
+        """The verdict at the work site for the model export() writes (the CLI's JSON
+        `work_site`; `to_dict()["work_site_model"]` names the model), or None when diagnose was
+        given no work_points, accept_mm or accept_deg."""
+    def report(
+        self,
+        path: _Path,
+        work_points: Optional[Union[_Array, _Path]] = None,
+        accept_mm: Optional[float] = None,
+        accept_deg: Optional[float] = None,
+    ) -> str:
+        """Write the HTML page of `diagnose ... --report PATH` (the CLI's function). Whole-cell
+        diagnoses: the verdict first, from these arguments when any is given, else diagnose's,
+        else at the cell's [teach] centre; coincident ones take no verdict (ValueError).
+        Returns the path written."""
     def export(
         self,
         dir: _Path,
@@ -187,9 +219,19 @@ def fk(
 ) -> _F64:
     """base_from_tip, (n, 4, 4) (or (4, 4) for one joint vector), translation in mm."""
 def calibrate_cell(
-    cell: Cell, session: Session, model: str = "kinematic", force: bool = False
+    cell: Cell,
+    session: Session,
+    model: str = "kinematic",
+    force: bool = False,
+    work_points: Optional[Union[_Array, _Path]] = None,
+    accept_mm: Optional[float] = None,
+    accept_deg: Optional[float] = None,
 ) -> CellResult:
-    """A refused result raises CalibrationError (its .result_check, .refusal) unless force=True."""
+    """A refused result raises CalibrationError (its .result_check, .refusal) unless force=True.
+
+    work_points ((n, 3) tool positions in base 1, mm, or a CSV path x_mm,y_mm,z_mm; default the
+    cell's [teach] centre), accept_mm (mm), accept_deg (deg): the verdict at the work site, as
+    `calibrate --cell --work-points F --accept-mm X --accept-deg Y` (result.work_site)."""
 def diagnose(
     cell: Cell,
     session: Session,
@@ -198,7 +240,13 @@ def diagnose(
     prior_widening: float = 10.0,
     truth_xyz_mm: Optional[Sequence[float]] = None,
     truth_zyz_deg: Optional[Sequence[float]] = None,
-) -> DiagnoseResult: ...
+    work_points: Optional[Union[_Array, _Path]] = None,
+    accept_mm: Optional[float] = None,
+    accept_deg: Optional[float] = None,
+) -> DiagnoseResult:
+    """work_points, accept_mm, accept_deg: the verdict at the work site of the model export()
+    writes (whole-cell diagnoses; ValueError on a coincident-only session), as `diagnose
+    --work-points F --accept-mm X --accept-deg Y` (result.work_site)."""
 def simulate_session(
     cell: Cell,
     n: int = 6,
