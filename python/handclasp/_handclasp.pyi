@@ -122,6 +122,20 @@ class PointsResult:
     def to_dict(self) -> Dict[str, Any]:
         """Equal to json.loads of `handclasp calibrate POINTS.csv --json`."""
 
+class PointsMethods:
+    """calibrate_points(..., method="all"): every method's fit, or why it does not apply."""
+    @property
+    def results(self) -> Dict[str, PointsResult]:
+        """The fitted methods' results by name (each .to_dict() the CLI's --method NAME --json)."""
+    @property
+    def errors(self) -> Dict[str, str]:
+        """Why each method that does not apply does not, by name."""
+    def __getitem__(self, name: str) -> Optional[PointsResult]:
+        """A method's result; None when it does not apply; KeyError when it was not tried."""
+    def to_json(self) -> str: ...
+    def to_dict(self) -> Dict[str, Any]:
+        """Equal to json.loads of `handclasp calibrate POINTS.csv --method all --json`."""
+
 class CellResult:
     """A whole-cell calibration: b1_from_b2, parameters with σ, predicted accuracy, report."""
     @property
@@ -211,7 +225,8 @@ def calibrate_points(
     point_sigma_mm: float = 0.5,
     expected_noise_mm: float = 5.0,
     force: bool = False,
-) -> PointsResult: ...
+) -> Union[PointsResult, PointsMethods]:
+    """method="all" (--method all) returns a PointsMethods; any other method a PointsResult."""
 def fk(
     robot: Union[_Path, Robot, Tuple[Cell, int]],
     q_deg: _Array,

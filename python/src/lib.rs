@@ -36,6 +36,7 @@ fn _handclasp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<cell::Cell>()?;
     m.add_class::<cell::Session>()?;
     m.add_class::<points::PointsResult>()?;
+    m.add_class::<points::PointsMethods>()?;
     m.add_class::<calibrate::CellResult>()?;
     m.add_class::<calibrate::DiagnoseResult>()?;
     m.add_function(wrap_pyfunction!(points::calibrate_points, m)?)?;
