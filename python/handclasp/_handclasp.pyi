@@ -50,8 +50,11 @@ class Cell:
     @property
     def path(self) -> Optional[str]: ...
     @property
+    def has_robot2(self) -> bool:
+        """False for a one-robot cell (no [robot2]: tracker and plane sessions only)."""
+    @property
     def dof(self) -> Tuple[int, int]:
-        """Joint counts of robot 1 and robot 2."""
+        """Joint counts of robot 1 and robot 2 (a one-robot cell's robot 2 is a stand-in)."""
     def to_toml(self) -> str: ...
 
 class Session:

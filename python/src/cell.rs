@@ -52,7 +52,16 @@ impl Cell {
         self.path.clone()
     }
 
-    /// The joint counts `(dof1, dof2)` (the widths of `q1_deg`, `q2_deg`).
+    /// Whether the cell has a second robot (`[robot2]`); a one-robot cell (a robot measured by a
+    /// tracker or against planes) has none, and its sessions hold tracker and plane rows only.
+    #[getter]
+    fn has_robot2(&self) -> bool {
+        self.cell.has_robot2()
+    }
+
+    /// The joint counts `(dof1, dof2)` (the widths of `q1_deg`, `q2_deg`); a one-robot cell's
+    /// `dof2` is that of its stand-in for robot 2 (a copy of robot 1, never used:
+    /// `has_robot2` is false).
     #[getter]
     fn dof(&self) -> (usize, usize) {
         (self.cell.robot1.model.dof(), self.cell.robot2.model.dof())
