@@ -18,7 +18,8 @@ Entry points (each mirrors a CLI command; ``.to_dict()`` equals its ``--json`` o
 - ``diagnose(cell, session)``: ``handclasp diagnose`` (the same verdict arguments, ``.report(path)``)
 - ``export_controllers(cell, to, formats=None)``: ``handclasp export`` (ABB, KUKA, Fanuc, Yaskawa,
   ROS 2 files of the cell's ``b1_from_b2``)
-- ``simulate_session(cell, n, seed)``, ``plan(cell, n)``: ``sim-cell session``, ``handclasp plan``
+- ``simulate_session(cell, n, seed)``, ``plan(cell, n)``: ``sim-cell session``, ``handclasp plan`` (a ``PlanResult``:
+  ``.session``, ``.to_dict()``)
 - ``sweep(cell, ...)``: a seeded Monte Carlo of the whole-cell calibration over session sizes
 
 Errors: ``ValueError`` for bad shapes, NaN and invalid input; ``OSError`` subclasses for file
@@ -36,6 +37,7 @@ from ._handclasp import (
     Cell,
     CellResult,
     DiagnoseResult,
+    PlanResult,
     PointsMethods,
     PointsResult,
     Robot,
@@ -56,6 +58,7 @@ __all__ = [
     "Cell",
     "CellResult",
     "DiagnoseResult",
+    "PlanResult",
     "PointsMethods",
     "PointsResult",
     "Robot",

@@ -139,6 +139,20 @@ class PointsMethods:
     def to_dict(self) -> Dict[str, Any]:
         """Equal to json.loads of `handclasp calibrate POINTS.csv --method all --json`."""
 
+class PlanResult:
+    """plan(...): the planned poses and `handclasp plan`'s report (predicted cooperative error
+    of the plan beside the random picks' mean, mm and deg)."""
+    @property
+    def session(self) -> Session: ...
+    def to_csv(self, path: _Path) -> None: ...
+    def to_csv_string(self) -> str: ...
+    def columns(self) -> Dict[str, Union[_F64, List[str]]]: ...
+    def __len__(self) -> int: ...
+    def text(self) -> str: ...
+    def to_json(self) -> str: ...
+    def to_dict(self) -> Dict[str, Any]:
+        """Equal to json.loads of `handclasp plan ... --json` (with the same out)."""
+
 class CellResult:
     """A whole-cell calibration: b1_from_b2, parameters with σ, predicted accuracy, report."""
     @property
@@ -283,7 +297,9 @@ def plan(
     spread_mm: float = 1000.0,
     centre_mm: Optional[Sequence[float]] = None,
     random_draws: int = 20,
-) -> Session: ...
+    out: Optional[_Path] = None,
+) -> PlanResult:
+    """handclasp plan: the poses (.session) and the report (.to_dict() == plan --json; .text())."""
 def sweep(
     mounts: Optional[Sequence[str]] = None,
     noise_mm: Optional[Sequence[float]] = None,

@@ -9,14 +9,14 @@ use cli_support::cell_report::{
 };
 use cli_support::export_dir::check_output_folder;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use numpy::PyArray2;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
 use report::{
     calibration_page_of_fit, cell_diagnosis_page, coincident_diagnosis_page, diagnosis_work_site,
     predict_work_site, unreachable_lines, CalibrationPageInputs, CalibrationWithSite,
     CellDiagnosisWithSite, MeetingPairsAccuracy, VerdictModel, WorkSiteReport,
 };
-use numpy::PyArray2;
-use pyo3::prelude::*;
-use pyo3::types::PyDict;
 
 use crate::arrays::{json_to_py, pose_array, vector};
 use crate::cell::{Cell, Session};
@@ -183,7 +183,9 @@ impl CellResult {
             None
         };
         let Some(work_site) = fresh.as_ref().or(self.work_site.as_ref()) else {
-            return Err(value_error("internal: the page needs the work-site verdict"));
+            return Err(value_error(
+                "internal: the page needs the work-site verdict",
+            ));
         };
         let json = cell_json(&self.calibrated.report, Some(work_site))?;
         let c = &self.calibrated;
@@ -621,13 +623,14 @@ impl DiagnoseResult {
                 coincident_diagnosis_page(r, &self.cell_path, &self.session_path, &self.json, &inv)
             }
             Diagnosis::WholeCell(r) => {
-                let fresh =
-                    if wants_site(work_points, accept_mm, accept_deg) || self.work_site.is_none() {
-                        let site = SiteInputs::read(&self.cell, work_points, accept_mm, accept_deg)?;
-                        Some(self.predict(py, &site)?)
-                    } else {
-                        None
-                    };
+                let fresh = if wants_site(work_points, accept_mm, accept_deg)
+                    || self.work_site.is_none()
+                {
+                    let site = SiteInputs::read(&self.cell, work_points, accept_mm, accept_deg)?;
+                    Some(self.predict(py, &site)?)
+                } else {
+                    None
+                };
                 let verdict = fresh.as_ref().or(self.work_site.as_ref());
                 let json = Self::cell_json(r, verdict)?;
                 cell_diagnosis_page(

@@ -39,6 +39,7 @@ fn _handclasp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<points::PointsMethods>()?;
     m.add_class::<calibrate::CellResult>()?;
     m.add_class::<calibrate::DiagnoseResult>()?;
+    m.add_class::<sim::PlanResult>()?;
     m.add_function(wrap_pyfunction!(points::calibrate_points, m)?)?;
     m.add_function(wrap_pyfunction!(robot::fk, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate::calibrate_cell, m)?)?;

@@ -391,9 +391,9 @@ fn write_text(s: &mut String, r: &FitReport) -> std::fmt::Result {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::collections::BTreeMap;
     use calib_core::{OutliersReport, PoseForms, SoftMountReport, UncertaintyReport};
     use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+    use std::collections::BTreeMap;
 
     /// A constrained fit of three points, the second flagged, with every optional part.
     fn report() -> FitReport {
