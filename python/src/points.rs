@@ -190,7 +190,8 @@ fn pairs_from_arrays(p1: &Bound<'_, PyAny>, p2: &Bound<'_, PyAny>) -> PyResult<P
 /// `p1_mm`, `p2_mm`: (n, 3) arrays of the tips in base 1 and base 2, mm (row i of both is the
 /// same physical point); or `p1_mm` a points CSV path and `p2_mm` None (then the report's rows are
 /// the file's line numbers, as the CLI's). `method`: generic, generic-affine, paper, lsq or
-/// constrained (default: constrained with mounts, else lsq). `mounts`: floor-floor, floor-wall or
+/// constrained (default: constrained with mounts, else lsq), or `all` (`--method all`: every
+/// method, paper and constrained only with mounts; returns a `PointsMethods`). `mounts`: floor-floor, floor-wall or
 /// floor-ceiling; or `mount1`, `mount2`: floor, ceiling, wall or tilt:RX,RY (deg).
 /// `tilt_sigma_deg`, `point_sigma_mm`: the soft mount of `constrained`. `expected_noise_mm`: a fit
 /// whose median residual norm exceeds it raises `CalibrationError` naming the likely data
@@ -211,7 +212,7 @@ pub fn calibrate_points(
     point_sigma_mm: f64,
     expected_noise_mm: f64,
     force: bool,
-) -> PyResult<PointsOutcome> {
+) -> PyResult<Py<PyAny>> {
     let mounts = mount_pair(mounts, mount1, mount2)?;
     let method_text = method.unwrap_or(if mounts.is_some() {
         "constrained"
@@ -279,7 +280,7 @@ pub fn calibrate_points(
         force,
     };
     if all {
-        return all_methods_result(py, &pairs, options).map(PointsOutcome::All);
+        return Ok(Py::new(py, all_methods_result(py, &pairs, options)?)?.into_any());
     }
     let fitted = py.detach(|| points_report(&pairs, &options, PY_HINTS));
     let fitted = fitted.map_err(|e| {
@@ -302,7 +303,7 @@ pub fn calibrate_points(
             e => to_py(&e, &context, Otherwise::Calibration),
         }
     })?;
-    PointsResult::new(fitted).map(PointsOutcome::One)
+    Ok(Py::new(py, PointsResult::new(fitted)?)?.into_any())
 }
 
 impl PointsResult {
@@ -317,15 +318,6 @@ impl PointsResult {
             warnings: fitted.warnings,
         })
     }
-}
-
-/// What [`calibrate_points`] returns: one method's result, or every method's (`method="all"`).
-#[derive(IntoPyObject)]
-pub enum PointsOutcome {
-    /// One method.
-    One(PointsResult),
-    /// `method="all"`.
-    All(PointsMethods),
 }
 
 /// The result of `calibrate_points(..., method="all")`, as `handclasp calibrate POINTS.csv

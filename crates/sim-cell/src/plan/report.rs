@@ -121,7 +121,7 @@ pub struct Predicted {
     pub random: DesignPredictionReport,
 }
 
-/// The plan's predicted error in parts ([`sim_cell::plan::PlanParts`]), mm.
+/// The plan's predicted error in parts ([`super::PlanParts`]), mm.
 #[derive(Debug, Clone, Serialize)]
 pub struct PlanPredictedError {
     /// Over the held-out pairs at the tolerances (prior scale 1, as the design assumes).
