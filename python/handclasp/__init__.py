@@ -7,15 +7,19 @@ the calibration result; 4×4 matrices carry their translation in mm.
 
 Entry points (each mirrors a CLI command; ``.to_dict()`` equals its ``--json`` output):
 
-- ``calibrate_points(p1_mm, p2_mm, method=...)``: ``handclasp calibrate POINTS.csv``
+- ``calibrate_points(p1_mm, p2_mm, method=...)``: ``handclasp calibrate POINTS.csv`` (``method="all"``:
+  ``--method all``)
 - ``fk(robot, q_deg, tip=None)``: ``handclasp fk`` for many joint vectors at once
 - ``Cell.load(path)``, ``Session.load(path, cell)``, ``Session.from_arrays(cell, q1_deg, q2_deg)``
 - ``import_session(cell, map, inputs)``: ``handclasp import`` (a dataset's CSVs → a session)
-- ``calibrate_cell(cell, session, model="kinematic")``: ``handclasp calibrate --cell``
-- ``diagnose(cell, session)``: ``handclasp diagnose``
+- ``calibrate_cell(cell, session, model="kinematic")``: ``handclasp calibrate --cell`` (with
+  ``work_points``, ``accept_mm``, ``accept_deg``: the verdict at the work site; ``.report(path)``:
+  ``--report``)
+- ``diagnose(cell, session)``: ``handclasp diagnose`` (the same verdict arguments, ``.report(path)``)
 - ``export_controllers(cell, to, formats=None)``: ``handclasp export`` (ABB, KUKA, Fanuc, Yaskawa,
   ROS 2 files of the cell's ``b1_from_b2``)
-- ``simulate_session(cell, n, seed)``, ``plan(cell, n)``: ``sim-cell session``, ``handclasp plan``
+- ``simulate_session(cell, n, seed)``, ``plan(cell, n)``: ``sim-cell session``, ``handclasp plan`` (a ``PlanResult``:
+  ``.session``, ``.to_dict()``)
 - ``sweep(cell, ...)``: a seeded Monte Carlo of the whole-cell calibration over session sizes
 
 Errors: ``ValueError`` for bad shapes, NaN and invalid input; ``OSError`` subclasses for file
@@ -33,6 +37,8 @@ from ._handclasp import (
     Cell,
     CellResult,
     DiagnoseResult,
+    PlanResult,
+    PointsMethods,
     PointsResult,
     Robot,
     Session,
@@ -52,6 +58,8 @@ __all__ = [
     "Cell",
     "CellResult",
     "DiagnoseResult",
+    "PlanResult",
+    "PointsMethods",
     "PointsResult",
     "Robot",
     "Session",
@@ -77,7 +85,7 @@ def frame(columns: Dict[str, Any]) -> Any:
     return pandas.DataFrame(columns)
 
 
-def calibrate_points(p1_mm: Any, p2_mm: Any = None, **options: Any) -> PointsResult:
+def calibrate_points(p1_mm: Any, p2_mm: Any = None, **options: Any) -> Any:
     """Fit ``b1_from_b2`` from handclasp points, as ``handclasp calibrate POINTS.csv`` does.
 
     ``p1_mm``, ``p2_mm``: (n, 3) arrays of the same physical points in base 1 and base 2, mm;
@@ -90,9 +98,14 @@ def calibrate_points(p1_mm: Any, p2_mm: Any = None, **options: Any) -> PointsRes
     Returns a ``PointsResult``: ``.b1_from_b2`` (4×4, mm), ``.residuals_mm`` (n, 3),
     ``.uncertainty``, ``.covariance``, ``.to_dict()`` (the CLI's JSON). A misfit kept by
     ``force=True`` is issued as a ``UserWarning``.
+
+    ``method="all"`` (``--method all``): every method (paper and constrained only with mounts),
+    as a ``PointsMethods``: ``.results`` (method name → ``PointsResult``), ``.errors`` (method
+    name → why it does not apply), ``result["lsq"]``, ``.to_dict()`` (the CLI's ``--method all
+    --json``).
     """
     result = _handclasp.calibrate_points(p1_mm, p2_mm, **options)
-    for w in result.warnings:
+    for w in getattr(result, "warnings", []):
         _warnings.warn(w, UserWarning, stacklevel=2)
     return result
 

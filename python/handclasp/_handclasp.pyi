@@ -50,8 +50,11 @@ class Cell:
     @property
     def path(self) -> Optional[str]: ...
     @property
+    def has_robot2(self) -> bool:
+        """False for a one-robot cell (no [robot2]: tracker and plane sessions only)."""
+    @property
     def dof(self) -> Tuple[int, int]:
-        """Joint counts of robot 1 and robot 2."""
+        """Joint counts of robot 1 and robot 2 (a one-robot cell's robot 2 is a stand-in)."""
     def to_toml(self) -> str: ...
 
 class Session:
@@ -122,6 +125,34 @@ class PointsResult:
     def to_dict(self) -> Dict[str, Any]:
         """Equal to json.loads of `handclasp calibrate POINTS.csv --json`."""
 
+class PointsMethods:
+    """calibrate_points(..., method="all"): every method's fit, or why it does not apply."""
+    @property
+    def results(self) -> Dict[str, PointsResult]:
+        """The fitted methods' results by name (each .to_dict() the CLI's --method NAME --json)."""
+    @property
+    def errors(self) -> Dict[str, str]:
+        """Why each method that does not apply does not, by name."""
+    def __getitem__(self, name: str) -> Optional[PointsResult]:
+        """A method's result; None when it does not apply; KeyError when it was not tried."""
+    def to_json(self) -> str: ...
+    def to_dict(self) -> Dict[str, Any]:
+        """Equal to json.loads of `handclasp calibrate POINTS.csv --method all --json`."""
+
+class PlanResult:
+    """plan(...): the planned poses and `handclasp plan`'s report (predicted cooperative error
+    of the plan beside the random picks' mean, mm and deg)."""
+    @property
+    def session(self) -> Session: ...
+    def to_csv(self, path: _Path) -> None: ...
+    def to_csv_string(self) -> str: ...
+    def columns(self) -> Dict[str, Union[_F64, List[str]]]: ...
+    def __len__(self) -> int: ...
+    def text(self) -> str: ...
+    def to_json(self) -> str: ...
+    def to_dict(self) -> Dict[str, Any]:
+        """Equal to json.loads of `handclasp plan ... --json` (with the same out)."""
+
 class CellResult:
     """A whole-cell calibration: b1_from_b2, parameters with σ, predicted accuracy, report."""
     @property
@@ -134,6 +165,22 @@ class CellResult:
         """Columns name, value, sigma, prior_sigma, unit."""
     @property
     def cooperative_accuracy_mm(self) -> Optional[Dict[str, Any]]: ...
+    @property
+    def work_site(self) -> Optional[Dict[str, Any]]:
+        """The verdict at the work site (the CLI's JSON `work_site`: predicted cooperative
+        accuracy there in mm, the placement's rotation error in deg, PASS/FAIL and why), or
+        None when calibrate_cell was given no work_points, accept_mm or accept_deg."""
+    def report(
+        self,
+        path: _Path,
+        work_points: Optional[Union[_Array, _Path]] = None,
+        accept_mm: Optional[float] = None,
+        accept_deg: Optional[float] = None,
+    ) -> str:
+        """Write the HTML page of `calibrate --cell ... --report PATH` (the CLI's function);
+        the verdict from these arguments when any is given, else calibrate_cell's, else at the
+        cell's [teach] centre. work_points: (n, 3) tool positions in base 1, mm, or a CSV path
+        (x_mm,y_mm,z_mm). Returns the path written."""
     def export(self, dir: _Path, overwrite: bool = False, force: bool = False) -> List[str]:
         """Write cell.toml, robot1.urdf, robot2.urdf (calibrate --cell --export), under the
         CLI's export lock; a non-empty folder needs overwrite=True (force=True is refused)."""
@@ -149,6 +196,22 @@ class DiagnoseResult:
         """"coincident" or "whole_cell"."""
     @property
     def b1_from_b2(self) -> _F64: ...
+    @property
+    def work_site(self) -> Optional[Dict[str, Any]]:
+        """The verdict at the work site for the model export() writes (the CLI's JSON
+        `work_site`; `to_dict()["work_site_model"]` names the model), or None when diagnose was
+        given no work_points, accept_mm or accept_deg."""
+    def report(
+        self,
+        path: _Path,
+        work_points: Optional[Union[_Array, _Path]] = None,
+        accept_mm: Optional[float] = None,
+        accept_deg: Optional[float] = None,
+    ) -> str:
+        """Write the HTML page of `diagnose ... --report PATH` (the CLI's function). Whole-cell
+        diagnoses: the verdict first, from these arguments when any is given, else diagnose's,
+        else at the cell's [teach] centre; coincident ones take no verdict (ValueError).
+        Returns the path written."""
     def export(
         self,
         dir: _Path,
@@ -179,7 +242,8 @@ def calibrate_points(
     point_sigma_mm: float = 0.5,
     expected_noise_mm: float = 5.0,
     force: bool = False,
-) -> PointsResult: ...
+) -> Union[PointsResult, PointsMethods]:
+    """method="all" (--method all) returns a PointsMethods; any other method a PointsResult."""
 def fk(
     robot: Union[_Path, Robot, Tuple[Cell, int]],
     q_deg: _Array,
@@ -187,9 +251,19 @@ def fk(
 ) -> _F64:
     """base_from_tip, (n, 4, 4) (or (4, 4) for one joint vector), translation in mm."""
 def calibrate_cell(
-    cell: Cell, session: Session, model: str = "kinematic", force: bool = False
+    cell: Cell,
+    session: Session,
+    model: str = "kinematic",
+    force: bool = False,
+    work_points: Optional[Union[_Array, _Path]] = None,
+    accept_mm: Optional[float] = None,
+    accept_deg: Optional[float] = None,
 ) -> CellResult:
-    """A refused result raises CalibrationError (its .result_check, .refusal) unless force=True."""
+    """A refused result raises CalibrationError (its .result_check, .refusal) unless force=True.
+
+    work_points ((n, 3) tool positions in base 1, mm, or a CSV path x_mm,y_mm,z_mm; default the
+    cell's [teach] centre), accept_mm (mm), accept_deg (deg): the verdict at the work site, as
+    `calibrate --cell --work-points F --accept-mm X --accept-deg Y` (result.work_site)."""
 def diagnose(
     cell: Cell,
     session: Session,
@@ -198,7 +272,13 @@ def diagnose(
     prior_widening: float = 10.0,
     truth_xyz_mm: Optional[Sequence[float]] = None,
     truth_zyz_deg: Optional[Sequence[float]] = None,
-) -> DiagnoseResult: ...
+    work_points: Optional[Union[_Array, _Path]] = None,
+    accept_mm: Optional[float] = None,
+    accept_deg: Optional[float] = None,
+) -> DiagnoseResult:
+    """work_points, accept_mm, accept_deg: the verdict at the work site of the model export()
+    writes (whole-cell diagnoses; ValueError on a coincident-only session), as `diagnose
+    --work-points F --accept-mm X --accept-deg Y` (result.work_site)."""
 def simulate_session(
     cell: Cell,
     n: int = 6,
@@ -217,7 +297,9 @@ def plan(
     spread_mm: float = 1000.0,
     centre_mm: Optional[Sequence[float]] = None,
     random_draws: int = 20,
-) -> Session: ...
+    out: Optional[_Path] = None,
+) -> PlanResult:
+    """handclasp plan: the poses (.session) and the report (.to_dict() == plan --json; .text())."""
 def sweep(
     mounts: Optional[Sequence[str]] = None,
     noise_mm: Optional[Sequence[float]] = None,

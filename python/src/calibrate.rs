@@ -4,17 +4,24 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use calib_core::whole_cell::CellEstimate;
-use cli_support::cell_report::{calibrate_session, render_text, CellModel, CellReport};
+use cli_support::cell_report::{
+    calibrate_session, render_text, CellModel, CellReport, SessionCalibration, P95_SEED,
+};
 use cli_support::export_dir::check_output_folder;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use numpy::PyArray2;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use report::{
+    calibration_page_of_fit, cell_diagnosis_page, coincident_diagnosis_page, diagnosis_work_site,
+    predict_work_site, unreachable_lines, CalibrationPageInputs, CalibrationWithSite,
+    CellDiagnosisWithSite, MeetingPairsAccuracy, VerdictModel, WorkSiteReport,
+};
 
 use crate::arrays::{json_to_py, pose_array, vector};
 use crate::cell::{Cell, Session};
 use crate::errors::{to_py, value_error, Otherwise};
+use crate::work_site::{invocation, shown, SiteInputs};
 
 /// Refuses a non-empty export folder unless `overwrite` (the CLI's rule, `--overwrite`), as
 /// `OSError`/`ValueError`; `force=True` (the old way to overwrite) is refused with the new one.
@@ -88,10 +95,44 @@ fn paths(files: Vec<PathBuf>) -> Vec<String> {
 /// predicted cooperative accuracy, and the CLI's report.
 #[pyclass(module = "handclasp", frozen)]
 pub struct CellResult {
-    report: CellReport,
-    estimate: CellEstimate,
+    /// The report, the problem fitted and the calibration.
+    calibrated: SessionCalibration,
+    /// The verdict at the work site, when `calibrate_cell` was asked for it.
+    work_site: Option<WorkSiteReport>,
     cell: Arc<handclasp_cell::Cell>,
+    /// The cell's and the session's files as the page names them.
+    cell_path: String,
+    session_path: String,
     json: String,
+}
+
+/// The report's JSON with the verdict at the work site after its keys, as `calibrate --cell
+/// --json` prints it (pretty).
+fn cell_json(report: &CellReport, work_site: Option<&WorkSiteReport>) -> PyResult<String> {
+    serde_json::to_string_pretty(&CalibrationWithSite::<_, ()> {
+        report,
+        work_site: work_site.cloned(),
+        do_no_harm: None,
+    })
+    .map_err(|e| value_error(format!("serialising the report: {e}")))
+}
+
+/// Issues a `UserWarning` per work point of `w` that was not predicted (the CLI's `warning:`
+/// lines).
+fn warn_unreachable(py: Python<'_>, w: &WorkSiteReport) -> PyResult<()> {
+    for line in unreachable_lines(w) {
+        crate::errors::user_warning(py, &line)?;
+    }
+    Ok(())
+}
+
+/// Whether any of the verdict's arguments was given.
+fn wants_site(
+    work_points: Option<&Bound<'_, PyAny>>,
+    accept_mm: Option<f64>,
+    accept_deg: Option<f64>,
+) -> bool {
+    work_points.is_some() || accept_mm.is_some() || accept_deg.is_some()
 }
 
 #[pymethods]
@@ -99,14 +140,90 @@ impl CellResult {
     /// The fitted `b1_from_b2` (base 2 in base 1), 4×4, translation in mm.
     #[getter]
     fn b1_from_b2<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
-        pose_array(py, &self.estimate.b1_from_b2)
+        pose_array(py, &self.calibrated.calibration.fit.estimate.b1_from_b2)
+    }
+
+    /// The verdict at the work site (`calibrate --cell --work-points F --accept-mm X
+    /// --accept-deg Y`'s JSON `work_site`: the predicted cooperative accuracy there, mm, the
+    /// placement's rotation error, deg, PASS/FAIL and why), or `None` when `calibrate_cell` was
+    /// given none of `work_points`, `accept_mm`, `accept_deg`.
+    #[getter]
+    fn work_site<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.to_dict(py)?
+            .get_item("work_site")
+            .or_else(|_| Ok(py.None().into_bound(py)))
+    }
+
+    /// Writes the HTML page `calibrate --cell … --report PATH` writes (the verdict at the work
+    /// site first, then the placement, the parameters and the plots), with the CLI's function.
+    ///
+    /// The verdict: from `work_points` (an (n, 3) array of tool positions in base 1, mm, or a
+    /// CSV path with header `x_mm,y_mm,z_mm`), `accept_mm` (the largest cooperative position
+    /// error accepted at the work site, mm) and `accept_deg` (the largest rotation error of
+    /// `b1_from_b2`, deg) when any is given; else `calibrate_cell`'s verdict when it was asked
+    /// for one; else at the cell's `[teach]` centre with no acceptance. The page's last line
+    /// names this call instead of a command line. Releases the GIL. Errors: `ValueError` for bad
+    /// arguments, `OSError` subclasses when the page cannot be written, `CalibrationError` when
+    /// the prediction fails. Returns the path written.
+    #[pyo3(signature = (path, work_points=None, accept_mm=None, accept_deg=None))]
+    fn report(
+        &self,
+        py: Python<'_>,
+        path: PathBuf,
+        work_points: Option<&Bound<'_, PyAny>>,
+        accept_mm: Option<f64>,
+        accept_deg: Option<f64>,
+    ) -> PyResult<String> {
+        let fresh = if wants_site(work_points, accept_mm, accept_deg) || self.work_site.is_none() {
+            let site = SiteInputs::read(&self.cell, work_points, accept_mm, accept_deg)?;
+            let w = self.predict(py, &site)?;
+            warn_unreachable(py, &w)?;
+            Some(w)
+        } else {
+            None
+        };
+        let Some(work_site) = fresh.as_ref().or(self.work_site.as_ref()) else {
+            return Err(value_error(
+                "internal: the page needs the work-site verdict",
+            ));
+        };
+        let json = cell_json(&self.calibrated.report, Some(work_site))?;
+        let c = &self.calibrated;
+        let inv = invocation("CellResult.report");
+        let html = py
+            .detach(|| {
+                calibration_page_of_fit(
+                    &self.cell,
+                    &c.problem,
+                    &c.calibration,
+                    &CalibrationPageInputs {
+                        cell: &self.cell_path,
+                        session: &self.session_path,
+                        model: c.report.model.name(),
+                        rows: c.report.rows,
+                        meeting_pairs: c.report.cooperative_accuracy_mm.as_ref().map(|m| {
+                            MeetingPairsAccuracy {
+                                pairs: m.pairs,
+                                rms_mm: m.predicted_rms,
+                                p95_mm: m.predicted_p95,
+                            }
+                        }),
+                        work_site,
+                        json: &json,
+                        invocation: &inv,
+                    },
+                    P95_SEED,
+                )
+            })
+            .map_err(|e| to_py(&e, "report: the rows' residuals", Otherwise::Calibration))?;
+        write_page(&path, &html)
     }
 
     /// The fitted kinematic parameters as columns: `name`, `value`, `sigma` (posterior 1σ),
     /// `prior_sigma`, `unit` (deg, mm, ratio, deg/kNm). `handclasp` wraps it in a DataFrame when
     /// pandas is installed.
     fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let p = &self.report.parameters;
+        let p = &self.calibrated.report.parameters;
         let out = PyDict::new(py);
         out.set_item("name", p.iter().map(|p| p.name.clone()).collect::<Vec<_>>())?;
         out.set_item("value", vector(py, p.iter().map(|p| p.value).collect()))?;
@@ -125,7 +242,8 @@ impl CellResult {
     fn b1_from_b2_sigma<'py>(&self, py: Python<'py>) -> Bound<'py, numpy::PyArray1<f64>> {
         vector(
             py,
-            self.report
+            self.calibrated
+                .report
                 .b1_from_b2
                 .sigma
                 .iter()
@@ -156,16 +274,21 @@ impl CellResult {
         locked_export(py, &dir, overwrite, force, || {
             handclasp_cell::export_calibrated_cell(
                 &self.cell,
-                &self.estimate,
+                &self.calibrated.calibration.fit.estimate,
                 &dir,
                 &handclasp_cell::CALIBRATE_EXPORT_NAMES,
             )
         })
     }
 
-    /// The CLI's text report.
+    /// The CLI's text report (with the verdict at the work site when `calibrate_cell` was asked
+    /// for one).
     fn text(&self) -> String {
-        render_text(&self.report)
+        let mut s = render_text(&self.calibrated.report);
+        if let Some(w) = &self.work_site {
+            s.push_str(&report::work_site_text(w));
+        }
+        s
     }
 
     /// The report as the CLI's JSON text (`calibrate --cell … --json`).
@@ -179,16 +302,53 @@ impl CellResult {
     }
 
     fn __repr__(&self) -> String {
-        let b = &self.report.b1_from_b2;
+        let r = &self.calibrated.report;
+        let b = &r.b1_from_b2;
         format!(
             "CellResult(model={:?}, rows_used={}, parameters={}, xyz_mm={:?}, zyz_deg={:?})",
-            self.report.model.name(),
-            self.report.rows_used,
-            self.report.parameters.len(),
+            r.model.name(),
+            r.rows_used,
+            r.parameters.len(),
             b.xyz_mm,
             b.zyz_deg
         )
     }
+}
+
+impl CellResult {
+    /// The verdict at the work site of this calibration (`report::predict_work_site`, what
+    /// `calibrate --cell` calls), GIL released.
+    fn predict(&self, py: Python<'_>, site: &SiteInputs) -> PyResult<WorkSiteReport> {
+        let c = &self.calibrated;
+        py.detach(|| {
+            predict_work_site(
+                &self.cell,
+                &c.problem,
+                &c.calibration,
+                &site.points,
+                &site.source,
+                site.acceptance,
+                P95_SEED,
+            )
+        })
+        .map_err(|e| to_py(&e, "the verdict at the work site", Otherwise::Calibration))
+    }
+}
+
+/// Writes a report page to `path` (atomically, replacing a file of that name), as the CLI's
+/// `--report`; returns the path. Errors: `OSError` subclasses.
+fn write_page(path: &std::path::Path, html: &str) -> PyResult<String> {
+    handclasp_cell::output::write_atomically(path, html.as_bytes()).map_err(|e| {
+        to_py(
+            &e,
+            &format!(
+                "report {}: cannot write the page (check that its folder exists and is writable)",
+                path.display()
+            ),
+            Otherwise::Value,
+        )
+    })?;
+    Ok(path.display().to_string())
 }
 
 /// Calibrates the whole cell from a session, as `handclasp calibrate --cell CELL --session
@@ -202,16 +362,29 @@ impl CellResult {
 /// `CalibrationError` carrying `status`, `reason`, `result_check` (the check values) and
 /// `refusal` (the CLI's `--json` refusal object), unless `force=True` (`--force`), which keeps
 /// it; the check's findings are issued as `UserWarning`s (`kept by force=True: …` when kept).
-/// Errors: `ValueError` for a session of another cell or an unknown model, `CalibrationError`
-/// when the fit fails or is refused.
+///
+/// The verdict at the work site (`--work-points F --accept-mm X --accept-deg Y`): given any of
+/// `work_points` (an (n, 3) array of tool positions in base 1, mm, or a CSV path with header
+/// `x_mm,y_mm,z_mm`; default the cell's `[teach]` centre), `accept_mm` (the largest cooperative
+/// position error the job accepts there, mm) and `accept_deg` (the largest rotation error of
+/// `b1_from_b2`, deg), the result's `work_site` and `to_dict()["work_site"]` hold the CLI's
+/// verdict (PASS when each predicted p95's 95 % interval lies below its threshold). Work points
+/// not reachable head-on are `UserWarning`s.
+///
+/// Errors: `ValueError` for a session of another cell, an unknown model or a bad verdict
+/// argument, `CalibrationError` when the fit fails or is refused.
 #[pyfunction]
-#[pyo3(signature = (cell, session, model="kinematic", force=false))]
+#[pyo3(signature = (cell, session, model="kinematic", force=false, work_points=None, accept_mm=None, accept_deg=None))]
+#[allow(clippy::too_many_arguments)]
 pub fn calibrate_cell(
     py: Python<'_>,
     cell: &Cell,
     session: &Session,
     model: &str,
     force: bool,
+    work_points: Option<&Bound<'_, PyAny>>,
+    accept_mm: Option<f64>,
+    accept_deg: Option<f64>,
 ) -> PyResult<CellResult> {
     let Some(model) = CellModel::from_name(model) else {
         return Err(value_error(format!(
@@ -223,6 +396,7 @@ pub fn calibrate_cell(
             "session: it was read for another Cell object; load it with this cell (Session.load(path, cell))",
         ));
     }
+    let site = SiteInputs::read(&cell.cell, work_points, accept_mm, accept_deg)?;
     let c = Arc::clone(&cell.cell);
     let calibrated = py
         .detach(|| calibrate_session(&c, &session.session, model))
@@ -253,14 +427,21 @@ pub fn calibrate_cell(
             crate::errors::user_warning(py, &format!("{kept}{m}"))?;
         }
     }
-    let json = serde_json::to_string_pretty(&calibrated.report)
-        .map_err(|e| value_error(format!("serialising the report: {e}")))?;
-    Ok(CellResult {
-        report: calibrated.report,
-        estimate: calibrated.calibration.fit.estimate,
+    let mut result = CellResult {
+        json: cell_json(&calibrated.report, None)?,
+        calibrated,
+        work_site: None,
         cell: c,
-        json,
-    })
+        cell_path: shown(cell.path.as_deref(), "(a Cell)"),
+        session_path: shown(session.path.as_deref(), "(a Session from arrays)"),
+    };
+    if wants_site(work_points, accept_mm, accept_deg) {
+        let w = result.predict(py, &site)?;
+        warn_unreachable(py, &w)?;
+        result.json = cell_json(&result.calibrated.report, Some(&w))?;
+        result.work_site = Some(w);
+    }
+    Ok(result)
 }
 
 /// What a diagnosis found: the coincident-session report or the whole-cell one.
@@ -275,8 +456,64 @@ enum Diagnosis {
 #[pyclass(module = "handclasp", frozen)]
 pub struct DiagnoseResult {
     diagnosis: Diagnosis,
+    /// The verdict at the work site and the model it is for, when `diagnose` was asked for it.
+    work_site: Option<(WorkSiteReport, VerdictModel)>,
     cell: Arc<handclasp_cell::Cell>,
+    /// The cell's and the session's files as the page names them.
+    cell_path: String,
+    session_path: String,
     json: String,
+}
+
+/// The refusal of a verdict on a coincident-only session (the CLI's message, in Python's words).
+const COINCIDENT_NO_VERDICT: &str = "work_points, accept_mm and accept_deg need a session with \
+     contact, tracker or plane rows (the whole-cell diagnosis, whose exported model has a \
+     posterior to predict from); this session has coincident rows only: drop them, or get the \
+     verdict from handclasp.calibrate_cell(cell, session, work_points=…, accept_mm=…)";
+
+impl DiagnoseResult {
+    /// The verdict at the work site of the model a whole-cell diagnosis exports
+    /// (`report::diagnosis_work_site`, what `diagnose` calls; the do-no-harm model), GIL
+    /// released. Errors: `ValueError` for a coincident diagnosis, `CalibrationError` when the
+    /// prediction fails.
+    fn predict(
+        &self,
+        py: Python<'_>,
+        site: &SiteInputs,
+    ) -> PyResult<(WorkSiteReport, VerdictModel)> {
+        let Diagnosis::WholeCell(r) = &self.diagnosis else {
+            return Err(value_error(COINCIDENT_NO_VERDICT));
+        };
+        let verdict = py
+            .detach(|| {
+                diagnosis_work_site(
+                    &self.cell,
+                    r,
+                    false,
+                    &site.points,
+                    &site.source,
+                    site.acceptance,
+                    P95_SEED,
+                )
+            })
+            .map_err(|e| to_py(&e, "the verdict at the work site", Otherwise::Calibration))?;
+        warn_unreachable(py, &verdict.0)?;
+        Ok(verdict)
+    }
+
+    /// The whole-cell diagnosis's JSON with the verdict, as `diagnose --json` prints it
+    /// (compact).
+    fn cell_json(
+        r: &::diagnose::CellDiagnoseReport,
+        verdict: Option<&(WorkSiteReport, VerdictModel)>,
+    ) -> PyResult<String> {
+        serde_json::to_string(&CellDiagnosisWithSite {
+            report: r,
+            work_site: verdict.map(|v| &v.0),
+            work_site_model: verdict.map(|v| &v.1),
+        })
+        .map_err(|e| value_error(e.to_string()))
+    }
 }
 
 #[pymethods]
@@ -346,11 +583,85 @@ impl DiagnoseResult {
         Ok(files)
     }
 
-    /// The CLI's text report.
+    /// The verdict at the work site (`diagnose --work-points F --accept-mm X --accept-deg Y`'s
+    /// JSON `work_site`), or `None` when `diagnose` was given none of `work_points`,
+    /// `accept_mm`, `accept_deg`. `to_dict()["work_site_model"]` says which model it is for.
+    #[getter]
+    fn work_site<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.to_dict(py)?
+            .get_item("work_site")
+            .or_else(|_| Ok(py.None().into_bound(py)))
+    }
+
+    /// Writes the HTML page `diagnose … --report PATH` writes, with the CLI's function: for a
+    /// whole-cell diagnosis the verdict at the work site first (of the model `export` writes:
+    /// the do-no-harm rule's), then the named causes with their held-out gain, the rejected
+    /// families and the plots; for a coincident one the causes and the families.
+    ///
+    /// The verdict (whole-cell diagnoses only; `ValueError` on a coincident one): from
+    /// `work_points` (an (n, 3) array of tool positions in base 1, mm, or a CSV path with header
+    /// `x_mm,y_mm,z_mm`), `accept_mm` (mm) and `accept_deg` (deg) when any is given; else
+    /// `diagnose`'s verdict when it was asked for one; else at the cell's `[teach]` centre with
+    /// no acceptance. The page's last line names this call instead of a command line. Releases
+    /// the GIL. Errors: `OSError` subclasses when the page cannot be written. Returns the path
+    /// written.
+    #[pyo3(signature = (path, work_points=None, accept_mm=None, accept_deg=None))]
+    fn report(
+        &self,
+        py: Python<'_>,
+        path: PathBuf,
+        work_points: Option<&Bound<'_, PyAny>>,
+        accept_mm: Option<f64>,
+        accept_deg: Option<f64>,
+    ) -> PyResult<String> {
+        let inv = invocation("DiagnoseResult.report");
+        let html = match &self.diagnosis {
+            Diagnosis::Coincident(r) => {
+                if wants_site(work_points, accept_mm, accept_deg) {
+                    return Err(value_error(COINCIDENT_NO_VERDICT));
+                }
+                coincident_diagnosis_page(r, &self.cell_path, &self.session_path, &self.json, &inv)
+            }
+            Diagnosis::WholeCell(r) => {
+                let fresh = if wants_site(work_points, accept_mm, accept_deg)
+                    || self.work_site.is_none()
+                {
+                    let site = SiteInputs::read(&self.cell, work_points, accept_mm, accept_deg)?;
+                    Some(self.predict(py, &site)?)
+                } else {
+                    None
+                };
+                let verdict = fresh.as_ref().or(self.work_site.as_ref());
+                let json = Self::cell_json(r, verdict)?;
+                cell_diagnosis_page(
+                    r,
+                    verdict.map(|(w, m)| (w, m)),
+                    &self.cell_path,
+                    &self.session_path,
+                    &json,
+                    &inv,
+                )
+            }
+        };
+        write_page(&path, &html)
+    }
+
+    /// The CLI's text report (with the verdict at the work site when `diagnose` was asked for
+    /// one).
     fn text(&self) -> String {
         match &self.diagnosis {
             Diagnosis::Coincident(r) => ::diagnose::render_text(r),
-            Diagnosis::WholeCell(r) => ::diagnose::render_cell_text(r),
+            Diagnosis::WholeCell(r) => {
+                let mut text = ::diagnose::render_cell_text(r);
+                if let Some((w, model)) = &self.work_site {
+                    text.push_str(&format!(
+                        "work site: the verdict is for {}\n",
+                        model.description
+                    ));
+                    text.push_str(&report::work_site_text(w));
+                }
+                text
+            }
         }
     }
 
@@ -389,8 +700,16 @@ fn coverage(
 /// whole-cell diagnosis (`prior_widening`), one of coincident handclasps the coincident one
 /// (`seed`, `trials`, optional truth of `b1_from_b2`: `truth_xyz_mm` (3,) mm and
 /// `truth_zyz_deg` (3,) ZYZ degrees). Runs with the GIL released.
+///
+/// The verdict at the work site (whole-cell diagnoses, as `diagnose --work-points F
+/// --accept-mm X --accept-deg Y`): given any of `work_points` (an (n, 3) array of tool
+/// positions in base 1, mm, or a CSV path with header `x_mm,y_mm,z_mm`; default the cell's
+/// `[teach]` centre), `accept_mm` (mm) and `accept_deg` (deg), the result's `work_site` and
+/// `to_dict()["work_site"]` / `["work_site_model"]` hold the CLI's verdict for the model
+/// `export` writes (the do-no-harm rule's). On a coincident-only session they raise
+/// `ValueError`, as the CLI refuses them.
 #[pyfunction]
-#[pyo3(signature = (cell, session, seed=1, trials=400, prior_widening=10.0, truth_xyz_mm=None, truth_zyz_deg=None))]
+#[pyo3(signature = (cell, session, seed=1, trials=400, prior_widening=10.0, truth_xyz_mm=None, truth_zyz_deg=None, work_points=None, accept_mm=None, accept_deg=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn diagnose(
     py: Python<'_>,
@@ -401,6 +720,9 @@ pub fn diagnose(
     prior_widening: f64,
     truth_xyz_mm: Option<[f64; 3]>,
     truth_zyz_deg: Option<[f64; 3]>,
+    work_points: Option<&Bound<'_, PyAny>>,
+    accept_mm: Option<f64>,
+    accept_deg: Option<f64>,
 ) -> PyResult<DiagnoseResult> {
     let truth = match (truth_xyz_mm, truth_zyz_deg) {
         (Some(t), Some(z)) => {
@@ -430,6 +752,11 @@ pub fn diagnose(
             "session: it was read for another Cell object; load it with this cell (Session.load(path, cell))",
         ));
     }
+    let wants = wants_site(work_points, accept_mm, accept_deg);
+    if wants && session.session.is_handclasp_only() {
+        return Err(value_error(COINCIDENT_NO_VERDICT));
+    }
+    let site = SiteInputs::read(&cell.cell, work_points, accept_mm, accept_deg)?;
     let c = Arc::clone(&cell.cell);
     let context = match &session.path {
         Some(p) => format!("diagnosing {}", p.display()),
@@ -451,7 +778,7 @@ pub fn diagnose(
             .map_err(|e| to_py(&e, &context, Otherwise::Calibration))?;
         report.coverage = Some(coverage(&c, s)?);
         // The CLI prints this report compact (`serde_json::to_string`).
-        let json = serde_json::to_string(&report).map_err(|e| value_error(e.to_string()))?;
+        let json = DiagnoseResult::cell_json(&report, None)?;
         (Diagnosis::WholeCell(Box::new(report)), json)
     } else {
         let options = ::diagnose::DiagnoseOptions {
@@ -475,9 +802,20 @@ pub fn diagnose(
         let json = serde_json::to_string(&report).map_err(|e| value_error(e.to_string()))?;
         (Diagnosis::Coincident(Box::new(report)), json)
     };
-    Ok(DiagnoseResult {
+    let mut result = DiagnoseResult {
         diagnosis,
+        work_site: None,
         cell: c,
+        cell_path: shown(cell.path.as_deref(), "(a Cell)"),
+        session_path: shown(session.path.as_deref(), "(a Session from arrays)"),
         json,
-    })
+    };
+    if wants {
+        let verdict = result.predict(py, &site)?;
+        if let Diagnosis::WholeCell(r) = &result.diagnosis {
+            result.json = DiagnoseResult::cell_json(r, Some(&verdict))?;
+        }
+        result.work_site = Some(verdict);
+    }
+    Ok(result)
 }

@@ -52,7 +52,16 @@ impl Cell {
         self.path.clone()
     }
 
-    /// The joint counts `(dof1, dof2)` (the widths of `q1_deg`, `q2_deg`).
+    /// Whether the cell has a second robot (`[robot2]`); a one-robot cell (a robot measured by a
+    /// tracker or against planes) has none, and its sessions hold tracker and plane rows only.
+    #[getter]
+    fn has_robot2(&self) -> bool {
+        self.cell.has_robot2()
+    }
+
+    /// The joint counts `(dof1, dof2)` (the widths of `q1_deg`, `q2_deg`); a one-robot cell's
+    /// `dof2` is that of its stand-in for robot 2 (a copy of robot 1, never used:
+    /// `has_robot2` is false).
     #[getter]
     fn dof(&self) -> (usize, usize) {
         (self.cell.robot1.model.dof(), self.cell.robot2.model.dof())
@@ -81,6 +90,25 @@ pub struct Session {
     pub(crate) cell: Arc<handclasp_cell::Cell>,
     /// The CSV it was read from (the CLI's diagnose reads coincident sessions from the file).
     pub(crate) path: Option<PathBuf>,
+}
+
+impl Session {
+    /// The session CSV text.
+    pub(crate) fn csv_text(&self) -> String {
+        self.session.csv_text(&self.cell)
+    }
+
+    /// Writes the session CSV. Errors: `OSError` subclasses, `ValueError`.
+    pub(crate) fn write_csv(&self, path: &Path) -> PyResult<()> {
+        self.session
+            .write_csv(path, &self.cell)
+            .map_err(|e| to_py(&e, "", Otherwise::Value))
+    }
+
+    /// The session's columns by CSV name ([`Session::columns`]).
+    pub(crate) fn columns_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        csv_columns(py, &self.csv_text())
+    }
 }
 
 /// A CSV field: numbers in Rust's shortest round-trip form, text quoted when needed.
@@ -299,21 +327,19 @@ impl Session {
 
     /// Writes the session CSV (mm, degrees; the CLI reads it back as it stands).
     fn to_csv(&self, path: PathBuf) -> PyResult<()> {
-        self.session
-            .write_csv(&path, &self.cell)
-            .map_err(|e| to_py(&e, "", Otherwise::Value))
+        self.write_csv(&path)
     }
 
     /// The session CSV text.
     fn to_csv_string(&self) -> String {
-        self.session.csv_text(&self.cell)
+        self.csv_text()
     }
 
     /// The session's columns by CSV name: numbers as float64 arrays (NaN for an empty cell),
     /// text columns (`kind`, `group`, tools) as lists of str. `handclasp.Session.to_frame()`
     /// makes a pandas DataFrame of them.
     fn columns<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        csv_columns(py, &self.session.csv_text(&self.cell))
+        self.columns_dict(py)
     }
 
     /// [`Session::columns`] as a pandas DataFrame when pandas is installed, else the dict.

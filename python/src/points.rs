@@ -4,7 +4,10 @@
 use std::path::PathBuf;
 
 use calib_core::{read_points_csv, FitReport, Method, Mount, MountPair, PointPairs};
-use cli_support::points::{points_report, MisfitHints, PointsError, PointsOptions};
+use cli_support::points::{
+    all_methods, points_report, AllMethods, MethodOutcome, MisfitHints, PointsError, PointsFit,
+    PointsOptions,
+};
 use nalgebra::{Isometry3, Point3};
 use numpy::{PyArray1, PyArray2};
 use pyo3::prelude::*;
@@ -187,7 +190,8 @@ fn pairs_from_arrays(p1: &Bound<'_, PyAny>, p2: &Bound<'_, PyAny>) -> PyResult<P
 /// `p1_mm`, `p2_mm`: (n, 3) arrays of the tips in base 1 and base 2, mm (row i of both is the
 /// same physical point); or `p1_mm` a points CSV path and `p2_mm` None (then the report's rows are
 /// the file's line numbers, as the CLI's). `method`: generic, generic-affine, paper, lsq or
-/// constrained (default: constrained with mounts, else lsq). `mounts`: floor-floor, floor-wall or
+/// constrained (default: constrained with mounts, else lsq), or `all` (`--method all`: every
+/// method, paper and constrained only with mounts; returns a `PointsMethods`). `mounts`: floor-floor, floor-wall or
 /// floor-ceiling; or `mount1`, `mount2`: floor, ceiling, wall or tilt:RX,RY (deg).
 /// `tilt_sigma_deg`, `point_sigma_mm`: the soft mount of `constrained`. `expected_noise_mm`: a fit
 /// whose median residual norm exceeds it raises `CalibrationError` naming the likely data
@@ -208,17 +212,24 @@ pub fn calibrate_points(
     point_sigma_mm: f64,
     expected_noise_mm: f64,
     force: bool,
-) -> PyResult<PointsResult> {
+) -> PyResult<Py<PyAny>> {
     let mounts = mount_pair(mounts, mount1, mount2)?;
     let method_text = method.unwrap_or(if mounts.is_some() {
         "constrained"
     } else {
         "lsq"
     });
-    let Some(method) = Method::from_name(method_text) else {
-        return Err(value_error(format!(
-            "method={method_text:?}: unknown method; use generic, generic-affine, paper, lsq or constrained"
-        )));
+    let all = method_text == "all";
+    let method = match Method::from_name(method_text) {
+        Some(m) => m,
+        // `all` checks its options as its last method would (constrained with mounts, else lsq).
+        None if all && mounts.is_some() => Method::Constrained,
+        None if all => Method::Lsq,
+        None => {
+            return Err(value_error(format!(
+                "method={method_text:?}: unknown method; use generic, generic-affine, paper, lsq, constrained or all"
+            )))
+        }
     };
     if mounts.is_none() && matches!(method, Method::Paper | Method::Constrained) {
         return Err(value_error(format!(
@@ -231,7 +242,7 @@ pub fn calibrate_points(
         Some(t) => {
             if method != Method::Constrained {
                 return Err(value_error(
-                    "tilt_sigma_deg applies to method=\"constrained\"",
+                    "tilt_sigma_deg applies to method=\"constrained\" (or \"all\" with mounts)",
                 ));
             }
             if !valid(t) || !valid(point_sigma_mm) {
@@ -268,6 +279,9 @@ pub fn calibrate_points(
         expected_noise_m: expected_noise_mm * 1e-3,
         force,
     };
+    if all {
+        return Ok(Py::new(py, all_methods_result(py, &pairs, options)?)?.into_any());
+    }
     let fitted = py.detach(|| points_report(&pairs, &options, PY_HINTS));
     let fitted = fitted.map_err(|e| {
         let context = match &source {
@@ -289,12 +303,135 @@ pub fn calibrate_points(
             e => to_py(&e, &context, Otherwise::Calibration),
         }
     })?;
-    let json = serde_json::to_string_pretty(&fitted.report)
+    Ok(Py::new(py, PointsResult::new(fitted)?)?.into_any())
+}
+
+impl PointsResult {
+    /// The result of one fit, its JSON the CLI's.
+    fn new(fitted: PointsFit) -> PyResult<PointsResult> {
+        let json = serde_json::to_string_pretty(&fitted.report)
+            .map_err(|e| value_error(format!("serialising the report: {e}")))?;
+        Ok(PointsResult {
+            b1_from_b2: fitted.b1_from_b2,
+            report: fitted.report,
+            json,
+            warnings: fitted.warnings,
+        })
+    }
+}
+
+/// The result of `calibrate_points(..., method="all")`, as `handclasp calibrate POINTS.csv
+/// --method all`: each method's fit, or why it does not apply.
+#[pyclass(module = "handclasp", frozen)]
+pub struct PointsMethods {
+    /// The fits, by method name (alphabetical).
+    fits: Vec<(&'static str, Py<PointsResult>)>,
+    /// Why each other method does not apply, by method name.
+    errors: Vec<(&'static str, String)>,
+    json: String,
+}
+
+#[pymethods]
+impl PointsMethods {
+    /// The fitted methods' results, by method name: each a `PointsResult` (its `.to_dict()` the
+    /// CLI's `--method NAME --json`).
+    #[getter]
+    fn results<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+        let out = pyo3::types::PyDict::new(py);
+        for (name, r) in &self.fits {
+            out.set_item(name, r.clone_ref(py))?;
+        }
+        Ok(out)
+    }
+
+    /// Why each method that does not apply to these points does not (too few points, a misfit),
+    /// by method name.
+    #[getter]
+    fn errors<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+        let out = pyo3::types::PyDict::new(py);
+        for (name, e) in &self.errors {
+            out.set_item(name, e)?;
+        }
+        Ok(out)
+    }
+
+    /// Every method's result, fitted or not, by name; `None` for one that does not apply.
+    fn __getitem__(&self, py: Python<'_>, name: &str) -> PyResult<Option<Py<PointsResult>>> {
+        if let Some((_, r)) = self.fits.iter().find(|(n, _)| *n == name) {
+            return Ok(Some(r.clone_ref(py)));
+        }
+        if self.errors.iter().any(|(n, _)| *n == name) {
+            return Ok(None);
+        }
+        Err(pyo3::exceptions::PyKeyError::new_err(format!(
+            "{name:?}: not a method fitted here"
+        )))
+    }
+
+    /// The report as the CLI's JSON text (`calibrate POINTS.csv --method all --json`).
+    fn to_json(&self) -> String {
+        self.json.clone()
+    }
+
+    /// The report as a dict, equal to `json.loads` of the CLI's `--method all --json` output.
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        json_to_py(py, &self.json)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "PointsMethods(fitted={:?}, not_applicable={:?})",
+            self.fits.iter().map(|f| f.0).collect::<Vec<_>>(),
+            self.errors.iter().map(|e| e.0).collect::<Vec<_>>()
+        )
+    }
+}
+
+/// Fits every method `--method all` fits ([`all_methods`]) with `options` (its method
+/// replaced), GIL released; each fit's warnings are `UserWarning`s.
+fn all_methods_result(
+    py: Python<'_>,
+    pairs: &PointPairs,
+    options: PointsOptions,
+) -> PyResult<PointsMethods> {
+    let methods = all_methods(options.mounts.is_some());
+    let outcomes: Vec<(Method, Result<PointsFit, PointsError>)> = py.detach(|| {
+        methods
+            .iter()
+            .map(|&method| {
+                let o = PointsOptions {
+                    method,
+                    ..options.clone()
+                };
+                (method, points_report(pairs, &o, PY_HINTS))
+            })
+            .collect()
+    });
+    let mut report = AllMethods::default();
+    let mut fits = Vec::new();
+    let mut errors = Vec::new();
+    for (method, outcome) in outcomes {
+        match outcome {
+            Ok(fitted) => {
+                for w in &fitted.warnings {
+                    crate::errors::user_warning(py, w)?;
+                }
+                report.insert(method, Ok(fitted.report.clone()));
+                fits.push((method.name(), Py::new(py, PointsResult::new(fitted)?)?));
+            }
+            Err(e) => {
+                report.insert(method, Err(e));
+                if let Some(MethodOutcome::NotApplicable { error, .. }) =
+                    report.methods.get(method.name())
+                {
+                    errors.push((method.name(), error.clone()));
+                }
+            }
+        }
+    }
+    fits.sort_by_key(|f| f.0);
+    errors.sort_by_key(|e| e.0);
+    let json = serde_json::to_string_pretty(&report)
         .map_err(|e| value_error(format!("serialising the report: {e}")))?;
-    Ok(PointsResult {
-        b1_from_b2: fitted.b1_from_b2,
-        report: fitted.report,
-        json,
-        warnings: fitted.warnings,
-    })
+    Ok(PointsMethods { fits, errors, json })
 }

@@ -3,9 +3,9 @@
 
 use std::sync::Arc;
 
-use calib_core::whole_cell::DesignCriterion;
 use nalgebra::Point3;
 use pyo3::prelude::*;
+use sim_cell::plan::report::{render_text, Criterion, PlanInputs, PlanReport};
 use sim_cell::plan::{plan_session, PlanSpec, DEFAULT_RANDOM_DRAWS};
 use sim_cell::{generate_kind_session, trial_rng, KindSpec, Layout, SessionSpec, SimKind};
 
@@ -80,14 +80,83 @@ pub fn simulate_session(
     })
 }
 
+/// The result of [`plan`]: the planned poses (a `Session`) and `handclasp plan`'s report.
+#[pyclass(module = "handclasp", frozen)]
+pub struct PlanResult {
+    session: Py<Session>,
+    report: PlanReport,
+    json: String,
+}
+
+#[pymethods]
+impl PlanResult {
+    /// The planned poses as a `Session` (joints and nominal tips), to teach from.
+    #[getter]
+    fn session(&self, py: Python<'_>) -> Py<Session> {
+        self.session.clone_ref(py)
+    }
+
+    /// The plan's session CSV text (what `handclasp plan --out` writes).
+    fn to_csv_string(&self, py: Python<'_>) -> String {
+        self.session.borrow(py).csv_text()
+    }
+
+    /// Writes the plan's session CSV (`--out`). Errors: `OSError` subclasses.
+    fn to_csv(&self, py: Python<'_>, path: std::path::PathBuf) -> PyResult<()> {
+        self.session.borrow(py).write_csv(&path)
+    }
+
+    /// The session's columns (`Session.columns`).
+    fn columns<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
+        self.session.borrow(py).columns_dict(py)
+    }
+
+    /// The number of planned poses.
+    fn __len__(&self, py: Python<'_>) -> usize {
+        self.session.borrow(py).session.len()
+    }
+
+    /// The CLI's text report.
+    fn text(&self) -> String {
+        render_text(&self.report)
+    }
+
+    /// The report as the CLI's JSON text (`plan --json`).
+    fn to_json(&self) -> String {
+        self.json.clone()
+    }
+
+    /// The report as a dict, equal to `json.loads` of `handclasp plan … --json`: the poses, the
+    /// plan's predicted cooperative error beside the random picks' mean (mm, deg), its parts.
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        crate::arrays::json_to_py(py, &self.json)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "PlanResult(n={}, criterion={:?}, cooperative_rms_mm={:.3}, random_mean_mm={:.3})",
+            self.report.n,
+            self.report.criterion,
+            self.report.predicted.plan.cooperative_rms_mm,
+            self.report.predicted.random.cooperative_rms_mm
+        )
+    }
+}
+
 /// Plans a session: the `n` handclasp poses (of `candidates` seeded candidates both robots reach)
 /// that minimise the predicted cooperative error of the whole-cell calibration (`criterion="a"`)
 /// or maximise its information volume (`"d"`), as `handclasp plan` does. `spread_mm`: the side of
-/// the candidates' cube, mm; `centre_mm`: its centre in b1 (default: the cell's teach centre).
-/// Returns the planned poses as a `Session` (joints and nominal tips; `.to_csv` writes the
-/// `plan.csv` the CLI writes).
+/// the candidates' cube, mm; `centre_mm`: its centre in b1, mm (default: the cell's teach
+/// centre); `out`: where to write the plan's session CSV (`--out`; `None`: not written, and the
+/// report says `(not written)`).
+///
+/// Returns a `PlanResult`: `.session` (the poses as a `Session`; `.to_csv`, `.to_csv_string`,
+/// `.columns`, `len()` as the session's), `.to_dict()` (the CLI's `plan --json`: the poses,
+/// the plan's predicted cooperative error beside the random picks' mean, mm and deg), `.text()`.
+/// The layout checks `calibrate --cell` runs on a session are `UserWarning`s. Runs with the GIL
+/// released. Errors: `ValueError` (a bad option, a one-robot cell), `OSError` subclasses (`out`).
 #[pyfunction]
-#[pyo3(signature = (cell, n=40, candidates=400, criterion="a", seed=1, spread_mm=1000.0, centre_mm=None, random_draws=DEFAULT_RANDOM_DRAWS))]
+#[pyo3(signature = (cell, n=40, candidates=400, criterion="a", seed=1, spread_mm=1000.0, centre_mm=None, random_draws=DEFAULT_RANDOM_DRAWS, out=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn plan(
     py: Python<'_>,
@@ -99,20 +168,17 @@ pub fn plan(
     spread_mm: f64,
     centre_mm: Option<[f64; 3]>,
     random_draws: usize,
-) -> PyResult<Session> {
-    let criterion = match criterion {
-        "a" => DesignCriterion::CooperativeA,
-        "d" => DesignCriterion::D,
-        other => {
-            return Err(value_error(format!(
-                "criterion={other:?}: use \"a\" (smallest predicted cooperative error) or \"d\" (largest information volume)"
-            )))
-        }
+    out: Option<std::path::PathBuf>,
+) -> PyResult<PlanResult> {
+    let Some(criterion) = Criterion::from_name(criterion) else {
+        return Err(value_error(format!(
+            "criterion={criterion:?}: use \"a\" (smallest predicted cooperative error) or \"d\" (largest information volume)"
+        )));
     };
     let spec = PlanSpec {
         n,
         candidates,
-        criterion,
+        criterion: criterion.design(),
         seed,
         spread_m: spread_mm * 1e-3,
         centre_b1: centre(centre_mm)?,
@@ -122,10 +188,45 @@ pub fn plan(
     let planned = py
         .detach(|| plan_session(&c, &spec, &mut |_, _| {}))
         .map_err(|e| to_py(&e, "planning", Otherwise::Value))?;
-    Ok(Session {
+    // The degeneracy check calibrate --cell runs on a session, in its words (as the CLI).
+    let problem = handclasp_cell::problem::cell_problem(
+        &c,
+        &planned.session,
+        handclasp_cell::problem::FitModel::Kinematic,
+    );
+    for w in cli_support::result_check::layout_warnings(&problem) {
+        crate::errors::user_warning(py, &w)?;
+    }
+    let cell_name = crate::work_site::shown(cell.path.as_deref(), "(a Cell)");
+    let out_name = crate::work_site::shown(out.as_deref(), "(not written)");
+    let report = PlanReport::new(
+        &PlanInputs {
+            cell: &cell_name,
+            out: &out_name,
+            n,
+            candidates,
+            criterion,
+            seed,
+            spread_mm,
+            centre_mm,
+        },
+        &c,
+        &planned,
+    );
+    let json = serde_json::to_string_pretty(&report)
+        .map_err(|e| value_error(format!("serialising the report: {e}")))?;
+    let session = Session {
         session: planned.session,
         cell: c,
         path: None,
+    };
+    if let Some(path) = &out {
+        session.write_csv(path)?;
+    }
+    Ok(PlanResult {
+        session: Py::new(py, session)?,
+        report,
+        json,
     })
 }
 

@@ -84,3 +84,27 @@ def test_misfit_is_a_calibration_error_with_the_clis_message(data, cli, tmp_path
     assert py_msg == cli_msg.replace("--expected-noise-mm", "expected_noise_mm=").replace("--force", "force=True")
     with pytest.warns(UserWarning, match="kept by force=True"):
         hc.calibrate_points(bad, force=True)
+
+
+@pytest.mark.parametrize("options, flags", [({}, []), ({"mounts": "floor-wall"}, ["--mounts", "floor-wall"])])
+def test_all_methods_same_report_as_the_cli(data, cli_json, options, flags, tmp_path):
+    """method="all" is `--method all`: every method's report by name, a method that does not
+    apply (3 points: generic-affine needs 4) as its error."""
+    path = data / "coincident.csv"
+    r = hc.calibrate_points(path, method="all", **options)
+    expected = cli_json("calibrate", path, "--method", "all", *flags)
+    assert r.to_dict() == expected
+    names = ["constrained", "generic", "generic-affine", "lsq", "paper"] if options else ["generic", "generic-affine", "lsq"]
+    assert sorted(r.results) == names and r.errors == {}
+    assert r.results["lsq"].to_dict() == expected["methods"]["lsq"]
+    assert r["lsq"].b1_from_b2.shape == (4, 4)
+    with pytest.raises(KeyError):
+        r["nope"]
+    lines = path.read_text().splitlines()
+    three = tmp_path / "three.csv"
+    three.write_text("\n".join(lines[:4]) + "\n")
+    r3 = hc.calibrate_points(three, method="all", **options)
+    expected3 = cli_json("calibrate", three, "--method", "all", *flags)
+    assert r3.to_dict() == expected3
+    assert "generic-affine" in r3.errors and r3["generic-affine"] is None
+    assert r3.errors["generic-affine"] == expected3["methods"]["generic-affine"]["error"]

@@ -1,5 +1,6 @@
 """simulate_session, plan and sweep against the CLIs; the GIL released during long calls."""
 
+import json
 import threading
 import time
 
@@ -25,12 +26,23 @@ def test_simulate_session_matches_sim_cell(cell, cell_path, tmp_path):
 
 
 def test_plan_matches_the_cli(cell, cell_path, cli, tmp_path):
-    rc, _, err = cli("plan", "--cell", cell_path, "--n", "6", "--candidates", "30", "--out", tmp_path / "plan.csv")
+    args = ["plan", "--cell", cell_path, "--n", "6", "--candidates", "30", "--out", tmp_path / "plan.csv"]
+    rc, text, err = cli(*args)
     assert rc == 0, err
-    p = hc.plan(cell, n=6, candidates=30)
+    rc, out, err = cli(*args, "--json")
+    assert rc == 0, err
+    p = hc.plan(cell, n=6, candidates=30, out=tmp_path / "plan.csv")
+    # The report `plan --json` prints, and its text.
+    assert p.to_dict() == json.loads(out)
+    assert p.text() == text
     assert p.to_csv_string() == (tmp_path / "plan.csv").read_text()
+    assert isinstance(p.session, hc.Session) and len(p) == len(p.session) == 6
     cols = p.columns()
     assert cols["point"].tolist() == [1, 2, 3, 4, 5, 6]
+    # Without out: the same prediction, nothing written.
+    q = hc.plan(cell, n=6, candidates=30)
+    assert q.to_dict()["out"] == "(not written)"
+    assert q.to_dict()["predicted"] == p.to_dict()["predicted"]
 
 
 def test_sweep_columns(tmp_path):

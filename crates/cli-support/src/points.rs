@@ -155,6 +155,60 @@ pub fn points_report(
     })
 }
 
+/// The methods `calibrate --method all` fits, in this order: every method when the mounts are
+/// given, else those that need none (generic, generic-affine, lsq).
+pub fn all_methods(mounts_given: bool) -> Vec<Method> {
+    if mounts_given {
+        vec![
+            Method::Generic,
+            Method::GenericAffine,
+            Method::Paper,
+            Method::Lsq,
+            Method::Constrained,
+        ]
+    } else {
+        vec![Method::Generic, Method::GenericAffine, Method::Lsq]
+    }
+}
+
+/// `calibrate --method all`'s report: each method's report, or why it does not apply, by method
+/// name (a map: the JSON lists the methods in alphabetical order).
+#[derive(Debug, Default, serde::Serialize)]
+pub struct AllMethods {
+    /// Each method's outcome, by [`Method::name`].
+    pub methods: std::collections::BTreeMap<&'static str, MethodOutcome>,
+}
+
+impl AllMethods {
+    /// Records `method`'s outcome: its report, or the text of why it does not apply
+    /// ([`crate::error_chain_text`]: a misfit's message, or the fit's error).
+    pub fn insert(&mut self, method: Method, outcome: Result<FitReport, PointsError>) {
+        let outcome = match outcome {
+            Ok(r) => MethodOutcome::Fit(Box::new(r)),
+            Err(e) => MethodOutcome::NotApplicable {
+                error: crate::error_chain_text(&e),
+                method,
+            },
+        };
+        self.methods.insert(method.name(), outcome);
+    }
+}
+
+/// One method's outcome under `--method all`.
+#[derive(Debug, serde::Serialize)]
+#[serde(untagged)]
+pub enum MethodOutcome {
+    /// The fit's report.
+    Fit(Box<FitReport>),
+    /// The method does not apply to these points (JSON `{"error": …, "method": …}`).
+    NotApplicable {
+        /// Why, as the error's text.
+        error: String,
+        /// The method.
+        method: Method,
+    },
+}
+
 /// A `warning:` when the points are nearly collinear (second over first principal spread of
 /// robot 1's points below the result check's
 /// [`calib_core::whole_cell::CheckThresholds::collinear_ratio`], 5 %: the rotation about their

@@ -7,7 +7,6 @@
 //!
 //! Default method: `constrained` when mounts are given, otherwise `lsq`.
 
-use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
@@ -16,8 +15,9 @@ use calib_core::{
     read_points_csv, FitReport, Method, Mount, MountCheckReport, MountPair, PointPairs,
 };
 use cli_support::cell_report::{printed_zyz, PRINTED_TILT_DEG};
-use cli_support::points::{points_report, PointsError, PointsOptions, CLI_HINTS};
-use serde::Serialize;
+use cli_support::points::{
+    all_methods, points_report, AllMethods, MethodOutcome, PointsError, PointsOptions, CLI_HINTS,
+};
 
 use crate::calibrate_cell::CellArgs;
 
@@ -114,23 +114,7 @@ fn config(args: PointsArgs, json: bool, force: bool) -> anyhow::Result<Config> {
         }
     });
     let (methods, all) = if method_text == "all" {
-        if mounts.is_some() {
-            (
-                vec![
-                    Method::Generic,
-                    Method::GenericAffine,
-                    Method::Paper,
-                    Method::Lsq,
-                    Method::Constrained,
-                ],
-                true,
-            )
-        } else {
-            (
-                vec![Method::Generic, Method::GenericAffine, Method::Lsq],
-                true,
-            )
-        }
+        (all_methods(mounts.is_some()), true)
     } else {
         let Some(m) = Method::from_name(&method_text) else {
             bail!(
@@ -208,18 +192,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         return Ok(());
     }
-    let mut methods = BTreeMap::new();
+    let mut report = AllMethods::default();
     for &m in &cfg.methods {
-        let outcome = match fit_report(&pairs, m, &cfg) {
-            Ok(r) => MethodOutcome::Fit(Box::new(r)),
-            Err(e) => MethodOutcome::NotApplicable {
-                error: format!("{:#}", anyhow::Error::from(e)),
-                method: m,
-            },
-        };
-        methods.insert(m.name(), outcome);
+        report.insert(m, fit_report(&pairs, m, &cfg));
     }
-    let report = AllMethods { methods };
     drop(pairs);
     if cfg.json {
         crate::json_out::print_pretty(&report)?;
@@ -249,23 +225,6 @@ fn refusal_json(e: anyhow::Error, json: bool) -> anyhow::Error {
         }
     }
     e
-}
-
-/// `calibrate --method all`: each method's report, or why it does not apply, by method name
-/// (a map: the JSON and the text list the methods in alphabetical order).
-#[derive(Debug, Serialize)]
-struct AllMethods {
-    methods: BTreeMap<&'static str, MethodOutcome>,
-}
-
-/// One method's outcome under `--method all`.
-#[derive(Debug, Serialize)]
-#[serde(untagged)]
-enum MethodOutcome {
-    /// The fit's report.
-    Fit(Box<FitReport>),
-    /// The method does not apply to these points (JSON `{"error": …, "method": …}`).
-    NotApplicable { error: String, method: Method },
 }
 
 /// The text of one method's outcome under `--method all`.
@@ -434,6 +393,7 @@ mod tests {
     use super::*;
     use calib_core::{OutliersReport, PoseForms, SoftMountReport, UncertaintyReport};
     use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+    use std::collections::BTreeMap;
 
     /// A constrained fit of three points, the second flagged, with every optional part.
     fn report() -> FitReport {

@@ -31,9 +31,8 @@ use cli_support::cell_report::{
 use cli_support::result_check::ScreenMode;
 use handclasp_cell::{export_calibrated_cell, Cell, Session, CALIBRATE_EXPORT_NAMES};
 use report::{
-    calibration_page, joint_coverage, predict_work_site, read_work_points, row_residuals,
-    work_site_points, workspace_map, Acceptance, CalibrationPage, MeetingPairsAccuracy,
-    WorkSiteReport,
+    calibration_page_of_fit, predict_work_site, read_work_points, work_site_points, Acceptance,
+    CalibrationPageInputs, CalibrationWithSite, MeetingPairsAccuracy,
 };
 use serde::Serialize;
 
@@ -276,7 +275,7 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         || work_points.is_some()
         || args.accept_mm.is_some()
         || args.accept_deg.is_some();
-    let mut report = CellReportWithSite {
+    let mut report: CellReportWithSite = CalibrationWithSite {
         report,
         work_site: None,
         do_no_harm,
@@ -346,7 +345,7 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
     if json {
         crate::json_out::print_pretty(&report)?;
     } else {
-        print!("{}", report.text());
+        print!("{}", text(&report));
         for f in &written {
             println!("wrote {}", f.display());
         }
@@ -357,9 +356,9 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Writes the HTML page of `calibrate --cell … --report FILE` (see [`report::calibration_page`]):
-/// the same `report` as `--json` (embedded as JSON), the fit's
-/// `calib_core::whole_cell::CalibrationReport`, and the plots' data from the same fit.
+/// Writes the HTML page of `calibrate --cell … --report FILE` ([`calibration_page_of_fit`], the
+/// function Python's `CellResult.report` calls): the same `report` as `--json` (embedded as
+/// JSON) and the page of the exported model's fit.
 fn write_report_page(
     path: &std::path::Path,
     args: &CellArgs,
@@ -367,15 +366,9 @@ fn write_report_page(
     exported: &Exported<'_>,
     report: &CellReportWithSite,
 ) -> anyhow::Result<()> {
-    let (problem, cal) = (exported.problem, exported.cal);
-    let calibration = &cal.report(problem);
     let Some(work_site) = &report.work_site else {
         bail!("internal: the report page needs the work-site verdict");
     };
-    let residuals = row_residuals(problem, cal).context("--report: the rows' residuals")?;
-    let coverage = joint_coverage(cell, &residuals);
-    // The map's failure is said on the page in its place, not a refused report.
-    let workspace = workspace_map(problem, cal, P95_SEED).ok();
     let json = serde_json::to_string_pretty(report)?;
     let display = |p: &Option<PathBuf>| {
         p.as_ref()
@@ -383,27 +376,29 @@ fn write_report_page(
             .unwrap_or_default()
     };
     let invocation = crate::report_page::invocation();
-    let html = calibration_page(&CalibrationPage {
-        cell: &display(&args.cell),
-        session: &display(&args.session),
-        model: exported.model,
-        rows: exported.report.rows,
-        report: calibration,
-        work_site,
-        meeting_pairs: exported.report.cooperative_accuracy_mm.as_ref().map(|c| {
-            MeetingPairsAccuracy {
-                pairs: c.pairs,
-                rms_mm: c.predicted_rms,
-                p95_mm: c.predicted_p95,
-            }
-        }),
-        residuals: &residuals,
-        coverage: &coverage,
-        workspace: workspace.as_ref(),
-        dof: [cell.robot1.model.dof(), cell.robot2.model.dof()],
-        json: &json,
-        invocation: &invocation,
-    });
+    let html = calibration_page_of_fit(
+        cell,
+        exported.problem,
+        exported.cal,
+        &CalibrationPageInputs {
+            cell: &display(&args.cell),
+            session: &display(&args.session),
+            model: exported.model,
+            rows: exported.report.rows,
+            meeting_pairs: exported.report.cooperative_accuracy_mm.as_ref().map(|c| {
+                MeetingPairsAccuracy {
+                    pairs: c.pairs,
+                    rms_mm: c.predicted_rms,
+                    p95_mm: c.predicted_p95,
+                }
+            }),
+            work_site,
+            json: &json,
+            invocation: &invocation,
+        },
+        P95_SEED,
+    )
+    .context("--report: the rows' residuals")?;
     crate::report_page::write(path, &html)
 }
 
@@ -419,29 +414,19 @@ struct Exported<'a> {
 }
 
 /// `calibrate --cell`'s report ([`CellReport`]) with the verdict at the work site when
-/// `--report`, `--work-points`, `--accept-mm` or `--accept-deg` asks for it: the JSON is the
-/// report's object with a `work_site` key after its own (still in alphabetical order).
-#[derive(Debug, Serialize)]
-struct CellReportWithSite {
-    #[serde(flatten)]
-    report: CellReport,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    work_site: Option<WorkSiteReport>,
-    /// With --export: the do-no-harm rule's verdict (absent for --model placement).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    do_no_harm: Option<crate::do_no_harm::DoNoHarmReport>,
-}
+/// `--report`, `--work-points`, `--accept-mm` or `--accept-deg` asks for it, and the
+/// do-no-harm rule's verdict with `--export` ([`CalibrationWithSite`], shared with Python).
+type CellReportWithSite = CalibrationWithSite<CellReport, crate::do_no_harm::DoNoHarmReport>;
 
-impl CellReportWithSite {
-    /// The text report: [`render_text`] and, when asked for, the verdict at the work site.
-    fn text(&self) -> String {
-        let mut s = render_text(&self.report);
-        if let Some(w) = &self.work_site {
-            s.push_str(&crate::report_page::work_site_text(w));
-        }
-        if let Some(r) = &self.do_no_harm {
-            s.push_str(&crate::do_no_harm::text(r));
-        }
-        s
+/// The text report of `r`: [`render_text`] and, when asked for, the verdict at the work site and
+/// the do-no-harm rule's verdict.
+fn text(r: &CellReportWithSite) -> String {
+    let mut s = render_text(&r.report);
+    if let Some(w) = &r.work_site {
+        s.push_str(&report::work_site_text(w));
     }
+    if let Some(d) = &r.do_no_harm {
+        s.push_str(&crate::do_no_harm::text(d));
+    }
+    s
 }

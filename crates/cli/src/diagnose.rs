@@ -13,10 +13,8 @@ use diagnose::DiagnoseOptions;
 use handclasp_cell::Cell;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use report::{
-    diagnosis_work_site, read_work_points, work_site_points, Acceptance, VerdictModel,
-    WorkSiteReport,
+    diagnosis_work_site, read_work_points, work_site_points, Acceptance, CellDiagnosisWithSite,
 };
-use serde::Serialize;
 
 /// Arguments of `handclasp diagnose`.
 #[derive(clap::Args, Debug)]
@@ -139,19 +137,6 @@ impl WorkSiteInputs {
             .transpose()?;
         Ok(WorkSiteInputs { acceptance, points })
     }
-}
-
-/// The whole-cell diagnosis's JSON: its report with, when asked for, the verdict at the work
-/// site (`work_site`, as `calibrate --cell` gives it) and which model it is for
-/// (`work_site_model`), after the report's own keys.
-#[derive(Serialize)]
-struct CellDiagnosisWithSite<'a> {
-    #[serde(flatten)]
-    report: &'a diagnose::CellDiagnoseReport,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    work_site: Option<&'a WorkSiteReport>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    work_site_model: Option<&'a VerdictModel>,
 }
 
 /// Sessions of at least this many points print progress on stderr even when it is not a
@@ -342,7 +327,7 @@ fn run_whole_cell(
             "work site: the verdict is for {}\n",
             model.description
         ));
-        text.push_str(&crate::report_page::work_site_text(w));
+        text.push_str(&report::work_site_text(w));
     }
     print_and_write_page(args, &json, &text, |cell, session, json, invocation| {
         report::cell_diagnosis_page(

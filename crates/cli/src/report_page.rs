@@ -34,42 +34,7 @@ pub fn write(path: &Path, html: &str) -> anyhow::Result<()> {
 
 /// Prints a `warning:` line on stderr for each work point of `w` that was not predicted.
 pub fn warn_unreachable(w: &report::WorkSiteReport) {
-    for u in &w.unreachable {
-        eprintln!(
-            "warning: work point row {} ({:.1}, {:.1}, {:.1} mm) is not predicted: {}",
-            u.row, u.p_b1_mm[0], u.p_b1_mm[1], u.p_b1_mm[2], u.why
-        );
+    for line in report::unreachable_lines(w) {
+        eprintln!("warning: {line}");
     }
-}
-
-/// The text lines of a verdict at the work site: the prediction, the placement's rotation
-/// error (which figure it is, and the marginal one when it differs), then `verdict: …`.
-pub fn work_site_text(w: &report::WorkSiteReport) -> String {
-    let rotation = match &w.placement_rotation {
-        Some(r) => {
-            let marginal = if r.conditional_on.is_empty() {
-                String::new()
-            } else {
-                format!(
-                    "; marginal (their prior included): rms {:.4}°, p95 {:.4}°",
-                    r.marginal.rms_deg, r.marginal.p95_deg
-                )
-            };
-            format!(
-                "placement rotation error: rms {:.4}°, p95 {:.4}° (95 % interval {:.4}–{:.4}°), {}{marginal}\n",
-                r.rms_deg, r.p95_deg, r.p95_ci_deg[0], r.p95_ci_deg[1], r.basis
-            )
-        }
-        None => String::new(),
-    };
-    format!(
-        "predicted cooperative accuracy at the work site ({}): rms {:.3} mm, p95 {:.3} mm (95 % interval {:.3}–{:.3} mm)\n{rotation}verdict: {}: {}\n",
-        w.source,
-        w.predicted_rms_mm,
-        w.predicted_p95_mm,
-        w.predicted_p95_ci_mm[0],
-        w.predicted_p95_ci_mm[1],
-        w.verdict.headline(),
-        w.why
-    )
 }

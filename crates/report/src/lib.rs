@@ -1,11 +1,16 @@
 #![doc = include_str!("../README.md")]
 
+pub mod assemble;
 pub mod error;
 pub mod fit_data;
 pub mod page;
 pub mod plot;
 pub mod work_site;
 
+pub use assemble::{
+    calibration_page_of_fit, unreachable_lines, work_site_text, CalibrationPageInputs,
+    CalibrationWithSite, CellDiagnosisWithSite,
+};
 pub use error::ReportError;
 pub use fit_data::{joint_coverage, row_residuals, JointCoverage, RowResidual};
 pub use page::{

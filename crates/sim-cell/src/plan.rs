@@ -498,5 +498,7 @@ pub fn draw_errors_from_tolerance(truth: &mut Cell, rng: &mut impl Rng) {
     }
 }
 
+pub mod report;
+
 #[cfg(test)]
 mod tests;
