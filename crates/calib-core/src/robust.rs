@@ -109,7 +109,8 @@ pub fn leave_one_out_of_fit(
     full: &Fit,
     mounts: &MountPair,
 ) -> Result<OutlierReport, CalibError> {
-    if pairs.len() > EXACT_LOO_MAX_POINTS && matches!(full.method, Method::Lsq | Method::Constrained)
+    if pairs.len() > EXACT_LOO_MAX_POINTS
+        && matches!(full.method, Method::Lsq | Method::Constrained)
     {
         return leave_one_out_linearised(pairs, full, mounts);
     }

@@ -175,7 +175,14 @@ pub fn points_report_streamed<'a>(
     report.report.soft_mount = soft_mount;
     let b1_from_b2 = *report.b1_from_b2();
     warnings.extend(masked.and_then(|m| {
-        masked_warning(pairs, fit_method, &b1_from_b2, &mounts, m, &mut report.report)
+        masked_warning(
+            pairs,
+            fit_method,
+            &b1_from_b2,
+            &mounts,
+            m,
+            &mut report.report,
+        )
     }));
     if matches!(method, Method::Paper | Method::Constrained) && options.mounts.is_some() {
         // Fewer than 3 usable points already failed the fit above; anything else is reported.
