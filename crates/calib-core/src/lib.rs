@@ -26,7 +26,8 @@ pub use nalgebra;
 
 pub use error::CalibError;
 pub use fit_report::{
-    FitReport, MountCheckReport, OutliersReport, SoftMountReport, UncertaintyReport,
+    FitReport, MountCheckReport, OutliersReport, SoftMountReport, StreamedFitReport,
+    UncertaintyReport,
 };
 pub use kinematics::{
     rotation_from_zyz, wrap_angle, zyz_canonical, zyz_canonical_within, zyz_from_rotation,
@@ -56,8 +57,9 @@ pub use registration::{
 pub use robot::Robot;
 pub use robust::{
     explain_misfit, leave_one_out, leave_one_out_four_point, leave_one_out_linearised,
-    median_residual_m, misfit_threshold_m, MisfitCause, OutlierReport, DEFAULT_EXPECTED_NOISE_M,
-    EXACT_LOO_MAX_POINTS, MISFIT_FALSE_ALARM, OUTLIER_FACTOR, OUTLIER_MIN_M,
+    leave_one_out_of_fit, median_residual_m, misfit_threshold_m, MisfitCause, OutlierReport,
+    DEFAULT_EXPECTED_NOISE_M, EXACT_LOO_MAX_POINTS, MISFIT_FALSE_ALARM, OUTLIER_FACTOR,
+    OUTLIER_MIN_M,
 };
 pub use soft::{constrained_soft, SoftFit};
 pub use stop::StopReason;

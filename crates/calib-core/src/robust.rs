@@ -99,6 +99,24 @@ pub fn leave_one_out(
     })
 }
 
+/// [`leave_one_out`] for `full`, the fit `fit(pairs, full.method, mounts)` already made: the same
+/// report, without fitting every point again (above [`EXACT_LOO_MAX_POINTS`] points, `lsq` and
+/// `constrained` linearise `full` itself, where [`leave_one_out`] refits it first; a full fit's
+/// residuals are 24 bytes a point). Below that, or for the 4-point methods, it is
+/// [`leave_one_out`]. Errors: those of [`leave_one_out`].
+pub fn leave_one_out_of_fit(
+    pairs: &PointPairs,
+    full: &Fit,
+    mounts: &MountPair,
+) -> Result<OutlierReport, CalibError> {
+    if pairs.len() > EXACT_LOO_MAX_POINTS
+        && matches!(full.method, Method::Lsq | Method::Constrained)
+    {
+        return leave_one_out_linearised(pairs, full, mounts);
+    }
+    leave_one_out(pairs, full.method, mounts)
+}
+
 /// Leave-one-out residuals of a least-squares fit (`lsq` or `constrained`) without refitting, in
 /// O(n): the deletion formulas of linear least squares applied to the fit linearised at its optimum.
 ///
@@ -659,6 +677,37 @@ mod tests {
                 assert_eq!(exact.flagged_rows(), vec![24], "{mounts} {}", method.name());
             }
             assert!(leave_one_out_four_point(&pairs, Method::Lsq, &mounts).is_err());
+        }
+    }
+
+    /// [`leave_one_out_of_fit`] is [`leave_one_out`] given the full fit: identical reports (`==`)
+    /// for every method, below [`EXACT_LOO_MAX_POINTS`] (60 points: refits) and above it (260:
+    /// the linearised and four-point formulas), floor–floor and floor–wall, one 20 mm blunder.
+    #[test]
+    fn leave_one_out_of_the_fit_is_leave_one_out() {
+        use rand::SeedableRng;
+        use rand_distr::Normal;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(14);
+        let noise = Normal::new(0.0, 0.5e-3).unwrap();
+        for n in [60, EXACT_LOO_MAX_POINTS + 60] {
+            let p_b2 = loo_scattered_points(&mut rng, n);
+            for mounts in [MountPair::floor_floor(), MountPair::floor_wall()] {
+                let mut p_b1 = loo_noisy_images(&mounts, &p_b2, &noise, &mut rng);
+                p_b1[7].z += 0.02;
+                let pairs = PointPairs::new(p_b1, p_b2.clone()).unwrap();
+                for method in Method::ALL {
+                    let what = format!("{n} points, {mounts} {}", method.name());
+                    let Ok(full) = fit(&pairs, method, &mounts) else {
+                        // A method the mounts refuse: leave-one-out refuses it too.
+                        assert!(leave_one_out(&pairs, method, &mounts).is_err(), "{what}");
+                        continue;
+                    };
+                    let given = leave_one_out_of_fit(&pairs, &full, &mounts).unwrap();
+                    let refit = leave_one_out(&pairs, method, &mounts).unwrap();
+                    assert_eq!(given, refit, "{what}");
+                    assert_eq!(given.flagged_rows(), vec![8], "{what}");
+                }
+            }
         }
     }
 

@@ -10,8 +10,9 @@
 
 use calib_core::nalgebra::Isometry3;
 use calib_core::{
-    constrained_soft, explain_misfit, fit, median_residual_m, misfit_threshold_m, mount_check,
-    CalibError, Fit, FitReport, Method, MountCheckReport, MountPair, PointPairs, SoftMountReport,
+    constrained_soft, explain_misfit, fit, leave_one_out, leave_one_out_of_fit, median_residual_m,
+    misfit_threshold_m, mount_check, CalibError, Fit, FitReport, Method, MountCheckReport,
+    MountPair, PointPairs, SoftMountReport, StreamedFitReport,
 };
 
 /// How a points fit runs ([`points_report`]).
@@ -110,6 +111,16 @@ pub struct PointsFit {
     pub warnings: Vec<String>,
 }
 
+/// [`PointsFit`] whose per-point arrays are written from the fit when the report is serialised
+/// ([`StreamedFitReport`]: the same JSON, 40 bytes a point less memory); it borrows the points.
+#[derive(Debug, Clone)]
+pub struct StreamedPointsFit<'a> {
+    /// The report (the CLI's JSON); [`StreamedFitReport::b1_from_b2`] is the fit, unrounded.
+    pub report: StreamedFitReport<'a>,
+    /// Warnings for stderr, each starting `WARNING (method, kept by …)`.
+    pub warnings: Vec<String>,
+}
+
 /// Fits one method (the soft-mount variant for `constrained` when asked) and builds its report.
 /// The methods that impose the mounts also get the mounts' F-test against the points.
 ///
@@ -120,39 +131,66 @@ pub fn points_report(
     options: &PointsOptions,
     hints: MisfitHints,
 ) -> Result<PointsFit, PointsError> {
+    let fitted = points_report_streamed(pairs, options, hints)?;
+    Ok(PointsFit {
+        b1_from_b2: *fitted.report.b1_from_b2(),
+        report: fitted.report.into_report(),
+        warnings: fitted.warnings,
+    })
+}
+
+/// [`points_report`] whose report writes its per-point arrays from the fit when serialised
+/// (`handclasp calibrate POINTS.csv --json` prints it: at 1e6 points the report's 64 MB of
+/// per-point arrays are never held). Errors: those of [`points_report`].
+pub fn points_report_streamed<'a>(
+    pairs: &'a PointPairs,
+    options: &PointsOptions,
+    hints: MisfitHints,
+) -> Result<StreamedPointsFit<'a>, PointsError> {
     let method = options.method;
     let mounts = options.mounts.unwrap_or_else(MountPair::floor_floor);
     let mut warnings = Vec::new();
     // Before the fit and its report: the robust fit's working vectors (~28 MB at 1e6 rows) are
-    // freed before the report's per-point vectors exist, which lowers the command's peak memory.
+    // freed before the fit's and the leave-one-out's vectors exist, which lowers the command's
+    // peak memory.
     let masked = calib_core::masked_blunders(pairs);
-    let (mut report, mut f) =
+    let (f, soft_mount, outliers) =
         if let (Method::Constrained, Some((tilt_sigma, point_sigma))) = (method, options.soft) {
             let soft = constrained_soft(pairs, &mounts, tilt_sigma, point_sigma)?;
             warnings.extend(plausible(pairs, &soft.fit, &mounts, options, hints)?);
-            let mut report = FitReport::new(pairs, &soft.fit, options.mounts.as_ref());
-            report.soft_mount = Some(SoftMountReport::new(&soft, tilt_sigma, point_sigma));
-            (report, soft.fit)
+            let soft_mount = SoftMountReport::new(&soft, tilt_sigma, point_sigma);
+            // Leave-one-out of the method's plain fit (not the soft one), as `FitReport::new`.
+            let outliers = leave_one_out(pairs, soft.fit.method, &mounts).ok();
+            (soft.fit, Some(soft_mount), outliers)
         } else {
             let f = fit(pairs, method, &mounts)?;
             warnings.extend(plausible(pairs, &f, &mounts, options, hints)?);
-            (FitReport::new(pairs, &f, options.mounts.as_ref()), f)
+            // `f` is the fit leave-one-out would start from: it is not fitted again.
+            let outliers = leave_one_out_of_fit(pairs, &f, &mounts).ok();
+            (f, None, outliers)
         };
-    // The report holds the residuals (in mm); the fit's own copy (24 MB at 1e6 rows) goes.
-    f.residuals = Vec::new();
     warnings.extend(layout_warning(pairs, &f));
-    warnings.extend(masked.and_then(|m| masked_warning(pairs, &f, &mounts, m, &mut report)));
+    let fit_method = f.method;
+    let mut report = StreamedFitReport::new(pairs, f, options.mounts.as_ref(), outliers);
+    report.report.soft_mount = soft_mount;
+    let b1_from_b2 = *report.b1_from_b2();
+    warnings.extend(masked.and_then(|m| {
+        masked_warning(
+            pairs,
+            fit_method,
+            &b1_from_b2,
+            &mounts,
+            m,
+            &mut report.report,
+        )
+    }));
     if matches!(method, Method::Paper | Method::Constrained) && options.mounts.is_some() {
         // Fewer than 3 usable points already failed the fit above; anything else is reported.
         if let Ok(c) = mount_check(pairs, &mounts) {
-            report.mount_check = Some(MountCheckReport::new(&c, pairs.len()));
+            report.report.mount_check = Some(MountCheckReport::new(&c, pairs.len()));
         }
     }
-    Ok(PointsFit {
-        report,
-        b1_from_b2: f.b1_from_b2,
-        warnings,
-    })
+    Ok(StreamedPointsFit { report, warnings })
 }
 
 /// The methods `calibrate --method all` fits, in this order: every method when the mounts are
@@ -265,7 +303,8 @@ fn layout_warning(pairs: &PointPairs, f: &Fit) -> Option<String> {
 /// them with how far the fit moves without them (the fit printed still uses every row).
 fn masked_warning(
     pairs: &PointPairs,
-    f: &Fit,
+    method: Method,
+    b1_from_b2: &Isometry3<f64>,
     mounts: &MountPair,
     m: calib_core::MaskedBlunders,
     report: &mut FitReport,
@@ -297,17 +336,17 @@ fn masked_warning(
         p_b2: keep.iter().map(|&i| pairs.p_b2[i]).collect(),
         rows: keep.iter().map(|&i| pairs.row(i)).collect(),
     };
-    let moved = match fit(&clean, f.method, mounts) {
+    let moved = match fit(&clean, method, mounts) {
         Ok(c) => {
-            let d = c.b1_from_b2 * f.b1_from_b2.inverse();
+            let d = c.b1_from_b2 * b1_from_b2.inverse();
             format!(
                 "without them the {} fit moves by {} mm / {:.3}°",
-                f.method.name(),
+                method.name(),
                 mm_text(d.translation.vector.norm() * 1e3),
                 d.rotation.angle().to_degrees()
             )
         }
-        Err(e) => format!("without them the {} fit fails ({e})", f.method.name()),
+        Err(e) => format!("without them the {} fit fails ({e})", method.name()),
     };
     let rows: Vec<usize> = m.flagged.iter().map(|&i| pairs.row(i)).collect();
     Some(format!(

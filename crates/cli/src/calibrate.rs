@@ -13,10 +13,12 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use calib_core::{
     read_points_csv, FitReport, Method, Mount, MountCheckReport, MountPair, PointPairs,
+    StreamedFitReport,
 };
 use cli_support::cell_report::{printed_zyz, PRINTED_TILT_DEG};
 use cli_support::points::{
-    all_methods, points_report, AllMethods, MethodOutcome, PointsError, PointsOptions, CLI_HINTS,
+    all_methods, points_report_streamed, AllMethods, MethodOutcome, PointsError, PointsOptions,
+    CLI_HINTS,
 };
 
 use crate::calibrate_cell::CellArgs;
@@ -183,18 +185,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ));
             refusal_json(e, cfg.json)
         })?;
-        // The report holds what is printed: the points go before the JSON is written.
-        drop(pairs);
+        // The JSON's per-point arrays are written from the fit and the points as they are
+        // serialised (`StreamedFitReport`), never held as the report's vectors.
         if cfg.json {
             crate::json_out::print_pretty(&report)?;
         } else {
-            print!("{}", render_text(&report));
+            print!("{}", render_text(&report.into_report()));
         }
         return Ok(());
     }
     let mut report = AllMethods::default();
     for &m in &cfg.methods {
-        report.insert(m, fit_report(&pairs, m, &cfg));
+        report.insert(
+            m,
+            fit_report(&pairs, m, &cfg).map(StreamedFitReport::into_report),
+        );
     }
     drop(pairs);
     if cfg.json {
@@ -237,9 +242,13 @@ fn outcome_text(outcome: &MethodOutcome) -> String {
     }
 }
 
-/// Fits one method through [`cli_support::points::points_report`] (the library the Python
-/// package shares) and prints its warnings (a misfit kept by `--force`) on stderr.
-fn fit_report(pairs: &PointPairs, method: Method, cfg: &Config) -> Result<FitReport, PointsError> {
+/// Fits one method through [`cli_support::points::points_report_streamed`] (the library the
+/// Python package shares) and prints its warnings (a misfit kept by `--force`) on stderr.
+fn fit_report<'a>(
+    pairs: &'a PointPairs,
+    method: Method,
+    cfg: &Config,
+) -> Result<StreamedFitReport<'a>, PointsError> {
     let options = PointsOptions {
         method,
         mounts: cfg.mounts,
@@ -247,7 +256,7 @@ fn fit_report(pairs: &PointPairs, method: Method, cfg: &Config) -> Result<FitRep
         expected_noise_m: cfg.expected_noise_m,
         force: cfg.force,
     };
-    let fitted = points_report(pairs, &options, CLI_HINTS)?;
+    let fitted = points_report_streamed(pairs, &options, CLI_HINTS)?;
     for w in &fitted.warnings {
         eprintln!("{w}");
     }

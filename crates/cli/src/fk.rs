@@ -496,6 +496,11 @@ fn run_batch(
     out: Option<&Path>,
 ) -> anyhow::Result<()> {
     let name = q_csv.display().to_string();
+    // A spinner on a terminal's stderr (a million poses take seconds), unless the CSV goes to
+    // that terminal too.
+    let show = crate::progress::shown(false)
+        && (out.is_some() || !std::io::IsTerminal::is_terminal(&std::io::stdout()));
+    let progress = crate::progress::Progress::new(show, "reading the joint CSV");
     let raw = kinematics::input::read_input_text(q_csv, "joint CSV")
         .with_context(|| format!("--q-csv {name}"))?;
     let text = calib_core::strip_bom(&raw);
@@ -555,10 +560,10 @@ fn run_batch(
         .map(|(_, h)| h.as_str())
         .collect();
     if !ignored.is_empty() {
-        eprintln!(
+        progress.eprintln(&format!(
             "note: {name}: ignoring column(s) {} (give one with --id-column to copy it to the output)",
             cap_echo(&ignored.join(", "))
-        );
+        ));
     }
 
     let mut rows: Vec<(Option<String>, Vec<f64>)> = Vec::new();
@@ -598,10 +603,10 @@ fn run_batch(
         .flat_map(|(_, q)| q.iter())
         .fold(0.0f64, |m, v| m.max(v.abs()));
     if max_abs <= RADIANS_MAX_DEG && max_abs > RADIANS_MIN_DEG {
-        eprintln!(
+        progress.eprintln(&format!(
             "warning: {name}: every angle is within ±{:.4} deg (largest {max_abs}): these look like radians; the columns are degrees (multiply by 180/π)",
             RADIANS_MAX_DEG
-        );
+        ));
     }
 
     // A file is built in memory and written atomically (never a truncated CSV under --out's
@@ -618,6 +623,7 @@ fn run_batch(
     }
     head.extend(["x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"]);
     writer.write_record(&head)?;
+    progress.phase(format!("computing {} poses", rows.len()));
     for (i, (id, q_deg)) in rows.iter().enumerate() {
         let q: Vec<f64> = q_deg.iter().map(|v| v.to_radians()).collect();
         let pose = robot
@@ -639,6 +645,7 @@ fn run_batch(
     }
     writer.flush()?;
     drop(writer);
+    progress.finish();
     if let Some(path) = out {
         handclasp_cell::output::write_atomically(path, &buffer)
             .with_context(|| format!("--out {}", path.display()))?;

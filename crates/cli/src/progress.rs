@@ -1,4 +1,5 @@
-//! A spinner on stderr for the commands' long phases (`calibrate --cell`, `plan`, `import`):
+//! A spinner on stderr for the commands' long phases (`calibrate --cell`, `plan`, `import`,
+//! `fk --q-csv`):
 //! the phase's name and the elapsed time, cleared when the command is done. Shown only when
 //! stderr is a terminal and the output is not `--json` (scripts and captures see the report
 //! alone), like `sim-cell sweep`'s progress bar.
@@ -45,6 +46,11 @@ impl Progress {
     /// The next phase's name.
     pub(crate) fn phase(&self, phase: impl Into<Cow<'static, str>>) {
         self.bar.set_message(phase);
+    }
+
+    /// Prints `line` on stderr with the spinner moved out of its way (drawn again below it).
+    pub(crate) fn eprintln(&self, line: &str) {
+        self.bar.suspend(|| eprintln!("{line}"));
     }
 
     /// Clears the spinner (before the report is printed).
