@@ -105,7 +105,8 @@ pub fn summarise_covariances(covs: &[nalgebra::Matrix3<f64>], seed: u64) -> Coop
             norms.push((l * z).norm());
         }
     }
-    norms.sort_by(f64::total_cmp);
+    // Unstable: values equal under `total_cmp` are the same bits, so the order is the same.
+    norms.sort_unstable_by(f64::total_cmp);
     let p95 = quantile_ci(&norms, 0.95);
     CooperativePrediction {
         predicted_rms_m: ms.sqrt(),

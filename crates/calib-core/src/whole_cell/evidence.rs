@@ -173,19 +173,26 @@ pub(crate) struct LinearModel {
 }
 
 impl LinearModel {
-    /// Linearises the MAP problem of `layout` (scale 1) at `est` on the rows `active`.
+    /// Linearises the MAP problem of `layout` (scale 1) at `fit`'s estimate on its active rows:
+    /// from the fit's own linearisation at its optimum when it has one with `layout`'s columns
+    /// (the data rows do not depend on the prior scales; the same values a new linearisation
+    /// gives), else evaluated now.
     pub(crate) fn new(
         problem: &CellProblem,
         layout: &ParamLayout,
-        est: &CellEstimate,
-        active: &[usize],
+        fit: &CellFit,
     ) -> Result<Self, CellFitError> {
-        let sys = assemble(problem, layout, est, active, None, true)?;
-        let p = layout.prior_sqrt_info.nrows();
-        let m = sys.r.len();
-        let fixed: Vec<usize> = (0..sys.data_rows).chain(sys.data_rows + p..m).collect();
-        let j_f = sys.j.select_rows(&fixed);
-        let r_f = sys.r.select_rows(&fixed);
+        let est = &fit.estimate;
+        let (j_f, r_f) = if layout.params == fit.layout.params {
+            let lin = fit.linearisation(problem)?;
+            fixed_rows(problem, est, &lin.rows.j, &lin.rows.r, fit.residual_rows)
+        } else {
+            let sys = assemble(problem, layout, est, &fit.active, None, true)?;
+            let p = layout.prior_sqrt_info.nrows();
+            let m = sys.r.len();
+            let fixed: Vec<usize> = (0..sys.data_rows).chain(sys.data_rows + p..m).collect();
+            (sys.j.select_rows(&fixed), sys.r.select_rows(&fixed))
+        };
         let r_p = layout.prior_sqrt_info.clone();
         let penalised: Vec<usize> = (0..layout.len())
             .filter(|&j| r_p.column(j).norm_squared() > 0.0)
@@ -244,6 +251,34 @@ impl LinearModel {
         let z = -0.5 * cost - 0.5 * logdet_h + 0.5 * logdet_p;
         z.is_finite().then_some(z)
     }
+}
+
+/// The rows of the MAP problem the prior scales leave fixed: the first `data_rows` whitened data
+/// rows of `j`, `r` (a fit's linearisation), then the placement prior's at `est` (as
+/// [`super::solve::assemble`] stacks them after the layout's prior rows).
+fn fixed_rows(
+    problem: &CellProblem,
+    est: &CellEstimate,
+    j: &DMatrix<f64>,
+    r: &DVector<f64>,
+    data_rows: usize,
+) -> (DMatrix<f64>, DVector<f64>) {
+    let (pr, pj) = problem
+        .placement_prior
+        .map(|pp| pp.linearise(&est.b1_from_b2))
+        .unwrap_or_default();
+    let n = j.ncols();
+    let mut j_f = DMatrix::zeros(data_rows + pr.len(), n);
+    let mut r_f = DVector::zeros(data_rows + pr.len());
+    j_f.rows_mut(0, data_rows).copy_from(&j.rows(0, data_rows));
+    r_f.rows_mut(0, data_rows).copy_from(&r.rows(0, data_rows));
+    for (k, (rv, jv)) in pr.iter().zip(&pj).enumerate() {
+        r_f[data_rows + k] = *rv;
+        for (c, v) in jv.iter().enumerate() {
+            j_f[(data_rows + k, c)] = *v;
+        }
+    }
+    (j_f, r_f)
 }
 
 /// `m·diag(1/s)`: column `j` divided by `s[j]`.

@@ -46,6 +46,7 @@ use kinematics::{base_from_tip, ik_tip_position, IkOptions};
 use nalgebra::{DMatrix, Isometry3, Point3, Unit};
 use rand::Rng;
 use rand_distr::{Distribution, StandardNormal};
+use rayon::prelude::*;
 use serde::Serialize;
 
 use super::accuracy::{summarise_covariances, ConfigPair};
@@ -80,6 +81,10 @@ const HELD_OUT_EIGEN_FLOOR: f64 = 1e-9;
 
 /// Seeded draws of the parameter error behind [`PredictedError::rms_bound95_m`].
 pub const BOUND_DRAWS: usize = 400;
+
+/// Configuration pairs per rayon task when [`predict_error`] evaluates the pairs' Jacobians
+/// (tens of µs each: a task of ~0.5 ms, far above rayon's scheduling cost).
+const PAIRS_PER_TASK: usize = 16;
 
 /// Reachable handclasps over the whole workspace that `calibrate --cell` and `plan` predict
 /// over ([`workspace_pairs`]).
@@ -541,22 +546,37 @@ pub fn predict_error(
         )));
     }
     let ev = Evaluator::new(problem, layout);
-    let total = &split.data + &split.prior;
     let m = split.model_error.var_m2();
-    let mut jacobians = Vec::with_capacity(pairs.len());
+    // Every pair's Jacobian `J_k` (in parallel on rayon's current pool; the first error in
+    // pair order), stacked (3·pairs × n), so that `J_k·D` and `J_k·P` are two matrix products
+    // over all pairs instead of 3 × n by n × n products pair by pair.
+    let jacobians: Vec<Result<DMatrix<f64>, CellFitError>> = pairs
+        .par_iter()
+        .with_min_len(PAIRS_PER_TASK)
+        .map(|pair| ev.cooperative_vector(estimate, pair, true).map(|(_, j)| j))
+        .collect();
+    let mut stacked = DMatrix::zeros(3 * pairs.len(), n);
+    for (k, j) in jacobians.into_iter().enumerate() {
+        stacked.rows_mut(3 * k, 3).copy_from(&j?);
+    }
+    let jd_all = &stacked * &split.data;
+    let jp_all = &stacked * &split.prior;
     let (mut data_ms, mut prior_ms) = (0.0, 0.0);
     let mut covs = Vec::with_capacity(pairs.len());
-    for pair in pairs {
-        let (_, j) = ev.cooperative_vector(estimate, pair, true)?;
-        data_ms += (&j * &split.data * j.transpose()).trace().max(0.0);
-        prior_ms += (&j * &split.prior * j.transpose()).trace().max(0.0);
-        let c = &j * &total * j.transpose();
+    for k in 0..pairs.len() {
+        let j = stacked.rows(3 * k, 3);
+        let c_data = jd_all.rows(3 * k, 3) * j.transpose();
+        let c_prior = jp_all.rows(3 * k, 3) * j.transpose();
+        data_ms += c_data.trace().max(0.0);
+        prior_ms += c_prior.trace().max(0.0);
+        // `J·(D + P)·Jᵀ`, the total covariance.
+        let c = c_data + c_prior;
         covs.push(nalgebra::Matrix3::from_fn(|a, b| c[(a, b)]) + nalgebra::Matrix3::identity() * m);
-        jacobians.push(j);
     }
     let k = pairs.len() as f64;
     let summary = summarise_covariances(&covs, seed);
-    let rms_bound95_m = rms_bound(&jacobians, &total, m, seed);
+    let total = &split.data + &split.prior;
+    let rms_bound95_m = rms_bound(&stacked, pairs.len(), &total, m, seed);
     Ok(PredictedError {
         pair_set,
         pairs: pairs.len(),
@@ -573,36 +593,59 @@ pub fn predict_error(
 }
 
 /// The 95th percentile over [`BOUND_DRAWS`] draws (generator `trial_rng(seed, draw)`) of the
-/// rms over the pairs of `J_k·δθ + ε_k`, `δθ ~ N(0, cov)` shared by the pairs and
-/// `ε_k ~ N(0, model_var·I)` per pair.
-fn rms_bound(jacobians: &[DMatrix<f64>], cov: &DMatrix<f64>, model_var: f64, seed: u64) -> f64 {
+/// rms over the `pairs` pairs of `J_k·δθ + ε_k`, `δθ ~ N(0, cov)` shared by the pairs and
+/// `ε_k ~ N(0, model_var·I)` per pair; `stacked` the pairs' Jacobians `J_k` (3·pairs × n).
+///
+/// Each draw takes its `n` normals of `δθ = L·z` (`L` the root of `cov`), then one normal per
+/// row for `ε`. Without a model error, the draw's sum of squares is the quadratic form
+/// `zᵀ·(Lᵀ·JᵀJ·L)·z` (n × n: the rows are summed once, not per draw); with one, all draws'
+/// `J·L·z` are one matrix product.
+fn rms_bound(
+    stacked: &DMatrix<f64>,
+    pairs: usize,
+    cov: &DMatrix<f64>,
+    model_var: f64,
+    seed: u64,
+) -> f64 {
     let n = cov.nrows();
     let eig = cov.clone().symmetric_eigen();
     let root =
         &eig.eigenvectors * DMatrix::from_diagonal(&eig.eigenvalues.map(|e| e.max(0.0).sqrt()));
-    // Every pair's Jacobian stacked (3·pairs × n), times the root: one product per draw.
-    let mut stacked = DMatrix::zeros(3 * jacobians.len(), n);
-    for (k, j) in jacobians.iter().enumerate() {
-        stacked.rows_mut(3 * k, 3).copy_from(j);
-    }
-    let mapped = stacked * root;
     let model_sd = model_var.max(0.0).sqrt();
-    let mut rms: Vec<f64> = (0..BOUND_DRAWS)
+    let draws: Vec<_> = (0..BOUND_DRAWS)
         .map(|d| {
             let mut rng = trial_rng(seed, d as u64);
             let z = nalgebra::DVector::from_fn(n, |_, _| StandardNormal.sample(&mut rng));
-            let e = &mapped * z;
-            let ms = e
-                .iter()
-                .map(|v| {
-                    let noise: f64 = StandardNormal.sample(&mut rng);
-                    (v + model_sd * noise).powi(2)
-                })
-                .sum::<f64>()
-                / jacobians.len() as f64;
-            ms.sqrt()
+            (rng, z)
         })
         .collect();
+    let mut rms: Vec<f64> = if model_sd == 0.0 {
+        // `(v + 0·ε)² = v²`: the model-error normals change nothing.
+        let gram = root.tr_mul(&stacked.tr_mul(stacked)) * &root;
+        draws
+            .iter()
+            .map(|(_, z)| (z.dot(&(&gram * z)).max(0.0) / pairs as f64).sqrt())
+            .collect()
+    } else {
+        let z_all = DMatrix::from_columns(&draws.iter().map(|(_, z)| z.clone()).collect::<Vec<_>>());
+        let e_all = stacked * (root * z_all);
+        draws
+            .into_iter()
+            .enumerate()
+            .map(|(d, (mut rng, _))| {
+                let ms = e_all
+                    .column(d)
+                    .iter()
+                    .map(|v| {
+                        let noise: f64 = StandardNormal.sample(&mut rng);
+                        (v + model_sd * noise).powi(2)
+                    })
+                    .sum::<f64>()
+                    / pairs as f64;
+                ms.sqrt()
+            })
+            .collect()
+    };
     rms.sort_by(f64::total_cmp);
     quantile(&rms, 0.95)
 }

@@ -123,8 +123,16 @@ pub fn reduce_layout(
     active: &[usize],
 ) -> Result<Reduction, CellFitError> {
     let sys = assemble(problem, full, estimate, active, None, true)?;
-    let jd = sys.j.rows(0, sys.data_rows).into_owned();
     let n = full.len();
+    // Every step below reads the data rows only through their columns' inner products
+    // (projections, norms, least squares, singular values), which `J = Q·R` (thin QR, `Q`
+    // orthonormal) keeps: with more rows than columns, work on the columns × columns `R`
+    // (one O(rows·columns²) factorisation instead of every step over the rows).
+    let jd = if sys.data_rows > n {
+        sys.j.rows(0, sys.data_rows).into_owned().qr().r()
+    } else {
+        sys.j.rows(0, sys.data_rows).into_owned()
+    };
     let sig: Vec<f64> = (0..n).map(|j| full.prior_sigma(j)).collect();
     let unpen: Vec<usize> = (0..n).filter(|&j| sig[j] == 0.0).collect();
     let kin: Vec<usize> = (0..n).filter(|&j| sig[j] > 0.0).collect();
