@@ -11,7 +11,11 @@
 //!
 //! `whole_cell/rows`: `calibrate_cell` on floor–ceiling (seed 41) at 20, 200 and 2,000
 //! coincident points, the cost against rows that `handclasp calibrate --cell --model kinematic`
-//! pays (BENCHMARKS.md gives the command's own figures up to 20,000 rows). Only this group:
+//! pays (BENCHMARKS.md gives the command's own figures up to 20,000 rows); and `cli_path` at
+//! 2,000 points: the whole-cell work of that command as `cli_support::cell_report` does it
+//! (`calibrate_cell`, `widen_prior`, the prediction split, the predicted error over the
+//! session's meeting pairs and over the seeded workspace poses, the coverage), without the
+//! result check and the JSON. Only this group:
 //! `cargo bench -p calib-core --bench whole_cell -- whole_cell/rows --warm-up-time 1 --measurement-time 5`
 
 // criterion_main! generates an undocumented `main`.
@@ -19,7 +23,9 @@
 
 use calib_core::whole_cell::fixtures::{sim_cell, Cell};
 use calib_core::whole_cell::{
-    calibrate_cell, fit_cell, CellProblem, ScreenOptions, SolveOptions, Tolerance,
+    calibrate_cell, fit_cell, predict_error, session_coverage, widen_prior, workspace_pairs,
+    CellProblem, ConfigPair, ObservationKind, PairSet, PredictionSplit, ScreenOptions,
+    SolveOptions, Tolerance, WORKSPACE_POSES, WORKSPACE_SEED,
 };
 use calib_core::StopReason;
 use criterion::{black_box, criterion_group, criterion_main, BenchmarkId, Criterion};
@@ -82,7 +88,46 @@ fn bench_whole_cell(c: &mut Criterion) {
     }
 }
 
-/// `calibrate_cell` against the number of rows (see the module doc).
+/// The whole-cell work of `handclasp calibrate --cell … --model kinematic --json` on `p`, in
+/// the order `cli_support::cell_report::calibrate_session_with` does it (seeds 1, as there);
+/// the result check and the report are left out. Gives the predicted rms over the workspace.
+fn cli_path(p: &CellProblem, solve: &SolveOptions, screen: &ScreenOptions) -> f64 {
+    let stated = calibrate_cell(p, solve, screen).expect("valid problem");
+    let cal = widen_prior(p, &stated, solve, screen)
+        .expect("valid problem")
+        .unwrap_or(stated);
+    let split = PredictionSplit::of_calibration(p, &cal).expect("valid problem");
+    let meeting: Vec<ConfigPair> = p
+        .observations
+        .iter()
+        .filter_map(|o| match &o.kind {
+            ObservationKind::Coincident {
+                q1,
+                q2,
+                tool1,
+                tool2,
+                ..
+            } => Some(ConfigPair {
+                q1: q1.clone(),
+                q2: q2.clone(),
+                tool1: *tool1,
+                tool2: *tool2,
+            }),
+            _ => None,
+        })
+        .collect();
+    let (layout, est) = (&cal.fit.layout, &cal.fit.estimate);
+    predict_error(p, layout, est, &split, &meeting, PairSet::MeetingPairs, 1).expect("pairs");
+    let poses = workspace_pairs(p, &est.b1_from_b2, WORKSPACE_POSES, WORKSPACE_SEED);
+    let over: Vec<ConfigPair> = poses.into_iter().map(|w| w.pair).collect();
+    let workspace =
+        predict_error(p, layout, est, &split, &over, PairSet::Workspace, 1).expect("pairs");
+    session_coverage(p, 1).expect("valid problem");
+    workspace.rms_m
+}
+
+/// `calibrate_cell` against the number of rows, and the CLI's whole path at 2,000 rows (see
+/// the module doc).
 fn bench_rows(c: &mut Criterion) {
     let solve = SolveOptions::default();
     let screen = ScreenOptions::default();
@@ -101,6 +146,15 @@ fn bench_rows(c: &mut Criterion) {
         group.bench_with_input(BenchmarkId::new("calibrate_cell", n), &p, |b, p| {
             b.iter(|| calibrate_cell(black_box(p), &solve, &screen).expect("valid problem"))
         });
+        if n == 2000 {
+            eprintln!(
+                "floor_ceiling, {n} points, the CLI's path: predicted workspace rms {:.4} mm",
+                cli_path(&p, &solve, &screen) * 1e3
+            );
+            group.bench_with_input(BenchmarkId::new("cli_path", n), &p, |b, p| {
+                b.iter(|| cli_path(black_box(p), &solve, &screen))
+            });
+        }
     }
     group.finish();
 }

@@ -63,26 +63,3 @@ pub use robust::{
 };
 pub use soft::{constrained_soft, SoftFit};
 pub use stop::StopReason;
-
-#[doc(hidden)]
-pub fn tmp_tick(label: &str) {
-    static START: std::sync::OnceLock<std::time::Instant> = std::sync::OnceLock::new();
-    let s = START.get_or_init(std::time::Instant::now);
-    if std::env::var_os("HC_TIMING").is_some() {
-        eprintln!("TICK {:8.1} ms {label}", s.elapsed().as_secs_f64() * 1e3);
-    }
-}
-
-#[doc(hidden)]
-pub static TMP_COUNTS: [std::sync::atomic::AtomicU64; 8] = [const { std::sync::atomic::AtomicU64::new(0) }; 8];
-#[doc(hidden)]
-pub fn tmp_add(i: usize, v: u64) {
-    TMP_COUNTS[i].fetch_add(v, std::sync::atomic::Ordering::Relaxed);
-}
-#[doc(hidden)]
-pub fn tmp_report() {
-    if std::env::var_os("HC_TIMING").is_some() {
-        let v: Vec<u64> = TMP_COUNTS.iter().map(|c| c.load(std::sync::atomic::Ordering::Relaxed)).collect();
-        eprintln!("COUNTS jac_obs {} nojac_obs {} lin_ns {} h_ns {} h_count {} iters {}", v[0], v[1], v[2] / 1_000_000, v[3] / 1_000_000, v[4], v[5]);
-    }
-}

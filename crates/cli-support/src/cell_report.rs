@@ -263,20 +263,16 @@ pub fn calibrate_session_with(
     let (cooperative, workspace) = if pairs.is_empty() {
         (None, None)
     } else {
-        calib_core::tmp_tick("fit_and_check");
         let split = PredictionSplit::of_calibration(&problem, &cal)
             .map_err(CellCalibrationError::Prediction)?;
-        calib_core::tmp_tick("split");
         let meeting = predict_over(&problem, &cal, &split, &pairs, PairSet::MeetingPairs)
             .map_err(CellCalibrationError::Prediction)?;
-        calib_core::tmp_tick("predict meeting");
         let poses = workspace_pairs(
             &problem,
             &cal.fit.estimate.b1_from_b2,
             WORKSPACE_POSES,
             WORKSPACE_SEED,
         );
-        calib_core::tmp_tick("workspace_pairs");
         let over: Vec<ConfigPair> = poses.into_iter().map(|p| p.pair).collect();
         let workspace = if over.is_empty() {
             None
@@ -288,13 +284,11 @@ pub fn calibrate_session_with(
         };
         (Some(meeting), workspace)
     };
-    calib_core::tmp_tick("predict workspace");
     let coverage = CoverageReport::from(
         &session_coverage(&problem, COVERAGE_SEED).map_err(CellCalibrationError::Coverage)?,
     );
     let rows_by_kind =
         (!session.is_handclasp_only()).then(|| RowsByKind::from_counts(session.kind_counts()));
-    calib_core::tmp_tick("coverage");
     let mut report = CellReport::new(
         cal.report(&problem),
         model,
@@ -307,7 +301,6 @@ pub fn calibrate_session_with(
     report.one_robot = cell.one_robot;
     keep_cell_robots(cell, &mut report.coverage);
     report.result_check = Some(check);
-    calib_core::tmp_tick("report");
     Ok(SessionCalibration {
         report,
         problem,
@@ -340,9 +333,7 @@ fn fit_and_check(
         toleranced,
     )
     .map_err(fit_err)?;
-    calib_core::tmp_tick("stated fit");
     let check = check_result(cell, session, problem, &stated, screen_report).map_err(fit_err)?;
-    calib_core::tmp_tick("check_result");
     if check.refused() || check.likely_mistake.is_some() || stated_scale.is_some() {
         return Ok((stated, check));
     }
@@ -359,9 +350,7 @@ fn fit_and_check(
         }
     };
     // Would the evidence widen at all? (Cheap: no refit unless it does.)
-    let first = widen(&stated_options).map_err(fit_err)?;
-    calib_core::tmp_tick("widen");
-    let Some(first) = first else {
+    let Some(first) = widen(&stated_options).map_err(fit_err)? else {
         return Ok((stated, check));
     };
     let (wide, wide_screen, _) = fit_with_screen(

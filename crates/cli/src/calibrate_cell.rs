@@ -205,7 +205,6 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
             robot.number(),
         );
     }
-    calib_core::tmp_tick("main start");
     let progress = Progress::new(shown(json), "reading the session");
     let session = Session::read_csv(session_path, &cell)?;
     progress.phase(format!(
@@ -343,11 +342,8 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         .with_context(|| format!("--export {}", dir.display()))?,
         None => Vec::new(),
     };
-    calib_core::tmp_tick("before json");
     if json {
         crate::json_out::print_pretty(&report)?;
-        calib_core::tmp_tick("json");
-        calib_core::tmp_report();
     } else {
         print!("{}", text(&report));
         for f in &written {

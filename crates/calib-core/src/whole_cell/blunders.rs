@@ -148,7 +148,6 @@ pub fn fit_screened(
     };
     let mut weights = vec![1.0; all.len()];
     let mut fit = fit_cell_with(problem, layout.clone(), &all, None, solve)?;
-    crate::tmp_tick(&format!("  screen: first fit ({} it)", fit.iterations));
     // The screen's noise scale: 1 (the stated noise) when the model has kinematic unknowns;
     // for a placement-only model (no penalised unknown), whose residuals also carry the robots'
     // unmodelled kinematic error, the a-posteriori variance factor when it exceeds 1.
@@ -201,7 +200,6 @@ pub fn fit_screened(
             break;
         }
     }
-    crate::tmp_tick("  screen: irls");
     // Initial rejection at the robust fit: blocks whose whitened norm² exceeds the threshold
     // (the robust fit has down-weighted them, so its hat matrix understates their leverage;
     // the refits below re-test everything properly).
@@ -246,7 +244,6 @@ pub fn fit_screened(
         return Err(e);
     }
     let mut fit = fit_cell_from(problem, layout.clone(), &active, None, &fit, solve)?;
-    crate::tmp_tick(&format!("  screen: fit after initial rejection ({} it, {} rejected)", fit.iterations, rejected.len()));
     for _ in 0..screen.max_rounds {
         let mut changed = false;
         // Re-admit rejected blocks that the current fit explains.
@@ -285,7 +282,6 @@ pub fn fit_screened(
             return Err(e);
         }
         fit = fit_cell_from(problem, layout.clone(), &active, None, &fit, solve)?;
-        crate::tmp_tick(&format!("  screen: round refit ({} it)", fit.iterations));
     }
     rejected.sort_unstable();
     let mut out = Vec::with_capacity(rejected.len());

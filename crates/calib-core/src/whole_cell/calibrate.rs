@@ -404,9 +404,7 @@ fn choose_prior_scale(
             None => evidence::choose(&model, cap),
         })
     };
-    let first = choose(&screened)?;
-    crate::tmp_tick("  prior: choose 1");
-    let Some(mut choice) = first else {
+    let Some(mut choice) = choose(&screened)? else {
         return Ok((screened, PriorScaleChoice::none()));
     };
     let column_scales = |c: &PriorScaleChoice| {
@@ -433,7 +431,6 @@ fn choose_prior_scale(
     } else {
         refit(&s)?
     };
-    crate::tmp_tick(&format!("  prior: refit ({} it)", fit.iterations));
     if fixed.is_none() && s.iter().any(|&v| v != 1.0) {
         // Relinearise at the fit of the chosen scales (widening moves the estimate by more than
         // the scale-1 fit did) and choose again; refit if the choice changed.
@@ -453,7 +450,6 @@ fn choose_prior_scale(
     // The reference prior: the stated tolerances (`1 / widened` relative to this layout) where
     // the scales shrank them; for the evidence's choice, only as far up as the evidence does not
     // reject (a family the data show near nominal keeps a reference near its scale).
-    crate::tmp_tick("  prior: choose 2 (+refit)");
     let upper = |f: &str| choice.family_scale(f).max(1.0 / widened.get(f));
     let s_ref = if s
         .iter()
@@ -503,16 +499,11 @@ fn one_pass(
     cap: &dyn Fn(&str) -> f64,
 ) -> Result<(Reduction, ScreenedFit, CellFit, PriorScaleChoice), CellFitError> {
     let all: Vec<usize> = (0..problem.observations.len()).collect();
-    crate::tmp_tick("one_pass start");
     let start = initial_estimate(problem, solve.initial_b1_from_b2, &all)?;
-    crate::tmp_tick("initial_estimate");
     let reduction = reduce(problem, &start, &all)?;
-    crate::tmp_tick("reduce");
     let screened = fit_screened(problem, Some(reduction.layout.clone()), solve, screen)?;
-    crate::tmp_tick("fit_screened");
     let (fit, choice) =
         choose_prior_scale(problem, screened.fit.clone(), solve, fixed, widened, cap)?;
-    crate::tmp_tick("choose_prior_scale");
     Ok((reduction, screened, fit, choice))
 }
 

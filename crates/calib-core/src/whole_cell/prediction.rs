@@ -627,7 +627,8 @@ fn rms_bound(
             .map(|(_, z)| (z.dot(&(&gram * z)).max(0.0) / pairs as f64).sqrt())
             .collect()
     } else {
-        let z_all = DMatrix::from_columns(&draws.iter().map(|(_, z)| z.clone()).collect::<Vec<_>>());
+        let z_all =
+            DMatrix::from_columns(&draws.iter().map(|(_, z)| z.clone()).collect::<Vec<_>>());
         let e_all = stacked * (root * z_all);
         draws
             .into_iter()
@@ -962,5 +963,48 @@ mod tests {
             assert!(v.norm() < MEET_TOL_M, "{v:?}");
         }
         assert_eq!(poses, workspace_pairs(&p, &x, 8, 2));
+    }
+
+    /// The rms bound's two forms (the quadratic form without a model error, one product over
+    /// all draws with one) give what drawing `J·L·z` pair by pair gives (the form before
+    /// either), on random Jacobians and a random covariance of rank 4 of 6.
+    #[test]
+    fn rms_bound_equals_the_per_draw_sums() {
+        use rand::SeedableRng;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let (pairs, n) = (40, 6);
+        let stacked = DMatrix::from_fn(3 * pairs, n, |_, _| rng.random_range(-1.0..1.0));
+        let a = DMatrix::from_fn(n, 4, |_, _| rng.random_range(-1.0..1.0));
+        let cov = &a * a.transpose() * 1e-6;
+        for model_var in [0.0, 4e-8] {
+            // The per-draw form.
+            let eig = cov.clone().symmetric_eigen();
+            let root = &eig.eigenvectors
+                * DMatrix::from_diagonal(&eig.eigenvalues.map(|e| e.max(0.0).sqrt()));
+            let mapped = &stacked * root;
+            let mut rms: Vec<f64> = (0..BOUND_DRAWS)
+                .map(|d| {
+                    let mut rng = trial_rng(3, d as u64);
+                    let z = nalgebra::DVector::from_fn(n, |_, _| StandardNormal.sample(&mut rng));
+                    let e = &mapped * z;
+                    let ms = e
+                        .iter()
+                        .map(|v| {
+                            let noise: f64 = StandardNormal.sample(&mut rng);
+                            (v + model_var.sqrt() * noise).powi(2)
+                        })
+                        .sum::<f64>()
+                        / pairs as f64;
+                    ms.sqrt()
+                })
+                .collect();
+            rms.sort_by(f64::total_cmp);
+            let expected = quantile(&rms, 0.95);
+            let got = rms_bound(&stacked, pairs, &cov, model_var, 3);
+            assert!(
+                (got - expected).abs() <= SAME_REL * expected,
+                "model variance {model_var}: {got} vs {expected}"
+            );
+        }
     }
 }

@@ -123,16 +123,8 @@ pub fn reduce_layout(
     active: &[usize],
 ) -> Result<Reduction, CellFitError> {
     let sys = assemble(problem, full, estimate, active, None, true)?;
+    let jd = sys.j.rows(0, sys.data_rows).into_owned();
     let n = full.len();
-    // Every step below reads the data rows only through their columns' inner products
-    // (projections, norms, least squares, singular values), which `J = Q·R` (thin QR, `Q`
-    // orthonormal) keeps: with more rows than columns, work on the columns × columns `R`
-    // (one O(rows·columns²) factorisation instead of every step over the rows).
-    let jd = if sys.data_rows > n {
-        sys.j.rows(0, sys.data_rows).into_owned().qr().r()
-    } else {
-        sys.j.rows(0, sys.data_rows).into_owned()
-    };
     let sig: Vec<f64> = (0..n).map(|j| full.prior_sigma(j)).collect();
     let unpen: Vec<usize> = (0..n).filter(|&j| sig[j] == 0.0).collect();
     let kin: Vec<usize> = (0..n).filter(|&j| sig[j] > 0.0).collect();
@@ -155,6 +147,8 @@ pub fn reduce_layout(
     let mut remaining: Vec<usize> = (0..k).collect();
     let mut kept_order: Vec<usize> = Vec::new();
     let mut q_cols: Vec<DVector<f64>> = Vec::new();
+    // Each column's current norm (the pivot test reads it once per step, not per comparison).
+    let mut norm: Vec<f64> = (0..k).map(|c| work.column(c).norm()).collect();
     loop {
         let best = remaining
             .iter()
@@ -162,16 +156,19 @@ pub fn reduce_layout(
             .filter(|&c| {
                 raw_norm[c] > 0.0
                     && raw_norm[c].powi(2) > PRIOR_INFO_TOL
-                    && work.column(c).norm() > RANK_TOL * raw_norm[c]
+                    && norm[c] > RANK_TOL * raw_norm[c]
             })
-            .max_by(|&x, &y| work.column(x).norm().total_cmp(&work.column(y).norm()));
+            .max_by(|&x, &y| norm[x].total_cmp(&norm[y]));
         let Some(p) = best else { break };
         let q = work.column(p).normalize();
         for &c in &remaining {
             if c != p {
+                // In place, element by element as `w − q·d` (the same values).
                 let d = q.dot(&work.column(c));
-                let upd = work.column(c) - &q * d;
-                work.set_column(c, &upd);
+                for (w, qi) in work.column_mut(c).iter_mut().zip(q.iter()) {
+                    *w -= qi * d;
+                }
+                norm[c] = work.column(c).norm();
             }
         }
         remaining.retain(|&c| c != p);

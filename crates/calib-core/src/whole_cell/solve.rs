@@ -291,14 +291,11 @@ fn linearise_rows_with(
         .copied()
         .filter(|&i| reused.get(i).copied().flatten().is_none())
         .collect();
-    crate::tmp_add(if want_jac { 0 } else { 1 }, fresh.len() as u64);
-    let t0 = std::time::Instant::now();
     let lins: Vec<Result<ObservationLinearisation, CellFitError>> = fresh
         .par_iter()
         .with_min_len(OBSERVATIONS_PER_TASK)
         .map(|&i| ev.linearise(&problem.observations[i], est, want_jac))
         .collect();
-    crate::tmp_add(2, t0.elapsed().as_nanos() as u64);
     let mut lins = lins.into_iter();
     let total: usize = observations
         .iter()
