@@ -973,10 +973,10 @@ mod tests {
         use rand::SeedableRng;
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
         let (pairs, n) = (40, 6);
-        let stacked = DMatrix::from_fn(3 * pairs, n, |_, _| rng.random_range(-1.0..1.0));
-        let a = DMatrix::from_fn(n, 4, |_, _| rng.random_range(-1.0..1.0));
+        let stacked = DMatrix::from_fn(3 * pairs, n, |_, _| rng.random_range(-1.0f64..1.0));
+        let a = DMatrix::from_fn(n, 4, |_, _| rng.random_range(-1.0f64..1.0));
         let cov = &a * a.transpose() * 1e-6;
-        for model_var in [0.0, 4e-8] {
+        for model_var in [0.0f64, 4e-8] {
             // The per-draw form.
             let eig = cov.clone().symmetric_eigen();
             let root = &eig.eigenvectors
