@@ -180,10 +180,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // read and fitted, and while the report is written when stdout is not that terminal too;
     // cleared before anything is printed on a terminal's stdout.
     let stdout_is_terminal = std::io::stdout().is_terminal();
-    let progress = Progress::new(
-        std::io::stderr().is_terminal(),
-        "reading the points CSV",
-    );
+    let progress = Progress::new(std::io::stderr().is_terminal(), "reading the points CSV");
     let pairs = read_points_csv(&cfg.points)?;
     let writing = |progress: &Progress| {
         if stdout_is_terminal {
@@ -194,7 +191,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     if !cfg.all {
         let method = cfg.methods[0];
-        progress.phase(format!("fitting {} points (method {})", pairs.len(), method.name()));
+        progress.phase(format!(
+            "fitting {} points (method {})",
+            pairs.len(),
+            method.name()
+        ));
         let report = fit_report(&pairs, method, &cfg, &progress).map_err(|e| {
             progress.finish();
             let e = anyhow::Error::from(e).context(format!(
@@ -216,7 +217,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let mut report = AllMethods::default();
     for &m in &cfg.methods {
-        progress.phase(format!("fitting {} points (method {})", pairs.len(), m.name()));
+        progress.phase(format!(
+            "fitting {} points (method {})",
+            pairs.len(),
+            m.name()
+        ));
         report.insert(
             m,
             fit_report(&pairs, m, &cfg, &progress).map(StreamedFitReport::into_report),

@@ -547,10 +547,10 @@ mod tests {
     }
 
     /// Largest relative difference of a held-out RMS of the report between the one-step folds
-    /// (`SelectionOptions::refit_every_fold = false`) and the refitted folds. Measured: at most
-    /// 2.8e-7 on the 2,000-row slow-diagnose session; the toy sessions of calib-core's
-    /// `one_step_held_out_rms_agrees_with_refitted_folds` at most (see that test's bound).
-    const HELD_OUT_ONE_STEP_REL_TOL: f64 = 1e-4;
+    /// (`SelectionOptions::refit_every_fold = false`) and the refitted folds: calib-core's bound
+    /// (`one_step_held_out_rms_agrees_with_refitted_folds`: at most 1.4e-4 measured on toy
+    /// sessions of 25–120 points; 2.8e-7 on the 2,000-row slow-diagnose session).
+    const HELD_OUT_ONE_STEP_REL_TOL: f64 = 1e-3;
 
     /// Asserts that two report JSONs are equal but for numbers under a key naming a held-out
     /// figure (`heldout…`), which must agree within [`HELD_OUT_ONE_STEP_REL_TOL`].
@@ -567,7 +567,10 @@ mod tests {
                     let inner = format!("{path}.{key}");
                     match (va, &y[key]) {
                         (Value::Number(p), Value::Number(q)) if key.contains("heldout") => {
-                            let (p, q) = (p.as_f64().unwrap_or(f64::NAN), q.as_f64().unwrap_or(f64::NAN));
+                            let (p, q) = (
+                                p.as_f64().unwrap_or(f64::NAN),
+                                q.as_f64().unwrap_or(f64::NAN),
+                            );
                             let rel = (p - q).abs() / p.abs().max(q.abs()).max(f64::MIN_POSITIVE);
                             assert!(rel <= HELD_OUT_ONE_STEP_REL_TOL, "{inner}: {p} vs {q}");
                         }

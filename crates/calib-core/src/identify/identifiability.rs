@@ -213,8 +213,7 @@ fn parallel_groups(
     // residual rows made this a tenth of a diagnosis); the same values, so the same groups.
     let unit: Vec<Option<DVector<f64>>> = (0..m)
         .map(|a| {
-            (params[a].status == IdentStatus::Identifiable)
-                .then(|| projected.column(a).normalize())
+            (params[a].status == IdentStatus::Identifiable).then(|| projected.column(a).normalize())
         })
         .collect();
     for a in 0..m {

@@ -515,9 +515,11 @@ fn relinearisation_and_selection_are_bit_identical() {
 
 /// Largest relative difference allowed between the held-out RMS of one Gauss–Newton step per
 /// fold ([`kfold_rms_of_fit`]) and of the refitted folds ([`kfold_rms`]). A fold moves the
-/// solution by O(1/n) and the step misses only the curvature over that move; a wrong downdate
-/// (the fold's rows not removed, a sign, the wrong rows) changes the RMS by percents.
-const ONE_STEP_KFOLD_REL_TOL: f64 = 1e-4;
+/// solution by O(1/n) and the step misses only the curvature over that move: measured here at
+/// most 1.4e-4 (25 points, 3 folds: a third of the points held out, 3 parameters), 5e-5 with
+/// 10 folds, 9e-6 at 120 points; this bound is 7× the largest. A wrong downdate (the fold's
+/// rows not removed, a sign, the wrong rows) changes the RMS by percents.
+const ONE_STEP_KFOLD_REL_TOL: f64 = 1e-3;
 
 #[test]
 fn one_step_held_out_rms_agrees_with_refitted_folds() {
