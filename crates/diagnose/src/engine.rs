@@ -553,7 +553,8 @@ mod tests {
     const HELD_OUT_ONE_STEP_REL_TOL: f64 = 1e-3;
 
     /// Asserts that two report JSONs are equal but for numbers under a key naming a held-out
-    /// figure (`heldout…`), which must agree within [`HELD_OUT_ONE_STEP_REL_TOL`].
+    /// figure (`heldout…`), which must agree within [`HELD_OUT_ONE_STEP_REL_TOL`], and the
+    /// held-out RMS printed in a step's text (within that bound plus its last printed digit).
     fn same_but_held_out(a: &serde_json::Value, b: &serde_json::Value, path: &str) {
         use serde_json::Value;
         match (a, b) {
@@ -582,6 +583,28 @@ mod tests {
                 assert_eq!(x.len(), y.len(), "{path}");
                 for (i, (va, vb)) in x.iter().zip(y).enumerate() {
                     same_but_held_out(va, vb, &format!("{path}[{i}]"));
+                }
+            }
+            (Value::String(x), Value::String(y)) if x != y => {
+                // A step's text prints the held-out RMS (`held-out RMS A → B mm`) to 4 decimals:
+                // those two numbers may differ in the last digit, nothing else.
+                let split = |t: &str| -> Option<(String, Vec<f64>, String)> {
+                    let start = t.find("held-out RMS ")? + "held-out RMS ".len();
+                    let end = start + t[start..].find(" mm")?;
+                    let numbers = t[start..end]
+                        .split(" → ")
+                        .map(|v| v.parse::<f64>().ok())
+                        .collect::<Option<Vec<f64>>>()?;
+                    Some((t[..start].to_string(), numbers, t[end..].to_string()))
+                };
+                let (Some((pa, na, sa)), Some((pb, nb, sb))) = (split(x), split(y)) else {
+                    panic!("{path}: {x} vs {y}");
+                };
+                assert_eq!((pa, sa, na.len()), (pb, sb, nb.len()), "{path}");
+                for (p, q) in na.iter().zip(&nb) {
+                    // The printed precision (1e-4 mm) plus the relative bound.
+                    let bound = 1e-4 + HELD_OUT_ONE_STEP_REL_TOL * p.abs().max(q.abs());
+                    assert!((p - q).abs() <= bound, "{path}: {x} vs {y}");
                 }
             }
             _ => assert_eq!(a, b, "{path}"),
