@@ -8,6 +8,7 @@
 //! Default method: `constrained` when mounts are given, otherwise `lsq`.
 
 use std::fmt::Write as _;
+use std::io::IsTerminal;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
@@ -22,6 +23,7 @@ use cli_support::points::{
 };
 
 use crate::calibrate_cell::CellArgs;
+use crate::progress::Progress;
 
 /// Arguments of `handclasp calibrate`: the points path's own ([`PointsArgs`]), the whole-cell
 /// path's own ([`CellArgs`], chosen by `--cell`), and the two flags both paths take.
@@ -174,10 +176,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return crate::calibrate_cell::run(args.cell, args.json, args.force);
     }
     let cfg = config(args.points, args.json, args.force)?;
+    // A spinner on a terminal's stderr (a million points take seconds): drawn while the CSV is
+    // read and fitted, and while the report is written when stdout is not that terminal too;
+    // cleared before anything is printed on a terminal's stdout.
+    let stdout_is_terminal = std::io::stdout().is_terminal();
+    let progress = Progress::new(std::io::stderr().is_terminal(), "reading the points CSV");
     let pairs = read_points_csv(&cfg.points)?;
+    let writing = |progress: &Progress| {
+        if stdout_is_terminal {
+            progress.finish();
+        } else {
+            progress.phase("writing the report");
+        }
+    };
     if !cfg.all {
         let method = cfg.methods[0];
-        let report = fit_report(&pairs, method, &cfg).map_err(|e| {
+        progress.phase(format!(
+            "fitting {} points (method {})",
+            pairs.len(),
+            method.name()
+        ));
+        let report = fit_report(&pairs, method, &cfg, &progress).map_err(|e| {
+            progress.finish();
             let e = anyhow::Error::from(e).context(format!(
                 "{}: method {}",
                 cfg.points.display(),
@@ -187,6 +207,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         })?;
         // The JSON's per-point arrays are written from the fit and the points as they are
         // serialised (`StreamedFitReport`), never held as the report's vectors.
+        writing(&progress);
         if cfg.json {
             crate::json_out::print_pretty(&report)?;
         } else {
@@ -196,12 +217,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let mut report = AllMethods::default();
     for &m in &cfg.methods {
+        progress.phase(format!(
+            "fitting {} points (method {})",
+            pairs.len(),
+            m.name()
+        ));
         report.insert(
             m,
-            fit_report(&pairs, m, &cfg).map(StreamedFitReport::into_report),
+            fit_report(&pairs, m, &cfg, &progress).map(StreamedFitReport::into_report),
         );
     }
     drop(pairs);
+    writing(&progress);
     if cfg.json {
         crate::json_out::print_pretty(&report)?;
     } else {
@@ -243,11 +270,13 @@ fn outcome_text(outcome: &MethodOutcome) -> String {
 }
 
 /// Fits one method through [`cli_support::points::points_report_streamed`] (the library the
-/// Python package shares) and prints its warnings (a misfit kept by `--force`) on stderr.
+/// Python package shares) and prints its warnings (a misfit kept by `--force`) on stderr, out
+/// of the spinner's way.
 fn fit_report<'a>(
     pairs: &'a PointPairs,
     method: Method,
     cfg: &Config,
+    progress: &Progress,
 ) -> Result<StreamedFitReport<'a>, PointsError> {
     let options = PointsOptions {
         method,
@@ -258,7 +287,7 @@ fn fit_report<'a>(
     };
     let fitted = points_report_streamed(pairs, &options, CLI_HINTS)?;
     for w in &fitted.warnings {
-        eprintln!("{w}");
+        progress.eprintln(w);
     }
     Ok(fitted.report)
 }

@@ -1,5 +1,5 @@
-//! A spinner on stderr for the commands' long phases (`calibrate --cell`, `plan`, `import`,
-//! `fk --q-csv`):
+//! A spinner on stderr for the commands' long phases (`calibrate --cell`, `calibrate POINTS.csv`,
+//! `plan`, `import`, `fk --q-csv`):
 //! the phase's name and the elapsed time, cleared when the command is done. Shown only when
 //! stderr is a terminal and the output is not `--json` (scripts and captures see the report
 //! alone), like `sim-cell sweep`'s progress bar.

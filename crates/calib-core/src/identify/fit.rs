@@ -15,7 +15,7 @@ use rayon::prelude::*;
 
 /// Eigenvalues of the Jacobi-scaled `JᵀJ` at or below this fraction of the largest are dropped
 /// from the covariance (pseudo-inverse) and flag the fit [`IdentFit::singular`].
-const COVARIANCE_REL_EIGEN_TOL: f64 = 1e-12;
+pub(super) const COVARIANCE_REL_EIGEN_TOL: f64 = 1e-12;
 
 /// Result of a joint fit of `b1_from_b2` and error parameters.
 #[derive(Debug, Clone)]
@@ -364,24 +364,35 @@ impl LeastSquaresProblem for IdentProblem<'_> {
         )
     }
 
-    /// `X ← Translation(ρ)·Rotation(φ)·X`, `θ ← θ + δθ`.
+    /// `X ← Translation(ρ)·Rotation(φ)·X`, `θ ← θ + δθ` ([`retract`]).
     fn retract(&self, at: &IdentPoint, step: &DVector<f64>) -> IdentPoint {
-        let rho = Vector3::new(step[0], step[1], step[2]);
-        let phi = Vector3::new(step[3], step[4], step[5]);
-        let b1_from_b2 = Isometry3::from_parts(Translation3::from(rho), UnitQuaternion::identity())
-            * Isometry3::from_parts(
-                Translation3::identity(),
-                UnitQuaternion::from_scaled_axis(phi),
-            )
-            * at.b1_from_b2;
-        let values = at
-            .values
-            .iter()
-            .enumerate()
-            .map(|(c, v)| v + step[6 + c])
-            .collect();
+        let (b1_from_b2, values) = retract(&at.b1_from_b2, &at.values, step);
         IdentPoint { b1_from_b2, values }
     }
+}
+
+/// The state moved by the step `[ρ (m); φ (rad); δθ]` of the identification fit:
+/// `X ← Translation(ρ)·Rotation(φ)·X`, `θ ← θ + δθ` (the left perturbation the Jacobian's
+/// columns of [`linearise`] are taken in).
+pub(super) fn retract(
+    b1_from_b2: &Isometry3<f64>,
+    values: &[f64],
+    step: &DVector<f64>,
+) -> (Isometry3<f64>, Vec<f64>) {
+    let rho = Vector3::new(step[0], step[1], step[2]);
+    let phi = Vector3::new(step[3], step[4], step[5]);
+    let x = Isometry3::from_parts(Translation3::from(rho), UnitQuaternion::identity())
+        * Isometry3::from_parts(
+            Translation3::identity(),
+            UnitQuaternion::from_scaled_axis(phi),
+        )
+        * b1_from_b2;
+    let values = values
+        .iter()
+        .enumerate()
+        .map(|(c, v)| v + step[6 + c])
+        .collect();
+    (x, values)
 }
 
 /// Fits `b1_from_b2` and the parameters `params` (starting from `initial_values`, or zeros) on

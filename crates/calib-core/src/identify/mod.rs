@@ -32,7 +32,9 @@
 //!   best with LM, and accepts it only if (a) the F test `ΔRSS/(RSS_new/dof)` against `F(1, dof)` is
 //!   significant at `α/m` (Bonferroni over the `m` candidates screened, which bounds the chance of a
 //!   false alarm at each step by `α` whatever the candidate picked), (b) the K-fold held-out residual
-//!   RMS decreases, and (c) BIC decreases. It stops at the first step that fails. After each
+//!   RMS decreases (each fold's training fit one Gauss–Newton step from the fit on every point,
+//!   [`kfold_rms_of_fit`]; [`SelectionOptions::refit_every_fold`] refits the folds by LM), and
+//!   (c) BIC decreases. It stops at the first step that fails. After each
 //!   accepted step every selected parameter is re-screened against the others and swapped for a
 //!   better one when a refit lowers the RSS (greedy steps can pick a proxy of a true effect), and
 //!   a backward elimination drops any parameter whose F test no longer passes at `α/m₀`.
