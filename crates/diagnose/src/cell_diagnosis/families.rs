@@ -418,4 +418,70 @@ mod tests {
         }
         assert_eq!(n_scales, p.robot1.model.dof());
     }
+
+    /// On a shared-trunk cell (the humanoid of `cells/humanoid-trunk.toml`, robot 1's and robot
+    /// 2's first 4 chain joints one trunk) the trunk's parameters are tested once: a trunk
+    /// family per joint kind holds robot 1's columns at the trunk joints and names them
+    /// `trunk …`; each arm's family holds its joints after the trunk only; every fitted unknown
+    /// is in exactly one family; a one-arm sub-problem keeps only its rows' other-arm postures.
+    #[test]
+    fn a_shared_trunk_is_one_family_per_kind_beside_each_arm() {
+        use sim_cell::{generate_kind_session, trial_rng, KindSpec, Layout, SessionSpec, SimKind};
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../cells/humanoid-trunk.toml");
+        let cell = Cell::from_toml_file(std::path::Path::new(path)).unwrap();
+        let k = cell.shared_joints;
+        assert_eq!(k, 4);
+        let kinds = KindSpec {
+            kind: SimKind::Tracker,
+            tracker_sigma_m: 1e-4,
+            ..KindSpec::default()
+        };
+        let spec = SessionSpec::new(12, Layout::Random, 0.4);
+        let session = generate_kind_session(&cell, &spec, &kinds, None, &mut trial_rng(5, 0))
+            .unwrap()
+            .0;
+        let p = diagnosis_problem(&cell, &session, &CellDiagnoseOptions::default()).unwrap();
+        assert_eq!(p.other_arm_q.len(), 12, "every tracker row gives the other arm");
+        let fams = candidate_families(&p);
+        let trunk: Vec<&Family> = fams.iter().filter(|f| f.trunk).collect();
+        let names: Vec<&str> = trunk.iter().map(|f| f.name.as_str()).collect();
+        assert!(
+            names.contains(&"trunk joint offsets") && names.contains(&"trunk joint origin positions"),
+            "{names:?}"
+        );
+        assert!(trunk.iter().all(|f| f.robot.is_none()));
+        let layout = ParamLayout::new(&p, &[]);
+        for param in layout.params.iter().filter(|c| c.is_kinematic()) {
+            let n = fams.iter().filter(|f| f.contains(param)).count();
+            assert_eq!(n, 1, "{param:?} in {n} families");
+            let CellParam::Kinematic { robot, param: e } = param else {
+                continue;
+            };
+            let at_trunk = e.joint().is_some_and(|j| j < k) && !kinematics::is_branch_param(e, k);
+            // Robot 2's trunk parameters are robot 1's columns: none of its own.
+            assert!(!(at_trunk && *robot == Robot::Two), "{param:?}");
+            let owner = fams.iter().find(|f| f.contains(param)).unwrap();
+            assert_eq!(owner.trunk, at_trunk, "{param:?} in {}", owner.name);
+            if owner.trunk {
+                assert!(owner.param_name(&p, param).starts_with("trunk "), "{param:?}");
+            } else {
+                assert_eq!(owner.param_name(&p, param), param.describe(&p));
+            }
+        }
+        // Both arms' rows involve the trunk; robot 2's families involve its rows only.
+        let r2_offsets = fams
+            .iter()
+            .find(|f| f.robot == Some(2) && f.kind == FamilyKind::JointOffsets)
+            .unwrap();
+        for o in &p.observations {
+            assert!(trunk[0].involves(&o.kind));
+            assert_eq!(
+                r2_offsets.involves(&o.kind),
+                o.kind.tools().iter().any(|(r, _)| *r == Robot::Two)
+            );
+        }
+        let sub = crate::cell_diagnosis::held_out::sub_problem(&p, &[0, 1, 2]);
+        let rows: Vec<usize> = sub.observations.iter().map(|o| o.row).collect();
+        assert_eq!(sub.other_arm_q.keys().copied().collect::<Vec<_>>(), rows);
+    }
 }
