@@ -339,11 +339,7 @@ fn shared_trunk_compliance_is_fitted_from_the_cli_without_masses() {
     )
     .unwrap();
     let truth = Cell::from_toml_file(&truth_path).expect("the truth loads");
-    let mut massless = std::fs::read_to_string(&urdf).unwrap();
-    while let Some(a) = massless.find("<inertial>") {
-        let b = a + massless[a..].find("</inertial>").unwrap() + "</inertial>".len();
-        massless.replace_range(a..b, "");
-    }
+    let massless = crate::support::strip_inertials(&std::fs::read_to_string(&urdf).unwrap());
     let massless_urdf = dir.path().join("humanoid-massless.urdf");
     std::fs::write(&massless_urdf, massless).unwrap();
     let fit_cell = dir.path().join("fit.toml");
