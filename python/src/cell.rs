@@ -66,9 +66,7 @@ impl Cell {
     fn dof(&self) -> (usize, Option<usize>) {
         (
             self.cell.robot1.model.dof(),
-            self.cell
-                .has_robot2()
-                .then(|| self.cell.robot2.model.dof()),
+            self.cell.has_robot2().then(|| self.cell.robot2.model.dof()),
         )
     }
 

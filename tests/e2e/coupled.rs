@@ -511,8 +511,8 @@ fn diagnose_names_a_trunk_error_once_and_an_arm_error_on_its_arm() {
                 "{report}"
             );
         }
-        let back = Cell::from_toml_file(&export.join("cell_corrected.toml"))
-            .expect("the export loads");
+        let back =
+            Cell::from_toml_file(&export.join("cell_corrected.toml")).expect("the export loads");
         assert_eq!(back.shared_joints, 4, "the export is a shared-trunk cell");
         assert_cell_held_out_near_noise(
             &export.join("cell_corrected.toml"),

@@ -155,7 +155,10 @@ fn lumped_compliance_fits_the_sag_without_masses_and_round_trips() {
          them beyond {COEFFICIENT_SIGMAS} σ from zero; prior scale {}",
         lumped_json["prior_scale"]
     );
-    assert!(telling > 0, "no coefficient is told from zero: the check could not fail");
+    assert!(
+        telling > 0,
+        "no coefficient is told from zero: the check could not fail"
+    );
     for r in [Robot::One, Robot::Two] {
         assert!(
             lumped

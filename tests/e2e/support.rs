@@ -210,9 +210,10 @@ pub fn ctu_import(data: &Path, map: &str, files: &[&str], out: &Path) -> String 
 pub fn strip_inertials(urdf: &str) -> String {
     let mut text = urdf.to_string();
     while let Some(a) = text.find("<inertial>") {
-        let b = a + text[a..]
-            .find("</inertial>")
-            .expect("an <inertial> block is closed")
+        let b = a
+            + text[a..]
+                .find("</inertial>")
+                .expect("an <inertial> block is closed")
             + "</inertial>".len();
         text.replace_range(a..b, "");
     }

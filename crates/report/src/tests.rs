@@ -115,7 +115,10 @@ fn one_robot_verdict_is_worded_for_one_robot() {
         text.starts_with("predicted absolute accuracy of robot 1's tool (its position in robot 1's base frame) at the work site"),
         "{text}"
     );
-    assert!(!text.contains("cooperative") && !text.contains("placement"), "{text}");
+    assert!(
+        !text.contains("cooperative") && !text.contains("placement"),
+        "{text}"
+    );
     assert!(work_site_text(&two).starts_with("predicted cooperative accuracy"));
     let (verdict, why) = Acceptance::new(Some(1.5), Some(0.1)).unwrap().verdict(&one);
     assert_eq!(verdict, Verdict::Fail);
@@ -133,7 +136,10 @@ fn one_robot_verdict_is_worded_for_one_robot() {
         why: "out of reach".into(),
     });
     let (_, why) = Acceptance::new(Some(1.5), None).unwrap().verdict(&one);
-    assert!(why.contains("robot 1 does not reach them head-on (rows 2)"), "{why}");
+    assert!(
+        why.contains("robot 1 does not reach them head-on (rows 2)"),
+        "{why}"
+    );
     let json = |w: &WorkSiteReport| serde_json::to_value(w).unwrap();
     assert_eq!(json(&one)["one_robot"], serde_json::json!(true));
     assert!(json(&two).get("one_robot").is_none());

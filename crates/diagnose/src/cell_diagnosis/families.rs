@@ -427,7 +427,10 @@ mod tests {
     #[test]
     fn a_shared_trunk_is_one_family_per_kind_beside_each_arm() {
         use sim_cell::{generate_kind_session, trial_rng, KindSpec, Layout, SessionSpec, SimKind};
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../cells/humanoid-trunk.toml");
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../cells/humanoid-trunk.toml"
+        );
         let cell = Cell::from_toml_file(std::path::Path::new(path)).unwrap();
         let k = cell.shared_joints;
         assert_eq!(k, 4);
@@ -441,12 +444,17 @@ mod tests {
             .unwrap()
             .0;
         let p = diagnosis_problem(&cell, &session, &CellDiagnoseOptions::default()).unwrap();
-        assert_eq!(p.other_arm_q.len(), 12, "every tracker row gives the other arm");
+        assert_eq!(
+            p.other_arm_q.len(),
+            12,
+            "every tracker row gives the other arm"
+        );
         let fams = candidate_families(&p);
         let trunk: Vec<&Family> = fams.iter().filter(|f| f.trunk).collect();
         let names: Vec<&str> = trunk.iter().map(|f| f.name.as_str()).collect();
         assert!(
-            names.contains(&"trunk joint offsets") && names.contains(&"trunk joint origin positions"),
+            names.contains(&"trunk joint offsets")
+                && names.contains(&"trunk joint origin positions"),
             "{names:?}"
         );
         assert!(trunk.iter().all(|f| f.robot.is_none()));
@@ -463,7 +471,10 @@ mod tests {
             let owner = fams.iter().find(|f| f.contains(param)).unwrap();
             assert_eq!(owner.trunk, at_trunk, "{param:?} in {}", owner.name);
             if owner.trunk {
-                assert!(owner.param_name(&p, param).starts_with("trunk "), "{param:?}");
+                assert!(
+                    owner.param_name(&p, param).starts_with("trunk "),
+                    "{param:?}"
+                );
             } else {
                 assert_eq!(owner.param_name(&p, param), param.describe(&p));
             }
