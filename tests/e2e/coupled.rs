@@ -438,11 +438,12 @@ fn diagnose_names_a_trunk_error_once_and_an_arm_error_on_its_arm() {
     let dir = tempfile::tempdir().unwrap();
     let nominal = dir.path().join("nominal.toml");
     std::fs::write(&nominal, humanoid_trunk_with_one_error(1, "")).unwrap();
-    let mut offsets = vec!["0.0"; 11];
-    offsets[3] = "0.3";
+    let hidden_deg = HIDDEN_OFFSET_DEG.to_string();
+    let mut offsets = ["0.0"; 11];
+    offsets[3] = &hidden_deg;
     let trunk_line = format!("joint_offset_deg = [{}]", offsets.join(", "));
     offsets[3] = "0.0";
-    offsets[6] = "0.3";
+    offsets[6] = &hidden_deg;
     let arm_line = format!("joint_offset_deg = [{}]", offsets.join(", "));
     let cases = [
         ("trunk", 1, trunk_line, 61, "trunk joint_offset joint 4"),

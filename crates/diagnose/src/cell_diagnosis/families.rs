@@ -2,8 +2,8 @@
 //! model of them frees: its problem (fitted contact distances, tracker scales and drifts) and
 //! its unknowns (less each origin angle that is a joint offset: [`offset_alias`]).
 //!
-//! On a shared-trunk cell (`[robot2] shares`, [`calib_core::whole_cell::CellRobot::shared_joints`]
-//! > 0) the trunk's parameters are one set, robot 1's columns of the whole-cell layout
+//! On a shared-trunk cell (`[robot2] shares`: a positive
+//! [`calib_core::whole_cell::CellRobot::shared_joints`]) the trunk's parameters are one set, robot 1's columns of the whole-cell layout
 //! ([`ParamLayout::new`] ties robot 2's copies to them, as `calibrate --cell` does), so each
 //! joint family is cut in two: a *trunk* family (the trunk joints' parameters, once: "trunk
 //! joint offsets") and each robot's *arm* family (its joints after the trunk, and its arm links'
