@@ -53,8 +53,8 @@ class Cell:
     def has_robot2(self) -> bool:
         """False for a one-robot cell (no [robot2]: tracker and plane sessions only)."""
     @property
-    def dof(self) -> Tuple[int, int]:
-        """Joint counts of robot 1 and robot 2 (a one-robot cell's robot 2 is a stand-in)."""
+    def dof(self) -> Tuple[int, Optional[int]]:
+        """Joint counts of robot 1 and robot 2; robot 2's is None in a one-robot cell."""
     def to_toml(self) -> str: ...
 
 class Session:

@@ -59,12 +59,15 @@ impl Cell {
         self.cell.has_robot2()
     }
 
-    /// The joint counts `(dof1, dof2)` (the widths of `q1_deg`, `q2_deg`); a one-robot cell's
-    /// `dof2` is that of its stand-in for robot 2 (a copy of robot 1, never used:
-    /// `has_robot2` is false).
+    /// The joint counts `(dof1, dof2)` (the widths of `q1_deg`, `q2_deg`); a one-robot cell
+    /// has no robot 2, so its `dof2` is `None` (`has_robot2` is false), as the other getters
+    /// of what a cell lacks return `None`.
     #[getter]
-    fn dof(&self) -> (usize, usize) {
-        (self.cell.robot1.model.dof(), self.cell.robot2.model.dof())
+    fn dof(&self) -> (usize, Option<usize>) {
+        (
+            self.cell.robot1.model.dof(),
+            self.cell.has_robot2().then(|| self.cell.robot2.model.dof()),
+        )
     }
 
     /// The cell as TOML text (what `export` writes as `cell.toml`).
@@ -74,10 +77,14 @@ impl Cell {
 
     fn __repr__(&self) -> String {
         format!(
-            "Cell(path={:?}, robot1={:?}, robot2={:?})",
+            "Cell(path={:?}, robot1={:?}, robot2={})",
             self.path,
             self.cell.robot1.model.name(),
-            self.cell.robot2.model.name()
+            if self.cell.has_robot2() {
+                format!("{:?}", self.cell.robot2.model.name())
+            } else {
+                "None".to_string()
+            }
         )
     }
 }

@@ -25,8 +25,12 @@ def tracker_csv(rail, tmp_path_factory):
 def test_one_robot_cell_loads(rail):
     _, cell = rail
     assert not cell.has_robot2
-    assert cell.dof[0] == 7  # the track's prismatic joint and the arm's six
-    assert hc.Cell.load(REPO / "cells" / "floor-wall.toml").has_robot2
+    # The track's prismatic joint and the arm's six; no robot 2 (not its stand-in's count).
+    assert cell.dof == (7, None)
+    assert "robot2=None" in repr(cell)
+    two = hc.Cell.load(REPO / "cells" / "floor-wall.toml")
+    assert two.has_robot2
+    assert all(isinstance(d, int) and d > 0 for d in two.dof)
     # The kinds that need two robots are refused, naming the ones that do not.
     with pytest.raises(ValueError, match="only \\[robot1\\].*tracker"):
         hc.simulate_session(cell, n=6, kind="coincident")

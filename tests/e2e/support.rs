@@ -204,3 +204,19 @@ pub fn ctu_import(data: &Path, map: &str, files: &[&str], out: &Path) -> String 
     );
     stdout
 }
+
+/// `urdf` (a URDF's text) with every `<inertial>…</inertial>` block removed: the same robot
+/// with no mass, for fits that must not know the masses the simulator's truth sags under.
+pub fn strip_inertials(urdf: &str) -> String {
+    let mut text = urdf.to_string();
+    while let Some(a) = text.find("<inertial>") {
+        let b = a
+            + text[a..]
+                .find("</inertial>")
+                .expect("an <inertial> block is closed")
+            + "</inertial>".len();
+        text.replace_range(a..b, "");
+    }
+    assert!(!text.contains("<mass"), "a <mass> outside <inertial>");
+    text
+}

@@ -521,7 +521,9 @@ pub struct CellReport {
     /// The model fitted.
     pub model: CellModel,
     /// A one-robot cell (`[robot1]` only): `b1_from_b2` is the stand-in identity, not printed,
-    /// and the coverage holds robot 1 alone. Omitted from the JSON when false.
+    /// the coverage holds robot 1 alone, and the accuracy figures (the work site's, the
+    /// workspace's) are robot 1's absolute accuracy: its tool's position error in its base frame
+    /// (there is no cooperative accuracy). Omitted from the JSON when false.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub one_robot: bool,
     /// The blunder screen's noise scale (residuals' variance factor).
@@ -558,6 +560,7 @@ pub struct CellReport {
     /// The predicted cooperative accuracy over the whole common workspace
     /// ([`calib_core::whole_cell::workspace_pairs`], [`WORKSPACE_POSES`] poses, seed
     /// [`WORKSPACE_SEED`]); `None` without meeting pairs or when no workspace pose is reachable.
+    /// A one-robot cell's is robot 1's absolute accuracy (its stand-in robot 2 is exact).
     pub workspace_accuracy_mm: Option<CooperativeAccuracyReport>,
 }
 
@@ -790,6 +793,11 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
         }
     }
     match &r.cooperative_accuracy_mm {
+        None if r.one_robot => writeln!(
+            s,
+            "predicted cooperative accuracy: not applicable (a one-robot cell: no second robot; \
+             --work-points or --accept-mm give robot 1's absolute accuracy at the work site)"
+        )?,
         None => writeln!(
             s,
             "predicted cooperative accuracy: none (no coincident or contact row: no meeting pair)"
@@ -803,7 +811,14 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
             writeln!(s, "  {}", c.parts_line())?;
         }
     }
-    if let Some(w) = &r.workspace_accuracy_mm {
+    if let Some(w) = r.workspace_accuracy_mm.as_ref().filter(|_| r.one_robot) {
+        writeln!(
+            s,
+            "predicted absolute accuracy of robot 1's tool (its position in robot 1's base frame) over the whole workspace ({} seeded reachable poses within its joint limits): rms {:.3} mm, p95 {:.3} mm",
+            w.pairs, w.predicted_rms, w.predicted_p95
+        )?;
+        writeln!(s, "  {}", w.parts_line())?;
+    } else if let Some(w) = &r.workspace_accuracy_mm {
         writeln!(
             s,
             "predicted cooperative accuracy over the whole workspace ({} seeded reachable handclasps: robot 1 within its joint limits, robot 2 meeting it head-on): rms {:.3} mm, p95 {:.3} mm",

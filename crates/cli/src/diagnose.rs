@@ -374,14 +374,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let site = WorkSiteInputs::read(&args)?;
     let cell = Cell::from_toml_file(&args.cell)?;
-    if cell.shared_joints > 0 {
-        anyhow::bail!(
-            "{}: a shared-trunk cell (`robot2.shares`): diagnose does not tie the trunk's \
-             parameters across the two arms yet, so it would fit the trunk twice; use \
-             `handclasp calibrate --cell` (which fits the trunk once) and `handclasp validate`",
-            args.cell.display()
-        );
-    }
     if args.verbose {
         crate::fk::print_cell_branches(&cell);
     }

@@ -247,7 +247,7 @@ fn compliance_notes(
         let has = |k: FamilyKind| {
             candidates
                 .iter()
-                .any(|f| f.robot == Some(r.number()) && f.kind == k)
+                .any(|f| (f.robot == Some(r.number()) || f.trunk) && f.kind == k)
         };
         if !used || has(FamilyKind::Compliance) {
             continue;
@@ -665,7 +665,7 @@ fn family_parameters(fit: &(CellProblem, CellFit), family: &Family, vf: f64) -> 
             let unit = ParamUnit::of(&fp.param);
             let k = unit.per_si();
             ParamValue {
-                name: fp.name.clone(),
+                name: family.param_name(p, &fp.param),
                 unit,
                 value: fp.value * k,
                 sigma: fp.posterior_sigma * vf * k,

@@ -125,7 +125,8 @@ pub fn work_site_text(w: &WorkSiteReport) -> String {
         None => String::new(),
     };
     format!(
-        "predicted cooperative accuracy at the work site ({}): rms {:.3} mm, p95 {:.3} mm (95 % interval {:.3}–{:.3} mm)\n{rotation}verdict: {}: {}\n",
+        "predicted {} at the work site ({}): rms {:.3} mm, p95 {:.3} mm (95 % interval {:.3}–{:.3} mm)\n{rotation}verdict: {}: {}\n",
+        w.accuracy_name(),
         w.source,
         w.predicted_rms_mm,
         w.predicted_p95_mm,

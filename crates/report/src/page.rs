@@ -178,7 +178,7 @@ fn verdict_box(w: &WorkSiteReport) -> Markup {
         section class=(class) id="verdict" data-verdict=(w.verdict.headline()) {
             div class="headline" { (w.verdict.headline()) }
             div class="figures" {
-                "Predicted cooperative accuracy at the work site (" (w.source) "): "
+                "Predicted " (w.accuracy_name()) " at the work site (" (w.source) "): "
                 strong { "rms " (format!("{:.3}", w.predicted_rms_mm)) " mm" } ", "
                 strong { "p95 " (format!("{:.3}", w.predicted_p95_mm)) " mm" }
                 " (95 % interval " (format!("{lo:.3}–{hi:.3}")) " mm)"
@@ -234,13 +234,19 @@ fn work_point_plot(w: &WorkSiteReport) -> Option<Result<String, String>> {
 fn work_site_details(w: &WorkSiteReport, posterior: &str) -> Markup {
     html! {
         @if !w.unreachable.is_empty() {
-            p { "Work points not predicted (both robots do not reach them head-on):" }
+            p { "Work points not predicted (" (if w.one_robot { "robot 1 does not reach them head-on" } else { "both robots do not reach them head-on" }) "):" }
             ul { @for u in &w.unreachable { li { "row " (u.row) " (" (format!("{:.1}, {:.1}, {:.1}", u.p_b1_mm[0], u.p_b1_mm[1], u.p_b1_mm[2])) " mm): " (u.why) } } }
         }
         p class="note" {
-            "The prediction is the posterior error of the vector from tip 2 to tip 1 (base 1) where both tips meet head-on at each work point, "
+            @if w.one_robot {
+                "The prediction is the posterior error of robot 1's tool position in its base frame (its absolute accuracy: where the measuring device's registration puts the tool) with the tool head-on at each work point, "
+            } @else {
+                "The prediction is the posterior error of the vector from tip 2 to tip 1 (base 1) where both tips meet head-on at each work point, "
+            }
             "from " (posterior) "; the p95 and its interval come from a seeded draw (seed " (w.seed) "). "
-            "The rotation figure is the placement's (b1_from_b2), not the tools' orientation at the work site. "
+            @if !w.one_robot {
+                "The rotation figure is the placement's (b1_from_b2), not the tools' orientation at the work site. "
+            }
             "At the work points, " (w.parts_mm.parts_line()) "."
         }
     }

@@ -21,6 +21,7 @@ use crate::*;
 fn work_site(p95: f64, ci: [f64; 2], rot_ci: [f64; 2]) -> WorkSiteReport {
     WorkSiteReport {
         acceptance: Acceptance::default(),
+        one_robot: false,
         parts_mm: calib_core::whole_cell::PredictedErrorReport {
             data_part_rms: p95 / 4.0,
             held_out_ratio: None,
@@ -97,6 +98,51 @@ fn verdict_rule() {
         assert!(Acceptance::new(Some(bad), None).is_err());
         assert!(Acceptance::new(None, Some(bad)).is_err());
     }
+}
+
+/// A one-robot cell's verdict names what it predicts (robot 1's absolute accuracy in its base
+/// frame, not a cooperative one), has no placement rotation (an `--accept-deg` is not met and
+/// the why says to drop it), its work points are robot 1's, and its JSON says `one_robot`
+/// (absent from a two-robot report).
+#[test]
+fn one_robot_verdict_is_worded_for_one_robot() {
+    let two = work_site(1.0, [0.9, 1.2], [0.01, 0.02]);
+    let mut one = two.clone();
+    one.one_robot = true;
+    one.placement_rotation = None;
+    let text = work_site_text(&one);
+    assert!(
+        text.starts_with("predicted absolute accuracy of robot 1's tool (its position in robot 1's base frame) at the work site"),
+        "{text}"
+    );
+    assert!(
+        !text.contains("cooperative") && !text.contains("placement"),
+        "{text}"
+    );
+    assert!(work_site_text(&two).starts_with("predicted cooperative accuracy"));
+    let (verdict, why) = Acceptance::new(Some(1.5), Some(0.1)).unwrap().verdict(&one);
+    assert_eq!(verdict, Verdict::Fail);
+    assert!(
+        why.contains("one-robot cell has no placement") && why.contains("drop --accept-deg"),
+        "{why}"
+    );
+    assert_eq!(
+        Acceptance::new(Some(1.5), None).unwrap().verdict(&one).0,
+        Verdict::Pass
+    );
+    one.unreachable.push(UnreachableReport {
+        p_b1_mm: [5000.0, 0.0, 0.0],
+        row: 2,
+        why: "out of reach".into(),
+    });
+    let (_, why) = Acceptance::new(Some(1.5), None).unwrap().verdict(&one);
+    assert!(
+        why.contains("robot 1 does not reach them head-on (rows 2)"),
+        "{why}"
+    );
+    let json = |w: &WorkSiteReport| serde_json::to_value(w).unwrap();
+    assert_eq!(json(&one)["one_robot"], serde_json::json!(true));
+    assert!(json(&two).get("one_robot").is_none());
 }
 
 fn csv_file(text: &str) -> tempfile::NamedTempFile {

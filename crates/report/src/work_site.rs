@@ -162,6 +162,15 @@ impl Acceptance {
                         if ok { "is within" } else if r.p95_deg > a { "exceeds" } else { "is not shown to be within" }
                     ));
                 }
+                None if w.one_robot => {
+                    pass = false;
+                    why.push(
+                        "a one-robot cell has no placement, so no rotation error is predicted \
+                         (--accept-deg checks b1_from_b2's; the tool's orientation is not \
+                         predicted): drop --accept-deg"
+                            .into(),
+                    );
+                }
                 None => {
                     pass = false;
                     why.push(
@@ -174,8 +183,13 @@ impl Acceptance {
         if !w.unreachable.is_empty() {
             pass = false;
             why.push(format!(
-                "{} work point(s) are not predicted: both robots do not reach them head-on (rows {})",
+                "{} work point(s) are not predicted: {} (rows {})",
                 w.unreachable.len(),
+                if w.one_robot {
+                    "robot 1 does not reach them head-on"
+                } else {
+                    "both robots do not reach them head-on"
+                },
                 w.unreachable
                     .iter()
                     .map(|u| u.row.to_string())
@@ -282,34 +296,59 @@ impl RotationFigures {
 
 /// The verdict at the work site: the predicted cooperative accuracy there (mm), the
 /// placement's rotation error (degrees), what the user accepts, and PASS or FAIL with why.
+/// On a one-robot cell ([`WorkSiteReport::one_robot`]) the position figures are robot 1's
+/// absolute accuracy: the error of its tool's position in its base frame (the frame the
+/// measuring device's registration puts it in), and there is no placement.
 /// Fields in alphabetical order (the JSON key order of every report).
 #[derive(Debug, Clone, Serialize)]
 pub struct WorkSiteReport {
     /// What the user accepts.
     pub acceptance: Acceptance,
+    /// A one-robot cell (JSON `"one_robot": true`, absent for two robots): the predicted
+    /// errors are of robot 1's tool position in its base frame (its absolute accuracy), not of
+    /// the vector between two tools, and there is no placement rotation.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub one_robot: bool,
     /// The prediction at the work points in parts (data-determined, prior-asserted, model
     /// error) with its 95 % bound, mm.
     pub parts_mm: PredictedErrorReport,
-    /// The predicted rotation error of `b1_from_b2`; `None` when the fit did not estimate it.
+    /// The predicted rotation error of `b1_from_b2`; `None` when the fit did not estimate it,
+    /// and on a one-robot cell (no placement).
     pub placement_rotation: Option<RotationPredictionReport>,
     /// The predicted points.
     pub points: Vec<WorkPointReport>,
     /// Distribution-free 95 % interval of the p95 from the seeded draws, mm.
     pub predicted_p95_ci_mm: [f64; 2],
-    /// Predicted 95th percentile of the cooperative position error over the points, mm.
+    /// Predicted 95th percentile of the cooperative position error over the points (one-robot
+    /// cell: of robot 1's tool position in its base frame), mm.
     pub predicted_p95_mm: f64,
-    /// Predicted rms of the cooperative position error over the points, mm.
+    /// Predicted rms of the cooperative position error over the points (one-robot cell: of
+    /// robot 1's tool position in its base frame), mm.
     pub predicted_rms_mm: f64,
     /// Seed of the p95 draws.
     pub seed: u64,
     /// Where the points come from (a file, or the cell's teach centre).
     pub source: String,
-    /// Work points both robots do not reach head-on (not predicted).
+    /// Work points both robots do not reach head-on (one-robot cell: robot 1 does not reach
+    /// head-on), not predicted.
     pub unreachable: Vec<UnreachableReport>,
     /// PASS, FAIL or no acceptance stated.
     pub verdict: Verdict,
     /// Why, one clause per check.
     pub why: String,
+}
+
+impl WorkSiteReport {
+    /// What the position figures are, for a sentence: `cooperative accuracy` (two robots), or
+    /// `absolute accuracy of robot 1's tool (its position in robot 1's base frame)` (a
+    /// one-robot cell).
+    pub fn accuracy_name(&self) -> &'static str {
+        if self.one_robot {
+            "absolute accuracy of robot 1's tool (its position in robot 1's base frame)"
+        } else {
+            "cooperative accuracy"
+        }
+    }
 }
 
 /// The meeting pairs with their 0-based work-point index, and the points that failed with why.
@@ -457,9 +496,16 @@ pub fn predict_work_site_of_fit(
             why,
         })
         .collect();
-    let placement_rotation = placement_rotation_report(problem, fit, seed)?;
+    // A one-robot cell's placement is its stand-in's, held at the identity: no rotation to
+    // predict.
+    let placement_rotation = if cell.one_robot {
+        None
+    } else {
+        placement_rotation_report(problem, fit, seed)?
+    };
     let mut report = WorkSiteReport {
         acceptance,
+        one_robot: cell.one_robot,
         parts_mm: PredictedErrorReport::from(&prediction),
         placement_rotation,
         points,

@@ -1,6 +1,13 @@
 //! The candidate families of the selection ([`Family`], [`candidate_families`]) and what a
 //! model of them frees: its problem (fitted contact distances, tracker scales and drifts) and
 //! its unknowns (less each origin angle that is a joint offset: [`offset_alias`]).
+//!
+//! On a shared-trunk cell (`[robot2] shares`: a positive
+//! [`calib_core::whole_cell::CellRobot::shared_joints`]) the trunk's parameters are one set, robot 1's columns of the whole-cell layout
+//! ([`ParamLayout::new`] ties robot 2's copies to them, as `calibrate --cell` does), so each
+//! joint family is cut in two: a *trunk* family (the trunk joints' parameters, once: "trunk
+//! joint offsets") and each robot's *arm* family (its joints after the trunk, and its arm links'
+//! lumped coefficients on the trunk joints: each arm's weight on the trunk is its own).
 
 use calib_core::whole_cell::{CellParam, CellProblem, GroupKind, ObservationKind, ParamLayout};
 use calib_core::Robot;
@@ -50,21 +57,40 @@ pub enum FamilyKind {
     TrackerDrift,
 }
 
-/// A candidate family: a kind of parameter on one robot (or the cell's contact groups).
+/// A candidate family: a kind of parameter on one robot, on a shared trunk, or on the
+/// session's groups.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct Family {
     /// The robot (1 or 2); `None` for the session-wide families ([`FamilyKind::ContactDistance`],
-    /// [`FamilyKind::TrackerScale`], [`FamilyKind::TrackerDrift`]).
+    /// [`FamilyKind::TrackerScale`], [`FamilyKind::TrackerDrift`]) and the trunk's.
     pub robot: Option<u8>,
     /// The kind.
     #[serde(flatten)]
     pub kind: FamilyKind,
-    /// A readable name, e.g. `robot 1 joint offsets`, `robot 2 tool tip tip`.
+    /// A readable name, e.g. `robot 1 joint offsets`, `robot 2 tool tip tip`, `trunk joint
+    /// offsets`.
     pub name: String,
+    /// A shared trunk's family (JSON `"trunk": true`, absent otherwise): the parameters of the
+    /// first [`Family::trunk_joints`] chain joints, which both arms share (module docs).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub trunk: bool,
+    /// The cell's shared trunk joints (robot 2's `shared_joints`; 0: no shared trunk). A robot
+    /// family of a shared-trunk cell leaves the trunk's parameters to the trunk family.
+    #[serde(skip)]
+    pub trunk_joints: usize,
 }
 
 impl Family {
     fn new(robot: Option<Robot>, kind: FamilyKind, problem: &CellProblem) -> Self {
+        Self::scoped(robot, false, kind, problem)
+    }
+
+    /// The trunk family of `kind` on a shared-trunk cell.
+    fn trunk(kind: FamilyKind, problem: &CellProblem) -> Self {
+        Self::scoped(None, true, kind, problem)
+    }
+
+    fn scoped(robot: Option<Robot>, trunk: bool, kind: FamilyKind, problem: &CellProblem) -> Self {
         let what = match kind {
             FamilyKind::JointOffsets => "joint offsets".to_string(),
             FamilyKind::JointScales => "joint scales".to_string(),
@@ -83,13 +109,26 @@ impl Family {
         };
         let name = match robot {
             Some(r) => format!("{r} {what}"),
+            None if trunk => format!("trunk {what}"),
             None => what,
         };
         Self {
             robot: robot.map(Robot::number),
             kind,
             name,
+            trunk,
+            trunk_joints: problem.robot2.shared_joints,
         }
+    }
+
+    /// Whether `p` (robot `robot`'s kinematic parameter) is a parameter of the shared trunk:
+    /// robot 1's (the layout's one copy) at a trunk joint, other than an arm link's lumped
+    /// coefficient on it ([`kinematics::is_branch_param`]).
+    fn is_trunk_param(&self, robot: Robot, p: &ErrorParam) -> bool {
+        let k = self.trunk_joints;
+        robot == Robot::One
+            && p.joint().is_some_and(|j| j < k)
+            && !kinematics::is_branch_param(p, k)
     }
 
     fn robot_is(&self, r: Robot) -> bool {
@@ -109,7 +148,19 @@ impl Family {
                 .tools()
                 .iter()
                 .any(|(r, t)| self.robot_is(*r) && *t == tool),
+            // Both arms ride on the trunk.
+            _ if self.trunk => !kind.tools().is_empty(),
             _ => kind.tools().iter().any(|(r, _)| self.robot_is(*r)),
+        }
+    }
+
+    /// The report's name of the family's unknown `p`: [`CellParam::describe`], except that a
+    /// trunk family names its parameters once as the trunk's (`trunk joint_offset joint 2`, not
+    /// robot 1's copy).
+    pub fn param_name(&self, problem: &CellProblem, p: &CellParam) -> String {
+        match p {
+            CellParam::Kinematic { param, .. } if self.trunk => format!("trunk {param}"),
+            _ => p.describe(problem),
         }
     }
 
@@ -123,7 +174,12 @@ impl Family {
                 self.robot_is(*robot) && *t == tool
             }
             (kind, CellParam::Kinematic { robot, param }) => {
-                self.robot_is(*robot)
+                let scope = if self.trunk {
+                    self.is_trunk_param(*robot, param)
+                } else {
+                    self.robot_is(*robot) && !self.is_trunk_param(*robot, param)
+                };
+                scope
                     && matches!(
                         (kind, param),
                         (FamilyKind::JointOffsets, ErrorParam::JointOffset { .. })
@@ -146,12 +202,23 @@ impl Family {
     }
 }
 
-/// The candidate families of `problem` (the widened diagnosis problem): per robot, each
-/// family whose tolerance is > 0 (tool tips only for tools the session uses), then the contact
-/// distances when a contact group states its distance, then the tracker scales and drifts when
-/// the session has a tracker group.
+/// The candidate families of `problem` (the widened diagnosis problem): on a shared-trunk cell
+/// first the trunk's families (robot 1's tolerances, which the layout gives the trunk's one
+/// set of parameters); per robot, each family whose tolerance is > 0 (tool tips only for tools
+/// the session uses), then the contact distances when a contact group states its distance, then
+/// the tracker scales and drifts when the session has a tracker group. A joint family with no
+/// fitted parameter (an arm of trunk joints only, a trunk without lumped coefficients of its
+/// own) is left out.
 pub fn candidate_families(problem: &CellProblem) -> Vec<Family> {
     let mut out = Vec::new();
+    let shared = problem.robot2.shared_joints > 0;
+    let layout = ParamLayout::new(problem, &[]);
+    let has_params = |f: &Family| {
+        layout
+            .params
+            .iter()
+            .any(|p| f.contains(p) && !offset_alias(problem, p))
+    };
     for r in [Robot::One, Robot::Two] {
         let rb = problem.robot(r);
         let tol = &rb.tolerance;
@@ -176,13 +243,23 @@ pub fn candidate_families(problem: &CellProblem) -> Vec<Family> {
                 tol.periodic_rad.unwrap_or(0.0) > 0.0,
             ),
         ];
+        // The trunk's families (robot 1's tolerances), whichever arm the rows measure.
+        if shared && r == Robot::One && !problem.observations.is_empty() {
+            for (kind, on) in joint_families {
+                let f = Family::trunk(kind, problem);
+                if on && has_params(&f) {
+                    out.push(f);
+                }
+            }
+        }
         let used = |o: &&calib_core::whole_cell::Observation| uses_robot(&o.kind, r);
         if !problem.observations.iter().any(|o| used(&o)) {
             continue;
         }
         for (kind, on) in joint_families {
-            if on {
-                out.push(Family::new(Some(r), kind, problem));
+            let f = Family::new(Some(r), kind, problem);
+            if on && (!shared || has_params(&f)) {
+                out.push(f);
             }
         }
         if tol.tip_m > 0.0 {
@@ -340,5 +417,82 @@ mod tests {
             }
         }
         assert_eq!(n_scales, p.robot1.model.dof());
+    }
+
+    /// On a shared-trunk cell (the humanoid of `cells/humanoid-trunk.toml`, robot 1's and robot
+    /// 2's first 4 chain joints one trunk) the trunk's parameters are tested once: a trunk
+    /// family per joint kind holds robot 1's columns at the trunk joints and names them
+    /// `trunk …`; each arm's family holds its joints after the trunk only; every fitted unknown
+    /// is in exactly one family; a one-arm sub-problem keeps only its rows' other-arm postures.
+    #[test]
+    fn a_shared_trunk_is_one_family_per_kind_beside_each_arm() {
+        use sim_cell::{generate_kind_session, trial_rng, KindSpec, Layout, SessionSpec, SimKind};
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../cells/humanoid-trunk.toml"
+        );
+        let cell = Cell::from_toml_file(std::path::Path::new(path)).unwrap();
+        let k = cell.shared_joints;
+        assert_eq!(k, 4);
+        let kinds = KindSpec {
+            kind: SimKind::Tracker,
+            tracker_sigma_m: 1e-4,
+            ..KindSpec::default()
+        };
+        let spec = SessionSpec::new(12, Layout::Random, 0.4);
+        let session = generate_kind_session(&cell, &spec, &kinds, None, &mut trial_rng(5, 0))
+            .unwrap()
+            .0;
+        let p = diagnosis_problem(&cell, &session, &CellDiagnoseOptions::default()).unwrap();
+        assert_eq!(
+            p.other_arm_q.len(),
+            12,
+            "every tracker row gives the other arm"
+        );
+        let fams = candidate_families(&p);
+        let trunk: Vec<&Family> = fams.iter().filter(|f| f.trunk).collect();
+        let names: Vec<&str> = trunk.iter().map(|f| f.name.as_str()).collect();
+        assert!(
+            names.contains(&"trunk joint offsets")
+                && names.contains(&"trunk joint origin positions"),
+            "{names:?}"
+        );
+        assert!(trunk.iter().all(|f| f.robot.is_none()));
+        let layout = ParamLayout::new(&p, &[]);
+        for param in layout.params.iter().filter(|c| c.is_kinematic()) {
+            let n = fams.iter().filter(|f| f.contains(param)).count();
+            assert_eq!(n, 1, "{param:?} in {n} families");
+            let CellParam::Kinematic { robot, param: e } = param else {
+                continue;
+            };
+            let at_trunk = e.joint().is_some_and(|j| j < k) && !kinematics::is_branch_param(e, k);
+            // Robot 2's trunk parameters are robot 1's columns: none of its own.
+            assert!(!(at_trunk && *robot == Robot::Two), "{param:?}");
+            let owner = fams.iter().find(|f| f.contains(param)).unwrap();
+            assert_eq!(owner.trunk, at_trunk, "{param:?} in {}", owner.name);
+            if owner.trunk {
+                assert!(
+                    owner.param_name(&p, param).starts_with("trunk "),
+                    "{param:?}"
+                );
+            } else {
+                assert_eq!(owner.param_name(&p, param), param.describe(&p));
+            }
+        }
+        // Both arms' rows involve the trunk; robot 2's families involve its rows only.
+        let r2_offsets = fams
+            .iter()
+            .find(|f| f.robot == Some(2) && f.kind == FamilyKind::JointOffsets)
+            .unwrap();
+        for o in &p.observations {
+            assert!(trunk[0].involves(&o.kind));
+            assert_eq!(
+                r2_offsets.involves(&o.kind),
+                o.kind.tools().iter().any(|(r, _)| *r == Robot::Two)
+            );
+        }
+        let sub = crate::cell_diagnosis::held_out::sub_problem(&p, &[0, 1, 2]);
+        let rows: Vec<usize> = sub.observations.iter().map(|o| o.row).collect();
+        assert_eq!(sub.other_arm_q.keys().copied().collect::<Vec<_>>(), rows);
     }
 }

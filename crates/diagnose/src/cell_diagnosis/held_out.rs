@@ -73,6 +73,9 @@ pub(super) fn sub_problem(problem: &CellProblem, rows: &[usize]) -> CellProblem 
         }
         p.observations.push(o);
     }
+    // A shared trunk's other-arm postures, of the rows kept only (keyed by source row).
+    p.other_arm_q
+        .retain(|row, _| p.observations.iter().any(|o| o.row == *row));
     p
 }
 
