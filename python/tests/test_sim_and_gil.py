@@ -86,7 +86,7 @@ def _summary_equals_sim_cell(cols, args, out):
     for i, row in enumerate(rows):
         for k, v in row.items():
             got = cols[k][i]
-            assert (str(got) == v) if isinstance(got, str) else (float(v) == got or (np.isnan(got) and v == "")), k
+            assert (str(got) == v) if isinstance(got, str) else (float(v or "nan") == got or (np.isnan(got) and v in ("", "NaN"))), k
 
 
 def test_sweep_robot_mode_matches_sim_cell(cell_path, tmp_path):

@@ -17,7 +17,7 @@ def calibrated(data, cell, cell_path, cli, tmp_path_factory):
         "calibrate", "--cell", cell_path, "--session", data / "mixed.csv", "--export", d / "cal"
     )
     assert rc == 0, err
-    hc.simulate_session(cell, n=16, seed=6, layout="random", kind="mixed").to_csv(d / "held.csv")
+    hc.simulate_session(cell, n=36, seed=6, layout="random", kind="mixed").to_csv(d / "held.csv")
     return d / "cal" / "cell.toml", d / "held.csv"
 
 
