@@ -272,7 +272,8 @@ pub fn sweep<'py>(
         "robot" => Mode::Robot,
         other => {
             return Err(value_error(format!(
-                "mode={other:?}: use \"geometry\" (points and noise only) or \"robot\" (full sessions)"
+                "mode={other:?}: use \"geometry\" (points and noise only) or \"robot\" \
+                 (full sessions)"
             )))
         }
     };
@@ -337,7 +338,8 @@ pub fn sweep<'py>(
     let robot_cells: Vec<handclasp_cell::Cell> = match (mode, cells) {
         (Mode::Geometry, _) => Vec::new(),
         (Mode::Robot, Some(given)) => {
-            let given: Vec<handclasp_cell::Cell> = given.iter().map(|c| (*c.cell).clone()).collect();
+            let given: Vec<handclasp_cell::Cell> =
+                given.iter().map(|c| (*c.cell).clone()).collect();
             mounts = given.iter().map(handclasp_cell::Cell::mounts).collect();
             given
         }
