@@ -2,22 +2,12 @@
 //! [--nuisance split|fixed [--calibration-session OLD.csv]] [--json]`: a calibrated cell scored
 //! on a session it was not fitted to, beside the nominal cell.
 //!
-//! 1. Read both cells and the session (with the nominal cell when given, else or if its
-//!    models disagree with the tip columns with the calibrated cell: a session's tip columns
-//!    are what the controllers reported, the FK of the models they ran).
-//! 2. For each cell, the problem of the session ([`cell_problem`], placement model: nothing of
-//!    the cell is fitted) and the cell as an estimate: the calibrated cell's placement, URDFs,
-//!    tips and `[robotN.errors]` (what a URDF cannot hold, [`truth_estimate`]); the nominal
-//!    cell's placement, URDFs and tips, its `[robotN.errors]` ignored (a simulated cell's are
-//!    its hidden truth).
-//! 3. The session's nuisances (tracker frames, planes, fitted contact distances) per
-//!    `--nuisance`: `split` (default) fits each group's on alternate rows and scores the others
-//!    ([`held_out_residuals`]); `fixed` fits them on `--calibration-session` with the same cell
-//!    held and carries them over by group name ([`carry_nuisances`]).
-//! 4. Per kind, per group (coincident rows: one unit) and over all rows: rows, rms of the
-//!    residual (mm: the 3-D norm of a coincident or tracker row, the distance of a contact or
-//!    plane row) and the whitened rms (1 when the residuals are as large as the stated noise),
-//!    for both cells, and their ratio.
+//! Reads both cells and the session (with the nominal cell when given, else or if its models
+//! disagree with the tip columns with the calibrated cell), scores each cell on the session with
+//! the nuisances `--nuisance` says (`split`: refitted on alternate rows of each group; `fixed`:
+//! fitted on `--calibration-session` and carried over by group name), and prints per kind, per
+//! group and over all rows each cell's rms, largest and whitened residual and their ratio. How
+//! each step is done: [`cli_support::validate`].
 //!
 //! A calibrated cell whose whitened rms over all rows is above the nominal cell's prints a
 //! `warning:` on stderr, as does one whose whitened rms over all rows is above
