@@ -20,7 +20,10 @@ Entry points (each mirrors a CLI command; ``.to_dict()`` equals its ``--json`` o
   ROS 2 files of the cell's ``b1_from_b2``)
 - ``simulate_session(cell, n, seed)``, ``plan(cell, n)``: ``sim-cell session``, ``handclasp plan`` (a ``PlanResult``:
   ``.session``, ``.to_dict()``)
-- ``sweep(cell, ...)``: a seeded Monte Carlo of the whole-cell calibration over session sizes
+- ``validate(calibrated_cell, session, nominal=None, nuisance="split")``: ``handclasp validate`` (a
+  calibrated cell scored on data it was not fitted to, beside the nominal cell)
+- ``sweep(...)``: ``sim-cell sweep``, a seeded Monte Carlo of the points fit over the paper's cells
+  (``mode="robot"``: full simulated sessions on the robots, the whole-cell methods too)
 
 Errors: ``ValueError`` for bad shapes, NaN and invalid input; ``OSError`` subclasses for file
 problems; ``CalibrationError`` when a fit fails. Long calls release the GIL.
@@ -42,6 +45,7 @@ from ._handclasp import (
     PointsResult,
     Robot,
     Session,
+    ValidateResult,
     calibrate_cell,
     diagnose,
     export_controllers,
@@ -49,6 +53,7 @@ from ._handclasp import (
     import_session,
     plan,
     simulate_session,
+    validate,
 )
 
 __version__ = _handclasp.__version__
@@ -63,6 +68,7 @@ __all__ = [
     "PointsResult",
     "Robot",
     "Session",
+    "ValidateResult",
     "calibrate_cell",
     "calibrate_points",
     "diagnose",
@@ -73,6 +79,7 @@ __all__ = [
     "plan",
     "simulate_session",
     "sweep",
+    "validate",
 ]
 
 
@@ -111,11 +118,16 @@ def calibrate_points(p1_mm: Any, p2_mm: Any = None, **options: Any) -> Any:
 
 
 def sweep(**options: Any) -> Any:
-    """A seeded Monte Carlo sweep of the points fit over the paper's cells (``sim-cell sweep``,
-    geometry mode): one row per grid cell (mounts × noise × spread × points) and method, errors
-    in mm and degrees. Options: ``mounts`` (list of floor-floor, floor-wall, floor-ceiling),
-    ``noise_mm``, ``spread_mm``, ``n_points``, ``methods``, ``trials`` (per grid cell, default
-    200), ``seed`` (default 1), ``trials_table`` (the per-trial table instead of the summary).
+    """A seeded Monte Carlo sweep over the paper's cells (``sim-cell sweep``): one row per grid
+    cell (mounts × noise × spread × points) and method, errors in mm and degrees. Options:
+    ``mounts`` (list of floor-floor, floor-wall, floor-ceiling), ``noise_mm``, ``spread_mm``,
+    ``n_points``, ``methods``, ``trials`` (per grid cell, default 200 in geometry mode, 5 in
+    robot mode), ``seed`` (default 1), ``trials_table`` (the per-trial table instead of the
+    summary), ``mode`` (``"geometry"``: points and noise only, the default; ``"robot"``: full
+    sessions on the robots, ``--mode robot``, with methods ``paper-spread4``, ``placement``,
+    ``kinematic`` too), and in robot mode ``layout`` (tetrahedron, random, planar, clustered,
+    planned), ``kinematic_errors`` (``"none"`` or ``"tolerance"``) and ``cells`` (a list of
+    ``Cell`` instead of the paper's; their mounts replace ``mounts``).
 
     Returns a pandas DataFrame when pandas is installed, else a dict of columns (numpy arrays,
     lists of str for text columns).

@@ -183,7 +183,9 @@ class CellResult:
         (x_mm,y_mm,z_mm). Returns the path written."""
     def export(self, dir: _Path, overwrite: bool = False, force: bool = False) -> List[str]:
         """Write cell.toml, robot1.urdf, robot2.urdf (calibrate --cell --export), under the
-        CLI's export lock; a non-empty folder needs overwrite=True (force=True is refused)."""
+        CLI's export lock; a non-empty folder needs overwrite=True (force=True is refused).
+        Writes the model as fitted: the CLI's do-no-harm check of --export is not run (it is
+        the binary's own code); diagnose(cell, session).export(dir) applies the diagnosis's."""
     def text(self) -> str: ...
     def to_json(self) -> str: ...
     def to_dict(self) -> Dict[str, Any]:
@@ -217,7 +219,7 @@ class DiagnoseResult:
         dir: _Path,
         overwrite: bool = False,
         force: bool = False,
-        keep_withheld: bool = False,
+        keep_withheld: Optional[bool] = None,
     ) -> List[str]:
         """Write the corrected model (diagnose --export), under the CLI's export lock; a
         non-empty folder needs overwrite=True (force=True is refused).
@@ -225,7 +227,8 @@ class DiagnoseResult:
         Whole-cell diagnoses write the do-no-harm rule's model and, when the rule withholds
         families, issue a UserWarning naming each and why (the CLI's `warning: do no harm: ...`);
         keep_withheld=True writes the full model (the CLI's --export --force) and warns that it
-        did. Coincident diagnoses have no such rule (keep_withheld changes nothing)."""
+        did; its default (None) is diagnose's force. Coincident diagnoses have no such rule
+        (keep_withheld changes nothing)."""
     def text(self) -> str: ...
     def to_json(self) -> str: ...
     def to_dict(self) -> Dict[str, Any]:
@@ -275,10 +278,40 @@ def diagnose(
     work_points: Optional[Union[_Array, _Path]] = None,
     accept_mm: Optional[float] = None,
     accept_deg: Optional[float] = None,
+    force: bool = False,
 ) -> DiagnoseResult:
     """work_points, accept_mm, accept_deg: the verdict at the work site of the model export()
     writes (whole-cell diagnoses; ValueError on a coincident-only session), as `diagnose
-    --work-points F --accept-mm X --accept-deg Y` (result.work_site)."""
+    --work-points F --accept-mm X --accept-deg Y` (result.work_site). force=True (--force): the
+    verdict and export() are for the full model, the families the do-no-harm rule withholds
+    included (to_dict()["work_site_model"]["model"] == "full")."""
+
+class ValidateResult:
+    """A calibrated cell scored on a session it was not fitted to, beside the nominal cell."""
+    @property
+    def all(self) -> Dict[str, Any]:
+        """Over every row: rows, calibrated/nominal scores (rms_mm, max_mm, whitened_rms),
+        rms_ratio (calibrated rms / nominal rms; below 1 the calibration helps)."""
+    @property
+    def warnings(self) -> List[str]:
+        """The CLI's `warning:` lines (also issued as UserWarnings)."""
+    def text(self) -> str: ...
+    def to_json(self) -> str: ...
+    def to_dict(self) -> Dict[str, Any]:
+        """Equal to json.loads of `handclasp validate ... --json`."""
+
+def validate(
+    calibrated_cell: Cell,
+    session: Union[Session, _Path],
+    nominal: Optional[Cell] = None,
+    nuisance: str = "split",
+    calibration_session: Optional[Union[Session, _Path]] = None,
+) -> ValidateResult:
+    """handclasp validate --cell C --session S [--nominal N] [--nuisance split|fixed
+    --calibration-session OLD]: each cell's held-out residuals per kind, per group and over
+    all rows. nuisance="split" refits each group's tracker frame/plane/contact distance on
+    alternate rows and scores the others; "fixed" fits them on calibration_session. A session
+    path is read with the nominal cell first, then the calibrated one."""
 def simulate_session(
     cell: Cell,
     n: int = 6,
@@ -306,10 +339,15 @@ def sweep(
     spread_mm: Optional[Sequence[float]] = None,
     n_points: Optional[Sequence[int]] = None,
     methods: Optional[Sequence[str]] = None,
-    trials: int = 200,
+    trials: Optional[int] = None,
     seed: int = 1,
     trials_table: bool = False,
-) -> Dict[str, Union[_F64, List[str]]]: ...
+    mode: str = "geometry",
+    layout: Optional[str] = None,
+    kinematic_errors: str = "none",
+    cells: Optional[Sequence[Cell]] = None,
+) -> Dict[str, Union[_F64, List[str]]]:
+    """sim-cell sweep; mode="robot" (--mode robot) with layout, kinematic_errors, cells."""
 def import_session(cell: Cell, map: _Path, inputs: Sequence[_Path]) -> Session:
     """A dataset's CSV files as a session of `cell`, as a mapping file says (handclasp import)."""
 def export_controllers(

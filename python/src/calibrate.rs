@@ -263,6 +263,13 @@ impl CellResult {
     /// `calibrate --cell --export DIR`, under the same folder lock: a non-empty folder raises
     /// `FileExistsError` unless `overwrite` (`--overwrite`), as does a concurrent export into
     /// it; `force=True` no longer overwrites (`ValueError`). Returns the files written.
+    ///
+    /// It writes the model as fitted. `calibrate --cell --export DIR` first runs a do-no-harm
+    /// check (the model against nominal by region-held-out cross-validation; a model worse than
+    /// nominal in a held-out region is replaced by the placement-only calibration unless
+    /// `--force`). That check is the `handclasp` binary's own code, not yet in a library this
+    /// package calls, so `export` does not run it: for a checked export use the CLI, or
+    /// `diagnose(cell, session).export(dir)` (the diagnosis's do-no-harm rule, family by family).
     #[pyo3(signature = (dir, overwrite=false, force=false))]
     fn export(
         &self,
@@ -458,6 +465,9 @@ pub struct DiagnoseResult {
     diagnosis: Diagnosis,
     /// The verdict at the work site and the model it is for, when `diagnose` was asked for it.
     work_site: Option<(WorkSiteReport, VerdictModel)>,
+    /// `diagnose(force=True)` (`--force`): the verdict and the export are for the full model,
+    /// the families the do-no-harm rule withholds included.
+    force: bool,
     cell: Arc<handclasp_cell::Cell>,
     /// The cell's and the session's files as the page names them.
     cell_path: String,
@@ -473,8 +483,8 @@ const COINCIDENT_NO_VERDICT: &str = "work_points, accept_mm and accept_deg need 
 
 impl DiagnoseResult {
     /// The verdict at the work site of the model a whole-cell diagnosis exports
-    /// (`report::diagnosis_work_site`, what `diagnose` calls; the do-no-harm model), GIL
-    /// released. Errors: `ValueError` for a coincident diagnosis, `CalibrationError` when the
+    /// (`report::diagnosis_work_site`, what `diagnose` calls: the do-no-harm model, or the full
+    /// model with `force=True`, as `--force`), GIL released. Errors: `ValueError` for a coincident diagnosis, `CalibrationError` when the
     /// prediction fails.
     fn predict(
         &self,
@@ -489,7 +499,7 @@ impl DiagnoseResult {
                 diagnosis_work_site(
                     &self.cell,
                     r,
-                    false,
+                    self.force,
                     &site.points,
                     &site.source,
                     site.acceptance,
@@ -545,17 +555,23 @@ impl DiagnoseResult {
     /// withholds families, a `UserWarning` says which and why (the CLI's `warning: do no harm:
     /// …` line, then one line per withheld family with the held-out folds where the model
     /// with it is worse than nominal). `keep_withheld=True` writes the full model, the
-    /// withheld families included (the CLI's `--export --force`), and warns that it did.
-    /// Coincident diagnoses have no such rule: `keep_withheld` changes nothing.
-    #[pyo3(signature = (dir, overwrite=false, force=false, keep_withheld=false))]
+    /// withheld families included (the CLI's `--export --force`), and warns that it did;
+    /// its default (`None`) is `diagnose`'s `force`, so `diagnose(…, force=True).export(dir)`
+    /// writes what `diagnose … --force --export DIR` writes. Coincident diagnoses have no such
+    /// rule: `keep_withheld` changes nothing.
+    #[pyo3(signature = (dir, overwrite=false, force=false, keep_withheld=None))]
     fn export(
         &self,
         py: Python<'_>,
         dir: PathBuf,
         overwrite: bool,
         force: bool,
-        keep_withheld: bool,
+        keep_withheld: Option<bool>,
     ) -> PyResult<Vec<String>> {
+        let (keep_withheld, by) = match keep_withheld {
+            Some(k) => (k, "keep_withheld=True"),
+            None => (self.force, "diagnose(force=True)"),
+        };
         let files = locked_export(py, &dir, overwrite, force, || match &self.diagnosis {
             Diagnosis::Coincident(r) => {
                 ::diagnose::export_corrected(&self.cell, r, &r.b1_from_b2.to_isometry(), &dir)
@@ -568,8 +584,8 @@ impl DiagnoseResult {
             if let Some(warning) = r.do_no_harm_warning("keep_withheld=True") {
                 let text = if keep_withheld {
                     format!(
-                        "kept by keep_withheld=True: {} holds the full model, families the \
-                         do-no-harm rule withholds included ({warning})",
+                        "kept by {by}: {} holds the full model, families the do-no-harm \
+                         rule withholds included ({warning})",
                         dir.display()
                     )
                 } else {
@@ -708,8 +724,14 @@ fn coverage(
 /// `to_dict()["work_site"]` / `["work_site_model"]` hold the CLI's verdict for the model
 /// `export` writes (the do-no-harm rule's). On a coincident-only session they raise
 /// `ValueError`, as the CLI refuses them.
+///
+/// `force=True` (`diagnose --force`): the verdict (and `.report(path)`'s, and `.export(dir)`'s
+/// default) is for the full model, the families the do-no-harm rule withholds included, as the
+/// CLI's `--force` makes it (`to_dict()["work_site_model"]["model"]` says `"full"`). Unlike the
+/// CLI, `diagnose` runs no result check (a placement fit) before the diagnosis, so there is no
+/// refusal for `force` to keep.
 #[pyfunction]
-#[pyo3(signature = (cell, session, seed=1, trials=400, prior_widening=10.0, truth_xyz_mm=None, truth_zyz_deg=None, work_points=None, accept_mm=None, accept_deg=None))]
+#[pyo3(signature = (cell, session, seed=1, trials=400, prior_widening=10.0, truth_xyz_mm=None, truth_zyz_deg=None, work_points=None, accept_mm=None, accept_deg=None, force=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn diagnose(
     py: Python<'_>,
@@ -723,6 +745,7 @@ pub fn diagnose(
     work_points: Option<&Bound<'_, PyAny>>,
     accept_mm: Option<f64>,
     accept_deg: Option<f64>,
+    force: bool,
 ) -> PyResult<DiagnoseResult> {
     let truth = match (truth_xyz_mm, truth_zyz_deg) {
         (Some(t), Some(z)) => {
@@ -805,6 +828,7 @@ pub fn diagnose(
     let mut result = DiagnoseResult {
         diagnosis,
         work_site: None,
+        force,
         cell: c,
         cell_path: shown(cell.path.as_deref(), "(a Cell)"),
         session_path: shown(session.path.as_deref(), "(a Session from arrays)"),

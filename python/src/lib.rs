@@ -9,7 +9,7 @@
 //! Modules: `errors` (the mapping), `arrays` (numpy in and out), `points`
 //! (`calibrate_points`), `robot` (`Robot`, `fk`), `cell` (`Cell`, `Session`),
 //! `calibrate` (`calibrate_cell`, `diagnose`), `sim` (`simulate_session`, `plan`, `sweep`),
-//! `outputs` (`export_controllers`), `work_site` (the verdict's inputs and the page's invocation).
+//! `outputs` (`export_controllers`), `validate` (`validate`), `work_site` (the verdict's inputs and the page's invocation).
 
 use pyo3::prelude::*;
 
@@ -21,6 +21,7 @@ mod outputs;
 mod points;
 mod robot;
 mod sim;
+mod validate;
 mod work_site;
 
 /// The native module: classes, functions and `CalibrationError`.
@@ -40,6 +41,7 @@ fn _handclasp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<calibrate::CellResult>()?;
     m.add_class::<calibrate::DiagnoseResult>()?;
     m.add_class::<sim::PlanResult>()?;
+    m.add_class::<validate::ValidateResult>()?;
     m.add_function(wrap_pyfunction!(points::calibrate_points, m)?)?;
     m.add_function(wrap_pyfunction!(robot::fk, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate::calibrate_cell, m)?)?;
@@ -49,5 +51,6 @@ fn _handclasp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sim::sweep, m)?)?;
     m.add_function(wrap_pyfunction!(cell::import_session, m)?)?;
     m.add_function(wrap_pyfunction!(outputs::export_controllers, m)?)?;
+    m.add_function(wrap_pyfunction!(validate::validate, m)?)?;
     Ok(())
 }

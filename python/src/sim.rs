@@ -230,14 +230,22 @@ pub fn plan(
     })
 }
 
-/// A seeded Monte Carlo sweep of the points fit over the paper's cells (geometry mode, as
-/// `sim-cell sweep` runs it): for each grid cell (mounts × noise × spread × points) `trials`
-/// simulated handclasp sessions, each fitted by every method. Returns the summary table
-/// (`sim-cell sweep`'s `summary.csv`: one row per grid cell and method, errors in mm and deg) as
-/// a dict of columns, or with `trials_table=True` the per-trial table (`trials.csv`). Runs with
-/// the GIL released; the result is identical whatever the thread count.
+/// A seeded Monte Carlo sweep over the paper's cells, as `sim-cell sweep` runs it: for each grid
+/// cell (mounts × noise × spread × points) `trials` simulated sessions, each fitted by every
+/// method. Returns the summary table (`sim-cell sweep`'s `summary.csv`: one row per grid cell
+/// and method, errors in mm and deg) as a dict of columns, or with `trials_table=True` the
+/// per-trial table (`trials.csv`). Runs with the GIL released; the result is identical whatever
+/// the thread count.
+///
+/// `mode`: `"geometry"` (points and noise only, fast; default) or `"robot"` (`--mode robot`:
+/// full sessions on the cells' robots: IK, reach limits, encoder quantisation, repeatability;
+/// methods also `paper-spread4`, `placement`, `kinematic`). Robot mode only: `layout`
+/// (`tetrahedron`, `random`, `planar`, `clustered`, `planned`; `--layout`), `kinematic_errors`
+/// (`"none"`: the cells' `[robotN.errors]`; `"tolerance"`: drawn per trial from
+/// `[robotN.tolerance]`) and `cells` (a list of `Cell`s instead of the paper's three; their
+/// mounts replace `mounts`, `--cell`). `trials` defaults to 200 (geometry) or 5 (robot).
 #[pyfunction]
-#[pyo3(signature = (mounts=None, noise_mm=None, spread_mm=None, n_points=None, methods=None, trials=200, seed=1, trials_table=false))]
+#[pyo3(signature = (mounts=None, noise_mm=None, spread_mm=None, n_points=None, methods=None, trials=None, seed=1, trials_table=false, mode="geometry", layout=None, kinematic_errors="none", cells=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn sweep<'py>(
     py: Python<'py>,
@@ -246,15 +254,63 @@ pub fn sweep<'py>(
     spread_mm: Option<Vec<f64>>,
     n_points: Option<Vec<usize>>,
     methods: Option<Vec<String>>,
-    trials: usize,
+    trials: Option<usize>,
     seed: u64,
     trials_table: bool,
+    mode: &str,
+    layout: Option<&str>,
+    kinematic_errors: &str,
+    cells: Option<Vec<PyRef<'_, crate::cell::Cell>>>,
 ) -> PyResult<Bound<'py, pyo3::types::PyDict>> {
     use sim_cell::sweep::{
-        run_sweep, summarize_cells, write_summary_csv, write_trials_csv, SweepConfig, SweepMethod,
+        run_sweep, summarize_cells, write_summary_csv, write_trials_csv, KinematicErrorDraw, Mode,
+        SweepConfig, SweepLayout, SweepMethod,
     };
     let defaults = SweepConfig::default();
-    let mounts = match mounts {
+    let mode = match mode {
+        "geometry" => Mode::Geometry,
+        "robot" => Mode::Robot,
+        other => {
+            return Err(value_error(format!(
+                "mode={other:?}: use \"geometry\" (points and noise only) or \"robot\" \
+                 (full sessions)"
+            )))
+        }
+    };
+    let robot_only = |given: bool, what: &str| {
+        if given && mode == Mode::Geometry {
+            Err(value_error(format!(
+                "{what} is for mode=\"robot\" (geometry mode uses the paper's placements and layouts only)"
+            )))
+        } else {
+            Ok(())
+        }
+    };
+    robot_only(cells.is_some(), "cells")?;
+    robot_only(kinematic_errors != "none", "kinematic_errors")?;
+    let layout = match layout {
+        None => defaults.layout,
+        Some("planned") => SweepLayout::Planned,
+        Some(name) => sim_cell::layout::Layout::ALL
+            .into_iter()
+            .find(|l| l.name() == name)
+            .map(SweepLayout::from)
+            .ok_or_else(|| {
+                value_error(format!(
+                    "layout={name:?}: use tetrahedron, random, planar, clustered or (robot mode) planned"
+                ))
+            })?,
+    };
+    let kinematic_errors = match kinematic_errors {
+        "none" => KinematicErrorDraw::None,
+        "tolerance" => KinematicErrorDraw::Tolerance,
+        other => {
+            return Err(value_error(format!(
+                "kinematic_errors={other:?}: use \"none\" (the cells' [robotN.errors]) or \"tolerance\" (drawn per trial)"
+            )))
+        }
+    };
+    let mut mounts = match mounts {
         None => defaults.mounts.clone(),
         Some(m) => m
             .iter()
@@ -271,13 +327,33 @@ pub fn sweep<'py>(
             .map(|m| {
                 SweepMethod::from_name(m).ok_or_else(|| {
                     value_error(format!(
-                        "methods: unknown method `{m}`; use generic, generic-affine, paper, lsq or constrained"
+                        "methods: unknown method `{m}`; use generic, generic-affine, paper, lsq, constrained, or in robot mode paper-spread4, placement, kinematic"
                     ))
                 })
             })
             .collect::<PyResult<Vec<_>>>()?,
     };
+    // Robot mode: one cell per mount pair, the given cells (their mounts replace `mounts`) or
+    // the paper's.
+    let robot_cells: Vec<handclasp_cell::Cell> = match (mode, cells) {
+        (Mode::Geometry, _) => Vec::new(),
+        (Mode::Robot, Some(given)) => {
+            let given: Vec<handclasp_cell::Cell> =
+                given.iter().map(|c| (*c.cell).clone()).collect();
+            mounts = given.iter().map(handclasp_cell::Cell::mounts).collect();
+            given
+        }
+        (Mode::Robot, None) => mounts
+            .iter()
+            .map(|m| {
+                handclasp_cell::Cell::shipped(*m).ok_or_else(|| {
+                    value_error("robot mode without cells knows the paper's three cells only")
+                })
+            })
+            .collect::<PyResult<_>>()?,
+    };
     let config = SweepConfig {
+        mode,
         mounts,
         noise_mm: noise_mm.unwrap_or(defaults.noise_mm.clone()),
         spread_m: spread_mm.map_or(defaults.spread_m.clone(), |s| {
@@ -285,13 +361,17 @@ pub fn sweep<'py>(
         }),
         n_points: n_points.unwrap_or(defaults.n_points.clone()),
         methods,
-        trials,
+        layout,
+        kinematic_errors,
+        trials: trials.unwrap_or(match mode {
+            Mode::Geometry => 200,
+            Mode::Robot => 5,
+        }),
         seed,
-        ..defaults
     };
     let text = py
         .detach(|| -> Result<Vec<u8>, sim_cell::SimError> {
-            let result = run_sweep(&config, &[], &|_| {})?;
+            let result = run_sweep(&config, &robot_cells, &|_| {})?;
             let mut out = Vec::new();
             let written = if trials_table {
                 write_trials_csv(&result, &mut out)

@@ -70,6 +70,51 @@ def test_sweep_columns(tmp_path):
                 assert (str(got) == v) if isinstance(got, str) else (float(v) == got or (np.isnan(got) and v == "")), k
 
 
+
+def _summary_equals_sim_cell(cols, args, out):
+    """The summary columns equal `sim-cell sweep ARGS --out OUT`'s summary.csv, cell for cell."""
+    import csv
+    import subprocess
+
+    exe = _binary("sim-cell")
+    if exe is None:
+        pytest.skip("the sim-cell binary is not built")
+    subprocess.run([str(exe), "sweep", *args, "--out", str(out)], capture_output=True, text=True, check=True)
+    with open(out / "summary.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert rows and len(rows) == len(cols["method"])
+    for i, row in enumerate(rows):
+        for k, v in row.items():
+            got = cols[k][i]
+            assert (str(got) == v) if isinstance(got, str) else (float(v or "nan") == got or (np.isnan(got) and v in ("", "NaN"))), k
+
+
+def test_sweep_robot_mode_matches_sim_cell(cell_path, tmp_path):
+    """mode="robot" (full simulated sessions on the robots) with a cell, a planned layout and drawn
+    kinematic errors: sim-cell sweep --mode robot's summary, value for value."""
+    kw = dict(noise_mm=[0.5], spread_mm=[800.0], n_points=[6], methods=["lsq", "placement"], trials=2,
+              seed=3, mode="robot", layout="random", kinematic_errors="tolerance", cells=[hc.Cell.load(cell_path)])
+    cols = hc._handclasp.sweep(**kw)
+    assert sorted(set(cols["method"])) == ["lsq", "placement"]
+    _summary_equals_sim_cell(
+        cols,
+        ["--mode", "robot", "--cell", str(cell_path), "--noise-mm", "0.5", "--spread-mm", "800", "--points", "6",
+         "--methods", "lsq,placement", "--trials", "2", "--seed", "3", "--layout", "random",
+         "--kinematic-errors", "tolerance"],
+        tmp_path / "sw",
+    )
+
+
+def test_sweep_mode_arguments_are_checked(cell):
+    with pytest.raises(ValueError, match="mode="):
+        hc.sweep(mode="fast")
+    with pytest.raises(ValueError, match="for mode=\"robot\""):
+        hc.sweep(cells=[cell], trials=1)
+    with pytest.raises(ValueError, match="for mode=\"robot\""):
+        hc.sweep(kinematic_errors="tolerance", trials=1)
+    with pytest.raises(ValueError, match="layout="):
+        hc.sweep(mode="robot", layout="spiral", trials=1)
+
 def test_the_gil_is_released(cell):
     """A second Python thread keeps running while plan works in Rust (about a second of CPU)."""
     ticks = []

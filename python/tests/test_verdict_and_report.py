@@ -133,3 +133,38 @@ def test_diagnosis_report_page_equals_the_cli(cell, cell_path, data, cli, work_c
     py_page = (tmp_path / "py.html").read_text()
     assert 'id="command-line">python: handclasp.DiagnoseResult.report</pre>' in py_page
     assert _without_invocation(py_page) == _without_invocation(cli_page)
+
+
+def test_diagnose_force_is_the_cli_force(cell, cell_path, data, cli_json, cli, work_csv, tmp_path):
+    """diagnose(force=True) gives `diagnose --force`'s verdict (the full model, the families the
+    do-no-harm rule withholds included), JSON and text; force=False the do-no-harm model's; and
+    export() then writes what `--force --export` writes."""
+    path = data / "mixed.csv"
+    flags = ["--work-points", work_csv, "--accept-mm", 1.0, "--accept-deg", 0.5]
+    s = hc.Session.load(path, cell)
+    kw = dict(work_points=work_csv, accept_mm=1.0, accept_deg=0.5)
+    forced = hc.diagnose(cell, s, force=True, **kw)
+    expected = cli_json("diagnose", "--cell", cell_path, "--session", path, *flags, "--force")
+    assert forced.to_dict() == expected
+    assert expected["work_site_model"]["model"] == "full"
+    every = [e["family"]["name"] for e in expected["effects"]]
+    assert expected["work_site_model"]["families"] == every
+    rc, text, err = cli("diagnose", "--cell", cell_path, "--session", path, *flags, "--force")
+    assert rc == 0, err
+    assert forced.text() == text
+    safe = hc.diagnose(cell, s, **kw).to_dict()
+    withheld = [w["family"] for w in safe["do_no_harm"]["withheld"]]
+    assert safe["work_site_model"]["model"] == ("do_no_harm" if withheld else "full")
+    assert safe["work_site_model"]["withheld"] == withheld
+    # export() defaults to diagnose's force: the full model, file for file with --force --export.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        files = forced.export(tmp_path / "py")
+    kept = [str(w.message) for w in caught if "kept by diagnose(force=True)" in str(w.message)]
+    assert len(kept) == (1 if withheld else 0)
+    rc, _, err = cli("diagnose", "--cell", cell_path, "--session", path, "--force", "--export", tmp_path / "cli")
+    assert rc == 0, err
+    for f in files:
+        if not f.endswith(".toml"):  # cell.toml names its own folder's URDFs
+            with open(f, encoding="utf-8") as a, open(tmp_path / "cli" / f.split("/")[-1], encoding="utf-8") as b:
+                assert a.read() == b.read(), f

@@ -5,6 +5,7 @@ pub mod controllers;
 pub mod export_dir;
 pub mod points;
 pub mod result_check;
+pub mod validate;
 
 /// Ends the process quietly with exit 0 when printing fails because stdout was closed early
 /// (`handclasp … | head`, `sim-cell … | head`): the reader has what it wanted, so no broken-pipe

@@ -2,45 +2,30 @@
 //! [--nuisance split|fixed [--calibration-session OLD.csv]] [--json]`: a calibrated cell scored
 //! on a session it was not fitted to, beside the nominal cell.
 //!
-//! 1. Read both cells and the session (with the nominal cell when given, else or if its
-//!    models disagree with the tip columns with the calibrated cell: a session's tip columns
-//!    are what the controllers reported, the FK of the models they ran).
-//! 2. For each cell, the problem of the session ([`cell_problem`], placement model: nothing of
-//!    the cell is fitted) and the cell as an estimate: the calibrated cell's placement, URDFs,
-//!    tips and `[robotN.errors]` (what a URDF cannot hold, [`truth_estimate`]); the nominal
-//!    cell's placement, URDFs and tips, its `[robotN.errors]` ignored (a simulated cell's are
-//!    its hidden truth).
-//! 3. The session's nuisances (tracker frames, planes, fitted contact distances) per
-//!    `--nuisance`: `split` (default) fits each group's on alternate rows and scores the others
-//!    ([`held_out_residuals`]); `fixed` fits them on `--calibration-session` with the same cell
-//!    held and carries them over by group name ([`carry_nuisances`]).
-//! 4. Per kind, per group (coincident rows: one unit) and over all rows: rows, rms of the
-//!    residual (mm: the 3-D norm of a coincident or tracker row, the distance of a contact or
-//!    plane row) and the whitened rms (1 when the residuals are as large as the stated noise),
-//!    for both cells, and their ratio.
+//! Reads both cells and the session (with the nominal cell when given, else or if its models
+//! disagree with the tip columns with the calibrated cell), scores each cell on the session with
+//! the nuisances `--nuisance` says (`split`: refitted on alternate rows of each group; `fixed`:
+//! fitted on `--calibration-session` and carried over by group name), and prints per kind, per
+//! group and over all rows each cell's rms, largest and whitened residual and their ratio. How
+//! each step is done: [`cli_support::validate`].
 //!
 //! A calibrated cell whose whitened rms over all rows is above the nominal cell's prints a
 //! `warning:` on stderr, as does one whose whitened rms over all rows is above
-//! [`NOISE_WARNING_WHITENED_RMS`] (the data contradict the stated noise).
+//! [`cli_support::validate::NOISE_WARNING_WHITENED_RMS`] (the data contradict the stated noise).
+//!
+//! The scores, the text and the warnings are [`cli_support::validate`]'s, which the Python
+//! package's `handclasp.validate` calls too; this module reads the files and prints.
 
-use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use anyhow::{bail, Context};
-use calib_core::whole_cell::{
-    carry_nuisances, fit_nuisances, group_name, held_out_residuals, CellEstimate, CellProblem,
-    GroupKind, HeldOutResidual, Kind, NuisanceMode, SolveOptions,
+use anyhow::bail;
+use cli_support::validate::{
+    read_session, render_text, validate, warnings, NamedCell, NuisanceSource,
 };
-use handclasp_cell::problem::{cell_problem, truth_estimate, FitModel};
-use handclasp_cell::{Cell, Session};
-use serde::Serialize;
+use handclasp_cell::Cell;
 
-/// A whitened rms over all rows above this prints a `warning:`: the rows are this many times
-/// as far off as the cell's and session's stated σ allow. Over the tens of residuals of a
-/// session, chance alone keeps the whitened rms within a few tenths of 1 (its sampling spread is
-/// about `1/sqrt(2·residuals)`); 3 is far beyond that, and below the factors an understated σ
-/// or an unmodelled error produces (tens, on the CTU tracker files).
-pub const NOISE_WARNING_WHITENED_RMS: f64 = 3.0;
+/// How a session read with the wrong cell is told to name the nominal cell.
+const NOMINAL_HINT: &str = "--nominal NOMINAL.toml";
 
 /// Arguments of `handclasp validate`.
 #[derive(clap::Args, Debug)]
@@ -70,247 +55,13 @@ pub struct Args {
     pub json: bool,
 }
 
-/// `--nuisance`; serialised as its name.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
+/// `--nuisance`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum NuisanceArg {
     /// Refitted on alternate rows of each group, scored on the others.
     Split,
     /// Fitted on the calibration session, carried over by group name.
     Fixed,
-}
-
-/// One cell's score of a set of rows.
-#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
-pub struct Score {
-    /// Largest residual, mm.
-    pub max_mm: f64,
-    /// `sqrt(mean ‖r‖²)` over the rows, mm (a coincident or tracker row's 3-D norm, a contact
-    /// or plane row's distance).
-    pub rms_mm: f64,
-    /// `sqrt(χ²/residuals)` of the whitened residuals: 1 when the rows are as far off as the
-    /// stated noise says.
-    pub whitened_rms: f64,
-}
-
-impl Score {
-    fn of<'a>(rows: impl Iterator<Item = &'a HeldOutResidual>) -> Option<Score> {
-        let (mut n, mut sum2, mut max, mut chi2, mut dof) = (0usize, 0.0, 0f64, 0.0, 0usize);
-        for r in rows {
-            let norm = r.raw_m.norm();
-            n += 1;
-            sum2 += norm * norm;
-            max = max.max(norm);
-            chi2 += r.whitened.norm_squared();
-            dof += r.whitened.len();
-        }
-        (n > 0).then(|| Score {
-            max_mm: max * 1e3,
-            rms_mm: (sum2 / n as f64).sqrt() * 1e3,
-            whitened_rms: (chi2 / dof as f64).sqrt(),
-        })
-    }
-}
-
-/// The scores of one unit (a kind, a group, or all rows).
-#[derive(Debug, Clone, Serialize)]
-pub struct UnitScore {
-    /// The calibrated cell's score.
-    pub calibrated: Score,
-    /// The group's name (`null` for a kind, or all rows).
-    pub group: Option<String>,
-    /// The kind name, `"coincident"` for the coincident rows' unit, `"all"` for every row.
-    pub kind: String,
-    /// The nominal cell's score (`null` without `--nominal`).
-    pub nominal: Option<Score>,
-    /// Calibrated rms / nominal rms (`null` without `--nominal`): below 1, the calibration helps.
-    pub rms_ratio: Option<f64>,
-    /// Rows in the unit.
-    pub rows: usize,
-}
-
-/// What `handclasp validate` prints (`--json` serialises it).
-#[derive(Debug, Clone, Serialize)]
-pub struct ValidateReport {
-    /// Over every row of the session (the rms mixes 3-D and 1-D rows; the whitened rms is the
-    /// one to compare).
-    pub all: UnitScore,
-    /// Per observation kind, in the session CSV's kind order.
-    pub by_kind: Vec<UnitScore>,
-    /// Per nuisance group (in order of first appearance), then the coincident rows as one unit.
-    pub by_group: Vec<UnitScore>,
-    /// The calibrated cell file.
-    pub calibrated_cell: String,
-    /// Groups where the calibrated cell's rms is below the nominal's, of those compared.
-    pub groups_improved: Option<[usize; 2]>,
-    /// The nominal cell file (`null` without `--nominal`).
-    pub nominal_cell: Option<String>,
-    /// `split` or `fixed`.
-    pub nuisance: NuisanceArg,
-    /// The scored session file.
-    pub session: String,
-}
-
-/// One cell's held-out residuals of the session.
-fn residuals(
-    cell: &Cell,
-    session: &Session,
-    calibrated: bool,
-    mode: NuisanceArg,
-    calibration: Option<&Session>,
-) -> anyhow::Result<(CellProblem, Vec<HeldOutResidual>)> {
-    let problem = cell_problem(cell, session, FitModel::Placement);
-    problem.check()?;
-    let estimate = |p: &CellProblem| {
-        if calibrated {
-            truth_estimate(cell, p)
-        } else {
-            CellEstimate::nominal(p, cell.b1_from_b2)
-        }
-    };
-    let options = SolveOptions::default();
-    let scored = match (mode, calibration) {
-        (NuisanceArg::Split, _) => {
-            held_out_residuals(&problem, &estimate(&problem), NuisanceMode::Split, &options)?
-        }
-        (NuisanceArg::Fixed, Some(old)) => {
-            let old_problem = cell_problem(cell, old, FitModel::Placement);
-            old_problem.check()?;
-            let all: Vec<usize> = (0..old_problem.observations.len()).collect();
-            let fitted = fit_nuisances(&old_problem, &estimate(&old_problem), &all, &options)
-                .context("fitting the nuisances on the calibration session")?;
-            let carried = carry_nuisances(&old_problem, &fitted, &problem, &estimate(&problem))?;
-            held_out_residuals(&problem, &carried, NuisanceMode::Fixed, &options)?
-        }
-        (NuisanceArg::Fixed, None) => {
-            bail!("--nuisance fixed needs --calibration-session OLD.csv")
-        }
-    };
-    Ok((problem, scored))
-}
-
-/// A unit's key: a nuisance group, or the rows without one.
-type UnitKey = Option<(GroupKind, usize)>;
-
-fn unit_score(
-    kind: &str,
-    group: Option<String>,
-    cal: &[&HeldOutResidual],
-    nom: Option<&[&HeldOutResidual]>,
-) -> Option<UnitScore> {
-    let calibrated = Score::of(cal.iter().copied())?;
-    let nominal = nom.and_then(|n| Score::of(n.iter().copied()));
-    Some(UnitScore {
-        calibrated,
-        group,
-        kind: kind.to_string(),
-        rms_ratio: nominal.map(|n| calibrated.rms_mm / n.rms_mm),
-        nominal,
-        rows: cal.len(),
-    })
-}
-
-/// The report of the two cells' residuals (same rows, same order).
-fn report(
-    args: &Args,
-    problem: &CellProblem,
-    cal: &[HeldOutResidual],
-    nom: Option<&[HeldOutResidual]>,
-) -> ValidateReport {
-    let pick = |rs: &[HeldOutResidual], f: &dyn Fn(&HeldOutResidual) -> bool| -> Vec<usize> {
-        rs.iter()
-            .enumerate()
-            .filter(|(_, r)| f(r))
-            .map(|(i, _)| i)
-            .collect()
-    };
-    let unit = |kind: &str, group: Option<String>, idx: &[usize]| {
-        let c: Vec<&HeldOutResidual> = idx.iter().map(|&i| &cal[i]).collect();
-        let n: Option<Vec<&HeldOutResidual>> = nom.map(|n| idx.iter().map(|&i| &n[i]).collect());
-        unit_score(kind, group, &c, n.as_deref())
-    };
-    let all_idx: Vec<usize> = (0..cal.len()).collect();
-    let all = unit("all", None, &all_idx).unwrap_or(UnitScore {
-        calibrated: Score {
-            max_mm: 0.0,
-            rms_mm: 0.0,
-            whitened_rms: 0.0,
-        },
-        group: None,
-        kind: "all".into(),
-        nominal: None,
-        rms_ratio: None,
-        rows: 0,
-    });
-    let by_kind = Kind::ALL
-        .iter()
-        .filter_map(|k| unit(k.name(), None, &pick(cal, &|r| r.kind == *k)))
-        .collect();
-    let mut keys: Vec<UnitKey> = Vec::new();
-    for r in cal {
-        if !keys.contains(&r.group) {
-            keys.push(r.group);
-        }
-    }
-    // Coincident rows (no group) last.
-    keys.sort_by_key(Option::is_none);
-    let by_group: Vec<UnitScore> = keys
-        .iter()
-        .filter_map(|key| {
-            let idx = pick(cal, &|r| r.group == *key);
-            match key {
-                Some(k) => unit(
-                    cal[idx[0]].kind.name(),
-                    Some(group_name(problem, *k).to_string()),
-                    &idx,
-                ),
-                None => unit(Kind::Coincident.name(), None, &idx),
-            }
-        })
-        .collect();
-    let groups_improved = nom.map(|_| {
-        [
-            by_group
-                .iter()
-                .filter(|u| u.rms_ratio.is_some_and(|r| r < 1.0))
-                .count(),
-            by_group.len(),
-        ]
-    });
-    ValidateReport {
-        all,
-        by_kind,
-        by_group,
-        calibrated_cell: args.cell.display().to_string(),
-        groups_improved,
-        nominal_cell: args.nominal.as_ref().map(|p| p.display().to_string()),
-        nuisance: args.nuisance,
-        session: args.session.display().to_string(),
-    }
-}
-
-/// `path` read with the first of `cells` (flag, cell) whose models agree with its tip
-/// columns: the nominal cell's, then the calibrated cell's.
-fn read_session(path: &Path, cells: &[(String, &Cell)]) -> anyhow::Result<Session> {
-    let mut first_error = None;
-    for (_, cell) in cells {
-        match Session::read_csv(path, cell) {
-            Ok(s) => return Ok(s),
-            Err(e) => {
-                first_error.get_or_insert(e);
-            }
-        }
-    }
-    let tried: Vec<&str> = cells.iter().map(|(f, _)| f.as_str()).collect();
-    Err(
-        anyhow::Error::new(first_error.expect("at least one cell")).context(format!(
-            "reading {} with {} (a session's tip columns are what the controllers reported: \
-         read it with the cell whose models recorded it, --nominal NOMINAL.toml for a session \
-         recorded before the calibration)",
-            path.display(),
-            tried.join(", then ")
-        )),
-    )
 }
 
 /// Runs `handclasp validate`.
@@ -335,122 +86,36 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         readers.push((format!("--nominal {}", p.display()), c));
     }
     readers.push((format!("--cell {}", args.cell.display()), &cal_cell));
-    let session = read_session(&args.session, &readers)?;
-    let old = args
-        .calibration_session
-        .as_ref()
-        .map(|p| read_session(p, &readers))
-        .transpose()?;
-    let (problem, cal) = residuals(&cal_cell, &session, true, args.nuisance, old.as_ref())
-        .with_context(|| {
-            format!(
-                "scoring {} on {}",
-                args.cell.display(),
-                args.session.display()
-            )
-        })?;
-    let nom = match (&nom_cell, &args.nominal) {
-        (Some(c), Some(p)) => Some(
-            residuals(c, &session, false, args.nuisance, old.as_ref())
-                .with_context(|| format!("scoring {} on {}", p.display(), args.session.display()))?
-                .1,
-        ),
-        _ => None,
+    let read = |p: &std::path::Path| read_session(p, &readers, NOMINAL_HINT);
+    let session = read(&args.session)?;
+    let old = args.calibration_session.as_deref().map(read).transpose()?;
+    let nuisance = match &old {
+        Some(calibration) => NuisanceSource::Fixed { calibration },
+        None => NuisanceSource::Split,
     };
-    let r = report(&args, &problem, &cal, nom.as_deref());
-    if let Some(n) = &r.all.nominal {
-        if r.all.calibrated.whitened_rms > n.whitened_rms {
-            eprintln!(
-                "warning: the calibrated cell fits this session worse than the nominal cell \
-                 (whitened rms {:.3} against {:.3}): it does harm on these poses; do not use it here \
-                 without recalibrating with data from this region",
-                r.all.calibrated.whitened_rms, n.whitened_rms
-            );
-        }
-    }
-    let w = r.all.calibrated.whitened_rms;
-    if w > NOISE_WARNING_WHITENED_RMS {
-        eprintln!(
-            "warning: the calibrated cell's residuals on this session are {w:.1} times the stated \
-             noise (whitened rms; 1 = as stated): the session's σ columns or the cell's [noise] \
-             understate it, or the cell misses an error on these poses{}",
-            r.all.nominal.map_or(String::new(), |n| format!(
-                " (the nominal cell: {:.1} times)",
-                n.whitened_rms
-            ))
-        );
+    let cal_name = args.cell.display().to_string();
+    let nom_name = args.nominal.as_ref().map(|p| p.display().to_string());
+    let nominal = nom_cell
+        .as_ref()
+        .zip(nom_name.as_deref())
+        .map(|(cell, name)| NamedCell { cell, name });
+    let r = validate(
+        NamedCell {
+            cell: &cal_cell,
+            name: &cal_name,
+        },
+        nominal,
+        &session,
+        &args.session.display().to_string(),
+        nuisance,
+    )?;
+    for w in warnings(&r) {
+        eprintln!("warning: {w}");
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
     } else {
         print!("{}", render_text(&r));
-    }
-    Ok(())
-}
-
-/// One text line of a unit.
-fn unit_line(s: &mut String, label: &str, u: &UnitScore) -> std::fmt::Result {
-    let c = &u.calibrated;
-    write!(
-        s,
-        "  {label:<32} {:>5} rows  calibrated rms {:>8.3} mm (max {:>8.3}, whitened {:>6.2})",
-        u.rows, c.rms_mm, c.max_mm, c.whitened_rms
-    )?;
-    match (&u.nominal, u.rms_ratio) {
-        (Some(n), Some(ratio)) => writeln!(
-            s,
-            "  nominal rms {:>8.3} mm (max {:>8.3}, whitened {:>6.2})  ratio {ratio:.3}",
-            n.rms_mm, n.max_mm, n.whitened_rms
-        ),
-        _ => writeln!(s),
-    }
-}
-
-/// The text report.
-fn render_text(r: &ValidateReport) -> String {
-    let mut s = String::new();
-    // Writing into a String cannot fail.
-    let _ = write_text(&mut s, r);
-    s
-}
-
-fn write_text(s: &mut String, r: &ValidateReport) -> std::fmt::Result {
-    writeln!(
-        s,
-        "== validate {} on {} (nuisances: {})",
-        r.calibrated_cell,
-        r.session,
-        match r.nuisance {
-            NuisanceArg::Split => "refitted on alternate rows of each group, scored on the others",
-            NuisanceArg::Fixed => "fitted on the calibration session, carried over by group name",
-        }
-    )?;
-    match &r.nominal_cell {
-        Some(n) => writeln!(s, "against the nominal cell {n}; ratio = calibrated rms / nominal rms (below 1: the calibration helps)")?,
-        None => writeln!(s, "no nominal cell given (--nominal): the calibrated cell's scores alone")?,
-    }
-    writeln!(s, "by kind:")?;
-    for u in &r.by_kind {
-        unit_line(s, &u.kind, u)?;
-    }
-    writeln!(s, "by group:")?;
-    for u in &r.by_group {
-        let label = match &u.group {
-            Some(g) => format!(
-                "{} {}",
-                u.kind,
-                serde_json::to_string(g).unwrap_or_default()
-            ),
-            None => format!("{} rows", u.kind),
-        };
-        unit_line(s, &label, u)?;
-    }
-    unit_line(s, "all rows", &r.all)?;
-    if let Some([better, of]) = r.groups_improved {
-        writeln!(
-            s,
-            "the calibrated cell is better than nominal in {better} of {of} groups"
-        )?;
     }
     Ok(())
 }
