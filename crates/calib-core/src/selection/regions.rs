@@ -6,7 +6,9 @@
 //!    span (a joint the row does not use is missing, `NaN`).
 //! 2. [`region_count`]: how many regions a number of rows affords.
 //! 3. [`joint_regions`]: seeded k-means++ (missing features imputed by their column mean), then
-//!    regions smaller than the minimum merged into their nearest neighbours; regions numbered in
+//!    Lloyd's iterations whose assignment keeps every region at the minimum size (a region short
+//!    of rows takes the rows that cost least to move from regions above it), so a session gets
+//!    the regions its size allows even where its postures do not cluster; regions numbered in
 //!    order of their first row.
 //!
 //! No crate does this under the workspace's MSRV with nalgebra vectors and a seeded
@@ -96,10 +98,55 @@ fn nearest(x: &[f64], centres: &[Vec<f64>]) -> usize {
     super::argmin(&d).unwrap_or(0)
 }
 
-/// Lloyd's iterations from `centres`: labels and the updated centres (a centre that loses every
-/// row keeps its place).
-fn lloyd(x: &[Vec<f64>], mut centres: Vec<Vec<f64>>) -> (Vec<usize>, Vec<Vec<f64>>) {
-    let mut labels: Vec<usize> = x.iter().map(|p| nearest(p, &centres)).collect();
+/// The nearest-centre labels of `x`, then, while a region holds fewer than `min_rows` rows, the
+/// row that costs least to move (`‖p − c_short‖² − ‖p − c_own‖²`, the first on a tie) from a
+/// region holding more than `min_rows` into the smallest short region (the first on a tie).
+/// Every region ends with at least `min_rows` rows when `x.len() ≥ centres.len() · min_rows`
+/// (a short region always finds a region above the minimum to take from; each move fills a
+/// short region by one and leaves the giver at the minimum or above).
+fn assign_min_size(x: &[Vec<f64>], centres: &[Vec<f64>], min_rows: usize) -> Vec<usize> {
+    let mut labels: Vec<usize> = x.iter().map(|p| nearest(p, centres)).collect();
+    let mut sizes = vec![0usize; centres.len()];
+    for &l in &labels {
+        sizes[l] += 1;
+    }
+    if x.len() < centres.len() * min_rows {
+        return labels;
+    }
+    while let Some(short) = (0..centres.len())
+        .filter(|&c| sizes[c] < min_rows)
+        .min_by_key(|&c| sizes[c])
+    {
+        let cost: Vec<f64> = x
+            .iter()
+            .zip(&labels)
+            .map(|(p, &l)| {
+                if sizes[l] > min_rows {
+                    dist2(p, &centres[short]) - dist2(p, &centres[l])
+                } else {
+                    f64::INFINITY
+                }
+            })
+            .collect();
+        let Some(row) = super::argmin(&cost).filter(|&i| cost[i].is_finite()) else {
+            break;
+        };
+        sizes[labels[row]] -= 1;
+        sizes[short] += 1;
+        labels[row] = short;
+    }
+    labels
+}
+
+/// Lloyd's iterations from `centres` with [`assign_min_size`]'s assignment: labels and the
+/// updated centres (each the mean of its rows; with the minimum kept no region is empty).
+/// Stops when no label changes or after [`LLOYD_ITERATIONS`].
+fn lloyd_min_size(
+    x: &[Vec<f64>],
+    mut centres: Vec<Vec<f64>>,
+    min_rows: usize,
+) -> (Vec<usize>, Vec<Vec<f64>>) {
+    let mut labels = assign_min_size(x, &centres, min_rows);
     for _ in 0..LLOYD_ITERATIONS {
         for (c, centre) in centres.iter_mut().enumerate() {
             let members: Vec<&Vec<f64>> = x
@@ -114,7 +161,7 @@ fn lloyd(x: &[Vec<f64>], mut centres: Vec<Vec<f64>>) -> (Vec<usize>, Vec<Vec<f64
                 }
             }
         }
-        let next: Vec<usize> = x.iter().map(|p| nearest(p, &centres)).collect();
+        let next = assign_min_size(x, &centres, min_rows);
         if next == labels {
             break;
         }
@@ -125,11 +172,12 @@ fn lloyd(x: &[Vec<f64>], mut centres: Vec<Vec<f64>>) -> (Vec<usize>, Vec<Vec<f64
 
 /// Seeded k-means++ regions of `features` (rows × dimensions; `NaN` = missing, imputed by its
 /// column's mean, 0 for a column with no value): `k = min(region_count(rows, min_rows),
-/// max_regions)` centres
-/// drawn by k-means++ from `stats::trial_rng(seed, 0)`, Lloyd's iterations, then while a region
-/// holds fewer than `min_rows` rows its centre is dropped and the rows reassigned (Lloyd again),
-/// so every region has at least `min_rows` rows. `None` when fewer than [`MIN_REGIONS`] regions
-/// remain (too few rows, or too few distinct postures).
+/// max_regions)` centres drawn by k-means++ from `stats::trial_rng(seed, 0)`, then Lloyd's
+/// iterations whose assignment keeps every region at `min_rows` rows or more (minimum-size
+/// k-means with a greedy assignment: a short region takes the rows that cost least to move), so
+/// a session of `rows` rows gets its `k` regions whether or not its postures cluster (clusters
+/// are not merged away one after another). `None` when `k < MIN_REGIONS` (too few rows) or
+/// k-means++ finds fewer than [`MIN_REGIONS`] distinct postures.
 pub fn joint_regions(
     features: &[Vec<f64>],
     min_rows: usize,
@@ -187,25 +235,10 @@ pub fn joint_regions(
             .unwrap_or(n - 1);
         centres.push(x[pick].clone());
     }
-    let (mut labels, mut centres) = lloyd(&x, centres);
-    loop {
-        let sizes: Vec<usize> = (0..centres.len())
-            .map(|c| labels.iter().filter(|&&l| l == c).count())
-            .collect();
-        let Some(small) = (0..centres.len()).find(|&c| sizes[c] < min_rows) else {
-            break;
-        };
-        // The smallest such region goes (the first on a tie).
-        let small = (0..centres.len())
-            .filter(|&c| sizes[c] < min_rows)
-            .min_by_key(|&c| sizes[c])
-            .unwrap_or(small);
-        centres.remove(small);
-        (labels, centres) = lloyd(&x, centres);
-    }
     if centres.len() < MIN_REGIONS {
         return None;
     }
+    let (labels, centres) = lloyd_min_size(&x, centres, min_rows);
     // Number the regions in order of their first row.
     let mut order: Vec<usize> = Vec::new();
     for &l in &labels {
@@ -297,5 +330,72 @@ mod tests {
         // Identical rows: one posture cannot be cut into regions.
         let same = vec![vec![0.5, 0.5]; 40];
         assert_eq!(joint_regions(&same, 8, MAX_REGIONS, 1), None);
+    }
+
+    /// `rows` joint vectors of `dims` joints drawn uniformly over their normalised spans: a
+    /// session whose postures form no clusters.
+    fn uniform(rows: usize, dims: usize, seed: u64) -> Vec<Vec<f64>> {
+        let mut rng = crate::stats::trial_rng(seed, 2);
+        (0..rows)
+            .map(|_| (0..dims).map(|_| rng.random::<f64>()).collect())
+            .collect()
+    }
+
+    /// A uniform session of 40 handclasps (two six-joint robots) gets the regions its size
+    /// allows for each caller's minimum and cap (the do-no-harm check's 8 rows and 3 regions,
+    /// `diagnose`'s 12 and 6, the prediction's 4 and 5, 8 and 5), every region at the minimum
+    /// or above, on every seed (before the minimum-size assignment small clusters were dropped
+    /// one after another and many seeds fell below three regions).
+    #[test]
+    fn a_uniform_forty_row_session_gets_the_regions_its_size_allows() {
+        for (min, max) in [(8, 3), (12, MAX_REGIONS), (4, 5), (8, 5)] {
+            let k = region_count(40, min).min(max);
+            for seed in 0..30 {
+                let x = uniform(40, 12, seed);
+                let r = joint_regions(&x, min, max, REGION_SEED)
+                    .unwrap_or_else(|| panic!("min {min} max {max} seed {seed}: no regions"));
+                assert_eq!(
+                    r.sizes.len(),
+                    k,
+                    "min {min} max {max} seed {seed}: {:?}",
+                    r.sizes
+                );
+                assert!(r.sizes.iter().all(|&s| s >= min), "{:?}", r.sizes);
+                assert_eq!(r.sizes.iter().sum::<usize>(), 40);
+            }
+        }
+    }
+
+    proptest::proptest! {
+        /// For any session with at least `MIN_REGIONS` distinct postures and rows for
+        /// `MIN_REGIONS` regions: exactly `min(region_count, max)` regions, each with at least
+        /// the minimum rows, labels `0..k` numbered in order of first row, sizes matching the
+        /// labels.
+        #[test]
+        fn every_region_has_the_minimum_and_none_is_lost(
+            rows in 12usize..90, dims in 1usize..13, min in 2usize..13, max in 3usize..7,
+            seed in 0u64..1000,
+        ) {
+            let x = uniform(rows, dims, seed);
+            let k = region_count(rows, min).min(max);
+            let r = joint_regions(&x, min, max, seed);
+            if k < MIN_REGIONS {
+                proptest::prop_assert!(r.is_none());
+            } else {
+                let r = r.expect("uniform rows are distinct");
+                proptest::prop_assert_eq!(r.sizes.len(), k);
+                proptest::prop_assert!(r.sizes.iter().all(|&s| s >= min), "{:?}", &r.sizes);
+                let mut first = 0;
+                for &l in &r.labels {
+                    proptest::prop_assert!(l <= first);
+                    if l == first {
+                        first += 1;
+                    }
+                }
+                for (c, &size) in r.sizes.iter().enumerate() {
+                    proptest::prop_assert_eq!(r.labels.iter().filter(|&&l| l == c).count(), size);
+                }
+            }
+        }
     }
 }
