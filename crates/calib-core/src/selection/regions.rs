@@ -5,8 +5,21 @@
 //! 1. [`joint_features`]: each observation's joint vectors, every joint normalised by its limit
 //!    span (a joint the row does not use is missing, `NaN`).
 //! 2. [`region_count`]: how many regions a number of rows affords.
-//! 3. [`joint_regions`]: seeded k-means++ (missing features imputed by their column mean), then
-//!    regions smaller than the minimum merged into their nearest neighbours; regions numbered in
+//! 3. [`joint_regions`]: how many regions, from the session's cluster structure, then where:
+//!    - **natural clusters** (seed-free): the rows' minimum spanning tree is cut at every edge
+//!      longer than [`cluster_gap_ratio`] times its median positive edge (a gap no session
+//!      without clusters shows but one time in [`CLUSTER_FALSE_ALARM`]⁻¹), and a cluster short of
+//!      the minimum size is merged into its nearest neighbour (single linkage). When 3 to `k`
+//!      clusters remain, their count is the number of regions and their centres start Lloyd's
+//!      iterations, so a compact cluster is never split (a fixed count `rows/min_rows` cut a
+//!      72-row session of four posture clusters into 6 regions of 12, and each held-out region
+//!      then sat beside training rows of its own cluster);
+//!    - otherwise (no structure, or too little for three regions, or more clusters than `k`):
+//!      `k = min(rows/min_rows, max_regions)` regions by seeded k-means++;
+//!
+//!    in both cases Lloyd's assignment keeps every region at the minimum size (a region short
+//!    of rows takes the rows that cost least to move from regions above it), so a session gets
+//!    the regions its size allows even where its postures do not cluster; regions numbered in
 //!    order of their first row.
 //!
 //! No crate does this under the workspace's MSRV with nalgebra vectors and a seeded
@@ -30,6 +43,9 @@ pub const MIN_REGION_ROWS: usize = 12;
 /// --cv-folds regions`, `calibrate --cell`'s do-no-harm check, the prediction's model-error
 /// term): one seed, so one session gets the same regions from every command.
 pub const REGION_SEED: u64 = 20;
+/// Probability that a session without clusters (rows uniform on a line, the worst case) has a
+/// gap [`cluster_gap_ratio`] calls a cluster boundary: one in a thousand.
+pub const CLUSTER_FALSE_ALARM: f64 = 1e-3;
 /// Lloyd iterations of [`joint_regions`] at most (it stops earlier when no label changes).
 const LLOYD_ITERATIONS: usize = 100;
 
@@ -96,10 +112,55 @@ fn nearest(x: &[f64], centres: &[Vec<f64>]) -> usize {
     super::argmin(&d).unwrap_or(0)
 }
 
-/// Lloyd's iterations from `centres`: labels and the updated centres (a centre that loses every
-/// row keeps its place).
-fn lloyd(x: &[Vec<f64>], mut centres: Vec<Vec<f64>>) -> (Vec<usize>, Vec<Vec<f64>>) {
-    let mut labels: Vec<usize> = x.iter().map(|p| nearest(p, &centres)).collect();
+/// The nearest-centre labels of `x`, then, while a region holds fewer than `min_rows` rows, the
+/// row that costs least to move (`‖p − c_short‖² − ‖p − c_own‖²`, the first on a tie) from a
+/// region holding more than `min_rows` into the smallest short region (the first on a tie).
+/// Every region ends with at least `min_rows` rows when `x.len() ≥ centres.len() · min_rows`
+/// (a short region always finds a region above the minimum to take from; each move fills a
+/// short region by one and leaves the giver at the minimum or above).
+fn assign_min_size(x: &[Vec<f64>], centres: &[Vec<f64>], min_rows: usize) -> Vec<usize> {
+    let mut labels: Vec<usize> = x.iter().map(|p| nearest(p, centres)).collect();
+    let mut sizes = vec![0usize; centres.len()];
+    for &l in &labels {
+        sizes[l] += 1;
+    }
+    if x.len() < centres.len() * min_rows {
+        return labels;
+    }
+    while let Some(short) = (0..centres.len())
+        .filter(|&c| sizes[c] < min_rows)
+        .min_by_key(|&c| sizes[c])
+    {
+        let cost: Vec<f64> = x
+            .iter()
+            .zip(&labels)
+            .map(|(p, &l)| {
+                if sizes[l] > min_rows {
+                    dist2(p, &centres[short]) - dist2(p, &centres[l])
+                } else {
+                    f64::INFINITY
+                }
+            })
+            .collect();
+        let Some(row) = super::argmin(&cost).filter(|&i| cost[i].is_finite()) else {
+            break;
+        };
+        sizes[labels[row]] -= 1;
+        sizes[short] += 1;
+        labels[row] = short;
+    }
+    labels
+}
+
+/// Lloyd's iterations from `centres` with [`assign_min_size`]'s assignment: labels and the
+/// updated centres (each the mean of its rows; with the minimum kept no region is empty).
+/// Stops when no label changes or after [`LLOYD_ITERATIONS`].
+fn lloyd_min_size(
+    x: &[Vec<f64>],
+    mut centres: Vec<Vec<f64>>,
+    min_rows: usize,
+) -> (Vec<usize>, Vec<Vec<f64>>) {
+    let mut labels = assign_min_size(x, &centres, min_rows);
     for _ in 0..LLOYD_ITERATIONS {
         for (c, centre) in centres.iter_mut().enumerate() {
             let members: Vec<&Vec<f64>> = x
@@ -114,7 +175,7 @@ fn lloyd(x: &[Vec<f64>], mut centres: Vec<Vec<f64>>) -> (Vec<usize>, Vec<Vec<f64
                 }
             }
         }
-        let next: Vec<usize> = x.iter().map(|p| nearest(p, &centres)).collect();
+        let next = assign_min_size(x, &centres, min_rows);
         if next == labels {
             break;
         }
@@ -123,13 +184,176 @@ fn lloyd(x: &[Vec<f64>], mut centres: Vec<Vec<f64>>) -> (Vec<usize>, Vec<Vec<f64
     (labels, centres)
 }
 
-/// Seeded k-means++ regions of `features` (rows × dimensions; `NaN` = missing, imputed by its
-/// column's mean, 0 for a column with no value): `k = min(region_count(rows, min_rows),
-/// max_regions)` centres
-/// drawn by k-means++ from `stats::trial_rng(seed, 0)`, Lloyd's iterations, then while a region
-/// holds fewer than `min_rows` rows its centre is dropped and the rows reassigned (Lloyd again),
-/// so every region has at least `min_rows` rows. `None` when fewer than [`MIN_REGIONS`] regions
-/// remain (too few rows, or too few distinct postures).
+/// The squared distance of two feature rows over the joints both use, scaled by the number of
+/// features over the number used (the usual distance with missing values: a tracker row of
+/// robot 1 is as near a two-robot row as their robot 1 joints are); with no joint in common,
+/// the distance of the imputed rows `xa`, `xb` (the one k-means sees).
+fn partial_dist2(a: &[f64], b: &[f64], xa: &[f64], xb: &[f64]) -> f64 {
+    let (mut sum, mut used) = (0.0, 0usize);
+    for (u, v) in a.iter().zip(b) {
+        if u.is_finite() && v.is_finite() {
+            sum += (u - v).powi(2);
+            used += 1;
+        }
+    }
+    if used == 0 {
+        dist2(xa, xb)
+    } else {
+        sum * a.len() as f64 / used as f64
+    }
+}
+
+/// The minimum spanning tree of the feature rows (`features` with their missing values,
+/// `x` imputed; distances [`partial_dist2`]), by Prim's algorithm from row 0 (the lowest
+/// row on a tie): its `n − 1` edges `(length, a, b)`. O(n²) distances, no randomness.
+fn spanning_tree(features: &[Vec<f64>], x: &[Vec<f64>]) -> Vec<(f64, usize, usize)> {
+    let n = x.len();
+    let mut edges = Vec::with_capacity(n.saturating_sub(1));
+    if n == 0 {
+        return edges;
+    }
+    let mut in_tree = vec![false; n];
+    // Nearest tree row of each row outside the tree, and its squared distance.
+    let mut best = vec![(f64::INFINITY, 0usize); n];
+    let mut last = 0;
+    in_tree[0] = true;
+    for _ in 1..n {
+        let mut next: Option<usize> = None;
+        for i in 0..n {
+            if in_tree[i] {
+                continue;
+            }
+            let d = partial_dist2(&features[i], &features[last], &x[i], &x[last]);
+            if d < best[i].0 {
+                best[i] = (d, last);
+            }
+            if next.is_none_or(|j| best[i].0 < best[j].0) {
+                next = Some(i);
+            }
+        }
+        let Some(j) = next else { break };
+        in_tree[j] = true;
+        edges.push((best[j].0.sqrt(), best[j].1, j));
+        last = j;
+    }
+    edges
+}
+
+fn find(parent: &mut [usize], mut i: usize) -> usize {
+    while parent[i] != i {
+        parent[i] = parent[parent[i]];
+        i = parent[i];
+    }
+    i
+}
+
+/// The gap a tree edge must exceed to separate two natural clusters, in units of the
+/// session's typical neighbour distance (the median positive edge of the spanning tree), for
+/// `n` rows: `(ln(n − 1) + ln(1/CLUSTER_FALSE_ALARM)) / ln 2`, about 15 for 40 rows and 21 for
+/// 2,000. Chosen from the geometry of data without clusters, never from a score: for rows
+/// drawn uniformly on a line (the heaviest-tailed case: in more dimensions neighbour distances
+/// concentrate) the tree's edges are the spacings, about exponential, so the longest of the
+/// `n − 1` exceeds `ρ` medians with probability about `(n − 1)·2^(−ρ)`, which this `ρ` holds at
+/// [`CLUSTER_FALSE_ALARM`].
+pub fn cluster_gap_ratio(n: usize) -> f64 {
+    let edges = n.saturating_sub(1).max(1) as f64;
+    (edges.ln() - CLUSTER_FALSE_ALARM.ln()) / std::f64::consts::LN_2
+}
+
+/// The session's natural clusters, when it has `MIN_REGIONS..=k` of them at `min_rows` rows
+/// each: `None` otherwise.
+///
+/// 1. The spanning tree of the rows ([`spanning_tree`]) is cut at every edge longer than
+///    [`cluster_gap_ratio`]`(n)` times its median positive edge: the components are the compact
+///    clusters, whose rows are closer to one another than any structure-free session's rows
+///    are apart.
+/// 2. While a cluster has fewer than `min_rows` rows, the smallest (the one with the lowest
+///    first row on a tie) is merged into its nearest neighbour (the cluster its shortest tree
+///    edge leads to, single linkage).
+/// 3. The clusters left are the regions when there are `MIN_REGIONS` to `k` of them. With one
+///    or two (no structure, or too little to hold out three regions) or more than `k` the
+///    caller cuts `k` regions by k-means instead.
+///
+/// No randomness: the same rows give the same clusters on any machine and thread count.
+fn natural_clusters(
+    features: &[Vec<f64>],
+    x: &[Vec<f64>],
+    min_rows: usize,
+    k: usize,
+) -> Option<Vec<usize>> {
+    let n = x.len();
+    let edges = spanning_tree(features, x);
+    let mut positive: Vec<f64> = edges.iter().map(|e| e.0).filter(|&l| l > 0.0).collect();
+    if positive.is_empty() {
+        return None;
+    }
+    positive.sort_by(f64::total_cmp);
+    let m = positive.len();
+    let median = if m % 2 == 1 {
+        positive[m / 2]
+    } else {
+        0.5 * (positive[m / 2 - 1] + positive[m / 2])
+    };
+    let tau = cluster_gap_ratio(n) * median;
+    let mut parent: Vec<usize> = (0..n).collect();
+    for &(length, a, b) in &edges {
+        if length <= tau {
+            let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
+            parent[ra.max(rb)] = ra.min(rb);
+        }
+    }
+    loop {
+        let roots: Vec<usize> = (0..n).map(|i| find(&mut parent, i)).collect();
+        let mut size = vec![0usize; n];
+        for &r in &roots {
+            size[r] += 1;
+        }
+        // Roots are each cluster's lowest row, so the lowest root is the lowest first row.
+        let Some(small) = (0..n)
+            .filter(|&r| size[r] > 0 && size[r] < min_rows)
+            .min_by_key(|&r| (size[r], r))
+        else {
+            break;
+        };
+        let Some(&(_, a, b)) = edges
+            .iter()
+            .filter(|&&(_, a, b)| (roots[a] == small) != (roots[b] == small))
+            .min_by(|p, q| p.0.total_cmp(&q.0))
+        else {
+            break;
+        };
+        let (ra, rb) = (roots[a], roots[b]);
+        parent[ra.max(rb)] = ra.min(rb);
+    }
+    let roots: Vec<usize> = (0..n).map(|i| find(&mut parent, i)).collect();
+    let mut order: Vec<usize> = Vec::new();
+    let labels: Vec<usize> = roots
+        .iter()
+        .map(|r| match order.iter().position(|o| o == r) {
+            Some(p) => p,
+            None => {
+                order.push(*r);
+                order.len() - 1
+            }
+        })
+        .collect();
+    (MIN_REGIONS..=k).contains(&order.len()).then_some(labels)
+}
+
+/// Regions of `features` (rows × dimensions; `NaN` = missing, imputed by its column's mean, 0
+/// for a column with no value) with at least `min_rows` rows each, at most `k = min(
+/// region_count(rows, min_rows), max_regions)` of them. When the rows form 3 to `k` natural
+/// clusters (see the module documentation: a cut of the spanning tree at
+/// [`cluster_gap_ratio`] median edges, clusters short of `min_rows` merged into their nearest
+/// neighbour) there are that many regions, Lloyd's iterations starting from the clusters'
+/// centres; otherwise `k`, from `k` centres drawn by k-means++ from `stats::trial_rng(seed,
+/// 0)`. Either way Lloyd's assignment keeps every region at `min_rows` rows or more
+/// (minimum-size k-means with a greedy assignment: a short region takes the rows that cost
+/// least to move). Deterministic for a seed, on any machine and thread count (the structure
+/// has no randomness). `None` when `k < MIN_REGIONS` (too few rows) or k-means++ finds fewer
+/// than [`MIN_REGIONS`] distinct postures.
+///
+/// Cost: the spanning tree takes `rows²` distances (2,000 rows: 4·10⁶).
 pub fn joint_regions(
     features: &[Vec<f64>],
     min_rows: usize,
@@ -165,6 +389,24 @@ pub fn joint_regions(
                 .collect()
         })
         .collect();
+    match natural_clusters(features, &x, min_rows, k) {
+        // The natural clusters seed Lloyd's iterations: a compact cluster far from the others
+        // stays whole (its centre is the nearest for all its rows), and the stragglers merged
+        // into a neighbour go to the centre nearest to them.
+        Some(labels) => {
+            let start = numbered(&x, &labels, seed).centres;
+            let (labels, _) = lloyd_min_size(&x, start, min_rows);
+            Some(numbered(&x, &labels, seed))
+        }
+        None => kmeans_regions(&x, k, min_rows, seed),
+    }
+}
+
+/// `k` regions of the imputed rows `x` without natural clusters: k-means++ centres drawn from
+/// `stats::trial_rng(seed, 0)`, then [`lloyd_min_size`]. `None` when k-means++ finds fewer than
+/// [`MIN_REGIONS`] distinct postures.
+fn kmeans_regions(x: &[Vec<f64>], k: usize, min_rows: usize, seed: u64) -> Option<Regions> {
+    let n = x.len();
     // k-means++: the first centre uniform, each next one with probability ∝ D².
     let mut rng = crate::stats::trial_rng(seed, 0);
     let mut centres = vec![x[rng.random_range(0..n)].clone()];
@@ -187,28 +429,18 @@ pub fn joint_regions(
             .unwrap_or(n - 1);
         centres.push(x[pick].clone());
     }
-    let (mut labels, mut centres) = lloyd(&x, centres);
-    loop {
-        let sizes: Vec<usize> = (0..centres.len())
-            .map(|c| labels.iter().filter(|&&l| l == c).count())
-            .collect();
-        let Some(small) = (0..centres.len()).find(|&c| sizes[c] < min_rows) else {
-            break;
-        };
-        // The smallest such region goes (the first on a tie).
-        let small = (0..centres.len())
-            .filter(|&c| sizes[c] < min_rows)
-            .min_by_key(|&c| sizes[c])
-            .unwrap_or(small);
-        centres.remove(small);
-        (labels, centres) = lloyd(&x, centres);
-    }
     if centres.len() < MIN_REGIONS {
         return None;
     }
-    // Number the regions in order of their first row.
+    let (labels, _) = lloyd_min_size(x, centres, min_rows);
+    Some(numbered(x, &labels, seed))
+}
+
+/// The [`Regions`] of `labels` over the imputed features `x`: regions renumbered in order of
+/// their first row, each centre the mean of its rows.
+fn numbered(x: &[Vec<f64>], labels: &[usize], seed: u64) -> Regions {
     let mut order: Vec<usize> = Vec::new();
-    for &l in &labels {
+    for &l in labels {
         if !order.contains(&l) {
             order.push(l);
         }
@@ -217,16 +449,26 @@ pub fn joint_regions(
         .iter()
         .map(|l| order.iter().position(|o| o == l).unwrap_or(0))
         .collect();
-    let centres: Vec<Vec<f64>> = order.iter().map(|&o| centres[o].clone()).collect();
-    let sizes = (0..centres.len())
-        .map(|c| labels.iter().filter(|&&l| l == c).count())
-        .collect();
-    Some(Regions {
+    let dims = x.first().map_or(0, Vec::len);
+    let mut centres = vec![vec![0.0; dims]; order.len()];
+    let mut sizes = vec![0usize; order.len()];
+    for (p, &l) in x.iter().zip(&labels) {
+        sizes[l] += 1;
+        for (c, v) in centres[l].iter_mut().zip(p) {
+            *c += v;
+        }
+    }
+    for (centre, &size) in centres.iter_mut().zip(&sizes) {
+        for c in centre.iter_mut() {
+            *c /= size.max(1) as f64;
+        }
+    }
+    Regions {
         labels,
         sizes,
         centres,
         seed,
-    })
+    }
 }
 
 #[cfg(test)]
@@ -297,5 +539,134 @@ mod tests {
         // Identical rows: one posture cannot be cut into regions.
         let same = vec![vec![0.5, 0.5]; 40];
         assert_eq!(joint_regions(&same, 8, MAX_REGIONS, 1), None);
+    }
+
+    /// `rows` joint vectors of `dims` joints drawn uniformly over their normalised spans: a
+    /// session whose postures form no clusters.
+    fn uniform(rows: usize, dims: usize, seed: u64) -> Vec<Vec<f64>> {
+        let mut rng = crate::stats::trial_rng(seed, 2);
+        (0..rows)
+            .map(|_| (0..dims).map(|_| rng.random::<f64>()).collect())
+            .collect()
+    }
+
+    /// A uniform session of 40 handclasps (two six-joint robots) gets the regions its size
+    /// allows for each caller's minimum and cap (the do-no-harm check's 8 rows and 3 regions,
+    /// `diagnose`'s 12 and 6, the prediction's 4 and 5, 8 and 5), every region at the minimum
+    /// or above, on every seed (before the minimum-size assignment small clusters were dropped
+    /// one after another and many seeds fell below three regions).
+    #[test]
+    fn a_uniform_forty_row_session_gets_the_regions_its_size_allows() {
+        for (min, max) in [(8, 3), (12, MAX_REGIONS), (4, 5), (8, 5)] {
+            let k = region_count(40, min).min(max);
+            for seed in 0..30 {
+                let x = uniform(40, 12, seed);
+                let r = joint_regions(&x, min, max, REGION_SEED)
+                    .unwrap_or_else(|| panic!("min {min} max {max} seed {seed}: no regions"));
+                assert_eq!(
+                    r.sizes.len(),
+                    k,
+                    "min {min} max {max} seed {seed}: {:?}",
+                    r.sizes
+                );
+                assert!(r.sizes.iter().all(|&s| s >= min), "{:?}", r.sizes);
+                assert_eq!(r.sizes.iter().sum::<usize>(), 40);
+            }
+        }
+    }
+
+    /// Four well-separated clusters of 20 rows (six joints, ±0.02 of the span about corners
+    /// 0.5 apart, one joint missing on every fifth row) get exactly four regions, one per
+    /// cluster, at the do-no-harm check's minimum (8 rows, at most 6 regions: a fixed count
+    /// would cut them into 6) and `diagnose`'s (12 rows, at most 6), on every seed.
+    #[test]
+    fn four_separated_clusters_get_four_regions_one_per_cluster() {
+        let corners = [
+            [0.2, 0.2, 0.2, 0.5, 0.5, 0.5],
+            [0.7, 0.2, 0.2, 0.5, 0.2, 0.5],
+            [0.2, 0.7, 0.5, 0.2, 0.5, 0.7],
+            [0.7, 0.7, 0.7, 0.7, 0.5, 0.2],
+        ];
+        for seed in 0..20 {
+            let mut rng = crate::stats::trial_rng(seed, 3);
+            let mut x = Vec::new();
+            let mut truth = Vec::new();
+            for i in 0..80 {
+                let c = (i * 7 + i / 4) % 4;
+                let mut f: Vec<f64> = corners[c]
+                    .iter()
+                    .map(|v| v + 0.04 * (rng.random::<f64>() - 0.5))
+                    .collect();
+                if i % 5 == 0 {
+                    f[3] = f64::NAN;
+                }
+                x.push(f);
+                truth.push(c);
+            }
+            for min in [8, 12] {
+                assert_eq!(region_count(80, min).min(MAX_REGIONS), 6);
+                let r = joint_regions(&x, min, MAX_REGIONS, REGION_SEED).expect("regions");
+                assert_eq!(r.sizes, vec![20; 4], "seed {seed} min {min}");
+                for region in 0..4 {
+                    let clusters: std::collections::BTreeSet<usize> = r
+                        .labels
+                        .iter()
+                        .zip(&truth)
+                        .filter(|(l, _)| **l == region)
+                        .map(|(_, t)| *t)
+                        .collect();
+                    assert_eq!(
+                        clusters.len(),
+                        1,
+                        "seed {seed}: region {region} spans {clusters:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// The gap ratio is the documented false-alarm bound: `(n − 1)·2^(−ρ)` is
+    /// `CLUSTER_FALSE_ALARM`.
+    #[test]
+    fn the_gap_ratio_holds_the_false_alarm_rate() {
+        for n in [12, 40, 72, 2000] {
+            let rho = cluster_gap_ratio(n);
+            let rate = (n - 1) as f64 * 2f64.powf(-rho);
+            assert!((rate - CLUSTER_FALSE_ALARM).abs() < 1e-12, "n {n}: {rate}");
+        }
+        assert!(cluster_gap_ratio(40) > 15.0 && cluster_gap_ratio(40) < 15.5);
+    }
+
+    proptest::proptest! {
+        /// For any session with at least `MIN_REGIONS` distinct postures and rows for
+        /// `MIN_REGIONS` regions: exactly `min(region_count, max)` regions, each with at least
+        /// the minimum rows, labels `0..k` numbered in order of first row, sizes matching the
+        /// labels.
+        #[test]
+        fn every_region_has_the_minimum_and_none_is_lost(
+            rows in 12usize..90, dims in 1usize..13, min in 2usize..13, max in 3usize..7,
+            seed in 0u64..1000,
+        ) {
+            let x = uniform(rows, dims, seed);
+            let k = region_count(rows, min).min(max);
+            let r = joint_regions(&x, min, max, seed);
+            if k < MIN_REGIONS {
+                proptest::prop_assert!(r.is_none());
+            } else {
+                let r = r.expect("uniform rows are distinct");
+                proptest::prop_assert_eq!(r.sizes.len(), k);
+                proptest::prop_assert!(r.sizes.iter().all(|&s| s >= min), "{:?}", &r.sizes);
+                let mut first = 0;
+                for &l in &r.labels {
+                    proptest::prop_assert!(l <= first);
+                    if l == first {
+                        first += 1;
+                    }
+                }
+                for (c, &size) in r.sizes.iter().enumerate() {
+                    proptest::prop_assert_eq!(r.labels.iter().filter(|&&l| l == c).count(), size);
+                }
+            }
+        }
     }
 }

@@ -37,8 +37,7 @@ use crate::selection::{region_harm, FoldHarm, HARM_T};
 /// [`crate::selection::regions::MIN_REGION_ROWS`] (12) because a region's piece of a tracker
 /// or plane group must refit its frame on half of it; a handclasp has no nuisance to refit, so
 /// a region needs only enough rows for the paired t of [`region_harm`]: eight handclasps, 24
-/// residuals (with 12, a 40-row session seldom yields three regions and the check falls back to
-/// row-order blocks, which measure interpolation).
+/// residuals.
 pub const MIN_HARM_REGION_ROWS: usize = 8;
 
 /// Most blocks of the row-order fallback (as `diagnose` cuts its coincident rows into at most
@@ -120,9 +119,10 @@ pub fn region_harm_check(
         .iter()
         .partition(|&&i| problem.observations[i].kind.group().is_none());
     let features = joint_features(problem, &scorable);
-    // At most one region per 2·MIN_HARM_REGION_ROWS rows: k-means clusters are uneven, and
-    // asking for regions of the minimum size on average drops the small ones one after another
-    // until fewer than MIN_REGIONS remain (a 40-row session asked for 5 regions seldom keeps 3).
+    // At most one region per 2·MIN_HARM_REGION_ROWS rows: regions of twice the minimum on
+    // average leave k-means room to follow the postures, the minimum-size assignment of
+    // `joint_regions` binding only on stragglers (with one region per MIN_HARM_REGION_ROWS rows
+    // every region would be cut to exactly the minimum, whatever the postures).
     let max_regions = (scorable.len() / (2 * MIN_HARM_REGION_ROWS)).clamp(MIN_REGIONS, MAX_REGIONS);
     let (design, how, folds): (HarmDesign, String, Vec<Vec<usize>>) =
         match joint_regions(&features, MIN_HARM_REGION_ROWS, max_regions, REGION_SEED) {
