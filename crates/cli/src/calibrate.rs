@@ -180,7 +180,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // read and fitted, and while the report is written when stdout is not that terminal too;
     // cleared before anything is printed on a terminal's stdout.
     let stdout_is_terminal = std::io::stdout().is_terminal();
-    let progress = Progress::new(std::io::stderr().is_terminal(), "reading the points CSV");
+    let progress = Progress::new(crate::progress::shown(false), "reading the points CSV");
     let pairs = read_points_csv(&cfg.points)?;
     let writing = |progress: &Progress| {
         if stdout_is_terminal {

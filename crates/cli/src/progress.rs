@@ -1,8 +1,10 @@
 //! A spinner on stderr for the commands' long phases (`calibrate --cell`, `calibrate POINTS.csv`,
 //! `plan`, `import`, `fk --q-csv`):
 //! the phase's name and the elapsed time, cleared when the command is done. Shown only when
-//! stderr is a terminal and the output is not `--json` (scripts and captures see the report
-//! alone), like `sim-cell sweep`'s progress bar.
+//! stderr is a terminal and, for the commands that print a report, the output is not `--json`
+//! (scripts and captures see the report alone), like `sim-cell sweep`'s progress bar; the commands
+//! whose output is data (`calibrate POINTS.csv`, `fk --q-csv`) show it under `--json` too, since
+//! their stdout is a file or a pipe and stderr stays free.
 
 use std::borrow::Cow;
 use std::io::IsTerminal;

@@ -138,8 +138,9 @@ pub fn region_harm_check(
                     })
                     .collect::<Vec<Vec<usize>>>();
                 let how = format!(
-                    "{} regions of joint space (seeded k-means++, seed {REGION_SEED}, on the \
-                     handclasps' joint vectors normalised by the joint limits, at least \
+                    "{} regions of joint space (natural clusters, else seeded k-means++, \
+                     seed {REGION_SEED}; on the handclasps' joint vectors normalised by the \
+                     joint limits, at least \
                      {MIN_HARM_REGION_ROWS} rows each), each held out in turn",
                     folds.len()
                 );

@@ -122,7 +122,8 @@ pub const Z95: f64 = 1.959_963_984_540_054;
 #[serde(rename_all = "snake_case")]
 #[non_exhaustive]
 pub enum FoldDesign {
-    /// Regions of joint space (`--cv-folds regions`): seeded k-means++ clusters of the rows' joint vectors
+    /// Regions of joint space (`--cv-folds regions`): the natural clusters of the rows' joint vectors
+    /// (else seeded k-means++ clusters of them)
     /// normalised by the joint limits ([`calib_core::selection::regions`]), at least
     /// [`MIN_REGION_ROWS`] rows each, one fold per region, so a fold measures extrapolation to
     /// postures the fit did not see. A session too small for 3 regions falls back to
@@ -360,7 +361,8 @@ fn run(
     let (design, fold_info, fold_design) = match regions {
         Some((design, info)) => {
             let why = format!(
-                "{} regions of joint space: seeded k-means++ (seed {REGION_SEED}) on the rows' \
+                "{} regions of joint space: the natural clusters when there are 3 or more, else seeded \
+                 k-means++ (seed {REGION_SEED}); on the rows' \
                  joint vectors normalised by the joint limits, at least {MIN_REGION_ROWS} rows each",
                 info.len()
             );
