@@ -454,8 +454,23 @@ fn tiago_prismatic_torso_is_calibrated_as_a_one_robot_cell() {
             &arg(&train),
             "--json",
         ]));
-        v["all"]["calibrated"]["rms_mm"].as_f64().unwrap()
+        let all = &v["all"]["calibrated"];
+        let (rms, whitened) = (
+            all["rms_mm"].as_f64().unwrap(),
+            all["whitened_rms"].as_f64().unwrap(),
+        );
+        // The published metric is the 3-D rms of point 1 in mm: `rms_mm` is ‖r‖'s rms, and the
+        // whitened rms is per axis (map_bl.toml's σ is 1 mm), so they differ by √3 exactly.
+        assert!(
+            (rms - 3f64.sqrt() * whitened * MAP_SIGMA_MM).abs() < METRIC_REL * rms,
+            "rms_mm {rms} is not the 3-D rms of the whitened per-axis {whitened}"
+        );
+        rms
     };
+    // map_bl.toml's placeholder σ of every tracker row, mm.
+    const MAP_SIGMA_MM: f64 = 1.0;
+    // Relative round-off allowed between the two printed forms of the same rms.
+    const METRIC_REL: f64 = 1e-9;
     let kinematic = score(&cell, "kinematic");
     let registration = score(&registration_cell, "registration");
     eprintln!(

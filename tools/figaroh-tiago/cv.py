@@ -60,6 +60,14 @@ CANDIDATES = {
         {"joint_offset_deg": 0.5, "origin_mm": 5.0, "origin_deg": 0.5}, ["--screen", "off"], "map.toml"),
     "100x tolerances, screen off": (
         {"joint_offset_deg": 5.0, "origin_mm": 50.0, "origin_deg": 5.0}, ["--screen", "off"], "map.toml"),
+    # Stop 34 (tools/figaroh-tiago/choice-2026-11-27.md): the incumbent and what FIGAROH's plain
+    # least squares differs in (every pose fitted, no prior), and the four markers fitted.
+    "C0 incumbent": ({"joint_scale": 0.01}, [], "map_bl.toml"),
+    "C1 screen off": ({"joint_scale": 0.01}, ["--screen", "off"], "map_bl.toml"),
+    "C2 tolerance-scale 100": ({"joint_scale": 0.01}, ["--tolerance-scale", "100"], "map_bl.toml"),
+    "C3 screen off, tolerance-scale 100": (
+        {"joint_scale": 0.01}, ["--screen", "off", "--tolerance-scale", "100"], "map_bl.toml"),
+    "C4 four markers fitted": ({"joint_scale": 0.01}, [], "map.toml"),
     "registration and tools only (kinematics nominal)": (
         {"joint_offset_deg": 0.0, "origin_mm": 0.0, "origin_deg": 0.0}, [], "map.toml"),
 }
