@@ -202,24 +202,60 @@ mod tests {
         Cell::from_toml_file(&p).unwrap()
     }
 
+    /// The tolerance of the true tips meeting, m (the true-robot Newton's, with the load passes'
+    /// second-order residue).
+    const MEET_TOL_M: f64 = 1e-7;
+    /// Largest angle from head-on of the true flange axes, rad: the nominal inverse kinematics
+    /// aims them, and the truth's errors (hundredths of a degree per joint) tilt them by less.
+    const HEAD_ON_RAD: f64 = 0.0175;
+
+    /// A handclasp on the humanoid's shared trunk (its compliance on, so both arms load the
+    /// trunk; no noise): both arms report one trunk posture, and the TRUE tips, each arm
+    /// deflected by the other's weight at the reported joints, meet head-on.
     #[test]
-    fn debug_meet() {
-        let cell = humanoid_trunk();
-        let k = cell.shared_independent_joints();
-        let trunk = vec![0.0; k];
-        let d = Vector3::y_axis();
-        let t1 = Point3::new(0.35, 0.0, 1.45);
-        let h1 = held(&cell, Robot::One, &trunk).unwrap();
-        println!("k {k} dof {}", h1.model.dof());
-        println!("{:?}", solve_true_tool(&h1, 0, &t1, Some(d), None));
-        println!("{:?}", solve_true_tool(&cell.robot1, 0, &t1, Some(d), None));
-        println!("{:?}", meet_at(&cell, &trunk, &t1, &t1, &d, None));
-        for axis in [None, Some(d)] {
-            let opts = kinematics::IkOptions { tool_axis_base: axis, ..Default::default() };
-            let s = kinematics::ik_tip_position(&h1.model, &t1, &h1.flange_from_tip, &opts);
-            println!("{s:?}");
-            let s = kinematics::ik_tip_position(&cell.robot1.model, &t1, &h1.flange_from_tip, &opts);
-            println!("{s:?}");
+    fn a_handclasp_on_a_shared_trunk_agrees_on_the_trunk_and_the_true_tips_meet() {
+        let mut cell = humanoid_trunk();
+        cell.noise.alignment_m = Vector3::zeros();
+        cell.noise.repeatability_m = 0.0;
+        cell.noise.encoder_resolution_rad = 0.0;
+        // 2°/(kN·m) on every joint, the trunk's once (robot 2's trunk entries are robot 1's).
+        let c = 2f64.to_radians() * 1e-3;
+        for r in [&mut cell.robot1, &mut cell.robot2] {
+            r.errors.compliance = vec![c; r.errors.joint_offset.len()];
         }
+        let p = Point3::new(0.35, 0.0, 1.45);
+        let dirs = crate::simulate::approach_directions(&cell, &p);
+        let mut rng = crate::trial_rng(3, 0);
+        let (q1, q2, u) = meet_on_trunk(&cell, &p, &|_| p, &dirs, None, &mut rng).unwrap();
+        let k = cell.shared_independent_joints();
+        assert_eq!(q1[..k], q2[..k]);
+        let tip = |robot: Robot, q: &[f64], other: &[f64]| {
+            let r = loaded(&cell, robot, cell.robot(robot), other).unwrap();
+            kinematics::true_base_from_tip(
+                &r.model,
+                &r.errors,
+                q,
+                &r.flange_from_tip,
+                &r.g_base,
+            )
+            .unwrap()
+        };
+        let (t1, t2) = (tip(Robot::One, &q1, &q2), tip(Robot::Two, &q2, &q1));
+        let gap = (t1.translation.vector - t2.translation.vector).norm();
+        assert!(gap < MEET_TOL_M, "the true tips are {gap:e} m apart");
+        assert!((t1.translation.vector - p.coords).norm() < MEET_TOL_M);
+        // Head-on: robot 1's flange z along û, robot 2's against it.
+        let z = |t: &nalgebra::Isometry3<f64>| t.rotation * Vector3::z();
+        assert!(z(&t1).angle(&u) < HEAD_ON_RAD && z(&t2).angle(&-u) < HEAD_ON_RAD);
+        // Without the other arm's load the tips would not meet: the load is in the truth.
+        let unloaded = kinematics::true_base_from_tip(
+            &cell.robot1.model,
+            &cell.robot1.errors,
+            &q1,
+            &cell.robot1.flange_from_tip,
+            &cell.robot1.g_base,
+        )
+        .unwrap();
+        assert!((unloaded.translation.vector - p.coords).norm() > 10.0 * MEET_TOL_M);
     }
 }
