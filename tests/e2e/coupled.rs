@@ -311,7 +311,12 @@ fn plan_on_a_shared_trunk_predicts_the_calibration_it_plans() {
     assert_eq!(plan.points.len(), 40);
     let k = nominal.shared_independent_joints();
     for p in &plan.points {
-        assert_eq!(p.q1[..k], p.q2[..k], "planned pose {} disagrees on the trunk", p.point);
+        assert_eq!(
+            p.q1[..k],
+            p.q2[..k],
+            "planned pose {} disagrees on the trunk",
+            p.point
+        );
     }
 
     // The truth: errors drawn from the tolerances the plan assumes, the trunk's once.
@@ -338,9 +343,17 @@ fn plan_on_a_shared_trunk_predicts_the_calibration_it_plans() {
     let (train, _) = generate_kind_session(&truth, &spec, &kinds, Some(&teach), &mut rng)
         .expect("the plan's poses are reached");
     for (a, b) in train.points.iter().zip(&plan.points) {
-        assert_eq!(a.q1[..k], a.q2[..k], "simulated pose {} disagrees on the trunk", a.point);
+        assert_eq!(
+            a.q1[..k],
+            a.q2[..k],
+            "simulated pose {} disagrees on the trunk",
+            a.point
+        );
         assert!(
-            a.q1[..k].iter().zip(&b.q1[..k]).all(|(x, y)| (x - y).abs() < 1e-3),
+            a.q1[..k]
+                .iter()
+                .zip(&b.q1[..k])
+                .all(|(x, y)| (x - y).abs() < 1e-3),
             "pose {} left the planned trunk",
             a.point
         );

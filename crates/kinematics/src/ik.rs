@@ -770,7 +770,10 @@ mod tests {
             .with_joints_held(&[0.0, j.upper + 0.1])
             .unwrap_err()
             .to_string();
-        assert!(e.contains(&j.name) && e.contains("within its limits"), "{e}");
+        assert!(
+            e.contains(&j.name) && e.contains("within its limits"),
+            "{e}"
+        );
         assert!(free.with_joints_held(&[0.0; 5]).is_err());
     }
 

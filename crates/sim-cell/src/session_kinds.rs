@@ -11,11 +11,11 @@ use rand_distr::StandardNormal;
 
 use crate::error::SimError;
 use crate::layout::teach_points;
-use crate::trunk::{Meeting, TRUNK_LOAD_PASSES};
 use crate::simulate::{
     approach_directions, gauss3, generate_session, quantise, solve_true_tool, tool_errors,
     unreachable, PointFailure, SessionSpec, MAX_LAYOUT_ATTEMPTS,
 };
+use crate::trunk::{Meeting, TRUNK_LOAD_PASSES};
 use calib_core::whole_cell::tangent_basis;
 use calib_core::Robot;
 use handclasp_cell::cell::Cell;

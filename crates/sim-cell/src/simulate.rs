@@ -61,7 +61,10 @@ pub(crate) fn approach_directions(cell: &Cell, p: &Point3<f64>) -> Vec<Unit<Vect
     // q = 0: the fixed parts composed), else the robot's first joint.
     let first_own = |m: &kinematics::RobotModel| {
         if cell.shared_joints == 0 {
-            return m.joints().first().map_or(Vector3::zeros(), |j| j.origin_xyz);
+            return m
+                .joints()
+                .first()
+                .map_or(Vector3::zeros(), |j| j.origin_xyz);
         }
         m.chain_joints()
             .iter()
@@ -223,8 +226,7 @@ fn simulate_point(
     let (q1, q2) = if cell.shared_joints > 0 {
         let dirs = approach_directions(cell, p);
         let target2 = |_: &Vector3<f64>| target2;
-        let (q1, q2, _) =
-            crate::trunk::meet_on_trunk(cell, &target1, &target2, &dirs, None, rng)?;
+        let (q1, q2, _) = crate::trunk::meet_on_trunk(cell, &target1, &target2, &dirs, None, rng)?;
         (q1, q2)
     } else {
         meet_apart(cell, p, &target1, &target2)?

@@ -54,8 +54,8 @@ pub(crate) fn branch_offsets(
     let (me, other) = (cell.robot(robot), cell.robot(robot.other()));
     let k = cell.shared_joints;
     let fail = |e: kinematics::KinematicsError| (robot, format!("the trunk's load: {e}"));
-    let torques = kinematics::trunk::branch_torques(&other.model, q_other, &other.g_base, k)
-        .map_err(fail)?;
+    let torques =
+        kinematics::trunk::branch_torques(&other.model, q_other, &other.g_base, k).map_err(fail)?;
     let lumped = kinematics::trunk::branch_deflections(
         &other.model,
         &other.errors.lumped_compliance,
@@ -91,6 +91,9 @@ pub(crate) fn loaded(
     Ok(r)
 }
 
+/// Both robots' reported joints `(q1, q2)`, rad (m for a prismatic joint).
+type JointPair = (Vec<f64>, Vec<f64>);
+
 /// `robot` of `cell` with the trunk's joints held at `trunk` (for its inverse kinematics).
 fn held(cell: &Cell, robot: Robot, trunk: &[f64]) -> Option<CellRobot> {
     let mut c = cell.robot(robot).clone();
@@ -109,11 +112,9 @@ fn meet_at(
     target2: &Point3<f64>,
     d: &Unit<Vector3<f64>>,
     seeds: Option<(&[f64], &[f64])>,
-) -> Result<Option<(Vec<f64>, Vec<f64>)>, PointFailure> {
-    let (Some(h1), Some(h2)) = (
-        held(cell, Robot::One, trunk),
-        held(cell, Robot::Two, trunk),
-    ) else {
+) -> Result<Option<JointPair>, PointFailure> {
+    let (Some(h1), Some(h2)) = (held(cell, Robot::One, trunk), held(cell, Robot::Two, trunk))
+    else {
         return Ok(None);
     };
     let axis2 = Unit::new_normalize(cell.b1_from_b2.inverse().rotation * -d.into_inner());
@@ -231,14 +232,8 @@ mod tests {
         assert_eq!(q1[..k], q2[..k]);
         let tip = |robot: Robot, q: &[f64], other: &[f64]| {
             let r = loaded(&cell, robot, cell.robot(robot), other).unwrap();
-            kinematics::true_base_from_tip(
-                &r.model,
-                &r.errors,
-                q,
-                &r.flange_from_tip,
-                &r.g_base,
-            )
-            .unwrap()
+            kinematics::true_base_from_tip(&r.model, &r.errors, q, &r.flange_from_tip, &r.g_base)
+                .unwrap()
         };
         let (t1, t2) = (tip(Robot::One, &q1, &q2), tip(Robot::Two, &q2, &q1));
         let gap = (t1.translation.vector - t2.translation.vector).norm();
