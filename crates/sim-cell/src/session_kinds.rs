@@ -533,7 +533,7 @@ impl Sim<'_> {
                 dirs.push(Unit::new_normalize(f.rotation * Vector3::z()));
             }
         }
-        dirs.extend(approach_directions(cell, &t.p_b1));
+        dirs.extend(crate::simulate::meeting_directions(cell, &t.p_b1));
         let seeds = t
             .planned
             .as_ref()

@@ -54,18 +54,31 @@ impl SessionSpec {
 }
 
 /// Head-on approach directions (b1, unit) to try for a point, best first: along the line between
-/// the shoulders (each arm's first joint after a shared trunk), from robot 1's shoulder to the
-/// point, then those turned ±30°/±60° about the vertical and tilted ±30°.
+/// the shoulders, from robot 1's shoulder to the point, then those turned ±30°/±60° about the
+/// vertical and tilted ±30°. Used by one-robot rows (tracker, plane); a meeting of both robots
+/// takes [`meeting_directions`].
 pub(crate) fn approach_directions(cell: &Cell, p: &Point3<f64>) -> Vec<Unit<Vector3<f64>>> {
-    // Each arm's first joint of its own: after the trunk on a shared-trunk cell (its origin at
-    // q = 0: the fixed parts composed), else the robot's first joint.
+    let first = |m: &kinematics::RobotModel| {
+        m.joints()
+            .first()
+            .map_or(Vector3::zeros(), |j| j.origin_xyz)
+    };
+    directions_from(
+        cell,
+        p,
+        first(&cell.robot1.model),
+        cell.b1_from_b2 * Point3::from(first(&cell.robot2.model)),
+    )
+}
+
+/// [`approach_directions`] for a meeting of both robots: on a shared-trunk cell the shoulders are
+/// each arm's first joint after the trunk (its origin at q = 0: the fixed parts composed), whose
+/// line runs from one hand's side to the other's; elsewhere the same directions.
+pub(crate) fn meeting_directions(cell: &Cell, p: &Point3<f64>) -> Vec<Unit<Vector3<f64>>> {
+    if cell.shared_joints == 0 {
+        return approach_directions(cell, p);
+    }
     let first_own = |m: &kinematics::RobotModel| {
-        if cell.shared_joints == 0 {
-            return m
-                .joints()
-                .first()
-                .map_or(Vector3::zeros(), |j| j.origin_xyz);
-        }
         m.chain_joints()
             .iter()
             .take(cell.shared_joints + 1)
@@ -75,8 +88,21 @@ pub(crate) fn approach_directions(cell: &Cell, p: &Point3<f64>) -> Vec<Unit<Vect
             .translation
             .vector
     };
-    let s1 = first_own(&cell.robot1.model);
-    let s2 = cell.b1_from_b2 * Point3::from(first_own(&cell.robot2.model));
+    directions_from(
+        cell,
+        p,
+        first_own(&cell.robot1.model),
+        cell.b1_from_b2 * Point3::from(first_own(&cell.robot2.model)),
+    )
+}
+
+/// The directions of [`approach_directions`] from shoulders `s1` (b1) and `s2` (b1).
+fn directions_from(
+    cell: &Cell,
+    p: &Point3<f64>,
+    s1: Vector3<f64>,
+    s2: Point3<f64>,
+) -> Vec<Unit<Vector3<f64>>> {
     let up = -cell.robot1.g_base.normalize();
     let mut base = Vec::new();
     for d in [s2.coords - s1, p.coords - s1] {
@@ -224,7 +250,7 @@ fn simulate_point(
     let target1 = p + d1;
     let target2 = b2_from_b1 * (p + eps) + d2;
     let (q1, q2) = if cell.shared_joints > 0 {
-        let dirs = approach_directions(cell, p);
+        let dirs = meeting_directions(cell, p);
         let target2 = |_: &Vector3<f64>| target2;
         let (q1, q2, _) = crate::trunk::meet_on_trunk(cell, &target1, &target2, &dirs, None, rng)?;
         (q1, q2)

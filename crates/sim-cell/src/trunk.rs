@@ -225,7 +225,7 @@ mod tests {
             r.errors.compliance = vec![c; r.errors.joint_offset.len()];
         }
         let p = Point3::new(0.35, 0.0, 1.45);
-        let dirs = crate::simulate::approach_directions(&cell, &p);
+        let dirs = crate::simulate::meeting_directions(&cell, &p);
         let mut rng = crate::trial_rng(3, 0);
         let (q1, q2, u) = meet_on_trunk(&cell, &p, &|_| p, &dirs, None, &mut rng).unwrap();
         let k = cell.shared_independent_joints();
