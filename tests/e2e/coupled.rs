@@ -168,7 +168,7 @@ fn names_robot2_trunk_parameter(text: &str) -> bool {
 /// Recovery with a shared trunk (`[robot2] shares = { robot = 1, link = "chest" }`, a coupled
 /// torso_4 in it): the trunk's parameters are fitted once (robot 1's; no robot 2 parameter at
 /// the 4 trunk joints, no free placement), the export re-loads as a shared-trunk cell, the
-/// held-out rms is near the camera's noise; what is not supported yet is refused by name.
+/// held-out rms is near the camera's noise; a session the fit cannot use is refused by name.
 #[test]
 fn shared_trunk_is_fitted_once_and_calibrated_to_its_noise() {
     let dir = tempfile::tempdir().unwrap();
@@ -211,8 +211,7 @@ fn shared_trunk_is_fitted_once_and_calibrated_to_its_noise() {
     assert_eq!(back.shared_joints, 4);
     assert_held_out_near_noise(&cal, &held, &humanoid_trunk(), "shared trunk");
 
-    // Not supported yet, refused by name: plan, two-robot rows in the simulator; and
-    // lumped compliance on tracker rows that do not give the other arm's joints (its weight
+    // Refused by name: lumped compliance on tracker rows that do not give the other arm's joints (its weight
     // loads the trunk), naming the columns to fill.
     let cell = arg(&humanoid_trunk());
     let mut bare = tracker_session(&truth, 10, 43);
@@ -239,27 +238,6 @@ fn shared_trunk_is_fitted_once_and_calibrated_to_its_noise() {
             && e.contains("--model kinematic"),
         "{e}"
     );
-    let plan = arg(&dir.path().join("plan.csv"));
-    let e = stderr_of_failure(&["plan", "--cell", &cell, "--n", "6", "--out", &plan]);
-    assert!(
-        e.contains("shared-trunk")
-            && e.contains("not supported yet")
-            && e.contains("--kind tracker")
-            && e.contains("handclasp diagnose"),
-        "{e}"
-    );
-    let kinds = KindSpec {
-        kind: SimKind::Coincident,
-        ..KindSpec::default()
-    };
-    let spec = SessionSpec::new(6, Layout::Random, 0.4);
-    let e = generate_kind_session(&truth, &spec, &kinds, None, &mut trial_rng(1, 0))
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("shared-trunk") && e.contains("--kind tracker"),
-        "{e}"
-    );
     // A two-robot row whose trunk columns disagree.
     let csv = std::fs::read_to_string(&train).unwrap();
     let header = csv.lines().next().unwrap();
@@ -279,6 +257,153 @@ fn shared_trunk_is_fitted_once_and_calibrated_to_its_noise() {
     assert!(
         e.contains("r1_q1_deg") && e.contains("r2_q1_deg") && e.contains("shared"),
         "{e}"
+    );
+}
+
+/// The plan of a shared-trunk cell's handclasps: meeting points in a cube of this side (m) in
+/// front of the humanoid's chest ([`TRUNK_PLAN_CENTRE_MM`]), where both hands meet head-on.
+const TRUNK_PLAN_SPREAD_MM: f64 = 300.0;
+/// Centre of that cube, mm, b1 (the pelvis): 350 mm in front, 1450 mm up (the shoulders are at
+/// 1750 mm with the trunk upright; the cell's `[teach]` centre, 1100 mm up, is for tracker rows).
+const TRUNK_PLAN_CENTRE_MM: [f64; 3] = [350.0, 0.0, 1450.0];
+/// Largest ratio, either way, between one calibration's measured held-out cooperative rms and
+/// the plan's prediction (the expected rms over truths drawn from the tolerances): one truth
+/// draw and one noise draw scatter about the expectation, by less than this.
+const PREDICTION_RATIO: f64 = 2.0;
+
+/// `handclasp plan` on a shared-trunk cell, end to end as a user runs it (issue 22): plan 40
+/// handclasps of the humanoid's two hands (each candidate's trunk drawn once, both arms solved
+/// with it held), simulate the plan on a truth whose errors are drawn from the cell's
+/// tolerances (seed 71; both arms agree on the trunk at every row, `sim-cell session --plan`),
+/// `calibrate --cell` it, and score the export with `validate` on 40 new noise-free handclasps
+/// (seed 72): there the calibrated rms is the cooperative error itself, which lands within
+/// [`PREDICTION_RATIO`] of the plan's predicted cooperative rms, and the nominal's is more
+/// than twice it.
+#[test]
+fn plan_on_a_shared_trunk_predicts_the_calibration_it_plans() {
+    let dir = tempfile::tempdir().unwrap();
+    let cell = humanoid_trunk();
+    let nominal = Cell::from_toml_file(&cell).expect("humanoid-trunk cell");
+    let plan_csv = dir.path().join("plan.csv");
+    let c = TRUNK_PLAN_CENTRE_MM;
+    let centre = format!("{},{},{}", c[0], c[1], c[2]);
+    let spread = TRUNK_PLAN_SPREAD_MM.to_string();
+    let v = stdout_json(&handclasp(&[
+        "plan",
+        "--cell",
+        &arg(&cell),
+        "--n",
+        "40",
+        "--candidates",
+        "120",
+        "--spread-mm",
+        &spread,
+        "--centre-mm",
+        &centre,
+        "--out",
+        &arg(&plan_csv),
+        "--json",
+    ]));
+    let predicted = v["predicted"]["plan"]["cooperative_rms_mm"]
+        .as_f64()
+        .expect("a predicted cooperative rms");
+    let plan = Session::read_csv(&plan_csv, &nominal).expect("the plan reads back");
+    assert_eq!(plan.points.len(), 40);
+    let k = nominal.shared_independent_joints();
+    for p in &plan.points {
+        assert_eq!(
+            p.q1[..k],
+            p.q2[..k],
+            "planned pose {} disagrees on the trunk",
+            p.point
+        );
+    }
+
+    // The truth: errors drawn from the tolerances the plan assumes, the trunk's once.
+    let mut truth = nominal.clone();
+    let mut rng = trial_rng(71, 0);
+    sim_cell::plan::draw_errors_from_tolerance(&mut truth, &mut rng);
+    let trunk_params = calib_core::whole_cell::CellRobot {
+        model: truth.robot1.model.clone(),
+        tools: Vec::new(),
+        g_base: truth.robot1.g_base,
+        tolerance: truth.robot1.tolerance,
+        shared_joints: 0,
+    }
+    .fitted_params()
+    .into_iter()
+    .filter(|p| p.joint().is_some_and(|j| j < truth.shared_joints));
+    for p in trunk_params {
+        let v = truth.robot1.errors.get(p);
+        truth.robot2.errors.set(p, v);
+    }
+    let teach = sim_cell::teach_from_plan(&plan).expect("a plan of handclasps");
+    let kinds = KindSpec::default();
+    let spec = SessionSpec::new(teach.len(), Layout::Random, 0.3);
+    let (train, _) = generate_kind_session(&truth, &spec, &kinds, Some(&teach), &mut rng)
+        .expect("the plan's poses are reached");
+    for (a, b) in train.points.iter().zip(&plan.points) {
+        assert_eq!(
+            a.q1[..k],
+            a.q2[..k],
+            "simulated pose {} disagrees on the trunk",
+            a.point
+        );
+        assert!(
+            a.q1[..k]
+                .iter()
+                .zip(&b.q1[..k])
+                .all(|(x, y)| (x - y).abs() < 1e-3),
+            "pose {} left the planned trunk",
+            a.point
+        );
+    }
+    let train = write_session_csv(dir.path(), "train.csv", &train, &nominal);
+    let cal = dir.path().join("cal");
+    let out = handclasp(&[
+        "calibrate",
+        "--cell",
+        &arg(&cell),
+        "--session",
+        &arg(&train),
+        "--export",
+        &arg(&cal),
+    ]);
+    crate::support::assert_success(&out);
+
+    // New handclasps, noise-free: the residual of a row is the cooperative error there.
+    let mut exact = truth.clone();
+    exact.noise.alignment_m = nalgebra::Vector3::zeros();
+    exact.noise.repeatability_m = 0.0;
+    exact.noise.encoder_resolution_rad = 0.0;
+    let mut spec = SessionSpec::new(40, Layout::Random, TRUNK_PLAN_SPREAD_MM * 1e-3);
+    spec.centre_b1 = Some(nalgebra::Point3::new(c[0], c[1], c[2]) * 1e-3);
+    let held = sim_cell::generate_session(&exact, &spec, &mut trial_rng(72, 0))
+        .expect("new handclasps are reached");
+    let held = write_session_csv(dir.path(), "held.csv", &held, &nominal);
+    let v = stdout_json(&handclasp(&[
+        "validate",
+        "--cell",
+        &arg(&cal.join("cell.toml")),
+        "--session",
+        &arg(&held),
+        "--nominal",
+        &arg(&cell),
+        "--json",
+    ]));
+    let measured = v["all"]["calibrated"]["rms_mm"].as_f64().unwrap();
+    let nominal_rms = v["all"]["nominal"]["rms_mm"].as_f64().unwrap();
+    eprintln!(
+        "shared-trunk plan: predicted cooperative rms {predicted:.3} mm, measured on 40 new \
+         handclasps {measured:.3} mm (nominal {nominal_rms:.3} mm)"
+    );
+    assert!(
+        measured < PREDICTION_RATIO * predicted && predicted < PREDICTION_RATIO * measured,
+        "measured {measured:.3} mm vs predicted {predicted:.3} mm"
+    );
+    assert!(
+        nominal_rms > 2.0 * measured,
+        "nominal {nominal_rms:.3} mm vs calibrated {measured:.3} mm"
     );
 }
 

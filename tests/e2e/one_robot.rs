@@ -114,6 +114,32 @@ fn rail_robot_one_robot_cell_is_calibrated_to_its_noise_on_new_poses() {
     ]);
     let text = String::from_utf8_lossy(&text.stdout);
     assert!(text.contains("one-robot cell: no placement"), "{text}");
+    // Worded for one robot: what a tracker cannot tell from the robot's base is confounded with
+    // the tracker frame, never with a placement the cell does not have.
+    assert!(
+        text.contains("confounded with the tracker/plane unknowns") && !text.contains("b1_from_b2"),
+        "{text}"
+    );
+    // --accept-deg judges a placement rotation, which a one-robot cell has not: refused up
+    // front, saying why and what to use.
+    let e = stderr_of_failure(&[
+        "calibrate",
+        "--cell",
+        &arg(&rail_cell_path()),
+        "--session",
+        &arg(&train),
+        "--accept-mm",
+        "1",
+        "--accept-deg",
+        "0.1",
+    ]);
+    assert!(
+        e.contains("--accept-deg")
+            && e.contains("one-robot cell")
+            && e.contains("no placement")
+            && e.contains("--accept-mm"),
+        "{e}"
+    );
     assert!(
         !text.contains("b1_from_b2:") && !text.contains("robot 2 ("),
         "{text}"

@@ -710,7 +710,7 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
             r.unidentifiable.len()
         )?;
         for d in &r.unidentifiable {
-            writeln!(s, "  {}", dropped_line(d))?;
+            writeln!(s, "  {}", dropped_line(d, r.one_robot))?;
         }
     }
     if r.rejected_points.is_empty() {
@@ -979,8 +979,9 @@ fn noise_scale_note(noise_scale: f64) -> &'static str {
     }
 }
 
-/// One readable line per dropped parameter: why, and for a merge its largest partners.
-fn dropped_line(d: &UnidentifiableReport) -> String {
+/// One readable line per dropped parameter: why, and for a merge its largest partners
+/// (`one_robot`: a one-robot cell, which has no placement).
+fn dropped_line(d: &UnidentifiableReport, one_robot: bool) -> String {
     let name = &d.name;
     match d.reason {
         DropReason::Merged => {
@@ -1006,6 +1007,9 @@ fn dropped_line(d: &UnidentifiableReport) -> String {
                 "{name}: merged into {}{more} (coefficients in prior σ)",
                 shown.join(", ")
             )
+        }
+        DropReason::ConfoundedWithPlacement if one_robot => {
+            format!("{name}: absorbed by the robot's base frame (the tracker/plane unknowns)")
         }
         DropReason::ConfoundedWithPlacement => format!("{name}: absorbed by b1_from_b2"),
         DropReason::NoEffect => format!("{name}: moves no observed tip"),

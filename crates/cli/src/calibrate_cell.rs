@@ -190,6 +190,15 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         .map(|path| read_work_points(path).context("--work-points"))
         .transpose()?;
     let cell = Cell::from_toml_file(cell_path)?;
+    if cell.one_robot && args.accept_deg.is_some() {
+        bail!(
+            "--accept-deg: {} is a one-robot cell, which has no placement between two robots, so \
+             no placement rotation is fitted or predicted for --accept-deg to judge; drop the \
+             flag and judge the robot's absolute accuracy with --accept-mm (with --work-points \
+             for the sites that matter)",
+            cell_path.display()
+        );
+    }
     if args.verbose {
         crate::fk::print_cell_branches(&cell);
     }

@@ -741,6 +741,42 @@ mod tests {
         assert!(!solve_spd(&mut not_pd, &mut b, 1));
     }
 
+    /// `with_joints_held`: the inverse kinematics of the held model reaches a target the free
+    /// arm reaches, without moving the held joints (a shared trunk's), and a value outside a
+    /// held joint's limits (or too many values) is refused naming the joint.
+    #[test]
+    fn held_joints_do_not_move_in_the_inverse_kinematics() {
+        let free = crate::test_fixtures::mixed_coupled();
+        let q = [0.05, 0.3, -0.4, 0.1];
+        let tip = Vector3::new(0.0, 0.0, 0.1);
+        let target = Point3::from(
+            crate::base_from_tip(&free, &q, &tip)
+                .unwrap()
+                .translation
+                .vector,
+        );
+        let held = free.with_joints_held(&q[..2]).unwrap();
+        let start = IkOptions {
+            initial_q: Some(vec![0.0; 4]),
+            ..IkOptions::default()
+        };
+        let sol = ik_tip_position(&held, &target, &tip, &start).unwrap();
+        assert!(sol.reachable(), "{sol:?}");
+        assert_eq!(sol.q[..2], q[..2]);
+        let reached = crate::base_from_tip(&free, &sol.q, &tip).unwrap();
+        assert!((reached.translation.vector - target.coords).norm() < 1e-9);
+        let j = &free.joints()[1];
+        let e = free
+            .with_joints_held(&[0.0, j.upper + 0.1])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&j.name) && e.contains("within its limits"),
+            "{e}"
+        );
+        assert!(free.with_joints_held(&[0.0; 5]).is_err());
+    }
+
     #[test]
     fn halton_seeds_stay_in_limits_and_differ() {
         let xml = TWO_JOINT;

@@ -11,6 +11,7 @@ pub mod plot;
 pub mod session_kinds;
 pub mod simulate;
 pub mod sweep;
+mod trunk;
 
 pub use error::SimError;
 pub use layout::{teach_points, Layout};

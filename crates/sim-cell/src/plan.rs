@@ -203,8 +203,8 @@ fn plan_error(e: CellFitError) -> SimError {
 /// Plans a session on `cell` (see the module documentation); `progress(found, drawn)` reports
 /// the candidate search (the long part for large `k`).
 ///
-/// Errors: a one-robot cell (it has no handclasp poses), a shared-trunk cell (its handclasp
-/// poses must agree on the trunk, which the candidate generator does not enforce), `n` = 0, `n` > `k`, no random draws, a non-positive spread; fewer than `n`
+/// Errors: a one-robot cell (it has no handclasp poses), `n` = 0, `n` > `k`, no random draws, a
+/// non-positive spread; fewer than `n`
 /// reachable candidates (naming how many were found and what to change); a cell none of whose
 /// drawn points both robots reach.
 pub fn plan_session(
@@ -217,19 +217,6 @@ pub fn plan_session(
             "the cell has only [robot1]: a plan chooses handclasp poses that both robots reach, \
              so a one-robot cell has none; simulate its tracker or plane session with \
              `sim-cell session --kind tracker` (or plane) instead"
-                .into(),
-        ));
-    }
-    if cell.shared_joints > 0 {
-        return Err(SimError::InvalidInput(
-            "a shared-trunk cell (`robot2.shares`): plan chooses handclasp poses (both tips \
-             meeting), and on a shared trunk both arms' joints at a handclasp must agree on the \
-             trunk joints, which its candidate generator (each arm's inverse kinematics on its \
-             own) does not enforce, so planning here is not supported yet; plan does not design \
-             tracker or plane sessions either. Record (or simulate: `sim-cell session --cell \
-             CELL --kind tracker --n 40`) tracker or plane rows of each arm, with the other \
-             arm's joints in its columns, and fit them with `handclasp calibrate --cell` or \
-             `handclasp diagnose`"
                 .into(),
         ));
     }

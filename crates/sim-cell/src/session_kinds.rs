@@ -15,6 +15,7 @@ use crate::simulate::{
     approach_directions, gauss3, generate_session, quantise, solve_true_tool, tool_errors,
     unreachable, PointFailure, SessionSpec, MAX_LAYOUT_ATTEMPTS,
 };
+use crate::trunk::{Meeting, TRUNK_LOAD_PASSES};
 use calib_core::whole_cell::tangent_basis;
 use calib_core::Robot;
 use handclasp_cell::cell::Cell;
@@ -261,14 +262,6 @@ pub fn generate_kind_session(
             }
         )));
     }
-    if cell.shared_joints > 0 && !matches!(kinds.kind, SimKind::Tracker | SimKind::Plane) {
-        return Err(SimError::InvalidInput(
-            "a shared-trunk cell (`robot2.shares`) is simulated with --kind tracker or --kind \
-             plane (one robot per row) for now: rows with both robots at once need poses that \
-             agree on the trunk, which the simulator does not draw yet"
-                .into(),
-        ));
-    }
     let centre = spec.centre_b1.unwrap_or(cell.centre_b1);
     if kinds.kind == SimKind::Coincident && plan.is_none() {
         let truth = NuisanceTruth {
@@ -355,10 +348,6 @@ pub fn generate_kind_session(
     let (i, p, robot, why) = last_fail.unwrap_or((1, centre, Robot::One, String::new()));
     Err(unreachable(cell, i, &p, robot, &why, Some(spec)))
 }
-
-/// Both robots' reported joints `(q1, q2)` (rad) of a meeting and the approach direction `û`
-/// it took (b1, unit).
-type Meeting = (Vec<f64>, Vec<f64>, Vector3<f64>);
 
 struct Sim<'a> {
     cell: &'a Cell,
@@ -544,11 +533,15 @@ impl Sim<'_> {
                 dirs.push(Unit::new_normalize(f.rotation * Vector3::z()));
             }
         }
-        dirs.extend(approach_directions(cell, &t.p_b1));
+        dirs.extend(crate::simulate::meeting_directions(cell, &t.p_b1));
         let seeds = t
             .planned
             .as_ref()
             .map(|(a, b)| (a.as_slice(), b.as_slice()));
+        if cell.shared_joints > 0 {
+            let target2 = |u: &Vector3<f64>| b2_from_b1 * (t.p_b1 + offset(*u)) + d2;
+            return crate::trunk::meet_on_trunk(cell, &(t.p_b1 + d1), &target2, &dirs, seeds, rng);
+        }
         let mut last = (Robot::One, String::new());
         for d in dirs {
             let target1 = t.p_b1 + d1;
@@ -577,8 +570,8 @@ impl Sim<'_> {
     /// approached along `axis_b1` if reachable, else along the handclasp directions, else in any
     /// orientation; returns them with the true tool point after quantisation (b1) and, on a
     /// shared-trunk cell, the other arm's posture ([`Sim::other_arm`]), whose weight deflects
-    /// the trunk joints by their compliance ([`Sim::branch_offsets`]): the inverse kinematics
-    /// is redone [`TRUNK_LOAD_PASSES`] times with that deflection at the last solution's trunk.
+    /// the trunk joints by their compliance ([`crate::trunk::branch_offsets`]): the inverse kinematics
+    /// is redone [`crate::trunk::TRUNK_LOAD_PASSES`] times with that deflection at the last solution's trunk.
     #[allow(clippy::type_complexity)] // (joints, true tool point, the other arm's joints)
     fn one(
         &self,
@@ -614,16 +607,7 @@ impl Sim<'_> {
         let loaded = |q: &[f64], q_other: &mut Vec<f64>| -> Result<_, PointFailure> {
             let trunk = cell.shared_independent_joints().min(q.len());
             q_other[..trunk].copy_from_slice(&q[..trunk]);
-            let mut r = c.clone();
-            for (o, d) in r
-                .errors
-                .joint_offset
-                .iter_mut()
-                .zip(self.branch_offsets(robot, q_other)?)
-            {
-                *o += d;
-            }
-            Ok(r)
+            crate::trunk::loaded(cell, robot, c, q_other)
         };
         for axis in axes {
             let axis_b = axis.map(|a| Unit::new_normalize(b_from_b1.rotation * a.into_inner()));
@@ -675,41 +659,7 @@ impl Sim<'_> {
             })
             .collect()
     }
-
-    /// The deflection (rad, m for a prismatic joint; one entry per chain joint of `robot`, zero
-    /// beyond the trunk) of the trunk joints under the other arm at `q_other` (its independent
-    /// joints, the trunk's equal to the row's): each trunk joint's compliance (the cell's
-    /// `compliance_deg_per_knm`) times the other arm's gravity torque on it
-    /// ([`kinematics::trunk::branch_torques`], from the other URDF's masses), plus the
-    /// deflection of the other arm's lumped coefficients on the trunk joints
-    /// ([`kinematics::trunk::branch_deflections`]).
-    fn branch_offsets(&self, robot: Robot, q_other: &[f64]) -> Result<Vec<f64>, PointFailure> {
-        let cell = self.cell;
-        let (me, other) = (cell.robot(robot), cell.robot(robot.other()));
-        let k = cell.shared_joints;
-        let fail = |e: kinematics::KinematicsError| (robot, format!("the trunk's load: {e}"));
-        let torques = kinematics::trunk::branch_torques(&other.model, q_other, &other.g_base, k)
-            .map_err(fail)?;
-        let lumped = kinematics::trunk::branch_deflections(
-            &other.model,
-            &other.errors.lumped_compliance,
-            q_other,
-            &other.g_base,
-            k,
-        )
-        .map_err(fail)?;
-        let mut out = vec![0.0; me.errors.joint_offset.len()];
-        for j in 0..k.min(out.len()) {
-            out[j] = me.errors.compliance.get(j).copied().unwrap_or(0.0) * torques[j] + lumped[j];
-        }
-        Ok(out)
-    }
 }
-
-/// How many times [`Sim::one`] redoes a shared-trunk row's inverse kinematics with the trunk's
-/// deflection under the other arm at the last solution: 2 (the deflection moves the trunk by
-/// µrad, and its change with that move is second order).
-const TRUNK_LOAD_PASSES: usize = 2;
 
 /// Reads teach points (`sim-cell session --points-csv`): a CSV with columns `x_mm,y_mm,z_mm`
 /// (robot 1's tip, base 1, mm; found by name, any order, extra columns ignored; comma,

@@ -55,22 +55,54 @@ impl SessionSpec {
 
 /// Head-on approach directions (b1, unit) to try for a point, best first: along the line between
 /// the shoulders, from robot 1's shoulder to the point, then those turned ±30°/±60° about the
-/// vertical and tilted ±30°.
+/// vertical and tilted ±30°. Used by one-robot rows (tracker, plane); a meeting of both robots
+/// takes [`meeting_directions`].
 pub(crate) fn approach_directions(cell: &Cell, p: &Point3<f64>) -> Vec<Unit<Vector3<f64>>> {
-    let s1 = cell
-        .robot1
-        .model
-        .joints()
-        .first()
-        .map_or(Vector3::zeros(), |j| j.origin_xyz);
-    let s2 = cell.b1_from_b2
-        * Point3::from(
-            cell.robot2
-                .model
-                .joints()
-                .first()
-                .map_or(Vector3::zeros(), |j| j.origin_xyz),
-        );
+    let first = |m: &kinematics::RobotModel| {
+        m.joints()
+            .first()
+            .map_or(Vector3::zeros(), |j| j.origin_xyz)
+    };
+    directions_from(
+        cell,
+        p,
+        first(&cell.robot1.model),
+        cell.b1_from_b2 * Point3::from(first(&cell.robot2.model)),
+    )
+}
+
+/// [`approach_directions`] for a meeting of both robots: on a shared-trunk cell the shoulders are
+/// each arm's first joint after the trunk (its origin at q = 0: the fixed parts composed), whose
+/// line runs from one hand's side to the other's; elsewhere the same directions.
+pub(crate) fn meeting_directions(cell: &Cell, p: &Point3<f64>) -> Vec<Unit<Vector3<f64>>> {
+    if cell.shared_joints == 0 {
+        return approach_directions(cell, p);
+    }
+    let first_own = |m: &kinematics::RobotModel| {
+        m.chain_joints()
+            .iter()
+            .take(cell.shared_joints + 1)
+            .fold(nalgebra::Isometry3::identity(), |t, j| {
+                t * j.fixed_prefix * kinematics::origin_isometry(&j.origin_xyz, &j.origin_rpy)
+            })
+            .translation
+            .vector
+    };
+    directions_from(
+        cell,
+        p,
+        first_own(&cell.robot1.model),
+        cell.b1_from_b2 * Point3::from(first_own(&cell.robot2.model)),
+    )
+}
+
+/// The directions of [`approach_directions`] from shoulders `s1` (b1) and `s2` (b1).
+fn directions_from(
+    cell: &Cell,
+    p: &Point3<f64>,
+    s1: Vector3<f64>,
+    s2: Point3<f64>,
+) -> Vec<Unit<Vector3<f64>>> {
     let up = -cell.robot1.g_base.normalize();
     let mut base = Vec::new();
     for d in [s2.coords - s1, p.coords - s1] {
@@ -148,9 +180,16 @@ pub(crate) fn solve_true_tool(
         if e.norm() < TRUE_TIP_TOL_M {
             return Some(q);
         }
-        let j =
+        let mut j =
             tip_joint_jacobian_true(&robot.model, &errors, &q, &flange_from_tool, &robot.g_base)
                 .ok()?;
+        // A held joint (limits equal: a shared trunk's, `RobotModel::with_joints_held`) does
+        // not move: the step is taken by the others.
+        for (k, jt) in robot.model.joints().iter().enumerate() {
+            if jt.lower == jt.upper {
+                j.column_mut(k).fill(0.0);
+            }
+        }
         let jjt: Matrix3<f64> = &j * j.transpose();
         let y = jjt.try_inverse()? * e;
         let dq = j.transpose() * y;
@@ -195,7 +234,8 @@ pub(crate) type PointFailure = (Robot, String);
 /// Simulates one teach point `p` (true meeting point, m, b1). Robot 1's true tip is at `p`,
 /// robot 2's at `p + ε` (alignment); the reported joints put the true tips there up to
 /// repeatability `δ` (unseen by the encoders), quantised to the encoder resolution; the tips are
-/// what the nominal models compute from the reported joints.
+/// what the nominal models compute from the reported joints. On a shared-trunk cell both arms
+/// stand on one trunk posture (`trunk::meet_on_trunk`).
 fn simulate_point(
     cell: &Cell,
     p: &Point3<f64>,
@@ -209,30 +249,50 @@ fn simulate_point(
     let b2_from_b1 = cell.b1_from_b2.inverse();
     let target1 = p + d1;
     let target2 = b2_from_b1 * (p + eps) + d2;
+    let (q1, q2) = if cell.shared_joints > 0 {
+        let dirs = meeting_directions(cell, p);
+        let target2 = |_: &Vector3<f64>| target2;
+        let (q1, q2, _) = crate::trunk::meet_on_trunk(cell, &target1, &target2, &dirs, None, rng)?;
+        (q1, q2)
+    } else {
+        meet_apart(cell, p, &target1, &target2)?
+    };
+    let t1 = base_from_tip(&cell.robot1.model, &q1, &cell.robot1.flange_from_tip)
+        .map_err(|e| (Robot::One, e.to_string()))?;
+    let t2 = base_from_tip(&cell.robot2.model, &q2, &cell.robot2.flange_from_tip)
+        .map_err(|e| (Robot::Two, e.to_string()))?;
+    Ok(SessionPoint {
+        point: label,
+        q1,
+        q2,
+        p_b1: Point3::from(t1.translation.vector),
+        p_b2: Point3::from(t2.translation.vector),
+    })
+}
+
+/// Both robots' reported joints (two separate robots) with robot 1's true tip at `target1` (b1)
+/// and robot 2's at `target2` (b2), head-on along the first of [`approach_directions`] both reach.
+fn meet_apart(
+    cell: &Cell,
+    p: &Point3<f64>,
+    target1: &Point3<f64>,
+    target2: &Point3<f64>,
+) -> Result<(Vec<f64>, Vec<f64>), PointFailure> {
+    let b2_from_b1 = cell.b1_from_b2.inverse();
     let mut last = (Robot::One, String::new());
     for d in approach_directions(cell, p) {
-        let Some(mut q1) = solve_true(&cell.robot1, &target1, Some(d)) else {
+        let Some(mut q1) = solve_true(&cell.robot1, target1, Some(d)) else {
             last = (Robot::One, "robot 1 cannot reach it head-on".into());
             continue;
         };
         let axis2 = Unit::new_normalize(b2_from_b1.rotation * -d.into_inner());
-        let Some(mut q2) = solve_true(&cell.robot2, &target2, Some(axis2)) else {
+        let Some(mut q2) = solve_true(&cell.robot2, target2, Some(axis2)) else {
             last = (Robot::Two, "robot 2 cannot reach it head-on".into());
             continue;
         };
         quantise(&cell.robot1, &mut q1, cell.noise.encoder_resolution_rad);
         quantise(&cell.robot2, &mut q2, cell.noise.encoder_resolution_rad);
-        let t1 = base_from_tip(&cell.robot1.model, &q1, &cell.robot1.flange_from_tip)
-            .map_err(|e| (Robot::One, e.to_string()))?;
-        let t2 = base_from_tip(&cell.robot2.model, &q2, &cell.robot2.flange_from_tip)
-            .map_err(|e| (Robot::Two, e.to_string()))?;
-        return Ok(SessionPoint {
-            point: label,
-            q1,
-            q2,
-            p_b1: Point3::from(t1.translation.vector),
-            p_b2: Point3::from(t2.translation.vector),
-        });
+        return Ok((q1, q2));
     }
     Err(last)
 }

@@ -665,7 +665,8 @@ pub struct WorkspacePose {
 /// so each can be replayed alone) draws robot 1's joints uniformly within its limits
 /// (continuous joints ±π); robot 2 meets robot 1's tool-0 tip head-on with its tool 0
 /// (position, and its flange z axis opposite robot 1's) by inverse kinematics within its
-/// limits; draws robot 2 does not reach are skipped, at most
+/// limits (on a shared trunk, with the trunk's joints held at robot 1's); draws robot 2 does not
+/// reach are skipped, at most
 /// [`WORKSPACE_ATTEMPTS_PER_POSE`]`·count` are drawn.
 pub fn workspace_pairs(
     problem: &CellProblem,
@@ -691,6 +692,13 @@ pub fn workspace_pairs(
         })
         .collect();
     let b2_from_b1 = b1_from_b2.inverse();
+    let trunk = r2
+        .model
+        .chain_joints()
+        .iter()
+        .take(r2.shared_joints)
+        .filter(|j| !j.is_coupled())
+        .count();
     let mut out = Vec::with_capacity(count);
     for a in 0..WORKSPACE_ATTEMPTS_PER_POSE * count {
         if out.len() == count {
@@ -712,7 +720,20 @@ pub fn workspace_pairs(
             ..IkOptions::default()
         };
         let p_b2 = b2_from_b1 * p_b1;
-        match ik_tip_position(&r2.model, &p_b2, &tool2.flange_from_tip, &options) {
+        // A shared trunk: robot 2 stands on robot 1's trunk posture.
+        let held;
+        let model2 = if trunk > 0 {
+            match r2.model.with_joints_held(&q1[..trunk]) {
+                Ok(m) => {
+                    held = m;
+                    &held
+                }
+                Err(_) => continue,
+            }
+        } else {
+            &r2.model
+        };
+        match ik_tip_position(model2, &p_b2, &tool2.flange_from_tip, &options) {
             Ok(sol) if sol.reachable() => out.push(WorkspacePose {
                 pair: ConfigPair {
                     q1,

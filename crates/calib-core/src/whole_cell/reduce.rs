@@ -193,6 +193,22 @@ pub fn reduce_layout(
     let mut prior_cov = DMatrix::<f64>::identity(kk, kk);
     let mut dropped_cols = remaining.clone();
     dropped_cols.sort_unstable();
+    // A one-robot cell (no observation of robot 2): there is no placement to speak of, and the
+    // nuisance unknowns (the tracker frame, the plane) stand where the robot's base is seen from.
+    let robot2_seen = active.iter().any(|&i| {
+        let kind = &problem.observations[i].kind;
+        kind.kind().two_robot()
+            || matches!(
+                kind,
+                super::ObservationKind::Tracker {
+                    robot: crate::Robot::Two,
+                    ..
+                } | super::ObservationKind::Plane {
+                    robot: crate::Robot::Two,
+                    ..
+                }
+            )
+    });
     for &c in &dropped_cols {
         let param = full.params[kin[c]].clone();
         let name = param.describe(problem);
@@ -206,17 +222,32 @@ pub fn reduce_layout(
             if in_place <= RANK_TOL * raw_norm[c] || unpen.len() == 6 {
                 (
                     ReductionReason::ConfoundedWithPlacement,
-                    format!(
-                        "{name} is confounded with b1_from_b2: held at 0, the placement absorbs it"
-                    ),
+                    if robot2_seen {
+                        format!(
+                            "{name} is confounded with b1_from_b2: held at 0, the placement \
+                             absorbs it"
+                        )
+                    } else {
+                        format!(
+                            "{name} is confounded with the robot's base frame: held at 0, the \
+                             tracker/plane unknowns absorb it"
+                        )
+                    },
                 )
             } else {
                 (
                     ReductionReason::ConfoundedWithNuisance,
-                    format!(
-                        "{name} is confounded with b1_from_b2 and the tracker/plane/contact \
-                         unknowns: held at 0, they absorb it"
-                    ),
+                    if robot2_seen {
+                        format!(
+                            "{name} is confounded with b1_from_b2 and the tracker/plane/contact \
+                             unknowns: held at 0, they absorb it"
+                        )
+                    } else {
+                        format!(
+                            "{name} is confounded with the tracker/plane unknowns (where the \
+                             measuring device sees the robot's base): held at 0, they absorb it"
+                        )
+                    },
                 )
             }
         } else if raw_norm[c].powi(2) <= PRIOR_INFO_TOL {

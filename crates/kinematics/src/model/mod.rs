@@ -467,6 +467,50 @@ impl RobotModel {
         Ok(())
     }
 
+    /// This model with its first `values.len()` independent joints held at `values` (rad, or m
+    /// for a prismatic joint): each one's lower and upper limits become its value, so inverse
+    /// kinematics ([`crate::ik_tip_position`], which keeps every joint within its limits) moves
+    /// only the others. For an arm on a shared trunk: the trunk's joints are drawn once and each
+    /// arm is solved with them held. The kinematics are unchanged.
+    ///
+    /// Errors ([`KinematicsError::InvalidInput`]): more values than independent joints, or a
+    /// value that is not finite or lies outside its joint's limits (naming the joint).
+    pub fn with_joints_held(&self, values: &[f64]) -> Result<RobotModel, KinematicsError> {
+        if values.len() > self.joints.len() {
+            return Err(KinematicsError::InvalidInput(format!(
+                "cannot hold {} joints of {}: it has {} independent joints",
+                values.len(),
+                self.name,
+                self.joints.len()
+            )));
+        }
+        let mut out = self.clone();
+        for (k, &v) in values.iter().enumerate() {
+            let j = &out.joints[k];
+            if !(v.is_finite() && v >= j.lower && v <= j.upper) {
+                return Err(KinematicsError::InvalidInput(format!(
+                    "cannot hold joint {} ({}) of {} at {v}: give a finite value within its limits [{}, {}] ({})",
+                    k + 1,
+                    j.name,
+                    self.name,
+                    j.lower,
+                    j.upper,
+                    j.kind.unit_si()
+                )));
+            }
+            let name = j.name.clone();
+            for joint in out.joints.iter_mut().chain(out.chain.iter_mut()) {
+                if joint.name == name {
+                    joint.lower = v;
+                    joint.upper = v;
+                }
+            }
+            let slack = check_slack(&out.joints[k]);
+            out.limits[k] = (v - slack, v + slack);
+        }
+        Ok(out)
+    }
+
     /// The URDF robot name.
     pub fn name(&self) -> &str {
         &self.name
