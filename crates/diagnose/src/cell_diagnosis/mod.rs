@@ -59,11 +59,11 @@
 //!    steps from the current model's fit of the same fold (the candidate's columns bordered onto
 //!    that fit's normal equations), its units scored as above. The candidates whose
 //!    prediction, less its bound [`held_out_prediction_slack`], is at or below the lowest
-//!    prediction plus its bound are cross-validated; then, in rounds, every other candidate
-//!    whose prediction less its bound is at or below the lowest held-out χ² of an accepted
-//!    candidate so far (every other, while none is accepted); those left are ruled out (the
-//!    report lists them with that lower end). The step that stops the selection therefore
-//!    cross-validates every candidate (its rejected families are reported in full).
+//!    prediction plus its bound are cross-validated; when one of them is accepted and every
+//!    other candidate's prediction less its bound is above its held-out χ², the others are
+//!    ruled out (the report lists them with that lower end); otherwise every candidate is
+//!    cross-validated. The step that stops the selection therefore cross-validates every
+//!    candidate (its rejected families are reported in full).
 //! 6. **Effects.** Each accepted family: its parameters from the fit of the final model on all
 //!    screened rows, with a 95 % interval `±1.96·σ` (posterior σ times the variance factor
 //!    `max(1, sqrt(χ²/(rows − unknowns)))`, so that real data whose residuals exceed their
@@ -511,43 +511,29 @@ fn run(
             for (c, h) in close.iter().zip(cross_validate(&close)?) {
                 held[*c] = Some(h);
             }
-            // The lowest cross-validated χ² among the significant candidates so far (∞: none).
-            let chosen_of = |held: &[Option<HeldOut>]| {
-                (0..remaining.len())
-                    .filter_map(|c| {
-                        let h = held[c].as_ref()?;
-                        significant(&current_held, h, &involved(remaining[c]), options)
-                            .0
-                            .then(|| h.total())
-                    })
-                    .fold(f64::INFINITY, f64::min)
-            };
-            // Cross-validate the others whose prediction (less its slack) is not above the
-            // chosen χ², until every one left is: a candidate left out has a held-out χ² above
-            // its lower bound, so above the chosen one's, and could not have been chosen.
-            // The chosen χ² only falls as candidates are added, so each round leaves out at
-            // least as many as the last. (Once, one candidate that could not be ruled out
-            // sent every other to cross-validation: on the CTU data no step ruled any out.)
-            loop {
-                let chosen = chosen_of(&held);
-                let need: Vec<usize> = every
-                    .iter()
-                    .copied()
-                    .filter(|&c| held[c].is_none() && low[c] <= chosen)
-                    .collect();
-                if need.is_empty() {
-                    break;
-                }
-                for (c, h) in need.iter().zip(cross_validate(&need)?) {
-                    held[*c] = Some(h);
-                }
-            }
-            ruled_out = every
+            let chosen = (0..remaining.len())
+                .filter_map(|c| {
+                    let h = held[c].as_ref()?;
+                    significant(&current_held, h, &involved(remaining[c]), options)
+                        .0
+                        .then(|| h.total())
+                })
+                .fold(f64::INFINITY, f64::min);
+            let rest: Vec<usize> = every
                 .iter()
                 .copied()
                 .filter(|&c| held[c].is_none())
-                .map(|c| (remaining[c].name.clone(), low[c]))
                 .collect();
+            if rest.iter().all(|&c| low[c] > chosen) {
+                ruled_out = rest
+                    .iter()
+                    .map(|&c| (remaining[c].name.clone(), low[c]))
+                    .collect();
+            } else {
+                for (c, h) in rest.iter().zip(cross_validate(&rest)?) {
+                    held[*c] = Some(h);
+                }
+            }
         }
         let mut results: Vec<(Family, HeldOut, bool, f64)> = Vec::new();
         let mut tried = Vec::new();
