@@ -295,6 +295,27 @@ fn assemble(
     })
 }
 
+impl Linearisation {
+    /// The same linearisation with only the Jacobian columns `columns` (in that order): the
+    /// start of a fit whose parameters are a subset of those this one was taken with, at the
+    /// same state (a parameter not fitted is zero either way).
+    pub(super) fn with_columns(&self, columns: &[usize]) -> Linearisation {
+        let jacobian = DMatrix::from_fn(self.jacobian.nrows(), columns.len(), |r, c| {
+            self.jacobian[(r, columns[c])]
+        });
+        Linearisation {
+            residuals: self.residuals.clone(),
+            jacobian,
+            rss: self.rss,
+            raw: self.raw.clone(),
+            raw_rss: self.raw_rss,
+            weights: self.weights.clone(),
+            p1_b1: self.p1_b1.clone(),
+            p2_b2: self.p2_b2.clone(),
+        }
+    }
+}
+
 /// The iterate of the identification fit: the placement and the fitted parameters' values.
 struct IdentPoint {
     b1_from_b2: Isometry3<f64>,
@@ -307,6 +328,9 @@ struct IdentProblem<'a> {
     model: &'a dyn TipModel,
     points: &'a [usize],
     params: &'a [usize],
+    /// The linearisation at the starting point when the caller already has it (taken by the
+    /// solver's first [`LeastSquaresProblem::linearise`], the only one it makes).
+    start: std::cell::Cell<Option<Linearisation>>,
 }
 
 impl Linearised for Linearisation {
@@ -341,7 +365,10 @@ impl LeastSquaresProblem for IdentProblem<'_> {
     type Error = IdentifyError;
 
     fn linearise(&self, at: &IdentPoint) -> Result<Linearisation, IdentifyError> {
-        self.at(at, true)
+        match self.start.take() {
+            Some(start) => Ok(start),
+            None => self.at(at, true),
+        }
     }
 
     /// Every model failure (a non-finite tip included) is an error of the fit, not a stop.
@@ -428,6 +455,57 @@ pub fn fit_points(
     initial_b1_from_b2: Option<Isometry3<f64>>,
     options: &LmOptions,
 ) -> Result<IdentFit, IdentifyError> {
+    fit_points_from(
+        model,
+        points,
+        params,
+        initial_values,
+        initial_b1_from_b2,
+        None,
+        options,
+    )
+}
+
+/// [`fit`] on every point from `b1_from_b2` and `values` (one per parameter of `params`), whose
+/// linearisation `start` (residuals and the Jacobian columns `[b1_from_b2; params]`, e.g. from
+/// [`Linearisation::with_columns`]) the caller already has: the fit does not evaluate it again.
+/// The result is [`fit`]'s from that start, bit for bit, when `start` is what [`linearise`]
+/// gives there. Failure cases: as [`fit`].
+pub(super) fn fit_from_linearisation(
+    model: &dyn TipModel,
+    params: &[usize],
+    values: &[f64],
+    b1_from_b2: Isometry3<f64>,
+    start: Linearisation,
+    options: &LmOptions,
+) -> Result<IdentFit, IdentifyError> {
+    let points: Vec<usize> = (0..model.n_points()).collect();
+    let start = (values.len() == params.len()
+        && start.residuals.len() == 3 * points.len()
+        && start.jacobian.ncols() == 6 + params.len())
+    .then_some(start);
+    fit_points_from(
+        model,
+        &points,
+        params,
+        Some(values),
+        Some(b1_from_b2),
+        start,
+        options,
+    )
+}
+
+/// [`fit_points`], the solver's first linearisation `start` when given (it must be the one at
+/// the starting state: the caller checks its shape).
+fn fit_points_from(
+    model: &dyn TipModel,
+    points: &[usize],
+    params: &[usize],
+    initial_values: Option<&[f64]>,
+    initial_b1_from_b2: Option<Isometry3<f64>>,
+    start: Option<Linearisation>,
+    options: &LmOptions,
+) -> Result<IdentFit, IdentifyError> {
     check_params(model, params)?;
     let k = params.len();
     let n = points.len();
@@ -459,6 +537,7 @@ pub fn fit_points(
         model,
         points,
         params,
+        start: std::cell::Cell::new(start),
     };
     let min = minimize(
         &problem,

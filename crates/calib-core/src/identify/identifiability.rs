@@ -1,7 +1,7 @@
 //! Identifiability of candidate parameters: columns projected out of the `b1_from_b2` span and of
 //! the fitted parameters, no-effect / confounded / parallel groups, and the detectable size.
 
-use super::fit::{check_params, linearise, IdentFit};
+use super::fit::{check_params, linearise, IdentFit, Linearisation};
 use super::model::{IdentifyError, TipModel};
 use crate::stats::normal_quantile;
 use nalgebra::{DMatrix, DVector};
@@ -133,6 +133,20 @@ pub fn analyze_identifiability(
     candidates: &[usize],
     group_cos: f64,
 ) -> Result<Identifiability, IdentifyError> {
+    identifiability_and_linearisation(model, fit, candidates, group_cos).map(|(id, _)| id)
+}
+
+/// [`analyze_identifiability`] and the linearisation it was computed from (at `fit`'s state,
+/// Jacobian columns `[b1_from_b2; fit.params; candidates]`): the selection scores candidates
+/// with its residuals, which are those of `linearise(…, &[], false)` at that state bit for bit
+/// (the tips do not depend on the Jacobian columns asked for), so no second pass over the
+/// points is needed.
+pub(super) fn identifiability_and_linearisation(
+    model: &dyn TipModel,
+    fit: &IdentFit,
+    candidates: &[usize],
+    group_cos: f64,
+) -> Result<(Identifiability, Linearisation), IdentifyError> {
     check_params(model, candidates)?;
     let lin = linearise(
         model,
@@ -193,12 +207,15 @@ pub fn analyze_identifiability(
         });
     }
     let groups = parallel_groups(&gauge_projected, &params, group_cos);
-    Ok(Identifiability {
-        params,
-        groups,
-        projected,
-        gauge_projected,
-    })
+    Ok((
+        Identifiability {
+            params,
+            groups,
+            projected,
+            gauge_projected,
+        },
+        lin,
+    ))
 }
 
 fn parallel_groups(

@@ -2,10 +2,12 @@
 //! re-screening of selected parameters, partial F tests, backward elimination, K-fold RMS.
 
 use super::fit::{
-    check_params, fit, fit_points, linearise, min_points, retract, sym_inverse, IdentFit,
-    COVARIANCE_REL_EIGEN_TOL,
+    check_params, fit, fit_from_linearisation, fit_points, linearise, min_points, retract,
+    sym_inverse, IdentFit, COVARIANCE_REL_EIGEN_TOL,
 };
-use super::identifiability::{analyze_identifiability, IdentStatus, Identifiability};
+use super::identifiability::{
+    analyze_identifiability, identifiability_and_linearisation, IdentStatus, Identifiability,
+};
 use super::model::{IdentifyError, TipModel};
 use crate::stats::f_test_p_value;
 use crate::stats::CHI2_1_95;
@@ -347,16 +349,7 @@ fn rescreen(
     )?;
     let mut cands: Vec<usize> = pool.to_vec();
     cands.push(old);
-    let id = analyze_identifiability(model, &reduced, &cands, options.group_cos)?;
-    let lin = linearise(
-        model,
-        &reduced.points,
-        &reduced.b1_from_b2,
-        &reduced.params,
-        &reduced.values,
-        &[],
-        false,
-    )?;
+    let (id, lin) = identifiability_and_linearisation(model, &reduced, &cands, options.group_cos)?;
     let scores: Vec<(usize, f64)> = id
         .params
         .iter()
@@ -665,17 +658,10 @@ pub fn forward_select_with_progress(
         if steps.len() >= options.max_steps {
             break SelectionStop::StepCap;
         }
-        let id = analyze_identifiability(model, &current, &pool, options.group_cos)?;
-        // Score test on the projected columns.
-        let lin = linearise(
-            model,
-            &current.points,
-            &current.b1_from_b2,
-            &current.params,
-            &current.values,
-            &[],
-            false,
-        )?;
+        // Score test on the projected columns (the residuals: those of the identifiability's
+        // linearisation at `current`).
+        let (id, lin) =
+            identifiability_and_linearisation(model, &current, &pool, options.group_cos)?;
         let mut scores: Vec<(usize, f64)> = Vec::new();
         for (c, pi) in id.params.iter().enumerate() {
             if pi.status != IdentStatus::Identifiable {
@@ -693,19 +679,35 @@ pub fn forward_select_with_progress(
         // bounds the false-alarm chance of this step, whichever candidate is kept.
         let mut ranked = scores.clone();
         ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
-        // The current model with one candidate added, started from the current estimates.
+        // The current model with one candidate added, started from the current estimates. The
+        // start's linearisation is the identifiability's at `current` (every candidate's column
+        // is there; the candidate is zero at the start), so the refit does not evaluate it.
+        let k = current.params.len();
         let refit_with = |cand: usize| {
             let mut params = current.params.clone();
             params.push(cand);
             let mut init = current.values.clone();
             init.push(0.0);
-            fit(
-                model,
-                &params,
-                Some(&init),
-                Some(current.b1_from_b2),
-                &options.fit,
-            )
+            match id.params.iter().position(|pi| pi.param == cand) {
+                Some(c) => {
+                    let columns: Vec<usize> = (0..6 + k).chain([6 + k + c]).collect();
+                    fit_from_linearisation(
+                        model,
+                        &params,
+                        &init,
+                        current.b1_from_b2,
+                        lin.with_columns(&columns),
+                        &options.fit,
+                    )
+                }
+                None => fit(
+                    model,
+                    &params,
+                    Some(&init),
+                    Some(current.b1_from_b2),
+                    &options.fit,
+                ),
+            }
         };
         // The refits in parallel, compared in rank order.
         // Only those that can have the smallest refit RSS: a candidate whose predicted RSS
