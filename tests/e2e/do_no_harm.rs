@@ -191,8 +191,9 @@ fn kind_session(
         kind,
         ..KindSpec::default()
     };
-    let (s, _) = sim_cell::generate_kind_session(truth, &spec, &kinds, None, &mut trial_rng(seed, 0))
-        .expect("session");
+    let (s, _) =
+        sim_cell::generate_kind_session(truth, &spec, &kinds, None, &mut trial_rng(seed, 0))
+            .expect("session");
     write_session_csv(dir, name, &s, truth)
 }
 
@@ -236,12 +237,16 @@ fn a_tracker_only_session_is_scored_and_its_harmful_model_withheld() {
     assert_eq!(h["exported"], "placement", "{h}");
     assert!(!h["withheld"].as_array().unwrap().is_empty(), "{h}");
     assert!(
-        h["folds"].as_array().unwrap().iter().any(|f| f["harmful"] == true
-            && f["kinds"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .any(|k| k["kind"] == "tracker" && k["harmful"] == true)),
+        h["folds"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|f| f["harmful"] == true
+                && f["kinds"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .any(|k| k["kind"] == "tracker" && k["harmful"] == true)),
         "{h}"
     );
 }
@@ -262,7 +267,11 @@ fn a_healthy_tracker_only_session_withholds_nothing() {
     let r = export(&cell_path, &csv, &tmp.path().join("out"), false);
     let h = &r["do_no_harm"];
     assert_ne!(h["design"], "not_checked", "{h}");
-    assert_eq!(scored(h).first().map(|k| k.0.as_str()), Some("tracker"), "{h}");
+    assert_eq!(
+        scored(h).first().map(|k| k.0.as_str()),
+        Some("tracker"),
+        "{h}"
+    );
     assert_eq!(h["exported"], "kinematic", "{h}");
     assert!(h["withheld"].as_array().unwrap().is_empty(), "{h}");
 }

@@ -21,7 +21,10 @@ fn kind_threshold_is_the_single_test_for_one_kind_and_holds_the_family_level() {
         // m independent tests at t together reject with probability α.
         let family = 1.0 - crate::stats::normal_cdf(t);
         let level = 1.0 - (1.0 - family).powi(m as i32);
-        assert!((level - alpha).abs() < SIDAK_TOL, "m = {m}: {level} vs {alpha}");
+        assert!(
+            (level - alpha).abs() < SIDAK_TOL,
+            "m = {m}: {level} vs {alpha}"
+        );
         last = t;
     }
 }
@@ -42,12 +45,18 @@ fn a_fold_is_harmful_when_one_kind_is_though_the_pool_is_not() {
     assert!(fold.harmful);
     assert_eq!((fold.ratio, fold.t), (pooled.ratio, pooled.t));
     assert_eq!(per_kind.len(), 2);
-    assert_eq!((per_kind[0].kind.as_str(), per_kind[0].rows), ("coincident", 10));
+    assert_eq!(
+        (per_kind[0].kind.as_str(), per_kind[0].rows),
+        ("coincident", 10)
+    );
     assert!(!per_kind[0].harmful && per_kind[1].harmful);
     // One kind: the single test's verdict.
     let one = ["tracker"; 6];
     let (f, k) = region_harm_by_kind(&one, &nominal[10..], &model[10..], HARM_T).unwrap();
-    assert_eq!(f, region_harm(&nominal[10..], &model[10..], HARM_T).unwrap());
+    assert_eq!(
+        f,
+        region_harm(&nominal[10..], &model[10..], HARM_T).unwrap()
+    );
     assert_eq!(k.len(), 1);
     assert!(region_harm_by_kind(&one[..5], &nominal[10..], &model[10..], HARM_T).is_err());
 }

@@ -31,9 +31,8 @@
 use serde::Serialize;
 
 use super::{
-    fit_cell_with, held_out_pieces, initial_estimate, score_held_out, sub_problem,
-    CellCalibration, CellFitError, CellParam, CellProblem, ParamLayout, SolveOptions, Tolerance,
-    MIN_SPLIT_ROWS,
+    fit_cell_with, held_out_pieces, initial_estimate, score_held_out, sub_problem, CellCalibration,
+    CellFitError, CellParam, CellProblem, ParamLayout, SolveOptions, Tolerance, MIN_SPLIT_ROWS,
 };
 use crate::selection::regions::{
     joint_features, joint_regions, MAX_REGIONS, MIN_REGIONS, REGION_SEED,
@@ -205,12 +204,8 @@ fn harm_folds(problem: &CellProblem, used: &[usize]) -> Folds {
 /// it: the same kinematic and tool-tip unknowns with the same prior rows, and `sub`'s own
 /// nuisances (unpenalised, as in every layout).
 pub(crate) fn layout_on(layout: &ParamLayout, sub: &CellProblem) -> ParamLayout {
-    let robot_param = |p: &CellParam| {
-        matches!(
-            p,
-            CellParam::Kinematic { .. } | CellParam::ToolTip { .. }
-        )
-    };
+    let robot_param =
+        |p: &CellParam| matches!(p, CellParam::Kinematic { .. } | CellParam::ToolTip { .. });
     let fixed: Vec<CellParam> = ParamLayout::new(sub, &[])
         .params
         .into_iter()
