@@ -234,6 +234,9 @@ pub fn sub_problem(problem: &CellProblem, rows: &[usize]) -> CellProblem {
         }
         p.observations.push(o);
     }
+    // The other arm's joints of a shared trunk, for the rows kept only.
+    p.other_arm_q
+        .retain(|row, _| p.observations.iter().any(|o| o.row == *row));
     p
 }
 
