@@ -4,12 +4,14 @@
 //! workspace: the kinematic corrections that fit those postures extrapolate worse than the
 //! nominal robots to the region held out, so the rule withholds them and exports the placement
 //! only; `--force` exports the full model. A healthy session (the nominal robots are the
-//! truth, random layout) withholds nothing.
+//! truth, random layout) withholds nothing. The same for sessions of tracker rows only (each
+//! held-out piece of the tracker group refits its frame on half its rows), and a mixed session
+//! is judged on every kind of its rows.
 
 use std::path::{Path, PathBuf};
 
 use handclasp_cell::Cell;
-use sim_cell::Layout;
+use sim_cell::{trial_rng, KindSpec, Layout, SessionSpec, SimKind};
 
 use crate::support::{
     cell_session_args, handclasp, shipped_cell, simulate, stdout_json, workspace, write_session_csv,
@@ -172,4 +174,133 @@ fn a_healthy_session_withholds_nothing() {
     let folds = h["folds"].as_array().unwrap();
     assert!(folds.len() >= 2, "{h}");
     assert!(folds.iter().all(|f| f["harmful"] == false), "{h}");
+}
+
+/// A simulated session of `kind` rows (`sim-cell session --kind …`) of `truth`, written as
+/// `dir/name` against the reported cell `truth` (the truth's hidden errors are not in the CSV).
+fn kind_session(
+    dir: &Path,
+    name: &str,
+    truth: &Cell,
+    kind: SimKind,
+    layout: Layout,
+    seed: u64,
+) -> PathBuf {
+    let spec = SessionSpec::new(ROWS, layout, SPREAD_M);
+    let kinds = KindSpec {
+        kind,
+        ..KindSpec::default()
+    };
+    let (s, _) =
+        sim_cell::generate_kind_session(truth, &spec, &kinds, None, &mut trial_rng(seed, 0))
+            .expect("session");
+    write_session_csv(dir, name, &s, truth)
+}
+
+/// Every scored kind of the check's folds with its scored rows, and whether a fold is harmful
+/// on rows of `kind`.
+fn scored(h: &serde_json::Value) -> Vec<(String, u64)> {
+    let mut out: Vec<(String, u64)> = Vec::new();
+    for f in h["folds"].as_array().unwrap() {
+        for k in f["kinds"].as_array().unwrap() {
+            let name = k["kind"].as_str().unwrap().to_string();
+            let rows = k["rows"].as_u64().unwrap();
+            match out.iter_mut().find(|(n, _)| *n == name) {
+                Some((_, r)) => *r += rows,
+                None => out.push((name, rows)),
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn a_tracker_only_session_is_scored_and_its_harmful_model_withheld() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cell_path = write_cell(tmp.path(), "sag.toml", true);
+    let truth = Cell::from_toml_file(&cell_path).unwrap();
+    let csv = kind_session(
+        tmp.path(),
+        "tracker.csv",
+        &truth,
+        SimKind::Tracker,
+        Layout::Clustered,
+        1,
+    );
+    let r = export(&cell_path, &csv, &tmp.path().join("out"), false);
+    let h = &r["do_no_harm"];
+    // The tracker rows are held out and scored (on main they trained every fold: not checked).
+    let kinds = scored(h);
+    assert_eq!(kinds.len(), 1, "{h}");
+    assert_eq!(kinds[0].0, "tracker", "{h}");
+    assert!(kinds[0].1 as usize + h["kept_in_training"].as_u64().unwrap() as usize >= ROWS / 2);
+    assert_eq!(h["exported"], "placement", "{h}");
+    assert!(!h["withheld"].as_array().unwrap().is_empty(), "{h}");
+    assert!(
+        h["folds"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|f| f["harmful"] == true
+                && f["kinds"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .any(|k| k["kind"] == "tracker" && k["harmful"] == true)),
+        "{h}"
+    );
+}
+
+#[test]
+fn a_healthy_tracker_only_session_withholds_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cell_path = write_cell(tmp.path(), "nominal.toml", false);
+    let truth = Cell::from_toml_file(&cell_path).unwrap();
+    let csv = kind_session(
+        tmp.path(),
+        "tracker.csv",
+        &truth,
+        SimKind::Tracker,
+        Layout::Random,
+        1,
+    );
+    let r = export(&cell_path, &csv, &tmp.path().join("out"), false);
+    let h = &r["do_no_harm"];
+    assert_ne!(h["design"], "not_checked", "{h}");
+    assert_eq!(
+        scored(h).first().map(|k| k.0.as_str()),
+        Some("tracker"),
+        "{h}"
+    );
+    assert_eq!(h["exported"], "kinematic", "{h}");
+    assert!(h["withheld"].as_array().unwrap().is_empty(), "{h}");
+}
+
+#[test]
+fn a_mixed_session_is_judged_on_every_kind_of_its_rows() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cell_path = write_cell(tmp.path(), "nominal.toml", false);
+    let truth = Cell::from_toml_file(&cell_path).unwrap();
+    let csv = kind_session(
+        tmp.path(),
+        "mixed.csv",
+        &truth,
+        SimKind::Mixed,
+        Layout::Random,
+        1,
+    );
+    let r = export(&cell_path, &csv, &tmp.path().join("out"), false);
+    let h = &r["do_no_harm"];
+    let mut kinds: Vec<String> = scored(h).into_iter().map(|(k, _)| k).collect();
+    kinds.sort();
+    assert_eq!(kinds, ["coincident", "contact", "plane", "tracker"], "{h}");
+    // The fold's verdict is its kinds': harmful exactly when one of them is.
+    for f in h["folds"].as_array().unwrap() {
+        let any = f["kinds"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|k| k["harmful"] == true);
+        assert_eq!(f["harmful"], any, "{f}");
+    }
 }

@@ -81,7 +81,7 @@ fn folds_line(check: &HarmCheck) -> String {
         .folds
         .iter()
         .map(|f| {
-            format!(
+            let mut s = format!(
                 "{} {:.3}{}",
                 f.harm.fold,
                 f.harm.ratio,
@@ -90,7 +90,29 @@ fn folds_line(check: &HarmCheck) -> String {
                 } else {
                     String::new()
                 }
-            )
+            );
+            if f.harm.kinds.len() > 1 || f.harm.kinds.iter().any(|k| k.kind != "coincident") {
+                let kinds: Vec<String> = f
+                    .harm
+                    .kinds
+                    .iter()
+                    .map(|k| {
+                        format!(
+                            "{} {} rows {:.3}{}",
+                            k.kind,
+                            k.rows,
+                            k.ratio,
+                            if k.harmful {
+                                format!(" (t {:.1}) HARMFUL", k.t)
+                            } else {
+                                String::new()
+                            }
+                        )
+                    })
+                    .collect();
+                let _ = write!(s, " [{}]", kinds.join("; "));
+            }
+            s
         })
         .collect::<Vec<_>>()
         .join(", ")
@@ -111,9 +133,8 @@ pub fn messages(r: &DoNoHarmReport, model: CellModel) -> Vec<String> {
     }
     if c.kept_in_training > 0 {
         out.push(format!(
-            "note: do no harm: {} contact, tracker or plane rows train every fold and are not \
-             scored (their nuisance would need refitting on the held-out rows; diagnose \
-             --cv-folds regions scores them)",
+            "note: do no harm: {} rows train every fold and are not scored (pieces of a contact, \
+             tracker or plane group too small to refit the group's nuisance on half of them)",
             c.kept_in_training
         ));
     }
@@ -122,9 +143,24 @@ pub fn messages(r: &DoNoHarmReport, model: CellModel) -> Vec<String> {
             .harmful_folds()
             .iter()
             .map(|f| {
+                let kinds: Vec<String> = f
+                    .harm
+                    .kinds
+                    .iter()
+                    .filter(|k| k.harmful && f.harm.kinds.len() > 1)
+                    .map(|k| format!("{} rows ×{:.3}, t {:.1}", k.kind, k.ratio, k.t))
+                    .collect();
                 format!(
-                    "{} ({} rows: held-out rms ×{:.3} nominal's, t {:.1})",
-                    f.harm.fold, f.rows, f.harm.ratio, f.harm.t
+                    "{} ({} rows: held-out rms ×{:.3} nominal's, t {:.1}{})",
+                    f.harm.fold,
+                    f.rows,
+                    f.harm.ratio,
+                    f.harm.t,
+                    if kinds.is_empty() {
+                        String::new()
+                    } else {
+                        format!("; {}", kinds.join("; "))
+                    }
                 )
             })
             .collect();

@@ -7,15 +7,16 @@
 //!
 //! **The rule** ([`DoNoHarmReport`]): the model of each accepted step `j` (families `1..=j`) is
 //! compared with the nominal model (nuisances and placement fitted, kinematics nominal) in every
-//! fold, both held out on the same folds, by [`calib_core::selection::region_harm`]: harmful in
-//! a fold when its held-out rms is above nominal's and the paired one-sided t of the per-row
-//! gains is `≤ −HARM_T`. The export keeps the largest `j` whose model harms no fold (`j = 0`:
+//! fold, both held out on the same folds, by [`calib_core::selection::region_harm_by_kind`]
+//! (the judge `calibrate --cell --export` uses too): harmful in a fold when, for some observation
+//! kind, its held-out rms on the fold's rows of that kind is above nominal's and the paired
+//! one-sided t of their per-row gains is `≤ −HARM_T`. The export keeps the largest `j` whose model harms no fold (`j = 0`:
 //! the placement only); the families after it are **withheld**, each with the folds where the
 //! model with it does harm. `diagnose --export --force` exports the full model.
 
 use std::fmt::Write as _;
 
-use calib_core::selection::{RegionHarm, HARM_T};
+use calib_core::selection::{KindHarm, RegionHarm, HARM_T};
 use serde::Serialize;
 
 use crate::cell_diagnosis::{CellDiagnosis, FoldDesign};
@@ -172,8 +173,8 @@ pub(crate) fn folds_report(d: &CellDiagnosis) -> FoldsReport {
     }
 }
 
-fn fold_harm(name: &str, h: &RegionHarm) -> FoldHarm {
-    FoldHarm::new(name, h)
+fn fold_harm(name: &str, (h, kinds): &(RegionHarm, Vec<KindHarm>)) -> FoldHarm {
+    FoldHarm::new(name, h, kinds.clone())
 }
 
 /// The rule's report of a diagnosis, fold names from `folds`.
@@ -315,6 +316,7 @@ mod tests {
             ratio: 1.234,
             t: -3.21,
             harmful: true,
+            kinds: Vec::new(),
         };
         DoNoHarmReport {
             harm_t: HARM_T,

@@ -11,7 +11,9 @@
 //!    scores of each candidate and of the nominal model (the rule of
 //!    `studies/ctu-motoman/docs/region-protocol.md`); [`region_harm`], its one-sided paired test
 //!    of one region (a candidate is harmful there when it is worse than nominal with
-//!    significance), which `diagnose --export` applies to every held-out region.
+//!    significance), which `diagnose --export` applies to every held-out region, and
+//!    [`region_harm_by_kind`], the same per observation kind of a region's rows (harmful when
+//!    any kind is), which both `diagnose --export` and `calibrate --cell --export` apply.
 //! 5. **The folds of region-held-out CV**: [`regions`], seeded k-means++ clusters of the
 //!    session's joint vectors.
 //!
@@ -350,6 +352,15 @@ pub fn do_no_harm(
 /// harm in [`region_harm`] (about 2.5 % one-sided under normal errors).
 pub const HARM_T: f64 = 2.0;
 
+/// The smallest loss that counts as harm in [`region_harm`]: the candidate's held-out χ² at
+/// least this fraction above nominal's (rms ratio above `sqrt(1 + HARM_MIN_LOSS)` ≈ 1.005). The
+/// paired t alone finds a loss of any size significant when the rows are many or the two models
+/// nearly agree (a healthy calibration whose corrections are at the noise level differs from
+/// nominal by a consistent hair); a loss is harm only when it is also as large as the gain
+/// `diagnose` needs to name a family (`CellDiagnoseOptions::min_relative_gain`, 1 % of the
+/// held-out χ²) — the symmetric convention, not tuned on any score.
+pub const HARM_MIN_LOSS: f64 = 0.01;
+
 /// One region's verdict of [`region_harm`].
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct RegionHarm {
@@ -358,7 +369,8 @@ pub struct RegionHarm {
     /// The t statistic ([`one_sample_t`]) of the paired per-row gains `e²_nominal − e²_c`:
     /// negative when the candidate is worse (NaN with fewer than two rows).
     pub t: f64,
-    /// Harmful: the ratio exceeds 1 and `t ≤ −t_harm` (worse than nominal with significance).
+    /// Harmful: the χ² ratio `ratio²` exceeds `1 + HARM_MIN_LOSS` and `t ≤ −t_harm` (worse than
+    /// nominal, materially and with significance).
     pub harmful: bool,
 }
 
@@ -372,27 +384,145 @@ pub struct FoldHarm {
     pub ratio: f64,
     /// The paired t of the per-row gains (negative: worse than nominal).
     pub t: f64,
-    /// Worse than nominal with significance.
+    /// Worse than nominal with significance (in some observation kind of the fold, when
+    /// judged by [`region_harm_by_kind`]).
     pub harmful: bool,
+    /// Per observation kind of the fold's held-out rows, when judged by
+    /// [`region_harm_by_kind`] (empty otherwise; not serialised when empty).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub kinds: Vec<KindHarm>,
 }
 
 impl FoldHarm {
-    /// The verdict `harm` of [`region_harm`] in the fold named `fold`.
-    pub fn new(fold: &str, harm: &RegionHarm) -> Self {
+    /// The verdict `harm` of [`region_harm`] in the fold named `fold`, with its per-kind verdicts
+    /// `kinds` (empty when not judged per kind).
+    pub fn new(fold: &str, harm: &RegionHarm, kinds: Vec<KindHarm>) -> Self {
         FoldHarm {
             fold: fold.to_string(),
             ratio: harm.ratio,
             t: harm.t,
             harmful: harm.harmful,
+            kinds,
         }
     }
+}
+
+/// The one-sided t threshold of each of `m` per-kind tests of one fold
+/// ([`region_harm_by_kind`]): the Šidák correction of `t_harm`, `Φ⁻¹(1 − α_m)` with
+/// `α_m = 1 − (1 − α)^{1/m}` and `α = Φ(−t_harm)` the one-sided level of a single test at
+/// `t_harm` (normal approximation), so that `m` independent tests of a harmless model together
+/// call it harmful with probability `α`. `t_harm` itself for `m ≤ 1`; about 2.28 for `m = 2`,
+/// 2.53 for `m = 4` at `t_harm = 2`.
+pub fn kind_harm_t(t_harm: f64, m: usize) -> f64 {
+    if m <= 1 {
+        return t_harm;
+    }
+    let alpha = 1.0 - crate::stats::normal_cdf(t_harm);
+    let alpha_m = 1.0 - (1.0 - alpha).powf(1.0 / m as f64);
+    crate::stats::normal_quantile(1.0 - alpha_m)
+}
+
+/// The do-no-harm test of one observation kind's held-out rows of a fold
+/// ([`region_harm_by_kind`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct KindHarm {
+    /// The observation kind (`coincident`, `contact`, `tracker`, `plane`, …).
+    pub kind: String,
+    /// Held-out rows of that kind in the fold.
+    pub rows: usize,
+    /// The model's held-out rms over nominal's on those rows.
+    pub ratio: f64,
+    /// The paired t of their per-row gains (negative: worse than nominal; NaN below two rows).
+    pub t: f64,
+    /// Worse than nominal with significance on those rows.
+    pub harmful: bool,
+}
+
+/// The do-no-harm test of one held-out fold whose rows are of several observation kinds:
+/// [`region_harm`] on each kind's rows alone (`kinds[i]` is row `i`'s kind; kinds in order of
+/// first appearance), and on all rows pooled. The fold is **harmful** when any kind is: a model
+/// that makes the tracker rows of a region worse is not excused by better handclasps there (the
+/// kinds have different σ and counts, so a pooled sum would let the larger one decide). The
+/// returned pooled verdict has the pooled ratio and t and that `harmful`; with one kind it is
+/// [`region_harm`]'s verdict.
+///
+/// With `m` kinds of at least two rows each, each kind is judged at the Šidák threshold
+/// [`kind_harm_t`]`(t_harm, m)`, so the chance that a harmless model is called harmful in the
+/// fold stays that of one test at `t_harm` however many kinds the fold has (four kinds judged at
+/// `t_harm` = 2 each would raise it from 2.3 % to 8.8 %).
+///
+/// # Errors
+/// As [`region_harm`]; [`SelectionError::RegionCount`] also when `kinds` is not as long as
+/// `nominal_e2`.
+///
+/// # Examples
+/// ```
+/// use calib_core::selection::{region_harm_by_kind, HARM_T};
+/// let kinds = ["coincident", "tracker", "coincident", "tracker", "coincident", "tracker"];
+/// let nominal = [1.0, 1.0, 1.2, 1.1, 0.9, 0.9];
+/// // Better on the handclasps, much worse on the tracker rows.
+/// let model = [0.5, 3.0, 0.6, 3.3, 0.4, 2.9];
+/// let (pooled, per_kind) = region_harm_by_kind(&kinds, &nominal, &model, HARM_T).unwrap();
+/// assert!(pooled.harmful);
+/// assert_eq!(per_kind[1].kind, "tracker");
+/// assert!(per_kind[1].harmful && !per_kind[0].harmful);
+/// ```
+pub fn region_harm_by_kind(
+    kinds: &[&str],
+    nominal_e2: &[f64],
+    candidate_e2: &[f64],
+    t_harm: f64,
+) -> Result<(RegionHarm, Vec<KindHarm>), SelectionError> {
+    if kinds.len() != nominal_e2.len() {
+        return Err(SelectionError::RegionCount {
+            candidate: 0,
+            got: kinds.len(),
+            expected: nominal_e2.len(),
+        });
+    }
+    let mut pooled = region_harm(nominal_e2, candidate_e2, t_harm)?;
+    let tested = {
+        let mut seen: Vec<&str> = Vec::new();
+        for k in kinds {
+            if !seen.contains(k) {
+                seen.push(k);
+            }
+        }
+        seen.iter()
+            .filter(|k| kinds.iter().filter(|x| *x == *k).count() >= 2)
+            .count()
+    };
+    let t_kind = kind_harm_t(t_harm, tested);
+    let mut order: Vec<&str> = Vec::new();
+    for k in kinds {
+        if !order.contains(k) {
+            order.push(k);
+        }
+    }
+    let mut out = Vec::with_capacity(order.len());
+    for k in order {
+        let rows: Vec<usize> = (0..kinds.len()).filter(|&i| kinds[i] == k).collect();
+        let n: Vec<f64> = rows.iter().map(|&i| nominal_e2[i]).collect();
+        let c: Vec<f64> = rows.iter().map(|&i| candidate_e2[i]).collect();
+        let h = region_harm(&n, &c, t_kind)?;
+        out.push(KindHarm {
+            kind: k.to_string(),
+            rows: rows.len(),
+            ratio: h.ratio,
+            t: h.t,
+            harmful: h.harmful,
+        });
+    }
+    pooled.harmful = out.iter().any(|k| k.harmful);
+    Ok((pooled, out))
 }
 
 /// The do-no-harm test of one held-out region: `nominal_e2[i]` and `candidate_e2[i]` are the
 /// squared held-out errors (e.g. whitened residual norms²) of the same row `i` of the region
 /// under the nominal model and the candidate, each fitted without the region. The candidate is
-/// **harmful** in the region when its rms is above nominal's and the one-sided paired t of the
-/// gains is `≤ −t_harm` ([`HARM_T`] is the workspace's value). A region of fewer than two rows
+/// **harmful** in the region when its held-out χ² is more than [`HARM_MIN_LOSS`] above
+/// nominal's and the one-sided paired t of the gains is `≤ −t_harm` ([`HARM_T`] is the
+/// workspace's value). A region of fewer than two rows
 /// is never judged harmful (no variance to judge by).
 ///
 /// # Errors
@@ -450,6 +580,6 @@ pub fn region_harm(
     Ok(RegionHarm {
         ratio,
         t,
-        harmful: ratio > 1.0 && t <= -t_harm,
+        harmful: ratio * ratio > 1.0 + HARM_MIN_LOSS && t <= -t_harm,
     })
 }

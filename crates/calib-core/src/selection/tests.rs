@@ -6,6 +6,61 @@ fn cv(e: f64, se: f64) -> CvError {
     CvError { e, se }
 }
 
+/// Absolute tolerance on the Šidák thresholds' round trip through Φ and Φ⁻¹.
+const SIDAK_TOL: f64 = 1e-9;
+
+#[test]
+fn kind_threshold_is_the_single_test_for_one_kind_and_holds_the_family_level() {
+    assert_eq!(kind_harm_t(HARM_T, 0), HARM_T);
+    assert_eq!(kind_harm_t(HARM_T, 1), HARM_T);
+    let alpha = 1.0 - crate::stats::normal_cdf(HARM_T);
+    let mut last = HARM_T;
+    for m in 2..=6 {
+        let t = kind_harm_t(HARM_T, m);
+        assert!(t > last, "m = {m}: {t} ≤ {last}");
+        // m independent tests at t together reject with probability α.
+        let family = 1.0 - crate::stats::normal_cdf(t);
+        let level = 1.0 - (1.0 - family).powi(m as i32);
+        assert!(
+            (level - alpha).abs() < SIDAK_TOL,
+            "m = {m}: {level} vs {alpha}"
+        );
+        last = t;
+    }
+}
+
+#[test]
+fn a_fold_is_harmful_when_one_kind_is_though_the_pool_is_not() {
+    // Ten handclasps much better, six tracker rows clearly worse: pooled, the handclasps'
+    // large nominal errors hide the tracker loss; per kind, it shows.
+    let mut kinds = vec!["coincident"; 10];
+    kinds.extend(["tracker"; 6]);
+    let mut nominal = vec![9.0, 11.0, 10.0, 8.0, 12.0, 10.0, 9.5, 10.5, 11.0, 9.0];
+    let mut model: Vec<f64> = nominal.iter().map(|e| 0.5 * e).collect();
+    nominal.extend([1.0, 1.2, 0.9, 1.1, 1.0, 0.8]);
+    model.extend([2.0, 2.5, 1.9, 2.1, 2.2, 1.7]);
+    let pooled = region_harm(&nominal, &model, HARM_T).unwrap();
+    assert!(!pooled.harmful, "{pooled:?}");
+    let (fold, per_kind) = region_harm_by_kind(&kinds, &nominal, &model, HARM_T).unwrap();
+    assert!(fold.harmful);
+    assert_eq!((fold.ratio, fold.t), (pooled.ratio, pooled.t));
+    assert_eq!(per_kind.len(), 2);
+    assert_eq!(
+        (per_kind[0].kind.as_str(), per_kind[0].rows),
+        ("coincident", 10)
+    );
+    assert!(!per_kind[0].harmful && per_kind[1].harmful);
+    // One kind: the single test's verdict.
+    let one = ["tracker"; 6];
+    let (f, k) = region_harm_by_kind(&one, &nominal[10..], &model[10..], HARM_T).unwrap();
+    assert_eq!(
+        f,
+        region_harm(&nominal[10..], &model[10..], HARM_T).unwrap()
+    );
+    assert_eq!(k.len(), 1);
+    assert!(region_harm_by_kind(&one[..5], &nominal[10..], &model[10..], HARM_T).is_err());
+}
+
 // Moved from the CTU study's tests with the rules (issue 19).
 
 #[test]
