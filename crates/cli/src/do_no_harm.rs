@@ -148,7 +148,12 @@ pub fn messages(r: &DoNoHarmReport, model: CellModel) -> Vec<String> {
                     .kinds
                     .iter()
                     .filter(|k| k.harmful && f.harm.kinds.len() > 1)
-                    .map(|k| format!("{} rows ×{:.3}, t {:.1}", k.kind, k.ratio, k.t))
+                    .map(|k| {
+                        format!(
+                            "{} rows ×{:.3}, t {:.1} ≤ −{:.2}",
+                            k.kind, k.ratio, k.t, k.t_harm
+                        )
+                    })
                     .collect();
                 format!(
                     "{} ({} rows: held-out rms ×{:.3} nominal's, t {:.1}{})",
@@ -191,8 +196,10 @@ pub fn text(r: &DoNoHarmReport) -> String {
     let c = &r.check;
     let _ = writeln!(
         s,
-        "do no harm (--export): the model against nominal (placement only), each fitted without the fold; held-out rms ratio per fold (harmful = worse with t ≤ −{}):",
-        c.harm_t
+        "do no harm (--export): the model against nominal (placement only), each fitted without the fold; held-out rms ratio per fold (harmful = worse with significance: {} comparisons of fold × kind, each at level {:.4}, {:.0} % false alarms per session):",
+        c.comparisons,
+        c.alpha_each,
+        100.0 * c.false_alarm
     );
     let _ = writeln!(s, "  folds: {}", c.how);
     if !c.folds.is_empty() {

@@ -210,6 +210,12 @@ pub enum SelectionError {
         /// The score given.
         value: f64,
     },
+    /// The false-alarm rate given to [`judge_harm`] is not a probability.
+    #[error(
+        "false-alarm rate {0}: the do-no-harm judge needs a rate in (0, 1), e.g. 0.05 \
+         (HARM_FALSE_ALARM)"
+    )]
+    FalseAlarm(f64),
 }
 
 /// What [`do_no_harm`] decided, with the numbers it decided on.
@@ -348,18 +354,28 @@ pub fn do_no_harm(
     })
 }
 
-/// The one-sided t value below which a region's paired held-out losses count as significant
-/// harm in [`region_harm`] (about 2.5 % one-sided under normal errors).
-pub const HARM_T: f64 = 2.0;
+/// The one-sided t value of a single paired test at [`HARM_FALSE_ALARM`] under normal errors
+/// (`Φ⁻¹(0.95)` ≈ 1.645): [`region_harm`]'s threshold when one region is judged alone. The
+/// session-wide judge [`judge_harm`] sets its own per-comparison thresholds from
+/// [`HARM_FALSE_ALARM`], the number of comparisons and each one's row count.
+pub const HARM_T: f64 = 1.644_853_626_951_472_2;
 
-/// The smallest loss that counts as harm in [`region_harm`]: the candidate's held-out χ² at
-/// least this fraction above nominal's (rms ratio above `sqrt(1 + HARM_MIN_LOSS)` ≈ 1.005). The
-/// paired t alone finds a loss of any size significant when the rows are many or the two models
-/// nearly agree (a healthy calibration whose corrections are at the noise level differs from
-/// nominal by a consistent hair); a loss is harm only when it is also as large as the gain
-/// `diagnose` needs to name a family (`CellDiagnoseOptions::min_relative_gain`, 1 % of the
-/// held-out χ²) — the symmetric convention, not tuned on any score.
-pub const HARM_MIN_LOSS: f64 = 0.01;
+/// The chance, per checked session, that the do-no-harm judge [`judge_harm`] calls a model
+/// harmful when it is not (one-sided: worse than nominal with significance in some region and
+/// kind). 5 %, the conventional level, fixed before any session was judged: one healthy
+/// session in twenty may lose its corrections to a false alarm (the safe model is then
+/// exported and the warning says why, `--force` keeps the full model).
+pub const HARM_FALSE_ALARM: f64 = 0.05;
+
+/// Fewest held-out rows of one observation kind in one fold for the kind to be judged on its
+/// own by [`judge_harm`]; a fold's kinds with fewer rows are pooled (see there). Eight: the
+/// fewest rows of a region of the do-no-harm check (`MIN_HARM_REGION_ROWS`), so a kind is
+/// judged alone exactly when it could have been a region on its own. The paired t of squared
+/// errors is skewed (differences of χ² values); below a few rows its one-sided tail is far from
+/// Student's, above it Student's quantile at `n − 1` degrees of freedom
+/// ([`crate::stats::t_quantile`]) absorbs the small-sample width. Chosen from the check's
+/// structure, not from any score.
+pub const MIN_KIND_ROWS: usize = 8;
 
 /// One region's verdict of [`region_harm`].
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -369,8 +385,7 @@ pub struct RegionHarm {
     /// The t statistic ([`one_sample_t`]) of the paired per-row gains `e²_nominal − e²_c`:
     /// negative when the candidate is worse (NaN with fewer than two rows).
     pub t: f64,
-    /// Harmful: the χ² ratio `ratio²` exceeds `1 + HARM_MIN_LOSS` and `t ≤ −t_harm` (worse than
-    /// nominal, materially and with significance).
+    /// Harmful: `t ≤ −t_harm` (worse than nominal with significance).
     pub harmful: bool,
 }
 
@@ -380,15 +395,14 @@ pub struct RegionHarm {
 pub struct FoldHarm {
     /// The fold's name (`region 1`, `fold 2`, `block 3`, …).
     pub fold: String,
-    /// The model's held-out rms over nominal's in the fold.
+    /// The model's held-out rms over nominal's in the fold, all its rows pooled.
     pub ratio: f64,
-    /// The paired t of the per-row gains (negative: worse than nominal).
+    /// The paired t of the per-row gains, all rows pooled (negative: worse than nominal).
     pub t: f64,
-    /// Worse than nominal with significance (in some observation kind of the fold, when
-    /// judged by [`region_harm_by_kind`]).
+    /// Worse than nominal with significance in some comparison of the fold (`kinds`).
     pub harmful: bool,
-    /// Per observation kind of the fold's held-out rows, when judged by
-    /// [`region_harm_by_kind`] (empty otherwise; not serialised when empty).
+    /// The fold's comparisons ([`judge_harm`]): one per observation kind with at least
+    /// [`MIN_KIND_ROWS`] rows, the others pooled (not serialised when empty).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub kinds: Vec<KindHarm>,
 }
@@ -407,122 +421,201 @@ impl FoldHarm {
     }
 }
 
-/// The one-sided t threshold of each of `m` per-kind tests of one fold
-/// ([`region_harm_by_kind`]): the Šidák correction of `t_harm`, `Φ⁻¹(1 − α_m)` with
-/// `α_m = 1 − (1 − α)^{1/m}` and `α = Φ(−t_harm)` the one-sided level of a single test at
-/// `t_harm` (normal approximation), so that `m` independent tests of a harmless model together
-/// call it harmful with probability `α`. `t_harm` itself for `m ≤ 1`; about 2.28 for `m = 2`,
-/// 2.53 for `m = 4` at `t_harm = 2`.
-pub fn kind_harm_t(t_harm: f64, m: usize) -> f64 {
-    if m <= 1 {
-        return t_harm;
-    }
-    let alpha = 1.0 - crate::stats::normal_cdf(t_harm);
-    let alpha_m = 1.0 - (1.0 - alpha).powf(1.0 / m as f64);
-    crate::stats::normal_quantile(1.0 - alpha_m)
-}
-
-/// The do-no-harm test of one observation kind's held-out rows of a fold
-/// ([`region_harm_by_kind`]).
+/// One comparison of [`judge_harm`]: the held-out rows of one observation kind of a fold (or
+/// of several small kinds pooled).
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct KindHarm {
-    /// The observation kind (`coincident`, `contact`, `tracker`, `plane`, …).
+    /// The observation kind (`coincident`, `contact`, `tracker`, `plane`, …), or the kinds
+    /// pooled, joined by `+` (`contact+plane`; `all` when the whole fold is one comparison).
     pub kind: String,
-    /// Held-out rows of that kind in the fold.
+    /// Held-out rows in the comparison.
     pub rows: usize,
     /// The model's held-out rms over nominal's on those rows.
     pub ratio: f64,
     /// The paired t of their per-row gains (negative: worse than nominal; NaN below two rows).
     pub t: f64,
+    /// The one-sided threshold it was judged at (harmful when `t ≤ −t_harm`): Student's t
+    /// quantile at `rows − 1` degrees of freedom and the Šidák level of the session's
+    /// comparisons ([`judge_harm`]).
+    pub t_harm: f64,
     /// Worse than nominal with significance on those rows.
     pub harmful: bool,
 }
 
-/// The do-no-harm test of one held-out fold whose rows are of several observation kinds:
-/// [`region_harm`] on each kind's rows alone (`kinds[i]` is row `i`'s kind; kinds in order of
-/// first appearance), and on all rows pooled. The fold is **harmful** when any kind is: a model
-/// that makes the tracker rows of a region worse is not excused by better handclasps there (the
-/// kinds have different σ and counts, so a pooled sum would let the larger one decide). The
-/// returned pooled verdict has the pooled ratio and t and that `harmful`; with one kind it is
-/// [`region_harm`]'s verdict.
-///
-/// With `m` kinds of at least two rows each, each kind is judged at the Šidák threshold
-/// [`kind_harm_t`]`(t_harm, m)`, so the chance that a harmless model is called harmful in the
-/// fold stays that of one test at `t_harm` however many kinds the fold has (four kinds judged at
-/// `t_harm` = 2 each would raise it from 2.3 % to 8.8 %).
-///
-/// # Errors
-/// As [`region_harm`]; [`SelectionError::RegionCount`] also when `kinds` is not as long as
-/// `nominal_e2`.
-///
-/// # Examples
-/// ```
-/// use calib_core::selection::{region_harm_by_kind, HARM_T};
-/// let kinds = ["coincident", "tracker", "coincident", "tracker", "coincident", "tracker"];
-/// let nominal = [1.0, 1.0, 1.2, 1.1, 0.9, 0.9];
-/// // Better on the handclasps, much worse on the tracker rows.
-/// let model = [0.5, 3.0, 0.6, 3.3, 0.4, 2.9];
-/// let (pooled, per_kind) = region_harm_by_kind(&kinds, &nominal, &model, HARM_T).unwrap();
-/// assert!(pooled.harmful);
-/// assert_eq!(per_kind[1].kind, "tracker");
-/// assert!(per_kind[1].harmful && !per_kind[0].harmful);
-/// ```
-pub fn region_harm_by_kind(
-    kinds: &[&str],
-    nominal_e2: &[f64],
-    candidate_e2: &[f64],
-    t_harm: f64,
-) -> Result<(RegionHarm, Vec<KindHarm>), SelectionError> {
-    if kinds.len() != nominal_e2.len() {
-        return Err(SelectionError::RegionCount {
-            candidate: 0,
-            got: kinds.len(),
-            expected: nominal_e2.len(),
-        });
+/// One fold's held-out rows for [`judge_harm`]: the fold's name, each row's observation kind,
+/// and its squared held-out error (e.g. whitened residual norm²) under nominal and under the
+/// candidate, each fitted without the fold.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FoldRows<'a> {
+    /// The fold's name (`region 1`, …).
+    pub name: String,
+    /// Row `i`'s observation kind.
+    pub kinds: Vec<&'a str>,
+    /// Row `i`'s squared held-out error under nominal.
+    pub nominal_e2: Vec<f64>,
+    /// Row `i`'s squared held-out error under the candidate.
+    pub candidate_e2: Vec<f64>,
+}
+
+/// The verdict of [`judge_harm`] over a session's folds.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct HarmJudgement {
+    /// The per-session false-alarm rate the thresholds hold ([`HARM_FALSE_ALARM`]).
+    pub false_alarm: f64,
+    /// The number of comparisons made over all folds (the Šidák family).
+    pub comparisons: usize,
+    /// Each comparison's one-sided level `1 − (1 − false_alarm)^(1/comparisons)`.
+    pub alpha_each: f64,
+    /// Each fold's verdict, in fold order.
+    pub folds: Vec<FoldHarm>,
+}
+
+impl HarmJudgement {
+    /// Whether the candidate is harmful in any fold.
+    pub fn harmful(&self) -> bool {
+        self.folds.iter().any(|f| f.harmful)
     }
-    let mut pooled = region_harm(nominal_e2, candidate_e2, t_harm)?;
-    let tested = {
-        let mut seen: Vec<&str> = Vec::new();
-        for k in kinds {
-            if !seen.contains(k) {
-                seen.push(k);
-            }
-        }
-        seen.iter()
-            .filter(|k| kinds.iter().filter(|x| *x == *k).count() >= 2)
-            .count()
-    };
-    let t_kind = kind_harm_t(t_harm, tested);
+}
+
+/// The comparisons of one fold: groups of row indices with their label.
+fn fold_comparisons(kinds: &[&str]) -> Vec<(String, Vec<usize>)> {
     let mut order: Vec<&str> = Vec::new();
     for k in kinds {
         if !order.contains(k) {
             order.push(k);
         }
     }
-    let mut out = Vec::with_capacity(order.len());
-    for k in order {
-        let rows: Vec<usize> = (0..kinds.len()).filter(|&i| kinds[i] == k).collect();
-        let n: Vec<f64> = rows.iter().map(|&i| nominal_e2[i]).collect();
-        let c: Vec<f64> = rows.iter().map(|&i| candidate_e2[i]).collect();
-        let h = region_harm(&n, &c, t_kind)?;
-        out.push(KindHarm {
-            kind: k.to_string(),
-            rows: rows.len(),
-            ratio: h.ratio,
-            t: h.t,
-            harmful: h.harmful,
-        });
+    let rows_of = |k: &str| -> Vec<usize> { (0..kinds.len()).filter(|&i| kinds[i] == k).collect() };
+    let (big, small): (Vec<&str>, Vec<&str>) =
+        order.iter().partition(|k| rows_of(k).len() >= MIN_KIND_ROWS);
+    if big.is_empty() {
+        // No kind has enough rows alone: the whole fold is one comparison.
+        let label = if order.len() == 1 {
+            order[0].to_string()
+        } else {
+            "all".to_string()
+        };
+        return vec![(label, (0..kinds.len()).collect())];
     }
-    pooled.harmful = out.iter().any(|k| k.harmful);
-    Ok((pooled, out))
+    let mut out: Vec<(String, Vec<usize>)> =
+        big.iter().map(|k| (k.to_string(), rows_of(k))).collect();
+    if !small.is_empty() {
+        let mut rows: Vec<usize> = small.iter().flat_map(|k| rows_of(k)).collect();
+        rows.sort_unstable();
+        if rows.len() >= MIN_KIND_ROWS {
+            out.push((small.join("+"), rows));
+        } else {
+            // Too few to judge alone: pooled with the fold's largest kind.
+            let largest = (0..out.len()).max_by_key(|&c| out[c].1.len()).unwrap_or(0);
+            out[largest].0 = format!("{}+{}", out[largest].0, small.join("+"));
+            out[largest].1.extend(rows);
+            out[largest].1.sort_unstable();
+        }
+    }
+    out
+}
+
+/// The session-wide do-no-harm judge: is the candidate worse than nominal, with significance,
+/// in some fold? Each fold's rows are cut into **comparisons**: one per observation kind with
+/// at least [`MIN_KIND_ROWS`] rows (a model that makes the tracker rows of a region worse is
+/// not excused by better handclasps there: the kinds have different σ and counts, so a pooled
+/// sum would let the larger decide); the rows of the fold's smaller kinds pooled into one more
+/// comparison when they reach [`MIN_KIND_ROWS`], else into the fold's largest comparison; a
+/// fold with no kind of [`MIN_KIND_ROWS`] rows is one comparison. With `m` comparisons over all
+/// folds, each is judged at the Šidák level `α_m = 1 − (1 − false_alarm)^(1/m)`: harmful when
+/// the paired t of its per-row gains `e²_nominal − e²_c` is `≤ −t_{n−1}(1 − α_m)` (Student's
+/// quantile at its `n − 1` degrees of freedom), so a harmless model is called harmful
+/// somewhere in the session with probability at most `false_alarm` when the comparisons are
+/// independent (Šidák's bound also holds for positively dependent tests, as folds sharing
+/// training rows are). A comparison of fewer than two rows is never harmful.
+///
+/// # Errors
+/// [`SelectionError::NoRegions`] when `folds` is empty or a fold has no row;
+/// [`SelectionError::RegionCount`] when a fold's slices differ in length;
+/// [`SelectionError::CandidateScore`] when a value is not finite and ≥ 0;
+/// [`SelectionError::FalseAlarm`] when `false_alarm` is not in (0, 1).
+///
+/// # Examples
+/// ```
+/// use calib_core::selection::{judge_harm, FoldRows, HARM_FALSE_ALARM};
+/// let mut kinds = vec!["coincident"; 8];
+/// kinds.extend(["tracker"; 8]);
+/// let nominal = vec![1.0, 1.2, 0.9, 1.1, 1.0, 0.8, 1.1, 0.9, 1.0, 1.2, 0.9, 1.1, 1.0, 0.8, 1.1, 0.9];
+/// // Better on the handclasps, much worse on the tracker rows.
+/// let candidate: Vec<f64> = nominal
+///     .iter()
+///     .enumerate()
+///     .map(|(i, e)| if i < 8 { 0.5 * e } else { 3.0 * e })
+///     .collect();
+/// let fold = FoldRows { name: "region 1".into(), kinds, nominal_e2: nominal, candidate_e2: candidate };
+/// let j = judge_harm(&[fold], HARM_FALSE_ALARM).unwrap();
+/// assert_eq!(j.comparisons, 2);
+/// assert!(j.harmful());
+/// assert!(j.folds[0].kinds[1].harmful && !j.folds[0].kinds[0].harmful);
+/// ```
+pub fn judge_harm(folds: &[FoldRows], false_alarm: f64) -> Result<HarmJudgement, SelectionError> {
+    if !(false_alarm > 0.0 && false_alarm < 1.0) {
+        return Err(SelectionError::FalseAlarm(false_alarm));
+    }
+    if folds.is_empty() {
+        return Err(SelectionError::NoRegions);
+    }
+    let mut plans = Vec::with_capacity(folds.len());
+    for f in folds {
+        if f.kinds.len() != f.nominal_e2.len() {
+            return Err(SelectionError::RegionCount {
+                candidate: 0,
+                got: f.kinds.len(),
+                expected: f.nominal_e2.len(),
+            });
+        }
+        // Validates lengths and values (the pooled verdict's threshold is set below).
+        let pooled = region_harm(&f.nominal_e2, &f.candidate_e2, f64::INFINITY)?;
+        plans.push((pooled, fold_comparisons(&f.kinds)));
+    }
+    let m: usize = plans.iter().map(|(_, c)| c.len()).sum();
+    let alpha_each = 1.0 - (1.0 - false_alarm).powf(1.0 / m.max(1) as f64);
+    let mut out = Vec::with_capacity(folds.len());
+    for (f, (pooled, comps)) in folds.iter().zip(plans) {
+        let mut kinds = Vec::with_capacity(comps.len());
+        for (label, rows) in comps {
+            let n: Vec<f64> = rows.iter().map(|&i| f.nominal_e2[i]).collect();
+            let c: Vec<f64> = rows.iter().map(|&i| f.candidate_e2[i]).collect();
+            let t_harm = if rows.len() >= 2 {
+                crate::stats::t_quantile(1.0 - alpha_each, rows.len() - 1)
+            } else {
+                f64::INFINITY
+            };
+            let h = region_harm(&n, &c, t_harm)?;
+            kinds.push(KindHarm {
+                kind: label,
+                rows: rows.len(),
+                ratio: h.ratio,
+                t: h.t,
+                t_harm,
+                harmful: h.harmful,
+            });
+        }
+        let harmful = kinds.iter().any(|k| k.harmful);
+        out.push(FoldHarm::new(
+            &f.name,
+            &RegionHarm { harmful, ..pooled },
+            kinds,
+        ));
+    }
+    Ok(HarmJudgement {
+        false_alarm,
+        comparisons: m,
+        alpha_each,
+        folds: out,
+    })
 }
 
 /// The do-no-harm test of one held-out region: `nominal_e2[i]` and `candidate_e2[i]` are the
 /// squared held-out errors (e.g. whitened residual norms²) of the same row `i` of the region
 /// under the nominal model and the candidate, each fitted without the region. The candidate is
-/// **harmful** in the region when its held-out χ² is more than [`HARM_MIN_LOSS`] above
-/// nominal's and the one-sided paired t of the gains is `≤ −t_harm` ([`HARM_T`] is the
-/// workspace's value). A region of fewer than two rows
+/// **harmful** in the region when the one-sided paired t of the gains is `≤ −t_harm` ([`HARM_T`]
+/// is a single test's value at [`HARM_FALSE_ALARM`]; [`judge_harm`] judges a whole session). A region of fewer than two rows
 /// is never judged harmful (no variance to judge by).
 ///
 /// # Errors
@@ -580,6 +673,6 @@ pub fn region_harm(
     Ok(RegionHarm {
         ratio,
         t,
-        harmful: ratio * ratio > 1.0 + HARM_MIN_LOSS && t <= -t_harm,
+        harmful: t <= -t_harm,
     })
 }

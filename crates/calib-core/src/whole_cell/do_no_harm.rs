@@ -1,7 +1,7 @@
 //! The do-no-harm check of a calibration (issue 20): is the fitted model worse than the nominal
 //! model (the placement and nuisances alone, both robots nominal) on rows it was not fitted
 //! to? `calibrate --cell --export` runs it before exporting; `diagnose --export` applies the
-//! same test ([`region_harm`], [`HARM_T`]) to its own folds.
+//! same judge ([`judge_harm`] at [`HARM_FALSE_ALARM`]) to its own folds.
 //!
 //! 1. **Held-out rows**: every row of the fit, of every kind. A fold's rows are split into
 //!    units by nuisance group ([`held_out_pieces`]); a group's piece too small to refit its
@@ -21,9 +21,10 @@
 //!    fitted contact distance) refitted on one half of its rows with the trained cell held, the
 //!    other half scored, and back (as `validate`'s refit on half and `diagnose`'s held-out
 //!    criterion do), so no scored row is predicted by anything fitted on it.
-//! 4. **Verdict**: [`region_harm_by_kind`] per fold at [`HARM_T`]: harmful where, for some
-//!    observation kind, the model's held-out rms on the fold's rows of that kind is above
-//!    nominal's and the paired t of their per-row gains is `≤ −HARM_T`.
+//! 4. **Verdict**: [`judge_harm`] over all folds at [`HARM_FALSE_ALARM`]: harmful where, for
+//!    some fold and observation kind (kinds of fewer than
+//!    [`crate::selection::MIN_KIND_ROWS`] rows pooled), the paired t of the per-row gains is
+//!    below the Šidák threshold that holds the session's false-alarm rate at 5 %.
 //!
 //! Cost: two fits per fold, at most `2 ·` [`crate::selection::regions::MAX_REGIONS`], and two
 //! nuisance-only fits per held-out group piece and model.
@@ -37,7 +38,7 @@ use super::{
 use crate::selection::regions::{
     joint_features, joint_regions, MAX_REGIONS, MIN_REGIONS, REGION_SEED,
 };
-use crate::selection::{region_harm_by_kind, FoldHarm, HARM_T};
+use crate::selection::{judge_harm, FoldHarm, FoldRows, HARM_FALSE_ALARM};
 
 /// Fewest rows of a held-out region. `diagnose`'s regions need
 /// [`crate::selection::regions::MIN_REGION_ROWS`] (12); this check asks only for enough rows
@@ -88,8 +89,14 @@ pub struct HarmCheck {
     pub design: HarmDesign,
     /// The same in words (and why, on a fallback).
     pub how: String,
-    /// The one-sided t below which a loss is significant ([`HARM_T`]).
-    pub harm_t: f64,
+    /// The chance that a harmless model is called harmful somewhere in the session
+    /// ([`HARM_FALSE_ALARM`]).
+    pub false_alarm: f64,
+    /// Comparisons (fold × observation kind) judged: the Šidák family ([`judge_harm`]).
+    pub comparisons: usize,
+    /// Each comparison's one-sided level, `1 − (1 − false_alarm)^(1/comparisons)` (0 when
+    /// nothing was checked).
+    pub alpha_each: f64,
     /// Each fold's verdict (empty when not checked).
     pub folds: Vec<HarmFold>,
     /// Rows of the fit that were never held out: pieces of a group too small to refit its
@@ -248,7 +255,7 @@ pub fn region_harm_check(
     let mut nominal = problem.clone();
     nominal.robot1.tolerance = Tolerance::none();
     nominal.robot2.tolerance = Tolerance::none();
-    let mut out = Vec::with_capacity(folds.len());
+    let mut rows = Vec::with_capacity(folds.len());
     for (k, units) in folds.iter().enumerate() {
         let held: Vec<usize> = units.iter().flatten().copied().collect();
         let train: Vec<usize> = fit
@@ -259,22 +266,36 @@ pub fn region_harm_check(
             .collect();
         let model = fold_e2(problem, Some(&fit.layout), cal, &train, units, solve)?;
         let base = fold_e2(&nominal, None, cal, &train, units, solve)?;
-        let kinds: Vec<&str> = model.iter().map(|(kind, _)| *kind).collect();
-        let model_e2: Vec<f64> = model.iter().map(|(_, e)| *e).collect();
-        let nominal_e2: Vec<f64> = base.iter().map(|(_, e)| *e).collect();
-        let (pooled, per_kind) = region_harm_by_kind(&kinds, &nominal_e2, &model_e2, HARM_T)
-            .map_err(|e| {
-                CellFitError::InvalidInput(format!("do-no-harm check, {prefix} {}: {e}", k + 1))
-            })?;
-        out.push(HarmFold {
-            rows: held.len(),
-            harm: FoldHarm::new(&format!("{prefix} {}", k + 1), &pooled, per_kind),
-        });
+        rows.push((
+            FoldRows {
+                name: format!("{prefix} {}", k + 1),
+                kinds: model.iter().map(|(kind, _)| *kind).collect(),
+                nominal_e2: base.iter().map(|(_, e)| *e).collect(),
+                candidate_e2: model.iter().map(|(_, e)| *e).collect(),
+            },
+            held.len(),
+        ));
     }
+    let (out, comparisons, alpha_each) = if rows.is_empty() {
+        (Vec::new(), 0, 0.0)
+    } else {
+        let fold_rows: Vec<FoldRows> = rows.iter().map(|(f, _)| f.clone()).collect();
+        let j = judge_harm(&fold_rows, HARM_FALSE_ALARM)
+            .map_err(|e| CellFitError::InvalidInput(format!("do-no-harm check: {e}")))?;
+        let out = j
+            .folds
+            .into_iter()
+            .zip(&rows)
+            .map(|(harm, (_, n))| HarmFold { rows: *n, harm })
+            .collect();
+        (out, j.comparisons, j.alpha_each)
+    };
     Ok(Some(HarmCheck {
         design,
         how,
-        harm_t: HARM_T,
+        false_alarm: HARM_FALSE_ALARM,
+        comparisons,
+        alpha_each,
         folds: out,
         kept_in_training: kept,
     }))

@@ -94,7 +94,9 @@ pub use noise_scale::KINDS;
 pub use problem::diagnosis_problem;
 use problem::placement_observed;
 
-use calib_core::selection::{argmin, region_harm_by_kind, KindHarm, RegionHarm, HARM_T};
+use calib_core::selection::{
+    argmin, judge_harm, FoldRows, KindHarm, RegionHarm, HARM_FALSE_ALARM,
+};
 use calib_core::whole_cell::{
     classify_rejections, fit_screened, CellFit, CellFitError, CellProblem, RejectionPattern,
     ScreenOptions, SolveOptions,
@@ -609,7 +611,7 @@ fn run(
     }
     let placement_fitted = placement_observed(&problem, &used);
     // The do-no-harm rule: each accepted model against the baseline, fold by fold, judged per
-    // observation kind (calib-core's `region_harm_by_kind`, shared with `calibrate --cell`).
+    // observation kind (calib-core's `judge_harm`, shared with `calibrate --cell`).
     // Each fold's scored rows: (kind, whitened χ²), in scoring order (the same for every model).
     let fold_e2 = |h: &HeldOut| -> Vec<(Vec<&'static str>, Vec<f64>)> {
         let mut e2 = h.unit_e2.iter();
@@ -628,20 +630,44 @@ fn run(
     let mut harm = Vec::new();
     for s in steps.iter().filter(|s| s.accepted) {
         let model_e2 = fold_e2(&s.after);
-        let row: Vec<(RegionHarm, Vec<KindHarm>)> = nominal_e2
+        // All folds of the step's model judged together (the Šidák family is the session's).
+        let folds: Vec<FoldRows> = nominal_e2
             .iter()
             .zip(&model_e2)
-            .map(|((kinds, n), (_, m))| {
-                region_harm_by_kind(kinds, n, m, HARM_T).unwrap_or((
-                    RegionHarm {
-                        ratio: f64::NAN,
-                        t: f64::NAN,
-                        harmful: false,
-                    },
-                    Vec::new(),
-                ))
+            .map(|((kinds, n), (_, m))| FoldRows {
+                name: String::new(),
+                kinds: kinds.clone(),
+                nominal_e2: n.clone(),
+                candidate_e2: m.clone(),
             })
             .collect();
+        let unjudged = || {
+            (
+                RegionHarm {
+                    ratio: f64::NAN,
+                    t: f64::NAN,
+                    harmful: false,
+                },
+                Vec::new(),
+            )
+        };
+        let row: Vec<(RegionHarm, Vec<KindHarm>)> = match judge_harm(&folds, HARM_FALSE_ALARM) {
+            Ok(j) => j
+                .folds
+                .into_iter()
+                .map(|f| {
+                    (
+                        RegionHarm {
+                            ratio: f.ratio,
+                            t: f.t,
+                            harmful: f.harmful,
+                        },
+                        f.kinds,
+                    )
+                })
+                .collect(),
+            Err(_) => folds.iter().map(|_| unjudged()).collect(),
+        };
         harm.push(row);
     }
     let safe_steps = (0..=harm.len())
