@@ -197,17 +197,20 @@ fn kind_session(
     write_session_csv(dir, name, &s, truth)
 }
 
-/// Every scored kind of the check's folds with its scored rows, and whether a fold is harmful
-/// on rows of `kind`.
+/// Every scored kind of the check's folds with the rows of the comparisons it is in (a pooled
+/// comparison's rows count for each of its kinds).
 fn scored(h: &serde_json::Value) -> Vec<(String, u64)> {
     let mut out: Vec<(String, u64)> = Vec::new();
     for f in h["folds"].as_array().unwrap() {
         for k in f["kinds"].as_array().unwrap() {
-            let name = k["kind"].as_str().unwrap().to_string();
+            // A comparison of several small kinds pooled is labelled `contact+plane`.
+            let label = k["kind"].as_str().unwrap();
             let rows = k["rows"].as_u64().unwrap();
-            match out.iter_mut().find(|(n, _)| *n == name) {
-                Some((_, r)) => *r += rows,
-                None => out.push((name, rows)),
+            for name in label.split('+') {
+                match out.iter_mut().find(|(n, _)| n == name) {
+                    Some((_, r)) => *r += rows,
+                    None => out.push((name.to_string(), rows)),
+                }
             }
         }
     }
@@ -302,5 +305,142 @@ fn a_mixed_session_is_judged_on_every_kind_of_its_rows() {
             .iter()
             .any(|k| k["harmful"] == true);
         assert_eq!(f["harmful"], any, "{f}");
+    }
+}
+
+/// `calibrate --cell CELL --session SESSION --export DIR --json` with the default model (as a
+/// user runs it): the JSON's `do_no_harm` object.
+fn default_export(cell: &Path, session: &Path, dir: &Path) -> serde_json::Value {
+    let dir = dir.display().to_string();
+    let r = stdout_json(&handclasp(&cell_session_args(
+        "calibrate",
+        cell,
+        session,
+        &["--export", &dir, "--json"],
+    )));
+    r["do_no_harm"].clone()
+}
+
+/// The docs' example truth (`docs/examples/truth.toml`: errors the kinematic model represents,
+/// one joint zero three times its tolerance) and the shipped floor–wall cell it is reported as.
+fn example_truth() -> (Cell, PathBuf) {
+    let truth = Cell::from_toml_file(&workspace("docs/examples/truth.toml")).unwrap();
+    (truth, shipped_cell("floor-wall"))
+}
+
+/// A session of `n` rows of `kind`, random layout, simulated on `truth` with `seed`, written
+/// against the reported cell `reported`.
+fn kind_session_n(
+    dir: &Path,
+    truth: &Cell,
+    reported: &Cell,
+    kind: SimKind,
+    n: usize,
+    seed: u64,
+) -> PathBuf {
+    let spec = SessionSpec::new(n, Layout::Random, crate::support::RANDOM_SPREAD_M);
+    let kinds = KindSpec {
+        kind,
+        ..KindSpec::default()
+    };
+    let (s, _) =
+        sim_cell::generate_kind_session(truth, &spec, &kinds, None, &mut trial_rng(seed, 0))
+            .expect("session");
+    write_session_csv(dir, &format!("{kind:?}-{n}-{seed}.csv"), &s, reported)
+}
+
+/// The false alarm of stop 34 (`check20`): a mixed session of 84 rows of the docs' example
+/// truth, whose model is healthy (the truth is within what it represents), lost all its
+/// corrections to one region's 14 plane rows at ×1.055 (t −2.06) judged at t −2. Judged at
+/// the session's Šidák thresholds, the full model is exported.
+#[test]
+fn a_healthy_mixed_session_of_84_rows_exports_the_full_model() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (truth, reported_path) = example_truth();
+    let reported = Cell::from_toml_file(&reported_path).unwrap();
+    let csv = kind_session_n(tmp.path(), &truth, &reported, SimKind::Mixed, 84, 4);
+    let h = default_export(&reported_path, &csv, &tmp.path().join("out"));
+    assert_eq!(h["design"], "joint_regions", "{h}");
+    assert!(h["withheld"].as_array().unwrap().is_empty(), "{h}");
+    assert_ne!(h["exported"], "placement", "{h}");
+    // Every comparison's threshold is Student's quantile at the session's Šidák level.
+    let alpha = h["alpha_each"].as_f64().unwrap();
+    let m = h["comparisons"].as_f64().unwrap();
+    assert!((1.0 - (1.0 - alpha).powf(m) - 0.05).abs() < 1e-9, "{h}");
+}
+
+/// Sessions per kind of the false-alarm benchmark.
+const BENCH_SESSIONS: u64 = 20;
+
+/// Benchmark (not a timed test; `cargo test -p handclasp --test e2e -- --ignored
+/// do_no_harm::false_alarm_and_detection_benchmark --nocapture`): the judge's false-alarm rate
+/// on healthy sessions (the docs' example truth reported as the floor–wall cell: the model
+/// represents the truth) of tracker rows (40), plane rows (40) and mixed rows (84),
+/// [`BENCH_SESSIONS`] seeds each, and its detection on harmful ones (the unmodelled sag,
+/// clustered: handclasps and tracker rows, 40 each). Prints each rate; fails only when a
+/// healthy kind's rate is above 3 × 5 % (the binomial 99.9 % bound for 20 sessions at 5 % is
+/// 5 of 20) or the sag is missed in more than half its sessions.
+#[test]
+#[ignore = "benchmark: about 100 calibrations, minutes in a debug build"]
+fn false_alarm_and_detection_benchmark() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (truth, reported_path) = example_truth();
+    let reported = Cell::from_toml_file(&reported_path).unwrap();
+    let mut report = Vec::new();
+    for (kind, n) in [
+        (SimKind::Tracker, 40),
+        (SimKind::Plane, 40),
+        (SimKind::Mixed, 84),
+    ] {
+        let mut alarms = Vec::new();
+        for seed in 0..BENCH_SESSIONS {
+            let csv = kind_session_n(tmp.path(), &truth, &reported, kind, n, 100 + seed);
+            let h = default_export(&reported_path, &csv, &tmp.path().join("out"));
+            if !h["withheld"].as_array().map_or(true, Vec::is_empty) {
+                alarms.push(seed);
+            }
+            if h["design"] == "not_checked" {
+                println!("{kind:?} seed {seed}: not checked: {}", h["how"]);
+            }
+        }
+        println!(
+            "healthy {kind:?} ×{n}: {} of {BENCH_SESSIONS} sessions withheld (seeds {alarms:?})",
+            alarms.len()
+        );
+        report.push((format!("{kind:?}"), alarms.len()));
+    }
+    let sag_path = write_cell(tmp.path(), "sag.toml", true);
+    let sag = Cell::from_toml_file(&sag_path).unwrap();
+    let mut detections = Vec::new();
+    for kind in [SimKind::Coincident, SimKind::Tracker] {
+        let mut hits = 0;
+        for seed in 0..BENCH_SESSIONS / 2 {
+            let csv = kind_session(
+                tmp.path(),
+                &format!("sag-{kind:?}-{seed}.csv"),
+                &sag,
+                kind,
+                Layout::Clustered,
+                1 + seed,
+            );
+            let r = export(&sag_path, &csv, &tmp.path().join("out"), false);
+            if r["do_no_harm"]["exported"] == "placement" {
+                hits += 1;
+            }
+        }
+        println!(
+            "harmful (sag, clustered) {kind:?} ×{ROWS}: withheld in {hits} of {}",
+            BENCH_SESSIONS / 2
+        );
+        detections.push(hits);
+    }
+    for (kind, alarms) in &report {
+        assert!(
+            *alarms <= 5,
+            "{kind}: {alarms} false alarms of {BENCH_SESSIONS}"
+        );
+    }
+    for &hits in &detections {
+        assert!(2 * hits >= BENCH_SESSIONS / 2, "{detections:?}");
     }
 }

@@ -426,7 +426,7 @@ impl FoldHarm {
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct KindHarm {
     /// The observation kind (`coincident`, `contact`, `tracker`, `plane`, …), or the kinds
-    /// pooled, joined by `+` (`contact+plane`; `all` when the whole fold is one comparison).
+    /// pooled, joined by `+` (`contact+plane`), in order of first appearance.
     pub kind: String,
     /// Held-out rows in the comparison.
     pub rows: usize,
@@ -490,12 +490,7 @@ fn fold_comparisons(kinds: &[&str]) -> Vec<(String, Vec<usize>)> {
         order.iter().partition(|k| rows_of(k).len() >= MIN_KIND_ROWS);
     if big.is_empty() {
         // No kind has enough rows alone: the whole fold is one comparison.
-        let label = if order.len() == 1 {
-            order[0].to_string()
-        } else {
-            "all".to_string()
-        };
-        return vec![(label, (0..kinds.len()).collect())];
+        return vec![(order.join("+"), (0..kinds.len()).collect())];
     }
     let mut out: Vec<(String, Vec<usize>)> =
         big.iter().map(|k| (k.to_string(), rows_of(k))).collect();
