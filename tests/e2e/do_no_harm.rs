@@ -311,7 +311,11 @@ fn a_mixed_session_is_judged_on_every_kind_of_its_rows() {
 /// `calibrate --cell CELL --session SESSION --export DIR --json` with the default model (as a
 /// user runs it): the JSON's `do_no_harm` object, or the stderr when the run fails (e.g. the
 /// result check refuses the fit).
-fn try_default_export(cell: &Path, session: &Path, dir: &Path) -> Result<serde_json::Value, String> {
+fn try_default_export(
+    cell: &Path,
+    session: &Path,
+    dir: &Path,
+) -> Result<serde_json::Value, String> {
     let dir = dir.display().to_string();
     let out = handclasp(&cell_session_args(
         "calibrate",
@@ -414,7 +418,7 @@ fn false_alarm_and_detection_benchmark() {
                     continue;
                 }
             };
-            if !h["withheld"].as_array().map_or(true, Vec::is_empty) {
+            if h["withheld"].as_array().is_none_or(|w| !w.is_empty()) {
                 alarms.push(seed);
                 for f in h["folds"].as_array().unwrap() {
                     for k in f["kinds"].as_array().unwrap() {

@@ -2,7 +2,8 @@
 //! is scored against the nominal model (the placement alone, both robots nominal) by
 //! region-held-out cross-validation ([`calib_core::whole_cell::region_harm_check`], the test
 //! `diagnose --export` applies to its folds). When the model is worse than nominal with
-//! significance in any held-out region, the export is the safe model: the placement-only
+//! significance in any held-out region ([`calib_core::selection::judge_harm`], 5 % false alarms
+//! per session), the export is the safe model: the placement-only
 //! calibration of the same session (`calibrate --cell --model placement`), and every kinematic
 //! correction is withheld; `--force` exports the full model. `calibrate --cell` has no
 //! family-by-family selection to keep part of the model by, so the safe model is the placement.
@@ -196,12 +197,17 @@ pub fn text(r: &DoNoHarmReport) -> String {
     let c = &r.check;
     let _ = writeln!(
         s,
-        "do no harm (--export): the model against nominal (placement only), each fitted without the fold; held-out rms ratio per fold (harmful = worse with significance: {} comparisons of fold × kind, each at level {:.4}, {:.0} % false alarms per session):",
-        c.comparisons,
-        c.alpha_each,
+        "do no harm (--export): the model against nominal (placement only), each fitted without the fold; held-out rms ratio per fold (harmful = worse with significance, {:.0} % false alarms per session):",
         100.0 * c.false_alarm
     );
     let _ = writeln!(s, "  folds: {}", c.how);
+    if c.comparisons > 0 {
+        let _ = writeln!(
+            s,
+            "  judged: {} comparisons (fold × kind of row), each at one-sided level {:.4} (Šidák) and Student's t at its rows − 1",
+            c.comparisons, c.alpha_each
+        );
+    }
     if !c.folds.is_empty() {
         let _ = writeln!(s, "  {}", folds_line(c));
     }

@@ -486,8 +486,9 @@ fn fold_comparisons(kinds: &[&str]) -> Vec<(String, Vec<usize>)> {
         }
     }
     let rows_of = |k: &str| -> Vec<usize> { (0..kinds.len()).filter(|&i| kinds[i] == k).collect() };
-    let (big, small): (Vec<&str>, Vec<&str>) =
-        order.iter().partition(|k| rows_of(k).len() >= MIN_KIND_ROWS);
+    let (big, small): (Vec<&str>, Vec<&str>) = order
+        .iter()
+        .partition(|k| rows_of(k).len() >= MIN_KIND_ROWS);
     if big.is_empty() {
         // No kind has enough rows alone: the whole fold is one comparison.
         return vec![(order.join("+"), (0..kinds.len()).collect())];

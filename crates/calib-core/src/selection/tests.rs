@@ -23,7 +23,11 @@ fn fold<'a>(name: &str, kinds: Vec<&'a str>, nominal: Vec<f64>, model: Vec<f64>)
 fn the_session_level_holds_the_false_alarm_rate_over_its_comparisons() {
     // Two folds: one of 8 handclasps and 8 tracker rows (two comparisons), one of 10
     // handclasps and 3 plane rows (the planes pooled with the handclasps: one comparison).
-    let e = |n: usize| (0..n).map(|i| 1.0 + 0.1 * (i % 3) as f64).collect::<Vec<f64>>();
+    let e = |n: usize| {
+        (0..n)
+            .map(|i| 1.0 + 0.1 * (i % 3) as f64)
+            .collect::<Vec<f64>>()
+    };
     let mut k1 = vec!["coincident"; 8];
     k1.extend(["tracker"; 8]);
     let mut k2 = vec!["coincident"; 10];
@@ -64,7 +68,12 @@ fn a_fold_is_harmful_when_one_kind_is_though_the_pool_is_not() {
     let pooled = region_harm(&nominal, &model, HARM_T).unwrap();
     assert!(!pooled.harmful, "{pooled:?}");
     let j = judge_harm(
-        &[fold("region 1", kinds.clone(), nominal.clone(), model.clone())],
+        &[fold(
+            "region 1",
+            kinds.clone(),
+            nominal.clone(),
+            model.clone(),
+        )],
         HARM_FALSE_ALARM,
     )
     .unwrap();
@@ -72,11 +81,19 @@ fn a_fold_is_harmful_when_one_kind_is_though_the_pool_is_not() {
     assert!(f.harmful && j.harmful());
     assert_eq!((f.ratio, f.t), (pooled.ratio, pooled.t));
     assert_eq!(f.kinds.len(), 2);
-    assert_eq!((f.kinds[0].kind.as_str(), f.kinds[0].rows), ("coincident", 10));
+    assert_eq!(
+        (f.kinds[0].kind.as_str(), f.kinds[0].rows),
+        ("coincident", 10)
+    );
     assert!(!f.kinds[0].harmful && f.kinds[1].harmful);
     // Fewer than MIN_KIND_ROWS tracker rows: pooled with the handclasps, the loss hides.
     let j = judge_harm(
-        &[fold("region 1", kinds[..16].to_vec(), nominal[..16].to_vec(), model[..16].to_vec())],
+        &[fold(
+            "region 1",
+            kinds[..16].to_vec(),
+            nominal[..16].to_vec(),
+            model[..16].to_vec(),
+        )],
         HARM_FALSE_ALARM,
     )
     .unwrap();
@@ -85,7 +102,12 @@ fn a_fold_is_harmful_when_one_kind_is_though_the_pool_is_not() {
     assert!(!j.harmful(), "{j:?}");
     // Mismatched lengths are an error.
     assert!(judge_harm(
-        &[fold("region 1", kinds[..5].to_vec(), nominal.clone(), model.clone())],
+        &[fold(
+            "region 1",
+            kinds[..5].to_vec(),
+            nominal.clone(),
+            model.clone()
+        )],
         HARM_FALSE_ALARM
     )
     .is_err());

@@ -94,9 +94,7 @@ pub use noise_scale::KINDS;
 pub use problem::diagnosis_problem;
 use problem::placement_observed;
 
-use calib_core::selection::{
-    argmin, judge_harm, FoldRows, KindHarm, RegionHarm, HARM_FALSE_ALARM,
-};
+use calib_core::selection::{argmin, judge_harm, FoldRows, KindHarm, RegionHarm, HARM_FALSE_ALARM};
 use calib_core::whole_cell::{
     classify_rejections, fit_screened, CellFit, CellFitError, CellProblem, RejectionPattern,
     ScreenOptions, SolveOptions,
