@@ -11,9 +11,9 @@
 //!    scores of each candidate and of the nominal model (the rule of
 //!    `studies/ctu-motoman/docs/region-protocol.md`); [`region_harm`], its one-sided paired test
 //!    of one region (a candidate is harmful there when it is worse than nominal with
-//!    significance), which `diagnose --export` applies to every held-out region, and
-//!    [`region_harm_by_kind`], the same per observation kind of a region's rows (harmful when
-//!    any kind is), which both `diagnose --export` and `calibrate --cell --export` apply.
+//!    significance), and [`judge_harm`], the session-wide judge over every held-out region and
+//!    observation kind at a stated false-alarm rate ([`HARM_FALSE_ALARM`]), which both
+//!    `diagnose --export` and `calibrate --cell --export` apply.
 //! 5. **The folds of region-held-out CV**: [`regions`], seeded k-means++ clusters of the
 //!    session's joint vectors.
 //!
