@@ -4,12 +4,14 @@
 //! workspace: the kinematic corrections that fit those postures extrapolate worse than the
 //! nominal robots to the region held out, so the rule withholds them and exports the placement
 //! only; `--force` exports the full model. A healthy session (the nominal robots are the
-//! truth, random layout) withholds nothing.
+//! truth, random layout) withholds nothing. The same for sessions of tracker rows only (each
+//! held-out piece of the tracker group refits its frame on half its rows), and a mixed session
+//! is judged on every kind of its rows.
 
 use std::path::{Path, PathBuf};
 
 use handclasp_cell::Cell;
-use sim_cell::Layout;
+use sim_cell::{trial_rng, KindSpec, Layout, SessionSpec, SimKind};
 
 use crate::support::{
     cell_session_args, handclasp, shipped_cell, simulate, stdout_json, workspace, write_session_csv,
@@ -172,4 +174,315 @@ fn a_healthy_session_withholds_nothing() {
     let folds = h["folds"].as_array().unwrap();
     assert!(folds.len() >= 2, "{h}");
     assert!(folds.iter().all(|f| f["harmful"] == false), "{h}");
+}
+
+/// A simulated session of `kind` rows (`sim-cell session --kind …`) of `truth`, written as
+/// `dir/name` against the reported cell `truth` (the truth's hidden errors are not in the CSV).
+fn kind_session(
+    dir: &Path,
+    name: &str,
+    truth: &Cell,
+    kind: SimKind,
+    layout: Layout,
+    seed: u64,
+) -> PathBuf {
+    let spec = SessionSpec::new(ROWS, layout, SPREAD_M);
+    let kinds = KindSpec {
+        kind,
+        ..KindSpec::default()
+    };
+    let (s, _) =
+        sim_cell::generate_kind_session(truth, &spec, &kinds, None, &mut trial_rng(seed, 0))
+            .expect("session");
+    write_session_csv(dir, name, &s, truth)
+}
+
+/// Every scored kind of the check's folds with the rows of the comparisons it is in (a pooled
+/// comparison's rows count for each of its kinds).
+fn scored(h: &serde_json::Value) -> Vec<(String, u64)> {
+    let mut out: Vec<(String, u64)> = Vec::new();
+    for f in h["folds"].as_array().unwrap() {
+        for k in f["kinds"].as_array().unwrap() {
+            // A comparison of several small kinds pooled is labelled `contact+plane`.
+            let label = k["kind"].as_str().unwrap();
+            let rows = k["rows"].as_u64().unwrap();
+            for name in label.split('+') {
+                match out.iter_mut().find(|(n, _)| n == name) {
+                    Some((_, r)) => *r += rows,
+                    None => out.push((name.to_string(), rows)),
+                }
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn a_tracker_only_session_is_scored_and_its_harmful_model_withheld() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cell_path = write_cell(tmp.path(), "sag.toml", true);
+    let truth = Cell::from_toml_file(&cell_path).unwrap();
+    let csv = kind_session(
+        tmp.path(),
+        "tracker.csv",
+        &truth,
+        SimKind::Tracker,
+        Layout::Clustered,
+        1,
+    );
+    let r = export(&cell_path, &csv, &tmp.path().join("out"), false);
+    let h = &r["do_no_harm"];
+    // The tracker rows are held out and scored (on main they trained every fold: not checked).
+    let kinds = scored(h);
+    assert_eq!(kinds.len(), 1, "{h}");
+    assert_eq!(kinds[0].0, "tracker", "{h}");
+    assert!(kinds[0].1 as usize + h["kept_in_training"].as_u64().unwrap() as usize >= ROWS / 2);
+    assert_eq!(h["exported"], "placement", "{h}");
+    assert!(!h["withheld"].as_array().unwrap().is_empty(), "{h}");
+    assert!(
+        h["folds"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|f| f["harmful"] == true
+                && f["kinds"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .any(|k| k["kind"] == "tracker" && k["harmful"] == true)),
+        "{h}"
+    );
+}
+
+#[test]
+fn a_healthy_tracker_only_session_withholds_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cell_path = write_cell(tmp.path(), "nominal.toml", false);
+    let truth = Cell::from_toml_file(&cell_path).unwrap();
+    let csv = kind_session(
+        tmp.path(),
+        "tracker.csv",
+        &truth,
+        SimKind::Tracker,
+        Layout::Random,
+        1,
+    );
+    let r = export(&cell_path, &csv, &tmp.path().join("out"), false);
+    let h = &r["do_no_harm"];
+    assert_ne!(h["design"], "not_checked", "{h}");
+    assert_eq!(
+        scored(h).first().map(|k| k.0.as_str()),
+        Some("tracker"),
+        "{h}"
+    );
+    assert_eq!(h["exported"], "kinematic", "{h}");
+    assert!(h["withheld"].as_array().unwrap().is_empty(), "{h}");
+}
+
+#[test]
+fn a_mixed_session_is_judged_on_every_kind_of_its_rows() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cell_path = write_cell(tmp.path(), "nominal.toml", false);
+    let truth = Cell::from_toml_file(&cell_path).unwrap();
+    let csv = kind_session(
+        tmp.path(),
+        "mixed.csv",
+        &truth,
+        SimKind::Mixed,
+        Layout::Random,
+        1,
+    );
+    let r = export(&cell_path, &csv, &tmp.path().join("out"), false);
+    let h = &r["do_no_harm"];
+    let mut kinds: Vec<String> = scored(h).into_iter().map(|(k, _)| k).collect();
+    kinds.sort();
+    assert_eq!(kinds, ["coincident", "contact", "plane", "tracker"], "{h}");
+    // The fold's verdict is its kinds': harmful exactly when one of them is.
+    for f in h["folds"].as_array().unwrap() {
+        let any = f["kinds"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|k| k["harmful"] == true);
+        assert_eq!(f["harmful"], any, "{f}");
+    }
+}
+
+/// `calibrate --cell CELL --session SESSION --export DIR --json` with the default model (as a
+/// user runs it): the JSON's `do_no_harm` object, or the stderr when the run fails (e.g. the
+/// result check refuses the fit).
+fn try_default_export(
+    cell: &Path,
+    session: &Path,
+    dir: &Path,
+) -> Result<serde_json::Value, String> {
+    let dir = dir.display().to_string();
+    let out = handclasp(&cell_session_args(
+        "calibrate",
+        cell,
+        session,
+        &["--export", &dir, "--json"],
+    ));
+    if !out.status.success() {
+        return Err(String::from_utf8_lossy(&out.stderr).into_owned());
+    }
+    Ok(stdout_json(&out)["do_no_harm"].clone())
+}
+
+/// [`try_default_export`], the run required to succeed.
+fn default_export(cell: &Path, session: &Path, dir: &Path) -> serde_json::Value {
+    try_default_export(cell, session, dir).expect("calibrate --cell --export")
+}
+
+/// The docs' example truth (`docs/examples/truth.toml`: errors the kinematic model represents,
+/// one joint zero three times its tolerance) and the shipped floor–wall cell it is reported as.
+fn example_truth() -> (Cell, PathBuf) {
+    let truth = Cell::from_toml_file(&workspace("docs/examples/truth.toml")).unwrap();
+    (truth, shipped_cell("floor-wall"))
+}
+
+/// A session of `n` rows of `kind`, random layout, simulated on `truth` with `seed`, written
+/// against the reported cell `reported`.
+fn kind_session_n(
+    dir: &Path,
+    truth: &Cell,
+    reported: &Cell,
+    kind: SimKind,
+    n: usize,
+    seed: u64,
+) -> PathBuf {
+    let spec = SessionSpec::new(n, Layout::Random, crate::support::RANDOM_SPREAD_M);
+    let kinds = KindSpec {
+        kind,
+        ..KindSpec::default()
+    };
+    let (s, _) =
+        sim_cell::generate_kind_session(truth, &spec, &kinds, None, &mut trial_rng(seed, 0))
+            .expect("session");
+    write_session_csv(dir, &format!("{kind:?}-{n}-{seed}.csv"), &s, reported)
+}
+
+/// The false alarm of stop 34 (`check20`): a mixed session of 84 rows of the docs' example
+/// truth, whose model is healthy (the truth is within what it represents), lost all its
+/// corrections to one region's 14 plane rows at ×1.055 (t −2.06) judged at t −2. Judged at
+/// the session's Šidák thresholds, the full model is exported.
+#[test]
+fn a_healthy_mixed_session_of_84_rows_exports_the_full_model() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (truth, reported_path) = example_truth();
+    let reported = Cell::from_toml_file(&reported_path).unwrap();
+    let csv = kind_session_n(tmp.path(), &truth, &reported, SimKind::Mixed, 84, 4);
+    let h = default_export(&reported_path, &csv, &tmp.path().join("out"));
+    assert_eq!(h["design"], "joint_regions", "{h}");
+    assert!(h["withheld"].as_array().unwrap().is_empty(), "{h}");
+    assert_ne!(h["exported"], "placement", "{h}");
+    // Every comparison's threshold is Student's quantile at the session's Šidák level.
+    let alpha = h["alpha_each"].as_f64().unwrap();
+    let m = h["comparisons"].as_f64().unwrap();
+    assert!((1.0 - (1.0 - alpha).powf(m) - 0.05).abs() < 1e-9, "{h}");
+}
+
+/// Sessions per kind of the false-alarm benchmark.
+const BENCH_SESSIONS: u64 = 20;
+
+/// Benchmark (not a timed test; `cargo test -p handclasp --test e2e -- --ignored
+/// do_no_harm::false_alarm_and_detection_benchmark --nocapture`): the judge's false-alarm rate
+/// on healthy sessions (the docs' example truth reported as the floor–wall cell: the model
+/// represents the truth) of tracker rows (40), plane rows (40) and mixed rows (84),
+/// [`BENCH_SESSIONS`] seeds each, and its detection on harmful ones (the unmodelled sag,
+/// clustered: handclasps and tracker rows, 40 each). Prints each rate; fails only when a
+/// healthy kind's rate is above 3 × 5 % (the binomial 99.9 % bound for 20 sessions at 5 % is
+/// 5 of 20) or the sag is missed in more than half its sessions.
+#[test]
+#[ignore = "benchmark: about 100 calibrations, minutes in a debug build"]
+fn false_alarm_and_detection_benchmark() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (truth, reported_path) = example_truth();
+    let reported = Cell::from_toml_file(&reported_path).unwrap();
+    let mut report = Vec::new();
+    for (kind, n) in [
+        (SimKind::Tracker, 40),
+        (SimKind::Plane, 40),
+        (SimKind::Mixed, 84),
+    ] {
+        let (mut alarms, mut refused) = (Vec::new(), 0);
+        for seed in 0..BENCH_SESSIONS {
+            let csv = kind_session_n(tmp.path(), &truth, &reported, kind, n, 100 + seed);
+            let out = tmp.path().join(format!("out-{kind:?}-{seed}"));
+            let h = match try_default_export(&reported_path, &csv, &out) {
+                Ok(h) => h,
+                Err(e) => {
+                    let first = e.lines().find(|l| l.starts_with("error")).unwrap_or("");
+                    println!("{kind:?} seed {seed}: refused, not judged: {first}");
+                    refused += 1;
+                    continue;
+                }
+            };
+            if h["withheld"].as_array().is_none_or(|w| !w.is_empty()) {
+                alarms.push(seed);
+                for f in h["folds"].as_array().unwrap() {
+                    for k in f["kinds"].as_array().unwrap() {
+                        if k["harmful"] == true {
+                            println!(
+                                "{kind:?} seed {seed}: {} {} {} rows ×{:.3} t {:.2} ≤ −{:.2} \
+                                 ({} comparisons)",
+                                f["fold"],
+                                k["kind"],
+                                k["rows"],
+                                k["ratio"].as_f64().unwrap(),
+                                k["t"].as_f64().unwrap(),
+                                k["t_harm"].as_f64().unwrap(),
+                                h["comparisons"]
+                            );
+                        }
+                    }
+                }
+            }
+            if h["design"] == "not_checked" {
+                println!("{kind:?} seed {seed}: not checked: {}", h["how"]);
+            }
+        }
+        println!(
+            "healthy {kind:?} ×{n}: {} of {} judged sessions withheld (seeds {alarms:?}); {refused} \
+             refused by the result check",
+            alarms.len(),
+            BENCH_SESSIONS - refused
+        );
+        report.push((format!("{kind:?}"), alarms.len()));
+    }
+    let sag_path = write_cell(tmp.path(), "sag.toml", true);
+    let sag = Cell::from_toml_file(&sag_path).unwrap();
+    let mut detections = Vec::new();
+    for kind in [SimKind::Coincident, SimKind::Tracker] {
+        let mut hits = 0;
+        for seed in 0..BENCH_SESSIONS / 2 {
+            let csv = kind_session(
+                tmp.path(),
+                &format!("sag-{kind:?}-{seed}.csv"),
+                &sag,
+                kind,
+                Layout::Clustered,
+                1 + seed,
+            );
+            let out = tmp.path().join(format!("out-sag-{kind:?}-{seed}"));
+            let r = export(&sag_path, &csv, &out, false);
+            if r["do_no_harm"]["exported"] == "placement" {
+                hits += 1;
+            }
+        }
+        println!(
+            "harmful (sag, clustered) {kind:?} ×{ROWS}: withheld in {hits} of {}",
+            BENCH_SESSIONS / 2
+        );
+        detections.push(hits);
+    }
+    for (kind, alarms) in &report {
+        assert!(
+            *alarms <= 5,
+            "{kind}: {alarms} false alarms of {BENCH_SESSIONS}"
+        );
+    }
+    for &hits in &detections {
+        assert!(2 * hits >= BENCH_SESSIONS / 2, "{detections:?}");
+    }
 }

@@ -99,6 +99,11 @@ pub fn f_test_p_value(f: f64, dof: usize) -> f64 {
     f_sf(f, 1, dof)
 }
 
+/// The standard normal distribution function `Φ(x)`.
+pub fn normal_cdf(x: f64) -> f64 {
+    Normal::new(0.0, 1.0).map(|d| d.cdf(x)).unwrap_or(f64::NAN)
+}
+
 /// Quantile `p ∈ (0, 1)` of the standard normal distribution, `Φ⁻¹(p)`.
 pub fn normal_quantile(p: f64) -> f64 {
     Normal::new(0.0, 1.0)

@@ -2,7 +2,8 @@
 //! is scored against the nominal model (the placement alone, both robots nominal) by
 //! region-held-out cross-validation ([`calib_core::whole_cell::region_harm_check`], the test
 //! `diagnose --export` applies to its folds). When the model is worse than nominal with
-//! significance in any held-out region, the export is the safe model: the placement-only
+//! significance in any held-out region ([`calib_core::selection::judge_harm`], 5 % false alarms
+//! per session), the export is the safe model: the placement-only
 //! calibration of the same session (`calibrate --cell --model placement`), and every kinematic
 //! correction is withheld; `--force` exports the full model. `calibrate --cell` has no
 //! family-by-family selection to keep part of the model by, so the safe model is the placement.
@@ -81,7 +82,7 @@ fn folds_line(check: &HarmCheck) -> String {
         .folds
         .iter()
         .map(|f| {
-            format!(
+            let mut s = format!(
                 "{} {:.3}{}",
                 f.harm.fold,
                 f.harm.ratio,
@@ -90,7 +91,29 @@ fn folds_line(check: &HarmCheck) -> String {
                 } else {
                     String::new()
                 }
-            )
+            );
+            if f.harm.kinds.len() > 1 || f.harm.kinds.iter().any(|k| k.kind != "coincident") {
+                let kinds: Vec<String> = f
+                    .harm
+                    .kinds
+                    .iter()
+                    .map(|k| {
+                        format!(
+                            "{} {} rows {:.3}{}",
+                            k.kind,
+                            k.rows,
+                            k.ratio,
+                            if k.harmful {
+                                format!(" (t {:.1}) HARMFUL", k.t)
+                            } else {
+                                String::new()
+                            }
+                        )
+                    })
+                    .collect();
+                let _ = write!(s, " [{}]", kinds.join("; "));
+            }
+            s
         })
         .collect::<Vec<_>>()
         .join(", ")
@@ -111,9 +134,8 @@ pub fn messages(r: &DoNoHarmReport, model: CellModel) -> Vec<String> {
     }
     if c.kept_in_training > 0 {
         out.push(format!(
-            "note: do no harm: {} contact, tracker or plane rows train every fold and are not \
-             scored (their nuisance would need refitting on the held-out rows; diagnose \
-             --cv-folds regions scores them)",
+            "note: do no harm: {} rows train every fold and are not scored (pieces of a contact, \
+             tracker or plane group too small to refit the group's nuisance on half of them)",
             c.kept_in_training
         ));
     }
@@ -122,9 +144,29 @@ pub fn messages(r: &DoNoHarmReport, model: CellModel) -> Vec<String> {
             .harmful_folds()
             .iter()
             .map(|f| {
+                let kinds: Vec<String> = f
+                    .harm
+                    .kinds
+                    .iter()
+                    .filter(|k| k.harmful && f.harm.kinds.len() > 1)
+                    .map(|k| {
+                        format!(
+                            "{} rows ×{:.3}, t {:.1} ≤ −{:.2}",
+                            k.kind, k.ratio, k.t, k.t_harm
+                        )
+                    })
+                    .collect();
                 format!(
-                    "{} ({} rows: held-out rms ×{:.3} nominal's, t {:.1})",
-                    f.harm.fold, f.rows, f.harm.ratio, f.harm.t
+                    "{} ({} rows: held-out rms ×{:.3} nominal's, t {:.1}{})",
+                    f.harm.fold,
+                    f.rows,
+                    f.harm.ratio,
+                    f.harm.t,
+                    if kinds.is_empty() {
+                        String::new()
+                    } else {
+                        format!("; {}", kinds.join("; "))
+                    }
                 )
             })
             .collect();
@@ -155,10 +197,17 @@ pub fn text(r: &DoNoHarmReport) -> String {
     let c = &r.check;
     let _ = writeln!(
         s,
-        "do no harm (--export): the model against nominal (placement only), each fitted without the fold; held-out rms ratio per fold (harmful = worse with t ≤ −{}):",
-        c.harm_t
+        "do no harm (--export): the model against nominal (placement only), each fitted without the fold; held-out rms ratio per fold (harmful = worse with significance, {:.0} % false alarms per session):",
+        100.0 * c.false_alarm
     );
     let _ = writeln!(s, "  folds: {}", c.how);
+    if c.comparisons > 0 {
+        let _ = writeln!(
+            s,
+            "  judged: {} comparisons (fold × kind of row), each at one-sided level {:.4} (Šidák) and Student's t at its rows − 1",
+            c.comparisons, c.alpha_each
+        );
+    }
     if !c.folds.is_empty() {
         let _ = writeln!(s, "  {}", folds_line(c));
     }

@@ -7,15 +7,17 @@
 //!
 //! **The rule** ([`DoNoHarmReport`]): the model of each accepted step `j` (families `1..=j`) is
 //! compared with the nominal model (nuisances and placement fitted, kinematics nominal) in every
-//! fold, both held out on the same folds, by [`calib_core::selection::region_harm`]: harmful in
-//! a fold when its held-out rms is above nominal's and the paired one-sided t of the per-row
-//! gains is `≤ −HARM_T`. The export keeps the largest `j` whose model harms no fold (`j = 0`:
+//! fold, both held out on the same folds, by [`calib_core::selection::judge_harm`] (the judge
+//! `calibrate --cell --export` uses too): harmful in a fold when, for some observation kind, the
+//! paired one-sided t of the per-row gains on the fold's rows of that kind is below the Šidák
+//! threshold that holds the chance of a false alarm over all the step's folds and kinds at
+//! [`HARM_FALSE_ALARM`]. The export keeps the largest `j` whose model harms no fold (`j = 0`:
 //! the placement only); the families after it are **withheld**, each with the folds where the
 //! model with it does harm. `diagnose --export --force` exports the full model.
 
 use std::fmt::Write as _;
 
-use calib_core::selection::{RegionHarm, HARM_T};
+use calib_core::selection::{KindHarm, RegionHarm, HARM_FALSE_ALARM};
 use serde::Serialize;
 
 use crate::cell_diagnosis::{CellDiagnosis, FoldDesign};
@@ -80,8 +82,9 @@ pub struct WithheldFamily {
 /// The do-no-harm export rule's verdict.
 #[derive(Debug, Clone, Serialize)]
 pub struct DoNoHarmReport {
-    /// The one-sided t below which a loss is significant.
-    pub harm_t: f64,
+    /// The chance, per step's model, that a harmless model is called harmful in some fold
+    /// ([`HARM_FALSE_ALARM`]; each fold × kind comparison at its Šidák threshold, `kinds[].t_harm`).
+    pub false_alarm: f64,
     /// Each accepted step's model against nominal, per fold.
     pub steps: Vec<StepHarm>,
     /// The families the export keeps (steps `1..=safe_steps`), in order.
@@ -172,8 +175,8 @@ pub(crate) fn folds_report(d: &CellDiagnosis) -> FoldsReport {
     }
 }
 
-fn fold_harm(name: &str, h: &RegionHarm) -> FoldHarm {
-    FoldHarm::new(name, h)
+fn fold_harm(name: &str, (h, kinds): &(RegionHarm, Vec<KindHarm>)) -> FoldHarm {
+    FoldHarm::new(name, h, kinds.clone())
 }
 
 /// The rule's report of a diagnosis, fold names from `folds`.
@@ -209,7 +212,7 @@ pub(crate) fn do_no_harm_report(d: &CellDiagnosis, folds: &FoldsReport) -> DoNoH
         })
         .collect();
     DoNoHarmReport {
-        harm_t: HARM_T,
+        false_alarm: HARM_FALSE_ALARM,
         exported_families: accepted
             .iter()
             .take(d.safe_steps)
@@ -255,8 +258,8 @@ pub(crate) fn write_text(s: &mut String, folds: &FoldsReport, harm: &DoNoHarmRep
     }
     let _ = writeln!(
         s,
-        "Do no harm (each step's model against nominal, held out fold by fold; harmful = worse with t ≤ −{}):",
-        harm.harm_t
+        "Do no harm (each step's model against nominal, held out fold by fold; harmful = worse with significance, {:.0} % false alarms per model over its folds and kinds):",
+        100.0 * harm.false_alarm
     );
     for st in &harm.steps {
         let cells: Vec<String> = st
@@ -315,9 +318,10 @@ mod tests {
             ratio: 1.234,
             t: -3.21,
             harmful: true,
+            kinds: Vec::new(),
         };
         DoNoHarmReport {
-            harm_t: HARM_T,
+            false_alarm: HARM_FALSE_ALARM,
             steps: Vec::new(),
             exported_families: kept.iter().map(|f| f.to_string()).collect(),
             withheld: vec![WithheldFamily {

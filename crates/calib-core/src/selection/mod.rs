@@ -11,7 +11,9 @@
 //!    scores of each candidate and of the nominal model (the rule of
 //!    `studies/ctu-motoman/docs/region-protocol.md`); [`region_harm`], its one-sided paired test
 //!    of one region (a candidate is harmful there when it is worse than nominal with
-//!    significance), which `diagnose --export` applies to every held-out region.
+//!    significance), and [`judge_harm`], the session-wide judge over every held-out region and
+//!    observation kind at a stated false-alarm rate ([`HARM_FALSE_ALARM`]), which both
+//!    `diagnose --export` and `calibrate --cell --export` apply.
 //! 5. **The folds of region-held-out CV**: [`regions`], seeded k-means++ clusters of the
 //!    session's joint vectors.
 //!
@@ -208,6 +210,12 @@ pub enum SelectionError {
         /// The score given.
         value: f64,
     },
+    /// The false-alarm rate given to [`judge_harm`] is not a probability.
+    #[error(
+        "false-alarm rate {0}: the do-no-harm judge needs a rate in (0, 1), e.g. 0.05 \
+         (HARM_FALSE_ALARM)"
+    )]
+    FalseAlarm(f64),
 }
 
 /// What [`do_no_harm`] decided, with the numbers it decided on.
@@ -346,9 +354,28 @@ pub fn do_no_harm(
     })
 }
 
-/// The one-sided t value below which a region's paired held-out losses count as significant
-/// harm in [`region_harm`] (about 2.5 % one-sided under normal errors).
-pub const HARM_T: f64 = 2.0;
+/// The one-sided t value of a single paired test at [`HARM_FALSE_ALARM`] under normal errors
+/// (`Φ⁻¹(0.95)` ≈ 1.645): [`region_harm`]'s threshold when one region is judged alone. The
+/// session-wide judge [`judge_harm`] sets its own per-comparison thresholds from
+/// [`HARM_FALSE_ALARM`], the number of comparisons and each one's row count.
+pub const HARM_T: f64 = 1.644_853_626_951_472_2;
+
+/// The chance, per checked session, that the do-no-harm judge [`judge_harm`] calls a model
+/// harmful when it is not (one-sided: worse than nominal with significance in some region and
+/// kind). 5 %, the conventional level, fixed before any session was judged: one healthy
+/// session in twenty may lose its corrections to a false alarm (the safe model is then
+/// exported and the warning says why, `--force` keeps the full model).
+pub const HARM_FALSE_ALARM: f64 = 0.05;
+
+/// Fewest held-out rows of one observation kind in one fold for the kind to be judged on its
+/// own by [`judge_harm`]; a fold's kinds with fewer rows are pooled (see there). Eight: the
+/// fewest rows of a region of the do-no-harm check (`MIN_HARM_REGION_ROWS`), so a kind is
+/// judged alone exactly when it could have been a region on its own. The paired t of squared
+/// errors is skewed (differences of χ² values); below a few rows its one-sided tail is far from
+/// Student's, above it Student's quantile at `n − 1` degrees of freedom
+/// ([`crate::stats::t_quantile`]) absorbs the small-sample width. Chosen from the check's
+/// structure, not from any score.
+pub const MIN_KIND_ROWS: usize = 8;
 
 /// One region's verdict of [`region_harm`].
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -358,7 +385,7 @@ pub struct RegionHarm {
     /// The t statistic ([`one_sample_t`]) of the paired per-row gains `e²_nominal − e²_c`:
     /// negative when the candidate is worse (NaN with fewer than two rows).
     pub t: f64,
-    /// Harmful: the ratio exceeds 1 and `t ≤ −t_harm` (worse than nominal with significance).
+    /// Harmful: `t ≤ −t_harm` (worse than nominal with significance).
     pub harmful: bool,
 }
 
@@ -368,31 +395,223 @@ pub struct RegionHarm {
 pub struct FoldHarm {
     /// The fold's name (`region 1`, `fold 2`, `block 3`, …).
     pub fold: String,
-    /// The model's held-out rms over nominal's in the fold.
+    /// The model's held-out rms over nominal's in the fold, all its rows pooled.
     pub ratio: f64,
-    /// The paired t of the per-row gains (negative: worse than nominal).
+    /// The paired t of the per-row gains, all rows pooled (negative: worse than nominal).
     pub t: f64,
-    /// Worse than nominal with significance.
+    /// Worse than nominal with significance in some comparison of the fold (`kinds`).
     pub harmful: bool,
+    /// The fold's comparisons ([`judge_harm`]): one per observation kind with at least
+    /// [`MIN_KIND_ROWS`] rows, the others pooled (not serialised when empty).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub kinds: Vec<KindHarm>,
 }
 
 impl FoldHarm {
-    /// The verdict `harm` of [`region_harm`] in the fold named `fold`.
-    pub fn new(fold: &str, harm: &RegionHarm) -> Self {
+    /// The verdict `harm` of [`region_harm`] in the fold named `fold`, with its per-kind verdicts
+    /// `kinds` (empty when not judged per kind).
+    pub fn new(fold: &str, harm: &RegionHarm, kinds: Vec<KindHarm>) -> Self {
         FoldHarm {
             fold: fold.to_string(),
             ratio: harm.ratio,
             t: harm.t,
             harmful: harm.harmful,
+            kinds,
         }
     }
+}
+
+/// One comparison of [`judge_harm`]: the held-out rows of one observation kind of a fold (or
+/// of several small kinds pooled).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct KindHarm {
+    /// The observation kind (`coincident`, `contact`, `tracker`, `plane`, …), or the kinds
+    /// pooled, joined by `+` (`contact+plane`), in order of first appearance.
+    pub kind: String,
+    /// Held-out rows in the comparison.
+    pub rows: usize,
+    /// The model's held-out rms over nominal's on those rows.
+    pub ratio: f64,
+    /// The paired t of their per-row gains (negative: worse than nominal; NaN below two rows).
+    pub t: f64,
+    /// The one-sided threshold it was judged at (harmful when `t ≤ −t_harm`): Student's t
+    /// quantile at `rows − 1` degrees of freedom and the Šidák level of the session's
+    /// comparisons ([`judge_harm`]).
+    pub t_harm: f64,
+    /// Worse than nominal with significance on those rows.
+    pub harmful: bool,
+}
+
+/// One fold's held-out rows for [`judge_harm`]: the fold's name, each row's observation kind,
+/// and its squared held-out error (e.g. whitened residual norm²) under nominal and under the
+/// candidate, each fitted without the fold.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FoldRows<'a> {
+    /// The fold's name (`region 1`, …).
+    pub name: String,
+    /// Row `i`'s observation kind.
+    pub kinds: Vec<&'a str>,
+    /// Row `i`'s squared held-out error under nominal.
+    pub nominal_e2: Vec<f64>,
+    /// Row `i`'s squared held-out error under the candidate.
+    pub candidate_e2: Vec<f64>,
+}
+
+/// The verdict of [`judge_harm`] over a session's folds.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct HarmJudgement {
+    /// The per-session false-alarm rate the thresholds hold ([`HARM_FALSE_ALARM`]).
+    pub false_alarm: f64,
+    /// The number of comparisons made over all folds (the Šidák family).
+    pub comparisons: usize,
+    /// Each comparison's one-sided level `1 − (1 − false_alarm)^(1/comparisons)`.
+    pub alpha_each: f64,
+    /// Each fold's verdict, in fold order.
+    pub folds: Vec<FoldHarm>,
+}
+
+impl HarmJudgement {
+    /// Whether the candidate is harmful in any fold.
+    pub fn harmful(&self) -> bool {
+        self.folds.iter().any(|f| f.harmful)
+    }
+}
+
+/// The comparisons of one fold: groups of row indices with their label.
+fn fold_comparisons(kinds: &[&str]) -> Vec<(String, Vec<usize>)> {
+    let mut order: Vec<&str> = Vec::new();
+    for k in kinds {
+        if !order.contains(k) {
+            order.push(k);
+        }
+    }
+    let rows_of = |k: &str| -> Vec<usize> { (0..kinds.len()).filter(|&i| kinds[i] == k).collect() };
+    let (big, small): (Vec<&str>, Vec<&str>) = order
+        .iter()
+        .partition(|k| rows_of(k).len() >= MIN_KIND_ROWS);
+    if big.is_empty() {
+        // No kind has enough rows alone: the whole fold is one comparison.
+        return vec![(order.join("+"), (0..kinds.len()).collect())];
+    }
+    let mut out: Vec<(String, Vec<usize>)> =
+        big.iter().map(|k| (k.to_string(), rows_of(k))).collect();
+    if !small.is_empty() {
+        let mut rows: Vec<usize> = small.iter().flat_map(|k| rows_of(k)).collect();
+        rows.sort_unstable();
+        if rows.len() >= MIN_KIND_ROWS {
+            out.push((small.join("+"), rows));
+        } else {
+            // Too few to judge alone: pooled with the fold's largest kind.
+            let largest = (0..out.len()).max_by_key(|&c| out[c].1.len()).unwrap_or(0);
+            out[largest].0 = format!("{}+{}", out[largest].0, small.join("+"));
+            out[largest].1.extend(rows);
+            out[largest].1.sort_unstable();
+        }
+    }
+    out
+}
+
+/// The session-wide do-no-harm judge: is the candidate worse than nominal, with significance,
+/// in some fold? Each fold's rows are cut into **comparisons**: one per observation kind with
+/// at least [`MIN_KIND_ROWS`] rows (a model that makes the tracker rows of a region worse is
+/// not excused by better handclasps there: the kinds have different σ and counts, so a pooled
+/// sum would let the larger decide); the rows of the fold's smaller kinds pooled into one more
+/// comparison when they reach [`MIN_KIND_ROWS`], else into the fold's largest comparison; a
+/// fold with no kind of [`MIN_KIND_ROWS`] rows is one comparison. With `m` comparisons over all
+/// folds, each is judged at the Šidák level `α_m = 1 − (1 − false_alarm)^(1/m)`: harmful when
+/// the paired t of its per-row gains `e²_nominal − e²_c` is `≤ −t_{n−1}(1 − α_m)` (Student's
+/// quantile at its `n − 1` degrees of freedom), so a harmless model is called harmful
+/// somewhere in the session with probability at most `false_alarm` when the comparisons are
+/// independent (Šidák's bound also holds for positively dependent tests, as folds sharing
+/// training rows are). A comparison of fewer than two rows is never harmful.
+///
+/// # Errors
+/// [`SelectionError::NoRegions`] when `folds` is empty or a fold has no row;
+/// [`SelectionError::RegionCount`] when a fold's slices differ in length;
+/// [`SelectionError::CandidateScore`] when a value is not finite and ≥ 0;
+/// [`SelectionError::FalseAlarm`] when `false_alarm` is not in (0, 1).
+///
+/// # Examples
+/// ```
+/// use calib_core::selection::{judge_harm, FoldRows, HARM_FALSE_ALARM};
+/// let mut kinds = vec!["coincident"; 8];
+/// kinds.extend(["tracker"; 8]);
+/// let nominal = vec![1.0, 1.2, 0.9, 1.1, 1.0, 0.8, 1.1, 0.9, 1.0, 1.2, 0.9, 1.1, 1.0, 0.8, 1.1, 0.9];
+/// // Better on the handclasps, much worse on the tracker rows.
+/// let candidate: Vec<f64> = nominal
+///     .iter()
+///     .enumerate()
+///     .map(|(i, e)| if i < 8 { 0.5 * e } else { 3.0 * e })
+///     .collect();
+/// let fold = FoldRows { name: "region 1".into(), kinds, nominal_e2: nominal, candidate_e2: candidate };
+/// let j = judge_harm(&[fold], HARM_FALSE_ALARM).unwrap();
+/// assert_eq!(j.comparisons, 2);
+/// assert!(j.harmful());
+/// assert!(j.folds[0].kinds[1].harmful && !j.folds[0].kinds[0].harmful);
+/// ```
+pub fn judge_harm(folds: &[FoldRows], false_alarm: f64) -> Result<HarmJudgement, SelectionError> {
+    if !(false_alarm > 0.0 && false_alarm < 1.0) {
+        return Err(SelectionError::FalseAlarm(false_alarm));
+    }
+    if folds.is_empty() {
+        return Err(SelectionError::NoRegions);
+    }
+    let mut plans = Vec::with_capacity(folds.len());
+    for f in folds {
+        if f.kinds.len() != f.nominal_e2.len() {
+            return Err(SelectionError::RegionCount {
+                candidate: 0,
+                got: f.kinds.len(),
+                expected: f.nominal_e2.len(),
+            });
+        }
+        // Validates lengths and values (the pooled verdict's threshold is set below).
+        let pooled = region_harm(&f.nominal_e2, &f.candidate_e2, f64::INFINITY)?;
+        plans.push((pooled, fold_comparisons(&f.kinds)));
+    }
+    let m: usize = plans.iter().map(|(_, c)| c.len()).sum();
+    let alpha_each = 1.0 - (1.0 - false_alarm).powf(1.0 / m.max(1) as f64);
+    let mut out = Vec::with_capacity(folds.len());
+    for (f, (pooled, comps)) in folds.iter().zip(plans) {
+        let mut kinds = Vec::with_capacity(comps.len());
+        for (label, rows) in comps {
+            let n: Vec<f64> = rows.iter().map(|&i| f.nominal_e2[i]).collect();
+            let c: Vec<f64> = rows.iter().map(|&i| f.candidate_e2[i]).collect();
+            let t_harm = if rows.len() >= 2 {
+                crate::stats::t_quantile(1.0 - alpha_each, rows.len() - 1)
+            } else {
+                f64::INFINITY
+            };
+            let h = region_harm(&n, &c, t_harm)?;
+            kinds.push(KindHarm {
+                kind: label,
+                rows: rows.len(),
+                ratio: h.ratio,
+                t: h.t,
+                t_harm,
+                harmful: h.harmful,
+            });
+        }
+        let harmful = kinds.iter().any(|k| k.harmful);
+        out.push(FoldHarm::new(
+            &f.name,
+            &RegionHarm { harmful, ..pooled },
+            kinds,
+        ));
+    }
+    Ok(HarmJudgement {
+        false_alarm,
+        comparisons: m,
+        alpha_each,
+        folds: out,
+    })
 }
 
 /// The do-no-harm test of one held-out region: `nominal_e2[i]` and `candidate_e2[i]` are the
 /// squared held-out errors (e.g. whitened residual norms²) of the same row `i` of the region
 /// under the nominal model and the candidate, each fitted without the region. The candidate is
-/// **harmful** in the region when its rms is above nominal's and the one-sided paired t of the
-/// gains is `≤ −t_harm` ([`HARM_T`] is the workspace's value). A region of fewer than two rows
+/// **harmful** in the region when the one-sided paired t of the gains is `≤ −t_harm` ([`HARM_T`]
+/// is a single test's value at [`HARM_FALSE_ALARM`]; [`judge_harm`] judges a whole session). A region of fewer than two rows
 /// is never judged harmful (no variance to judge by).
 ///
 /// # Errors
@@ -450,6 +669,6 @@ pub fn region_harm(
     Ok(RegionHarm {
         ratio,
         t,
-        harmful: ratio > 1.0 && t <= -t_harm,
+        harmful: t <= -t_harm,
     })
 }

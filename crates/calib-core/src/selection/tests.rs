@@ -6,6 +6,119 @@ fn cv(e: f64, se: f64) -> CvError {
     CvError { e, se }
 }
 
+/// Absolute tolerance on the Šidák level's round trip through `powf`.
+const SIDAK_TOL: f64 = 1e-12;
+
+/// One fold of `kinds` rows with nominal errors `nominal` and the candidate's `model`.
+fn fold<'a>(name: &str, kinds: Vec<&'a str>, nominal: Vec<f64>, model: Vec<f64>) -> FoldRows<'a> {
+    FoldRows {
+        name: name.into(),
+        kinds,
+        nominal_e2: nominal,
+        candidate_e2: model,
+    }
+}
+
+#[test]
+fn the_session_level_holds_the_false_alarm_rate_over_its_comparisons() {
+    // Two folds: one of 8 handclasps and 8 tracker rows (two comparisons), one of 10
+    // handclasps and 3 plane rows (the planes pooled with the handclasps: one comparison).
+    let e = |n: usize| {
+        (0..n)
+            .map(|i| 1.0 + 0.1 * (i % 3) as f64)
+            .collect::<Vec<f64>>()
+    };
+    let mut k1 = vec!["coincident"; 8];
+    k1.extend(["tracker"; 8]);
+    let mut k2 = vec!["coincident"; 10];
+    k2.extend(["plane"; 3]);
+    let folds = [
+        fold("region 1", k1, e(16), e(16)),
+        fold("region 2", k2, e(13), e(13)),
+    ];
+    let j = judge_harm(&folds, HARM_FALSE_ALARM).unwrap();
+    assert_eq!(j.comparisons, 3);
+    let level = 1.0 - (1.0 - j.alpha_each).powi(3);
+    assert!((level - HARM_FALSE_ALARM).abs() < SIDAK_TOL, "{level}");
+    let names: Vec<&str> = j.folds[1].kinds.iter().map(|k| k.kind.as_str()).collect();
+    assert_eq!(names, ["coincident+plane"]);
+    assert_eq!(j.folds[1].kinds[0].rows, 13);
+    // Each threshold is Student's quantile at its rows − 1 degrees of freedom.
+    for k in j.folds.iter().flat_map(|f| &f.kinds) {
+        let want = crate::stats::t_quantile(1.0 - j.alpha_each, k.rows - 1);
+        assert_eq!(k.t_harm, want, "{k:?}");
+        assert!(!k.harmful);
+    }
+    assert!(!j.harmful());
+    assert!(judge_harm(&folds, 0.0).is_err());
+    assert!(judge_harm(&folds, 1.0).is_err());
+    assert!(judge_harm(&[], HARM_FALSE_ALARM).is_err());
+}
+
+#[test]
+fn a_fold_is_harmful_when_one_kind_is_though_the_pool_is_not() {
+    // Ten handclasps much better, eight tracker rows clearly worse: pooled, the handclasps'
+    // large nominal errors hide the tracker loss; per kind, it shows.
+    let mut kinds = vec!["coincident"; 10];
+    kinds.extend(["tracker"; 8]);
+    let mut nominal = vec![9.0, 11.0, 10.0, 8.0, 12.0, 10.0, 9.5, 10.5, 11.0, 9.0];
+    let mut model: Vec<f64> = nominal.iter().map(|e| 0.5 * e).collect();
+    nominal.extend([1.0, 1.2, 0.9, 1.1, 1.0, 0.8, 1.0, 1.1]);
+    model.extend([2.0, 2.5, 1.9, 2.1, 2.2, 1.7, 2.0, 2.3]);
+    let pooled = region_harm(&nominal, &model, HARM_T).unwrap();
+    assert!(!pooled.harmful, "{pooled:?}");
+    let j = judge_harm(
+        &[fold(
+            "region 1",
+            kinds.clone(),
+            nominal.clone(),
+            model.clone(),
+        )],
+        HARM_FALSE_ALARM,
+    )
+    .unwrap();
+    let f = &j.folds[0];
+    assert!(f.harmful && j.harmful());
+    assert_eq!((f.ratio, f.t), (pooled.ratio, pooled.t));
+    assert_eq!(f.kinds.len(), 2);
+    assert_eq!(
+        (f.kinds[0].kind.as_str(), f.kinds[0].rows),
+        ("coincident", 10)
+    );
+    assert!(!f.kinds[0].harmful && f.kinds[1].harmful);
+    // Fewer than MIN_KIND_ROWS tracker rows: pooled with the handclasps, the loss hides.
+    let j = judge_harm(
+        &[fold(
+            "region 1",
+            kinds[..16].to_vec(),
+            nominal[..16].to_vec(),
+            model[..16].to_vec(),
+        )],
+        HARM_FALSE_ALARM,
+    )
+    .unwrap();
+    assert_eq!(j.comparisons, 1);
+    assert_eq!(j.folds[0].kinds[0].kind, "coincident+tracker");
+    assert!(!j.harmful(), "{j:?}");
+    // Mismatched lengths are an error.
+    assert!(judge_harm(
+        &[fold(
+            "region 1",
+            kinds[..5].to_vec(),
+            nominal.clone(),
+            model.clone()
+        )],
+        HARM_FALSE_ALARM
+    )
+    .is_err());
+}
+
+#[test]
+fn the_single_test_threshold_is_the_one_sided_five_percent_normal_quantile() {
+    let want = crate::stats::normal_quantile(1.0 - HARM_FALSE_ALARM);
+    assert!((HARM_T - want).abs() < 1e-9, "{HARM_T} vs {want}");
+}
+
 // Moved from the CTU study's tests with the rules (issue 19).
 
 #[test]

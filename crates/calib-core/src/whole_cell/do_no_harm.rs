@@ -1,43 +1,52 @@
 //! The do-no-harm check of a calibration (issue 20): is the fitted model worse than the nominal
 //! model (the placement and nuisances alone, both robots nominal) on rows it was not fitted
 //! to? `calibrate --cell --export` runs it before exporting; `diagnose --export` applies the
-//! same test ([`region_harm`], [`HARM_T`]) to its own folds.
+//! same judge ([`judge_harm`] at [`HARM_FALSE_ALARM`]) to its own folds.
 //!
-//! 1. **Held-out rows**: the fit's rows without a nuisance group (coincident handclasps). A
-//!    tracker, plane or contact group's rows always train: scoring them held out would need
-//!    their nuisance refitted on half of them, as `diagnose` does.
+//! 1. **Held-out rows**: every row of the fit, of every kind. A fold's rows are split into
+//!    units by nuisance group ([`held_out_pieces`]); a group's piece too small to refit its
+//!    nuisance on half of it (fewer than its kind's [`MIN_SPLIT_ROWS`]), or that would leave
+//!    too few of the group's rows to start the training fit's nuisance, stays in training.
 //! 2. **Folds** ([`HarmDesign`]): regions of joint space ([`joint_regions`] on
-//!    [`joint_features`], at least [`MIN_HARM_REGION_ROWS`] rows each, at most one region per
-//!    `2·MIN_HARM_REGION_ROWS` rows (3 to 6), seed [`REGION_SEED`], the clustering `diagnose
-//!    --cv-folds regions` uses); a session too small for
-//!    [`MIN_REGIONS`] regions falls back to blocks of rows in row order (at most
+//!    [`joint_features`] of all the rows, at least [`MIN_HARM_REGION_ROWS`] rows each, at most
+//!    one region per `2·MIN_HARM_REGION_ROWS` rows (3 to 6), seed [`REGION_SEED`], the
+//!    clustering `diagnose --cv-folds regions` uses); a session too small for [`MIN_REGIONS`]
+//!    regions with a held-out unit falls back to blocks of rows in row order (at most
 //!    [`FALLBACK_BLOCKS`] of at least [`MIN_BLOCK_ROWS`], as `diagnose` cuts its coincident
 //!    rows), which measure interpolation, and says so; fewer than two blocks: not checked.
-//! 3. **Fits per fold** ([`fold_e2`]): the model (the calibration's own layout: its unknowns and
-//!    its prior at the scales the evidence chose, not chosen again per fold) and the nominal
-//!    model are both fitted on the other rows ([`fit_cell_with`]), and each held-out row's
-//!    whitened squared residual is taken under each.
-//! 4. **Verdict**: [`region_harm`] per fold at [`HARM_T`]: harmful where the model's held-out
-//!    rms is above nominal's and the paired t of the per-row gains is `≤ −HARM_T`.
+//! 3. **Fits per fold**: the model (the calibration's own unknowns and its prior at the scales
+//!    the evidence chose, not chosen again per fold) and the nominal model are both fitted on
+//!    the other rows ([`fit_cell_with`] on their [`sub_problem`]); then each held-out unit is
+//!    scored under each training fit by [`score_held_out`]: its nuisance (tracker frame, plane,
+//!    fitted contact distance) refitted on one half of its rows with the trained cell held, the
+//!    other half scored, and back (as `validate`'s refit on half and `diagnose`'s held-out
+//!    criterion do), so no scored row is predicted by anything fitted on it.
+//! 4. **Verdict**: [`judge_harm`] over all folds at [`HARM_FALSE_ALARM`]: harmful where, for
+//!    some fold and observation kind (kinds of fewer than
+//!    [`crate::selection::MIN_KIND_ROWS`] rows pooled), the paired t of the per-row gains is
+//!    below the Šidák threshold that holds the session's false-alarm rate at 5 %.
 //!
-//! Cost: two fits per fold, at most `2 ·` [`crate::selection::regions::MAX_REGIONS`].
+//! Cost: two fits per fold, at most `2 ·` [`crate::selection::regions::MAX_REGIONS`], and two
+//! nuisance-only fits per held-out group piece and model.
 
 use serde::Serialize;
 
 use super::{
-    fit_cell_with, initial_estimate, CellCalibration, CellFitError, CellProblem, Evaluator,
-    ParamLayout, SolveOptions, Tolerance,
+    fit_cell_with, held_out_pieces, initial_estimate, score_held_out, sub_problem, CellCalibration,
+    CellFitError, CellParam, CellProblem, ParamLayout, SolveOptions, Tolerance, MIN_SPLIT_ROWS,
 };
 use crate::selection::regions::{
     joint_features, joint_regions, MAX_REGIONS, MIN_REGIONS, REGION_SEED,
 };
-use crate::selection::{region_harm, FoldHarm, HARM_T};
+use crate::selection::{judge_harm, FoldHarm, FoldRows, HARM_FALSE_ALARM};
 
-/// Fewest handclasp rows of a held-out region. `diagnose`'s regions need
-/// [`crate::selection::regions::MIN_REGION_ROWS`] (12) because a region's piece of a tracker
-/// or plane group must refit its frame on half of it; a handclasp has no nuisance to refit, so
-/// a region needs only enough rows for the paired t of [`region_harm`]: eight handclasps, 24
-/// residuals.
+/// Fewest rows of a held-out region. `diagnose`'s regions need
+/// [`crate::selection::regions::MIN_REGION_ROWS`] (12); this check asks only for enough rows
+/// for the paired t of [`crate::selection::region_harm`]: eight rows (eight handclasps are 24
+/// residuals), which is also more than a group piece needs to refit its nuisance on half of it
+/// ([`MIN_SPLIT_ROWS`]: 6 for a tracker frame or a plane). With 12, a 40-row session seldom
+/// yields three regions and the check falls back to row-order blocks, which measure
+/// interpolation. Chosen from the session sizes the check must serve, not from any score.
 pub const MIN_HARM_REGION_ROWS: usize = 8;
 
 /// Most blocks of the row-order fallback (as `diagnose` cuts its coincident rows into at most
@@ -45,7 +54,8 @@ pub const MIN_HARM_REGION_ROWS: usize = 8;
 pub const FALLBACK_BLOCKS: usize = 4;
 
 /// Fewest rows of a block of the row-order fallback (as `diagnose`'s coincident units): six
-/// handclasps are 18 residuals, enough for the paired t of [`region_harm`] to mean something.
+/// handclasps are 18 residuals, enough for the paired t to mean something, and six tracker or
+/// plane rows are the fewest that refit their nuisance on half ([`MIN_SPLIT_ROWS`]).
 pub const MIN_BLOCK_ROWS: usize = 6;
 
 /// How the check's folds were made; serialised snake_case.
@@ -64,9 +74,10 @@ pub enum HarmDesign {
 /// One fold of the check: its held-out rows and the verdict.
 #[derive(Debug, Clone, Serialize)]
 pub struct HarmFold {
-    /// Held-out rows (observations) of the fold.
+    /// Held-out (scored) rows (observations) of the fold.
     pub rows: usize,
-    /// The model against nominal in the fold (name `region k` or `block k`).
+    /// The model against nominal in the fold (name `region k` or `block k`): pooled ratio and
+    /// t, harmful when some kind is, and each kind's verdict in `kinds`.
     #[serde(flatten)]
     pub harm: FoldHarm,
 }
@@ -78,16 +89,35 @@ pub struct HarmCheck {
     pub design: HarmDesign,
     /// The same in words (and why, on a fallback).
     pub how: String,
-    /// The one-sided t below which a loss is significant ([`HARM_T`]).
-    pub harm_t: f64,
+    /// The chance that a harmless model is called harmful somewhere in the session
+    /// ([`HARM_FALSE_ALARM`]).
+    pub false_alarm: f64,
+    /// Comparisons (fold × observation kind) judged: the Šidák family ([`judge_harm`]).
+    pub comparisons: usize,
+    /// Each comparison's one-sided level, `1 − (1 − false_alarm)^(1/comparisons)` (0 when
+    /// nothing was checked).
+    pub alpha_each: f64,
     /// Each fold's verdict (empty when not checked).
     pub folds: Vec<HarmFold>,
-    /// Rows of the fit that were never held out (rows of a nuisance group: they train every
-    /// fold).
+    /// Rows of the fit that were never held out: pieces of a group too small to refit its
+    /// nuisance on half of them (they train every fold).
     pub kept_in_training: usize,
 }
 
 impl HarmCheck {
+    /// Rows held out and scored over all folds, per observation kind (`kind`, rows), in order
+    /// of first appearance.
+    pub fn scored_kinds(&self) -> Vec<(String, usize)> {
+        let mut out: Vec<(String, usize)> = Vec::new();
+        for k in self.folds.iter().flat_map(|f| &f.harm.kinds) {
+            match out.iter_mut().find(|(name, _)| *name == k.kind) {
+                Some((_, n)) => *n += k.rows,
+                None => out.push((k.kind.clone(), k.rows)),
+            }
+        }
+        out
+    }
+
     /// Whether the model is worse than nominal, with significance, in any fold.
     pub fn harmful(&self) -> bool {
         self.folds.iter().any(|f| f.harm.harmful)
@@ -97,6 +127,109 @@ impl HarmCheck {
     pub fn harmful_folds(&self) -> Vec<&HarmFold> {
         self.folds.iter().filter(|f| f.harm.harmful).collect()
     }
+}
+
+/// The folds of the check: the design, its words, and each fold's held-out units; with the
+/// rows kept in training. `None` when not even two blocks have a held-out unit.
+type Folds = (HarmDesign, String, Vec<Vec<Vec<usize>>>, usize);
+
+/// Each fold of `parts` (rows) cut into held-out units ([`held_out_pieces`]); folds without a
+/// unit are dropped. Returns the folds and the rows kept in training.
+fn units_of(problem: &CellProblem, used: &[usize], parts: &[Vec<usize>]) -> Folds {
+    let mut folds = Vec::new();
+    let mut kept = 0;
+    for part in parts {
+        let (scored, k) = held_out_pieces(problem, used, part);
+        kept += k.len();
+        if !scored.is_empty() {
+            folds.push(scored);
+        }
+    }
+    (HarmDesign::NotChecked, String::new(), folds, kept)
+}
+
+/// The folds of the rows `used` (see the module documentation).
+fn harm_folds(problem: &CellProblem, used: &[usize]) -> Folds {
+    let features = joint_features(problem, used);
+    // At most one region per 2·MIN_HARM_REGION_ROWS rows: regions of twice the minimum on
+    // average leave k-means room to follow the postures, the minimum-size assignment of
+    // `joint_regions` binding only on stragglers (with one region per MIN_HARM_REGION_ROWS rows
+    // every region would be cut to exactly the minimum, whatever the postures).
+    let max_regions = (used.len() / (2 * MIN_HARM_REGION_ROWS)).clamp(MIN_REGIONS, MAX_REGIONS);
+    if let Some(regions) = joint_regions(&features, MIN_HARM_REGION_ROWS, max_regions, REGION_SEED)
+    {
+        let parts: Vec<Vec<usize>> = (0..regions.sizes.len())
+            .map(|c| {
+                used.iter()
+                    .zip(&regions.labels)
+                    .filter(|(_, &l)| l == c)
+                    .map(|(&i, _)| i)
+                    .collect()
+            })
+            .collect();
+        let (_, _, folds, kept) = units_of(problem, used, &parts);
+        if folds.len() >= MIN_REGIONS {
+            let how = format!(
+                "{} regions of joint space (natural clusters, else seeded k-means++, seed \
+                 {REGION_SEED}; on the rows' joint vectors normalised by the joint limits, at least {MIN_HARM_REGION_ROWS} \
+                 rows each), each held out in turn",
+                folds.len()
+            );
+            return (HarmDesign::JointRegions, how, folds, kept);
+        }
+    }
+    let parts = (used.len() / MIN_BLOCK_ROWS).min(FALLBACK_BLOCKS);
+    let blocks: Vec<Vec<usize>> = if parts >= 2 {
+        used.chunks(used.len().div_ceil(parts))
+            .map(<[usize]>::to_vec)
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let (_, _, folds, kept) = units_of(problem, used, &blocks);
+    if folds.len() < 2 {
+        let how = format!(
+            "not checked: {} rows are too few for {MIN_REGIONS} joint-space regions of \
+             {MIN_HARM_REGION_ROWS} rows or 2 blocks of {MIN_BLOCK_ROWS} with rows that can be \
+             held out (a tracker or plane group's piece needs {} rows to refit its nuisance on \
+             half of it)",
+            used.len(),
+            MIN_SPLIT_ROWS[1]
+        );
+        return (HarmDesign::NotChecked, how, Vec::new(), used.len());
+    }
+    let how = format!(
+        "{} blocks of rows in row order: {} rows do not cut into {MIN_REGIONS} joint-space \
+         regions of at least {MIN_HARM_REGION_ROWS} rows (the check measures interpolation, not \
+         extrapolation)",
+        folds.len(),
+        used.len()
+    );
+    (HarmDesign::RowBlocks, how, folds, kept)
+}
+
+/// `layout`'s unknowns and prior (a layout of the full problem) on `sub`, a [`sub_problem`] of
+/// it: the same kinematic and tool-tip unknowns with the same prior rows, and `sub`'s own
+/// nuisances (unpenalised, as in every layout).
+pub(crate) fn layout_on(layout: &ParamLayout, sub: &CellProblem) -> ParamLayout {
+    let robot_param =
+        |p: &CellParam| matches!(p, CellParam::Kinematic { .. } | CellParam::ToolTip { .. });
+    let fixed: Vec<CellParam> = ParamLayout::new(sub, &[])
+        .params
+        .into_iter()
+        .filter(|p| robot_param(p) && layout.column(p).is_none())
+        .collect();
+    let mut out = ParamLayout::new(sub, &fixed);
+    let mut prior = nalgebra::DMatrix::zeros(layout.prior_sqrt_info.nrows(), out.len());
+    for (j, p) in layout.params.iter().enumerate() {
+        if let (true, Some(c)) = (robot_param(p), out.column(p)) {
+            prior
+                .column_mut(c)
+                .copy_from(&layout.prior_sqrt_info.column(j));
+        }
+    }
+    out.prior_sqrt_info = prior;
+    out
 }
 
 /// The do-no-harm check of `cal`, a calibration of `problem` (see the module documentation);
@@ -114,66 +247,7 @@ pub fn region_harm_check(
     if fit.layout.prior_sqrt_info.nrows() == 0 {
         return Ok(None);
     }
-    let (scorable, kept): (Vec<usize>, Vec<usize>) = fit
-        .active
-        .iter()
-        .partition(|&&i| problem.observations[i].kind.group().is_none());
-    let features = joint_features(problem, &scorable);
-    // At most one region per 2·MIN_HARM_REGION_ROWS rows: regions of twice the minimum on
-    // average leave k-means room to follow the postures, the minimum-size assignment of
-    // `joint_regions` binding only on stragglers (with one region per MIN_HARM_REGION_ROWS rows
-    // every region would be cut to exactly the minimum, whatever the postures).
-    let max_regions = (scorable.len() / (2 * MIN_HARM_REGION_ROWS)).clamp(MIN_REGIONS, MAX_REGIONS);
-    let (design, how, folds): (HarmDesign, String, Vec<Vec<usize>>) =
-        match joint_regions(&features, MIN_HARM_REGION_ROWS, max_regions, REGION_SEED) {
-            Some(regions) => {
-                let folds = (0..regions.sizes.len())
-                    .map(|c| {
-                        scorable
-                            .iter()
-                            .zip(&regions.labels)
-                            .filter(|(_, &l)| l == c)
-                            .map(|(&i, _)| i)
-                            .collect()
-                    })
-                    .collect::<Vec<Vec<usize>>>();
-                let how = format!(
-                    "{} regions of joint space (natural clusters, else seeded k-means++, \
-                     seed {REGION_SEED}; on the handclasps' joint vectors normalised by the \
-                     joint limits, at least \
-                     {MIN_HARM_REGION_ROWS} rows each), each held out in turn",
-                    folds.len()
-                );
-                (HarmDesign::JointRegions, how, folds)
-            }
-            None => {
-                let parts = (scorable.len() / MIN_BLOCK_ROWS).min(FALLBACK_BLOCKS);
-                if parts < 2 {
-                    let how = format!(
-                        "not checked: {} handclasp rows are too few for {MIN_REGIONS} joint-space \
-                         regions of {MIN_HARM_REGION_ROWS} rows or 2 blocks of {MIN_BLOCK_ROWS}",
-                        scorable.len()
-                    );
-                    return Ok(Some(HarmCheck {
-                        design: HarmDesign::NotChecked,
-                        how,
-                        harm_t: HARM_T,
-                        folds: Vec::new(),
-                        kept_in_training: kept.len(),
-                    }));
-                }
-                let size = scorable.len().div_ceil(parts);
-                let folds: Vec<Vec<usize>> = scorable.chunks(size).map(<[usize]>::to_vec).collect();
-                let how = format!(
-                    "{} blocks of rows in row order: {} handclasp rows do not cut into \
-                     {MIN_REGIONS} joint-space regions of at least {MIN_HARM_REGION_ROWS} rows \
-                     (the check measures interpolation, not extrapolation)",
-                    folds.len(),
-                    scorable.len()
-                );
-                (HarmDesign::RowBlocks, how, folds)
-            }
-        };
+    let (design, how, folds, kept) = harm_folds(problem, &fit.active);
     let prefix = match design {
         HarmDesign::JointRegions => "region",
         _ => "block",
@@ -181,53 +255,80 @@ pub fn region_harm_check(
     let mut nominal = problem.clone();
     nominal.robot1.tolerance = Tolerance::none();
     nominal.robot2.tolerance = Tolerance::none();
-    let nominal_layout = ParamLayout::new(&nominal, &[]);
-    let mut out = Vec::with_capacity(folds.len());
-    for (k, held) in folds.iter().enumerate() {
+    let mut rows = Vec::with_capacity(folds.len());
+    for (k, units) in folds.iter().enumerate() {
+        let held: Vec<usize> = units.iter().flatten().copied().collect();
         let train: Vec<usize> = fit
             .active
             .iter()
             .copied()
             .filter(|i| !held.contains(i))
             .collect();
-        let model_e2 = fold_e2(problem, &fit.layout, cal, &train, held, solve)?;
-        let nominal_e2 = fold_e2(&nominal, &nominal_layout, cal, &train, held, solve)?;
-        let harm = region_harm(&nominal_e2, &model_e2, HARM_T).map_err(|e| {
-            CellFitError::InvalidInput(format!("do-no-harm check, {prefix} {}: {e}", k + 1))
-        })?;
-        out.push(HarmFold {
-            rows: held.len(),
-            harm: FoldHarm::new(&format!("{prefix} {}", k + 1), &harm),
-        });
+        let model = fold_e2(problem, Some(&fit.layout), cal, &train, units, solve)?;
+        let base = fold_e2(&nominal, None, cal, &train, units, solve)?;
+        rows.push((
+            FoldRows {
+                name: format!("{prefix} {}", k + 1),
+                kinds: model.iter().map(|(kind, _)| *kind).collect(),
+                nominal_e2: base.iter().map(|(_, e)| *e).collect(),
+                candidate_e2: model.iter().map(|(_, e)| *e).collect(),
+            },
+            held.len(),
+        ));
     }
+    let (out, comparisons, alpha_each) = if rows.is_empty() {
+        (Vec::new(), 0, 0.0)
+    } else {
+        let fold_rows: Vec<FoldRows> = rows.iter().map(|(f, _)| f.clone()).collect();
+        let j = judge_harm(&fold_rows, HARM_FALSE_ALARM)
+            .map_err(|e| CellFitError::InvalidInput(format!("do-no-harm check: {e}")))?;
+        let out = j
+            .folds
+            .into_iter()
+            .zip(&rows)
+            .map(|(harm, (_, n))| HarmFold { rows: *n, harm })
+            .collect();
+        (out, j.comparisons, j.alpha_each)
+    };
     Ok(Some(HarmCheck {
         design,
         how,
-        harm_t: HARM_T,
+        false_alarm: HARM_FALSE_ALARM,
+        comparisons,
+        alpha_each,
         folds: out,
-        kept_in_training: kept.len(),
+        kept_in_training: kept,
     }))
 }
 
-/// The whitened squared residual `‖W·r‖²` of each row of `held` under `layout`'s model of
-/// `problem` fitted on the rows `train` (starting from `cal`'s placement, robots nominal).
+/// Each row of the held-out `units` with its kind and whitened squared residual `‖W·r‖²` under
+/// the model of `problem` fitted on the rows `train` (their [`sub_problem`]; unknowns and prior
+/// of `layout` carried over by [`layout_on`], or `problem`'s own layout when `None`; starting
+/// from `cal`'s placement, robots nominal), each unit scored by [`score_held_out`] (its
+/// nuisance refitted on half its rows). Rows in unit order.
 fn fold_e2(
     problem: &CellProblem,
-    layout: &ParamLayout,
+    layout: Option<&ParamLayout>,
     cal: &CellCalibration,
     train: &[usize],
-    held: &[usize],
+    units: &[Vec<usize>],
     solve: &SolveOptions,
-) -> Result<Vec<f64>, CellFitError> {
-    let start = initial_estimate(problem, Some(cal.fit.estimate.b1_from_b2), train)?;
-    let fit = fit_cell_with(problem, layout.clone(), train, Some(&start), solve)?;
-    let ev = Evaluator::new(problem, layout);
-    held.iter()
-        .map(|&i| {
-            let l = ev.linearise(&problem.observations[i], &fit.estimate, false)?;
-            Ok((&l.whitening * &l.residual).norm_squared())
-        })
-        .collect()
+) -> Result<Vec<(&'static str, f64)>, CellFitError> {
+    let sub = sub_problem(problem, train);
+    let layout = match layout {
+        Some(l) => layout_on(l, &sub),
+        None => ParamLayout::new(&sub, &[]),
+    };
+    let all: Vec<usize> = (0..sub.observations.len()).collect();
+    let start = initial_estimate(&sub, Some(cal.fit.estimate.b1_from_b2), &all)?;
+    let fit = fit_cell_with(&sub, layout, &all, Some(&start), solve)?;
+    let mut out = Vec::with_capacity(units.iter().map(Vec::len).sum());
+    for unit in units {
+        for r in score_held_out(problem, unit, &fit.estimate, solve)? {
+            out.push((r.kind.name(), r.whitened.norm_squared()));
+        }
+    }
+    Ok(out)
 }
 
 #[cfg(test)]

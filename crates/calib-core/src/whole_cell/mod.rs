@@ -224,6 +224,6 @@ pub use residuals::{Evaluator, ObservationLinearisation, MIN_FACE_NORMAL_SUM};
 pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions};
 pub use start::initial_estimate;
 pub use validate::{
-    carry_nuisances, fit_nuisances, group_name, held_out_residuals, hold_cell, HeldOutResidual,
-    NuisanceMode, HOLD_SIGMA, MIN_SPLIT_ROWS,
+    carry_nuisances, fit_nuisances, group_name, held_out_pieces, held_out_residuals, hold_cell,
+    score_held_out, sub_problem, HeldOutResidual, NuisanceMode, HOLD_SIGMA, MIN_SPLIT_ROWS,
 };

@@ -9,6 +9,12 @@
 //!    session for [`NuisanceMode::Fixed`]).
 //! 3. [`held_out_residuals`]: each observation's raw and whitened residual, its nuisance never
 //!    fitted on it under [`NuisanceMode::Split`].
+//! 4. Cross-validation's held-out scoring, shared by `calibrate --cell --export`'s do-no-harm
+//!    check and `diagnose`'s held-out criterion: [`sub_problem`] (the rows of a fold as a problem
+//!    of their own), [`held_out_pieces`] (a fold's rows split into units by nuisance group, the
+//!    pieces too small to refit their nuisance kept in training) and [`score_held_out`] (a
+//!    unit's residuals under a training fit's cell, its nuisance refitted on half its rows as in
+//!    3).
 
 use nalgebra::DVector;
 
@@ -52,6 +58,8 @@ pub struct HeldOutResidual {
     pub raw_m: DVector<f64>,
     /// The whitened residual (unit covariance under the stated noise).
     pub whitened: DVector<f64>,
+    /// Stated σ of each residual, m (`sqrt diag (WᵀW)⁻¹`; NaN when `W` is singular).
+    pub sigma_m: DVector<f64>,
 }
 
 /// `problem` with the cell held: both robots' tolerances zero (no kinematic unknown) and the
@@ -164,15 +172,151 @@ pub fn held_out_residuals(
                 None => estimate,
             };
             let l = ev.linearise(o, est, false)?;
+            let w = &l.whitening;
+            let sigma_m = match (w.transpose() * w).try_inverse() {
+                Some(cov) => cov.diagonal().map(|v| v.max(0.0).sqrt()),
+                None => DVector::from_element(w.nrows(), f64::NAN),
+            };
             Ok(HeldOutResidual {
                 index: i,
                 kind: o.kind.kind(),
                 group: o.kind.group(),
-                whitened: &l.whitening * &l.residual,
+                whitened: w * &l.residual,
                 raw_m: l.residual,
+                sigma_m,
             })
         })
         .collect()
+}
+
+/// The sub-problem of the observations `rows` (indices into `problem.observations`, in that
+/// order), its groups renumbered to the ones these rows use (in order of first use).
+pub fn sub_problem(problem: &CellProblem, rows: &[usize]) -> CellProblem {
+    let mut maps: [Vec<Option<usize>>; 3] = [
+        vec![None; problem.contacts.len()],
+        vec![None; problem.trackers.len()],
+        vec![None; problem.planes.len()],
+    ];
+    let mut p = CellProblem {
+        observations: Vec::with_capacity(rows.len()),
+        trackers: Vec::new(),
+        planes: Vec::new(),
+        contacts: Vec::new(),
+        ..problem.clone()
+    };
+    for &i in rows {
+        let mut o = problem.observations[i].clone();
+        if let Some((k, g)) = o.kind.group() {
+            let new = match maps[k.index()][g] {
+                Some(n) => n,
+                None => {
+                    let n = match k {
+                        GroupKind::Contact => {
+                            p.contacts.push(problem.contacts[g].clone());
+                            p.contacts.len() - 1
+                        }
+                        GroupKind::Tracker => {
+                            p.trackers.push(problem.trackers[g].clone());
+                            p.trackers.len() - 1
+                        }
+                        GroupKind::Plane => {
+                            p.planes.push(problem.planes[g].clone());
+                            p.planes.len() - 1
+                        }
+                    };
+                    maps[k.index()][g] = Some(n);
+                    n
+                }
+            };
+            if let Some(group) = o.kind.group_mut() {
+                *group = new;
+            }
+        }
+        p.observations.push(o);
+    }
+    // The other arm's joints of a shared trunk, for the rows kept only.
+    p.other_arm_q
+        .retain(|row, _| p.observations.iter().any(|o| o.row == *row));
+    p
+}
+
+/// The held-out residuals of `unit` (indices into `problem.observations`, normally the rows of
+/// one nuisance group, or rows without one, in a held-out fold) under the cell of `cell` (a
+/// training fit's estimate: its placement and robot corrections): [`held_out_residuals`] of the
+/// unit's [`sub_problem`] under [`NuisanceMode::Split`], so a group's nuisance (tracker frame,
+/// scale and drift as the group fits them, plane, fitted contact distance) is refitted on
+/// alternate rows of the unit with the cell held and never predicts a row it was fitted on;
+/// rows without a nuisance (coincident, contacts of a given distance) are scored as they are.
+/// Each result's `index` is the row's index in `problem`.
+///
+/// Errors: a group of the unit with a fitted nuisance and fewer than [`MIN_SPLIT_ROWS`] rows
+/// (keep such pieces in training: [`held_out_pieces`]), or model failures.
+pub fn score_held_out(
+    problem: &CellProblem,
+    unit: &[usize],
+    cell: &CellEstimate,
+    options: &SolveOptions,
+) -> Result<Vec<HeldOutResidual>, CellFitError> {
+    let sub = sub_problem(problem, unit);
+    let mut est = CellEstimate::nominal(&sub, cell.b1_from_b2);
+    for (g, c) in sub.contacts.iter().enumerate() {
+        est.contact_distance_m[g] = c.distance_m;
+    }
+    est.robot1 = cell.robot1.clone();
+    est.robot2 = cell.robot2.clone();
+    let mut out = held_out_residuals(&sub, &est, NuisanceMode::Split, options)?;
+    for r in &mut out {
+        r.index = unit[r.index];
+    }
+    Ok(out)
+}
+
+/// The held-out units of a fold: the fold's rows `fold` (indices into `problem.observations`)
+/// split by nuisance group (the rows without a group form one unit), in order of first
+/// appearance, and the rows that stay in training. A group's piece is held out when it can
+/// refit its nuisance on half its rows (at least its kind's [`MIN_SPLIT_ROWS`] rows) and the
+/// group's rows of `used` outside the piece are none or enough to start the training fit's
+/// nuisance (half that minimum: 3 for a tracker frame or a plane); otherwise the piece stays in
+/// training (returned second). Groups without a fitted nuisance (contacts of a given distance)
+/// have the same minimum: their rows are few and scoring them alone says little.
+pub fn held_out_pieces(
+    problem: &CellProblem,
+    used: &[usize],
+    fold: &[usize],
+) -> (Vec<Vec<usize>>, Vec<usize>) {
+    let mut keys: Vec<Option<(GroupKind, usize)>> = Vec::new();
+    let mut units: Vec<Vec<usize>> = Vec::new();
+    for &i in fold {
+        let key = problem.observations[i].kind.group();
+        match keys.iter().position(|k| *k == key) {
+            Some(u) => units[u].push(i),
+            None => {
+                keys.push(key);
+                units.push(vec![i]);
+            }
+        }
+    }
+    let rest = |key: (GroupKind, usize), piece: usize| {
+        used.iter()
+            .filter(|&&i| problem.observations[i].kind.group() == Some(key))
+            .count()
+            .saturating_sub(piece)
+    };
+    let mut scored = Vec::new();
+    let mut kept = Vec::new();
+    for (u, k) in units.into_iter().zip(&keys) {
+        let ok = k.is_none_or(|key| {
+            let min = MIN_SPLIT_ROWS[key.0.index()];
+            let rest = rest(key, u.len());
+            u.len() >= min && (rest == 0 || rest >= min.div_ceil(2))
+        });
+        if ok {
+            scored.push(u);
+        } else {
+            kept.extend(u);
+        }
+    }
+    (scored, kept)
 }
 
 /// Whether group `key` of `problem` has a fitted nuisance (a tracker frame, a plane, or a

@@ -4,8 +4,8 @@
 
 use calib_core::selection::one_sample_t;
 use calib_core::whole_cell::{
-    fit_cell_with, initial_estimate, CellEstimate, CellFit, CellFitError, CellProblem, Evaluator,
-    GroupKind, ObservationKind, ParamLayout, PlacementPrior, Tolerance,
+    fit_cell_with, held_out_pieces, initial_estimate, score_held_out, CellEstimate, CellFit,
+    CellFitError, CellProblem, Evaluator, GroupKind, ObservationKind, ParamLayout, MIN_SPLIT_ROWS,
 };
 use nalgebra::DVector;
 use rayon::prelude::*;
@@ -21,63 +21,13 @@ pub const MIN_UNIT_ROWS: usize = 6;
 /// Fewest rows of a group that is held out and scored, per group kind
 /// ([`GroupKind::index`]: contact, tracker, plane): each half must fit the group's nuisance (a
 /// distance from 1 row, a tracker frame or a plane from 3).
-pub const MIN_SCORED_GROUP_ROWS: [usize; GroupKind::ALL.len()] = [2, 6, 6];
+pub const MIN_SCORED_GROUP_ROWS: [usize; GroupKind::ALL.len()] = MIN_SPLIT_ROWS;
 /// Fewest rows of a block cut from a group when the session has fewer than 3 units.
 pub const MIN_GROUP_BLOCK_ROWS: usize = 12;
-/// σ (m and rad) of the placement prior that holds the training placement while a held-out
-/// unit's nuisance is fitted: far below any measurement, far above round-off.
-const HOLD_SIGMA: f64 = 1e-7;
 
-/// The sub-problem of the observations `rows` (indices into `problem.observations`), its groups
-/// renumbered to the ones these rows use.
-pub(super) fn sub_problem(problem: &CellProblem, rows: &[usize]) -> CellProblem {
-    let mut maps: [Vec<Option<usize>>; 3] = [
-        vec![None; problem.contacts.len()],
-        vec![None; problem.trackers.len()],
-        vec![None; problem.planes.len()],
-    ];
-    let mut p = CellProblem {
-        observations: Vec::with_capacity(rows.len()),
-        trackers: Vec::new(),
-        planes: Vec::new(),
-        contacts: Vec::new(),
-        ..problem.clone()
-    };
-    for &i in rows {
-        let mut o = problem.observations[i].clone();
-        if let Some((k, g)) = o.kind.group() {
-            let new = match maps[k.index()][g] {
-                Some(n) => n,
-                None => {
-                    let n = match k {
-                        GroupKind::Contact => {
-                            p.contacts.push(problem.contacts[g].clone());
-                            p.contacts.len() - 1
-                        }
-                        GroupKind::Tracker => {
-                            p.trackers.push(problem.trackers[g].clone());
-                            p.trackers.len() - 1
-                        }
-                        GroupKind::Plane => {
-                            p.planes.push(problem.planes[g].clone());
-                            p.planes.len() - 1
-                        }
-                    };
-                    maps[k.index()][g] = Some(n);
-                    n
-                }
-            };
-            if let Some(group) = o.kind.group_mut() {
-                *group = new;
-            }
-        }
-        p.observations.push(o);
-    }
-    // A shared trunk's other-arm postures, of the rows kept only (keyed by source row).
-    p.other_arm_q
-        .retain(|row, _| p.observations.iter().any(|o| o.row == *row));
-    p
-}
+/// The sub-problem of the observations `rows`, its groups renumbered (calib-core's, shared with
+/// `calibrate --cell`'s do-no-harm check and `validate`).
+pub(super) use calib_core::whole_cell::sub_problem;
 
 pub(super) fn coincident_count(problem: &CellProblem, rows: &[usize]) -> usize {
     rows.iter()
@@ -160,51 +110,24 @@ pub(crate) fn residuals_at(
 
 /// Held-out residuals of one unit (rows of `problem`, all of one nuisance group or none) given a
 /// training estimate: the unit's nuisance fitted on one half with the training kinematics and
-/// placement held, the other half scored, and back.
+/// placement held, the other half scored, and back ([`calib_core::whole_cell::score_held_out`],
+/// the implementation `calibrate --cell --export`'s do-no-harm check and `validate` share).
 fn score_unit(
     problem: &CellProblem,
     unit: &[usize],
     train: &CellEstimate,
     options: &CellDiagnoseOptions,
 ) -> Result<Vec<ScoredRow>, CellFitError> {
-    let mut sub = sub_problem(problem, unit);
-    for rb in [&mut sub.robot1, &mut sub.robot2] {
-        rb.tolerance = Tolerance::none();
-    }
-    sub.placement_prior = Some(PlacementPrior {
-        nominal_b1_from_b2: train.b1_from_b2,
-        sigma_m: HOLD_SIGMA,
-        sigma_rad: HOLD_SIGMA,
-    });
-    let layout = ParamLayout::new(&sub, &[]);
-    let n = sub.observations.len();
-    let with_train = |mut e: CellEstimate| {
-        e.b1_from_b2 = train.b1_from_b2;
-        e.robot1 = train.robot1.clone();
-        e.robot2 = train.robot2.clone();
-        e
-    };
-    let has_nuisance = layout.len() > 6;
-    if !has_nuisance {
-        let mut e = CellEstimate::nominal(&sub, train.b1_from_b2);
-        for (g, c) in sub.contacts.iter().enumerate() {
-            e.contact_distance_m[g] = c.distance_m;
-        }
-        let all: Vec<usize> = (0..n).collect();
-        return residuals_at(&sub, &layout, &with_train(e), &all);
-    }
-    let halves: [Vec<usize>; 2] = [
-        (0..n).filter(|i| i % 2 == 0).collect(),
-        (0..n).filter(|i| i % 2 == 1).collect(),
-    ];
-    let mut out = Vec::with_capacity(n);
-    for h in 0..2 {
-        let (fit_rows, test_rows) = (&halves[h], &halves[1 - h]);
-        let start = with_train(initial_estimate(&sub, Some(train.b1_from_b2), fit_rows)?);
-        let fit = fit_cell_with(&sub, layout.clone(), fit_rows, Some(&start), &options.solve)?;
-        out.extend(residuals_at(&sub, &layout, &fit.estimate, test_rows)?);
-    }
-    Ok(out)
+    Ok(score_held_out(problem, unit, train, &options.solve)?
+        .into_iter()
+        .map(|r| ScoredRow {
+            kind: r.kind.name(),
+            raw_m: r.raw_m,
+            whitened: r.whitened,
+            sigma_m: r.sigma_m,
+            index: r.index,
+        })
+        .collect())
 }
 
 /// The held-out units of the rows `rows`: one per named group of at least
@@ -298,34 +221,10 @@ pub(super) fn region_design(
             .filter(|(_, &l)| l == region)
             .map(|(&i, _)| i)
             .collect();
-        let mut keys: Vec<Option<(GroupKind, usize)>> = Vec::new();
-        let mut units: Vec<Vec<usize>> = Vec::new();
-        for &i in &rows {
-            let key = problem.observations[i].kind.group();
-            match keys.iter().position(|k| *k == key) {
-                Some(u) => units[u].push(i),
-                None => {
-                    keys.push(key);
-                    units.push(vec![i]);
-                }
-            }
-        }
         // A piece is held out when its half can refit the nuisance and the group's rows left
-        // in training are none or enough to start the training fit's nuisance (half the
-        // scored minimum: 3 for a tracker frame or a plane).
-        let rest = |key: (GroupKind, usize), piece: usize| {
-            used.iter()
-                .filter(|&&i| problem.observations[i].kind.group() == Some(key))
-                .count()
-                - piece
-        };
-        let (scored, kept): (Vec<_>, Vec<_>) = units.into_iter().zip(&keys).partition(|(u, k)| {
-            k.is_none_or(|key| {
-                let min = MIN_SCORED_GROUP_ROWS[key.0.index()];
-                let rest = rest(key, u.len());
-                u.len() >= min && (rest == 0 || rest >= min.div_ceil(2))
-            })
-        });
+        // in training are none or enough to start the training fit's nuisance (calib-core's
+        // rule, shared with `calibrate --cell`'s do-no-harm check).
+        let (scored, kept) = held_out_pieces(problem, used, &rows);
         if scored.is_empty() {
             continue;
         }
@@ -349,10 +248,10 @@ pub(super) fn region_design(
         info.push(FoldInfo {
             rows: rows.len(),
             units: scored.len(),
-            kept_in_training: kept.iter().map(|(u, _)| u.len()).sum(),
+            kept_in_training: kept.len(),
             mean_q,
         });
-        folds.push(scored.into_iter().map(|(u, _)| u).collect::<Vec<_>>());
+        folds.push(scored);
     }
     if folds.len() < MIN_REGIONS {
         return None;

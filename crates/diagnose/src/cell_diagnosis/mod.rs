@@ -94,7 +94,7 @@ pub use noise_scale::KINDS;
 pub use problem::diagnosis_problem;
 use problem::placement_observed;
 
-use calib_core::selection::{argmin, region_harm, RegionHarm, HARM_T};
+use calib_core::selection::{argmin, judge_harm, FoldRows, KindHarm, RegionHarm, HARM_FALSE_ALARM};
 use calib_core::whole_cell::{
     classify_rejections, fit_screened, CellFit, CellFitError, CellProblem, RejectionPattern,
     ScreenOptions, SolveOptions,
@@ -273,7 +273,7 @@ pub(crate) struct CellDiagnosis {
     pub(crate) fold_info: Vec<FoldInfo>,
     /// The do-no-harm test per accepted step (the model of steps 1..=j) and fold, against the
     /// baseline (nominal kinematics), both held out on the same folds.
-    pub(crate) harm: Vec<Vec<RegionHarm>>,
+    pub(crate) harm: Vec<Vec<(RegionHarm, Vec<KindHarm>)>>,
     /// The largest j whose model harms no fold: the export keeps steps 1..=j.
     pub(crate) safe_steps: usize,
     /// The fit of that model on all rows used (the baseline when j = 0).
@@ -608,35 +608,69 @@ fn run(
         });
     }
     let placement_fitted = placement_observed(&problem, &used);
-    // The do-no-harm rule: each accepted model against the baseline, fold by fold.
-    let fold_e2 = |h: &HeldOut| -> Vec<Vec<f64>> {
+    // The do-no-harm rule: each accepted model against the baseline, fold by fold, judged per
+    // observation kind (calib-core's `judge_harm`, shared with `calibrate --cell`).
+    // Each fold's scored rows: (kind, whitened χ²), in scoring order (the same for every model).
+    let fold_e2 = |h: &HeldOut| -> Vec<(Vec<&'static str>, Vec<f64>)> {
         let mut e2 = h.unit_e2.iter();
+        let mut kinds = h.rows.iter().map(|r| r.kind);
         design
             .folds
             .iter()
-            .map(|f| e2.by_ref().take(f.len()).flatten().copied().collect())
+            .map(|f| {
+                let e: Vec<f64> = e2.by_ref().take(f.len()).flatten().copied().collect();
+                let k: Vec<&'static str> = kinds.by_ref().take(e.len()).collect();
+                (k, e)
+            })
             .collect()
     };
     let nominal_e2 = fold_e2(&baseline_held_out);
     let mut harm = Vec::new();
     for s in steps.iter().filter(|s| s.accepted) {
         let model_e2 = fold_e2(&s.after);
-        let row: Vec<RegionHarm> = nominal_e2
+        // All folds of the step's model judged together (the Šidák family is the session's).
+        let folds: Vec<FoldRows> = nominal_e2
             .iter()
             .zip(&model_e2)
-            .map(|(n, m)| {
-                region_harm(n, m, HARM_T).unwrap_or(RegionHarm {
+            .map(|((kinds, n), (_, m))| FoldRows {
+                name: String::new(),
+                kinds: kinds.clone(),
+                nominal_e2: n.clone(),
+                candidate_e2: m.clone(),
+            })
+            .collect();
+        let unjudged = || {
+            (
+                RegionHarm {
                     ratio: f64::NAN,
                     t: f64::NAN,
                     harmful: false,
+                },
+                Vec::new(),
+            )
+        };
+        let row: Vec<(RegionHarm, Vec<KindHarm>)> = match judge_harm(&folds, HARM_FALSE_ALARM) {
+            Ok(j) => j
+                .folds
+                .into_iter()
+                .map(|f| {
+                    (
+                        RegionHarm {
+                            ratio: f.ratio,
+                            t: f.t,
+                            harmful: f.harmful,
+                        },
+                        f.kinds,
+                    )
                 })
-            })
-            .collect();
+                .collect(),
+            Err(_) => folds.iter().map(|_| unjudged()).collect(),
+        };
         harm.push(row);
     }
     let safe_steps = (0..=harm.len())
         .rev()
-        .find(|&j| j == 0 || harm[j - 1].iter().all(|h| !h.harmful))
+        .find(|&j| j == 0 || harm[j - 1].iter().all(|h| !h.0.harmful))
         .unwrap_or(0);
     let safe_fit = if safe_steps == 0 {
         baseline.clone()
