@@ -573,6 +573,9 @@ fn fill_error_columns(
 ) {
     let p = *p;
     let mount_axes = rpy_derivative_axes(&Matrix3::identity(), &errors.mount_rpy);
+    // The last joint's origin-rpy axes: a joint's three rpy columns are usually asked for
+    // together, and the axes (two sines and cosines) are the same for all three.
+    let mut rpy_axes: Option<(usize, [Vector3<f64>; 3])> = None;
     for (c, param) in params.iter().enumerate() {
         let joint_col = |k: usize| frames[k].joint_column(&p);
         let col = match *param {
@@ -584,7 +587,15 @@ fn fill_error_columns(
             ErrorParam::OriginXyz { joint, axis } => frames[joint].parent_rotation * axis.unit(),
             ErrorParam::OriginRpy { joint, axis } => {
                 let f = &frames[joint];
-                rpy_derivative_axes(&f.parent_rotation, &f.rpy)[axis.index()].cross(&(p - f.o))
+                let axes = match rpy_axes {
+                    Some((j, axes)) if j == joint => axes,
+                    _ => {
+                        let axes = rpy_derivative_axes(&f.parent_rotation, &f.rpy);
+                        rpy_axes = Some((joint, axes));
+                        axes
+                    }
+                };
+                axes[axis.index()].cross(&(p - f.o))
             }
             ErrorParam::Tip { axis } => flange_r * axis.unit(),
             ErrorParam::MountXyz { axis } => axis.unit(),

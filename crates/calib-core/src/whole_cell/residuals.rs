@@ -264,7 +264,12 @@ impl<'a> Evaluator<'a> {
         let load = self.trunk_load(at.est, robot, &prepared.errors, q_other, want_jac, row)?;
         let mut errors = Cow::Borrowed(&prepared.errors);
         if let Some(load) = &load {
-            for (o, d) in errors.to_mut().joint_offset.iter_mut().zip(&load.deflection) {
+            for (o, d) in errors
+                .to_mut()
+                .joint_offset
+                .iter_mut()
+                .zip(&load.deflection)
+            {
                 *o += d;
             }
         }
@@ -599,26 +604,10 @@ impl<'a> Evaluator<'a> {
             } => {
                 let ((p1, c1), (g2, c2)) =
                     self.both_tips_in_b1(at, [q1, q2], [*tool1, *tool2], want_jac, row)?;
-                let (n1, cn1) = self.normal_in_b1(
-                    at,
-                    Robot::One,
-                    *tool1,
-                    q1,
-                    Some(q2),
-                    n1_tip,
-                    want_jac,
-                    row,
-                )?;
-                let (n2, cn2) = self.normal_in_b1(
-                    at,
-                    Robot::Two,
-                    *tool2,
-                    q2,
-                    Some(q1),
-                    n2_tip,
-                    want_jac,
-                    row,
-                )?;
+                let (n1, cn1) =
+                    self.normal_in_b1(at, Robot::One, *tool1, q1, Some(q2), n1_tip, want_jac, row)?;
+                let (n2, cn2) =
+                    self.normal_in_b1(at, Robot::Two, *tool2, q2, Some(q1), n2_tip, want_jac, row)?;
                 // n̄ = m/‖m‖, m = n1 − n2; ∂(n̄·e) = n̄·∂e + wᵀ·∂m, w = (I − n̄n̄ᵀ)·e/‖m‖.
                 let m = n1 - n2;
                 let m_len = m.norm();
