@@ -482,17 +482,67 @@ pub fn true_tip_with_error_jacobian(
     g_base: &Vector3<f64>,
     params: &[ErrorParam],
 ) -> Result<(Isometry3<f64>, Matrix3xX<f64>), KinematicsError> {
-    check_inputs(model, errors, q_rep, flange_from_tip, g_base)?;
+    model.check_q(q_rep)?;
+    check_tip_inputs(model, errors, flange_from_tip, g_base, params)?;
+    Ok(true_tip_with_error_jacobian_unchecked(
+        model,
+        errors,
+        q_rep,
+        flange_from_tip,
+        g_base,
+        params,
+    ))
+}
+
+/// The checks of [`true_tip_with_error_jacobian`] (and of [`true_base_from_tip`] and
+/// [`tip_error_jacobian`]) that do not depend on the joint values, in their order after
+/// [`RobotModel::check_q`]: a non-finite tip offset or `g_base`, `errors` of the wrong shape or
+/// non-finite ([`KinematicErrors::check`]), then each of `params`
+/// ([`ErrorParam::check_model`]). A caller that evaluates many joint vectors at the same errors
+/// runs this once, then [`RobotModel::check_q`] and the `_unchecked` functions per vector.
+pub fn check_tip_inputs(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    flange_from_tip: &Vector3<f64>,
+    g_base: &Vector3<f64>,
+    params: &[ErrorParam],
+) -> Result<(), KinematicsError> {
+    check_tip(flange_from_tip)?;
+    check_gravity(g_base)?;
+    errors.check(model)?;
     for p in params {
         p.check_model(model)?;
     }
+    Ok(())
+}
+
+/// [`true_tip_with_error_jacobian`] without checks: the caller has run [`check_tip_inputs`] on
+/// these `errors`, tip, gravity and `params`, and [`RobotModel::check_q`] on `q_rep` (the same
+/// values, bit for bit, as the checked call). Panics only if the lengths do not match the model.
+pub fn true_tip_with_error_jacobian_unchecked(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    flange_from_tip: &Vector3<f64>,
+    g_base: &Vector3<f64>,
+    params: &[ErrorParam],
+) -> (Isometry3<f64>, Matrix3xX<f64>) {
     let need_tau = params
         .iter()
         .any(|p| matches!(p, ErrorParam::Compliance { .. }));
     if errors.is_zero() || (need_tau && all_zero(&errors.compliance)) {
         let pose = true_base_from_tip_unchecked(model, errors, q_rep, flange_from_tip, g_base);
-        let jac = tip_error_jacobian(model, errors, q_rep, flange_from_tip, g_base, params)?;
-        return Ok((pose, jac));
+        let mut jac = Matrix3xX::zeros(params.len());
+        error_jacobian_walk(
+            model,
+            errors,
+            q_rep,
+            flange_from_tip,
+            g_base,
+            params,
+            &mut jac,
+        );
+        return (pose, jac);
     }
     let mut jac = Matrix3xX::zeros(params.len());
     let (flange_r, flange_t) = error_jacobian_walk(
@@ -506,7 +556,7 @@ pub fn true_tip_with_error_jacobian(
     );
     // The pose as `true_tip_general` forms it from the same flange.
     let pose = tip_isometry(&flange_r, &flange_t, &(flange_from_tip + errors.tip));
-    Ok((pose, jac))
+    (pose, jac)
 }
 
 /// The columns of [`tip_error_jacobian`] from the true chain's frames, tip `p` and flange rotation.
@@ -523,6 +573,9 @@ fn fill_error_columns(
 ) {
     let p = *p;
     let mount_axes = rpy_derivative_axes(&Matrix3::identity(), &errors.mount_rpy);
+    // The last joint's origin-rpy axes: a joint's three rpy columns are usually asked for
+    // together, and the axes (two sines and cosines) are the same for all three.
+    let mut rpy_axes: Option<(usize, [Vector3<f64>; 3])> = None;
     for (c, param) in params.iter().enumerate() {
         let joint_col = |k: usize| frames[k].joint_column(&p);
         let col = match *param {
@@ -534,7 +587,15 @@ fn fill_error_columns(
             ErrorParam::OriginXyz { joint, axis } => frames[joint].parent_rotation * axis.unit(),
             ErrorParam::OriginRpy { joint, axis } => {
                 let f = &frames[joint];
-                rpy_derivative_axes(&f.parent_rotation, &f.rpy)[axis.index()].cross(&(p - f.o))
+                let axes = match rpy_axes {
+                    Some((j, axes)) if j == joint => axes,
+                    _ => {
+                        let axes = rpy_derivative_axes(&f.parent_rotation, &f.rpy);
+                        rpy_axes = Some((joint, axes));
+                        axes
+                    }
+                };
+                axes[axis.index()].cross(&(p - f.o))
             }
             ErrorParam::Tip { axis } => flange_r * axis.unit(),
             ErrorParam::MountXyz { axis } => axis.unit(),

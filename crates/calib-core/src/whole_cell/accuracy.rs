@@ -53,10 +53,11 @@ pub fn cooperative_covariances(
     pairs: &[ConfigPair],
 ) -> Result<Vec<nalgebra::Matrix3<f64>>, CellFitError> {
     let ev = Evaluator::new(problem, layout);
+    let at = ev.at(estimate);
     pairs
         .iter()
         .map(|pair| {
-            let (_, j) = ev.cooperative_vector(estimate, pair, true)?;
+            let (_, j) = ev.cooperative_vector_at(&at, pair, true)?;
             let c = &j * covariance * j.transpose();
             Ok(nalgebra::Matrix3::from_fn(|a, b| c[(a, b)]))
         })

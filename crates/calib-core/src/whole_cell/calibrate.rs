@@ -363,9 +363,10 @@ fn scaled_data_covariance(problem: &CellProblem, fit: &CellFit, s2: f64) -> DMat
 /// Mean stated noise variance per residual row (m²) over the fit's active observations.
 pub(super) fn mean_noise_var(problem: &CellProblem, fit: &CellFit) -> Result<f64, CellFitError> {
     let ev = super::Evaluator::new(problem, &fit.layout);
+    let at = ev.at(&fit.estimate);
     let (mut sum, mut rows) = (0.0, 0usize);
     for &i in &fit.active {
-        let l = ev.linearise(&problem.observations[i], &fit.estimate, false)?;
+        let l = ev.linearise_at(&problem.observations[i], &at, false)?;
         let w = &l.whitening;
         if let Some(inv) = (w.transpose() * w).try_inverse() {
             sum += inv.trace();

@@ -220,7 +220,7 @@ pub use report::{
     PriorScaleReport, RejectedRowReport, ReportUnit, TrackerGroupReport, UnidentifiableReport,
     TOLERANCE_WARNING_SIGMAS,
 };
-pub use residuals::{Evaluator, ObservationLinearisation, MIN_FACE_NORMAL_SUM};
+pub use residuals::{AtEstimate, Evaluator, ObservationLinearisation, MIN_FACE_NORMAL_SUM};
 pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions};
 pub use start::initial_estimate;
 pub use validate::{

@@ -546,6 +546,7 @@ pub fn predict_error(
         )));
     }
     let ev = Evaluator::new(problem, layout);
+    let at = ev.at(estimate);
     let m = split.model_error.var_m2();
     // Every pair's Jacobian `J_k` (in parallel on rayon's current pool; the first error in
     // pair order), stacked (3·pairs × n), so that `J_k·D` and `J_k·P` are two matrix products
@@ -553,7 +554,7 @@ pub fn predict_error(
     let jacobians: Vec<Result<DMatrix<f64>, CellFitError>> = pairs
         .par_iter()
         .with_min_len(PAIRS_PER_TASK)
-        .map(|pair| ev.cooperative_vector(estimate, pair, true).map(|(_, j)| j))
+        .map(|pair| ev.cooperative_vector_at(&at, pair, true).map(|(_, j)| j))
         .collect();
     let mut stacked = DMatrix::zeros(3 * pairs.len(), n);
     for (k, j) in jacobians.into_iter().enumerate() {

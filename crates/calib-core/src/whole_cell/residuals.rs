@@ -1,10 +1,14 @@
 //! Residuals of each observation kind and their analytic Jacobians ([`Evaluator`]); the maths
 //! is in the module documentation of [`crate::whole_cell`].
 
+use std::borrow::Cow;
+use std::sync::OnceLock;
+
 use kinematics::{
-    branch_deflections, branch_regressor, branch_torques, is_branch_param, tip_error_jacobian,
-    true_base_from_tip, true_tip_with_error_jacobian, Axis, ErrorParam, KinematicErrors,
-    KinematicsError,
+    branch_deflections, branch_regressor, branch_torques, check_tip_inputs, is_branch_param,
+    tip_error_jacobian, true_base_from_tip, true_base_from_tip_unchecked,
+    true_tip_with_error_jacobian, true_tip_with_error_jacobian_unchecked, Axis, ErrorParam,
+    KinematicErrors, KinematicsError,
 };
 use nalgebra::{DMatrix, DVector, Point3, Unit, Vector3};
 
@@ -53,6 +57,34 @@ pub struct ObservationLinearisation {
     pub whitening: DMatrix<f64>,
 }
 
+/// One robot's kinematic errors with one tool's fitted tip at an estimate, formed once per
+/// estimate instead of at every observation ([`AtEstimate`]).
+struct ToolErrors {
+    /// The errors, `tip` the tool's fitted tip error.
+    errors: KinematicErrors,
+    /// Whether these errors, the tool's offset, the robot's gravity and the evaluator's
+    /// Jacobian parameters of the robot passed [`check_tip_inputs`]: then each observation
+    /// checks only its joint values and calls the kinematics' unchecked functions (the same
+    /// values and, on failure, the same errors as the checked ones, which run otherwise).
+    checked: bool,
+}
+
+/// An estimate with each robot's kinematic errors for each of its tools formed and checked at
+/// most once (on first use, from any thread), so that evaluating many observations at one
+/// estimate does not copy and re-check the robots' errors at each (see [`Evaluator::at`]).
+pub struct AtEstimate<'e> {
+    est: &'e CellEstimate,
+    /// Per robot slot, per tool.
+    tools: [Vec<OnceLock<ToolErrors>>; 2],
+}
+
+impl<'e> AtEstimate<'e> {
+    /// The estimate.
+    pub fn estimate(&self) -> &'e CellEstimate {
+        self.est
+    }
+}
+
 /// Evaluates residuals and analytic Jacobians of observations at an estimate.
 pub struct Evaluator<'a> {
     problem: &'a CellProblem,
@@ -81,20 +113,50 @@ impl<'a> Evaluator<'a> {
         }
     }
 
+    /// `est` prepared for evaluating many observations: each robot's errors per tool are formed
+    /// and checked once, on first use ([`AtEstimate`]). The `_at` methods take it; the methods
+    /// that take the estimate prepare it for their one call.
+    pub fn at<'e>(&self, est: &'e CellEstimate) -> AtEstimate<'e> {
+        let slots = |robot: Robot| {
+            (0..self.problem.robot(robot).tools.len())
+                .map(|_| OnceLock::new())
+                .collect()
+        };
+        AtEstimate {
+            est,
+            tools: [slots(Robot::One), slots(Robot::Two)],
+        }
+    }
+
     /// `robot`'s cell robot, the definition of its `tool` and its kinematic errors with that
-    /// tool's fitted tip at `est`; an error naming `row` when the robot has no such tool.
-    fn tool_context(
+    /// tool's fitted tip at `at`; an error naming `row` when the robot has no such tool.
+    fn tool_context<'s>(
         &self,
-        est: &CellEstimate,
+        at: &'s AtEstimate<'_>,
         robot: Robot,
         tool: usize,
         row: usize,
-    ) -> Result<(&'a CellRobot, &'a Tool, KinematicErrors), CellFitError> {
+    ) -> Result<(&'a CellRobot, &'a Tool, &'s ToolErrors), CellFitError> {
         let rb = self.problem.robot(robot);
-        let tool_def = rb.tools.get(tool).ok_or_else(|| {
+        let no_tool = || {
             CellFitError::InvalidInput(format!("observation row {row}: {robot} has no tool {tool}"))
-        })?;
-        Ok((rb, tool_def, est.robot(robot).errors_for_tool(tool)))
+        };
+        let tool_def = rb.tools.get(tool).ok_or_else(no_tool)?;
+        let slot = robot_slot(robot);
+        let cell = at.tools[slot].get(tool).ok_or_else(no_tool)?;
+        let prepared = cell.get_or_init(|| {
+            let errors = at.est.robot(robot).errors_for_tool(tool);
+            let checked = check_tip_inputs(
+                &rb.model,
+                &errors,
+                &tool_def.flange_from_tip,
+                &rb.g_base,
+                &self.jac_params[slot],
+            )
+            .is_ok();
+            ToolErrors { errors, checked }
+        });
+        Ok((rb, tool_def, prepared))
     }
 
     /// The other arm's load on the trunk when `robot`'s tip is evaluated with the other arm at
@@ -179,17 +241,40 @@ impl<'a> Evaluator<'a> {
         want_jac: bool,
         row: usize,
     ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
+        self.robot_tip_at(&self.at(est), robot, tool, q, q_other, want_jac, row)
+    }
+
+    /// [`Evaluator::robot_tip`] at a prepared estimate.
+    #[allow(clippy::too_many_arguments)]
+    fn robot_tip_at(
+        &self,
+        at: &AtEstimate<'_>,
+        robot: Robot,
+        tool: usize,
+        q: &[f64],
+        q_other: Option<&[f64]>,
+        want_jac: bool,
+        row: usize,
+    ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
         let slot = robot_slot(robot);
-        let (rb, tool_def, mut errors) = self.tool_context(est, robot, tool, row)?;
+        let (rb, tool_def, prepared) = self.tool_context(at, robot, tool, row)?;
         let kin_err = kinematics_error(robot, row);
         let lay = &self.layout.robots[slot];
         let tip_col = lay.tip_col[tool];
-        let load = self.trunk_load(est, robot, &errors, q_other, want_jac, row)?;
+        let load = self.trunk_load(at.est, robot, &prepared.errors, q_other, want_jac, row)?;
+        let mut errors = Cow::Borrowed(&prepared.errors);
         if let Some(load) = &load {
-            for (o, d) in errors.joint_offset.iter_mut().zip(&load.deflection) {
+            for (o, d) in errors
+                .to_mut()
+                .joint_offset
+                .iter_mut()
+                .zip(&load.deflection)
+            {
                 *o += d;
             }
         }
+        // The checks done once for the estimate hold for these errors (no trunk load added).
+        let unchecked = prepared.checked && load.is_none();
         let mut cols = Cols3::new();
         if want_jac && (!lay.kin.is_empty() || tip_col.iter().any(Option::is_some)) {
             // Always the kinematic columns and all three tip axes; unfitted axes are skipped.
@@ -208,15 +293,27 @@ impl<'a> Evaluator<'a> {
                 }
                 None => &self.jac_params[slot],
             };
-            let (pose, j) = true_tip_with_error_jacobian(
-                &rb.model,
-                &errors,
-                q,
-                &tool_def.flange_from_tip,
-                &rb.g_base,
-                params,
-            )
-            .map_err(kin_err)?;
+            let (pose, j) = if unchecked {
+                rb.model.check_q(q).map_err(kin_err)?;
+                true_tip_with_error_jacobian_unchecked(
+                    &rb.model,
+                    &errors,
+                    q,
+                    &tool_def.flange_from_tip,
+                    &rb.g_base,
+                    params,
+                )
+            } else {
+                true_tip_with_error_jacobian(
+                    &rb.model,
+                    &errors,
+                    q,
+                    &tool_def.flange_from_tip,
+                    &rb.g_base,
+                    params,
+                )
+                .map_err(kin_err)?
+            };
             cols.reserve(lay.kin.len() + 3);
             for (k, &(_, c)) in lay.kin.iter().enumerate() {
                 cols.push((c, j.column(k).into_owned()));
@@ -233,11 +330,14 @@ impl<'a> Evaluator<'a> {
             }
             return Ok((pose.translation.vector, cols));
         }
-        let p = true_base_from_tip(&rb.model, &errors, q, &tool_def.flange_from_tip, &rb.g_base)
-            .map_err(kin_err)?
-            .translation
-            .vector;
-        Ok((p, cols))
+        let t = &tool_def.flange_from_tip;
+        let pose = if unchecked {
+            rb.model.check_q(q).map_err(kin_err)?;
+            true_base_from_tip_unchecked(&rb.model, &errors, q, t, &rb.g_base)
+        } else {
+            true_base_from_tip(&rb.model, &errors, q, t, &rb.g_base).map_err(kin_err)?
+        };
+        Ok((pose.translation.vector, cols))
     }
 
     /// Tip of `robot`'s tool in base `anchor`'s frame and its Jacobian columns (including the
@@ -254,7 +354,25 @@ impl<'a> Evaluator<'a> {
         want_jac: bool,
         row: usize,
     ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
-        let (f, cols) = self.robot_tip(est, robot, tool, q, q_other, want_jac, row)?;
+        let at = self.at(est);
+        self.tip_in_anchor_at(&at, robot, tool, q, q_other, anchor, want_jac, row)
+    }
+
+    /// [`Evaluator::tip_in_anchor`] at a prepared estimate.
+    #[allow(clippy::too_many_arguments)]
+    fn tip_in_anchor_at(
+        &self,
+        at: &AtEstimate<'_>,
+        robot: Robot,
+        tool: usize,
+        q: &[f64],
+        q_other: Option<&[f64]>,
+        anchor: Robot,
+        want_jac: bool,
+        row: usize,
+    ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
+        let est = at.est;
+        let (f, cols) = self.robot_tip_at(at, robot, tool, q, q_other, want_jac, row)?;
         if robot == anchor {
             return Ok((f, cols));
         }
@@ -290,14 +408,14 @@ impl<'a> Evaluator<'a> {
     /// ([`Evaluator::tip_in_anchor`]), each arm loading a shared trunk for the other.
     fn both_tips_in_b1(
         &self,
-        est: &CellEstimate,
+        at: &AtEstimate<'_>,
         [q1, q2]: [&[f64]; 2],
         [tool1, tool2]: [usize; 2],
         want_jac: bool,
         row: usize,
     ) -> Result<TwoTips, CellFitError> {
-        let one = self.tip_in_anchor(
-            est,
+        let one = self.tip_in_anchor_at(
+            at,
             Robot::One,
             tool1,
             q1,
@@ -306,8 +424,8 @@ impl<'a> Evaluator<'a> {
             want_jac,
             row,
         )?;
-        let two = self.tip_in_anchor(
-            est,
+        let two = self.tip_in_anchor_at(
+            at,
             Robot::Two,
             tool2,
             q2,
@@ -330,9 +448,9 @@ impl<'a> Evaluator<'a> {
     /// `∂(R·n)/∂θ = ∂p(t + n)/∂θ − ∂p(t)/∂θ`, two [`tip_error_jacobian`]s (the compliance
     /// torques do not depend on the tool offset).
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn normal_in_b1(
+    fn normal_in_b1(
         &self,
-        est: &CellEstimate,
+        at: &AtEstimate<'_>,
         robot: Robot,
         tool: usize,
         q: &[f64],
@@ -341,8 +459,10 @@ impl<'a> Evaluator<'a> {
         want_jac: bool,
         row: usize,
     ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
+        let est = at.est;
         let slot = robot_slot(robot);
-        let (rb, tool_def, mut errors) = self.tool_context(est, robot, tool, row)?;
+        let (rb, tool_def, prepared) = self.tool_context(at, robot, tool, row)?;
+        let mut errors = prepared.errors.clone();
         let kin_err = kinematics_error(robot, row);
         let lay = &self.layout.robots[slot];
         let load = self.trunk_load(est, robot, &errors, q_other, want_jac, row)?;
@@ -399,6 +519,18 @@ impl<'a> Evaluator<'a> {
         est: &CellEstimate,
         want_jac: bool,
     ) -> Result<ObservationLinearisation, CellFitError> {
+        self.linearise_at(obs, &self.at(est), want_jac)
+    }
+
+    /// [`Evaluator::linearise`] at a prepared estimate ([`Evaluator::at`]): the same values,
+    /// without forming and checking the robots' errors again for each observation.
+    pub fn linearise_at(
+        &self,
+        obs: &Observation,
+        at: &AtEstimate<'_>,
+        want_jac: bool,
+    ) -> Result<ObservationLinearisation, CellFitError> {
+        let est = at.est;
         let row = obs.row;
         let n = self.layout.len();
         let rows = obs.kind.rows();
@@ -424,7 +556,7 @@ impl<'a> Evaluator<'a> {
                 noise,
             } => {
                 let ((p1, c1), (g2, c2)) =
-                    self.both_tips_in_b1(est, [q1, q2], [*tool1, *tool2], want_jac, row)?;
+                    self.both_tips_in_b1(at, [q1, q2], [*tool1, *tool2], want_jac, row)?;
                 if want_jac {
                     put3(&mut jac, &c1, 1.0);
                     put3(&mut jac, &c2, -1.0);
@@ -444,7 +576,7 @@ impl<'a> Evaluator<'a> {
                 sigma_m,
             } => {
                 let ((p1, c1), (g2, c2)) =
-                    self.both_tips_in_b1(est, [q1, q2], [*tool1, *tool2], want_jac, row)?;
+                    self.both_tips_in_b1(at, [q1, q2], [*tool1, *tool2], want_jac, row)?;
                 let e = p1 - g2;
                 let dist = e.norm();
                 let u = if dist > 0.0 { e / dist } else { Vector3::x() };
@@ -471,27 +603,11 @@ impl<'a> Evaluator<'a> {
                 sigma_m,
             } => {
                 let ((p1, c1), (g2, c2)) =
-                    self.both_tips_in_b1(est, [q1, q2], [*tool1, *tool2], want_jac, row)?;
-                let (n1, cn1) = self.normal_in_b1(
-                    est,
-                    Robot::One,
-                    *tool1,
-                    q1,
-                    Some(q2),
-                    n1_tip,
-                    want_jac,
-                    row,
-                )?;
-                let (n2, cn2) = self.normal_in_b1(
-                    est,
-                    Robot::Two,
-                    *tool2,
-                    q2,
-                    Some(q1),
-                    n2_tip,
-                    want_jac,
-                    row,
-                )?;
+                    self.both_tips_in_b1(at, [q1, q2], [*tool1, *tool2], want_jac, row)?;
+                let (n1, cn1) =
+                    self.normal_in_b1(at, Robot::One, *tool1, q1, Some(q2), n1_tip, want_jac, row)?;
+                let (n2, cn2) =
+                    self.normal_in_b1(at, Robot::Two, *tool2, q2, Some(q1), n2_tip, want_jac, row)?;
                 // n̄ = m/‖m‖, m = n1 − n2; ∂(n̄·e) = n̄·∂e + wᵀ·∂m, w = (I − n̄n̄ᵀ)·e/‖m‖.
                 let m = n1 - n2;
                 let m_len = m.norm();
@@ -531,7 +647,7 @@ impl<'a> Evaluator<'a> {
                 let anchor = self.problem.trackers[*group].anchor;
                 let q_other = self.problem.other_arm_q.get(&row).map(Vec::as_slice);
                 let (g, cols) =
-                    self.tip_in_anchor(est, *robot, *tool, q, q_other, anchor, want_jac, row)?;
+                    self.tip_in_anchor_at(at, *robot, *tool, q, q_other, anchor, want_jac, row)?;
                 let t = &est.tracker_from_anchor[*group];
                 let tg = (t * Point3::from(g)).coords;
                 // Scale and drift (see TrackerGroup): m = (1 + s)·(T·g + u·δ); `k = 1 + s`.
@@ -588,7 +704,7 @@ impl<'a> Evaluator<'a> {
                 let anchor = self.problem.planes[*group].anchor;
                 let q_other = self.problem.other_arm_q.get(&row).map(Vec::as_slice);
                 let (g, cols) =
-                    self.tip_in_anchor(est, *robot, *tool, q, q_other, anchor, want_jac, row)?;
+                    self.tip_in_anchor_at(at, *robot, *tool, q, q_other, anchor, want_jac, row)?;
                 let plane = &est.planes[*group];
                 let nrm = plane.normal_anchor.into_inner();
                 if want_jac {
@@ -623,8 +739,18 @@ impl<'a> Evaluator<'a> {
         pair: &super::ConfigPair,
         want_jac: bool,
     ) -> Result<(Vector3<f64>, DMatrix<f64>), CellFitError> {
+        self.cooperative_vector_at(&self.at(est), pair, want_jac)
+    }
+
+    /// [`Evaluator::cooperative_vector`] at a prepared estimate ([`Evaluator::at`]).
+    pub fn cooperative_vector_at(
+        &self,
+        at: &AtEstimate<'_>,
+        pair: &super::ConfigPair,
+        want_jac: bool,
+    ) -> Result<(Vector3<f64>, DMatrix<f64>), CellFitError> {
         let ((p1, c1), (g2, c2)) = self.both_tips_in_b1(
-            est,
+            at,
             [&pair.q1, &pair.q2],
             [pair.tool1, pair.tool2],
             want_jac,

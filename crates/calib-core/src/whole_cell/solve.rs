@@ -275,6 +275,7 @@ fn linearise_rows_with(
     want_jac: bool,
 ) -> Result<DataRows, CellFitError> {
     let ev = Evaluator::new(problem, layout);
+    let at = ev.at(est);
     let n = layout.len();
     // Where each observation's block is in `reuse` (indexed by observation).
     let mut reused: Vec<Option<usize>> = Vec::new();
@@ -294,7 +295,7 @@ fn linearise_rows_with(
     let lins: Vec<Result<ObservationLinearisation, CellFitError>> = fresh
         .par_iter()
         .with_min_len(OBSERVATIONS_PER_TASK)
-        .map(|&i| ev.linearise(&problem.observations[i], est, want_jac))
+        .map(|&i| ev.linearise_at(&problem.observations[i], &at, want_jac))
         .collect();
     let mut lins = lins.into_iter();
     let total: usize = observations

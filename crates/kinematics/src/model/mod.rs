@@ -150,10 +150,11 @@ impl FixedTransform {
     /// Classifies `(r, t)`; see the fields.
     pub(crate) fn new(r: Matrix3<f64>, t: Vector3<f64>) -> FixedTransform {
         let (r_kind, r_sc) = classify_rotation(&r);
-        let nonzero: Vec<usize> = (0..3).filter(|&i| t[i] != 0.0).collect();
-        let t_kind = match nonzero[..] {
-            [] => 3,
-            [k] => k as u8,
+        // No allocation: the fits build a step per perturbed joint at every evaluation.
+        let mut nonzero = (0..3).filter(|&i| t[i] != 0.0);
+        let t_kind = match (nonzero.next(), nonzero.next()) {
+            (None, _) => 3,
+            (Some(k), None) => k as u8,
             _ => 4,
         };
         FixedTransform {
