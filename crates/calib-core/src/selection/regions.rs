@@ -30,6 +30,9 @@ use rand::Rng;
 use crate::whole_cell::CellProblem;
 use crate::Robot;
 
+mod spanning_tree;
+use spanning_tree::spanning_tree;
+
 /// Most regions [`region_count`] gives.
 pub const MAX_REGIONS: usize = 6;
 /// Fewest regions a region-held-out design needs (below, the caller falls back to its groups).
@@ -184,61 +187,6 @@ fn lloyd_min_size(
     (labels, centres)
 }
 
-/// The squared distance of two feature rows over the joints both use, scaled by the number of
-/// features over the number used (the usual distance with missing values: a tracker row of
-/// robot 1 is as near a two-robot row as their robot 1 joints are); with no joint in common,
-/// the distance of the imputed rows `xa`, `xb` (the one k-means sees).
-fn partial_dist2(a: &[f64], b: &[f64], xa: &[f64], xb: &[f64]) -> f64 {
-    let (mut sum, mut used) = (0.0, 0usize);
-    for (u, v) in a.iter().zip(b) {
-        if u.is_finite() && v.is_finite() {
-            sum += (u - v).powi(2);
-            used += 1;
-        }
-    }
-    if used == 0 {
-        dist2(xa, xb)
-    } else {
-        sum * a.len() as f64 / used as f64
-    }
-}
-
-/// The minimum spanning tree of the feature rows (`features` with their missing values,
-/// `x` imputed; distances [`partial_dist2`]), by Prim's algorithm from row 0 (the lowest
-/// row on a tie): its `n − 1` edges `(length, a, b)`. O(n²) distances, no randomness.
-fn spanning_tree(features: &[Vec<f64>], x: &[Vec<f64>]) -> Vec<(f64, usize, usize)> {
-    let n = x.len();
-    let mut edges = Vec::with_capacity(n.saturating_sub(1));
-    if n == 0 {
-        return edges;
-    }
-    let mut in_tree = vec![false; n];
-    // Nearest tree row of each row outside the tree, and its squared distance.
-    let mut best = vec![(f64::INFINITY, 0usize); n];
-    let mut last = 0;
-    in_tree[0] = true;
-    for _ in 1..n {
-        let mut next: Option<usize> = None;
-        for i in 0..n {
-            if in_tree[i] {
-                continue;
-            }
-            let d = partial_dist2(&features[i], &features[last], &x[i], &x[last]);
-            if d < best[i].0 {
-                best[i] = (d, last);
-            }
-            if next.is_none_or(|j| best[i].0 < best[j].0) {
-                next = Some(i);
-            }
-        }
-        let Some(j) = next else { break };
-        in_tree[j] = true;
-        edges.push((best[j].0.sqrt(), best[j].1, j));
-        last = j;
-    }
-    edges
-}
-
 fn find(parent: &mut [usize], mut i: usize) -> usize {
     while parent[i] != i {
         parent[i] = parent[parent[i]];
@@ -353,7 +301,11 @@ fn natural_clusters(
 /// has no randomness). `None` when `k < MIN_REGIONS` (too few rows) or k-means++ finds fewer
 /// than [`MIN_REGIONS`] distinct postures.
 ///
-/// Cost: the spanning tree takes `rows²` distances (2,000 rows: 4·10⁶).
+/// Cost: the spanning tree takes `rows²/2` distances (20,000 rows: 2·10⁸), computed exactly
+/// (a subsample's tree would see a coarser structure: its median edge is longer, so it misses
+/// the small clusters whose gaps all rows show) as a dense loop over rows grouped by their
+/// missing joints, on rayon's current pool, the same tree on any thread count (module
+/// `spanning_tree`).
 pub fn joint_regions(
     features: &[Vec<f64>],
     min_rows: usize,
@@ -365,6 +317,23 @@ pub fn joint_regions(
     if k < MIN_REGIONS {
         return None;
     }
+    let x = imputed(features);
+    match natural_clusters(features, &x, min_rows, k) {
+        // The natural clusters seed Lloyd's iterations: a compact cluster far from the others
+        // stays whole (its centre is the nearest for all its rows), and the stragglers merged
+        // into a neighbour go to the centre nearest to them.
+        Some(labels) => {
+            let start = numbered(&x, &labels, seed).centres;
+            let (labels, _) = lloyd_min_size(&x, start, min_rows);
+            Some(numbered(&x, &labels, seed))
+        }
+        None => kmeans_regions(&x, k, min_rows, seed),
+    }
+}
+
+/// `features` with every missing value (`NaN`) replaced by its column's mean (0 for a column
+/// with no value): the rows k-means sees.
+fn imputed(features: &[Vec<f64>]) -> Vec<Vec<f64>> {
     let dims = features.first().map_or(0, Vec::len);
     let means: Vec<f64> = (0..dims)
         .map(|d| {
@@ -380,7 +349,7 @@ pub fn joint_regions(
             }
         })
         .collect();
-    let x: Vec<Vec<f64>> = features
+    features
         .iter()
         .map(|f| {
             f.iter()
@@ -388,18 +357,7 @@ pub fn joint_regions(
                 .map(|(&v, &m)| if v.is_finite() { v } else { m })
                 .collect()
         })
-        .collect();
-    match natural_clusters(features, &x, min_rows, k) {
-        // The natural clusters seed Lloyd's iterations: a compact cluster far from the others
-        // stays whole (its centre is the nearest for all its rows), and the stragglers merged
-        // into a neighbour go to the centre nearest to them.
-        Some(labels) => {
-            let start = numbered(&x, &labels, seed).centres;
-            let (labels, _) = lloyd_min_size(&x, start, min_rows);
-            Some(numbered(&x, &labels, seed))
-        }
-        None => kmeans_regions(&x, k, min_rows, seed),
-    }
+        .collect()
 }
 
 /// `k` regions of the imputed rows `x` without natural clusters: k-means++ centres drawn from
