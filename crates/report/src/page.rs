@@ -252,10 +252,15 @@ fn work_site_details(w: &WorkSiteReport, posterior: &str) -> Markup {
     }
 }
 
-/// The readable reason a parameter was not identified.
-fn drop_reason(reason: DropReason) -> &'static str {
+/// The readable reason a parameter was not identified; `one_robot` for a cell without a robot 2,
+/// where what absorbs a base-like parameter is the robot's base frame (the tracker/plane
+/// unknowns), not a placement `b1_from_b2` (the words of `calibrate --cell`'s text).
+fn drop_reason(reason: DropReason, one_robot: bool) -> &'static str {
     match reason {
         DropReason::Merged => "merged into others",
+        DropReason::ConfoundedWithPlacement if one_robot => {
+            "absorbed by the robot's base frame (the tracker/plane unknowns)"
+        }
         DropReason::ConfoundedWithPlacement => "absorbed by b1_from_b2",
         DropReason::NoEffect => "moves no observed tip",
         DropReason::PriorDecided => "barely seen: the prior decides it",
@@ -324,7 +329,7 @@ pub fn calibration_page(p: &CalibrationPage) -> String {
                 summary { (r.unidentifiable.len()) " parameters and why" }
                 table id="unidentifiable" {
                     tr { th { "parameter" } th { "reason" } th { "detail" } }
-                    @for d in &r.unidentifiable { tr { td { (d.name) } td { (drop_reason(d.reason)) } td class="detail" { (d.why) } } }
+                    @for d in &r.unidentifiable { tr { td { (d.name) } td { (drop_reason(d.reason, w.one_robot)) } td class="detail" { (d.why) } } }
                 }
             }
         }
@@ -554,4 +559,24 @@ pub fn cell_diagnosis_page(
         }
     };
     page("handclasp diagnosis report", body, json, invocation)
+}
+
+#[cfg(test)]
+mod drop_reason_tests {
+    use super::*;
+
+    /// A one-robot cell has no `b1_from_b2`: a base-like parameter is absorbed by the robot's
+    /// base frame (the words of `calibrate --cell`'s text); a two-robot cell keeps the placement.
+    #[test]
+    fn a_one_robot_page_does_not_name_b1_from_b2() {
+        let one = drop_reason(DropReason::ConfoundedWithPlacement, true);
+        assert!(
+            one.contains("robot's base frame") && !one.contains("b1_from_b2"),
+            "{one}"
+        );
+        assert_eq!(
+            drop_reason(DropReason::ConfoundedWithPlacement, false),
+            "absorbed by b1_from_b2"
+        );
+    }
 }
