@@ -498,6 +498,24 @@ fn fk_cell_q_csv_errors_name_line_and_column() {
         e.contains("line 3, column `q2_deg`") && e.contains("outside its limits"),
         "{e}"
     );
+    // With --out, a bad row (checked before anything is written) leaves no file and no
+    // temporary file beside it (the poses are streamed into a temporary file then renamed).
+    let out_dir = dir.path().join("out");
+    std::fs::create_dir(&out_dir).unwrap();
+    let out = out_dir.join("poses.csv");
+    let e = err(handclasp(&[
+        "fk",
+        "--cell",
+        cell,
+        "--robot",
+        "1",
+        "--q-csv",
+        dir.path().join("limits.csv").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    assert!(e.contains("line 3, column `q2_deg`"), "{e}");
+    assert_eq!(std::fs::read_dir(&out_dir).unwrap().count(), 0);
     let e = err(case("nan.csv", &format!("{head}0,0,NaN,0,0,0\n")));
     assert!(
         e.contains("line 2, column `q3_deg`") && e.contains("not a finite"),

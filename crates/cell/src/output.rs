@@ -23,6 +23,36 @@ static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
 /// # Errors
 /// [`FormatError::Io`] naming the file that could not be written or renamed.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), FormatError> {
+    write_atomically_with(path, |w| {
+        w.write_all(bytes).map_err(|e| FormatError::io(path, e))
+    })
+}
+
+/// [`write_atomically`] for output produced as it is written: `write` streams into a buffered
+/// writer on the temporary file beside `path` (so a large output is never held in memory), then
+/// the file is flushed to disk and renamed over `path`. When `write` fails, or the file cannot be
+/// written or renamed, the temporary file is removed and `path` is left as it was.
+///
+/// # Errors
+/// `write`'s error, or [`FormatError::Io`] (converted into `E`) naming the file that could not be
+/// created, written or renamed.
+///
+/// # Examples
+/// ```
+/// use std::io::Write;
+/// let dir = tempfile::tempdir().unwrap();
+/// let path = dir.path().join("poses.csv");
+/// handclasp_cell::output::write_atomically_with(&path, |w| -> Result<(), Box<dyn std::error::Error>> {
+///     writeln!(w, "x_mm")?;
+///     Ok(())
+/// })
+/// .unwrap();
+/// assert_eq!(std::fs::read_to_string(&path).unwrap(), "x_mm\n");
+/// ```
+pub fn write_atomically_with<E: From<FormatError>>(
+    path: &Path,
+    write: impl FnOnce(&mut dyn std::io::Write) -> Result<(), E>,
+) -> Result<(), E> {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
@@ -32,21 +62,26 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), FormatError> {
         std::process::id(),
         TMP_COUNTER.fetch_add(1, Ordering::Relaxed)
     ));
-    let written = (|| {
-        let mut file = std::fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(&tmp)?;
-        file.write_all(bytes)?;
+    let file = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&tmp)
+        .map_err(|e| E::from(FormatError::io(path, e)))?;
+    let mut out = std::io::BufWriter::new(file);
+    let written = write(&mut out).and_then(|()| {
+        let file = out
+            .into_inner()
+            .map_err(|e| E::from(FormatError::io(path, e.into_error())))?;
         file.sync_all()
-    })();
+            .map_err(|e| E::from(FormatError::io(path, e)))
+    });
     if let Err(e) = written {
         let _ = std::fs::remove_file(&tmp);
-        return Err(FormatError::io(path, e));
+        return Err(e);
     }
     std::fs::rename(&tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
-        FormatError::io(path, e)
+        E::from(FormatError::io(path, e))
     })
 }
 
@@ -160,6 +195,31 @@ mod tests {
         let missing = dir.path().join("no/such/b.csv");
         assert!(write_atomically(&missing, b"x").is_err());
         assert!(!missing.exists());
+    }
+
+    /// A streamed write that fails halfway leaves the previous file and no temporary behind; one
+    /// that succeeds replaces it.
+    #[test]
+    fn a_failed_streamed_write_leaves_the_previous_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("poses.csv");
+        write_atomically(&path, b"old").unwrap();
+        let failed = write_atomically_with(&path, |w| -> Result<(), FormatError> {
+            w.write_all(b"half of a new file").unwrap();
+            Err(FormatError::io(
+                &path,
+                std::io::Error::other("row 3 is bad"),
+            ))
+        });
+        assert!(failed.is_err());
+        assert_eq!(std::fs::read(&path).unwrap(), b"old");
+        assert_eq!(entries(dir.path()).unwrap(), vec![path.clone()]);
+        write_atomically_with(&path, |w| -> Result<(), FormatError> {
+            w.write_all(b"new").map_err(|e| FormatError::io(&path, e))
+        })
+        .unwrap();
+        assert_eq!(std::fs::read(&path).unwrap(), b"new");
+        assert_eq!(entries(dir.path()).unwrap(), vec![path]);
     }
 
     /// A held lock refuses a second export naming the lock; a failed export leaves the folder as

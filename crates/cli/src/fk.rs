@@ -566,42 +566,28 @@ fn run_batch(
         ));
     }
 
-    let mut rows: Vec<(Option<String>, Vec<f64>)> = Vec::new();
-    for (i, record) in reader.records().enumerate() {
-        let line = i + 2;
-        let record = record.with_context(|| format!("{name}, line {line}: malformed CSV"))?;
-        let mut q_deg = Vec::with_capacity(dof);
-        for (k, &c) in q_cols.iter().enumerate() {
-            let cell = record.get(c).unwrap_or("");
-            let col = &header[c];
-            let v: f64 = cell.parse().map_err(|_| {
-                anyhow::anyhow!("{name}, line {line}, column `{col}`: `{}` is not a number; give the angle in degrees", cap_echo(cell))
-            })?;
-            if !v.is_finite() {
-                bail!("{name}, line {line}, column `{col}`: {cell} is not a finite angle");
-            }
-            let joint = &model.joints()[k];
-            let (lo, hi) = (joint.lower.to_degrees(), joint.upper.to_degrees());
-            let slack = 1e-9f64.to_degrees();
-            if v < lo - slack || v > hi + slack {
-                bail!(
-                    "{name}, line {line}, column `{col}`: joint {} ({}) is {v} deg, outside its limits {lo:.3}..{hi:.3} deg; give an angle inside the range (degrees, not radians)",
-                    k + 1,
-                    joint.name
-                );
-            }
-            q_deg.push(v);
-        }
-        let id = id_index.map(|c| record.get(c).unwrap_or("").to_string());
-        rows.push((id, q_deg));
-    }
-    if rows.is_empty() {
+    // Two passes over the text, no row kept: the first checks every row (a bad row is refused
+    // before anything is written) and finds the largest angle, the second computes and writes.
+    // A file is streamed into a temporary file beside --out and renamed (never a truncated CSV
+    // under --out's name; a million poses are never held in memory); stdout is streamed.
+    let rows = BatchRows {
+        name: &name,
+        text,
+        header: &header,
+        q_cols: &q_cols,
+        id_index,
+        model,
+    };
+    let mut count = 0usize;
+    let mut max_abs = 0.0f64;
+    rows.for_each(|_, _, q_deg| {
+        count += 1;
+        max_abs = q_deg.iter().fold(max_abs, |m, v| m.max(v.abs()));
+        Ok(())
+    })?;
+    if count == 0 {
         bail!("{name}: no rows after the header; give one pose per row");
     }
-    let max_abs = rows
-        .iter()
-        .flat_map(|(_, q)| q.iter())
-        .fold(0.0f64, |m, v| m.max(v.abs()));
     if max_abs <= RADIANS_MAX_DEG && max_abs > RADIANS_MIN_DEG {
         progress.eprintln(&format!(
             "warning: {name}: every angle is within ±{:.4} deg (largest {max_abs}): these look like radians; the columns are degrees (multiply by 180/π)",
@@ -609,49 +595,107 @@ fn run_batch(
         ));
     }
 
-    // A file is built in memory and written atomically (never a truncated CSV under --out's
-    // name); stdout is streamed.
-    let mut buffer: Vec<u8> = Vec::new();
-    let sink: Box<dyn Write + '_> = match out {
-        Some(_) => Box::new(&mut buffer),
-        None => Box::new(std::io::stdout().lock()),
-    };
-    let mut writer = csv::Writer::from_writer(std::io::BufWriter::new(sink));
     let mut head: Vec<&str> = Vec::new();
     if let Some(id) = id_column {
         head.push(id);
     }
     head.extend(["x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"]);
-    writer.write_record(&head)?;
-    progress.phase(format!("computing {} poses", rows.len()));
-    for (i, (id, q_deg)) in rows.iter().enumerate() {
-        let q: Vec<f64> = q_deg.iter().map(|v| v.to_radians()).collect();
-        let pose = robot
-            .base_from_tip(&q)
-            .with_context(|| format!("{name}, line {}", i + 2))?;
-        let t = pose.translation.vector * 1e3;
-        let mut quat = *pose.rotation.quaternion();
-        if quat.w < 0.0 {
-            quat = -quat;
-        }
+    progress.phase(format!("computing {count} poses"));
+    let write_poses = |sink: &mut dyn Write| -> anyhow::Result<()> {
+        let mut writer = csv::Writer::from_writer(std::io::BufWriter::new(sink));
+        writer.write_record(&head)?;
         let mut record: Vec<String> = Vec::with_capacity(8);
-        if let Some(id) = id {
-            record.push(id.clone());
-        }
-        for v in [t.x, t.y, t.z, quat.w, quat.i, quat.j, quat.k] {
-            record.push(v.to_string());
-        }
-        writer.write_record(&record)?;
+        rows.for_each(|line, id, q_deg| {
+            let q: Vec<f64> = q_deg.iter().map(|v| v.to_radians()).collect();
+            let pose = robot
+                .base_from_tip(&q)
+                .with_context(|| format!("{name}, line {line}"))?;
+            let t = pose.translation.vector * 1e3;
+            let mut quat = *pose.rotation.quaternion();
+            if quat.w < 0.0 {
+                quat = -quat;
+            }
+            record.clear();
+            if let Some(id) = id {
+                record.push(id.to_string());
+            }
+            for v in [t.x, t.y, t.z, quat.w, quat.i, quat.j, quat.k] {
+                record.push(v.to_string());
+            }
+            writer.write_record(&record)?;
+            Ok(())
+        })?;
+        writer.flush()?;
+        Ok(())
+    };
+    match out {
+        Some(path) => handclasp_cell::output::write_atomically_with(path, write_poses)
+            .with_context(|| format!("--out {}", path.display()))?,
+        None => write_poses(&mut std::io::stdout().lock())?,
     }
-    writer.flush()?;
-    drop(writer);
     progress.finish();
     if let Some(path) = out {
-        handclasp_cell::output::write_atomically(path, &buffer)
-            .with_context(|| format!("--out {}", path.display()))?;
-        eprintln!("wrote {} poses to {}", rows.len(), path.display());
+        eprintln!("wrote {count} poses to {}", path.display());
     }
     Ok(())
+}
+
+/// The rows of `fk --q-csv`'s joint CSV, read from its text as often as needed (no row is kept).
+struct BatchRows<'a> {
+    name: &'a str,
+    text: &'a str,
+    header: &'a [String],
+    q_cols: &'a [usize],
+    id_index: Option<usize>,
+    model: &'a RobotModel,
+}
+
+impl BatchRows<'_> {
+    /// Calls `f(line, id, q_deg)` for each row in order (line numbers 1-based, the header is
+    /// line 1), after checking each angle: a number, finite, inside its joint's limits.
+    ///
+    /// # Errors
+    /// The first malformed row (naming the file, line and column, and the fix), or `f`'s error.
+    fn for_each(
+        &self,
+        mut f: impl FnMut(usize, Option<&str>, &[f64]) -> anyhow::Result<()>,
+    ) -> anyhow::Result<()> {
+        let name = self.name;
+        let mut reader = csv::ReaderBuilder::new()
+            .delimiter(calib_core::csv_delimiter(self.text))
+            .trim(csv::Trim::All)
+            .from_reader(self.text.as_bytes());
+        let mut q_deg = Vec::with_capacity(self.q_cols.len());
+        for (i, record) in reader.records().enumerate() {
+            let line = i + 2;
+            let record = record.with_context(|| format!("{name}, line {line}: malformed CSV"))?;
+            q_deg.clear();
+            for (k, &c) in self.q_cols.iter().enumerate() {
+                let cell = record.get(c).unwrap_or("");
+                let col = &self.header[c];
+                let v: f64 = cell.parse().map_err(|_| {
+                    anyhow::anyhow!("{name}, line {line}, column `{col}`: `{}` is not a number; give the angle in degrees", cap_echo(cell))
+                })?;
+                if !v.is_finite() {
+                    bail!("{name}, line {line}, column `{col}`: {cell} is not a finite angle");
+                }
+                let joint = &self.model.joints()[k];
+                let (lo, hi) = (joint.lower.to_degrees(), joint.upper.to_degrees());
+                let slack = 1e-9f64.to_degrees();
+                if v < lo - slack || v > hi + slack {
+                    bail!(
+                        "{name}, line {line}, column `{col}`: joint {} ({}) is {v} deg, outside its limits {lo:.3}..{hi:.3} deg; give an angle inside the range (degrees, not radians)",
+                        k + 1,
+                        joint.name
+                    );
+                }
+                q_deg.push(v);
+            }
+            let id = self.id_index.map(|c| record.get(c).unwrap_or(""));
+            f(line, id, &q_deg)?;
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]
