@@ -693,3 +693,61 @@ fn fk_and_ik_take_a_prismatic_joint_in_millimetres() {
         * 1e3;
     assert!((reached - want).norm() < ROUND_TRIP_MM, "{v}");
 }
+
+/// `fk --q-csv` on a robot with a prismatic joint reads that joint's column as `qK_mm`
+/// (millimetres, as the session file's `rN_qK_mm`) and gives the pose `fk --q-deg` gives; a
+/// `qK_deg` column for the prismatic joint is refused naming `qK_mm`. Freezes a silent wrong
+/// answer found at stop 34: the batch path read every column as degrees, so a rail's 1500 mm
+/// was refused against limits in "degrees" and 0.1 (metres meant) became 1.7 mm.
+#[test]
+fn fk_q_csv_reads_a_prismatic_joint_in_millimetres() {
+    let cell = concat!(env!("CARGO_MANIFEST_DIR"), "/../../cells/rail-tracker.toml");
+    let dir = tempfile::tempdir().unwrap();
+    let q = "1500,0,10,-20,0,30,0";
+    let one = json_ok(&["fk", "--cell", cell, "--robot", "1", "--q-deg", q, "--json"]);
+    let csv = dir.path().join("rail.csv");
+    std::fs::write(
+        &csv,
+        format!("q1_mm,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,q7_deg\n{q}\n"),
+    )
+    .unwrap();
+    let out = handclasp(&[
+        "fk",
+        "--cell",
+        cell,
+        "--robot",
+        "1",
+        "--q-csv",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let row: Vec<f64> = text.lines().nth(1).unwrap()[..]
+        .split(',')
+        .take(3)
+        .map(|v| v.parse().unwrap())
+        .collect();
+    for (got, want) in row.iter().zip(floats(&one["xyz_mm"])) {
+        assert!((got - want).abs() < EXACT_MM, "{text} vs {one}");
+    }
+    let wrong = dir.path().join("rail_deg.csv");
+    std::fs::write(
+        &wrong,
+        format!("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,q7_deg\n{q}\n"),
+    )
+    .unwrap();
+    let e = stderr_of_failure(&[
+        "fk",
+        "--cell",
+        cell,
+        "--robot",
+        "1",
+        "--q-csv",
+        wrong.to_str().unwrap(),
+    ]);
+    assert!(e.contains("`q1_mm`") && e.contains("prismatic"), "{e}");
+}

@@ -207,36 +207,18 @@ pub(crate) fn parse_q_deg(
     };
     let q_deg = parse_list(flag, text, Some((model.dof(), &what)))?;
     for (i, (j, &v)) in model.joints().iter().zip(&q_deg).enumerate() {
-        if j.kind.is_prismatic() {
-            let (lo, hi) = (j.lower * 1e3, j.upper * 1e3);
-            // Same 1e-9 m slack as the library's check.
-            let slack = 1e-6;
-            if v < lo - slack || v > hi + slack {
-                bail!(
-                    "{flag}: joint {} ({}) is prismatic and {v} mm, outside its limits {lo:.3}..{hi:.3} mm; give a travel inside the range (millimetres, not metres)",
-                    i + 1,
-                    j.name
-                );
-            }
-            // Under 1 mm on a travel of more than 100 mm: probably metres.
-            if v != 0.0 && v.abs() < 1.0 && hi - lo > PRISMATIC_METRES_SPAN_MM {
-                eprintln!(
-                    "warning: {flag}: joint {} ({}) is prismatic and {v} mm; its values are millimetres: if you meant {v} m, give {}",
-                    i + 1,
-                    j.name,
-                    v * 1e3
-                );
-            }
-            continue;
-        }
-        let (lo, hi) = (j.lower.to_degrees(), j.upper.to_degrees());
-        // Same 1e-9 rad slack as the library's check.
-        let slack = 1e-9f64.to_degrees();
-        if v < lo - slack || v > hi + slack {
-            bail!(
-                "{flag}: joint {} ({}) is {v} deg, outside its limits {lo:.3}..{hi:.3} deg; give an angle inside the range (degrees, not radians)",
+        check_joint_value(flag, i, j, v)?;
+        // Under 1 mm on a travel of more than 100 mm: probably metres.
+        if j.kind.is_prismatic()
+            && v != 0.0
+            && v.abs() < 1.0
+            && (j.upper - j.lower) * 1e3 > PRISMATIC_METRES_SPAN_MM
+        {
+            eprintln!(
+                "warning: {flag}: joint {} ({}) is prismatic and {v} mm; its values are millimetres: if you meant {v} m, give {}",
                 i + 1,
-                j.name
+                j.name,
+                v * 1e3
             );
         }
     }
@@ -244,15 +226,46 @@ pub(crate) fn parse_q_deg(
         .joints()
         .iter()
         .zip(&q_deg)
-        .map(|(j, &v)| {
-            if j.kind.is_prismatic() {
-                v * 1e-3
-            } else {
-                v.to_radians()
-            }
-        })
+        .map(|(j, &v)| from_cli_unit(j, v))
         .collect();
     Ok((q_si, q_deg))
+}
+
+/// Checks joint `i`'s value `v` in its CLI unit ([`joint_unit`]) against the joint's limits
+/// (with the library's slack: 1e-9 rad, 1e-9 m); `at` names where the value came from (a flag,
+/// or a file's line and column).
+fn check_joint_value(at: &str, i: usize, j: &kinematics::Joint, v: f64) -> anyhow::Result<()> {
+    if j.kind.is_prismatic() {
+        let (lo, hi) = (j.lower * 1e3, j.upper * 1e3);
+        if v < lo - 1e-6 || v > hi + 1e-6 {
+            bail!(
+                "{at}: joint {} ({}) is prismatic and {v} mm, outside its limits {lo:.3}..{hi:.3} mm; give a travel inside the range (millimetres, not metres)",
+                i + 1,
+                j.name
+            );
+        }
+    } else {
+        let (lo, hi) = (j.lower.to_degrees(), j.upper.to_degrees());
+        let slack = 1e-9f64.to_degrees();
+        if v < lo - slack || v > hi + slack {
+            bail!(
+                "{at}: joint {} ({}) is {v} deg, outside its limits {lo:.3}..{hi:.3} deg; give an angle inside the range (degrees, not radians)",
+                i + 1,
+                j.name
+            );
+        }
+    }
+    Ok(())
+}
+
+/// A joint value in its CLI unit ([`joint_unit`]: deg, or mm for a prismatic joint) in SI (rad
+/// or m); the inverse of [`to_cli_unit`].
+pub(crate) fn from_cli_unit(joint: &kinematics::Joint, v: f64) -> f64 {
+    if joint.kind.is_prismatic() {
+        v * 1e-3
+    } else {
+        v.to_radians()
+    }
 }
 
 /// The CLI unit of a joint's value: `"mm"` for a prismatic joint, `"deg"` otherwise.
@@ -516,13 +529,25 @@ fn run_batch(
         .collect();
     let model = &robot.model;
     let dof = model.dof();
+    // Column `qK_deg` for a rotary joint, `qK_mm` for a prismatic one (as the session file's
+    // `rN_qK_mm`): the header names the unit.
     let mut q_cols = Vec::with_capacity(dof);
-    for k in 1..=dof {
-        let col = format!("q{k}_deg");
+    for (k0, joint) in model.joints().iter().enumerate() {
+        let k = k0 + 1;
+        let unit = joint_unit(joint);
+        let col = format!("q{k}_{unit}");
+        let other = format!("q{k}_{}", if unit == "mm" { "deg" } else { "mm" });
         match header.iter().position(|h| *h == col) {
             Some(i) => q_cols.push(i),
+            None if header.contains(&other) => bail!(
+                "{name}: column `{other}` but joint {k} ({}) of {} is {}: name the column `{col}` and give {}",
+                joint.name,
+                model.name(),
+                if unit == "mm" { "prismatic (a length)" } else { "rotary (an angle)" },
+                if unit == "mm" { "millimetres" } else { "degrees" }
+            ),
             None => bail!(
-                "{name}: missing column `{col}` (header has: {}); {} has {dof} joints: give q1_deg … q{dof}_deg in chain order",
+                "{name}: missing column `{col}` (header has: {}); {} has {dof} joints: give one column per joint in chain order, qK_deg for a rotary joint and qK_mm for a prismatic one",
                 cap_echo(&header.join(",")),
                 model.name()
             ),
@@ -532,14 +557,14 @@ fn run_batch(
         .iter()
         .filter(|h| {
             h.strip_prefix('q')
-                .and_then(|r| r.strip_suffix("_deg"))
+                .and_then(|r| r.strip_suffix("_deg").or_else(|| r.strip_suffix("_mm")))
                 .and_then(|k| k.parse::<usize>().ok())
                 .is_some_and(|k| k == 0 || k > dof)
         })
         .collect();
     if let Some(col) = extra_q.first() {
         bail!(
-            "{name}: column `{}` but {} has {dof} joints (q1_deg … q{dof}_deg); is this the other robot's file?",
+            "{name}: column `{}` but {} has {dof} joints (q1 … q{dof}); is this the other robot's file?",
             cap_echo(col),
             model.name()
         );
@@ -582,7 +607,13 @@ fn run_batch(
     let mut max_abs = 0.0f64;
     rows.for_each(|_, _, q_deg| {
         count += 1;
-        max_abs = q_deg.iter().fold(max_abs, |m, v| m.max(v.abs()));
+        // The radians check looks at the rotary joints only (a prismatic joint's mm can be small).
+        max_abs = model
+            .joints()
+            .iter()
+            .zip(q_deg)
+            .filter(|(j, _)| !j.kind.is_prismatic())
+            .fold(max_abs, |m, (_, v)| m.max(v.abs()));
         Ok(())
     })?;
     if count == 0 {
@@ -606,7 +637,12 @@ fn run_batch(
         writer.write_record(&head)?;
         let mut record: Vec<String> = Vec::with_capacity(8);
         rows.for_each(|line, id, q_deg| {
-            let q: Vec<f64> = q_deg.iter().map(|v| v.to_radians()).collect();
+            let q: Vec<f64> = model
+                .joints()
+                .iter()
+                .zip(q_deg)
+                .map(|(j, &v)| from_cli_unit(j, v))
+                .collect();
             let pose = robot
                 .base_from_tip(&q)
                 .with_context(|| format!("{name}, line {line}"))?;
@@ -674,21 +710,13 @@ impl BatchRows<'_> {
                 let cell = record.get(c).unwrap_or("");
                 let col = &self.header[c];
                 let v: f64 = cell.parse().map_err(|_| {
-                    anyhow::anyhow!("{name}, line {line}, column `{col}`: `{}` is not a number; give the angle in degrees", cap_echo(cell))
+                    anyhow::anyhow!("{name}, line {line}, column `{col}`: `{}` is not a number; give the joint's value in the column's unit (deg, or mm for a prismatic joint)", cap_echo(cell))
                 })?;
                 if !v.is_finite() {
-                    bail!("{name}, line {line}, column `{col}`: {cell} is not a finite angle");
+                    bail!("{name}, line {line}, column `{col}`: {cell} is not a finite value");
                 }
                 let joint = &self.model.joints()[k];
-                let (lo, hi) = (joint.lower.to_degrees(), joint.upper.to_degrees());
-                let slack = 1e-9f64.to_degrees();
-                if v < lo - slack || v > hi + slack {
-                    bail!(
-                        "{name}, line {line}, column `{col}`: joint {} ({}) is {v} deg, outside its limits {lo:.3}..{hi:.3} deg; give an angle inside the range (degrees, not radians)",
-                        k + 1,
-                        joint.name
-                    );
-                }
+                check_joint_value(&format!("{name}, line {line}, column `{col}`"), k, joint, v)?;
                 q_deg.push(v);
             }
             let id = self.id_index.map(|c| record.get(c).unwrap_or(""));
