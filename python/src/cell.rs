@@ -220,10 +220,11 @@ impl Session {
                     "point".into(),
                     points.iter().map(|p| p.to_string()).collect(),
                 ));
-                for (r, q, d) in [(1, &q1, d1), (2, &q2, d2)] {
-                    for k in 0..d {
+                for (r, q, robot) in [(1, &q1, &c.robot1), (2, &q2, &c.robot2)] {
+                    // `rN_qK_mm` for a prismatic joint (its values are mm), as the CSV's header.
+                    for (k, joint) in robot.model.joints().iter().enumerate() {
                         cols.push((
-                            format!("r{r}_q{}_deg", k + 1),
+                            handclasp_cell::joint_column(r, k + 1, joint.kind.is_prismatic()),
                             q.iter().map(|row| num(row[k])).collect(),
                         ));
                     }

@@ -50,3 +50,23 @@ def test_one_robot_calibration_and_diagnosis_equal_the_cli(rail, tracker_csv, cl
     d = hc.diagnose(cell, session)
     assert d.mode == "whole_cell"
     assert d.to_dict() == cli_json("diagnose", *args)
+
+
+def test_from_arrays_names_a_prismatic_joint_in_mm(tmp_path):
+    """Session.from_arrays writes a prismatic joint's column as rN_qK_mm (its values are mm, as
+    the CSV's header says); it wrote rN_qK_deg and the reader refused the arrays (found at stop 34)."""
+    rail_urdf = REPO / "crates" / "kinematics" / "tests" / "fixtures" / "rail_6r.urdf"
+    hp20 = REPO / "robots" / "hp20.urdf"
+    path = tmp_path / "rail-pair.toml"
+    path.write_text(
+        f'[robot1]\nurdf = "{rail_urdf}"\nmount = "floor"\ntip_mm = [0.0, 0.0, 120.0]\n\n'
+        f'[robot2]\nurdf = "{hp20}"\nmount = "floor"\ntip_mm = [0.0, 0.0, 150.0]\n\n'
+        "[b1_from_b2]\nxyz_mm = [1500.0, 1200.0, 0.0]\nzyz_deg = [180.0, 0.0, 0.0]\n"
+    )
+    cell = hc.Cell.load(path)
+    q1 = [[1500.0, 0.0, 10.0, -20.0, 0.0, 30.0, 0.0], [900.0, 5.0, 0.0, 10.0, 0.0, 20.0, 0.0]]
+    q2 = [[0.0, 10.0, -10.0, 0.0, 20.0, 0.0], [5.0, 0.0, 10.0, 0.0, -20.0, 0.0]]
+    s = hc.Session.from_arrays(cell, q1, q2)
+    cols = s.columns()
+    assert "r1_q1_mm" in cols and "r1_q1_deg" not in cols and "r1_q2_deg" in cols
+    assert list(cols["r1_q1_mm"]) == [1500.0, 900.0]
