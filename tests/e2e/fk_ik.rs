@@ -705,21 +705,25 @@ fn fk_q_csv_reads_a_prismatic_joint_in_millimetres() {
     let dir = tempfile::tempdir().unwrap();
     let q = "1500,0,10,-20,0,30,0";
     let one = json_ok(&["fk", "--cell", cell, "--robot", "1", "--q-deg", q, "--json"]);
-    let csv = dir.path().join("rail.csv");
-    std::fs::write(
-        &csv,
-        format!("q1_mm,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,q7_deg\n{q}\n"),
-    )
-    .unwrap();
-    let out = handclasp(&[
-        "fk",
-        "--cell",
-        cell,
-        "--robot",
-        "1",
-        "--q-csv",
-        csv.to_str().unwrap(),
-    ]);
+    // `fk --q-csv` of a one-pose file with the first column named `first`.
+    let batch = |first: &str| {
+        let csv = dir.path().join(format!("rail_{first}.csv"));
+        std::fs::write(
+            &csv,
+            format!("{first},q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,q7_deg\n{q}\n"),
+        )
+        .unwrap();
+        handclasp(&[
+            "fk",
+            "--cell",
+            cell,
+            "--robot",
+            "1",
+            "--q-csv",
+            csv.to_str().unwrap(),
+        ])
+    };
+    let out = batch("q1_mm");
     assert!(
         out.status.success(),
         "{}",
@@ -734,20 +738,8 @@ fn fk_q_csv_reads_a_prismatic_joint_in_millimetres() {
     for (got, want) in row.iter().zip(floats(&one["xyz_mm"])) {
         assert!((got - want).abs() < EXACT_MM, "{text} vs {one}");
     }
-    let wrong = dir.path().join("rail_deg.csv");
-    std::fs::write(
-        &wrong,
-        format!("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,q7_deg\n{q}\n"),
-    )
-    .unwrap();
-    let e = stderr_of_failure(&[
-        "fk",
-        "--cell",
-        cell,
-        "--robot",
-        "1",
-        "--q-csv",
-        wrong.to_str().unwrap(),
-    ]);
+    let wrong = batch("q1_deg");
+    assert!(!wrong.status.success());
+    let e = String::from_utf8_lossy(&wrong.stderr);
     assert!(e.contains("`q1_mm`") && e.contains("prismatic"), "{e}");
 }

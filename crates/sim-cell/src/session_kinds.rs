@@ -647,17 +647,7 @@ impl Sim<'_> {
     /// its independent joints uniform in the middle 80 % of its limits (clipped to ±3 rad or
     /// m); the trunk's are overwritten with the measured arm's ([`Sim::one`]).
     fn other_arm(&self, robot: Robot, rng: &mut impl Rng) -> Vec<f64> {
-        self.cell
-            .robot(robot.other())
-            .model
-            .joints()
-            .iter()
-            .map(|j| {
-                let (lo, hi) = (j.lower.max(-3.0), j.upper.min(3.0));
-                let margin = 0.1 * (hi - lo);
-                rng.random_range(lo + margin..=hi - margin)
-            })
-            .collect()
+        crate::trunk::draw_in_middle(self.cell.robot(robot.other()).model.joints(), rng)
     }
 }
 

@@ -29,7 +29,17 @@ pub(crate) type Meeting = (Vec<f64>, Vec<f64>, Vector3<f64>);
 /// [`Cell::shared_independent_joints`]), each uniform in the middle 80 % of its limits (clipped to
 /// ±3 rad or m), as the other arm of a one-robot row is drawn.
 pub(crate) fn draw_trunk(cell: &Cell, rng: &mut impl Rng) -> Vec<f64> {
-    cell.robot1.model.joints()[..cell.shared_independent_joints()]
+    draw_in_middle(
+        &cell.robot1.model.joints()[..cell.shared_independent_joints()],
+        rng,
+    )
+}
+
+/// One value per joint of `joints` (rad, or m for a prismatic joint), each uniform in the middle
+/// 80 % of its limits clipped to ±3 rad or m, drawn in order: the trunk of a handclasp
+/// ([`draw_trunk`]) and the other arm of a one-robot row on a shared-trunk cell.
+pub(crate) fn draw_in_middle(joints: &[kinematics::Joint], rng: &mut impl Rng) -> Vec<f64> {
+    joints
         .iter()
         .map(|j| {
             let (lo, hi) = (j.lower.max(-3.0), j.upper.min(3.0));
