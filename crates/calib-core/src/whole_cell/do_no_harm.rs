@@ -212,12 +212,22 @@ fn harm_folds(problem: &CellProblem, used: &[usize]) -> Folds {
 /// it: the same kinematic and tool-tip unknowns with the same prior rows, and `sub`'s own
 /// nuisances (unpenalised, as in every layout).
 pub(crate) fn layout_on(layout: &ParamLayout, sub: &CellProblem) -> ParamLayout {
+    layout_without(layout, sub, &|_| false)
+}
+
+/// [`layout_on`] less the robot unknowns `drop` selects (held at zero: fixed, their prior rows
+/// left empty). With `sub` the full problem, `layout` less those unknowns.
+pub(crate) fn layout_without(
+    layout: &ParamLayout,
+    sub: &CellProblem,
+    drop: &dyn Fn(&CellParam) -> bool,
+) -> ParamLayout {
     let robot_param =
         |p: &CellParam| matches!(p, CellParam::Kinematic { .. } | CellParam::ToolTip { .. });
     let fixed: Vec<CellParam> = ParamLayout::new(sub, &[])
         .params
         .into_iter()
-        .filter(|p| robot_param(p) && layout.column(p).is_none())
+        .filter(|p| robot_param(p) && (layout.column(p).is_none() || drop(p)))
         .collect();
     let mut out = ParamLayout::new(sub, &fixed);
     let mut prior = nalgebra::DMatrix::zeros(layout.prior_sqrt_info.nrows(), out.len());
@@ -232,6 +242,109 @@ pub(crate) fn layout_on(layout: &ParamLayout, sub: &CellProblem) -> ParamLayout 
     out
 }
 
+/// The check's folds and the nominal model's held-out rows in each, computed once and shared
+/// by every model judged on them ([`HarmFolds::judge`]).
+pub(crate) struct HarmFolds {
+    design: HarmDesign,
+    how: String,
+    /// Each fold's held-out units.
+    folds: Vec<Vec<Vec<usize>>>,
+    /// Each fold's training rows.
+    train: Vec<Vec<usize>>,
+    kept: usize,
+    /// Each fold's held-out rows under nominal: (kind, whitened squared residual).
+    nominal: Vec<Vec<(&'static str, f64)>>,
+}
+
+impl HarmFolds {
+    /// The folds of `cal` (a calibration of `problem`) and nominal's held-out rows in them.
+    pub(crate) fn new(
+        problem: &CellProblem,
+        cal: &CellCalibration,
+        solve: &SolveOptions,
+    ) -> Result<Self, CellFitError> {
+        let fit = &cal.fit;
+        let (design, how, folds, kept) = harm_folds(problem, &fit.active);
+        let mut nominal_problem = problem.clone();
+        nominal_problem.robot1.tolerance = Tolerance::none();
+        nominal_problem.robot2.tolerance = Tolerance::none();
+        let mut train = Vec::with_capacity(folds.len());
+        let mut nominal = Vec::with_capacity(folds.len());
+        for units in &folds {
+            let held: Vec<usize> = units.iter().flatten().copied().collect();
+            let t: Vec<usize> = fit
+                .active
+                .iter()
+                .copied()
+                .filter(|i| !held.contains(i))
+                .collect();
+            nominal.push(fold_e2(&nominal_problem, None, cal, &t, units, solve)?);
+            train.push(t);
+        }
+        Ok(Self {
+            design,
+            how,
+            folds,
+            train,
+            kept,
+            nominal,
+        })
+    }
+
+    /// The model of `layout` (a layout of `problem`: the calibration's own, or less some
+    /// unknowns) against nominal on these folds, judged by [`judge_harm`] at
+    /// [`HARM_FALSE_ALARM`].
+    pub(crate) fn judge(
+        &self,
+        problem: &CellProblem,
+        cal: &CellCalibration,
+        layout: &ParamLayout,
+        solve: &SolveOptions,
+    ) -> Result<HarmCheck, CellFitError> {
+        let prefix = match self.design {
+            HarmDesign::JointRegions => "region",
+            _ => "block",
+        };
+        let mut rows = Vec::with_capacity(self.folds.len());
+        for (k, (units, train)) in self.folds.iter().zip(&self.train).enumerate() {
+            let model = fold_e2(problem, Some(layout), cal, train, units, solve)?;
+            let base = &self.nominal[k];
+            rows.push((
+                FoldRows {
+                    name: format!("{prefix} {}", k + 1),
+                    kinds: model.iter().map(|(kind, _)| *kind).collect(),
+                    nominal_e2: base.iter().map(|(_, e)| *e).collect(),
+                    candidate_e2: model.iter().map(|(_, e)| *e).collect(),
+                },
+                units.iter().map(Vec::len).sum::<usize>(),
+            ));
+        }
+        let (out, comparisons, alpha_each) = if rows.is_empty() {
+            (Vec::new(), 0, 0.0)
+        } else {
+            let fold_rows: Vec<FoldRows> = rows.iter().map(|(f, _)| f.clone()).collect();
+            let j = judge_harm(&fold_rows, HARM_FALSE_ALARM)
+                .map_err(|e| CellFitError::InvalidInput(format!("do-no-harm check: {e}")))?;
+            let out = j
+                .folds
+                .into_iter()
+                .zip(&rows)
+                .map(|(harm, (_, n))| HarmFold { rows: *n, harm })
+                .collect();
+            (out, j.comparisons, j.alpha_each)
+        };
+        Ok(HarmCheck {
+            design: self.design,
+            how: self.how.clone(),
+            false_alarm: HARM_FALSE_ALARM,
+            comparisons,
+            alpha_each,
+            folds: out,
+            kept_in_training: self.kept,
+        })
+    }
+}
+
 /// The do-no-harm check of `cal`, a calibration of `problem` (see the module documentation);
 /// `solve` the solver settings of the fits. `None` when the calibration has no kinematic
 /// unknown (a placement-only fit is the nominal model: nothing to check).
@@ -243,62 +356,11 @@ pub fn region_harm_check(
     cal: &CellCalibration,
     solve: &SolveOptions,
 ) -> Result<Option<HarmCheck>, CellFitError> {
-    let fit = &cal.fit;
-    if fit.layout.prior_sqrt_info.nrows() == 0 {
+    if cal.fit.layout.prior_sqrt_info.nrows() == 0 {
         return Ok(None);
     }
-    let (design, how, folds, kept) = harm_folds(problem, &fit.active);
-    let prefix = match design {
-        HarmDesign::JointRegions => "region",
-        _ => "block",
-    };
-    let mut nominal = problem.clone();
-    nominal.robot1.tolerance = Tolerance::none();
-    nominal.robot2.tolerance = Tolerance::none();
-    let mut rows = Vec::with_capacity(folds.len());
-    for (k, units) in folds.iter().enumerate() {
-        let held: Vec<usize> = units.iter().flatten().copied().collect();
-        let train: Vec<usize> = fit
-            .active
-            .iter()
-            .copied()
-            .filter(|i| !held.contains(i))
-            .collect();
-        let model = fold_e2(problem, Some(&fit.layout), cal, &train, units, solve)?;
-        let base = fold_e2(&nominal, None, cal, &train, units, solve)?;
-        rows.push((
-            FoldRows {
-                name: format!("{prefix} {}", k + 1),
-                kinds: model.iter().map(|(kind, _)| *kind).collect(),
-                nominal_e2: base.iter().map(|(_, e)| *e).collect(),
-                candidate_e2: model.iter().map(|(_, e)| *e).collect(),
-            },
-            held.len(),
-        ));
-    }
-    let (out, comparisons, alpha_each) = if rows.is_empty() {
-        (Vec::new(), 0, 0.0)
-    } else {
-        let fold_rows: Vec<FoldRows> = rows.iter().map(|(f, _)| f.clone()).collect();
-        let j = judge_harm(&fold_rows, HARM_FALSE_ALARM)
-            .map_err(|e| CellFitError::InvalidInput(format!("do-no-harm check: {e}")))?;
-        let out = j
-            .folds
-            .into_iter()
-            .zip(&rows)
-            .map(|(harm, (_, n))| HarmFold { rows: *n, harm })
-            .collect();
-        (out, j.comparisons, j.alpha_each)
-    };
-    Ok(Some(HarmCheck {
-        design,
-        how,
-        false_alarm: HARM_FALSE_ALARM,
-        comparisons,
-        alpha_each,
-        folds: out,
-        kept_in_training: kept,
-    }))
+    let folds = HarmFolds::new(problem, cal, solve)?;
+    folds.judge(problem, cal, &cal.fit.layout, solve).map(Some)
 }
 
 /// Each row of the held-out `units` with its kind and whitened squared residual `‖W·r‖²` under

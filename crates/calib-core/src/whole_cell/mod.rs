@@ -123,7 +123,8 @@
 //! manifold updates) ← `residuals` (residuals and analytic Jacobians, [`Evaluator`]) ← `start`
 //! (starting values) ← `solve` (Levenberg–Marquardt) ← `reduce` ← `blunders` ← `accuracy` ←
 //! `design`, `evidence` (the prior scales from the evidence), `calibrate` (the one call) ←
-//! `prediction` (the predicted error), `do_no_harm` (the region-held-out check against nominal) ←
+//! `prediction` (the predicted error), `do_no_harm` (the region-held-out check against nominal) ← `withhold` (the export's
+//! family-by-family do-no-harm decision) ←
 //! `report` (its file-unit report); beside them, `coverage` (the joint ranges and tool-point
 //! region a session covers against the limits and the reach), the result check (`check`: noise
 //! scale, placement against the stated one, layout shape; `mistakes`: likely data mistakes
@@ -152,6 +153,7 @@ mod residuals;
 mod solve;
 mod start;
 mod validate;
+mod withhold;
 
 #[cfg(any(test, feature = "fixtures"))]
 #[doc(hidden)]
@@ -226,4 +228,8 @@ pub use start::initial_estimate;
 pub use validate::{
     carry_nuisances, fit_nuisances, group_name, held_out_pieces, held_out_residuals, hold_cell,
     score_held_out, sub_problem, HeldOutResidual, NuisanceMode, HOLD_SIGMA, MIN_SPLIT_ROWS,
+};
+pub use withhold::{
+    check_margin, decide_families, error_families, ErrorFamily, FamilyDecision, FamilyKind,
+    FamilyTrial, FamilyVerdict,
 };
