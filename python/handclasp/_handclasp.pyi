@@ -183,9 +183,19 @@ class CellResult:
         (x_mm,y_mm,z_mm). Returns the path written."""
     def export(self, dir: _Path, overwrite: bool = False, force: bool = False) -> List[str]:
         """Write cell.toml, robot1.urdf, robot2.urdf (calibrate --cell --export), under the
-        CLI's export lock; a non-empty folder needs overwrite=True (force=True is refused).
-        Writes the model as fitted: the CLI's do-no-harm check of --export is not run (it is
-        the binary's own code); diagnose(cell, session).export(dir) applies the diagnosis's."""
+        CLI's export lock; a non-empty folder needs overwrite=True.
+
+        Runs the CLI's do-no-harm check first (the same library function; the verdict is
+        do_no_harm()): when the model is worse than nominal on a held-out region of joint
+        space, the error families that harm are withheld family by family and the export is a
+        refit without them (the placement only when all harm), with a UserWarning naming what
+        was withheld and why. force=True (--force) exports the full model as fitted, warning
+        when it harms. (force=True used to raise ValueError, as the old way to overwrite.)"""
+    def do_no_harm(self) -> Optional[Dict[str, Any]]:
+        """The do-no-harm verdict export() applies: the CLI's JSON `do_no_harm` object
+        (folds, exported: the model's name, "partial" or "placement", kept, withheld with the
+        held-out regions that decided each, families, trials); None for a placement-only
+        calibration. Runs the check on first use, then keeps it."""
     def text(self) -> str: ...
     def to_json(self) -> str: ...
     def to_dict(self) -> Dict[str, Any]:

@@ -2,12 +2,14 @@
 //! as `handclasp calibrate --cell` and `handclasp diagnose` compute them.
 
 use std::path::PathBuf;
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use cli_support::cell_report::{
     calibrate_session, render_text, CellModel, CellReport, SessionCalibration, P95_SEED,
 };
+use cli_support::do_no_harm::DoNoHarmReport;
 use cli_support::export_dir::check_output_folder;
+use cli_support::result_check::ScreenMode;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use numpy::PyArray2;
 use pyo3::prelude::*;
@@ -100,6 +102,12 @@ pub struct CellResult {
     /// The verdict at the work site, when `calibrate_cell` was asked for it.
     work_site: Option<WorkSiteReport>,
     cell: Arc<handclasp_cell::Cell>,
+    /// The session calibrated (the do-no-harm check refits it).
+    session: handclasp_cell::Session,
+    /// The do-no-harm decision ([`cli_support::do_no_harm::check`], without `force`) and the
+    /// refit it exports when it withholds; computed on first use (`export`, `do_no_harm`).
+    /// `None` inside: nothing to check (a placement-only calibration).
+    harm: OnceLock<Option<(DoNoHarmReport, Option<SessionCalibration>)>>,
     /// The cell's and the session's files as the page names them.
     cell_path: String,
     session_path: String,
@@ -262,14 +270,17 @@ impl CellResult {
     /// Writes the calibrated cell into `dir` (`cell.toml`, `robot1.urdf`, `robot2.urdf`), as
     /// `calibrate --cell --export DIR`, under the same folder lock: a non-empty folder raises
     /// `FileExistsError` unless `overwrite` (`--overwrite`), as does a concurrent export into
-    /// it; `force=True` no longer overwrites (`ValueError`). Returns the files written.
+    /// it. Returns the files written.
     ///
-    /// It writes the model as fitted. `calibrate --cell --export DIR` first runs a do-no-harm
-    /// check (the model against nominal by region-held-out cross-validation; a model worse than
-    /// nominal in a held-out region is replaced by the placement-only calibration unless
-    /// `--force`). That check is the `handclasp` binary's own code, not yet in a library this
-    /// package calls, so `export` does not run it: for a checked export use the CLI, or
-    /// `diagnose(cell, session).export(dir)` (the diagnosis's do-no-harm rule, family by family).
+    /// It runs the CLI's do-no-harm check first (the same library function,
+    /// `cli_support::do_no_harm::check`; the verdict is [`CellResult::do_no_harm`]): the model
+    /// against nominal by region-held-out cross-validation; when the model is worse than
+    /// nominal in a held-out region, the error families that harm are withheld family by family
+    /// and the export is a refit of the session without them (the placement only when every
+    /// family harms), with a `UserWarning` naming what was withheld and why. `force=True`
+    /// (`--force`) exports the full model as fitted, with a `UserWarning` when it harms.
+    /// (Before, `force=True` raised `ValueError`: it was the old way to overwrite; overwriting is
+    /// `overwrite=True`.)
     #[pyo3(signature = (dir, overwrite=false, force=false))]
     fn export(
         &self,
@@ -278,14 +289,55 @@ impl CellResult {
         overwrite: bool,
         force: bool,
     ) -> PyResult<Vec<String>> {
-        locked_export(py, &dir, overwrite, force, || {
+        check_folder(&dir, overwrite, false)?;
+        let harm = self.harm(py)?;
+        let model = self.calibrated.report.model;
+        let safe = match harm {
+            Some((r, safe)) => {
+                let mut r = r.clone();
+                r.forced = force && r.check.harmful();
+                for line in cli_support::do_no_harm::messages(&r, model, "force=True") {
+                    // The CLI's `warning: ` lines as warnings; its `note: ` lines (folds in row
+                    // order, a check that could not run) too, with their prefix.
+                    crate::errors::user_warning(
+                        py,
+                        line.strip_prefix("warning: ").unwrap_or(&line),
+                    )?;
+                }
+                if force {
+                    None
+                } else {
+                    safe.as_ref()
+                }
+            }
+            None => None,
+        };
+        let estimate = &safe.unwrap_or(&self.calibrated).calibration.fit.estimate;
+        locked_export(py, &dir, overwrite, false, || {
             handclasp_cell::export_calibrated_cell(
                 &self.cell,
-                &self.calibrated.calibration.fit.estimate,
+                estimate,
                 &dir,
                 &handclasp_cell::CALIBRATE_EXPORT_NAMES,
             )
         })
+    }
+
+    /// The do-no-harm verdict [`CellResult::export`] applies (the CLI's JSON `do_no_harm`
+    /// object of `calibrate --cell --export`, as a dict: the full model's folds against
+    /// nominal, `exported` (the model's name, `partial` or `placement`), `kept` and `withheld`
+    /// (each family with the held-out regions that decided it), `families`, `trials`), or
+    /// `None` for a placement-only calibration (nothing to check). Runs the check on first use
+    /// (GIL released; minutes on large sessions), then keeps it.
+    fn do_no_harm<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        match self.harm(py)? {
+            Some((r, _)) => {
+                let json = serde_json::to_string(r)
+                    .map_err(|e| value_error(format!("serialising the do-no-harm verdict: {e}")))?;
+                json_to_py(py, &json)
+            }
+            None => Ok(py.None().into_bound(py)),
+        }
     }
 
     /// The CLI's text report (with the verdict at the work site when `calibrate_cell` was asked
@@ -323,6 +375,31 @@ impl CellResult {
 }
 
 impl CellResult {
+    /// The do-no-harm decision of this calibration, computed once (GIL released).
+    fn harm(
+        &self,
+        py: Python<'_>,
+    ) -> PyResult<&Option<(DoNoHarmReport, Option<SessionCalibration>)>> {
+        if let Some(h) = self.harm.get() {
+            return Ok(h);
+        }
+        let c = &self.calibrated;
+        let h = py
+            .detach(|| {
+                cli_support::do_no_harm::check(
+                    &self.cell,
+                    &self.session,
+                    c,
+                    c.report.model,
+                    ScreenMode::Auto,
+                    None,
+                    false,
+                )
+            })
+            .map_err(|e| to_py(&e, "export", Otherwise::Calibration))?;
+        Ok(self.harm.get_or_init(|| h))
+    }
+
     /// The verdict at the work site of this calibration (`report::predict_work_site`, what
     /// `calibrate --cell` calls), GIL released.
     fn predict(&self, py: Python<'_>, site: &SiteInputs) -> PyResult<WorkSiteReport> {
@@ -439,6 +516,8 @@ pub fn calibrate_cell(
         calibrated,
         work_site: None,
         cell: c,
+        session: session.session.clone(),
+        harm: OnceLock::new(),
         cell_path: shown(cell.path.as_deref(), "(a Cell)"),
         session_path: shown(session.path.as_deref(), "(a Session from arrays)"),
     };

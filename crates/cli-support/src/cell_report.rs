@@ -22,10 +22,10 @@ use std::fmt::Write as _;
 use calib_core::whole_cell::{
     calibrate_cell_with, format_scale, predict_error, session_coverage, widen_prior,
     workspace_pairs, CalibrationReport, CellCalibration, CellFitError, CellProblem, ConfigPair,
-    CoverageReport, DropReason, FittedPlacementReport, GroupsReport, Kind, NuisanceReport, PairSet,
-    ParameterReport, PlacementSigmaReport, PredictedErrorReport, PredictionSplit, PriorScaleReport,
-    RejectedRowReport, ScaleMethod, ScreenOptions, SolveOptions, UnidentifiableReport,
-    WORKSPACE_POSES, WORKSPACE_SEED,
+    CoverageReport, DropReason, ErrorFamily, FittedPlacementReport, GroupsReport, Kind,
+    NuisanceReport, PairSet, ParameterReport, PlacementSigmaReport, PredictedErrorReport,
+    PredictionSplit, PriorScaleReport, RejectedRowReport, ScaleMethod, ScreenOptions, SolveOptions,
+    UnidentifiableReport, WORKSPACE_POSES, WORKSPACE_SEED,
 };
 use calib_core::{PoseForms, StopReason};
 use handclasp_cell::problem::{cell_problem, session_meeting_pairs, FitModel};
@@ -237,9 +237,27 @@ pub fn calibrate_session_with(
     screen: ScreenMode,
     tolerance_scale: Option<f64>,
 ) -> Result<SessionCalibration, CellCalibrationError> {
+    calibrate_session_withholding(cell, session, model, screen, tolerance_scale, &[])
+}
+
+/// [`calibrate_session_with`] with the error families `withheld` left nominal: their
+/// tolerances zeroed in the problem ([`ErrorFamily::withhold_from`]) before anything is fitted,
+/// so the whole calibration (screen, result check, prior-scale choice, predictions) is a refit
+/// without them (the do-no-harm export's model, [`crate::do_no_harm`]).
+pub fn calibrate_session_withholding(
+    cell: &Cell,
+    session: &Session,
+    model: CellModel,
+    screen: ScreenMode,
+    tolerance_scale: Option<f64>,
+    withheld: &[ErrorFamily],
+) -> Result<SessionCalibration, CellCalibrationError> {
     handclasp_cell::check_session_inputs(session)?;
     check_other_arm_joints(cell, session, model)?;
-    let problem = cell_problem(cell, session, model.fit_model());
+    let mut problem = cell_problem(cell, session, model.fit_model());
+    for f in withheld {
+        f.withhold_from(&mut problem);
+    }
     let mut solve = SolveOptions::default();
     if session.points.len() < MIN_COINCIDENT_FOR_START {
         // Contact, tracker and plane rows alone give no rigid starting placement: start from
@@ -460,7 +478,7 @@ fn keep_cell_robots(cell: &Cell, report: &mut CoverageReport) {
 
 /// Fewer coincident rows than this: the fit starts from the cell's `b1_from_b2` (a rigid start
 /// needs 3 points not on a line).
-const MIN_COINCIDENT_FOR_START: usize = 3;
+pub(crate) const MIN_COINCIDENT_FOR_START: usize = 3;
 
 /// The predicted cooperative accuracy over the session's meeting pairs (or the workspace), mm:
 /// calib-core's [`PredictedErrorReport`].

@@ -2,6 +2,7 @@
 
 pub mod cell_report;
 pub mod controllers;
+pub mod do_no_harm;
 pub mod export_dir;
 pub mod points;
 pub mod result_check;

@@ -246,12 +246,13 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
     let do_no_harm = match &args.export {
         Some(_) => {
             progress.phase("do no harm: the model against nominal, region by region held out");
-            crate::do_no_harm::check(
+            cli_support::do_no_harm::check(
                 &cell,
                 &session,
                 &calibrated,
                 args.model.cell_model(),
                 args.screen.mode(),
+                args.tolerance_scale,
                 force,
             )
             .context("the do-no-harm check before --export")?
@@ -264,7 +265,7 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         None => (None, None),
     };
     if let Some(r) = &do_no_harm {
-        for line in crate::do_no_harm::messages(r, args.model.cell_model()) {
+        for line in cli_support::do_no_harm::messages(r, args.model.cell_model(), "--force") {
             eprintln!("{line}");
         }
     }
@@ -289,31 +290,37 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
         work_site: None,
         do_no_harm,
     };
-    // The verdict and the page describe the model the export writes: the safe (placement-only)
-    // calibration when the do-no-harm rule withholds the kinematics, not the withheld fit.
-    let exported = match &safe {
-        Some(s) => Exported {
+    // The verdict and the page describe the model the export writes: the do-no-harm rule's
+    // refit without the withheld families (placement only when all are), not the full fit.
+    let safe_model = report
+        .do_no_harm
+        .as_ref()
+        .filter(|r| r.withholds())
+        .map(|r| exported_model_name(r, args.model.cell_model()));
+    let exported = match (&safe, &safe_model) {
+        (Some(s), Some(name)) => Exported {
             problem: &s.problem,
             cal: &s.calibration,
             report: &s.report,
-            model: CellModel::Placement.name(),
+            model: name.clone(),
         },
-        None => Exported {
+        _ => Exported {
             problem: &problem,
             cal: &cal,
             report: &report.report,
-            model: args.model.cell_model().name(),
+            model: args.model.cell_model().name().to_string(),
         },
     };
     if safe.is_some() && wants_work_site {
         eprintln!(
-            "note: do no harm: the verdict at the work site{} is for the exported model \
-             (placement only), not for the withheld {} fit",
+            "note: do no harm: the verdict at the work site{} is for the exported model ({}), \
+             not for the full {} fit",
             if args.report.is_some() {
                 " and the --report page"
             } else {
                 ""
             },
+            exported.model,
             args.model.cell_model().name()
         );
     }
@@ -392,7 +399,7 @@ fn write_report_page(
         &CalibrationPageInputs {
             cell: &display(&args.cell),
             session: &display(&args.session),
-            model: exported.model,
+            model: &exported.model,
             rows: exported.report.rows,
             meeting_pairs: exported.report.cooperative_accuracy_mm.as_ref().map(|c| {
                 MeetingPairsAccuracy {
@@ -418,14 +425,25 @@ struct Exported<'a> {
     cal: &'a calib_core::whole_cell::CellCalibration,
     /// Its report (rows, the prediction over the meeting pairs).
     report: &'a CellReport,
-    /// Its model's name (`kinematic`, `kinematic+compliance`, `placement`).
-    model: &'static str,
+    /// Its model's name (`kinematic`, `kinematic+compliance`, `placement`, or the model less
+    /// the families the do-no-harm rule withholds: [`exported_model_name`]).
+    model: String,
+}
+
+/// The name of the model the do-no-harm rule exports: `placement` when it withholds every
+/// family, else `kinematic without robot 1 joint offsets, …`.
+fn exported_model_name(r: &cli_support::do_no_harm::DoNoHarmReport, model: CellModel) -> String {
+    if r.kept.is_empty() {
+        return CellModel::Placement.name().to_string();
+    }
+    let withheld: Vec<&str> = r.withheld.iter().map(|w| w.family.as_str()).collect();
+    format!("{} without {}", model.name(), withheld.join(", "))
 }
 
 /// `calibrate --cell`'s report ([`CellReport`]) with the verdict at the work site when
 /// `--report`, `--work-points`, `--accept-mm` or `--accept-deg` asks for it, and the
 /// do-no-harm rule's verdict with `--export` ([`CalibrationWithSite`], shared with Python).
-type CellReportWithSite = CalibrationWithSite<CellReport, crate::do_no_harm::DoNoHarmReport>;
+type CellReportWithSite = CalibrationWithSite<CellReport, cli_support::do_no_harm::DoNoHarmReport>;
 
 /// The text report of `r`: [`render_text`] and, when asked for, the verdict at the work site and
 /// the do-no-harm rule's verdict.
@@ -435,7 +453,7 @@ fn text(r: &CellReportWithSite) -> String {
         s.push_str(&report::work_site_text(w));
     }
     if let Some(d) = &r.do_no_harm {
-        s.push_str(&crate::do_no_harm::text(d));
+        s.push_str(&cli_support::do_no_harm::text(d));
     }
     s
 }

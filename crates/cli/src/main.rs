@@ -10,7 +10,6 @@ use clap::{Parser, Subcommand};
 mod calibrate;
 mod calibrate_cell;
 mod diagnose;
-mod do_no_harm;
 mod export;
 mod export_dir;
 mod fk;

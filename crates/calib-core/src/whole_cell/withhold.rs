@@ -244,6 +244,10 @@ pub struct FamilyVerdict {
     /// Whether the model without it alone still harms a region, when the ranking ran.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub harmful_without: Option<bool>,
+    /// Why it is withheld: the regions where the model still holding it (every family ranked
+    /// before it withheld) is worse than nominal with significance (empty when kept).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub harmful_in: Vec<HarmFold>,
 }
 
 /// The decision of [`decide_families`] (see the module documentation).
@@ -308,6 +312,7 @@ pub fn decide_families(
         rank: None,
         margin_without: None,
         harmful_without: None,
+        harmful_in: Vec::new(),
     };
     if !check.harmful() || families.is_empty() {
         return Ok(Some(FamilyDecision {
@@ -336,8 +341,12 @@ pub fn decide_families(
     let mut trials = ranking.clone();
     let mut exported_trial = None;
     let mut withheld = Vec::new();
+    // Per family (family order): the harmful regions of the model it was withheld from.
+    let mut why: Vec<Vec<HarmFold>> = vec![Vec::new(); families.len()];
+    let mut harming: Vec<HarmFold> = check.harmful_folds().into_iter().cloned().collect();
     for (j, &i) in order.iter().enumerate() {
         withheld.push(families[i]);
+        why[i] = std::mem::take(&mut harming);
         if withheld.len() == families.len() {
             break; // the placement only: nominal, not judged
         }
@@ -352,6 +361,12 @@ pub fn decide_families(
             exported_trial = Some(trial);
             break;
         }
+        harming = trial
+            .folds
+            .iter()
+            .filter(|f| f.harm.harmful)
+            .cloned()
+            .collect();
     }
     let families = families
         .iter()
@@ -362,6 +377,7 @@ pub fn decide_families(
             rank: order.iter().position(|&o| o == i).map(|r| r + 1),
             margin_without: Some(ranking[i].margin),
             harmful_without: Some(ranking[i].harmful),
+            harmful_in: std::mem::take(&mut why[i]),
         })
         .collect();
     Ok(Some(FamilyDecision {
