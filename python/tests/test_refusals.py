@@ -77,7 +77,8 @@ def test_export_takes_the_lock_and_the_overwrite_rule(cell, data, tmp_path):
     r.export(out)
     with pytest.raises(FileExistsError, match="overwrite=True"):
         r.export(out)
-    with pytest.raises(ValueError, match="no longer overwrites"):
+    # force=True keeps the full model (the do-no-harm rule's --force); it does not overwrite.
+    with pytest.raises(FileExistsError, match="overwrite=True"):
         r.export(out, force=True)
     assert sorted(os.listdir(out)) == ["cell.toml", "robot1.urdf", "robot2.urdf"]
     r.export(out, overwrite=True)

@@ -388,3 +388,59 @@ pub fn decide_families(
         exported_trial,
     }))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::fixtures::{sim_cell, Cell};
+    use super::super::{calibrate_cell, ParamLayout, ScreenOptions};
+    use super::*;
+
+    /// A family is the unknowns its tolerance field gives a prior: withholding it from the
+    /// problem leaves a layout without exactly those unknowns, every other one kept.
+    #[test]
+    fn withholding_a_family_removes_exactly_its_unknowns() {
+        let sc = sim_cell(Cell::Wall, Tolerance::default(), false, 3);
+        let mut p = sc.problem();
+        p.observations = sc.coincident(30, 3e-4, 0.8, 4);
+        let cal = calibrate_cell(&p, &SolveOptions::default(), &ScreenOptions::default()).unwrap();
+        let families = error_families(&p, &cal);
+        let names: Vec<String> = families.iter().map(ErrorFamily::name).collect();
+        assert!(
+            names.contains(&"robot 1 origin positions".to_string())
+                && names.contains(&"robot 2 tool tips".to_string()),
+            "{names:?}"
+        );
+        let full = ParamLayout::new(&p, &[]);
+        for f in &families {
+            let mut without = p.clone();
+            f.withhold_from(&mut without);
+            let reduced = ParamLayout::new(&without, &[]);
+            let expected: Vec<&CellParam> =
+                full.params.iter().filter(|q| !f.contains(&p, q)).collect();
+            assert_eq!(
+                reduced.params.iter().collect::<Vec<_>>(),
+                expected,
+                "{}",
+                f.name()
+            );
+            assert!(reduced.len() < full.len(), "{}", f.name());
+        }
+    }
+
+    /// A healthy session: the full model harms no region, every family is kept and no reduced
+    /// model is judged.
+    #[test]
+    fn a_healthy_session_keeps_every_family() {
+        let sc = sim_cell(Cell::Wall, Tolerance::default(), false, 3);
+        let mut p = sc.problem();
+        p.observations = sc.coincident(40, 3e-4, 0.8, 4);
+        let solve = SolveOptions::default();
+        let cal = calibrate_cell(&p, &solve, &ScreenOptions::default()).unwrap();
+        let d = decide_families(&p, &cal, &solve).unwrap().unwrap();
+        assert!(!d.check.harmful(), "{:?}", d.check);
+        assert!(!d.withholds() && !d.placement_only());
+        assert_eq!(d.kept().len(), d.families.len());
+        assert!(!d.families.is_empty());
+        assert!(d.trials.is_empty() && d.exported_trial.is_none());
+    }
+}
