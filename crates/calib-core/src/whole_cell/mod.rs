@@ -230,6 +230,6 @@ pub use validate::{
     score_held_out, sub_problem, HeldOutResidual, NuisanceMode, HOLD_SIGMA, MIN_SPLIT_ROWS,
 };
 pub use withhold::{
-    check_margin, decide_families, error_families, ErrorFamily, FamilyDecision, FamilyKind,
-    FamilyTrial, FamilyVerdict,
+    check_margin, decide_families, error_families, largest_harmless, ErrorFamily, FamilyDecision,
+    FamilyKind, FamilyTrial, FamilyVerdict,
 };

@@ -25,7 +25,8 @@
 //!    largest model of a nested sequence that harms no region): for `j = 1, 2, …` the model
 //!    without the first `j` ranked families is judged (`j = 1` is the ranking's own trial); the
 //!    first that harms no region is the export, the `j` families withheld. All withheld: the
-//!    placement only (the nominal model, harmless by definition, not judged).
+//!    placement only (the nominal model, harmless by definition, not judged). Both rules are
+//!    [`largest_harmless`], over this nested sequence.
 //! 4. The export is a **refit** of the session without the withheld families (the caller's
 //!    whole calibration, screen and prior-scale choice included, on the problem with those
 //!    tolerances zeroed: `cli_support::do_no_harm`), not the full fit with entries zeroed.
@@ -289,6 +290,26 @@ impl FamilyDecision {
     }
 }
 
+/// The do-no-harm rule over a nested sequence of models `0..=n` (model `j` holds the first `j`
+/// families of an order; model 0, the nominal model, is harmless by definition): the largest `j`
+/// whose model `harmful(j)` says harms no region, judged from `n` down, so the models above the
+/// answer are the only ones judged. `diagnose --export` applies it to its accepted steps (`j`
+/// steps), [`decide_families`] to the families in reverse withholding order.
+///
+/// # Errors
+/// The first error of `harmful`.
+pub fn largest_harmless<E>(
+    n: usize,
+    mut harmful: impl FnMut(usize) -> Result<bool, E>,
+) -> Result<usize, E> {
+    for j in (1..=n).rev() {
+        if !harmful(j)? {
+            return Ok(j);
+        }
+    }
+    Ok(0)
+}
+
 /// The do-no-harm decision for `cal`, a calibration of `problem` (see the module
 /// documentation): which families to keep and which to withhold. `None` when the calibration
 /// has no kinematic unknown (nothing to check).
@@ -340,34 +361,47 @@ pub fn decide_families(
     order.sort_by(|&a, &b| ranking[b].margin.total_cmp(&ranking[a].margin));
     let mut trials = ranking.clone();
     let mut exported_trial = None;
-    let mut withheld = Vec::new();
     // Per family (family order): the harmful regions of the model it was withheld from.
     let mut why: Vec<Vec<HarmFold>> = vec![Vec::new(); families.len()];
     let mut harming: Vec<HarmFold> = check.harmful_folds().into_iter().cloned().collect();
-    for (j, &i) in order.iter().enumerate() {
-        withheld.push(families[i]);
-        why[i] = std::mem::take(&mut harming);
-        if withheld.len() == families.len() {
-            break; // the placement only: nominal, not judged
+    // The nested models: model `j` keeps the `j` families ranked last (withholds the first
+    // `n − j`); model `n` is the full one (harmful, judged above).
+    let n = families.len();
+    let kept = largest_harmless(n, |j| -> Result<bool, CellFitError> {
+        let out = n - j;
+        if out == 0 {
+            return Ok(true);
         }
-        let trial = if j == 0 {
+        let i = order[out - 1];
+        why[i] = std::mem::take(&mut harming);
+        let trial = if out == 1 {
             ranking[i].clone()
         } else {
+            let withheld: Vec<ErrorFamily> = order[..out].iter().map(|&k| families[k]).collect();
             let t = judge_without(&withheld)?;
             trials.push(t.clone());
             t
         };
-        if !trial.harmful {
-            exported_trial = Some(trial);
-            break;
+        if trial.harmful {
+            harming = trial
+                .folds
+                .iter()
+                .filter(|f| f.harm.harmful)
+                .cloned()
+                .collect();
+            return Ok(true);
         }
-        harming = trial
-            .folds
-            .iter()
-            .filter(|f| f.harm.harmful)
-            .cloned()
-            .collect();
+        exported_trial = Some(trial);
+        Ok(false)
+    })?;
+    if kept == 0 {
+        // Every family withheld: the last one's reason is the model before it.
+        let i = order[n - 1];
+        if why[i].is_empty() {
+            why[i] = harming;
+        }
     }
+    let withheld: Vec<ErrorFamily> = order[..n - kept].iter().map(|&k| families[k]).collect();
     let families = families
         .iter()
         .enumerate()

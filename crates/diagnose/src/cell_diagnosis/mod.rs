@@ -668,10 +668,10 @@ fn run(
         };
         harm.push(row);
     }
-    let safe_steps = (0..=harm.len())
-        .rev()
-        .find(|&j| j == 0 || harm[j - 1].iter().all(|h| !h.0.harmful))
-        .unwrap_or(0);
+    let safe_steps = calib_core::whole_cell::largest_harmless(harm.len(), |j| {
+        Ok::<bool, std::convert::Infallible>(harm[j - 1].iter().any(|h| h.0.harmful))
+    })
+    .unwrap_or_else(|never| match never {});
     let safe_fit = if safe_steps == 0 {
         baseline.clone()
     } else {
