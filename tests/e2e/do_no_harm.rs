@@ -336,8 +336,29 @@ fn a_healthy_session_withholds_nothing() {
     assert!(folds.iter().all(|f| f["harmful"] == false), "{h}");
 }
 
-/// A simulated session of `kind` rows (`sim-cell session --kind …`) of `truth`, written as
-/// `dir/name` against the reported cell `truth` (the truth's hidden errors are not in the CSV).
+/// A simulated session (`sim-cell session --kind …`) of `spec`'s rows of `kind` on `truth`,
+/// drawn from `trial_rng(seed, 0)`, written as `dir/name` against the reported cell `reported`
+/// (the truth's hidden errors are not in the CSV).
+fn write_kind_session(
+    dir: &Path,
+    name: &str,
+    (truth, reported): (&Cell, &Cell),
+    spec: &SessionSpec,
+    kind: SimKind,
+    seed: u64,
+) -> PathBuf {
+    let kinds = KindSpec {
+        kind,
+        ..KindSpec::default()
+    };
+    let (s, _) =
+        sim_cell::generate_kind_session(truth, spec, &kinds, None, &mut trial_rng(seed, 0))
+            .expect("session");
+    write_session_csv(dir, name, &s, reported)
+}
+
+/// A session of [`ROWS`] rows of `kind` in `layout` ([`SPREAD_M`]) of `truth`, written as
+/// `dir/name` against `truth` itself (its hidden errors are not in the CSV).
 fn kind_session(
     dir: &Path,
     name: &str,
@@ -347,14 +368,7 @@ fn kind_session(
     seed: u64,
 ) -> PathBuf {
     let spec = SessionSpec::new(ROWS, layout, SPREAD_M);
-    let kinds = KindSpec {
-        kind,
-        ..KindSpec::default()
-    };
-    let (s, _) =
-        sim_cell::generate_kind_session(truth, &spec, &kinds, None, &mut trial_rng(seed, 0))
-            .expect("session");
-    write_session_csv(dir, name, &s, truth)
+    write_kind_session(dir, name, (truth, truth), &spec, kind, seed)
 }
 
 /// Every scored kind of the check's folds with the rows of the comparisons it is in (a pooled
@@ -512,14 +526,8 @@ fn kind_session_n(
     seed: u64,
 ) -> PathBuf {
     let spec = SessionSpec::new(n, Layout::Random, crate::support::RANDOM_SPREAD_M);
-    let kinds = KindSpec {
-        kind,
-        ..KindSpec::default()
-    };
-    let (s, _) =
-        sim_cell::generate_kind_session(truth, &spec, &kinds, None, &mut trial_rng(seed, 0))
-            .expect("session");
-    write_session_csv(dir, &format!("{kind:?}-{n}-{seed}.csv"), &s, reported)
+    let name = format!("{kind:?}-{n}-{seed}.csv");
+    write_kind_session(dir, &name, (truth, reported), &spec, kind, seed)
 }
 
 /// The false alarm of stop 34 (`check20`): a mixed session of 84 rows of the docs' example
