@@ -359,6 +359,15 @@ fn plan_on_a_shared_trunk_predicts_the_calibration_it_plans() {
         &arg(&cal),
     ]);
     crate::support::assert_success(&out);
+    // The placement is the trunk's, held at the identity: nothing is "absorbed by b1_from_b2"
+    // (the fit used to start at a free registration, where the trunk's origin shifts read as
+    // placement motions); the trunk's origin shifts, which move both hands alike, say so.
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(!text.contains("absorbed by b1_from_b2"), "{text}");
+    assert!(
+        text.contains("robot 1 origin_xyz joint 1 x: the shared trunk's, moves both hands alike"),
+        "{text}"
+    );
 
     // New handclasps, noise-free: the residual of a row is the cooperative error there.
     let mut exact = truth.clone();

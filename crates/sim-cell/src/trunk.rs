@@ -213,6 +213,20 @@ mod tests {
         Cell::from_toml_file(&p).unwrap()
     }
 
+    /// The humanoid without noise and with 2°/(kN·m) on every joint, the trunk's once (robot
+    /// 2's trunk entries are robot 1's), so both arms load the trunk.
+    fn loaded_humanoid_trunk() -> Cell {
+        let mut cell = humanoid_trunk();
+        cell.noise.alignment_m = Vector3::zeros();
+        cell.noise.repeatability_m = 0.0;
+        cell.noise.encoder_resolution_rad = 0.0;
+        let c = 2f64.to_radians() * 1e-3;
+        for r in [&mut cell.robot1, &mut cell.robot2] {
+            r.errors.compliance = vec![c; r.errors.joint_offset.len()];
+        }
+        cell
+    }
+
     /// The tolerance of the true tips meeting, m (the true-robot Newton's, with the load passes'
     /// second-order residue).
     const MEET_TOL_M: f64 = 1e-7;
@@ -225,15 +239,7 @@ mod tests {
     /// deflected by the other's weight at the reported joints, meet head-on.
     #[test]
     fn a_handclasp_on_a_shared_trunk_agrees_on_the_trunk_and_the_true_tips_meet() {
-        let mut cell = humanoid_trunk();
-        cell.noise.alignment_m = Vector3::zeros();
-        cell.noise.repeatability_m = 0.0;
-        cell.noise.encoder_resolution_rad = 0.0;
-        // 2°/(kN·m) on every joint, the trunk's once (robot 2's trunk entries are robot 1's).
-        let c = 2f64.to_radians() * 1e-3;
-        for r in [&mut cell.robot1, &mut cell.robot2] {
-            r.errors.compliance = vec![c; r.errors.joint_offset.len()];
-        }
+        let cell = loaded_humanoid_trunk();
         let p = Point3::new(0.35, 0.0, 1.45);
         let dirs = crate::simulate::meeting_directions(&cell, &p);
         let mut rng = crate::trial_rng(3, 0);
@@ -271,14 +277,7 @@ mod tests {
     /// unloaded rotations).
     #[test]
     fn face_contact_normals_carry_the_trunk_load() {
-        let mut cell = humanoid_trunk();
-        cell.noise.alignment_m = Vector3::zeros();
-        cell.noise.repeatability_m = 0.0;
-        cell.noise.encoder_resolution_rad = 0.0;
-        let c = 2f64.to_radians() * 1e-3;
-        for r in [&mut cell.robot1, &mut cell.robot2] {
-            r.errors.compliance = vec![c; r.errors.joint_offset.len()];
-        }
+        let cell = loaded_humanoid_trunk();
         let mut spec = crate::SessionSpec::new(6, crate::Layout::Random, 0.3);
         spec.centre_b1 = Some(Point3::new(0.35, 0.0, 1.45));
         let kinds = crate::KindSpec {
