@@ -45,18 +45,7 @@ fn assert_held_out_near_noise(cal: &Path, held: &Path, nominal: &Path, what: &st
 
 /// [`assert_held_out_near_noise`] of the calibrated cell file `cell` (any export's).
 fn assert_cell_held_out_near_noise(cell: &Path, held: &Path, nominal: &Path, what: &str) {
-    let v = stdout_json(&handclasp(&[
-        "validate",
-        "--cell",
-        &arg(cell),
-        "--session",
-        &arg(held),
-        "--nominal",
-        &arg(nominal),
-        "--json",
-    ]));
-    let calibrated = v["all"]["calibrated"]["rms_mm"].as_f64().unwrap();
-    let nominal_rms = v["all"]["nominal"]["rms_mm"].as_f64().unwrap();
+    let (calibrated, nominal_rms) = crate::support::validate_rms_mm(cell, held, nominal);
     let noise_3d_mm = TRACKER_SIGMA_M * 3f64.sqrt() * 1e3;
     eprintln!(
         "humanoid ({what}), held-out rows: calibrated rms {calibrated:.3} mm, nominal {nominal_rms:.3} mm (noise {noise_3d_mm:.3} mm)"
@@ -370,6 +359,15 @@ fn plan_on_a_shared_trunk_predicts_the_calibration_it_plans() {
         &arg(&cal),
     ]);
     crate::support::assert_success(&out);
+    // The placement is the trunk's, held at the identity: nothing is "absorbed by b1_from_b2"
+    // (the fit used to start at a free registration, where the trunk's origin shifts read as
+    // placement motions); the trunk's origin shifts, which move both hands alike, say so.
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(!text.contains("absorbed by b1_from_b2"), "{text}");
+    assert!(
+        text.contains("robot 1 origin_xyz joint 1 x: the shared trunk's, moves both hands alike"),
+        "{text}"
+    );
 
     // New handclasps, noise-free: the residual of a row is the cooperative error there.
     let mut exact = truth.clone();
@@ -381,18 +379,8 @@ fn plan_on_a_shared_trunk_predicts_the_calibration_it_plans() {
     let held = sim_cell::generate_session(&exact, &spec, &mut trial_rng(72, 0))
         .expect("new handclasps are reached");
     let held = write_session_csv(dir.path(), "held.csv", &held, &nominal);
-    let v = stdout_json(&handclasp(&[
-        "validate",
-        "--cell",
-        &arg(&cal.join("cell.toml")),
-        "--session",
-        &arg(&held),
-        "--nominal",
-        &arg(&cell),
-        "--json",
-    ]));
-    let measured = v["all"]["calibrated"]["rms_mm"].as_f64().unwrap();
-    let nominal_rms = v["all"]["nominal"]["rms_mm"].as_f64().unwrap();
+    let (measured, nominal_rms) =
+        crate::support::validate_rms_mm(&cal.join("cell.toml"), &held, &cell);
     eprintln!(
         "shared-trunk plan: predicted cooperative rms {predicted:.3} mm, measured on 40 new \
          handclasps {measured:.3} mm (nominal {nominal_rms:.3} mm)"
@@ -427,22 +415,6 @@ fn humanoid_trunk_text(urdf: &Path, compliance: Option<f64>) -> String {
         }
     }
     text
-}
-
-/// `handclasp validate --json` of the export in `cal` on `held` against `nominal`: the
-/// calibrated rms over every row, mm.
-fn held_out_rms_mm(cal: &Path, held: &Path, nominal: &Path) -> f64 {
-    let v = stdout_json(&handclasp(&[
-        "validate",
-        "--cell",
-        &arg(&cal.join("cell.toml")),
-        "--session",
-        &arg(held),
-        "--nominal",
-        &arg(nominal),
-        "--json",
-    ]));
-    v["all"]["calibrated"]["rms_mm"].as_f64().unwrap()
 }
 
 /// Gravity compliance on a shared trunk from the CLI (issue 22): the truth's humanoid sags by
@@ -500,7 +472,7 @@ fn shared_trunk_compliance_is_fitted_from_the_cli_without_masses() {
             "{model}: {}",
             String::from_utf8_lossy(&out.stderr)
         );
-        rms.push(held_out_rms_mm(&cal, &held, &fit_cell));
+        rms.push(crate::support::validate_rms_mm(&cal.join("cell.toml"), &held, &fit_cell).0);
     }
     let exported =
         std::fs::read_to_string(dir.path().join("kinematic+compliance/cell.toml")).unwrap();

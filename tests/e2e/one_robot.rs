@@ -154,18 +154,8 @@ fn rail_robot_one_robot_cell_is_calibrated_to_its_noise_on_new_poses() {
         "{exported}"
     );
 
-    let v = stdout_json(&handclasp(&[
-        "validate",
-        "--cell",
-        &arg(&cal.join("cell.toml")),
-        "--session",
-        &arg(&held),
-        "--nominal",
-        &arg(&rail_cell_path()),
-        "--json",
-    ]));
-    let calibrated = v["all"]["calibrated"]["rms_mm"].as_f64().unwrap();
-    let nominal_rms = v["all"]["nominal"]["rms_mm"].as_f64().unwrap();
+    let (calibrated, nominal_rms) =
+        crate::support::validate_rms_mm(&cal.join("cell.toml"), &held, &rail_cell_path());
     // The tracker's own 3-D rms is σ·√3 = 0.087 mm; the held-out score adds the tracker frame
     // refitted on half the rows and the fit's own error at new poses. Twice the noise is a
     // calibration that recovered the robot; the nominal robot (1.5 mm on the rail, which the

@@ -75,6 +75,24 @@ pub fn stdout_json(out: &Output) -> Value {
     serde_json::from_slice(&out.stdout).expect("stdout is one JSON object")
 }
 
+/// `handclasp validate --cell {cell} --session {session} --nominal {nominal} --json`: the
+/// calibrated and the nominal cell's rms over every row, mm.
+pub fn validate_rms_mm(cell: &Path, session: &Path, nominal: &Path) -> (f64, f64) {
+    let path = |p: &Path| p.display().to_string();
+    let v = stdout_json(&handclasp(&[
+        "validate",
+        "--cell",
+        &path(cell),
+        "--session",
+        &path(session),
+        "--nominal",
+        &path(nominal),
+        "--json",
+    ]));
+    let rms = |which: &str| v["all"][which]["rms_mm"].as_f64().unwrap();
+    (rms("calibrated"), rms("nominal"))
+}
+
 /// Runs `handclasp` with `args` (which should include `--json`), requires success (else panics
 /// with the arguments and stderr) and returns stdout parsed as one JSON object.
 pub fn json_ok<S: AsRef<OsStr> + Debug>(args: &[S]) -> Value {

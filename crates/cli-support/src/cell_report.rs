@@ -259,9 +259,12 @@ pub fn calibrate_session_withholding(
         f.withhold_from(&mut problem);
     }
     let mut solve = SolveOptions::default();
-    if session.points.len() < MIN_COINCIDENT_FOR_START {
+    if session.points.len() < MIN_COINCIDENT_FOR_START || cell.shared_joints > 0 {
         // Contact, tracker and plane rows alone give no rigid starting placement: start from
-        // the cell's own b1_from_b2.
+        // the cell's own b1_from_b2. On a shared trunk the placement is the trunk's, the
+        // identity its prior holds: a rigid registration of the nominal tips would start it a
+        // few mm and mrad away, and the reduction, linearised there, read the trunk's
+        // parameters (which move both hands alike) as motions of b1_from_b2.
         solve.initial_b1_from_b2 = Some(cell.b1_from_b2);
     }
     // A placement fit's screen judges the rows it keeps against the stated noise plus the
@@ -317,6 +320,7 @@ pub fn calibrate_session_withholding(
     );
     report.workspace_accuracy_mm = workspace;
     report.one_robot = cell.one_robot;
+    report.shared_trunk = cell.shared_joints > 0;
     keep_cell_robots(cell, &mut report.coverage);
     report.result_check = Some(check);
     Ok(SessionCalibration {
@@ -544,6 +548,11 @@ pub struct CellReport {
     /// (there is no cooperative accuracy). Omitted from the JSON when false.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub one_robot: bool,
+    /// A shared-trunk cell (`[robot2] shares`): `b1_from_b2` is the identity its prior holds
+    /// (the arms' one base), so no parameter is "absorbed by b1_from_b2". Omitted from the JSON
+    /// when false.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub shared_trunk: bool,
     /// The blunder screen's noise scale (residuals' variance factor).
     pub noise_scale: f64,
     /// The session's nuisance parameters (tracker frames, scales, planes, contact distances).
@@ -621,6 +630,7 @@ impl CellReport {
             iterations,
             model,
             one_robot: false,
+            shared_trunk: false,
             noise_scale,
             nuisance_parameters,
             parameters,
@@ -728,7 +738,7 @@ fn write_text(s: &mut String, r: &CellReport) -> std::fmt::Result {
             r.unidentifiable.len()
         )?;
         for d in &r.unidentifiable {
-            writeln!(s, "  {}", dropped_line(d, r.one_robot))?;
+            writeln!(s, "  {}", dropped_line(d, r.one_robot, r.shared_trunk))?;
         }
     }
     if r.rejected_points.is_empty() {
@@ -998,8 +1008,9 @@ fn noise_scale_note(noise_scale: f64) -> &'static str {
 }
 
 /// One readable line per dropped parameter: why, and for a merge its largest partners
-/// (`one_robot`: a one-robot cell, which has no placement).
-fn dropped_line(d: &UnidentifiableReport, one_robot: bool) -> String {
+/// (`one_robot`: a one-robot cell, which has no placement; `shared_trunk`: a shared-trunk cell,
+/// whose placement is held at the identity).
+fn dropped_line(d: &UnidentifiableReport, one_robot: bool, shared_trunk: bool) -> String {
     let name = &d.name;
     match d.reason {
         DropReason::Merged => {
@@ -1029,8 +1040,14 @@ fn dropped_line(d: &UnidentifiableReport, one_robot: bool) -> String {
         DropReason::ConfoundedWithPlacement if one_robot => {
             format!("{name}: absorbed by the robot's base frame (the tracker/plane unknowns)")
         }
+        DropReason::ConfoundedWithPlacement if shared_trunk => format!(
+            "{name}: moves robot 2's tips against robot 1's as b1_from_b2 would, which the shared trunk holds"
+        ),
         DropReason::ConfoundedWithPlacement => format!("{name}: absorbed by b1_from_b2"),
         DropReason::NoEffect => format!("{name}: moves no observed tip"),
+        DropReason::MovesBothHandsAlike => format!(
+            "{name}: the shared trunk's, moves both hands alike (the rows see only where they meet)"
+        ),
         DropReason::PriorDecided => {
             format!("{name}: barely seen by the data, the prior decides it")
         }
@@ -1157,6 +1174,7 @@ mod tests {
             iterations: 4,
             model: CellModel::Kinematic,
             one_robot: false,
+            shared_trunk: false,
             noise_scale: 1.0,
             nuisance_parameters: vec![],
             parameters: vec![

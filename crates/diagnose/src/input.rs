@@ -180,17 +180,31 @@ fn unit_ranges(text: &str) -> (f64, f64, usize) {
 }
 
 /// When a session's tips do not match FK of its joints, tries the usual unit mistakes on its
-/// first rows (angles in radians under `*_deg`, tips in metres under `*_mm`) and says which one
-/// makes every tried row consistent (within 1 mm), if any.
+/// first rows (angles in radians under `*_deg`, a prismatic joint's travel in metres under its
+/// `*_mm` column, tips in metres under `*_mm`) and says which one makes every tried row
+/// consistent (within 1 mm), if any. The joint columns are named as the session reader wants
+/// them ([`handclasp_cell::joint_column`]: `rN_qK_deg`, `rN_qK_mm` for a prismatic joint).
 fn unit_hint(text: &str, cell: &Cell) -> Option<String> {
     let mut reader = calib_core::csv_reader(text);
     let names: Vec<String> = reader.headers().ok()?.iter().map(str::to_string).collect();
     let col = |n: &str| names.iter().position(|h| h == n);
-    let (d1, d2) = (cell.robot1.model.dof(), cell.robot2.model.dof());
-    let q_cols = |r: u8, d: usize| -> Option<Vec<usize>> {
-        (1..=d).map(|k| col(&format!("r{r}_q{k}_deg"))).collect()
+    // Each robot's joint columns with whether the joint is prismatic.
+    let q_cols = |r: u8, model: &kinematics::RobotModel| -> Option<Vec<(usize, bool)>> {
+        model
+            .joints()
+            .iter()
+            .enumerate()
+            .map(|(k, j)| {
+                let prismatic = j.kind.is_prismatic();
+                col(&handclasp_cell::joint_column(r, k + 1, prismatic)).map(|c| (c, prismatic))
+            })
+            .collect()
     };
-    let (c1, c2) = (q_cols(1, d1)?, q_cols(2, d2)?);
+    let (c1, c2) = (
+        q_cols(1, &cell.robot1.model)?,
+        q_cols(2, &cell.robot2.model)?,
+    );
+    let has_prismatic = c1.iter().chain(&c2).any(|&(_, p)| p);
     let t_cols: Vec<usize> = [
         "r1_x_mm", "r1_y_mm", "r1_z_mm", "r2_x_mm", "r2_y_mm", "r2_z_mm",
     ]
@@ -211,11 +225,16 @@ fn unit_hint(text: &str, cell: &Cell) -> Option<String> {
     if rows.is_empty() {
         return None;
     }
-    let consistent = |angle_scale: f64, length_scale: f64| {
+    // Every row consistent when the file's angles are multiplied by `angle_scale`, its prismatic
+    // joints' values by `travel_scale` and its tips by `length_scale` (each to SI).
+    let consistent = |angle_scale: f64, travel_scale: f64, length_scale: f64| {
         rows.iter().all(|v| {
-            let get = |c: &[usize]| {
+            let get = |c: &[(usize, bool)]| {
                 c.iter()
-                    .map(|&i| v.get(i).copied().unwrap_or(f64::NAN) * angle_scale)
+                    .map(|&(i, prismatic)| {
+                        let scale = if prismatic { travel_scale } else { angle_scale };
+                        v.get(i).copied().unwrap_or(f64::NAN) * scale
+                    })
                     .collect::<Vec<f64>>()
             };
             let (q1, q2) = (get(&c1), get(&c2));
@@ -241,12 +260,19 @@ fn unit_hint(text: &str, cell: &Cell) -> Option<String> {
         })
     };
     let deg = std::f64::consts::PI / 180.0;
-    if consistent(1.0, 1e-3) {
+    // The file's units: degrees and millimetres (a prismatic joint's travel in mm too).
+    let (mm, m) = (1e-3, 1.0);
+    if consistent(1.0, mm, mm) {
         Some("the joint columns are consistent with the tips if read as RADIANS: the columns are *_deg, so convert the angles to degrees".into())
-    } else if consistent(deg, 1.0) {
+    } else if consistent(deg, mm, m) {
         Some("the tip columns are consistent with the joints if read as METRES: the columns are *_mm, so convert the tips to millimetres".into())
-    } else if consistent(1.0, 1.0) {
+    } else if consistent(1.0, mm, m) {
         Some("the session is consistent if its angles are radians and its tips metres: the columns are *_deg and *_mm, so convert both".into())
+    } else if has_prismatic && consistent(deg, m, mm) {
+        // The other mixes (the travel in metres with radians or metre tips) are caught before,
+        // by the range checks of `load_session`, every such column being small.
+        Some("the prismatic joints' columns (rN_qK_mm) are consistent with the tips if read as METRES: \
+              a prismatic joint's column is millimetres, so convert the travel to millimetres".into())
     } else {
         None
     }
@@ -355,6 +381,87 @@ mod tests {
         );
         std::fs::write(&path, session.to_csv_string(d1, d2)).unwrap();
         load_session(&path, &cell).expect("the session as written reads back");
+    }
+
+    /// A handclasp cell whose robot 1 rides a 4 m linear track (a prismatic first joint, the
+    /// rail fixture of `cells/rail-tracker.toml`) facing the hp20.
+    fn rail_cell() -> Cell {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let text = r#"
+            [robot1]
+            urdf = "crates/kinematics/tests/fixtures/rail_6r.urdf"
+            mount = "floor"
+            tip_mm = [0.0, 0.0, 120.0]
+            [robot2]
+            urdf = "robots/hp20.urdf"
+            mount = "floor"
+            tip_mm = [0.0, 0.0, 120.0]
+            [b1_from_b2]
+            xyz_mm = [1800.0, 1500.0, 0.0]
+            zyz_deg = [-90.0, 0.0, 0.0]
+            [teach]
+            centre_mm = [1800.0, 750.0, 700.0]
+        "#;
+        Cell::from_toml_str(text, &root).expect("the rail cell loads")
+    }
+
+    /// A prismatic joint's travel written in metres under its `rN_qK_mm` column (alone, or with
+    /// the tips in metres too): the refusal names the prismatic columns and the conversion
+    /// (the hint used to know `*_deg` joint columns only and said nothing on such a cell).
+    #[test]
+    fn metres_under_a_prismatic_joint_column_are_named() {
+        let cell = rail_cell();
+        assert!(cell.robot1.model.joints()[0].kind.is_prismatic());
+        let spec = sim_cell::SessionSpec::new(8, sim_cell::Layout::Random, 0.6);
+        let session =
+            sim_cell::generate_session(&cell, &spec, &mut sim_cell::trial_rng(5, 0)).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("rail.csv");
+        session.write_csv(&path, &cell).unwrap();
+        load_session(&path, &cell).expect("the session as written reads back");
+        let text = std::fs::read_to_string(&path).unwrap();
+        // Each data row with the columns named in `scaled` multiplied by their factor.
+        let rewrite = |scaled: &[(&str, f64)]| -> String {
+            let mut lines = text.lines();
+            let header = lines.next().unwrap();
+            let names: Vec<&str> = header.split(',').collect();
+            let mut out = format!("{header}\n");
+            for line in lines {
+                let fields: Vec<String> = line
+                    .split(',')
+                    .zip(&names)
+                    .map(|(f, name)| {
+                        match (scaled.iter().find(|(n, _)| n == name), f.parse::<f64>()) {
+                            (Some((_, k)), Ok(v)) => format!("{}", v * k),
+                            _ => f.to_string(),
+                        }
+                    })
+                    .collect();
+                out += &(fields.join(",") + "\n");
+            }
+            out
+        };
+        std::fs::write(&path, rewrite(&[("r1_q1_mm", 1e-3)])).unwrap();
+        let e = load_session(&path, &cell).unwrap_err();
+        let msg = e.to_string();
+        assert!(matches!(e, DiagnoseError::SessionUnits { .. }), "{msg}");
+        assert!(
+            msg.contains("rN_qK_mm") && msg.contains("read as METRES"),
+            "{msg}"
+        );
+        // The travel in millimetres and the tips in metres: the tips are named, not the travel.
+        let tips: Vec<(&str, f64)> = [
+            "r1_x_mm", "r1_y_mm", "r1_z_mm", "r2_x_mm", "r2_y_mm", "r2_z_mm",
+        ]
+        .iter()
+        .map(|&n| (n, 1e-3))
+        .collect();
+        std::fs::write(&path, rewrite(&tips)).unwrap();
+        let msg = load_session(&path, &cell).unwrap_err().to_string();
+        assert!(
+            msg.contains("tip columns") && !msg.contains("rN_qK_mm"),
+            "{msg}"
+        );
     }
 
     /// A session saved with `;` or tabs and a UTF-8 BOM passes the unit pre-checks and reads

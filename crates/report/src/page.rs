@@ -263,6 +263,7 @@ fn drop_reason(reason: DropReason, one_robot: bool) -> &'static str {
         }
         DropReason::ConfoundedWithPlacement => "absorbed by b1_from_b2",
         DropReason::NoEffect => "moves no observed tip",
+        DropReason::MovesBothHandsAlike => "the shared trunk's: moves both hands alike",
         DropReason::PriorDecided => "barely seen: the prior decides it",
         _ => "confounded",
     }

@@ -27,7 +27,7 @@ use nalgebra::Vector3;
 
 use crate::error::SimError;
 use crate::layout::Layout;
-use crate::plan::{draw_kinematic_errors, nominal_cell, reachable_handclasps};
+use crate::plan::{draw_kinematic_errors, nominal_cell, reachable_handclasps, share_trunk_errors};
 use crate::simulate::{generate_session, SessionSpec};
 use crate::trial_rng;
 
@@ -163,6 +163,7 @@ pub fn run_cell(name: &str, cell: &Cell, o: &OracleOptions) -> Result<OracleCell
             draw_kinematic_errors(r, &mut rng);
             r.tolerance = tol;
         }
+        share_trunk_errors(&mut truth);
         let spec = SessionSpec::new(o.points, Layout::Random, spread_m);
         let Ok(session) = generate_session(&truth, &spec, &mut rng) else {
             skipped += 1;

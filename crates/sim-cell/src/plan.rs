@@ -482,12 +482,41 @@ pub fn draw_kinematic_errors(robot: &mut CellRobot, rng: &mut impl Rng) {
 }
 
 /// Replaces `truth`'s kinematic errors by a draw from its tolerances: both robots' errors are
-/// zeroed, then each robot (1, then 2) is drawn by [`draw_kinematic_errors`] from `rng`. For
-/// studies of planned sessions.
+/// zeroed, then each robot (1, then 2) is drawn by [`draw_kinematic_errors`] from `rng`; on a
+/// shared-trunk cell robot 2's trunk then carries robot 1's draw ([`share_trunk_errors`]: one
+/// set of trunk errors, as the cell file and the fit have it). For studies of planned sessions.
 pub fn draw_errors_from_tolerance(truth: &mut Cell, rng: &mut impl Rng) {
     for r in [&mut truth.robot1, &mut truth.robot2] {
         r.errors = KinematicErrors::zero_for(&r.model);
         draw_kinematic_errors(r, rng);
+    }
+    share_trunk_errors(truth);
+}
+
+/// On a shared-trunk cell ([`Cell::shared_joints`] > 0), sets robot 2's errors at the shared
+/// chain joints to robot 1's: the trunk has one set of errors, as the cell reader makes them
+/// (`[robot2.errors]` at a shared joint is 0 or robot 1's) and the whole-cell fit has them (one
+/// column per trunk parameter). Robot 2's own lumped coefficients of its arm links on the trunk
+/// joints ([`kinematics::trunk::is_branch_param`]: its arm's weight on the trunk) stay its own.
+/// Does nothing on other cells. The draws that fill each robot alone
+/// ([`draw_kinematic_errors`]) call it after both robots are drawn, so the random stream, and
+/// every other drawn value, is that of the draw without sharing.
+pub fn share_trunk_errors(cell: &mut Cell) {
+    let k = cell.shared_joints;
+    if k == 0 {
+        return;
+    }
+    let model = &cell.robot2.model;
+    let trunk: Vec<ErrorParam> = kinematics::all_params_for(model)
+        .into_iter()
+        .chain(kinematics::lumped_params(model))
+        .filter(|p| p.joint().is_some_and(|j| j < k) && !kinematics::trunk::is_branch_param(p, k))
+        .collect();
+    for p in trunk {
+        let v = cell.robot1.errors.get(p);
+        if cell.robot2.errors.get(p) != v {
+            cell.robot2.errors.set(p, v);
+        }
     }
 }
 

@@ -427,8 +427,18 @@ impl Sim<'_> {
                 })?;
                 let u = normal(approach).into_inner();
                 let cell = self.cell;
-                let rotation = |r: Robot, q: &[f64]| {
-                    let c = cell.robot(r);
+                // Each tip frame's true rotation at the row: on a shared trunk with the trunk
+                // deflected by the other arm's weight (`q_other`), as the tips were solved and
+                // as the fit models the normals (µrad, but the same truth throughout).
+                let rotation = |r: Robot, q: &[f64], q_other: &[f64]| {
+                    let own = cell.robot(r);
+                    let loaded;
+                    let c = if cell.shared_joints > 0 {
+                        loaded = crate::trunk::loaded(cell, r, own, q_other)?;
+                        &loaded
+                    } else {
+                        own
+                    };
                     true_base_from_tip(
                         &c.model,
                         &tool_errors(c, 0),
@@ -439,9 +449,9 @@ impl Sim<'_> {
                     .map(|x| x.rotation)
                     .map_err(|e| (r, e.to_string()))
                 };
-                let n1_tip = Unit::new_normalize(rotation(Robot::One, &q1)?.inverse() * u);
+                let n1_tip = Unit::new_normalize(rotation(Robot::One, &q1, &q2)?.inverse() * u);
                 let n2_b2 = cell.b1_from_b2.rotation.inverse() * -u;
-                let n2_tip = Unit::new_normalize(rotation(Robot::Two, &q2)?.inverse() * n2_b2);
+                let n2_tip = Unit::new_normalize(rotation(Robot::Two, &q2, &q1)?.inverse() * n2_b2);
                 session.observations.push(SessionObservation {
                     point: label,
                     kind: SessionKind::FaceContact {

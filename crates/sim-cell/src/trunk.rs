@@ -213,6 +213,20 @@ mod tests {
         Cell::from_toml_file(&p).unwrap()
     }
 
+    /// The humanoid without noise and with 2°/(kN·m) on every joint, the trunk's once (robot
+    /// 2's trunk entries are robot 1's), so both arms load the trunk.
+    fn loaded_humanoid_trunk() -> Cell {
+        let mut cell = humanoid_trunk();
+        cell.noise.alignment_m = Vector3::zeros();
+        cell.noise.repeatability_m = 0.0;
+        cell.noise.encoder_resolution_rad = 0.0;
+        let c = 2f64.to_radians() * 1e-3;
+        for r in [&mut cell.robot1, &mut cell.robot2] {
+            r.errors.compliance = vec![c; r.errors.joint_offset.len()];
+        }
+        cell
+    }
+
     /// The tolerance of the true tips meeting, m (the true-robot Newton's, with the load passes'
     /// second-order residue).
     const MEET_TOL_M: f64 = 1e-7;
@@ -225,15 +239,7 @@ mod tests {
     /// deflected by the other's weight at the reported joints, meet head-on.
     #[test]
     fn a_handclasp_on_a_shared_trunk_agrees_on_the_trunk_and_the_true_tips_meet() {
-        let mut cell = humanoid_trunk();
-        cell.noise.alignment_m = Vector3::zeros();
-        cell.noise.repeatability_m = 0.0;
-        cell.noise.encoder_resolution_rad = 0.0;
-        // 2°/(kN·m) on every joint, the trunk's once (robot 2's trunk entries are robot 1's).
-        let c = 2f64.to_radians() * 1e-3;
-        for r in [&mut cell.robot1, &mut cell.robot2] {
-            r.errors.compliance = vec![c; r.errors.joint_offset.len()];
-        }
+        let cell = loaded_humanoid_trunk();
         let p = Point3::new(0.35, 0.0, 1.45);
         let dirs = crate::simulate::meeting_directions(&cell, &p);
         let mut rng = crate::trial_rng(3, 0);
@@ -263,4 +269,68 @@ mod tests {
         .unwrap();
         assert!((unloaded.translation.vector - p.coords).norm() > 10.0 * MEET_TOL_M);
     }
+
+    /// Face contacts on the shared trunk (compliance on, no noise): the written face normals,
+    /// mapped to b1 by each arm's TRUE rotation with the trunk deflected by the other arm's
+    /// weight (the truth the tips were solved in, and the fit's model of the normals), are
+    /// flush (`n1 = −n2`); without the load they are not (they used to be written from the
+    /// unloaded rotations).
+    #[test]
+    fn face_contact_normals_carry_the_trunk_load() {
+        let cell = loaded_humanoid_trunk();
+        let mut spec = crate::SessionSpec::new(6, crate::Layout::Random, 0.3);
+        spec.centre_b1 = Some(Point3::new(0.35, 0.0, 1.45));
+        let kinds = crate::KindSpec {
+            kind: crate::SimKind::FaceContact,
+            ..crate::KindSpec::default()
+        };
+        let (s, _) =
+            crate::generate_kind_session(&cell, &spec, &kinds, None, &mut crate::trial_rng(5, 0))
+                .unwrap();
+        assert_eq!(s.observations.len(), 6);
+        // Each normal in b1 through the arm's true rotation, with or without the trunk's load.
+        let in_b1 = |robot: Robot, q: &[f64], other: &[f64], n_tip: &Vector3<f64>, load: bool| {
+            let r = if load {
+                loaded(&cell, robot, cell.robot(robot), other).unwrap()
+            } else {
+                cell.robot(robot).clone()
+            };
+            let t = kinematics::true_base_from_tip(
+                &r.model,
+                &r.errors,
+                q,
+                &r.flange_from_tip,
+                &r.g_base,
+            )
+            .unwrap();
+            let b1_from_b = match robot {
+                Robot::One => nalgebra::UnitQuaternion::identity(),
+                Robot::Two => cell.b1_from_b2.rotation,
+            };
+            b1_from_b * (t.rotation * n_tip)
+        };
+        let mut unloaded_gap = 0.0f64;
+        for o in &s.observations {
+            let handclasp_cell::SessionKind::FaceContact {
+                q1,
+                q2,
+                n1_tip,
+                n2_tip,
+                ..
+            } = &o.kind
+            else {
+                panic!("a face contact: {o:?}");
+            };
+            let gap = |load: bool| {
+                (in_b1(Robot::One, q1, q2, n1_tip, load) + in_b1(Robot::Two, q2, q1, n2_tip, load))
+                    .norm()
+            };
+            assert!(gap(true) < FLUSH_TOL_RAD, "not flush: {:e}", gap(true));
+            unloaded_gap = unloaded_gap.max(gap(false));
+        }
+        assert!(unloaded_gap > 1e3 * FLUSH_TOL_RAD, "{unloaded_gap:e}");
+    }
+
+    /// Two unit normals written flush, compared after the same rotations: round-off only.
+    const FLUSH_TOL_RAD: f64 = 1e-12;
 }

@@ -82,6 +82,19 @@ fn setup(
             info0[(j, j)] += 1.0 / (WEAK_PRIOR_SIGMA * WEAK_PRIOR_SIGMA);
         }
     }
+    // The placement's own prior (`[b1_from_b2] sigma_mm/sigma_deg`, a shared trunk's identity
+    // held at 1 µm / 1 µrad), as `calibrate --cell` adds its rows to every fit: without it a
+    // placement the cell holds was predicted as if free (a shared trunk's e_tran 1.1 mm for a
+    // placement held at 1 µm). Columns 0..6 are the placement's ([`ParamLayout::new`]).
+    if let Some(pp) = &problem.placement_prior {
+        for row in pp.linearise(&at.b1_from_b2).1 {
+            for a in 0..6 {
+                for b in 0..6 {
+                    info0[(a, b)] += row[a] * row[b];
+                }
+            }
+        }
+    }
     let mut m = DMatrix::zeros(n, n);
     for pair in eval_pairs {
         let (_, jv) = ev.cooperative_vector(at, pair, true)?;

@@ -44,6 +44,9 @@ pub const PRIOR_INFO_TOL: f64 = 1e-8;
 pub enum ReductionReason {
     /// It moves no observed tip.
     NoEffect,
+    /// A shared trunk's parameter ([`super::CellRobot::shared_joints`]) that moves both arms'
+    /// tips alike, which the rows (handclasps, contacts: where the hands meet) do not see.
+    MovesBothHandsAlike,
     /// Its effect is a rigid motion the placement `b1_from_b2` absorbs.
     ConfoundedWithPlacement,
     /// Its effect is absorbed by the placement together with the nuisance unknowns (tracker
@@ -209,20 +212,39 @@ pub fn reduce_layout(
                 }
             )
     });
+    // A shared trunk: b1_from_b2 is the identity its prior holds (the arms' one base).
+    let shared_trunk = problem.robot2.shared_joints > 0;
     for &c in &dropped_cols {
         let param = full.params[kin[c]].clone();
         let name = param.describe(problem);
         let (reason, message) = if raw_norm[c] <= 1e-12 * max_raw.max(1e-300) {
-            (
-                ReductionReason::NoEffect,
-                format!("{name} moves no observed tip: held at 0"),
-            )
+            if on_shared_trunk(problem, &param) {
+                (
+                    ReductionReason::MovesBothHandsAlike,
+                    format!(
+                        "{name} is the shared trunk's: it moves both hands alike, and these rows \
+                         see only where the hands meet: held at 0 (a tracker or plane row of \
+                         either arm sees it)"
+                    ),
+                )
+            } else {
+                (
+                    ReductionReason::NoEffect,
+                    format!("{name} moves no observed tip: held at 0"),
+                )
+            }
         } else if own[c] <= RANK_TOL * raw_norm[c] {
             let in_place = project(&q_place, &a_raw.columns(c, 1).into_owned()).norm();
             if in_place <= RANK_TOL * raw_norm[c] || unpen.len() == 6 {
                 (
                     ReductionReason::ConfoundedWithPlacement,
-                    if robot2_seen {
+                    if shared_trunk {
+                        format!(
+                            "{name} moves robot 2's tips against robot 1's as a move of \
+                             b1_from_b2 would, which the shared trunk holds at the identity: \
+                             held at 0"
+                        )
+                    } else if robot2_seen {
                         format!(
                             "{name} is confounded with b1_from_b2: held at 0, the placement \
                              absorbs it"
@@ -237,7 +259,13 @@ pub fn reduce_layout(
             } else {
                 (
                     ReductionReason::ConfoundedWithNuisance,
-                    if robot2_seen {
+                    if shared_trunk {
+                        format!(
+                            "{name} is confounded with the tracker/plane/contact unknowns (and \
+                             b1_from_b2, which the shared trunk holds at the identity): held at \
+                             0, they absorb it"
+                        )
+                    } else if robot2_seen {
                         format!(
                             "{name} is confounded with b1_from_b2 and the tracker/plane/contact \
                              unknowns: held at 0, they absorb it"
@@ -344,4 +372,13 @@ fn orthonormal_basis(m: &DMatrix<f64>) -> DMatrix<f64> {
         .filter(|&i| svd.singular_values[i] > 1e-10 * smax && smax > 0.0)
         .collect();
     u.select_columns(&keep)
+}
+
+/// True if `param` is one of a shared trunk's parameters (robot 1's columns at the first
+/// [`super::CellRobot::shared_joints`] chain joints, which robot 2's trunk shares; not an arm
+/// link's lumped coefficient on a trunk joint, which is that arm's own).
+fn on_shared_trunk(problem: &CellProblem, param: &CellParam) -> bool {
+    let k = problem.robot2.shared_joints;
+    matches!(param, CellParam::Kinematic { robot: crate::Robot::One, param: p }
+        if k > 0 && p.joint().is_some_and(|j| j < k) && !kinematics::is_branch_param(p, k))
 }

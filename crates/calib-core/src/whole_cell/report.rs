@@ -272,6 +272,8 @@ pub struct NuisanceReport {
 pub enum DropReason {
     /// It moves no observed tip.
     NoEffect,
+    /// A shared trunk's parameter that moves both hands alike, which the rows do not see.
+    MovesBothHandsAlike,
     /// The data barely see it: the prior decides it.
     PriorDecided,
     /// The placement absorbs it.
@@ -315,6 +317,7 @@ impl UnidentifiableReport {
     pub fn new(d: &ReductionEntry) -> Self {
         let (reason, merged_into) = match &d.reason {
             ReductionReason::NoEffect => (DropReason::NoEffect, None),
+            ReductionReason::MovesBothHandsAlike => (DropReason::MovesBothHandsAlike, None),
             ReductionReason::PriorDecided => (DropReason::PriorDecided, None),
             ReductionReason::ConfoundedWithPlacement => (DropReason::ConfoundedWithPlacement, None),
             ReductionReason::ConfoundedWithNuisance => (DropReason::ConfoundedWithNuisance, None),

@@ -4,6 +4,7 @@
 use std::fmt::Write as _;
 
 use calib_core::whole_cell::{DesignCriterion, DesignPredictionReport, PredictedErrorReport};
+use handclasp_cell::cell::SHARED_TRUNK_PLACEMENT_SIGMA;
 use handclasp_cell::Cell;
 use serde::Serialize;
 
@@ -95,6 +96,11 @@ pub struct PlanReport {
     pub random_draws: usize,
     /// `--seed`.
     pub seed: u64,
+    /// A shared-trunk cell's trunk joints ([`Cell::shared_joints`]; 0 for two robots on their
+    /// own bases): there `b1_from_b2` is the identity held by its prior (the arms' one base), so
+    /// the predicted `e_tran`/`e_rot` are that prior's, and the text says so instead of printing
+    /// them.
+    pub shared_trunk_joints: usize,
     /// `--spread-mm`: the candidates' cube side, mm.
     pub spread_mm: f64,
     /// Always false: the tip is not checked for collision with its own robot's links.
@@ -206,6 +212,7 @@ impl PlanReport {
             },
             random_draws: plan.random.len(),
             seed: inputs.seed,
+            shared_trunk_joints: cell.shared_joints,
             spread_mm: inputs.spread_mm,
             tip_collision_checked: false,
         }
@@ -268,11 +275,19 @@ fn write_text(s: &mut String, r: &PlanReport) -> std::fmt::Result {
         ("plan", &r.predicted.plan),
         (random.as_str(), &r.predicted.random),
     ] {
-        writeln!(
-            s,
-            "  {name:<50} cooperative rms {:.3} mm   e_tran {:.3} mm   e_rot {:.4}°",
-            p.cooperative_rms_mm, p.e_tran_mm, p.e_rot_deg
-        )?;
+        if r.shared_trunk_joints > 0 {
+            writeln!(
+                s,
+                "  {name:<50} cooperative rms {:.3} mm",
+                p.cooperative_rms_mm
+            )?;
+        } else {
+            writeln!(
+                s,
+                "  {name:<50} cooperative rms {:.3} mm   e_tran {:.3} mm   e_rot {:.4}°",
+                p.cooperative_rms_mm, p.e_tran_mm, p.e_rot_deg
+            )?;
+        }
     }
     writeln!(
         s,
@@ -299,11 +314,23 @@ fn write_text(s: &mut String, r: &PlanReport) -> std::fmt::Result {
         s,
         "  (calibrate --cell predicts with the same definition over its session's own meeting pairs and the whole workspace, at the prior scale its evidence chooses: near the figures at scale 1 above when it chooses 1, near the placement-only limit when it chooses 0.001)"
     )?;
-    writeln!(
-        s,
-        "  (e_tran/e_rot of b1_from_b2 carry the kinematic errors no handclasp can tell from the placement, \
-         held by the prior; the cooperative error does not)"
-    )?;
+    if r.shared_trunk_joints > 0 {
+        writeln!(
+            s,
+            "  (a shared trunk of {} joints: the arms stand on one base, so b1_from_b2 is the identity held by its \
+             prior ({:.0} µm, {:.0} µrad) and no e_tran/e_rot applies; the trunk's errors move both hands alike, which \
+             handclasps do not see, and the cooperative error above is what the arms' relative pose keeps)",
+            r.shared_trunk_joints,
+            SHARED_TRUNK_PLACEMENT_SIGMA.sigma_m * 1e6,
+            SHARED_TRUNK_PLACEMENT_SIGMA.sigma_rad * 1e6,
+        )?;
+    } else {
+        writeln!(
+            s,
+            "  (e_tran/e_rot of b1_from_b2 carry the kinematic errors no handclasp can tell from the placement, \
+             held by the prior; the cooperative error does not)"
+        )?;
+    }
     writeln!(
         s,
         "note: the tip is not checked for collision with its own robot's links"
@@ -376,6 +403,7 @@ mod tests {
             },
             random_draws: 20,
             seed: 1,
+            shared_trunk_joints: 0,
             spread_mm: 1000.0,
             tip_collision_checked: false,
         }
@@ -411,6 +439,28 @@ mod tests {
         let mut d = report();
         d.criterion = Criterion::D;
         assert!(render_text(&d).contains("criterion d (largest information volume)"));
+    }
+
+    /// On a shared trunk the placement is the trunk, held at the identity: the rows print no
+    /// e_tran/e_rot (they were a free placement's, 1.1 mm for one held at 1 µm) and a note says
+    /// why; the JSON keeps the figures (now the held prior's) and the trunk's joint count.
+    #[test]
+    fn text_of_a_shared_trunk_plan_prints_no_placement_error() {
+        let mut r = report();
+        r.shared_trunk_joints = 4;
+        let text = render_text(&r);
+        assert!(!text.contains("e_tran 0.250"), "{text}");
+        assert!(
+            text.lines().any(|l| l
+                == "  plan                                               cooperative rms 0.500 mm"),
+            "{text}"
+        );
+        assert!(
+            text.contains("a shared trunk of 4 joints") && text.contains("no e_tran/e_rot applies"),
+            "{text}"
+        );
+        let json = serde_json::to_string(&r).unwrap();
+        assert!(json.contains(r#""shared_trunk_joints":4"#), "{json}");
     }
 
     /// The JSON's keys in the order of the `serde_json::Value` it was, the criterion as a letter.

@@ -145,6 +145,35 @@ fn drawn_errors_stay_in_their_bands() {
     assert!(e.mount_xyz == Vector3::zeros() && e.compliance.iter().all(|c| *c == 0.0));
 }
 
+/// On a shared-trunk cell the tolerance draw gives the trunk one set of errors: robot 2's
+/// trunk parameters equal robot 1's drawn ones (they used to be drawn on their own, a truth the
+/// model cannot describe), robot 2's arm keeps its own draw, and robot 1's draw is the one
+/// without sharing (the random stream is unchanged).
+#[test]
+fn a_shared_trunk_draws_one_set_of_trunk_errors() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells/humanoid-trunk.toml");
+    let mut cell = Cell::from_toml_file(&path).unwrap();
+    let k = cell.shared_joints;
+    assert_eq!(k, 4);
+    draw_errors_from_tolerance(&mut cell, &mut trial_rng(4, 0));
+    let (e1, e2) = (&cell.robot1.errors, &cell.robot2.errors);
+    assert!(e1.joint_offset[..k].iter().any(|v| *v != 0.0));
+    assert_eq!(e2.joint_offset[..k], e1.joint_offset[..k]);
+    assert_eq!(e2.joint_scale[..k], e1.joint_scale[..k]);
+    assert_eq!(e2.origin_xyz[..k], e1.origin_xyz[..k]);
+    assert_eq!(e2.origin_rpy[..k], e1.origin_rpy[..k]);
+    assert_eq!(e2.compliance[..k], e1.compliance[..k]);
+    assert!(e2.joint_offset[k..].iter().any(|v| *v != 0.0));
+    assert_ne!(e2.joint_offset[k..], e1.joint_offset[k..]);
+    // The same draw without the sharing: robot 1's errors and robot 2's arm are unchanged.
+    let mut alone = Cell::from_toml_file(&path).unwrap();
+    alone.shared_joints = 0;
+    draw_errors_from_tolerance(&mut alone, &mut trial_rng(4, 0));
+    assert_eq!(alone.robot1.errors, cell.robot1.errors);
+    assert_eq!(alone.robot2.errors.joint_offset[k..], e2.joint_offset[k..]);
+    assert_ne!(alone.robot2.errors.joint_offset[..k], e2.joint_offset[..k]);
+}
+
 /// One calibrated session of the Monte Carlo: measured and predicted cooperative rms (m),
 /// e_tran (m) and e_rot (rad).
 struct Outcome {

@@ -268,6 +268,7 @@ pub(super) fn robot_trial(
     if config.kinematic_errors == KinematicErrorDraw::Tolerance {
         draw_kinematic_errors(&mut cell.robot1, rng);
         draw_kinematic_errors(&mut cell.robot2, rng);
+        crate::plan::share_trunk_errors(&mut cell);
     }
     let n = config.n_points[grid_cell.n];
     let spread_m = config.spread_m[grid_cell.spread];
