@@ -554,16 +554,8 @@ pub fn true_tip_with_error_jacobian_unchecked(
         .any(|p| matches!(p, ErrorParam::Compliance { .. }));
     if errors.is_zero() || (need_tau && all_zero(&errors.compliance)) {
         let pose = true_base_from_tip_unchecked(model, errors, q_rep, flange_from_tip, g_base);
-        let mut jac = Matrix3xX::zeros(params.len());
-        error_jacobian_walk(
-            model,
-            errors,
-            q_rep,
-            flange_from_tip,
-            g_base,
-            params,
-            &mut jac,
-        );
+        let jac =
+            tip_error_jacobian_unchecked(model, errors, q_rep, flange_from_tip, g_base, params);
         return (pose, jac);
     }
     let mut jac = Matrix3xX::zeros(params.len());

@@ -369,14 +369,7 @@ impl Memo {
         if let Some(f) = self.reduced(&start) {
             return Ok(f.clone());
         }
-        let (params, values) = without(current, i);
-        let f = fit(
-            model,
-            &params,
-            Some(&values),
-            Some(current.b1_from_b2),
-            options,
-        )?;
+        let f = reduced_fit(model, current, i, options)?;
         self.reduced.push((start, f.clone()));
         Ok(f)
     }
@@ -604,23 +597,47 @@ pub fn partial_f_tests(
     current: &IdentFit,
     options: &LmOptions,
 ) -> Result<Vec<(f64, f64)>, IdentifyError> {
+    partial_f_tests_with(model, current, &[], options)
+}
+
+/// [`partial_f_tests`] taking parameter `i`'s reduced fit from `known[i]` where it is there.
+fn partial_f_tests_with(
+    model: &dyn TipModel,
+    current: &IdentFit,
+    known: &[Option<IdentFit>],
+    options: &LmOptions,
+) -> Result<Vec<(f64, f64)>, IdentifyError> {
     (0..current.params.len())
         .into_par_iter()
-        .map(|i| {
-            let (params, values) = without(current, i);
-            let reduced = fit(
-                model,
-                &params,
-                Some(&values),
-                Some(current.b1_from_b2),
-                options,
-            )?;
-            Ok(partial_f(current, &reduced))
+        .map(|i| match known.get(i) {
+            Some(Some(reduced)) => Ok(partial_f(current, reduced)),
+            _ => Ok(partial_f(
+                current,
+                &reduced_fit(model, current, i, options)?,
+            )),
         })
         .collect::<Vec<Result<(f64, f64), IdentifyError>>>()
         // In parameter order: the first failing parameter's error, whatever the thread count.
         .into_iter()
         .collect()
+}
+
+/// The fit of `current`'s model without its parameter `i`, started from its other values and
+/// its placement.
+fn reduced_fit(
+    model: &dyn TipModel,
+    current: &IdentFit,
+    i: usize,
+    options: &LmOptions,
+) -> Result<IdentFit, IdentifyError> {
+    let (params, values) = without(current, i);
+    fit(
+        model,
+        &params,
+        Some(&values),
+        Some(current.b1_from_b2),
+        options,
+    )
 }
 
 /// The partial F test of dropping a parameter of `current`, given the fit without it:
@@ -672,18 +689,9 @@ fn backward_eliminate(
         // The reduced fits in parallel, compared in parameter order.
         let reduced_fits: Vec<Result<IdentFit, IdentifyError>> = (0..current.params.len())
             .into_par_iter()
-            .map(|i| {
-                if let Some(f) = memo.reduced(&FitStart::without(current, i)) {
-                    return Ok(f.clone());
-                }
-                let (params, values) = without(current, i);
-                fit(
-                    model,
-                    &params,
-                    Some(&values),
-                    Some(current.b1_from_b2),
-                    &options.fit,
-                )
+            .map(|i| match memo.reduced(&FitStart::without(current, i)) {
+                Some(f) => Ok(f.clone()),
+                None => reduced_fit(model, current, i, &options.fit),
             })
             .collect();
         let mut worst: Option<(usize, f64, IdentFit)> = None;
@@ -998,26 +1006,10 @@ pub fn partial_f_tests_of_selection(
     model: &dyn TipModel,
     selection: &Selection,
 ) -> Result<Vec<(f64, f64)>, IdentifyError> {
-    let current = &selection.fit;
-    let options = &selection.fit_options;
-    (0..current.params.len())
-        .into_par_iter()
-        .map(|i| match selection.reduced_fits.get(i) {
-            Some(Some(reduced)) => Ok(partial_f(current, reduced)),
-            _ => {
-                let (params, values) = without(current, i);
-                let reduced = fit(
-                    model,
-                    &params,
-                    Some(&values),
-                    Some(current.b1_from_b2),
-                    options,
-                )?;
-                Ok(partial_f(current, &reduced))
-            }
-        })
-        .collect::<Vec<Result<(f64, f64), IdentifyError>>>()
-        // In parameter order: the first failing parameter's error, whatever the thread count.
-        .into_iter()
-        .collect()
+    partial_f_tests_with(
+        model,
+        &selection.fit,
+        &selection.reduced_fits,
+        &selection.fit_options,
+    )
 }
