@@ -371,9 +371,9 @@ impl<'a> SessionModel<'a> {
                 tips[robot] = self.tip(point, robot, errors)?;
             }
         }
-        for robot in 0..2 {
+        for (robot, &done) in done.iter().enumerate() {
             let cols = &split.columns[robot];
-            if done[robot] || cols.is_empty() {
+            if done || cols.is_empty() {
                 continue;
             }
             let j = self.robot_jacobian(point, robot, errors, &split)?;

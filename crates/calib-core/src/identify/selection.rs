@@ -336,6 +336,10 @@ impl FitStart {
 /// The result of a re-screen: the best candidate, its alternatives, and the swap fit.
 type Rescreened = (usize, Vec<usize>, Option<IdentFit>);
 
+/// What a re-screen is a function of: the current fit's state, the pool, the parameter's
+/// position.
+type RescreenKey = (FitStart, Vec<usize>, usize);
+
 /// Exact-repeat caches of one accepted step's re-screens and backward elimination (cleared at
 /// each accepted step): each result is a deterministic function of its key, so a hit returns
 /// what the computation would, bit for bit. A re-screen pass after a swap repeats the
@@ -346,7 +350,7 @@ struct Memo {
     /// Reduced fits (the model without one parameter) by their start.
     reduced: Vec<(FitStart, IdentFit)>,
     /// Re-screens by (state of the current fit, pool, parameter position).
-    rescreens: Vec<((FitStart, Vec<usize>, usize), Rescreened)>,
+    rescreens: Vec<(RescreenKey, Rescreened)>,
 }
 
 impl Memo {
