@@ -136,7 +136,7 @@ pub fn diagnose_session_with_progress(
         options.trials
     ));
     let baseline = baseline(&model, &sel, &noise, session, options)?;
-    let partial = identify::partial_f_tests(&model, &sel.fit, &options.selection.fit)?;
+    let partial = identify::partial_f_tests_of_selection(&model, &sel)?;
     // Mount tilts: not from the residuals (they only turn the fit) but from the placement.
     let placement = mount_tilt::placement(&sel.fit, cell, options.placement_sd_deg.to_radians());
     let families = families(&model, &sel, &cands);

@@ -6,7 +6,15 @@
 //! results: each robot's nominal tips (zero errors) are computed once, when the model is built
 //! (the fits of the selection evaluate a robot without fitted parameters at its nominal tips over
 //! and over), and each thread keeps the two robots' error sets of the last parameter values it
-//! evaluated (a fit evaluates every point at the same values).
+//! evaluated (a fit evaluates every point at the same values) and the split by robot of the last
+//! Jacobian parameter list it was asked for.
+//!
+//! The inputs are checked once, not at every point: each robot's tip offset and gravity when
+//! the model is built, each candidate's parameter against its robot's model, each error set
+//! when it is built, and each point's joint values by its nominal tip. Where all of these hold
+//! the unchecked kinematics run (`kinematics::true_base_from_tip_unchecked`,
+//! `tip_error_jacobian_unchecked`, `true_tip_with_error_jacobian_unchecked`: the same values,
+//! bit for bit); otherwise the checked functions, which name the failure.
 
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -42,11 +50,31 @@ struct ErrorSets {
     robot: [KinematicErrors; 2],
     /// Whether each is valid for its robot's model.
     valid: [bool; 2],
+    /// Whether each is all zero ([`KinematicErrors::is_zero`]).
+    zero: [bool; 2],
+}
+
+/// A Jacobian parameter list split by robot: for robot 1 and robot 2, the positions in the
+/// list of that robot's parameters, their kinematic parameters, and whether every one of them
+/// passed [`ErrorParam::check_model`] against its robot's model.
+struct JacobianSplit {
+    /// [`SessionModel::id`] of the model that built it.
+    model: u64,
+    /// The Jacobian parameters (catalogue indices).
+    params: Vec<usize>,
+    /// Per robot, the positions in `params` of its parameters.
+    columns: [Vec<usize>; 2],
+    /// Per robot, those parameters' kinematic parameters.
+    errors: [Vec<ErrorParam>; 2],
+    /// Per robot, whether each of them is valid for its model.
+    valid: [bool; 2],
 }
 
 thread_local! {
     /// The error sets this thread built last (see the module documentation).
     static LAST_ERRORS: RefCell<Option<CachedErrors>> = const { RefCell::new(None) };
+    /// The Jacobian parameter split this thread built last.
+    static LAST_SPLIT: RefCell<Option<Rc<JacobianSplit>>> = const { RefCell::new(None) };
 }
 
 /// The identification problem of a session: tips from the kinematic-error model.
@@ -63,6 +91,11 @@ pub struct SessionModel<'a> {
     /// each in its own base frame, m; `None` where that evaluation fails (a bad joint vector:
     /// [`TipModel::eval`] then reports the failure).
     nominal_tips: Vec<[Option<Point3<f64>>; 2]>,
+    /// Per robot, whether its tip offset and gravity pass `kinematics::check_tip_inputs`.
+    inputs_valid: [bool; 2],
+    /// Per candidate, whether its parameter passes [`ErrorParam::check_model`] against its
+    /// robot's model.
+    param_valid: Vec<bool>,
 }
 
 impl<'a> SessionModel<'a> {
@@ -82,6 +115,21 @@ impl<'a> SessionModel<'a> {
             .zip(q2)
             .map(|(a, b)| [nominal(&cell.robot1, a), nominal(&cell.robot2, b)])
             .collect();
+        let inputs_valid = [&cell.robot1, &cell.robot2].map(|r| {
+            let zero = KinematicErrors::zero_for(&r.model);
+            kinematics::check_tip_inputs(&r.model, &zero, &r.flange_from_tip, &r.g_base, &[])
+                .is_ok()
+        });
+        let param_valid = candidates
+            .iter()
+            .map(|c| {
+                let robot = match c.robot() {
+                    Robot::One => &cell.robot1,
+                    Robot::Two => &cell.robot2,
+                };
+                c.param().check_model(&robot.model).is_ok()
+            })
+            .collect();
         Self {
             id: NEXT_MODEL_ID.fetch_add(1, Ordering::Relaxed),
             cell,
@@ -90,6 +138,8 @@ impl<'a> SessionModel<'a> {
             candidates,
             weights: Vec::new(),
             nominal_tips,
+            inputs_valid,
+            param_valid,
         }
     }
 
@@ -135,9 +185,11 @@ impl<'a> SessionModel<'a> {
             e1.check(&self.cell.robot1.model).is_ok(),
             e2.check(&self.cell.robot2.model).is_ok(),
         ];
+        let zero = [e1.is_zero(), e2.is_zero()];
         let errors = Rc::new(ErrorSets {
             robot: [e1, e2],
             valid,
+            zero,
         });
         LAST_ERRORS.set(Some(CachedErrors {
             model: self.id,
@@ -166,7 +218,7 @@ impl<'a> SessionModel<'a> {
             (&self.cell.robot2, &self.q2[point])
         };
         if let Some(nominal) = self.nominal_tips.get(point).and_then(|t| t[robot]) {
-            if e.is_zero() {
+            if errors.zero[robot] {
                 return Ok(nominal);
             }
             if errors.valid[robot] {
@@ -183,43 +235,178 @@ impl<'a> SessionModel<'a> {
         tip_b(setup, e, q).map_err(|e| model_error(point, e))
     }
 
+    /// [`SessionModel::cached_errors`]' counterpart for Jacobian parameter lists: the split of
+    /// `jacobian_params` by robot, through this thread's cache of the last split built.
+    fn split(&self, jacobian_params: &[usize]) -> Rc<JacobianSplit> {
+        let hit = LAST_SPLIT.with_borrow(|last| {
+            last.as_ref()
+                .filter(|c| c.model == self.id && c.params == jacobian_params)
+                .map(Rc::clone)
+        });
+        if let Some(split) = hit {
+            return split;
+        }
+        let mut columns = [Vec::new(), Vec::new()];
+        let mut errors = [Vec::new(), Vec::new()];
+        let mut valid = [true, true];
+        for (c, &p) in jacobian_params.iter().enumerate() {
+            let r = match self.candidates[p].robot() {
+                Robot::One => 0,
+                Robot::Two => 1,
+            };
+            columns[r].push(c);
+            errors[r].push(self.candidates[p].param());
+            valid[r] &= self.param_valid[p];
+        }
+        let split = Rc::new(JacobianSplit {
+            model: self.id,
+            params: jacobian_params.to_vec(),
+            columns,
+            errors,
+            valid,
+        });
+        LAST_SPLIT.set(Some(Rc::clone(&split)));
+        split
+    }
+
+    /// Whether robot `robot`'s evaluation at `point` with `errors` may skip the checks: its
+    /// nominal tip (which checked the joint values) exists, its tip offset and gravity are valid,
+    /// and so are its errors.
+    fn checked_once(&self, point: usize, robot: usize, errors: &ErrorSets) -> bool {
+        self.inputs_valid[robot]
+            && errors.valid[robot]
+            && self
+                .nominal_tips
+                .get(point)
+                .is_some_and(|t| t[robot].is_some())
+    }
+
+    /// Robot `robot`'s setup and joint values at `point`.
+    fn robot_at(&self, point: usize, robot: usize) -> (&CellRobot, &[f64]) {
+        if robot == 0 {
+            (&self.cell.robot1, &self.q1[point])
+        } else {
+            (&self.cell.robot2, &self.q2[point])
+        }
+    }
+
+    /// Robot `robot`'s Jacobian columns of `split` at point `point` (see
+    /// [`TipEval::jacobian`]): unchecked when [`SessionModel::checked_once`] and the split's
+    /// parameters allow it, else `kinematics::tip_error_jacobian`.
+    fn robot_jacobian(
+        &self,
+        point: usize,
+        robot: usize,
+        errors: &ErrorSets,
+        split: &JacobianSplit,
+    ) -> Result<Matrix3xX<f64>, IdentifyError> {
+        let (setup, q) = self.robot_at(point, robot);
+        let (e, eps) = (&errors.robot[robot], &split.errors[robot]);
+        if split.valid[robot] && self.checked_once(point, robot, errors) {
+            return Ok(kinematics::tip_error_jacobian_unchecked(
+                &setup.model,
+                e,
+                q,
+                &setup.flange_from_tip,
+                &setup.g_base,
+                eps,
+            ));
+        }
+        kinematics::tip_error_jacobian(
+            &setup.model,
+            e,
+            q,
+            &setup.flange_from_tip,
+            &setup.g_base,
+            eps,
+        )
+        .map_err(|e| model_error(point, e))
+    }
+
+    /// The tips and Jacobian of [`TipModel::eval`] at `point`: robot 1's tip, robot 2's tip,
+    /// then robot 1's and robot 2's Jacobian columns, as if computed in that order (the first
+    /// failure in that order is returned). A robot with non-zero errors that may skip the checks
+    /// gets its tip and columns from one walk of its chain
+    /// (`kinematics::true_tip_with_error_jacobian_unchecked`, bit for bit the two calls).
+    fn eval_at(
+        &self,
+        point: usize,
+        errors: &ErrorSets,
+        jacobian_params: &[usize],
+    ) -> Result<TipEval, IdentifyError> {
+        let mut jacobian = Matrix3xX::zeros(jacobian_params.len());
+        if jacobian_params.is_empty() {
+            return Ok(TipEval {
+                p1_b1: self.tip(point, 0, errors)?,
+                p2_b2: self.tip(point, 1, errors)?,
+                jacobian,
+            });
+        }
+        let split = self.split(jacobian_params);
+        let mut tips = [Point3::origin(); 2];
+        let mut done = [false; 2];
+        for robot in 0..2 {
+            let e = &errors.robot[robot];
+            let cols = &split.columns[robot];
+            if !cols.is_empty()
+                && !errors.zero[robot]
+                && split.valid[robot]
+                && self.checked_once(point, robot, errors)
+            {
+                let (setup, q) = self.robot_at(point, robot);
+                let (pose, j) = kinematics::true_tip_with_error_jacobian_unchecked(
+                    &setup.model,
+                    e,
+                    q,
+                    &setup.flange_from_tip,
+                    &setup.g_base,
+                    &split.errors[robot],
+                );
+                tips[robot] = Point3::from(pose.translation.vector);
+                for (k, &c) in cols.iter().enumerate() {
+                    jacobian.set_column(c, &j.column(k));
+                }
+                done[robot] = true;
+            } else {
+                tips[robot] = self.tip(point, robot, errors)?;
+            }
+        }
+        for (robot, &done) in done.iter().enumerate() {
+            let cols = &split.columns[robot];
+            if done || cols.is_empty() {
+                continue;
+            }
+            let j = self.robot_jacobian(point, robot, errors, &split)?;
+            for (k, &c) in cols.iter().enumerate() {
+                jacobian.set_column(c, &j.column(k));
+            }
+        }
+        Ok(TipEval {
+            p1_b1: tips[0],
+            p2_b2: tips[1],
+            jacobian,
+        })
+    }
+
     /// The Jacobian columns of the catalogue parameters `jacobian_params` at point `point` with
-    /// the two robots' errors `e1`, `e2` (see [`TipEval::jacobian`]).
+    /// the two robots' error sets `errors` (see [`TipEval::jacobian`]).
     fn jacobian(
         &self,
         point: usize,
-        e1: &KinematicErrors,
-        e2: &KinematicErrors,
+        errors: &ErrorSets,
         jacobian_params: &[usize],
     ) -> Result<Matrix3xX<f64>, IdentifyError> {
         let mut jacobian = Matrix3xX::zeros(jacobian_params.len());
         if jacobian_params.is_empty() {
             return Ok(jacobian);
         }
-        let (r1, r2) = (&self.cell.robot1, &self.cell.robot2);
-        for (robot, setup, errors, q) in [
-            (Robot::One, r1, e1, &self.q1[point]),
-            (Robot::Two, r2, e2, &self.q2[point]),
-        ] {
-            let cols: Vec<usize> = (0..jacobian_params.len())
-                .filter(|&c| self.candidates[jacobian_params[c]].robot() == robot)
-                .collect();
+        let split = self.split(jacobian_params);
+        for robot in 0..2 {
+            let cols = &split.columns[robot];
             if cols.is_empty() {
                 continue;
             }
-            let eps: Vec<ErrorParam> = cols
-                .iter()
-                .map(|&c| self.candidates[jacobian_params[c]].param())
-                .collect();
-            let j = kinematics::tip_error_jacobian(
-                &setup.model,
-                errors,
-                q,
-                &setup.flange_from_tip,
-                &setup.g_base,
-                &eps,
-            )
-            .map_err(|e| model_error(point, e))?;
+            let j = self.robot_jacobian(point, robot, errors, &split)?;
             for (k, &c) in cols.iter().enumerate() {
                 jacobian.set_column(c, &j.column(k));
             }
@@ -293,15 +480,7 @@ impl TipModel for SessionModel<'_> {
         jacobian_params: &[usize],
     ) -> Result<TipEval, IdentifyError> {
         let errors = self.cached_errors(params, values);
-        let p1_b1 = self.tip(point, 0, &errors)?;
-        let p2_b2 = self.tip(point, 1, &errors)?;
-        let [e1, e2] = &errors.robot;
-        let jacobian = self.jacobian(point, e1, e2, jacobian_params)?;
-        Ok(TipEval {
-            p1_b1,
-            p2_b2,
-            jacobian,
-        })
+        self.eval_at(point, &errors, jacobian_params)
     }
     fn eval_jacobian(
         &self,
@@ -311,8 +490,7 @@ impl TipModel for SessionModel<'_> {
         jacobian_params: &[usize],
     ) -> Result<Matrix3xX<f64>, IdentifyError> {
         let errors = self.cached_errors(params, values);
-        let [e1, e2] = &errors.robot;
-        self.jacobian(point, e1, e2, jacobian_params)
+        self.jacobian(point, &errors, jacobian_params)
     }
 }
 

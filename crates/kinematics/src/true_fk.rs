@@ -417,6 +417,28 @@ pub fn tip_error_jacobian(
     for p in params {
         p.check_model(model)?;
     }
+    Ok(tip_error_jacobian_unchecked(
+        model,
+        errors,
+        q_rep,
+        flange_from_tip,
+        g_base,
+        params,
+    ))
+}
+
+/// [`tip_error_jacobian`] without checks: the caller has run [`check_tip_inputs`] on these
+/// `errors`, tip, gravity and `params`, and [`RobotModel::check_q`] on `q_rep` (the same columns,
+/// bit for bit, as the checked call; for a caller that evaluates many joint vectors at the same
+/// errors and checks them once). Panics only if the lengths do not match the model.
+pub fn tip_error_jacobian_unchecked(
+    model: &RobotModel,
+    errors: &KinematicErrors,
+    q_rep: &[f64],
+    flange_from_tip: &Vector3<f64>,
+    g_base: &Vector3<f64>,
+    params: &[ErrorParam],
+) -> Matrix3xX<f64> {
     let mut jac = Matrix3xX::zeros(params.len());
     error_jacobian_walk(
         model,
@@ -427,7 +449,7 @@ pub fn tip_error_jacobian(
         params,
         &mut jac,
     );
-    Ok(jac)
+    jac
 }
 
 /// One walk of the true chain filling `jac` with the columns of [`tip_error_jacobian`]; returns
@@ -532,16 +554,8 @@ pub fn true_tip_with_error_jacobian_unchecked(
         .any(|p| matches!(p, ErrorParam::Compliance { .. }));
     if errors.is_zero() || (need_tau && all_zero(&errors.compliance)) {
         let pose = true_base_from_tip_unchecked(model, errors, q_rep, flange_from_tip, g_base);
-        let mut jac = Matrix3xX::zeros(params.len());
-        error_jacobian_walk(
-            model,
-            errors,
-            q_rep,
-            flange_from_tip,
-            g_base,
-            params,
-            &mut jac,
-        );
+        let jac =
+            tip_error_jacobian_unchecked(model, errors, q_rep, flange_from_tip, g_base, params);
         return (pose, jac);
     }
     let mut jac = Matrix3xX::zeros(params.len());

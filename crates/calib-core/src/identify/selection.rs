@@ -12,6 +12,7 @@ use super::model::{IdentifyError, TipModel};
 use crate::stats::f_test_p_value;
 use crate::stats::CHI2_1_95;
 use crate::LmOptions;
+use nalgebra::Isometry3;
 use rayon::prelude::*;
 
 /// K-fold cross-validated residual RMS, m: points are split into `folds` interleaved folds (point
@@ -291,6 +292,91 @@ pub struct Selection {
     pub heldout_rms_after: f64,
     /// Why the selection stopped.
     pub stop: SelectionStop,
+    /// The fits of the final model without each of its parameters (order of `fit.params`),
+    /// each started from the final fit's other values and placement: what [`partial_f_tests`]
+    /// fits, where the selection's last re-screens or backward elimination already made it
+    /// from the final model's state (`None` where not). [`partial_f_tests_of_selection`]
+    /// reuses them.
+    pub reduced_fits: Vec<Option<IdentFit>>,
+    /// The fit options the selection ran with (those of `reduced_fits`).
+    pub fit_options: LmOptions,
+}
+
+/// The start of a fit, bit for bit: its parameters, their starting values and the starting
+/// `b1_from_b2`. Two fits of one model on every point with the same options from equal starts
+/// give the same result, so the selection runs each such fit (and each re-screen from the same
+/// state) at most once per accepted step ([`Memo`]).
+#[derive(Debug, Clone, PartialEq)]
+struct FitStart {
+    params: Vec<usize>,
+    values: Vec<u64>,
+    /// Translation and quaternion coordinates of `b1_from_b2`.
+    x: [u64; 7],
+}
+
+impl FitStart {
+    fn new(params: &[usize], values: &[f64], x: &Isometry3<f64>) -> Self {
+        let t = &x.translation.vector;
+        let q = &x.rotation.coords;
+        Self {
+            params: params.to_vec(),
+            values: values.iter().map(|v| v.to_bits()).collect(),
+            x: [t.x, t.y, t.z, q.x, q.y, q.z, q.w].map(f64::to_bits),
+        }
+    }
+
+    /// The start of the reduced fit of `current` without its parameter `i` (as [`rescreen`],
+    /// [`backward_eliminate`] and [`partial_f_tests`] start it).
+    fn without(current: &IdentFit, i: usize) -> Self {
+        let (params, values) = without(current, i);
+        Self::new(&params, &values, &current.b1_from_b2)
+    }
+}
+
+/// The result of a re-screen: the best candidate, its alternatives, and the swap fit.
+type Rescreened = (usize, Vec<usize>, Option<IdentFit>);
+
+/// What a re-screen is a function of: the current fit's state, the pool, the parameter's
+/// position.
+type RescreenKey = (FitStart, Vec<usize>, usize);
+
+/// Exact-repeat caches of one accepted step's re-screens and backward elimination (cleared at
+/// each accepted step): each result is a deterministic function of its key, so a hit returns
+/// what the computation would, bit for bit. A re-screen pass after a swap repeats the
+/// re-screens after the swapped parameter with the same state and pool, and the last pass's
+/// reduced fits are the backward elimination's and the partial F tests'.
+#[derive(Default)]
+struct Memo {
+    /// Reduced fits (the model without one parameter) by their start.
+    reduced: Vec<(FitStart, IdentFit)>,
+    /// Re-screens by (state of the current fit, pool, parameter position).
+    rescreens: Vec<(RescreenKey, Rescreened)>,
+}
+
+impl Memo {
+    fn reduced(&self, start: &FitStart) -> Option<&IdentFit> {
+        self.reduced
+            .iter()
+            .find(|(k, _)| k == start)
+            .map(|(_, f)| f)
+    }
+
+    /// The reduced fit of `current` without parameter `i`, from the cache or fitted (and kept).
+    fn reduced_fit(
+        &mut self,
+        model: &dyn TipModel,
+        current: &IdentFit,
+        i: usize,
+        options: &LmOptions,
+    ) -> Result<IdentFit, IdentifyError> {
+        let start = FitStart::without(current, i);
+        if let Some(f) = self.reduced(&start) {
+            return Ok(f.clone());
+        }
+        let f = reduced_fit(model, current, i, options)?;
+        self.reduced.push((start, f.clone()));
+        Ok(f)
+    }
 }
 
 /// The candidates the data cannot tell apart from `best`: its parallel group, plus those whose
@@ -337,16 +423,32 @@ fn rescreen(
     pool: &[usize],
     i: usize,
     options: &SelectionOptions,
-) -> Result<(usize, Vec<usize>, Option<IdentFit>), IdentifyError> {
+    memo: &mut Memo,
+) -> Result<Rescreened, IdentifyError> {
+    let key = (
+        FitStart::new(&current.params, &current.values, &current.b1_from_b2),
+        pool.to_vec(),
+        i,
+    );
+    if let Some((_, r)) = memo.rescreens.iter().find(|(k, _)| *k == key) {
+        return Ok(r.clone());
+    }
+    let r = rescreen_once(model, current, pool, i, options, memo)?;
+    memo.rescreens.push((key, r.clone()));
+    Ok(r)
+}
+
+/// [`rescreen`] without its cache of whole re-screens.
+fn rescreen_once(
+    model: &dyn TipModel,
+    current: &IdentFit,
+    pool: &[usize],
+    i: usize,
+    options: &SelectionOptions,
+    memo: &mut Memo,
+) -> Result<Rescreened, IdentifyError> {
     let old = current.params[i];
-    let (params, values) = without(current, i);
-    let reduced = fit(
-        model,
-        &params,
-        Some(&values),
-        Some(current.b1_from_b2),
-        &options.fit,
-    )?;
+    let reduced = memo.reduced_fit(model, current, i, &options.fit)?;
     let mut cands: Vec<usize> = pool.to_vec();
     cands.push(old);
     let (id, lin) = identifiability_and_linearisation(model, &reduced, &cands, options.group_cos)?;
@@ -499,24 +601,54 @@ pub fn partial_f_tests(
     current: &IdentFit,
     options: &LmOptions,
 ) -> Result<Vec<(f64, f64)>, IdentifyError> {
+    partial_f_tests_with(model, current, &[], options)
+}
+
+/// [`partial_f_tests`] taking parameter `i`'s reduced fit from `known[i]` where it is there.
+fn partial_f_tests_with(
+    model: &dyn TipModel,
+    current: &IdentFit,
+    known: &[Option<IdentFit>],
+    options: &LmOptions,
+) -> Result<Vec<(f64, f64)>, IdentifyError> {
     (0..current.params.len())
         .into_par_iter()
-        .map(|i| {
-            let (params, values) = without(current, i);
-            let reduced = fit(
-                model,
-                &params,
-                Some(&values),
-                Some(current.b1_from_b2),
-                options,
-            )?;
-            let f = (reduced.rss - current.rss) / (current.rss / current.dof.max(1) as f64);
-            Ok((f, f_test_p_value(f, current.dof)))
+        .map(|i| match known.get(i) {
+            Some(Some(reduced)) => Ok(partial_f(current, reduced)),
+            _ => Ok(partial_f(
+                current,
+                &reduced_fit(model, current, i, options)?,
+            )),
         })
         .collect::<Vec<Result<(f64, f64), IdentifyError>>>()
         // In parameter order: the first failing parameter's error, whatever the thread count.
         .into_iter()
         .collect()
+}
+
+/// The fit of `current`'s model without its parameter `i`, started from its other values and
+/// its placement.
+fn reduced_fit(
+    model: &dyn TipModel,
+    current: &IdentFit,
+    i: usize,
+    options: &LmOptions,
+) -> Result<IdentFit, IdentifyError> {
+    let (params, values) = without(current, i);
+    fit(
+        model,
+        &params,
+        Some(&values),
+        Some(current.b1_from_b2),
+        options,
+    )
+}
+
+/// The partial F test of dropping a parameter of `current`, given the fit without it:
+/// `(F, p-value)`, `F = (RSS_without − RSS)/(RSS/dof)` against `F(1, dof)`.
+fn partial_f(current: &IdentFit, reduced: &IdentFit) -> (f64, f64) {
+    let f = (reduced.rss - current.rss) / (current.rss / current.dof.max(1) as f64);
+    (f, f_test_p_value(f, current.dof))
 }
 
 /// Whether the Wald prediction of every partial F test, less its error bound, already rejects
@@ -551,6 +683,7 @@ fn backward_eliminate(
     pool: &mut Vec<usize>,
     level: f64,
     options: &SelectionOptions,
+    memo: &mut Memo,
 ) -> Result<bool, IdentifyError> {
     let mut dropped = false;
     while !current.params.is_empty() {
@@ -560,20 +693,18 @@ fn backward_eliminate(
         // The reduced fits in parallel, compared in parameter order.
         let reduced_fits: Vec<Result<IdentFit, IdentifyError>> = (0..current.params.len())
             .into_par_iter()
-            .map(|i| {
-                let (params, values) = without(current, i);
-                fit(
-                    model,
-                    &params,
-                    Some(&values),
-                    Some(current.b1_from_b2),
-                    &options.fit,
-                )
+            .map(|i| match memo.reduced(&FitStart::without(current, i)) {
+                Some(f) => Ok(f.clone()),
+                None => reduced_fit(model, current, i, &options.fit),
             })
             .collect();
         let mut worst: Option<(usize, f64, IdentFit)> = None;
         for (i, reduced) in reduced_fits.into_iter().enumerate() {
             let reduced = reduced?;
+            let start = FitStart::without(current, i);
+            if memo.reduced(&start).is_none() {
+                memo.reduced.push((start, reduced.clone()));
+            }
             let f = (reduced.rss - current.rss) / (current.rss / current.dof.max(1) as f64);
             let p = f_test_p_value(f, current.dof);
             if worst.as_ref().is_none_or(|w| p > w.1) {
@@ -645,6 +776,7 @@ pub fn forward_select_with_progress(
     let mut groups = Vec::new();
     // Selected sets (sorted) after each accepted step, for the cycle check.
     let mut visited: Vec<Vec<usize>> = vec![Vec::new()];
+    let mut memo = Memo::default();
     let stop = loop {
         if current.params.len() >= options.max_effects {
             break SelectionStop::MaxEffects;
@@ -798,6 +930,8 @@ pub fn forward_select_with_progress(
         // Whether the re-screen or the backward elimination changed the model: if not, its
         // held-out RMS is `new_cv` (the same fits from the same start).
         let mut changed = false;
+        // Nothing from before this step can repeat (the model changed).
+        memo = Memo::default();
         // Greedy forward selection can pick a proxy of a true effect first (a correlated
         // column that explains most of it); re-screen each selected parameter against the
         // others and swap it for a better one when that lowers the RSS.
@@ -805,7 +939,7 @@ pub fn forward_select_with_progress(
             let mut swapped = false;
             for (i, group) in groups.iter_mut().enumerate() {
                 let old = current.params[i];
-                let (best, alt, better) = rescreen(model, &current, &pool, i, options)?;
+                let (best, alt, better) = rescreen(model, &current, &pool, i, options, &mut memo)?;
                 *group = alt;
                 if let Some(better) = better {
                     pool.retain(|&p| p != best);
@@ -819,7 +953,15 @@ pub fn forward_select_with_progress(
                 break;
             }
         }
-        changed |= backward_eliminate(model, &mut current, &mut groups, &mut pool, level, options)?;
+        changed |= backward_eliminate(
+            model,
+            &mut current,
+            &mut groups,
+            &mut pool,
+            level,
+            options,
+            &mut memo,
+        )?;
         current_cv = if changed {
             held_out_rms(model, &current, options)?
         } else {
@@ -832,9 +974,21 @@ pub fn forward_select_with_progress(
         }
         visited.push(set);
     };
-    if backward_eliminate(model, &mut current, &mut groups, &mut pool, level, options)? {
+    if backward_eliminate(
+        model,
+        &mut current,
+        &mut groups,
+        &mut pool,
+        level,
+        options,
+        &mut memo,
+    )? {
         current_cv = held_out_rms(model, &current, options)?;
     }
+    // The final model's reduced fits that the last re-screens made from its state.
+    let reduced_fits: Vec<Option<IdentFit>> = (0..current.params.len())
+        .map(|i| memo.reduced(&FitStart::without(&current, i)).cloned())
+        .collect();
     Ok(Selection {
         baseline,
         identifiability,
@@ -844,5 +998,22 @@ pub fn forward_select_with_progress(
         heldout_rms_before,
         heldout_rms_after: current_cv,
         stop,
+        reduced_fits,
+        fit_options: options.fit,
     })
+}
+
+/// [`partial_f_tests`] of the selection's final fit with its fit options, reusing the reduced
+/// fits the selection already made ([`Selection::reduced_fits`]): the same result, bit for bit.
+/// Failure cases: as [`partial_f_tests`].
+pub fn partial_f_tests_of_selection(
+    model: &dyn TipModel,
+    selection: &Selection,
+) -> Result<Vec<(f64, f64)>, IdentifyError> {
+    partial_f_tests_with(
+        model,
+        &selection.fit,
+        &selection.reduced_fits,
+        &selection.fit_options,
+    )
 }

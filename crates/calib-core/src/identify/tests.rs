@@ -555,3 +555,34 @@ fn one_step_held_out_rms_agrees_with_refitted_folds() {
         );
     }
 }
+
+/// The selection's reduced fits (made by its last re-screens and backward elimination, kept
+/// in `Selection::reduced_fits`) give the partial F tests of refitting every one, bit for bit;
+/// on the two-effect sessions above they are all there (so the reuse is exercised).
+#[test]
+fn partial_f_tests_of_a_selection_reuse_its_reduced_fits_bit_for_bit() {
+    let opts = SelectionOptions::default();
+    for seed in 0..3 {
+        let mut truth = [0.0; 10];
+        truth[1] = 0.15f64.to_radians();
+        truth[9] = 1.5e-3;
+        let toy = session(40, truth, 2e-4, 300 + seed);
+        let s = forward_select(&toy, &(0..10).collect::<Vec<_>>(), &opts).unwrap();
+        assert_eq!(s.fit.params.len(), 2, "seed {seed}");
+        assert!(
+            s.reduced_fits.iter().all(Option::is_some),
+            "seed {seed}: every reduced fit of the final model was made by the re-screens"
+        );
+        let reused = partial_f_tests_of_selection(&toy, &s).unwrap();
+        let refitted = partial_f_tests(&toy, &s.fit, &opts.fit).unwrap();
+        let bits = |v: &[(f64, f64)]| -> Vec<(u64, u64)> {
+            v.iter().map(|(f, p)| (f.to_bits(), p.to_bits())).collect()
+        };
+        assert_eq!(bits(&reused), bits(&refitted), "seed {seed}");
+        // Without them, the same figures from fresh fits.
+        let mut bare = s.clone();
+        bare.reduced_fits.clear();
+        let fresh = partial_f_tests_of_selection(&toy, &bare).unwrap();
+        assert_eq!(bits(&fresh), bits(&refitted), "seed {seed}");
+    }
+}
