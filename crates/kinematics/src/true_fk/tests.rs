@@ -364,6 +364,15 @@ fn bad_inputs_are_named_errors() {
     );
 }
 
+/// Errors, tip offset, gravity, parameters, and a word the error must name.
+type BadTipInputs<'a> = (
+    &'a KinematicErrors,
+    Vector3<f64>,
+    Vector3<f64>,
+    &'a [ErrorParam],
+    &'static str,
+);
+
 /// `check_tip_inputs` on its own: it accepts good inputs whatever the joint values (it does not
 /// check them: a short or non-finite `q` is `RobotModel::check_q`'s), and it refuses each bad
 /// input with the error the checked `true_tip_with_error_jacobian` gives for it at good joint
@@ -392,13 +401,7 @@ fn check_tip_inputs_refuses_what_the_checked_call_refuses_in_its_order() {
         }];
         // (errors, tip, gravity, params, a word the error names): one bad input each, then
         // several at once, where the first in the documented order must be the one named.
-        let cases: Vec<(
-            &KinematicErrors,
-            Vector3<f64>,
-            Vector3<f64>,
-            &[ErrorParam],
-            &str,
-        )> = vec![
+        let cases: Vec<BadTipInputs<'_>> = vec![
             (&good, nan_tip, G_FLOOR, &params, "tip"),
             (&good, tip, inf_g, &params, "gravity"),
             (&nan_errors, tip, G_FLOOR, &params, "origin_rpy"),
