@@ -54,7 +54,7 @@ pub use true_fk::{
     check_tip_inputs, tip_error_jacobian, tip_error_jacobian_unchecked, tip_joint_jacobian_true,
     true_base_from_flange, true_base_from_flange_unchecked, true_base_from_tip,
     true_base_from_tip_unchecked, true_tip_with_error_jacobian,
-    true_tip_with_error_jacobian_unchecked,
+    true_tip_with_error_jacobian_unchecked, PreparedTip,
 };
 pub use trunk::{
     branch_deflections, branch_regressor, branch_torques, is_branch_param,

@@ -158,12 +158,95 @@ fn true_chain(
     errors: &KinematicErrors,
     q_true: &[f64],
     frames: Option<&mut [TrueJointFrame]>,
+    prep: Option<&ChainPrep>,
 ) -> (Matrix3<f64>, Vector3<f64>) {
     if model.prismatic {
-        true_chain_k::<true>(model, errors, q_true, frames)
+        true_chain_k::<true>(model, errors, q_true, frames, prep)
     } else {
-        true_chain_k::<false>(model, errors, q_true, frames)
+        true_chain_k::<false>(model, errors, q_true, frames, prep)
     }
+}
+
+/// What [`true_chain`] and [`fill_error_columns`] compute from the errors alone, formed once for
+/// many joint vectors ([`PreparedTip`]): the same expressions, so the same values, as they
+/// compute at each call without it.
+#[derive(Debug, Clone)]
+struct ChainPrep {
+    /// The mount rotation, `None` when the mount has no error.
+    mount_r: Option<Matrix3<f64>>,
+    /// Per chain joint: its step with the origin error applied (`None`: no origin error, the
+    /// nominal step).
+    steps: Vec<Option<Step>>,
+    /// Per chain joint: the origin-rpy derivative axes of roll and pitch in the parent link's
+    /// frame ([`rpy_local_axes`] at the true rpy).
+    rpy_local: Vec<[Vector3<f64>; 2]>,
+    /// The mount-rpy derivative axes ([`rpy_derivative_axes`] with `R_P = I`).
+    mount_axes: [Vector3<f64>; 3],
+}
+
+impl ChainPrep {
+    /// The prepared chain of `model` with `errors` (checked by the caller).
+    fn new(model: &RobotModel, errors: &KinematicErrors) -> Self {
+        let mount_zero =
+            all_zero(errors.mount_xyz.as_slice()) && all_zero(errors.mount_rpy.as_slice());
+        let steps = model
+            .steps
+            .iter()
+            .zip(model.chain_joints())
+            .enumerate()
+            .map(|(k, (step, joint))| {
+                let dxyz = &errors.origin_xyz[k];
+                let drpy = &errors.origin_rpy[k];
+                let origin_zero = all_zero(dxyz.as_slice()) && all_zero(drpy.as_slice());
+                (!origin_zero).then(|| perturbed_step(step, joint, dxyz, drpy))
+            })
+            .collect();
+        let rpy_local = model
+            .chain_joints()
+            .iter()
+            .enumerate()
+            .map(|(k, joint)| rpy_local_axes(&(joint.origin_rpy + errors.origin_rpy[k])))
+            .collect();
+        ChainPrep {
+            mount_r: (!mount_zero).then(|| *rotation_from_rpy(&errors.mount_rpy).matrix()),
+            steps,
+            rpy_local,
+            mount_axes: rpy_derivative_axes(&Matrix3::identity(), &errors.mount_rpy),
+        }
+    }
+}
+
+/// The rotation of a joint's fixed prefix (the identity exactly when it has none).
+#[inline(always)]
+fn prefix_rotation(joint: &crate::model::Joint) -> Matrix3<f64> {
+    if joint.fixed_prefix.rotation.w == 1.0 {
+        Matrix3::identity()
+    } else {
+        *joint.fixed_prefix.rotation.to_rotation_matrix().matrix()
+    }
+}
+
+/// A joint's FK step with its origin replaced by `fixed_prefix · Origin(xyz + dxyz, rpy + drpy)`.
+#[inline(always)]
+fn perturbed_step(
+    step: &Step,
+    joint: &crate::model::Joint,
+    dxyz: &Vector3<f64>,
+    drpy: &Vector3<f64>,
+) -> Step {
+    let fp = &joint.fixed_prefix;
+    let fp_r = prefix_rotation(joint);
+    let origin_r = if all_zero(drpy.as_slice()) {
+        step.origin.r
+    } else {
+        fp_r * rotation_from_rpy(&(joint.origin_rpy + drpy)).matrix()
+    };
+    Step::new(
+        step.axis,
+        origin_r,
+        fp.translation.vector + fp_r * (joint.origin_xyz + dxyz),
+        step.axis_kind == PRISMATIC,
+    )
 }
 
 /// [`true_chain`] for a chain that may (or, `false`, does not) hold prismatic joints.
@@ -173,13 +256,17 @@ fn true_chain_k<const MAY_BE_PRISMATIC: bool>(
     errors: &KinematicErrors,
     q_true: &[f64],
     mut frames: Option<&mut [TrueJointFrame]>,
+    prep: Option<&ChainPrep>,
 ) -> (Matrix3<f64>, Vector3<f64>) {
     let mount_zero = all_zero(errors.mount_xyz.as_slice()) && all_zero(errors.mount_rpy.as_slice());
     let (mut r, mut t) = if mount_zero {
         (Matrix3::identity(), Vector3::zeros())
     } else {
         (
-            *rotation_from_rpy(&errors.mount_rpy).matrix(),
+            match prep.and_then(|p| p.mount_r) {
+                Some(mount_r) => mount_r,
+                None => *rotation_from_rpy(&errors.mount_rpy).matrix(),
+            },
             errors.mount_xyz,
         )
     };
@@ -193,32 +280,18 @@ fn true_chain_k<const MAY_BE_PRISMATIC: bool>(
         let dxyz = &errors.origin_xyz[k];
         let drpy = &errors.origin_rpy[k];
         let origin_zero = all_zero(dxyz.as_slice()) && all_zero(drpy.as_slice());
-        let prefix_r = || {
-            if joint.fixed_prefix.rotation.w == 1.0 {
-                Matrix3::identity()
-            } else {
-                *joint.fixed_prefix.rotation.to_rotation_matrix().matrix()
-            }
-        };
-        let parent_rotation = frames.as_ref().map(|_| r * prefix_r());
+        let parent_rotation = frames.as_ref().map(|_| r * prefix_rotation(joint));
         if origin_zero {
             // The nominal step, so that zero errors reproduce the nominal FK.
             apply_step::<MAY_BE_PRISMATIC>(&mut r, &mut t, step, qk);
         } else {
-            let fp = &joint.fixed_prefix;
-            let fp_r = prefix_r();
-            let origin_r = if all_zero(drpy.as_slice()) {
-                step.origin.r
-            } else {
-                fp_r * rotation_from_rpy(&(joint.origin_rpy + drpy)).matrix()
-            };
-            let perturbed = Step::new(
-                step.axis,
-                origin_r,
-                fp.translation.vector + fp_r * (joint.origin_xyz + dxyz),
-                step.axis_kind == PRISMATIC,
-            );
-            apply_step::<MAY_BE_PRISMATIC>(&mut r, &mut t, &perturbed, qk);
+            match prep.and_then(|p| p.steps[k].as_ref()) {
+                Some(perturbed) => apply_step::<MAY_BE_PRISMATIC>(&mut r, &mut t, perturbed, qk),
+                None => {
+                    let perturbed = perturbed_step(step, joint, dxyz, drpy);
+                    apply_step::<MAY_BE_PRISMATIC>(&mut r, &mut t, &perturbed, qk);
+                }
+            }
         }
         if let (Some(f), Some(parent_rotation)) = (frames.as_deref_mut(), parent_rotation) {
             let z = r * step.axis.into_inner();
@@ -259,7 +332,7 @@ pub fn true_base_from_flange_unchecked(
     q_rep: &[f64],
     g_base: &Vector3<f64>,
 ) -> Isometry3<f64> {
-    let (r, t) = true_flange_rt(model, errors, q_rep, g_base);
+    let (r, t) = true_flange_rt(model, errors, q_rep, g_base, None);
     isometry(&r, &t)
 }
 
@@ -269,11 +342,12 @@ fn true_flange_rt(
     errors: &KinematicErrors,
     q_rep: &[f64],
     g_base: &Vector3<f64>,
+    prep: Option<&ChainPrep>,
 ) -> (Matrix3<f64>, Vector3<f64>) {
     with_scratch(model.chain_joints().len(), |tau, q_true| {
         let mut buf = Vec::new();
         true_joint_angles(model, errors, (q_rep, &mut buf), g_base, false, tau, q_true);
-        true_chain(model, errors, q_true, None)
+        true_chain(model, errors, q_true, None, prep)
     })
 }
 
@@ -309,7 +383,7 @@ pub fn true_base_from_tip_unchecked(
         // Exactly the nominal FK (the general path agrees to round-off; tested).
         return base_from_tip_unchecked(model, q_rep, flange_from_tip);
     }
-    true_tip_general(model, errors, q_rep, flange_from_tip, g_base)
+    true_tip_general(model, errors, q_rep, flange_from_tip, g_base, None)
 }
 
 /// The general path of [`true_base_from_tip_unchecked`] (no zero-error shortcut).
@@ -319,8 +393,9 @@ fn true_tip_general(
     q_rep: &[f64],
     flange_from_tip: &Vector3<f64>,
     g_base: &Vector3<f64>,
+    prep: Option<&ChainPrep>,
 ) -> Isometry3<f64> {
-    let (r, t) = true_flange_rt(model, errors, q_rep, g_base);
+    let (r, t) = true_flange_rt(model, errors, q_rep, g_base, prep);
     tip_isometry(&r, &t, &(flange_from_tip + errors.tip))
 }
 
@@ -378,12 +453,23 @@ pub fn true_base_from_tip(
 /// `a_roll = R_parent·Rz·Ry·e_x = R_parent·(cy·cp, sy·cp, −sp)`,
 /// `a_pitch = R_parent·Rz·e_y = R_parent·(−sy, cy, 0)`, `a_yaw = R_parent·e_z`.
 fn rpy_derivative_axes(parent_rotation: &Matrix3<f64>, rpy: &Vector3<f64>) -> [Vector3<f64>; 3] {
+    let [roll, pitch] = rpy_local_axes(rpy);
+    [
+        parent_rotation * roll,
+        parent_rotation * pitch,
+        parent_rotation * Vector3::z(),
+    ]
+}
+
+/// The roll and pitch axes of [`rpy_derivative_axes`] before `R_parent`:
+/// `(cy·cp, sy·cp, −sp)` and `(−sy, cy, 0)`.
+#[inline(always)]
+fn rpy_local_axes(rpy: &Vector3<f64>) -> [Vector3<f64>; 2] {
     let (sp, cp) = sin_cos(rpy.y);
     let (sy, cy) = sin_cos(rpy.z);
     [
-        parent_rotation * Vector3::new(cy * cp, sy * cp, -sp),
-        parent_rotation * Vector3::new(-sy, cy, 0.0),
-        parent_rotation * Vector3::z(),
+        Vector3::new(cy * cp, sy * cp, -sp),
+        Vector3::new(-sy, cy, 0.0),
     ]
 }
 
@@ -448,12 +534,14 @@ pub fn tip_error_jacobian_unchecked(
         g_base,
         params,
         &mut jac,
+        None,
     );
     jac
 }
 
 /// One walk of the true chain filling `jac` with the columns of [`tip_error_jacobian`]; returns
 /// the flange (rotation, translation). No checks.
+#[allow(clippy::too_many_arguments)]
 fn error_jacobian_walk(
     model: &RobotModel,
     errors: &KinematicErrors,
@@ -462,6 +550,7 @@ fn error_jacobian_walk(
     g_base: &Vector3<f64>,
     params: &[ErrorParam],
     jac: &mut Matrix3xX<f64>,
+    prep: Option<&ChainPrep>,
 ) -> (Matrix3<f64>, Vector3<f64>) {
     with_chain_scratch(model.chain_joints().len(), |tau, q_true, frames| {
         // Compliance columns need τ even when no compliance is set.
@@ -478,9 +567,19 @@ fn error_jacobian_walk(
             tau,
             q_true,
         );
-        let (flange_r, flange_t) = true_chain(model, errors, q_true, Some(frames));
+        let (flange_r, flange_t) = true_chain(model, errors, q_true, Some(frames), prep);
         let p = flange_t + flange_r * (flange_from_tip + errors.tip);
-        fill_error_columns(errors, q_rep_chain, tau, frames, &flange_r, &p, params, jac);
+        fill_error_columns(
+            errors,
+            q_rep_chain,
+            tau,
+            frames,
+            &flange_r,
+            &p,
+            params,
+            jac,
+            prep,
+        );
         crate::lumped::fill_lumped_columns(model, q_rep, g_base, frames, &p, params, jac);
         (flange_r, flange_t)
     })
@@ -521,7 +620,8 @@ pub fn true_tip_with_error_jacobian(
 /// [`RobotModel::check_q`]: a non-finite tip offset or `g_base`, `errors` of the wrong shape or
 /// non-finite ([`KinematicErrors::check`]), then each of `params`
 /// ([`ErrorParam::check_model`]). A caller that evaluates many joint vectors at the same errors
-/// runs this once, then [`RobotModel::check_q`] and the `_unchecked` functions per vector.
+/// builds a [`PreparedTip`] (which runs this once), or runs this once, then
+/// [`RobotModel::check_q`] and the `_unchecked` functions per vector.
 pub fn check_tip_inputs(
     model: &RobotModel,
     errors: &KinematicErrors,
@@ -541,6 +641,8 @@ pub fn check_tip_inputs(
 /// [`true_tip_with_error_jacobian`] without checks: the caller has run [`check_tip_inputs`] on
 /// these `errors`, tip, gravity and `params`, and [`RobotModel::check_q`] on `q_rep` (the same
 /// values, bit for bit, as the checked call). Panics only if the lengths do not match the model.
+/// [`PreparedTip`] is the safe form for many joint vectors at the same inputs (checked once,
+/// then only the joint values; no panic) and is faster (the errors' chain prepared once).
 pub fn true_tip_with_error_jacobian_unchecked(
     model: &RobotModel,
     errors: &KinematicErrors,
@@ -552,25 +654,167 @@ pub fn true_tip_with_error_jacobian_unchecked(
     let need_tau = params
         .iter()
         .any(|p| matches!(p, ErrorParam::Compliance { .. }));
-    if errors.is_zero() || (need_tau && all_zero(&errors.compliance)) {
-        let pose = true_base_from_tip_unchecked(model, errors, q_rep, flange_from_tip, g_base);
-        let jac =
-            tip_error_jacobian_unchecked(model, errors, q_rep, flange_from_tip, g_base, params);
+    let two_walks = errors.is_zero() || (need_tau && all_zero(&errors.compliance));
+    let inputs = (model, errors, flange_from_tip, g_base, params);
+    tip_with_error_jacobian_walks(inputs, q_rep, two_walks, None)
+}
+
+/// The body of [`true_tip_with_error_jacobian_unchecked`], with its choice of one or two walks
+/// (`two_walks`) and the errors' prepared chain if any.
+fn tip_with_error_jacobian_walks(
+    (model, errors, flange_from_tip, g_base, params): TipInputs<'_>,
+    q_rep: &[f64],
+    two_walks: bool,
+    prep: Option<&ChainPrep>,
+) -> (Isometry3<f64>, Matrix3xX<f64>) {
+    let mut jac = Matrix3xX::zeros(params.len());
+    let walk = |jac: &mut Matrix3xX<f64>| {
+        error_jacobian_walk(
+            model,
+            errors,
+            q_rep,
+            flange_from_tip,
+            g_base,
+            params,
+            jac,
+            prep,
+        )
+    };
+    if two_walks {
+        let pose = if errors.is_zero() {
+            base_from_tip_unchecked(model, q_rep, flange_from_tip)
+        } else {
+            true_tip_general(model, errors, q_rep, flange_from_tip, g_base, prep)
+        };
+        walk(&mut jac);
         return (pose, jac);
     }
-    let mut jac = Matrix3xX::zeros(params.len());
-    let (flange_r, flange_t) = error_jacobian_walk(
-        model,
-        errors,
-        q_rep,
-        flange_from_tip,
-        g_base,
-        params,
-        &mut jac,
-    );
+    let (flange_r, flange_t) = walk(&mut jac);
     // The pose as `true_tip_general` forms it from the same flange.
     let pose = tip_isometry(&flange_r, &flange_t, &(flange_from_tip + errors.tip));
     (pose, jac)
+}
+
+/// A robot model, its errors, the tip offset, gravity and the Jacobian's parameters.
+type TipInputs<'a> = (
+    &'a RobotModel,
+    &'a KinematicErrors,
+    &'a Vector3<f64>,
+    &'a Vector3<f64>,
+    &'a [ErrorParam],
+);
+
+/// The inputs of [`true_tip_with_error_jacobian`] that do not depend on the joint values,
+/// checked once ([`check_tip_inputs`]) and prepared for evaluating many joint vectors: each
+/// joint's origin error applied to its step and the rotation-error axes formed once, not at
+/// every joint vector. Its methods give the same values, bit for bit, as the checked functions
+/// at the same inputs, and check only the joint values; a value of this type cannot be built
+/// from unchecked inputs, so its methods cannot panic on a length mismatch.
+///
+/// # Examples
+/// ```
+/// # use kinematics::{true_tip_with_error_jacobian, ErrorParam, KinematicErrors, PreparedTip, RobotModel};
+/// # use nalgebra::Vector3;
+/// let urdf = r#"<robot name="arm">
+///   <link name="base"/><link name="tool0"/>
+///   <joint name="j1" type="revolute"><parent link="base"/><child link="tool0"/>
+///     <origin xyz="0 0 0.5"/><axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+/// </robot>"#;
+/// let model = RobotModel::from_urdf_str(urdf, "tool0").unwrap();
+/// let (tip, g) = (Vector3::new(1.0, 0.0, 0.0), Vector3::new(0.0, 0.0, -9.81));
+/// let mut errors = KinematicErrors::zero(1);
+/// errors.set(ErrorParam::JointOffset { joint: 0 }, 0.01);
+/// let params = [ErrorParam::JointOffset { joint: 0 }];
+/// let prepared = PreparedTip::new(&model, &errors, &tip, &g, &params).unwrap();
+/// for q in [0.0, 0.5, 1.0] {
+///     let once = prepared.tip_with_error_jacobian(&[q]).unwrap();
+///     assert_eq!(once, true_tip_with_error_jacobian(&model, &errors, &[q], &tip, &g, &params).unwrap());
+/// }
+/// assert!(prepared.tip_with_error_jacobian(&[0.0, 1.0]).is_err()); // a wrong length is an error
+/// ```
+#[derive(Debug, Clone)]
+pub struct PreparedTip<'m> {
+    model: &'m RobotModel,
+    errors: KinematicErrors,
+    flange_from_tip: Vector3<f64>,
+    g_base: Vector3<f64>,
+    params: Vec<ErrorParam>,
+    /// Whether [`true_tip_with_error_jacobian_unchecked`] walks the chain twice at these inputs.
+    two_walks: bool,
+    chain: ChainPrep,
+}
+
+impl<'m> PreparedTip<'m> {
+    /// Checks the inputs ([`check_tip_inputs`]: its errors, in its order) and prepares them.
+    pub fn new(
+        model: &'m RobotModel,
+        errors: &KinematicErrors,
+        flange_from_tip: &Vector3<f64>,
+        g_base: &Vector3<f64>,
+        params: &[ErrorParam],
+    ) -> Result<Self, KinematicsError> {
+        check_tip_inputs(model, errors, flange_from_tip, g_base, params)?;
+        let need_tau = params
+            .iter()
+            .any(|p| matches!(p, ErrorParam::Compliance { .. }));
+        Ok(PreparedTip {
+            model,
+            errors: errors.clone(),
+            flange_from_tip: *flange_from_tip,
+            g_base: *g_base,
+            params: params.to_vec(),
+            two_walks: errors.is_zero() || (need_tau && all_zero(&errors.compliance)),
+            chain: ChainPrep::new(model, errors),
+        })
+    }
+
+    /// The errors it was prepared with.
+    pub fn errors(&self) -> &KinematicErrors {
+        &self.errors
+    }
+
+    /// [`true_tip_with_error_jacobian`] at `q_rep` (the same values).
+    ///
+    /// Errors: a bad `q_rep` ([`RobotModel::check_q`]).
+    pub fn tip_with_error_jacobian(
+        &self,
+        q_rep: &[f64],
+    ) -> Result<(Isometry3<f64>, Matrix3xX<f64>), KinematicsError> {
+        self.model.check_q(q_rep)?;
+        let inputs = (
+            self.model,
+            &self.errors,
+            &self.flange_from_tip,
+            &self.g_base,
+            self.params.as_slice(),
+        );
+        Ok(tip_with_error_jacobian_walks(
+            inputs,
+            q_rep,
+            self.two_walks,
+            Some(&self.chain),
+        ))
+    }
+
+    /// [`true_base_from_tip`] at `q_rep` (the same value).
+    ///
+    /// Errors: a bad `q_rep` ([`RobotModel::check_q`]).
+    pub fn tip(&self, q_rep: &[f64]) -> Result<Isometry3<f64>, KinematicsError> {
+        self.model.check_q(q_rep)?;
+        let (model, t) = (self.model, &self.flange_from_tip);
+        Ok(if self.errors.is_zero() {
+            base_from_tip_unchecked(model, q_rep, t)
+        } else {
+            true_tip_general(
+                model,
+                &self.errors,
+                q_rep,
+                t,
+                &self.g_base,
+                Some(&self.chain),
+            )
+        })
+    }
 }
 
 /// The columns of [`tip_error_jacobian`] from the true chain's frames, tip `p` and flange rotation.
@@ -584,9 +828,13 @@ fn fill_error_columns(
     p: &Vector3<f64>,
     params: &[ErrorParam],
     jac: &mut Matrix3xX<f64>,
+    prep: Option<&ChainPrep>,
 ) {
     let p = *p;
-    let mount_axes = rpy_derivative_axes(&Matrix3::identity(), &errors.mount_rpy);
+    let mount_axes = match prep {
+        Some(prep) => prep.mount_axes,
+        None => rpy_derivative_axes(&Matrix3::identity(), &errors.mount_rpy),
+    };
     // The last joint's origin-rpy axes: a joint's three rpy columns are usually asked for
     // together, and the axes (two sines and cosines) are the same for all three.
     let mut rpy_axes: Option<(usize, [Vector3<f64>; 3])> = None;
@@ -604,7 +852,14 @@ fn fill_error_columns(
                 let axes = match rpy_axes {
                     Some((j, axes)) if j == joint => axes,
                     _ => {
-                        let axes = rpy_derivative_axes(&f.parent_rotation, &f.rpy);
+                        let axes = match prep {
+                            Some(prep) => {
+                                let [roll, pitch] = prep.rpy_local[joint];
+                                let r_p = &f.parent_rotation;
+                                [r_p * roll, r_p * pitch, r_p * Vector3::z()]
+                            }
+                            None => rpy_derivative_axes(&f.parent_rotation, &f.rpy),
+                        };
                         rpy_axes = Some((joint, axes));
                         axes
                     }
@@ -668,7 +923,7 @@ pub fn tip_joint_jacobian_true(
         &mut q_true,
     );
     let mut frames = vec![TrueJointFrame::default(); n];
-    let (flange_r, flange_t) = true_chain(model, errors, &q_true, Some(&mut frames));
+    let (flange_r, flange_t) = true_chain(model, errors, &q_true, Some(&mut frames), None);
     let p = flange_t + flange_r * (flange_from_tip + errors.tip);
     // ∂p/∂q_true, per chain joint.
     let mut j_true = Matrix3xX::zeros(n);

@@ -5,10 +5,9 @@ use std::borrow::Cow;
 use std::sync::OnceLock;
 
 use kinematics::{
-    branch_deflections, branch_regressor, branch_torques, check_tip_inputs, is_branch_param,
-    tip_error_jacobian, true_base_from_tip, true_base_from_tip_unchecked,
-    true_tip_with_error_jacobian, true_tip_with_error_jacobian_unchecked, Axis, ErrorParam,
-    KinematicErrors, KinematicsError,
+    branch_deflections, branch_regressor, branch_torques, is_branch_param, tip_error_jacobian,
+    true_base_from_tip, true_tip_with_error_jacobian, Axis, ErrorParam, KinematicErrors,
+    KinematicsError, PreparedTip,
 };
 use nalgebra::{DMatrix, DVector, Point3, Unit, Vector3};
 
@@ -59,14 +58,15 @@ pub struct ObservationLinearisation {
 
 /// One robot's kinematic errors with one tool's fitted tip at an estimate, formed once per
 /// estimate instead of at every observation ([`AtEstimate`]).
-struct ToolErrors {
+struct ToolErrors<'m> {
     /// The errors, `tip` the tool's fitted tip error.
     errors: KinematicErrors,
-    /// Whether these errors, the tool's offset, the robot's gravity and the evaluator's
-    /// Jacobian parameters of the robot passed [`check_tip_inputs`]: then each observation
-    /// checks only its joint values and calls the kinematics' unchecked functions (the same
-    /// values and, on failure, the same errors as the checked ones, which run otherwise).
-    checked: bool,
+    /// These errors with the tool's offset, the robot's gravity and the evaluator's Jacobian
+    /// parameters of the robot, checked and prepared ([`PreparedTip`]) when they pass the
+    /// checks: then each observation checks only its joint values and walks the prepared chain
+    /// (the same values and, on failure, the same errors as the checked functions, which run
+    /// otherwise).
+    prepared: Option<PreparedTip<'m>>,
 }
 
 /// An estimate with each robot's kinematic errors for each of its tools formed and checked at
@@ -75,7 +75,7 @@ struct ToolErrors {
 pub struct AtEstimate<'e> {
     est: &'e CellEstimate,
     /// Per robot slot, per tool.
-    tools: [Vec<OnceLock<ToolErrors>>; 2],
+    tools: [Vec<OnceLock<ToolErrors<'e>>>; 2],
 }
 
 impl<'e> AtEstimate<'e> {
@@ -116,7 +116,10 @@ impl<'a> Evaluator<'a> {
     /// `est` prepared for evaluating many observations: each robot's errors per tool are formed
     /// and checked once, on first use ([`AtEstimate`]). The `_at` methods take it; the methods
     /// that take the estimate prepare it for their one call.
-    pub fn at<'e>(&self, est: &'e CellEstimate) -> AtEstimate<'e> {
+    pub fn at<'e>(&self, est: &'e CellEstimate) -> AtEstimate<'e>
+    where
+        'a: 'e,
+    {
         let slots = |robot: Robot| {
             (0..self.problem.robot(robot).tools.len())
                 .map(|_| OnceLock::new())
@@ -130,13 +133,16 @@ impl<'a> Evaluator<'a> {
 
     /// `robot`'s cell robot, the definition of its `tool` and its kinematic errors with that
     /// tool's fitted tip at `at`; an error naming `row` when the robot has no such tool.
-    fn tool_context<'s>(
+    fn tool_context<'s, 'e>(
         &self,
-        at: &'s AtEstimate<'_>,
+        at: &'s AtEstimate<'e>,
         robot: Robot,
         tool: usize,
         row: usize,
-    ) -> Result<(&'a CellRobot, &'a Tool, &'s ToolErrors), CellFitError> {
+    ) -> Result<(&'a CellRobot, &'a Tool, &'s ToolErrors<'e>), CellFitError>
+    where
+        'a: 'e,
+    {
         let rb = self.problem.robot(robot);
         let no_tool = || {
             CellFitError::InvalidInput(format!("observation row {row}: {robot} has no tool {tool}"))
@@ -146,15 +152,15 @@ impl<'a> Evaluator<'a> {
         let cell = at.tools[slot].get(tool).ok_or_else(no_tool)?;
         let prepared = cell.get_or_init(|| {
             let errors = at.est.robot(robot).errors_for_tool(tool);
-            let checked = check_tip_inputs(
+            let prepared = PreparedTip::new(
                 &rb.model,
                 &errors,
                 &tool_def.flange_from_tip,
                 &rb.g_base,
                 &self.jac_params[slot],
             )
-            .is_ok();
-            ToolErrors { errors, checked }
+            .ok();
+            ToolErrors { errors, prepared }
         });
         Ok((rb, tool_def, prepared))
     }
@@ -246,16 +252,19 @@ impl<'a> Evaluator<'a> {
 
     /// [`Evaluator::robot_tip`] at a prepared estimate.
     #[allow(clippy::too_many_arguments)]
-    fn robot_tip_at(
+    fn robot_tip_at<'e>(
         &self,
-        at: &AtEstimate<'_>,
+        at: &AtEstimate<'e>,
         robot: Robot,
         tool: usize,
         q: &[f64],
         q_other: Option<&[f64]>,
         want_jac: bool,
         row: usize,
-    ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
+    ) -> Result<(Vector3<f64>, Cols3), CellFitError>
+    where
+        'a: 'e,
+    {
         let slot = robot_slot(robot);
         let (rb, tool_def, prepared) = self.tool_context(at, robot, tool, row)?;
         let kin_err = kinematics_error(robot, row);
@@ -273,8 +282,8 @@ impl<'a> Evaluator<'a> {
                 *o += d;
             }
         }
-        // The checks done once for the estimate hold for these errors (no trunk load added).
-        let unchecked = prepared.checked && load.is_none();
+        // The errors prepared once for the estimate are these errors (no trunk load added).
+        let ready = prepared.prepared.as_ref().filter(|_| load.is_none());
         let mut cols = Cols3::new();
         if want_jac && (!lay.kin.is_empty() || tip_col.iter().any(Option::is_some)) {
             // Always the kinematic columns and all three tip axes; unfitted axes are skipped.
@@ -293,16 +302,8 @@ impl<'a> Evaluator<'a> {
                 }
                 None => &self.jac_params[slot],
             };
-            let (pose, j) = if unchecked {
-                rb.model.check_q(q).map_err(kin_err)?;
-                true_tip_with_error_jacobian_unchecked(
-                    &rb.model,
-                    &errors,
-                    q,
-                    &tool_def.flange_from_tip,
-                    &rb.g_base,
-                    params,
-                )
+            let (pose, j) = if let Some(ready) = ready {
+                ready.tip_with_error_jacobian(q).map_err(kin_err)?
             } else {
                 true_tip_with_error_jacobian(
                     &rb.model,
@@ -331,9 +332,8 @@ impl<'a> Evaluator<'a> {
             return Ok((pose.translation.vector, cols));
         }
         let t = &tool_def.flange_from_tip;
-        let pose = if unchecked {
-            rb.model.check_q(q).map_err(kin_err)?;
-            true_base_from_tip_unchecked(&rb.model, &errors, q, t, &rb.g_base)
+        let pose = if let Some(ready) = ready {
+            ready.tip(q).map_err(kin_err)?
         } else {
             true_base_from_tip(&rb.model, &errors, q, t, &rb.g_base).map_err(kin_err)?
         };
@@ -360,9 +360,9 @@ impl<'a> Evaluator<'a> {
 
     /// [`Evaluator::tip_in_anchor`] at a prepared estimate.
     #[allow(clippy::too_many_arguments)]
-    fn tip_in_anchor_at(
+    fn tip_in_anchor_at<'e>(
         &self,
-        at: &AtEstimate<'_>,
+        at: &AtEstimate<'e>,
         robot: Robot,
         tool: usize,
         q: &[f64],
@@ -370,7 +370,10 @@ impl<'a> Evaluator<'a> {
         anchor: Robot,
         want_jac: bool,
         row: usize,
-    ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
+    ) -> Result<(Vector3<f64>, Cols3), CellFitError>
+    where
+        'a: 'e,
+    {
         let est = at.est;
         let (f, cols) = self.robot_tip_at(at, robot, tool, q, q_other, want_jac, row)?;
         if robot == anchor {
@@ -406,14 +409,17 @@ impl<'a> Evaluator<'a> {
 
     /// Both robots' tips of a two-robot row in b1 and their Jacobian columns
     /// ([`Evaluator::tip_in_anchor`]), each arm loading a shared trunk for the other.
-    fn both_tips_in_b1(
+    fn both_tips_in_b1<'e>(
         &self,
-        at: &AtEstimate<'_>,
+        at: &AtEstimate<'e>,
         [q1, q2]: [&[f64]; 2],
         [tool1, tool2]: [usize; 2],
         want_jac: bool,
         row: usize,
-    ) -> Result<TwoTips, CellFitError> {
+    ) -> Result<TwoTips, CellFitError>
+    where
+        'a: 'e,
+    {
         let one = self.tip_in_anchor_at(
             at,
             Robot::One,
@@ -448,9 +454,9 @@ impl<'a> Evaluator<'a> {
     /// `∂(R·n)/∂θ = ∂p(t + n)/∂θ − ∂p(t)/∂θ`, two [`tip_error_jacobian`]s (the compliance
     /// torques do not depend on the tool offset).
     #[allow(clippy::too_many_arguments)]
-    fn normal_in_b1(
+    fn normal_in_b1<'e>(
         &self,
-        at: &AtEstimate<'_>,
+        at: &AtEstimate<'e>,
         robot: Robot,
         tool: usize,
         q: &[f64],
@@ -458,7 +464,10 @@ impl<'a> Evaluator<'a> {
         n_tip: &Unit<Vector3<f64>>,
         want_jac: bool,
         row: usize,
-    ) -> Result<(Vector3<f64>, Cols3), CellFitError> {
+    ) -> Result<(Vector3<f64>, Cols3), CellFitError>
+    where
+        'a: 'e,
+    {
         let est = at.est;
         let slot = robot_slot(robot);
         let (rb, tool_def, prepared) = self.tool_context(at, robot, tool, row)?;
@@ -524,12 +533,15 @@ impl<'a> Evaluator<'a> {
 
     /// [`Evaluator::linearise`] at a prepared estimate ([`Evaluator::at`]): the same values,
     /// without forming and checking the robots' errors again for each observation.
-    pub fn linearise_at(
+    pub fn linearise_at<'e>(
         &self,
         obs: &Observation,
-        at: &AtEstimate<'_>,
+        at: &AtEstimate<'e>,
         want_jac: bool,
-    ) -> Result<ObservationLinearisation, CellFitError> {
+    ) -> Result<ObservationLinearisation, CellFitError>
+    where
+        'a: 'e,
+    {
         let est = at.est;
         let row = obs.row;
         let n = self.layout.len();
@@ -743,12 +755,15 @@ impl<'a> Evaluator<'a> {
     }
 
     /// [`Evaluator::cooperative_vector`] at a prepared estimate ([`Evaluator::at`]).
-    pub fn cooperative_vector_at(
+    pub fn cooperative_vector_at<'e>(
         &self,
-        at: &AtEstimate<'_>,
+        at: &AtEstimate<'e>,
         pair: &super::ConfigPair,
         want_jac: bool,
-    ) -> Result<(Vector3<f64>, DMatrix<f64>), CellFitError> {
+    ) -> Result<(Vector3<f64>, DMatrix<f64>), CellFitError>
+    where
+        'a: 'e,
+    {
         let ((p1, c1), (g2, c2)) = self.both_tips_in_b1(
             at,
             [&pair.q1, &pair.q2],

@@ -9,8 +9,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::{
-    initial_estimate, CellEstimate, CellFitError, CellParam, CellProblem, Evaluator,
-    ObservationLinearisation, ParamLayout,
+    initial_estimate, CellEstimate, CellFitError, CellParam, CellProblem, Evaluator, ParamLayout,
 };
 use crate::lm::{minimize, LeastSquaresProblem, Linearised};
 use crate::{LmOptions, StopReason};
@@ -251,6 +250,9 @@ impl System {
     }
 }
 
+/// One observation's whitened residuals `W·r` and, when asked for, Jacobian rows `W·J`.
+type Whitened = (DVector<f64>, Option<DMatrix<f64>>);
+
 /// The unweighted whitened rows of `observations` at `est` (with the Jacobian): each block
 /// copied from `reuse` when it holds that observation (taken at the same estimate and layout
 /// columns: the caller's promise), else linearised, in parallel on rayon's current pool.
@@ -292,10 +294,15 @@ fn linearise_rows_with(
         .copied()
         .filter(|&i| reused.get(i).copied().flatten().is_none())
         .collect();
-    let lins: Vec<Result<ObservationLinearisation, CellFitError>> = fresh
+    // Each observation whitened on the thread that linearised it (`W·r`, `W·J`).
+    let lins: Vec<Result<Whitened, CellFitError>> = fresh
         .par_iter()
         .with_min_len(OBSERVATIONS_PER_TASK)
-        .map(|&i| ev.linearise_at(&problem.observations[i], &at, want_jac))
+        .map(|&i| {
+            let l = ev.linearise_at(&problem.observations[i], &at, want_jac)?;
+            let j = want_jac.then(|| &l.whitening * &l.jacobian);
+            Ok((&l.whitening * &l.residual, j))
+        })
         .collect();
     let mut lins = lins.into_iter();
     let total: usize = observations
@@ -320,16 +327,12 @@ fn linearise_rows_with(
             }
             _ => {
                 // The first error in the order of `observations` (the fresh ones keep it).
-                let l = lins
+                let (r, j) = lins
                     .next()
                     .expect("one linearisation per fresh observation")?;
-                rows.r
-                    .rows_mut(row, k)
-                    .copy_from(&(&l.whitening * &l.residual));
-                if want_jac {
-                    rows.j
-                        .rows_mut(row, k)
-                        .copy_from(&(&l.whitening * &l.jacobian));
+                rows.r.rows_mut(row, k).copy_from(&r);
+                if let Some(j) = j {
+                    rows.j.rows_mut(row, k).copy_from(&j);
                 }
             }
         }
@@ -521,16 +524,33 @@ impl LeastSquaresProblem for MapProblem<'_> {
     /// A non-finite residual or a kinematics failure at a trial estimate means the step
     /// diverged (`None`: the solver stops with [`StopReason::NonFinite`]); other errors are
     /// errors.
+    ///
+    /// The trial is linearised with the Jacobian: most trial steps of these fits are accepted
+    /// (2,000-row session: every one of the screen's), and an accepted trial's system is then
+    /// the next iteration's ([`MapProblem::relinearise`]) instead of a second pass over the
+    /// robots. The residuals are the same values as without the Jacobian (one walk of each
+    /// chain gives both, [`kinematics::true_tip_with_error_jacobian`]). A trial whose
+    /// linearisation fails is evaluated again without the Jacobian and judged on that, as
+    /// before, so that the solver's decisions and errors do not change.
     fn evaluate(&self, at: &CellEstimate) -> Result<Option<System>, CellFitError> {
-        match self.at(at, false) {
+        match self.at(at, true) {
             Ok(s) => Ok(Some(s)),
-            Err(CellFitError::NonFinite { .. } | CellFitError::Kinematics { .. }) => Ok(None),
-            Err(e) => Err(e),
+            Err(_) => match self.at(at, false) {
+                Ok(s) => Ok(Some(s)),
+                Err(CellFitError::NonFinite { .. } | CellFitError::Kinematics { .. }) => Ok(None),
+                Err(e) => Err(e),
+            },
         }
     }
 
-    fn relinearise(&self, at: &CellEstimate, _evaluated: System) -> Result<System, CellFitError> {
-        self.at(at, true)
+    /// The evaluated trial itself when it holds the Jacobian ([`MapProblem::evaluate`]), else
+    /// linearised now.
+    fn relinearise(&self, at: &CellEstimate, evaluated: System) -> Result<System, CellFitError> {
+        if evaluated.jacobian {
+            Ok(evaluated)
+        } else {
+            self.at(at, true)
+        }
     }
 
     fn retract(&self, at: &CellEstimate, step: &DVector<f64>) -> CellEstimate {

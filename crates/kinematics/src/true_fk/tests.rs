@@ -115,9 +115,16 @@ proptest! {
                         true_tip_with_error_jacobian(&m, &errors, &q, &tip, &g, params).unwrap();
                     prop_assert_eq!(pose, true_base_from_tip(&m, &errors, &q, &tip, &g).unwrap());
                     prop_assert_eq!(
-                        jac,
-                        tip_error_jacobian(&m, &errors, &q, &tip, &g, params).unwrap()
+                        &jac,
+                        &tip_error_jacobian(&m, &errors, &q, &tip, &g, params).unwrap()
                     );
+                    // The prepared inputs give the same values, bit for bit.
+                    let prepared = PreparedTip::new(&m, &errors, &tip, &g, params).unwrap();
+                    prop_assert_eq!(&prepared.tip_with_error_jacobian(&q).unwrap(), &(pose, jac));
+                    prop_assert_eq!(prepared.tip(&q).unwrap(), pose);
+                    // A joint vector of the wrong length is an error, not a panic.
+                    prop_assert!(prepared.tip_with_error_jacobian(&q[1..]).is_err());
+                    prop_assert!(prepared.tip(&q[1..]).is_err());
                 }
             }
         }
@@ -135,7 +142,7 @@ proptest! {
             let t = true_base_from_tip(&m, &zero, &q, &tip, &g).unwrap();
             prop_assert_eq!(t, nominal);
             // The general path (no zero shortcut) agrees to round-off.
-            let general = true_tip_general(&m, &zero, &q, &tip, &g);
+            let general = true_tip_general(&m, &zero, &q, &tip, &g, None);
             prop_assert!((general.translation.vector - nominal.translation.vector).norm() < EXACT_TOL);
             prop_assert!(general.rotation.angle_to(&nominal.rotation) < EXACT_TOL);
             // And the flange agrees as well.
@@ -355,6 +362,91 @@ fn bad_inputs_are_named_errors() {
     assert!(
         true_base_from_tip(&m, &zero, &q, &tip, &Vector3::new(0.0, 0.0, f64::INFINITY)).is_err()
     );
+}
+
+/// Errors, tip offset, gravity, parameters, and a word the error must name.
+type BadTipInputs<'a> = (
+    &'a KinematicErrors,
+    Vector3<f64>,
+    Vector3<f64>,
+    &'a [ErrorParam],
+    &'static str,
+);
+
+/// `check_tip_inputs` on its own: it accepts good inputs whatever the joint values (it does not
+/// check them: a short or non-finite `q` is `RobotModel::check_q`'s), and it refuses each bad
+/// input with the error the checked `true_tip_with_error_jacobian` gives for it at good joint
+/// values, in the documented order: tip offset, gravity, errors, then each parameter.
+#[test]
+fn check_tip_inputs_refuses_what_the_checked_call_refuses_in_its_order() {
+    use crate::test_fixtures::RAIL_6R;
+    for m in [model(VA1400), model(RAIL_6R)] {
+        let q = vec![0.1; m.dof()];
+        let tip = Vector3::new(0.0, 0.0, 0.1);
+        let good = KinematicErrors::zero_for(&m);
+        let params = all_params_for(&m);
+        check_tip_inputs(&m, &good, &tip, &G_FLOOR, &params).unwrap();
+        // The joint values are not its business: the checked call refuses a short `q` that
+        // these same inputs pass.
+        assert!(true_tip_with_error_jacobian(&m, &good, &q[..2], &tip, &G_FLOOR, &params).is_err());
+
+        let nan_tip = Vector3::new(f64::NAN, 0.0, 0.0);
+        let inf_g = Vector3::new(0.0, 0.0, f64::INFINITY);
+        let mut nan_errors = good.clone();
+        nan_errors.origin_rpy[2].y = f64::NAN;
+        let mut short = good.clone();
+        short.joint_offset.pop();
+        let past_the_chain = [ErrorParam::JointOffset {
+            joint: m.chain_joints().len(),
+        }];
+        // (errors, tip, gravity, params, a word the error names): one bad input each, then
+        // several at once, where the first in the documented order must be the one named.
+        let cases: Vec<BadTipInputs<'_>> = vec![
+            (&good, nan_tip, G_FLOOR, &params, "tip"),
+            (&good, tip, inf_g, &params, "gravity"),
+            (&nan_errors, tip, G_FLOOR, &params, "origin_rpy"),
+            (&short, tip, G_FLOOR, &params, "joint_offset"),
+            (&good, tip, G_FLOOR, &past_the_chain, "joint"),
+            (&nan_errors, nan_tip, inf_g, &past_the_chain, "tip"),
+            (&nan_errors, tip, inf_g, &past_the_chain, "gravity"),
+            (&nan_errors, tip, G_FLOOR, &past_the_chain, "origin_rpy"),
+        ];
+        for (k, (errors, tip, g, params, word)) in cases.into_iter().enumerate() {
+            let err = check_tip_inputs(&m, errors, &tip, &g, params).unwrap_err();
+            let prepared = PreparedTip::new(&m, errors, &tip, &g, params).unwrap_err();
+            assert_eq!(
+                err.to_string(),
+                prepared.to_string(),
+                "{} case {k}",
+                m.name()
+            );
+            let checked =
+                true_tip_with_error_jacobian(&m, errors, &q, &tip, &g, params).unwrap_err();
+            assert_eq!(
+                err.to_string(),
+                checked.to_string(),
+                "{} case {k}",
+                m.name()
+            );
+            assert!(
+                err.to_string().to_lowercase().contains(word),
+                "{} case {k}: {err} does not name {word}",
+                m.name()
+            );
+        }
+    }
+    // A periodic parameter of a prismatic joint (RAIL_6R's first) is refused as a parameter.
+    let rail = model(RAIL_6R);
+    let zero = KinematicErrors::zero_for(&rail);
+    let err = check_tip_inputs(
+        &rail,
+        &zero,
+        &Vector3::zeros(),
+        &G_FLOOR,
+        &[ErrorParam::PeriodicSin { joint: 0 }],
+    )
+    .unwrap_err();
+    assert!(err.to_string().contains("prismatic"), "{err}");
 }
 
 /// Prismatic and coupled joints: a prismatic joint's offset (m), scale and compliance (m/N, under
