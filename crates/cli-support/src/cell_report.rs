@@ -258,15 +258,7 @@ pub fn calibrate_session_withholding(
     for f in withheld {
         f.withhold_from(&mut problem);
     }
-    let mut solve = SolveOptions::default();
-    if session.points.len() < MIN_COINCIDENT_FOR_START || cell.shared_joints > 0 {
-        // Contact, tracker and plane rows alone give no rigid starting placement: start from
-        // the cell's own b1_from_b2. On a shared trunk the placement is the trunk's, the
-        // identity its prior holds: a rigid registration of the nominal tips would start it a
-        // few mm and mrad away, and the reduction, linearised there, read the trunk's
-        // parameters (which move both hands alike) as motions of b1_from_b2.
-        solve.initial_b1_from_b2 = Some(cell.b1_from_b2);
-    }
+    let solve = solve_options(cell, session);
     // A placement fit's screen judges the rows it keeps against the stated noise plus the
     // robots' tolerances (their own error is in every row).
     let toleranced = (model.fit_model() == FitModel::Placement)
@@ -483,6 +475,21 @@ fn keep_cell_robots(cell: &Cell, report: &mut CoverageReport) {
 /// Fewer coincident rows than this: the fit starts from the cell's `b1_from_b2` (a rigid start
 /// needs 3 points not on a line).
 pub(crate) const MIN_COINCIDENT_FOR_START: usize = 3;
+
+/// The solver settings of a calibration of `session` on `cell` (and of its do-no-harm check's
+/// fits): the fit starts from the cell's own `b1_from_b2` when the session has fewer than
+/// [`MIN_COINCIDENT_FOR_START`] coincident rows (contact, tracker and plane rows alone give no
+/// rigid starting placement) or the cell has a shared trunk (the placement is the trunk's, the
+/// identity its prior holds: a rigid registration of the nominal tips would start it a few mm
+/// and mrad away, and the reduction, linearised there, read the trunk's parameters, which move
+/// both hands alike, as motions of `b1_from_b2`). Otherwise from a rigid registration.
+pub(crate) fn solve_options(cell: &Cell, session: &Session) -> SolveOptions {
+    let mut solve = SolveOptions::default();
+    if session.points.len() < MIN_COINCIDENT_FOR_START || cell.shared_joints > 0 {
+        solve.initial_b1_from_b2 = Some(cell.b1_from_b2);
+    }
+    solve
+}
 
 /// The predicted cooperative accuracy over the session's meeting pairs (or the workspace), mm:
 /// calib-core's [`PredictedErrorReport`].

@@ -13,14 +13,14 @@ use std::fmt::Write as _;
 
 use calib_core::whole_cell::{
     decide_families, CellFitError, FamilyDecision, FamilyTrial, FamilyVerdict, HarmCheck,
-    HarmDesign, HarmFold, SolveOptions,
+    HarmDesign, HarmFold,
 };
 use handclasp_cell::{Cell, Session};
 use serde::Serialize;
 
 use crate::cell_report::{
-    calibrate_session_withholding, CellCalibrationError, CellModel, SessionCalibration,
-    MIN_COINCIDENT_FOR_START,
+    calibrate_session_withholding, solve_options, CellCalibrationError, CellModel,
+    SessionCalibration,
 };
 use crate::result_check::ScreenMode;
 
@@ -151,10 +151,8 @@ pub fn check(
     if model == CellModel::Placement {
         return Ok(None);
     }
-    let mut solve = SolveOptions::default();
-    if session.points.len() < MIN_COINCIDENT_FOR_START {
-        solve.initial_b1_from_b2 = Some(cell.b1_from_b2);
-    }
+    // The check's fits start where the calibration's did (on a shared trunk: at the trunk).
+    let solve = solve_options(cell, session);
     let Some(decision) = decide_families(&calibrated.problem, &calibrated.calibration, &solve)?
     else {
         return Ok(None);

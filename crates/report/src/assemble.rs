@@ -99,6 +99,7 @@ pub fn calibration_page_of_fit(
         coverage: &coverage,
         workspace: workspace.as_ref(),
         dof: [cell.robot1.model.dof(), cell.robot2.model.dof()],
+        shared_trunk: cell.shared_joints > 0,
         json: inputs.json,
         invocation: inputs.invocation,
     }))

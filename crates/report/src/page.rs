@@ -63,6 +63,9 @@ pub struct CalibrationPage<'a> {
     pub workspace: Option<&'a WorkspaceMap>,
     /// Each robot's number of joints.
     pub dof: [usize; 2],
+    /// A shared-trunk cell (`[robot2] shares`): the placement is the trunk's (the identity its
+    /// prior holds), so nothing is "absorbed by b1_from_b2".
+    pub shared_trunk: bool,
     /// The command's JSON report, embedded as it is.
     pub json: &'a str,
     /// Command line and version.
@@ -252,14 +255,19 @@ fn work_site_details(w: &WorkSiteReport, posterior: &str) -> Markup {
     }
 }
 
-/// The readable reason a parameter was not identified; `one_robot` for a cell without a robot 2,
-/// where what absorbs a base-like parameter is the robot's base frame (the tracker/plane
-/// unknowns), not a placement `b1_from_b2` (the words of `calibrate --cell`'s text).
-fn drop_reason(reason: DropReason, one_robot: bool) -> &'static str {
+/// The readable reason a parameter was not identified (the words of `calibrate --cell`'s text):
+/// `one_robot` for a cell without a robot 2, where what absorbs a base-like parameter is the
+/// robot's base frame (the tracker/plane unknowns), not a placement `b1_from_b2`;
+/// `shared_trunk` for a cell whose arms share a trunk, where the placement is the trunk's and
+/// held, so such a parameter moves robot 2's tips as a placement would and is not seen.
+fn drop_reason(reason: DropReason, one_robot: bool, shared_trunk: bool) -> &'static str {
     match reason {
         DropReason::Merged => "merged into others",
         DropReason::ConfoundedWithPlacement if one_robot => {
             "absorbed by the robot's base frame (the tracker/plane unknowns)"
+        }
+        DropReason::ConfoundedWithPlacement if shared_trunk => {
+            "moves robot 2's tips as b1_from_b2 would, which the shared trunk holds"
         }
         DropReason::ConfoundedWithPlacement => "absorbed by b1_from_b2",
         DropReason::NoEffect => "moves no observed tip",
@@ -330,7 +338,7 @@ pub fn calibration_page(p: &CalibrationPage) -> String {
                 summary { (r.unidentifiable.len()) " parameters and why" }
                 table id="unidentifiable" {
                     tr { th { "parameter" } th { "reason" } th { "detail" } }
-                    @for d in &r.unidentifiable { tr { td { (d.name) } td { (drop_reason(d.reason, w.one_robot)) } td class="detail" { (d.why) } } }
+                    @for d in &r.unidentifiable { tr { td { (d.name) } td { (drop_reason(d.reason, w.one_robot, p.shared_trunk)) } td class="detail" { (d.why) } } }
                 }
             }
         }
@@ -570,14 +578,22 @@ mod drop_reason_tests {
     /// base frame (the words of `calibrate --cell`'s text); a two-robot cell keeps the placement.
     #[test]
     fn a_one_robot_page_does_not_name_b1_from_b2() {
-        let one = drop_reason(DropReason::ConfoundedWithPlacement, true);
+        let one = drop_reason(DropReason::ConfoundedWithPlacement, true, false);
         assert!(
             one.contains("robot's base frame") && !one.contains("b1_from_b2"),
             "{one}"
         );
         assert_eq!(
-            drop_reason(DropReason::ConfoundedWithPlacement, false),
+            drop_reason(DropReason::ConfoundedWithPlacement, false, false),
             "absorbed by b1_from_b2"
         );
+    }
+
+    /// A shared trunk holds the placement (stop 35: the page's short reason still said
+    /// "absorbed by b1_from_b2" there while `calibrate --cell`'s text had been corrected).
+    #[test]
+    fn a_shared_trunk_page_does_not_say_absorbed_by_b1_from_b2() {
+        let r = drop_reason(DropReason::ConfoundedWithPlacement, false, true);
+        assert!(r.contains("shared trunk holds") && !r.contains("absorbed"), "{r}");
     }
 }

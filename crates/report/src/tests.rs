@@ -304,6 +304,7 @@ fn calibration_page_is_self_contained_and_shows_the_verdict_first() {
         coverage: &coverage,
         workspace: Some(&map),
         dof: [cell.robot1.model.dof(), cell.robot2.model.dof()],
+        shared_trunk: false,
         json: &json,
         invocation: &invocation,
     });
