@@ -594,6 +594,9 @@ mod drop_reason_tests {
     #[test]
     fn a_shared_trunk_page_does_not_say_absorbed_by_b1_from_b2() {
         let r = drop_reason(DropReason::ConfoundedWithPlacement, false, true);
-        assert!(r.contains("shared trunk holds") && !r.contains("absorbed"), "{r}");
+        assert!(
+            r.contains("shared trunk holds") && !r.contains("absorbed"),
+            "{r}"
+        );
     }
 }
