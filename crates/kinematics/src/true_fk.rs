@@ -499,10 +499,8 @@ pub fn tip_error_jacobian(
     g_base: &Vector3<f64>,
     params: &[ErrorParam],
 ) -> Result<Matrix3xX<f64>, KinematicsError> {
-    check_inputs(model, errors, q_rep, flange_from_tip, g_base)?;
-    for p in params {
-        p.check_model(model)?;
-    }
+    model.check_q(q_rep)?;
+    check_tip_inputs(model, errors, flange_from_tip, g_base, params)?;
     Ok(tip_error_jacobian_unchecked(
         model,
         errors,
