@@ -702,10 +702,23 @@ fn rejected_family(
             "held-out χ² {change:+.1} %, a decrease of ≥ {:.1} % is needed",
             100.0 * options.min_relative_gain
         )
-    } else {
+    } else if n.t < options.min_gain_t {
         format!(
             "held-out χ² {change:+.1} %, but not consistently over the held-out groups: t = {:.1} < {:.1}",
             n.t, options.min_gain_t
+        )
+    } else {
+        format!(
+            "held-out χ² {change:+.1} % (t = {:.1}), but its in-sample χ² drop is within the noise at \
+             a {:.0} % false-alarm level over the step's candidates: F = {:.2} on ({}, {}) \
+             degrees of freedom, p = {:.1e} > {:.1e}",
+            n.t,
+            100.0 * options.false_alarm,
+            n.nested.f,
+            n.nested.k,
+            n.nested.dof,
+            n.nested.p,
+            n.nested.p_needed
         )
     };
     let vf = variance_factor(&n.fit.1);

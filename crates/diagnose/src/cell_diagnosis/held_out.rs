@@ -3,6 +3,7 @@
 //! cross-validation of the candidates in parallel, and the test that a gain is significant.
 
 use calib_core::selection::one_sample_t;
+use calib_core::stats::f_sf;
 use calib_core::whole_cell::{
     fit_cell_with, held_out_pieces, initial_estimate, score_held_out, CellEstimate, CellFit,
     CellFitError, CellProblem, Evaluator, GroupKind, ObservationKind, ParamLayout, MIN_SPLIT_ROWS,
@@ -491,6 +492,64 @@ pub(super) fn significant(
         relative >= options.min_relative_gain && t >= options.min_gain_t,
         t,
     )
+}
+
+/// The in-sample nested-model F test of a candidate family (step 5 of the
+/// [`cell_diagnosis`](crate::cell_diagnosis) documentation): the fit of the current model
+/// (`before`) against the fit with the family added (`after`), both on all screened rows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct NestedF {
+    /// `F = (Δ/k)/(χ²_after/d₂)`, `Δ` the drop of the penalised cost (data χ² plus prior).
+    pub(crate) f: f64,
+    /// `k`: the family's columns (the added unknowns).
+    pub(crate) k: usize,
+    /// `d₂`: residual rows less the unknowns of `after`.
+    pub(crate) dof: usize,
+    /// `P(F(k, d₂) > F)` (1 when `k` or `d₂` is 0: an untestable family is not accepted).
+    pub(crate) p: f64,
+    /// The p-value it must not exceed: the Šidák level [`sidak_level`] over the step's
+    /// candidates.
+    pub(crate) p_needed: f64,
+}
+
+impl NestedF {
+    /// Whether the family's in-sample χ² drop is significant at the step's level.
+    pub(crate) fn passes(&self) -> bool {
+        self.p <= self.p_needed
+    }
+}
+
+/// The per-test level `1 − (1 − false_alarm)^(1/n_tests)` that keeps the chance that any of
+/// `n_tests` independent null tests rejects at `false_alarm` (Šidák).
+pub fn sidak_level(false_alarm: f64, n_tests: usize) -> f64 {
+    1.0 - (1.0 - false_alarm).powf(1.0 / n_tests.max(1) as f64)
+}
+
+/// The nested F test of `after` (the current model with one family added) against `before`
+/// (the current model), both fitted on the same rows, at a step of `n_candidates` candidates
+/// and a per-step level `false_alarm` ([`NestedF`]; step 5 of the
+/// [`cell_diagnosis`](crate::cell_diagnosis) documentation).
+pub(crate) fn nested_f(
+    before: &CellFit,
+    after: &CellFit,
+    n_candidates: usize,
+    false_alarm: f64,
+) -> NestedF {
+    let k = after.layout.len().saturating_sub(before.layout.len());
+    let dof = after.residual_rows.saturating_sub(after.layout.len());
+    let drop = (before.data_chi2 + before.prior_chi2) - (after.data_chi2 + after.prior_chi2);
+    let f = if k > 0 && dof > 0 && after.data_chi2 > 0.0 {
+        (drop / k as f64) / (after.data_chi2 / dof as f64)
+    } else {
+        f64::NAN
+    };
+    NestedF {
+        f,
+        k,
+        dof,
+        p: f_sf(f, k, dof),
+        p_needed: sidak_level(false_alarm, n_candidates),
+    }
 }
 
 #[cfg(test)]
