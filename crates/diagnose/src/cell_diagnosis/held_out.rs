@@ -559,6 +559,62 @@ mod tests {
     use crate::cell_diagnosis::{diagnosis_problem, CellDiagnoseOptions};
     use handclasp_cell::Cell;
 
+    /// Šidák's per-test level reproduces the family level exactly; it lies just above
+    /// Bonferroni's `α/m`.
+    #[test]
+    fn sidak_level_keeps_the_step_level() {
+        assert!((sidak_level(0.05, 1) - 0.05).abs() < 1e-15);
+        assert_eq!(sidak_level(0.05, 0), sidak_level(0.05, 1));
+        let per = sidak_level(0.05, 18);
+        assert!(((1.0 - per).powi(18) - 0.95).abs() < 1e-12, "{per}");
+        assert!(per > 0.05 / 18.0 && per < 0.05 / 17.0, "{per}");
+    }
+
+    /// The nested F test on a mixed session of the floor–wall cell whose robot 1 has a hidden
+    /// joint-2 offset of 2 mrad: the true family "robot 1 joint offsets" passes at the step's
+    /// level with 19 candidates, the F statistic is the drop per added column over the larger
+    /// model's residual variance, and a family added to the true model (robot 2's offsets,
+    /// which the truth lacks) has `k` its columns and does not pass.
+    #[test]
+    fn nested_f_passes_a_true_family_and_not_a_spurious_one() {
+        use kinematics::ErrorParam;
+        let nominal = Cell::default_floor_wall();
+        let mut truth = nominal.clone();
+        truth
+            .robot1
+            .errors
+            .set(ErrorParam::JointOffset { joint: 1 }, 2e-3);
+        let session = mixed_session(&truth, 36, 5);
+        let options = CellDiagnoseOptions::default();
+        let p = diagnosis_problem(&nominal, &session, &options).unwrap();
+        let all: Vec<usize> = (0..p.observations.len()).collect();
+        let families = crate::cell_diagnosis::candidate_families(&p);
+        let family = |name: &str| {
+            families
+                .iter()
+                .find(|f| f.name == name)
+                .unwrap_or_else(|| panic!("{name} is a candidate"))
+                .clone()
+        };
+        let r1 = family("robot 1 joint offsets");
+        let r2 = family("robot 2 joint offsets");
+        let fit = |model: &[Family], start: Option<&CellEstimate>| {
+            fit_model(&p, model, &all, start, &options, nominal.b1_from_b2).unwrap()
+        };
+        let base = fit(&[], None);
+        let with_r1 = fit(std::slice::from_ref(&r1), Some(&base.1.estimate));
+        let nf = nested_f(&base.1, &with_r1.1, families.len(), options.false_alarm);
+        assert!(nf.passes(), "{nf:?}");
+        assert_eq!(nf.k, with_r1.1.layout.len() - base.1.layout.len());
+        let drop =
+            (base.1.data_chi2 + base.1.prior_chi2) - (with_r1.1.data_chi2 + with_r1.1.prior_chi2);
+        let expected = (drop / nf.k as f64) / (with_r1.1.data_chi2 / nf.dof as f64);
+        assert!((nf.f - expected).abs() <= 1e-12 * expected.abs(), "{nf:?}");
+        let both = fit(&[r1, r2], Some(&with_r1.1.estimate));
+        let spurious = nested_f(&with_r1.1, &both.1, families.len() - 1, options.false_alarm);
+        assert!(spurious.k > 0 && !spurious.passes(), "{spurious:?}");
+    }
+
     #[test]
     fn sub_problem_renumbers_groups_and_units_cover_every_row_once() {
         let cell = Cell::default_floor_wall();
