@@ -521,6 +521,22 @@ fn robot_copy_of_trunk_parameter(names: &[String]) -> Option<&String> {
 /// The truth's hidden offset, deg (≈ 5.2 mrad: ~50 times the fitted value's σ here).
 const HIDDEN_OFFSET_DEG: f64 = 0.3;
 
+/// `handclasp diagnose --cell nominal --session session --json` and the `extra` arguments: the
+/// report.
+fn diagnose_json(nominal: &Path, session: &Path, extra: &[&str]) -> serde_json::Value {
+    let (nominal, session) = (arg(nominal), arg(session));
+    let mut args = vec![
+        "diagnose",
+        "--cell",
+        &nominal,
+        "--session",
+        &session,
+        "--json",
+    ];
+    args.extend_from_slice(extra);
+    stdout_json(&handclasp(&args))
+}
+
 /// Writes `{what}.toml`, the shared-trunk humanoid with one hidden offset of
 /// [`HIDDEN_OFFSET_DEG`] on chain joint `joint` (0-based) of robot `robot`'s chain, and loads it.
 fn write_hidden_offset_truth(dir: &Path, what: &str, robot: u8, joint: usize) -> Cell {
@@ -567,16 +583,7 @@ fn diagnose_names_a_trunk_error_once_and_an_arm_error_on_its_arm() {
             &truth,
         );
         let export = dir.path().join(format!("{what}-export"));
-        let report = stdout_json(&handclasp(&[
-            "diagnose",
-            "--cell",
-            &arg(&nominal),
-            "--session",
-            &arg(&train),
-            "--export",
-            &arg(&export),
-            "--json",
-        ]));
+        let report = diagnose_json(&nominal, &train, &["--export", &arg(&export)]);
         let names = effect_parameter_names(&report);
         eprintln!("{what}: named {names:?}");
         assert_eq!(
@@ -644,14 +651,7 @@ fn diagnose_names_only_the_arm_offset_on_the_session_that_once_gained_compliance
         &tracker_session(&truth, 80, EXTRA_FAMILY_SEED),
         &truth,
     );
-    let report = stdout_json(&handclasp(&[
-        "diagnose",
-        "--cell",
-        &arg(&nominal),
-        "--session",
-        &arg(&train),
-        "--json",
-    ]));
+    let report = diagnose_json(&nominal, &train, &[]);
     let families: Vec<&str> = report["effects"]
         .as_array()
         .unwrap()
