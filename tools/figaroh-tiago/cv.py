@@ -68,6 +68,13 @@ CANDIDATES = {
     "C3 screen off, tolerance-scale 100": (
         {"joint_scale": 0.01}, ["--screen", "off", "--tolerance-scale", "100"], "map_bl.toml"),
     "C4 four markers fitted": ({"joint_scale": 0.01}, [], "map.toml"),
+    # Stop 36 (tools/figaroh-tiago/choice-2026-11-28.md): the families the issue names that C0
+    # lacks. calibrate --cell's compliance is the lumped one (compliance x mass moment); it does not
+    # read the URDF's inertials. Periodic: diagnose's prior, the joint-offset tolerance (0.05 deg).
+    "C5 lumped compliance": ({"joint_scale": 0.01}, ["--model", "kinematic+compliance"], "map_bl.toml"),
+    "C6 four markers fitted, lumped compliance": (
+        {"joint_scale": 0.01}, ["--model", "kinematic+compliance"], "map.toml"),
+    "C7 periodic 0.05 deg": ({"joint_scale": 0.01, "periodic_deg": 0.05}, [], "map_bl.toml"),
     "registration and tools only (kinematics nominal)": (
         {"joint_offset_deg": 0.0, "origin_mm": 0.0, "origin_deg": 0.0}, [], "map.toml"),
 }
