@@ -76,6 +76,7 @@ def main():
             "../../../shared/data/figaroh-tiago", data)
     else:
         sys.path.insert(0, HERE)
+        sys.dont_write_bytecode = True  # no __pycache__ beside the tools
         import cv  # the candidates as cross-validated
         if a.candidate not in cv.CANDIDATES:
             sys.exit(f"no candidate {a.candidate!r} in cv.py; known: {', '.join(cv.CANDIDATES)}")
