@@ -110,6 +110,8 @@ def main():
                     help="folds (pose i in fold i mod folds); 37 = leave one pose out")
     ap.add_argument("--only", action="append", default=[],
                     help="run only the candidates whose name is this (repeatable)")
+    ap.add_argument("--per-fold", action="store_true",
+                    help="also print each fold's marker 1 rms (stderr: fold, rms mm)")
     a = ap.parse_args()
     hc = os.path.join(a.bin, "handclasp")
     data = os.path.abspath(a.data)
@@ -143,6 +145,8 @@ def main():
             v = run([hc, "validate", "--cell", os.path.join(cal, "cell.toml"), "--session", files["test"],
                      "--nuisance", "fixed", "--calibration-session", files["fit"], "--json"])
             score = json.loads(v)["all"]["calibrated"]["rms_mm"]
+            if a.per_fold:
+                print(f"fold {k + 1} {score:.3f}", file=sys.stderr)
             sq += score ** 2 * len(part["test"])
             n += len(part["test"])
         print(f"{name:50s} CV BL rms {math.sqrt(sq / n):7.3f} mm over {n} poses ({a.folds} folds)")
