@@ -68,6 +68,13 @@ CANDIDATES = {
     "C3 screen off, tolerance-scale 100": (
         {"joint_scale": 0.01}, ["--screen", "off", "--tolerance-scale", "100"], "map_bl.toml"),
     "C4 four markers fitted": ({"joint_scale": 0.01}, [], "map.toml"),
+    # Stop 36 (tools/figaroh-tiago/choice-2026-11-28.md): the families the issue names that C0
+    # lacks. calibrate --cell's compliance is the lumped one (compliance x mass moment); it does not
+    # read the URDF's inertials. Periodic: diagnose's prior, the joint-offset tolerance (0.05 deg).
+    "C5 lumped compliance": ({"joint_scale": 0.01}, ["--model", "kinematic+compliance"], "map_bl.toml"),
+    "C6 four markers fitted, lumped compliance": (
+        {"joint_scale": 0.01}, ["--model", "kinematic+compliance"], "map.toml"),
+    "C7 periodic 0.05 deg": ({"joint_scale": 0.01, "periodic_deg": 0.05}, [], "map_bl.toml"),
     "registration and tools only (kinematics nominal)": (
         {"joint_offset_deg": 0.0, "origin_mm": 0.0, "origin_deg": 0.0}, [], "map.toml"),
 }
@@ -103,6 +110,8 @@ def main():
                     help="folds (pose i in fold i mod folds); 37 = leave one pose out")
     ap.add_argument("--only", action="append", default=[],
                     help="run only the candidates whose name is this (repeatable)")
+    ap.add_argument("--per-fold", action="store_true",
+                    help="also print each fold's marker 1 rms (stderr: fold, rms mm)")
     a = ap.parse_args()
     hc = os.path.join(a.bin, "handclasp")
     data = os.path.abspath(a.data)
@@ -136,6 +145,8 @@ def main():
             v = run([hc, "validate", "--cell", os.path.join(cal, "cell.toml"), "--session", files["test"],
                      "--nuisance", "fixed", "--calibration-session", files["fit"], "--json"])
             score = json.loads(v)["all"]["calibrated"]["rms_mm"]
+            if a.per_fold:
+                print(f"fold {k + 1} {score:.3f}", file=sys.stderr)
             sq += score ** 2 * len(part["test"])
             n += len(part["test"])
         print(f"{name:50s} CV BL rms {math.sqrt(sq / n):7.3f} mm over {n} poses ({a.folds} folds)")

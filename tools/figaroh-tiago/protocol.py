@@ -11,9 +11,12 @@ when some joint lies outside the training file's range widened by IN_RANGE_MARGI
 range" otherwise. It gives the published counts (16, 17, 16).
 
 The rows fitted are FIT_MAP's (marker 1 alone, as FIGAROH fits; chosen on the training file by
-tools/figaroh-tiago/cv.py, see tiago.toml); marker 1 is scored.
+tools/figaroh-tiago/cv.py, see tiago.toml); marker 1 is scored. With --candidate NAME the fit is
+cv.py's candidate of that name instead (its tolerances, `calibrate` arguments and fitted map,
+exactly as cross-validated; choice-2026-11-28.md).
 
 Usage: tools/figaroh-tiago/protocol.py [--bin DIR] [--data ../shared/data/figaroh-tiago]
+       [--candidate NAME]
 """
 import argparse
 import atexit
@@ -58,6 +61,8 @@ def main():
     ap.add_argument("--bin", default=None,
                     help="folder of the handclasp binary (default: the one on PATH, else target/debug)")
     ap.add_argument("--data", default="../shared/data/figaroh-tiago")
+    ap.add_argument("--candidate", default=None,
+                    help="fit cv.py's candidate of this name (default: tiago.toml, FIT_MAP)")
     a = ap.parse_args()
     hc = os.path.join(a.bin, "handclasp") if a.bin else (
         shutil.which("handclasp") or os.path.join("target", "debug", "handclasp"))
@@ -65,8 +70,19 @@ def main():
     tmp = tempfile.mkdtemp(prefix="tiago-protocol-")
     atexit.register(shutil.rmtree, tmp, True)  # leave nothing behind
     cell = os.path.join(tmp, "tiago.toml")
-    text = open(os.path.join(HERE, "tiago.toml")).read().replace(
-        "../../../shared/data/figaroh-tiago", data)
+    fit_map, extra = FIT_MAP, []
+    if a.candidate is None:
+        text = open(os.path.join(HERE, "tiago.toml")).read().replace(
+            "../../../shared/data/figaroh-tiago", data)
+    else:
+        sys.path.insert(0, HERE)
+        sys.dont_write_bytecode = True  # no __pycache__ beside the tools
+        import cv  # the candidates as cross-validated
+        if a.candidate not in cv.CANDIDATES:
+            sys.exit(f"no candidate {a.candidate!r} in cv.py; known: {', '.join(cv.CANDIDATES)}")
+        tolerance, extra, fit_map = cv.CANDIDATES[a.candidate]
+        text = cv.cell_text(os.path.join(data, "tiago_48_schunk.urdf"), tolerance)
+        print(f"candidate: {a.candidate}")
     open(cell, "w").write(text)
 
     def imp(map_name, src, out):
@@ -74,9 +90,9 @@ def main():
              "--out", out])
 
     train = os.path.join(tmp, "train.csv")
-    imp(FIT_MAP, os.path.join(data, TRAIN), train)
+    imp(fit_map, os.path.join(data, TRAIN), train)
     cal = os.path.join(tmp, "cal")
-    run([hc, "calibrate", "--cell", cell, "--session", train, "--force", "--export", cal])
+    run([hc, "calibrate", "--cell", cell, "--session", train, "--force", "--export", cal] + extra)
 
     def score(src, name):
         session = os.path.join(tmp, f"{name}.csv")
