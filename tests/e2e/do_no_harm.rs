@@ -7,8 +7,8 @@
 //! `--force` exports the full model. With the docs' example truth's errors added (which the
 //! model represents), the families kept beat the placement only on new poses. A healthy session (the nominal robots are the
 //! truth, random layout) withholds nothing. The same for sessions of tracker rows only (each
-//! held-out piece of the tracker group scored with the frame the training fit gave it), and a
-//! mixed session is judged on every kind of its rows.
+//! held-out piece of the tracker group refits its frame on half its rows), and a mixed session
+//! is judged on every kind of its rows.
 
 use std::path::{Path, PathBuf};
 

@@ -17,30 +17,23 @@
 //! 3. **Fits per fold**: the model (the calibration's own unknowns and its prior at the scales
 //!    the evidence chose, not chosen again per fold) and the nominal model are both fitted on
 //!    the other rows ([`fit_cell_with`] on their [`sub_problem`]); then each held-out unit is
-//!    scored under each training fit, so no scored row is predicted by anything fitted on it:
-//!    - **a tracker group's unit whose group also has training rows**: with the training fit's
-//!      tracker frame (its scale and drift too, carried by group name, [`NuisanceMode::Fixed`]),
-//!      the frame the model and nominal each fitted on the other regions;
-//!    - **every other unit** (planes, fitted contact distances, a tracker group held out whole)
-//!      by [`score_held_out`]: its nuisance refitted on one half of its rows with the trained
-//!      cell held, the other half scored, and back (as `validate`'s refit on half and
-//!      `diagnose`'s held-out criterion do).
+//!    scored under each training fit by [`score_held_out`]: its nuisance (tracker frame, plane,
+//!    fitted contact distance) refitted on one half of its rows with the trained cell held, the
+//!    other half scored, and back (as `validate`'s refit on half and `diagnose`'s held-out
+//!    criterion do), so no scored row is predicted by anything fitted on it.
 //!
-//!    Why tracker units differ (stop 36, `harm36`; rule written down before it was run on the
-//!    seeds that judge it, 600–629 of `tools/bench/harm_truth.py` and the e2e benchmark): a
-//!    tracker frame has six degrees of freedom (plus scale and drift), so refitted on a compact
-//!    region's few rows it absorbs most of a model's error there (a smooth error over a small
-//!    region is nearly a rigid motion), and a model that extrapolates badly scored little
-//!    worse than nominal in any region. Measured on development seeds only (700–719 of
-//!    `harm_truth.py`, sag, tracker rows, clustered): 17 of 20 truly harmful; with the refit
-//!    on half the whole model was withheld in 1, with the training fit's frame in 4; seed 702's
-//!    worst region went from ×1.67 nominal's rms (t −2.85) to ×2.95 (t −39.9); healthy tracker
-//!    sessions 700–715: 0 of 16 withheld either way. A plane
-//!    absorbs only its normal offset and tilt, and scoring plane rows with the training fit's
-//!    plane raised healthy plane sessions' alarms from 8/50 to 21/50 (`detect20`), so planes
-//!    keep the refit on half. The false-alarm control is unchanged: the judge's Šidák
-//!    thresholds at [`HARM_FALSE_ALARM`] per session, on paired per-row gains of the model
-//!    against nominal, both scored the same way (each with its own training fit's frame).
+//!    **Tried and refuted (stop 36, `harm36`): tracker units scored with the training fit's
+//!    tracker frame** (planes keeping the refit on half), written down before it was run on
+//!    the seeds that judge it. On development seeds the refit on half did hide part of a sag
+//!    model's error (`harm_truth.py` seed 702: worst region ×1.67 nominal's rms, t −2.85, with
+//!    the refit; ×2.95, t −39.9, with the training frame). But the training frame penalises
+//!    nominal as much: nominal's frame, fitted on the other regions, absorbs the robots' errors
+//!    there and extrapolates badly, so the model looked ×0.2 nominal's rms in regions where it
+//!    harms the workspace. On the judging seeds 600–629 (sag, tracker rows): 22 truly harmful,
+//!    1 withheld whole (3 with any family withheld; 2 whole with the refit), 20 exports worse
+//!    than the placement over the workspace; healthy tracker 0 of 30 withheld whole (1 partial).
+//!    Reverted. A held-out tracker score that tracks the workspace truth must not let either
+//!    model's frame carry the robots' error into the scored region: open.
 //! 4. **Verdict**: [`judge_harm`] over all folds at [`HARM_FALSE_ALARM`]: harmful where, for
 //!    some fold and observation kind (kinds of fewer than
 //!    [`crate::selection::MIN_KIND_ROWS`] rows pooled), the paired t of the per-row gains is
@@ -52,10 +45,8 @@
 use serde::Serialize;
 
 use super::{
-    carry_nuisances, fit_cell_with, held_out_pieces, held_out_residuals, initial_estimate,
-    score_held_out, sub_problem, CellCalibration, CellEstimate, CellFitError, CellParam,
-    CellProblem, GroupKind, HeldOutResidual, NuisanceMode, ParamLayout, SolveOptions, Tolerance,
-    MIN_SPLIT_ROWS,
+    fit_cell_with, held_out_pieces, initial_estimate, score_held_out, sub_problem, CellCalibration,
+    CellFitError, CellParam, CellProblem, ParamLayout, SolveOptions, Tolerance, MIN_SPLIT_ROWS,
 };
 use crate::selection::regions::{
     joint_features, joint_regions, MAX_REGIONS, MIN_REGIONS, REGION_SEED,
@@ -408,47 +399,9 @@ fn fold_e2(
     let fit = fit_cell_with(&sub, layout, &all, Some(&start), solve)?;
     let mut out = Vec::with_capacity(units.iter().map(Vec::len).sum());
     for unit in units {
-        for r in score_unit(problem, unit, &sub, &fit.estimate, solve)? {
+        for r in score_held_out(problem, unit, &fit.estimate, solve)? {
             out.push((r.kind.name(), r.whitened.norm_squared()));
         }
-    }
-    Ok(out)
-}
-
-/// The held-out residuals of `unit` (one nuisance group's rows of a held-out fold, or the rows
-/// without a group) under `trained`, the estimate of the training fit of `train_problem` (the
-/// fold's training [`sub_problem`]): a tracker group's unit with rows in training is scored with
-/// the training fit's tracker frame (scale and drift), carried by group name
-/// ([`carry_nuisances`], [`NuisanceMode::Fixed`]); every other unit by [`score_held_out`] (its
-/// nuisance refitted on half its rows). See the module documentation, step 3.
-fn score_unit(
-    problem: &CellProblem,
-    unit: &[usize],
-    train_problem: &CellProblem,
-    trained: &CellEstimate,
-    solve: &SolveOptions,
-) -> Result<Vec<HeldOutResidual>, CellFitError> {
-    let trained_tracker = match unit
-        .first()
-        .and_then(|&i| problem.observations[i].kind.group())
-    {
-        Some((GroupKind::Tracker, g)) => train_problem
-            .trackers
-            .iter()
-            .any(|t| t.name == problem.trackers[g].name),
-        _ => false,
-    };
-    if !trained_tracker {
-        return score_held_out(problem, unit, trained, solve);
-    }
-    let unit_problem = sub_problem(problem, unit);
-    let mut est = CellEstimate::nominal(&unit_problem, trained.b1_from_b2);
-    est.robot1 = trained.robot1.clone();
-    est.robot2 = trained.robot2.clone();
-    let est = carry_nuisances(train_problem, trained, &unit_problem, &est)?;
-    let mut out = held_out_residuals(&unit_problem, &est, NuisanceMode::Fixed, solve)?;
-    for r in &mut out {
-        r.index = unit[r.index];
     }
     Ok(out)
 }
