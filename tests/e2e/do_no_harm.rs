@@ -601,8 +601,9 @@ struct Judged {
 /// nominal cell `nominal_path`) with `calibrate --cell … --export` and `model` flags, and
 /// labels it by the truth: the full model (the same flags and `--force`) and the placement
 /// only (`--model placement --force`) exported and scored by `validate` on
-/// [`WORKSPACE_PAIRS`] fresh handclasps of the truth over the workspace. `Err`: the judged run
-/// failed (e.g. the result check refused the fit), with its stderr.
+/// [`WORKSPACE_PAIRS`] fresh handclasps of the truth over the workspace. `Err`: a run failed
+/// (the judged one, e.g. the result check refused the fit; or a labelling export, e.g. an
+/// exported placement the cell's mount contradicts), with its first `error` line.
 #[allow(clippy::too_many_arguments)]
 fn judge_against_truth(
     dir: &Path,
@@ -621,18 +622,24 @@ fn judge_against_truth(
         let o = handclasp(&cell_session_args("calibrate", reported_path, csv, &args));
         (o, out.join("cell.toml"))
     };
+    let ok = |stage: &str, o: &std::process::Output| {
+        if o.status.success() {
+            return Ok(());
+        }
+        let e = String::from_utf8_lossy(&o.stderr);
+        let first = e.lines().find(|l| l.starts_with("error")).unwrap_or("");
+        Err(format!("{stage} run: {first}"))
+    };
     let (judged, judged_cell) = run("judged", model);
-    if !judged.status.success() {
-        return Err(String::from_utf8_lossy(&judged.stderr).into_owned());
-    }
+    ok("judged", &judged)?;
     let h = stdout_json(&judged)["do_no_harm"].clone();
     let withheld = h["withheld"].as_array().is_none_or(|w| !w.is_empty());
     let mut full_args = model.to_vec();
     full_args.push("--force");
     let (full, full_cell) = run("full", &full_args);
-    stdout_json(&full);
+    ok("full-model labelling", &full)?;
     let (placement, placement_cell) = run("placement", &["--model", "placement", "--force"]);
-    stdout_json(&placement);
+    ok("placement labelling", &placement)?;
     let pairs = kind_session_n(
         dir,
         truth,
@@ -673,7 +680,7 @@ fn judge_against_truth(
 /// does not make it a false alarm of the judge's 5 %); and how many exports (the judge's, no
 /// `--force`) are worse than the placement over the workspace.
 #[test]
-#[ignore = "benchmark: about 80 sessions of 3 calibrations and 3 validations, a quarter of an hour in a debug build"]
+#[ignore = "benchmark: 80 sessions of 3 calibrations and 3 validations, minutes"]
 fn false_alarm_and_detection_benchmark() {
     let tmp = tempfile::tempdir().unwrap();
     let (example, reported_path) = example_truth();
@@ -773,8 +780,7 @@ fn false_alarm_and_detection_benchmark() {
             ) {
                 Ok(j) => j,
                 Err(e) => {
-                    let first = e.lines().find(|l| l.starts_with("error")).unwrap_or("");
-                    println!("{name} seed {seed}: refused, not judged: {first}");
+                    println!("{name} seed {seed}: not counted: {e}");
                     refused += 1;
                     continue;
                 }
@@ -799,7 +805,7 @@ fn false_alarm_and_detection_benchmark() {
         println!(
             "== {name} ×{n}: truly harmful {harmful}, withheld {caught}; truly harmless \
              {harmless}, withheld {alarms}; exports worse than the placement {export_harms}; \
-             {refused} refused by the result check"
+             {refused} not counted (a run failed)"
         );
         if healthy && alarms > false_alarm_bound(harmless) {
             failures.push(format!(
