@@ -16,7 +16,8 @@ use handclasp_cell::Cell;
 use sim_cell::{trial_rng, KindSpec, Layout, SessionSpec, SimKind};
 
 use crate::support::{
-    cell_session_args, handclasp, shipped_cell, simulate, stdout_json, workspace, write_session_csv,
+    cell_session_args, handclasp, shipped_cell, simulate, stdout_json, validate_rms_mm, workspace,
+    write_session_csv,
 };
 
 /// The truth's compliance, deg/(kN·m), at joints 2 and 3 of both robots.
@@ -553,106 +554,270 @@ fn a_healthy_mixed_session_of_84_rows_exports_the_full_model() {
 /// Sessions per kind of the false-alarm benchmark.
 const BENCH_SESSIONS: u64 = 20;
 
+/// Fresh coincident handclasps over the workspace (random layout, [`RANDOM_SPREAD_M`]) that
+/// label a benchmark session by its truth, as `tools/bench/harm_truth.py` does.
+const WORKSPACE_PAIRS: usize = 100;
+
+/// Seed offset of the workspace pairs (session seed + this), apart from every session's seed.
+const WORKSPACE_SEED: u64 = 90_000;
+
+/// The false-alarm rate the judge states per session (`calib_core::selection::HARM_FALSE_ALARM`).
+const STATED_FALSE_ALARM: f64 = 0.05;
+
+/// Chance the bound of [`false_alarm_bound`] may be exceeded by a judge that keeps its rate.
+const BOUND_TAIL: f64 = 1e-3;
+
+/// The most false alarms a judge at [`STATED_FALSE_ALARM`] per session gives in `n` sessions
+/// but in [`BOUND_TAIL`] of benchmarks: the smallest `k` with `P(Binomial(n, 5 %) > k) ≤ 0.1 %`
+/// (5 of 20, as the benchmark asked before it was labelled by the truth).
+fn false_alarm_bound(n: usize) -> usize {
+    let p = STATED_FALSE_ALARM;
+    let mut term = (1.0 - p).powi(n as i32); // P(X = 0)
+    let mut below = 0.0;
+    for k in 0..=n {
+        below += term;
+        if 1.0 - below <= BOUND_TAIL {
+            return k;
+        }
+        term *= (n - k) as f64 / (k + 1) as f64 * p / (1.0 - p);
+    }
+    n
+}
+
+/// One benchmark session judged, and labelled by its truth.
+struct Judged {
+    /// Something withheld by the judge (`do_no_harm.withheld` not empty).
+    withheld: bool,
+    /// The full model (`--force`) is worse than the placement only over the workspace: its
+    /// rms on [`WORKSPACE_PAIRS`] fresh handclasps is above the placement's.
+    harmful: bool,
+    /// The full model's workspace rms over the placement's.
+    ratio: f64,
+    /// The export the judge wrote (no `--force`), its workspace rms over the placement's.
+    export_ratio: f64,
+}
+
+/// Judges the session `csv` of `truth` (reported as `reported_path`, scored against the
+/// nominal cell `nominal_path`) with `calibrate --cell … --export` and `model` flags, and
+/// labels it by the truth: the full model (the same flags and `--force`) and the placement
+/// only (`--model placement --force`) exported and scored by `validate` on
+/// [`WORKSPACE_PAIRS`] fresh handclasps of the truth over the workspace. `Err`: a run failed
+/// (the judged one, e.g. the result check refused the fit; or a labelling export, e.g. an
+/// exported placement the cell's mount contradicts), with its first `error` line.
+#[allow(clippy::too_many_arguments)]
+fn judge_against_truth(
+    dir: &Path,
+    (truth, reported): (&Cell, &Cell),
+    reported_path: &Path,
+    nominal_path: &Path,
+    csv: &Path,
+    model: &[&str],
+    seed: u64,
+) -> Result<Judged, String> {
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let out_arg = out.display().to_string();
+        let mut args = vec!["--export", &out_arg, "--json"];
+        args.extend_from_slice(extra);
+        let o = handclasp(&cell_session_args("calibrate", reported_path, csv, &args));
+        (o, out.join("cell.toml"))
+    };
+    let ok = |stage: &str, o: &std::process::Output| {
+        if o.status.success() {
+            return Ok(());
+        }
+        let e = String::from_utf8_lossy(&o.stderr);
+        let first = e.lines().find(|l| l.starts_with("error")).unwrap_or("");
+        Err(format!("{stage} run: {first}"))
+    };
+    let (judged, judged_cell) = run("judged", model);
+    ok("judged", &judged)?;
+    let h = stdout_json(&judged)["do_no_harm"].clone();
+    let withheld = h["withheld"].as_array().is_none_or(|w| !w.is_empty());
+    let mut full_args = model.to_vec();
+    full_args.push("--force");
+    let (full, full_cell) = run("full", &full_args);
+    ok("full-model labelling", &full)?;
+    let (placement, placement_cell) = run("placement", &["--model", "placement", "--force"]);
+    ok("placement labelling", &placement)?;
+    let pairs = kind_session_n(
+        dir,
+        truth,
+        reported,
+        SimKind::Coincident,
+        WORKSPACE_PAIRS,
+        WORKSPACE_SEED + seed,
+    );
+    let rms = |cell: &Path| validate_rms_mm(cell, &pairs, nominal_path).0;
+    let base = rms(&placement_cell);
+    let ratio = rms(&full_cell) / base;
+    Ok(Judged {
+        withheld,
+        harmful: ratio > 1.0,
+        ratio,
+        export_ratio: rms(&judged_cell) / base,
+    })
+}
+
 /// Benchmark (not a timed test; `cargo test -p handclasp --test e2e -- --ignored
-/// do_no_harm::false_alarm_and_detection_benchmark --nocapture`): the judge's false-alarm rate
-/// on healthy sessions (the docs' example truth reported as the floor–wall cell: the model
-/// represents the truth) of tracker rows (40), plane rows (40) and mixed rows (84),
-/// [`BENCH_SESSIONS`] seeds each, and its detection on harmful ones (the unmodelled sag,
-/// clustered: handclasps and tracker rows, 40 each). Prints each rate; fails only when a
-/// healthy kind's rate is above 3 × 5 % (the binomial 99.9 % bound for 20 sessions at 5 % is
-/// 5 of 20) or the sag is missed in more than half its sessions.
+/// do_no_harm::false_alarm_and_detection_benchmark --nocapture`): the judge against each
+/// session's **workspace truth** (as `tools/bench/harm_truth.py`): a session is *truly
+/// harmful* when its full model is worse than the placement only on [`WORKSPACE_PAIRS`] fresh
+/// handclasps over the workspace. Cases: healthy sessions (the docs' example truth reported as
+/// the floor–wall cell: the model represents the truth) of tracker rows (40), plane rows (40)
+/// and mixed rows (84), [`BENCH_SESSIONS`] seeds each (100…); sessions with the unmodelled sag
+/// (clustered: handclasps and tracker rows, 40 each, `--model kinematic`), half as many (1…).
+/// Prints every session and each case's counts.
+///
+/// Targets (fixed in stop 36, `harm36`, before the benchmark was run with this labelling):
+/// - **false alarms**, healthy cases: sessions truly harmless yet withheld at most
+///   [`false_alarm_bound`] of the truly harmless ones (5 of 20) per case;
+/// - **detection**, sag cases: at least half of the truly harmful sessions withheld per case.
+///
+/// Not asserted, printed: detection in the healthy cases, and withholding in truly harmless
+/// sag sessions (a sag model better than the placement on average can still be worse in one
+/// region of joint space, which the region-wise rule exists to withhold: the workspace average
+/// does not make it a false alarm of the judge's 5 %); and how many exports (the judge's, no
+/// `--force`) are worse than the placement over the workspace.
 #[test]
-#[ignore = "benchmark: about 100 calibrations, minutes in a debug build"]
+#[ignore = "benchmark: 80 sessions of 3 calibrations and 3 validations, minutes"]
 fn false_alarm_and_detection_benchmark() {
     let tmp = tempfile::tempdir().unwrap();
-    let (truth, reported_path) = example_truth();
+    let (example, reported_path) = example_truth();
     let reported = Cell::from_toml_file(&reported_path).unwrap();
-    let mut report = Vec::new();
-    for (kind, n) in [
-        (SimKind::Tracker, 40),
-        (SimKind::Plane, 40),
-        (SimKind::Mixed, 84),
-    ] {
-        let (mut alarms, mut refused) = (Vec::new(), 0);
-        for seed in 0..BENCH_SESSIONS {
-            let csv = kind_session_n(tmp.path(), &truth, &reported, kind, n, 100 + seed);
-            let out = tmp.path().join(format!("out-{kind:?}-{seed}"));
-            let h = match try_default_export(&reported_path, &csv, &out) {
-                Ok(h) => h,
+    let sag_path = write_cell(tmp.path(), "sag.toml", true);
+    let sag = Cell::from_toml_file(&sag_path).unwrap();
+    let nominal_path = write_cell(tmp.path(), "nominal.toml", false);
+    let kinematic: &[&str] = &["--model", "kinematic", "--accept-mm", ACCEPT_MM];
+    // (name, truth, reported, reported file, kind, rows, layout, seeds, model flags, healthy)
+    let cases = [
+        (
+            "healthy Tracker",
+            &example,
+            &reported,
+            &reported_path,
+            SimKind::Tracker,
+            40,
+            Layout::Random,
+            100..100 + BENCH_SESSIONS,
+            &[][..],
+            true,
+        ),
+        (
+            "healthy Plane",
+            &example,
+            &reported,
+            &reported_path,
+            SimKind::Plane,
+            40,
+            Layout::Random,
+            100..100 + BENCH_SESSIONS,
+            &[][..],
+            true,
+        ),
+        (
+            "healthy Mixed",
+            &example,
+            &reported,
+            &reported_path,
+            SimKind::Mixed,
+            84,
+            Layout::Random,
+            100..100 + BENCH_SESSIONS,
+            &[][..],
+            true,
+        ),
+        (
+            "sag Coincident",
+            &sag,
+            &sag,
+            &sag_path,
+            SimKind::Coincident,
+            ROWS,
+            Layout::Clustered,
+            1..1 + BENCH_SESSIONS / 2,
+            kinematic,
+            false,
+        ),
+        (
+            "sag Tracker",
+            &sag,
+            &sag,
+            &sag_path,
+            SimKind::Tracker,
+            ROWS,
+            Layout::Clustered,
+            1..1 + BENCH_SESSIONS / 2,
+            kinematic,
+            false,
+        ),
+    ];
+    let mut failures = Vec::new();
+    for (name, truth, rep, rep_path, kind, n, layout, seeds, model, healthy) in cases {
+        let (mut harmful, mut harmless) = (0, 0);
+        let (mut caught, mut alarms, mut export_harms, mut refused) = (0, 0, 0, 0);
+        for seed in seeds {
+            let dir = tmp.path().join(format!("{name}-{seed}").replace(' ', "-"));
+            std::fs::create_dir_all(&dir).unwrap();
+            let spec = SessionSpec::new(
+                n,
+                layout,
+                if healthy {
+                    crate::support::RANDOM_SPREAD_M
+                } else {
+                    SPREAD_M
+                },
+            );
+            let csv = write_kind_session(&dir, "session.csv", (truth, rep), &spec, kind, seed);
+            let j = match judge_against_truth(
+                &dir,
+                (truth, rep),
+                rep_path,
+                &nominal_path,
+                &csv,
+                model,
+                seed,
+            ) {
+                Ok(j) => j,
                 Err(e) => {
-                    let first = e.lines().find(|l| l.starts_with("error")).unwrap_or("");
-                    println!("{kind:?} seed {seed}: refused, not judged: {first}");
+                    println!("{name} seed {seed}: not counted: {e}");
                     refused += 1;
                     continue;
                 }
             };
-            if h["withheld"].as_array().is_none_or(|w| !w.is_empty()) {
-                alarms.push(seed);
-                for f in h["folds"].as_array().unwrap() {
-                    for k in f["kinds"].as_array().unwrap() {
-                        if k["harmful"] == true {
-                            println!(
-                                "{kind:?} seed {seed}: {} {} {} rows ×{:.3} t {:.2} ≤ −{:.2} \
-                                 ({} comparisons)",
-                                f["fold"],
-                                k["kind"],
-                                k["rows"],
-                                k["ratio"].as_f64().unwrap(),
-                                k["t"].as_f64().unwrap(),
-                                k["t_harm"].as_f64().unwrap(),
-                                h["comparisons"]
-                            );
-                        }
-                    }
-                }
-            }
-            if h["design"] == "not_checked" {
-                println!("{kind:?} seed {seed}: not checked: {}", h["how"]);
-            }
-        }
-        println!(
-            "healthy {kind:?} ×{n}: {} of {} judged sessions withheld (seeds {alarms:?}); {refused} \
-             refused by the result check",
-            alarms.len(),
-            BENCH_SESSIONS - refused
-        );
-        report.push((format!("{kind:?}"), alarms.len()));
-    }
-    let sag_path = write_cell(tmp.path(), "sag.toml", true);
-    let sag = Cell::from_toml_file(&sag_path).unwrap();
-    let mut detections = Vec::new();
-    for kind in [SimKind::Coincident, SimKind::Tracker] {
-        let mut hits = 0;
-        for seed in 0..BENCH_SESSIONS / 2 {
-            let csv = kind_session(
-                tmp.path(),
-                &format!("sag-{kind:?}-{seed}.csv"),
-                &sag,
-                kind,
-                Layout::Clustered,
-                1 + seed,
+            println!(
+                "{name} seed {seed}: full model ×{:.2} the placement over the workspace ({}); \
+                 judge: {}; export ×{:.2}",
+                j.ratio,
+                if j.harmful { "harmful" } else { "harmless" },
+                if j.withheld { "withheld" } else { "exported" },
+                j.export_ratio
             );
-            let out = tmp.path().join(format!("out-sag-{kind:?}-{seed}"));
-            let r = export(&sag_path, &csv, &out, false);
-            // Detected: anything withheld (family by family, the export need not be the
-            // placement only).
-            if !r["do_no_harm"]["withheld"].as_array().unwrap().is_empty() {
-                hits += 1;
+            if j.harmful {
+                harmful += 1;
+                caught += usize::from(j.withheld);
+            } else {
+                harmless += 1;
+                alarms += usize::from(j.withheld);
             }
+            export_harms += usize::from(j.export_ratio > 1.0);
         }
         println!(
-            "harmful (sag, clustered) {kind:?} ×{ROWS}: withheld in {hits} of {}",
-            BENCH_SESSIONS / 2
+            "== {name} ×{n}: truly harmful {harmful}, withheld {caught}; truly harmless \
+             {harmless}, withheld {alarms}; exports worse than the placement {export_harms}; \
+             {refused} not counted (a run failed)"
         );
-        detections.push(hits);
+        if healthy && alarms > false_alarm_bound(harmless) {
+            failures.push(format!(
+                "{name}: {alarms} of {harmless} truly harmless sessions withheld (bound {})",
+                false_alarm_bound(harmless)
+            ));
+        }
+        if !healthy && 2 * caught < harmful {
+            failures.push(format!(
+                "{name}: {caught} of {harmful} truly harmful sessions withheld (target half)"
+            ));
+        }
     }
-    for (kind, alarms) in &report {
-        assert!(
-            *alarms <= 5,
-            "{kind}: {alarms} false alarms of {BENCH_SESSIONS}"
-        );
-    }
-    for &hits in &detections {
-        assert!(2 * hits >= BENCH_SESSIONS / 2, "{detections:?}");
-    }
+    assert!(failures.is_empty(), "{failures:#?}");
 }

@@ -10,6 +10,11 @@ exported and scored by `handclasp validate` on 100 fresh coincident handclasps o
 over the workspace (random layout, 800 mm cube, seed 90000 + seed). The model is *truly harmful*
 when its validate rms is above the placement's. Prints one line per session and, per case, how
 many sessions were truly harmful, withheld among them, and withheld among the harmless ones.
+"Withheld" is the whole model (`exported` is `placement`), as stop 35's table counted it; the
+summary adds `any`: some family withheld (`exported` is `partial` or `placement`), and the
+export actually written (`--export` without `--force`) scored the same way: `export harmful`
+counts sessions whose export is worse than the placement over the workspace (the harm that
+reaches the user).
 
 Cases (the benchmark's kinds, tests/e2e/do_no_harm.rs): `sag-coincident` and `sag-tracker` (the
 floor-wall cell with 1 deg/kN.m compliance at joints 2 and 3 of both robots, clustered, 40 rows,
@@ -85,25 +90,36 @@ def main():
             if judged.returncode:
                 print(f"{case} {seed}: refused, not judged")
                 continue
-            withheld = json.loads(judged.stdout)["do_no_harm"]["exported"] == "placement"
+            exported = json.loads(judged.stdout)["do_no_harm"]["exported"]
+            withheld = exported == "placement"
+            some = exported != "kinematic"
+
+            def score(out):
+                v = run([hc, "validate", "--cell", os.path.join(out, "cell.toml"), "--session",
+                         held, "--nominal", nominal, "--json"])
+                return (json.loads(v.stdout)["all"]["calibrated"]["rms_mm"] if not v.returncode
+                        else float("nan"))
+
             rms = []
             for model in ["kinematic", "placement"]:
                 out = os.path.join(d, model)
                 run(base + ["--model", model, "--force", "--export", out])
-                v = run([hc, "validate", "--cell", os.path.join(out, "cell.toml"), "--session",
-                         held, "--nominal", nominal, "--json"])
-                rms.append(json.loads(v.stdout)["all"]["calibrated"]["rms_mm"] if not v.returncode
-                           else float("nan"))
+                rms.append(score(out))
             ratio = rms[0] / rms[1]
+            export_ratio = score(os.path.join(d, "j")) / rms[1]
             harmful = ratio > 1.0
             key = "harmful" if harmful else "harmless"
             counts[key] += 1
             counts["withheld_" + key] += withheld
+            counts["any_" + key] = counts.get("any_" + key, 0) + some
+            counts["export_harmful"] = counts.get("export_harmful", 0) + (export_ratio > 1.0)
             print(f"{case} {seed}: workspace rms kinematic {rms[0]:.3f} mm, placement "
-                  f"{rms[1]:.3f} mm (x{ratio:.2f}, {key}); judge: "
-                  f"{'withheld' if withheld else 'exported'}")
+                  f"{rms[1]:.3f} mm (x{ratio:.2f}, {key}); judge: {exported} "
+                  f"(export x{export_ratio:.2f})")
         print(f"== {case}: truly harmful {counts['harmful']}, withheld {counts['withheld_harmful']}"
-              f"; harmless {counts['harmless']}, withheld {counts['withheld_harmless']}")
+              f" (any {counts.get('any_harmful', 0)}); harmless {counts['harmless']}, withheld "
+              f"{counts['withheld_harmless']} (any {counts.get('any_harmless', 0)}); export "
+              f"harmful {counts.get('export_harmful', 0)}")
         sys.stdout.flush()
 
 

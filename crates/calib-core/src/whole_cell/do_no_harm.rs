@@ -21,6 +21,19 @@
 //!    fitted contact distance) refitted on one half of its rows with the trained cell held, the
 //!    other half scored, and back (as `validate`'s refit on half and `diagnose`'s held-out
 //!    criterion do), so no scored row is predicted by anything fitted on it.
+//!
+//!    **Tried and refuted (stop 36, `harm36`): tracker units scored with the training fit's
+//!    tracker frame** (planes keeping the refit on half), written down before it was run on
+//!    the seeds that judge it. On development seeds the refit on half did hide part of a sag
+//!    model's error (`harm_truth.py` seed 702: worst region ×1.67 nominal's rms, t −2.85, with
+//!    the refit; ×2.95, t −39.9, with the training frame). But the training frame penalises
+//!    nominal as much: nominal's frame, fitted on the other regions, absorbs the robots' errors
+//!    there and extrapolates badly, so the model looked ×0.2 nominal's rms in regions where it
+//!    harms the workspace. On the judging seeds 600–629 (sag, tracker rows): 22 truly harmful,
+//!    1 withheld whole (3 with any family withheld; 2 whole with the refit), 20 exports worse
+//!    than the placement over the workspace; healthy tracker 0 of 30 withheld whole (1 partial).
+//!    Reverted. A held-out tracker score that tracks the workspace truth must not let either
+//!    model's frame carry the robots' error into the scored region: open.
 //! 4. **Verdict**: [`judge_harm`] over all folds at [`HARM_FALSE_ALARM`]: harmful where, for
 //!    some fold and observation kind (kinds of fewer than
 //!    [`crate::selection::MIN_KIND_ROWS`] rows pooled), the paired t of the per-row gains is
