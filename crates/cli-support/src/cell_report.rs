@@ -252,26 +252,8 @@ pub fn calibrate_session_withholding(
     tolerance_scale: Option<f64>,
     withheld: &[ErrorFamily],
 ) -> Result<SessionCalibration, CellCalibrationError> {
-    handclasp_cell::check_session_inputs(session)?;
-    check_other_arm_joints(cell, session, model)?;
-    let mut problem = cell_problem(cell, session, model.fit_model());
-    for f in withheld {
-        f.withhold_from(&mut problem);
-    }
-    let solve = solve_options(cell, session);
-    // A placement fit's screen judges the rows it keeps against the stated noise plus the
-    // robots' tolerances (their own error is in every row).
-    let toleranced = (model.fit_model() == FitModel::Placement)
-        .then(|| cell_problem(cell, session, FitModel::Kinematic));
-    let (cal, check) = fit_and_check(
-        cell,
-        session,
-        &problem,
-        &solve,
-        screen,
-        tolerance_scale,
-        toleranced.as_ref(),
-    )?;
+    let (problem, cal, check) =
+        checked_calibration(cell, session, model, screen, tolerance_scale, withheld)?;
     let pairs = session_meeting_pairs(session);
     let (cooperative, workspace) = if pairs.is_empty() {
         (None, None)
@@ -320,6 +302,57 @@ pub fn calibrate_session_withholding(
         problem,
         calibration: cal,
     })
+}
+
+/// The result check of [`calibrate_session_with`]'s calibration (its report's
+/// [`CellReport::result_check`], bit for bit), without what the report adds to the fit (the
+/// predicted accuracy over the meeting pairs and the workspace, the coverage): what a command
+/// that only needs the check before its own work (`diagnose`'s pre-check) asks for.
+///
+/// # Errors
+/// As [`calibrate_session_with`]'s input checks and fit.
+pub fn session_result_check(
+    cell: &Cell,
+    session: &Session,
+    model: CellModel,
+    screen: ScreenMode,
+    tolerance_scale: Option<f64>,
+) -> Result<ResultCheckReport, CellCalibrationError> {
+    checked_calibration(cell, session, model, screen, tolerance_scale, &[]).map(|c| c.2)
+}
+
+/// The problem of [`calibrate_session_withholding`] (the session's input checks passed, the
+/// families `withheld` zeroed), its calibration and that calibration's result check
+/// ([`fit_and_check`]): the part of a calibration the report and the pre-check share.
+fn checked_calibration(
+    cell: &Cell,
+    session: &Session,
+    model: CellModel,
+    screen: ScreenMode,
+    tolerance_scale: Option<f64>,
+    withheld: &[ErrorFamily],
+) -> Result<(CellProblem, CellCalibration, ResultCheckReport), CellCalibrationError> {
+    handclasp_cell::check_session_inputs(session)?;
+    check_other_arm_joints(cell, session, model)?;
+    let mut problem = cell_problem(cell, session, model.fit_model());
+    for f in withheld {
+        f.withhold_from(&mut problem);
+    }
+    let solve = solve_options(cell, session);
+    // A placement fit's screen judges the rows it keeps against the stated noise plus the
+    // robots' tolerances (their own error is in every row).
+    let toleranced = (model.fit_model() == FitModel::Placement)
+        .then(|| cell_problem(cell, session, FitModel::Kinematic));
+    let (cal, check) = fit_and_check(
+        cell,
+        session,
+        &problem,
+        &solve,
+        screen,
+        tolerance_scale,
+        toleranced.as_ref(),
+    )?;
+    Ok((problem, cal, check))
 }
 
 /// The fit and its result check: the fit at the stated tolerances ([`fit_with_screen`], or the
