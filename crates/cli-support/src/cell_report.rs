@@ -1406,4 +1406,29 @@ mod tests {
             "keys out of alphabetical order"
         );
     }
+
+    /// `diagnose`'s pre-check computes only the result check: it must be the check
+    /// `calibrate_session_with` reports, bit for bit, for each model and screen mode (the docs'
+    /// example session on its cell; a session the check refuses is covered by
+    /// `tests/e2e/result_check.rs`).
+    #[test]
+    fn session_result_check_is_the_calibrations_check() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let cell = Cell::from_toml_file(&root.join("cells/floor-wall.toml")).expect("cell");
+        let session =
+            Session::read_csv(&root.join("docs/examples/session.csv"), &cell).expect("session");
+        for model in [CellModel::Placement, CellModel::Kinematic] {
+            for screen in [ScreenMode::Auto, ScreenMode::Off] {
+                let full = calibrate_session_with(&cell, &session, model, screen, None)
+                    .expect("calibration");
+                let check =
+                    session_result_check(&cell, &session, model, screen, None).expect("check");
+                assert_eq!(
+                    serde_json::to_string(&check).expect("json"),
+                    serde_json::to_string(&full.report.result_check).expect("json"),
+                    "{model:?} {screen:?}"
+                );
+            }
+        }
+    }
 }
