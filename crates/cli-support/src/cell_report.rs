@@ -252,26 +252,8 @@ pub fn calibrate_session_withholding(
     tolerance_scale: Option<f64>,
     withheld: &[ErrorFamily],
 ) -> Result<SessionCalibration, CellCalibrationError> {
-    handclasp_cell::check_session_inputs(session)?;
-    check_other_arm_joints(cell, session, model)?;
-    let mut problem = cell_problem(cell, session, model.fit_model());
-    for f in withheld {
-        f.withhold_from(&mut problem);
-    }
-    let solve = solve_options(cell, session);
-    // A placement fit's screen judges the rows it keeps against the stated noise plus the
-    // robots' tolerances (their own error is in every row).
-    let toleranced = (model.fit_model() == FitModel::Placement)
-        .then(|| cell_problem(cell, session, FitModel::Kinematic));
-    let (cal, check) = fit_and_check(
-        cell,
-        session,
-        &problem,
-        &solve,
-        screen,
-        tolerance_scale,
-        toleranced.as_ref(),
-    )?;
+    let (problem, cal, check) =
+        checked_calibration(cell, session, model, screen, tolerance_scale, withheld)?;
     let pairs = session_meeting_pairs(session);
     let (cooperative, workspace) = if pairs.is_empty() {
         (None, None)
@@ -320,6 +302,57 @@ pub fn calibrate_session_withholding(
         problem,
         calibration: cal,
     })
+}
+
+/// The result check of [`calibrate_session_with`]'s calibration (its report's
+/// [`CellReport::result_check`], bit for bit), without what the report adds to the fit (the
+/// predicted accuracy over the meeting pairs and the workspace, the coverage): what a command
+/// that only needs the check before its own work (`diagnose`'s pre-check) asks for.
+///
+/// # Errors
+/// As [`calibrate_session_with`]'s input checks and fit.
+pub fn session_result_check(
+    cell: &Cell,
+    session: &Session,
+    model: CellModel,
+    screen: ScreenMode,
+    tolerance_scale: Option<f64>,
+) -> Result<ResultCheckReport, CellCalibrationError> {
+    checked_calibration(cell, session, model, screen, tolerance_scale, &[]).map(|c| c.2)
+}
+
+/// The problem of [`calibrate_session_withholding`] (the session's input checks passed, the
+/// families `withheld` zeroed), its calibration and that calibration's result check
+/// ([`fit_and_check`]): the part of a calibration the report and the pre-check share.
+fn checked_calibration(
+    cell: &Cell,
+    session: &Session,
+    model: CellModel,
+    screen: ScreenMode,
+    tolerance_scale: Option<f64>,
+    withheld: &[ErrorFamily],
+) -> Result<(CellProblem, CellCalibration, ResultCheckReport), CellCalibrationError> {
+    handclasp_cell::check_session_inputs(session)?;
+    check_other_arm_joints(cell, session, model)?;
+    let mut problem = cell_problem(cell, session, model.fit_model());
+    for f in withheld {
+        f.withhold_from(&mut problem);
+    }
+    let solve = solve_options(cell, session);
+    // A placement fit's screen judges the rows it keeps against the stated noise plus the
+    // robots' tolerances (their own error is in every row).
+    let toleranced = (model.fit_model() == FitModel::Placement)
+        .then(|| cell_problem(cell, session, FitModel::Kinematic));
+    let (cal, check) = fit_and_check(
+        cell,
+        session,
+        &problem,
+        &solve,
+        screen,
+        tolerance_scale,
+        toleranced.as_ref(),
+    )?;
+    Ok((problem, cal, check))
 }
 
 /// The fit and its result check: the fit at the stated tolerances ([`fit_with_screen`], or the
@@ -1372,5 +1405,30 @@ mod tests {
             serde_json::to_string(&value).unwrap(),
             "keys out of alphabetical order"
         );
+    }
+
+    /// `diagnose`'s pre-check computes only the result check: it must be the check
+    /// `calibrate_session_with` reports, bit for bit, for each model and screen mode (the docs'
+    /// example session on its cell; a session the check refuses is covered by
+    /// `tests/e2e/result_check.rs`).
+    #[test]
+    fn session_result_check_is_the_calibrations_check() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let cell = Cell::from_toml_file(&root.join("cells/floor-wall.toml")).expect("cell");
+        let session =
+            Session::read_csv(&root.join("docs/examples/session.csv"), &cell).expect("session");
+        for model in [CellModel::Placement, CellModel::Kinematic] {
+            for screen in [ScreenMode::Auto, ScreenMode::Off] {
+                let full = calibrate_session_with(&cell, &session, model, screen, None)
+                    .expect("calibration");
+                let check =
+                    session_result_check(&cell, &session, model, screen, None).expect("check");
+                assert_eq!(
+                    serde_json::to_string(&check).expect("json"),
+                    serde_json::to_string(&full.report.result_check).expect("json"),
+                    "{model:?} {screen:?}"
+                );
+            }
+        }
     }
 }

@@ -173,18 +173,39 @@ fn result_precheck(
     cell: &Cell,
     session: &handclasp_cell::Session,
 ) -> anyhow::Result<()> {
-    let check = cli_support::cell_report::calibrate_session_with(
+    act_on_result_precheck(args, precheck_result(args, cell, session))
+}
+
+/// The result check [`result_precheck`] acts on (computed only: nothing is printed).
+fn precheck_result(
+    args: &Args,
+    cell: &Cell,
+    session: &handclasp_cell::Session,
+) -> Result<
+    cli_support::result_check::ResultCheckReport,
+    cli_support::cell_report::CellCalibrationError,
+> {
+    cli_support::cell_report::session_result_check(
         cell,
         session,
         cli_support::cell_report::CellModel::Placement,
         args.screen.mode(),
         None,
-    );
+    )
+}
+
+/// What [`result_precheck`] does with the check [`precheck_result`] computed: refuse, warn, or
+/// note that it could not run.
+fn act_on_result_precheck(
+    args: &Args,
+    check: Result<
+        cli_support::result_check::ResultCheckReport,
+        cli_support::cell_report::CellCalibrationError,
+    >,
+) -> anyhow::Result<()> {
     match check {
-        Ok(c) => {
-            let Some(r) = &c.report.result_check else {
-                return Ok(());
-            };
+        Ok(r) => {
+            let r = &r;
             if r.likely_mistake.is_some() && !args.force {
                 let reason = format!(
                     "result check (placement fit): the session contradicts what the cell \
@@ -379,10 +400,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let cell_session = handclasp_cell::Session::read_csv(&args.session, &cell).ok();
     if let Some(session) = &cell_session {
-        result_precheck(&args, &cell, session)?;
-    }
-    if let Some(session) = &cell_session {
         if !session.is_handclasp_only() {
+            result_precheck(&args, &cell, session)?;
             handclasp_cell::check_session_inputs(session).map_err(|source| {
                 handclasp_cell::FormatError::SessionCheck {
                     path: args.session.clone(),
@@ -393,7 +412,36 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             return run_whole_cell(&args, &cell, session, truth.is_some(), &site);
         }
     }
-    if args.work_points.is_some() || args.accept_mm.is_some() || args.accept_deg.is_some() {
+    let site_args =
+        args.work_points.is_some() || args.accept_mm.is_some() || args.accept_deg.is_some();
+    let options = DiagnoseOptions {
+        seed: args.seed,
+        trials: args.trials,
+        truth,
+        ..DiagnoseOptions::default()
+    };
+    let loaded = diagnose::load_session(&args.session, &cell);
+    let start = std::time::Instant::now();
+    // The result check (a placement fit) and the diagnosis's first phase (the session's check
+    // and blunder screen, a kinematic fit) are independent and each mostly serial: they run side
+    // by side, and what each finds is acted on in the order they used to run (the check first).
+    let (check, screened) = std::thread::scope(|scope| {
+        let screen = scope.spawn(|| match &loaded {
+            Ok(session) if !site_args => Some(diagnose::screen_session(&cell, session, &options)),
+            _ => None,
+        });
+        let check = cell_session
+            .as_ref()
+            .map(|s| precheck_result(&args, &cell, s));
+        let screened = screen
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (check, screened)
+    });
+    if let Some(check) = check {
+        act_on_result_precheck(&args, check)?;
+    }
+    if site_args {
         anyhow::bail!(
             "{}: --work-points, --accept-mm and --accept-deg need a session with contact, \
              tracker or plane rows (the whole-cell diagnosis, whose exported model has a \
@@ -402,24 +450,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.session.display()
         );
     }
-    let session = diagnose::load_session(&args.session, &cell).context("--session")?;
-    let options = DiagnoseOptions {
-        seed: args.seed,
-        trials: args.trials,
-        truth,
-        ..DiagnoseOptions::default()
-    };
+    let session = loaded.context("--session")?;
     // Progress on stderr when it is a terminal, or when the session is large enough to take
     // more than a few seconds (PROGRESS_MIN_POINTS); small sessions in scripts and captures see
     // the report alone (a size rule, not a clock: the output does not depend on machine load).
     let show = std::io::IsTerminal::is_terminal(&std::io::stderr())
         || session.points.len() >= PROGRESS_MIN_POINTS;
-    let start = std::time::Instant::now();
-    let mut report =
-        diagnose::diagnose_session_with_progress(&cell, &session, &options, &mut |line| {
-            if show {
-                eprintln!("[{:6.1} s] {line}", start.elapsed().as_secs_f64());
-            }
+    let mut report = screened
+        .unwrap_or_else(|| diagnose::screen_session(&cell, &session, &options))
+        .and_then(|screened| {
+            diagnose::diagnose_screened_session_with_progress(
+                &cell,
+                screened,
+                &options,
+                &mut |line| {
+                    if show {
+                        eprintln!("[{:6.1} s] {line}", start.elapsed().as_secs_f64());
+                    }
+                },
+            )
         })
         .with_context(|| format!("diagnosing {}", args.session.display()))?;
     // The coverage needs the session in handclasp-cell's form (read above; the diagnosis's own

@@ -96,12 +96,63 @@ pub fn diagnose_session_with_progress(
     options: &DiagnoseOptions,
     progress: &mut dyn FnMut(&str),
 ) -> Result<DiagnoseReport, DiagnoseError> {
+    let screened = screen_session(cell, session, options)?;
+    diagnose_screened_session_with_progress(cell, screened, options, progress)
+}
+
+/// A session checked against its cell and screened for blunders: what
+/// [`diagnose_session`] runs its first phase to get ([`screen_session`]), and
+/// [`diagnose_screened_session_with_progress`] diagnoses.
+#[derive(Debug, Clone)]
+pub struct ScreenedSession {
+    /// The session's points less the rejected blunders.
+    kept: Session,
+    /// The rows rejected as blunders (point number, size in σ, residual in mm).
+    rejected: Vec<RejectedPointReport>,
+}
+
+impl ScreenedSession {
+    /// The points kept for the diagnosis.
+    pub fn kept(&self) -> &Session {
+        &self.kept
+    }
+
+    /// The rows rejected as blunders.
+    pub fn rejected(&self) -> &[RejectedPointReport] {
+        &self.rejected
+    }
+}
+
+/// The first phase of [`diagnose_session`]: the session checked against its cell
+/// ([`check_session`]) and, unless `options.screen_blunders` is off, screened for blunders by
+/// the whole-cell calibration's screen. A caller with other work before the diagnosis (the CLI's
+/// result check) can run it alongside, then hand the result to
+/// [`diagnose_screened_session_with_progress`]: the report is the one [`diagnose_session`]
+/// gives, bit for bit. Errors: as [`diagnose_session`]'s check and screen.
+pub fn screen_session(
+    cell: &Cell,
+    session: &Session,
+    options: &DiagnoseOptions,
+) -> Result<ScreenedSession, DiagnoseError> {
     check_session(cell, session, Path::new("<session>"))?;
     let (kept, rejected) = if options.screen_blunders {
         screen_blunders(cell, session)?
     } else {
         (session.clone(), Vec::new())
     };
+    Ok(ScreenedSession { kept, rejected })
+}
+
+/// [`diagnose_session_with_progress`] after its first phase: the diagnosis of a session
+/// [`screen_session`] checked and screened with the same `options`. Errors: as
+/// [`diagnose_session`] after the screen.
+pub fn diagnose_screened_session_with_progress(
+    cell: &Cell,
+    screened: ScreenedSession,
+    options: &DiagnoseOptions,
+    progress: &mut dyn FnMut(&str),
+) -> Result<DiagnoseReport, DiagnoseError> {
+    let ScreenedSession { kept, rejected } = screened;
     let session = &kept;
     let cands = catalogue(
         cell.robot1.model.chain_joints().len(),

@@ -43,7 +43,10 @@ pub use cell_diagnosis::{
     FamilyKind, FoldDesign,
 };
 pub use cell_report::{render_cell_text, CellDiagnoseReport, FittedModel, RejectedFamilyReport};
-pub use engine::{diagnose_session, diagnose_session_with_progress, DiagnoseOptions};
+pub use engine::{
+    diagnose_screened_session_with_progress, diagnose_session, diagnose_session_with_progress,
+    screen_session, DiagnoseOptions, ScreenedSession,
+};
 pub use export::{
     export_cell_diagnosis, export_cell_diagnosis_with, export_corrected,
     CELL_DIAGNOSIS_EXPORT_NAMES, CORRECTED_EXPORT_NAMES,

@@ -229,57 +229,36 @@ fn assemble(
     let mut residuals = DVector::zeros(3 * n);
     let mut jacobian = DMatrix::zeros(if want_jacobian { 3 * n } else { 0 }, cols);
     let r_x = b1_from_b2.rotation.to_rotation_matrix().into_inner();
+    // Each point's rows on rayon's current pool (the arithmetic a sequential pass does, point by
+    // point), then copied into place in point order, where the first failing point's error is
+    // returned.
+    let rows: Vec<Result<PointRows, IdentifyError>> = points
+        .par_iter()
+        .zip(evals.into_par_iter())
+        .with_min_len(POINTS_PER_TASK)
+        .map(|(&i, e)| point_rows(model, i, b1_from_b2, &r_x, jac_params, want_jacobian, e?))
+        .collect();
     let mut p1_b1 = Vec::with_capacity(n);
     let mut p2_b2 = Vec::with_capacity(n);
     let mut raw = Vec::with_capacity(n);
     let mut weights = Vec::with_capacity(n);
-    for (row, (&i, e)) in points.iter().zip(evals).enumerate() {
-        let e = e?;
-        p1_b1.push(e.p1_b1.coords);
-        let y = b1_from_b2 * e.p2_b2;
-        let r = e.p1_b1 - y;
-        if !r.iter().all(|v| v.is_finite()) {
-            return Err(IdentifyError::NonFinite { point: i });
-        }
-        let w = model.weight(i);
-        let unit = w == Matrix3::identity();
+    for (row, rows) in rows.into_iter().enumerate() {
+        let PointRows {
+            p1_b1: p1,
+            p2_b2: p2,
+            raw: r,
+            weight: w,
+            residual,
+            jacobian: block,
+        } = rows?;
+        p1_b1.push(p1);
         raw.push(r);
         weights.push(w);
-        residuals
-            .fixed_rows_mut::<3>(3 * row)
-            .copy_from(&if unit { r } else { w * r });
+        residuals.fixed_rows_mut::<3>(3 * row).copy_from(&residual);
         if want_jacobian {
-            if e.jacobian.ncols() != jac_params.len() {
-                return Err(IdentifyError::JacobianShape {
-                    point: i,
-                    columns: e.jacobian.ncols(),
-                    requested: jac_params.len(),
-                });
-            }
-            let mut block = jacobian.view_mut((3 * row, 0), (3, cols));
-            block
-                .fixed_view_mut::<3, 3>(0, 0)
-                .copy_from(&(-Matrix3::identity()));
-            block
-                .fixed_view_mut::<3, 3>(0, 3)
-                .copy_from(&y.coords.cross_matrix());
-            for (c, &p) in jac_params.iter().enumerate() {
-                let col: Vector3<f64> = e.jacobian.column(c).into_owned();
-                if !col.iter().all(|v| v.is_finite()) {
-                    return Err(IdentifyError::NonFinite { point: i });
-                }
-                let d = match model.param_robot(p) {
-                    Robot::One => col,
-                    Robot::Two => -(r_x * col),
-                };
-                block.fixed_view_mut::<3, 1>(0, 6 + c).copy_from(&d);
-            }
-            if !unit {
-                let b = block.clone_owned();
-                block.copy_from(&(w * b));
-            }
+            jacobian.view_mut((3 * row, 0), (3, cols)).copy_from(&block);
         }
-        p2_b2.push(e.p2_b2);
+        p2_b2.push(p2);
     }
     let rss = residuals.norm_squared();
     let raw_rss = raw.iter().map(|r| r.norm_squared()).sum();
@@ -292,6 +271,87 @@ fn assemble(
         weights,
         p1_b1,
         p2_b2,
+    })
+}
+
+/// One point's part of a [`Linearisation`] ([`point_rows`]).
+struct PointRows {
+    /// Robot 1's tip, b1, m.
+    p1_b1: Vector3<f64>,
+    /// Robot 2's tip, b2, m.
+    p2_b2: Point3<f64>,
+    /// The unweighted residual `p1 − X·p2`, b1, m.
+    raw: Vector3<f64>,
+    /// The point's whitening matrix.
+    weight: Matrix3<f64>,
+    /// The weighted residual (3 rows).
+    residual: Vector3<f64>,
+    /// The weighted Jacobian rows (3 × (6 + parameters); empty without a Jacobian).
+    jacobian: DMatrix<f64>,
+}
+
+/// Point `i`'s rows of [`assemble`]'s linearisation from its tip evaluation `e` (`r_x`: the
+/// rotation of `b1_from_b2`), checked in the order a sequential pass checks them.
+fn point_rows(
+    model: &dyn TipModel,
+    i: usize,
+    b1_from_b2: &Isometry3<f64>,
+    r_x: &Matrix3<f64>,
+    jac_params: &[usize],
+    want_jacobian: bool,
+    e: TipEval,
+) -> Result<PointRows, IdentifyError> {
+    let y = b1_from_b2 * e.p2_b2;
+    let r = e.p1_b1 - y;
+    if !r.iter().all(|v| v.is_finite()) {
+        return Err(IdentifyError::NonFinite { point: i });
+    }
+    let w = model.weight(i);
+    let unit = w == Matrix3::identity();
+    let residual = if unit { r } else { w * r };
+    let cols = if want_jacobian {
+        6 + jac_params.len()
+    } else {
+        0
+    };
+    let mut block = DMatrix::zeros(if want_jacobian { 3 } else { 0 }, cols);
+    if want_jacobian {
+        if e.jacobian.ncols() != jac_params.len() {
+            return Err(IdentifyError::JacobianShape {
+                point: i,
+                columns: e.jacobian.ncols(),
+                requested: jac_params.len(),
+            });
+        }
+        block
+            .fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&(-Matrix3::identity()));
+        block
+            .fixed_view_mut::<3, 3>(0, 3)
+            .copy_from(&y.coords.cross_matrix());
+        for (c, &p) in jac_params.iter().enumerate() {
+            let col: Vector3<f64> = e.jacobian.column(c).into_owned();
+            if !col.iter().all(|v| v.is_finite()) {
+                return Err(IdentifyError::NonFinite { point: i });
+            }
+            let d = match model.param_robot(p) {
+                Robot::One => col,
+                Robot::Two => -(r_x * col),
+            };
+            block.fixed_view_mut::<3, 1>(0, 6 + c).copy_from(&d);
+        }
+        if !unit {
+            let b = block.clone_owned();
+            block.copy_from(&(w * b));
+        }
+    }
+    Ok(PointRows {
+        p1_b1: e.p1_b1.coords,
+        p2_b2: e.p2_b2,
+        raw: r,
+        weight: w,
+        residual,
+        jacobian: block,
     })
 }
 

@@ -5,6 +5,7 @@ use super::fit::{check_params, linearise, IdentFit, Linearisation};
 use super::model::{IdentifyError, TipModel};
 use crate::stats::normal_quantile;
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 
 /// Identifiability verdict of one candidate parameter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -162,26 +163,35 @@ pub(super) fn identifiability_and_linearisation(
         .jacobian
         .columns(base_cols, candidates.len())
         .into_owned();
-    // Scoring projection: out of the 6 b1_from_b2 columns and the fitted parameters.
-    let basis = orthonormal_basis(&lin.jacobian.columns(0, base_cols).into_owned());
-    let projected = &raw - &basis * (basis.transpose() * &raw);
-    // Gauge projection for the verdicts: a rigid motion of EITHER base frame. Robot 2's base
-    // motion is spanned by the fit's columns (rotation about points X·p2); robot 1's base motion
-    // rotates about its own tips p1, which differ from X·p2 by the residuals. Adding the 3 columns
-    // [p1]ₓ makes "confounded with a base frame" exact whatever the noise (without them, a robot-1
-    // joint-1 offset would look identifiable to the size of the residuals).
     let n = fit.points.len();
-    let mut gauge = DMatrix::zeros(3 * n, base_cols + 3);
-    gauge
-        .columns_mut(0, base_cols)
-        .copy_from(&lin.jacobian.columns(0, base_cols));
-    for (row, (p1, w)) in lin.p1_b1.iter().zip(&lin.weights).enumerate() {
-        gauge
-            .fixed_view_mut::<3, 3>(3 * row, base_cols)
-            .copy_from(&(w * p1.cross_matrix()));
-    }
-    let gauge_basis = orthonormal_basis(&gauge);
-    let gauge_projected = &raw - &gauge_basis * (gauge_basis.transpose() * &raw);
+    // The two projections are independent: computed side by side on rayon's current pool (each
+    // the same arithmetic as alone, so the result does not depend on the thread count).
+    let (projected, gauge_projected) = rayon::join(
+        || {
+            // Scoring projection: out of the 6 b1_from_b2 columns and the fitted parameters.
+            let basis = orthonormal_basis(&lin.jacobian.columns(0, base_cols).into_owned());
+            &raw - &basis * (basis.transpose() * &raw)
+        },
+        || {
+            // Gauge projection for the verdicts: a rigid motion of EITHER base frame. Robot 2's
+            // base motion is spanned by the fit's columns (rotation about points X·p2); robot
+            // 1's base motion rotates about its own tips p1, which differ from X·p2 by the
+            // residuals. Adding the 3 columns [p1]ₓ makes "confounded with a base frame" exact
+            // whatever the noise (without them, a robot-1 joint-1 offset would look
+            // identifiable to the size of the residuals).
+            let mut gauge = DMatrix::zeros(3 * n, base_cols + 3);
+            gauge
+                .columns_mut(0, base_cols)
+                .copy_from(&lin.jacobian.columns(0, base_cols));
+            for (row, (p1, w)) in lin.p1_b1.iter().zip(&lin.weights).enumerate() {
+                gauge
+                    .fixed_view_mut::<3, 3>(3 * row, base_cols)
+                    .copy_from(&(w * p1.cross_matrix()));
+            }
+            let gauge_basis = orthonormal_basis(&gauge);
+            &raw - &gauge_basis * (gauge_basis.transpose() * &raw)
+        },
+    );
     let mut params = Vec::with_capacity(candidates.len());
     for (c, &p) in candidates.iter().enumerate() {
         let column_norm = raw.column(c).norm();
@@ -229,25 +239,34 @@ fn parallel_groups(
     // Each identifiable column normalised once (not once per pair: 80 candidates at 6,000
     // residual rows made this a tenth of a diagnosis); the same values, so the same groups.
     let unit: Vec<Option<DVector<f64>>> = (0..m)
+        .into_par_iter()
         .map(|a| {
             (params[a].status == IdentStatus::Identifiable).then(|| projected.column(a).normalize())
         })
         .collect();
+    // Per column, the later columns parallel to it: every pair's test on rayon's current pool
+    // (the same dot products as one at a time), the groups then formed in column order below.
+    let parallel_to: Vec<Vec<usize>> = (0..m)
+        .into_par_iter()
+        .map(|a| {
+            let Some(ua) = &unit[a] else {
+                return Vec::new();
+            };
+            ((a + 1)..m)
+                .filter(|&b| {
+                    unit[b]
+                        .as_ref()
+                        .is_some_and(|ub| ua.dot(ub).abs() > group_cos)
+                })
+                .collect()
+        })
+        .collect();
     for a in 0..m {
-        if group_of[a].is_some() {
+        if group_of[a].is_some() || unit[a].is_none() {
             continue;
         }
-        let Some(ua) = &unit[a] else { continue };
         let mut members = vec![a];
-        for b in (a + 1)..m {
-            if group_of[b].is_some() {
-                continue;
-            }
-            let Some(ub) = &unit[b] else { continue };
-            if ua.dot(ub).abs() > group_cos {
-                members.push(b);
-            }
-        }
+        members.extend(parallel_to[a].iter().filter(|&&b| group_of[b].is_none()));
         if members.len() > 1 {
             let gi = groups.len();
             for &mm in &members {
