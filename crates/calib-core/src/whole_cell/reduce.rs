@@ -127,7 +127,19 @@ pub fn reduce_layout(
     active: &[usize],
 ) -> Result<Reduction, CellFitError> {
     let sys = assemble(problem, full, estimate, active, None, true)?;
-    let jd = sys.j.rows(0, sys.data_rows).into_owned();
+    // The rows the rank test reads: the data's and the placement prior's
+    // ([`super::PlacementPrior`]: `[b1_from_b2] sigma_mm/sigma_deg`, a shared trunk's identity),
+    // the rows every fit and `plan`'s design carry. A held placement is not a free
+    // registration: projecting a column out of the placement columns *with* their prior rows
+    // removes only what the data, against that prior, let the placement absorb (the Schur
+    // complement `aᵀa − aᵀP(PᵀP + LᵀL)⁻¹Pᵀa` for a data column `a`, the placement's data
+    // columns `P` and its whitened prior `L`), so a parameter that moves the hands as a move of
+    // a tightly held placement would is kept: the prior holds the placement and the data see
+    // the parameter. A free (or loosely held) placement still absorbs it. The kinematic
+    // columns are 0 on those rows, so their raw norms are the data's.
+    let prior_rows = sys.data_rows + full.prior_sqrt_info.nrows()..sys.j.nrows();
+    let rows: Vec<usize> = (0..sys.data_rows).chain(prior_rows).collect();
+    let jd = sys.j.select_rows(&rows);
     let n = full.len();
     let sig: Vec<f64> = (0..n).map(|j| full.prior_sigma(j)).collect();
     let unpen: Vec<usize> = (0..n).filter(|&j| sig[j] == 0.0).collect();
