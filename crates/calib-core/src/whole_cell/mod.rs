@@ -60,7 +60,14 @@
 //! # Base-parameter reduction ([`reduce`])
 //! Let `J_n` be the whitened data Jacobian of the unpenalised columns (placement, nuisances) and
 //! `J_k` that of the kinematic columns. Project: `A = (I − Q_n·Q_nᵀ)·J_k·D`, `Q_n` an orthonormal
-//! basis of `range(J_n)`, `D = diag(σ_prior)`. A column-pivoted QR `A·P = Q·R` orders the
+//! basis of `range(J_n)`, `D = diag(σ_prior)`. A placement prior ([`PlacementPrior`]:
+//! `[b1_from_b2] sigma_mm/sigma_deg`, a shared trunk's identity) adds its whitened rows `L` under
+//! the placement's columns of `J_n` (the kinematic columns are 0 there), as every fit and
+//! `plan`'s design carry them: the projection then removes from a column `a` only
+//! `aᵀP(PᵀP + LᵀL)⁻¹Pᵀa` (`P` the placement's data columns), what the data, against that
+//! prior, let the placement absorb. A free or loosely held placement absorbs its six motions; a
+//! tightly held one absorbs nothing, and a parameter that moves the hands as it would is kept
+//! (a shared trunk held still: the shoulders). A column-pivoted QR `A·P = Q·R` orders the
 //! columns by how much new information each adds; columns whose `|R_jj| ≤ rank_tol·|R_00|` are
 //! structurally undetermined. Each such column is dropped (held at 0) and reported: "no effect"
 //! if its raw column is zero, "confounded with b1_from_b2 / the nuisance unknowns" if its

@@ -48,7 +48,9 @@ pub enum ReductionReason {
     /// A shared trunk's parameter ([`super::CellRobot::shared_joints`]) that moves both arms'
     /// tips alike, which the rows (handclasps, contacts: where the hands meet) do not see.
     MovesBothHandsAlike,
-    /// Its effect is a rigid motion the placement `b1_from_b2` absorbs.
+    /// Its effect is a rigid motion the placement `b1_from_b2` absorbs: a free placement, or one
+    /// whose prior ([`super::PlacementPrior`]) holds it more loosely than the data see it (a
+    /// tightly held placement absorbs nothing: the rank test reads the prior's rows).
     ConfoundedWithPlacement,
     /// Its effect is absorbed by the placement together with the nuisance unknowns (tracker
     /// frames, planes, contact distances).
