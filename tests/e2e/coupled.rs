@@ -154,6 +154,26 @@ fn names_robot2_trunk_parameter(text: &str) -> bool {
     })
 }
 
+/// `handclasp calibrate --cell cells/humanoid-trunk.toml --session {train} --export {cal}`,
+/// which must succeed; its standard output.
+fn calibrate_trunk_export(train: &Path, cal: &Path) -> String {
+    let out = handclasp(&[
+        "calibrate",
+        "--cell",
+        &arg(&humanoid_trunk()),
+        "--session",
+        &arg(train),
+        "--export",
+        &arg(cal),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
 /// Recovery with a shared trunk (`[robot2] shares = { robot = 1, link = "chest" }`, a coupled
 /// torso_4 in it): the trunk's parameters are fitted once (robot 1's; no robot 2 parameter at
 /// the 4 trunk joints, no free placement), the export re-loads as a shared-trunk cell, the
@@ -179,21 +199,7 @@ fn shared_trunk_is_fitted_once_and_calibrated_to_its_noise() {
         &truth,
     );
     let cal = dir.path().join("cal");
-    let out = handclasp(&[
-        "calibrate",
-        "--cell",
-        &arg(&humanoid_trunk()),
-        "--session",
-        &arg(&train),
-        "--export",
-        &arg(&cal),
-    ]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let text = calibrate_trunk_export(&train, &cal);
     assert!(text.contains("robot 1 origin_xyz joint 4"), "{text}");
     assert!(!names_robot2_trunk_parameter(&text), "{text}");
     let back = Cell::from_toml_file(&cal.join("cell.toml")).expect("the export loads");
@@ -746,21 +752,7 @@ fn a_shared_trunk_held_still_keeps_the_shoulders() {
         &truth,
     );
     let cal = dir.path().join("cal");
-    let out = handclasp(&[
-        "calibrate",
-        "--cell",
-        &arg(&humanoid_trunk()),
-        "--session",
-        &arg(&train),
-        "--export",
-        &arg(&cal),
-    ]);
-    let text = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let text = calibrate_trunk_export(&train, &cal);
     eprintln!("{text}");
     assert!(
         !text.contains("as a move of b1_from_b2 would"),
