@@ -61,13 +61,13 @@
 //! Let `J_n` be the whitened data Jacobian of the unpenalised columns (placement, nuisances) and
 //! `J_k` that of the kinematic columns. Project: `A = (I − Q_n·Q_nᵀ)·J_k·D`, `Q_n` an orthonormal
 //! basis of `range(J_n)`, `D = diag(σ_prior)`. A placement prior ([`PlacementPrior`]:
-//! `[b1_from_b2] sigma_mm/sigma_deg`, a shared trunk's identity) adds its whitened rows `L` under
-//! the placement's columns of `J_n` (the kinematic columns are 0 there), as every fit and
-//! `plan`'s design carry them: the projection then removes from a column `a` only
-//! `aᵀP(PᵀP + LᵀL)⁻¹Pᵀa` (`P` the placement's data columns), what the data, against that
-//! prior, let the placement absorb. A free or loosely held placement absorbs its six motions; a
-//! tightly held one absorbs nothing, and a parameter that moves the hands as it would is kept
-//! (a shared trunk held still: the shoulders). A column-pivoted QR `A·P = Q·R` orders the
+//! `[b1_from_b2] sigma_mm/sigma_deg`, a shared trunk's identity, whitened rows `L`) holds the
+//! motions of the placement along which its information exceeds the data's (eigenvalues `< 1`
+//! of the data information in the prior's metric, nuisances projected out): those are fixed,
+//! not in `J_n`, and the rest of the placement stays in `J_n` (a free or loosely held
+//! placement absorbs its six motions; a tightly held one absorbs nothing, and a parameter that
+//! moves the hands as it would is kept: a shared trunk held still keeps the shoulders). The
+//! prior rows never enter `A`. A column-pivoted QR `A·P = Q·R` orders the
 //! columns by how much new information each adds; columns whose `|R_jj| ≤ rank_tol·|R_00|` are
 //! structurally undetermined. Each such column is dropped (held at 0) and reported: "no effect"
 //! if its raw column is zero, "confounded with b1_from_b2 / the nuisance unknowns" if its
