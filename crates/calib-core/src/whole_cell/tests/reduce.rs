@@ -127,8 +127,10 @@ const LOOSE_SIGMA: (f64, f64) = (10.0, 10.0);
 /// Issue 22 (stop 35's finding): the reduction counted a placement held by a tight prior as a
 /// free registration, so a parameter whose effect is a move of `b1_from_b2` (each robot's
 /// first-joint origin on a floor–floor cell) was dropped as "confounded with b1_from_b2"
-/// although the prior holds the placement and the data see the parameter. With the prior's rows
-/// in the rank test nothing is confounded with the held placement, 6 more parameters are kept
+/// although the prior holds the placement and the data see the parameter. With the placement's
+/// motions the prior holds better than the data see them fixed for the rank test
+/// (`free_placement_directions`) nothing is confounded with the held placement, 6 more
+/// parameters are kept
 /// (the placement's 6 motions, now the kinematic parameters'), and a fit on that layout is
 /// near the free fit on new poses, where the fit on the free reduction with the placement held
 /// cannot follow the first-joint origins (it holds them at 0). A loosely held placement still
@@ -161,8 +163,7 @@ fn a_held_placement_absorbs_nothing_and_a_loose_one_what_a_free_one_does() {
         free.kept + 6,
         "the placement's 6 motions are kept"
     );
-    // What the placement absorbs is the same; among the merges, which of two equivalent columns
-    // is kept may differ by round-off (the prior rows change the projections in the last bits).
+    // A loose prior leaves all six motions free: the projection without a prior, exactly.
     let confounded = |r: &Reduction| -> Vec<CellParam> {
         r.dropped
             .iter()
@@ -177,6 +178,16 @@ fn a_held_placement_absorbs_nothing_and_a_loose_one_what_a_free_one_does() {
         confounded(&free)
     );
     assert_eq!(loose.kept, free.kept);
+    let dropped = |r: &Reduction| -> Vec<(CellParam, ReductionReason)> {
+        r.dropped
+            .iter()
+            .map(|d| (d.param.clone(), d.reason.clone()))
+            .collect()
+    };
+    assert!(
+        dropped(&loose) == dropped(&free),
+        "a loose prior drops and merges what a free placement does"
+    );
 
     // Recovery on new poses: the held fit is as good as the free one (the placement it holds
     // is the truth), the fit on the free reduction with the placement held is not.
