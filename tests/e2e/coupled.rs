@@ -139,16 +139,20 @@ fn humanoid_trunk() -> PathBuf {
     shipped_cell("humanoid-trunk")
 }
 
-/// True if `text` names a parameter of robot 2 at chain joint 1 … 4 (the shared trunk's).
+/// True if `text` names a parameter of robot 2 at chain joint 1 … 4 (the shared trunk's): each
+/// name `robot 2 <kind> joint N[ axis]` is read up to its own end (a `:`, `,`, `(` or the line's
+/// end), so a robot 1 joint named after it on the same line (a merge list:
+/// `-1.000·robot 2 origin_xyz joint 6 y, +1.000·robot 1 origin_xyz joint 4 y`) is not taken
+/// for robot 2's.
 fn names_robot2_trunk_parameter(text: &str) -> bool {
     text.lines().any(|l| {
-        let Some(at) = l.find("robot 2 ") else {
-            return false;
-        };
-        (1..=4).any(|j| {
-            let key = format!(" joint {j}");
-            l[at..].split_once(&key).is_some_and(|(head, tail)| {
-                !head.contains(':') && tail.chars().next().is_none_or(|c| !c.is_ascii_digit())
+        l.match_indices("robot 2 ").any(|(at, _)| {
+            let name = l[at..].split([':', ',', '(']).next().unwrap_or("");
+            (1..=4).any(|j| {
+                let key = format!(" joint {j}");
+                name.split_once(&key).is_some_and(|(_, tail)| {
+                    tail.chars().next().is_none_or(|c| !c.is_ascii_digit())
+                })
             })
         })
     })
