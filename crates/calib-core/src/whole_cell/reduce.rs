@@ -38,6 +38,17 @@ pub const RANK_TOL: f64 = 1e-2;
 /// existing test, the golden outputs and the CTU study's outputs (byte-identical).
 pub const PRIOR_INFO_TOL: f64 = 1e-8;
 
+/// A column that only a held placement motion tells apart from the unpenalised unknowns and the
+/// columns kept before it (see [`reduce_layout`]) is kept only if the data carry at least this
+/// much information on it, in prior-σ units (the prior's own being 1): the boundary where the
+/// data, not the prior, decide it ([`Reduction::data_determined`], and the held/free boundary
+/// of the placement's motions). Below it the prior decides the column, and keeping it as a
+/// pivot merged others onto it with coefficients of 6 … 30 prior σ (CTU session of
+/// `tools/bench/ctu_diagnose.sh`: robot 2's tip z, information 2.6e-3, independent fraction
+/// 1.1 %, just over [`RANK_TOL`]). Chosen after that measurement (the rule of commit ba240fa,
+/// without it, was run on CTU first).
+pub const HELD_ONLY_MIN_INFO: f64 = 1.0;
+
 /// Why a parameter was dropped.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "reason", rename_all = "snake_case")]
@@ -127,7 +138,10 @@ pub fn reduce(
 /// ([`free_placement_directions`] states the rule): those are fixed for the rank test, which
 /// then reads the data rows only, and the rest absorb as a free placement does. A shared trunk
 /// held still (identity at 1 µm / 1 µrad) thus keeps the shoulders; a placement the data see
-/// through is the free registration it was.
+/// through is the free registration it was. A column that only the held motions tell apart
+/// (the same Gram–Schmidt with the whole placement free, run on the same pivots, leaves it at
+/// most [`RANK_TOL`] of its raw norm) is a pivot only if the data carry at least
+/// [`HELD_ONLY_MIN_INFO`] of its prior information: else the prior decides it.
 ///
 /// Errors: as [`reduce`].
 pub fn reduce_layout(
@@ -184,6 +198,18 @@ pub fn reduce_layout(
     let mut q_cols: Vec<DVector<f64>> = Vec::new();
     // Each column's current norm (the pivot test reads it once per step, not per comparison).
     let mut norm: Vec<f64> = (0..k).map(|c| work.column(c).norm()).collect();
+    // With held placement motions, the same Gram–Schmidt with the whole placement free (the
+    // projection without a prior), run alongside on the same pivots: a column new only through
+    // the held motions (its free-placement norm at most `RANK_TOL` of its raw norm) is a pivot
+    // only if the data carry at least its prior's information on it (`norm² ≥ 1`, prior-σ
+    // units: [`HELD_ONLY_MIN_INFO`]); else the prior decides it and it is dropped like any column
+    // the rank test does not keep (it would be a pivot the data barely see, others merging onto
+    // it with large coefficients).
+    let mut free_gs = (free.ncols() < 6).then(|| {
+        let w = project(&orthonormal_basis(&jd.select_columns(&unpen)), &a_raw);
+        let nf: Vec<f64> = (0..k).map(|c| w.column(c).norm()).collect();
+        (w, nf)
+    });
     loop {
         let best = remaining
             .iter()
@@ -192,12 +218,21 @@ pub fn reduce_layout(
                 raw_norm[c] > 0.0
                     && raw_norm[c].powi(2) > PRIOR_INFO_TOL
                     && norm[c] > RANK_TOL * raw_norm[c]
+                    && free_gs.as_ref().is_none_or(|(_, nf)| {
+                        nf[c] > RANK_TOL * raw_norm[c] || norm[c].powi(2) >= HELD_ONLY_MIN_INFO
+                    })
             })
             .max_by(|&x, &y| norm[x].total_cmp(&norm[y]));
         let Some(p) = best else { break };
         let q = work.column(p).normalize();
         remaining.retain(|&c| c != p);
         project_out(&mut work, &q, &remaining, &mut norm);
+        if let Some((w, nf)) = free_gs.as_mut() {
+            if nf[p] > 0.0 {
+                let qf = w.column(p).normalize();
+                project_out(w, &qf, &remaining, nf);
+            }
+        }
         kept_order.push(p);
         q_cols.push(q);
     }
