@@ -210,6 +210,15 @@ pub fn reduce_layout(
         let nf: Vec<f64> = (0..k).map(|c| w.column(c).norm()).collect();
         (w, nf)
     });
+    // Columns only the held motions tell apart from the unpenalised unknowns, with less data
+    // information than [`HELD_ONLY_MIN_INFO`]: reported as a free placement would report them.
+    let held_only: Vec<bool> = (0..k)
+        .map(|c| {
+            free_gs.as_ref().is_some_and(|(_, nf)| {
+                nf[c] <= RANK_TOL * raw_norm[c] && own[c].powi(2) < HELD_ONLY_MIN_INFO
+            })
+        })
+        .collect();
     loop {
         let best = remaining
             .iter()
@@ -291,7 +300,12 @@ pub fn reduce_layout(
                     format!("{name} moves no observed tip: held at 0"),
                 )
             }
-        } else if own[c] <= RANK_TOL * raw_norm[c] {
+        } else if own[c] <= RANK_TOL * raw_norm[c] || held_only[c] {
+            let q_place = if held_only[c] {
+                orthonormal_basis(&jd.select_columns(&placement))
+            } else {
+                q_place.clone()
+            };
             let in_place = project(&q_place, &a_raw.columns(c, 1).into_owned()).norm();
             if in_place <= RANK_TOL * raw_norm[c] || nuisance.is_empty() {
                 (
