@@ -219,6 +219,12 @@ pub fn reduce_layout(
             })
         })
         .collect();
+    // The whole placement's motions, for reporting those columns.
+    let q_place_all = if held_only.contains(&true) {
+        orthonormal_basis(&jd.select_columns(&placement))
+    } else {
+        DMatrix::zeros(jd.nrows(), 0)
+    };
     loop {
         let best = remaining
             .iter()
@@ -301,12 +307,8 @@ pub fn reduce_layout(
                 )
             }
         } else if own[c] <= RANK_TOL * raw_norm[c] || held_only[c] {
-            let q_place = if held_only[c] {
-                orthonormal_basis(&jd.select_columns(&placement))
-            } else {
-                q_place.clone()
-            };
-            let in_place = project(&q_place, &a_raw.columns(c, 1).into_owned()).norm();
+            let q = if held_only[c] { &q_place_all } else { &q_place };
+            let in_place = project(q, &a_raw.columns(c, 1).into_owned()).norm();
             if in_place <= RANK_TOL * raw_norm[c] || nuisance.is_empty() {
                 (
                     ReductionReason::ConfoundedWithPlacement,
@@ -471,7 +473,7 @@ fn free_placement_directions(
     }
     let g = (l_place.transpose() * l_place).symmetric_eigen();
     let g_max = g.eigenvalues.iter().cloned().fold(0.0, f64::max);
-    if !(g_max > 0.0) {
+    if g_max.is_nan() || g_max <= 0.0 {
         return identity;
     }
     let (pos, zero): (Vec<usize>, Vec<usize>) =
