@@ -67,7 +67,8 @@
 //! not in `J_n`, and the rest of the placement stays in `J_n` (a free or loosely held
 //! placement absorbs its six motions; a tightly held one absorbs nothing, and a parameter that
 //! moves the hands as it would is kept: a shared trunk held still keeps the shoulders). The
-//! prior rows never enter `A`. A column-pivoted QR `A·P = Q·R` orders the
+//! prior rows never enter `A`; a column only the held motions tell apart is a pivot only if the
+//! data carry at least its prior's information ([`HELD_ONLY_MIN_INFO`]). A column-pivoted QR `A·P = Q·R` orders the
 //! columns by how much new information each adds; columns whose `|R_jj| ≤ rank_tol·|R_00|` are
 //! structurally undetermined. Each such column is dropped (held at 0) and reported: "no effect"
 //! if its raw column is zero, "confounded with b1_from_b2 / the nuisance unknowns" if its
@@ -220,7 +221,8 @@ pub use prediction::{
     WORKSPACE_SEED,
 };
 pub use reduce::{
-    reduce, reduce_layout, Reduction, ReductionEntry, ReductionReason, PRIOR_INFO_TOL, RANK_TOL,
+    reduce, reduce_layout, Reduction, ReductionEntry, ReductionReason, HELD_ONLY_MIN_INFO,
+    PRIOR_INFO_TOL, RANK_TOL,
 };
 pub use report::{
     CalibrationReport, ContactGroupReport, DesignPredictionReport, DropReason, FamilyScaleReport,
