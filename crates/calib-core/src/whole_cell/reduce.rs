@@ -136,8 +136,9 @@ pub fn reduce(
 /// A placement prior ([`super::PlacementPrior`]: `[b1_from_b2] sigma_mm/sigma_deg`, a shared
 /// trunk's identity) holds the motions of `b1_from_b2` it knows better than the data see them
 /// (held: the data's information on that motion, the nuisances projected out, is below the
-/// prior's; the private `free_placement_directions` states the rule): those are fixed for the rank test, which
-/// then reads the data rows only, and the rest absorb as a free placement does. A shared trunk
+/// prior's; the private `free_placement_directions` states the rule): those are fixed for the
+/// rank test, which then reads the data rows only, and the rest absorb as a free placement
+/// does. A shared trunk
 /// held still (identity at 1 µm / 1 µrad) thus keeps the shoulders; a placement the data see
 /// through is the free registration it was. A column that only the held motions tell apart
 /// (the same Gram–Schmidt with the whole placement free, run on the same pivots, leaves it at
