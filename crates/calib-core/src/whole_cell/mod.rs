@@ -60,7 +60,15 @@
 //! # Base-parameter reduction ([`reduce`])
 //! Let `J_n` be the whitened data Jacobian of the unpenalised columns (placement, nuisances) and
 //! `J_k` that of the kinematic columns. Project: `A = (I − Q_n·Q_nᵀ)·J_k·D`, `Q_n` an orthonormal
-//! basis of `range(J_n)`, `D = diag(σ_prior)`. A column-pivoted QR `A·P = Q·R` orders the
+//! basis of `range(J_n)`, `D = diag(σ_prior)`. A placement prior ([`PlacementPrior`]:
+//! `[b1_from_b2] sigma_mm/sigma_deg`, a shared trunk's identity, whitened rows `L`) holds the
+//! motions of the placement along which its information exceeds the data's (eigenvalues `< 1`
+//! of the data information in the prior's metric, nuisances projected out): those are fixed,
+//! not in `J_n`, and the rest of the placement stays in `J_n` (a free or loosely held
+//! placement absorbs its six motions; a tightly held one absorbs nothing, and a parameter that
+//! moves the hands as it would is kept: a shared trunk held still keeps the shoulders). The
+//! prior rows never enter `A`; a column only the held motions tell apart is a pivot only if the
+//! data carry at least its prior's information ([`HELD_ONLY_MIN_INFO`]). A column-pivoted QR `A·P = Q·R` orders the
 //! columns by how much new information each adds; columns whose `|R_jj| ≤ rank_tol·|R_00|` are
 //! structurally undetermined. Each such column is dropped (held at 0) and reported: "no effect"
 //! if its raw column is zero, "confounded with b1_from_b2 / the nuisance unknowns" if its
@@ -213,7 +221,8 @@ pub use prediction::{
     WORKSPACE_SEED,
 };
 pub use reduce::{
-    reduce, reduce_layout, Reduction, ReductionEntry, ReductionReason, PRIOR_INFO_TOL, RANK_TOL,
+    reduce, reduce_layout, Reduction, ReductionEntry, ReductionReason, HELD_ONLY_MIN_INFO,
+    PRIOR_INFO_TOL, RANK_TOL,
 };
 pub use report::{
     CalibrationReport, ContactGroupReport, DesignPredictionReport, DropReason, FamilyScaleReport,

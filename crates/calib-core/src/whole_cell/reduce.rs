@@ -38,6 +38,17 @@ pub const RANK_TOL: f64 = 1e-2;
 /// existing test, the golden outputs and the CTU study's outputs (byte-identical).
 pub const PRIOR_INFO_TOL: f64 = 1e-8;
 
+/// A column that only a held placement motion tells apart from the unpenalised unknowns and the
+/// columns kept before it (see [`reduce_layout`]) is kept only if the data carry at least this
+/// much information on it, in prior-σ units (the prior's own being 1): the boundary where the
+/// data, not the prior, decide it ([`Reduction::data_determined`], and the held/free boundary
+/// of the placement's motions). Below it the prior decides the column, and keeping it as a
+/// pivot merged others onto it with coefficients of 6 … 30 prior σ (CTU session of
+/// `tools/bench/ctu_diagnose.sh`: robot 2's tip z, information 2.6e-3, independent fraction
+/// 1.1 %, just over [`RANK_TOL`]). Chosen after that measurement (the rule of commit ba240fa,
+/// without it, was run on CTU first).
+pub const HELD_ONLY_MIN_INFO: f64 = 1.0;
+
 /// Why a parameter was dropped.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[serde(tag = "reason", rename_all = "snake_case")]
@@ -48,7 +59,10 @@ pub enum ReductionReason {
     /// A shared trunk's parameter ([`super::CellRobot::shared_joints`]) that moves both arms'
     /// tips alike, which the rows (handclasps, contacts: where the hands meet) do not see.
     MovesBothHandsAlike,
-    /// Its effect is a rigid motion the placement `b1_from_b2` absorbs.
+    /// Its effect is a rigid motion the placement `b1_from_b2` absorbs: a free placement, or a
+    /// motion of it that its prior ([`super::PlacementPrior`]) holds more loosely than the data
+    /// see it (a motion the prior holds more tightly absorbs nothing: it is fixed for the rank
+    /// test).
     ConfoundedWithPlacement,
     /// Its effect is absorbed by the placement together with the nuisance unknowns (tracker
     /// frames, planes, contact distances).
@@ -119,6 +133,18 @@ pub fn reduce(
 /// prior is built from those σ (a non-diagonal prior of `full` is not carried over); `dropped`
 /// is what callers of a fitted layout use ([`super::placement_rotation_posterior`]).
 ///
+/// A placement prior ([`super::PlacementPrior`]: `[b1_from_b2] sigma_mm/sigma_deg`, a shared
+/// trunk's identity) holds the motions of `b1_from_b2` it knows better than the data see them
+/// (held: the data's information on that motion, the nuisances projected out, is below the
+/// prior's; the private `free_placement_directions` states the rule): those are fixed for the
+/// rank test, which then reads the data rows only, and the rest absorb as a free placement
+/// does. A shared trunk
+/// held still (identity at 1 µm / 1 µrad) thus keeps the shoulders; a placement the data see
+/// through is the free registration it was. A column that only the held motions tell apart
+/// (the same Gram–Schmidt with the whole placement free, run on the same pivots, leaves it at
+/// most [`RANK_TOL`] of its raw norm) is a pivot only if the data carry at least
+/// [`HELD_ONLY_MIN_INFO`] of its prior information: else the prior decides it.
+///
 /// Errors: as [`reduce`].
 pub fn reduce_layout(
     problem: &CellProblem,
@@ -134,8 +160,29 @@ pub fn reduce_layout(
     let unpen: Vec<usize> = (0..n).filter(|&j| sig[j] == 0.0).collect();
     let kin: Vec<usize> = (0..n).filter(|&j| sig[j] > 0.0).collect();
     let placement: Vec<usize> = (0..6).collect();
-    let q_all = orthonormal_basis(&jd.select_columns(&unpen));
-    let q_place = orthonormal_basis(&jd.select_columns(&placement));
+    let nuisance: Vec<usize> = unpen.iter().copied().filter(|&j| j >= 6).collect();
+    // The placement prior's whitened rows (after the data's and the kinematic prior's).
+    let prior_rows = sys.data_rows + full.prior_sqrt_info.nrows();
+    let l_place = sys
+        .j
+        .view((prior_rows, 0), (sys.j.nrows() - prior_rows, 6))
+        .into_owned();
+    let free = free_placement_directions(&jd, &nuisance, &l_place);
+    // All six free (no prior, or one the data see better than it holds): the old projection,
+    // byte for byte.
+    let (q_all, q_place) = if free.ncols() == 6 {
+        (
+            orthonormal_basis(&jd.select_columns(&unpen)),
+            orthonormal_basis(&jd.select_columns(&placement)),
+        )
+    } else {
+        let p_free = jd.select_columns(&placement) * &free;
+        let mut absorbing = jd.select_columns(&nuisance);
+        let nn = absorbing.ncols();
+        absorbing = absorbing.insert_columns(nn, p_free.ncols(), 0.0);
+        absorbing.columns_mut(nn, p_free.ncols()).copy_from(&p_free);
+        (orthonormal_basis(&absorbing), orthonormal_basis(&p_free))
+    };
     let project = |q: &DMatrix<f64>, a: &DMatrix<f64>| a - q * (q.transpose() * a);
     // Kinematic columns in prior-σ units.
     let mut a_raw = jd.select_columns(&kin);
@@ -154,6 +201,33 @@ pub fn reduce_layout(
     let mut q_cols: Vec<DVector<f64>> = Vec::new();
     // Each column's current norm (the pivot test reads it once per step, not per comparison).
     let mut norm: Vec<f64> = (0..k).map(|c| work.column(c).norm()).collect();
+    // With held placement motions, the same Gram–Schmidt with the whole placement free (the
+    // projection without a prior), run alongside on the same pivots: a column new only through
+    // the held motions (its free-placement norm at most `RANK_TOL` of its raw norm) is a pivot
+    // only if the data carry at least its prior's information on it (`norm² ≥ 1`, prior-σ
+    // units: [`HELD_ONLY_MIN_INFO`]); else the prior decides it and it is dropped like any column
+    // the rank test does not keep (it would be a pivot the data barely see, others merging onto
+    // it with large coefficients).
+    let mut free_gs = (free.ncols() < 6).then(|| {
+        let w = project(&orthonormal_basis(&jd.select_columns(&unpen)), &a_raw);
+        let nf: Vec<f64> = (0..k).map(|c| w.column(c).norm()).collect();
+        (w, nf)
+    });
+    // Columns only the held motions tell apart from the unpenalised unknowns, with less data
+    // information than [`HELD_ONLY_MIN_INFO`]: reported as a free placement would report them.
+    let held_only: Vec<bool> = (0..k)
+        .map(|c| {
+            free_gs.as_ref().is_some_and(|(_, nf)| {
+                nf[c] <= RANK_TOL * raw_norm[c] && own[c].powi(2) < HELD_ONLY_MIN_INFO
+            })
+        })
+        .collect();
+    // The whole placement's motions, for reporting those columns.
+    let q_place_all = if held_only.contains(&true) {
+        orthonormal_basis(&jd.select_columns(&placement))
+    } else {
+        DMatrix::zeros(jd.nrows(), 0)
+    };
     loop {
         let best = remaining
             .iter()
@@ -162,12 +236,21 @@ pub fn reduce_layout(
                 raw_norm[c] > 0.0
                     && raw_norm[c].powi(2) > PRIOR_INFO_TOL
                     && norm[c] > RANK_TOL * raw_norm[c]
+                    && free_gs.as_ref().is_none_or(|(_, nf)| {
+                        nf[c] > RANK_TOL * raw_norm[c] || norm[c].powi(2) >= HELD_ONLY_MIN_INFO
+                    })
             })
             .max_by(|&x, &y| norm[x].total_cmp(&norm[y]));
         let Some(p) = best else { break };
         let q = work.column(p).normalize();
         remaining.retain(|&c| c != p);
         project_out(&mut work, &q, &remaining, &mut norm);
+        if let Some((w, nf)) = free_gs.as_mut() {
+            if nf[p] > 0.0 {
+                let qf = w.column(p).normalize();
+                project_out(w, &qf, &remaining, nf);
+            }
+        }
         kept_order.push(p);
         q_cols.push(q);
     }
@@ -226,9 +309,10 @@ pub fn reduce_layout(
                     format!("{name} moves no observed tip: held at 0"),
                 )
             }
-        } else if own[c] <= RANK_TOL * raw_norm[c] {
-            let in_place = project(&q_place, &a_raw.columns(c, 1).into_owned()).norm();
-            if in_place <= RANK_TOL * raw_norm[c] || unpen.len() == 6 {
+        } else if own[c] <= RANK_TOL * raw_norm[c] || held_only[c] {
+            let q = if held_only[c] { &q_place_all } else { &q_place };
+            let in_place = project(q, &a_raw.columns(c, 1).into_owned()).norm();
+            if in_place <= RANK_TOL * raw_norm[c] || nuisance.is_empty() {
                 (
                     ReductionReason::ConfoundedWithPlacement,
                     if shared_trunk {
@@ -351,6 +435,81 @@ pub fn reduce_layout(
         data_determined,
         prior_dominated: kk - data_determined,
     })
+}
+
+/// The placement directions a placement prior does not hold: the columns (placement
+/// perturbation coordinates `(ρ, φ)`, 6 × f) of a basis of the motions of `b1_from_b2` that
+/// [`reduce_layout`] lets absorb kinematic columns. `jd` is the whitened data Jacobian,
+/// `nuisance` its unpenalised columns other than the placement's (0..6), `l_place` the
+/// placement prior's whitened rows (none: no prior).
+///
+/// The rule ("held" is what the prior decides, "free" what the data do; the same boundary as
+/// [`Reduction::data_determined`]): in the prior's metric (`G = LᵀL`), the data information on
+/// the placement with the nuisance unknowns (and the motions the prior leaves unpenalised)
+/// projected out is `H = MᵀM`, `M = (I − Q₀Q₀ᵀ)·P·W`, `W = V₊·g₊^{−½}` (`G = V·diag(g)·Vᵀ`,
+/// `V₊` its directions with `g > 1e-12·max g`, `V₀` the rest). Each eigenvector `z` of `H`
+/// with eigenvalue `s²` (the data's information over the prior's along `W·z`) is
+/// - **held** if `s² < 1`: the prior holds that motion more tightly than the data see it, so
+///   it is fixed for the rank test (no column is projected onto it: a parameter moving the
+///   hands as that motion would is seen by the data, and the fit tells it apart from the
+///   placement through the prior), or
+/// - **free** otherwise, or if the data do not see it at all (`s² ≤ 1e-12·max(1, max s²)`:
+///   it absorbs nothing either way): the data decide it, it absorbs as an unpenalised unknown
+///   does. The unpenalised directions `V₀` are free.
+///
+/// The rank test then runs on the data rows only, as without a prior: the prior rows never
+/// enter the Gram–Schmidt, so no column is kept, or is a pivot for others to merge into, by
+/// what the prior rows alone tell apart (a column whose projected norm would live mostly in
+/// the prior rows gave merge coefficients of 2 … 37 prior σ on the CTU session). Without a
+/// prior, or with one the data see through in all six motions, all six are free: the old
+/// projection.
+fn free_placement_directions(
+    jd: &DMatrix<f64>,
+    nuisance: &[usize],
+    l_place: &DMatrix<f64>,
+) -> DMatrix<f64> {
+    /// Relative size below which an eigenvalue counts as zero (the module's SVD cut-off).
+    const ZERO_REL: f64 = 1e-12;
+    let identity = DMatrix::<f64>::identity(6, 6);
+    if l_place.nrows() == 0 {
+        return identity;
+    }
+    let g = (l_place.transpose() * l_place).symmetric_eigen();
+    let g_max = g.eigenvalues.iter().cloned().fold(0.0, f64::max);
+    if g_max.is_nan() || g_max <= 0.0 {
+        return identity;
+    }
+    let (pos, zero): (Vec<usize>, Vec<usize>) =
+        (0..6).partition(|&i| g.eigenvalues[i] > ZERO_REL * g_max);
+    let v0 = g.eigenvectors.select_columns(&zero);
+    let mut w = g.eigenvectors.select_columns(&pos);
+    for (c, &i) in pos.iter().enumerate() {
+        w.column_mut(c).scale_mut(1.0 / g.eigenvalues[i].sqrt());
+    }
+    let placement: Vec<usize> = (0..6).collect();
+    let p = jd.select_columns(&placement);
+    let mut before = jd.select_columns(nuisance);
+    let nn = before.ncols();
+    before = before.insert_columns(nn, v0.ncols(), 0.0);
+    before.columns_mut(nn, v0.ncols()).copy_from(&(&p * &v0));
+    let q0 = orthonormal_basis(&before);
+    let pw = &p * &w;
+    let m = &pw - &q0 * (q0.transpose() * &pw);
+    let h = (m.transpose() * m).symmetric_eigen();
+    let s2_max = h.eigenvalues.iter().cloned().fold(1.0, f64::max);
+    let free_w: Vec<usize> = (0..pos.len())
+        .filter(|&i| h.eigenvalues[i] >= 1.0 || h.eigenvalues[i] <= ZERO_REL * s2_max)
+        .collect();
+    let dirs = &w * h.eigenvectors.select_columns(&free_w);
+    let mut free = v0;
+    let nz = free.ncols();
+    free = free.insert_columns(nz, dirs.ncols(), 0.0);
+    free.columns_mut(nz, dirs.ncols()).copy_from(&dirs);
+    if free.ncols() == 6 {
+        // All free: the identity spans the same motions and keeps the old projection exact.
+        return identity;
+    }
+    free
 }
 
 /// Elements of `work`'s columns per rayon task in [`project_out`] (~0.5 MB: far above the cost
