@@ -1,7 +1,7 @@
 //! Base-parameter reduction: which kinematic parameters the observations cannot determine
 //! (see the module documentation of [`crate::whole_cell`]).
 
-use nalgebra::{DMatrix, DVector, DVectorView};
+use nalgebra::{DMatrix, DMatrixView, DVector, DVectorView};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -464,7 +464,7 @@ pub fn reduce_layout(
 /// prior, or with one the data see through in all six motions, all six are free: the old
 /// projection.
 fn free_placement_directions(
-    jd: &DMatrix<f64>,
+    jd: &DMatrixView<'_, f64>,
     nuisance: &[usize],
     l_place: &DMatrix<f64>,
 ) -> DMatrix<f64> {
