@@ -514,4 +514,121 @@ mod tests {
         assert_eq!(check.design, HarmDesign::NotChecked, "{}", check.how);
         assert!(check.folds.is_empty() && !check.harmful());
     }
+
+    /// Four tracker markers on robot 1's flange whose tips the cell does not know (all four
+    /// started at one tip, as TIAGo's mocap markers in `tools/figaroh-tiago/tiago.toml`; found
+    /// by tiago36: the export stopped with "tracker group `mocap`: 4 row(s), need ≥ 3 not on a
+    /// line"). The nominal reference fits those tips too and the held-out halves are registered
+    /// on the held cell's tips, so every region is judged; the tips are no family to withhold.
+    #[test]
+    fn unknown_marker_tips_are_fitted_in_the_reference_and_every_region_is_judged() {
+        use super::super::fixtures::SimCell;
+        use super::super::{
+            error_families, CellEstimate, Noise3, Observation, ObservationKind, PlacementPrior,
+            Tool, TrackerGroup,
+        };
+        use crate::Robot;
+        use nalgebra::{Isometry3, Point3, Vector3};
+        use rand::{Rng, SeedableRng};
+        use rand_chacha::ChaCha8Rng;
+
+        let tol = Tolerance {
+            tip_m: 0.1,
+            ..Tolerance::default()
+        };
+        let sc = sim_cell(Cell::Wall, tol, false, 11);
+        let start = Vector3::new(0.1, 0.0, 0.0);
+        let mut robot1 = sc.robot1.clone();
+        robot1.tools = (0..4)
+            .map(|k| Tool {
+                name: format!("m{k}"),
+                flange_from_tip: start,
+            })
+            .collect();
+        let mut robot2 = sc.robot2.clone();
+        robot2.tolerance = Tolerance::none();
+        let mut p = sc.problem();
+        p.robot1 = robot1.clone();
+        p.robot2 = robot2.clone();
+        assert!(p.robot1.tips_unknown() && !sc.robot1.tips_unknown());
+        // One robot seen: the placement held where it is.
+        let x = sc.truth.b1_from_b2;
+        p.placement_prior = Some(PlacementPrior {
+            nominal_b1_from_b2: x,
+            sigma_m: 1e-6,
+            sigma_rad: 1e-6,
+        });
+        let mut truth = CellEstimate::nominal(&p, x);
+        truth.robot1.errors = sc.truth.robot1.errors.clone();
+        // The markers' true offsets from the one starting tip, m.
+        for (t, d) in truth.robot1.tool_tip_m.iter_mut().zip([
+            [0.0, 0.0, 0.05],
+            [0.0, 0.05, 0.0],
+            [0.05, 0.0, 0.0],
+            [0.0, -0.04, 0.03],
+        ]) {
+            *t = Vector3::from(d);
+        }
+        let sim = SimCell {
+            robot1,
+            robot2,
+            truth,
+            centre_b1: sc.centre_b1,
+        };
+        let tracker_from_b1 =
+            Isometry3::new(Vector3::new(0.5, -1.0, 2.0), Vector3::new(0.1, 0.2, 1.0));
+        let mut rng = ChaCha8Rng::seed_from_u64(12);
+        let sigma_m = 1e-4;
+        let mut obs = Vec::new();
+        for _ in 0..24 {
+            let q: Vec<f64> = p
+                .robot1
+                .model
+                .joints()
+                .iter()
+                .map(|j| {
+                    let (lo, hi) = (j.lower.max(-3.0), j.upper.min(3.0));
+                    rng.random_range(lo + 0.1 * (hi - lo)..hi - 0.1 * (hi - lo))
+                })
+                .collect();
+            for tool in 0..4 {
+                let noise = Vector3::from_fn(|_, _| rng.random_range(-sigma_m..sigma_m));
+                let p_tracker =
+                    tracker_from_b1 * Point3::from(sim.true_tip(Robot::One, tool, &q) + noise);
+                obs.push(Observation {
+                    row: obs.len() + 1,
+                    kind: ObservationKind::Tracker {
+                        robot: Robot::One,
+                        q: q.clone(),
+                        tool,
+                        group: 0,
+                        p_tracker,
+                        noise: Noise3::Isotropic { sigma_m },
+                    },
+                });
+            }
+        }
+        p.observations = obs;
+        p.trackers = vec![TrackerGroup {
+            name: "mocap".into(),
+            anchor: Robot::One,
+            initial_tracker_from_anchor: None,
+            fit_scale: false,
+            fit_drift: false,
+        }];
+        let solve = SolveOptions {
+            initial_b1_from_b2: Some(x),
+            ..SolveOptions::default()
+        };
+        let cal = calibrate_cell(&p, &solve, &ScreenOptions::default()).unwrap();
+        let check = region_harm_check(&p, &cal, &solve).unwrap().unwrap();
+        assert_eq!(check.design, HarmDesign::JointRegions, "{}", check.how);
+        assert!(check.folds.len() >= MIN_REGIONS, "{check:?}");
+        let families = error_families(&p, &cal);
+        assert!(!families.is_empty());
+        assert!(
+            families.iter().all(|f| f.name() != "robot 1 tool tips"),
+            "{families:?}"
+        );
+    }
 }
