@@ -614,8 +614,8 @@ struct Judged {
 /// labels it by the truth: the full model (the same flags and `--force`) and the placement
 /// only (`--model placement --force`) exported and scored by `validate` on
 /// [`WORKSPACE_PAIRS`] fresh handclasps of the truth over the workspace. `Err`: a run failed
-/// (the judged one, e.g. the result check refused the fit; or a labelling export, e.g. an
-/// exported placement the cell's mount contradicts), with its first `error` line.
+/// (the judged one, e.g. the result check refused the fit; or a labelling export; an exported
+/// placement off robot 2's declared mount no longer fails: harm36b), with its first `error` line.
 #[allow(clippy::too_many_arguments)]
 fn judge_against_truth(
     dir: &Path,
