@@ -4,6 +4,7 @@
 use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
 
+use calib_core::whole_cell::HarmDesign;
 use cli_support::cell_report::{
     calibrate_session, render_text, CellModel, CellReport, SessionCalibration, P95_SEED,
 };
@@ -296,13 +297,17 @@ impl CellResult {
             Some((r, safe)) => {
                 let mut r = r.clone();
                 r.forced = force && r.check.harmful();
+                // The CLI's `warning: ` lines (something withheld, or kept by `force`) as
+                // warnings, and its `note: ` line when the check could not run; the other notes
+                // (folds in row order, rows kept in training) are in `do_no_harm()` only, not
+                // a warning on every export.
+                let not_checked = r.check.design == HarmDesign::NotChecked;
                 for line in cli_support::do_no_harm::messages(&r, model, "force=True") {
-                    // The CLI's `warning: ` lines as warnings; its `note: ` lines (folds in row
-                    // order, a check that could not run) too, with their prefix.
-                    crate::errors::user_warning(
-                        py,
-                        line.strip_prefix("warning: ").unwrap_or(&line),
-                    )?;
+                    if let Some(w) = line.strip_prefix("warning: ") {
+                        crate::errors::user_warning(py, w)?;
+                    } else if not_checked && line.contains("not checked") {
+                        crate::errors::user_warning(py, &line)?;
+                    }
                 }
                 if force {
                     None
@@ -313,6 +318,11 @@ impl CellResult {
             None => None,
         };
         let estimate = &safe.unwrap_or(&self.calibrated).calibration.fit.estimate;
+        if let Some((_, note)) =
+            handclasp_cell::cell::refitted_robot2_mount(&self.cell, &estimate.b1_from_b2)
+        {
+            crate::errors::user_warning(py, &note)?;
+        }
         locked_export(py, &dir, overwrite, false, || {
             handclasp_cell::export_calibrated_cell(
                 &self.cell,

@@ -210,6 +210,18 @@ fn a_clustered_session_with_unmodelled_sag_withholds_the_harmful_families_and_fo
     let f = export(&cell_path, &csv, &forced_dir, true);
     assert_eq!(f["do_no_harm"]["exported"], "kinematic");
     assert_eq!(f["do_no_harm"]["forced"], true);
+    // `--force` judges the full model but ranks no family (harm36b): nothing was withheld
+    // family by family, and the JSON says the ranking was not checked and why.
+    assert_eq!(
+        f["do_no_harm"]["ranking"],
+        "not checked: --force exports the full model"
+    );
+    assert!(f["do_no_harm"]["trials"].as_array().unwrap().is_empty());
+    assert!(f["do_no_harm"]["families"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|x| x["kept"] == true && x.get("rank").is_none_or(|r| r.is_null())));
     assert!(f["do_no_harm"]["withheld"].as_array().unwrap().is_empty());
     assert_ne!(
         std::fs::read_to_string(forced_dir.join("robot2.urdf")).unwrap(),
@@ -602,8 +614,8 @@ struct Judged {
 /// labels it by the truth: the full model (the same flags and `--force`) and the placement
 /// only (`--model placement --force`) exported and scored by `validate` on
 /// [`WORKSPACE_PAIRS`] fresh handclasps of the truth over the workspace. `Err`: a run failed
-/// (the judged one, e.g. the result check refused the fit; or a labelling export, e.g. an
-/// exported placement the cell's mount contradicts), with its first `error` line.
+/// (the judged one, e.g. the result check refused the fit; or a labelling export; an exported
+/// placement off robot 2's declared mount no longer fails: harm36b), with its first `error` line.
 #[allow(clippy::too_many_arguments)]
 fn judge_against_truth(
     dir: &Path,

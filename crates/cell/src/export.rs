@@ -27,7 +27,7 @@ use kinematics::{
     patch_urdf_text, split_for_urdf, verify_patched_urdf, KinematicErrors, RobotModel,
 };
 
-use crate::cell::{Cell, CellRobot};
+use crate::cell::{refitted_robot2_mount, Cell, CellRobot};
 use crate::error::FormatError;
 
 /// The files [`export_calibrated_cell`] writes, relative to its output folder, and the comment
@@ -64,7 +64,11 @@ pub const CALIBRATE_EXPORT_NAMES: ExportNames<'static> = ExportNames {
 /// 1.. in the cell's order) by its own, the rest of each robot's errors (joint
 /// scale, compliance) as `[robotN.errors]`, robot 2's gravity rotated by the fitted placement, and
 /// the cell's placement σ (if any) unchanged, now centred on the fitted placement (see the
-/// module documentation for why). The placement's angles are written by
+/// module documentation for why). Robot 2's mount is the cell's unless the fitted placement
+/// puts robot 2's gravity more than [`crate::cell::MOUNT_TOLERANCE_DEG`] from it: then the
+/// mount that placement implies, with a comment line in the file saying so
+/// ([`refitted_robot2_mount`]; callers warn with its note), so a fitted calibration is always
+/// exportable. The placement's angles are written by
 /// [`calib_core::zyz_canonical`] (a tilt below 1e-8 rad is written as a pure yaw).
 /// Each URDF is written to a temporary file, re-loaded, verified against the fitted model
 /// ([`verify_patched_urdf`], flange within [`kinematics::PATCH_TOLERANCE_M`]) and renamed into
@@ -132,10 +136,16 @@ pub fn export_calibrated_cell(
         // What a URDF cannot hold (scale, compliance; tips are in tip_mm, mounts are never fitted).
         r.errors = split_for_urdf(&correction.errors).1;
     }
-    // Robot 2's gravity follows the calibrated placement.
+    // Robot 2's gravity follows the calibrated placement; its declared mount too when the
+    // placement moved it out of the mount's tolerance (the written cell must load).
     out.robot2.g_base = out.b1_from_b2.rotation.inverse() * out.robot1.g_base;
+    let mut header = names.header.to_string();
+    if let Some((mount, note)) = refitted_robot2_mount(cell, &estimate.b1_from_b2) {
+        out.robot2.mount = mount;
+        header.push_str(&format!("# {note}\n"));
+    }
     let cell_path = dir.join(names.cell);
-    let text = format!("{}{}", names.header, out.to_toml_string());
+    let text = format!("{header}{}", out.to_toml_string());
     crate::output::write_atomically(&cell_path, text.as_bytes())?;
     Cell::from_toml_file(&cell_path)?;
     written.push(cell_path);
@@ -525,5 +535,54 @@ mod tests {
         assert!(matches!(e, FormatError::Io { .. }), "{e}");
         assert!(e.to_string().contains("robot1.urdf"), "{e}");
         assert!(!dir.path().join("robot1.urdf.tmp").exists());
+    }
+
+    /// A fitted placement that tilts a wall-mounted robot 2 by more than the mount tolerance
+    /// (as harm36 found: a sag-tracker session of `tests/e2e/do_no_harm.rs`'s benchmark, seed
+    /// 4, `--model placement --force`, 3.2° from the cell's placement): the export used to
+    /// fail re-loading its own cell ("`robot2.mount` = \"wall\" is impossible"). It writes the
+    /// mount the fitted placement implies, says so in the file, and keeps the fitted placement.
+    #[test]
+    fn a_fitted_placement_off_the_declared_mount_is_exported_with_the_mount_it_implies() {
+        let cell = Cell::from_toml_file(
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join("../../cells/floor-wall.toml"),
+        )
+        .unwrap();
+        let session = coincident_session(&cell, 4);
+        let problem = cell_problem(&cell, &session, FitModel::Placement);
+        // Robot 2's base tipped 3.2° about an axis of its xy plane: its up direction leaves
+        // the wall's horizontal by about that much.
+        // (about b1's horizontal axis normal to robot 2's z axis, which the wall holds level).
+        let z2_b1 = cell.b1_from_b2.rotation * Vector3::z();
+        let tip = Isometry3::rotation(Vector3::z().cross(&z2_b1).normalize() * 3.2f64.to_radians());
+        let fitted = Isometry3::from_parts(
+            (cell.b1_from_b2.translation.vector + Vector3::new(0.07, 0.0, 0.0)).into(),
+            tip.rotation * cell.b1_from_b2.rotation,
+        );
+        let up_b2 = -(fitted.rotation.inverse() * cell.robot1.g_base) / crate::cell::G;
+        let off = crate::cell::mount_mismatch_deg(&cell.robot2.mount, &up_b2);
+        assert!(off > crate::cell::MOUNT_TOLERANCE_DEG, "{off}");
+        let est = CellEstimate::nominal(&problem, fitted);
+        let dir = tempfile::tempdir().unwrap();
+        export_calibrated_cell(&cell, &est, dir.path(), &CALIBRATE_EXPORT_NAMES).unwrap();
+        let text = std::fs::read_to_string(dir.path().join("cell.toml")).unwrap();
+        assert!(text.contains("from its declared mount"), "{text}");
+        let out = Cell::from_toml_file(&dir.path().join("cell.toml")).unwrap();
+        assert!((out.b1_from_b2.translation.vector - fitted.translation.vector).norm() < TOL_M);
+        assert!(out.b1_from_b2.rotation.angle_to(&fitted.rotation) < 1e-9);
+        assert!(matches!(out.robot2.mount, calib_core::Mount::Tilt { .. }));
+        // The written mount agrees with the placement (what the loader checks).
+        assert!(crate::cell::mount_mismatch_deg(&out.robot2.mount, &up_b2) < 1e-6);
+        // Within the tolerance the declared mount is kept.
+        let near = Isometry3::from_parts(
+            cell.b1_from_b2.translation,
+            Isometry3::rotation(tip.rotation.scaled_axis() * 0.25).rotation
+                * cell.b1_from_b2.rotation,
+        );
+        let est = CellEstimate::nominal(&problem, near);
+        let dir = tempfile::tempdir().unwrap();
+        export_calibrated_cell(&cell, &est, dir.path(), &CALIBRATE_EXPORT_NAMES).unwrap();
+        let out = Cell::from_toml_file(&dir.path().join("cell.toml")).unwrap();
+        assert_eq!(out.robot2.mount, cell.robot2.mount);
     }
 }

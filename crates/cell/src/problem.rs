@@ -28,8 +28,10 @@ use crate::session::{FaceNormals, Session, SessionRow};
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[non_exhaustive]
 pub enum FitModel {
-    /// `b1_from_b2` only: both robots held at their nominal models (every tolerance 0), a
-    /// weighted least-squares placement from the same session.
+    /// `b1_from_b2` only: both robots held at their nominal models (every tolerance 0, but the
+    /// tips of a robot whose tools start at one tip, which the cell does not know:
+    /// `calib_core::whole_cell::CellRobot::tips_unknown`), a weighted least-squares placement
+    /// from the same session.
     Placement,
     /// `b1_from_b2` with every kinematic parameter the robots' tolerances select (MAP).
     Kinematic,
@@ -41,7 +43,7 @@ pub enum FitModel {
 }
 
 fn robot(r: &CellRobot, model: FitModel, shared_joints: usize) -> WholeCellRobot {
-    WholeCellRobot {
+    let mut out = WholeCellRobot {
         shared_joints,
         model: r.model.clone(),
         tools: std::iter::once(Tool {
@@ -61,7 +63,16 @@ fn robot(r: &CellRobot, model: FitModel, shared_joints: usize) -> WholeCellRobot
                 ..r.tolerance
             },
         },
+    };
+    // Tips the cell does not know (several tools started at one tip) are nuisances of every
+    // model, the placement-only one included (calib_core's `do_no_harm` module docs).
+    if model == FitModel::Placement {
+        out.tolerance.tip_m = r.tolerance.tip_m;
+        if !out.tips_unknown() {
+            out.tolerance.tip_m = 0.0;
+        }
     }
+    out
 }
 
 /// Covariance of one handclasp's residual `p1_b1 − b1_from_b2·p2_b2`, m², b1 axes (see the module

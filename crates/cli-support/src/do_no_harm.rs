@@ -12,8 +12,8 @@
 use std::fmt::Write as _;
 
 use calib_core::whole_cell::{
-    decide_families, CellFitError, FamilyDecision, FamilyTrial, FamilyVerdict, HarmCheck,
-    HarmDesign, HarmFold,
+    decide_families, judge_full_model, CellFitError, FamilyDecision, FamilyTrial, FamilyVerdict,
+    HarmCheck, HarmDesign, HarmFold,
 };
 use handclasp_cell::{Cell, Session};
 use serde::Serialize;
@@ -76,6 +76,10 @@ pub struct DoNoHarmReport {
     pub exported_folds: Option<Vec<HarmFold>>,
     /// `force` kept the full model although it harms a region.
     pub forced: bool,
+    /// Whether the families were ranked and withheld family by family: `"not checked: --force
+    /// exports the full model"` under `force` (`families[]` then lists every family kept,
+    /// without ranking figures), `"checked"` otherwise (a harmless model needs no ranking).
+    pub ranking: String,
 }
 
 impl DoNoHarmReport {
@@ -127,6 +131,11 @@ impl DoNoHarmReport {
                 decision.exported_trial.map(|t| t.folds)
             },
             forced: harmful && force,
+            ranking: if force {
+                "not checked: --force exports the full model".to_string()
+            } else {
+                "checked".to_string()
+            },
         }
     }
 }
@@ -153,8 +162,14 @@ pub fn check(
     }
     // The check's fits start where the calibration's did (on a shared trunk: at the trunk).
     let solve = solve_options(cell, session);
-    let Some(decision) = decide_families(&calibrated.problem, &calibrated.calibration, &solve)?
-    else {
+    // Under `force` the full model is exported whatever the verdict: judge it (the warning says
+    // whether it harms), but rank no family (that could only withhold).
+    let decide = if force {
+        judge_full_model
+    } else {
+        decide_families
+    };
+    let Some(decision) = decide(&calibrated.problem, &calibrated.calibration, &solve)? else {
         return Ok(None);
     };
     let safe = if decision.withholds() && !force {

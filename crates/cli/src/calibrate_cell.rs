@@ -350,6 +350,11 @@ pub fn run(args: CellArgs, json: bool, force: bool) -> anyhow::Result<()> {
                 Some(s) => (&s.problem, &s.calibration),
                 None => (&problem, &cal),
             };
+            if let Some((_, note)) =
+                handclasp_cell::cell::refitted_robot2_mount(&cell, &cal.fit.estimate.b1_from_b2)
+            {
+                eprintln!("warning: {note}");
+            }
             let written =
                 export_calibrated_cell(&cell, &cal.fit.estimate, dir, &CALIBRATE_EXPORT_NAMES)?;
             crate::result_check::check_export(dir, &session, problem, cal, force, json)?;

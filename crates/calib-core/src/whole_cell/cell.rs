@@ -176,6 +176,11 @@ impl Tolerance {
     }
 }
 
+/// Largest distance between two tools' starting tips, m, at which they are one tip given for
+/// both ([`CellRobot::tips_unknown`]): 1 µm, far below any real offset between two markers and
+/// far above the rounding of a tip written in mm.
+pub const COINCIDENT_TIP_M: f64 = 1e-6;
+
 /// A named tool point on a robot's flange (the handclasp tip, a tracker reflector, …).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Tool {
@@ -204,6 +209,21 @@ pub struct CellRobot {
 }
 
 impl CellRobot {
+    /// Whether the cell does not know this robot's tool tips: two or more of its tools start at
+    /// the same tip (within [`COINCIDENT_TIP_M`]; the cell gave one tip for several tools, e.g.
+    /// four mocap markers on one link all started at the cell's `tip_mm`) and its tolerance fits
+    /// tips. Such tips are no correction of a nominal robot but nuisances of every model, the
+    /// nominal one included: the do-no-harm check's reference and a placement-only fit fit them
+    /// as the calibration does ([`super::region_harm_check`]).
+    pub fn tips_unknown(&self) -> bool {
+        self.tolerance.tip_m > 0.0
+            && self.tools.iter().enumerate().any(|(i, a)| {
+                self.tools[i + 1..]
+                    .iter()
+                    .any(|b| (a.flange_from_tip - b.flange_from_tip).norm() <= COINCIDENT_TIP_M)
+            })
+    }
+
     /// The kinematic parameters fitted for this robot (tolerance > 0), in catalogue order: per
     /// joint offset, scale, origin xyz, origin rpy, compliance, periodic sin, periodic cos, then
     /// the lumped-compliance coefficients ([`kinematics::lumped_params`]). Tip offsets are per

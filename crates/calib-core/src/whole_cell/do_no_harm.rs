@@ -39,6 +39,19 @@
 //!    [`crate::selection::MIN_KIND_ROWS`] rows pooled), the paired t of the per-row gains is
 //!    below the Šidák threshold that holds the session's false-alarm rate at 5 %.
 //!
+//! **What "nominal" holds** (stop 36, `harm36b`): both robots' kinematics at the cell's values,
+//! fitted: the placement and every nuisance of the rows (tracker frames, planes, fitted contact
+//! distances), and the tool tips the cell does not know. A robot whose tools start at one tip
+//! ([`super::CellRobot::tips_unknown`]: e.g. four mocap markers on one link all started at the
+//! cell's `tip_mm`) has no nominal tips: holding them there makes a tracker group's markers one
+//! point per pose, which no half of a held-out piece can register. Its tips are fitted in the
+//! reference with the calibration's prior, as in the model, so the check compares the robots'
+//! kinematics alone; they are no family the export can withhold (`withhold`), and a
+//! placement-only fit fits them too. A robot whose tools start at distinct tips keeps them at
+//! those values in the reference (a tip correction is judged like any other family). When the
+//! reference still cannot be fitted or scored on some fold, nothing is judged: the check is
+//! [`HarmDesign::NotChecked`] and its `how` says why (the export is not failed).
+//!
 //! Cost: two fits per fold, at most `2 ·` [`crate::selection::regions::MAX_REGIONS`], and two
 //! nuisance-only fits per held-out group piece and model.
 
@@ -46,7 +59,7 @@ use serde::Serialize;
 
 use super::{
     fit_cell_with, held_out_pieces, initial_estimate, score_held_out, sub_problem, CellCalibration,
-    CellFitError, CellParam, CellProblem, ParamLayout, SolveOptions, Tolerance, MIN_SPLIT_ROWS,
+    CellFitError, CellParam, CellProblem, ParamLayout, SolveOptions, MIN_SPLIT_ROWS,
 };
 use crate::selection::regions::{
     joint_features, joint_regions, MAX_REGIONS, MIN_REGIONS, REGION_SEED,
@@ -278,12 +291,10 @@ impl HarmFolds {
     ) -> Result<Self, CellFitError> {
         let fit = &cal.fit;
         let (design, how, folds, kept) = harm_folds(problem, &fit.active);
-        let mut nominal_problem = problem.clone();
-        nominal_problem.robot1.tolerance = Tolerance::none();
-        nominal_problem.robot2.tolerance = Tolerance::none();
+        let reference = reference_layout(problem, &fit.layout);
         let mut train = Vec::with_capacity(folds.len());
         let mut nominal = Vec::with_capacity(folds.len());
-        for units in &folds {
+        for (k, units) in folds.iter().enumerate() {
             let held: Vec<usize> = units.iter().flatten().copied().collect();
             let t: Vec<usize> = fit
                 .active
@@ -291,7 +302,26 @@ impl HarmFolds {
                 .copied()
                 .filter(|i| !held.contains(i))
                 .collect();
-            nominal.push(fold_e2(&nominal_problem, None, cal, &t, units, solve)?);
+            match fold_e2(problem, &reference, cal, &t, units, solve) {
+                Ok(e2) => nominal.push(e2),
+                // The reference cannot be fitted or scored on this fold: nothing is judged,
+                // and the check says why instead of failing the export.
+                Err(e) => {
+                    return Ok(Self {
+                        design: HarmDesign::NotChecked,
+                        how: format!(
+                            "not checked: the nominal model (the placement and nuisances alone) \
+                             could not be fitted without {} {} or scored on it ({e})",
+                            fold_prefix(design),
+                            k + 1
+                        ),
+                        folds: Vec::new(),
+                        train: Vec::new(),
+                        kept: fit.active.len(),
+                        nominal: Vec::new(),
+                    })
+                }
+            }
             train.push(t);
         }
         Ok(Self {
@@ -314,13 +344,10 @@ impl HarmFolds {
         layout: &ParamLayout,
         solve: &SolveOptions,
     ) -> Result<HarmCheck, CellFitError> {
-        let prefix = match self.design {
-            HarmDesign::JointRegions => "region",
-            _ => "block",
-        };
+        let prefix = fold_prefix(self.design);
         let mut rows = Vec::with_capacity(self.folds.len());
         for (k, (units, train)) in self.folds.iter().zip(&self.train).enumerate() {
-            let model = fold_e2(problem, Some(layout), cal, train, units, solve)?;
+            let model = fold_e2(problem, layout, cal, train, units, solve)?;
             let base = &self.nominal[k];
             rows.push((
                 FoldRows {
@@ -358,9 +385,40 @@ impl HarmFolds {
     }
 }
 
+/// The name of a fold of `design` (`region` or `block`), numbered from 1 after it.
+fn fold_prefix(design: HarmDesign) -> &'static str {
+    match design {
+        HarmDesign::JointRegions => "region",
+        _ => "block",
+    }
+}
+
+/// Whether unknown `p` of `problem` belongs to the nominal reference (see the module
+/// documentation): a tool tip of a robot whose tips the cell does not know
+/// ([`super::CellRobot::tips_unknown`]).
+pub(crate) fn in_reference(problem: &CellProblem, p: &CellParam) -> bool {
+    matches!(p, CellParam::ToolTip { robot, .. } if problem.robot(*robot).tips_unknown())
+}
+
+/// The nominal reference's unknowns and prior, a layout of `problem`: `layout` (the
+/// calibration's) less every robot unknown outside the reference ([`in_reference`]), so the
+/// reference's tool tips carry the calibration's prior.
+fn reference_layout(problem: &CellProblem, layout: &ParamLayout) -> ParamLayout {
+    layout_without(layout, problem, &|p| !in_reference(problem, p))
+}
+
+/// Whether the calibration `cal` of `problem` has a robot unknown outside the nominal
+/// reference ([`in_reference`]): otherwise it is the nominal model and nothing is checked.
+pub(crate) fn has_checked_unknowns(problem: &CellProblem, cal: &CellCalibration) -> bool {
+    cal.fit.layout.params.iter().any(|p| {
+        matches!(p, CellParam::Kinematic { .. } | CellParam::ToolTip { .. })
+            && !in_reference(problem, p)
+    })
+}
+
 /// The do-no-harm check of `cal`, a calibration of `problem` (see the module documentation);
-/// `solve` the solver settings of the fits. `None` when the calibration has no kinematic
-/// unknown (a placement-only fit is the nominal model: nothing to check).
+/// `solve` the solver settings of the fits. `None` when the calibration has no robot unknown
+/// outside the nominal reference (a placement-only fit is the nominal model: nothing to check).
 ///
 /// # Errors
 /// A training fit fails (too few rows for its unknowns, a model failure at an observation).
@@ -369,7 +427,7 @@ pub fn region_harm_check(
     cal: &CellCalibration,
     solve: &SolveOptions,
 ) -> Result<Option<HarmCheck>, CellFitError> {
-    if cal.fit.layout.prior_sqrt_info.nrows() == 0 {
+    if !has_checked_unknowns(problem, cal) {
         return Ok(None);
     }
     let folds = HarmFolds::new(problem, cal, solve)?;
@@ -378,22 +436,19 @@ pub fn region_harm_check(
 
 /// Each row of the held-out `units` with its kind and whitened squared residual `‖W·r‖²` under
 /// the model of `problem` fitted on the rows `train` (their [`sub_problem`]; unknowns and prior
-/// of `layout` carried over by [`layout_on`], or `problem`'s own layout when `None`; starting
-/// from `cal`'s placement, robots nominal), each unit scored by [`score_held_out`] (its
-/// nuisance refitted on half its rows). Rows in unit order.
+/// of `layout` carried over by [`layout_on`]; starting from `cal`'s placement, robots
+/// nominal), each unit scored by [`score_held_out`] (its nuisance refitted on half its rows).
+/// Rows in unit order.
 fn fold_e2(
     problem: &CellProblem,
-    layout: Option<&ParamLayout>,
+    layout: &ParamLayout,
     cal: &CellCalibration,
     train: &[usize],
     units: &[Vec<usize>],
     solve: &SolveOptions,
 ) -> Result<Vec<(&'static str, f64)>, CellFitError> {
     let sub = sub_problem(problem, train);
-    let layout = match layout {
-        Some(l) => layout_on(l, &sub),
-        None => ParamLayout::new(&sub, &[]),
-    };
+    let layout = layout_on(layout, &sub);
     let all: Vec<usize> = (0..sub.observations.len()).collect();
     let start = initial_estimate(&sub, Some(cal.fit.estimate.b1_from_b2), &all)?;
     let fit = fit_cell_with(&sub, layout, &all, Some(&start), solve)?;
@@ -409,7 +464,7 @@ fn fold_e2(
 #[cfg(test)]
 mod tests {
     use super::super::fixtures::{sim_cell, Cell};
-    use super::super::{calibrate_cell, ScreenOptions};
+    use super::super::{calibrate_cell, ScreenOptions, Tolerance};
     use super::*;
 
     /// A healthy session (the truth within the tolerances, rows over the cube): the fitted
@@ -458,5 +513,122 @@ mod tests {
         let check = region_harm_check(&p, &cal, &solve).unwrap().unwrap();
         assert_eq!(check.design, HarmDesign::NotChecked, "{}", check.how);
         assert!(check.folds.is_empty() && !check.harmful());
+    }
+
+    /// Four tracker markers on robot 1's flange whose tips the cell does not know (all four
+    /// started at one tip, as TIAGo's mocap markers in `tools/figaroh-tiago/tiago.toml`; found
+    /// by tiago36: the export stopped with "tracker group `mocap`: 4 row(s), need ≥ 3 not on a
+    /// line"). The nominal reference fits those tips too and the held-out halves are registered
+    /// on the held cell's tips, so every region is judged; the tips are no family to withhold.
+    #[test]
+    fn unknown_marker_tips_are_fitted_in_the_reference_and_every_region_is_judged() {
+        use super::super::fixtures::SimCell;
+        use super::super::{
+            error_families, CellEstimate, Noise3, Observation, ObservationKind, PlacementPrior,
+            Tool, TrackerGroup,
+        };
+        use crate::Robot;
+        use nalgebra::{Isometry3, Point3, Vector3};
+        use rand::{Rng, SeedableRng};
+        use rand_chacha::ChaCha8Rng;
+
+        let tol = Tolerance {
+            tip_m: 0.1,
+            ..Tolerance::default()
+        };
+        let sc = sim_cell(Cell::Wall, tol, false, 11);
+        let start = Vector3::new(0.1, 0.0, 0.0);
+        let mut robot1 = sc.robot1.clone();
+        robot1.tools = (0..4)
+            .map(|k| Tool {
+                name: format!("m{k}"),
+                flange_from_tip: start,
+            })
+            .collect();
+        let mut robot2 = sc.robot2.clone();
+        robot2.tolerance = Tolerance::none();
+        let mut p = sc.problem();
+        p.robot1 = robot1.clone();
+        p.robot2 = robot2.clone();
+        assert!(p.robot1.tips_unknown() && !sc.robot1.tips_unknown());
+        // One robot seen: the placement held where it is.
+        let x = sc.truth.b1_from_b2;
+        p.placement_prior = Some(PlacementPrior {
+            nominal_b1_from_b2: x,
+            sigma_m: 1e-6,
+            sigma_rad: 1e-6,
+        });
+        let mut truth = CellEstimate::nominal(&p, x);
+        truth.robot1.errors = sc.truth.robot1.errors.clone();
+        // The markers' true offsets from the one starting tip, m.
+        for (t, d) in truth.robot1.tool_tip_m.iter_mut().zip([
+            [0.0, 0.0, 0.05],
+            [0.0, 0.05, 0.0],
+            [0.05, 0.0, 0.0],
+            [0.0, -0.04, 0.03],
+        ]) {
+            *t = Vector3::from(d);
+        }
+        let sim = SimCell {
+            robot1,
+            robot2,
+            truth,
+            centre_b1: sc.centre_b1,
+        };
+        let tracker_from_b1 =
+            Isometry3::new(Vector3::new(0.5, -1.0, 2.0), Vector3::new(0.1, 0.2, 1.0));
+        let mut rng = ChaCha8Rng::seed_from_u64(12);
+        let sigma_m = 1e-4;
+        let mut obs = Vec::new();
+        for _ in 0..24 {
+            let q: Vec<f64> = p
+                .robot1
+                .model
+                .joints()
+                .iter()
+                .map(|j| {
+                    let (lo, hi) = (j.lower.max(-3.0), j.upper.min(3.0));
+                    rng.random_range(lo + 0.1 * (hi - lo)..hi - 0.1 * (hi - lo))
+                })
+                .collect();
+            for tool in 0..4 {
+                let noise = Vector3::from_fn(|_, _| rng.random_range(-sigma_m..sigma_m));
+                let p_tracker =
+                    tracker_from_b1 * Point3::from(sim.true_tip(Robot::One, tool, &q) + noise);
+                obs.push(Observation {
+                    row: obs.len() + 1,
+                    kind: ObservationKind::Tracker {
+                        robot: Robot::One,
+                        q: q.clone(),
+                        tool,
+                        group: 0,
+                        p_tracker,
+                        noise: Noise3::Isotropic { sigma_m },
+                    },
+                });
+            }
+        }
+        p.observations = obs;
+        p.trackers = vec![TrackerGroup {
+            name: "mocap".into(),
+            anchor: Robot::One,
+            initial_tracker_from_anchor: None,
+            fit_scale: false,
+            fit_drift: false,
+        }];
+        let solve = SolveOptions {
+            initial_b1_from_b2: Some(x),
+            ..SolveOptions::default()
+        };
+        let cal = calibrate_cell(&p, &solve, &ScreenOptions::default()).unwrap();
+        let check = region_harm_check(&p, &cal, &solve).unwrap().unwrap();
+        assert_eq!(check.design, HarmDesign::JointRegions, "{}", check.how);
+        assert!(check.folds.len() >= MIN_REGIONS, "{check:?}");
+        let families = error_families(&p, &cal);
+        assert!(!families.is_empty());
+        assert!(
+            families.iter().all(|f| f.name() != "robot 1 tool tips"),
+            "{families:?}"
+        );
     }
 }

@@ -175,7 +175,10 @@ pub use accuracy::{
 };
 pub use blunders::{fit_screened, RejectedRow, ScreenOptions, ScreenedFit};
 pub use calibrate::{calibrate_cell, calibrate_cell_with, widen_prior, CellCalibration};
-pub use cell::{CellFitError, CellRobot, Noise3, Tolerance, Tool, LUMPED_COMPLIANCE_TOLERANCE_RAD};
+pub use cell::{
+    CellFitError, CellRobot, Noise3, Tolerance, Tool, COINCIDENT_TIP_M,
+    LUMPED_COMPLIANCE_TOLERANCE_RAD,
+};
 pub use check::{
     coincident_pairs, fitted_rows_noise_scale, layout_shape, placement_distance,
     robust_noise_scale, robust_noise_scale_with_tolerances, CheckThresholds, LayoutShape,
@@ -234,11 +237,12 @@ pub use report::{
 pub use residuals::{AtEstimate, Evaluator, ObservationLinearisation, MIN_FACE_NORMAL_SUM};
 pub use solve::{fit_cell, fit_cell_with, CellFit, FittedParam, SolveOptions};
 pub use start::initial_estimate;
+pub(crate) use start::initial_estimate_at;
 pub use validate::{
     carry_nuisances, fit_nuisances, group_name, held_out_pieces, held_out_residuals, hold_cell,
     score_held_out, sub_problem, HeldOutResidual, NuisanceMode, HOLD_SIGMA, MIN_SPLIT_ROWS,
 };
 pub use withhold::{
-    check_margin, decide_families, error_families, largest_harmless, ErrorFamily, FamilyDecision,
-    FamilyKind, FamilyTrial, FamilyVerdict,
+    check_margin, decide_families, error_families, judge_full_model, largest_harmless, ErrorFamily,
+    FamilyDecision, FamilyKind, FamilyTrial, FamilyVerdict,
 };

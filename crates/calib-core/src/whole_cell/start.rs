@@ -18,9 +18,24 @@ pub fn initial_estimate(
     initial_b1_from_b2: Option<Isometry3<f64>>,
     active: &[usize],
 ) -> Result<CellEstimate, CellFitError> {
+    let at = CellEstimate::nominal(problem, Isometry3::identity());
+    initial_estimate_at(problem, at, initial_b1_from_b2, active)
+}
+
+/// [`initial_estimate`] with the robots of `at` (their corrections and tool tips, e.g. a
+/// training fit's held while a held-out piece's nuisances are refitted) in place of nominal:
+/// the starting frames and planes are registered on the tips `at` puts the tools at (a robot
+/// whose tools all start at one tip has one point per pose at nominal, which no piece of one
+/// pose can register). The result carries `at`'s robots.
+pub(crate) fn initial_estimate_at(
+    problem: &CellProblem,
+    at: CellEstimate,
+    initial_b1_from_b2: Option<Isometry3<f64>>,
+    active: &[usize],
+) -> Result<CellEstimate, CellFitError> {
     let layout = ParamLayout::new(problem, &[]);
     let ev = Evaluator::new(problem, &layout);
-    let mut est = CellEstimate::nominal(problem, Isometry3::identity());
+    let mut est = at;
     let x = match initial_b1_from_b2 {
         Some(x) => x,
         None => {

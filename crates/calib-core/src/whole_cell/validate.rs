@@ -19,8 +19,8 @@
 use nalgebra::DVector;
 
 use super::{
-    fit_cell_with, initial_estimate, CellEstimate, CellFitError, CellProblem, Evaluator, GroupKind,
-    Kind, ParamLayout, PlacementPrior, SolveOptions, Tolerance,
+    fit_cell_with, initial_estimate_at, CellEstimate, CellFitError, CellProblem, Evaluator,
+    GroupKind, Kind, ParamLayout, PlacementPrior, SolveOptions, Tolerance,
 };
 
 /// σ (m and rad) of the placement prior that holds the cell's placement while nuisances are
@@ -90,9 +90,11 @@ pub fn fit_nuisances(
 ) -> Result<CellEstimate, CellFitError> {
     let held = hold_cell(problem, cell.b1_from_b2);
     let layout = ParamLayout::new(&held, &[]);
-    let mut start = initial_estimate(&held, Some(cell.b1_from_b2), rows)?;
-    start.robot1 = cell.robot1.clone();
-    start.robot2 = cell.robot2.clone();
+    // The starting nuisances are registered on the held cell's tips, not nominal's.
+    let mut at = CellEstimate::nominal(&held, cell.b1_from_b2);
+    at.robot1 = cell.robot1.clone();
+    at.robot2 = cell.robot2.clone();
+    let start = initial_estimate_at(&held, at, Some(cell.b1_from_b2), rows)?;
     let fit = fit_cell_with(&held, layout, rows, Some(&start), options)?;
     let mut out = fit.estimate;
     // The prior holds the placement to σ HOLD_SIGMA; report the cell's own.

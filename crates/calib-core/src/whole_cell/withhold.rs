@@ -51,7 +51,7 @@
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::do_no_harm::{layout_without, HarmFolds};
+use super::do_no_harm::{has_checked_unknowns, layout_without, HarmFolds};
 use super::{CellCalibration, CellFitError, CellParam, CellProblem, SolveOptions, Tolerance};
 use super::{HarmCheck, HarmFold};
 use crate::Robot;
@@ -160,8 +160,10 @@ impl ErrorFamily {
                 without.tolerance = self.kind.withheld(&robot.tolerance);
                 robot.prior_sigma(*param) > 0.0 && without.prior_sigma(*param) == 0.0
             }
+            // Unknown tips (tools started at one tip) are the nominal reference's nuisances,
+            // not a family (`do_no_harm`'s module documentation).
             CellParam::ToolTip { robot: r, .. } if *r == self.robot => {
-                self.kind == FamilyKind::Tip && robot.tolerance.tip_m > 0.0
+                self.kind == FamilyKind::Tip && robot.tolerance.tip_m > 0.0 && !robot.tips_unknown()
             }
             _ => false,
         }
@@ -321,7 +323,32 @@ pub fn decide_families(
     cal: &CellCalibration,
     solve: &SolveOptions,
 ) -> Result<Option<FamilyDecision>, CellFitError> {
-    if cal.fit.layout.prior_sqrt_info.nrows() == 0 {
+    decide(problem, cal, solve, true)
+}
+
+/// Step 1 of the rule alone (the full model judged against nominal), every family kept: the
+/// decision when the full model is exported whatever the verdict (the CLI's `--force`), so
+/// the ranking and the nested models, which could only withhold, are not fitted. `None` as
+/// for [`decide_families`].
+///
+/// # Errors
+/// A training fit fails (too few rows for its unknowns, a model failure at an observation).
+pub fn judge_full_model(
+    problem: &CellProblem,
+    cal: &CellCalibration,
+    solve: &SolveOptions,
+) -> Result<Option<FamilyDecision>, CellFitError> {
+    decide(problem, cal, solve, false)
+}
+
+/// [`decide_families`], or with `rank` off [`judge_full_model`].
+fn decide(
+    problem: &CellProblem,
+    cal: &CellCalibration,
+    solve: &SolveOptions,
+    rank: bool,
+) -> Result<Option<FamilyDecision>, CellFitError> {
+    if !has_checked_unknowns(problem, cal) {
         return Ok(None);
     }
     let folds = HarmFolds::new(problem, cal, solve)?;
@@ -335,7 +362,7 @@ pub fn decide_families(
         harmful_without: None,
         harmful_in: Vec::new(),
     };
-    if !check.harmful() || families.is_empty() {
+    if !rank || !check.harmful() || families.is_empty() {
         return Ok(Some(FamilyDecision {
             check,
             families: families.into_iter().map(verdict).collect(),

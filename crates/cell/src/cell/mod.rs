@@ -445,6 +445,66 @@ fn mount_value(m: &Mount) -> toml::Value {
     }
 }
 
+/// The angle, degrees, between `mount`'s gravity direction and `up_base` (unit "up" in the
+/// base frame): for a wall (roll unknown), the angle of `up_base` out of the base's xy plane;
+/// otherwise the angle between the mount's up direction and `up_base`. A cell whose robot 2
+/// is more than [`MOUNT_TOLERANCE_DEG`] off its `b1_from_b2` is rejected.
+pub fn mount_mismatch_deg(mount: &Mount, up_base: &Vector3<f64>) -> f64 {
+    match mount.level_from_base() {
+        None => up_base.z.abs().min(1.0).asin().to_degrees(),
+        Some(level_from_base) => {
+            let expected: Vector3<f64> = level_from_base.inverse() * Vector3::z();
+            expected.angle(up_base).to_degrees()
+        }
+    }
+}
+
+/// The mount whose gravity direction is `up_base` (unit "up" in the base frame): floor,
+/// ceiling or wall when within [`MOUNT_TOLERANCE_DEG`] of one, else the tilt that gives it
+/// exactly.
+pub fn mount_of_up(up_base: &Vector3<f64>) -> Mount {
+    let tol = MOUNT_TOLERANCE_DEG.to_radians();
+    if up_base.z > tol.cos() {
+        Mount::Floor
+    } else if up_base.z < -tol.cos() {
+        Mount::Ceiling
+    } else if up_base.z.abs() < tol.sin() {
+        Mount::Wall
+    } else {
+        // level_from_base = Rx(rx)·Ry(ry) ⇒ up_base = (−cos rx·sin ry, sin rx, cos rx·cos ry).
+        Mount::Tilt {
+            rx: up_base.y.clamp(-1.0, 1.0).asin(),
+            ry: (-up_base.x).atan2(up_base.z),
+        }
+    }
+}
+
+/// When `b1_from_b2` (a fitted placement) puts robot 2's gravity direction more than
+/// [`MOUNT_TOLERANCE_DEG`] from its declared mount in `cell`: the mount that placement
+/// implies ([`mount_of_up`]) and a sentence saying so (the angle, both mounts, the likely
+/// causes). `None` when they agree, and for a one-robot cell.
+pub fn refitted_robot2_mount(cell: &Cell, b1_from_b2: &Isometry3<f64>) -> Option<(Mount, String)> {
+    if !cell.has_robot2() {
+        return None;
+    }
+    let up_b2 = -(b1_from_b2.rotation.inverse() * cell.robot1.g_base) / G;
+    let off_deg = mount_mismatch_deg(&cell.robot2.mount, &up_b2);
+    if off_deg <= MOUNT_TOLERANCE_DEG {
+        return None;
+    }
+    let implied = mount_of_up(&up_b2);
+    let note = format!(
+        "the fitted b1_from_b2 puts robot 2's up direction {off_deg:.2}° from its declared \
+         mount = {} (a cell file allows {MOUNT_TOLERANCE_DEG}°): the exported cell's robot 2 \
+         mount is {}, as the fitted placement implies (gravity follows the placement either \
+         way); check the mount, or whether errors the model lacks (e.g. gravity sag) pulled the \
+         placement",
+        mount_value(&cell.robot2.mount),
+        mount_value(&implied)
+    );
+    Some((implied, note))
+}
+
 /// The mount whose gravity direction matches `up_base` (unit "up" in the base frame), as text.
 fn mount_suggestion(up_base: &Vector3<f64>) -> String {
     let tol = MOUNT_TOLERANCE_DEG.to_radians();
@@ -1142,15 +1202,7 @@ fn parse(text: &str, base_dir: &Path, path: &Path, embedded: bool) -> Result<Cel
     robot1.g_base = level_from_b1.inverse() * g_level;
     robot2.g_base = b1_from_b2.rotation.inverse() * robot1.g_base;
     let up_b2 = -robot2.g_base / G;
-    let tol = MOUNT_TOLERANCE_DEG.to_radians();
-    let consistent = match robot2.mount.level_from_base() {
-        None => up_b2.z.abs() <= tol.sin(),
-        Some(level_from_b2) => {
-            let expected: Vector3<f64> = level_from_b2.inverse() * Vector3::z();
-            expected.angle(&up_b2) <= tol
-        }
-    };
-    if !consistent {
+    if mount_mismatch_deg(&robot2.mount, &up_b2) > MOUNT_TOLERANCE_DEG {
         return Err(ctx.err(format!(
             "`robot2.mount` = {} is impossible with [b1_from_b2] zyz_deg = {:?}: that placement puts robot 2's \
              up direction at ({:.3}, {:.3}, {:.3}) in its base frame; use mount = {} or change zyz_deg",
