@@ -296,6 +296,12 @@ pub fn messages(r: &DoNoHarmReport, model: CellModel, keep: &str) -> Vec<String>
             c.how
         )),
         HarmDesign::RowBlocks => out.push(format!("note: do no harm: folds are {}", c.how)),
+        HarmDesign::ReferenceNotFitted => out.push(format!(
+            "warning: do no harm: {}; the export writes the model as fitted, UNCHECKED against \
+             nominal (check the session's tracker groups and planes: each needs rows to register \
+             on in every region)",
+            c.how
+        )),
         _ => {}
     }
     if c.kept_in_training > 0 {

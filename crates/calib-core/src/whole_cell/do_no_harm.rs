@@ -50,7 +50,8 @@
 //! placement-only fit fits them too. A robot whose tools start at distinct tips keeps them at
 //! those values in the reference (a tip correction is judged like any other family). When the
 //! reference still cannot be fitted or scored on some fold, nothing is judged: the check is
-//! [`HarmDesign::NotChecked`] and its `how` says why (the export is not failed).
+//! [`HarmDesign::ReferenceNotFitted`] and its `how` says why (the export is not failed; the CLI
+//! and Python warn that it is unchecked).
 //!
 //! Cost: two fits per fold, at most `2 ·` [`crate::selection::regions::MAX_REGIONS`], and two
 //! nuisance-only fits per held-out group piece and model.
@@ -95,6 +96,9 @@ pub enum HarmDesign {
     RowBlocks,
     /// Too few held-out rows for two blocks: nothing was checked.
     NotChecked,
+    /// The nominal reference (the placement and nuisances alone) could not be fitted or scored
+    /// on some fold: nothing was judged, and the export is unchecked (the CLI warns).
+    ReferenceNotFitted,
 }
 
 /// One fold of the check: its held-out rows and the verdict.
@@ -308,7 +312,7 @@ impl HarmFolds {
                 // and the check says why instead of failing the export.
                 Err(e) => {
                     return Ok(Self {
-                        design: HarmDesign::NotChecked,
+                        design: HarmDesign::ReferenceNotFitted,
                         how: format!(
                             "not checked: the nominal model (the placement and nuisances alone) \
                              could not be fitted without {} {} or scored on it ({e})",
